@@ -1,0 +1,254 @@
+#!/usr/bin/env python3
+"""The sot-talos tutorial (``appli.py``) on TALOS in Drake.
+
+Both feet held (``contactRF``, ``contactLF``: gain 10, ``keep()``), the centre of mass held (gain
+10, desired = initial CoM), pushed in that order; at t = 1 s the right hand (``right-wrist`` moved
+by ``opmodif`` (0.1, 0, 0)) is pushed with ``gotoNd(taskRH, (0.5, -0.2, 1.0), '111',
+(4.9, 0.9, 0.01, 0.9))``. Kinematic simulation at 1 kHz with the basic ``SOT`` solver.
+
+    python diagrams/talos_appli.py --duration 8 --out out/appli
+
+writes ``recording.html`` (Meshcat), ``trace.npz``, ``plots.png``, ``control_graph.svg`` and
+``summary.json`` in the output directory.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import Meshcat
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Diagram, DiagramBuilder
+
+from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
+from sotdrake.robot import Robot, add_sot, talos
+from sotdrake.sequencer import attime
+from sotdrake.solvers import SOT
+from sotdrake.tracing import Tracer
+
+TARGET = (0.5, -0.2, 1.0)
+HAND_OFFSET = (0.1, 0.0, 0.0)
+
+
+@dataclass
+class Appli:
+    """Handles on the diagram's entities, named as in the seed."""
+
+    diagram: Diagram
+    robot: Robot
+    sot: SOT
+    taskRH: MetaTaskKine6d
+    taskCom: MetaTaskKineCom
+    contactLF: MetaTaskKine6d
+    contactRF: MetaTaskKine6d
+    tracer: Tracer
+    target: np.ndarray
+    visualizer: object = None
+
+
+def build_diagram(
+    meshcat: Meshcat | None = None,
+    target=TARGET,
+    push_time: float = 1.0,
+    dt: float = 1e-3,
+    variant: str = "reduced",
+) -> Appli:
+    """The tutorial's control graph; with ``meshcat``, TALOS and the target are drawn there."""
+    builder = DiagramBuilder()
+    robot = talos(builder, variant, dt)
+
+    # --- the right hand: MetaTaskKine6d at 'right-wrist' moved by handMgrip = (0.1, 0, 0)
+    taskRH = MetaTaskKine6d("rh", robot.dynamic, "rh", robot.OperationalPointsMap["right-wrist"])
+    handMgrip = np.eye(4)
+    handMgrip[0:3, 3] = HAND_OFFSET
+    taskRH.opmodif = handMgrip
+    taskRH.feature.frame("desired")
+
+    # --- static CoM
+    taskCom = MetaTaskKineCom(robot.dynamic)
+    taskCom.keep()  # seed: taskCom.featureDes.errorIN.value = robot.dynamic.com.value
+    taskCom.gain.setConstant(10)
+
+    # --- contacts
+    contactLF = MetaTaskKine6d("contactLF", robot.dynamic, "LF", robot.OperationalPointsMap["left-ankle"])
+    contactLF.feature.frame("desired")
+    contactLF.gain.setConstant(10)
+    contactLF.keep()
+    contactRF = MetaTaskKine6d("contactRF", robot.dynamic, "RF", robot.OperationalPointsMap["right-ankle"])
+    contactRF.feature.frame("desired")
+    contactRF.gain.setConstant(10)
+    contactRF.keep()
+
+    # --- the solver and the stack
+    sot = add_sot(robot, "sot")
+    # The grippers are not the SoT's to move (on TALOS they have their own controllers); left
+    # free, the CoM task would use their mass and push them past their upper limit, where both
+    # start.
+    sot.setControlSelection(robot.velocity_selection(excluding=["gripper_left_joint", "gripper_right_joint"]))
+    sot.push(contactRF.task.name)
+    sot.push(contactLF.task.name)
+    sot.push(taskCom.task.name)
+
+    # --- the hand: target set now, task pushed at push_time (the tutorial's "moving the hand")
+    gotoNd(taskRH, target, "111", (4.9, 0.9, 0.01, 0.9))
+    attime(push_time, lambda: sot.push(taskRH.task.name), "push taskrh: move the right hand")
+
+    # --- tracer: q at every tick, the task errors
+    tracer = Tracer(builder, dt)
+    tracer.add(robot.device.GetOutputPort("state"), "q")
+    for meta in (contactRF, contactLF, taskCom, taskRH):
+        tracer.add(meta.task.GetOutputPort("error_norm"), f"error_{meta.task.name}")
+
+    visualizer = None
+    if meshcat is not None:
+        from sotdrake.visualization import add_robot_visualizer, add_target_marker
+
+        visualizer = add_robot_visualizer(robot, meshcat)
+        add_target_marker(meshcat, "/target", target)
+        meshcat.SetCameraPose(camera_in_world=[1.35, -1.45, 1.35], target_in_world=[0.15, -0.12, 0.72])
+    diagram = builder.Build()
+    diagram.set_name("talos_appli")
+    return Appli(diagram, robot, sot, taskRH, taskCom, contactLF, contactRF, tracer,
+                 np.asarray(target, dtype=float), visualizer)
+
+
+def simulate(appli: Appli, duration: float, progress: bool = True) -> tuple[Simulator, float]:
+    """Run for ``duration`` seconds of simulated time; returns the simulator and the wall time."""
+    from tqdm import tqdm
+
+    simulator = Simulator(appli.diagram)
+    simulator.Initialize()
+    if appli.visualizer is not None:
+        appli.visualizer.StartRecording(False)
+    chunk = 0.05
+    steps = int(np.ceil(duration / chunk))
+    start = time.perf_counter()
+    with tqdm(total=round(duration, 6), unit="sim s", disable=not progress, file=sys.stderr,
+              bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} s [{elapsed}<{remaining}]") as bar:
+        for k in range(1, steps + 1):
+            t = min(k * chunk, duration)
+            simulator.AdvanceTo(t)
+            bar.update(t - bar.n)
+    return simulator, time.perf_counter() - start
+
+
+def summarize(appli: Appli, simulator: Simulator, duration: float, wall: float) -> tuple[dict, dict]:
+    """The summary numbers and the trace (with the hand, feet and CoM along the run)."""
+    context = simulator.get_context()
+    trace = appli.tracer.data(context)
+    robot, q0 = appli.robot, appli.robot.device.initial_position
+    qs = np.vstack([q0, trace["q"]])
+    path = robot.dynamic.trajectory(["rh", "LF", "RF"], qs)
+    hand = path["rh"][:, :3, :3] @ np.asarray(HAND_OFFSET) + path["rh"][:, :3, 3]
+    hand_error = np.linalg.norm(hand - appli.target, axis=1)
+    foot_drift = max(np.linalg.norm(path[f][:, :3, 3] - path[f][0, :3, 3], axis=1).max() for f in ("LF", "RF"))
+    foot_rotation_drift = max(
+        np.arccos(np.clip((np.einsum("kij,ij->k", path[f][:, :3, :3], path[f][0, :3, :3]) - 1) / 2, -1, 1)).max()
+        for f in ("LF", "RF")
+    )
+    com_drift = np.linalg.norm(path["com"] - path["com"][0], axis=1).max()
+    limits = robot.model.joint_limits()
+    lower, upper = limits["position_lower"], limits["position_upper"]
+    finite = np.isfinite(lower) & np.isfinite(upper)
+    margin = np.minimum(qs[:, finite] - lower[finite], upper[finite] - qs[:, finite]).min()
+    reached = np.flatnonzero(hand_error[1:] < 5e-3)
+    ticks = len(trace["time"])
+    summary = {
+        "hand_error_m": float(hand_error[-1]),
+        "hand_initial_error_m": float(hand_error[0]),
+        "hand_within_5mm_at_s": float(trace["time"][reached[0]]) if reached.size else None,
+        "max_foot_drift_m": float(foot_drift),
+        "max_foot_rotation_drift_rad": float(foot_rotation_drift),
+        "max_com_drift_m": float(com_drift),
+        "min_joint_limit_margin_rad": float(margin),
+        "final_stack": appli.sot.stack(context),
+        "final_level_residuals": appli.sot.GetOutputPort("residuals").Eval(appli.sot.GetMyContextFromRoot(context)).tolist(),
+        "target_m": appli.target.tolist(),
+        "duration_s": duration,
+        "dt_s": robot.dt,
+        "ticks": ticks,
+        "wall_s": wall,
+        "realtime_factor": duration / wall,
+        "tick_us_mean": 1e6 * wall / ticks,
+    }
+    trace.update(hand_position=hand[1:], com_position=path["com"][1:],
+                 left_ankle_position=path["LF"][1:, :3, 3], right_ankle_position=path["RF"][1:, :3, 3])
+    return summary, trace
+
+
+def plot(trace: dict, target: np.ndarray, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = trace["time"]
+    fig, axes = plt.subplots(3, 1, figsize=(8, 9), sharex=True)
+    axes[0].semilogy(t, np.linalg.norm(trace["hand_position"] - target, axis=1), label="hand to target")
+    for name in sorted(k for k in trace if k.startswith("error_")):
+        axes[0].semilogy(t, np.maximum(trace[name][:, 0], 1e-16), "--", label=f"‖e‖ {name[6:]}")
+    axes[0].axhline(5e-3, color="grey", lw=0.8, ls=":")
+    axes[0].set_ylabel("error (m or m+rad)")
+    axes[0].legend(fontsize=8)
+    axes[0].set_title("TALOS appli: task errors (hand pushed at t = 1 s)")
+    for i, axis in enumerate("xyz"):
+        axes[1].plot(t, trace["hand_position"][:, i], label=f"hand {axis}")
+        axes[1].axhline(target[i], color=f"C{i}", lw=0.8, ls=":")
+    axes[1].set_ylabel("hand position (m)")
+    axes[1].legend(fontsize=8)
+    for name in ("left_ankle_position", "right_ankle_position", "com_position"):
+        drift = np.linalg.norm(trace[name] - trace[name][0], axis=1)
+        axes[2].semilogy(t, np.maximum(drift, 1e-16), label=name.replace("_position", " drift"))
+    axes[2].set_ylabel("drift (m)")
+    axes[2].set_xlabel("time (s)")
+    axes[2].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--duration", type=float, default=8.0, help="simulated time (s)")
+    parser.add_argument("--out", type=Path, default=Path("out/appli"), help="output directory")
+    parser.add_argument("--no-meshcat", action="store_true", help="no recording (faster)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    if not args.duration > 0:
+        parser.error("--duration must be > 0")
+    logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
+    args.out.mkdir(parents=True, exist_ok=True)
+
+    meshcat = None
+    if not args.no_meshcat:
+        from pydrake.geometry import StartMeshcat
+
+        meshcat = StartMeshcat()
+    appli = build_diagram(meshcat)
+    simulator, wall = simulate(appli, args.duration, progress=not args.quiet)
+    summary, trace = summarize(appli, simulator, args.duration, wall)
+
+    from sotdrake.visualization import save_recording, write_control_graph
+
+    outputs = {"trace": args.out / "trace.npz", "plots": args.out / "plots.png"}
+    np.savez_compressed(outputs["trace"], **trace)
+    plot(trace, appli.target, outputs["plots"])
+    outputs["control_graph"] = write_control_graph(appli.diagram, args.out / "control_graph.svg")
+    if meshcat is not None:
+        outputs["recording"] = save_recording(appli.visualizer, meshcat, args.out / "recording.html")
+    summary["outputs"] = {k: str(v) for k, v in outputs.items()}
+    (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
+    return summary
+
+
+if __name__ == "__main__":
+    main()

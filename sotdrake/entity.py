@@ -1,0 +1,115 @@
+"""Base class of the SoT entities whose settings change at run time.
+
+An entity keeps its run-time settings (stack order, reference, gain coefficients, selection …) in
+one abstract state of its Drake ``Context``, never in Python attributes, so a simulation is
+reproducible, resettable and clonable. A command (``sot.push``, ``gain.setConstant`` …) changes
+them in one of three places:
+
+* ``context=`` the root diagram context (or the entity's own): that context only, e.g. between
+  ``Simulator.AdvanceTo`` calls;
+* no context, at build time: the entity's *defaults*, which every context created afterwards
+  starts from (contexts already created are not touched);
+* no context, inside :func:`sotdrake.sequencer.attime`: the command is recorded and replayed by a
+  timed event of this entity.
+
+A command builds the new settings on a copy and stores it only if it succeeded, so a rejected
+command leaves everything unchanged.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from typing import Any, Generic, TypeVar
+
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Context, LeafSystem
+
+S = TypeVar("S")
+
+#: Recorders of :func:`sotdrake.sequencer.attime`, innermost last.
+_recorders: list[list[tuple["Entity", Callable[[Any], None]]]] = []
+
+
+def own_context(system: LeafSystem, context: Context) -> Context:
+    """``system``'s context, given the root diagram context or its own."""
+    try:
+        system.ValidateContext(context)
+        return context
+    except RuntimeError:
+        return system.GetMyContextFromRoot(context)
+
+
+class _DefaultsSnapshot:
+    """Model value of the settings state: each copy Drake makes of it (for a new context or a
+    ``SetDefaultContext``) is a deep copy of the owner's defaults *at that moment*."""
+
+    def __init__(self, owner: "Entity"):
+        self.owner = owner
+
+    def __deepcopy__(self, memo):
+        if self.owner._declaring:
+            return _DefaultsSnapshot(self.owner)
+        return copy.deepcopy(self.owner._defaults, memo)
+
+
+class Entity(LeafSystem, Generic[S]):
+    """A ``LeafSystem`` named like its SoT entity, with run-time settings in its Context."""
+
+    def __init__(self, name: str, defaults: S):
+        LeafSystem.__init__(self)
+        self.set_name(name)
+        self._defaults = defaults
+        self._declaring = True
+        self._settings_index = self.DeclareAbstractState(AbstractValue.Make(_DefaultsSnapshot(self)))
+        self._declaring = False
+
+    @property
+    def name(self) -> str:
+        return self.get_name()
+
+    def own_context(self, context: Context) -> Context:
+        """This entity's context, given the root diagram context or its own."""
+        return own_context(self, context)
+
+    def settings(self, context: Context | None = None) -> S:
+        """The settings in ``context`` (a read-only view), or the defaults without one."""
+        if context is None:
+            return self._defaults
+        return self.own_context(context).get_abstract_state(self._settings_index).get_value()
+
+    def _settings_of(self, own_context: Context) -> S:
+        """Fast read for calc callbacks, which always receive this entity's own context."""
+        return own_context.get_abstract_state(self._settings_index).get_value()
+
+    def _command(self, context: Context | None, change: Callable[[S], None]) -> None:
+        if context is None and _recorders:
+            _recorders[-1].append((self, change))
+            return
+        if context is None:
+            new = copy.deepcopy(self._defaults)
+            change(new)
+            self._defaults = new
+            return
+        own = self.own_context(context)
+        new = copy.deepcopy(own.get_abstract_state(self._settings_index).get_value())
+        change(new)
+        own.get_mutable_abstract_state(self._settings_index).set_value(new)
+
+    def _declare_timed_change(self, time: float, changes: list[Callable[[S], None]]) -> None:
+        """A one-shot event at ``time`` that applies ``changes`` in order (see ``attime``)."""
+
+        def update(context, state):
+            value = state.get_mutable_abstract_state(self._settings_index)
+            new = copy.deepcopy(value.get_value())
+            for change in changes:
+                change(new)
+            value.set_value(new)
+
+        # A periodic event whose period outlasts any simulation is a one-shot event at `offset`.
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period_sec=1e12, offset_sec=time, update=update)
+
+
+def recording() -> bool:
+    """True while :func:`sotdrake.sequencer.attime` records commands."""
+    return bool(_recorders)

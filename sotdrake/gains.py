@@ -1,0 +1,107 @@
+"""Gains of sot-core: ``λ(e)``, a function of the error norm ``‖e‖``.
+
+``GainAdaptive``: ``λ(e) = a·exp(-b‖e‖) + c``, with ``λ(0) = a + c = λ0`` and ``λ(∞) = c = λ∞``:
+
+* ``setConstant(λ)``: ``a = 0, b = 0, c = λ``;
+* ``set(λ0, λ∞, slope)``: ``a = λ0 - λ∞``, ``b = slope / a``, ``c = λ∞``
+  (``slope = -dλ/d‖e‖`` at 0);
+* ``setByPoint(λ0, λ∞, e_ref, p)``: ``a = λ0 - λ∞``, ``c = λ∞``, ``b = -ln(p)/e_ref``: at
+  ``‖e‖ = e_ref`` the exponential part has decayed to ``p·a``.
+
+Units: λ in 1/s (the task asks ``ė* = -λ e``), ``‖e‖`` in the feature's units.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Context
+
+from .entity import Entity
+from .exceptions import InvalidInput
+
+
+@dataclass(frozen=True)
+class AdaptiveCoefficients:
+    a: float = 0.0
+    b: float = 0.0
+    c: float = 1.0
+
+    def __call__(self, error_norm: float) -> float:
+        return self.a * math.exp(-self.b * error_norm) + self.c
+
+
+def _finite(**values: float) -> None:
+    for name, value in values.items():
+        if not math.isfinite(value):
+            raise InvalidInput(f"gain {name} must be finite, got {value}")
+
+
+def constant(gain: float) -> AdaptiveCoefficients:
+    _finite(gain=gain)
+    if gain < 0:
+        raise InvalidInput(f"a gain must be ≥ 0, got {gain}")
+    return AdaptiveCoefficients(0.0, 0.0, float(gain))
+
+
+def from_slope(gain0: float, gain_inf: float, slope: float) -> AdaptiveCoefficients:
+    """sot-core ``GainAdaptive.set(λ0, λ∞, slope)``."""
+    _finite(gain0=gain0, gain_inf=gain_inf, slope=slope)
+    if gain_inf < 0 or gain0 < gain_inf or slope < 0:
+        raise InvalidInput(f"expected λ0 ≥ λ∞ ≥ 0 and slope ≥ 0, got ({gain0}, {gain_inf}, {slope})")
+    a = gain0 - gain_inf
+    return AdaptiveCoefficients(a, slope / a if a > 0 else 0.0, gain_inf)
+
+
+def from_point(gain0: float, gain_inf: float, error_ref: float, fraction: float) -> AdaptiveCoefficients:
+    """sot-core ``GainAdaptive.setByPoint(λ0, λ∞, e_ref, p)``."""
+    _finite(gain0=gain0, gain_inf=gain_inf, error_ref=error_ref, fraction=fraction)
+    if gain_inf < 0 or gain0 < gain_inf or error_ref <= 0 or not 0 < fraction < 1:
+        raise InvalidInput(
+            f"expected λ0 ≥ λ∞ ≥ 0, e_ref > 0, 0 < p < 1, got ({gain0}, {gain_inf}, {error_ref}, {fraction})"
+        )
+    return AdaptiveCoefficients(gain0 - gain_inf, -math.log(fraction) / error_ref, gain_inf)
+
+
+def from_numbers(numbers) -> AdaptiveCoefficients:
+    """``gotoNd``'s gain argument: 1 number (constant), 3 (``set``) or 4 (``setByPoint``)."""
+    values = [float(x) for x in (numbers if np.ndim(numbers) else [numbers])]
+    makers = {1: constant, 3: from_slope, 4: from_point}
+    if len(values) not in makers:
+        raise InvalidInput(f"a gain is given by 1, 3 or 4 numbers, got {len(values)}: {values}")
+    return makers[len(values)](*values)
+
+
+@dataclass
+class GainSettings:
+    coefficients: AdaptiveCoefficients
+
+
+class GainAdaptive(Entity[GainSettings]):
+    """Input ``error`` (any size); output ``gain`` = ``λ(‖error‖)`` (1-vector). Starts at λ = 1."""
+
+    def __init__(self, name: str):
+        Entity.__init__(self, name, GainSettings(constant(1.0)))
+        self.error = self.DeclareAbstractInputPort("error", AbstractValue.Make(np.zeros(0)))
+        self.DeclareVectorOutputPort(
+            "gain",
+            1,
+            lambda c, o: o.SetAtIndex(0, self._settings_of(c).coefficients(float(np.linalg.norm(self.error.Eval(c))))),
+        )
+
+    def setConstant(self, gain: float, context: Context | None = None) -> None:
+        self.setCoefficients(constant(gain), context)
+
+    def set(self, gain0: float, gain_inf: float, slope: float, context: Context | None = None) -> None:
+        self.setCoefficients(from_slope(gain0, gain_inf, slope), context)
+
+    def setByPoint(
+        self, gain0: float, gain_inf: float, error_ref: float, fraction: float, context: Context | None = None
+    ) -> None:
+        self.setCoefficients(from_point(gain0, gain_inf, error_ref, fraction), context)
+
+    def setCoefficients(self, coefficients: AdaptiveCoefficients, context: Context | None = None) -> None:
+        self._command(context, lambda s: setattr(s, "coefficients", coefficients))

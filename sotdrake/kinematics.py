@@ -1,0 +1,156 @@
+"""The SoT ``dynamic`` entity: operational points, their Jacobians, the centre of mass.
+
+All quantities are computed by Drake on the *control model* plant (no geometry), whose context
+lives in a cache entry that depends only on the ``position`` input, so forward kinematics runs
+once per configuration whatever the number of op points read.
+
+Conventions (Drake monogram notation): the pose output of op point F is ``X_WF``
+(``RigidTransform``); its Jacobian ``J_WF`` is the 6×nv spatial-velocity Jacobian with respect to
+the generalized velocities ``v``, rows ``(ω_WF; v_WF)`` expressed in the world frame, ``v_WF`` the
+velocity of F's origin. ``com`` is ``p_WCm`` (m) and ``Jcom`` its 3×nv Jacobian.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.multibody.tree import JacobianWrtVariable
+from pydrake.systems.framework import BasicVector, Context, LeafSystem, OutputPort, ValueProducer
+
+from .exceptions import InvalidInput, check_finite
+from .robots import RobotModel
+
+
+class _PlantContext:
+    """Holder of a plant context; a copy (for a cloned system context) gets a fresh one."""
+
+    def __init__(self, plant):
+        self.plant = plant
+        self.context = plant.CreateDefaultContext()
+
+    def __deepcopy__(self, memo):
+        return _PlantContext(self.plant)
+
+
+class Dynamic(LeafSystem):
+    """Kinematics of the control model: input ``position`` (q, size nq).
+
+    Outputs: ``com`` (3), ``Jcom`` (3×nv) and, for each op point created with
+    :meth:`createOpPoint`, ``<name>`` (``X_WF``) and ``J<name>`` (``J_WF``).
+    """
+
+    def __init__(self, model: RobotModel, name: str = "dynamic"):
+        LeafSystem.__init__(self)
+        self.set_name(name)
+        self.model = model
+        self.plant = model.plant
+        self._world = self.plant.world_frame()
+        self._position = self.DeclareVectorInputPort("position", model.nq)
+        self._plant_context = self.DeclareCacheEntry(
+            "plant_context",
+            ValueProducer(
+                allocate=lambda: AbstractValue.Make(_PlantContext(self.plant)),
+                calc=self._calc_plant_context,
+            ),
+            prerequisites_of_calc={self.input_port_ticket(self._position.get_index())},
+        )
+        self.DeclareVectorOutputPort("com", 3, self._calc_com)
+        self.DeclareAbstractOutputPort(
+            "Jcom", lambda: AbstractValue.Make(np.zeros((3, model.nv))), self._calc_com_jacobian
+        )
+        self._op_points: dict[str, tuple[object, RigidTransform]] = {}
+
+    # --- op points -------------------------------------------------------------------------
+    def createOpPoint(self, name: str, frame_name: str) -> tuple[OutputPort, OutputPort]:
+        """Declare the outputs ``name`` (pose) and ``J<name>`` (Jacobian) of the frame
+        ``frame_name`` (an op-point name like ``'right-wrist'``, a joint or a frame of the plant).
+
+        Creating the same op point twice returns the existing ports; another frame under the same
+        name is an error. Raises :class:`FrameNotFound` for an unknown frame.
+        """
+        frame = self.model.frame(frame_name)
+        if name in self._op_points:
+            if self._op_points[name][0] is not frame:
+                raise InvalidInput(f"op point {name!r} already exists on another frame")
+            return self.GetOutputPort(name), self.GetOutputPort("J" + name)
+        for port_name in (name, "J" + name):
+            if self.HasOutputPort(port_name):
+                raise InvalidInput(f"{self.get_name()} already has an output named {port_name!r}")
+        self._op_points[name] = (frame, frame_name)
+        pose = self.DeclareAbstractOutputPort(
+            name, lambda: AbstractValue.Make(RigidTransform()), lambda c, o: o.set_value(self._pose(c, frame))
+        )
+        jac = self.DeclareAbstractOutputPort(
+            "J" + name,
+            lambda: AbstractValue.Make(np.zeros((6, self.model.nv))),
+            lambda c, o: o.set_value(self._jacobian(c, frame)),
+        )
+        return pose, jac
+
+    def hasOpPoint(self, name: str) -> bool:
+        return name in self._op_points
+
+    # --- calc ------------------------------------------------------------------------------
+    def _calc_plant_context(self, context: Context, value: AbstractValue) -> None:
+        q = self._position.Eval(context)
+        if not np.all(np.isfinite(q)):  # Drake would abort the process
+            raise InvalidInput(f"{self.get_name()}: non-finite position at t = {context.get_time()}: {q}")
+        self.plant.SetPositions(value.get_mutable_value().context, q)
+
+    def _plant_ctx(self, context: Context):
+        return self._plant_context.Eval(context).context
+
+    def _pose(self, context: Context, frame) -> RigidTransform:
+        return self.plant.CalcRelativeTransform(self._plant_ctx(context), self._world, frame)
+
+    def _jacobian(self, context: Context, frame) -> np.ndarray:
+        return self.plant.CalcJacobianSpatialVelocity(
+            self._plant_ctx(context), JacobianWrtVariable.kV, frame, np.zeros(3), self._world, self._world
+        )
+
+    def _calc_com(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self.plant.CalcCenterOfMassPositionInWorld(self._plant_ctx(context)))
+
+    def _calc_com_jacobian(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(
+            self.plant.CalcJacobianCenterOfMassTranslationalVelocity(
+                self._plant_ctx(context), JacobianWrtVariable.kV, self._world, self._world
+            )
+        )
+
+    # --- evaluation at a given configuration (build time, tests, post-processing) ----------
+    def _context_at(self, q: np.ndarray):
+        q = check_finite("q", q, (self.model.nq,))
+        context = self.plant.CreateDefaultContext()
+        self.plant.SetPositions(context, q)
+        return context
+
+    def frame(self, name: str):
+        """The frame of one of this entity's op points, else :meth:`RobotModel.frame`."""
+        return self._op_points[name][0] if name in self._op_points else self.model.frame(name)
+
+    def pose_at(self, name: str, q: np.ndarray) -> RigidTransform:
+        """``X_WF`` of an op point of this entity, or of a frame, at configuration ``q``."""
+        return self.plant.CalcRelativeTransform(self._context_at(q), self._world, self.frame(name))
+
+    def trajectory(self, names: list[str], qs: np.ndarray) -> dict[str, np.ndarray]:
+        """Along configurations ``qs`` (k×nq): ``X_WF`` of each named op point or frame as a
+        (k, 4, 4) array, and ``'com'`` (k, 3). For post-processing traces."""
+        qs = check_finite("qs", qs)
+        if qs.ndim != 2 or qs.shape[1] != self.model.nq:
+            raise InvalidInput(f"qs: expected shape (k, {self.model.nq}), got {qs.shape}")
+        frames = {name: self.frame(name) for name in names}
+        out = {name: np.empty((len(qs), 4, 4)) for name in names}
+        out["com"] = np.empty((len(qs), 3))
+        context = self.plant.CreateDefaultContext()
+        for k, q in enumerate(qs):
+            self.plant.SetPositions(context, q)
+            for name, frame in frames.items():
+                out[name][k] = self.plant.CalcRelativeTransform(context, self._world, frame).GetAsMatrix4()
+            out["com"][k] = self.plant.CalcCenterOfMassPositionInWorld(context)
+        return out
+
+    def com_at(self, q: np.ndarray) -> np.ndarray:
+        """``p_WCm`` at configuration ``q``."""
+        return self.plant.CalcCenterOfMassPositionInWorld(self._context_at(q))

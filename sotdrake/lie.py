@@ -1,0 +1,110 @@
+"""SO(3) and SE(3) maths used by the features and the device.
+
+Conventions: rotation vectors ``φ = θ u`` (radians, axis ``u`` unit); ``hat(a) b = a × b``.
+``exp_so3(φ) = I + sin θ/θ [φ]× + (1 - cos θ)/θ² [φ]×²`` (Rodrigues), ``log_so3`` its inverse with
+θ ∈ [0, π]. For a rotation ``R(t)`` with body angular velocity ``ω`` (``Ṙ = R [ω]×``) and
+``φ = log(R)``: ``φ̇ = Jr⁻¹(φ) ω``, where the inverse right Jacobian is
+``Jr⁻¹(φ) = I + ½[φ]× + (1/θ² - (1 + cos θ)/(2θ sin θ)) [φ]×²``; the inverse left Jacobian is
+``Jl⁻¹(φ) = Jr⁻¹(-φ)`` (``φ̇ = Jl⁻¹(φ) ω_world`` for ``Ṙ = [ω_world]× R``).
+SE(3) twists are body twists ``ξ = (v, ω)``: ``X(t) = X0 · exp(t ξ)`` for a constant ``ξ``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_SMALL = 1e-8
+
+
+def hat(a: np.ndarray) -> np.ndarray:
+    """Skew-symmetric matrix ``[a]×`` such that ``hat(a) @ b == np.cross(a, b)``."""
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+def exp_so3(phi: np.ndarray) -> np.ndarray:
+    """Rotation matrix ``exp([φ]×)``."""
+    theta = float(np.linalg.norm(phi))
+    K = hat(phi)
+    if theta < _SMALL:
+        return np.eye(3) + K + 0.5 * K @ K
+    return np.eye(3) + (np.sin(theta) / theta) * K + ((1.0 - np.cos(theta)) / theta**2) * K @ K
+
+
+def log_so3(R: np.ndarray) -> np.ndarray:
+    """Rotation vector ``φ`` with ``exp_so3(φ) = R`` and ``|φ| ≤ π`` (robust near 0 and π)."""
+    cos_theta = np.clip(0.5 * (np.trace(R) - 1.0), -1.0, 1.0)
+    theta = float(np.arccos(cos_theta))
+    w = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if theta < 1e-6:
+        return w * (1.0 + theta**2 / 6.0)  # sin θ ≈ θ (1 - θ²/6)
+    if np.pi - theta > 1e-4:
+        return w * (theta / np.sin(theta))
+    # Near π: the axis from the symmetric part, R + Rᵀ = 2 cos θ I + 2 (1 - cos θ) u uᵀ.
+    B = 0.5 * (R + R.T) - cos_theta * np.eye(3)
+    k = int(np.argmax(np.diag(B)))
+    u = B[:, k] / np.sqrt(max(B[k, k] * (1.0 - cos_theta), 1e-300))
+    u /= np.linalg.norm(u)
+    if np.dot(u, w) < 0.0:
+        u = -u
+    return theta * u
+
+
+def _jacobian_coefficient(theta: float) -> float:
+    """``1/θ² - (1 + cos θ)/(2θ sin θ)``, with its series ``1/12 + θ²/720`` near 0."""
+    if theta < 1e-4:
+        return 1.0 / 12.0 + theta**2 / 720.0
+    return 1.0 / theta**2 - (1.0 + np.cos(theta)) / (2.0 * theta * np.sin(theta))
+
+
+def right_jacobian_inverse_so3(phi: np.ndarray) -> np.ndarray:
+    """``Jr⁻¹(φ)``: maps a body angular velocity to ``d/dt log(R)``."""
+    K = hat(phi)
+    return np.eye(3) + 0.5 * K + _jacobian_coefficient(float(np.linalg.norm(phi))) * K @ K
+
+
+def left_jacobian_inverse_so3(phi: np.ndarray) -> np.ndarray:
+    """``Jl⁻¹(φ) = Jr⁻¹(-φ)``: maps a world angular velocity to ``d/dt log(R)``."""
+    return right_jacobian_inverse_so3(-np.asarray(phi))
+
+
+def exp_se3(v: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """SE(3) exponential of the body twist ``(v, ω)``: returns ``(R, p)`` with
+    ``R = exp_so3(ω)`` and ``p = V(ω) v``, ``V = I + (1-cos θ)/θ² [ω]× + (θ - sin θ)/θ³ [ω]×²``.
+    """
+    theta = float(np.linalg.norm(omega))
+    K = hat(omega)
+    if theta < 1e-6:
+        V = np.eye(3) + 0.5 * K + K @ K / 6.0
+    else:
+        V = (
+            np.eye(3)
+            + ((1.0 - np.cos(theta)) / theta**2) * K
+            + ((theta - np.sin(theta)) / theta**3) * K @ K
+        )
+    return exp_so3(omega), V @ v
+
+
+def quaternion_wxyz_to_rotation(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of the unit quaternion ``(w, x, y, z)`` (Drake's floating-base order)."""
+    w, x, y, z = q / np.linalg.norm(q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def quaternion_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a ⊗ b`` of quaternions ``(w, x, y, z)``."""
+    aw, av, bw, bv = a[0], a[1:], b[0], b[1:]
+    return np.concatenate([[aw * bw - av @ bv], aw * bv + bw * av + np.cross(av, bv)])
+
+
+def quaternion_exp(phi: np.ndarray) -> np.ndarray:
+    """Unit quaternion ``(cos θ/2, sin θ/2 · u)`` of the rotation vector ``φ = θ u``."""
+    theta = float(np.linalg.norm(phi))
+    if theta < 1e-8:
+        return np.concatenate([[1.0 - theta**2 / 8], 0.5 * phi])
+    return np.concatenate([[np.cos(theta / 2)], (np.sin(theta / 2) / theta) * phi])

@@ -1,0 +1,105 @@
+"""The SoT ``robot`` object: a robot's ``dynamic`` and ``device`` in a ``DiagramBuilder``.
+
+As in sot-talos (``robot = Robot('robot')``), creating it adds and plugs the kinematics entity
+(``robot.dynamic``) and the kinematic device (``robot.device``: ``device.state → dynamic.position``).
+It also keeps the build-time pool of the diagram's tasks and solvers, so that every task is
+connected to every solver whichever is created first: ``sot.push(name)`` then only changes the
+stack order, a run-time setting held in the Context.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+
+from .device import Device
+from .exceptions import InvalidInput, NotFound
+from .kinematics import Dynamic
+from .robots import RobotModel, load_talos
+from .solvers import SOT
+from .task import Task
+
+
+class Robot:
+    def __init__(
+        self,
+        builder: DiagramBuilder,
+        model: RobotModel,
+        dt: float = 1e-3,
+        q0: np.ndarray | None = None,
+    ):
+        self.builder = builder
+        self.model = model
+        self.OperationalPointsMap = model.OperationalPointsMap
+        self.tasks: dict[str, Task] = {}
+        self.solver: SOT | None = None
+        self._names: set[str] = set()
+        self.dynamic = self.add(Dynamic(model, "dynamic"))
+        self.dynamic.robot = self
+        self.device = self.add(Device(model.plant, dt, model.half_sitting if q0 is None else q0, "device"))
+        builder.Connect(self.device.GetOutputPort("state"), self.dynamic.GetInputPort("position"))
+
+    @property
+    def dimension(self) -> int:
+        """Size of the solver's variable (nv), sot-core's ``robot.dynamic.getDimension()``."""
+        return self.model.nv
+
+    @property
+    def dt(self) -> float:
+        return self.device.dt
+
+    def velocity_selection(self, excluding: list[str] = ()) -> np.ndarray:
+        """nv booleans, False on the velocities of the joints named in ``excluding``."""
+        plant = self.model.plant
+        mask = np.ones(self.dimension, dtype=bool)
+        for name in excluding:
+            if not plant.HasJointNamed(name):
+                joints = [plant.get_joint(j).name() for j in plant.GetJointIndices()]
+                raise NotFound(name, joints)
+            joint = plant.GetJointByName(name)
+            mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
+        return mask
+
+    def add(self, system: LeafSystem) -> LeafSystem:
+        """Add ``system`` to the builder under its own name, which must be new."""
+        name = system.get_name()
+        if name in self._names:
+            raise InvalidInput(f"an entity named {name!r} already exists")
+        self._names.add(name)
+        return self.builder.AddNamedSystem(name, system)
+
+    def add_task(self, task: Task) -> Task:
+        """Add a task and connect it to the solver (now, or when the solver is created)."""
+        self.add(task)
+        self.tasks[task.name] = task
+        if self.solver is not None:
+            self.builder.Connect(task.GetOutputPort("task"), self.solver.declare_task_input(task))
+        return task
+
+    def add_solver(self, solver: SOT) -> SOT:
+        """Add the solver, plug ``solver.control → device.control`` and connect every task."""
+        if self.solver is not None:
+            raise InvalidInput(f"{self.solver.name} already drives the device")
+        self.add(solver)
+        self.solver = solver
+        self.builder.Connect(solver.GetOutputPort("control"), self.device.GetInputPort("control"))
+        for task in self.tasks.values():
+            self.builder.Connect(task.GetOutputPort("task"), solver.declare_task_input(task))
+        return solver
+
+
+def robot_of(dynamic: Dynamic) -> Robot:
+    robot = getattr(dynamic, "robot", None)
+    if robot is None:
+        raise InvalidInput("the dynamic entity must be the one of a sotdrake.Robot (robot.dynamic)")
+    return robot
+
+
+def talos(builder: DiagramBuilder, variant: str = "reduced", dt: float = 1e-3) -> Robot:
+    """TALOS (``variant`` of :data:`sotdrake.robots.VARIANTS`) in half-sitting, at ``dt`` seconds."""
+    return Robot(builder, load_talos(variant), dt)
+
+
+def add_sot(robot: Robot, name: str = "sot", svd_threshold: float = 1e-4, damping: float = 0.0) -> SOT:
+    """sot-core's ``sot = SOT('sot'); sot.setSize(...); plug(sot.control, robot.device.control)``."""
+    return robot.add_solver(SOT(name, robot.dimension, svd_threshold, damping))

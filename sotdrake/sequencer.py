@@ -1,0 +1,51 @@
+"""The seed's hand-made sequencer: ``attime(T, command, description)``.
+
+``attime(1.0, lambda: sot.push(taskRH.task.name), "push RH")`` (or the seed's tuple form
+``attime(T, (lambda: ..., "description"))``) runs ``command`` once at build time *in recording
+mode*: every entity command it issues without a context is recorded instead of applied. Each entity
+touched gets a timed event at ``T`` that replays its commands on the state of the context being
+simulated, so the sequence is part of the diagram: a reset or cloned context replays it exactly.
+Call it before creating the simulator's context.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+from typing import NamedTuple
+
+from .entity import Entity, _recorders
+from .exceptions import InvalidInput, SotError
+
+log = logging.getLogger("sotdrake.sequencer")
+
+
+class TimedCommand(NamedTuple):
+    time: float
+    description: str
+    entities: tuple[str, ...]
+
+
+def attime(time: float, command: Callable[[], object] | tuple, description: str = "") -> TimedCommand:
+    """Schedule ``command`` (entity commands without a context) at simulated time ``time`` (s)."""
+    if isinstance(command, tuple):
+        command, description = command
+    if not (isinstance(time, (int, float)) and math.isfinite(time) and time >= 0):
+        raise InvalidInput(f"attime: the time must be finite and ≥ 0, got {time!r}")
+    recorded: list = []
+    _recorders.append(recorded)
+    try:
+        command()
+    finally:
+        _recorders.pop()
+    if not recorded:
+        raise SotError(f"attime({time}, {description!r}): the command issued no entity command")
+    by_entity: dict[Entity, list] = {}
+    for entity, change in recorded:
+        by_entity.setdefault(entity, []).append(change)
+    for entity, changes in by_entity.items():
+        if description:
+            changes = [*changes, lambda _s, d=description, t=time: log.info("t = %.3f s: %s", t, d)]
+        entity._declare_timed_change(float(time), changes)
+    return TimedCommand(float(time), description, tuple(e.name for e in by_entity))

@@ -1,0 +1,150 @@
+"""The ``SOT`` entity: the stack of tasks and the basic cascade solver around it.
+
+Input ports: one per task known to the solver, named after the task, carrying its
+:class:`~sotdrake.task.TaskLevel`. Only the tasks in the stack are evaluated. The stack (task names,
+highest priority first), the SVD threshold and the damping are the entity's settings, held in the
+Context (see :mod:`sotdrake.entity`); ``push`` appends at the lowest priority, as in sot-core.
+
+Outputs: ``control`` (``v``, size nv, Drake generalized velocities) and ``residuals`` (per level,
+``‖J_i v - ė_i*‖``). An empty stack gives ``v = 0``: the robot holds still.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Context, InputPort, ValueProducer
+
+from ..entity import Entity
+from ..exceptions import InvalidInput, SolverError, StackError, TaskNotFound
+from ..task import Task, TaskLevel
+from .cascade import CascadeResult, solve_cascade
+
+
+@dataclass
+class StackSettings:
+    tasks: list[str] = field(default_factory=list)
+    svd_threshold: float = 1e-4
+    damping: float = 0.0
+    control_selection: np.ndarray | None = None  # nv booleans; None: every component
+
+
+class SOT(Entity[StackSettings]):
+    """Strict-priority kinematic solver (sot-core ``SOT``)."""
+
+    def __init__(self, name: str, nv: int, svd_threshold: float = 1e-4, damping: float = 0.0):
+        Entity.__init__(self, name, StackSettings())
+        self.nv = nv
+        self.setThreshold(svd_threshold)
+        self.setDamping(damping)
+        self._task_ports: dict[str, InputPort] = {}
+        empty = CascadeResult(np.zeros(nv), np.zeros(0), np.zeros(0, dtype=int))
+        self._solution = self.DeclareCacheEntry(
+            "solution",
+            ValueProducer(allocate=lambda: AbstractValue.Make(empty), calc=self._calc),
+            prerequisites_of_calc={self.all_sources_ticket()},
+        )
+        self.DeclareVectorOutputPort("control", nv, lambda c, o: o.SetFromVector(self._solution.Eval(c).velocity))
+        self.DeclareAbstractOutputPort(
+            "residuals", lambda: AbstractValue.Make(np.zeros(0)), lambda c, o: o.set_value(self._solution.Eval(c).residuals)
+        )
+
+    # --- wiring (build time) ---------------------------------------------------------------
+    def declare_task_input(self, task: Task) -> InputPort:
+        """The input port for ``task`` (created once); connect ``task.task`` to it."""
+        if task.nv != self.nv:
+            raise InvalidInput(f"task {task.name} has nv = {task.nv}, solver {self.name} has nv = {self.nv}")
+        if task.name not in self._task_ports:
+            self._task_ports[task.name] = self.DeclareAbstractInputPort(
+                task.name, AbstractValue.Make(TaskLevel(np.zeros((0, self.nv)), np.zeros(0), np.zeros(0)))
+            )
+        return self._task_ports[task.name]
+
+    @property
+    def known_tasks(self) -> list[str]:
+        return list(self._task_ports)
+
+    def _known(self, name: str) -> str:
+        if name not in self._task_ports:
+            raise TaskNotFound(name, self._task_ports)
+        return name
+
+    # --- stack commands (sot-core names) ---------------------------------------------------
+    def push(self, name: str, context: Context | None = None) -> None:
+        """Append ``name`` at the bottom (lowest priority) of the stack."""
+        self._known(name)
+
+        def change(s: StackSettings) -> None:
+            if name in s.tasks:
+                raise StackError(f"{self.name}.push: {name!r} is already in the stack {s.tasks}")
+            s.tasks.append(name)
+
+        self._command(context, change)
+
+    def pop(self, context: Context | None = None) -> None:
+        """Remove the lowest-priority task."""
+
+        def change(s: StackSettings) -> None:
+            if not s.tasks:
+                raise StackError(f"{self.name}.pop: the stack is empty")
+            s.tasks.pop()
+
+        self._command(context, change)
+
+    def remove(self, name: str, context: Context | None = None) -> None:
+        """Remove ``name`` from the stack."""
+        self._known(name)
+
+        def change(s: StackSettings) -> None:
+            if name not in s.tasks:
+                raise StackError(f"{self.name}.remove: {name!r} is not in the stack {s.tasks}")
+            s.tasks.remove(name)
+
+        self._command(context, change)
+
+    def clear(self, context: Context | None = None) -> None:
+        """Empty the stack."""
+        self._command(context, lambda s: s.tasks.clear())
+
+    def stack(self, context: Context | None = None) -> list[str]:
+        """Task names, highest priority first."""
+        return list(self.settings(context).tasks)
+
+    def setThreshold(self, svd_threshold: float, context: Context | None = None) -> None:
+        """Singular values of ``J_i P_{i-1}`` at or below this are treated as zero (rank)."""
+        if not np.isfinite(svd_threshold) or svd_threshold < 0:
+            raise InvalidInput(f"svd_threshold must be finite and ≥ 0, got {svd_threshold}")
+        self._command(context, lambda s: setattr(s, "svd_threshold", float(svd_threshold)))
+
+    def setDamping(self, damping: float, context: Context | None = None) -> None:
+        """True damping δ (``min ‖A x - r‖² + δ‖x‖²`` at each level); 0 for the pseudo-inverse."""
+        if not np.isfinite(damping) or damping < 0:
+            raise InvalidInput(f"damping must be finite and ≥ 0, got {damping}")
+        self._command(context, lambda s: setattr(s, "damping", float(damping)))
+
+    def setControlSelection(self, selection, context: Context | None = None) -> None:
+        """Velocity components the solver may use (sot-core ``controlSelec``): nv booleans, or
+        ``None`` for all. See :meth:`sotdrake.robot.Robot.velocity_selection`."""
+        mask = None
+        if selection is not None:
+            mask = np.asarray(selection)
+            if mask.dtype != bool or mask.shape != (self.nv,):
+                raise InvalidInput(f"control selection: expected {self.nv} booleans, got {mask.dtype} {mask.shape}")
+            mask = mask.copy()
+        self._command(context, lambda s: setattr(s, "control_selection", mask))
+
+    # --- solve -----------------------------------------------------------------------------
+    def _calc(self, context: Context, value: AbstractValue) -> None:
+        s = self._settings_of(context)
+        levels = []
+        for name in s.tasks:
+            level = self._task_ports[name].Eval(context)
+            J, r = level.jacobian, level.reference
+            if J.ndim != 2 or J.shape[1] != self.nv or r.shape != (J.shape[0],):
+                raise SolverError(f"task {name}: jacobian {J.shape} and reference {r.shape} do not fit nv = {self.nv}")
+            if not (np.all(np.isfinite(J)) and np.all(np.isfinite(r))):
+                raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")
+            levels.append((J, r))
+        value.set_value(solve_cascade(levels, self.nv, s.svd_threshold, s.damping, s.control_selection))

@@ -1,0 +1,68 @@
+"""Drake Meshcat for a SoT diagram, standalone HTML recordings, and the control graph picture.
+
+The kinematic diagram has no simulated plant: the device's ``q`` is turned into geometry poses by
+Drake's ``MultibodyPositionToGeometryPose`` over a meshed copy of the robot, and drawn by
+``MeshcatVisualizer``.
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Rgba, Sphere
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import Diagram
+from pydrake.systems.rendering import MultibodyPositionToGeometryPose
+
+from .robot import Robot
+
+log = logging.getLogger("sotdrake.visualization")
+
+
+def add_robot_visualizer(robot: Robot, meshcat: Meshcat, publish_period: float = 1 / 60) -> MeshcatVisualizer:
+    """Draw ``robot.device.state`` in ``meshcat`` (illustration geometry, OBJ meshes)."""
+    builder = robot.builder
+    visual = robot.model.with_meshes()
+    scene_graph = builder.AddNamedSystem("scene_graph", visual.scene_graph)
+    to_pose = builder.AddNamedSystem("robot_pose", MultibodyPositionToGeometryPose(visual.plant))
+    to_pose.visual_model = visual  # keeps the plant alive as long as the system
+    builder.Connect(robot.device.GetOutputPort("state"), to_pose.get_input_port())
+    builder.Connect(to_pose.get_output_port(), scene_graph.get_source_pose_port(visual.plant.get_source_id()))
+    params = MeshcatVisualizerParams(publish_period=publish_period)
+    return MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, params)
+
+
+def add_target_marker(meshcat: Meshcat, path: str, position, radius: float = 0.025,
+                      rgba: Rgba = Rgba(0.9, 0.15, 0.1, 0.8)) -> None:
+    """A sphere at ``position`` (world frame, m)."""
+    meshcat.SetObject(path, Sphere(radius), rgba)
+    meshcat.SetTransform(path, RigidTransform(np.asarray(position, dtype=float)))
+
+
+def save_recording(visualizer: MeshcatVisualizer, meshcat: Meshcat, path: Path) -> Path:
+    """Stop the recording, publish it and write Meshcat's standalone HTML to ``path``."""
+    visualizer.StopRecording()
+    visualizer.PublishRecording()
+    path = Path(path)
+    path.write_text(meshcat.StaticHtml())
+    return path
+
+
+def write_control_graph(diagram: Diagram, path: Path) -> Path:
+    """Drake's GraphViz of ``diagram`` (one level deep) as ``path`` (.svg), rendered by Graphviz's
+    ``dot``; the ``.dot`` source is always written beside it. Without ``dot`` on the PATH only the
+    source is written and a warning says how to get the SVG."""
+    path = Path(path)
+    source = path.with_suffix(".dot")
+    source.write_text(diagram.GetGraphvizString(max_depth=1))
+    dot = shutil.which("dot")
+    if dot is None:
+        log.warning("Graphviz 'dot' not found: wrote %s only (install graphviz, e.g. `apt-get install "
+                    "graphviz`, for %s)", source, path.name)
+        return source
+    subprocess.run([dot, "-Tsvg", str(source), "-o", str(path)], check=True)
+    return path

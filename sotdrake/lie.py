@@ -98,8 +98,14 @@ def quaternion_wxyz_to_rotation(q: np.ndarray) -> np.ndarray:
 
 def quaternion_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product ``a ⊗ b`` of quaternions ``(w, x, y, z)``."""
-    aw, av, bw, bv = a[0], a[1:], b[0], b[1:]
-    return np.concatenate([[aw * bw - av @ bv], aw * bv + bw * av + np.cross(av, bv)])
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return np.array([
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ])
 
 
 def quaternion_exp(phi: np.ndarray) -> np.ndarray:

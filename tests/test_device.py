@@ -1,6 +1,7 @@
 """The device integrates on SE(3) × R^n, consistently with Drake's velocity convention."""
 
 import numpy as np
+import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
@@ -65,3 +66,23 @@ def test_constant_velocity_for_two_seconds(talos_model, rng):
     # Not the naive R³ × SO(3) flow of a constant world velocity: the test can tell them apart.
     assert np.linalg.norm(q[4:7] - (q0[4:7] + 2.0 * X0[:3, :3] @ v_B)) > 1e-2
     assert np.allclose(exp_so3(np.zeros(3)), np.eye(3))
+
+
+def test_device_never_clamps_and_reports_a_limit_crossing(talos_model, caplog):
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantVectorSource
+
+    joint = talos_model.plant.GetJointByName("gripper_right_joint")  # starts on its upper limit 0
+    v = np.zeros(talos_model.nv)
+    v[joint.velocity_start()] = 0.5
+    builder = DiagramBuilder()
+    device = builder.AddSystem(Device(talos_model.plant, 1e-3, talos_model.half_sitting))
+    source = builder.AddSystem(ConstantVectorSource(v))
+    builder.Connect(source.get_output_port(), device.GetInputPort("control"))
+    simulator = Simulator(builder.Build())
+    with caplog.at_level("WARNING", logger="sotdrake.device"):
+        simulator.AdvanceTo(0.0105)
+    q = device.position(simulator.get_context())
+    assert q[joint.position_start()] == pytest.approx(0.5 * 11e-3)  # integrated, not clamped
+    crossings = [r for r in caplog.records if "gripper_right_joint" in r.getMessage()]
+    assert len(crossings) == 1  # reported once, when it crossed

@@ -64,3 +64,16 @@ def test_mesh_cache_converts_once(tmp_path, monkeypatch):
     stamp = obj.stat().st_mtime_ns
     assert obj_for_stl(stl) == obj and obj.stat().st_mtime_ns == stamp
     assert not list(obj.parent.glob("*.tmp"))
+
+
+def test_missing_robot_package_is_a_clear_error(monkeypatch):
+    import importlib.metadata
+
+    from sotdrake.exceptions import SotError
+
+    def missing(name):
+        raise importlib.metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(importlib.metadata, "distribution", missing)
+    with pytest.raises(SotError, match="pip install example-robot-data"):
+        load_talos("reduced")

@@ -48,11 +48,13 @@ def solve_cascade(
     v = np.zeros(nv)
     Z = np.eye(nv) if control_selection is None else np.eye(nv)[:, control_selection]
     ranks = np.zeros(len(levels), dtype=int)
+    last = len(levels) - 1
     for i, (J, reference) in enumerate(levels):
         if Z.shape[1] == 0:
             continue
         A = J @ Z
-        U, sigma, Vt = np.linalg.svd(A, full_matrices=True)
+        # The last level needs no null space: the thin SVD is enough (and cheaper).
+        U, sigma, Vt = np.linalg.svd(A, full_matrices=i < last)
         rank = int(np.count_nonzero(sigma > svd_threshold))
         ranks[i] = rank
         if rank:

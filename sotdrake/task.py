@@ -1,43 +1,67 @@
-"""SoT ``Task``: the reference behaviour ``ė* = -λ(e)·e`` of one feature.
+"""SoT tasks: the reference behaviour of one feature, as rows ``lower ≤ J v ≤ upper`` for a solver.
+
+* ``Task``: ``ė* = -λ(e)·e``, an equality (``lower = upper = ė*``).
+* ``TaskInequality`` (sot-dyninv): bounds ``e_min ≤ e ≤ e_max`` on the feature's error, as velocity
+  rows ``λ(e_min - e) ≤ J v ≤ λ(e_max - e)``: the error may approach a bound at most exponentially
+  with rate λ, and is driven back at that rate when outside. Only solvers that take inequalities
+  (``SolverKine``) accept it; the basic ``SOT`` refuses it at ``push``.
 
 Inputs ``error`` (``e``), ``jacobian`` (``J = ∂e/∂v``) and ``controlGain`` (``λ``, 1/s). Outputs
-``task``, a :class:`TaskLevel` (``J``, ``ė*``) for the solvers, and ``error_norm`` (``‖e‖``, for
-tracing).
+``task``, a :class:`TaskLevel` for the solvers, and ``error_norm`` (``‖e‖``, for tracing).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem, ValueProducer
 
+from .entity import Entity
+from .exceptions import InvalidInput, check_finite
+
 
 class TaskLevel(NamedTuple):
-    """What a solver needs of a task: rows ``J v = ė*``."""
+    """What a solver needs of a task: rows ``lower ≤ J v ≤ upper`` (equal for an equality task)."""
 
     jacobian: np.ndarray
-    reference: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
     error: np.ndarray
 
+    @property
+    def is_equality(self) -> bool:
+        return self.lower is self.upper or np.array_equal(self.lower, self.upper)
 
-class Task(LeafSystem):
-    def __init__(self, name: str, nv: int):
-        LeafSystem.__init__(self)
-        self.set_name(name)
+    @property
+    def reference(self) -> np.ndarray:
+        """``ė*`` of an equality task."""
+        return self.lower
+
+
+def _empty(nv: int) -> TaskLevel:
+    return TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
+
+
+class _TaskBase:
+    """Ports shared by the task kinds; ``_rows(context, e, gain)`` gives ``(lower, upper)``."""
+
+    is_inequality = False
+
+    def _declare_ports(self, nv: int) -> None:
         self.nv = nv
         self.error = self.DeclareAbstractInputPort("error", AbstractValue.Make(np.zeros(0)))
         self.jacobian = self.DeclareAbstractInputPort("jacobian", AbstractValue.Make(np.zeros((0, nv))))
         self.controlGain = self.DeclareVectorInputPort("controlGain", 1)
-        empty = TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0))
         self._level = self.DeclareCacheEntry(
             "level",
-            ValueProducer(allocate=lambda: AbstractValue.Make(empty), calc=self._calc),
+            ValueProducer(allocate=lambda: AbstractValue.Make(_empty(nv)), calc=self._calc),
             prerequisites_of_calc={self.all_sources_ticket()},
         )
         self.DeclareAbstractOutputPort(
-            "task", lambda: AbstractValue.Make(empty), lambda c, o: o.set_value(self._level.Eval(c))
+            "task", lambda: AbstractValue.Make(_empty(nv)), lambda c, o: o.set_value(self._level.Eval(c))
         )
         self.DeclareVectorOutputPort(
             "error_norm", 1, lambda c, o: o.SetAtIndex(0, np.linalg.norm(self._level.Eval(c).error))
@@ -49,5 +73,54 @@ class Task(LeafSystem):
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         e = self.error.Eval(context)
-        gain = self.controlGain.Eval(context)[0]
-        value.set_value(TaskLevel(self.jacobian.Eval(context), -gain * e, e))
+        lower, upper = self._rows(context, e, self.controlGain.Eval(context)[0])
+        value.set_value(TaskLevel(self.jacobian.Eval(context), lower, upper, e))
+
+
+class Task(_TaskBase, LeafSystem):
+    """Equality task ``J v = -λ(e)·e``."""
+
+    def __init__(self, name: str, nv: int):
+        LeafSystem.__init__(self)
+        self.set_name(name)
+        self._declare_ports(nv)
+
+    def _rows(self, context, e, gain):
+        reference = -gain * e
+        return reference, reference
+
+
+@dataclass
+class InequalityBounds:
+    lower: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    upper: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+
+class TaskInequality(_TaskBase, Entity[InequalityBounds]):
+    """Inequality task ``e_min ≤ e ≤ e_max`` (see the module docstring). Bounds are settings:
+    ``setBounds(lower, upper)``, ±inf for a free side."""
+
+    is_inequality = True
+
+    def __init__(self, name: str, nv: int, dimension: int):
+        Entity.__init__(self, name, InequalityBounds(np.full(dimension, -np.inf), np.full(dimension, np.inf)))
+        self.dimension = dimension
+        self._declare_ports(nv)
+
+    def setBounds(self, lower, upper, context: Context | None = None) -> None:
+        lower = np.asarray(lower, dtype=float).reshape(-1)
+        upper = np.asarray(upper, dtype=float).reshape(-1)
+        for what, bound in (("lower", lower), ("upper", upper)):
+            if bound.shape != (self.dimension,) or np.any(np.isnan(bound)):
+                raise InvalidInput(f"{self.name}: {what} bound must be {self.dimension} numbers (±inf allowed, no NaN)")
+        if np.any(lower > upper):
+            raise InvalidInput(f"{self.name}: lower bound above upper bound: {lower} > {upper}")
+        self._command(context, lambda s: (setattr(s, "lower", lower.copy()), setattr(s, "upper", upper.copy())))
+
+    def _rows(self, context, e, gain):
+        s = self._settings_of(context)
+        if e.shape != s.lower.shape:
+            raise InvalidInput(f"{self.name}: error has {e.size} rows, bounds have {s.lower.size}")
+        check_finite(f"{self.name}.controlGain", gain)
+        with np.errstate(invalid="ignore"):  # ±inf bounds stay ±inf
+            return gain * (s.lower - e), gain * (s.upper - e)

@@ -102,10 +102,10 @@ def test_non_finite_task_is_reported_with_its_name(talos_model):
     sot.push("taskbad")
     context = sot.CreateDefaultContext()
     J = np.ones((2, talos_model.nv))
-    port.FixValue(context, TaskLevel(J, np.array([1.0, np.nan]), np.zeros(2)))
+    port.FixValue(context, TaskLevel(J, np.array([1.0, np.nan]), np.array([1.0, np.nan]), np.zeros(2)))
     with pytest.raises(SolverError, match="taskbad"):
         sot.GetOutputPort("control").Eval(context)
-    port.FixValue(context, TaskLevel(J[:, :3], np.ones(2), np.zeros(2)))
+    port.FixValue(context, TaskLevel(J[:, :3], np.ones(2), np.ones(2), np.zeros(2)))
     with pytest.raises(SolverError, match="taskbad"):
         sot.GetOutputPort("control").Eval(context)
 

@@ -37,18 +37,20 @@ def solve_cascade(
     levels: Sequence[tuple[np.ndarray, np.ndarray]],
     nv: int,
     svd_threshold: float = 1e-4,
-    damping: float = 0.0,
+    damping: float | Sequence[float] = 0.0,
     control_selection: np.ndarray | None = None,
 ) -> CascadeResult:
     """Solve ``levels`` = ``[(J_1, ė_1*), …]`` in strict priority; see the module docstring.
 
     ``control_selection`` (nv booleans, sot-core's ``controlSelec``) restricts the solution to the
     selected velocity components (``Z_0`` = the selected columns of ``I``); the others are zero.
+    ``damping`` is one δ for every level or one per level.
     """
     v = np.zeros(nv)
     Z = np.eye(nv) if control_selection is None else np.eye(nv)[:, control_selection]
     ranks = np.zeros(len(levels), dtype=int)
     last = len(levels) - 1
+    dampings = [float(damping)] * len(levels) if np.ndim(damping) == 0 else list(damping)
     for i, (J, reference) in enumerate(levels):
         if Z.shape[1] == 0:
             continue
@@ -59,7 +61,7 @@ def solve_cascade(
         ranks[i] = rank
         if rank:
             s = sigma[:rank]
-            inverse = 1.0 / s if damping == 0.0 else s / (s * s + damping)
+            inverse = 1.0 / s if dampings[i] == 0.0 else s / (s * s + dampings[i])
             rhs = U[:, :rank].T @ (reference - J @ v)
             v = v + Z @ (Vt[:rank].T @ (inverse * rhs))
             Z = Z @ Vt[rank:].T

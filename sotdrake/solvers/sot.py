@@ -34,12 +34,22 @@ class StackSettings:
 class SOT(Entity[StackSettings]):
     """Strict-priority kinematic solver (sot-core ``SOT``)."""
 
-    def __init__(self, name: str, nv: int, svd_threshold: float = 1e-4, damping: float = 0.0):
-        Entity.__init__(self, name, StackSettings())
+    accepts_inequalities = False
+
+    def __init__(
+        self,
+        name: str,
+        nv: int,
+        svd_threshold: float = 1e-4,
+        damping: float = 0.0,
+        settings: StackSettings | None = None,
+    ):
+        Entity.__init__(self, name, settings or StackSettings())
         self.nv = nv
         self.setThreshold(svd_threshold)
         self.setDamping(damping)
         self._task_ports: dict[str, InputPort] = {}
+        self._inequality_tasks: set[str] = set()
         empty = CascadeResult(np.zeros(nv), np.zeros(0), np.zeros(0, dtype=int))
         self._solution = self.DeclareCacheEntry(
             "solution",
@@ -58,8 +68,10 @@ class SOT(Entity[StackSettings]):
             raise InvalidInput(f"task {task.name} has nv = {task.nv}, solver {self.name} has nv = {self.nv}")
         if task.name not in self._task_ports:
             self._task_ports[task.name] = self.DeclareAbstractInputPort(
-                task.name, AbstractValue.Make(TaskLevel(np.zeros((0, self.nv)), np.zeros(0), np.zeros(0)))
+                task.name, AbstractValue.Make(TaskLevel(np.zeros((0, self.nv)), np.zeros(0), np.zeros(0), np.zeros(0)))
             )
+            if task.is_inequality:
+                self._inequality_tasks.add(task.name)
         return self._task_ports[task.name]
 
     @property
@@ -75,6 +87,11 @@ class SOT(Entity[StackSettings]):
     def push(self, name: str, context: Context | None = None) -> None:
         """Append ``name`` at the bottom (lowest priority) of the stack."""
         self._known(name)
+        if name in self._inequality_tasks and not self.accepts_inequalities:
+            raise StackError(
+                f"{self.name} is a {type(self).__name__}, which cannot solve the inequality task {name!r}: "
+                "use the hierarchical QP (add_sot(robot, solver='hqp'))"
+            )
 
         def change(s: StackSettings) -> None:
             if name in s.tasks:
@@ -136,15 +153,26 @@ class SOT(Entity[StackSettings]):
         self._command(context, lambda s: setattr(s, "control_selection", mask))
 
     # --- solve -----------------------------------------------------------------------------
+    def _levels(self, context: Context, tasks: list[str]) -> list[TaskLevel]:
+        """The stack's task levels, checked: sizes fit nv, no NaN (±inf only as inequality bounds)."""
+        levels = []
+        for name in tasks:
+            level = self._task_ports[name].Eval(context)
+            J = level.jacobian
+            if J.ndim != 2 or J.shape[1] != self.nv or level.lower.shape != (J.shape[0],) or level.upper.shape != (J.shape[0],):
+                raise SolverError(f"task {name}: jacobian {J.shape} and bounds {level.lower.shape} do not fit nv = {self.nv}")
+            if not np.all(np.isfinite(J)) or np.any(np.isnan(level.lower)) or np.any(np.isnan(level.upper)):
+                raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")
+            if level.is_equality and not np.all(np.isfinite(level.lower)):
+                raise SolverError(f"task {name}: non-finite reference at t = {context.get_time()}")
+            levels.append(level)
+        return levels
+
     def _calc(self, context: Context, value: AbstractValue) -> None:
         s = self._settings_of(context)
-        levels = []
-        for name in s.tasks:
-            level = self._task_ports[name].Eval(context)
-            J, r = level.jacobian, level.reference
-            if J.ndim != 2 or J.shape[1] != self.nv or r.shape != (J.shape[0],):
-                raise SolverError(f"task {name}: jacobian {J.shape} and reference {r.shape} do not fit nv = {self.nv}")
-            if not (np.all(np.isfinite(J)) and np.all(np.isfinite(r))):
-                raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")
-            levels.append((J, r))
-        value.set_value(solve_cascade(levels, self.nv, s.svd_threshold, s.damping, s.control_selection))
+        levels = self._levels(context, s.tasks)
+        for name, level in zip(s.tasks, levels):
+            if not level.is_equality:
+                raise SolverError(f"{self.name} cannot solve the inequality rows of task {name}")
+        pairs = [(level.jacobian, level.reference) for level in levels]
+        value.set_value(solve_cascade(pairs, self.nv, s.svd_threshold, s.damping, s.control_selection))

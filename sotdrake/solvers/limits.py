@@ -1,0 +1,46 @@
+"""Joint limits as velocity bounds over one tick: the hard constraints above every task.
+
+For a joint with position limits ``[q_min, q_max]``, velocity limits ``[v_min, v_max]``, tick
+``dt`` and margin ``m`` (rad or m), the upper bound on its velocity is
+
+* ``(q_max - m - q)/dt`` while the joint is farther than ``m`` from its limit;
+* ``0`` inside the margin (it may stay, it is not pushed out: a start on the boundary is fine);
+* ``(q_max - q)/dt < 0`` if it is beyond the limit (brought back in one tick),
+
+then capped by ``v_max``; the lower bound is symmetric. Where the two would cross (a violated limit
+faster than the velocity limit allows to fix), the position side wins within the velocity limit.
+The floating base is never limited; coordinates excluded by a control selection get ``[0, 0]``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..device import Layout
+
+
+def velocity_bounds(
+    q: np.ndarray,
+    position_lower: np.ndarray,
+    position_upper: np.ndarray,
+    velocity_lower: np.ndarray,
+    velocity_upper: np.ndarray,
+    dt: float,
+    margin: float,
+    layout: Layout,
+    control_selection: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(lower, upper)`` bounds on ``v`` (size nv); see the module docstring."""
+    nv = len(velocity_lower)
+    lower, upper = np.full(nv, -np.inf), np.full(nv, np.inf)
+    iq, iv = layout.joints_q, layout.joints_v
+    qj, lo, hi = q[iq], position_lower[iq], position_upper[iq]
+    with np.errstate(invalid="ignore"):  # infinite position limits give ±inf bounds
+        up = np.maximum((hi - margin - qj) / dt, np.minimum(0.0, (hi - qj) / dt))
+        down = np.minimum((lo + margin - qj) / dt, np.maximum(0.0, (lo - qj) / dt))
+    up = np.clip(up, velocity_lower[iv], velocity_upper[iv])
+    down = np.clip(down, velocity_lower[iv], velocity_upper[iv])
+    upper[iv], lower[iv] = up, np.minimum(down, up)
+    if control_selection is not None:
+        lower[~control_selection] = upper[~control_selection] = 0.0
+    return lower, upper

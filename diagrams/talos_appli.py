@@ -59,8 +59,10 @@ def build_diagram(
     push_time: float = 1.0,
     dt: float = 1e-3,
     variant: str = "reduced",
+    solver: str = "cascade",
 ) -> Appli:
-    """The tutorial's control graph; with ``meshcat``, TALOS and the target are drawn there."""
+    """The tutorial's control graph; with ``meshcat``, TALOS and the target are drawn there.
+    ``solver``: ``'cascade'`` (sot-core ``SOT``) or ``'hqp'`` (``SolverKine``, joint limits hard)."""
     builder = DiagramBuilder()
     robot = talos(builder, variant, dt)
 
@@ -87,7 +89,7 @@ def build_diagram(
     contactRF.keep()
 
     # --- the solver and the stack
-    sot = add_sot(robot, "sot")
+    sot = add_sot(robot, "sot", solver=solver)
     # The grippers are not the SoT's to move (on TALOS they have their own controllers); left
     # free, the CoM task would use their mass and push them past their upper limit, where both
     # start.
@@ -168,6 +170,7 @@ def summarize(appli: Appli, simulator: Simulator, duration: float, wall: float) 
         "max_foot_rotation_drift_rad": float(foot_rotation_drift),
         "max_com_drift_m": float(com_drift),
         "min_joint_limit_margin_rad": float(margin),
+        "solver": type(appli.sot).__name__,
         "final_stack": appli.sot.stack(context),
         "final_level_residuals": appli.sot.GetOutputPort("residuals").Eval(appli.sot.GetMyContextFromRoot(context)).tolist(),
         "target_m": appli.target.tolist(),
@@ -219,6 +222,8 @@ def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--duration", type=float, default=8.0, help="simulated time (s)")
     parser.add_argument("--out", type=Path, default=Path("out/appli"), help="output directory")
+    parser.add_argument("--solver", choices=["cascade", "hqp"], default="cascade",
+                        help="basic SOT (pseudo-inverse cascade) or SolverKine (hierarchical QP, joint limits)")
     parser.add_argument("--no-meshcat", action="store_true", help="no recording (faster)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
@@ -232,7 +237,7 @@ def main(argv: list[str] | None = None) -> dict:
         from pydrake.geometry import StartMeshcat
 
         meshcat = StartMeshcat()
-    appli = build_diagram(meshcat)
+    appli = build_diagram(meshcat, solver=args.solver)
     simulator, wall = simulate(appli, args.duration, progress=not args.quiet)
     summary, trace = summarize(appli, simulator, args.duration, wall)
 

@@ -21,7 +21,7 @@ from .gains import GainAdaptive, from_numbers
 from .kinematics import Dynamic
 from .robot import robot_of
 from .selection import parse_selection
-from .task import Task
+from .task import Task, TaskInequality
 
 
 def _current_position(robot, context: Context | None) -> np.ndarray:
@@ -30,13 +30,18 @@ def _current_position(robot, context: Context | None) -> np.ndarray:
     return robot.device.initial_position if context is None else robot.device.position(context)
 
 
+def _task(name: str, nv: int, inequality: bool) -> Task | TaskInequality:
+    return TaskInequality(name, nv) if inequality else Task(name, nv)
+
+
 class MetaTaskKine6d:
     """Task on the pose of an op point: ``MetaTaskKine6d('rh', robot.dynamic, 'rh', 'right-wrist')``.
 
     ``opPointRef`` is an op-point name of ``robot.OperationalPointsMap``, or a joint or frame name.
+    ``inequality=True`` makes ``task`` a ``TaskInequality`` (bounds on the error, ``task.setBounds``).
     """
 
-    def __init__(self, name: str, dyn: Dynamic, opPoint: str, opPointRef: str | None = None):
+    def __init__(self, name: str, dyn: Dynamic, opPoint: str, opPointRef: str | None = None, inequality: bool = False):
         robot = robot_of(dyn)
         self.name, self.dyn, self.opPoint, self.robot = name, dyn, opPoint, robot
         nv = robot.dimension
@@ -44,7 +49,7 @@ class MetaTaskKine6d:
         self.feature = robot.add(Feature6d("feature" + name, nv))
         self.featureDes = robot.add(Feature6dDesired("feature" + name + "_ref"))
         self.gain = robot.add(GainAdaptive("gain" + name))
-        self.task = robot.add_task(Task("task" + name, nv))
+        self.task = robot.add_task(_task("task" + name, nv, inequality))
         connect = robot.builder.Connect
         connect(position, self.feature.GetInputPort("position"))
         connect(jacobian, self.feature.GetInputPort("Jq"))
@@ -76,16 +81,17 @@ class MetaTaskKine6d:
 
 
 class MetaTaskKineCom:
-    """Task on the centre of mass (``FeatureGeneric`` over ``dynamic.com``), metres, world frame."""
+    """Task on the centre of mass (``FeatureGeneric`` over ``dynamic.com``), metres, world frame.
+    ``inequality=True`` makes ``task`` a ``TaskInequality`` (e.g. a box around the desired CoM)."""
 
-    def __init__(self, dyn: Dynamic, name: str = "com"):
+    def __init__(self, dyn: Dynamic, name: str = "com", inequality: bool = False):
         robot = robot_of(dyn)
         self.name, self.dyn, self.robot = name, dyn, robot
         nv = robot.dimension
         self.feature = robot.add(FeatureGeneric("feature" + name, 3, nv))
         self.featureDes = robot.add(FeatureGenericDesired("feature" + name + "_ref", 3))
         self.gain = robot.add(GainAdaptive("gain" + name))
-        self.task = robot.add_task(Task("task" + name, nv))
+        self.task = robot.add_task(_task("task" + name, nv, inequality))
         connect = robot.builder.Connect
         connect(dyn.GetOutputPort("com"), self.feature.GetInputPort("errorIN"))
         connect(dyn.GetOutputPort("Jcom"), self.feature.GetInputPort("jacobianIN"))

@@ -16,7 +16,7 @@ from .device import Device
 from .exceptions import InvalidInput, NotFound
 from .kinematics import Dynamic
 from .robots import RobotModel, load_talos
-from .solvers import SOT
+from .solvers import SOT, SolverKine
 from .task import Task
 
 
@@ -83,6 +83,8 @@ class Robot:
         self.add(solver)
         self.solver = solver
         self.builder.Connect(solver.GetOutputPort("control"), self.device.GetInputPort("control"))
+        if solver.HasInputPort("position"):  # the HQP reads q for the joint limits
+            self.builder.Connect(self.device.GetOutputPort("state"), solver.GetInputPort("position"))
         for task in self.tasks.values():
             self.builder.Connect(task.GetOutputPort("task"), solver.declare_task_input(task))
         return solver
@@ -100,6 +102,23 @@ def talos(builder: DiagramBuilder, variant: str = "reduced", dt: float = 1e-3) -
     return Robot(builder, load_talos(variant), dt)
 
 
-def add_sot(robot: Robot, name: str = "sot", svd_threshold: float = 1e-4, damping: float = 0.0) -> SOT:
-    """sot-core's ``sot = SOT('sot'); sot.setSize(...); plug(sot.control, robot.device.control)``."""
-    return robot.add_solver(SOT(name, robot.dimension, svd_threshold, damping))
+def add_sot(
+    robot: Robot,
+    name: str = "sot",
+    solver: str = "cascade",
+    damping: float = 0.0,
+    svd_threshold: float = 1e-4,
+    position_margin: float = 1e-3,
+    qp_solver: str = "clarabel",
+) -> SOT:
+    """sot-core's ``sot = SOT('sot'); sot.setSize(...); plug(sot.control, robot.device.control)``.
+
+    ``solver='cascade'``: the basic ``SOT`` (pseudo-inverse cascade; ``svd_threshold``, ``damping``
+    on every level). ``solver='hqp'``: ``SolverKine`` (hierarchical QP with inequalities and joint
+    limits; ``damping`` on the last level, ``position_margin``, ``qp_solver``).
+    """
+    if solver == "cascade":
+        return robot.add_solver(SOT(name, robot.dimension, svd_threshold, damping))
+    if solver == "hqp":
+        return robot.add_solver(SolverKine(name, robot.model, robot.dt, damping, position_margin, qp_solver))
+    raise InvalidInput(f"unknown solver {solver!r}: 'cascade' (SOT) or 'hqp' (SolverKine)")

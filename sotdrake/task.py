@@ -98,27 +98,29 @@ class InequalityBounds:
 
 class TaskInequality(_TaskBase, Entity[InequalityBounds]):
     """Inequality task ``e_min ≤ e ≤ e_max`` (see the module docstring). Bounds are settings:
-    ``setBounds(lower, upper)``, ±inf for a free side."""
+    ``setBounds(lower, upper)``, one per selected row of the feature, ±inf for a free side. Until
+    they are set, every row is free."""
 
     is_inequality = True
 
-    def __init__(self, name: str, nv: int, dimension: int):
-        Entity.__init__(self, name, InequalityBounds(np.full(dimension, -np.inf), np.full(dimension, np.inf)))
-        self.dimension = dimension
+    def __init__(self, name: str, nv: int):
+        Entity.__init__(self, name, InequalityBounds())
         self._declare_ports(nv)
 
     def setBounds(self, lower, upper, context: Context | None = None) -> None:
         lower = np.asarray(lower, dtype=float).reshape(-1)
         upper = np.asarray(upper, dtype=float).reshape(-1)
         for what, bound in (("lower", lower), ("upper", upper)):
-            if bound.shape != (self.dimension,) or np.any(np.isnan(bound)):
-                raise InvalidInput(f"{self.name}: {what} bound must be {self.dimension} numbers (±inf allowed, no NaN)")
+            if bound.shape != upper.shape or bound.size == 0 or np.any(np.isnan(bound)):
+                raise InvalidInput(f"{self.name}: {what} bound must be as many numbers as the other (±inf allowed, no NaN)")
         if np.any(lower > upper):
             raise InvalidInput(f"{self.name}: lower bound above upper bound: {lower} > {upper}")
         self._command(context, lambda s: (setattr(s, "lower", lower.copy()), setattr(s, "upper", upper.copy())))
 
     def _rows(self, context, e, gain):
         s = self._settings_of(context)
+        if s.lower.size == 0:  # no bounds yet: every row free
+            return np.full(e.shape, -np.inf), np.full(e.shape, np.inf)
         if e.shape != s.lower.shape:
             raise InvalidInput(f"{self.name}: error has {e.size} rows, bounds have {s.lower.size}")
         check_finite(f"{self.name}.controlGain", gain)

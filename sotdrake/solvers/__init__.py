@@ -1,6 +1,18 @@
 """Solvers of the stack: the maths as pure functions, and the ``LeafSystem``s around them."""
 
 from .cascade import CascadeResult, solve_cascade
+from .hqp import HierarchicalQP, HqpResult, LevelRows
+from .solver_kine import HqpDiagnostics, SolverKine
 from .sot import SOT, StackSettings
 
-__all__ = ["SOT", "CascadeResult", "StackSettings", "solve_cascade"]
+__all__ = [
+    "SOT",
+    "CascadeResult",
+    "HierarchicalQP",
+    "HqpDiagnostics",
+    "HqpResult",
+    "LevelRows",
+    "SolverKine",
+    "StackSettings",
+    "solve_cascade",
+]

@@ -1,0 +1,272 @@
+#!/usr/bin/env python3
+"""The seed's sot-concept experiment: TALOS grasps a ball with its right hand, the free flyer
+relaxed, under seven configurations that show what a strict hierarchy does (and what it cannot).
+
+=====================  ==========================================================================
+configuration          stack (highest priority first) and what it shows
+=====================  ==========================================================================
+under_constrained      hand only: nothing holds the feet or the CoM, the whole body (free flyer
+                       included) flies to the ball
+balance_held           feet, CoM, hand; the ball is out of reach with the CoM held: the hand stops
+                       short (its level keeps a residual) and balance is kept
+balance_broken         feet, hand; same ball, CoM not held: the hand gets closer by moving the CoM
+                       out of the support polygon (rupture of balance)
+singular_undamped      feet, CoM, hand; the ball is straight out along the arm, beyond reach: the
+                       arm stretches into a singularity, velocities grow
+singular_damped        the same with damping on the hand's level: smooth, bounded velocities
+joint_limits           feet, CoM, hand; a ball behind the back: joints stop at their limits (HQP)
+joint_limits_cascade   the same with the basic SOT (pseudo-inverse cascade): limits are crossed
+=====================  ==========================================================================
+
+    python diagrams/sot_concept.py --config all --out out/concept
+
+writes ``DIR/summary.json`` (one entry per configuration: ``hand_error_m``, ``com_error_m``,
+``level_slacks``, ``min_joint_limit_margin_rad``, ``max_joint_velocity_ratio``, …),
+``DIR/plots.png``, ``DIR/control_graph.svg`` and ``DIR/<config>/recording.html`` + ``trace.npz``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import Meshcat
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Diagram, DiagramBuilder
+
+from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
+from sotdrake.robot import Robot, add_sot, talos
+from sotdrake.solvers import SOT
+from sotdrake.tracing import Tracer
+
+HAND_OFFSET = (0.1, 0.0, 0.0)
+GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]
+
+
+@dataclass(frozen=True)
+class Configuration:
+    description: str
+    ball: tuple[float, float, float]
+    contacts: bool = True
+    com: bool = True
+    solver: str = "hqp"
+    damping: float = 0.0
+    duration: float = 4.0
+
+
+CONFIGURATIONS: dict[str, Configuration] = {
+    "under_constrained": Configuration("hand only: the free flyer and every joint follow the hand",
+                                       (0.65, -0.45, 1.15), contacts=False, com=False),
+    "balance_held": Configuration("ball out of reach, CoM held: the hand stops short, balance kept",
+                                  (1.05, -0.35, 0.75)),
+    "balance_broken": Configuration("same ball, CoM free: the hand gets closer, the CoM leaves the support",
+                                    (1.05, -0.35, 0.75), com=False),
+    "singular_undamped": Configuration("ball beyond reach along the arm: a stretched, singular arm",
+                                       (-0.03, -1.25, 1.37)),
+    "singular_damped": Configuration("the same with damping 1e-2 on the hand's level",
+                                     (-0.03, -1.25, 1.37), damping=1e-2),
+    "joint_limits": Configuration("ball behind the back: joints stop at their limits (HQP)",
+                                  (-0.45, -0.35, 1.0)),
+    "joint_limits_cascade": Configuration("the same with the basic SOT: limits are crossed",
+                                          (-0.45, -0.35, 1.0), solver="cascade"),
+}
+
+
+@dataclass
+class Concept:
+    diagram: Diagram
+    robot: Robot
+    sot: SOT
+    taskRH: MetaTaskKine6d
+    tracer: Tracer
+    config: Configuration
+    visualizer: object = None
+
+
+def build_diagram(config: Configuration, meshcat: Meshcat | None = None, dt: float = 1e-3) -> Concept:
+    builder = DiagramBuilder()
+    robot = talos(builder, "reduced", dt)
+    sot = add_sot(robot, "sot", solver=config.solver, damping=config.damping)
+    sot.setControlSelection(robot.velocity_selection(excluding=GRIPPERS))
+    if config.contacts:
+        for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle")):
+            contact = MetaTaskKine6d(name, robot.dynamic, name[-2:], robot.OperationalPointsMap[op])
+            contact.gain.setConstant(10)
+            sot.push(contact.task.name)
+    if config.com:
+        taskCom = MetaTaskKineCom(robot.dynamic)
+        taskCom.gain.setConstant(10)
+        sot.push(taskCom.task.name)
+    taskRH = MetaTaskKine6d("rh", robot.dynamic, "rh", robot.OperationalPointsMap["right-wrist"])
+    handMgrip = np.eye(4)
+    handMgrip[0:3, 3] = HAND_OFFSET
+    taskRH.opmodif = handMgrip
+    gotoNd(taskRH, config.ball, "111", (4.9, 0.9, 0.01, 0.9))
+    sot.push(taskRH.task.name)
+
+    tracer = Tracer(builder, dt)
+    tracer.add(robot.device.GetOutputPort("state"), "q")
+    tracer.add(sot.GetOutputPort("control"), "v")
+    visualizer = None
+    if meshcat is not None:
+        from sotdrake.visualization import add_robot_visualizer, add_target_marker
+
+        visualizer = add_robot_visualizer(robot, meshcat)
+        add_target_marker(meshcat, "/ball", config.ball, radius=0.05)
+        meshcat.SetCameraPose(camera_in_world=[1.6, -2.2, 1.6], target_in_world=[0.1, -0.2, 0.8])
+    diagram = builder.Build()
+    return Concept(diagram, robot, sot, taskRH, tracer, config, visualizer)
+
+
+def run(concept: Concept, progress: bool = True) -> tuple[Simulator, float]:
+    from tqdm import tqdm
+
+    simulator = Simulator(concept.diagram)
+    simulator.Initialize()
+    if concept.visualizer is not None:
+        concept.visualizer.StartRecording(False)
+    duration, chunk = concept.config.duration, 0.05
+    start = time.perf_counter()
+    with tqdm(total=duration, unit="sim s", disable=not progress, file=sys.stderr, leave=False,
+              bar_format="{desc} {l_bar}{bar}| {n:.2f}/{total:.2f} s") as bar:
+        for k in range(1, int(np.ceil(duration / chunk)) + 1):
+            simulator.AdvanceTo(min(k * chunk, duration))
+            bar.update(min(k * chunk, duration) - bar.n)
+    return simulator, time.perf_counter() - start
+
+
+def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict, dict]:
+    context = simulator.get_context()
+    trace = concept.tracer.data(context)
+    robot = concept.robot
+    q0 = robot.device.initial_position
+    qs = np.vstack([q0, trace["q"]])
+    path = robot.dynamic.trajectory(["rh"], qs)
+    hand = path["rh"][:, :3, :3] @ np.asarray(HAND_OFFSET) + path["rh"][:, :3, 3]
+    ball = np.asarray(concept.config.ball)
+    limits = robot.model.joint_limits()
+    layout = robot.device.layout
+    # Joints the solver controls (the grippers are excluded, and sit on their limit by design).
+    selection = concept.sot.settings(context).control_selection
+    controlled = selection[layout.joints_v] if selection is not None else np.ones(len(layout.joints_v), dtype=bool)
+    joints_q, joints_v = layout.joints_q[controlled], layout.joints_v[controlled]
+    lower, upper = limits["position_lower"][joints_q], limits["position_upper"][joints_q]
+    margins = np.minimum(qs[:, joints_q] - lower, upper - qs[:, joints_q])
+    ratio = np.abs(trace["v"][:, joints_v]) / limits["velocity_upper"][joints_v]
+    names = [name for name, keep in zip(_joint_names(robot), controlled) if keep]
+    worst_margin = np.unravel_index(np.argmin(margins), margins.shape)
+    residuals = concept.sot.GetOutputPort("residuals").Eval(concept.sot.GetMyContextFromRoot(context))
+    summary = {
+        "description": concept.config.description,
+        "solver": type(concept.sot).__name__,
+        "stack": concept.sot.stack(context),
+        "ball_m": list(concept.config.ball),
+        "hand_error_m": float(np.linalg.norm(hand[-1] - ball)),
+        "hand_initial_error_m": float(np.linalg.norm(hand[0] - ball)),
+        "com_error_m": float(np.linalg.norm(path["com"][-1] - path["com"][0])),
+        "com_horizontal_shift_m": float(np.linalg.norm(path["com"][-1, :2] - path["com"][0, :2])),
+        "base_displacement_m": float(np.linalg.norm(qs[-1, 4:7] - qs[0, 4:7])),
+        "level_slacks": [float(x) for x in residuals],
+        "min_joint_limit_margin_rad": float(margins[worst_margin]),
+        "min_margin_joint": names[worst_margin[1]],
+        "max_joint_velocity_ratio": float(ratio.max()),
+        "max_velocity_joint": names[int(np.argmax(ratio.max(axis=0)))],
+        "duration_s": concept.config.duration,
+        "wall_s": wall,
+        "realtime_factor": concept.config.duration / wall,
+    }
+    trace.update(hand_position=hand[1:], com_position=path["com"][1:], hand_error=np.linalg.norm(hand[1:] - ball, axis=1),
+                 velocity_ratio=ratio.max(axis=1), min_margin=margins[1:].min(axis=1))
+    return summary, trace
+
+
+def _joint_names(robot: Robot) -> list[str]:
+    plant, names = robot.model.plant, []
+    for index in robot.device.layout.joints_v:
+        names.append(next(plant.get_joint(j).name() for j in plant.GetJointIndices()
+                          if plant.get_joint(j).velocity_start() <= index < plant.get_joint(j).velocity_start() + plant.get_joint(j).num_velocities()))
+    return names
+
+
+def plot(traces: dict[str, dict], path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 2, figsize=(12, 8), sharex=True)
+    for name, trace in traces.items():
+        t = trace["time"]
+        axes[0, 0].semilogy(t, np.maximum(trace["hand_error"], 1e-16), label=name)
+        axes[0, 1].plot(t, np.linalg.norm(trace["com_position"][:, :2] - trace["com_position"][0, :2], axis=1), label=name)
+        axes[1, 0].semilogy(t, np.maximum(trace["velocity_ratio"], 1e-16), label=name)
+        axes[1, 1].plot(t, trace["min_margin"], label=name)
+    axes[0, 0].set_ylabel("hand to ball (m)")
+    axes[0, 1].set_ylabel("CoM horizontal shift (m)")
+    axes[1, 0].set_ylabel("max |v| / velocity limit")
+    axes[1, 0].axhline(1.0, color="grey", ls=":")
+    axes[1, 1].set_ylabel("min joint-limit margin (rad)")
+    axes[1, 1].axhline(0.0, color="grey", ls=":")
+    for axis in axes[1]:
+        axis.set_xlabel("time (s)")
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle("sot-concept: TALOS grasps a ball under seven configurations")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--config", default="all", choices=["all", *CONFIGURATIONS], help="which configuration")
+    parser.add_argument("--out", type=Path, default=Path("out/concept"))
+    parser.add_argument("--duration", type=float, default=None, help="override every configuration's duration (s)")
+    parser.add_argument("--no-meshcat", action="store_true", help="no recordings (faster)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    args = parser.parse_args(argv)
+    if args.duration is not None and not args.duration > 0:
+        parser.error("--duration must be > 0")
+    logging.basicConfig(level=logging.WARNING, format="%(name)s: %(message)s")
+    names = list(CONFIGURATIONS) if args.config == "all" else [args.config]
+    args.out.mkdir(parents=True, exist_ok=True)
+    from pydrake.geometry import StartMeshcat
+
+    from sotdrake.visualization import save_recording, write_control_graph
+
+    meshcat = None if args.no_meshcat else StartMeshcat()
+    summary, traces = {}, {}
+    for name in names:
+        config = CONFIGURATIONS[name]
+        if args.duration is not None:
+            config = Configuration(**{**config.__dict__, "duration": args.duration})
+        if meshcat is not None:
+            meshcat.Delete()
+        concept = build_diagram(config, meshcat)
+        if not args.quiet:
+            print(f"{name}: {config.description}", file=sys.stderr)
+        simulator, wall = run(concept, progress=not args.quiet)
+        summary[name], traces[name] = summarize(concept, simulator, wall)
+        folder = args.out / name
+        folder.mkdir(exist_ok=True)
+        np.savez_compressed(folder / "trace.npz", **traces[name])
+        if meshcat is not None:
+            save_recording(concept.visualizer, meshcat, folder / "recording.html")
+        if name == names[0]:
+            write_control_graph(concept.diagram, args.out / "control_graph.svg")
+    plot(traces, args.out / "plots.png")
+    (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    keys = ("hand_error_m", "com_horizontal_shift_m", "level_slacks", "min_joint_limit_margin_rad", "max_joint_velocity_ratio")
+    for name, entry in summary.items():
+        print(f"{name:22s} " + "  ".join(f"{k}={np.round(entry[k], 4).tolist()}" for k in keys))
+    return summary
+
+
+if __name__ == "__main__":
+    main()

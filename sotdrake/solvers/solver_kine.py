@@ -1,0 +1,127 @@
+"""``SolverKine``: the stack solved as a hierarchical QP, with joint limits as hard constraints.
+
+The same entity as :class:`~sotdrake.solvers.sot.SOT` (same task inputs, same stack commands, the
+stack in the Context), plus a ``position`` input (``q``, from the device) for the joint limits,
+which become velocity bounds over one tick (:mod:`.limits`) above every task. Inequality tasks
+(``TaskInequality``) mix freely with equality tasks in any level.
+
+Outputs: ``control`` (``v``), ``residuals`` (the optimal slack norm of each level) and
+``diagnostics`` (:class:`HqpDiagnostics`). If a level cannot be solved the control is zero (the
+device holds), ``diagnostics.failure`` says which level and why, and a warning is logged.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Context
+
+from ..device import Layout
+from ..exceptions import InvalidInput, SolverError
+from ..robots import RobotModel
+from .hqp import SOLVERS, HierarchicalQP, LevelRows
+from .limits import velocity_bounds
+from .sot import SOT, StackSettings
+
+log = logging.getLogger("sotdrake.solver_kine")
+
+
+@dataclass
+class HqpSettings(StackSettings):
+    position_margin: float = 1e-3  # rad (or m): joints stop this far from their position limits
+    solver: str = "clarabel"
+
+
+@dataclass
+class HqpDiagnostics:
+    """Per-level results of one tick: ``slack_norms``, ``active_rows`` (inequality rows at a bound),
+    ``active_limits`` (velocity components at a joint-limit bound), ``level_solvers``
+    ("closed-form" or the Drake solver, per stage), ``solve_time_s``, and ``failure`` (a message,
+    or empty)."""
+
+    tasks: list[str] = field(default_factory=list)
+    slack_norms: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    active_rows: list[np.ndarray] = field(default_factory=list)
+    active_limits: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    level_solvers: list[str] = field(default_factory=list)
+    solve_time_s: float = 0.0
+    failure: str = ""
+
+
+class SolverKine(SOT):
+    """Hierarchical-QP kinematic solver (sot-dyninv ``SolverKine``)."""
+
+    accepts_inequalities = True
+
+    def __init__(
+        self,
+        name: str,
+        model: RobotModel,
+        dt: float,
+        damping: float = 0.0,
+        position_margin: float = 1e-3,
+        solver: str = "clarabel",
+    ):
+        if solver not in SOLVERS:
+            raise InvalidInput(f"unknown QP solver {solver!r}; available: {sorted(SOLVERS)}")
+        SOT.__init__(self, name, model.nv, damping=damping, settings=HqpSettings(solver=solver))
+        self.setPositionMargin(position_margin)
+        self.dt = float(dt)
+        self.layout = Layout.of(model.plant)
+        limits = model.joint_limits()
+        self._limits = (limits["position_lower"], limits["position_upper"],
+                        limits["velocity_lower"], limits["velocity_upper"])
+        self.position = self.DeclareVectorInputPort("position", model.nq)
+        self._hqp = {name: HierarchicalQP(model.nv, solver=name) for name in SOLVERS}  # program caches
+        self.DeclareAbstractOutputPort(
+            "diagnostics", lambda: AbstractValue.Make(HqpDiagnostics()),
+            lambda c, o: o.set_value(self._solution.Eval(c).diagnostics),
+        )
+
+    def setDamping(self, damping: float, context: Context | None = None) -> None:
+        """Damping μ of the last level (``‖w‖² + μ‖Δv‖²``), as sot-dyninv's ``SolverKine``."""
+        SOT.setDamping(self, damping, context)
+
+    def setPositionMargin(self, margin: float, context: Context | None = None) -> None:
+        if not (np.isfinite(margin) and margin >= 0):
+            raise InvalidInput(f"position margin must be finite and ≥ 0, got {margin}")
+        self._command(context, lambda s: setattr(s, "position_margin", float(margin)))
+
+    def setSolver(self, solver: str, context: Context | None = None) -> None:
+        """The Drake solver of the levels that need one (``'clarabel'``, ``'osqp'``, ``'snopt'``)."""
+        if solver not in SOLVERS:
+            raise InvalidInput(f"unknown QP solver {solver!r}; available: {sorted(SOLVERS)}")
+        self._command(context, lambda s: setattr(s, "solver", solver))
+
+    def _calc(self, context: Context, value: AbstractValue) -> None:
+        s = self._settings_of(context)
+        levels = [LevelRows(level.jacobian, level.lower, level.upper) for level in self._levels(context, s.tasks)]
+        lower, upper = velocity_bounds(
+            self.position.Eval(context), *self._limits, self.dt, s.position_margin, self.layout, s.control_selection
+        )
+        diagnostics = HqpDiagnostics(tasks=list(s.tasks))
+        try:
+            result = self._hqp[s.solver].solve(levels, lower, upper, s.damping)
+        except SolverError as error:
+            diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
+            log.warning("%s: %s; the device holds", self.name, diagnostics.failure)
+            value.set_value(_Solution(np.zeros(self.nv), np.full(len(levels), np.nan), diagnostics))
+            return
+        diagnostics.slack_norms = result.slack_norms
+        diagnostics.active_rows = result.active_rows
+        diagnostics.active_limits = result.active_bounds
+        diagnostics.level_solvers = result.level_solvers
+        diagnostics.solve_time_s = result.solve_time_s
+        value.set_value(_Solution(result.x, result.slack_norms, diagnostics))
+
+
+@dataclass
+class _Solution:
+    """Same fields as the cascade's result where the SOT's ports read them."""
+
+    velocity: np.ndarray
+    residuals: np.ndarray
+    diagnostics: HqpDiagnostics

@@ -1,0 +1,141 @@
+"""SolverKine (hierarchical QP) in diagrams: the tutorial, joint limits, inequality tasks, failure."""
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from sotdrake.exceptions import InvalidInput, SolverError, StackError
+from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
+from sotdrake.robot import Robot, add_sot
+from sotdrake.solvers import HierarchicalQP, SolverKine
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def load(script):
+    spec = importlib.util.spec_from_file_location(script, ROOT / "diagrams" / f"{script}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def concept():
+    return load("sot_concept")
+
+
+def test_tutorial_with_the_hqp_has_the_same_outcome():
+    appli = load("talos_appli")
+    handles = appli.build_diagram(solver="hqp")
+    assert isinstance(handles.sot, SolverKine)
+    simulator, wall = appli.simulate(handles, 3.5, progress=False)
+    summary, _ = appli.summarize(handles, simulator, 3.5, wall)
+    assert summary["hand_error_m"] < 5e-3
+    assert summary["max_foot_drift_m"] < 1e-4 and summary["max_com_drift_m"] < 1e-4
+    assert summary["min_joint_limit_margin_rad"] >= 0.0
+
+
+def test_joint_limits_hold_with_the_hqp_and_not_with_the_cascade(concept):
+    results = {}
+    for name in ("joint_limits", "joint_limits_cascade"):
+        config = concept.CONFIGURATIONS[name]
+        config = concept.Configuration(**{**config.__dict__, "duration": 1.5})
+        handles = concept.build_diagram(config)
+        simulator, wall = concept.run(handles, progress=False)
+        results[name], _ = concept.summarize(handles, simulator, wall)
+    assert results["joint_limits"]["min_joint_limit_margin_rad"] >= 1e-3 - 1e-9  # the margin, kept
+    assert results["joint_limits_cascade"]["min_joint_limit_margin_rad"] < -1e-2  # crossed
+    assert results["joint_limits"]["max_joint_velocity_ratio"] <= 1.0 + 1e-9
+
+
+def build_reach(model, com_kind, ball=(1.05, -0.35, 0.75)):
+    builder = DiagramBuilder()
+    robot = Robot(builder, model)
+    sot = add_sot(robot, solver="hqp")
+    sot.setControlSelection(robot.velocity_selection(["gripper_left_joint", "gripper_right_joint"]))
+    for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle")):
+        contact = MetaTaskKine6d(name, robot.dynamic, name[-2:], op)
+        contact.gain.setConstant(10)
+        sot.push(contact.task.name)
+    com = MetaTaskKineCom(robot.dynamic, inequality=com_kind == "box")
+    com.gain.setConstant(10)
+    if com_kind == "box":
+        com.feature.selec("011")
+        com.task.setBounds([-0.03, -0.03], [0.03, 0.03])  # CoM within ±3 cm of where it starts
+    sot.push(com.task.name)
+    hand = MetaTaskKine6d("rh", robot.dynamic, "rh", "right-wrist")
+    gotoNd(hand, ball, "111", 5.0)
+    sot.push(hand.task.name)
+    return robot, sot, hand, com, builder.Build()
+
+
+def test_inequality_tasks_mix_with_equality_tasks(talos_model):
+    outcome = {}
+    for kind in ("held", "box"):
+        robot, sot, hand, com, diagram = build_reach(talos_model, kind)
+        simulator = Simulator(diagram)
+        simulator.AdvanceTo(1.5)
+        context = simulator.get_context()
+        q = robot.device.position(context)
+        shift = robot.dynamic.com_at(q)[:2] - robot.dynamic.com_at(robot.device.initial_position)[:2]
+        outcome[kind] = (np.linalg.norm(hand.current_pose(context).translation() - [1.05, -0.35, 0.75]), shift)
+        diagnostics = sot.GetOutputPort("diagnostics").Eval(sot.GetMyContextFromRoot(context))
+        assert diagnostics.failure == "" and len(diagnostics.slack_norms) == 4
+    held, box = outcome["held"], outcome["box"]
+    assert np.all(np.abs(box[1]) <= 0.03 + 1e-4)  # the CoM stays in its box …
+    assert np.abs(box[1]).max() > 0.02  # … and uses it
+    assert box[0] < held[0] - 0.01  # so the hand gets closer than with the CoM held exactly
+    assert np.abs(held[1]).max() < 1e-4
+
+
+def test_the_basic_sot_refuses_inequality_tasks(talos_model):
+    builder = DiagramBuilder()
+    robot = Robot(builder, talos_model)
+    sot = add_sot(robot)
+    com = MetaTaskKineCom(robot.dynamic, inequality=True)
+    with pytest.raises(StackError, match="hqp"):
+        sot.push(com.task.name)
+    assert sot.stack() == []
+
+
+def test_a_failing_level_holds_the_device_and_says_why(talos_model, monkeypatch, caplog):
+    robot, sot, hand, com, diagram = build_reach(talos_model, "held")
+
+    def fail(self, *args, **kwargs):
+        raise SolverError("hierarchical QP: no solution on level 3 (clarabel: kIterationLimit)")
+
+    monkeypatch.setattr(HierarchicalQP, "solve", fail)
+    context = diagram.CreateDefaultContext()
+    own = sot.GetMyContextFromRoot(context)
+    with caplog.at_level("WARNING", logger="sotdrake.solver_kine"):
+        control = sot.GetOutputPort("control").Eval(own)
+    assert np.all(control == 0) and np.all(np.isfinite(control))
+    assert "level 3" in sot.GetOutputPort("diagnostics").Eval(own).failure
+    assert any("device holds" in r.getMessage() for r in caplog.records)
+
+
+def test_solver_kine_inputs(talos_model):
+    with pytest.raises(InvalidInput):
+        SolverKine("s", talos_model, 1e-3, solver="quadprog")
+    kine = SolverKine("s", talos_model, 1e-3)
+    for bad in (lambda: kine.setPositionMargin(-1.0), lambda: kine.setSolver("cvx"), lambda: kine.setDamping(np.nan)):
+        with pytest.raises(InvalidInput):
+            bad()
+    with pytest.raises(InvalidInput):
+        add_sot(Robot(DiagramBuilder(), talos_model), solver="soth")
+
+
+def test_concept_script_writes_one_entry_per_configuration(concept, tmp_path):
+    summary = concept.main(["--config", "all", "--duration", "0.1", "--out", str(tmp_path), "--no-meshcat", "--quiet"])
+    assert set(summary) == set(concept.CONFIGURATIONS)
+    for entry in summary.values():
+        for key in ("hand_error_m", "com_error_m", "level_slacks", "min_joint_limit_margin_rad", "max_joint_velocity_ratio"):
+            assert key in entry
+    assert (tmp_path / "plots.png").is_file() and (tmp_path / "summary.json").is_file()
+    assert (tmp_path / "joint_limits" / "trace.npz").is_file()

@@ -7,12 +7,13 @@ configuration          stack (highest priority first) and what it shows
 =====================  ==========================================================================
 under_constrained      hand only: nothing holds the feet or the CoM, the whole body (free flyer
                        included) flies to the ball
-balance_held           feet, CoM, hand; the ball is out of reach with the CoM held: the hand stops
-                       short (its level keeps a residual) and balance is kept
-balance_broken         feet, hand; same ball, CoM not held: the hand gets closer by moving the CoM
-                       out of the support polygon (rupture of balance)
+balance_held           feet, CoM, hand (damped); the ball is out of reach with the CoM held: the
+                       hand stops short (its level keeps a residual) and balance is kept
+balance_broken         feet, hand (damped); same ball, CoM not held: the hand gets closer by moving
+                       the CoM out of the support polygon (rupture of balance)
 singular_undamped      feet, CoM, hand; the ball is straight out along the arm, beyond reach: the
-                       arm stretches into a singularity, velocities grow
+                       arm stretches into a singularity and, undamped, the solution chatters
+                       between opposite velocity limits from one tick to the next
 singular_damped        the same with damping on the hand's level: smooth, bounded velocities
 joint_limits           feet, CoM, hand; a ball behind the back: joints stop at their limits (HQP)
 joint_limits_cascade   the same with the basic SOT (pseudo-inverse cascade): limits are crossed
@@ -63,10 +64,12 @@ class Configuration:
 CONFIGURATIONS: dict[str, Configuration] = {
     "under_constrained": Configuration("hand only: the free flyer and every joint follow the hand",
                                        (0.65, -0.45, 1.15), contacts=False, com=False),
+    # The arm stretches toward an unreachable ball, hence a singularity: the balance configurations
+    # damp the hand's level so that only the CoM differs between them (see singular_undamped).
     "balance_held": Configuration("ball out of reach, CoM held: the hand stops short, balance kept",
-                                  (1.05, -0.35, 0.75)),
+                                  (1.05, -0.35, 0.75), damping=1e-2),
     "balance_broken": Configuration("same ball, CoM free: the hand gets closer, the CoM leaves the support",
-                                    (1.05, -0.35, 0.75), com=False),
+                                    (1.05, -0.35, 0.75), com=False, damping=1e-2),
     "singular_undamped": Configuration("ball beyond reach along the arm: a stretched, singular arm",
                                        (-0.03, -1.25, 1.37)),
     "singular_damped": Configuration("the same with damping 1e-2 on the hand's level",

@@ -8,6 +8,12 @@
 * ``setByPoint(λ0, λ∞, e_ref, p)``: ``a = λ0 - λ∞``, ``c = λ∞``, ``b = -ln(p)/e_ref``: at
   ``‖e‖ = e_ref`` the exponential part has decayed to ``p·a``.
 
+``GainHyperbolic``: ``λ(e) = a·½(tanh(-b(‖e‖ - d)) + 1) + c``:
+
+* ``setConstant(λ)``: ``a = 0, c = λ``;
+* ``set(λ0, λ∞, tanAt0, decal0)``: ``a = λ0 - λ∞``, ``b = tanAt0/(2a)``, ``c = λ∞``, ``d = decal0``
+  (as sot-core's ``GainHyperbolic::init``; with ``d = 0``, ``λ(0) = a/2 + c``).
+
 Units: λ in 1/s (the task asks ``ė* = -λ e``), ``‖e‖`` in the feature's units.
 """
 
@@ -32,6 +38,26 @@ class AdaptiveCoefficients:
 
     def __call__(self, error_norm: float) -> float:
         return self.a * math.exp(-self.b * error_norm) + self.c
+
+
+@dataclass(frozen=True)
+class HyperbolicCoefficients:
+    a: float = 0.0
+    b: float = 0.0
+    c: float = 1.0
+    d: float = 0.0
+
+    def __call__(self, error_norm: float) -> float:
+        return self.a * 0.5 * (math.tanh(-self.b * (error_norm - self.d)) + 1.0) + self.c
+
+
+def hyperbolic(gain0: float, gain_inf: float, tan_at0: float, decal0: float) -> HyperbolicCoefficients:
+    """sot-core ``GainHyperbolic.set(λ0, λ∞, tanAt0, decal0)``."""
+    _finite(gain0=gain0, gain_inf=gain_inf, tan_at0=tan_at0, decal0=decal0)
+    if gain_inf < 0 or gain0 < gain_inf or tan_at0 < 0:
+        raise InvalidInput(f"expected λ0 ≥ λ∞ ≥ 0 and tanAt0 ≥ 0, got ({gain0}, {gain_inf}, {tan_at0}, {decal0})")
+    a = gain0 - gain_inf
+    return HyperbolicCoefficients(a, tan_at0 / a / 2 if a > 0 else 0.0, gain_inf, decal0)
 
 
 def _finite(**values: float) -> None:
@@ -77,10 +103,10 @@ def from_numbers(numbers) -> AdaptiveCoefficients:
 
 @dataclass
 class GainSettings:
-    coefficients: AdaptiveCoefficients
+    coefficients: AdaptiveCoefficients | HyperbolicCoefficients
 
 
-class GainAdaptive(Entity[GainSettings]):
+class _Gain(Entity[GainSettings]):
     """Input ``error`` (any size); output ``gain`` = ``λ(‖error‖)`` (1-vector). Starts at λ = 1."""
 
     def __init__(self, name: str):
@@ -95,6 +121,13 @@ class GainAdaptive(Entity[GainSettings]):
     def setConstant(self, gain: float, context: Context | None = None) -> None:
         self.setCoefficients(constant(gain), context)
 
+    def setCoefficients(self, coefficients, context: Context | None = None) -> None:
+        self._command(context, lambda s: setattr(s, "coefficients", coefficients))
+
+
+class GainAdaptive(_Gain):
+    """sot-core ``GainAdaptive``: ``λ(e) = a·exp(-b‖e‖) + c``."""
+
     def set(self, gain0: float, gain_inf: float, slope: float, context: Context | None = None) -> None:
         self.setCoefficients(from_slope(gain0, gain_inf, slope), context)
 
@@ -103,5 +136,9 @@ class GainAdaptive(Entity[GainSettings]):
     ) -> None:
         self.setCoefficients(from_point(gain0, gain_inf, error_ref, fraction), context)
 
-    def setCoefficients(self, coefficients: AdaptiveCoefficients, context: Context | None = None) -> None:
-        self._command(context, lambda s: setattr(s, "coefficients", coefficients))
+
+class GainHyperbolic(_Gain):
+    """sot-core ``GainHyperbolic``: ``λ(e) = a·½(tanh(-b(‖e‖ - d)) + 1) + c``."""
+
+    def set(self, gain0: float, gain_inf: float, tan_at0: float, decal0: float, context: Context | None = None) -> None:
+        self.setCoefficients(hyperbolic(gain0, gain_inf, tan_at0, decal0), context)

@@ -1,63 +1,83 @@
 """Builder helpers in the seed's vocabulary (sot-core ``meta_tasks_kine``).
 
 A meta task adds, names and plugs the entities of one task, as sot-core does:
-``feature<name>`` (the feature), ``feature<name>_ref`` (``featureDes``, the desired value),
-``gain<name>`` and ``task<name>``; the task is connected to the robot's solver. Until told otherwise,
-the desired value is the current one at the device's initial configuration, so a task pushed without
-a target holds still.
+``feature<name>`` (the feature), ``feature<name>_ref`` (``featureDes``, the desired value, where
+the feature has one), ``gain<name>`` and ``task<name>``; the task is connected to the robot's
+solver. Until told otherwise, a desired value is the current one at the device's initial
+configuration, so a task pushed without a target holds still. ``inequality=True`` makes the task a
+``TaskInequality`` (bounds on its error); ``pd=True`` a ``TaskPD``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from pydrake.math import RigidTransform
-from pydrake.systems.framework import Context
+from pydrake.systems.framework import Context, OutputPort
 
 from .entity import recording
 from .exceptions import InvalidInput, SotError, check_finite
-from .features import Feature6d, Feature6dDesired, FeatureGeneric, FeatureGenericDesired
+from .features import (
+    Feature,
+    Feature6d,
+    Feature6dDesired,
+    FeatureGeneric,
+    FeatureGenericDesired,
+    FeaturePosture,
+    FeatureRelative6d,
+    FeatureVisualPoint,
+)
 from .features.feature6d import as_transform
 from .gains import GainAdaptive, from_numbers
 from .kinematics import Dynamic
-from .robot import robot_of
+from .robot import Robot, robot_of
 from .selection import parse_selection
-from .task import Task, TaskInequality
+from .task import Task, TaskInequality, TaskPD
 
 
-def _current_position(robot, context: Context | None) -> np.ndarray:
+def _current_position(robot: Robot, context: Context | None) -> np.ndarray:
     if recording():
         raise SotError("keep() reads the current state: call it with a context, not inside attime")
     return robot.device.initial_position if context is None else robot.device.position(context)
 
 
-def _task(name: str, nv: int, inequality: bool) -> Task | TaskInequality:
-    return TaskInequality(name, nv) if inequality else Task(name, nv)
+class _MetaTask:
+    """The gain and the task of a feature, plugged as sot-core does, and the task given to the solver."""
+
+    def _finish(self, robot: Robot, name: str, feature: Feature, inequality: bool = False, pd: bool = False) -> None:
+        if inequality and pd:
+            raise InvalidInput("a task is an inequality or a PD task, not both")
+        self.robot, self.name = robot, name
+        self.feature = feature
+        self.gain = robot.add(GainAdaptive("gain" + name))
+        nv = robot.dimension
+        task = TaskInequality("task" + name, nv) if inequality else TaskPD("task" + name, nv, robot.dt) if pd else Task("task" + name, nv)
+        self.task = robot.add_task(task)
+        connect = robot.builder.Connect
+        connect(feature.GetOutputPort("error"), self.gain.GetInputPort("error"))
+        for port in ("error", "jacobian", "errordot"):
+            connect(feature.GetOutputPort(port), self.task.GetInputPort(port))
+        connect(self.gain.GetOutputPort("gain"), self.task.GetInputPort("controlGain"))
 
 
-class MetaTaskKine6d:
+class MetaTaskKine6d(_MetaTask):
     """Task on the pose of an op point: ``MetaTaskKine6d('rh', robot.dynamic, 'rh', 'right-wrist')``.
 
     ``opPointRef`` is an op-point name of ``robot.OperationalPointsMap``, or a joint or frame name.
-    ``inequality=True`` makes ``task`` a ``TaskInequality`` (bounds on the error, ``task.setBounds``).
     """
 
-    def __init__(self, name: str, dyn: Dynamic, opPoint: str, opPointRef: str | None = None, inequality: bool = False):
+    def __init__(self, name: str, dyn: Dynamic, opPoint: str, opPointRef: str | None = None,
+                 inequality: bool = False, pd: bool = False):
         robot = robot_of(dyn)
-        self.name, self.dyn, self.opPoint, self.robot = name, dyn, opPoint, robot
-        nv = robot.dimension
+        self.dyn, self.opPoint = dyn, opPoint
         position, jacobian = dyn.createOpPoint(opPoint, opPointRef or opPoint)
-        self.feature = robot.add(Feature6d("feature" + name, nv))
+        feature = robot.add(Feature6d("feature" + name, robot.dimension))
         self.featureDes = robot.add(Feature6dDesired("feature" + name + "_ref"))
-        self.gain = robot.add(GainAdaptive("gain" + name))
-        self.task = robot.add_task(_task("task" + name, nv, inequality))
         connect = robot.builder.Connect
-        connect(position, self.feature.GetInputPort("position"))
-        connect(jacobian, self.feature.GetInputPort("Jq"))
-        connect(self.featureDes.GetOutputPort("position"), self.feature.GetInputPort("reference"))
-        connect(self.feature.GetOutputPort("error"), self.gain.GetInputPort("error"))
-        connect(self.feature.GetOutputPort("error"), self.task.GetInputPort("error"))
-        connect(self.feature.GetOutputPort("jacobian"), self.task.GetInputPort("jacobian"))
-        connect(self.gain.GetOutputPort("gain"), self.task.GetInputPort("controlGain"))
+        connect(position, feature.GetInputPort("position"))
+        connect(jacobian, feature.GetInputPort("Jq"))
+        connect(self.featureDes.GetOutputPort("position"), feature.GetInputPort("reference"))
+        connect(self.featureDes.GetOutputPort("velocity"), feature.GetInputPort("reference_velocity"))
+        self._finish(robot, name, feature, inequality, pd)
         self.keep()
 
     @property
@@ -80,31 +100,89 @@ class MetaTaskKine6d:
         self.featureDes.setPosition(self.current_pose(context), context)
 
 
-class MetaTaskKineCom:
-    """Task on the centre of mass (``FeatureGeneric`` over ``dynamic.com``), metres, world frame.
-    ``inequality=True`` makes ``task`` a ``TaskInequality`` (e.g. a box around the desired CoM)."""
+class MetaTaskKineCom(_MetaTask):
+    """Task on the centre of mass (``FeatureGeneric`` over ``dynamic.com``), metres, world frame."""
 
-    def __init__(self, dyn: Dynamic, name: str = "com", inequality: bool = False):
+    def __init__(self, dyn: Dynamic, name: str = "com", inequality: bool = False, pd: bool = False):
         robot = robot_of(dyn)
-        self.name, self.dyn, self.robot = name, dyn, robot
-        nv = robot.dimension
-        self.feature = robot.add(FeatureGeneric("feature" + name, 3, nv))
+        self.dyn = dyn
+        feature = robot.add(FeatureGeneric("feature" + name, 3, robot.dimension))
         self.featureDes = robot.add(FeatureGenericDesired("feature" + name + "_ref", 3))
-        self.gain = robot.add(GainAdaptive("gain" + name))
-        self.task = robot.add_task(_task("task" + name, nv, inequality))
         connect = robot.builder.Connect
-        connect(dyn.GetOutputPort("com"), self.feature.GetInputPort("errorIN"))
-        connect(dyn.GetOutputPort("Jcom"), self.feature.GetInputPort("jacobianIN"))
-        connect(self.featureDes.GetOutputPort("errorIN"), self.feature.GetInputPort("reference"))
-        connect(self.feature.GetOutputPort("error"), self.gain.GetInputPort("error"))
-        connect(self.feature.GetOutputPort("error"), self.task.GetInputPort("error"))
-        connect(self.feature.GetOutputPort("jacobian"), self.task.GetInputPort("jacobian"))
-        connect(self.gain.GetOutputPort("gain"), self.task.GetInputPort("controlGain"))
+        connect(dyn.GetOutputPort("com"), feature.GetInputPort("errorIN"))
+        connect(dyn.GetOutputPort("Jcom"), feature.GetInputPort("jacobianIN"))
+        connect(self.featureDes.GetOutputPort("errorIN"), feature.GetInputPort("reference"))
+        connect(self.featureDes.GetOutputPort("velocity"), feature.GetInputPort("reference_velocity"))
+        self._finish(robot, name, feature, inequality, pd)
         self.keep()
 
     def keep(self, context: Context | None = None) -> None:
         """Desired CoM ← current CoM."""
         self.featureDes.setReference(self.dyn.com_at(_current_position(self.robot, context)), context)
+
+
+class MetaTaskKinePosture(_MetaTask):
+    """Task on the posture (``FeaturePosture``): by default every joint towards the device's
+    initial configuration (half-sitting for TALOS), the floating base left free."""
+
+    def __init__(self, dyn: Dynamic, name: str = "posture", pd: bool = False):
+        robot = robot_of(dyn)
+        feature = robot.add(FeaturePosture("feature" + name, robot.model.plant, robot.device.initial_position))
+        robot.builder.Connect(robot.device.GetOutputPort("state"), feature.GetInputPort("state"))
+        self._finish(robot, name, feature, pd=pd)
+
+
+class MetaTaskKine6dRel(_MetaTask):
+    """Task on the pose of op point A with respect to op point B (``FeatureRelative6d``), e.g. one
+    hand with respect to the other. The desired relative pose starts as the current one."""
+
+    def __init__(self, name: str, dyn: Dynamic, opPoint: str, opPointBase: str,
+                 opPointRef: str | None = None, opPointBaseRef: str | None = None):
+        robot = robot_of(dyn)
+        self.dyn, self.opPoint, self.opPointBase = dyn, opPoint, opPointBase
+        a, Ja = dyn.createOpPoint(opPoint, opPointRef or opPoint)
+        b, Jb = dyn.createOpPoint(opPointBase, opPointBaseRef or opPointBase)
+        feature = robot.add(FeatureRelative6d("feature" + name, robot.dimension))
+        self.featureDes = robot.add(Feature6dDesired("feature" + name + "_ref"))
+        connect = robot.builder.Connect
+        for port, source in (("position", a), ("Jq", Ja), ("positionRef", b), ("JqRef", Jb)):
+            connect(source, feature.GetInputPort(port))
+        connect(self.featureDes.GetOutputPort("position"), feature.GetInputPort("reference"))
+        self._finish(robot, name, feature)
+        self.keep()
+
+    def keep(self, context: Context | None = None) -> None:
+        """Desired relative pose ← current relative pose."""
+        q = _current_position(self.robot, context)
+        X_BA = self.dyn.pose_at(self.opPointBase, q).inverse().multiply(self.dyn.pose_at(self.opPoint, q))
+        self.featureDes.setPosition(X_BA, context)
+
+
+class MetaTaskVisualPoint(_MetaTask):
+    """Look at a point: the point's image in the camera ``opPointRef`` (an optical frame: z forward)
+    is driven to ``s*`` (default the image centre). Connect ``point`` (and, for a moving point,
+    ``point_velocity``) with :meth:`plugPoint`, or set a fixed point with :meth:`setPoint`."""
+
+    def __init__(self, name: str, dyn: Dynamic, opPoint: str = "camera", opPointRef: str = "rgbd_rgb_optical_frame"):
+        robot = robot_of(dyn)
+        position, jacobian = dyn.createOpPoint(opPoint, opPointRef)
+        feature = robot.add(FeatureVisualPoint("feature" + name, robot.dimension))
+        robot.builder.Connect(position, feature.GetInputPort("position"))
+        robot.builder.Connect(jacobian, feature.GetInputPort("Jq"))
+        self._finish(robot, name, feature)
+
+    def plugPoint(self, point: OutputPort, velocity: OutputPort | None = None) -> None:
+        self.robot.builder.Connect(point, self.feature.GetInputPort("point"))
+        if velocity is not None:
+            self.robot.builder.Connect(velocity, self.feature.GetInputPort("point_velocity"))
+
+    def setPoint(self, point) -> None:
+        """A fixed point (world frame, m), for the diagram's lifetime."""
+        from pydrake.systems.primitives import ConstantVectorSource
+
+        source = self.robot.add(ConstantVectorSource(check_finite("point", point, (3,))))
+        source.set_name(f"point_{self.name}")
+        self.plugPoint(source.get_output_port())
 
 
 def gotoNd(

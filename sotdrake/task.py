@@ -1,13 +1,18 @@
 """SoT tasks: the reference behaviour of one feature, as rows ``lower ≤ J v ≤ upper`` for a solver.
 
-* ``Task``: ``ė* = -λ(e)·e``, an equality (``lower = upper = ė*``).
+* ``Task``: ``ė* = -λ(e)·e - ė_ref``, an equality (``lower = upper = ė*``); ``ė_ref`` is the
+  feature's ``errordot`` (the error's rate due to a moving reference: velocity feed-forward), zero
+  when the optional ``errordot`` input is not connected.
+* ``TaskPD``: ``ė* = -λ e - β ė - ė_ref``, where ``ė`` is the error's rate over the last tick
+  (``(e_k - e_{k-1})/dt``, held in the Context); ``setBeta(β)``.
 * ``TaskInequality`` (sot-dyninv): bounds ``e_min ≤ e ≤ e_max`` on the feature's error, as velocity
   rows ``λ(e_min - e) ≤ J v ≤ λ(e_max - e)``: the error may approach a bound at most exponentially
   with rate λ, and is driven back at that rate when outside. Only solvers that take inequalities
   (``SolverKine``) accept it; the basic ``SOT`` refuses it at ``push``.
 
-Inputs ``error`` (``e``), ``jacobian`` (``J = ∂e/∂v``) and ``controlGain`` (``λ``, 1/s). Outputs
-``task``, a :class:`TaskLevel` for the solvers, and ``error_norm`` (``‖e‖``, for tracing).
+Inputs ``error`` (``e``), ``jacobian`` (``J = ∂e/∂v``), ``controlGain`` (``λ``, 1/s) and, optional,
+``errordot``. Outputs ``task``, a :class:`TaskLevel` for the solvers, and ``error_norm`` (``‖e‖``,
+for tracing).
 """
 
 from __future__ import annotations
@@ -55,6 +60,7 @@ class _TaskBase:
         self.error = self.DeclareAbstractInputPort("error", AbstractValue.Make(np.zeros(0)))
         self.jacobian = self.DeclareAbstractInputPort("jacobian", AbstractValue.Make(np.zeros((0, nv))))
         self.controlGain = self.DeclareVectorInputPort("controlGain", 1)
+        self.errordot = self.DeclareAbstractInputPort("errordot", AbstractValue.Make(np.zeros(0)))
         self._level = self.DeclareCacheEntry(
             "level",
             ValueProducer(allocate=lambda: AbstractValue.Make(_empty(nv)), calc=self._calc),
@@ -74,6 +80,14 @@ class _TaskBase:
     def _calc(self, context: Context, value: AbstractValue) -> None:
         e = self.error.Eval(context)
         lower, upper = self._rows(context, e, self.controlGain.Eval(context)[0])
+        if self.errordot.HasValue(context):
+            e_dot = self.errordot.Eval(context)
+            if e_dot.shape != e.shape:
+                raise InvalidInput(f"{self.name}: errordot has {e_dot.size} rows, error has {e.size}")
+            if np.any(e_dot):
+                equality = upper is lower  # keep an equality one array (TaskLevel.is_equality)
+                lower = lower - e_dot
+                upper = lower if equality else upper - e_dot
         value.set_value(TaskLevel(self.jacobian.Eval(context), lower, upper, e))
 
 
@@ -87,6 +101,37 @@ class Task(_TaskBase, LeafSystem):
 
     def _rows(self, context, e, gain):
         reference = -gain * e
+        return reference, reference
+
+
+@dataclass
+class PDSettings:
+    beta: float = 0.0
+
+
+class TaskPD(_TaskBase, Entity[PDSettings]):
+    """``ė* = -λ e - β ė - ė_ref`` with ``ė = (e_k - e_{k-1})/dt`` (zero on the first tick and when
+    the error changes size). The previous error is discrete state, updated every ``dt``."""
+
+    def __init__(self, name: str, nv: int, dt: float):
+        Entity.__init__(self, name, PDSettings())
+        self.dt = float(dt)
+        self._declare_ports(nv)
+        self._previous = self.DeclareAbstractState(AbstractValue.Make(np.zeros(0)))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(self.dt, 0.0, self._remember)
+
+    def setBeta(self, beta: float, context: Context | None = None) -> None:
+        if not (np.isfinite(beta) and beta >= 0):
+            raise InvalidInput(f"{self.name}: β must be finite and ≥ 0, got {beta}")
+        self._command(context, lambda s: setattr(s, "beta", float(beta)))
+
+    def _remember(self, context: Context, state) -> None:
+        state.get_mutable_abstract_state(self._previous).set_value(self.error.Eval(context).copy())
+
+    def _rows(self, context, e, gain):
+        previous = context.get_abstract_state(self._previous).get_value()
+        rate = (e - previous) / self.dt if previous.shape == e.shape else np.zeros_like(e)
+        reference = -gain * e - self._settings_of(context).beta * rate
         return reference, reference
 
 

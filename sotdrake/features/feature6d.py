@@ -4,15 +4,16 @@ Let F be the controlled frame: the op point Op moved by ``opmodif`` (``X_WF = X_
 the seed's ``handMgrip``), ``X_WF = (R, p)`` and the desired ``X_WF* = (R*, p*)``. The full error has
 six components ``(X, Y, Z, RX, RY, RZ)``, as sot-core defines them:
 
-* ``frame('desired')``: ``e = log6-like(X_WF*⁻¹ X_WF)``, i.e. ``(R*ᵀ(p - p*), log(R*ᵀ R))``: the
-  pose of F seen from F*; with ``R* = I`` the translation error is ``p - p*`` in world axes;
-* ``frame('current')``: ``e = (Rᵀ(p* - p), log(Rᵀ R*))``: the pose of F* seen from F.
+* ``frame('desired')``: ``e = (R*ᵀ(p - p*), log(R*ᵀ R))``, the pose of F seen from F*; with ``R* = I``
+  the translation error is ``p - p*`` in world axes;
+* ``frame('current')``: ``e = (Rᵀ(p* - p), log(Rᵀ R*))``, the pose of F* seen from F.
 
 ``log`` is the SO(3) logarithm (rotation vector). With ``J_WF = (Jω; Jv)`` (world frame, rows of
-Drake's spatial Jacobian) and ``ω_F = Rᵀ ω_W``, the exact Jacobians ``∂e/∂v`` are
+Drake's spatial Jacobian), ``ω_F = Rᵀ ω_W`` and, for a moving target, its spatial velocity
+``(ω*, ṗ*)`` (world) with ``ω*_F* = R*ᵀ ω*``, the exact derivatives are
 
-* desired: ``(R*ᵀ Jv ; Jr⁻¹(e_r) Rᵀ Jω)``;
-* current: ``(-Rᵀ Jv + [e_t]× Rᵀ Jω ; -Jl⁻¹(e_r) Rᵀ Jω)``,
+* desired: ``J = (R*ᵀ Jv ; Jr⁻¹(e_r) Rᵀ Jω)``, ``ė_ref = (-R*ᵀ ṗ* + [e_t]× ω*_F* ; -Jl⁻¹(e_r) ω*_F*)``;
+* current: ``J = (-Rᵀ Jv + [e_t]× Rᵀ Jω ; -Jl⁻¹(e_r) Rᵀ Jω)``, ``ė_ref = (Rᵀ ṗ* ; Jr⁻¹(e_r) ω*_F*)``,
 
 and only the rows chosen by the selection mask are output (see :mod:`sotdrake.selection`).
 """
@@ -24,34 +25,37 @@ from dataclasses import dataclass, field
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
-from pydrake.systems.framework import Context, ValueProducer
+from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite
 from ..lie import hat, left_jacobian_inverse_so3, log_so3, right_jacobian_inverse_so3
-from ..selection import parse_selection
+from .base import Feature, FeatureSettings
 
 FRAMES = ("desired", "current")
 
 
 def pose_error_and_jacobian(
-    X_WF: RigidTransform, J_WF: np.ndarray, X_WFd: RigidTransform, frame: str
-) -> tuple[np.ndarray, np.ndarray]:
-    """Full 6D error ``e`` and its Jacobian ``∂e/∂v`` (6×nv), see the module docstring."""
+    X_WF: RigidTransform, J_WF: np.ndarray, X_WFd: RigidTransform, frame: str, V_WFd: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Full 6D error ``e``, its Jacobian ``∂e/∂v`` (6×nv) and ``ė_ref`` for the target's spatial
+    velocity ``V_WFd = (ω*, ṗ*)`` (zero when None); see the module docstring."""
     R, p = X_WF.rotation().matrix(), X_WF.translation()
     Rd, pd = X_WFd.rotation().matrix(), X_WFd.translation()
     Jw_F = R.T @ J_WF[:3]  # body angular-velocity rows
+    moving = V_WFd is not None and np.any(V_WFd)
+    wd = Rd.T @ V_WFd[:3] if moving else None
     if frame == "desired":
         e_t = Rd.T @ (p - pd)
         e_r = log_so3(Rd.T @ R)
-        J_t = Rd.T @ J_WF[3:]
-        J_r = right_jacobian_inverse_so3(e_r) @ Jw_F
+        J = np.vstack([Rd.T @ J_WF[3:], right_jacobian_inverse_so3(e_r) @ Jw_F])
+        e_dot = np.concatenate([-Rd.T @ V_WFd[3:] + hat(e_t) @ wd, -left_jacobian_inverse_so3(e_r) @ wd]) if moving else np.zeros(6)
     else:
         e_t = R.T @ (pd - p)
         e_r = log_so3(R.T @ Rd)
-        J_t = -R.T @ J_WF[3:] + hat(e_t) @ Jw_F
-        J_r = -left_jacobian_inverse_so3(e_r) @ Jw_F
-    return np.concatenate([e_t, e_r]), np.vstack([J_t, J_r])
+        J = np.vstack([-R.T @ J_WF[3:] + hat(e_t) @ Jw_F, -left_jacobian_inverse_so3(e_r) @ Jw_F])
+        e_dot = np.concatenate([R.T @ V_WFd[3:], right_jacobian_inverse_so3(e_r) @ wd]) if moving else np.zeros(6)
+    return np.concatenate([e_t, e_r]), J, e_dot
 
 
 def shift_jacobian(X_WOp: RigidTransform, J_WOp: np.ndarray, X_OpF: RigidTransform):
@@ -86,77 +90,82 @@ def as_transform(value, what: str) -> RigidTransform:
 @dataclass
 class Feature6dDesiredSettings:
     position: RigidTransform = field(default_factory=RigidTransform)
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(6))  # (ω*, ṗ*), world frame
 
 
 class Feature6dDesired(Entity[Feature6dDesiredSettings]):
-    """Desired pose ``X_WF*`` (the SoT ``featureDes``). Output ``position``."""
+    """Desired pose ``X_WF*`` (the SoT ``featureDes``). Outputs ``position`` and ``velocity``
+    (``(ω*, ṗ*)``, world frame).
+
+    Optional inputs for a moving target: ``translation_in`` (``p*``, m) and
+    ``translation_velocity_in`` (``ṗ*``, m/s); when connected they override the settings'
+    translation and translational velocity (the rotation stays the settings').
+    """
 
     def __init__(self, name: str):
         Entity.__init__(self, name, Feature6dDesiredSettings())
-        self.DeclareAbstractOutputPort(
-            "position",
-            lambda: AbstractValue.Make(RigidTransform()),
-            lambda c, o: o.set_value(self._settings_of(c).position),
-        )
+        self.translation_in = self.DeclareVectorInputPort("translation_in", 3)
+        self.translation_velocity_in = self.DeclareVectorInputPort("translation_velocity_in", 3)
+        self.DeclareAbstractOutputPort("position", lambda: AbstractValue.Make(RigidTransform()), self._position)
+        self.DeclareVectorOutputPort("velocity", 6, self._velocity)
+
+    def _position(self, context: Context, output: AbstractValue) -> None:
+        X = self._settings_of(context).position
+        if self.translation_in.HasValue(context):
+            X = RigidTransform(X.rotation(), self.translation_in.Eval(context))
+        output.set_value(X)
+
+    def _velocity(self, context: Context, output) -> None:
+        V = self._settings_of(context).velocity.copy()
+        if self.translation_velocity_in.HasValue(context):
+            V[3:] = self.translation_velocity_in.Eval(context)
+        output.SetFromVector(V)
 
     def setPosition(self, value, context: Context | None = None) -> None:
         """Set ``X_WF*`` (any form :func:`as_transform` accepts)."""
         X = as_transform(value, f"{self.name}.position")
         self._command(context, lambda s: setattr(s, "position", X))
 
+    def setVelocity(self, velocity, context: Context | None = None) -> None:
+        """Set the target's spatial velocity ``(ω*, ṗ*)`` (world frame) for the feed-forward."""
+        V = check_finite(f"{self.name}.velocity", velocity, (6,)).copy()
+        self._command(context, lambda s: setattr(s, "velocity", V))
+
 
 @dataclass
-class Feature6dSettings:
-    selection: str = "111111"
+class Feature6dSettings(FeatureSettings):
     frame: str = "desired"
     opmodif: RigidTransform | None = None
 
 
-class Feature6d(Entity[Feature6dSettings]):
+class Feature6d(Feature):
     """Error between an op point and its desired pose.
 
-    Inputs: ``position`` (``X_WOp``), ``Jq`` (``J_WOp``, 6×nv), ``reference`` (``X_WF*``).
-    Outputs: ``error`` and ``jacobian``, the selected rows of ``e`` and ``∂e/∂v``.
+    Inputs: ``position`` (``X_WOp``), ``Jq`` (``J_WOp``, 6×nv), ``reference`` (``X_WF*``) and,
+    optional, ``reference_velocity`` (``(ω*, ṗ*)``). Outputs: ``error``, ``jacobian``, ``errordot``.
     """
 
     def __init__(self, name: str, nv: int):
-        Entity.__init__(self, name, Feature6dSettings())
-        self.nv = nv
+        Feature.__init__(self, name, 6, nv, Feature6dSettings("111111"))
         self.position = self.DeclareAbstractInputPort("position", AbstractValue.Make(RigidTransform()))
         self.Jq = self.DeclareAbstractInputPort("Jq", AbstractValue.Make(np.zeros((6, nv))))
         self.reference = self.DeclareAbstractInputPort("reference", AbstractValue.Make(RigidTransform()))
-        self._result = self.DeclareCacheEntry(
-            "error_and_jacobian",
-            ValueProducer(allocate=lambda: AbstractValue.Make((np.zeros(0), np.zeros((0, nv)))), calc=self._calc),
-            prerequisites_of_calc={self.all_sources_ticket()},
-        )
-        self.DeclareAbstractOutputPort(
-            "error", lambda: AbstractValue.Make(np.zeros(0)), lambda c, o: o.set_value(self._result.Eval(c)[0])
-        )
-        self.DeclareAbstractOutputPort(
-            "jacobian", lambda: AbstractValue.Make(np.zeros((0, nv))), lambda c, o: o.set_value(self._result.Eval(c)[1])
-        )
+        self.reference_velocity = self.DeclareVectorInputPort("reference_velocity", 6)
+        self._declare_outputs()
 
-    def _calc(self, context: Context, value: AbstractValue) -> None:
+    def _compute(self, context: Context):
         s = self._settings_of(context)
         X_WF, J_WF = self.position.Eval(context), self.Jq.Eval(context)
         if s.opmodif is not None:
             X_WF, J_WF = shift_jacobian(X_WF, J_WF, s.opmodif)
-        e, J = pose_error_and_jacobian(X_WF, J_WF, self.reference.Eval(context), s.frame)
-        rows = parse_selection(s.selection, 6)
-        value.set_value((e[rows], J[rows]))
+        V = self._optional(self.reference_velocity, context, None)
+        return pose_error_and_jacobian(X_WF, J_WF, self.reference.Eval(context), s.frame, V)
 
-    # --- commands --------------------------------------------------------------------------
     def frame(self, which: str, context: Context | None = None) -> None:
         """Frame in which the error is expressed: ``'desired'`` or ``'current'``."""
         if which not in FRAMES:
             raise InvalidInput(f"{self.name}.frame: expected one of {FRAMES}, got {which!r}")
         self._command(context, lambda s: setattr(s, "frame", which))
-
-    def selec(self, mask: str, context: Context | None = None) -> None:
-        """Selection mask, read right to left (``'000011'`` selects X and Y)."""
-        parse_selection(mask, 6)
-        self._command(context, lambda s: setattr(s, "selection", mask))
 
     def setOpmodif(self, value, context: Context | None = None) -> None:
         """Controlled frame offset ``X_OpF`` (the seed's ``opmodif``); ``None`` removes it."""

@@ -1,0 +1,25 @@
+"""``Feature1D`` (sot-core): a scalar summary of another feature, ``e = ½‖e_in‖²``, ``J = e_inᵀ J_in``
+(and ``ė_ref = e_inᵀ ė_ref,in``). Inputs ``errorIN``, ``jacobianIN`` and, optional, ``errordotIN``
+(plug the outputs of another feature). Useful to give a whole feature one row of a stack."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Context
+
+from .base import Feature
+
+
+class Feature1D(Feature):
+    def __init__(self, name: str, nv: int):
+        Feature.__init__(self, name, 1, nv)
+        self.errorIN = self.DeclareAbstractInputPort("errorIN", AbstractValue.Make(np.zeros(0)))
+        self.jacobianIN = self.DeclareAbstractInputPort("jacobianIN", AbstractValue.Make(np.zeros((0, nv))))
+        self.errordotIN = self.DeclareAbstractInputPort("errordotIN", AbstractValue.Make(np.zeros(0)))
+        self._declare_outputs()
+
+    def _compute(self, context: Context):
+        e_in = self.errorIN.Eval(context)
+        e_dot_in = self._optional(self.errordotIN, context, np.zeros_like(e_in))
+        return np.array([0.5 * e_in @ e_in]), (e_in @ self.jacobianIN.Eval(context))[None, :], np.array([e_in @ e_dot_in])

@@ -1,0 +1,47 @@
+"""Joint-limit centring feature (sot-core ``FeatureJointLimits``).
+
+For each selected joint with finite limits ``[l, u]``: ``e = 2(q - l)/(u - l) - 1``, which is 0 at
+the middle of the range and ±1 on the limits; Jacobian ``2/(u - l)`` on the joint's velocity.
+(sot-core's Jacobian is ``1/(u - l)``, half the derivative; this one is exact.) A task on it with a
+low priority keeps joints away from their limits; as an inequality (``-1 + δ ≤ e ≤ 1 - δ``) it is a
+soft joint-limit avoidance. Input ``state`` (``q``). Components are the joints with finite limits,
+in the plant's order (``joint_names``); all are selected by default.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.systems.framework import Context
+
+from ..device import Layout
+from .base import Feature
+
+
+class FeatureJointLimits(Feature):
+    def __init__(self, name: str, plant):
+        layout = Layout.of(plant)
+        lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+        finite = np.isfinite(lower[layout.joints_q]) & np.isfinite(upper[layout.joints_q])
+        finite &= upper[layout.joints_q] > lower[layout.joints_q]
+        self._q = layout.joints_q[finite]
+        self._v = layout.joints_v[finite]
+        self._lower, self._width = lower[self._q], (upper - lower)[self._q]
+        Feature.__init__(self, name, len(self._q), plant.num_velocities())
+        self.joint_names = [_name_of(plant, i) for i in self._q]
+        self.state = self.DeclareVectorInputPort("state", plant.num_positions())
+        self._declare_outputs()
+
+    def _compute(self, context: Context):
+        q = self.state.Eval(context)
+        e = 2.0 * (q[self._q] - self._lower) / self._width - 1.0
+        J = np.zeros((self.dimension, self.nv))
+        J[np.arange(self.dimension), self._v] = 2.0 / self._width
+        return e, J, np.zeros(self.dimension)
+
+
+def _name_of(plant, position_index: int) -> str:
+    for j in plant.GetJointIndices():
+        joint = plant.get_joint(j)
+        if joint.position_start() <= position_index < joint.position_start() + joint.num_positions():
+            return joint.name()
+    return str(position_index)

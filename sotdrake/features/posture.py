@@ -1,0 +1,93 @@
+"""Posture feature (sot-core ``FeaturePosture``): the configuration against a reference posture.
+
+One error component per generalized velocity ``v_i`` (so ``selectDof(i)`` speaks of Drake's
+velocity index ``i``):
+
+* joint coordinate: ``e_i = q_i - q*_i``, Jacobian row ``e_iᵀ`` (identity), ``ė_ref,i = -q̇*_i``;
+* floating base (Drake order ``ω``, then ``v``): rotation ``log(R*ᵀ R)`` with rows
+  ``Jr⁻¹(e_r) Rᵀ`` on ``ω_W``; translation ``p - p*`` (world) with identity rows on ``v_WB``; the
+  reference's base velocity (``ω*, ṗ*``, world) enters ``ė_ref`` as ``(-Jl⁻¹(e_r) R*ᵀ ω*, -ṗ*)``.
+
+By default every joint is selected and the floating base is not (it is usually what the other
+tasks move). Input ``state`` (``q``); the posture ``q*`` and its velocity ``v*`` are settings, or
+the optional inputs ``posture_in`` (nq) and ``postureDot_in`` (nv).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.systems.framework import Context
+
+from ..device import Layout
+from ..exceptions import InvalidInput, check_finite
+from ..lie import left_jacobian_inverse_so3, log_so3, quaternion_wxyz_to_rotation, right_jacobian_inverse_so3
+from .base import Feature, FeatureSettings
+
+
+@dataclass
+class PostureSettings(FeatureSettings):
+    posture: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    postureDot: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+
+class FeaturePosture(Feature):
+    def __init__(self, name: str, plant, posture: np.ndarray):
+        nq, nv = plant.num_positions(), plant.num_velocities()
+        self.layout = Layout.of(plant)
+        mask = np.zeros(nv, dtype=bool)
+        mask[self.layout.joints_v] = True
+        settings = PostureSettings(_mask(mask), check_finite("posture", posture, (nq,)).copy(), np.zeros(nv))
+        Feature.__init__(self, name, nv, nv, settings)
+        self.nq = nq
+        self.state = self.DeclareVectorInputPort("state", nq)
+        self.posture_in = self.DeclareVectorInputPort("posture_in", nq)
+        self.postureDot_in = self.DeclareVectorInputPort("postureDot_in", nv)
+        self._declare_outputs()
+
+    def _compute(self, context: Context):
+        s = self._settings_of(context)
+        q = self.state.Eval(context)
+        q_star = self._optional(self.posture_in, context, s.posture)
+        v_star = self._optional(self.postureDot_in, context, s.postureDot)
+        nv, layout = self.nv, self.layout
+        e, J, e_dot = np.zeros(nv), np.eye(nv), -v_star.copy()
+        e[layout.joints_v] = q[layout.joints_q] - q_star[layout.joints_q]
+        if layout.base_q is not None:
+            iq, iv = layout.base_q, layout.base_v
+            R = quaternion_wxyz_to_rotation(q[iq : iq + 4])
+            Rd = quaternion_wxyz_to_rotation(q_star[iq : iq + 4])
+            e_r = log_so3(Rd.T @ R)
+            e[iv : iv + 3] = e_r
+            e[iv + 3 : iv + 6] = q[iq + 4 : iq + 7] - q_star[iq + 4 : iq + 7]
+            J[iv : iv + 3, iv : iv + 3] = right_jacobian_inverse_so3(e_r) @ R.T
+            e_dot[iv : iv + 3] = -left_jacobian_inverse_so3(e_r) @ (Rd.T @ v_star[iv : iv + 3])
+        return e, J, e_dot
+
+    def selectDof(self, index: int, selected: bool, context: Context | None = None) -> None:
+        """Select (or not) the component of velocity index ``index`` (sot-core ``selectDof``)."""
+        if not 0 <= index < self.nv:
+            raise InvalidInput(f"{self.name}.selectDof: index {index} outside 0..{self.nv - 1}")
+
+        def change(s):
+            mask = np.array([c == "1" for c in reversed(s.selection)])
+            mask[index] = selected
+            if not mask.any():
+                raise InvalidInput(f"{self.name}.selectDof: no component would be left selected")
+            s.selection = _mask(mask)
+
+        self._command(context, change)
+
+    def setPosture(self, posture, context: Context | None = None) -> None:
+        q_star = check_finite(f"{self.name}.posture", posture, (self.nq,)).copy()
+        self._command(context, lambda s: setattr(s, "posture", q_star))
+
+    def setPostureDot(self, velocity, context: Context | None = None) -> None:
+        v_star = check_finite(f"{self.name}.postureDot", velocity, (self.nv,)).copy()
+        self._command(context, lambda s: setattr(s, "postureDot", v_star))
+
+
+def _mask(selected: np.ndarray) -> str:
+    """A selection string (read right to left) from booleans in component order."""
+    return "".join("1" if x else "0" for x in reversed(selected))

@@ -32,7 +32,6 @@ import argparse
 import json
 import logging
 import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,7 +43,9 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.robot import Robot, add_sot, talos
 from sotdrake.solvers import SOT
+from sotdrake.simulation import simulate, write_run
 from sotdrake.tracing import Tracer
+from sotdrake.visualization import write_control_graph
 
 HAND_OFFSET = (0.1, 0.0, 0.0)
 GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]
@@ -128,20 +129,7 @@ def build_diagram(config: Configuration, meshcat: Meshcat | None = None, dt: flo
 
 
 def run(concept: Concept, progress: bool = True) -> tuple[Simulator, float]:
-    from tqdm import tqdm
-
-    simulator = Simulator(concept.diagram)
-    simulator.Initialize()
-    if concept.visualizer is not None:
-        concept.visualizer.StartRecording(False)
-    duration, chunk = concept.config.duration, 0.05
-    start = time.perf_counter()
-    with tqdm(total=duration, unit="sim s", disable=not progress, file=sys.stderr, leave=False,
-              bar_format="{desc} {l_bar}{bar}| {n:.2f}/{total:.2f} s") as bar:
-        for k in range(1, int(np.ceil(duration / chunk)) + 1):
-            simulator.AdvanceTo(min(k * chunk, duration))
-            bar.update(min(k * chunk, duration) - bar.n)
-    return simulator, time.perf_counter() - start
+    return simulate(concept.diagram, concept.config.duration, concept.visualizer, progress)
 
 
 def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict, dict]:
@@ -241,8 +229,6 @@ def main(argv: list[str] | None = None) -> dict:
     args.out.mkdir(parents=True, exist_ok=True)
     from pydrake.geometry import StartMeshcat
 
-    from sotdrake.visualization import save_recording, write_control_graph
-
     meshcat = None if args.no_meshcat else StartMeshcat()
     summary, traces = {}, {}
     for name in names:
@@ -256,11 +242,8 @@ def main(argv: list[str] | None = None) -> dict:
             print(f"{name}: {config.description}", file=sys.stderr)
         simulator, wall = run(concept, progress=not args.quiet)
         summary[name], traces[name] = summarize(concept, simulator, wall)
-        folder = args.out / name
-        folder.mkdir(exist_ok=True)
-        np.savez_compressed(folder / "trace.npz", **traces[name])
-        if meshcat is not None:
-            save_recording(concept.visualizer, meshcat, folder / "recording.html")
+        entry = dict(summary[name])
+        write_run(args.out / name, concept.diagram, entry, traces[name], meshcat, concept.visualizer, graph=False)
         if name == names[0]:
             write_control_graph(concept.diagram, args.out / "control_graph.svg")
     plot(traces, args.out / "plots.png")

@@ -17,8 +17,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,6 +28,8 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.robot import Robot, add_sot, talos
 from sotdrake.sequencer import attime
+from sotdrake.simulation import simulate as run_simulation
+from sotdrake.simulation import write_run
 from sotdrake.solvers import SOT
 from sotdrake.tracing import Tracer
 
@@ -123,22 +123,7 @@ def build_diagram(
 
 def simulate(appli: Appli, duration: float, progress: bool = True) -> tuple[Simulator, float]:
     """Run for ``duration`` seconds of simulated time; returns the simulator and the wall time."""
-    from tqdm import tqdm
-
-    simulator = Simulator(appli.diagram)
-    simulator.Initialize()
-    if appli.visualizer is not None:
-        appli.visualizer.StartRecording(False)
-    chunk = 0.05
-    steps = int(np.ceil(duration / chunk))
-    start = time.perf_counter()
-    with tqdm(total=round(duration, 6), unit="sim s", disable=not progress, file=sys.stderr,
-              bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} s [{elapsed}<{remaining}]") as bar:
-        for k in range(1, steps + 1):
-            t = min(k * chunk, duration)
-            simulator.AdvanceTo(t)
-            bar.update(t - bar.n)
-    return simulator, time.perf_counter() - start
+    return run_simulation(appli.diagram, duration, appli.visualizer, progress)
 
 
 def summarize(appli: Appli, simulator: Simulator, duration: float, wall: float) -> tuple[dict, dict]:
@@ -241,16 +226,8 @@ def main(argv: list[str] | None = None) -> dict:
     simulator, wall = simulate(appli, args.duration, progress=not args.quiet)
     summary, trace = summarize(appli, simulator, args.duration, wall)
 
-    from sotdrake.visualization import save_recording, write_control_graph
-
-    outputs = {"trace": args.out / "trace.npz", "plots": args.out / "plots.png"}
-    np.savez_compressed(outputs["trace"], **trace)
-    plot(trace, appli.target, outputs["plots"])
-    outputs["control_graph"] = write_control_graph(appli.diagram, args.out / "control_graph.svg")
-    if meshcat is not None:
-        outputs["recording"] = save_recording(appli.visualizer, meshcat, args.out / "recording.html")
-    summary["outputs"] = {k: str(v) for k, v in outputs.items()}
-    (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    plot(trace, appli.target, args.out / "plots.png")
+    write_run(args.out, appli.diagram, summary, trace, meshcat, appli.visualizer)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
 

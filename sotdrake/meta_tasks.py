@@ -180,8 +180,7 @@ class MetaTaskVisualPoint(_MetaTask):
         """A fixed point (world frame, m), for the diagram's lifetime."""
         from pydrake.systems.primitives import ConstantVectorSource
 
-        source = self.robot.add(ConstantVectorSource(check_finite("point", point, (3,))))
-        source.set_name(f"point_{self.name}")
+        source = self.robot.add(ConstantVectorSource(check_finite("point", point, (3,))), f"point_{self.name}")
         self.plugPoint(source.get_output_port())
 
 

@@ -60,9 +60,13 @@ class Robot:
             mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
         return mask
 
-    def add(self, system: LeafSystem) -> LeafSystem:
-        """Add ``system`` to the builder under its own name, which must be new."""
+    def add(self, system: LeafSystem, name: str | None = None) -> LeafSystem:
+        """Add ``system`` to the builder under ``name`` (default: its own), which must be new."""
+        if name is not None:
+            system.set_name(name)
         name = system.get_name()
+        if not name:
+            raise InvalidInput(f"a {type(system).__name__} needs a name to be added")
         if name in self._names:
             raise InvalidInput(f"an entity named {name!r} already exists")
         self._names.add(name)

@@ -98,11 +98,11 @@ class SolverKine(SOT):
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         s = self._settings_of(context)
-        levels = [LevelRows(level.jacobian, level.lower, level.upper) for level in self._levels(context, s.tasks)]
+        levels = [LevelRows(level.jacobian, level.lower, level.upper) for level in self._levels(context, s)]
         lower, upper = velocity_bounds(
             self.position.Eval(context), *self._limits, self.dt, s.position_margin, self.layout, s.control_selection
         )
-        diagnostics = HqpDiagnostics(tasks=list(s.tasks))
+        diagnostics = HqpDiagnostics(tasks=(["contacts"] if s.contacts else []) + list(s.tasks))
         try:
             result = self._hqp[s.solver].solve(levels, lower, upper, s.damping)
         except SolverError as error:

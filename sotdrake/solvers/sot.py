@@ -2,8 +2,10 @@
 
 Input ports: one per task known to the solver, named after the task, carrying its
 :class:`~sotdrake.task.TaskLevel`. Only the tasks in the stack are evaluated. The stack (task names,
-highest priority first), the SVD threshold and the damping are the entity's settings, held in the
-Context (see :mod:`sotdrake.entity`); ``push`` appends at the lowest priority, as in sot-core.
+highest priority first), the contacts, the SVD threshold and the damping are the entity's settings,
+held in the Context (see :mod:`sotdrake.entity`); ``push`` appends at the lowest priority, as in
+sot-core. Contacts (``addContact``/``rmContact``, sot-dyninv) are tasks solved together as one level
+above the whole stack; the last contact cannot be removed (the robot would lose its support).
 
 Outputs: ``control`` (``v``, size nv, Drake generalized velocities) and ``residuals`` (per level,
 ``‖J_i v - ė_i*‖``). An empty stack gives ``v = 0``: the robot holds still.
@@ -26,6 +28,7 @@ from .cascade import CascadeResult, solve_cascade
 @dataclass
 class StackSettings:
     tasks: list[str] = field(default_factory=list)
+    contacts: list[str] = field(default_factory=list)
     svd_threshold: float = 1e-4
     damping: float = 0.0
     control_selection: np.ndarray | None = None  # nv booleans; None: every component
@@ -80,7 +83,7 @@ class SOT(Entity[StackSettings]):
 
     def _known(self, name: str) -> str:
         if name not in self._task_ports:
-            raise TaskNotFound(name, self._task_ports)
+            raise TaskNotFound(name, list(self._task_ports))
         return name
 
     # --- stack commands (sot-core names) ---------------------------------------------------
@@ -94,11 +97,60 @@ class SOT(Entity[StackSettings]):
             )
 
         def change(s: StackSettings) -> None:
-            if name in s.tasks:
-                raise StackError(f"{self.name}.push: {name!r} is already in the stack {s.tasks}")
+            if name in s.tasks or name in s.contacts:
+                raise StackError(f"{self.name}.push: {name!r} is already in the stack {s.tasks} or contacts {s.contacts}")
             s.tasks.append(name)
 
         self._command(context, change)
+
+    def up(self, name: str, context: Context | None = None) -> None:
+        """Raise ``name`` one level (swap with the task above it)."""
+        self._move(name, -1, context)
+
+    def down(self, name: str, context: Context | None = None) -> None:
+        """Lower ``name`` one level (swap with the task below it)."""
+        self._move(name, +1, context)
+
+    def _move(self, name: str, step: int, context: Context | None) -> None:
+        self._known(name)
+
+        def change(s: StackSettings) -> None:
+            if name not in s.tasks:
+                raise StackError(f"{self.name}: {name!r} is not in the stack {s.tasks}")
+            i = s.tasks.index(name)
+            j = i + step
+            if not 0 <= j < len(s.tasks):
+                raise StackError(f"{self.name}: {name!r} is already at the {'top' if step < 0 else 'bottom'} of the stack")
+            s.tasks[i], s.tasks[j] = s.tasks[j], s.tasks[i]
+
+        self._command(context, change)
+
+    def addContact(self, task, context: Context | None = None) -> None:
+        """Add a contact: a task (or meta task) solved above the whole stack."""
+        name = self._known(getattr(getattr(task, "task", task), "name", task))
+
+        def change(s: StackSettings) -> None:
+            if name in s.contacts or name in s.tasks:
+                raise StackError(f"{self.name}.addContact: {name!r} is already a contact or in the stack")
+            s.contacts.append(name)
+
+        self._command(context, change)
+
+    def rmContact(self, task, context: Context | None = None) -> None:
+        """Remove a contact; removing the last one is refused."""
+        name = self._known(getattr(getattr(task, "task", task), "name", task))
+
+        def change(s: StackSettings) -> None:
+            if name not in s.contacts:
+                raise StackError(f"{self.name}.rmContact: {name!r} is not a contact {s.contacts}")
+            if len(s.contacts) == 1:
+                raise StackError(f"{self.name}.rmContact: {name!r} is the last contact; the robot would lose its support")
+            s.contacts.remove(name)
+
+        self._command(context, change)
+
+    def contacts(self, context: Context | None = None) -> list[str]:
+        return list(self.settings(context).contacts)
 
     def pop(self, context: Context | None = None) -> None:
         """Remove the lowest-priority task."""
@@ -122,7 +174,7 @@ class SOT(Entity[StackSettings]):
         self._command(context, change)
 
     def clear(self, context: Context | None = None) -> None:
-        """Empty the stack."""
+        """Empty the stack (the contacts stay)."""
         self._command(context, lambda s: s.tasks.clear())
 
     def stack(self, context: Context | None = None) -> list[str]:
@@ -153,10 +205,11 @@ class SOT(Entity[StackSettings]):
         self._command(context, lambda s: setattr(s, "control_selection", mask))
 
     # --- solve -----------------------------------------------------------------------------
-    def _levels(self, context: Context, tasks: list[str]) -> list[TaskLevel]:
-        """The stack's task levels, checked: sizes fit nv, no NaN (±inf only as inequality bounds)."""
+    def _levels(self, context: Context, settings: StackSettings) -> list[TaskLevel]:
+        """The levels, highest first (the contacts stacked as one level, then the stack), checked:
+        sizes fit nv, no NaN (±inf only as inequality bounds)."""
         levels = []
-        for name in tasks:
+        for name in [*settings.contacts, *settings.tasks]:
             level = self._task_ports[name].Eval(context)
             J = level.jacobian
             if J.ndim != 2 or J.shape[1] != self.nv or level.lower.shape != (J.shape[0],) or level.upper.shape != (J.shape[0],):
@@ -166,13 +219,18 @@ class SOT(Entity[StackSettings]):
             if level.is_equality and not np.all(np.isfinite(level.lower)):
                 raise SolverError(f"task {name}: non-finite reference at t = {context.get_time()}")
             levels.append(level)
+        if settings.contacts:
+            contacts, levels = levels[: len(settings.contacts)], levels[len(settings.contacts) :]
+            J = np.vstack([c.jacobian for c in contacts])
+            lower = np.concatenate([c.lower for c in contacts])
+            upper = lower if all(c.is_equality for c in contacts) else np.concatenate([c.upper for c in contacts])
+            levels.insert(0, TaskLevel(J, lower, upper, np.concatenate([c.error for c in contacts])))
         return levels
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         s = self._settings_of(context)
-        levels = self._levels(context, s.tasks)
-        for name, level in zip(s.tasks, levels):
-            if not level.is_equality:
-                raise SolverError(f"{self.name} cannot solve the inequality rows of task {name}")
+        levels = self._levels(context, s)
+        if not all(level.is_equality for level in levels):
+            raise SolverError(f"{self.name} cannot solve inequality rows: use the hierarchical QP")
         pairs = [(level.jacobian, level.reference) for level in levels]
         value.set_value(solve_cascade(pairs, self.nv, s.svd_threshold, s.damping, s.control_selection))

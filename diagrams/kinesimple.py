@@ -1,0 +1,132 @@
+#!/usr/bin/env python3
+"""The seed's minimal example (``ros-kinesimple.py``): one task on TALOS' left arm.
+
+The ``left_arm`` model (shoulder welded to the world, six arm joints and the gripper), the device
+at 1 kHz, the basic ``SOT``, and one ``MetaTaskKine6d`` on the hand (``left-wrist`` moved by
+``opmodif`` (0.1, 0, 0), as in the tutorial) driven by ``gotoNd`` to a point 0.245 m away, with a
+constant gain. (The wrist's own origin would be a poor choice here: its position depends on three
+joints only, which half-sitting aligns, a singular start.) Interactive use, as in the seed::
+
+    python -i diagrams/kinesimple.py --interactive
+    >>> step(100); go(1.0); displaySignals(sot, context())
+
+or a whole run::
+
+    python diagrams/kinesimple.py --duration 3 --out out/kinesimple
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import Meshcat
+from pydrake.systems.framework import Diagram, DiagramBuilder
+
+from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd
+from sotdrake.robot import Robot, add_sot, talos
+from sotdrake.simulation import simulate, write_run
+from sotdrake.solvers import SOT
+from sotdrake.tracing import Tracer
+
+OFFSET = (0.1, 0.1, 0.2)  # the target, from the hand's initial position (m, world)
+
+
+@dataclass
+class KineSimple:
+    diagram: Diagram
+    robot: Robot
+    sot: SOT
+    taskLW: MetaTaskKine6d
+    tracer: Tracer
+    target: np.ndarray
+    visualizer: object = None
+
+
+def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3) -> KineSimple:
+    builder = DiagramBuilder()
+    robot = talos(builder, "left_arm", dt)
+    sot = add_sot(robot)
+    sot.setControlSelection(robot.velocity_selection(excluding=["gripper_left_joint"]))
+    taskLW = MetaTaskKine6d("lw", robot.dynamic, "lw", robot.OperationalPointsMap["left-wrist"])
+    handMgrip = np.eye(4)
+    handMgrip[0:3, 3] = (0.1, 0.0, 0.0)
+    taskLW.opmodif = handMgrip
+    target = taskLW.current_pose().translation() + OFFSET
+    gotoNd(taskLW, target, "111", 3.0)
+    sot.push(taskLW.task.name)
+    tracer = Tracer(builder, dt)
+    tracer.add(robot.device.GetOutputPort("state"), "q")
+    tracer.add(taskLW.task.GetOutputPort("error_norm"), "error_tasklw")
+    tracer.add(sot.GetOutputPort("control"), "control")
+    visualizer = None
+    if meshcat is not None:
+        from sotdrake.visualization import add_robot_visualizer, add_target_marker
+
+        visualizer = add_robot_visualizer(robot, meshcat)
+        add_target_marker(meshcat, "/target", target)
+        meshcat.SetCameraPose(camera_in_world=[1.2, 1.0, 0.3], target_in_world=[0.15, 0.2, -0.35])
+    return KineSimple(builder.Build(), robot, sot, taskLW, tracer, target, visualizer)
+
+
+def summarize(kine: KineSimple, simulator, duration: float, wall: float) -> tuple[dict, dict]:
+    context = simulator.get_context()
+    trace = kine.tracer.data(context)
+    final = kine.taskLW.current_pose(context).translation()
+    limits = kine.robot.model.joint_limits()
+    q = trace["q"][:, :-1]  # the arm joints (the gripper is last, not controlled)
+    margin = np.minimum(q - limits["position_lower"][:-1], limits["position_upper"][:-1] - q).min()
+    summary = {
+        "hand_error_m": float(np.linalg.norm(final - kine.target)),
+        "hand_initial_error_m": float(np.linalg.norm(OFFSET)),
+        "min_joint_limit_margin_rad": float(margin),
+        "duration_s": duration,
+        "ticks": len(trace["time"]),
+        "wall_s": wall,
+        "realtime_factor": duration / wall,
+    }
+    return summary, trace
+
+
+def main(argv: list[str] | None = None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--duration", type=float, default=3.0)
+    parser.add_argument("--out", type=Path, default=Path("out/kinesimple"))
+    parser.add_argument("--no-meshcat", action="store_true")
+    parser.add_argument("--quiet", action="store_true")
+    parser.add_argument("--interactive", action="store_true", help="build, then hand over to the prompt (python -i)")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
+    meshcat = None
+    if not args.no_meshcat:
+        from pydrake.geometry import StartMeshcat
+
+        meshcat = StartMeshcat()
+    kine = build_diagram(meshcat)
+    if args.interactive:
+        from sotdrake.interactive import Runner
+
+        return kine, Runner(kine.diagram, kine.robot.dt)
+    simulator, wall = simulate(kine.diagram, args.duration, kine.visualizer, not args.quiet)
+    summary, trace = summarize(kine, simulator, args.duration, wall)
+    args.out.mkdir(parents=True, exist_ok=True)
+    kine.tracer.plot(simulator.get_context(), args.out / "plots.png", ["error_tasklw", "control"])
+    kine.tracer.save_csv(simulator.get_context(), args.out / "trace.csv")
+    write_run(args.out, kine.diagram, summary, trace, meshcat, kine.visualizer)
+    print({k: round(v, 6) if isinstance(v, float) else v for k, v in summary.items() if k != "outputs"})
+    return summary
+
+
+if __name__ == "__main__":
+    result = main()
+    if isinstance(result, tuple):  # --interactive: the seed's names at the prompt
+        from sotdrake.introspection import displaySignals  # noqa: F401
+
+        kine, runner = result
+        robot, sot, taskLW = kine.robot, kine.sot, kine.taskLW
+        step, go, context = runner.step, runner.go, lambda: runner.context
+        next_ = runner.next
+        print("sotdrake: step(n), next_(), go(seconds), displaySignals(sot, context()), sot.push(name, context())")

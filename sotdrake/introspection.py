@@ -1,0 +1,74 @@
+"""The SoT habits ``entity.displaySignals()`` and ``signal.value``, for Drake diagrams.
+
+``entities(diagram)`` lists the systems; ``displaySignals(entity, context)`` prints every input and
+output port of an entity with its value at the context's time (inputs that are not connected say
+so); ``signal(entity, name, context)`` returns one port's value (output, else input).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.systems.framework import Context, Diagram, System
+
+from .entity import own_context
+from .exceptions import NotFound
+
+
+def entities(diagram: Diagram) -> list[str]:
+    """Names of the diagram's systems, in the order they were added."""
+    return [system.get_name() for system in diagram.GetSystems()]
+
+
+def entity(diagram: Diagram, name: str) -> System:
+    for system in diagram.GetSystems():
+        if system.get_name() == name:
+            return system
+    raise NotFound(name, entities(diagram))
+
+
+def signal(system: System, name: str, context: Context):
+    """Value of the output (else input) port ``name`` of ``system`` in ``context`` (root or own)."""
+    own = own_context(system, context)
+    if system.HasOutputPort(name):
+        return _value(system.GetOutputPort(name).EvalAbstract(own))
+    if system.HasInputPort(name):
+        port = system.GetInputPort(name)
+        if not port.HasValue(own):
+            raise NotFound(f"{name} (not connected)", [])
+        return _value(port.EvalAbstract(own))
+    ports = [system.get_input_port(i).get_name() for i in range(system.num_input_ports())]
+    ports += [system.get_output_port(i).get_name() for i in range(system.num_output_ports())]
+    raise NotFound(name, ports)
+
+
+def _value(abstract):
+    value = abstract.get_value()
+    return value.get_value() if hasattr(value, "get_value") and not isinstance(value, np.ndarray) else value
+
+
+def _format(value, width: int = 100) -> str:
+    with np.printoptions(precision=4, suppress=True, linewidth=width):
+        text = repr(value) if not isinstance(value, np.ndarray) else np.array2string(value)
+    text = " ".join(text.split())
+    return text if len(text) <= width else text[: width - 1] + "…"
+
+
+def displaySignals(system: System, context: Context, file=None) -> str:
+    """Print (and return) the entity's signals and their values at ``context``'s time."""
+    own = own_context(system, context)
+    lines = [f"{system.get_name()} ({type(system).__name__}) at t = {own.get_time():.4f} s"]
+    for kind, count, get in (("in ", system.num_input_ports(), system.get_input_port),
+                             ("out", system.num_output_ports(), system.get_output_port)):
+        for i in range(count):
+            port = get(i)
+            if kind == "in " and not port.HasValue(own):
+                text = "(not connected)"
+            else:
+                try:
+                    text = _format(_value(port.EvalAbstract(own)))
+                except RuntimeError as error:  # e.g. an upstream input not connected
+                    text = f"(cannot evaluate: {str(error).splitlines()[0]})"
+            lines.append(f"  {kind} {port.get_name():24s} {text}")
+    report = "\n".join(lines)
+    print(report, file=file)
+    return report

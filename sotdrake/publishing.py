@@ -1,0 +1,88 @@
+"""The SoT ``RosPublish`` with ``addDownsampledSignal``: robot state and signals over LCM.
+
+``add_state_publisher`` publishes the device's ``q`` as ``drake.lcmt_robot_state`` (every position
+coordinate by name: joints by their joint name, the floating base as ``<body>_qw, _qx, _qy, _qz,
+_x, _y, _z``) on channel ``sot_control/state`` every ``period`` seconds of simulated time (0.01:
+100 Hz, downsampled from the 1 kHz loop as the seed's ``addDownsampledSignal(…, 100)``).
+``add_signal_publisher`` publishes any vector output as ``drake.lcmt_scope`` with Drake's
+``LcmScopeSystem``. LCM's default URL keeps the traffic on this host (``udpm`` with ``ttl=0``).
+"""
+
+from __future__ import annotations
+
+from drake import lcmt_robot_state
+from pydrake.common.value import AbstractValue
+from pydrake.lcm import DrakeLcm
+from pydrake.systems.framework import Context, LeafSystem, OutputPort
+from pydrake.systems.lcm import LcmPublisherSystem, LcmScopeSystem
+
+from .exceptions import InvalidInput
+from .robot import Robot
+
+
+def position_names(plant) -> list[str]:
+    """A name for every coordinate of ``q``."""
+    names = [""] * plant.num_positions()
+    for index in plant.GetJointIndices():
+        joint = plant.get_joint(index)
+        if joint.num_positions() == 1:
+            names[joint.position_start()] = joint.name()
+    for body_index in plant.GetFloatingBaseBodies():
+        body = plant.get_body(body_index)
+        start = body.floating_positions_start()
+        for k, suffix in enumerate(("qw", "qx", "qy", "qz", "x", "y", "z")):
+            names[start + k] = f"{body.name()}_{suffix}"
+    return names
+
+
+class RobotStateMessage(LeafSystem):
+    """Input ``state`` (``q``); output ``message``, an ``lcmt_robot_state`` (utime = sim time in µs)."""
+
+    def __init__(self, plant, name: str = "ros_publish_state"):
+        LeafSystem.__init__(self)
+        self.set_name(name)
+        self.names = position_names(plant)
+        self.state = self.DeclareVectorInputPort("state", plant.num_positions())
+        self.DeclareAbstractOutputPort("message", lambda: AbstractValue.Make(lcmt_robot_state()), self._calc)
+
+    def _calc(self, context: Context, output: AbstractValue) -> None:
+        message = lcmt_robot_state()
+        message.utime = int(round(context.get_time() * 1e6))
+        message.num_joints = len(self.names)
+        message.joint_name = self.names
+        message.joint_position = list(self.state.Eval(context))
+        output.set_value(message)
+
+
+def add_state_publisher(
+    robot: Robot, lcm: DrakeLcm | None = None, channel: str = "sot_control/state", period: float = 0.01
+) -> LcmPublisherSystem:
+    """Publish ``robot.device.state`` on ``channel`` every ``period`` s (returns the publisher).
+    A given ``lcm`` must outlive the diagram (the default one lives as long as ``robot``)."""
+    if not period > 0:
+        raise InvalidInput(f"publish period must be > 0, got {period}")
+    lcm = lcm or _lcm_of(robot)
+    converter = robot.add(RobotStateMessage(robot.model.plant))
+    publisher = LcmPublisherSystem.Make(channel, lcmt_robot_state, lcm, period)
+    publisher.set_name(f"lcm_{channel}")
+    robot.builder.AddSystem(publisher)
+    robot.builder.Connect(robot.device.GetOutputPort("state"), converter.get_input_port())
+    robot.builder.Connect(converter.get_output_port(), publisher.get_input_port())
+    return publisher
+
+
+def add_signal_publisher(robot: Robot, port: OutputPort, channel: str, lcm: DrakeLcm | None = None,
+                         period: float = 0.01) -> LcmScopeSystem:
+    """Publish a vector output port as ``lcmt_scope`` on ``channel`` every ``period`` s."""
+    if not period > 0:
+        raise InvalidInput(f"publish period must be > 0, got {period}")
+    scope, _ = LcmScopeSystem.AddToBuilder(robot.builder, lcm or _lcm_of(robot), port, channel, period)
+    return scope
+
+
+def _lcm_of(robot: Robot) -> DrakeLcm:
+    """The robot's LCM instance (Drake's default URL), created once and kept alive with the robot:
+    the publishers only hold a reference to it."""
+    if getattr(robot, "lcm", None) is None:
+        robot.lcm = DrakeLcm()
+    return robot.lcm

@@ -1,0 +1,60 @@
+"""Running a SoT diagram the way every script in ``diagrams/`` does: simulate with a progress bar
+(and a Meshcat recording), then write the run's files."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import Meshcat
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Diagram
+
+from .exceptions import InvalidInput
+
+
+def simulate(diagram: Diagram, duration: float, visualizer=None, progress: bool = True,
+             label: str = "") -> tuple[Simulator, float]:
+    """Run ``duration`` seconds of simulated time (recording ``visualizer`` if given); returns the
+    simulator and the wall time of the loop (s)."""
+    from tqdm import tqdm
+
+    if not duration > 0:
+        raise InvalidInput(f"duration must be > 0, got {duration}")
+    simulator = Simulator(diagram)
+    simulator.Initialize()
+    if visualizer is not None:
+        visualizer.StartRecording(False)
+    chunk = 0.05
+    start = time.perf_counter()
+    with tqdm(total=round(duration, 6), disable=not progress, file=sys.stderr, desc=label, leave=bool(not label),
+              bar_format="{desc} {l_bar}{bar}| {n:.2f}/{total:.2f} s [{elapsed}<{remaining}]") as bar:
+        for k in range(1, int(np.ceil(duration / chunk - 1e-9)) + 1):
+            t = min(k * chunk, duration)
+            simulator.AdvanceTo(t)
+            bar.update(t - bar.n)
+    return simulator, time.perf_counter() - start
+
+
+def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = None,
+              meshcat: Meshcat | None = None, visualizer=None, graph: bool = True) -> dict:
+    """Write ``trace.npz``, ``control_graph.svg`` (and ``.dot``), ``recording.html`` and
+    ``summary.json`` (with the paths written) in ``out``; returns the paths."""
+    from .visualization import save_recording, write_control_graph
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    outputs = {}
+    if trace is not None:
+        outputs["trace"] = out / "trace.npz"
+        np.savez_compressed(outputs["trace"], **trace)
+    if graph:
+        outputs["control_graph"] = write_control_graph(diagram, out / "control_graph.svg")
+    if meshcat is not None and visualizer is not None:
+        outputs["recording"] = save_recording(visualizer, meshcat, out / "recording.html")
+    summary["outputs"] = {k: str(v) for k, v in outputs.items()}
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return outputs

@@ -2,7 +2,8 @@
 
 ``entities(diagram)`` lists the systems; ``displaySignals(entity, context)`` prints every input and
 output port of an entity with its value at the context's time (inputs that are not connected say
-so); ``signal(entity, name, context)`` returns one port's value (output, else input).
+so), ``displayAll(diagram, context)`` every entity's; ``signal(entity, name, context)`` returns one
+port's value (output, else input).
 """
 
 from __future__ import annotations
@@ -72,3 +73,8 @@ def displaySignals(system: System, context: Context, file=None) -> str:
     report = "\n".join(lines)
     print(report, file=file)
     return report
+
+
+def displayAll(diagram: Diagram, context: Context, file=None) -> str:
+    """``displaySignals`` of every entity of the diagram."""
+    return "\n".join(displaySignals(system, context, file) for system in diagram.GetSystems())

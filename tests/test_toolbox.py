@@ -15,7 +15,7 @@ from pydrake.systems.framework import DiagramBuilder
 from sotdrake.exceptions import InvalidInput, NotFound, StackError, TaskNotFound
 from sotdrake.gains import GainHyperbolic, hyperbolic
 from sotdrake.interactive import Runner
-from sotdrake.introspection import displaySignals, entities, entity, signal
+from sotdrake.introspection import displayAll, displaySignals, entities, entity, signal
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.publishing import add_signal_publisher, add_state_publisher
 from sotdrake.robot import Robot, add_sot
@@ -121,6 +121,8 @@ def test_introspection(stack):
     assert {"dynamic", "device", "sot", "taskrh", "featurerh", "featurerh_ref", "gainrh"} <= set(names)
     context = diagram.CreateDefaultContext()
     report = displaySignals(entity(diagram, "gaincom"), context, file=open("/dev/null", "w"))
+    everything = displayAll(diagram, context, file=open("/dev/null", "w"))
+    assert report in everything and "sot (SOT)" in everything
     assert "out gain" in report and "[1.]" in report and "in  error" in report
     np.testing.assert_allclose(signal(robot.dynamic, "com", context), robot.dynamic.com_at(robot.device.initial_position))
     assert "not connected" in displaySignals(metas["rh"].featureDes, context, file=open("/dev/null", "w"))

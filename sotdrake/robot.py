@@ -10,7 +10,7 @@ stack order, a run-time setting held in the Context.
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
 
 from .device import Device
 from .exceptions import InvalidInput, NotFound
@@ -27,7 +27,10 @@ class Robot:
         model: RobotModel,
         dt: float = 1e-3,
         q0: np.ndarray | None = None,
+        measured_position: OutputPort | None = None,
     ):
+        """``measured_position``: where the kinematics reads ``q`` (closed loop, e.g. a simulated
+        robot's joints and estimated base); by default the device's own ``q`` (open loop)."""
         self.builder = builder
         self.model = model
         self.OperationalPointsMap = model.OperationalPointsMap
@@ -37,7 +40,7 @@ class Robot:
         self.dynamic = self.add(Dynamic(model, "dynamic"))
         self.dynamic.robot = self
         self.device = self.add(Device(model.plant, dt, model.half_sitting if q0 is None else q0, "device"))
-        builder.Connect(self.device.GetOutputPort("state"), self.dynamic.GetInputPort("position"))
+        builder.Connect(measured_position or self.device.GetOutputPort("state"), self.dynamic.GetInputPort("position"))
 
     @property
     def dimension(self) -> int:

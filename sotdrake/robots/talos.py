@@ -85,8 +85,9 @@ def _resolve_mesh(uri: str, share: Path, meshes: bool) -> str:
     return (obj_for_stl(path) if meshes and path.suffix.lower() == ".stl" else path).as_uri()
 
 
-def fixed_urdf_text(variant: str, meshes: bool) -> str:
-    """The URDF of ``variant`` with the fix-ups listed in the module docstring applied."""
+def fixed_urdf_text(variant: str, meshes: bool, collision: bool = True) -> str:
+    """The URDF of ``variant`` with the fix-ups listed in the module docstring applied; without
+    ``collision`` the ``<collision>`` elements are dropped (the physics model adds its own soles)."""
     text = talos_urdf_path(variant).read_text()
     share = example_robot_data_dir()
 
@@ -107,6 +108,8 @@ def fixed_urdf_text(variant: str, meshes: bool) -> str:
         return block if simple else ""
 
     text = re.sub(r"<transmission\b.*?</transmission>", keep_transmission, text, flags=re.S)
+    if not collision:
+        text = re.sub(r"<collision\b.*?</collision>", "", text, flags=re.S)
     if meshes:
         text = re.sub(
             r'filename="(package:/{2,3}example-robot-data/[^"]+)"',
@@ -136,6 +139,7 @@ def add_talos(
     variant: str = "reduced",
     meshes: bool = False,
     fixed_base: bool | None = None,
+    collision: bool = True,
 ) -> ModelInstanceIndex:
     """Add TALOS to an unfinalized ``plant`` (geometry only if ``meshes`` and the plant has a
     SceneGraph); returns its model instance. Actuators are added for every actuable joint.
@@ -143,7 +147,7 @@ def add_talos(
     ``fixed_base`` welds the URDF root link to the world at the origin; by default only the
     ``left_arm`` variant is welded, the others have a floating base.
     """
-    text = fixed_urdf_text(variant, meshes)
+    text = fixed_urdf_text(variant, meshes, collision)
     (instance,) = Parser(plant).AddModelsFromString(text, "urdf")
     if fixed_base if fixed_base is not None else variant == "left_arm":
         root = ET.fromstring(text)

@@ -1,0 +1,89 @@
+"""The SoT on a physically simulated TALOS: standing, a short reach, the PD-gain check, the monitor."""
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import PdControllerGains
+from pydrake.systems.framework import DiagramBuilder
+
+from sotdrake.exceptions import InvalidInput, SotError
+from sotdrake.physics import Push, add_physical_talos, check_pd_gains, set_pd_gains
+from sotdrake.robots import add_talos
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def physics():
+    spec = importlib.util.spec_from_file_location("talos_physics", ROOT / "diagrams" / "talos_physics.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def run(physics, scenario, duration, **kwargs):
+    handles = physics.build_diagram(scenario, **kwargs)
+    simulator, wall = physics.simulate(handles.diagram, duration, progress=False)
+    return physics.summarize(handles, simulator, duration, wall)
+
+
+def test_standing_holds(physics):
+    summary, trace = run(physics, "stand", 2.0)
+    assert summary["base_drift_m"] < 0.01 and summary["base_height_drop_m"] < 0.005
+    assert summary["max_foot_slip_m"] < 1e-3
+    assert summary["min_normal_force_n"] > 100.0  # both feet loaded from the first step on
+    total = trace["feet"][-1, 2] + trace["feet"][-1, 5]
+    assert total == pytest.approx(90.27 * 9.81, rel=0.03)  # the feet carry the robot's weight
+    assert summary["min_cop_margin_m"] > 0.02
+
+
+def test_short_reach_keeps_balance(physics):
+    summary, trace = run(physics, "reach", 2.5)
+    assert summary["hand_error_m"] < 0.5 * summary["hand_initial_error_m"]  # well on its way
+    assert summary["base_height_drop_m"] < 0.05 and summary["min_normal_force_n"] > 0.0
+    assert summary["max_foot_slip_m"] < 1e-3 and summary["min_cop_margin_m"] > 0.0
+
+
+def test_a_push_is_applied_and_survived(physics):
+    summary, trace = run(physics, "stand", 2.6, push=150.0)
+    base = trace["base_position"]
+    moved = np.abs(base[:, 0] - base[0, 0]).max()
+    assert moved > 0.005  # the push did something …
+    assert summary["min_normal_force_n"] > 0.0 and summary["max_foot_slip_m"] < 1e-3  # … and it stood
+
+
+def test_pd_gains_are_checked():
+    plant = MultibodyPlant(1e-3)
+    add_talos(plant)
+    plant.Finalize()
+    with pytest.raises(SotError, match="no PD controller"):
+        check_pd_gains(plant)  # gains never set: the desired state would be ignored
+    set_pd_gains(plant, 30.0, 0.05)
+    actuator = plant.get_joint_actuator(next(iter(plant.GetJointActuatorIndices())))
+    actuator.set_controller_gains(PdControllerGains(p=0.0, d=1.0))
+    with pytest.raises(SotError, match=actuator.name()):
+        check_pd_gains(plant)
+    with pytest.raises(InvalidInput):
+        set_pd_gains(plant, -1.0, 0.05)
+
+
+def test_physics_inputs():
+    builder = DiagramBuilder()
+    with pytest.raises(InvalidInput):
+        add_physical_talos(builder, time_step=0.0)
+    robot = add_physical_talos(DiagramBuilder())
+    with pytest.raises(InvalidInput):
+        Push(robot.plant, "torso_2_link", [np.nan, 0, 0], 1.0, 0.1)
+    assert robot.plant.num_actuators() == 32 and len(robot.actuated_q) == 32
+
+
+def test_script_outputs(physics, tmp_path):
+    summary = physics.main(["--scenario", "stand", "--duration", "0.2", "--out", str(tmp_path), "--no-meshcat", "--quiet"])
+    for key in ("hand_error_m", "base_drift_m", "base_height_drop_m", "min_normal_force_n", "max_foot_slip_m", "realtime_factor"):
+        assert key in summary
+    assert (tmp_path / "plots.png").is_file() and (tmp_path / "trace.npz").is_file()

@@ -17,10 +17,7 @@ or a whole run::
 
 from __future__ import annotations
 
-import argparse
-import logging
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import Meshcat
@@ -28,7 +25,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd
 from sotdrake.robot import Robot, add_sot, talos
-from sotdrake.simulation import simulate, write_run
+from sotdrake.simulation import script_arguments, simulate, start, write_run
 from sotdrake.solvers import SOT
 from sotdrake.tracing import Tracer
 
@@ -92,19 +89,10 @@ def summarize(kine: KineSimple, simulator, duration: float, wall: float) -> tupl
 
 
 def main(argv: list[str] | None = None):
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--duration", type=float, default=3.0)
-    parser.add_argument("--out", type=Path, default=Path("out/kinesimple"))
-    parser.add_argument("--no-meshcat", action="store_true")
-    parser.add_argument("--quiet", action="store_true")
+    parser = script_arguments(__doc__, "out/kinesimple", duration=3.0)
     parser.add_argument("--interactive", action="store_true", help="build, then hand over to the prompt (python -i)")
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
-    meshcat = None
-    if not args.no_meshcat:
-        from pydrake.geometry import StartMeshcat
-
-        meshcat = StartMeshcat()
+    meshcat = start(args)
     kine = build_diagram(meshcat)
     if args.interactive:
         from sotdrake.interactive import Runner

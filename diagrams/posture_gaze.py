@@ -13,11 +13,8 @@ only). The point circles in front of the robot, from Drake's ``Sine`` plus a con
 
 from __future__ import annotations
 
-import argparse
 import json
-import logging
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import Meshcat, Rgba
@@ -26,7 +23,7 @@ from pydrake.systems.primitives import Adder, ConstantVectorSource, Sine
 
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture, MetaTaskVisualPoint
 from sotdrake.robot import Robot, add_sot, talos
-from sotdrake.simulation import simulate, write_run
+from sotdrake.simulation import script_arguments, simulate, start, write_run
 from sotdrake.solvers import SOT
 from sotdrake.tracing import Tracer
 
@@ -127,19 +124,10 @@ def summarize(run: PostureGaze, simulator, duration: float, wall: float) -> tupl
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--duration", type=float, default=8.0)
-    parser.add_argument("--out", type=Path, default=Path("out/posture_gaze"))
+    parser = script_arguments(__doc__, "out/posture_gaze")
     parser.add_argument("--no-feedforward", action="store_true", help="ignore the point's velocity")
-    parser.add_argument("--no-meshcat", action="store_true")
-    parser.add_argument("--quiet", action="store_true")
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
-    meshcat = None
-    if not args.no_meshcat:
-        from pydrake.geometry import StartMeshcat
-
-        meshcat = StartMeshcat()
+    meshcat = start(args)
     run = build_diagram(meshcat, feedforward=not args.no_feedforward)
     simulator, wall = simulate(run.diagram, args.duration, run.visualizer, not args.quiet)
     summary, trace = summarize(run, simulator, args.duration, wall)

@@ -28,9 +28,7 @@ writes ``DIR/summary.json`` (one entry per configuration: ``hand_error_m``, ``co
 
 from __future__ import annotations
 
-import argparse
 import json
-import logging
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,7 +41,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.robot import Robot, add_sot, talos
 from sotdrake.solvers import SOT
-from sotdrake.simulation import simulate, write_run
+from sotdrake.simulation import script_arguments, simulate, start, write_run
 from sotdrake.tracing import Tracer
 from sotdrake.visualization import write_control_graph
 
@@ -215,21 +213,12 @@ def plot(traces: dict[str, dict], path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = script_arguments(__doc__, "out/concept", duration=None)
     parser.add_argument("--config", default="all", choices=["all", *CONFIGURATIONS], help="which configuration")
-    parser.add_argument("--out", type=Path, default=Path("out/concept"))
-    parser.add_argument("--duration", type=float, default=None, help="override every configuration's duration (s)")
-    parser.add_argument("--no-meshcat", action="store_true", help="no recordings (faster)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bars")
-    args = parser.parse_args(argv)
-    if args.duration is not None and not args.duration > 0:
-        parser.error("--duration must be > 0")
-    logging.basicConfig(level=logging.WARNING, format="%(name)s: %(message)s")
+    args = parser.parse_args(argv)  # --duration, if given, overrides every configuration's
+    meshcat = start(args)
     names = list(CONFIGURATIONS) if args.config == "all" else [args.config]
     args.out.mkdir(parents=True, exist_ok=True)
-    from pydrake.geometry import StartMeshcat
-
-    meshcat = None if args.no_meshcat else StartMeshcat()
     summary, traces = {}, {}
     for name in names:
         config = CONFIGURATIONS[name]

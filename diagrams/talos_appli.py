@@ -14,9 +14,7 @@ writes ``recording.html`` (Meshcat), ``trace.npz``, ``plots.png``, ``control_gra
 
 from __future__ import annotations
 
-import argparse
 import json
-import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,7 +27,7 @@ from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.robot import Robot, add_sot, talos
 from sotdrake.sequencer import attime
 from sotdrake.simulation import simulate as run_simulation
-from sotdrake.simulation import write_run
+from sotdrake.simulation import script_arguments, start, write_run
 from sotdrake.solvers import SOT
 from sotdrake.tracing import Tracer
 
@@ -204,24 +202,12 @@ def plot(trace: dict, target: np.ndarray, path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--duration", type=float, default=8.0, help="simulated time (s)")
-    parser.add_argument("--out", type=Path, default=Path("out/appli"), help="output directory")
+    parser = script_arguments(__doc__, "out/appli")
     parser.add_argument("--solver", choices=["cascade", "hqp"], default="cascade",
                         help="basic SOT (pseudo-inverse cascade) or SolverKine (hierarchical QP, joint limits)")
-    parser.add_argument("--no-meshcat", action="store_true", help="no recording (faster)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
-    if not args.duration > 0:
-        parser.error("--duration must be > 0")
-    logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
+    meshcat = start(args)
     args.out.mkdir(parents=True, exist_ok=True)
-
-    meshcat = None
-    if not args.no_meshcat:
-        from pydrake.geometry import StartMeshcat
-
-        meshcat = StartMeshcat()
     appli = build_diagram(meshcat, solver=args.solver)
     simulator, wall = simulate(appli, args.duration, progress=not args.quiet)
     summary, trace = summarize(appli, simulator, args.duration, wall)

@@ -14,9 +14,7 @@ with F newtons along +x for 0.1 s at t = 2 s.
 
 from __future__ import annotations
 
-import argparse
 import json
-import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,7 +37,7 @@ from sotdrake.physics import (
 from sotdrake.robot import Robot, add_sot
 from sotdrake.robots import load_talos
 from sotdrake.sequencer import attime
-from sotdrake.simulation import simulate, write_run
+from sotdrake.simulation import script_arguments, simulate, start, write_run
 from sotdrake.solvers import SOT
 from sotdrake.tracing import Tracer
 
@@ -195,21 +193,12 @@ def plot(trace: dict, path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = script_arguments(__doc__, "out/physics")
     parser.add_argument("--scenario", choices=["stand", "reach"], default="reach")
     parser.add_argument("--loop", choices=["open", "closed"], default="open")
-    parser.add_argument("--duration", type=float, default=8.0)
     parser.add_argument("--push", type=float, default=0.0, help="push the torso with this force (N) at t = 2 s for 0.1 s")
-    parser.add_argument("--out", type=Path, default=Path("out/physics"))
-    parser.add_argument("--no-meshcat", action="store_true")
-    parser.add_argument("--quiet", action="store_true")
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
-    meshcat = None
-    if not args.no_meshcat:
-        from pydrake.geometry import StartMeshcat
-
-        meshcat = StartMeshcat()
+    meshcat = start(args)
     run = build_diagram(args.scenario, args.loop, args.push, meshcat)
     simulator, wall = simulate(run.diagram, args.duration, run.visualizer, not args.quiet)
     summary, trace = summarize(run, simulator, args.duration, wall)

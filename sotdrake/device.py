@@ -23,11 +23,11 @@ from typing import NamedTuple
 
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from .entity import own_context
 from .exceptions import InvalidInput, SolverError, check_finite
-from .lie import exp_se3, quaternion_exp, quaternion_multiply, quaternion_wxyz_to_rotation
+from .lie import quaternion_exp, quaternion_multiply, quaternion_wxyz_to_rotation, se3_translation
 
 log = logging.getLogger("sotdrake.device")
 
@@ -75,7 +75,7 @@ def integrate(q: np.ndarray, v: np.ndarray, dt: float, layout: Layout) -> np.nda
         R = quaternion_wxyz_to_rotation(q[iq : iq + 4])
         omega_B = R.T @ v[iv : iv + 3]
         v_B = R.T @ v[iv + 3 : iv + 6]
-        _, dp = exp_se3(v_B * dt, omega_B * dt)
+        dp = se3_translation(v_B * dt, omega_B * dt)
         quaternion = quaternion_multiply(q[iq : iq + 4], quaternion_exp(omega_B * dt))
         out[iq : iq + 4] = quaternion / np.linalg.norm(quaternion)
         out[iq + 4 : iq + 7] = q[iq + 4 : iq + 7] + R @ dp

@@ -60,6 +60,10 @@ def hyperbolic(gain0: float, gain_inf: float, tan_at0: float, decal0: float) -> 
     return HyperbolicCoefficients(a, tan_at0 / a / 2 if a > 0 else 0.0, gain_inf, decal0)
 
 
+def _norm(x: np.ndarray) -> float:
+    return math.sqrt(x @ x)
+
+
 def _finite(**values: float) -> None:
     for name, value in values.items():
         if not math.isfinite(value):
@@ -115,7 +119,7 @@ class _Gain(Entity[GainSettings]):
         self.DeclareVectorOutputPort(
             "gain",
             1,
-            lambda c, o: o.SetAtIndex(0, self._settings_of(c).coefficients(float(np.linalg.norm(self.error.Eval(c))))),
+            lambda c, o: o.SetAtIndex(0, self._settings_of(c).coefficients(_norm(self.error.Eval(c)))),
         )
 
     def setConstant(self, gain: float, context: Context | None = None) -> None:

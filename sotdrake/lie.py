@@ -11,6 +11,8 @@ SE(3) twists are body twists ``ξ = (v, ω)``: ``X(t) = X0 · exp(t ξ)`` for a 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 _SMALL = 1e-8
@@ -65,6 +67,20 @@ def right_jacobian_inverse_so3(phi: np.ndarray) -> np.ndarray:
 def left_jacobian_inverse_so3(phi: np.ndarray) -> np.ndarray:
     """``Jl⁻¹(φ) = Jr⁻¹(-φ)``: maps a world angular velocity to ``d/dt log(R)``."""
     return right_jacobian_inverse_so3(-np.asarray(phi))
+
+
+def se3_translation(v: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """The translation ``V(ω) v`` of :func:`exp_se3` alone."""
+    theta = math.sqrt(omega @ omega)
+    w_v = _cross(omega, v)
+    w_w_v = _cross(omega, w_v)
+    if theta < 1e-6:
+        return v + 0.5 * w_v + w_w_v / 6.0
+    return v + ((1.0 - math.cos(theta)) / theta**2) * w_v + ((theta - math.sin(theta)) / theta**3) * w_w_v
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
 def exp_se3(v: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -3,7 +3,9 @@
 
 from __future__ import annotations
 
+import argparse
 import json
+import logging
 import sys
 import time
 from pathlib import Path
@@ -14,6 +16,29 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram
 
 from .exceptions import InvalidInput
+
+
+def script_arguments(doc: str, out: str, duration: float | None = 8.0) -> argparse.ArgumentParser:
+    """The arguments every script in ``diagrams/`` takes: ``--duration``, ``--out``,
+    ``--no-meshcat`` and ``--quiet``; add the script's own, then call ``parse_args``."""
+    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    parser.add_argument("--duration", type=float, default=duration, help="simulated time (s)")
+    parser.add_argument("--out", type=Path, default=Path(out), help="output directory")
+    parser.add_argument("--no-meshcat", action="store_true", help="no recording (faster)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    return parser
+
+
+def start(args: argparse.Namespace) -> Meshcat | None:
+    """Check ``--duration``, set up logging, and start Meshcat unless ``--no-meshcat``."""
+    if args.duration is not None and not args.duration > 0:
+        raise SystemExit(f"--duration must be > 0, got {args.duration}")
+    logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
+    if args.no_meshcat:
+        return None
+    from pydrake.geometry import StartMeshcat
+
+    return StartMeshcat()
 
 
 def simulate(diagram: Diagram, duration: float, visualizer=None, progress: bool = True,

@@ -17,6 +17,7 @@ for tracing).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -46,6 +47,10 @@ class TaskLevel(NamedTuple):
         return self.lower
 
 
+def _norm(x: np.ndarray) -> float:
+    return math.sqrt(x @ x)
+
+
 def _empty(nv: int) -> TaskLevel:
     return TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
 
@@ -70,7 +75,7 @@ class _TaskBase:
             "task", lambda: AbstractValue.Make(_empty(nv)), lambda c, o: o.set_value(self._level.Eval(c))
         )
         self.DeclareVectorOutputPort(
-            "error_norm", 1, lambda c, o: o.SetAtIndex(0, np.linalg.norm(self._level.Eval(c).error))
+            "error_norm", 1, lambda c, o: o.SetAtIndex(0, _norm(self._level.Eval(c).error))
         )
 
     @property
@@ -84,7 +89,7 @@ class _TaskBase:
             e_dot = self.errordot.Eval(context)
             if e_dot.shape != e.shape:
                 raise InvalidInput(f"{self.name}: errordot has {e_dot.size} rows, error has {e.size}")
-            if np.any(e_dot):
+            if e_dot.any():
                 equality = upper is lower  # keep an equality one array (TaskLevel.is_equality)
                 lower = lower - e_dot
                 upper = lower if equality else upper - e_dot

@@ -8,6 +8,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
 from sotdrake.device import Layout, integrate
+from sotdrake.exceptions import InvalidInput
 from sotdrake.features import Feature1D, FeatureJointLimits
 from sotdrake.lie import exp_so3
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKine6dRel, MetaTaskKineCom, MetaTaskKinePosture, MetaTaskVisualPoint
@@ -151,5 +152,5 @@ def test_posture_select_dof(talos_model):
     assert e.shape == (32,) and np.allclose(e, 0)  # joints only, at the reference
     posture.feature.selectDof(10, False, context)
     assert feature_at(robot, posture.feature, context, talos_model.half_sitting)[0].shape == (31,)
-    with pytest.raises(Exception):
+    with pytest.raises(InvalidInput):
         posture.feature.selectDof(99, True)

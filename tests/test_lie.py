@@ -55,3 +55,11 @@ def test_exp_se3_matches_matrix_exponential(scale, rng):
     X = expm(twist)
     np.testing.assert_allclose(R, X[:3, :3], atol=1e-12)
     np.testing.assert_allclose(p, X[:3, 3], atol=1e-12)
+
+
+@pytest.mark.parametrize("scale", [1e-8, 0.1, 2.0])
+def test_se3_translation_is_exp_se3s(scale, rng):
+    from sotdrake.lie import se3_translation
+
+    v, w = scale * rng.normal(size=3), scale * rng.normal(size=3)
+    np.testing.assert_allclose(se3_translation(v, w), exp_se3(v, w)[1], atol=1e-14)

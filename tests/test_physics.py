@@ -1,9 +1,5 @@
 """The SoT on a physically simulated TALOS: standing, a short reach, the PD-gain check, the monitor."""
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 from pydrake.multibody.plant import MultibodyPlant
@@ -13,17 +9,12 @@ from pydrake.systems.framework import DiagramBuilder
 from sotdrake.exceptions import InvalidInput, SotError
 from sotdrake.physics import Push, add_physical_talos, check_pd_gains, set_pd_gains
 from sotdrake.robots import add_talos
-
-ROOT = Path(__file__).resolve().parents[1]
+from tests.conftest import load_diagram
 
 
 @pytest.fixture(scope="module")
 def physics():
-    spec = importlib.util.spec_from_file_location("talos_physics", ROOT / "diagrams" / "talos_physics.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_diagram("talos_physics")
 
 
 def run(physics, scenario, duration, **kwargs):

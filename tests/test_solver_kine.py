@@ -1,8 +1,5 @@
 """SolverKine (hierarchical QP) in diagrams: the tutorial, joint limits, inequality tasks, failure."""
 
-import importlib.util
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,25 +10,17 @@ from sotdrake.exceptions import InvalidInput, SolverError, StackError
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.robot import Robot, add_sot
 from sotdrake.solvers import HierarchicalQP, SolverKine
+from tests.conftest import load_diagram
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def load(script):
-    spec = importlib.util.spec_from_file_location(script, ROOT / "diagrams" / f"{script}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture(scope="module")
 def concept():
-    return load("sot_concept")
+    return load_diagram("sot_concept")
 
 
 def test_tutorial_with_the_hqp_has_the_same_outcome():
-    appli = load("talos_appli")
+    appli = load_diagram("talos_appli")
     handles = appli.build_diagram(solver="hqp")
     assert isinstance(handles.sot, SolverKine)
     simulator, wall = appli.simulate(handles, 3.5, progress=False)

@@ -1,29 +1,18 @@
 """The tutorial diagram: a short run, and the script's outputs."""
 
 import base64
-import importlib.util
 import re
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def load_appli():
-    spec = importlib.util.spec_from_file_location("talos_appli", ROOT / "diagrams" / "talos_appli.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
+from tests.conftest import load_diagram
 
 
 @pytest.fixture(scope="module")
 def appli():
-    return load_appli()
+    return load_diagram("talos_appli")
 
 
 def test_tutorial_reaches_with_feet_and_com_held(appli):

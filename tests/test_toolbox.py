@@ -1,6 +1,5 @@
 """The rest of the toolbox: gains, TaskPD, the live stack, introspection, tracer, LCM, runner, examples."""
 
-import importlib.util
 import json
 import math
 import subprocess
@@ -22,16 +21,9 @@ from sotdrake.robot import Robot, add_sot
 from sotdrake.sequencer import attime
 from sotdrake.task import TaskPD
 from sotdrake.tracing import Tracer
+from tests.conftest import load_diagram
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def load(script):
-    spec = importlib.util.spec_from_file_location(script, ROOT / "diagrams" / f"{script}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_hyperbolic_gain_matches_sot_core():
@@ -203,14 +195,14 @@ def test_interactive_runner_steps_ticks_and_fires_attime(talos_model):
 
 
 def test_kinesimple_example(tmp_path):
-    summary = load("kinesimple").main(["--duration", "2.5", "--out", str(tmp_path), "--no-meshcat", "--quiet"])
+    summary = load_diagram("kinesimple").main(["--duration", "2.5", "--out", str(tmp_path), "--no-meshcat", "--quiet"])
     assert summary["hand_error_m"] < 1e-3 and summary["min_joint_limit_margin_rad"] > 0
     for name in ("trace.npz", "trace.csv", "plots.png", "control_graph.dot", "summary.json"):
         assert (tmp_path / name).is_file()
 
 
 def test_posture_gaze_example_and_its_feed_forward(tmp_path):
-    gaze = load("posture_gaze")
+    gaze = load_diagram("posture_gaze")
     follow = gaze.main(["--duration", "3", "--out", str(tmp_path / "ff"), "--no-meshcat", "--quiet"])
     lag = gaze.main(["--duration", "3", "--out", str(tmp_path / "noff"), "--no-meshcat", "--quiet", "--no-feedforward"])
     assert follow["gaze_error_rad_after_2s_max"] < 1e-3

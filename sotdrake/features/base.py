@@ -45,11 +45,13 @@ class Feature(Entity):
                                            lambda c, o, i=i: o.set_value(self._result.Eval(c)[i]))
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
-        e, J, e_dot = self._compute(context)
-        rows = parse_selection(self._settings_of(context).selection, self.dimension)
+        settings = self._settings_of(context)
+        rows = parse_selection(settings.selection, self.dimension)
+        e, J, e_dot = self._compute(context, settings, rows)
         value.set_value((e[rows], J[rows], e_dot[rows]))
 
-    def _compute(self, context: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _compute(self, context: Context, settings, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The full ``(e, J, ė_ref)``; ``rows`` (the selected ones) may be used to skip work."""
         raise NotImplementedError
 
     @staticmethod

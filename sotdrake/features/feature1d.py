@@ -19,7 +19,7 @@ class Feature1D(Feature):
         self.errordotIN = self.DeclareAbstractInputPort("errordotIN", AbstractValue.Make(np.zeros(0)))
         self._declare_outputs()
 
-    def _compute(self, context: Context):
+    def _compute(self, context: Context, settings, rows):
         e_in = self.errorIN.Eval(context)
         e_dot_in = self._optional(self.errordotIN, context, np.zeros_like(e_in))
         return np.array([0.5 * e_in @ e_in]), (e_in @ self.jacobianIN.Eval(context))[None, :], np.array([e_in @ e_dot_in])

@@ -36,14 +36,26 @@ FRAMES = ("desired", "current")
 
 
 def pose_error_and_jacobian(
-    X_WF: RigidTransform, J_WF: np.ndarray, X_WFd: RigidTransform, frame: str, V_WFd: np.ndarray | None = None
+    X_WF: RigidTransform, J_WF: np.ndarray, X_WFd: RigidTransform, frame: str, V_WFd: np.ndarray | None = None,
+    rotation: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Full 6D error ``e``, its Jacobian ``∂e/∂v`` (6×nv) and ``ė_ref`` for the target's spatial
-    velocity ``V_WFd = (ω*, ṗ*)`` (zero when None); see the module docstring."""
+    velocity ``V_WFd = (ω*, ṗ*)`` (zero when None); see the module docstring. With
+    ``rotation=False`` the rotation rows are left at zero (a selection without them: no log to take)."""
     R, p = X_WF.rotation().matrix(), X_WF.translation()
     Rd, pd = X_WFd.rotation().matrix(), X_WFd.translation()
+    moving = V_WFd is not None and V_WFd.any()
+    if not rotation:
+        if frame == "desired":
+            e_t, J_t = Rd.T @ (p - pd), Rd.T @ J_WF[3:]
+            e_dot_t = -Rd.T @ V_WFd[3:] + hat(e_t) @ (Rd.T @ V_WFd[:3]) if moving else np.zeros(3)
+        else:
+            e_t = R.T @ (pd - p)
+            J_t = -R.T @ J_WF[3:] + hat(e_t) @ (R.T @ J_WF[:3])
+            e_dot_t = R.T @ V_WFd[3:] if moving else np.zeros(3)
+        zeros = np.zeros(3)
+        return np.concatenate([e_t, zeros]), np.vstack([J_t, np.zeros_like(J_t)]), np.concatenate([e_dot_t, zeros])
     Jw_F = R.T @ J_WF[:3]  # body angular-velocity rows
-    moving = V_WFd is not None and np.any(V_WFd)
     wd = Rd.T @ V_WFd[:3] if moving else None
     if frame == "desired":
         e_t = Rd.T @ (p - pd)
@@ -153,13 +165,12 @@ class Feature6d(Feature):
         self.reference_velocity = self.DeclareVectorInputPort("reference_velocity", 6)
         self._declare_outputs()
 
-    def _compute(self, context: Context):
-        s = self._settings_of(context)
+    def _compute(self, context: Context, s, rows):
         X_WF, J_WF = self.position.Eval(context), self.Jq.Eval(context)
         if s.opmodif is not None:
             X_WF, J_WF = shift_jacobian(X_WF, J_WF, s.opmodif)
         V = self._optional(self.reference_velocity, context, None)
-        return pose_error_and_jacobian(X_WF, J_WF, self.reference.Eval(context), s.frame, V)
+        return pose_error_and_jacobian(X_WF, J_WF, self.reference.Eval(context), s.frame, V, rotation=rows[-1] >= 3)
 
     def frame(self, which: str, context: Context | None = None) -> None:
         """Frame in which the error is expressed: ``'desired'`` or ``'current'``."""

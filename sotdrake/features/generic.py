@@ -61,7 +61,7 @@ class FeatureGeneric(Feature):
         self.reference_velocity = self.DeclareVectorInputPort("reference_velocity", dimension)
         self._declare_outputs()
 
-    def _compute(self, context: Context):
+    def _compute(self, context: Context, settings, rows):
         e = self.errorIN.Eval(context) - self.reference.Eval(context)
         e_dot = -self._optional(self.reference_velocity, context, np.zeros(self.dimension))
         return e, self.jacobianIN.Eval(context), e_dot

@@ -31,7 +31,7 @@ class FeatureJointLimits(Feature):
         self.state = self.DeclareVectorInputPort("state", plant.num_positions())
         self._declare_outputs()
 
-    def _compute(self, context: Context):
+    def _compute(self, context: Context, settings, rows):
         q = self.state.Eval(context)
         e = 2.0 * (q[self._q] - self._lower) / self._width - 1.0
         J = np.zeros((self.dimension, self.nv))

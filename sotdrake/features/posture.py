@@ -46,8 +46,7 @@ class FeaturePosture(Feature):
         self.postureDot_in = self.DeclareVectorInputPort("postureDot_in", nv)
         self._declare_outputs()
 
-    def _compute(self, context: Context):
-        s = self._settings_of(context)
+    def _compute(self, context: Context, s, rows):
         q = self.state.Eval(context)
         q_star = self._optional(self.posture_in, context, s.posture)
         v_star = self._optional(self.postureDot_in, context, s.postureDot)

@@ -32,7 +32,7 @@ class FeatureRelative6d(Feature):
         self.reference = self.DeclareAbstractInputPort("reference", AbstractValue.Make(RigidTransform()))
         self._declare_outputs()
 
-    def _compute(self, context: Context):
+    def _compute(self, context: Context, settings, rows):
         X_WA, J_A = self.position.Eval(context), self.Jq.Eval(context)
         X_WB, J_B = self.positionRef.Eval(context), self.JqRef.Eval(context)
         X_BAd = self.reference.Eval(context)

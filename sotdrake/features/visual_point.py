@@ -41,7 +41,7 @@ class FeatureVisualPoint(Feature):
         self.point_velocity = self.DeclareVectorInputPort("point_velocity", 3)
         self._declare_outputs()
 
-    def _compute(self, context: Context):
+    def _compute(self, context: Context, settings, rows):
         X_WC, J = self.position.Eval(context), self.Jq.Eval(context)
         p_W = self.point.Eval(context)
         R = X_WC.rotation().matrix()
@@ -53,7 +53,7 @@ class FeatureVisualPoint(Feature):
         s = np.array([x / z, y / z])
         jacobian = -L @ R.T @ (J[3:] - hat(d) @ J[:3])
         e_dot = L @ R.T @ self._optional(self.point_velocity, context, np.zeros(3))
-        return s - self._settings_of(context).desired, jacobian, e_dot
+        return s - settings.desired, jacobian, e_dot
 
     def setDesired(self, image_point, context: Context | None = None) -> None:
         """Desired normalized image position ``s*`` (``(0, 0)``: the image centre)."""

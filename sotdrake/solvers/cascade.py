@@ -21,10 +21,19 @@ values, so a lower level never changes a higher level's residual (strict priorit
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
+
+
+@lru_cache(maxsize=8)
+def _identity(n: int) -> np.ndarray:
+    identity = np.eye(n)
+    identity.flags.writeable = False
+    return identity
 
 
 class CascadeResult(NamedTuple):
@@ -47,7 +56,7 @@ def solve_cascade(
     ``damping`` is one δ for every level or one per level.
     """
     v = np.zeros(nv)
-    Z = np.eye(nv) if control_selection is None else np.eye(nv)[:, control_selection]
+    Z = _identity(nv) if control_selection is None else _identity(nv)[:, control_selection]
     ranks = np.zeros(len(levels), dtype=int)
     last = len(levels) - 1
     dampings = [float(damping)] * len(levels) if np.ndim(damping) == 0 else list(damping)
@@ -65,5 +74,5 @@ def solve_cascade(
             rhs = U[:, :rank].T @ (reference - J @ v)
             v = v + Z @ (Vt[:rank].T @ (inverse * rhs))
             Z = Z @ Vt[rank:].T
-    residuals = np.array([np.linalg.norm(J @ v - r) for J, r in levels])
+    residuals = np.array([math.sqrt(d @ d) for d in (J @ v - r for J, r in levels)])
     return CascadeResult(v, residuals, ranks)

@@ -214,9 +214,9 @@ class SOT(Entity[StackSettings]):
             J = level.jacobian
             if J.ndim != 2 or J.shape[1] != self.nv or level.lower.shape != (J.shape[0],) or level.upper.shape != (J.shape[0],):
                 raise SolverError(f"task {name}: jacobian {J.shape} and bounds {level.lower.shape} do not fit nv = {self.nv}")
-            if not np.all(np.isfinite(J)) or np.any(np.isnan(level.lower)) or np.any(np.isnan(level.upper)):
+            if not np.isfinite(J).all() or np.isnan(level.lower).any() or np.isnan(level.upper).any():
                 raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")
-            if level.is_equality and not np.all(np.isfinite(level.lower)):
+            if level.is_equality and not np.isfinite(level.lower).all():
                 raise SolverError(f"task {name}: non-finite reference at t = {context.get_time()}")
             levels.append(level)
         if settings.contacts:

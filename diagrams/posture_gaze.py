@@ -21,7 +21,7 @@ from pydrake.geometry import Meshcat, Rgba
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Adder, ConstantVectorSource, Sine
 
-from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture, MetaTaskVisualPoint
+from sotdrake.meta_tasks import MetaTaskKinePosture, MetaTaskVisualPoint, hold_feet_and_com
 from sotdrake.robot import Robot, add_sot, talos
 from sotdrake.simulation import script_arguments, simulate, start, write_run
 from sotdrake.solvers import SOT
@@ -53,13 +53,7 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3, feedforward:
     robot = talos(builder, "reduced", dt)
     sot = add_sot(robot)
     sot.setControlSelection(robot.velocity_selection(excluding=["gripper_left_joint", "gripper_right_joint"]))
-    for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle")):
-        contact = MetaTaskKine6d(name, robot.dynamic, name[-2:], robot.OperationalPointsMap[op])
-        contact.gain.setConstant(10)
-        sot.push(contact.task.name)
-    com = MetaTaskKineCom(robot.dynamic)
-    com.gain.setConstant(10)
-    sot.push(com.task.name)
+    hold_feet_and_com(robot, sot)
 
     # The moving point: Drake's Sine gives p and ṗ, a constant moves it in front of the robot.
     w = 2 * np.pi * FREQUENCY

@@ -38,7 +38,7 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
+from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd, hold_feet_and_com
 from sotdrake.robot import Robot, add_sot, talos
 from sotdrake.solvers import SOT
 from sotdrake.simulation import script_arguments, simulate, start, write_run
@@ -58,6 +58,10 @@ class Configuration:
     solver: str = "hqp"
     damping: float = 0.0
     duration: float = 4.0
+
+    def __post_init__(self):
+        if self.com and not self.contacts:
+            raise ValueError("holding the CoM without the feet is not one of the seed's configurations")
 
 
 CONFIGURATIONS: dict[str, Configuration] = {
@@ -97,14 +101,7 @@ def build_diagram(config: Configuration, meshcat: Meshcat | None = None, dt: flo
     sot = add_sot(robot, "sot", solver=config.solver, damping=config.damping)
     sot.setControlSelection(robot.velocity_selection(excluding=GRIPPERS))
     if config.contacts:
-        for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle")):
-            contact = MetaTaskKine6d(name, robot.dynamic, name[-2:], robot.OperationalPointsMap[op])
-            contact.gain.setConstant(10)
-            sot.push(contact.task.name)
-    if config.com:
-        taskCom = MetaTaskKineCom(robot.dynamic)
-        taskCom.gain.setConstant(10)
-        sot.push(taskCom.task.name)
+        hold_feet_and_com(robot, sot, com=config.com)
     taskRH = MetaTaskKine6d("rh", robot.dynamic, "rh", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = HAND_OFFSET

@@ -24,7 +24,7 @@ from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
+from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd, hold_feet_and_com
 from sotdrake.physics import (
     SOLE_BOX,
     ContactMonitor,
@@ -75,13 +75,7 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
     robot = Robot(builder, model, dt, measured_position=measured)
     sot = add_sot(robot)
     sot.setControlSelection(robot.velocity_selection(excluding=GRIPPERS))
-    for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle")):
-        contact = MetaTaskKine6d(name, robot.dynamic, name[-2:], robot.OperationalPointsMap[op])
-        contact.gain.setConstant(10)
-        sot.push(contact.task.name)
-    taskCom = MetaTaskKineCom(robot.dynamic)
-    taskCom.gain.setConstant(10)
-    sot.push(taskCom.task.name)
+    hold_feet_and_com(robot, sot)  # contactRF, contactLF, taskCom as in the tutorial (gain 10)
     taskRH = MetaTaskKine6d("rh", robot.dynamic, "rh", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = HAND_OFFSET

@@ -184,6 +184,24 @@ class MetaTaskVisualPoint(_MetaTask):
         self.plugPoint(source.get_output_port())
 
 
+def hold_feet_and_com(robot: Robot, sot, gain: float = 10.0, com: bool = True):
+    """The tutorial's support: ``contactRF``, ``contactLF`` (both ankles kept where they are) and,
+    with ``com``, the CoM held, each with a constant ``gain``, pushed in that order. Returns the
+    meta tasks (``contactRF``, ``contactLF``, ``taskCom`` or None)."""
+    contacts = []
+    for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle")):
+        contact = MetaTaskKine6d(name, robot.dynamic, name[-2:], robot.OperationalPointsMap[op])
+        contact.gain.setConstant(gain)
+        sot.push(contact.task.name)
+        contacts.append(contact)
+    taskCom = None
+    if com:
+        taskCom = MetaTaskKineCom(robot.dynamic)
+        taskCom.gain.setConstant(gain)
+        sot.push(taskCom.task.name)
+    return contacts[0], contacts[1], taskCom
+
+
 def gotoNd(
     task: MetaTaskKine6d | MetaTaskKineCom,
     position,

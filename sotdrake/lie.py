@@ -6,7 +6,8 @@ Conventions: rotation vectors ``φ = θ u`` (radians, axis ``u`` unit); ``hat(a)
 ``φ = log(R)``: ``φ̇ = Jr⁻¹(φ) ω``, where the inverse right Jacobian is
 ``Jr⁻¹(φ) = I + ½[φ]× + (1/θ² - (1 + cos θ)/(2θ sin θ)) [φ]×²``; the inverse left Jacobian is
 ``Jl⁻¹(φ) = Jr⁻¹(-φ)`` (``φ̇ = Jl⁻¹(φ) ω_world`` for ``Ṙ = [ω_world]× R``).
-SE(3) twists are body twists ``ξ = (v, ω)``: ``X(t) = X0 · exp(t ξ)`` for a constant ``ξ``.
+SE(3) twists are body twists ``ξ = (v, ω)``: ``X(t) = X0 · exp(t ξ)`` for a constant ``ξ``, whose
+rotation is ``exp_so3(ω t)`` and translation ``V(ω t) v t`` (:func:`se3_translation`).
 """
 
 from __future__ import annotations
@@ -70,7 +71,8 @@ def left_jacobian_inverse_so3(phi: np.ndarray) -> np.ndarray:
 
 
 def se3_translation(v: np.ndarray, omega: np.ndarray) -> np.ndarray:
-    """The translation ``V(ω) v`` of :func:`exp_se3` alone."""
+    """Translation ``V(ω) v`` of the SE(3) exponential of the body twist ``(v, ω)``, with
+    ``V = I + (1-cos θ)/θ² [ω]× + (θ - sin θ)/θ³ [ω]×²``."""
     theta = math.sqrt(omega @ omega)
     w_v = _cross(omega, v)
     w_w_v = _cross(omega, w_v)
@@ -81,23 +83,6 @@ def se3_translation(v: np.ndarray, omega: np.ndarray) -> np.ndarray:
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-def exp_se3(v: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """SE(3) exponential of the body twist ``(v, ω)``: returns ``(R, p)`` with
-    ``R = exp_so3(ω)`` and ``p = V(ω) v``, ``V = I + (1-cos θ)/θ² [ω]× + (θ - sin θ)/θ³ [ω]×²``.
-    """
-    theta = float(np.linalg.norm(omega))
-    K = hat(omega)
-    if theta < 1e-6:
-        V = np.eye(3) + 0.5 * K + K @ K / 6.0
-    else:
-        V = (
-            np.eye(3)
-            + ((1.0 - np.cos(theta)) / theta**2) * K
-            + ((theta - np.sin(theta)) / theta**3) * K @ K
-        )
-    return exp_so3(omega), V @ v
 
 
 def quaternion_wxyz_to_rotation(q: np.ndarray) -> np.ndarray:

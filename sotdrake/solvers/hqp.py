@@ -88,13 +88,6 @@ class LevelRows:
         violation = np.maximum(np.maximum(self.lower - r, r - self.upper), 0.0)
         return np.where(self.equality, r - self.lower, violation)
 
-    def held(self, slack: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
-        """Bounds that hold this level at ``slack`` for the levels below."""
-        band = tolerance * np.maximum(1.0, np.abs(np.where(self.equality, self.lower, 0.0)))
-        lower = np.where(self.equality, self.lower + slack - band, self.lower - slack - band)
-        upper = np.where(self.equality, self.lower + slack + band, self.upper + slack + band)
-        return lower, upper
-
 
 @dataclass
 class HqpResult:
@@ -162,9 +155,14 @@ class HierarchicalQP:
         x_lower: np.ndarray,
         x_upper: np.ndarray,
         damping: float = 0.0,
+        solver: str | None = None,
     ) -> HqpResult:
-        """Solve in strict priority; ``damping`` μ applies to the last level. Raises
-        :class:`SolverError` naming the level when a program cannot be solved."""
+        """Solve in strict priority; ``damping`` μ applies to the last level; ``solver`` overrides
+        the default Drake solver for this call. Raises :class:`SolverError` naming the level when a
+        program cannot be solved."""
+        if solver is not None and solver not in SOLVERS:
+            raise InvalidInput(f"unknown QP solver {solver!r}; available: {sorted(SOLVERS)}")
+        solver = solver or self.solver
         n = self.n
         x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
         if x_lower.shape != (n,) or x_upper.shape != (n,) or np.any(np.isnan(x_lower)) or np.any(np.isnan(x_upper)):
@@ -187,7 +185,7 @@ class HierarchicalQP:
         for k, level in enumerate(stages):
             mu = damping if k == len(levels) - 1 else 0.0
             bound_rows = (np.eye(n)[free], x_lower[free], x_upper[free])
-            x, how = self._stage(k, level, x, Z, bound_rows, held, mu)
+            x, how = self._stage(k, level, x, Z, bound_rows, held, mu, solver)
             used.append(how)
             if level is None:
                 break
@@ -203,7 +201,7 @@ class HierarchicalQP:
         result.solve_time_s = time.perf_counter() - start
         return result
 
-    def _stage(self, k, level, x0, Z, bound_rows, held, mu) -> tuple[np.ndarray, str]:
+    def _stage(self, k, level, x0, Z, bound_rows, held, mu, solver: str) -> tuple[np.ndarray, str]:
         """One level (or the minimum-norm stage when ``level`` is None): returns x and how."""
         r = Z.shape[1]
         if r == 0:
@@ -260,14 +258,14 @@ class HierarchicalQP:
             Q = np.diag(np.concatenate([np.full(r, 2.0 * mu), np.full(m, 2.0)]))
             b = np.zeros(r + m)
         program.cost.evaluator().UpdateCoefficients(Q, b)
-        name = self.level_solvers[k] if k < len(self.level_solvers) else self.solver
+        name = self.level_solvers[k] if k < len(self.level_solvers) else solver
         what = "the minimum-norm stage" if level is None else f"level {k}"
         failures = []
         # A solver that stops short (e.g. "insufficient progress") usually leaves a point from which
         # the active-set polish finds the exact optimum; OSQP is the fallback for the rest.
         for attempt in dict.fromkeys([name, "osqp"]):
-            solver, options = self._solvers[attempt]
-            result = solver.Solve(program.prog, np.zeros(r + m), options)
+            drake_solver, options = self._solvers[attempt]
+            result = drake_solver.Solve(program.prog, np.zeros(r + m), options)
             x = x0 + Z @ result.GetSolution(program.y)
             if not np.all(np.isfinite(x)):
                 failures.append(f"{attempt}: {result.get_solution_result()}")

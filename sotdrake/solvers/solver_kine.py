@@ -75,7 +75,7 @@ class SolverKine(SOT):
         self._limits = (limits["position_lower"], limits["position_upper"],
                         limits["velocity_lower"], limits["velocity_upper"])
         self.position = self.DeclareVectorInputPort("position", model.nq)
-        self._hqp = {name: HierarchicalQP(model.nv, solver=name) for name in SOLVERS}  # program caches
+        self._hqp = HierarchicalQP(model.nv)  # its programs are a cache: results never depend on it
         self.DeclareAbstractOutputPort(
             "diagnostics", lambda: AbstractValue.Make(HqpDiagnostics()),
             lambda c, o: o.set_value(self._solution.Eval(c).diagnostics),
@@ -104,7 +104,7 @@ class SolverKine(SOT):
         )
         diagnostics = HqpDiagnostics(tasks=(["contacts"] if s.contacts else []) + list(s.tasks))
         try:
-            result = self._hqp[s.solver].solve(levels, lower, upper, s.damping)
+            result = self._hqp.solve(levels, lower, upper, s.damping, s.solver)
         except SolverError as error:
             diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
             log.warning("%s: %s; the device holds", self.name, diagnostics.failure)

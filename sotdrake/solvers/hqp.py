@@ -53,6 +53,13 @@ from ..exceptions import InvalidInput, SolverError
 SOLVERS = {"clarabel": ClarabelSolver, "osqp": OsqpSolver, "snopt": SnoptSolver}
 
 
+def check_solver(name: str) -> str:
+    """``name`` if it is one of :data:`SOLVERS`, else :class:`InvalidInput` listing them."""
+    if name not in SOLVERS:
+        raise InvalidInput(f"unknown QP solver {name!r}; available: {sorted(SOLVERS)}")
+    return name
+
+
 def _options(name: str) -> SolverOptions:
     options = SolverOptions()
     settings = {
@@ -141,8 +148,7 @@ class HierarchicalQP:
         closed_form: bool = True,
     ):
         for name in [solver, *(level_solvers or [])]:
-            if name not in SOLVERS:
-                raise InvalidInput(f"unknown QP solver {name!r}; available: {sorted(SOLVERS)}")
+            check_solver(name)
         self.n, self.solver, self.level_solvers = n, solver, list(level_solvers or [])
         self.hold_tolerance, self.rank_threshold, self.regularize = hold_tolerance, rank_threshold, regularize
         self.closed_form = closed_form  # False: every stage is a program (to test and measure them)
@@ -160,9 +166,7 @@ class HierarchicalQP:
         """Solve in strict priority; ``damping`` μ applies to the last level; ``solver`` overrides
         the default Drake solver for this call. Raises :class:`SolverError` naming the level when a
         program cannot be solved."""
-        if solver is not None and solver not in SOLVERS:
-            raise InvalidInput(f"unknown QP solver {solver!r}; available: {sorted(SOLVERS)}")
-        solver = solver or self.solver
+        solver = self.solver if solver is None else check_solver(solver)
         n = self.n
         x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
         if x_lower.shape != (n,) or x_upper.shape != (n,) or np.any(np.isnan(x_lower)) or np.any(np.isnan(x_upper)):
@@ -179,12 +183,12 @@ class HierarchicalQP:
         x = np.where(fixed, x_lower, 0.0)
         Z = np.eye(n)[:, ~fixed]
         free = ~fixed & (np.isfinite(x_lower) | np.isfinite(x_upper))  # bound rows that can bind
+        bound_rows = (np.eye(n)[free], x_lower[free], x_upper[free])
         held = (np.zeros((0, n)), np.zeros(0), np.zeros(0))  # held inequality rows
         used = []
         stages = list(levels) + ([None] if self.regularize else [])
         for k, level in enumerate(stages):
             mu = damping if k == len(levels) - 1 else 0.0
-            bound_rows = (np.eye(n)[free], x_lower[free], x_upper[free])
             x, how = self._stage(k, level, x, Z, bound_rows, held, mu, solver)
             used.append(how)
             if level is None:
@@ -219,13 +223,11 @@ class HierarchicalQP:
             return np.all(value >= constraint_lower - slack) and np.all(value <= constraint_upper + slack)
 
         # Closed form: the (damped) least-squares step, or the projection for the minimum norm.
-        if not self.closed_form:
-            pass
-        elif level is None:
+        if self.closed_form and level is None:
             x = x0 - Z @ (Z.T @ x0)
             if feasible(x):
                 return x, "closed-form"
-        elif level.equality.all():
+        elif self.closed_form and level.equality.all():
             U, sigma, Vt = np.linalg.svd(level.A @ Z, full_matrices=False)
             keep = sigma > self.rank_threshold
             s = sigma[keep]

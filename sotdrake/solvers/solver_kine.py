@@ -22,7 +22,7 @@ from pydrake.systems.framework import Context
 from ..device import Layout
 from ..exceptions import InvalidInput, SolverError
 from ..robots import RobotModel
-from .hqp import SOLVERS, HierarchicalQP, LevelRows
+from .hqp import HierarchicalQP, LevelRows, check_solver
 from .limits import velocity_bounds
 from .sot import SOT, StackSettings
 
@@ -65,9 +65,8 @@ class SolverKine(SOT):
         position_margin: float = 1e-3,
         solver: str = "clarabel",
     ):
-        if solver not in SOLVERS:
-            raise InvalidInput(f"unknown QP solver {solver!r}; available: {sorted(SOLVERS)}")
-        SOT.__init__(self, name, model.nv, damping=damping, settings=HqpSettings(solver=solver))
+        SOT.__init__(self, name, model.nv, damping=damping, settings=HqpSettings())
+        self.setSolver(solver)
         self.setPositionMargin(position_margin)
         self.dt = float(dt)
         self.layout = Layout.of(model.plant)
@@ -92,8 +91,7 @@ class SolverKine(SOT):
 
     def setSolver(self, solver: str, context: Context | None = None) -> None:
         """The Drake solver of the levels that need one (``'clarabel'``, ``'osqp'``, ``'snopt'``)."""
-        if solver not in SOLVERS:
-            raise InvalidInput(f"unknown QP solver {solver!r}; available: {sorted(SOLVERS)}")
+        check_solver(solver)
         self._command(context, lambda s: setattr(s, "solver", solver))
 
     def _calc(self, context: Context, value: AbstractValue) -> None:

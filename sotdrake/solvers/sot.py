@@ -86,6 +86,10 @@ class SOT(Entity[StackSettings]):
             raise TaskNotFound(name, list(self._task_ports))
         return name
 
+    def _task_name(self, task) -> str:
+        """The known task name of a name, a ``Task`` or a meta task (its ``.task``)."""
+        return self._known(getattr(getattr(task, "task", task), "name", task))
+
     # --- stack commands (sot-core names) ---------------------------------------------------
     def push(self, name: str, context: Context | None = None) -> None:
         """Append ``name`` at the bottom (lowest priority) of the stack."""
@@ -127,7 +131,7 @@ class SOT(Entity[StackSettings]):
 
     def addContact(self, task, context: Context | None = None) -> None:
         """Add a contact: a task (or meta task) solved above the whole stack."""
-        name = self._known(getattr(getattr(task, "task", task), "name", task))
+        name = self._task_name(task)
 
         def change(s: StackSettings) -> None:
             if name in s.contacts or name in s.tasks:
@@ -138,7 +142,7 @@ class SOT(Entity[StackSettings]):
 
     def rmContact(self, task, context: Context | None = None) -> None:
         """Remove a contact; removing the last one is refused."""
-        name = self._known(getattr(getattr(task, "task", task), "name", task))
+        name = self._task_name(task)
 
         def change(s: StackSettings) -> None:
             if name not in s.contacts:

@@ -22,15 +22,16 @@ from .exceptions import InvalidInput, check_finite
 from .robots import RobotModel
 
 
-class _PlantContext:
-    """Holder of a plant context; a copy (for a cloned system context) gets a fresh one."""
+class PlantContextHolder:
+    """A plant context as the value of a cache entry: a system computing kinematics sets its
+    positions in ``calc``; a copy (for a cloned system context) gets a fresh one."""
 
     def __init__(self, plant):
         self.plant = plant
         self.context = plant.CreateDefaultContext()
 
     def __deepcopy__(self, memo):
-        return _PlantContext(self.plant)
+        return PlantContextHolder(self.plant)
 
 
 class Dynamic(LeafSystem):
@@ -50,7 +51,7 @@ class Dynamic(LeafSystem):
         self._plant_context = self.DeclareCacheEntry(
             "plant_context",
             ValueProducer(
-                allocate=lambda: AbstractValue.Make(_PlantContext(self.plant)),
+                allocate=lambda: AbstractValue.Make(PlantContextHolder(self.plant)),
                 calc=self._calc_plant_context,
             ),
             prerequisites_of_calc={self.input_port_ticket(self._position.get_index())},

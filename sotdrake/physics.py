@@ -43,9 +43,11 @@ from pydrake.multibody.plant import (
 )
 from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains
-from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem, ValueProducer
 
+from .device import Layout
 from .exceptions import InvalidInput, SotError
+from .kinematics import PlantContextHolder
 from .robots.talos import add_talos
 
 #: Sole box in the sole frame: size (m) and centre (the bottom face lies on the sole plane).
@@ -231,8 +233,6 @@ class KinematicBaseEstimator(LeafSystem):
     def __init__(self, model, q0: np.ndarray, name: str = "estimator"):
         LeafSystem.__init__(self)
         self.set_name(name)
-        from .device import Layout
-
         self.plant = model.plant
         self.layout = Layout.of(self.plant)
         if self.layout.base_q is None:
@@ -242,23 +242,29 @@ class KinematicBaseEstimator(LeafSystem):
         context = self.plant.CreateDefaultContext()
         self.plant.SetPositions(context, q0)
         self._X_WS0 = [self.plant.CalcRelativeTransform(context, self.plant.world_frame(), s) for s in self._soles]
-        self._context = context  # a scratch plant context for the kinematics: it holds no state of ours
         nq, nv = self.plant.num_positions(), self.plant.num_velocities()
         self.plant_state = self.DeclareVectorInputPort("plant_state", nq + nv)
+        # The kinematics' plant context lives in a cache entry, as the dynamic entity's does.
+        self._plant_context = self.DeclareCacheEntry(
+            "plant_context",
+            ValueProducer(allocate=lambda: AbstractValue.Make(PlantContextHolder(self.plant)), calc=self._set_positions),
+            prerequisites_of_calc={self.input_port_ticket(self.plant_state.get_index())},
+        )
         self.DeclareVectorOutputPort("position", nq, self._calc)
 
-    def _calc(self, context: Context, output: BasicVector) -> None:
-        from pydrake.common.eigen_geometry import Quaternion
+    def _set_positions(self, context: Context, value: AbstractValue) -> None:
+        self.plant.SetPositions(value.get_mutable_value().context, self.plant_state.Eval(context)[: self.plant.num_positions()])
 
-        q = self.plant_state.Eval(context)[: self.plant.num_positions()].copy()
-        self.plant.SetPositions(self._context, q)
-        poses = [X_WS0.multiply(self.plant.CalcRelativeTransform(self._context, self._base, sole).inverse())
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        plant_context = self._plant_context.Eval(context).context
+        q = self.plant.GetPositions(plant_context)
+        poses = [X_WS0.multiply(self.plant.CalcRelativeTransform(plant_context, self._base, sole).inverse())
                  for X_WS0, sole in zip(self._X_WS0, self._soles)]
         quaternions = [X.rotation().ToQuaternion().wxyz() for X in poses]
         if quaternions[0] @ quaternions[1] < 0:
             quaternions[1] = -quaternions[1]
-        mean = quaternions[0] + quaternions[1]
+        mean = quaternions[0] + quaternions[1]  # (w, x, y, z), as Drake's q
         iq = self.layout.base_q
-        q[iq : iq + 4] = Quaternion(mean / np.linalg.norm(mean)).wxyz()
+        q[iq : iq + 4] = mean / np.linalg.norm(mean)
         q[iq + 4 : iq + 7] = 0.5 * (poses[0].translation() + poses[1].translation())
         output.SetFromVector(q)

@@ -78,3 +78,22 @@ def test_script_outputs(physics, tmp_path):
     for key in ("hand_error_m", "base_drift_m", "base_height_drop_m", "min_normal_force_n", "max_foot_slip_m", "realtime_factor"):
         assert key in summary
     assert (tmp_path / "plots.png").is_file() and (tmp_path / "trace.npz").is_file()
+
+
+def test_base_estimator_is_leg_odometry(talos_model):
+    """The measured joints pass through; the base comes from the soles staying where they started,
+    whatever the measured base says."""
+    from sotdrake.physics import KinematicBaseEstimator
+
+    estimator = KinematicBaseEstimator(talos_model, talos_model.half_sitting)
+    context = estimator.CreateDefaultContext()
+    x = np.concatenate([talos_model.half_sitting, np.zeros(talos_model.nv)])
+    x[4:7] += [0.3, -0.2, 0.1]  # the whole robot moved: the feet did not
+    estimator.get_input_port().FixValue(context, x)
+    np.testing.assert_allclose(estimator.get_output_port().Eval(context), talos_model.half_sitting, atol=1e-12)
+    knee = talos_model.plant.GetJointByName("leg_left_4_joint").position_start()
+    x[knee] += 0.1  # one knee bends: the joint is passed through, the base moves
+    estimator.get_input_port().FixValue(context, x)
+    q = estimator.get_output_port().Eval(context)
+    assert q[knee] == x[knee] and np.linalg.norm(q[4:7] - talos_model.half_sitting[4:7]) > 1e-3
+    assert np.linalg.norm(q[:4]) == pytest.approx(1.0)

@@ -18,6 +18,11 @@ from ..entity import Entity
 from ..selection import parse_selection
 
 
+def optional_input(port, context: Context, default):
+    """The value of an optional input port, or ``default`` when it is not connected."""
+    return port.Eval(context) if port.HasValue(context) else default
+
+
 @dataclass
 class FeatureSettings:
     selection: str
@@ -53,10 +58,6 @@ class Feature(Entity):
     def _compute(self, context: Context, settings, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The full ``(e, J, ė_ref)``; ``rows`` (the selected ones) may be used to skip work."""
         raise NotImplementedError
-
-    @staticmethod
-    def _optional(port, context: Context, default):
-        return port.Eval(context) if port.HasValue(context) else default
 
     def selec(self, mask: str, context: Context | None = None) -> None:
         """Selection mask, read right to left (``'000011'`` selects components 0 and 1)."""

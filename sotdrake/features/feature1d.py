@@ -8,7 +8,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context
 
-from .base import Feature
+from .base import Feature, optional_input
 
 
 class Feature1D(Feature):
@@ -21,5 +21,5 @@ class Feature1D(Feature):
 
     def _compute(self, context: Context, settings, rows):
         e_in = self.errorIN.Eval(context)
-        e_dot_in = self._optional(self.errordotIN, context, np.zeros_like(e_in))
+        e_dot_in = optional_input(self.errordotIN, context, np.zeros_like(e_in))
         return np.array([0.5 * e_in @ e_in]), (e_in @ self.jacobianIN.Eval(context))[None, :], np.array([e_in @ e_dot_in])

@@ -30,7 +30,7 @@ from pydrake.systems.framework import Context
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite
 from ..lie import hat, left_jacobian_inverse_so3, log_so3, right_jacobian_inverse_so3
-from .base import Feature, FeatureSettings
+from .base import Feature, FeatureSettings, optional_input
 
 FRAMES = ("desired", "current")
 
@@ -169,7 +169,7 @@ class Feature6d(Feature):
         X_WF, J_WF = self.position.Eval(context), self.Jq.Eval(context)
         if s.opmodif is not None:
             X_WF, J_WF = shift_jacobian(X_WF, J_WF, s.opmodif)
-        V = self._optional(self.reference_velocity, context, None)
+        V = optional_input(self.reference_velocity, context, None)
         return pose_error_and_jacobian(X_WF, J_WF, self.reference.Eval(context), s.frame, V, rotation=rows[-1] >= 3)
 
     def frame(self, which: str, context: Context | None = None) -> None:

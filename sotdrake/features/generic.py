@@ -15,7 +15,7 @@ from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..exceptions import check_finite
-from .base import Feature
+from .base import Feature, optional_input
 
 
 @dataclass
@@ -35,9 +35,9 @@ class FeatureGenericDesired(Entity[FeatureGenericDesiredSettings]):
         self.value_in = self.DeclareVectorInputPort("value_in", dimension)
         self.velocity_in = self.DeclareVectorInputPort("velocity_in", dimension)
         self.DeclareVectorOutputPort("errorIN", dimension, lambda c, o: o.SetFromVector(
-            self.value_in.Eval(c) if self.value_in.HasValue(c) else self._settings_of(c).errorIN))
+            optional_input(self.value_in, c, self._settings_of(c).errorIN)))
         self.DeclareVectorOutputPort("velocity", dimension, lambda c, o: o.SetFromVector(
-            self.velocity_in.Eval(c) if self.velocity_in.HasValue(c) else self._settings_of(c).velocity))
+            optional_input(self.velocity_in, c, self._settings_of(c).velocity)))
 
     def setReference(self, value, context: Context | None = None) -> None:
         """Set ``s*``."""
@@ -63,5 +63,5 @@ class FeatureGeneric(Feature):
 
     def _compute(self, context: Context, settings, rows):
         e = self.errorIN.Eval(context) - self.reference.Eval(context)
-        e_dot = -self._optional(self.reference_velocity, context, np.zeros(self.dimension))
+        e_dot = -optional_input(self.reference_velocity, context, np.zeros(self.dimension))
         return e, self.jacobianIN.Eval(context), e_dot

@@ -23,7 +23,7 @@ from pydrake.systems.framework import Context
 from ..device import Layout
 from ..exceptions import InvalidInput, check_finite
 from ..lie import left_jacobian_inverse_so3, log_so3, quaternion_wxyz_to_rotation, right_jacobian_inverse_so3
-from .base import Feature, FeatureSettings
+from .base import Feature, FeatureSettings, optional_input
 
 
 @dataclass
@@ -48,8 +48,8 @@ class FeaturePosture(Feature):
 
     def _compute(self, context: Context, s, rows):
         q = self.state.Eval(context)
-        q_star = self._optional(self.posture_in, context, s.posture)
-        v_star = self._optional(self.postureDot_in, context, s.postureDot)
+        q_star = optional_input(self.posture_in, context, s.posture)
+        v_star = optional_input(self.postureDot_in, context, s.postureDot)
         nv, layout = self.nv, self.layout
         e, J, e_dot = np.zeros(nv), np.eye(nv), -v_star.copy()
         e[layout.joints_v] = q[layout.joints_q] - q_star[layout.joints_q]

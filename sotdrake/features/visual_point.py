@@ -24,7 +24,7 @@ from pydrake.systems.framework import Context
 
 from ..exceptions import InvalidInput, SolverError, check_finite
 from ..lie import hat
-from .base import Feature, FeatureSettings
+from .base import Feature, FeatureSettings, optional_input
 
 
 @dataclass
@@ -52,7 +52,7 @@ class FeatureVisualPoint(Feature):
         L = np.array([[1.0, 0.0, -x / z], [0.0, 1.0, -y / z]]) / z
         s = np.array([x / z, y / z])
         jacobian = -L @ R.T @ (J[3:] - hat(d) @ J[:3])
-        e_dot = L @ R.T @ self._optional(self.point_velocity, context, np.zeros(3))
+        e_dot = L @ R.T @ optional_input(self.point_velocity, context, np.zeros(3))
         return s - settings.desired, jacobian, e_dot
 
     def setDesired(self, image_point, context: Context | None = None) -> None:

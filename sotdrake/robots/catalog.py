@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 #: How the robot's root link is attached to the world.
 #: ``free``: a 6-DOF floating base, ``q = (qw, qx, qy, qz, x, y, z)``, ``v = (ω_WB, v_WB)`` in world;
-#: ``planar``: a ``PlanarJoint`` named ``world_joint``, ``q = (x, y, θ)``, ``v = (ẋ, ẏ, θ̇)`` in world;
+#: ``planar``: a ``PlanarJoint`` named ``root_joint``, ``q = (x, y, θ)``, ``v = (ẋ, ẏ, θ̇)`` in world;
 #: ``fixed``: welded at the world origin.
 BASES = ("free", "planar", "fixed")
 
@@ -146,11 +146,11 @@ ROBOTS: dict[str, RobotSpec] = {
                 "right-wrist": "right_wrist_yaw_joint",
                 "left-ankle": "left_ankle_roll_joint",
                 "right-ankle": "right_ankle_roll_joint",
-                "gaze": "head_joint",
+                "gaze": "d435_joint",
                 "waist": "pelvis",
                 "chest": "waist_pitch_joint",
             },
-            notes="Unitree; no SRDF: all joints at 0, ankles on the ground",
+            notes="Unitree; no SRDF: all joints at 0, ankles on the ground; `gaze` is the D435 head camera",
         ),
         RobotSpec(
             name="pr2",

@@ -9,7 +9,7 @@ robot's reference posture.
 
 Drake's coordinates: a free base comes first, ``q = (qw, qx, qy, qz, x, y, z, …)``,
 ``v = (ω_WB, v_WB, …)`` both expressed in the world frame; a planar base is the joint
-``world_joint``, ``q = (x, y, θ)`` and ``v = (ẋ, ẏ, θ̇)`` in the world frame.
+``root_joint``, ``q = (x, y, θ)`` and ``v = (ẋ, ẏ, θ̇)`` in the world frame.
 """
 
 from __future__ import annotations
@@ -30,8 +30,8 @@ from .catalog import BASES, ROBOTS, RobotSpec
 from .model import RobotModel, posture_from_srdf
 from .urdf_text import prepare_urdf
 
-#: Name of the planar joint that carries a ``planar`` base (the SRDF virtual joint's name).
-PLANAR_BASE_JOINT = "world_joint"
+#: Name of the planar joint that carries a ``planar`` base (sot-talos names the free flyer so too).
+PLANAR_BASE_JOINT = "root_joint"
 
 
 def example_robot_data_dir() -> Path:

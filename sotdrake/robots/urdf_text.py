@@ -14,7 +14,10 @@ changed as follows (nothing else is touched, so kinematics and inertias stay tho
 * transmissions Drake cannot use are removed: anything but a ``SimpleTransmission``, and ones naming
   a joint the file does not have or a fixed joint (the loader then gives every 1-DOF joint left
   without an actuator one of its own, see :func:`sotdrake.robots.loader.add_actuators`);
-* ``<gazebo>`` blocks (simulator plugins) are removed.
+* what Drake would ignore with a warning is removed: ``<gazebo>`` blocks (simulator plugins), the
+  joints' ``<safety_controller>`` and ``<calibration>`` (ROS controller settings), the transmissions'
+  ``<mechanicalReduction>`` (``MultibodyPlant`` has no gear ratio: a command is a joint torque)
+  and the ``type`` attribute of ``<link>``.
 
 This is the one place where URDF text is changed: further checks on the text go here.
 """
@@ -71,8 +74,11 @@ def prepare_urdf(text: str, share: Path, meshes: bool, collision: bool = True) -
         return joint
 
     text = re.sub(r"<gazebo\b.*?</gazebo>", "", text, flags=re.S)
+    for tag in ("safety_controller", "calibration", "mechanicalReduction"):
+        text = re.sub(rf"<{tag}\b[^>]*/>|<{tag}\b.*?</{tag}>", "", text, flags=re.S)
+    text = re.sub(r'(<link\b[^>]*?)\stype="[^"]*"', r"\1", text)
     text = re.sub(r"<joint\b[^>]*>.*?</joint>", fix_joint, text, flags=re.S)
-    text = re.sub(r'\sfriction="[^"]*"', "", text)
+    text = re.sub(r"""\sfriction\s*=\s*("[^"]*"|'[^']*')""", "", text)
     root = ET.fromstring(text)
     moving = {j.get("name") for j in root.findall("joint") if j.get("type") != "fixed"}
 

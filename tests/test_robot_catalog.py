@@ -206,3 +206,20 @@ def test_humanoid_kinematics_match_pinocchio(name, variant, rng):
         np.testing.assert_allclose(dynamic.GetOutputPort("com").Eval(context), pin.centerOfMass(pin_model, data, qp), atol=1e-12)
         Jcom = pin.jacobianCenterOfMass(pin_model, data, qp)
         np.testing.assert_allclose(dynamic.GetOutputPort("Jcom").Eval(context), Jcom @ Tq, atol=1e-12)
+
+
+def test_collada_meshes_convert_to_obj(tmp_path, monkeypatch):
+    """Romeo's meshes are COLLADA: converted once to an OBJ Drake reads, in metres, no material file."""
+    from pydrake.geometry import ReadObjToTriangleSurfaceMesh
+
+    from sotdrake.robots import example_robot_data_dir
+    from sotdrake.robots.mesh_cache import obj_for_mesh
+
+    monkeypatch.setenv("SOTDRAKE_CACHE", str(tmp_path))
+    dae = example_robot_data_dir() / "robots/romeo_description/meshes/V1/visual/RWristPitch.dae"
+    obj = obj_for_mesh(dae)
+    assert "mtllib" not in obj.read_text()
+    mesh = ReadObjToTriangleSurfaceMesh(str(obj))
+    extent = np.ptp(np.array([mesh.vertex(i) for i in range(mesh.num_vertices())]), axis=0)
+    assert mesh.num_triangles() > 100 and 0.03 < extent.max() < 0.3  # a wrist, in metres
+    assert obj_for_mesh(dae) == obj

@@ -27,6 +27,10 @@ def cache_root() -> Path:
     return Path(base) / "sotdrake"
 
 
+#: Changes when the conversion does, so that older cached files are not reused.
+_FORMAT = 2
+
+
 def obj_for_mesh(mesh_path: Path) -> Path:
     """Path of the OBJ conversion of an STL or COLLADA mesh, converting it now if not cached."""
     source = Path(mesh_path)
@@ -34,7 +38,7 @@ def obj_for_mesh(mesh_path: Path) -> Path:
     if file_type not in ("stl", "dae"):
         raise InvalidInput(f"{source}: only STL and COLLADA (.dae) meshes are converted")
     stat = source.stat()
-    key = hashlib.sha1(f"{source.resolve()}|{stat.st_size}|{stat.st_mtime_ns}".encode()).hexdigest()
+    key = hashlib.sha1(f"{source.resolve()}|{stat.st_size}|{stat.st_mtime_ns}|{_FORMAT}".encode()).hexdigest()
     target = cache_root() / "meshes" / key[:2] / f"{source.stem}-{key[:12]}.obj"
     if target.exists():
         return target
@@ -45,7 +49,9 @@ def obj_for_mesh(mesh_path: Path) -> Path:
     fd, tmp = tempfile.mkstemp(dir=target.parent, suffix=".obj.tmp")
     try:
         with os.fdopen(fd, "w") as f:
-            f.write(trimesh.exchange.obj.export_obj(mesh, include_normals=False))
+            # Geometry only: a material library would name a file that is not written.
+            f.write(trimesh.exchange.obj.export_obj(mesh, include_normals=False, include_texture=False,
+                                                    write_texture=False))
         os.replace(tmp, target)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -28,6 +28,7 @@ from pydrake.multibody.tree import ModelInstanceIndex, PlanarJoint
 from ..exceptions import InvalidInput, RobotNotFound, SotError, VariantNotFound
 from .catalog import BASES, ROBOTS, RobotSpec
 from .model import RobotModel, posture_from_srdf
+from .srdf import read_group_state
 from .urdf_text import prepare_urdf
 
 #: Name of the planar joint that carries a ``planar`` base (sot-talos names the free flyer so too).
@@ -171,27 +172,18 @@ def _put_on_ground(plant: MultibodyPlant, q: np.ndarray, soles: list) -> np.ndar
     return plant.GetPositions(context)
 
 
-def reference_posture(model_plant: MultibodyPlant, spec: RobotSpec, srdf: Path | None, soles: list) -> np.ndarray:
+def reference_posture(plant: MultibodyPlant, spec: RobotSpec, srdf: Path | None, soles: list) -> np.ndarray:
     """The robot's reference posture: its SRDF ``group_state``s over the default positions (0
-    clipped into the joint limits); a floating base the SRDF does not place is put with its soles
-    (lowest frame of ``spec.soles``) on the ground, and at z = 0 when it has no soles."""
-    plant = model_plant
+    clipped into the joint limits); a floating base the SRDF does not place is put with its lowest
+    sole frame (``soles``) at z = 0."""
     q = np.clip(plant.GetDefaultPositions(), plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits())
-    has_base_pose = False
+    places_base = False
     if srdf is not None and spec.posture:
         q = posture_from_srdf(plant, srdf, spec.posture, q)
-        has_base_pose = any(
-            "root_joint" in read for read in (_srdf_joints(srdf, g) for g in spec.posture)
-        )
-    if plant.GetFloatingBaseBodies() and not has_base_pose and soles:
+        places_base = any("root_joint" in read_group_state(srdf, group) for group in spec.posture)
+    if plant.GetFloatingBaseBodies() and not places_base and soles:
         q = _put_on_ground(plant, q, soles)
     return q
-
-
-def _srdf_joints(srdf: Path, group: str) -> set[str]:
-    from .srdf import read_group_state
-
-    return set(read_group_state(srdf, group))
 
 
 def _has_target(plant: MultibodyPlant, target: str) -> bool:

@@ -2,12 +2,13 @@
 
 The names a SoT user reaches for, in the seed's vocabulary::
 
-    from sotdrake import talos, add_sot, MetaTaskKine6d, MetaTaskKineCom, gotoNd, attime
+    from sotdrake import robot, talos, add_sot, MetaTaskKine6d, MetaTaskKineCom, gotoNd, attime
 """
 
-from .exceptions import FrameNotFound, InvalidInput, SolverError, SotError, StackError, TaskNotFound
+from .exceptions import FrameNotFound, InvalidInput, RobotNotFound, SolverError, SotError, StackError, TaskNotFound
 from .meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
-from .robot import Robot, add_sot, talos
+from .robot import Robot, add_sot, robot, talos
+from .robots import load_robot
 from .sequencer import attime
 from .solvers import SOT
 from .tracing import Tracer
@@ -19,6 +20,7 @@ __all__ = [
     "MetaTaskKine6d",
     "MetaTaskKineCom",
     "Robot",
+    "RobotNotFound",
     "SolverError",
     "SotError",
     "StackError",
@@ -27,5 +29,7 @@ __all__ = [
     "add_sot",
     "attime",
     "gotoNd",
+    "load_robot",
+    "robot",
     "talos",
 ]

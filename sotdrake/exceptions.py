@@ -50,6 +50,10 @@ class TaskNotFound(NotFound):
 
 
 class RobotNotFound(NotFound):
+    kind = "robot"
+
+
+class VariantNotFound(RobotNotFound):
     kind = "robot variant"
 
 

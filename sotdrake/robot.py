@@ -15,7 +15,7 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
 from .device import Device
 from .exceptions import InvalidInput, NotFound
 from .kinematics import Dynamic
-from .robots import RobotModel, load_talos
+from .robots import RobotModel, load_robot
 from .solvers import SOT, SolverKine
 from .task import Task
 
@@ -104,9 +104,25 @@ def robot_of(dynamic: Dynamic) -> Robot:
     return robot
 
 
+def robot(
+    builder: DiagramBuilder,
+    name: str = "talos",
+    variant: str | None = None,
+    dt: float = 1e-3,
+    base: str | None = None,
+    q0: np.ndarray | None = None,
+) -> Robot:
+    """The SoT ``robot`` of any robot of :data:`sotdrake.robots.ROBOTS` (sot-romeo's
+    ``from dynamic_graph.sot.romeo.romeo import *; robot = Robot('robot')``): its ``dynamic`` and
+    ``device`` (period ``dt`` seconds) in ``builder``, starting in the robot's reference posture
+    (or ``q0``). ``variant`` and ``base`` as in :func:`sotdrake.robots.load_robot`."""
+    return Robot(builder, load_robot(name, variant, base=base), dt, q0)
+
+
 def talos(builder: DiagramBuilder, variant: str = "reduced", dt: float = 1e-3) -> Robot:
-    """TALOS (``variant`` of :data:`sotdrake.robots.VARIANTS`) in half-sitting, at ``dt`` seconds."""
-    return Robot(builder, load_talos(variant), dt)
+    """TALOS (``variant`` of :data:`sotdrake.robots.VARIANTS`) in half-sitting, at ``dt`` seconds:
+    ``robot(builder, "talos", variant, dt)``."""
+    return robot(builder, "talos", variant, dt)
 
 
 def add_sot(

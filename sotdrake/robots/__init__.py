@@ -1,19 +1,26 @@
-"""Robot loaders: URDF fix-ups, reference postures and operational-point maps."""
+"""Robot loaders: URDF fix-ups, reference postures and operational-point maps.
 
-from .talos import (
-    OPERATIONAL_POINTS,
-    VARIANTS,
-    RobotModel,
-    add_talos,
-    example_robot_data_dir,
-    load_talos,
-)
+``load_robot(name, variant)`` loads any robot of :data:`ROBOTS` (example-robot-data);
+``load_talos`` is its TALOS case.
+"""
+
+from .catalog import BASES, ROBOTS, RobotSpec
+from .loader import add_robot, available_robots, example_robot_data_dir, load_robot, robot_spec
+from .model import RobotModel
+from .talos import OPERATIONAL_POINTS, VARIANTS, add_talos, load_talos
 
 __all__ = [
+    "BASES",
     "OPERATIONAL_POINTS",
+    "ROBOTS",
     "VARIANTS",
     "RobotModel",
+    "RobotSpec",
+    "add_robot",
     "add_talos",
+    "available_robots",
     "example_robot_data_dir",
+    "load_robot",
     "load_talos",
+    "robot_spec",
 ]

@@ -1,6 +1,8 @@
-"""STL → OBJ conversion, done once per mesh and cached in the user cache directory.
+"""STL/COLLADA → OBJ conversion, done once per mesh and cached in the user cache directory.
 
-Drake's Meshcat and proximity geometry want OBJ (or glTF) files; example-robot-data ships STL.
+Drake's Meshcat and proximity geometry want OBJ (or glTF) files; example-robot-data ships STL and
+COLLADA (``.dae``, read with pycollada through trimesh; the scene's node transforms are applied,
+materials are not kept).
 Each mesh is converted with trimesh the first time it is needed and written atomically (a temporary
 file in the same directory, then ``os.replace``), so concurrent runs never see a partial file.
 The cache lives in ``$SOTDRAKE_CACHE`` or ``$XDG_CACHE_HOME/sotdrake`` (default ``~/.cache/sotdrake``),
@@ -14,6 +16,8 @@ import os
 import tempfile
 from pathlib import Path
 
+from ..exceptions import InvalidInput
+
 
 def cache_root() -> Path:
     """The directory where converted meshes are kept."""
@@ -23,24 +27,37 @@ def cache_root() -> Path:
     return Path(base) / "sotdrake"
 
 
-def obj_for_stl(stl_path: Path) -> Path:
-    """Path of the OBJ conversion of ``stl_path``, converting it now if it is not cached."""
-    stl_path = Path(stl_path)
-    stat = stl_path.stat()
-    key = hashlib.sha1(f"{stl_path.resolve()}|{stat.st_size}|{stat.st_mtime_ns}".encode()).hexdigest()
-    target = cache_root() / "meshes" / key[:2] / f"{stl_path.stem}-{key[:12]}.obj"
+#: Changes when the conversion does, so that older cached files are not reused.
+_FORMAT = 2
+
+
+def obj_for_mesh(mesh_path: Path) -> Path:
+    """Path of the OBJ conversion of an STL or COLLADA mesh, converting it now if not cached."""
+    source = Path(mesh_path)
+    file_type = source.suffix.lower().lstrip(".")
+    if file_type not in ("stl", "dae"):
+        raise InvalidInput(f"{source}: only STL and COLLADA (.dae) meshes are converted")
+    stat = source.stat()
+    key = hashlib.sha1(f"{source.resolve()}|{stat.st_size}|{stat.st_mtime_ns}|{_FORMAT}".encode()).hexdigest()
+    target = cache_root() / "meshes" / key[:2] / f"{source.stem}-{key[:12]}.obj"
     if target.exists():
         return target
     import trimesh  # imported here: only needed the first time a mesh is converted
 
-    mesh = trimesh.load(stl_path, file_type="stl", force="mesh")
+    mesh = trimesh.load(source, file_type=file_type, force="mesh")
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=target.parent, suffix=".obj.tmp")
     try:
         with os.fdopen(fd, "w") as f:
-            f.write(trimesh.exchange.obj.export_obj(mesh, include_normals=False))
+            # Geometry only: a material library would name a file that is not written.
+            f.write(trimesh.exchange.obj.export_obj(mesh, include_normals=False, include_texture=False,
+                                                    write_texture=False))
         os.replace(tmp, target)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
     return target
+
+
+#: The name this function had when only STL was converted.
+obj_for_stl = obj_for_mesh

@@ -1,0 +1,231 @@
+"""One loader for the robots of example-robot-data: ``load_robot("romeo")``, ``load_robot("pr2")``…
+
+``add_robot`` adds a robot of :data:`sotdrake.robots.catalog.ROBOTS` to an unfinalized
+``MultibodyPlant``: its URDF text is fixed up by :func:`~sotdrake.robots.urdf_text.prepare_urdf`,
+parsed by Drake, its base attached as asked (free, planar or welded), and every 1-DOF joint left
+without an actuator by the URDF (and not a mimic follower) gets one, with the URDF effort limit.
+``load_robot`` finalizes the plant and returns a :class:`~sotdrake.robots.model.RobotModel` in the
+robot's reference posture.
+
+Drake's coordinates: a free base comes first, ``q = (qw, qx, qy, qz, x, y, z, …)``,
+``v = (ω_WB, v_WB, …)`` both expressed in the world frame; a planar base is the joint
+``root_joint``, ``q = (x, y, θ)`` and ``v = (ẋ, ẏ, θ̇)`` in the world frame.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import SceneGraph
+from pydrake.math import RigidTransform
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import ModelInstanceIndex, PlanarJoint
+
+from ..exceptions import InvalidInput, RobotNotFound, SotError, VariantNotFound
+from .catalog import BASES, ROBOTS, RobotSpec
+from .model import RobotModel, posture_from_srdf
+from .srdf import read_group_state
+from .urdf_text import prepare_urdf
+
+#: Name of the planar joint that carries a ``planar`` base (sot-talos names the free flyer so too).
+PLANAR_BASE_JOINT = "root_joint"
+
+
+def example_robot_data_dir() -> Path:
+    """``share/example-robot-data`` of the installed example-robot-data wheel."""
+    try:
+        dist = importlib.metadata.distribution("example-robot-data")
+    except importlib.metadata.PackageNotFoundError:
+        raise SotError(
+            "the robot package example-robot-data is not installed: `pip install example-robot-data`"
+        ) from None
+    path = Path(dist.locate_file("cmeel.prefix/share/example-robot-data"))
+    if not (path / "robots").is_dir():
+        raise SotError(f"example-robot-data is installed but has no robots directory at {path}")
+    return path
+
+
+def available_robots() -> list[str]:
+    """The names :func:`load_robot` accepts."""
+    return list(ROBOTS)
+
+
+def robot_spec(name: str) -> RobotSpec:
+    """The catalog entry of ``name``; :class:`RobotNotFound` lists the robots that exist."""
+    if name not in ROBOTS:
+        raise RobotNotFound(name, list(ROBOTS))
+    return ROBOTS[name]
+
+
+def _variant(spec: RobotSpec, variant: str | None) -> str:
+    variant = spec.default_variant if variant is None else variant
+    if variant not in spec.variants:
+        raise VariantNotFound(variant, list(spec.variants))
+    return variant
+
+
+def _base(spec: RobotSpec, variant: str, base: str | None) -> str:
+    if variant in spec.fixed_base_variants and base is None:
+        return "fixed"
+    base = spec.base if base is None else base
+    if base not in BASES:
+        raise InvalidInput(f"base must be one of {BASES}, got {base!r}")
+    if base not in spec.bases and variant not in spec.fixed_base_variants:
+        raise InvalidInput(f"{spec.name} offers the bases {spec.bases}, not {base!r}")
+    return base
+
+
+def urdf_path(name: str, variant: str | None = None) -> Path:
+    """The URDF file of a robot variant (default: the robot's first variant)."""
+    spec = robot_spec(name)
+    return example_robot_data_dir() / "robots" / spec.package / spec.urdf_dir / spec.variants[_variant(spec, variant)]
+
+
+def srdf_path(name: str, variant: str | None = None) -> Path | None:
+    """The SRDF file of a robot variant, or None when it has none."""
+    spec = robot_spec(name)
+    srdf = spec.srdf_file(_variant(spec, variant))
+    return None if srdf is None else example_robot_data_dir() / "robots" / spec.package / "srdf" / srdf
+
+
+def robot_urdf_text(name: str, variant: str | None = None, meshes: bool = False, collision: bool = True) -> str:
+    """The URDF text of a robot variant, fixed up for Drake (:func:`prepare_urdf`)."""
+    return prepare_urdf(urdf_path(name, variant).read_text(), example_robot_data_dir(), meshes, collision)
+
+
+def _root_link(urdf_text: str) -> str:
+    root = ET.fromstring(urdf_text)
+    children = {j.find("child").get("link") for j in root.findall("joint")}
+    (link,) = [l.get("name") for l in root.findall("link") if l.get("name") not in children]
+    return link
+
+
+def _joint_table(urdf_text: str) -> tuple[dict[str, float], set[str]]:
+    """Effort limit of each joint and the set of mimic followers, read from the URDF."""
+    root = ET.fromstring(urdf_text)
+    effort, followers = {}, set()
+    for joint in root.iter("joint"):
+        limit = joint.find("limit")
+        if limit is not None and float(limit.get("effort") or 0) > 0:  # 0: not given (Romeo's fingers)
+            effort[joint.get("name")] = float(limit.get("effort"))
+        if joint.find("mimic") is not None and joint.get("type") != "fixed":
+            followers.add(joint.get("name"))
+    return effort, followers
+
+
+def add_actuators(plant: MultibodyPlant, instance: ModelInstanceIndex, urdf_text: str) -> None:
+    """An actuator (URDF effort limit, else unlimited) on every 1-DOF joint of ``instance`` that the
+    URDF's transmissions left without one, mimic followers excepted."""
+    effort, followers = _joint_table(urdf_text)
+    # URDF transmissions may land in another model instance: look at every actuator.
+    actuated = {plant.get_joint_actuator(i).joint().name() for i in plant.GetJointActuatorIndices()}
+    for index in plant.GetJointIndices(instance):
+        joint = plant.get_joint(index)
+        if joint.num_velocities() == 1 and joint.name() not in actuated | followers:
+            plant.AddJointActuator(f"{joint.name()}_motor", joint, effort.get(joint.name(), float("inf")))
+
+
+def add_robot(
+    plant: MultibodyPlant,
+    name: str,
+    variant: str | None = None,
+    meshes: bool = False,
+    base: str | None = None,
+    collision: bool = True,
+) -> ModelInstanceIndex:
+    """Add robot ``name`` to an unfinalized ``plant`` and return its model instance.
+
+    ``variant``: one of the robot's variants (default: its first). ``meshes``: visual and collision
+    geometry (the plant must be registered with a SceneGraph); ``collision=False`` keeps only the
+    visuals. ``base``: ``'free'``, ``'planar'`` or ``'fixed'`` (default: the robot's own, see
+    :data:`sotdrake.robots.catalog.ROBOTS`). A URDF whose root is already welded to ``world`` stays
+    welded.
+    """
+    spec = robot_spec(name)
+    variant = _variant(spec, variant)
+    base = _base(spec, variant, base)
+    text = robot_urdf_text(name, variant, meshes, collision)
+    (instance,) = Parser(plant).AddModelsFromString(text, "urdf")
+    root = _root_link(text)
+    if root != "world":
+        root_frame = plant.GetFrameByName(root, instance)
+        if base == "fixed":
+            plant.WeldFrames(plant.world_frame(), root_frame)
+        elif base == "planar":
+            plant.AddJoint(PlanarJoint(PLANAR_BASE_JOINT, plant.world_frame(), root_frame, np.zeros(3)))
+    add_actuators(plant, instance, text)
+    return instance
+
+
+def _put_on_ground(plant: MultibodyPlant, q: np.ndarray, soles: list) -> np.ndarray:
+    """``q`` with the floating base raised or lowered so that the lowest sole frame is at z = 0."""
+    (body,) = plant.GetFloatingBaseBodies()
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, q)
+    z = min(plant.CalcRelativeTransform(context, plant.world_frame(), f).translation()[2] for f in soles)
+    X_WB = plant.EvalBodyPoseInWorld(context, plant.get_body(body))
+    plant.SetFreeBodyPose(context, plant.get_body(body), RigidTransform(X_WB.rotation(), X_WB.translation() - [0, 0, z]))
+    return plant.GetPositions(context)
+
+
+def reference_posture(plant: MultibodyPlant, spec: RobotSpec, srdf: Path | None, soles: list) -> np.ndarray:
+    """The robot's reference posture: its SRDF ``group_state``s over the default positions (0
+    clipped into the joint limits); a floating base the SRDF does not place is put with its lowest
+    sole frame (``soles``) at z = 0."""
+    q = np.clip(plant.GetDefaultPositions(), plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits())
+    places_base = False
+    if srdf is not None and spec.posture:
+        q = posture_from_srdf(plant, srdf, spec.posture, q)
+        places_base = any("root_joint" in read_group_state(srdf, group) for group in spec.posture)
+    if plant.GetFloatingBaseBodies() and not places_base and soles:
+        q = _put_on_ground(plant, q, soles)
+    return q
+
+
+def _has_target(plant: MultibodyPlant, target: str) -> bool:
+    """Whether an op point's joint or frame is in this model (a variant may lack some)."""
+    floating = target == "root_joint" and bool(plant.GetFloatingBaseBodies())
+    return floating or plant.HasJointNamed(target) or plant.HasFrameNamed(target)
+
+
+def load_robot(
+    name: str,
+    variant: str | None = None,
+    meshes: bool = False,
+    time_step: float = 0.0,
+    base: str | None = None,
+) -> RobotModel:
+    """A finalized ``RobotModel`` of robot ``name`` (see :func:`available_robots`); with ``meshes``
+    the plant is registered with a SceneGraph (OBJ visual and collision meshes) that the model
+    holds. An unknown name raises :class:`RobotNotFound` listing the robots that exist; an unknown
+    variant, :class:`VariantNotFound` listing the robot's variants."""
+    spec = robot_spec(name)
+    variant = _variant(spec, variant)
+    scene_graph = None
+    plant = MultibodyPlant(time_step)
+    if meshes:
+        scene_graph = SceneGraph()
+        plant.RegisterAsSourceForSceneGraph(scene_graph)
+    add_robot(plant, name, variant, meshes, base)
+    plant.Finalize()
+    model = RobotModel(
+        plant=plant,
+        variant=variant,
+        OperationalPointsMap={},
+        half_sitting=np.zeros(plant.num_positions()),
+        fixed_base=not plant.GetFloatingBaseBodies() and not plant.HasJointNamed(PLANAR_BASE_JOINT),
+        scene_graph=scene_graph,
+        srdf_path=srdf_path(name, variant),
+        name=name,
+        base=_base(spec, variant, base),
+    )
+    model.OperationalPointsMap.update(
+        {op: target for op, target in spec.op_points.items() if _has_target(plant, target)}
+    )
+    soles = [model.frame(s) for s in spec.soles]
+    model.half_sitting = reference_posture(plant, spec, model.srdf_path, soles)
+    return model

@@ -1,0 +1,120 @@
+"""``RobotModel``: a finalized plant of a robot with what the SoT needs to know about it, and the
+reference posture read from an SRDF."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.geometry import SceneGraph
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import Frame, FrameIndex, JointActuatorIndex
+
+from ..exceptions import FrameNotFound
+from .srdf import read_group_state
+
+
+@dataclass
+class RobotModel:
+    """A finalized plant of the robot with what the SoT needs to know about it.
+
+    ``half_sitting`` is the reference posture ``q0`` (Drake's ``q``): the SRDF's (``half_sitting``
+    for the humanoids, e.g. ``standing`` for quadrupeds, the tucked arms for PR2), else every joint
+    at 0 clipped into its limits; see :attr:`reference_posture`.
+    """
+
+    plant: MultibodyPlant
+    variant: str
+    OperationalPointsMap: dict[str, str]
+    half_sitting: np.ndarray
+    fixed_base: bool = False
+    scene_graph: SceneGraph | None = None
+    srdf_path: Path | None = None
+    name: str = "talos"
+    base: str = "free"  #: ``free``, ``planar`` or ``fixed`` (see :data:`sotdrake.robots.catalog.BASES`)
+    _frames: dict[str, Frame] = field(default_factory=dict, repr=False)
+
+    @property
+    def nq(self) -> int:
+        return self.plant.num_positions()
+
+    @property
+    def nv(self) -> int:
+        return self.plant.num_velocities()
+
+    @property
+    def reference_posture(self) -> np.ndarray:
+        """The reference posture ``q0`` (the same array as ``half_sitting``)."""
+        return self.half_sitting
+
+    def frame(self, name: str) -> Frame:
+        """Frame of an operational point (``'right-wrist'``), a joint (its child frame) or a frame.
+
+        Raises :class:`FrameNotFound` listing operational points and frame names.
+        """
+        if name in self._frames:
+            return self._frames[name]
+        plant, target = self.plant, self.OperationalPointsMap.get(name, name)
+        bases = list(plant.GetFloatingBaseBodies())
+        if target == "root_joint" and not plant.HasJointNamed(target) and bases:
+            frame = plant.get_body(bases[0]).body_frame()  # sot-talos' name of the free flyer
+        elif plant.HasJointNamed(target):
+            frame = plant.GetJointByName(target).frame_on_child()
+        elif plant.HasFrameNamed(target):
+            frame = plant.GetFrameByName(target)
+        else:
+            frames = {plant.get_frame(FrameIndex(i)).name() for i in range(plant.num_frames())}
+            raise FrameNotFound(name, [*self.OperationalPointsMap, *sorted(frames)])
+        self._frames[name] = frame
+        return frame
+
+    def with_meshes(self) -> "RobotModel":
+        """The same robot with visual and collision meshes, on its own plant and SceneGraph."""
+        from .loader import load_robot
+
+        return load_robot(self.name, self.variant, meshes=True, base=self.base)
+
+    def joint_limits(self) -> dict[str, np.ndarray]:
+        """``position_lower/upper`` (nq, ±inf on the floating base), ``velocity_lower/upper`` (nv),
+        ``effort`` (one per actuator, in actuator order)."""
+        plant = self.plant
+        return {
+            "position_lower": plant.GetPositionLowerLimits(),
+            "position_upper": plant.GetPositionUpperLimits(),
+            "velocity_lower": plant.GetVelocityLowerLimits(),
+            "velocity_upper": plant.GetVelocityUpperLimits(),
+            "effort": np.array(
+                [plant.get_joint_actuator(JointActuatorIndex(i)).effort_limit()
+                 for i in range(plant.num_actuators())]
+            ),
+        }
+
+
+def posture_from_srdf(plant: MultibodyPlant, srdf_path: Path, name: str | tuple[str, ...], q: np.ndarray | None = None) -> np.ndarray:
+    """Drake ``q`` of SRDF reference postures (``name``: one ``group_state`` or several applied in
+    order), starting from ``q`` (default: the plant's default positions; joints not listed keep
+    their value). A ``root_joint`` entry ``(x, y, z, qx, qy, qz, qw)`` sets the floating base pose;
+    it is ignored when the base is not floating."""
+    context = plant.CreateDefaultContext()
+    if q is not None:
+        plant.SetPositions(context, q)
+    for group in (name,) if isinstance(name, str) else name:
+        for joint_name, value in read_group_state(srdf_path, group).items():
+            if joint_name == "root_joint":
+                x, y, z, qx, qy, qz, qw = value
+                body = next(iter(plant.GetFloatingBaseBodies()), None)
+                if body is None:  # welded or planar base: the SRDF base pose does not apply
+                    continue
+                pose = RigidTransform(Quaternion(np.array([qw, qx, qy, qz]) / np.linalg.norm([qw, qx, qy, qz])), [x, y, z])
+                plant.SetFreeBodyPose(context, plant.get_body(body), pose)
+            elif plant.HasJointNamed(joint_name):
+                joint = plant.GetJointByName(joint_name)
+                if joint.num_positions() != value.size:
+                    continue
+                q_all = plant.GetPositions(context)
+                q_all[joint.position_start() : joint.position_start() + joint.num_positions()] = value
+                plant.SetPositions(context, q_all)
+    return plant.GetPositions(context)

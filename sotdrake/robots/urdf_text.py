@@ -1,0 +1,96 @@
+"""The URDF text fix-ups Drake needs, in one function: :func:`prepare_urdf`.
+
+example-robot-data's URDFs are written for ROS and Pinocchio. Before Drake parses one, its text is
+changed as follows (nothing else is touched, so kinematics and inertias stay those of the file):
+
+* mesh URIs are resolved to files: ``package://example-robot-data/robots/…``, the three-slash
+  ``package:///example-robot-data/…`` and the ROS form ``package://<name>_description/…`` (a
+  package under ``robots/``). STL and COLLADA (``.dae``) meshes are replaced by cached OBJ
+  conversions (:mod:`.mesh_cache`); without meshes every ``<visual>``/``<collision>`` is dropped
+  (control models need no geometry);
+* ``<mimic>`` on fixed (0-DOF) joints is removed (Drake rejects it; a fixed joint has nothing to
+  mimic);
+* the ``friction`` attribute of ``<dynamics>`` is removed (``MultibodyPlant`` has no joint friction);
+* transmissions Drake cannot use are removed: anything but a ``SimpleTransmission``, and ones naming
+  a joint the file does not have or a fixed joint (the loader then gives every 1-DOF joint left
+  without an actuator one of its own, see :func:`sotdrake.robots.loader.add_actuators`);
+* what Drake would ignore with a warning is removed: ``<gazebo>`` blocks (simulator plugins), the
+  joints' ``<safety_controller>`` and ``<calibration>`` (ROS controller settings), the transmissions'
+  ``<mechanicalReduction>`` (``MultibodyPlant`` has no gear ratio: a command is a joint torque)
+  and the ``type`` attribute of ``<link>``.
+
+This is the one place where URDF text is changed: further checks on the text go here.
+"""
+
+from __future__ import annotations
+
+import re
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+from ..exceptions import SotError
+from .mesh_cache import obj_for_mesh
+
+#: Mesh formats converted to OBJ (Drake's Meshcat and proximity geometry want OBJ or glTF).
+CONVERTED_MESH_SUFFIXES = (".stl", ".dae")
+
+_MESH_URI = re.compile(r'(<mesh\b[^>]*\bfilename=")([^"]+)(")')
+
+
+def resolve_mesh_path(uri: str, share: Path) -> Path:
+    """The file a mesh URI of an example-robot-data URDF names (``share``: ``share/example-robot-data``)."""
+    if uri.startswith("file://"):
+        path = Path(uri[len("file://") :])
+    elif re.match(r"^package:/{2,3}example-robot-data/", uri):
+        path = share / re.sub(r"^package:/{2,3}example-robot-data/", "", uri)
+    elif uri.startswith("package://"):
+        path = share / "robots" / uri[len("package://") :]
+    else:
+        path = Path(uri)
+    if not path.is_file():
+        raise SotError(f"mesh {uri} not found at {path}")
+    return path
+
+
+def _mesh_uri(uri: str, share: Path) -> str:
+    path = resolve_mesh_path(uri, share)
+    if path.suffix.lower() in CONVERTED_MESH_SUFFIXES:
+        path = obj_for_mesh(path)
+    return path.as_uri()
+
+
+def prepare_urdf(text: str, share: Path, meshes: bool, collision: bool = True) -> str:
+    """``text`` with the fix-ups of the module docstring applied.
+
+    ``meshes``: keep visual and collision geometry (resolved, converted); otherwise drop it.
+    ``collision``: with meshes, keep the ``<collision>`` elements too (a physics model may add its
+    own contact geometry instead). ``share`` is example-robot-data's ``share/example-robot-data``.
+    """
+
+    def fix_joint(match: re.Match) -> str:
+        joint = match.group(0)
+        if re.search(r'type\s*=\s*"fixed"', joint):
+            joint = re.sub(r"<mimic\b[^>]*/>", "", joint)
+        return joint
+
+    text = re.sub(r"<gazebo\b.*?</gazebo>", "", text, flags=re.S)
+    for tag in ("safety_controller", "calibration", "mechanicalReduction"):
+        text = re.sub(rf"<{tag}\b[^>]*/>|<{tag}\b.*?</{tag}>", "", text, flags=re.S)
+    text = re.sub(r'(<link\b[^>]*?)\stype="[^"]*"', r"\1", text)
+    text = re.sub(r"<joint\b[^>]*>.*?</joint>", fix_joint, text, flags=re.S)
+    text = re.sub(r"""\sfriction\s*=\s*("[^"]*"|'[^']*')""", "", text)
+    root = ET.fromstring(text)
+    moving = {j.get("name") for j in root.findall("joint") if j.get("type") != "fixed"}
+
+    def keep_transmission(match: re.Match) -> str:
+        block = match.group(0)
+        names = re.findall(r'<joint\b[^>]*\bname="([^"]+)"', block)
+        simple = "SimpleTransmission" in block and all(n in moving for n in names)
+        return block if simple else ""
+
+    text = re.sub(r"<transmission\b.*?</transmission>", keep_transmission, text, flags=re.S)
+    if not meshes:
+        return re.sub(r"<(visual|collision)\b.*?</\1>", "", text, flags=re.S)
+    if not collision:
+        text = re.sub(r"<collision\b.*?</collision>", "", text, flags=re.S)
+    return _MESH_URI.sub(lambda m: m.group(1) + _mesh_uri(m.group(2), share) + m.group(3), text)

@@ -1,0 +1,65 @@
+"""Short runs of the catalog robots' scripts: kineromeo (Romeo) and pr2_reach (PR2)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from tests.conftest import load_diagram
+
+OUTPUTS = ("trace.npz", "plots.png", "control_graph.dot", "summary.json")
+
+
+@pytest.fixture(scope="module")
+def kineromeo():
+    return load_diagram("kineromeo")
+
+
+@pytest.fixture(scope="module")
+def pr2_reach():
+    return load_diagram("pr2_reach")
+
+
+def test_kineromeo_hand_closes_in_with_feet_and_com_held(kineromeo, tmp_path):
+    summary = kineromeo.main(["--duration", "1.0", "--out", str(tmp_path), "--quiet", "--no-meshcat"])
+    for name in OUTPUTS:
+        assert (tmp_path / name).is_file(), name
+    assert json.loads((tmp_path / "summary.json").read_text())["ticks"] == summary["ticks"] == 201
+    assert (summary["robot"], summary["variant"]) == ("romeo", "small")
+    assert summary["final_stack"] == ["taskcontactRF", "taskcontactLF", "taskcom", "taskrh"]
+    # The seed's target is 0.33 m from Romeo's hand. Solved exactly, the hand task decays at least
+    # at the setByPoint gain's floor λ∞ = 0.9 /s (λ(e) = 4 e^{-10.54 |e|} + 0.9).
+    assert summary["hand_initial_error_m"] == pytest.approx(0.328, abs=1e-3)
+    assert summary["hand_error_m"] < summary["hand_initial_error_m"] * np.exp(-0.9 * 1.0)
+    assert summary["max_foot_drift_m"] < 1e-4 and summary["max_com_xy_drift_m"] < 1e-4
+    trace = np.load(tmp_path / "trace.npz")
+    assert trace["q"].shape == (201, 38)
+    hand_error = np.linalg.norm(trace["hand_position"] - summary["target_m"], axis=1)
+    assert np.all(np.diff(hand_error) <= 1e-12)  # monotonic
+    graph = (tmp_path / "control_graph.dot").read_text()
+    for entity in ("sot", "device", "dynamic", "taskrh", "taskcom", "taskcontactLF"):
+        assert entity in graph
+
+
+def test_pr2_reach_moves_the_base_and_the_arm_within_limits(pr2_reach, tmp_path):
+    summary = pr2_reach.main(["--duration", "0.25", "--out", str(tmp_path), "--quiet", "--no-meshcat"])
+    for name in OUTPUTS:
+        assert (tmp_path / name).is_file(), name
+    assert summary["solver"] == "SolverKine" and summary["base"] == "planar"
+    assert summary["ticks"] == 251
+    assert summary["base_travel_m"] > 0.05  # the base drives toward the table
+    assert summary["hand_error_m"] < summary["hand_initial_error_m"] - 0.1
+    assert summary["min_joint_limit_margin_rad"] >= -1e-9  # hard limits (the torso starts on its lower one)
+    assert summary["max_joint_velocity_ratio"] <= 1 + 1e-9
+    assert summary["max_base_yaw_rad"] < 1e-6
+    trace = np.load(tmp_path / "trace.npz")
+    # Only the base, the torso and the right arm move.
+    handles = pr2_reach.build_diagram()
+    plant = handles.robot.model.plant
+    moved = set(pr2_reach.controlled_joints(handles.robot))
+    q = trace["q"]
+    for j in plant.GetJointIndices():
+        joint = plant.get_joint(j)
+        if joint.num_positions() and joint.name() not in moved:
+            start = joint.position_start()
+            assert np.ptp(q[:, start : start + joint.num_positions()]) == 0.0, joint.name()

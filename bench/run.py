@@ -54,24 +54,23 @@ def build_stack(solver: str = "cascade", variant: str = "reduced", tasks: int = 
     sot = add_sot(robot, solver=solver)
     excluded = [g for g in GRIPPERS if model.plant.HasJointNamed(g)]
     sot.setControlSelection(robot.velocity_selection(excluding=excluded))
-    dyn = robot.dynamic
     hand = None
     if variant == "left_arm":
-        hand = MetaTaskKine6d("lh", dyn, "lh", "left-wrist")
+        hand = MetaTaskKine6d("lh", robot, "lh", "left-wrist")
         gotoNd(hand, hand.current_pose().translation() + [0.05, 0.05, 0.1], "111", GAIN_HAND)
         sot.push(hand.task.name)
         return robot, sot, hand, builder.Build()
     makers = [
-        lambda: MetaTaskKine6d("contactRF", dyn, "RF", "right-ankle"),
-        lambda: MetaTaskKine6d("contactLF", dyn, "LF", "left-ankle"),
-        lambda: MetaTaskKineCom(dyn),
-        lambda: MetaTaskKine6d("rh", dyn, "rh", "right-wrist"),
-        lambda: MetaTaskKine6d("lh", dyn, "lh", "left-wrist"),
-        lambda: MetaTaskKine6d("chest", dyn, "chest", "chest"),
-        lambda: MetaTaskKine6d("head", dyn, "head", "gaze"),
-        lambda: MetaTaskKine6d("relbow", dyn, "relbow", "arm_right_4_joint"),
-        lambda: MetaTaskKine6d("lelbow", dyn, "lelbow", "arm_left_4_joint"),
-        lambda: MetaTaskKinePosture(dyn),
+        lambda: MetaTaskKine6d("contactRF", robot, "RF", "right-ankle"),
+        lambda: MetaTaskKine6d("contactLF", robot, "LF", "left-ankle"),
+        lambda: MetaTaskKineCom(robot),
+        lambda: MetaTaskKine6d("rh", robot, "rh", "right-wrist"),
+        lambda: MetaTaskKine6d("lh", robot, "lh", "left-wrist"),
+        lambda: MetaTaskKine6d("chest", robot, "chest", "chest"),
+        lambda: MetaTaskKine6d("head", robot, "head", "gaze"),
+        lambda: MetaTaskKine6d("relbow", robot, "relbow", "arm_right_4_joint"),
+        lambda: MetaTaskKine6d("lelbow", robot, "lelbow", "arm_left_4_joint"),
+        lambda: MetaTaskKinePosture(robot),
     ]
     order = [3] if tasks == 1 else list(range(tasks))  # one task: the hand alone
     for index in order:

@@ -48,7 +48,7 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3) -> KineSimpl
     robot = talos(builder, "left_arm", dt)
     sot = add_sot(robot)
     sot.setControlSelection(robot.velocity_selection(excluding=["gripper_left_joint"]))
-    taskLW = MetaTaskKine6d("lw", robot.dynamic, "lw", robot.OperationalPointsMap["left-wrist"])
+    taskLW = MetaTaskKine6d("lw", robot, "lw", robot.OperationalPointsMap["left-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = (0.1, 0.0, 0.0)
     taskLW.opmodif = handMgrip

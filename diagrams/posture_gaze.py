@@ -62,12 +62,12 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3, feedforward:
     point = robot.add(Adder(2, 3), "point")
     builder.Connect(sine.get_output_port(0), point.get_input_port(0))
     builder.Connect(center.get_output_port(), point.get_input_port(1))
-    gaze = MetaTaskVisualPoint("gaze", robot.dynamic)
+    gaze = MetaTaskVisualPoint("gaze", robot)
     gaze.plugPoint(point.get_output_port(), sine.get_output_port(1) if feedforward else None)
     gaze.gain.setConstant(8)
     sot.push(gaze.task.name)
 
-    posture = MetaTaskKinePosture(robot.dynamic)
+    posture = MetaTaskKinePosture(robot)
     posture.gain.setConstant(2)
     sot.push(posture.task.name)
 

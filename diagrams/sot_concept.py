@@ -102,7 +102,7 @@ def build_diagram(config: Configuration, meshcat: Meshcat | None = None, dt: flo
     sot.setControlSelection(robot.velocity_selection(excluding=GRIPPERS))
     if config.contacts:
         hold_feet_and_com(robot, sot, com=config.com)
-    taskRH = MetaTaskKine6d("rh", robot.dynamic, "rh", robot.OperationalPointsMap["right-wrist"])
+    taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = HAND_OFFSET
     taskRH.opmodif = handMgrip
@@ -173,11 +173,8 @@ def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict
 
 
 def _joint_names(robot: Robot) -> list[str]:
-    plant, names = robot.model.plant, []
-    for index in robot.device.layout.joints_v:
-        names.append(next(plant.get_joint(j).name() for j in plant.GetJointIndices()
-                          if plant.get_joint(j).velocity_start() <= index < plant.get_joint(j).velocity_start() + plant.get_joint(j).num_velocities()))
-    return names
+    names = velocity_names(robot.model.plant)
+    return [names[i] for i in robot.device.layout.joints_v]
 
 
 def plot(traces: dict[str, dict], path: Path) -> Path:

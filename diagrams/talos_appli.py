@@ -65,23 +65,23 @@ def build_diagram(
     robot = talos(builder, variant, dt)
 
     # --- the right hand: MetaTaskKine6d at 'right-wrist' moved by handMgrip = (0.1, 0, 0)
-    taskRH = MetaTaskKine6d("rh", robot.dynamic, "rh", robot.OperationalPointsMap["right-wrist"])
+    taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = HAND_OFFSET
     taskRH.opmodif = handMgrip
     taskRH.feature.frame("desired")
 
     # --- static CoM
-    taskCom = MetaTaskKineCom(robot.dynamic)
+    taskCom = MetaTaskKineCom(robot)
     taskCom.keep()  # seed: taskCom.featureDes.errorIN.value = robot.dynamic.com.value
     taskCom.gain.setConstant(10)
 
     # --- contacts
-    contactLF = MetaTaskKine6d("contactLF", robot.dynamic, "LF", robot.OperationalPointsMap["left-ankle"])
+    contactLF = MetaTaskKine6d("contactLF", robot, "LF", robot.OperationalPointsMap["left-ankle"])
     contactLF.feature.frame("desired")
     contactLF.gain.setConstant(10)
     contactLF.keep()
-    contactRF = MetaTaskKine6d("contactRF", robot.dynamic, "RF", robot.OperationalPointsMap["right-ankle"])
+    contactRF = MetaTaskKine6d("contactRF", robot, "RF", robot.OperationalPointsMap["right-ankle"])
     contactRF.feature.frame("desired")
     contactRF.gain.setConstant(10)
     contactRF.keep()

@@ -76,7 +76,7 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
     sot = add_sot(robot)
     sot.setControlSelection(robot.velocity_selection(excluding=GRIPPERS))
     hold_feet_and_com(robot, sot)  # contactRF, contactLF, taskCom as in the tutorial (gain 10)
-    taskRH = MetaTaskKine6d("rh", robot.dynamic, "rh", robot.OperationalPointsMap["right-wrist"])
+    taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = HAND_OFFSET
     taskRH.opmodif = handMgrip

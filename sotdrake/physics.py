@@ -45,9 +45,8 @@ from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains
 from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem, ValueProducer
 
-from .device import Layout
+from .configuration import Layout, PlantContextHolder
 from .exceptions import InvalidInput, SotError
-from .kinematics import PlantContextHolder
 from .robots.talos import add_talos
 
 #: Sole box in the sole frame: size (m) and centre (the bottom face lies on the sole plane).

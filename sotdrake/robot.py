@@ -38,7 +38,6 @@ class Robot:
         self.solver: SOT | None = None
         self._names: set[str] = set()
         self.dynamic = self.add(Dynamic(model, "dynamic"))
-        self.dynamic.robot = self
         self.device = self.add(Device(model.plant, dt, model.half_sitting if q0 is None else q0, "device"))
         builder.Connect(measured_position or self.device.GetOutputPort("state"), self.dynamic.GetInputPort("position"))
 
@@ -95,13 +94,6 @@ class Robot:
         for task in self.tasks.values():
             self.builder.Connect(task.GetOutputPort("task"), solver.declare_task_input(task))
         return solver
-
-
-def robot_of(dynamic: Dynamic) -> Robot:
-    robot = getattr(dynamic, "robot", None)
-    if robot is None:
-        raise InvalidInput("the dynamic entity must be the one of a sotdrake.Robot (robot.dynamic)")
-    return robot
 
 
 def talos(builder: DiagramBuilder, variant: str = "reduced", dt: float = 1e-3) -> Robot:

@@ -5,7 +5,8 @@ import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
-from sotdrake.device import Device, Layout, integrate
+from sotdrake.configuration import Layout, integrate
+from sotdrake.device import Device
 from sotdrake.lie import exp_so3, hat, quaternion_wxyz_to_rotation
 from tests.test_lie import expm
 

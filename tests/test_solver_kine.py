@@ -49,16 +49,16 @@ def build_reach(model, com_kind, ball=(1.05, -0.35, 0.75)):
     sot = add_sot(robot, solver="hqp")
     sot.setControlSelection(robot.velocity_selection(["gripper_left_joint", "gripper_right_joint"]))
     for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle")):
-        contact = MetaTaskKine6d(name, robot.dynamic, name[-2:], op)
+        contact = MetaTaskKine6d(name, robot, name[-2:], op)
         contact.gain.setConstant(10)
         sot.push(contact.task.name)
-    com = MetaTaskKineCom(robot.dynamic, inequality=com_kind == "box")
+    com = MetaTaskKineCom(robot, inequality=com_kind == "box")
     com.gain.setConstant(10)
     if com_kind == "box":
         com.feature.selec("011")
         com.task.setBounds([-0.03, -0.03], [0.03, 0.03])  # CoM within ±3 cm of where it starts
     sot.push(com.task.name)
-    hand = MetaTaskKine6d("rh", robot.dynamic, "rh", "right-wrist")
+    hand = MetaTaskKine6d("rh", robot, "rh", "right-wrist")
     gotoNd(hand, ball, "111", 5.0)
     sot.push(hand.task.name)
     return robot, sot, hand, com, builder.Build()
@@ -87,7 +87,7 @@ def test_the_basic_sot_refuses_inequality_tasks(talos_model):
     builder = DiagramBuilder()
     robot = Robot(builder, talos_model)
     sot = add_sot(robot)
-    com = MetaTaskKineCom(robot.dynamic, inequality=True)
+    com = MetaTaskKineCom(robot, inequality=True)
     with pytest.raises(StackError, match="hqp"):
         sot.push(com.task.name)
     assert sot.stack() == []

@@ -43,9 +43,9 @@ def stack(talos_model):
     builder = DiagramBuilder()
     robot = Robot(builder, talos_model)
     sot = add_sot(robot)
-    metas = {name: MetaTaskKine6d(name, robot.dynamic, name, op) for name, op in
+    metas = {name: MetaTaskKine6d(name, robot, name, op) for name, op in
              (("LF", "left-ankle"), ("RF", "right-ankle"), ("rh", "right-wrist"), ("lh", "left-wrist"))}
-    com = MetaTaskKineCom(robot.dynamic)
+    com = MetaTaskKineCom(robot)
     return robot, sot, metas, com, builder.Build()
 
 
@@ -128,7 +128,7 @@ def test_tracer_csv_and_plot(talos_model, tmp_path):
     builder = DiagramBuilder()
     robot = Robot(builder, talos_model)
     add_sot(robot)  # an empty stack: the robot holds still
-    com = MetaTaskKineCom(robot.dynamic)
+    com = MetaTaskKineCom(robot)
     tracer = Tracer(builder, 0.01)
     tracer.add(robot.dynamic.GetOutputPort("com"), "com")
     tracer.add(com.task.GetOutputPort("error_norm"), "error")
@@ -180,7 +180,7 @@ def test_interactive_runner_steps_ticks_and_fires_attime(talos_model):
     builder = DiagramBuilder()
     robot = Robot(builder, talos_model)
     sot = add_sot(robot)
-    hand = MetaTaskKine6d("rh", robot.dynamic, "rh", "right-wrist")
+    hand = MetaTaskKine6d("rh", robot, "rh", "right-wrist")
     gotoNd(hand, hand.current_pose().translation() + [0.05, 0, 0], "111", 5.0)
     attime(0.0105, lambda: sot.push(hand.task.name), "push")
     runner = Runner(builder.Build(), robot.dt)

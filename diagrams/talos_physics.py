@@ -24,7 +24,7 @@ from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd, hold_feet_and_com
+from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd, hold_feet_and_com
 from sotdrake.physics import (
     SOLE_BOX,
     ContactMonitor,
@@ -56,6 +56,7 @@ class Physics:
     tracer: Tracer
     scenario: str
     visualizer: object = None
+    taskCom: MetaTaskKineCom | None = None
 
 
 def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0,
@@ -75,7 +76,7 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
     robot = Robot(builder, model, dt, measured_position=measured)
     sot = add_sot(robot)
     sot.setControlSelection(robot.velocity_selection(excluding=GRIPPERS))
-    hold_feet_and_com(robot, sot)  # contactRF, contactLF, taskCom as in the tutorial (gain 10)
+    _, _, taskCom = hold_feet_and_com(robot, sot)  # contactRF, contactLF, taskCom as in the tutorial (gain 10)
     taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = HAND_OFFSET
@@ -111,7 +112,7 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
         meshcat.SetCameraPose(camera_in_world=[1.6, -2.2, 1.3], target_in_world=[0.1, -0.1, 0.7])
     diagram = builder.Build()
     diagram.set_name("talos_physics")
-    return Physics(diagram, robot, physical, sot, taskRH, tracer, scenario, visualizer)
+    return Physics(diagram, robot, physical, sot, taskRH, tracer, scenario, visualizer, taskCom)
 
 
 def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[dict, dict]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -52,17 +53,29 @@ def save_recording(visualizer: MeshcatVisualizer, meshcat: Meshcat, path: Path) 
     return path
 
 
+def graphviz_dot() -> list[str] | None:
+    """The command that lays out a GraphViz graph with the ``dot`` engine: Graphviz's own ``dot`` if it
+    is on the PATH, else the ``graphviz-pure`` wheel's command (a dependency of sotdrake, installed
+    beside the Python interpreter), else None."""
+    dot = shutil.which("dot")
+    if dot is not None:
+        return [dot]
+    beside_python = Path(sys.executable).parent / "graphviz-pure"
+    pure = str(beside_python) if beside_python.exists() else shutil.which("graphviz-pure")
+    return None if pure is None else [pure, "-Kdot"]
+
+
 def write_control_graph(diagram: Diagram, path: Path) -> Path:
-    """Drake's GraphViz of ``diagram`` (one level deep) as ``path`` (.svg), rendered by Graphviz's
-    ``dot``; the ``.dot`` source is always written beside it. Without ``dot`` on the PATH only the
-    source is written and a warning says how to get the SVG."""
+    """Drake's GraphViz of ``diagram`` (one level deep) as ``path`` (.svg); the ``.dot`` source is
+    always written beside it. The SVG is laid out by :func:`graphviz_dot`; without any ``dot``
+    command only the source is written and a warning says how to get the SVG."""
     path = Path(path)
     source = path.with_suffix(".dot")
     source.write_text(diagram.GetGraphvizString(max_depth=1))
-    dot = shutil.which("dot")
+    dot = graphviz_dot()
     if dot is None:
-        log.warning("Graphviz 'dot' not found: wrote %s only (install graphviz, e.g. `apt-get install "
-                    "graphviz`, for %s)", source, path.name)
+        log.warning("no 'dot' command: wrote %s only (`pip install graphviz-pure` or install Graphviz "
+                    "for %s)", source, path.name)
         return source
-    subprocess.run([dot, "-Tsvg", str(source), "-o", str(path)], check=True)
+    subprocess.run([*dot, "-Tsvg", str(source), "-o", str(path)], check=True)
     return path

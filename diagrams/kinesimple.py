@@ -23,11 +23,19 @@ import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd
-from sotdrake.robot import Robot, add_sot, talos
-from sotdrake.simulation import script_arguments, simulate, start, write_run
-from sotdrake.solvers import SOT
-from sotdrake.tracing import Tracer
+from sotdrake import (
+    MetaTaskKine6d,
+    Robot,
+    SOT,
+    Tracer,
+    add_sot,
+    gotoNd,
+    script_arguments,
+    simulate,
+    start,
+    talos,
+    write_run,
+)
 
 OFFSET = (0.1, 0.1, 0.2)  # the target, from the hand's initial position (m, world)
 
@@ -61,7 +69,7 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3) -> KineSimpl
     tracer.add(sot.GetOutputPort("control"), "control")
     visualizer = None
     if meshcat is not None:
-        from sotdrake.visualization import add_robot_visualizer, add_target_marker
+        from sotdrake import add_robot_visualizer, add_target_marker
 
         visualizer = add_robot_visualizer(robot, meshcat)
         add_target_marker(meshcat, "/target", target)
@@ -95,7 +103,7 @@ def main(argv: list[str] | None = None):
     meshcat = start(args)
     kine = build_diagram(meshcat)
     if args.interactive:
-        from sotdrake.interactive import Runner
+        from sotdrake import Runner
 
         return kine, Runner(kine.diagram, kine.robot.dt)
     simulator, wall = simulate(kine.diagram, args.duration, kine.visualizer, not args.quiet)
@@ -111,7 +119,7 @@ def main(argv: list[str] | None = None):
 if __name__ == "__main__":
     result = main()
     if isinstance(result, tuple):  # --interactive: the seed's names at the prompt
-        from sotdrake.introspection import displaySignals  # noqa: F401
+        from sotdrake import displaySignals  # noqa: F401
 
         kine, runner = result
         robot, sot, taskLW = kine.robot, kine.sot, kine.taskLW

@@ -21,11 +21,20 @@ from pydrake.geometry import Meshcat, Rgba
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Adder, ConstantVectorSource, Sine
 
-from sotdrake.meta_tasks import MetaTaskKinePosture, MetaTaskVisualPoint, hold_feet_and_com
-from sotdrake.robot import Robot, add_sot, talos
-from sotdrake.simulation import script_arguments, simulate, start, write_run
-from sotdrake.solvers import SOT
-from sotdrake.tracing import Tracer
+from sotdrake import (
+    MetaTaskKinePosture,
+    MetaTaskVisualPoint,
+    Robot,
+    SOT,
+    Tracer,
+    add_sot,
+    hold_feet_and_com,
+    script_arguments,
+    simulate,
+    start,
+    talos,
+    write_run,
+)
 
 CENTER = np.array([1.5, 0.0, 1.35])
 AMPLITUDE = np.array([0.0, 0.35, 0.2])
@@ -77,7 +86,7 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3, feedforward:
         tracer.add(robot.tasks[task].GetOutputPort("error_norm"), f"error_{task}")
     visualizer = None
     if meshcat is not None:
-        from sotdrake.visualization import add_robot_visualizer, add_target_marker
+        from sotdrake import add_robot_visualizer, add_target_marker
 
         visualizer = add_robot_visualizer(robot, meshcat)
         circle = point_at(np.linspace(0, 1 / FREQUENCY, 100)).T

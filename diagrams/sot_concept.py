@@ -38,12 +38,21 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd, hold_feet_and_com
-from sotdrake.robot import Robot, add_sot, talos
-from sotdrake.solvers import SOT
-from sotdrake.simulation import script_arguments, simulate, start, write_run
-from sotdrake.tracing import Tracer
-from sotdrake.visualization import write_control_graph
+from sotdrake import (
+    MetaTaskKine6d,
+    Robot,
+    SOT,
+    Tracer,
+    add_sot,
+    gotoNd,
+    hold_feet_and_com,
+    script_arguments,
+    simulate,
+    start,
+    talos,
+    write_control_graph,
+    write_run,
+)
 
 HAND_OFFSET = (0.1, 0.0, 0.0)
 GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]
@@ -114,7 +123,7 @@ def build_diagram(config: Configuration, meshcat: Meshcat | None = None, dt: flo
     tracer.add(sot.GetOutputPort("control"), "v")
     visualizer = None
     if meshcat is not None:
-        from sotdrake.visualization import add_robot_visualizer, add_target_marker
+        from sotdrake import add_robot_visualizer, add_target_marker
 
         visualizer = add_robot_visualizer(robot, meshcat)
         add_target_marker(meshcat, "/ball", config.ball, radius=0.05)

@@ -24,22 +24,23 @@ from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd, hold_feet_and_com
-from sotdrake.physics import (
-    SOLE_BOX,
-    ContactMonitor,
-    DesiredState,
-    KinematicBaseEstimator,
-    PhysicalTalos,
-    Push,
-    add_physical_talos,
+from sotdrake import (
+    MetaTaskKine6d,
+    MetaTaskKineCom,
+    Robot,
+    SOT,
+    Tracer,
+    add_sot,
+    attime,
+    gotoNd,
+    hold_feet_and_com,
+    load_talos,
+    script_arguments,
+    simulate,
+    start,
+    write_run,
 )
-from sotdrake.robot import Robot, add_sot
-from sotdrake.robots import load_talos
-from sotdrake.sequencer import attime
-from sotdrake.simulation import script_arguments, simulate, start, write_run
-from sotdrake.solvers import SOT
-from sotdrake.tracing import Tracer
+from sotdrake.physics import SOLE_BOX, ContactMonitor, DesiredState, KinematicBaseEstimator, PhysicalTalos, Push, add_physical_talos
 
 TARGET = (0.5, -0.2, 1.0)
 HAND_OFFSET = (0.1, 0.0, 0.0)
@@ -106,7 +107,7 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
         visualizer = MeshcatVisualizer.AddToBuilder(builder, physical.scene_graph, meshcat, MeshcatVisualizerParams(publish_period=1 / 60))
         ContactVisualizer.AddToBuilder(builder, plant, meshcat, ContactVisualizerParams(publish_period=1 / 60, newtons_per_meter=1000))
         if scenario == "reach":
-            from sotdrake.visualization import add_target_marker
+            from sotdrake import add_target_marker
 
             add_target_marker(meshcat, "/target", TARGET)
         meshcat.SetCameraPose(camera_in_world=[1.6, -2.2, 1.3], target_in_world=[0.1, -0.1, 0.7])

@@ -21,7 +21,8 @@ from .exceptions import InvalidInput
 def script_arguments(doc: str, out: str, duration: float | None = 8.0) -> argparse.ArgumentParser:
     """The arguments every script in ``diagrams/`` takes: ``--duration``, ``--out``,
     ``--no-meshcat`` and ``--quiet``; add the script's own, then call ``parse_args``."""
-    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0],
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--duration", type=float, default=duration, help="simulated time (s)")
     parser.add_argument("--out", type=Path, default=Path(out), help="output directory")
     parser.add_argument("--no-meshcat", action="store_true", help="no recording (faster)")
@@ -29,16 +30,18 @@ def script_arguments(doc: str, out: str, duration: float | None = 8.0) -> argpar
     return parser
 
 
-def start(args: argparse.Namespace) -> Meshcat | None:
-    """Check ``--duration``, set up logging, and start Meshcat unless ``--no-meshcat``."""
+def start(args: argparse.Namespace, live: bool = False) -> Meshcat | None:
+    """Check ``--duration``, set up logging, and start Meshcat unless ``--no-meshcat``: for the
+    recording (no URL printed: it would stop working when the script exits) or, with ``live``, to
+    watch (the URL printed). See :func:`sotdrake.visualization.start_meshcat`."""
     if args.duration is not None and not args.duration > 0:
         raise SystemExit(f"--duration must be > 0, got {args.duration}")
     logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
     if args.no_meshcat:
         return None
-    from pydrake.geometry import StartMeshcat
+    from .visualization import start_meshcat
 
-    return StartMeshcat()
+    return start_meshcat(live)
 
 
 def simulate(diagram: Diagram, duration: float, visualizer=None, progress: bool = True,

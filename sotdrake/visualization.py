@@ -7,10 +7,12 @@ Drake's ``MultibodyPositionToGeometryPose`` over a meshed copy of the robot, and
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import shutil
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +24,31 @@ from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 from .robot import Robot
 
 log = logging.getLogger("sotdrake.visualization")
+
+
+@contextlib.contextmanager
+def drake_log_level(level: int) -> Iterator[None]:
+    """Drake's (Python-side) log level set to ``level`` (e.g. ``logging.WARNING``) inside the block."""
+    logger = logging.getLogger("drake")
+    before = logger.level
+    logger.setLevel(level)
+    try:
+        yield
+    finally:
+        logger.setLevel(before)
+
+
+def start_meshcat(live: bool = False) -> Meshcat:
+    """Drake's Meshcat, for a recording (``live=False``: nothing printed, since its URL stops working
+    when the script exits; save the run with :func:`save_recording`) or for watching the run live
+    (``live=True``: the URL is printed, labelled as such)."""
+    from pydrake.geometry import StartMeshcat
+
+    with drake_log_level(logging.WARNING):
+        meshcat = StartMeshcat()
+    if live:
+        print(f"Meshcat, live while this process runs: {meshcat.web_url()}")
+    return meshcat
 
 
 def add_robot_visualizer(robot: Robot, meshcat: Meshcat, publish_period: float = 1 / 60) -> MeshcatVisualizer:

@@ -1,5 +1,6 @@
 """The rest of the toolbox: gains, TaskPD, the live stack, introspection, tracer, LCM, runner, examples."""
 
+import io
 import json
 import math
 import subprocess
@@ -14,7 +15,7 @@ from pydrake.systems.framework import DiagramBuilder
 from sotdrake.exceptions import InvalidInput, NotFound, StackError, TaskNotFound
 from sotdrake.gains import GainHyperbolic, hyperbolic
 from sotdrake.interactive import Runner
-from sotdrake.introspection import displayAll, displaySignals, entities, entity, signal
+from sotdrake.introspection import displayAll, displaySignals, entities, entity, signal, signals_report
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.publishing import add_signal_publisher, add_state_publisher
 from sotdrake.robot import Robot, add_sot
@@ -112,12 +113,15 @@ def test_introspection(stack):
     names = entities(diagram)
     assert {"dynamic", "device", "sot", "taskrh", "featurerh", "featurerh_ref", "gainrh"} <= set(names)
     context = diagram.CreateDefaultContext()
-    report = displaySignals(entity(diagram, "gaincom"), context, file=open("/dev/null", "w"))
-    everything = displayAll(diagram, context, file=open("/dev/null", "w"))
-    assert report in everything and "sot (SOT)" in everything
+    report = signals_report(entity(diagram, "gaincom"), context)
+    printed, everything = io.StringIO(), io.StringIO()
+    assert displaySignals(entity(diagram, "gaincom"), context, file=printed) is None  # the prompt shows it once
+    assert printed.getvalue() == report + "\n"
+    displayAll(diagram, context, file=everything)
+    assert report in everything.getvalue() and "sot (SOT)" in everything.getvalue()
     assert "out gain" in report and "[1.]" in report and "in  error" in report
     np.testing.assert_allclose(signal(robot.dynamic, "com", context), robot.dynamic.com_at(robot.device.initial_position))
-    assert "not connected" in displaySignals(metas["rh"].featureDes, context, file=open("/dev/null", "w"))
+    assert "not connected" in signals_report(metas["rh"].featureDes, context)
     with pytest.raises(NotFound):
         signal(robot.dynamic, "comm", context)
     with pytest.raises(NotFound):

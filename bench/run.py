@@ -148,8 +148,10 @@ def sotdrake_run(solver: str, ticks: int, warmup: int, target=TARGET) -> dict:
 # --- the breakdown ----------------------------------------------------------------------------
 
 
-def breakdown(ticks: int) -> dict:
-    """Exclusive time per category, from wrapped calc functions (a separate, slower run)."""
+def breakdown(ticks: int, calls: dict | None = None) -> dict:
+    """Exclusive time per category, from wrapped calc functions (a separate, slower run), as
+    fractions of the run's wall time. ``calls``, if given, receives the number of calls of each
+    wrapped function (``'<module>.<class>.<function>'``)."""
     from sotdrake import device, kinematics, task
     from sotdrake.features import base, feature6d
     from sotdrake.solvers import sot as sot_module
@@ -157,8 +159,13 @@ def breakdown(ticks: int) -> dict:
     totals: dict[str, float] = defaultdict(float)
     stack: list[list[float]] = []
 
+    counts: dict[str, int] = defaultdict(int)
+
     def timed(function, category):
+        key = f"{function.__module__.rsplit('.', 1)[-1]}.{function.__qualname__}"
+
         def wrapper(*args, **kwargs):
+            counts[key] += 1
             stack.append([time.perf_counter(), 0.0])
             try:
                 return function(*args, **kwargs)
@@ -187,12 +194,15 @@ def breakdown(ticks: int) -> dict:
         simulator.Initialize()
         simulator.AdvanceTo(0.2)
         totals.clear()
+        counts.clear()
         start = time.perf_counter()
         simulator.AdvanceTo(0.2 + ticks * DT)
         total = time.perf_counter() - start
     finally:
         for cls, name, original in originals:
             setattr(cls, name, original)
+    if calls is not None:
+        calls.update(counts)
     measured = sum(totals.values())
     result = {category: value / total for category, value in totals.items()}
     result["framework overhead"] = (total - measured) / total

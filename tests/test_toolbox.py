@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pydrake.lcm import DrakeLcm
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
@@ -151,8 +152,9 @@ def test_tracer_csv_and_plot(talos_model, tmp_path):
 def test_state_published_at_100_hz_to_another_process(talos_model, tmp_path):
     channel = f"sot_control/state_{tmp_path.name}"
     subscriber = [sys.executable, str(ROOT / "tests" / "lcm_subscriber.py")]
-    listener = subprocess.Popen([*subscriber, channel, "state", "6", str(tmp_path / "state.jsonl")], stdout=subprocess.PIPE, text=True)
-    scope_listener = subprocess.Popen([*subscriber, channel + "_com", "scope", "6", str(tmp_path / "com.jsonl")],
+    # Each listener stops on a "done" message sent after the run (a timeout only if it never comes).
+    listener = subprocess.Popen([*subscriber, channel, "state", "30", str(tmp_path / "state.jsonl")], stdout=subprocess.PIPE, text=True)
+    scope_listener = subprocess.Popen([*subscriber, channel + "_com", "scope", "30", str(tmp_path / "com.jsonl")],
                                       stdout=subprocess.PIPE, text=True)
     try:
         assert listener.stdout.readline().strip() == "ready"
@@ -165,8 +167,10 @@ def test_state_published_at_100_hz_to_another_process(talos_model, tmp_path):
         simulator = Simulator(builder.Build())
         simulator.set_target_realtime_rate(1.0)  # as on a robot: no burst for the UDP buffers
         simulator.AdvanceTo(1.0)
-        listener.wait(timeout=20)
-        scope_listener.wait(timeout=20)
+        lcm = DrakeLcm()  # same host and URL as the publishers: sent after their last message
+        lcm.Publish(channel + "_done", b"")
+        lcm.Publish(channel + "_com_done", b"")
+        assert listener.wait(timeout=30) == 0 and scope_listener.wait(timeout=30) == 0
         messages = [json.loads(line) for line in (tmp_path / "state.jsonl").read_text().splitlines()]
         scopes = [json.loads(line) for line in (tmp_path / "com.jsonl").read_text().splitlines()]
     finally:

@@ -17,6 +17,7 @@ or a whole run::
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,7 +101,7 @@ def main(argv: list[str] | None = None):
     parser = script_arguments(__doc__, "out/kinesimple", duration=3.0)
     parser.add_argument("--interactive", action="store_true", help="build, then hand over to the prompt (python -i)")
     args = parser.parse_args(argv)
-    meshcat = start(args)
+    meshcat = start(args, live=args.interactive)  # a live view at the prompt, else a recording
     kine = build_diagram(meshcat)
     if args.interactive:
         from sotdrake import Runner
@@ -109,10 +110,15 @@ def main(argv: list[str] | None = None):
     simulator, wall = simulate(kine.diagram, args.duration, kine.visualizer, not args.quiet)
     summary, trace = summarize(kine, simulator, args.duration, wall)
     args.out.mkdir(parents=True, exist_ok=True)
-    kine.tracer.plot(simulator.get_context(), args.out / "plots.png", ["error_tasklw", "control"])
+    plant = kine.robot.model.plant
+    joints = [plant.get_joint(j).name() for j in plant.GetJointIndices() if plant.get_joint(j).num_velocities() == 1]
+    kine.tracer.plot(simulator.get_context(), args.out / "plots.png", ["error_tasklw", "control"],
+                     title=f"kinesimple: left hand to a point {np.linalg.norm(OFFSET):.3f} m away (basic SOT, left_arm)",
+                     labels={"error_tasklw": "hand error ‖e‖ (m)", "control": "joint velocity command (rad/s)"},
+                     legends={"error_tasklw": ["hand to target"], "control": joints}, log=("error_tasklw",))
     kine.tracer.save_csv(simulator.get_context(), args.out / "trace.csv")
     write_run(args.out, kine.diagram, summary, trace, meshcat, kine.visualizer)
-    print({k: round(v, 6) if isinstance(v, float) else v for k, v in summary.items() if k != "outputs"})
+    print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
 
 

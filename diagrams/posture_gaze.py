@@ -135,7 +135,14 @@ def main(argv: list[str] | None = None) -> dict:
     simulator, wall = simulate(run.diagram, args.duration, run.visualizer, not args.quiet)
     summary, trace = summarize(run, simulator, args.duration, wall)
     args.out.mkdir(parents=True, exist_ok=True)
-    run.tracer.plot(simulator.get_context(), args.out / "plots.png", ["error_taskgaze", "error_taskcom", "error_taskposture"])
+    run.tracer.plot(simulator.get_context(), args.out / "plots.png", ["error_taskgaze", "error_taskcom", "error_taskposture"],
+                    title="posture_gaze: the head camera follows a point circling in front of TALOS"
+                          + ("" if not args.no_feedforward else " (no feed-forward)"),
+                    labels={"error_taskgaze": "image error ‖s − s*‖\n(normalised image units)",
+                            "error_taskcom": "CoM error ‖e‖ (m)", "error_taskposture": "posture error ‖q − q*‖ (rad)"},
+                    legends={"error_taskgaze": ["gaze (priority 4)"], "error_taskcom": ["CoM held (priority 3)"],
+                             "error_taskposture": ["posture (priority 5)"]},
+                    log=("error_taskgaze", "error_taskcom"))
     write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary

@@ -110,7 +110,7 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
             from sotdrake import add_target_marker
 
             add_target_marker(meshcat, "/target", TARGET)
-        meshcat.SetCameraPose(camera_in_world=[1.6, -2.2, 1.3], target_in_world=[0.1, -0.1, 0.7])
+        meshcat.SetCameraPose(camera_in_world=[1.5, -1.6, 1.3], target_in_world=[0.15, -0.1, 0.65])
     diagram = builder.Build()
     diagram.set_name("talos_physics")
     return Physics(diagram, robot, physical, sot, taskRH, tracer, scenario, visualizer, taskCom)
@@ -150,11 +150,15 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
         "wall_s": wall,
         "realtime_factor": duration / wall,
     }
-    trace.update(hand_position=hand[1:], base_position=base[1:], cop=cop, support_low=low, support_high=high)
+    joints = robot.device.layout.joints_q
+    trace.update(hand_position=hand[1:], base_position=base[1:], cop=cop, support_low=low, support_high=high,
+                 joint_tracking_error=trace["q_device"][:, joints] - q[:, joints])
     return summary, trace
 
 
-def plot(trace: dict, path: Path) -> Path:
+def plot(trace: dict, path: Path, title: str = "talos_physics", target=TARGET) -> Path:
+    """Contact forces, the CoP in the support polygon, base motion, the CoP along time, the hand
+    (its distance to the target for ``reach``) and how well the PD actuators track the SoT's joints."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -162,26 +166,40 @@ def plot(trace: dict, path: Path) -> Path:
     from matplotlib.patches import Rectangle
 
     t, feet = trace["time"], trace["feet"]
-    fig, axes = plt.subplots(2, 2, figsize=(12, 8))
+    fig, axes = plt.subplots(3, 2, figsize=(12, 11))
     axes[0, 0].plot(t, feet[:, 2], label="left sole")
     axes[0, 0].plot(t, feet[:, 5], label="right sole")
     axes[0, 0].set_ylabel("normal force (N)")
-    axes[0, 0].legend()
+    axes[0, 0].set_title("contact forces")
     low, high = trace["support_low"], trace["support_high"]
     axes[0, 1].add_patch(Rectangle(low, *(high - low), fill=False, color="k", label="support polygon"))
     axes[0, 1].plot(trace["cop"][:, 0], trace["cop"][:, 1], ".", ms=1, label="CoP")
     axes[0, 1].set_aspect("equal")
     axes[0, 1].set_xlabel("x (m)")
     axes[0, 1].set_ylabel("y (m)")
-    axes[0, 1].legend()
-    axes[1, 0].plot(t, trace["base_position"] - trace["base_position"][0])
+    axes[0, 1].set_title("centre of pressure (top view)")
+    axes[1, 0].plot(t, trace["base_position"] - trace["base_position"][0], label=["x", "y", "z"])
     axes[1, 0].set_ylabel("base displacement (m)")
-    axes[1, 0].legend(["x", "y", "z"])
-    axes[1, 1].plot(t, trace["cop"])
+    axes[1, 0].set_title("floating base")
+    axes[1, 1].plot(t, trace["cop"], label=["x", "y"])
     axes[1, 1].set_ylabel("CoP (m)")
-    axes[1, 1].legend(["x", "y"])
-    for axis in (axes[1, 0], axes[1, 1], axes[0, 0]):
-        axis.set_xlabel("time (s)")
+    axes[1, 1].set_title("centre of pressure")
+    hand_error = np.linalg.norm(trace["hand_position"] - np.asarray(target), axis=1)
+    axes[2, 0].semilogy(t, hand_error, label="hand (wrist + 0.1 m) to target")
+    axes[2, 0].axhline(5e-3, color="grey", lw=0.8, ls=":", label="5 mm")
+    axes[2, 0].set_ylabel("hand error (m)")
+    axes[2, 0].set_title("right hand (SoT's device q)")
+    sag = np.abs(trace["joint_tracking_error"])
+    axes[2, 1].semilogy(t, np.maximum(sag.max(axis=1), 1e-12), label="max over joints")
+    axes[2, 1].semilogy(t, np.maximum(np.sqrt((sag ** 2).mean(axis=1)), 1e-12), label="RMS over joints")
+    axes[2, 1].set_ylabel("|q_device − q_plant| (rad)")
+    axes[2, 1].set_title("PD tracking of the SoT's joint references")
+    for axis in axes.flat:
+        axis.legend(fontsize=8)
+        axis.grid(True, alpha=0.3)
+        if axis is not axes[0, 1]:
+            axis.set_xlabel("time (s)")
+    fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -200,7 +218,8 @@ def main(argv: list[str] | None = None) -> dict:
     summary, trace = summarize(run, simulator, args.duration, wall)
     summary.update(loop=args.loop, push_n=args.push)
     args.out.mkdir(parents=True, exist_ok=True)
-    plot(trace, args.out / "plots.png")
+    title = f"talos_physics: {args.scenario}, {args.loop} loop" + (f", {args.push:g} N push at 2 s" if args.push else "")
+    plot(trace, args.out / "plots.png", title)
     write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary

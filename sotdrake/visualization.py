@@ -7,12 +7,10 @@ Drake's ``MultibodyPositionToGeometryPose`` over a meshed copy of the robot, and
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import shutil
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -21,21 +19,10 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import Diagram
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
+from .drake_logging import drake_log_level
 from .robot import Robot
 
 log = logging.getLogger("sotdrake.visualization")
-
-
-@contextlib.contextmanager
-def drake_log_level(level: int) -> Iterator[None]:
-    """Drake's (Python-side) log level set to ``level`` (e.g. ``logging.WARNING``) inside the block."""
-    logger = logging.getLogger("drake")
-    before = logger.level
-    logger.setLevel(level)
-    try:
-        yield
-    finally:
-        logger.setLevel(before)
 
 
 def start_meshcat(live: bool = False) -> Meshcat:

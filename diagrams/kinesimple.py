@@ -24,6 +24,7 @@ import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
+from sotdrake.configuration import velocity_names
 from sotdrake import (
     MetaTaskKine6d,
     Robot,
@@ -110,8 +111,7 @@ def main(argv: list[str] | None = None):
     simulator, wall = simulate(kine.diagram, args.duration, kine.visualizer, not args.quiet)
     summary, trace = summarize(kine, simulator, args.duration, wall)
     args.out.mkdir(parents=True, exist_ok=True)
-    plant = kine.robot.model.plant
-    joints = [plant.get_joint(j).name() for j in plant.GetJointIndices() if plant.get_joint(j).num_velocities() == 1]
+    joints = velocity_names(kine.robot.model.plant)
     kine.tracer.plot(simulator.get_context(), args.out / "plots.png", ["error_tasklw", "control"],
                      title=f"kinesimple: left hand to a point {np.linalg.norm(OFFSET):.3f} m away (basic SOT, left_arm)",
                      labels={"error_tasklw": "hand error ‖e‖ (m)", "control": "joint velocity command (rad/s)"},

@@ -188,10 +188,10 @@ def plot(trace: dict, path: Path, title: str = "talos_physics", target=TARGET) -
     axes[2, 0].semilogy(t, hand_error, label="hand (wrist + 0.1 m) to target")
     axes[2, 0].axhline(5e-3, color="grey", lw=0.8, ls=":", label="5 mm")
     axes[2, 0].set_ylabel("hand error (m)")
-    axes[2, 0].set_title("right hand (SoT's device q)")
+    axes[2, 0].set_title("right hand (simulated robot)")
     sag = np.abs(trace["joint_tracking_error"])
-    axes[2, 1].semilogy(t, np.maximum(sag.max(axis=1), 1e-12), label="max over joints")
-    axes[2, 1].semilogy(t, np.maximum(np.sqrt((sag ** 2).mean(axis=1)), 1e-12), label="RMS over joints")
+    axes[2, 1].semilogy(t, np.maximum(sag.max(axis=1), 1e-6), label="max over joints")
+    axes[2, 1].semilogy(t, np.maximum(np.sqrt((sag ** 2).mean(axis=1)), 1e-6), label="RMS over joints")
     axes[2, 1].set_ylabel("|q_device − q_plant| (rad)")
     axes[2, 1].set_title("PD tracking of the SoT's joint references")
     for axis in axes.flat:

@@ -59,7 +59,7 @@ def simulate(diagram: Diagram, duration: float, visualizer=None, progress: bool 
     chunk = 0.05
     start = time.perf_counter()
     with tqdm(total=round(duration, 6), disable=not progress, file=sys.stderr, desc=label, leave=bool(not label),
-              bar_format="{desc} {l_bar}{bar}| {n:.2f}/{total:.2f} s [{elapsed}<{remaining}]") as bar:
+              bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} s [{elapsed}<{remaining}]") as bar:
         for k in range(1, int(np.ceil(duration / chunk - 1e-9)) + 1):
             t = min(k * chunk, duration)
             simulator.AdvanceTo(t)

@@ -21,10 +21,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import talos_appli  # noqa: E402
-import talos_physics  # noqa: E402
+import talos_appli
+import talos_physics
 
-from sotdrake import script_arguments, simulate, start_meshcat, write_control_graph  # noqa: E402
+from sotdrake import script_arguments, simulate, start_meshcat, write_control_graph
 
 #: The hero camera: in front of TALOS, a little to its left and above, so that the right hand on
 #: the target is seen against the torso (from the right side, the reaching arm hides it).
@@ -95,7 +95,8 @@ def main(argv: list[str] | None = None) -> None:
     print(f"control graph: {nodes} nodes")
     if not args.no_physics:
         physics = physics_plots(args.out, args.duration, not args.quiet)
-        print(f"physics reach: hand {1e3 * physics['hand_error_m']:.1f} mm from the target; wrote talos_physics_plots.png")
+        print(f"physics reach: hand {1e3 * physics['hand_error_m']:.1f} mm from the target; "
+              "wrote talos_physics_plots.png")
 
 
 if __name__ == "__main__":

@@ -39,9 +39,9 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake import (
+    SOT,
     MetaTaskKine6d,
     Robot,
-    SOT,
     Tracer,
     add_sot,
     gotoNd,
@@ -53,6 +53,7 @@ from sotdrake import (
     write_control_graph,
     write_run,
 )
+from sotdrake.configuration import velocity_names
 
 HAND_OFFSET = (0.1, 0.0, 0.0)
 GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]

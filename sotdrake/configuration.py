@@ -41,7 +41,7 @@ class Layout(NamedTuple):
     joints_v: np.ndarray
 
     @staticmethod
-    def of(plant: MultibodyPlant) -> "Layout":
+    def of(plant: MultibodyPlant) -> Layout:
         bases = list(plant.GetFloatingBaseBodies())
         if len(bases) > 1:
             raise InvalidInput("a plant with at most one floating base is supported")
@@ -109,5 +109,5 @@ class PlantContextHolder:
         self.plant = plant
         self.context: Context = plant.CreateDefaultContext()
 
-    def __deepcopy__(self, memo: dict) -> "PlantContextHolder":
+    def __deepcopy__(self, memo: dict) -> PlantContextHolder:
         return PlantContextHolder(self.plant)

@@ -18,7 +18,6 @@ they use the device's initial configuration. ``inequality=True`` makes the task 
 
 from __future__ import annotations
 
-import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context, InputPort, OutputPort
 
@@ -75,7 +74,10 @@ class _MetaTask:
         self.feature = feature
         self.gain = robot.add(GainAdaptive("gain" + name))
         nv = robot.dimension
-        task = TaskInequality("task" + name, nv) if inequality else TaskPD("task" + name, nv, robot.dt) if pd else Task("task" + name, nv)
+        if inequality:
+            task: Task = TaskInequality("task" + name, nv)
+        else:
+            task = TaskPD("task" + name, nv, robot.dt) if pd else Task("task" + name, nv)
         self.task = robot.add_task(task)
         connect = robot.builder.Connect
         connect(feature.GetOutputPort("error"), self.gain.GetInputPort("error"))

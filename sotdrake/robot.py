@@ -9,8 +9,10 @@ stack order, a run-time setting held in the Context.
 
 from __future__ import annotations
 
+from typing import TypeVar
+
 import numpy as np
-from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
+from pydrake.systems.framework import DiagramBuilder, OutputPort, System
 
 from .device import Device
 from .exceptions import InvalidInput, NotFound
@@ -18,6 +20,8 @@ from .kinematics import Dynamic
 from .robots import RobotModel, load_talos
 from .solvers import SOT, SolverKine
 from .task import Task
+
+SystemT = TypeVar("SystemT", bound=System)
 
 
 class Robot:
@@ -62,7 +66,7 @@ class Robot:
             mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
         return mask
 
-    def add(self, system: LeafSystem, name: str | None = None) -> LeafSystem:
+    def add(self, system: SystemT, name: str | None = None) -> SystemT:
         """Add ``system`` to the builder under ``name`` (default: its own), which must be new."""
         if name is not None:
             system.set_name(name)

@@ -85,4 +85,7 @@ def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = N
         outputs["recording"] = save_recording(visualizer, meshcat, out / "recording.html")
     summary["outputs"] = {k: str(v) for k, v in outputs.items()}
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    names = ", ".join(Path(p).name for p in outputs.values())
+    note = "; open recording.html in a browser: it plays by itself" if "recording" in outputs else ""
+    print(f"wrote {names}{', ' if names else ''}summary.json in {out}{note}", file=sys.stderr)
     return outputs

@@ -51,10 +51,13 @@ def add_robot_visualizer(robot: Robot, meshcat: Meshcat, publish_period: float =
     return MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, params)
 
 
+TARGET_COLOR = Rgba(0.9, 0.15, 0.1, 0.8)
+
+
 def add_target_marker(meshcat: Meshcat, path: str, position, radius: float = 0.025,
-                      rgba: Rgba = Rgba(0.9, 0.15, 0.1, 0.8)) -> None:
-    """A sphere at ``position`` (world frame, m)."""
-    meshcat.SetObject(path, Sphere(radius), rgba)
+                      rgba: Rgba | None = None) -> None:
+    """A sphere at ``position`` (world frame, m), red by default."""
+    meshcat.SetObject(path, Sphere(radius), TARGET_COLOR if rgba is None else rgba)
     meshcat.SetTransform(path, RigidTransform(np.asarray(position, dtype=float)))
 
 

@@ -1,7 +1,7 @@
 """A separate-process LCM subscriber for the publisher tests: writes one JSON line per message to a
 file (not to a pipe, whose buffer would fill and block it), prints "ready" once subscribed, and
-stops when a message arrives on ``<channel>_done`` (sent by the test after its run), or after
-``timeout`` seconds if that never comes.
+stops once a message has arrived on ``<channel>_done`` (sent by the test after its run) and the
+messages already received are handled, or after ``timeout`` seconds if that never comes.
 
     python lcm_subscriber.py CHANNEL state|scope TIMEOUT_S OUT.jsonl
 """
@@ -38,5 +38,7 @@ print("ready", flush=True)
 end = time.monotonic() + timeout
 while not done and time.monotonic() < end:
     lcm.HandleSubscriptions(20)
+while done and lcm.HandleSubscriptions(50) > 0:  # whatever is still queued
+    pass
 out.close()
 sys.exit(0 if done else 1)

@@ -208,8 +208,10 @@ def plot(trace: dict, path: Path, title: str = "talos_physics", target=TARGET) -
 
 def main(argv: list[str] | None = None) -> dict:
     parser = script_arguments(__doc__, "out/physics")
-    parser.add_argument("--scenario", choices=["stand", "reach"], default="reach")
-    parser.add_argument("--loop", choices=["open", "closed"], default="open")
+    parser.add_argument("--scenario", choices=["stand", "reach"], default="reach",
+                        help="stand: feet and CoM held; reach: the right hand also pushed at 1 s towards (0.5, -0.2, 1.0)")
+    parser.add_argument("--loop", choices=["open", "closed"], default="open",
+                        help="open: the SoT reads its device's q; closed: the simulated joints and a leg-odometry base")
     parser.add_argument("--push", type=float, default=0.0, help="push the torso with this force (N) at t = 2 s for 0.1 s")
     args = parser.parse_args(argv)
     meshcat = start(args)

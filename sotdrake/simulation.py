@@ -23,7 +23,8 @@ def script_arguments(doc: str, out: str, duration: float | None = 8.0) -> argpar
     ``--no-meshcat`` and ``--quiet``; add the script's own, then call ``parse_args``."""
     parser = argparse.ArgumentParser(description=doc.split("\n\n")[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    parser.add_argument("--duration", type=float, default=duration, help="simulated time (s)")
+    parser.add_argument("--duration", type=float, default=duration,
+                        help="simulated time (s)" if duration is not None else "simulated time (s); None: each run's own")
     parser.add_argument("--out", type=Path, default=Path(out), help="output directory")
     parser.add_argument("--no-meshcat", action="store_true", help="no recording (faster)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")

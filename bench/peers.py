@@ -15,6 +15,16 @@ import numpy as np
 from scenario import DT, FEET, GAIN_COM, GAIN_FEET, GAIN_HAND, HAND_FRAME, TARGET, pinocchio_half_sitting, urdf_file, urdf_text
 
 
+def _version(distribution: str) -> str:
+    """The installed version of a PyPI distribution (placo has no ``__version__``)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(distribution)
+    except PackageNotFoundError:
+        return "(version unknown)"
+
+
 def _accuracy(hand, feet, feet0, com, com0) -> dict:
     return {
         "hand_error_m": float(np.linalg.norm(hand - TARGET)),
@@ -57,7 +67,7 @@ def run_pink(ticks: int, warmup: int, solver: str = "daqp") -> dict:
                          [configuration.get_transform_frame_to_world(f).translation for f in FEET], feet0,
                          pin.centerOfMass(model, data, configuration.q), com0)
     accuracy["max_foot_drift_m"] = max(accuracy["max_foot_drift_m"], drift)
-    return {"times_s": np.array(times[warmup:]), "accuracy": accuracy, "version": pink.__version__, "qp_solver": solver}
+    return {"times_s": np.array(times[warmup:]), "accuracy": accuracy, "version": _version("pin-pink"), "qp_solver": solver}
 
 
 def run_placo(ticks: int, warmup: int) -> dict:
@@ -91,5 +101,5 @@ def run_placo(ticks: int, warmup: int) -> dict:
     accuracy = _accuracy(robot.get_T_world_frame(HAND_FRAME)[:3, 3], [robot.get_T_world_frame(f)[:3, 3] for f in FEET],
                          feet0, robot.com_world(), com0)
     accuracy["max_foot_drift_m"] = max(accuracy["max_foot_drift_m"], drift)
-    return {"times_s": np.array(times[warmup:]), "accuracy": accuracy, "version": getattr(placo, "__version__", "?"),
+    return {"times_s": np.array(times[warmup:]), "accuracy": accuracy, "version": _version("placo"),
             "note": "placo's KinematicsSolver closes each task's whole error at every step (no task gain)"}

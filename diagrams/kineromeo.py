@@ -29,11 +29,7 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
-from sotdrake.robot import Robot, add_sot, robot as make_robot
-from sotdrake.simulation import script_arguments, simulate, start, write_run
-from sotdrake.solvers import SOT
-from sotdrake.tracing import Tracer
+from sotdrake import add_robot_visualizer, add_sot, add_target_marker, gotoNd, MetaTaskKine6d, MetaTaskKineCom, Robot, robot as make_robot, script_arguments, simulate, SOT, start, Tracer, write_run
 
 TARGET = (0.5, -0.2, 0.8)
 HAND_OFFSET = (0.1, 0.0, 0.0)
@@ -79,20 +75,20 @@ def build_diagram(
     sot.setControlSelection(robot.velocity_selection(excluding=excluded))
 
     # --- the tasks: the grip, the static CoM (X, Y), the contacts
-    taskRH = MetaTaskKine6d("rh", robot.dynamic, "right-wrist", robot.OperationalPointsMap["right-wrist"])
+    taskRH = MetaTaskKine6d("rh", robot, "right-wrist", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = HAND_OFFSET
     taskRH.opmodif = handMgrip
     taskRH.feature.frame("desired")
 
-    taskCom = MetaTaskKineCom(robot.dynamic)
+    taskCom = MetaTaskKineCom(robot)
     taskCom.keep()
     taskCom.feature.selec("011")
     taskCom.gain.setConstant(10)
 
     contacts = {}
     for name, joint in (("LF", "left-ankle"), ("RF", "right-ankle")):
-        contact = MetaTaskKine6d("contact" + name, robot.dynamic, name, robot.OperationalPointsMap[joint])
+        contact = MetaTaskKine6d("contact" + name, robot, name, robot.OperationalPointsMap[joint])
         contact.feature.frame("desired")
         contact.gain.setConstant(10)
         contact.keep()
@@ -111,7 +107,6 @@ def build_diagram(
     # --- the viewer
     visualizer = None
     if meshcat is not None:
-        from sotdrake.visualization import add_robot_visualizer, add_target_marker
 
         visualizer = add_robot_visualizer(robot, meshcat)
         add_target_marker(meshcat, "/target", target)

@@ -17,17 +17,27 @@ or a whole run::
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd
-from sotdrake.robot import Robot, add_sot, talos
-from sotdrake.simulation import script_arguments, simulate, start, write_run
-from sotdrake.solvers import SOT
-from sotdrake.tracing import Tracer
+from sotdrake.configuration import velocity_names
+from sotdrake import (
+    MetaTaskKine6d,
+    Robot,
+    SOT,
+    Tracer,
+    add_sot,
+    gotoNd,
+    script_arguments,
+    simulate,
+    start,
+    talos,
+    write_run,
+)
 
 OFFSET = (0.1, 0.1, 0.2)  # the target, from the hand's initial position (m, world)
 
@@ -48,7 +58,7 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3) -> KineSimpl
     robot = talos(builder, "left_arm", dt)
     sot = add_sot(robot)
     sot.setControlSelection(robot.velocity_selection(excluding=["gripper_left_joint"]))
-    taskLW = MetaTaskKine6d("lw", robot.dynamic, "lw", robot.OperationalPointsMap["left-wrist"])
+    taskLW = MetaTaskKine6d("lw", robot, "lw", robot.OperationalPointsMap["left-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = (0.1, 0.0, 0.0)
     taskLW.opmodif = handMgrip
@@ -61,7 +71,7 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3) -> KineSimpl
     tracer.add(sot.GetOutputPort("control"), "control")
     visualizer = None
     if meshcat is not None:
-        from sotdrake.visualization import add_robot_visualizer, add_target_marker
+        from sotdrake import add_robot_visualizer, add_target_marker
 
         visualizer = add_robot_visualizer(robot, meshcat)
         add_target_marker(meshcat, "/target", target)
@@ -92,26 +102,30 @@ def main(argv: list[str] | None = None):
     parser = script_arguments(__doc__, "out/kinesimple", duration=3.0)
     parser.add_argument("--interactive", action="store_true", help="build, then hand over to the prompt (python -i)")
     args = parser.parse_args(argv)
-    meshcat = start(args)
+    meshcat = start(args, live=args.interactive)  # a live view at the prompt, else a recording
     kine = build_diagram(meshcat)
     if args.interactive:
-        from sotdrake.interactive import Runner
+        from sotdrake import Runner
 
         return kine, Runner(kine.diagram, kine.robot.dt)
     simulator, wall = simulate(kine.diagram, args.duration, kine.visualizer, not args.quiet)
     summary, trace = summarize(kine, simulator, args.duration, wall)
     args.out.mkdir(parents=True, exist_ok=True)
-    kine.tracer.plot(simulator.get_context(), args.out / "plots.png", ["error_tasklw", "control"])
+    joints = velocity_names(kine.robot.model.plant)
+    kine.tracer.plot(simulator.get_context(), args.out / "plots.png", ["error_tasklw", "control"],
+                     title=f"kinesimple: left hand to a point {np.linalg.norm(OFFSET):.3f} m away (basic SOT, left_arm)",
+                     labels={"error_tasklw": "hand error ‖e‖ (m)", "control": "joint velocity command (rad/s)"},
+                     legends={"error_tasklw": ["hand to target"], "control": joints}, log=("error_tasklw",))
     kine.tracer.save_csv(simulator.get_context(), args.out / "trace.csv")
     write_run(args.out, kine.diagram, summary, trace, meshcat, kine.visualizer)
-    print({k: round(v, 6) if isinstance(v, float) else v for k, v in summary.items() if k != "outputs"})
+    print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
 
 
 if __name__ == "__main__":
     result = main()
     if isinstance(result, tuple):  # --interactive: the seed's names at the prompt
-        from sotdrake.introspection import displaySignals  # noqa: F401
+        from sotdrake import displaySignals  # noqa: F401
 
         kine, runner = result
         robot, sot, taskLW = kine.robot, kine.sot, kine.taskLW

@@ -21,11 +21,20 @@ from pydrake.geometry import Meshcat, Rgba
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Adder, ConstantVectorSource, Sine
 
-from sotdrake.meta_tasks import MetaTaskKinePosture, MetaTaskVisualPoint, hold_feet_and_com
-from sotdrake.robot import Robot, add_sot, talos
-from sotdrake.simulation import script_arguments, simulate, start, write_run
-from sotdrake.solvers import SOT
-from sotdrake.tracing import Tracer
+from sotdrake import (
+    MetaTaskKinePosture,
+    MetaTaskVisualPoint,
+    Robot,
+    SOT,
+    Tracer,
+    add_sot,
+    hold_feet_and_com,
+    script_arguments,
+    simulate,
+    start,
+    talos,
+    write_run,
+)
 
 CENTER = np.array([1.5, 0.0, 1.35])
 AMPLITUDE = np.array([0.0, 0.35, 0.2])
@@ -62,12 +71,12 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3, feedforward:
     point = robot.add(Adder(2, 3), "point")
     builder.Connect(sine.get_output_port(0), point.get_input_port(0))
     builder.Connect(center.get_output_port(), point.get_input_port(1))
-    gaze = MetaTaskVisualPoint("gaze", robot.dynamic)
+    gaze = MetaTaskVisualPoint("gaze", robot)
     gaze.plugPoint(point.get_output_port(), sine.get_output_port(1) if feedforward else None)
     gaze.gain.setConstant(8)
     sot.push(gaze.task.name)
 
-    posture = MetaTaskKinePosture(robot.dynamic)
+    posture = MetaTaskKinePosture(robot)
     posture.gain.setConstant(2)
     sot.push(posture.task.name)
 
@@ -77,7 +86,7 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3, feedforward:
         tracer.add(robot.tasks[task].GetOutputPort("error_norm"), f"error_{task}")
     visualizer = None
     if meshcat is not None:
-        from sotdrake.visualization import add_robot_visualizer, add_target_marker
+        from sotdrake import add_robot_visualizer, add_target_marker
 
         visualizer = add_robot_visualizer(robot, meshcat)
         circle = point_at(np.linspace(0, 1 / FREQUENCY, 100)).T
@@ -126,7 +135,14 @@ def main(argv: list[str] | None = None) -> dict:
     simulator, wall = simulate(run.diagram, args.duration, run.visualizer, not args.quiet)
     summary, trace = summarize(run, simulator, args.duration, wall)
     args.out.mkdir(parents=True, exist_ok=True)
-    run.tracer.plot(simulator.get_context(), args.out / "plots.png", ["error_taskgaze", "error_taskcom", "error_taskposture"])
+    run.tracer.plot(simulator.get_context(), args.out / "plots.png", ["error_taskgaze", "error_taskcom", "error_taskposture"],
+                    title="posture_gaze: the head camera follows a point circling in front of TALOS"
+                          + ("" if not args.no_feedforward else " (no feed-forward)"),
+                    labels={"error_taskgaze": "image error ‖s − s*‖\n(normalised image units)",
+                            "error_taskcom": "CoM error ‖e‖ (m)", "error_taskposture": "posture error ‖q − q*‖ (rad)"},
+                    legends={"error_taskgaze": ["gaze (priority 4)"], "error_taskcom": ["CoM held (priority 3)"],
+                             "error_taskposture": ["posture (priority 5)"]},
+                    log=("error_taskgaze", "error_taskcom"))
     write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary

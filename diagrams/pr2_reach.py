@@ -30,11 +30,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd
-from sotdrake.robot import Robot, add_sot, robot as make_robot
-from sotdrake.simulation import script_arguments, simulate, start, write_run
-from sotdrake.solvers import SOT
-from sotdrake.tracing import Tracer
+from sotdrake import add_robot_visualizer, add_sot, add_target_marker, gotoNd, MetaTaskKine6d, Robot, robot as make_robot, script_arguments, simulate, SOT, start, Tracer, write_run
 
 #: The table: centre of its top surface (m, world) and its size (m).
 TABLE_TOP = np.array([1.45, 0.0, 0.72])
@@ -76,13 +72,13 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3, solver: str 
     sot.setControlSelection(robot.velocity_selection(excluding=excluded))
 
     # --- the base: X, Y and yaw of base_link, to its stand-off pose in front of the table
-    taskBase = MetaTaskKine6d("base", robot.dynamic, "base", robot.OperationalPointsMap["waist"])
+    taskBase = MetaTaskKine6d("base", robot, "base", robot.OperationalPointsMap["waist"])
     taskBase.feature.frame("desired")
     z_base = taskBase.current_pose().translation()[2]
     gotoNd(taskBase, (base_goal[0], base_goal[1], z_base), "100011", 1.0)
 
     # --- the right gripper's tool frame to the object (position)
-    taskRH = MetaTaskKine6d("rh", robot.dynamic, "right-gripper", robot.OperationalPointsMap["right-gripper"])
+    taskRH = MetaTaskKine6d("rh", robot, "right-gripper", robot.OperationalPointsMap["right-gripper"])
     taskRH.feature.frame("desired")
     gotoNd(taskRH, target, "111", (4.9, 0.9, 0.01, 0.9))
 
@@ -97,7 +93,6 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3, solver: str 
 
     visualizer = None
     if meshcat is not None:
-        from sotdrake.visualization import add_robot_visualizer, add_target_marker
 
         visualizer = add_robot_visualizer(robot, meshcat)
         add_target_marker(meshcat, "/object", target, radius=0.03, rgba=Rgba(0.9, 0.15, 0.1, 1.0))

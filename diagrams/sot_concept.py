@@ -38,12 +38,22 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd, hold_feet_and_com
-from sotdrake.robot import Robot, add_sot, talos
-from sotdrake.solvers import SOT
-from sotdrake.simulation import script_arguments, simulate, start, write_run
-from sotdrake.tracing import Tracer
-from sotdrake.visualization import write_control_graph
+from sotdrake import (
+    SOT,
+    MetaTaskKine6d,
+    Robot,
+    Tracer,
+    add_sot,
+    gotoNd,
+    hold_feet_and_com,
+    script_arguments,
+    simulate,
+    start,
+    talos,
+    write_control_graph,
+    write_run,
+)
+from sotdrake.configuration import velocity_names
 
 HAND_OFFSET = (0.1, 0.0, 0.0)
 GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]
@@ -102,7 +112,7 @@ def build_diagram(config: Configuration, meshcat: Meshcat | None = None, dt: flo
     sot.setControlSelection(robot.velocity_selection(excluding=GRIPPERS))
     if config.contacts:
         hold_feet_and_com(robot, sot, com=config.com)
-    taskRH = MetaTaskKine6d("rh", robot.dynamic, "rh", robot.OperationalPointsMap["right-wrist"])
+    taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = HAND_OFFSET
     taskRH.opmodif = handMgrip
@@ -114,7 +124,7 @@ def build_diagram(config: Configuration, meshcat: Meshcat | None = None, dt: flo
     tracer.add(sot.GetOutputPort("control"), "v")
     visualizer = None
     if meshcat is not None:
-        from sotdrake.visualization import add_robot_visualizer, add_target_marker
+        from sotdrake import add_robot_visualizer, add_target_marker
 
         visualizer = add_robot_visualizer(robot, meshcat)
         add_target_marker(meshcat, "/ball", config.ball, radius=0.05)
@@ -173,11 +183,8 @@ def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict
 
 
 def _joint_names(robot: Robot) -> list[str]:
-    plant, names = robot.model.plant, []
-    for index in robot.device.layout.joints_v:
-        names.append(next(plant.get_joint(j).name() for j in plant.GetJointIndices()
-                          if plant.get_joint(j).velocity_start() <= index < plant.get_joint(j).velocity_start() + plant.get_joint(j).num_velocities()))
-    return names
+    names = velocity_names(robot.model.plant)
+    return [names[i] for i in robot.device.layout.joints_v]
 
 
 def plot(traces: dict[str, dict], path: Path) -> Path:

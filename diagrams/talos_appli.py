@@ -23,13 +23,21 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
-from sotdrake.robot import Robot, add_sot, talos
-from sotdrake.sequencer import attime
-from sotdrake.simulation import simulate as run_simulation
-from sotdrake.simulation import script_arguments, start, write_run
-from sotdrake.solvers import SOT
-from sotdrake.tracing import Tracer
+from sotdrake import (
+    MetaTaskKine6d,
+    MetaTaskKineCom,
+    Robot,
+    SOT,
+    Tracer,
+    add_sot,
+    attime,
+    gotoNd,
+    script_arguments,
+    start,
+    talos,
+    write_run,
+)
+from sotdrake import simulate as run_simulation
 
 TARGET = (0.5, -0.2, 1.0)
 HAND_OFFSET = (0.1, 0.0, 0.0)
@@ -65,23 +73,23 @@ def build_diagram(
     robot = talos(builder, variant, dt)
 
     # --- the right hand: MetaTaskKine6d at 'right-wrist' moved by handMgrip = (0.1, 0, 0)
-    taskRH = MetaTaskKine6d("rh", robot.dynamic, "rh", robot.OperationalPointsMap["right-wrist"])
+    taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = HAND_OFFSET
     taskRH.opmodif = handMgrip
     taskRH.feature.frame("desired")
 
     # --- static CoM
-    taskCom = MetaTaskKineCom(robot.dynamic)
+    taskCom = MetaTaskKineCom(robot)
     taskCom.keep()  # seed: taskCom.featureDes.errorIN.value = robot.dynamic.com.value
     taskCom.gain.setConstant(10)
 
     # --- contacts
-    contactLF = MetaTaskKine6d("contactLF", robot.dynamic, "LF", robot.OperationalPointsMap["left-ankle"])
+    contactLF = MetaTaskKine6d("contactLF", robot, "LF", robot.OperationalPointsMap["left-ankle"])
     contactLF.feature.frame("desired")
     contactLF.gain.setConstant(10)
     contactLF.keep()
-    contactRF = MetaTaskKine6d("contactRF", robot.dynamic, "RF", robot.OperationalPointsMap["right-ankle"])
+    contactRF = MetaTaskKine6d("contactRF", robot, "RF", robot.OperationalPointsMap["right-ankle"])
     contactRF.feature.frame("desired")
     contactRF.gain.setConstant(10)
     contactRF.keep()
@@ -108,7 +116,7 @@ def build_diagram(
 
     visualizer = None
     if meshcat is not None:
-        from sotdrake.visualization import add_robot_visualizer, add_target_marker
+        from sotdrake import add_robot_visualizer, add_target_marker
 
         visualizer = add_robot_visualizer(robot, meshcat)
         add_target_marker(meshcat, "/target", target)

@@ -24,22 +24,23 @@ from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd, hold_feet_and_com
-from sotdrake.physics import (
-    SOLE_BOX,
-    ContactMonitor,
-    DesiredState,
-    KinematicBaseEstimator,
-    PhysicalTalos,
-    Push,
-    add_physical_talos,
+from sotdrake import (
+    MetaTaskKine6d,
+    MetaTaskKineCom,
+    Robot,
+    SOT,
+    Tracer,
+    add_sot,
+    attime,
+    gotoNd,
+    hold_feet_and_com,
+    load_talos,
+    script_arguments,
+    simulate,
+    start,
+    write_run,
 )
-from sotdrake.robot import Robot, add_sot
-from sotdrake.robots import load_talos
-from sotdrake.sequencer import attime
-from sotdrake.simulation import script_arguments, simulate, start, write_run
-from sotdrake.solvers import SOT
-from sotdrake.tracing import Tracer
+from sotdrake.physics import SOLE_BOX, ContactMonitor, DesiredState, KinematicBaseEstimator, PhysicalTalos, Push, add_physical_talos
 
 TARGET = (0.5, -0.2, 1.0)
 HAND_OFFSET = (0.1, 0.0, 0.0)
@@ -56,6 +57,7 @@ class Physics:
     tracer: Tracer
     scenario: str
     visualizer: object = None
+    taskCom: MetaTaskKineCom | None = None
 
 
 def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0,
@@ -75,8 +77,8 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
     robot = Robot(builder, model, dt, measured_position=measured)
     sot = add_sot(robot)
     sot.setControlSelection(robot.velocity_selection(excluding=GRIPPERS))
-    hold_feet_and_com(robot, sot)  # contactRF, contactLF, taskCom as in the tutorial (gain 10)
-    taskRH = MetaTaskKine6d("rh", robot.dynamic, "rh", robot.OperationalPointsMap["right-wrist"])
+    _, _, taskCom = hold_feet_and_com(robot, sot)  # contactRF, contactLF, taskCom as in the tutorial (gain 10)
+    taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = HAND_OFFSET
     taskRH.opmodif = handMgrip
@@ -105,13 +107,13 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
         visualizer = MeshcatVisualizer.AddToBuilder(builder, physical.scene_graph, meshcat, MeshcatVisualizerParams(publish_period=1 / 60))
         ContactVisualizer.AddToBuilder(builder, plant, meshcat, ContactVisualizerParams(publish_period=1 / 60, newtons_per_meter=1000))
         if scenario == "reach":
-            from sotdrake.visualization import add_target_marker
+            from sotdrake import add_target_marker
 
             add_target_marker(meshcat, "/target", TARGET)
-        meshcat.SetCameraPose(camera_in_world=[1.6, -2.2, 1.3], target_in_world=[0.1, -0.1, 0.7])
+        meshcat.SetCameraPose(camera_in_world=[1.5, -1.6, 1.3], target_in_world=[0.15, -0.1, 0.65])
     diagram = builder.Build()
     diagram.set_name("talos_physics")
-    return Physics(diagram, robot, physical, sot, taskRH, tracer, scenario, visualizer)
+    return Physics(diagram, robot, physical, sot, taskRH, tracer, scenario, visualizer, taskCom)
 
 
 def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[dict, dict]:
@@ -148,11 +150,15 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
         "wall_s": wall,
         "realtime_factor": duration / wall,
     }
-    trace.update(hand_position=hand[1:], base_position=base[1:], cop=cop, support_low=low, support_high=high)
+    joints = robot.device.layout.joints_q
+    trace.update(hand_position=hand[1:], base_position=base[1:], cop=cop, support_low=low, support_high=high,
+                 joint_tracking_error=trace["q_device"][:, joints] - q[:, joints])
     return summary, trace
 
 
-def plot(trace: dict, path: Path) -> Path:
+def plot(trace: dict, path: Path, title: str = "talos_physics", target=TARGET) -> Path:
+    """Contact forces, the CoP in the support polygon, base motion, the CoP along time, the hand
+    (its distance to the target for ``reach``) and how well the PD actuators track the SoT's joints."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -160,26 +166,40 @@ def plot(trace: dict, path: Path) -> Path:
     from matplotlib.patches import Rectangle
 
     t, feet = trace["time"], trace["feet"]
-    fig, axes = plt.subplots(2, 2, figsize=(12, 8))
+    fig, axes = plt.subplots(3, 2, figsize=(12, 11))
     axes[0, 0].plot(t, feet[:, 2], label="left sole")
     axes[0, 0].plot(t, feet[:, 5], label="right sole")
     axes[0, 0].set_ylabel("normal force (N)")
-    axes[0, 0].legend()
+    axes[0, 0].set_title("contact forces")
     low, high = trace["support_low"], trace["support_high"]
     axes[0, 1].add_patch(Rectangle(low, *(high - low), fill=False, color="k", label="support polygon"))
     axes[0, 1].plot(trace["cop"][:, 0], trace["cop"][:, 1], ".", ms=1, label="CoP")
     axes[0, 1].set_aspect("equal")
     axes[0, 1].set_xlabel("x (m)")
     axes[0, 1].set_ylabel("y (m)")
-    axes[0, 1].legend()
-    axes[1, 0].plot(t, trace["base_position"] - trace["base_position"][0])
+    axes[0, 1].set_title("centre of pressure (top view)")
+    axes[1, 0].plot(t, trace["base_position"] - trace["base_position"][0], label=["x", "y", "z"])
     axes[1, 0].set_ylabel("base displacement (m)")
-    axes[1, 0].legend(["x", "y", "z"])
-    axes[1, 1].plot(t, trace["cop"])
+    axes[1, 0].set_title("floating base")
+    axes[1, 1].plot(t, trace["cop"], label=["x", "y"])
     axes[1, 1].set_ylabel("CoP (m)")
-    axes[1, 1].legend(["x", "y"])
-    for axis in (axes[1, 0], axes[1, 1], axes[0, 0]):
-        axis.set_xlabel("time (s)")
+    axes[1, 1].set_title("centre of pressure")
+    hand_error = np.linalg.norm(trace["hand_position"] - np.asarray(target), axis=1)
+    axes[2, 0].semilogy(t, hand_error, label="hand (wrist + 0.1 m) to target")
+    axes[2, 0].axhline(5e-3, color="grey", lw=0.8, ls=":", label="5 mm")
+    axes[2, 0].set_ylabel("hand error (m)")
+    axes[2, 0].set_title("right hand (simulated robot)")
+    sag = np.abs(trace["joint_tracking_error"])
+    axes[2, 1].semilogy(t, np.maximum(sag.max(axis=1), 1e-6), label="max over joints")
+    axes[2, 1].semilogy(t, np.maximum(np.sqrt((sag ** 2).mean(axis=1)), 1e-6), label="RMS over joints")
+    axes[2, 1].set_ylabel("|q_device − q_plant| (rad)")
+    axes[2, 1].set_title("PD tracking of the SoT's joint references")
+    for axis in axes.flat:
+        axis.legend(fontsize=8)
+        axis.grid(True, alpha=0.3)
+        if axis is not axes[0, 1]:
+            axis.set_xlabel("time (s)")
+    fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -188,8 +208,10 @@ def plot(trace: dict, path: Path) -> Path:
 
 def main(argv: list[str] | None = None) -> dict:
     parser = script_arguments(__doc__, "out/physics")
-    parser.add_argument("--scenario", choices=["stand", "reach"], default="reach")
-    parser.add_argument("--loop", choices=["open", "closed"], default="open")
+    parser.add_argument("--scenario", choices=["stand", "reach"], default="reach",
+                        help="stand: feet and CoM held; reach: the right hand also pushed at 1 s towards (0.5, -0.2, 1.0)")
+    parser.add_argument("--loop", choices=["open", "closed"], default="open",
+                        help="open: the SoT reads its device's q; closed: the simulated joints and a leg-odometry base")
     parser.add_argument("--push", type=float, default=0.0, help="push the torso with this force (N) at t = 2 s for 0.1 s")
     args = parser.parse_args(argv)
     meshcat = start(args)
@@ -198,7 +220,8 @@ def main(argv: list[str] | None = None) -> dict:
     summary, trace = summarize(run, simulator, args.duration, wall)
     summary.update(loop=args.loop, push_n=args.push)
     args.out.mkdir(parents=True, exist_ok=True)
-    plot(trace, args.out / "plots.png")
+    title = f"talos_physics: {args.scenario}, {args.loop} loop" + (f", {args.push:g} N push at 2 s" if args.push else "")
+    plot(trace, args.out / "plots.png", title)
     write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary

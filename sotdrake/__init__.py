@@ -1,35 +1,85 @@
 """sotdrake: the Stack of Tasks (prioritised whole-body control) as Drake systems.
 
-The names a SoT user reaches for, in the seed's vocabulary::
+The names a SoT user reaches for, in the seed's vocabulary (see README, "Your first stack")::
 
-    from sotdrake import robot, talos, add_sot, MetaTaskKine6d, MetaTaskKineCom, gotoNd, attime
+    from sotdrake import robot, talos, add_sot, MetaTaskKine6d, MetaTaskKineCom, gotoNd, attime, simulate
 """
 
-from .exceptions import FrameNotFound, InvalidInput, RobotNotFound, SolverError, SotError, StackError, TaskNotFound
-from .meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
+from .exceptions import (
+    FrameNotFound,
+    InvalidInput,
+    NotFound,
+    RobotNotFound,
+    SolverError,
+    SotError,
+    StackError,
+    TaskNotFound,
+)
+from .interactive import Runner
+from .introspection import displayAll, displaySignals, entities, entity, signal, signals_report
+from .meta_tasks import (
+    MetaTaskKine6d,
+    MetaTaskKine6dRel,
+    MetaTaskKineCom,
+    MetaTaskKinePosture,
+    MetaTaskVisualPoint,
+    gotoNd,
+    hold_feet_and_com,
+)
 from .robot import Robot, add_sot, robot, talos
-from .robots import load_robot
+from .robots import load_robot, load_talos
 from .sequencer import attime
-from .solvers import SOT
+from .simulation import script_arguments, simulate, start, write_run
+from .solvers import SOT, SolverKine
 from .tracing import Tracer
+from .visualization import (
+    add_robot_visualizer,
+    add_target_marker,
+    save_recording,
+    start_meshcat,
+    write_control_graph,
+)
 
 __all__ = [
     "SOT",
     "FrameNotFound",
     "InvalidInput",
     "MetaTaskKine6d",
+    "MetaTaskKine6dRel",
     "MetaTaskKineCom",
+    "MetaTaskKinePosture",
+    "MetaTaskVisualPoint",
+    "NotFound",
     "Robot",
     "RobotNotFound",
+    "Runner",
     "SolverError",
+    "SolverKine",
     "SotError",
     "StackError",
     "TaskNotFound",
     "Tracer",
+    "add_robot_visualizer",
     "add_sot",
+    "add_target_marker",
     "attime",
+    "displayAll",
+    "displaySignals",
+    "entities",
+    "entity",
     "gotoNd",
+    "hold_feet_and_com",
     "load_robot",
+    "load_talos",
     "robot",
+    "save_recording",
+    "script_arguments",
+    "signal",
+    "signals_report",
+    "simulate",
+    "start",
+    "start_meshcat",
     "talos",
+    "write_control_graph",
+    "write_run",
 ]

@@ -4,12 +4,8 @@ Discrete state ``q`` (Drake positions), updated every ``dt`` seconds by ``q ← 
 the ``control`` input (Drake generalized velocities) evaluated at the start of the tick. Output
 ``state`` is ``q``.
 
-``⊕`` is exact for a velocity held constant over the tick in the SoT sense:
-
-* revolute/prismatic coordinates: ``q_j ← q_j + v_j dt``;
-* the floating base ``X_WB = (R, p)`` with Drake's ``v_B = (ω_W, v_WBo)`` (world frame): the body
-  twist ``ξ = (Rᵀ v_WBo, Rᵀ ω_W)`` is integrated on SE(3), ``X_WB ← X_WB · exp(ξ dt)``; the
-  quaternion as ``q ← q ⊗ exp(ω_B dt)`` (continuous, no sign flips), re-normalised each tick.
+``⊕`` is :func:`sotdrake.configuration.integrate`: exact for a velocity held constant over the
+tick, the floating base on SE(3), the joints additively.
 
 Joint limits are *not* enforced here (nothing is silently clamped): the solvers own limits. The
 device logs a warning each time a joint crosses one of its position limits, and the diagrams report
@@ -19,67 +15,18 @@ the smallest limit margin seen.
 from __future__ import annotations
 
 import logging
-from typing import NamedTuple
 
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
+from .configuration import Layout, integrate, position_names
 from .entity import own_context
 from .exceptions import InvalidInput, SolverError, check_finite
-from .lie import quaternion_exp, quaternion_multiply, quaternion_wxyz_to_rotation, se3_translation
+
+__all__ = ["Device", "Layout", "integrate"]  # Layout and integrate live in sotdrake.configuration
 
 log = logging.getLogger("sotdrake.device")
-
-
-class Layout(NamedTuple):
-    """Where the floating base sits in ``q`` and ``v`` (None: fixed base), and the joint indices."""
-
-    base_q: int | None
-    base_v: int | None
-    joints_q: np.ndarray
-    joints_v: np.ndarray
-
-    @staticmethod
-    def of(plant: MultibodyPlant) -> "Layout":
-        bases = list(plant.GetFloatingBaseBodies())
-        if len(bases) > 1:
-            raise InvalidInput("the device handles at most one floating base")
-        base_q = base_v = None
-        joints_q, joints_v = np.arange(plant.num_positions()), np.arange(plant.num_velocities())
-        if bases:
-            body = plant.get_body(bases[0])
-            base_q, base_v = body.floating_positions_start(), body.floating_velocities_start_in_v()
-            joints_q = np.setdiff1d(joints_q, np.arange(base_q, base_q + 7))
-            joints_v = np.setdiff1d(joints_v, np.arange(base_v, base_v + 6))
-        if joints_q.size != joints_v.size:
-            raise InvalidInput("every joint but the floating base must have as many positions as velocities")
-        return Layout(base_q, base_v, joints_q, joints_v)
-
-
-def _coordinate_names(plant: MultibodyPlant) -> list[str]:
-    names = [""] * plant.num_positions()
-    for index in plant.GetJointIndices():
-        joint = plant.get_joint(index)
-        for k in range(joint.num_positions()):
-            names[joint.position_start() + k] = joint.name() if joint.num_positions() == 1 else f"{joint.name()}[{k}]"
-    return names
-
-
-def integrate(q: np.ndarray, v: np.ndarray, dt: float, layout: Layout) -> np.ndarray:
-    """``q ⊕ v·dt`` (see the module docstring)."""
-    out = q.copy()
-    out[layout.joints_q] += dt * v[layout.joints_v]
-    if layout.base_q is not None:
-        iq, iv = layout.base_q, layout.base_v
-        R = quaternion_wxyz_to_rotation(q[iq : iq + 4])
-        omega_B = R.T @ v[iv : iv + 3]
-        v_B = R.T @ v[iv + 3 : iv + 6]
-        dp = se3_translation(v_B * dt, omega_B * dt)
-        quaternion = quaternion_multiply(q[iq : iq + 4], quaternion_exp(omega_B * dt))
-        out[iq : iq + 4] = quaternion / np.linalg.norm(quaternion)
-        out[iq + 4 : iq + 7] = q[iq + 4 : iq + 7] + R @ dp
-    return out
 
 
 class Device(LeafSystem):
@@ -94,7 +41,7 @@ class Device(LeafSystem):
         self.nq, self.nv = plant.num_positions(), plant.num_velocities()
         self.layout = Layout.of(plant)
         self._lower, self._upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
-        self._coordinate_names = _coordinate_names(plant)
+        self._coordinate_names = position_names(plant)
         self.initial_position = check_finite("q0", q0, (self.nq,)).copy()
         self.initial_position.flags.writeable = False
         self._q = self.DeclareDiscreteState(self.initial_position)

@@ -8,6 +8,8 @@ port's value (output, else input).
 
 from __future__ import annotations
 
+from typing import TextIO
+
 import numpy as np
 from pydrake.systems.framework import Context, Diagram, System
 
@@ -54,8 +56,8 @@ def _format(value, width: int = 100) -> str:
     return text if len(text) <= width else text[: width - 1] + "…"
 
 
-def displaySignals(system: System, context: Context, file=None) -> str:
-    """Print (and return) the entity's signals and their values at ``context``'s time."""
+def signals_report(system: System, context: Context) -> str:
+    """The entity's signals and their values at ``context``'s time, as text."""
     own = own_context(system, context)
     lines = [f"{system.get_name()} ({type(system).__name__}) at t = {own.get_time():.4f} s"]
     for kind, count, get in (("in ", system.num_input_ports(), system.get_input_port),
@@ -70,11 +72,17 @@ def displaySignals(system: System, context: Context, file=None) -> str:
                 except RuntimeError as error:  # e.g. an upstream input not connected
                     text = f"(cannot evaluate: {str(error).splitlines()[0]})"
             lines.append(f"  {kind} {port.get_name():24s} {text}")
-    report = "\n".join(lines)
-    print(report, file=file)
-    return report
+    return "\n".join(lines)
 
 
-def displayAll(diagram: Diagram, context: Context, file=None) -> str:
+def displaySignals(system: System, context: Context, file: TextIO | None = None) -> None:
+    """Print the entity's signals and their values at ``context``'s time (sot-core's
+    ``entity.displaySignals()``). It returns nothing, so the prompt shows the table once; the text
+    itself is :func:`signals_report`."""
+    print(signals_report(system, context), file=file)
+
+
+def displayAll(diagram: Diagram, context: Context, file: TextIO | None = None) -> None:
     """``displaySignals`` of every entity of the diagram."""
-    return "\n".join(displaySignals(system, context, file) for system in diagram.GetSystems())
+    for system in diagram.GetSystems():
+        displaySignals(system, context, file)

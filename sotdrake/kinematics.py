@@ -18,20 +18,9 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, OutputPort, ValueProducer
 
+from .configuration import PlantContextHolder
 from .exceptions import InvalidInput, check_finite
 from .robots import RobotModel
-
-
-class PlantContextHolder:
-    """A plant context as the value of a cache entry: a system computing kinematics sets its
-    positions in ``calc``; a copy (for a cloned system context) gets a fresh one."""
-
-    def __init__(self, plant):
-        self.plant = plant
-        self.context = plant.CreateDefaultContext()
-
-    def __deepcopy__(self, memo):
-        return PlantContextHolder(self.plant)
 
 
 class Dynamic(LeafSystem):

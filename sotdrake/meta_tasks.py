@@ -3,16 +3,23 @@
 A meta task adds, names and plugs the entities of one task, as sot-core does:
 ``feature<name>`` (the feature), ``feature<name>_ref`` (``featureDes``, the desired value, where
 the feature has one), ``gain<name>`` and ``task<name>``; the task is connected to the robot's
-solver. Until told otherwise, a desired value is the current one at the device's initial
-configuration, so a task pushed without a target holds still. ``inequality=True`` makes the task a
+solver. A meta task takes the :class:`~sotdrake.robot.Robot` (sot-core passes ``robot.dynamic``; here
+the robot carries its dynamic entity, its device and its solver): ``MetaTaskKine6d('rh', robot, 'rh',
+'right-wrist')``. Until told otherwise, a desired value is the current one at the device's initial
+configuration, so a task pushed without a target holds still.
+
+``keep(context)`` and ``current_pose(context)`` read the value the *feature itself sees* in that
+context: its input, computed by the diagram's own ``dynamic`` entity from whatever ``q`` the diagram
+feeds it (the device's ``q`` in open loop, the measured one in closed loop), as pink's
+``set_target_from_configuration`` does. Without a context (at build time, before any context exists)
+they use the device's initial configuration. ``inequality=True`` makes the task a
 ``TaskInequality`` (bounds on its error); ``pd=True`` a ``TaskPD``.
 """
 
 from __future__ import annotations
 
-import numpy as np
 from pydrake.math import RigidTransform
-from pydrake.systems.framework import Context, OutputPort
+from pydrake.systems.framework import Context, InputPort, OutputPort
 
 from .entity import recording
 from .exceptions import InvalidInput, SotError, check_finite
@@ -29,15 +36,32 @@ from .features import (
 from .features.feature6d import as_transform
 from .gains import GainAdaptive, from_numbers
 from .kinematics import Dynamic
-from .robot import Robot, robot_of
+from .robot import Robot
 from .selection import parse_selection
 from .task import Task, TaskInequality, TaskPD
 
 
-def _current_position(robot: Robot, context: Context | None) -> np.ndarray:
+def _as_robot(robot: Robot, meta: str) -> Robot:
+    if not isinstance(robot, Robot):
+        raise InvalidInput(f"{meta} takes the robot (e.g. {meta}('rh', robot, ...)), got {type(robot).__name__}"
+                           + (": pass the robot, not robot.dynamic" if isinstance(robot, Dynamic) else ""))
+    return robot
+
+
+def _check_not_recording(what: str) -> None:
     if recording():
-        raise SotError("keep() reads the current state: call it with a context, not inside attime")
-    return robot.device.initial_position if context is None else robot.device.position(context)
+        raise SotError(f"{what} reads the current state: call it with a context, not inside attime")
+
+
+def _input_value(port: InputPort, context: Context):
+    """The value ``port`` (an input of a feature) has in the root diagram ``context``."""
+    system = port.get_system()
+    try:
+        own = system.GetMyContextFromRoot(context)
+    except RuntimeError as error:
+        raise InvalidInput(f"context: expected the root diagram context (from which {system.get_name()}'s "
+                           f"input {port.get_name()!r} is evaluated), got another context") from error
+    return port.Eval(own)
 
 
 class _MetaTask:
@@ -50,7 +74,10 @@ class _MetaTask:
         self.feature = feature
         self.gain = robot.add(GainAdaptive("gain" + name))
         nv = robot.dimension
-        task = TaskInequality("task" + name, nv) if inequality else TaskPD("task" + name, nv, robot.dt) if pd else Task("task" + name, nv)
+        if inequality:
+            task: Task = TaskInequality("task" + name, nv)
+        else:
+            task = TaskPD("task" + name, nv, robot.dt) if pd else Task("task" + name, nv)
         self.task = robot.add_task(task)
         connect = robot.builder.Connect
         connect(feature.GetOutputPort("error"), self.gain.GetInputPort("error"))
@@ -60,14 +87,15 @@ class _MetaTask:
 
 
 class MetaTaskKine6d(_MetaTask):
-    """Task on the pose of an op point: ``MetaTaskKine6d('rh', robot.dynamic, 'rh', 'right-wrist')``.
+    """Task on the pose of an op point: ``MetaTaskKine6d('rh', robot, 'rh', 'right-wrist')``.
 
     ``opPointRef`` is an op-point name of ``robot.OperationalPointsMap``, or a joint or frame name.
     """
 
-    def __init__(self, name: str, dyn: Dynamic, opPoint: str, opPointRef: str | None = None,
+    def __init__(self, name: str, robot: Robot, opPoint: str, opPointRef: str | None = None,
                  inequality: bool = False, pd: bool = False):
-        robot = robot_of(dyn)
+        robot = _as_robot(robot, "MetaTaskKine6d")
+        dyn = robot.dynamic
         self.dyn, self.opPoint = dyn, opPoint
         position, jacobian = dyn.createOpPoint(opPoint, opPointRef or opPoint)
         feature = robot.add(Feature6d("feature" + name, robot.dimension))
@@ -90,8 +118,13 @@ class MetaTaskKine6d(_MetaTask):
         self.feature.setOpmodif(value)
 
     def current_pose(self, context: Context | None = None) -> RigidTransform:
-        """``X_WF`` of the controlled frame (op point · opmodif) at the current configuration."""
-        X = self.dyn.pose_at(self.opPoint, _current_position(self.robot, context))
+        """``X_WF`` of the controlled frame (op point · opmodif) as the feature sees it in the root
+        diagram ``context``; without one, at the device's initial configuration."""
+        _check_not_recording("current_pose()")
+        if context is None:
+            X = self.dyn.pose_at(self.opPoint, self.robot.device.initial_position)
+        else:
+            X = _input_value(self.feature.GetInputPort("position"), context)
         opmodif = self.feature.settings(context).opmodif
         return X if opmodif is None else X.multiply(opmodif)
 
@@ -103,9 +136,9 @@ class MetaTaskKine6d(_MetaTask):
 class MetaTaskKineCom(_MetaTask):
     """Task on the centre of mass (``FeatureGeneric`` over ``dynamic.com``), metres, world frame."""
 
-    def __init__(self, dyn: Dynamic, name: str = "com", inequality: bool = False, pd: bool = False):
-        robot = robot_of(dyn)
-        self.dyn = dyn
+    def __init__(self, robot: Robot, name: str = "com", inequality: bool = False, pd: bool = False):
+        robot = _as_robot(robot, "MetaTaskKineCom")
+        self.dyn = dyn = robot.dynamic
         feature = robot.add(FeatureGeneric("feature" + name, 3, robot.dimension))
         self.featureDes = robot.add(FeatureGenericDesired("feature" + name + "_ref", 3))
         connect = robot.builder.Connect
@@ -117,16 +150,21 @@ class MetaTaskKineCom(_MetaTask):
         self.keep()
 
     def keep(self, context: Context | None = None) -> None:
-        """Desired CoM ← current CoM."""
-        self.featureDes.setReference(self.dyn.com_at(_current_position(self.robot, context)), context)
+        """Desired CoM ← current CoM, as the feature sees it in ``context`` (see the module docstring)."""
+        _check_not_recording("keep()")
+        if context is None:
+            com = self.dyn.com_at(self.robot.device.initial_position)
+        else:
+            com = _input_value(self.feature.GetInputPort("errorIN"), context)
+        self.featureDes.setReference(com, context)
 
 
 class MetaTaskKinePosture(_MetaTask):
     """Task on the posture (``FeaturePosture``): by default every joint towards the device's
     initial configuration (half-sitting for TALOS), the floating base left free."""
 
-    def __init__(self, dyn: Dynamic, name: str = "posture", pd: bool = False):
-        robot = robot_of(dyn)
+    def __init__(self, robot: Robot, name: str = "posture", pd: bool = False):
+        robot = _as_robot(robot, "MetaTaskKinePosture")
         feature = robot.add(FeaturePosture("feature" + name, robot.model.plant, robot.device.initial_position))
         robot.builder.Connect(robot.device.GetOutputPort("state"), feature.GetInputPort("state"))
         self._finish(robot, name, feature, pd=pd)
@@ -136,9 +174,10 @@ class MetaTaskKine6dRel(_MetaTask):
     """Task on the pose of op point A with respect to op point B (``FeatureRelative6d``), e.g. one
     hand with respect to the other. The desired relative pose starts as the current one."""
 
-    def __init__(self, name: str, dyn: Dynamic, opPoint: str, opPointBase: str,
+    def __init__(self, name: str, robot: Robot, opPoint: str, opPointBase: str,
                  opPointRef: str | None = None, opPointBaseRef: str | None = None):
-        robot = robot_of(dyn)
+        robot = _as_robot(robot, "MetaTaskKine6dRel")
+        dyn = robot.dynamic
         self.dyn, self.opPoint, self.opPointBase = dyn, opPoint, opPointBase
         a, Ja = dyn.createOpPoint(opPoint, opPointRef or opPoint)
         b, Jb = dyn.createOpPoint(opPointBase, opPointBaseRef or opPointBase)
@@ -152,9 +191,15 @@ class MetaTaskKine6dRel(_MetaTask):
         self.keep()
 
     def keep(self, context: Context | None = None) -> None:
-        """Desired relative pose ← current relative pose."""
-        q = _current_position(self.robot, context)
-        X_BA = self.dyn.pose_at(self.opPointBase, q).inverse().multiply(self.dyn.pose_at(self.opPoint, q))
+        """Desired relative pose ← current relative pose, as the feature sees it in ``context``."""
+        _check_not_recording("keep()")
+        if context is None:
+            q = self.robot.device.initial_position
+            X_WA, X_WB = self.dyn.pose_at(self.opPoint, q), self.dyn.pose_at(self.opPointBase, q)
+        else:
+            X_WA = _input_value(self.feature.GetInputPort("position"), context)
+            X_WB = _input_value(self.feature.GetInputPort("positionRef"), context)
+        X_BA = X_WB.inverse().multiply(X_WA)
         self.featureDes.setPosition(X_BA, context)
 
 
@@ -163,9 +208,9 @@ class MetaTaskVisualPoint(_MetaTask):
     is driven to ``s*`` (default the image centre). Connect ``point`` (and, for a moving point,
     ``point_velocity``) with :meth:`plugPoint`, or set a fixed point with :meth:`setPoint`."""
 
-    def __init__(self, name: str, dyn: Dynamic, opPoint: str = "camera", opPointRef: str = "rgbd_rgb_optical_frame"):
-        robot = robot_of(dyn)
-        position, jacobian = dyn.createOpPoint(opPoint, opPointRef)
+    def __init__(self, name: str, robot: Robot, opPoint: str = "camera", opPointRef: str = "rgbd_rgb_optical_frame"):
+        robot = _as_robot(robot, "MetaTaskVisualPoint")
+        position, jacobian = robot.dynamic.createOpPoint(opPoint, opPointRef)
         feature = robot.add(FeatureVisualPoint("feature" + name, robot.dimension))
         robot.builder.Connect(position, feature.GetInputPort("position"))
         robot.builder.Connect(jacobian, feature.GetInputPort("Jq"))
@@ -190,13 +235,13 @@ def hold_feet_and_com(robot: Robot, sot, gain: float = 10.0, com: bool = True):
     meta tasks (``contactRF``, ``contactLF``, ``taskCom`` or None)."""
     contacts = []
     for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle")):
-        contact = MetaTaskKine6d(name, robot.dynamic, name[-2:], robot.OperationalPointsMap[op])
+        contact = MetaTaskKine6d(name, robot, name[-2:], robot.OperationalPointsMap[op])
         contact.gain.setConstant(gain)
         sot.push(contact.task.name)
         contacts.append(contact)
     taskCom = None
     if com:
-        taskCom = MetaTaskKineCom(robot.dynamic)
+        taskCom = MetaTaskKineCom(robot)
         taskCom.gain.setConstant(gain)
         sot.push(taskCom.task.name)
     return contacts[0], contacts[1], taskCom

@@ -1,7 +1,8 @@
 """A physically simulated TALOS driven by the SoT, as the real robot is (seed: the SoT "is not a
 dynamic simulator"; the tutorial uses Gazebo and ros_control for that).
 
-* A discrete ``MultibodyPlant`` (1 ms, Drake's SAP solver) on a ground half-space, gravity on.
+* A discrete ``MultibodyPlant`` (1 ms, Drake's SAP solver) on a ground half-space (drawn as a flat
+  6 m plate), gravity on.
   Contact geometry: one box per sole, ``SOLE_BOX`` (0.211 × 0.124 m, the footprint of TALOS' foot
   collision mesh, bottom at the sole frame), compliant-hydroelastic (``SOLE_MODULUS`` Pa, a 2 cm
   thick layer, Hunt-Crossley dissipation ``SOLE_DISSIPATION`` s/m) against a rigid-hydroelastic
@@ -45,9 +46,9 @@ from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains
 from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem, ValueProducer
 
-from .device import Layout
+from .configuration import Layout, PlantContextHolder
+from .drake_logging import drop_drake_message
 from .exceptions import InvalidInput, SotError
-from .kinematics import PlantContextHolder
 from .robots.talos import add_talos
 
 #: Sole box in the sole frame: size (m) and centre (the bottom face lies on the sole plane).
@@ -55,6 +56,9 @@ SOLE_BOX = (np.array([0.211, 0.124, 0.02]), np.array([-0.0054, 0.0, 0.01]))
 FRICTION = CoulombFriction(0.9, 0.8)
 SOLE_MODULUS = 5e6  # Pa
 SOLE_DISSIPATION = 50.0  # s/m
+#: The ground's drawing: a plate (m) and its colour (RGBA).
+GROUND_PLATE = (6.0, 6.0, 0.01)
+GROUND_COLOR = np.array([0.62, 0.64, 0.60, 1.0])
 
 
 @dataclass
@@ -83,7 +87,14 @@ def add_physical_talos(
     ground = ProximityProperties()
     AddRigidHydroelasticProperties(ground)
     AddContactMaterial(friction=FRICTION, properties=ground)
+    # Each new context would make Drake warn that a rigid half-space gives no contact data with
+    # *deformable* bodies. There are none here (the soles are compliant-hydroelastic boxes, which
+    # the half-space does touch), so that warning is dropped.
+    drop_drake_message("Rigid (non-deformable) half spaces are not currently supported for deformable contact")
     plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(), HalfSpace(), "ground", ground)
+    # Drawn as a flat plate (the half-space itself has no illustration), its top 1 mm under z = 0.
+    plant.RegisterVisualGeometry(plant.world_body(), RigidTransform([0.0, 0.0, -GROUND_PLATE[2] / 2 - 1e-3]),
+                                 Box(*GROUND_PLATE), "ground_visual", GROUND_COLOR)
     sole_material = ProximityProperties()
     AddCompliantHydroelasticProperties(resolution_hint=0.02, hydroelastic_modulus=SOLE_MODULUS, properties=sole_material)
     AddContactMaterial(dissipation=SOLE_DISSIPATION, friction=FRICTION, properties=sole_material)

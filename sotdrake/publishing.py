@@ -16,23 +16,9 @@ from pydrake.lcm import DrakeLcm
 from pydrake.systems.framework import Context, LeafSystem, OutputPort
 from pydrake.systems.lcm import LcmPublisherSystem, LcmScopeSystem
 
+from .configuration import position_names
 from .exceptions import InvalidInput
 from .robot import Robot
-
-
-def position_names(plant) -> list[str]:
-    """A name for every coordinate of ``q``."""
-    names = [""] * plant.num_positions()
-    for index in plant.GetJointIndices():
-        joint = plant.get_joint(index)
-        if joint.num_positions() == 1:
-            names[joint.position_start()] = joint.name()
-    for body_index in plant.GetFloatingBaseBodies():
-        body = plant.get_body(body_index)
-        start = body.floating_positions_start()
-        for k, suffix in enumerate(("qw", "qx", "qy", "qz", "x", "y", "z")):
-            names[start + k] = f"{body.name()}_{suffix}"
-    return names
 
 
 class RobotStateMessage(LeafSystem):

@@ -9,8 +9,10 @@ stack order, a run-time setting held in the Context.
 
 from __future__ import annotations
 
+from typing import TypeVar
+
 import numpy as np
-from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
+from pydrake.systems.framework import DiagramBuilder, OutputPort, System
 
 from .device import Device
 from .exceptions import InvalidInput, NotFound
@@ -18,6 +20,8 @@ from .kinematics import Dynamic
 from .robots import RobotModel, load_robot
 from .solvers import SOT, SolverKine
 from .task import Task
+
+SystemT = TypeVar("SystemT", bound=System)
 
 
 class Robot:
@@ -38,7 +42,6 @@ class Robot:
         self.solver: SOT | None = None
         self._names: set[str] = set()
         self.dynamic = self.add(Dynamic(model, "dynamic"))
-        self.dynamic.robot = self
         self.device = self.add(Device(model.plant, dt, model.half_sitting if q0 is None else q0, "device"))
         builder.Connect(measured_position or self.device.GetOutputPort("state"), self.dynamic.GetInputPort("position"))
 
@@ -63,7 +66,7 @@ class Robot:
             mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
         return mask
 
-    def add(self, system: LeafSystem, name: str | None = None) -> LeafSystem:
+    def add(self, system: SystemT, name: str | None = None) -> SystemT:
         """Add ``system`` to the builder under ``name`` (default: its own), which must be new."""
         if name is not None:
             system.set_name(name)
@@ -95,13 +98,6 @@ class Robot:
         for task in self.tasks.values():
             self.builder.Connect(task.GetOutputPort("task"), solver.declare_task_input(task))
         return solver
-
-
-def robot_of(dynamic: Dynamic) -> Robot:
-    robot = getattr(dynamic, "robot", None)
-    if robot is None:
-        raise InvalidInput("the dynamic entity must be the one of a sotdrake.Robot (robot.dynamic)")
-    return robot
 
 
 def robot(

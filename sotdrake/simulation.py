@@ -21,24 +21,28 @@ from .exceptions import InvalidInput
 def script_arguments(doc: str, out: str, duration: float | None = 8.0) -> argparse.ArgumentParser:
     """The arguments every script in ``diagrams/`` takes: ``--duration``, ``--out``,
     ``--no-meshcat`` and ``--quiet``; add the script's own, then call ``parse_args``."""
-    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0])
-    parser.add_argument("--duration", type=float, default=duration, help="simulated time (s)")
+    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0],
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("--duration", type=float, default=duration,
+                        help="simulated time (s)" if duration is not None else "simulated time (s); None: each run's own")
     parser.add_argument("--out", type=Path, default=Path(out), help="output directory")
     parser.add_argument("--no-meshcat", action="store_true", help="no recording (faster)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
 
 
-def start(args: argparse.Namespace) -> Meshcat | None:
-    """Check ``--duration``, set up logging, and start Meshcat unless ``--no-meshcat``."""
+def start(args: argparse.Namespace, live: bool = False) -> Meshcat | None:
+    """Check ``--duration``, set up logging, and start Meshcat unless ``--no-meshcat``: for the
+    recording (no URL printed: it would stop working when the script exits) or, with ``live``, to
+    watch (the URL printed). See :func:`sotdrake.visualization.start_meshcat`."""
     if args.duration is not None and not args.duration > 0:
         raise SystemExit(f"--duration must be > 0, got {args.duration}")
     logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
     if args.no_meshcat:
         return None
-    from pydrake.geometry import StartMeshcat
+    from .visualization import start_meshcat
 
-    return StartMeshcat()
+    return start_meshcat(live)
 
 
 def simulate(diagram: Diagram, duration: float, visualizer=None, progress: bool = True,
@@ -56,7 +60,7 @@ def simulate(diagram: Diagram, duration: float, visualizer=None, progress: bool 
     chunk = 0.05
     start = time.perf_counter()
     with tqdm(total=round(duration, 6), disable=not progress, file=sys.stderr, desc=label, leave=bool(not label),
-              bar_format="{desc} {l_bar}{bar}| {n:.2f}/{total:.2f} s [{elapsed}<{remaining}]") as bar:
+              bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} s [{elapsed}<{remaining}]") as bar:
         for k in range(1, int(np.ceil(duration / chunk - 1e-9)) + 1):
             t = min(k * chunk, duration)
             simulator.AdvanceTo(t)
@@ -82,4 +86,7 @@ def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = N
         outputs["recording"] = save_recording(visualizer, meshcat, out / "recording.html")
     summary["outputs"] = {k: str(v) for k, v in outputs.items()}
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    names = ", ".join(Path(p).name for p in outputs.values())
+    note = "; open recording.html in a browser: it plays by itself" if "recording" in outputs else ""
+    print(f"wrote {names}{', ' if names else ''}summary.json in {out}{note}", file=sys.stderr)
     return outputs

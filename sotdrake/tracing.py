@@ -54,8 +54,20 @@ class Tracer:
         np.savetxt(path, np.hstack(columns), delimiter=",", header=",".join(header), comments="")
         return Path(path)
 
-    def plot(self, context: Context, path: Path, signals: list[str] | None = None) -> Path:
-        """A PNG with one panel per signal (default: all) against time."""
+    def plot(
+        self,
+        context: Context,
+        path: Path,
+        signals: list[str] | None = None,
+        title: str | None = None,
+        labels: dict[str, str] | None = None,
+        legends: dict[str, list[str]] | None = None,
+        log: tuple[str, ...] = (),
+    ) -> Path:
+        """A PNG with one panel per signal (default: all) against time (s). ``title``: the figure's
+        title; ``labels``: each panel's y label, with its unit (default: the signal's name);
+        ``legends``: the names of a signal's components (default: the signal's name, or
+        ``name[i]``); signals in ``log`` are drawn on a log scale (as magnitudes)."""
         import matplotlib
 
         matplotlib.use("Agg")
@@ -63,14 +75,27 @@ class Tracer:
 
         data = self.data(context)
         names = signals or list(self.sinks)
-        for name in names:
+        labels, legends = labels or {}, legends or {}
+        for name in [*names, *labels, *legends, *log]:
             if name not in self.sinks:
                 raise InvalidInput(f"tracer: unknown signal {name!r}; traced: {list(self.sinks)}")
-        fig, axes = plt.subplots(len(names), 1, figsize=(8, 2.2 * len(names)), sharex=True, squeeze=False)
+        fig, axes = plt.subplots(len(names), 1, figsize=(9, 2.6 * len(names) + 0.6), sharex=True, squeeze=False)
         for axis, name in zip(axes[:, 0], names):
-            axis.plot(data["time"], data[name])
-            axis.set_ylabel(name)
+            values = data[name]
+            components = legends.get(name) or ([name] if values.shape[1] == 1 else
+                                               [f"{name}[{i}]" for i in range(values.shape[1])])
+            if len(components) != values.shape[1]:
+                raise InvalidInput(f"tracer: {name} has {values.shape[1]} components, the legend names {len(components)}")
+            if name in log:
+                axis.semilogy(data["time"], np.maximum(np.abs(values), 1e-16))
+            else:
+                axis.plot(data["time"], values)
+            axis.set_ylabel(labels.get(name, name))
+            axis.legend(components, fontsize=7, ncol=1 + len(components) // 8, loc="best")
+            axis.grid(True, alpha=0.3)
         axes[-1, 0].set_xlabel("time (s)")
+        if title:
+            fig.suptitle(title)
         fig.tight_layout()
         fig.savefig(path, dpi=100)
         plt.close(fig)

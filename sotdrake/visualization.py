@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +19,23 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import Diagram
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
+from .drake_logging import drake_log_level
 from .robot import Robot
 
 log = logging.getLogger("sotdrake.visualization")
+
+
+def start_meshcat(live: bool = False) -> Meshcat:
+    """Drake's Meshcat, for a recording (``live=False``: nothing printed, since its URL stops working
+    when the script exits; save the run with :func:`save_recording`) or for watching the run live
+    (``live=True``: the URL is printed, labelled as such)."""
+    from pydrake.geometry import StartMeshcat
+
+    with drake_log_level(logging.WARNING):
+        meshcat = StartMeshcat()
+    if live:
+        print(f"Meshcat, live while this process runs: {meshcat.web_url()}")
+    return meshcat
 
 
 def add_robot_visualizer(robot: Robot, meshcat: Meshcat, publish_period: float = 1 / 60) -> MeshcatVisualizer:
@@ -36,10 +51,13 @@ def add_robot_visualizer(robot: Robot, meshcat: Meshcat, publish_period: float =
     return MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, params)
 
 
+TARGET_COLOR = Rgba(0.9, 0.15, 0.1, 0.8)
+
+
 def add_target_marker(meshcat: Meshcat, path: str, position, radius: float = 0.025,
-                      rgba: Rgba = Rgba(0.9, 0.15, 0.1, 0.8)) -> None:
-    """A sphere at ``position`` (world frame, m)."""
-    meshcat.SetObject(path, Sphere(radius), rgba)
+                      rgba: Rgba | None = None) -> None:
+    """A sphere at ``position`` (world frame, m), red by default."""
+    meshcat.SetObject(path, Sphere(radius), TARGET_COLOR if rgba is None else rgba)
     meshcat.SetTransform(path, RigidTransform(np.asarray(position, dtype=float)))
 
 
@@ -52,17 +70,29 @@ def save_recording(visualizer: MeshcatVisualizer, meshcat: Meshcat, path: Path) 
     return path
 
 
+def graphviz_dot() -> list[str] | None:
+    """The command that lays out a GraphViz graph with the ``dot`` engine: Graphviz's own ``dot`` if it
+    is on the PATH, else the ``graphviz-pure`` wheel's command (a dependency of sotdrake, installed
+    beside the Python interpreter), else None."""
+    dot = shutil.which("dot")
+    if dot is not None:
+        return [dot]
+    beside_python = Path(sys.executable).parent / "graphviz-pure"
+    pure = str(beside_python) if beside_python.exists() else shutil.which("graphviz-pure")
+    return None if pure is None else [pure, "-Kdot"]
+
+
 def write_control_graph(diagram: Diagram, path: Path) -> Path:
-    """Drake's GraphViz of ``diagram`` (one level deep) as ``path`` (.svg), rendered by Graphviz's
-    ``dot``; the ``.dot`` source is always written beside it. Without ``dot`` on the PATH only the
-    source is written and a warning says how to get the SVG."""
+    """Drake's GraphViz of ``diagram`` (one level deep) as ``path`` (.svg); the ``.dot`` source is
+    always written beside it. The SVG is laid out by :func:`graphviz_dot`; without any ``dot``
+    command only the source is written and a warning says how to get the SVG."""
     path = Path(path)
     source = path.with_suffix(".dot")
     source.write_text(diagram.GetGraphvizString(max_depth=1))
-    dot = shutil.which("dot")
+    dot = graphviz_dot()
     if dot is None:
-        log.warning("Graphviz 'dot' not found: wrote %s only (install graphviz, e.g. `apt-get install "
-                    "graphviz`, for %s)", source, path.name)
+        log.warning("no 'dot' command: wrote %s only (`pip install graphviz-pure` or install Graphviz "
+                    "for %s)", source, path.name)
         return source
-    subprocess.run([dot, "-Tsvg", str(source), "-o", str(path)], check=True)
+    subprocess.run([*dot, "-Tsvg", str(source), "-o", str(path)], check=True)
     return path

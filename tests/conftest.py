@@ -16,7 +16,7 @@ def rng():
 
 def random_configuration(model, rng, spread: float = 0.5) -> np.ndarray:
     """Half-sitting moved by a random velocity: joints within their limits, any base pose."""
-    from sotdrake.device import Layout, integrate
+    from sotdrake.configuration import Layout, integrate
 
     q = integrate(model.half_sitting, rng.normal(scale=spread, size=model.nv), 1.0, Layout.of(model.plant))
     lo, up = model.plant.GetPositionLowerLimits(), model.plant.GetPositionUpperLimits()

@@ -6,7 +6,7 @@ import pytest
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import DiagramBuilder
 
-from sotdrake.device import Layout, integrate
+from sotdrake.configuration import Layout, integrate
 from sotdrake.lie import exp_so3
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom
 from sotdrake.robot import Robot
@@ -18,11 +18,11 @@ def rig(talos_model):
     builder = DiagramBuilder()
     robot = Robot(builder, talos_model)
     tasks = {
-        "rh_desired": MetaTaskKine6d("rh", robot.dynamic, "rh", "right-wrist"),
-        "rh_current": MetaTaskKine6d("rhc", robot.dynamic, "rh", "right-wrist"),
-        "lf_xy_yaw": MetaTaskKine6d("lf", robot.dynamic, "lf", "left-ankle"),
-        "gaze": MetaTaskKine6d("gaze", robot.dynamic, "gaze", "gaze"),
-        "com": MetaTaskKineCom(robot.dynamic),
+        "rh_desired": MetaTaskKine6d("rh", robot, "rh", "right-wrist"),
+        "rh_current": MetaTaskKine6d("rhc", robot, "rh", "right-wrist"),
+        "lf_xy_yaw": MetaTaskKine6d("lf", robot, "lf", "left-ankle"),
+        "gaze": MetaTaskKine6d("gaze", robot, "gaze", "gaze"),
+        "com": MetaTaskKineCom(robot),
     }
     offset = RigidTransform(RotationMatrix(exp_so3(np.array([0.3, -0.2, 0.5]))), [0.1, 0.02, -0.05])
     tasks["rh_desired"].opmodif = offset

@@ -7,7 +7,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from sotdrake.device import Layout, integrate
+from sotdrake.configuration import Layout, integrate
 from sotdrake.exceptions import InvalidInput
 from sotdrake.features import Feature1D, FeatureJointLimits
 from sotdrake.lie import exp_so3
@@ -21,17 +21,17 @@ from tests.test_features import feature_at
 def rig(talos_model):
     builder = DiagramBuilder()
     robot = Robot(builder, talos_model)
-    posture = MetaTaskKinePosture(robot.dynamic)
+    posture = MetaTaskKinePosture(robot)
     for i in range(6):
         posture.feature.selectDof(i, True)  # the floating base too
-    relative = MetaTaskKine6dRel("hands", robot.dynamic, "rh", "lh", "right-wrist", "left-wrist")
-    gaze = MetaTaskVisualPoint("gaze", robot.dynamic)
+    relative = MetaTaskKine6dRel("hands", robot, "rh", "lh", "right-wrist", "left-wrist")
+    gaze = MetaTaskVisualPoint("gaze", robot)
     point = robot.add(ConstantVectorSource(np.array([1.5, 0.2, 1.3])), "point")
     point_velocity = robot.add(ConstantVectorSource(np.array([0.1, -0.3, 0.2])), "point_velocity")
     gaze.plugPoint(point.get_output_port(), point_velocity.get_output_port())
     limits = robot.add(FeatureJointLimits("featurejl", talos_model.plant))
     builder.Connect(robot.device.GetOutputPort("state"), limits.GetInputPort("state"))
-    hand = MetaTaskKine6d("rh6", robot.dynamic, "rh6", "right-wrist")
+    hand = MetaTaskKine6d("rh6", robot, "rh6", "right-wrist")
     one = robot.add(Feature1D("feature1d", talos_model.nv))
     for a, b in (("error", "errorIN"), ("jacobian", "jacobianIN"), ("errordot", "errordotIN")):
         builder.Connect(hand.feature.GetOutputPort(a), one.GetInputPort(b))
@@ -77,7 +77,7 @@ def errordot_at(feature, context):
 def test_feature6d_errordot_by_moving_the_target(talos_model, frame):
     builder = DiagramBuilder()
     robot = Robot(builder, talos_model)
-    task = MetaTaskKine6d("rh", robot.dynamic, "rh", "right-wrist")
+    task = MetaTaskKine6d("rh", robot, "rh", "right-wrist")
     task.feature.frame(frame)
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
@@ -101,7 +101,7 @@ def test_feature6d_errordot_by_moving_the_target(talos_model, frame):
 def test_moving_targets_feed_forward_reaches_the_task(talos_model):
     builder = DiagramBuilder()
     robot = Robot(builder, talos_model)
-    com = MetaTaskKineCom(robot.dynamic)
+    com = MetaTaskKineCom(robot)
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
     com.featureDes.setVelocity([0.01, -0.02, 0.0], context)
@@ -145,7 +145,7 @@ def test_joint_limits_feature_is_sot_core_centring(talos_model):
 def test_posture_select_dof(talos_model):
     builder = DiagramBuilder()
     robot = Robot(builder, talos_model)
-    posture = MetaTaskKinePosture(robot.dynamic)
+    posture = MetaTaskKinePosture(robot)
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
     e, J = feature_at(robot, posture.feature, context, talos_model.half_sitting)

@@ -52,5 +52,11 @@ def test_gain_entity_output_and_commands():
     assert port.Eval(gain.GetMyContextFromRoot(context))[0] == pytest.approx(1.00052, abs=1e-5)
     gain.setConstant(7.0, context)
     assert port.Eval(gain.GetMyContextFromRoot(context))[0] == 7.0
-    assert diagram.CreateDefaultContext() is not None
-    assert port.Eval(gain.GetMyContextFromRoot(diagram.CreateDefaultContext()))[0] == pytest.approx(1.00052, abs=1e-5)
+    # The context's command left the defaults alone: a new context starts from set(4, 1, 5) ...
+    fresh = diagram.CreateDefaultContext()
+    assert port.Eval(gain.GetMyContextFromRoot(fresh))[0] == pytest.approx(1.00052, abs=1e-5)
+    # ... and a build-time command changes the defaults, not the contexts already made.
+    gain.setConstant(2.0)
+    assert port.Eval(gain.GetMyContextFromRoot(context))[0] == 7.0
+    assert port.Eval(gain.GetMyContextFromRoot(fresh))[0] == pytest.approx(1.00052, abs=1e-5)
+    assert port.Eval(gain.GetMyContextFromRoot(diagram.CreateDefaultContext()))[0] == 2.0

@@ -27,10 +27,10 @@ def robot(talos_model):
 
 def test_meta_task_inputs(robot):
     with pytest.raises(FrameNotFound):
-        MetaTaskKine6d("x", robot.dynamic, "x", "right_wrist")
-    task = MetaTaskKine6d("rh", robot.dynamic, "rh", "right-wrist")
+        MetaTaskKine6d("x", robot, "x", "right_wrist")
+    task = MetaTaskKine6d("rh", robot, "rh", "right-wrist")
     with pytest.raises(InvalidInput):
-        MetaTaskKine6d("rh", robot.dynamic, "rh2", "left-wrist")  # duplicate entity names
+        MetaTaskKine6d("rh", robot, "rh2", "left-wrist")  # duplicate entity names
     with pytest.raises(InvalidInput):
         robot.dynamic.createOpPoint("rh", "left-wrist")  # same op-point name, another frame
     for target in [(0.5, 0.2), (0.5, np.nan, 1.0), np.ones((3, 3))]:
@@ -47,7 +47,7 @@ def test_meta_task_inputs(robot):
     with pytest.raises(InvalidInput):
         task.opmodif = not_rotation
     assert task.featureDes.settings().position.translation()[0] != 0.5  # nothing half-applied
-    com = MetaTaskKineCom(robot.dynamic)
+    com = MetaTaskKineCom(robot)
     with pytest.raises(InvalidInput):
         gotoNd(com, (0.0, 0.1))
 

@@ -16,11 +16,11 @@ from sotdrake.task import Task, TaskLevel
 def build(model, with_sequence=True):
     builder = DiagramBuilder()
     robot = Robot(builder, model)
-    rh = MetaTaskKine6d("rh", robot.dynamic, "rh", "right-wrist")
-    lf = MetaTaskKine6d("lf", robot.dynamic, "lf", "left-ankle")
-    com = MetaTaskKineCom(robot.dynamic)
+    rh = MetaTaskKine6d("rh", robot, "rh", "right-wrist")
+    lf = MetaTaskKine6d("lf", robot, "lf", "left-ankle")
+    com = MetaTaskKineCom(robot)
     sot = add_sot(robot)  # created after the tasks: still connected to all of them
-    lh = MetaTaskKine6d("lh", robot.dynamic, "lh", "left-wrist")  # and to the ones created after
+    lh = MetaTaskKine6d("lh", robot, "lh", "left-wrist")  # and to the ones created after
     sot.setControlSelection(robot.velocity_selection(["gripper_left_joint", "gripper_right_joint"]))
     sot.push(lf.task.name)
     sot.push(com.task.name)

@@ -1,5 +1,6 @@
 """The rest of the toolbox: gains, TaskPD, the live stack, introspection, tracer, LCM, runner, examples."""
 
+import io
 import json
 import math
 import subprocess
@@ -8,13 +9,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from drake import lcmt_robot_state
+from pydrake.lcm import DrakeLcm
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.lcm import LcmPublisherSystem
 
 from sotdrake.exceptions import InvalidInput, NotFound, StackError, TaskNotFound
 from sotdrake.gains import GainHyperbolic, hyperbolic
 from sotdrake.interactive import Runner
-from sotdrake.introspection import displayAll, displaySignals, entities, entity, signal
+from sotdrake.introspection import displayAll, displaySignals, entities, entity, signal, signals_report
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.publishing import add_signal_publisher, add_state_publisher
 from sotdrake.robot import Robot, add_sot
@@ -43,9 +47,9 @@ def stack(talos_model):
     builder = DiagramBuilder()
     robot = Robot(builder, talos_model)
     sot = add_sot(robot)
-    metas = {name: MetaTaskKine6d(name, robot.dynamic, name, op) for name, op in
+    metas = {name: MetaTaskKine6d(name, robot, name, op) for name, op in
              (("LF", "left-ankle"), ("RF", "right-ankle"), ("rh", "right-wrist"), ("lh", "left-wrist"))}
-    com = MetaTaskKineCom(robot.dynamic)
+    com = MetaTaskKineCom(robot)
     return robot, sot, metas, com, builder.Build()
 
 
@@ -112,12 +116,15 @@ def test_introspection(stack):
     names = entities(diagram)
     assert {"dynamic", "device", "sot", "taskrh", "featurerh", "featurerh_ref", "gainrh"} <= set(names)
     context = diagram.CreateDefaultContext()
-    report = displaySignals(entity(diagram, "gaincom"), context, file=open("/dev/null", "w"))
-    everything = displayAll(diagram, context, file=open("/dev/null", "w"))
-    assert report in everything and "sot (SOT)" in everything
+    report = signals_report(entity(diagram, "gaincom"), context)
+    printed, everything = io.StringIO(), io.StringIO()
+    assert displaySignals(entity(diagram, "gaincom"), context, file=printed) is None  # the prompt shows it once
+    assert printed.getvalue() == report + "\n"
+    displayAll(diagram, context, file=everything)
+    assert report in everything.getvalue() and "sot (SOT)" in everything.getvalue()
     assert "out gain" in report and "[1.]" in report and "in  error" in report
     np.testing.assert_allclose(signal(robot.dynamic, "com", context), robot.dynamic.com_at(robot.device.initial_position))
-    assert "not connected" in displaySignals(metas["rh"].featureDes, context, file=open("/dev/null", "w"))
+    assert "not connected" in signals_report(metas["rh"].featureDes, context)
     with pytest.raises(NotFound):
         signal(robot.dynamic, "comm", context)
     with pytest.raises(NotFound):
@@ -128,7 +135,7 @@ def test_tracer_csv_and_plot(talos_model, tmp_path):
     builder = DiagramBuilder()
     robot = Robot(builder, talos_model)
     add_sot(robot)  # an empty stack: the robot holds still
-    com = MetaTaskKineCom(robot.dynamic)
+    com = MetaTaskKineCom(robot)
     tracer = Tracer(builder, 0.01)
     tracer.add(robot.dynamic.GetOutputPort("com"), "com")
     tracer.add(com.task.GetOutputPort("error_norm"), "error")
@@ -145,11 +152,18 @@ def test_tracer_csv_and_plot(talos_model, tmp_path):
 
 
 def test_state_published_at_100_hz_to_another_process(talos_model, tmp_path):
+    """Exactly 101 messages 10 ms apart leave the publisher (checked in-process, on an in-memory
+    LCM beside the UDP one); another process receives them over UDP, which may drop a few on a
+    loaded machine (a lost datagram is not retransmitted), so it must get at least 95 %."""
     channel = f"sot_control/state_{tmp_path.name}"
     subscriber = [sys.executable, str(ROOT / "tests" / "lcm_subscriber.py")]
-    listener = subprocess.Popen([*subscriber, channel, "state", "6", str(tmp_path / "state.jsonl")], stdout=subprocess.PIPE, text=True)
-    scope_listener = subprocess.Popen([*subscriber, channel + "_com", "scope", "6", str(tmp_path / "com.jsonl")],
+    # Each listener stops on a "done" message sent after the run (a timeout only if it never comes).
+    listener = subprocess.Popen([*subscriber, channel, "state", "30", str(tmp_path / "state.jsonl")], stdout=subprocess.PIPE, text=True)
+    scope_listener = subprocess.Popen([*subscriber, channel + "_com", "scope", "30", str(tmp_path / "com.jsonl")],
                                       stdout=subprocess.PIPE, text=True)
+    memory = DrakeLcm("memq://")
+    sent: list[lcmt_robot_state] = []
+    memory.Subscribe(channel, lambda data: sent.append(lcmt_robot_state.decode(data)))
     try:
         assert listener.stdout.readline().strip() == "ready"
         assert scope_listener.stdout.readline().strip() == "ready"
@@ -157,30 +171,37 @@ def test_state_published_at_100_hz_to_another_process(talos_model, tmp_path):
         robot = Robot(builder, talos_model)
         add_sot(robot)  # an empty stack: the robot holds still
         add_state_publisher(robot, channel=channel, period=0.01)
+        copy = builder.AddSystem(LcmPublisherSystem.Make(channel, lcmt_robot_state, memory, 0.01))
+        builder.Connect(builder.GetSubsystemByName("ros_publish_state").get_output_port(), copy.get_input_port())
         add_signal_publisher(robot, robot.dynamic.GetOutputPort("com"), channel + "_com", period=0.05)
         simulator = Simulator(builder.Build())
         simulator.set_target_realtime_rate(1.0)  # as on a robot: no burst for the UDP buffers
         simulator.AdvanceTo(1.0)
-        listener.wait(timeout=20)
-        scope_listener.wait(timeout=20)
+        lcm = DrakeLcm()  # same host and URL as the publishers: sent after their last message
+        lcm.Publish(channel + "_done", b"")
+        lcm.Publish(channel + "_com_done", b"")
+        assert listener.wait(timeout=30) == 0 and scope_listener.wait(timeout=30) == 0
         messages = [json.loads(line) for line in (tmp_path / "state.jsonl").read_text().splitlines()]
         scopes = [json.loads(line) for line in (tmp_path / "com.jsonl").read_text().splitlines()]
     finally:
         listener.kill()
         scope_listener.kill()
+    while memory.HandleSubscriptions(0) > 0:
+        pass
+    assert [m.utime for m in sent] == list(range(0, 1_000_001, 10_000))  # t = 0, 0.01, …, 1.0
+    assert list(sent[0].joint_name[:7]) == [f"base_link_{s}" for s in ("qw", "qx", "qy", "qz", "x", "y", "z")]
     times = np.array([m["utime"] for m in messages])
-    assert len(messages) == 101  # t = 0, 0.01, …, 1.0
-    assert np.all(np.diff(times) == 10_000)
+    assert len(messages) >= 96 and np.all(np.diff(times) > 0) and np.all(times % 10_000 == 0)
     assert messages[0]["names"][:7] == [f"base_link_{s}" for s in ("qw", "qx", "qy", "qz", "x", "y", "z")]
     np.testing.assert_allclose(messages[-1]["values"], talos_model.half_sitting)
-    assert len(scopes) == 21 and np.allclose(scopes[0]["values"], robot.dynamic.com_at(talos_model.half_sitting))
+    assert len(scopes) >= 20 and np.allclose(scopes[0]["values"], robot.dynamic.com_at(talos_model.half_sitting))
 
 
 def test_interactive_runner_steps_ticks_and_fires_attime(talos_model):
     builder = DiagramBuilder()
     robot = Robot(builder, talos_model)
     sot = add_sot(robot)
-    hand = MetaTaskKine6d("rh", robot.dynamic, "rh", "right-wrist")
+    hand = MetaTaskKine6d("rh", robot, "rh", "right-wrist")
     gotoNd(hand, hand.current_pose().translation() + [0.05, 0, 0], "111", 5.0)
     attime(0.0105, lambda: sot.push(hand.task.name), "push")
     runner = Runner(builder.Build(), robot.dt)

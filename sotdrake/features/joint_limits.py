@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import Context
 
-from ..device import Layout
+from ..configuration import Layout, position_names
 from .base import Feature
 
 
@@ -27,7 +27,8 @@ class FeatureJointLimits(Feature):
         self._v = layout.joints_v[finite]
         self._lower, self._width = lower[self._q], (upper - lower)[self._q]
         Feature.__init__(self, name, len(self._q), plant.num_velocities())
-        self.joint_names = [_name_of(plant, i) for i in self._q]
+        names = position_names(plant)
+        self.joint_names = [names[i] for i in self._q]
         self.state = self.DeclareVectorInputPort("state", plant.num_positions())
         self._declare_outputs()
 
@@ -38,10 +39,3 @@ class FeatureJointLimits(Feature):
         J[np.arange(self.dimension), self._v] = 2.0 / self._width
         return e, J, np.zeros(self.dimension)
 
-
-def _name_of(plant, position_index: int) -> str:
-    for j in plant.GetJointIndices():
-        joint = plant.get_joint(j)
-        if joint.position_start() <= position_index < joint.position_start() + joint.num_positions():
-            return joint.name()
-    return str(position_index)

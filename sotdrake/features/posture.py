@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from pydrake.systems.framework import Context
 
-from ..device import Layout
+from ..configuration import Layout
 from ..exceptions import InvalidInput, check_finite
 from ..lie import left_jacobian_inverse_so3, log_so3, quaternion_wxyz_to_rotation, right_jacobian_inverse_so3
 from .base import Feature, FeatureSettings, optional_input

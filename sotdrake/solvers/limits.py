@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..device import Layout
+from ..configuration import Layout
 
 
 def velocity_bounds(

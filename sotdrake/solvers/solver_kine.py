@@ -19,7 +19,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context
 
-from ..device import Layout
+from ..configuration import Layout
 from ..exceptions import InvalidInput, SolverError
 from ..robots import RobotModel
 from .hqp import HierarchicalQP, LevelRows, check_solver

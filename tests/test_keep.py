@@ -1,0 +1,63 @@
+"""``keep()`` holds the pose the diagram's own kinematics gives the feature in that context.
+
+In the closed-loop physics diagram the SoT's kinematics reads the simulated robot's joints, not the
+device's ``q``: after the right elbow of the simulated robot is moved by 0.3 rad, the device still
+holds half-sitting, and a pose computed at the device's ``q`` would be ~8.5 cm from the one the
+feature sees.
+"""
+
+import numpy as np
+import pytest
+
+from sotdrake.exceptions import InvalidInput
+from tests.conftest import load_diagram
+
+
+@pytest.fixture(scope="module")
+def closed_loop():
+    physics = load_diagram("talos_physics")
+    run = physics.build_diagram("stand", loop="closed")
+    context = run.diagram.CreateDefaultContext()
+    plant = run.physical.plant
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+    elbow = plant.GetJointByName("arm_right_4_joint")
+    q = plant.GetPositions(plant_context)
+    q[elbow.position_start()] += 0.3
+    plant.SetPositions(plant_context, q)
+    return run, context
+
+
+def _feature_error(meta, context):
+    return meta.feature.GetOutputPort("error").Eval(meta.feature.GetMyContextFromRoot(context))
+
+
+def test_keep_holds_the_pose_the_feature_sees(closed_loop):
+    run, context = closed_loop
+    taskRH = run.taskRH
+    q_device = run.robot.device.position(context)
+    side = taskRH.dyn.pose_at(taskRH.opPoint, q_device).multiply(taskRH.opmodif)
+    seen = taskRH.current_pose(context)
+    # the moved elbow is seen: the device's q would give another pose
+    assert np.linalg.norm(seen.translation() - side.translation()) > 0.05
+    taskRH.keep(context)
+    held = taskRH.featureDes.settings(context).position
+    np.testing.assert_allclose(held.GetAsMatrix4(), seen.GetAsMatrix4(), atol=1e-12)
+    np.testing.assert_allclose(_feature_error(taskRH, context), 0.0, atol=1e-12)
+
+
+def test_keep_of_the_com_and_the_error_is_zero(closed_loop):
+    run, context = closed_loop
+    taskCom = run.taskCom
+    before = np.linalg.norm(_feature_error(taskCom, context))
+    taskCom.keep(context)
+    assert before > 1e-4  # the elbow moved the CoM away from the build-time reference
+    np.testing.assert_allclose(_feature_error(taskCom, context), 0.0, atol=1e-12)
+
+
+def test_keep_needs_the_root_context(closed_loop):
+    run, context = closed_loop
+    own = run.taskRH.featureDes.GetMyContextFromRoot(context)
+    before = run.taskRH.featureDes.settings(context).position.GetAsMatrix4()
+    with pytest.raises(InvalidInput, match="root diagram context"):
+        run.taskRH.keep(own)
+    np.testing.assert_array_equal(run.taskRH.featureDes.settings(context).position.GetAsMatrix4(), before)

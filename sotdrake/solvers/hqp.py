@@ -31,9 +31,10 @@ How a level is solved:
   per level: the level is then a ``MathematicalProgram`` in ``(y, w)``, and the solver's answer is
   *polished*: its active set is tried as the working-set guess of the same active-set method, which
   returns the exact optimum (from that guess if it satisfies the KKT conditions, else by iterating).
-  A level whose rows carry an ``extend`` callback (a user's extra costs or constraints) always goes
-  through its ``MathematicalProgram`` and keeps the solver's answer (it is not a least-squares level
-  any more);
+  A level whose rows carry an ``extend`` callback (a user's extra costs or constraints) goes through
+  its ``MathematicalProgram`` and keeps the solver's answer (it is not a least-squares level any
+  more); so do the stages below it, which receive the callback again with ``own=False`` to add
+  the constraints that must keep holding (not the costs);
 * nothing fails silently: if a path fails (no convergence, a non-finite point, a point outside the
   bounds) the next one is tried (active set, Clarabel polished, OSQP polished); a :class:`SolverError`
   means all failed.
@@ -90,9 +91,10 @@ def _options(name: str) -> SolverOptions:
     return options
 
 
-Extension = Callable[[MathematicalProgram, np.ndarray], None]
-"""``extend(prog, x)``: add costs or constraints to a level's program; ``x`` holds the affine
-expressions of the variables (``x = x_{k-1} + Z y``)."""
+Extension = Callable[[MathematicalProgram, np.ndarray, bool], None]
+"""``extend(prog, x, own)``: add costs and constraints to a level's program (``own=True``), or, on
+the stages below it (``own=False``), the constraints that must keep holding there; ``x`` holds the
+affine expressions of the variables (``x = x_{k-1} + Z y``)."""
 
 
 class LevelRows:
@@ -251,12 +253,15 @@ class HierarchicalQP:
         # The hard rows (bounds, then held inequality rows), in x, with the side each was left at.
         hard_A, hard_lower, hard_upper = np.eye(n)[free], x_lower[free], x_upper[free]
         hard_side = np.zeros(len(free), dtype=int)
-        used, iterations = [], []
+        used, iterations, carried = [], [], []
         stages = list(levels) + ([None] if self.regularize else [])
         for k, level in enumerate(stages):
             mu = damping if k == len(levels) - 1 else 0.0
             name = self.level_solvers[k] if k < len(self.level_solvers) and level is not None else solver
-            x, side, how, count = self._stage(k, level, x, Z, hard_A, hard_lower, hard_upper, hard_side, mu, name)
+            x, side, how, count = self._stage(k, level, x, Z, hard_A, hard_lower, hard_upper, hard_side, mu, name,
+                                              list(carried))
+            if level is not None and level.extend is not None:
+                carried.append(level.extend)
             used.append(how)
             iterations.append(count)
             if level is None:
@@ -326,7 +331,7 @@ class HierarchicalQP:
                       np.concatenate([np.zeros(r), w0]), r, np.flatnonzero(keep),
                       np.concatenate([hard_side[keep], np.zeros(m_in, dtype=int)]))
 
-    def _stage(self, k, level, x0, Z, hard_A, hard_lower, hard_upper, hard_side, mu, name):
+    def _stage(self, k, level, x0, Z, hard_A, hard_lower, hard_upper, hard_side, mu, name, carried):
         """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard
         rows at the end, how it was solved, the active-set iterations."""
         r = Z.shape[1]
@@ -338,10 +343,10 @@ class HierarchicalQP:
         guess = cached if cached is not None else stage.guess
         what = "the minimum-norm stage" if level is None else f"level {k}"
         failures = []
-        if level is not None and level.extend is not None:
+        if (level is not None and level.extend is not None) or carried:
             drake_name = name if name in SOLVERS else "clarabel"
             for attempt in dict.fromkeys([drake_name, "osqp"]):
-                x, message = self._program(level, x0, Z, hard_A, hard_lower, hard_upper, mu, attempt, extended=True)
+                x, message = self._program(level, x0, Z, hard_A, hard_lower, hard_upper, mu, attempt, carried)
                 if x is not None and self._bounds_hold(stage, Z.T @ (x - x0)):
                     side = self._sides(stage, np.concatenate([Z.T @ (x - x0), np.zeros(len(stage.z0) - r)]))
                     return x, self._hard_sides(hard_side, stage, side), attempt, 0
@@ -406,11 +411,12 @@ class HierarchicalQP:
         out[stage.hard] = side[:len(stage.hard)]
         return out
 
-    def _program(self, level, x0, Z, hard_A, hard_lower, hard_upper, mu, name, extended=False):
+    def _program(self, level, x0, Z, hard_A, hard_lower, hard_upper, mu, name, carried=None):
         """The stage as a ``MathematicalProgram`` in ``(y, w)`` solved by Drake's ``name``:
         ``(x, "")`` or ``(None, why)``."""
         r, n = Z.shape[1], self.n
         m = 0 if level is None else level.A.shape[0]
+        extended = carried is not None
         offset = hard_A @ x0
         with np.errstate(invalid="ignore"):
             c_lower = np.minimum(hard_lower, offset) - offset
@@ -438,7 +444,11 @@ class HierarchicalQP:
             program.rows.evaluator().UpdateCoefficients(A_all, np.concatenate(rows_lower), np.concatenate(rows_upper))
         program.cost.evaluator().UpdateCoefficients(Q, b)
         if extended:
-            level.extend(program.prog, x0 + Z @ program.y)
+            x_expression = x0 + Z @ program.y
+            for extension in carried:
+                extension(program.prog, x_expression, False)
+            if level is not None and level.extend is not None:
+                level.extend(program.prog, x_expression, True)
         drake_solver, options = self._drake(name)
         result = drake_solver.Solve(program.prog, np.zeros(r + m), options)
         x = x0 + Z @ result.GetSolution(program.y)

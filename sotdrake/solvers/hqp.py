@@ -252,14 +252,15 @@ class HierarchicalQP:
         free = np.flatnonzero(~fixed & (np.isfinite(x_lower) | np.isfinite(x_upper)))  # bound rows that can bind
         # The hard rows (bounds, then held inequality rows), in x, with the side each was left at.
         hard_A, hard_lower, hard_upper = np.eye(n)[free], x_lower[free], x_upper[free]
+        hard_norms = np.ones(len(free))  # reference norms of the hard rows
         hard_side = np.zeros(len(free), dtype=int)
         used, iterations, carried = [], [], []
         stages = list(levels) + ([None] if self.regularize else [])
         for k, level in enumerate(stages):
             mu = damping if k == len(levels) - 1 else 0.0
             name = self.level_solvers[k] if k < len(self.level_solvers) and level is not None else solver
-            x, side, how, count = self._stage(k, level, x, Z, hard_A, hard_lower, hard_upper, hard_side, mu, name,
-                                              list(carried))
+            hard = (free, hard_norms, hard_A, hard_lower, hard_upper, hard_side)
+            x, side, how, count = self._stage(k, level, x, Z, hard, mu, name, list(carried))
             if level is not None and level.extend is not None:
                 carried.append(level.extend)
             used.append(how)
@@ -280,6 +281,7 @@ class HierarchicalQP:
                     row_side = np.where(value >= hi - 1e-12 * np.maximum(1.0, np.abs(value)), 1,
                                         np.where(value <= lo + 1e-12 * np.maximum(1.0, np.abs(value)), -1, 0))
                 hard_A = np.vstack([hard_A, A_in])
+                hard_norms = np.concatenate([hard_norms, _row_norms(A_in)])
                 hard_lower = np.concatenate([hard_lower, lo - slack - band])
                 hard_upper = np.concatenate([hard_upper, hi + slack + band])
                 hard_side = np.concatenate([hard_side, row_side])
@@ -289,27 +291,35 @@ class HierarchicalQP:
         return result
 
     # --- one stage --------------------------------------------------------------------------
-    def _build(self, level, x0, Z, hard_A, hard_lower, hard_upper, hard_side, mu) -> _Stage:
+    def _build(self, level, x0, Z, hard, mu) -> _Stage:
         """The stage in ``z = (y, w)`` (see :class:`_Stage`), rows scaled to unit norm."""
         tau, r = self.rank_threshold, Z.shape[1]
-        C = hard_A @ Z
-        reference = _row_norms(hard_A)
+        free, reference, hard_A, hard_lower, hard_upper, hard_side = hard
+        held = hard_A[len(free):]
+        C = np.vstack([Z[free], held @ Z]) if len(held) else Z[free]  # bound rows are unit rows of x
         projected = np.sqrt(np.einsum("ij,ij->i", C, C))
         keep = projected > tau * reference  # the others are constant over the stage
-        offset = hard_A[keep] @ x0
+        offset = np.concatenate([x0[free], held @ x0])[keep]
         scale = projected[keep]
         with np.errstate(invalid="ignore"):
             # Never ask more than the previous point achieves (y = 0 stays feasible).
             c_lower = (np.minimum(hard_lower[keep], offset) - offset) / scale
             c_upper = (np.maximum(hard_upper[keep], offset) - offset) / scale
         G_hard = C[keep] / scale[:, None]
-        if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖²
-            M, t, m_scale = Z, -x0, np.ones(self.n)
-            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, np.flatnonzero(keep),
-                          hard_side[keep])
+        if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)
+            return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), G_hard, c_lower, c_upper, np.zeros(r), r,
+                          np.flatnonzero(keep), hard_side[keep])
         eq = level.equality
         A_eq, A_in = level.A[eq], level.A[~eq]
         m_in = len(A_in)
+        if m_in == 0:  # no soft row: z = y
+            M, t, m_scale = A_eq @ Z, level.lower[eq] - A_eq @ x0, _row_norms(A_eq)
+            if mu > 0.0:
+                M = np.vstack([M, np.sqrt(mu) * np.eye(r)])
+                t = np.concatenate([t, np.zeros(r)])
+                m_scale = np.concatenate([m_scale, np.full(r, np.sqrt(mu))])
+            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, np.flatnonzero(keep),
+                          hard_side[keep])
         blocks = [np.hstack([A_eq @ Z, np.zeros((len(A_eq), m_in))]),
                   np.hstack([np.zeros((m_in, r)), np.eye(m_in)])]
         targets = [level.lower[eq] - A_eq @ x0, np.zeros(m_in)]
@@ -331,13 +341,14 @@ class HierarchicalQP:
                       np.concatenate([np.zeros(r), w0]), r, np.flatnonzero(keep),
                       np.concatenate([hard_side[keep], np.zeros(m_in, dtype=int)]))
 
-    def _stage(self, k, level, x0, Z, hard_A, hard_lower, hard_upper, hard_side, mu, name, carried):
+    def _stage(self, k, level, x0, Z, hard, mu, name, carried):
         """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard
         rows at the end, how it was solved, the active-set iterations."""
         r = Z.shape[1]
         if r == 0:
-            return x0, hard_side.copy(), ACTIVE_SET, 0
-        stage = self._build(level, x0, Z, hard_A, hard_lower, hard_upper, hard_side, mu)
+            return x0, hard[5].copy(), ACTIVE_SET, 0
+        stage = self._build(level, x0, Z, hard, mu)
+        _, _, hard_A, hard_lower, hard_upper, hard_side = hard
         key = (k, level is None, stage.G.shape, stage.M.shape)
         cached = self._working_sets.get(key)
         guess = cached if cached is not None else stage.guess

@@ -125,7 +125,7 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
     simulator = Simulator(runs.diagram, context)
     simulator.Initialize()
     frozen, position_violations, velocity_violations, solve_times, active = 0, 0, 0, [], 0
-    failures = []
+    failures, fallbacks, iterations = [], 0, 0
     for k in range(ticks):
         diagnostics = sot.GetOutputPort("diagnostics").Eval(own)
         v = sot.GetOutputPort("control").Eval(own)
@@ -133,6 +133,8 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
             frozen += 1
             failures.append(diagnostics.failure)
         solve_times.append(diagnostics.solve_time_s)
+        fallbacks += any(how != "active-set" for how in diagnostics.level_solvers)
+        iterations = max(iterations, diagnostics.max_iterations)
         active += len(diagnostics.active_limits) > 0
         iv = layout.joints_v
         velocity_violations += int(np.any(v[iv] < v_lower[iv] - 1e-9) or np.any(v[iv] > v_upper[iv] + 1e-9))
@@ -142,7 +144,8 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
         position_violations += int(np.any(q[iq] < lower[iq] - 1e-9) or np.any(q[iq] > upper[iq] + 1e-9))
     return {"stack": stack, "frozen_ticks": frozen, "position_limit_violations": position_violations,
             "velocity_limit_violations": velocity_violations, "ticks_with_active_limits": active,
-            "solve_times_s": solve_times, "failures": failures[:3]}
+            "solve_times_s": solve_times, "failures": failures[:3], "ticks_with_a_fallback": fallbacks,
+            "max_iterations": iterations}
 
 
 def main(argv=None) -> dict:
@@ -167,6 +170,8 @@ def main(argv=None) -> dict:
         "position_limit_violations": sum(r["position_limit_violations"] for r in results),
         "velocity_limit_violations": sum(r["velocity_limit_violations"] for r in results),
         "ticks_with_active_limits": sum(r["ticks_with_active_limits"] for r in results),
+        "ticks_with_a_fallback": sum(r["ticks_with_a_fallback"] for r in results),
+        "max_active_set_iterations": max(r["max_iterations"] for r in results),
         "solve_ms_median": float(np.median(times)), "solve_ms_p99": float(np.percentile(times, 99)),
         "solve_ms_max": float(times.max()), "wall_s": wall,
         "failures": [f for r in results for f in r["failures"]][:10],

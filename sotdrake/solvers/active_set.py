@@ -94,7 +94,11 @@ def eqp(
         N = Vt[k:].T
     else:
         z, N = np.zeros(p), None
-    if len(M):
+    identity = M.shape[0] == p and bool(np.all(m_scale == 1.0)) and np.array_equal(M, np.eye(p))
+    if identity:  # ½‖z - t‖² (the minimum-norm stage): N has orthonormal columns, no decomposition
+        r = t - z
+        z = z + (r if N is None else N @ (N.T @ r))
+    elif len(M):
         B = M if N is None else M @ N
         if B.shape[1]:
             r = t - M @ z

@@ -48,6 +48,7 @@ class HqpDiagnostics:
     active_limits: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     level_solvers: list[str] = field(default_factory=list)
     solve_time_s: float = 0.0
+    max_iterations: int = 0  # active-set iterations of the stage that needed most (0: every guess held)
     failure: str = ""
 
 
@@ -114,6 +115,7 @@ class SolverKine(SOT):
         diagnostics.active_limits = result.active_bounds
         diagnostics.level_solvers = result.level_solvers
         diagnostics.solve_time_s = result.solve_time_s
+        diagnostics.max_iterations = max(result.iterations, default=0)
         value.set_value(_Solution(result.x, result.slack_norms, diagnostics))
 
 

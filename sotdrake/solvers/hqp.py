@@ -63,7 +63,12 @@ from pydrake.solvers import (
 )
 
 from ..exceptions import InvalidInput, SolverError
-from .active_set import RANK_THRESHOLD, ActiveSetFailure, dual_guess, solve_least_squares_qp
+from .active_set import (
+    RANK_THRESHOLD,
+    ActiveSetFailure,
+    dual_guess,
+    solve_least_squares_qp,
+)
 
 SOLVERS = {"clarabel": ClarabelSolver, "osqp": OsqpSolver, "snopt": SnoptSolver}
 """The Drake solvers a level can use (then polished by the active-set method)."""
@@ -190,7 +195,10 @@ class HierarchicalQP:
     """Solve stacks of :class:`LevelRows` in strict priority (see the module docstring).
 
     ``solver``: ``"active-set"`` (default) or a Drake solver of :data:`SOLVERS`; ``level_solvers``
-    overrides it per level; ``rank_threshold``: the τ of every rank decision."""
+    overrides it per level; ``rank_threshold``: the τ of every rank decision; ``hold_tolerance``: a
+    relative band added to the held optimal violation of inequality rows (0: held exactly);
+    ``feasibility_tolerance``: the bound violation (on unit rows, relative above 1) beyond which a
+    path's point is refused and the next path tried; ``regularize``: end with the minimum-norm stage."""
 
     def __init__(
         self,
@@ -425,7 +433,7 @@ class HierarchicalQP:
     def _program(self, level, x0, Z, hard_A, hard_lower, hard_upper, mu, name, carried=None):
         """The stage as a ``MathematicalProgram`` in ``(y, w)`` solved by Drake's ``name``:
         ``(x, "")`` or ``(None, why)``."""
-        r, n = Z.shape[1], self.n
+        r = Z.shape[1]
         m = 0 if level is None else level.A.shape[0]
         extended = carried is not None
         offset = hard_A @ x0

@@ -133,7 +133,9 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
             frozen += 1
             failures.append(diagnostics.failure)
         solve_times.append(diagnostics.solve_time_s)
-        fallbacks += any(how != "active-set" for how in diagnostics.level_solvers)
+        if any(how != "active-set" for how in diagnostics.level_solvers):
+            fallbacks += 1
+            failures.append(f"fallback: {diagnostics.fallbacks}")
         iterations = max(iterations, diagnostics.max_iterations)
         active += len(diagnostics.active_limits) > 0
         iv = layout.joints_v
@@ -153,6 +155,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--runs", type=int, default=300)
     parser.add_argument("--ticks", type=int, default=60)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--only", type=int, nargs="*", help="run only these run indices")
     parser.add_argument("--out", type=Path, default=HERE / "results" / "hqp_robot_runs.json")
     args = parser.parse_args(argv)
     import logging
@@ -160,11 +163,16 @@ def main(argv=None) -> dict:
     logging.disable(logging.WARNING)
     runs = build()
     start = time.perf_counter()
-    results = [one_run(runs, np.random.default_rng(args.seed + i), args.ticks) for i in range(args.runs)]
+    indices = args.only if args.only else range(args.runs)
+    results = []
+    for i in indices:
+        results.append(one_run(runs, np.random.default_rng(args.seed + i), args.ticks))
+        if results[-1]["failures"]:
+            print(f"run {i}: {results[-1]['failures']}", file=sys.stderr, flush=True)
     wall = time.perf_counter() - start
     times = 1e3 * np.concatenate([r["solve_times_s"] for r in results])
     summary = {
-        "runs": args.runs, "ticks_per_run": args.ticks, "ticks": args.runs * args.ticks,
+        "runs": len(results), "ticks_per_run": args.ticks, "ticks": len(results) * args.ticks,
         "runs_with_a_frozen_tick": sum(r["frozen_ticks"] > 0 for r in results),
         "frozen_ticks": sum(r["frozen_ticks"] for r in results),
         "position_limit_violations": sum(r["position_limit_violations"] for r in results),

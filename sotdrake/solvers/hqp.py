@@ -139,6 +139,7 @@ class HqpResult:
     solve_time_s: float = 0.0
     level_solvers: list[str] = field(default_factory=list)  # per stage: "active-set" or "<drake solver>+polish"
     iterations: list[int] = field(default_factory=list)  # active-set iterations per stage (0: the guess held)
+    fallbacks: list[str] = field(default_factory=list)  # why a path failed before the next one succeeded
 
     @property
     def solver_calls(self) -> int:
@@ -262,13 +263,13 @@ class HierarchicalQP:
         hard_A, hard_lower, hard_upper = np.eye(n)[free], x_lower[free], x_upper[free]
         hard_norms = np.ones(len(free))  # reference norms of the hard rows
         hard_side = np.zeros(len(free), dtype=int)
-        used, iterations, carried = [], [], []
+        used, iterations, carried, fallbacks = [], [], [], []
         stages = list(levels) + ([None] if self.regularize else [])
         for k, level in enumerate(stages):
             mu = damping if k == len(levels) - 1 else 0.0
             name = self.level_solvers[k] if k < len(self.level_solvers) and level is not None else solver
             hard = (free, hard_norms, hard_A, hard_lower, hard_upper, hard_side)
-            x, side, how, count = self._stage(k, level, x, Z, hard, mu, name, list(carried))
+            x, side, how, count = self._stage(k, level, x, Z, hard, mu, name, list(carried), fallbacks)
             if level is not None and level.extend is not None:
                 carried.append(level.extend)
             used.append(how)
@@ -295,6 +296,7 @@ class HierarchicalQP:
                 hard_side = np.concatenate([hard_side, row_side])
         result = self._result(levels, x, x_lower, x_upper, fixed, used)
         result.iterations = iterations
+        result.fallbacks = fallbacks
         result.solve_time_s = time.perf_counter() - start
         return result
 
@@ -349,7 +351,7 @@ class HierarchicalQP:
                       np.concatenate([np.zeros(r), w0]), r, np.flatnonzero(keep),
                       np.concatenate([hard_side[keep], np.zeros(m_in, dtype=int)]))
 
-    def _stage(self, k, level, x0, Z, hard, mu, name, carried):
+    def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks):
         """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard
         rows at the end, how it was solved, the active-set iterations."""
         r = Z.shape[1]
@@ -405,6 +407,7 @@ class HierarchicalQP:
                 failures.append(f"{path}: a point outside the bounds")
                 continue
             self._working_sets[key] = solution.side
+            fallbacks += [f"{what}: {failure}" for failure in failures]
             return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
 

@@ -49,6 +49,7 @@ class HqpDiagnostics:
     level_solvers: list[str] = field(default_factory=list)
     solve_time_s: float = 0.0
     max_iterations: int = 0  # active-set iterations of the stage that needed most (0: every guess held)
+    fallbacks: list[str] = field(default_factory=list)  # paths that failed before another succeeded
     failure: str = ""
 
 
@@ -116,6 +117,7 @@ class SolverKine(SOT):
         diagnostics.level_solvers = result.level_solvers
         diagnostics.solve_time_s = result.solve_time_s
         diagnostics.max_iterations = max(result.iterations, default=0)
+        diagnostics.fallbacks = result.fallbacks
         value.set_value(_Solution(result.x, result.slack_norms, diagnostics))
 
 

@@ -125,7 +125,7 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
     simulator = Simulator(runs.diagram, context)
     simulator.Initialize()
     frozen, position_violations, velocity_violations, solve_times, active = 0, 0, 0, [], 0
-    failures, fallbacks, iterations = [], 0, 0
+    failures, fallbacks, drake, iterations = [], 0, 0, 0
     for k in range(ticks):
         diagnostics = sot.GetOutputPort("diagnostics").Eval(own)
         v = sot.GetOutputPort("control").Eval(own)
@@ -133,8 +133,9 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
             frozen += 1
             failures.append(diagnostics.failure)
         solve_times.append(diagnostics.solve_time_s)
-        if any(how != "active-set" for how in diagnostics.level_solvers):
+        if diagnostics.fallbacks:  # a path failed on this tick before another one succeeded
             fallbacks += 1
+            drake += any(how != "active-set" for how in diagnostics.level_solvers)
             failures.append(f"fallback: {diagnostics.fallbacks}")
         iterations = max(iterations, diagnostics.max_iterations)
         active += len(diagnostics.active_limits) > 0
@@ -147,6 +148,7 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
     return {"stack": stack, "frozen_ticks": frozen, "position_limit_violations": position_violations,
             "velocity_limit_violations": velocity_violations, "ticks_with_active_limits": active,
             "solve_times_s": solve_times, "failures": failures[:3], "ticks_with_a_fallback": fallbacks,
+            "ticks_with_a_drake_fallback": drake,
             "max_iterations": iterations}
 
 
@@ -179,6 +181,7 @@ def main(argv=None) -> dict:
         "velocity_limit_violations": sum(r["velocity_limit_violations"] for r in results),
         "ticks_with_active_limits": sum(r["ticks_with_active_limits"] for r in results),
         "ticks_with_a_fallback": sum(r["ticks_with_a_fallback"] for r in results),
+        "ticks_with_a_drake_fallback": sum(r["ticks_with_a_drake_fallback"] for r in results),
         "max_active_set_iterations": max(r["max_iterations"] for r in results),
         "solve_ms_median": float(np.median(times)), "solve_ms_p99": float(np.percentile(times, 99)),
         "solve_ms_max": float(times.max()), "wall_s": wall,

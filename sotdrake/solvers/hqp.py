@@ -373,13 +373,18 @@ class HierarchicalQP:
                     return x, self._hard_sides(hard_side, stage, side), attempt, 0
                 failures.append(f"{attempt}: {message}")
             raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
+        # The active set warm (the cached working set), then cold (the dual method's guess) if the
+        # warm path failed, then the Drake solvers polished.
         paths = [name] if name == ACTIVE_SET else [name, ACTIVE_SET]
+        if cached is not None:
+            paths.insert(paths.index(ACTIVE_SET) + 1, "cold")
         paths += [p for p in ("clarabel", "osqp") if p not in paths]
         for path in paths:
             try:
-                if path == ACTIVE_SET:
+                if path in (ACTIVE_SET, "cold"):
                     start_guess, label = guess, ACTIVE_SET
-                    if cached is None:  # no warm start: ask the compiled dual active-set method
+                    if cached is None or path == "cold":  # no warm start: ask the compiled dual method
+                        start_guess = stage.guess
                         dual = dual_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper)
                         if dual is not None:
                             start_guess = dual

@@ -36,8 +36,9 @@ How a level is solved:
   more); so do the stages below it, which receive the callback again with ``own=False`` to add
   the constraints that must keep holding (not the costs);
 * nothing fails silently: if a path fails (no convergence, a non-finite point, a point outside the
-  bounds) the next one is tried (active set, Clarabel polished, OSQP polished); a :class:`SolverError`
-  means all failed.
+  bounds by more than ``feasibility_tolerance``) the next one is tried: the active set warm, then
+  cold (from the dual method's guess), then Clarabel polished, then OSQP polished; each failure is
+  reported in :attr:`HqpResult.fallbacks`, and a :class:`SolverError` means all failed.
 
 **The one threshold.** Every rank decision (the null space ``Z`` of the held equality rows, the
 least-squares steps, the working-set matrices, which projected rows are constant) compares singular

@@ -472,7 +472,8 @@ class HierarchicalQP:
             program.rows.evaluator().UpdateCoefficients(A_all, np.concatenate(rows_lower), np.concatenate(rows_upper))
         program.cost.evaluator().UpdateCoefficients(Q, b)
         if extended:
-            x_expression = x0 + Z @ program.y
+            with np.errstate(invalid="ignore"):  # numpy's checks on symbolic (object) arrays
+                x_expression = x0 + Z @ program.y
             for extension in carried:
                 extension(program.prog, x_expression, False)
             if level is not None and level.extend is not None:

@@ -117,6 +117,7 @@ def stats(times_s: np.ndarray) -> dict:
 
 def sotdrake_run(solver: str, ticks: int, warmup: int, target=TARGET) -> dict:
     robot, sot, hand, diagram = build_stack(solver, target=target)
+    solver_times = []
     q0 = robot.device.initial_position
     feet0 = [robot.dynamic.pose_at(f, q0).translation() for f in ("left-sole", "right-sole")]
     com0 = robot.dynamic.com_at(q0)
@@ -131,11 +132,14 @@ def sotdrake_run(solver: str, ticks: int, warmup: int, target=TARGET) -> dict:
         drift["com"] = max(drift["com"], np.linalg.norm(robot.dynamic.com_at(q) - com0))
         finite = np.isfinite(limits["position_lower"])
         margin[0] = min(margin[0], np.min(np.minimum(q - limits["position_lower"], limits["position_upper"] - q)[finite]))
+        if solver == "hqp":  # the solver's own share of the tick it just ran
+            solver_times.append(sot.GetOutputPort("diagnostics").Eval(sot.GetMyContextFromRoot(context)).solve_time_s)
 
     times, simulator = time_ticks(diagram, ticks, warmup, sample)
     context = simulator.get_context()
     return {
         "times_s": times,
+        "solver_times_s": np.array(solver_times),
         "accuracy": {
             "hand_error_m": float(np.linalg.norm(hand.current_pose(context).translation() - target)),
             "max_foot_drift_m": float(drift["feet"]),
@@ -143,6 +147,42 @@ def sotdrake_run(solver: str, ticks: int, warmup: int, target=TARGET) -> dict:
             "min_joint_limit_margin_rad": float(margin[0]),
         },
     }
+
+
+# --- the hierarchical QP on random stacks ---------------------------------------------------------
+
+
+def hqp_random(count: int) -> dict:
+    """Solve time of the default HQP path on ``count`` random stacks (tests/hqp_stacks.py: n 5-40,
+    1-5 levels, conflicts, inequalities, scaled rows), each solved cold (no warm start), and of the
+    sequential quadprog reference of tests/test_hqp.py on the same stacks."""
+    from sotdrake.solvers.hqp import HierarchicalQP
+    from tests.hqp_stacks import random_stack
+
+    solvers, times, cpu, reference, reference_cpu = {}, [], [], [], []
+    try:
+        from tests.test_hqp import reference_slack_norms
+    except ImportError:  # the reference needs the test extras (pytest, quadprog)
+        reference_slack_norms = None
+    for seed in range(count):
+        n, levels, x_lower, x_upper = random_stack(np.random.default_rng(seed))
+        hqp = solvers.setdefault(n, HierarchicalQP(n))
+        hqp._working_sets.clear()  # cold: random stacks share no active sets
+        start_cpu = time.process_time()
+        times.append(hqp.solve(levels, x_lower, x_upper).solve_time_s)
+        cpu.append(time.process_time() - start_cpu)
+        if reference_slack_norms is not None and seed < count // 4:
+            start, start_cpu = time.perf_counter(), time.process_time()
+            reference_slack_norms(n, levels, x_lower, x_upper)
+            reference.append(time.perf_counter() - start)
+            reference_cpu.append(time.process_time() - start_cpu)
+    ms = 1e3 * np.array(times)
+    out = {"count": count, "median": float(np.median(ms)), "p99": float(np.percentile(ms, 99)), "max": float(ms.max()),
+           "cpu_ms_median": float(1e3 * np.median(cpu))}  # CPU time: less sensitive to a loaded machine
+    if reference:
+        out["quadprog_reference_ms_median"] = float(1e3 * np.median(reference))
+        out["quadprog_reference_cpu_ms_median"] = float(1e3 * np.median(reference_cpu))
+    return out
 
 
 # --- the breakdown ----------------------------------------------------------------------------
@@ -296,6 +336,8 @@ def main(argv=None) -> dict:
     hqp = sotdrake_run("hqp", ticks, warmup)
     log("sotdrake, SolverKine with active joint limits (a target behind the back) …")
     hqp_active = sotdrake_run("hqp", max(small, 1000), 200, target=np.array([-0.45, -0.35, 1.0]))
+    log("hierarchical QP on random stacks …")
+    random_hqp = hqp_random(300 if args.quick else 1000)
     log("pink …")
     pink = peer("pink", ticks, warmup)
     log("placo …")
@@ -321,6 +363,11 @@ def main(argv=None) -> dict:
         "hqp_tick_us_median": tick_hqp["median"],
         "hqp_tick_us": tick_hqp,
         "hqp_active_limits_tick_us": stats(hqp_active["times_s"]),
+        "hqp_active_tick_us_median": stats(hqp_active["times_s"])["median"],
+        "hqp_active_solver_us_median": float(1e6 * np.median(hqp_active["solver_times_s"])),
+        "hqp_random_solve_ms_median": random_hqp["median"],
+        "hqp_random_solve_ms_p99": random_hqp["p99"],
+        "hqp_random": random_hqp,
         "realtime_factor_kinematic": rtf_kinematic,
         "realtime_factor_physics": rtf_physics["realtime_factor"],
         "breakdown_fraction": parts,
@@ -333,6 +380,7 @@ def main(argv=None) -> dict:
         results["pink_tick_us_median"] = pink["tick_us"]["median"]
         results["ratio_vs_pink"] = tick["median"] / pink["tick_us"]["median"]
         results["hqp_ratio_vs_pink"] = tick_hqp["median"] / pink["tick_us"]["median"]
+        results["hqp_active_ratio_vs_pink"] = results["hqp_active_tick_us_median"] / pink["tick_us"]["median"]
         results["accuracy"]["pink"] = pink["accuracy"]
     if placo.get("available"):
         results["placo_tick_us_median"] = placo["tick_us"]["median"]
@@ -343,6 +391,8 @@ def main(argv=None) -> dict:
         "realtime_factor_kinematic >= 2": rtf_kinematic >= 2.0,
         "hqp tick <= 1.0 x pink": results.get("hqp_ratio_vs_pink", float("nan")) <= 1.0,
         "realtime_factor_physics >= 1": rtf_physics["realtime_factor"] >= 1.0,
+        "hqp random stacks median <= 1 ms": random_hqp["median"] <= 1.0,
+        "hqp active-limits tick <= 2 x pink": results.get("hqp_active_ratio_vs_pink", float("nan")) <= 2.0,
     }
     (args.out / "latest.json").write_text(json.dumps(results, indent=2, default=float) + "\n")
     print_table(results)
@@ -365,9 +415,17 @@ def print_table(r: dict) -> None:
         else:
             print(f"{name:28s} {r[name]['reason']}")
     print()
-    for key in ("ratio_vs_pink", "hqp_ratio_vs_pink", "ratio_vs_placo", "realtime_factor_kinematic", "realtime_factor_physics"):
+    for key in ("ratio_vs_pink", "hqp_ratio_vs_pink", "hqp_active_ratio_vs_pink", "ratio_vs_placo",
+                "realtime_factor_kinematic", "realtime_factor_physics"):
         if key in r:
             print(f"{key:28s} {r[key]:.2f}")
+    h = r["hqp_random"]
+    print(f"\nHQP on {h['count']} random stacks (ms): median {h['median']:.3f}, p99 {h['p99']:.3f}, max {h['max']:.3f}"
+          + (f"; quadprog sequential reference median {h['quadprog_reference_ms_median']:.3f}" if "quadprog_reference_ms_median" in h else "")
+          + f"; CPU time median {h['cpu_ms_median']:.3f}"
+          + (f" (reference {h['quadprog_reference_cpu_ms_median']:.3f})" if "quadprog_reference_cpu_ms_median" in h else ""))
+    print(f"HQP solver's own share of the active-limits tick: median {r['hqp_active_solver_us_median']:.0f} µs"
+          f" of {r['hqp_active_tick_us_median']:.0f} µs")
     print("\nbreakdown of the basic tick: " + ", ".join(f"{k} {100 * v:.0f}%" for k, v in sorted(r["breakdown_fraction"].items(), key=lambda x: -x[1])))
     print("tick (µs) by number of tasks: " + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_tasks"].items()))
     print("tick (µs) by DoF (one hand task): " + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_dof"].items()))

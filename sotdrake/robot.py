@@ -128,7 +128,7 @@ def add_sot(
     damping: float = 0.0,
     svd_threshold: float = 1e-4,
     position_margin: float = 1e-3,
-    qp_solver: str = "clarabel",
+    qp_solver: str = "active-set",
 ) -> SOT:
     """sot-core's ``sot = SOT('sot'); sot.setSize(...); plug(sot.control, robot.device.control)``.
 

@@ -129,3 +129,22 @@ def test_concept_script_writes_one_entry_per_configuration(concept, tmp_path):
             assert key in entry
     assert (tmp_path / "plots.png").is_file() and (tmp_path / "summary.json").is_file()
     assert (tmp_path / "joint_limits" / "trace.npz").is_file()
+
+
+def test_randomized_robot_runs_never_freeze_and_keep_the_limits(talos_model):
+    """A fast subset of bench/hqp_robot_runs.py (which runs 300): random stacks of feet, CoM (held
+    or in a box), hands near and far, posture, from random starts with joints on their limits."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    import hqp_robot_runs
+
+    runs = hqp_robot_runs.build(talos_model)
+    active = 0
+    for seed in range(24):
+        result = hqp_robot_runs.one_run(runs, np.random.default_rng(10_000 + seed), ticks=25)
+        assert result["frozen_ticks"] == 0, (seed, result["failures"])
+        assert result["position_limit_violations"] == 0 and result["velocity_limit_violations"] == 0, seed
+        active += result["ticks_with_active_limits"]
+    assert active > 0  # the limits were in play

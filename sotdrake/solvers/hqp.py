@@ -1,5 +1,4 @@
-"""Hierarchical QP (soth / sot-dyninv ``SolverKine``), level by level with Drake's
-``MathematicalProgram``, as on the seed's slides.
+"""Hierarchical QP (soth / sot-dyninv ``SolverKine``): strict priority, hard bounds, exact levels.
 
 Variables ``x`` (size n). Hard constraints above every level: ``x_min ≤ x ≤ x_max``. Level k holds
 rows ``lo_k ≤ A_k x ≤ hi_k`` (an equality row has ``lo = hi = b``) and solves::
@@ -15,28 +14,44 @@ which is the LSE/LSI hierarchy (for an equality row the optimal ``|w|`` is ``|A 
 inequality row its violation). ``w*`` of a level is unique, the objective being strictly convex in
 ``w``. Last, unless ``regularize=False``, the minimum-norm ``x`` of the whole optimal set is taken.
 
-How it is solved, exactly where it can be:
+How a level is solved:
 
 * held equality rows and fixed bounds (``x_min = x_max``) are eliminated: ``x = x_{k-1} + Z y`` with
-  ``Z`` an orthonormal basis of their null space (SVD, rank threshold ``rank_threshold``), so they
-  hold exactly and no program ever sees a degenerate equality;
-* an equality-only level first takes its closed-form (damped) least-squares step
-  ``y = (A Z)^♯ (b - A x_{k-1})``; if that point satisfies the bounds and the held inequalities it is
-  the level's optimum and no program is solved. The same holds for the minimum-norm stage
-  (``x - Z Zᵀ x``). With no active bound and no inequality row, the HQP is the strict cascade;
-* otherwise the level is a ``MathematicalProgram`` in ``(y, w)``, built once per structure (sizes)
-  and updated in place, solved by the level's Drake solver (Clarabel by default, tight tolerances).
-  An interior-point answer is only accurate to about the square root of its gap tolerance in ``w``
-  (the objective is ``‖w‖²``), so it is then *polished* as on the seed's slides ("the LSI optimum is
-  the LSE optimum for the good active set"): the active set read off the solver's answer gives an
-  equality-constrained least-squares problem, solved exactly, and kept only if it is feasible and
-  no worse than the solver's answer.
+  ``Z`` an orthonormal basis of their null space, so they hold exactly and no solver ever sees a
+  degenerate equality. The level's equality rows enter the objective, its inequality rows become
+  constraints ``lo ≤ a y - w ≤ hi`` with one slack ``w`` each, and the bounds and held inequality
+  rows are constraints on ``y``;
+* the default path (``"active-set"``) is the exact primal active-set method of :mod:`.active_set`,
+  started from the previous level's point (``y = 0``, feasible), and warm-started by a guess of the
+  working set: the one this level had at the previous call with the same sizes (a cache: the answer
+  is a function of the final working set only), else the sides of the bounds and held rows active
+  at the end of the level above. An equality-only level with no bound in the way is one
+  least-squares step;
+* a Drake solver (``"clarabel"``, ``"osqp"``, ``"snopt"``) can be chosen instead, for every level or
+  per level: the level is then a ``MathematicalProgram`` in ``(y, w)``, and the solver's answer is
+  *polished*: its active set is tried as the working-set guess of the same active-set method, which
+  returns the exact optimum (from that guess if it satisfies the KKT conditions, else by iterating).
+  A level whose rows carry an ``extend`` callback (a user's extra costs or constraints) goes through
+  its ``MathematicalProgram`` and keeps the solver's answer (it is not a least-squares level any
+  more); so do the stages below it, which receive the callback again with ``own=False`` to add
+  the constraints that must keep holding (not the costs);
+* nothing fails silently: if a path fails (no convergence, a non-finite point, a point outside the
+  bounds by more than ``feasibility_tolerance``) the next one is tried: the active set warm, then
+  cold (from the dual method's guess), then Clarabel polished, then OSQP polished; each failure is
+  reported in :attr:`HqpResult.fallbacks`, and a :class:`SolverError` means all failed.
+
+**The one threshold.** Every rank decision (the null space ``Z`` of the held equality rows, the
+least-squares steps, the working-set matrices, which projected rows are constant) compares singular
+values of matrices whose rows are scaled to unit norm (the norm of the row *before* projection, so
+that a task already fixed by the levels above projects to round-off and is seen as zero) with one
+absolute threshold τ, ``rank_threshold`` (default :data:`~.active_set.RANK_THRESHOLD` = 1e-8). No
+library default cutoff is used.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -49,14 +64,23 @@ from pydrake.solvers import (
 )
 
 from ..exceptions import InvalidInput, SolverError
+from .active_set import (
+    RANK_THRESHOLD,
+    ActiveSetFailure,
+    dual_guess,
+    solve_least_squares_qp,
+)
 
 SOLVERS = {"clarabel": ClarabelSolver, "osqp": OsqpSolver, "snopt": SnoptSolver}
+"""The Drake solvers a level can use (then polished by the active-set method)."""
+ACTIVE_SET = "active-set"
+"""The default path: the exact active-set method alone."""
 
 
 def check_solver(name: str) -> str:
-    """``name`` if it is one of :data:`SOLVERS`, else :class:`InvalidInput` listing them."""
-    if name not in SOLVERS:
-        raise InvalidInput(f"unknown QP solver {name!r}; available: {sorted(SOLVERS)}")
+    """``name`` if it is ``"active-set"`` or one of :data:`SOLVERS`, else :class:`InvalidInput`."""
+    if name != ACTIVE_SET and name not in SOLVERS:
+        raise InvalidInput(f"unknown QP solver {name!r}; available: {[ACTIVE_SET, *sorted(SOLVERS)]}")
     return name
 
 
@@ -73,21 +97,31 @@ def _options(name: str) -> SolverOptions:
     return options
 
 
-class LevelRows:
-    """Rows ``lower ≤ A x ≤ upper`` of one level (``lower[i] == upper[i]``: an equality row)."""
+Extension = Callable[[MathematicalProgram, np.ndarray, bool], None]
+"""``extend(prog, x, own)``: add costs and constraints to a level's program (``own=True``), or, on
+the stages below it (``own=False``), the constraints that must keep holding there; ``x`` holds the
+affine expressions of the variables (``x = x_{k-1} + Z y``)."""
 
-    def __init__(self, A: np.ndarray, lower: np.ndarray, upper: np.ndarray):
+
+class LevelRows:
+    """Rows ``lower ≤ A x ≤ upper`` of one level (``lower[i] == upper[i]``: an equality row).
+
+    ``extend`` (optional): a callback adding costs or constraints to this level's
+    ``MathematicalProgram`` (see :data:`Extension`); such a level is solved by its Drake solver."""
+
+    def __init__(self, A: np.ndarray, lower: np.ndarray, upper: np.ndarray, extend: Extension | None = None):
         A, lower, upper = (np.asarray(a, dtype=float) for a in (A, lower, upper))
         if A.ndim != 2 or lower.shape != (A.shape[0],) or upper.shape != (A.shape[0],):
             raise InvalidInput(f"level rows: A {A.shape}, lower {lower.shape}, upper {upper.shape} do not fit")
         if not np.all(np.isfinite(A)) or np.any(np.isnan(lower)) or np.any(np.isnan(upper)):
-            raise InvalidInput("level rows: NaN or infinite coefficients")
+            raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
         if np.any(lower > upper):
             raise InvalidInput(f"level rows: lower bound above upper bound in rows {np.flatnonzero(lower > upper)}")
         self.A, self.lower, self.upper = A, lower, upper
         self.equality = lower == upper
         if np.any(~np.isfinite(lower[self.equality])):
             raise InvalidInput("level rows: an equality row needs a finite value")
+        self.extend = extend
 
     def slack(self, x: np.ndarray) -> np.ndarray:
         """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows."""
@@ -104,11 +138,14 @@ class HqpResult:
     active_rows: list[np.ndarray]  # per level, inequality rows at one of their bounds
     active_bounds: np.ndarray  # components of x at one of their bounds (not the fixed ones)
     solve_time_s: float = 0.0
-    level_solvers: list[str] = field(default_factory=list)  # "closed-form" or the Drake solver, per stage
+    level_solvers: list[str] = field(default_factory=list)  # per stage: "active-set" or "<drake solver>+polish"
+    iterations: list[int] = field(default_factory=list)  # active-set iterations per stage (0: the guess held)
+    fallbacks: list[str] = field(default_factory=list)  # why a path failed before the next one succeeded
 
     @property
     def solver_calls(self) -> int:
-        return sum(name != "closed-form" for name in self.level_solvers)
+        """How many stages called a Drake solver."""
+        return sum(name.split("+")[0] in SOLVERS for name in self.level_solvers)
 
 
 class _Program:
@@ -126,34 +163,72 @@ class _Program:
         self.cost = prog.AddQuadraticCost(np.eye(r + m), np.zeros(r + m), variables, is_convex=True)
 
 
-def _null_space(M: np.ndarray, threshold: float) -> np.ndarray:
-    """Orthonormal basis of ``{y : M y = 0}`` (singular values ≤ threshold count as zero)."""
+def _row_norms(A: np.ndarray) -> np.ndarray:
+    norms = np.sqrt(np.einsum("ij,ij->i", A, A))
+    return np.where(norms > 0.0, norms, 1.0)
+
+
+def null_space(M: np.ndarray, threshold: float) -> np.ndarray:
+    """Orthonormal basis of ``{y : M y = 0}``; ``M``'s rows are expected at unit (reference) norm
+    and singular values ≤ ``threshold`` count as zero."""
     if M.shape[0] == 0:
         return np.eye(M.shape[1])
     _, sigma, Vt = np.linalg.svd(M, full_matrices=True)
     return Vt[int(np.count_nonzero(sigma > threshold)):].T
 
 
+@dataclass
+class _Stage:
+    """One stage in ``z = (y, w)``: min ½‖M z - t‖² s.t. lower ≤ G z ≤ upper (G unit rows)."""
+
+    M: np.ndarray
+    t: np.ndarray
+    m_scale: np.ndarray
+    G: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    z0: np.ndarray
+    r: int
+    hard: np.ndarray  # indices (into the full list of hard rows) of G's first rows
+    guess: np.ndarray  # a side per row of G
+
+
 class HierarchicalQP:
-    """Solve stacks of :class:`LevelRows` in strict priority (see the module docstring)."""
+    """Solve stacks of :class:`LevelRows` in strict priority (see the module docstring).
+
+    ``solver``: ``"active-set"`` (default) or a Drake solver of :data:`SOLVERS`; ``level_solvers``
+    overrides it per level; ``rank_threshold``: the τ of every rank decision; ``hold_tolerance``: a
+    relative band added to the held optimal violation of inequality rows (0: held exactly);
+    ``feasibility_tolerance``: the bound violation (on unit rows, relative above 1) beyond which a
+    path's point is refused and the next path tried; ``regularize``: end with the minimum-norm stage."""
 
     def __init__(
         self,
         n: int,
-        solver: str = "clarabel",
+        solver: str = ACTIVE_SET,
         level_solvers: Sequence[str] | None = None,
-        hold_tolerance: float = 1e-9,
-        rank_threshold: float = 1e-9,
+        hold_tolerance: float = 0.0,
+        rank_threshold: float = RANK_THRESHOLD,
         regularize: bool = True,
-        closed_form: bool = True,
+        feasibility_tolerance: float = 1e-9,
     ):
         for name in [solver, *(level_solvers or [])]:
             check_solver(name)
+        if not (np.isfinite(rank_threshold) and rank_threshold > 0):
+            raise InvalidInput(f"rank_threshold must be finite and > 0, got {rank_threshold}")
+        if not (np.isfinite(hold_tolerance) and hold_tolerance >= 0):
+            raise InvalidInput(f"hold_tolerance must be finite and ≥ 0, got {hold_tolerance}")
         self.n, self.solver, self.level_solvers = n, solver, list(level_solvers or [])
         self.hold_tolerance, self.rank_threshold, self.regularize = hold_tolerance, rank_threshold, regularize
-        self.closed_form = closed_form  # False: every stage is a program (to test and measure them)
+        self.feasibility_tolerance = feasibility_tolerance
         self._programs: dict[tuple[int, int, int], _Program] = {}  # a cache: results never depend on it
-        self._solvers = {name: (SOLVERS[name](), _options(name)) for name in SOLVERS}
+        self._working_sets: dict[tuple, np.ndarray] = {}  # warm starts: results never depend on them
+        self._solvers: dict[str, tuple] = {}
+
+    def _drake(self, name: str):
+        if name not in self._solvers:
+            self._solvers[name] = (SOLVERS[name](), _options(name))
+        return self._solvers[name]
 
     def solve(
         self,
@@ -164,8 +239,8 @@ class HierarchicalQP:
         solver: str | None = None,
     ) -> HqpResult:
         """Solve in strict priority; ``damping`` μ applies to the last level; ``solver`` overrides
-        the default Drake solver for this call. Raises :class:`SolverError` naming the level when a
-        program cannot be solved."""
+        the default path for this call. Raises :class:`SolverError` naming the stage if every path
+        fails (which the tests have never seen with consistent bounds)."""
         solver = self.solver if solver is None else check_solver(solver)
         n = self.n
         x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
@@ -175,6 +250,8 @@ class HierarchicalQP:
             raise InvalidInput(f"lower bound above upper bound at {np.flatnonzero(x_lower > x_upper)}")
         if not np.all(np.isfinite(x_lower[x_lower == x_upper])):
             raise InvalidInput("a fixed component (lower == upper) needs a finite value")
+        if not (np.isfinite(damping) and damping >= 0):
+            raise InvalidInput(f"damping must be finite and ≥ 0, got {damping}")
         for level in levels:
             if level.A.shape[1] != n:
                 raise InvalidInput(f"a level has {level.A.shape[1]} columns, expected {n}")
@@ -182,182 +259,233 @@ class HierarchicalQP:
         fixed = x_lower == x_upper
         x = np.where(fixed, x_lower, 0.0)
         Z = np.eye(n)[:, ~fixed]
-        free = ~fixed & (np.isfinite(x_lower) | np.isfinite(x_upper))  # bound rows that can bind
-        bound_rows = (np.eye(n)[free], x_lower[free], x_upper[free])
-        held = (np.zeros((0, n)), np.zeros(0), np.zeros(0))  # held inequality rows
-        used = []
+        free = np.flatnonzero(~fixed & (np.isfinite(x_lower) | np.isfinite(x_upper)))  # bound rows that can bind
+        # The hard rows (bounds, then held inequality rows), in x, with the side each was left at.
+        hard_A, hard_lower, hard_upper = np.eye(n)[free], x_lower[free], x_upper[free]
+        hard_norms = np.ones(len(free))  # reference norms of the hard rows
+        hard_side = np.zeros(len(free), dtype=int)
+        used, iterations, carried, fallbacks = [], [], [], []
         stages = list(levels) + ([None] if self.regularize else [])
         for k, level in enumerate(stages):
             mu = damping if k == len(levels) - 1 else 0.0
-            x, how = self._stage(k, level, x, Z, bound_rows, held, mu, solver)
+            name = self.level_solvers[k] if k < len(self.level_solvers) and level is not None else solver
+            hard = (free, hard_norms, hard_A, hard_lower, hard_upper, hard_side)
+            x, side, how, count = self._stage(k, level, x, Z, hard, mu, name, list(carried), fallbacks)
+            if level is not None and level.extend is not None:
+                carried.append(level.extend)
             used.append(how)
+            iterations.append(count)
             if level is None:
                 break
+            hard_side = side
             eq = level.equality
-            Z = Z @ _null_space(level.A[eq] @ Z, self.rank_threshold) if eq.any() else Z
+            if eq.any():
+                AZ = level.A[eq] @ Z
+                Z = Z @ null_space(AZ / _row_norms(level.A[eq])[:, None], self.rank_threshold)
             if (~eq).any():
-                slack = level.slack(x)[~eq]
-                band = self.hold_tolerance
-                held = (np.vstack([held[0], level.A[~eq]]),
-                        np.concatenate([held[1], level.lower[~eq] - slack - band]),
-                        np.concatenate([held[2], level.upper[~eq] + slack + band]))
+                A_in, lo, hi = level.A[~eq], level.lower[~eq], level.upper[~eq]
+                value = A_in @ x
+                slack = np.maximum(np.maximum(lo - value, value - hi), 0.0)
+                band = self.hold_tolerance * np.maximum(1.0, np.abs(value))
+                with np.errstate(invalid="ignore"):
+                    row_side = np.where(value >= hi - 1e-12 * np.maximum(1.0, np.abs(value)), 1,
+                                        np.where(value <= lo + 1e-12 * np.maximum(1.0, np.abs(value)), -1, 0))
+                hard_A = np.vstack([hard_A, A_in])
+                hard_norms = np.concatenate([hard_norms, _row_norms(A_in)])
+                hard_lower = np.concatenate([hard_lower, lo - slack - band])
+                hard_upper = np.concatenate([hard_upper, hi + slack + band])
+                hard_side = np.concatenate([hard_side, row_side])
         result = self._result(levels, x, x_lower, x_upper, fixed, used)
+        result.iterations = iterations
+        result.fallbacks = fallbacks
         result.solve_time_s = time.perf_counter() - start
         return result
 
-    def _stage(self, k, level, x0, Z, bound_rows, held, mu, solver: str) -> tuple[np.ndarray, str]:
-        """One level (or the minimum-norm stage when ``level`` is None): returns x and how."""
+    # --- one stage --------------------------------------------------------------------------
+    def _build(self, level, x0, Z, hard, mu) -> _Stage:
+        """The stage in ``z = (y, w)`` (see :class:`_Stage`), rows scaled to unit norm."""
+        tau, r = self.rank_threshold, Z.shape[1]
+        free, reference, hard_A, hard_lower, hard_upper, hard_side = hard
+        held = hard_A[len(free):]
+        C = np.vstack([Z[free], held @ Z]) if len(held) else Z[free]  # bound rows are unit rows of x
+        projected = np.sqrt(np.einsum("ij,ij->i", C, C))
+        keep = projected > tau * reference  # the others are constant over the stage
+        offset = np.concatenate([x0[free], held @ x0])[keep]
+        scale = projected[keep]
+        with np.errstate(invalid="ignore"):
+            # Never ask more than the previous point achieves (y = 0 stays feasible).
+            c_lower = (np.minimum(hard_lower[keep], offset) - offset) / scale
+            c_upper = (np.maximum(hard_upper[keep], offset) - offset) / scale
+        G_hard = C[keep] / scale[:, None]
+        if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)
+            return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), G_hard, c_lower, c_upper, np.zeros(r), r,
+                          np.flatnonzero(keep), hard_side[keep])
+        eq = level.equality
+        A_eq, A_in = level.A[eq], level.A[~eq]
+        m_in = len(A_in)
+        if m_in == 0:  # no soft row: z = y
+            M, t, m_scale = A_eq @ Z, level.lower[eq] - A_eq @ x0, _row_norms(A_eq)
+            if mu > 0.0:
+                M = np.vstack([M, np.sqrt(mu) * np.eye(r)])
+                t = np.concatenate([t, np.zeros(r)])
+                m_scale = np.concatenate([m_scale, np.full(r, np.sqrt(mu))])
+            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, np.flatnonzero(keep),
+                          hard_side[keep])
+        blocks = [np.hstack([A_eq @ Z, np.zeros((len(A_eq), m_in))]),
+                  np.hstack([np.zeros((m_in, r)), np.eye(m_in)])]
+        targets = [level.lower[eq] - A_eq @ x0, np.zeros(m_in)]
+        scales = [_row_norms(A_eq), np.ones(m_in)]
+        if mu > 0.0:
+            blocks.append(np.hstack([np.sqrt(mu) * np.eye(r), np.zeros((r, m_in))]))
+            targets.append(np.zeros(r))
+            scales.append(np.full(r, np.sqrt(mu)))
+        # Soft rows: lo ≤ a y - w ≤ hi, scaled to unit norm; w starts at the violation at y = 0.
+        value = A_in @ x0
+        soft = np.hstack([A_in @ Z, -np.eye(m_in)])
+        soft_scale = np.sqrt(np.einsum("ij,ij->i", soft, soft))
+        w0 = np.clip(0.0, value - level.upper[~eq], value - level.lower[~eq])
+        G = np.vstack([np.hstack([G_hard, np.zeros((len(G_hard), m_in))]), soft / soft_scale[:, None]])
+        with np.errstate(invalid="ignore"):
+            lower = np.concatenate([c_lower, (level.lower[~eq] - value) / soft_scale])
+            upper = np.concatenate([c_upper, (level.upper[~eq] - value) / soft_scale])
+        return _Stage(np.vstack(blocks), np.concatenate(targets), np.concatenate(scales), G, lower, upper,
+                      np.concatenate([np.zeros(r), w0]), r, np.flatnonzero(keep),
+                      np.concatenate([hard_side[keep], np.zeros(m_in, dtype=int)]))
+
+    def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks):
+        """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard
+        rows at the end, how it was solved, the active-set iterations."""
         r = Z.shape[1]
         if r == 0:
-            return x0, "closed-form"
-        constraint_A = np.vstack([bound_rows[0], held[0]])
-        offset = constraint_A @ x0
-        # Never ask more than the previous point achieves: a round-off violation left by a solver
-        # (≈ its tolerance) may not grow, and cannot make this stage infeasible (y = 0 stays feasible).
-        constraint_lower = np.minimum(np.concatenate([bound_rows[1], held[1]]), offset)
-        constraint_upper = np.maximum(np.concatenate([bound_rows[2], held[2]]), offset)
+            return x0, hard[5].copy(), ACTIVE_SET, 0
+        stage = self._build(level, x0, Z, hard, mu)
+        _, _, hard_A, hard_lower, hard_upper, hard_side = hard
+        key = (k, level is None, stage.G.shape, stage.M.shape)
+        cached = self._working_sets.get(key)
+        guess = cached if cached is not None else stage.guess
+        what = "the minimum-norm stage" if level is None else f"level {k}"
+        failures = []
+        if (level is not None and level.extend is not None) or carried:
+            drake_name = name if name in SOLVERS else "clarabel"
+            for attempt in dict.fromkeys([drake_name, "osqp"]):
+                x, message = self._program(level, x0, Z, hard_A, hard_lower, hard_upper, mu, attempt, carried)
+                if x is not None and self._bounds_hold(stage, Z.T @ (x - x0)):
+                    side = self._sides(stage, np.concatenate([Z.T @ (x - x0), np.zeros(len(stage.z0) - r)]))
+                    return x, self._hard_sides(hard_side, stage, side), attempt, 0
+                failures.append(f"{attempt}: {message}")
+            raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
+        # The active set warm (the cached working set), then cold (the dual method's guess) if the
+        # warm path failed, then the Drake solvers polished.
+        paths = [name] if name == ACTIVE_SET else [name, ACTIVE_SET]
+        if cached is not None:
+            paths.insert(paths.index(ACTIVE_SET) + 1, "cold")
+        paths += [p for p in ("clarabel", "osqp") if p not in paths]
+        for path in paths:
+            try:
+                if path in (ACTIVE_SET, "cold"):
+                    start_guess, label = guess, ACTIVE_SET
+                    if cached is None or path == "cold":  # no warm start: ask the compiled dual method
+                        start_guess = stage.guess
+                        dual = dual_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper)
+                        if dual is not None:
+                            start_guess = dual
+                else:
+                    x, message = self._program(level, x0, Z, hard_A, hard_lower, hard_upper, mu, path)
+                    if x is None:
+                        failures.append(f"{path}: {message}")
+                        continue
+                    y = Z.T @ (x - x0)
+                    z = np.concatenate([y, stage.z0[r:]])
+                    if level is not None and len(stage.z0) > r:  # the level's slacks, from its rows
+                        A_in = level.A[~level.equality]
+                        value = A_in @ x
+                        z[r:] = value - np.clip(value, level.lower[~level.equality], level.upper[~level.equality])
+                    start_guess, label = self._sides(stage, z), path + "+polish"
+                solution = solve_least_squares_qp(
+                    stage.M, stage.t, stage.m_scale, stage.G, stage.lower, stage.upper, stage.z0.copy(),
+                    guess=start_guess, threshold=self.rank_threshold,
+                )
+            except ActiveSetFailure as error:
+                failures.append(f"{path}: {error}")
+                continue
+            y = solution.z[:r]
+            if not (np.all(np.isfinite(y)) and self._bounds_hold(stage, y)):
+                failures.append(f"{path}: a point outside the bounds")
+                continue
+            self._working_sets[key] = solution.side
+            fallbacks += [f"{what}: {failure}" for failure in failures]
+            return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
+        raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
 
-        def feasible(x):
-            value = constraint_A @ x
-            slack = 1e-10 * np.maximum(1.0, np.abs(value))
-            return np.all(value >= constraint_lower - slack) and np.all(value <= constraint_upper + slack)
-
-        # Closed form: the (damped) least-squares step, or the projection for the minimum norm.
-        if self.closed_form and level is None:
-            x = x0 - Z @ (Z.T @ x0)
-            if feasible(x):
-                return x, "closed-form"
-        elif self.closed_form and level.equality.all():
-            U, sigma, Vt = np.linalg.svd(level.A @ Z, full_matrices=False)
-            keep = sigma > self.rank_threshold
-            s = sigma[keep]
-            inverse = 1.0 / s if mu == 0.0 else s / (s * s + mu)
-            y = Vt[keep].T @ (inverse * (U[:, keep].T @ (level.lower - level.A @ x0)))
-            x = x0 + Z @ y
-            if feasible(x):
-                return x, "closed-form"
-
-        # The program in (y, w).
-        m = 0 if level is None else level.A.shape[0]
-        C = constraint_A @ Z
+    def _bounds_hold(self, stage: _Stage, y: np.ndarray) -> bool:
+        m_hard = len(stage.hard)
+        value = stage.G[:m_hard, :stage.r] @ y
+        lo, hi = stage.lower[:m_hard], stage.upper[:m_hard]
+        tol = self.feasibility_tolerance
         with np.errstate(invalid="ignore"):
-            rows_A = [np.hstack([C, np.zeros((len(C), m))])]
-            rows_lower, rows_upper = [constraint_lower - offset], [constraint_upper - offset]
+            return bool(np.all(value >= lo - tol * np.maximum(1.0, np.abs(lo)))
+                        and np.all(value <= hi + tol * np.maximum(1.0, np.abs(hi))))
+
+    @staticmethod
+    def _sides(stage: _Stage, z: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:
+        value = stage.G @ z
+        near = tolerance * np.maximum(1.0, np.abs(value))
+        with np.errstate(invalid="ignore"):
+            return np.where(value >= stage.upper - near, 1, np.where(value <= stage.lower + near, -1, 0))
+
+    @staticmethod
+    def _hard_sides(hard_side: np.ndarray, stage: _Stage, side: np.ndarray) -> np.ndarray:
+        out = np.zeros(len(hard_side), dtype=int)
+        out[stage.hard] = side[:len(stage.hard)]
+        return out
+
+    def _program(self, level, x0, Z, hard_A, hard_lower, hard_upper, mu, name, carried=None):
+        """The stage as a ``MathematicalProgram`` in ``(y, w)`` solved by Drake's ``name``:
+        ``(x, "")`` or ``(None, why)``."""
+        r = Z.shape[1]
+        m = 0 if level is None else level.A.shape[0]
+        extended = carried is not None
+        offset = hard_A @ x0
+        with np.errstate(invalid="ignore"):
+            c_lower = np.minimum(hard_lower, offset) - offset
+            c_upper = np.maximum(hard_upper, offset) - offset
+        C = hard_A @ Z
+        rows_A, rows_lower, rows_upper = [np.hstack([C, np.zeros((len(C), m))])], [c_lower], [c_upper]
         if level is not None:
             AZ, Ax0, identity = level.A @ Z, level.A @ x0, np.eye(m)
             rows_A += [np.hstack([AZ, -identity]), np.hstack([AZ, identity])]
             rows_lower += [np.full(m, -np.inf), level.lower - Ax0]
             rows_upper += [level.upper - Ax0, np.full(m, np.inf)]
         A_all = np.vstack(rows_A)
-        program = self._programs.get((r, len(A_all), m))
-        if program is None:
-            program = self._programs[(r, len(A_all), m)] = _Program(r, len(A_all), m)
-        if program.rows is not None:
-            program.rows.evaluator().UpdateCoefficients(A_all, np.concatenate(rows_lower), np.concatenate(rows_upper))
         if level is None:  # ‖x0 + Z y‖² = ‖y‖² + 2 (Zᵀx0)ᵀ y + const
             Q, b = 2.0 * np.eye(r), 2.0 * (Z.T @ x0)
         else:
             Q = np.diag(np.concatenate([np.full(r, 2.0 * mu), np.full(m, 2.0)]))
             b = np.zeros(r + m)
-        program.cost.evaluator().UpdateCoefficients(Q, b)
-        name = self.level_solvers[k] if k < len(self.level_solvers) else solver
-        what = "the minimum-norm stage" if level is None else f"level {k}"
-        failures = []
-        # A solver that stops short (e.g. "insufficient progress") usually leaves a point from which
-        # the active-set polish finds the exact optimum; OSQP is the fallback for the rest.
-        for attempt in dict.fromkeys([name, "osqp"]):
-            drake_solver, options = self._solvers[attempt]
-            result = drake_solver.Solve(program.prog, np.zeros(r + m), options)
-            x = x0 + Z @ result.GetSolution(program.y)
-            if not np.all(np.isfinite(x)):
-                failures.append(f"{attempt}: {result.get_solution_result()}")
-                continue
-            polished = self._polish(level, x, x0, Z, constraint_A, constraint_lower, constraint_upper, mu)
-            if polished is not None:
-                return polished, attempt + "+polish"
-            if result.is_success():
-                return x, attempt
-            failures.append(f"{attempt}: {result.get_solution_result()}")
-        raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
-
-    @staticmethod
-    def _stage_cost(level, x, x0, Z, mu) -> float:
-        if level is None:
-            return float(x @ x)
-        step = Z.T @ (x - x0)
-        return float(np.sum(level.slack(x) ** 2) + mu * step @ step)
-
-    def _polish(self, level, x, x0, Z, C_A, C_lower, C_upper, mu) -> np.ndarray | None:
-        """Exact LSI by a primal active set started from ``x`` (see the module docstring), or None.
-
-        Working set: constraint rows held at one of their bounds, and the level's inequality rows
-        in the objective at one of their bounds. Each iteration solves the equality-constrained
-        least squares of the working set, then adds the most violated constraint or row, or drops
-        a row now satisfied or a constraint whose multiplier has the wrong sign.
-        """
-        r = Z.shape[1]
-        C = C_A @ Z
-        c_lower, c_upper = C_lower - C_A @ x0, C_upper - C_A @ x0
-        if level is None:
-            A, lo, hi, eq = Z, -x0, -x0, np.ones(self.n, dtype=bool)
+        if extended:
+            program = _Program(r, len(A_all), m)
         else:
-            A, lo, hi, eq = level.A @ Z, level.lower - level.A @ x0, level.upper - level.A @ x0, level.equality
-        y = Z.T @ (x - x0)
-
-        def side(value, lower, upper, threshold):  # -1: at lower, +1: at upper, 0: free
-            scale = threshold * np.maximum(1.0, np.abs(value))
-            return np.where(value <= lower + scale, -1, np.where(value >= upper - scale, 1, 0))
-
-        held = side(C @ y, c_lower, c_upper, 1e-5)
-        rows = np.where(eq, 0, side(A @ y, lo, hi, 1e-5))
-        seen = set()
-        for _ in range(4 * (len(C) + len(A)) + 10):
-            working = (held.tobytes(), rows.tobytes())
-            if working in seen:  # cycling (degenerate constraints): give up, keep the solver's point
-                return None
-            seen.add(working)
-            in_objective = eq | (rows != 0)
-            M = A[in_objective]
-            t = np.where(eq, lo, np.where(rows > 0, hi, lo))[in_objective]
-            if mu > 0.0:
-                M, t = np.vstack([M, np.sqrt(mu) * np.eye(r)]), np.concatenate([t, np.zeros(r)])
-            E, e = C[held != 0], np.where(held > 0, c_upper, c_lower)[held != 0]
-            y = np.linalg.lstsq(E, e, rcond=None)[0] if len(E) else np.zeros(r)
-            N = _null_space(E, self.rank_threshold) if len(E) else np.eye(r)
-            if N.shape[1]:
-                y = y + N @ np.linalg.lstsq(M @ N, t - M @ y, rcond=None)[0]
-            value, row_value = C @ y, A @ y
-            tol = 1e-10 * np.maximum(1.0, np.abs(value))
-            violation = np.maximum(c_lower - tol - value, value - c_upper - tol) * (held == 0)
-            if np.any(violation > 0):
-                i = int(np.argmax(violation))
-                held[i] = 1 if value[i] > c_upper[i] else -1
-                continue
-            row_tol = 1e-10 * np.maximum(1.0, np.abs(row_value))
-            outside = np.maximum(lo - row_tol - row_value, row_value - hi - row_tol) * (~eq & (rows == 0))
-            if np.any(outside > 0):
-                i = int(np.argmax(outside))
-                rows[i] = 1 if row_value[i] > hi[i] else -1
-                continue
-            # Rows pulled back inside their bounds leave the objective.
-            inside = ~eq & (((rows > 0) & (row_value < hi - row_tol)) | ((rows < 0) & (row_value > lo + row_tol)))
-            if inside.any():
-                rows[np.flatnonzero(inside)[0]] = 0
-                continue
-            if len(E):  # multipliers: Mᵀ(M y - t) + Eᵀ λ = 0; λ ≥ 0 at upper, ≤ 0 at lower
-                lam = -np.linalg.lstsq(E.T, M.T @ (M @ y - t), rcond=None)[0]
-                wrong = np.where(held[held != 0] > 0, -lam, lam)
-                if np.any(wrong > 1e-9):
-                    held[np.flatnonzero(held)[int(np.argmax(wrong))]] = 0
-                    continue
-            if np.any(value < c_lower - tol) or np.any(value > c_upper + tol):
-                return None  # an inconsistent working set: least squares could not hold it
-            # KKT holds (feasible, rows on the right side, multipliers of the right sign): this is the
-            # optimum of the convex stage. The cost comparison only guards against a bug.
-            candidate = x0 + Z @ y
-            cost, solver_cost = self._stage_cost(level, candidate, x0, Z, mu), self._stage_cost(level, x, x0, Z, mu)
-            return candidate if cost <= solver_cost * (1 + 1e-6) + 1e-12 else None
-        return None
+            program = self._programs.get((r, len(A_all), m))
+            if program is None:
+                program = self._programs[(r, len(A_all), m)] = _Program(r, len(A_all), m)
+        if program.rows is not None:
+            program.rows.evaluator().UpdateCoefficients(A_all, np.concatenate(rows_lower), np.concatenate(rows_upper))
+        program.cost.evaluator().UpdateCoefficients(Q, b)
+        if extended:
+            with np.errstate(invalid="ignore"):  # numpy's checks on symbolic (object) arrays
+                x_expression = x0 + Z @ program.y
+            for extension in carried:
+                extension(program.prog, x_expression, False)
+            if level is not None and level.extend is not None:
+                level.extend(program.prog, x_expression, True)
+        drake_solver, options = self._drake(name)
+        result = drake_solver.Solve(program.prog, np.zeros(r + m), options)
+        x = x0 + Z @ result.GetSolution(program.y)
+        if not np.all(np.isfinite(x)):
+            return None, str(result.get_solution_result())
+        if extended and not result.is_success():
+            return None, str(result.get_solution_result())
+        return x, ""
 
     def _result(self, levels, x, x_lower, x_upper, fixed, used) -> HqpResult:
         slacks = [level.slack(x) for level in levels]

@@ -22,7 +22,7 @@ from pydrake.systems.framework import Context
 from ..configuration import Layout
 from ..exceptions import InvalidInput, SolverError
 from ..robots import RobotModel
-from .hqp import HierarchicalQP, LevelRows, check_solver
+from .hqp import ACTIVE_SET, HierarchicalQP, LevelRows, check_solver
 from .limits import velocity_bounds
 from .sot import SOT, StackSettings
 
@@ -32,15 +32,15 @@ log = logging.getLogger("sotdrake.solver_kine")
 @dataclass
 class HqpSettings(StackSettings):
     position_margin: float = 1e-3  # rad (or m): joints stop this far from their position limits
-    solver: str = "clarabel"
+    solver: str = ACTIVE_SET
 
 
 @dataclass
 class HqpDiagnostics:
     """Per-level results of one tick: ``slack_norms``, ``active_rows`` (inequality rows at a bound),
     ``active_limits`` (velocity components at a joint-limit bound), ``level_solvers``
-    ("closed-form" or the Drake solver, per stage), ``solve_time_s``, and ``failure`` (a message,
-    or empty)."""
+    ("active-set", or "<Drake solver>+polish", per stage), ``solve_time_s``, and ``failure`` (a
+    message, or empty)."""
 
     tasks: list[str] = field(default_factory=list)
     slack_norms: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -48,6 +48,8 @@ class HqpDiagnostics:
     active_limits: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     level_solvers: list[str] = field(default_factory=list)
     solve_time_s: float = 0.0
+    max_iterations: int = 0  # active-set iterations of the stage that needed most (0: every guess held)
+    fallbacks: list[str] = field(default_factory=list)  # paths that failed before another succeeded
     failure: str = ""
 
 
@@ -63,7 +65,7 @@ class SolverKine(SOT):
         dt: float,
         damping: float = 0.0,
         position_margin: float = 1e-3,
-        solver: str = "clarabel",
+        solver: str = ACTIVE_SET,
     ):
         SOT.__init__(self, name, model.nv, damping=damping, settings=HqpSettings())
         self.setSolver(solver)
@@ -74,7 +76,7 @@ class SolverKine(SOT):
         self._limits = (limits["position_lower"], limits["position_upper"],
                         limits["velocity_lower"], limits["velocity_upper"])
         self.position = self.DeclareVectorInputPort("position", model.nq)
-        self._hqp = HierarchicalQP(model.nv)  # its programs are a cache: results never depend on it
+        self._hqp = HierarchicalQP(model.nv)  # its programs and working sets are caches (warm starts)
         self.DeclareAbstractOutputPort(
             "diagnostics", lambda: AbstractValue.Make(HqpDiagnostics()),
             lambda c, o: o.set_value(self._solution.Eval(c).diagnostics),
@@ -90,7 +92,8 @@ class SolverKine(SOT):
         self._command(context, lambda s: setattr(s, "position_margin", float(margin)))
 
     def setSolver(self, solver: str, context: Context | None = None) -> None:
-        """The Drake solver of the levels that need one (``'clarabel'``, ``'osqp'``, ``'snopt'``)."""
+        """How the levels are solved: ``'active-set'`` (default, exact), or a Drake solver
+        (``'clarabel'``, ``'osqp'``, ``'snopt'``) polished by the active-set method."""
         check_solver(solver)
         self._command(context, lambda s: setattr(s, "solver", solver))
 
@@ -113,6 +116,8 @@ class SolverKine(SOT):
         diagnostics.active_limits = result.active_bounds
         diagnostics.level_solvers = result.level_solvers
         diagnostics.solve_time_s = result.solve_time_s
+        diagnostics.max_iterations = max(result.iterations, default=0)
+        diagnostics.fallbacks = result.fallbacks
         value.set_value(_Solution(result.x, result.slack_norms, diagnostics))
 
 

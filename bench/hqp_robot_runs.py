@@ -1,0 +1,197 @@
+#!/usr/bin/env python3
+"""Randomized SolverKine runs on TALOS: the hierarchical QP never fails, the limits always hold.
+
+    python bench/hqp_robot_runs.py                 # 300 runs of 60 ticks
+    python bench/hqp_robot_runs.py --runs 20 --ticks 40
+
+One diagram holds every task (both feet 6D, the CoM held or kept in a ±3 cm box, both hands, the
+posture); each run takes a fresh context and draws: a start configuration (half-sitting moved by a
+random velocity, clipped to the limits, so that some joints start on a limit), which tasks are in the
+stack and in which order (the feet first), hand targets near (≤ 15 cm) or far (up to 1 m, behind the
+back, unreachable), gains 1-20 /s, the position margin, and the solver's damping. Every tick checks
+the solver's diagnostics (a failure would hold the device: a *frozen tick*), the joint positions
+against their limits and the velocities against theirs. Prints a summary and writes it as JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+
+from pydrake.systems.analysis import Simulator  # noqa: E402
+from pydrake.systems.framework import DiagramBuilder  # noqa: E402
+
+from sotdrake.device import Layout, integrate  # noqa: E402
+from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture, gotoNd  # noqa: E402
+from sotdrake.robot import Robot, add_sot  # noqa: E402
+from sotdrake.robots import load_talos  # noqa: E402
+
+GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]
+DT = 1e-3
+
+
+@dataclass
+class Runs:
+    diagram: object
+    robot: Robot
+    sot: object
+    feet: list
+    com: MetaTaskKineCom
+    com_box: MetaTaskKineCom
+    hands: list
+    posture: MetaTaskKinePosture
+
+
+def build(model=None) -> Runs:
+    """The diagram with every task declared (none pushed: each run builds its own stack)."""
+    builder = DiagramBuilder()
+    robot = Robot(builder, model or load_talos("reduced"), DT)
+    sot = add_sot(robot, solver="hqp")
+    sot.setControlSelection(robot.velocity_selection(GRIPPERS))
+    dyn = robot.dynamic
+    feet = [MetaTaskKine6d(name, dyn, name[-2:], robot.OperationalPointsMap[op])
+            for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle"))]
+    com = MetaTaskKineCom(dyn)
+    com_box = MetaTaskKineCom(dyn, name="combox", inequality=True)
+    com_box.feature.selec("011")
+    hands = [MetaTaskKine6d(name, dyn, name, robot.OperationalPointsMap[op])
+             for name, op in (("rh", "right-wrist"), ("lh", "left-wrist"))]
+    posture = MetaTaskKinePosture(dyn)
+    return Runs(builder.Build(), robot, sot, feet, com, com_box, hands, posture)
+
+
+def start_configuration(model, rng) -> np.ndarray:
+    spread = rng.uniform(0.0, 0.4)
+    q = integrate(model.half_sitting, rng.normal(scale=spread, size=model.nv), 1.0, Layout.of(model.plant))
+    lower, upper = model.plant.GetPositionLowerLimits(), model.plant.GetPositionUpperLimits()
+    return np.clip(q, lower, upper)
+
+
+def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
+    """One random run (see the module docstring): counts of frozen ticks and limit violations."""
+    robot, sot, model = runs.robot, runs.sot, runs.robot.model
+    context = runs.diagram.CreateDefaultContext()
+    robot.device.set_position(context, start_configuration(model, rng))
+    stack = []
+    if rng.random() < 0.9:
+        for foot in runs.feet:
+            foot.keep(context)
+            foot.gain.setConstant(rng.uniform(1, 20), context)
+            stack.append(foot.task.name)
+    com_kind = rng.choice(["held", "box", "none"])
+    if com_kind == "held":
+        runs.com.keep(context)
+        runs.com.gain.setConstant(rng.uniform(1, 20), context)
+        stack.append(runs.com.task.name)
+    elif com_kind == "box":
+        runs.com_box.keep(context)
+        runs.com_box.gain.setConstant(rng.uniform(1, 20), context)
+        runs.com_box.task.setBounds([-0.03, -0.03], [0.03, 0.03], context)
+        stack.append(runs.com_box.task.name)
+    targets = []
+    for hand in runs.hands:
+        if rng.random() < 0.7:
+            here = hand.current_pose(context).translation()
+            if rng.random() < 0.5:
+                target = here + rng.uniform(-0.15, 0.15, 3)
+            else:
+                target = rng.uniform([-0.8, -1.0, 0.0], [1.2, 1.0, 2.0])
+            gotoNd(hand, target, "111", rng.uniform(1, 20), context=context)
+            targets.append(hand.task.name)
+    order = rng.permutation(len(targets))
+    stack += [targets[i] for i in order]
+    if rng.random() < 0.5:
+        runs.posture.gain.setConstant(rng.uniform(0.5, 5), context)
+        stack.append(runs.posture.task.name)
+    own = sot.GetMyContextFromRoot(context)
+    for name in stack:
+        sot.push(name, own)
+    sot.setPositionMargin(rng.choice([0.0, 1e-3, 1e-2]), own)
+    sot.setDamping(rng.choice([0.0, 0.0, 1e-6, 1e-3]), own)
+
+    limits = model.joint_limits()
+    lower, upper = limits["position_lower"], limits["position_upper"]
+    v_lower, v_upper = limits["velocity_lower"], limits["velocity_upper"]
+    layout = robot.device.layout
+    simulator = Simulator(runs.diagram, context)
+    simulator.Initialize()
+    frozen, position_violations, velocity_violations, solve_times, active = 0, 0, 0, [], 0
+    failures, fallbacks, drake, iterations = [], 0, 0, 0
+    for k in range(ticks):
+        diagnostics = sot.GetOutputPort("diagnostics").Eval(own)
+        v = sot.GetOutputPort("control").Eval(own)
+        if diagnostics.failure:
+            frozen += 1
+            failures.append(diagnostics.failure)
+        solve_times.append(diagnostics.solve_time_s)
+        if diagnostics.fallbacks:  # a path failed on this tick before another one succeeded
+            fallbacks += 1
+            drake += any(how != "active-set" for how in diagnostics.level_solvers)
+            failures.append(f"fallback: {diagnostics.fallbacks}")
+        iterations = max(iterations, diagnostics.max_iterations)
+        active += len(diagnostics.active_limits) > 0
+        iv = layout.joints_v
+        velocity_violations += int(np.any(v[iv] < v_lower[iv] - 1e-9) or np.any(v[iv] > v_upper[iv] + 1e-9))
+        simulator.AdvanceTo((k + 1) * DT)
+        q = robot.device.position(simulator.get_context())
+        iq = layout.joints_q
+        position_violations += int(np.any(q[iq] < lower[iq] - 1e-9) or np.any(q[iq] > upper[iq] + 1e-9))
+    return {"stack": stack, "frozen_ticks": frozen, "position_limit_violations": position_violations,
+            "velocity_limit_violations": velocity_violations, "ticks_with_active_limits": active,
+            "solve_times_s": solve_times, "failures": failures[:3], "ticks_with_a_fallback": fallbacks,
+            "ticks_with_a_drake_fallback": drake,
+            "max_iterations": iterations}
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--runs", type=int, default=300)
+    parser.add_argument("--ticks", type=int, default=60)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--only", type=int, nargs="*", help="run only these run indices")
+    parser.add_argument("--out", type=Path, default=HERE / "results" / "hqp_robot_runs.json")
+    args = parser.parse_args(argv)
+    import logging
+
+    logging.disable(logging.WARNING)
+    runs = build()
+    start = time.perf_counter()
+    indices = args.only if args.only else range(args.runs)
+    results = []
+    for i in indices:
+        results.append(one_run(runs, np.random.default_rng(args.seed + i), args.ticks))
+        if results[-1]["failures"]:
+            print(f"run {i}: {results[-1]['failures']}", file=sys.stderr, flush=True)
+    wall = time.perf_counter() - start
+    times = 1e3 * np.concatenate([r["solve_times_s"] for r in results])
+    summary = {
+        "runs": len(results), "ticks_per_run": args.ticks, "ticks": len(results) * args.ticks,
+        "runs_with_a_frozen_tick": sum(r["frozen_ticks"] > 0 for r in results),
+        "frozen_ticks": sum(r["frozen_ticks"] for r in results),
+        "position_limit_violations": sum(r["position_limit_violations"] for r in results),
+        "velocity_limit_violations": sum(r["velocity_limit_violations"] for r in results),
+        "ticks_with_active_limits": sum(r["ticks_with_active_limits"] for r in results),
+        "ticks_with_a_fallback": sum(r["ticks_with_a_fallback"] for r in results),
+        "ticks_with_a_drake_fallback": sum(r["ticks_with_a_drake_fallback"] for r in results),
+        "max_active_set_iterations": max(r["max_iterations"] for r in results),
+        "solve_ms_median": float(np.median(times)), "solve_ms_p99": float(np.percentile(times, 99)),
+        "solve_ms_max": float(times.max()), "wall_s": wall,
+        "failures": [f for r in results for f in r["failures"]][:10],
+    }
+    print(json.dumps(summary, indent=1))
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(summary, indent=1))
+    return summary
+
+
+if __name__ == "__main__":
+    main()

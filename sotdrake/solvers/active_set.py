@@ -1,0 +1,285 @@
+"""An exact primal active-set method for one least-squares level with two-sided linear constraints.
+
+Problem (all arrays numpy, ``z`` of size p)::
+
+    min_z  ½‖M z - t‖²    s.t.  lower ≤ G z ≤ upper
+
+``G``'s rows have unit norm (the caller scales them, and their bounds, by their norms), so every
+tolerance below is absolute on unit rows. ``M``'s rows keep their weights (they are the level's
+objective); ``m_scale`` gives each row's reference norm, and every rank decision on ``M`` is taken
+on ``M / m_scale`` (rows at unit reference norm): a row that a projection has shrunk to round-off
+(a task already fixed by the levels above) is then seen as zero instead of being inverted.
+
+**The rank threshold.** One absolute number τ (``threshold``, default :data:`RANK_THRESHOLD`) makes
+every rank decision: a singular value of the (unit-row) working-set matrix or of the (unit-row)
+reduced objective ``M N`` at most τ counts as zero. No library default cutoff is used anywhere.
+
+**The equality-constrained step (EQP).** For a working set ``W`` (rows held at one side
+``s_i ∈ {-1: lower, +1: upper}``) the EQP point is the *minimum-norm* minimiser
+
+    z_W = argmin { ‖z‖ : z minimises ½‖M z - t‖² subject to G_W z = g_W },
+
+computed from the SVD of ``G_W`` (particular solution plus null-space basis ``N``) and the SVD of
+``(M N)/m_scale`` cut at τ, then a weighted least squares on the kept right singular vectors. It is
+a function of ``W`` alone, so the returned point is a function of the final working set only (a
+warm start changes the path, never the answer beyond round-off).
+
+**Iterations.** From a feasible ``z`` (the previous level's point): step towards ``z_W``; the ratio
+test stops at the first blocking row (smallest index among ties, Bland's rule), which joins ``W``.
+After a full step the multipliers ``λ`` of ``∇f + G_Wᵀ λ = 0`` are checked: a row at its upper side
+needs ``λ ≥ 0``, at its lower side ``λ ≤ 0``; the most wrong one leaves ``W``. When every sign is
+right the point satisfies the KKT conditions of the convex problem: it is optimal.
+
+A *guess* of the working set (the previous tick's, or one read off another solver's answer) is tried
+first: if its EQP point is feasible and its multipliers have the right signs it is the optimum and no
+iteration is needed; otherwise the iterations start from the feasible point, keeping the guessed
+rows that are active there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import quadprog
+import scipy.linalg
+
+RANK_THRESHOLD = 1e-8
+"""Default τ: singular values ≤ τ of unit-row matrices count as zero (see the module docstring)."""
+
+
+class ActiveSetFailure(RuntimeError):
+    """The iterations did not converge (an iteration cap met on a degenerate problem)."""
+
+
+@dataclass
+class ActiveSetResult:
+    z: np.ndarray
+    side: np.ndarray  # per row of G: -1 held at lower, +1 held at upper, 0 free (the final working set)
+    iterations: int
+    guess_accepted: bool
+
+
+def _svd(a: np.ndarray):
+    return np.linalg.svd(a, full_matrices=True)
+
+
+def independent_rows(E: np.ndarray, threshold: float) -> np.ndarray:
+    """Indices of a linearly independent subset of ``E``'s (unit) rows spanning the same space:
+    QR with column pivoting of ``Eᵀ``, pivots with ``|R_ii| > threshold``."""
+    if len(E) == 0:
+        return np.zeros(0, dtype=int)
+    R, pivots = scipy.linalg.qr(E.T, mode="r", pivoting=True)
+    diagonal = np.abs(np.diag(R))
+    return np.sort(pivots[: int(np.count_nonzero(diagonal > threshold))])
+
+
+def eqp(
+    M: np.ndarray,
+    t: np.ndarray,
+    m_scale: np.ndarray,
+    E: np.ndarray,
+    e: np.ndarray,
+    threshold: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The minimum-norm minimiser of ``½‖M z - t‖²`` s.t. ``E z = e`` (``E`` with unit rows), the
+    multipliers ``λ`` of ``Mᵀ(M z - t) + Eᵀ λ = 0`` (minimum norm if ``E`` is rank deficient), and
+    an orthonormal basis ``N`` of ``E``'s null space (None: the whole space)."""
+    p = M.shape[1]
+    if len(E):
+        U, s, Vt = _svd(E)
+        k = int(np.count_nonzero(s > threshold))
+        U_k, s_k, V_k = U[:, :k], s[:k], Vt[:k].T
+        z = V_k @ ((U_k.T @ e) / s_k)
+        N = Vt[k:].T
+    else:
+        z, N = np.zeros(p), None
+    identity = M.shape[0] == p and bool(np.all(m_scale == 1.0)) and np.array_equal(M, np.eye(p))
+    if identity:  # ½‖z - t‖² (the minimum-norm stage): N has orthonormal columns, no decomposition
+        r = t - z
+        z = z + (r if N is None else N @ (N.T @ r))
+    elif len(M):
+        B = M if N is None else M @ N
+        if B.shape[1]:
+            r = t - M @ z
+            U2, s2, V2t = np.linalg.svd(B / m_scale[:, None], full_matrices=False)
+            k2 = int(np.count_nonzero(s2 > threshold))
+            if k2:
+                # minimise ‖D (U2_k s2_k c - r / D)‖ with D = m_scale: weighted least squares in c.
+                W = m_scale[:, None] * (U2[:, :k2] * s2[:k2])
+                if np.all(m_scale == m_scale[0]):
+                    c = (U2[:, :k2].T @ r) / (m_scale[0] * s2[:k2])
+                else:
+                    Q, R = np.linalg.qr(W)
+                    c = np.linalg.solve(R, Q.T @ r)
+                u = V2t[:k2].T @ c
+                z = z + (u if N is None else N @ u)
+    if len(E):
+        gradient = M.T @ (M @ z - t) if len(M) else np.zeros(p)
+        lam = -(U_k @ ((V_k.T @ gradient) / s_k))
+    else:
+        lam = np.zeros(0)
+    return z, lam, N
+
+
+def solve_least_squares_qp(
+    M: np.ndarray,
+    t: np.ndarray,
+    m_scale: np.ndarray,
+    G: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    z: np.ndarray,
+    guess: np.ndarray | None = None,
+    threshold: float = RANK_THRESHOLD,
+    feasibility: float = 1e-10,
+    max_iterations: int | None = None,
+) -> ActiveSetResult:
+    """Solve the problem of the module docstring from the feasible point ``z`` (``G`` unit rows).
+
+    ``guess``: a side per row of ``G`` (-1, 0, +1), tried first. Raises :class:`ActiveSetFailure`
+    if the iterations do not converge."""
+    m = len(G)
+    equality = lower == upper
+    if guess is not None and len(guess) == m:
+        side = np.where(equality, 1, np.asarray(guess, dtype=int))
+        side[(side < 0) & ~np.isfinite(lower)] = 0
+        side[(side > 0) & ~np.isfinite(upper)] = 0
+        candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility)
+        if candidate is not None:
+            return ActiveSetResult(candidate, side, 0, True)
+        value = G @ z
+        near = feasibility * 10
+        side = np.where((side < 0) & (value <= lower + near), -1, np.where((side > 0) & (value >= upper - near), 1, 0))
+        side[equality] = 1
+        held = np.flatnonzero(side)
+        dependent = np.setdiff1d(held, held[independent_rows(G[held], threshold)])
+        side[dependent] = 0  # a working set is linearly independent (equality rows come first in rank)
+    else:
+        side = np.where(equality, 1, 0)
+    if max_iterations is None:
+        max_iterations = 10 * (m + M.shape[1]) + 50
+    seen: set[bytes] = set()
+    bland = False
+    last_dropped, dropped_side = -1, 0
+    for iteration in range(1, max_iterations + 1):
+        held = side != 0
+        E = G[held]
+        e = np.where(side > 0, upper, lower)[held]
+        # The minimum-norm step from z: along it a dropped row is left on its feasible side
+        # (the absolute minimum-norm point is recomputed at the end).
+        step, lam, N = eqp(M, t - M @ z, m_scale, E, e - E @ z, threshold)
+        target = z + step
+        value, rate = G @ z, G @ step
+        # Only rows independent of the working set can block (a dependent row's rate is round-off).
+        if N is None:
+            movable = ~held
+        else:
+            GN = G @ N
+            movable = ~held & (np.sqrt(np.einsum("ij,ij->i", GN, GN)) > threshold)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            up = np.where(movable & (rate > 0.0), (upper - value) / rate, np.inf)
+            down = np.where(movable & (rate < 0.0), (lower - value) / rate, np.inf)
+        ratio = np.maximum(np.minimum(up, down), 0.0)
+        alpha = float(ratio.min(initial=np.inf))
+        if alpha < 1.0:
+            blocking = int(np.flatnonzero(ratio <= alpha * (1 + 1e-12))[0]) if bland else int(np.argmin(ratio))
+            if blocking == last_dropped and alpha * float(np.abs(step).max(initial=0.0)) <= 1e-12 * max(1.0, float(np.abs(z).max(initial=0.0))):
+                # The row just dropped blocks at once: its multiplier's sign was round-off, the
+                # previous point (where it was held) is optimal.
+                side[blocking] = dropped_side
+                return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration)
+            z = z + alpha * step
+            side[blocking] = 1 if up[blocking] <= down[blocking] else -1
+            last_dropped = -1
+            if alpha == 0.0:
+                key = side.tobytes()
+                if key in seen:
+                    bland = True
+                seen.add(key)
+            continue
+        z = target
+        # Multipliers: λ ≥ 0 at an upper side, ≤ 0 at a lower side (equality rows: free), up to a
+        # round-off tolerance relative to the gradient's scale.
+        held_index = np.flatnonzero(held)
+        residual = M @ z - t if len(M) else np.zeros(0)
+        tolerance = 1e-9 * max(1.0, float(m_scale.max(initial=0.0)) * float(np.linalg.norm(residual)))
+        wrong = np.where(equality[held_index], 0.0, -side[held_index] * lam)
+        if wrong.size and wrong.max() > tolerance:
+            leaving = held_index[int(np.flatnonzero(wrong > tolerance)[0]) if bland else int(np.argmax(wrong))]
+            last_dropped, dropped_side = leaving, side[leaving]
+            side[leaving] = 0
+            key = side.tobytes()
+            if key in seen:
+                bland = True
+            seen.add(key)
+            continue
+        return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration)
+    raise ActiveSetFailure(f"no convergence in {max_iterations} active-set iterations")
+
+
+def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+               regularization: float = 1e-9) -> np.ndarray | None:
+    """A guess of the working set (a side per row of ``G``) from Goldfarb-Idnani's dual active-set
+    method (quadprog, compiled) on the problem made strictly convex by ``regularization``·I (scaled
+    by ``‖M‖²``). Only a guess: the caller checks it exactly. None if quadprog refuses."""
+    p = G.shape[1]
+    H = M.T @ M
+    H[np.diag_indices(p)] += regularization * max(1.0, float(np.trace(H)) / max(p, 1))
+    has_lower, has_upper = np.isfinite(lower), np.isfinite(upper)
+    lower_rows, upper_rows = np.flatnonzero(has_lower), np.flatnonzero(has_upper)
+    C = np.vstack([G[lower_rows], -G[upper_rows]])
+    b = np.concatenate([lower[lower_rows], -upper[upper_rows]])
+    if len(C) == 0:
+        return np.zeros(len(G), dtype=int)
+    try:
+        active = quadprog.solve_qp(H, M.T @ t, C.T, b, 0)[5]
+    except ValueError:
+        return None
+    active = active[active > 0] - 1
+    side = np.zeros(len(G), dtype=int)
+    n_low = len(lower_rows)
+    side[lower_rows[active[active < n_low]]] = -1
+    side[upper_rows[active[active >= n_low] - n_low]] = 1
+    return side
+
+
+def _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration) -> ActiveSetResult:
+    """The optimum: the absolute minimum-norm EQP point of the final working set if it is feasible
+    (a function of the working set alone), else the iterate (same objective value)."""
+    final = _feasible_eqp(M, t, m_scale, G, lower, upper, side, threshold, feasibility)
+    return ActiveSetResult(z if final is None else final, side, iteration, False)
+
+
+def _eqp_of(M, t, m_scale, G, lower, upper, side, threshold):
+    held = side != 0
+    e = np.where(side > 0, upper, lower)[held]
+    return eqp(M, t, m_scale, G[held], e, threshold)
+
+
+def _feasible(G, lower, upper, z, feasibility) -> bool:
+    value = G @ z
+    with np.errstate(invalid="ignore"):
+        return not (np.any(value < lower - feasibility * np.maximum(1.0, np.abs(lower)))
+                    or np.any(value > upper + feasibility * np.maximum(1.0, np.abs(upper))))
+
+
+def _feasible_eqp(M, t, m_scale, G, lower, upper, side, threshold, feasibility) -> np.ndarray | None:
+    """The (absolute, minimum-norm) EQP point of the working set ``side`` if it is feasible."""
+    z = _eqp_of(M, t, m_scale, G, lower, upper, side, threshold)[0]
+    return z if _feasible(G, lower, upper, z, feasibility) else None
+
+
+def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility) -> np.ndarray | None:
+    """The EQP point of the working set ``side`` if it satisfies the KKT conditions, else None."""
+    held = side != 0
+    z, lam, _ = _eqp_of(M, t, m_scale, G, lower, upper, side, threshold)
+    if not _feasible(G, lower, upper, z, feasibility):
+        return None
+    equality = (lower == upper)[held]
+    wrong = np.where(equality, 0.0, -side[held] * lam)
+    residual = M @ z - t if len(M) else np.zeros(0)
+    tolerance = 1e-9 * max(1.0, float(m_scale.max(initial=0.0)) * float(np.linalg.norm(residual)))
+    if wrong.size and wrong.max() > tolerance:
+        return None
+    return z

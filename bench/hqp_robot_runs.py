@@ -57,15 +57,14 @@ def build(model=None) -> Runs:
     robot = Robot(builder, model or load_talos("reduced"), DT)
     sot = add_sot(robot, solver="hqp")
     sot.setControlSelection(robot.velocity_selection(GRIPPERS))
-    dyn = robot.dynamic
-    feet = [MetaTaskKine6d(name, dyn, name[-2:], robot.OperationalPointsMap[op])
+    feet = [MetaTaskKine6d(name, robot, name[-2:], robot.OperationalPointsMap[op])
             for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle"))]
-    com = MetaTaskKineCom(dyn)
-    com_box = MetaTaskKineCom(dyn, name="combox", inequality=True)
+    com = MetaTaskKineCom(robot)
+    com_box = MetaTaskKineCom(robot, name="combox", inequality=True)
     com_box.feature.selec("011")
-    hands = [MetaTaskKine6d(name, dyn, name, robot.OperationalPointsMap[op])
+    hands = [MetaTaskKine6d(name, robot, name, robot.OperationalPointsMap[op])
              for name, op in (("rh", "right-wrist"), ("lh", "left-wrist"))]
-    posture = MetaTaskKinePosture(dyn)
+    posture = MetaTaskKinePosture(robot)
     return Runs(builder.Build(), robot, sot, feet, com, com_box, hands, posture)
 
 

@@ -96,6 +96,6 @@ def test_translation_only_path_matches_the_full_one(frame, rng):
     Xd = RigidTransform(RotationMatrix(exp_so3(rng.normal(size=3))), rng.normal(size=3))
     J, V = rng.normal(size=(6, 10)), rng.normal(size=6)
     full = pose_error_and_jacobian(X, J, Xd, frame, V)
-    fast = pose_error_and_jacobian(X, J, Xd, frame, V, rotation=False)
+    fast = pose_error_and_jacobian(X, J, Xd, frame, V, rows=np.array([0, 1, 2]))  # no logarithm taken
     for a, b in zip(full, fast):
-        np.testing.assert_allclose(a[:3], b[:3], atol=1e-14)
+        np.testing.assert_allclose(a[:3], b, atol=1e-14)

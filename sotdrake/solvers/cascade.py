@@ -27,6 +27,9 @@ from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
+from scipy.linalg.lapack import dgesdd as _gesdd
+
+from ..exceptions import SolverError
 
 
 @lru_cache(maxsize=8)
@@ -54,6 +57,11 @@ def solve_cascade(
     ``control_selection`` (nv booleans, sot-core's ``controlSelec``) restricts the solution to the
     selected velocity components (``Z_0`` = the selected columns of ``I``); the others are zero.
     ``damping`` is one δ for every level or one per level.
+
+    Each level takes one LAPACK ``gesdd`` of ``A_iᵀ`` (``r × m``, Fortran-ordered as it comes, no
+    copy): ``A_iᵀ = W Σ Uᵀ``, so ``W``'s columns are ``A_i``'s right singular vectors and its last
+    ``r - rank`` columns the null space kept for the levels below. The last level takes the thin
+    decomposition. A non-finite level raises :class:`~sotdrake.exceptions.SolverError`.
     """
     v = np.zeros(nv)
     Z = _identity(nv) if control_selection is None else _identity(nv)[:, control_selection]
@@ -64,15 +72,19 @@ def solve_cascade(
         if Z.shape[1] == 0:
             continue
         A = J @ Z
-        # The last level needs no null space: the thin SVD is enough (and cheaper).
-        U, sigma, Vt = np.linalg.svd(A, full_matrices=i < last)
+        if A.shape[0] == 0:
+            continue
+        W, sigma, Ut, info = _gesdd(A.T, compute_uv=1, full_matrices=int(i < last))
+        if info != 0:
+            raise SolverError(f"level {i}: the SVD failed (LAPACK info {info}); is the level finite?")
         rank = int(np.count_nonzero(sigma > svd_threshold))
         ranks[i] = rank
         if rank:
             s = sigma[:rank]
             inverse = 1.0 / s if dampings[i] == 0.0 else s / (s * s + dampings[i])
-            rhs = U[:, :rank].T @ (reference - J @ v)
-            v = v + Z @ (Vt[:rank].T @ (inverse * rhs))
-            Z = Z @ Vt[rank:].T
+            rhs = Ut[:rank] @ (reference - J @ v)
+            v = v + Z @ (W[:, :rank] @ (inverse * rhs))
+            if i < last:
+                Z = Z @ W[:, rank:]
     residuals = np.array([math.sqrt(d @ d) for d in (J @ v - r for J, r in levels)])
     return CascadeResult(v, residuals, ranks)

@@ -139,3 +139,52 @@ def quaternion_exp(phi: np.ndarray) -> np.ndarray:
     if theta < 1e-8:
         return np.concatenate([[1.0 - theta**2 / 8], 0.5 * phi])
     return np.concatenate([[np.cos(theta / 2)], (np.sin(theta / 2) / theta) * phi])
+
+
+# --- the same on Python floats (the device's hot path; cheaper than numpy for 3- and 4-vectors) ---
+
+
+def se3_translation_list(v, omega) -> list[float]:
+    """:func:`se3_translation` on Python floats."""
+    theta = math.sqrt(omega[0] * omega[0] + omega[1] * omega[1] + omega[2] * omega[2])
+    w_v = _cross_list(omega, v)
+    w_w_v = _cross_list(omega, w_v)
+    if theta < 1e-6:
+        a, b = 0.5, 1.0 / 6.0
+    else:
+        a, b = (1.0 - math.cos(theta)) / theta**2, (theta - math.sin(theta)) / theta**3
+    return [v[i] + a * w_v[i] + b * w_w_v[i] for i in range(3)]
+
+
+def _cross_list(a, b) -> list[float]:
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def quaternion_wxyz_to_rotation_list(w: float, x: float, y: float, z: float) -> list[list[float]]:
+    """:func:`quaternion_wxyz_to_rotation` of a unit quaternion, rows of Python floats."""
+    return [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ]
+
+
+def quaternion_multiply_list(a, b) -> list[float]:
+    """:func:`quaternion_multiply` on Python floats."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return [
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ]
+
+
+def quaternion_exp_list(phi) -> list[float]:
+    """:func:`quaternion_exp` on Python floats."""
+    theta = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    if theta < 1e-8:
+        return [1.0 - theta**2 / 8, 0.5 * phi[0], 0.5 * phi[1], 0.5 * phi[2]]
+    k = math.sin(theta / 2) / theta
+    return [math.cos(theta / 2), k * phi[0], k * phi[1], k * phi[2]]

@@ -29,7 +29,7 @@ from pydrake.systems.framework import Context, LeafSystem
 
 from .entity import Entity
 from .exceptions import InvalidInput, check_finite
-from .features.base import FeatureValue
+from .features.base import FeatureValue, optional_input, usual_input
 
 
 class TaskLevel(NamedTuple):
@@ -83,16 +83,16 @@ class _TaskBase:
 
     def _inputs(self, context: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """``(e, J, ė_ref)`` from ``feature``, else from ``error``, ``jacobian``, ``errordot``."""
-        if self.feature.HasValue(context):
-            return self.feature.Eval(context)
+        value = usual_input(self.feature, context, None)
+        if value is not None:
+            return value
         e = self.error.Eval(context)
-        e_dot = self.errordot.Eval(context) if self.errordot.HasValue(context) else None
-        return e, self.jacobian.Eval(context), e_dot
+        return e, self.jacobian.Eval(context), optional_input(self.errordot, context, None)
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         e, J, e_dot = self._inputs(context)
         lower, upper = self._rows(context, e, self.controlGain.Eval(context)[0])
-        if e_dot is not None and e_dot.any():
+        if e_dot is not None and np.count_nonzero(e_dot):
             if e_dot.shape != e.shape:
                 raise InvalidInput(f"{self.name}: errordot has {e_dot.size} rows, error has {e.size}")
             equality = upper is lower  # keep an equality one array (TaskLevel.is_equality)

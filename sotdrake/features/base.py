@@ -34,8 +34,20 @@ class FeatureValue(NamedTuple):
 
 
 def optional_input(port, context: Context, default):
-    """The value of an optional input port, or ``default`` when it is not connected."""
+    """The value of an optional input port, or ``default`` when it is not connected (for a port
+    seldom connected: ``HasValue`` is cheap then)."""
     return port.Eval(context) if port.HasValue(context) else default
+
+
+def usual_input(port, context: Context, default):
+    """:func:`optional_input` for a port usually connected: one evaluation on that path
+    (``HasValue`` evaluates the upstream port too), the check only when the evaluation fails."""
+    try:
+        return port.Eval(context)
+    except RuntimeError:
+        if port.HasValue(context):
+            raise
+        return default
 
 
 @dataclass

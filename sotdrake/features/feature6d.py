@@ -30,7 +30,7 @@ from pydrake.systems.framework import Context
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite
 from ..lie import hat, log_so3_list, right_jacobian_inverse_list
-from .base import Feature, FeatureSettings
+from .base import Feature, FeatureSettings, usual_input
 
 FRAMES = ("desired", "current")
 
@@ -241,7 +241,7 @@ class Feature6d(Feature):
         self._declare_outputs()
 
     def _compute(self, context: Context, s, rows):
-        V = self.reference_velocity.Eval(context) if self.reference_velocity.HasValue(context) else None
+        V = usual_input(self.reference_velocity, context, None)
         return pose_error_and_jacobian(self.position.Eval(context).GetAsMatrix4(), self.Jq.Eval(context),
                                        self.reference.Eval(context).GetAsMatrix4(), s.frame, V, s.opmodif, rows)
 

@@ -15,7 +15,7 @@ from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..exceptions import check_finite
-from .base import Feature, optional_input
+from .base import Feature, optional_input, usual_input
 
 
 @dataclass
@@ -66,7 +66,7 @@ class FeatureGeneric(Feature):
         self._declare_outputs()
 
     def _compute(self, context: Context, settings, rows):
-        velocity = self.reference_velocity.Eval(context) if self.reference_velocity.HasValue(context) else None
+        velocity = usual_input(self.reference_velocity, context, None)
         return generic_error_and_jacobian(self.errorIN.Eval(context), self.jacobianIN.Eval(context),
                                           self.reference.Eval(context), velocity, rows)
 

@@ -1,13 +1,14 @@
 """The basic SoT solver: a strict pseudo-inverse cascade (sot-core ``SOT``), as pure numpy.
 
-For levels ``i = 1..n`` (``J_i v = ė_i*``), with ``Z_0 = I`` an orthonormal basis of ``R^nv``::
+For levels ``i = 1..n`` (``J_i v = ė_i*``), with ``P_0 = I`` (or the projector on the selected
+velocities, see ``control_selection``)::
 
-    A_i   = J_i Z_{i-1}                    (= J_i P_{i-1} restricted to the free directions)
-    v_i   = v_{i-1} + Z_{i-1} A_i^♯ (ė_i* - J_i v_{i-1})
-    Z_i   = Z_{i-1} · (right singular vectors of A_i beyond its numerical rank)
+    A_i   = J_i P_{i-1}                    (J_i restricted to what the higher levels leave free)
+    v_i   = v_{i-1} + A_i^♯ (ė_i* - J_i v_{i-1})
+    P_i   = P_{i-1} - V_i V_iᵀ             (V_i: the kept right singular vectors of A_i)
 
-which is the seed's ``v_i = v_{i-1} + (J_i P_{i-1})^+ (ė_i* - J_i v_{i-1})`` with
-``P_i = Z_i Z_iᵀ``. ``A^♯`` is built from the SVD ``A = U Σ Vᵀ``:
+which is the seed's ``v_i = v_{i-1} + (J_i P_{i-1})^+ (ė_i* - J_i v_{i-1})``. ``A^♯`` is built from
+the thin SVD ``A = U Σ Vᵀ``:
 
 * singular values ``σ ≤ svd_threshold`` are truncated (the rank decision; sot-core's ``SOT``
   calls this threshold its "damping");
@@ -15,8 +16,11 @@ which is the seed's ``v_i = v_{i-1} + (J_i P_{i-1})^+ (ė_i* - J_i v_{i-1})`` wi
   ``argmin ‖A x - r‖² + δ‖x‖²``, i.e. ``σ/(σ² + δ)`` on the kept directions. Damping trades a
   level's own accuracy for bounded velocities near singularities.
 
-Lower levels only move in ``range(Z_i)``, on which ``J_i`` vanishes up to the truncated singular
-values, so a lower level never changes a higher level's residual (strict priority).
+The right singular vectors of ``J_i P_{i-1}`` lie in ``range(P_{i-1})``, so ``P_i`` stays the
+orthogonal projector on the null space of every level so far (up to the truncated singular
+values), lower levels only move in ``range(P_i)``, and a lower level never changes a higher
+level's residual (strict priority). One thin SVD per level (LAPACK ``gesdd`` of the ``nv × m``
+matrix ``A_iᵀ``, no full ``nv × nv`` basis) and two ``nv × nv`` products.
 """
 
 from __future__ import annotations
@@ -58,23 +62,20 @@ def solve_cascade(
     selected velocity components (``Z_0`` = the selected columns of ``I``); the others are zero.
     ``damping`` is one δ for every level or one per level.
 
-    Each level takes one LAPACK ``gesdd`` of ``A_iᵀ`` (``r × m``, Fortran-ordered as it comes, no
-    copy): ``A_iᵀ = W Σ Uᵀ``, so ``W``'s columns are ``A_i``'s right singular vectors and its last
-    ``r - rank`` columns the null space kept for the levels below. The last level takes the thin
-    decomposition. A non-finite level raises :class:`~sotdrake.exceptions.SolverError`.
+    Each level takes one LAPACK ``gesdd`` of ``A_iᵀ`` (Fortran-ordered as it comes, no copy):
+    ``A_iᵀ = W Σ Uᵀ``, so ``W``'s columns are ``A_i``'s right singular vectors. A LAPACK failure
+    raises :class:`~sotdrake.exceptions.SolverError`.
     """
     v = np.zeros(nv)
-    Z = _identity(nv) if control_selection is None else _identity(nv)[:, control_selection]
+    P = _identity(nv) if control_selection is None else np.diag(np.asarray(control_selection, dtype=float))
     ranks = np.zeros(len(levels), dtype=int)
     last = len(levels) - 1
-    dampings = [float(damping)] * len(levels) if np.ndim(damping) == 0 else list(damping)
+    dampings = [float(damping)] * len(levels) if isinstance(damping, (int, float)) else list(damping)
     for i, (J, reference) in enumerate(levels):
-        if Z.shape[1] == 0:
+        if J.shape[0] == 0:
             continue
-        A = J @ Z
-        if A.shape[0] == 0:
-            continue
-        W, sigma, Ut, info = _gesdd(A.T, compute_uv=1, full_matrices=int(i < last))
+        A = J @ P
+        W, sigma, Ut, info = _gesdd(A.T, compute_uv=1, full_matrices=0)
         if info != 0:
             raise SolverError(f"level {i}: the SVD failed (LAPACK info {info}); is the level finite?")
         rank = int(np.count_nonzero(sigma > svd_threshold))
@@ -82,9 +83,10 @@ def solve_cascade(
         if rank:
             s = sigma[:rank]
             inverse = 1.0 / s if dampings[i] == 0.0 else s / (s * s + dampings[i])
-            rhs = Ut[:rank] @ (reference - J @ v)
-            v = v + Z @ (W[:, :rank] @ (inverse * rhs))
+            V = W[:, :rank]
+            rhs = Ut[:rank] @ (reference - J @ v if i else reference)
+            v = v + V @ (inverse * rhs)
             if i < last:
-                Z = Z @ W[:, rank:]
+                P = P - V @ V.T
     residuals = np.array([math.sqrt(d @ d) for d in (J @ v - r for J, r in levels)])
     return CascadeResult(v, residuals, ranks)

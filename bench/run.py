@@ -19,6 +19,8 @@ p99, max over ≥ 3000 ticks after a warm-up), so they include Drake's framework
 a task is the least-squares slope of the median tick against the number of tasks (2 to 10 tasks,
 each one more 6D, CoM or posture task). The breakdown comes from a separate instrumented run
 (exclusive time per category). Ratios to pink are to pink's median measured in the same run.
+"""
+
 from __future__ import annotations
 
 import argparse

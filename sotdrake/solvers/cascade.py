@@ -43,9 +43,17 @@ def _identity(n: int) -> np.ndarray:
     return identity
 
 
+@lru_cache(maxsize=8)
+def _projector(selection: bytes) -> np.ndarray:
+    """The projector on the selected velocities (``diag(selection)``), read-only and cached."""
+    P = np.diag(np.frombuffer(selection, dtype=bool).astype(float))
+    P.flags.writeable = False
+    return P
+
+
 class CascadeResult(NamedTuple):
     velocity: np.ndarray
-    residuals: np.ndarray  # ‖J_i v - ė_i*‖ of each level, for the returned v
+    residuals: np.ndarray | None  # ‖J_i v - ė_i*‖ of each level, for the returned v
     ranks: np.ndarray  # numerical rank of each A_i
 
 
@@ -55,19 +63,21 @@ def solve_cascade(
     svd_threshold: float = 1e-4,
     damping: float | Sequence[float] = 0.0,
     control_selection: np.ndarray | None = None,
+    with_residuals: bool = True,
 ) -> CascadeResult:
     """Solve ``levels`` = ``[(J_1, ė_1*), …]`` in strict priority; see the module docstring.
 
     ``control_selection`` (nv booleans, sot-core's ``controlSelec``) restricts the solution to the
-    selected velocity components (``Z_0`` = the selected columns of ``I``); the others are zero.
-    ``damping`` is one δ for every level or one per level.
+    selected velocity components (``P_0 = diag(selection)``); the others are zero.
+    ``damping`` is one δ for every level or one per level. ``with_residuals=False`` leaves
+    ``residuals`` None (see :func:`cascade_residuals`).
 
     Each level takes one LAPACK ``gesdd`` of ``A_iᵀ`` (Fortran-ordered as it comes, no copy):
     ``A_iᵀ = W Σ Uᵀ``, so ``W``'s columns are ``A_i``'s right singular vectors. A LAPACK failure
     raises :class:`~sotdrake.exceptions.SolverError`.
     """
     v = np.zeros(nv)
-    P = _identity(nv) if control_selection is None else np.diag(np.asarray(control_selection, dtype=float))
+    P = _identity(nv) if control_selection is None else _projector(np.asarray(control_selection, dtype=bool).tobytes())
     ranks = np.zeros(len(levels), dtype=int)
     last = len(levels) - 1
     dampings = [float(damping)] * len(levels) if isinstance(damping, (int, float)) else list(damping)
@@ -78,7 +88,7 @@ def solve_cascade(
         W, sigma, Ut, info = _gesdd(A.T, compute_uv=1, full_matrices=0)
         if info != 0:
             raise SolverError(f"level {i}: the SVD failed (LAPACK info {info}); is the level finite?")
-        rank = int(np.count_nonzero(sigma > svd_threshold))
+        rank = sum(1 for x in sigma.tolist() if x > svd_threshold)
         ranks[i] = rank
         if rank:
             s = sigma[:rank]
@@ -88,5 +98,9 @@ def solve_cascade(
             v = v + V @ (inverse * rhs)
             if i < last:
                 P = P - V @ V.T
-    residuals = np.array([math.sqrt(d @ d) for d in (J @ v - r for J, r in levels)])
-    return CascadeResult(v, residuals, ranks)
+    return CascadeResult(v, cascade_residuals(levels, v) if with_residuals else None, ranks)
+
+
+def cascade_residuals(levels: Sequence[tuple[np.ndarray, np.ndarray]], v: np.ndarray) -> np.ndarray:
+    """``‖J_i v - ė_i*‖`` of each level."""
+    return np.array([math.sqrt(d @ d) for d in (J @ v - r for J, r in levels)])

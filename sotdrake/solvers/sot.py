@@ -23,7 +23,21 @@ from pydrake.systems.framework import Context, InputPort, ValueProducer
 from ..entity import Entity
 from ..exceptions import InvalidInput, SolverError, StackError, TaskNotFound
 from ..task import Task, TaskLevel
-from .cascade import CascadeResult, solve_cascade
+from .cascade import CascadeResult, cascade_residuals, solve_cascade
+
+
+class _CascadeSolution:
+    """The cascade's velocity and ranks; the residuals are computed when the ``residuals`` output
+    is read (most ticks only need the velocity)."""
+
+    def __init__(self, velocity: np.ndarray, ranks: np.ndarray, levels: list[tuple[np.ndarray, np.ndarray]]):
+        self.velocity, self.ranks, self._levels, self._residuals = velocity, ranks, levels, None
+
+    @property
+    def residuals(self) -> np.ndarray:
+        if self._residuals is None:
+            self._residuals = cascade_residuals(self._levels, self.velocity)
+        return self._residuals
 
 
 @dataclass
@@ -251,10 +265,10 @@ class SOT(Entity[StackSettings]):
                 raise SolverError(f"{self.name} cannot solve inequality rows: use the hierarchical QP")
         pairs = [(level.jacobian, level.reference) for level in levels]
         try:
-            result = solve_cascade(pairs, nv, s.svd_threshold, s.damping, s.control_selection)
+            result = solve_cascade(pairs, nv, s.svd_threshold, s.damping, s.control_selection, with_residuals=False)
         except (SolverError, ValueError, np.linalg.LinAlgError):
             result = None
-        if result is None or not math.isfinite(result.velocity.sum() + result.residuals.sum()):
+        if result is None or not math.isfinite(result.velocity.sum() + sum(r.sum() for _, r in pairs)):
             self._levels(context, s)  # a non-finite level: raises, naming the task
             raise SolverError(f"{self.name}: the cascade gave a non-finite control at t = {context.get_time()}")
-        value.set_value(result)
+        value.set_value(_CascadeSolution(result.velocity, result.ranks, pairs))

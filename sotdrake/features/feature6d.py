@@ -100,15 +100,18 @@ def pose_error_and_jacobian(
     RdT, RT = [list(c) for c in zip(*Rd)], [list(c) for c in zip(*R)]
     zero3 = [0.0, 0.0, 0.0]
     e_r = e_dot_t = e_dot_r = zero3
-    bottom = [[0.0] * 6] * 3
+    bottom = [0.0] * 18  # rows 3-5 of M, flat
     if frame == "desired":
         e_t = _apply(RdT, [p[0] - pd[0], p[1] - pd[1], p[2] - pd[2]])
-        left = [zero3] * 3 if r is None else _mul(RdT, _hat([-r[0], -r[1], -r[2]]))
-        top = [[*left[i], *RdT[i]] for i in range(3)]
+        if r is None:
+            top = [0.0, 0.0, 0.0, *RdT[0], 0.0, 0.0, 0.0, *RdT[1], 0.0, 0.0, 0.0, *RdT[2]]
+        else:
+            left = _mul(RdT, _hat([-r[0], -r[1], -r[2]]))
+            top = [*left[0], *RdT[0], *left[1], *RdT[1], *left[2], *RdT[2]]
         if rotation:
             e_r = log_so3_list(_mul_t(RdT, RT))
-            JrRT = _mul(right_jacobian_inverse_list(e_r), RT)
-            bottom = [[*row, 0.0, 0.0, 0.0] for row in JrRT]
+            a, b, c = _mul(right_jacobian_inverse_list(e_r), RT)
+            bottom = [*a, 0.0, 0.0, 0.0, *b, 0.0, 0.0, 0.0, *c, 0.0, 0.0, 0.0]
         if moving:
             wd = _apply(RdT, w_star)
             e_dot_t = [a - b for a, b in zip(_cross(e_t, wd), _apply(RdT, p_star_dot))]
@@ -119,24 +122,21 @@ def pose_error_and_jacobian(
         left = _mul(_hat(e_t), RT)
         if r is not None:
             left = [[a + b for a, b in zip(u, w)] for u, w in zip(left, _mul(RT, _hat(r)))]
-        top = [[*left[i], -RT[i][0], -RT[i][1], -RT[i][2]] for i in range(3)]
+        top = [x for i in range(3) for x in (*left[i], -RT[i][0], -RT[i][1], -RT[i][2])]
         if rotation:
             e_r = log_so3_list(_mul(RT, Rd))
             JlRT = _mul(right_jacobian_inverse_list([-x for x in e_r]), RT)
-            bottom = [[-row[0], -row[1], -row[2], 0.0, 0.0, 0.0] for row in JlRT]
+            bottom = [x for row in JlRT for x in (-row[0], -row[1], -row[2], 0.0, 0.0, 0.0)]
         if moving:
             e_dot_t = _apply(RT, p_star_dot)
             if rotation:
                 e_dot_r = _apply(right_jacobian_inverse_list(e_r), _apply(RdT, w_star))
     else:
         raise InvalidInput(f"frame: expected one of {FRAMES}, got {frame!r}")
+    M = np.array(top + bottom).reshape(6, 6)
     if rows is None:
-        return np.array(e_t + e_r), np.array(top + bottom) @ J_WOp, np.array(e_dot_t + e_dot_r)
-    M = (top + bottom)
-    picked = rows.tolist()
-    e, e_dot = e_t + e_r, e_dot_t + e_dot_r
-    return (np.array([e[i] for i in picked]), np.array([M[i] for i in picked]) @ J_WOp,
-            np.array([e_dot[i] for i in picked]))
+        return np.array(e_t + e_r), M @ J_WOp, np.array(e_dot_t + e_dot_r)
+    return np.array(e_t + e_r)[rows], M[rows] @ J_WOp, np.array(e_dot_t + e_dot_r)[rows]
 
 
 def shift_jacobian(X_WOp: RigidTransform, J_WOp: np.ndarray, X_OpF: RigidTransform):

@@ -15,6 +15,15 @@ import numpy as np
 from scenario import DT, FEET, GAIN_COM, GAIN_FEET, GAIN_HAND, HAND_FRAME, TARGET, pinocchio_half_sitting, urdf_file, urdf_text
 
 
+def _version(package: str) -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(package)
+    except PackageNotFoundError:
+        return "?"
+
+
 def _accuracy(hand, feet, feet0, com, com0) -> dict:
     return {
         "hand_error_m": float(np.linalg.norm(hand - TARGET)),
@@ -91,5 +100,5 @@ def run_placo(ticks: int, warmup: int) -> dict:
     accuracy = _accuracy(robot.get_T_world_frame(HAND_FRAME)[:3, 3], [robot.get_T_world_frame(f)[:3, 3] for f in FEET],
                          feet0, robot.com_world(), com0)
     accuracy["max_foot_drift_m"] = max(accuracy["max_foot_drift_m"], drift)
-    return {"times_s": np.array(times[warmup:]), "accuracy": accuracy, "version": getattr(placo, "__version__", "?"),
+    return {"times_s": np.array(times[warmup:]), "accuracy": accuracy, "version": getattr(placo, "__version__", None) or _version("placo"),
             "note": "placo's KinematicsSolver closes each task's whole error at every step (no task gain)"}

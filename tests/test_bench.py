@@ -15,7 +15,8 @@ import run as bench  # noqa: E402
 def test_stacks_and_timing():
     robot, sot, hand, diagram = bench.build_stack("cascade", tasks=10)
     assert len(sot.stack()) == 10 and sot.stack()[:3] == ["taskcontactRF", "taskcontactLF", "taskcom"]
-    times, simulator = bench.time_ticks(diagram, 20, 5)
+    times, simulator, cpu = bench.time_ticks(diagram, 20, 5)
+    assert cpu.shape == (20,) and np.all(cpu >= 0)
     assert times.shape == (20,) and np.all(times > 0)
     assert simulator.get_context().get_time() > 0.024  # 25 ticks of 1 ms
     summary = bench.stats(times)

@@ -55,19 +55,21 @@ def run_pink(ticks: int, warmup: int, solver: str = "daqp") -> dict:
     limits = [ConfigurationLimit(model), VelocityLimit(model)]
     feet0 = [configuration.get_transform_frame_to_world(f).translation.copy() for f in FEET]
     com0 = pin.centerOfMass(model, data, configuration.q).copy()
-    times, drift = [], 0.0
+    times, cpu, drift = [], [], 0.0
     for k in range(warmup + ticks):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.thread_time()
         v = pink.solve_ik(configuration, tasks, DT, solver=solver, limits=limits, safety_break=False)
         configuration.integrate_inplace(v, DT)
         times.append(time.perf_counter() - start)
+        cpu.append(time.thread_time() - start_cpu)
         if k % 10 == 0:  # outside the timed region
             drift = max(drift, max(np.linalg.norm(configuration.get_transform_frame_to_world(f).translation - f0) for f, f0 in zip(FEET, feet0)))
     accuracy = _accuracy(configuration.get_transform_frame_to_world(HAND_FRAME).translation,
                          [configuration.get_transform_frame_to_world(f).translation for f in FEET], feet0,
                          pin.centerOfMass(model, data, configuration.q), com0)
     accuracy["max_foot_drift_m"] = max(accuracy["max_foot_drift_m"], drift)
-    return {"times_s": np.array(times[warmup:]), "accuracy": accuracy, "version": _version("pin-pink"), "qp_solver": solver}
+    return {"times_s": np.array(times[warmup:]), "cpu_s": np.array(cpu[warmup:]), "accuracy": accuracy,
+            "version": _version("pin-pink"), "qp_solver": solver}
 
 
 def run_placo(ticks: int, warmup: int) -> dict:
@@ -90,16 +92,17 @@ def run_placo(ticks: int, warmup: int) -> dict:
     solver.add_com_task(com0).configure("com", "soft", 100.0)
     hand = solver.add_position_task(HAND_FRAME, TARGET)
     hand.configure("hand", "soft", 1.0)
-    times, drift = [], 0.0
+    times, cpu, drift = [], [], 0.0
     for k in range(warmup + ticks):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.thread_time()
         solver.solve(True)
         robot.update_kinematics()
         times.append(time.perf_counter() - start)
+        cpu.append(time.thread_time() - start_cpu)
         if k % 10 == 0:
             drift = max(drift, max(np.linalg.norm(robot.get_T_world_frame(f)[:3, 3] - f0) for f, f0 in zip(FEET, feet0)))
     accuracy = _accuracy(robot.get_T_world_frame(HAND_FRAME)[:3, 3], [robot.get_T_world_frame(f)[:3, 3] for f in FEET],
                          feet0, robot.com_world(), com0)
     accuracy["max_foot_drift_m"] = max(accuracy["max_foot_drift_m"], drift)
-    return {"times_s": np.array(times[warmup:]), "accuracy": accuracy, "version": _version("placo"),
+    return {"times_s": np.array(times[warmup:]), "cpu_s": np.array(cpu[warmup:]), "accuracy": accuracy, "version": _version("placo"),
             "note": "placo's KinematicsSolver closes each task's whole error at every step (no task gain)"}

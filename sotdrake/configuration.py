@@ -19,6 +19,7 @@ frame*. Every other joint has as many positions as velocities, and ``q̇_j = v_j
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -26,7 +27,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context
 
 from .exceptions import InvalidInput
-from .lie import quaternion_exp, quaternion_multiply, quaternion_wxyz_to_rotation, se3_translation
+from .lie import quaternion_exp_list, quaternion_multiply_list, quaternion_wxyz_to_rotation_list, se3_translation_list
 
 BASE_POSITION_SUFFIXES = ("qw", "qx", "qy", "qz", "x", "y", "z")
 BASE_VELOCITY_SUFFIXES = ("wx", "wy", "wz", "vx", "vy", "vz")
@@ -39,6 +40,8 @@ class Layout(NamedTuple):
     base_v: int | None
     joints_q: np.ndarray
     joints_v: np.ndarray
+    joints_q_slice: slice | None = None  # the same indices as a slice, when contiguous
+    joints_v_slice: slice | None = None
 
     @staticmethod
     def of(plant: MultibodyPlant) -> Layout:
@@ -54,22 +57,39 @@ class Layout(NamedTuple):
             joints_v = np.setdiff1d(joints_v, np.arange(base_v, base_v + 6))
         if joints_q.size != joints_v.size:
             raise InvalidInput("every joint but the floating base must have as many positions as velocities")
-        return Layout(base_q, base_v, joints_q, joints_v)
+        return Layout(base_q, base_v, joints_q, joints_v, _as_slice(joints_q), _as_slice(joints_v))
+
+
+def _as_slice(indices: np.ndarray) -> slice | None:
+    """``indices`` as a slice if they are contiguous and increasing (None otherwise)."""
+    if indices.size and np.array_equal(indices, np.arange(indices[0], indices[0] + indices.size)):
+        return slice(int(indices[0]), int(indices[0]) + indices.size)
+    return None
 
 
 def integrate(q: np.ndarray, v: np.ndarray, dt: float, layout: Layout) -> np.ndarray:
-    """``q ⊕ v·dt`` (see the module docstring); ``q`` is not modified."""
+    """``q ⊕ v·dt`` (see the module docstring); ``q`` is not modified. The floating base's 3-vectors
+    and quaternion are handled on Python floats (cheaper than numpy at this size)."""
     out = q.copy()
-    out[layout.joints_q] += dt * v[layout.joints_v]
+    if layout.joints_q_slice is not None and layout.joints_v_slice is not None:
+        out[layout.joints_q_slice] += dt * v[layout.joints_v_slice]
+    else:
+        out[layout.joints_q] += dt * v[layout.joints_v]
     if layout.base_q is not None:
         iq, iv = layout.base_q, layout.base_v
-        R = quaternion_wxyz_to_rotation(q[iq : iq + 4])
-        omega_B = R.T @ v[iv : iv + 3]
-        v_B = R.T @ v[iv + 3 : iv + 6]
-        dp = se3_translation(v_B * dt, omega_B * dt)
-        quaternion = quaternion_multiply(q[iq : iq + 4], quaternion_exp(omega_B * dt))
-        out[iq : iq + 4] = quaternion / np.linalg.norm(quaternion)
-        out[iq + 4 : iq + 7] = q[iq + 4 : iq + 7] + R @ dp
+        w, x, y, z = q[iq : iq + 4].tolist()
+        n = math.sqrt(w * w + x * x + y * y + z * z)
+        w, x, y, z = w / n, x / n, y / n, z / n
+        R = quaternion_wxyz_to_rotation_list(w, x, y, z)
+        twist = v[iv : iv + 6].tolist()
+        omega_B = [dt * (R[0][i] * twist[0] + R[1][i] * twist[1] + R[2][i] * twist[2]) for i in range(3)]
+        v_B = [dt * (R[0][i] * twist[3] + R[1][i] * twist[4] + R[2][i] * twist[5]) for i in range(3)]
+        dp = se3_translation_list(v_B, omega_B)
+        quaternion = quaternion_multiply_list((w, x, y, z), quaternion_exp_list(omega_B))
+        n = math.sqrt(sum(c * c for c in quaternion))
+        out[iq : iq + 4] = [c / n for c in quaternion]
+        p = q[iq + 4 : iq + 7].tolist()
+        out[iq + 4 : iq + 7] = [p[i] + R[i][0] * dp[0] + R[i][1] * dp[1] + R[i][2] * dp[2] for i in range(3)]
     return out
 
 

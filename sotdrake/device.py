@@ -15,6 +15,7 @@ the smallest limit margin seen.
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
@@ -51,12 +52,12 @@ class Device(LeafSystem):
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         v = self.control.Eval(context)
-        if not np.all(np.isfinite(v)):
+        if not math.isfinite(v.sum()):
             raise SolverError(f"{self.get_name()}: non-finite control at t = {context.get_time()}: {v}")
         q = context.get_discrete_state(self._q).get_value()
         q_next = integrate(q, v, self.dt, self.layout)
         outside = (q_next < self._lower) | (q_next > self._upper)
-        if outside.any():
+        if np.count_nonzero(outside):
             crossed = outside & (q >= self._lower) & (q <= self._upper)
             for i in np.flatnonzero(crossed):
                 log.warning("t = %.3f s: %s left its limits [%g, %g]: %g", context.get_time(),

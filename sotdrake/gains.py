@@ -116,11 +116,10 @@ class _Gain(Entity[GainSettings]):
     def __init__(self, name: str):
         Entity.__init__(self, name, GainSettings(constant(1.0)))
         self.error = self.DeclareAbstractInputPort("error", AbstractValue.Make(np.zeros(0)))
-        self.DeclareVectorOutputPort(
-            "gain",
-            1,
-            lambda c, o: o.SetAtIndex(0, self._settings_of(c).coefficients(_norm(self.error.Eval(c)))),
-        )
+        self.DeclareVectorOutputPort("gain", 1, self._calc_gain)
+
+    def _calc_gain(self, context: Context, output) -> None:
+        output.SetAtIndex(0, self._settings_of(context).coefficients(_norm(self.error.Eval(context))))
 
     def setConstant(self, gain: float, context: Context | None = None) -> None:
         self.setCoefficients(constant(gain), context)

@@ -21,7 +21,8 @@ _SMALL = 1e-8
 
 def hat(a: np.ndarray) -> np.ndarray:
     """Skew-symmetric matrix ``[a]×`` such that ``hat(a) @ b == np.cross(a, b)``."""
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    x, y, z = a.tolist() if isinstance(a, np.ndarray) else a
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def exp_so3(phi: np.ndarray) -> np.ndarray:
@@ -35,34 +36,57 @@ def exp_so3(phi: np.ndarray) -> np.ndarray:
 
 def log_so3(R: np.ndarray) -> np.ndarray:
     """Rotation vector ``φ`` with ``exp_so3(φ) = R`` and ``|φ| ≤ π`` (robust near 0 and π)."""
-    cos_theta = np.clip(0.5 * (np.trace(R) - 1.0), -1.0, 1.0)
-    theta = float(np.arccos(cos_theta))
-    w = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return np.array(log_so3_list(R.tolist() if isinstance(R, np.ndarray) else R))
+
+
+def log_so3_list(R) -> list[float]:
+    """:func:`log_so3` of a rotation given as rows of Python floats, on Python floats (the hot
+    path of the features: cheaper than numpy for a 3×3)."""
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R
+    cos_theta = min(1.0, max(-1.0, 0.5 * (r00 + r11 + r22 - 1.0)))
+    theta = math.acos(cos_theta)
+    wx, wy, wz = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)
     if theta < 1e-6:
-        return w * (1.0 + theta**2 / 6.0)  # sin θ ≈ θ (1 - θ²/6)
-    if np.pi - theta > 1e-4:
-        return w * (theta / np.sin(theta))
+        k = 1.0 + theta * theta / 6.0  # sin θ ≈ θ (1 - θ²/6)
+        return [wx * k, wy * k, wz * k]
+    if math.pi - theta > 1e-4:
+        k = theta / math.sin(theta)
+        return [wx * k, wy * k, wz * k]
     # Near π: the axis from the symmetric part, R + Rᵀ = 2 cos θ I + 2 (1 - cos θ) u uᵀ.
+    R = np.array(R, dtype=float)
     B = 0.5 * (R + R.T) - cos_theta * np.eye(3)
     k = int(np.argmax(np.diag(B)))
     u = B[:, k] / np.sqrt(max(B[k, k] * (1.0 - cos_theta), 1e-300))
     u /= np.linalg.norm(u)
-    if np.dot(u, w) < 0.0:
+    if u @ np.array([wx, wy, wz]) < 0.0:
         u = -u
-    return theta * u
+    return (theta * u).tolist()
 
 
 def _jacobian_coefficient(theta: float) -> float:
     """``1/θ² - (1 + cos θ)/(2θ sin θ)``, with its series ``1/12 + θ²/720`` near 0."""
     if theta < 1e-4:
         return 1.0 / 12.0 + theta**2 / 720.0
-    return 1.0 / theta**2 - (1.0 + np.cos(theta)) / (2.0 * theta * np.sin(theta))
+    return 1.0 / theta**2 - (1.0 + math.cos(theta)) / (2.0 * theta * math.sin(theta))
 
 
 def right_jacobian_inverse_so3(phi: np.ndarray) -> np.ndarray:
     """``Jr⁻¹(φ)``: maps a body angular velocity to ``d/dt log(R)``."""
-    K = hat(phi)
-    return np.eye(3) + 0.5 * K + _jacobian_coefficient(float(np.linalg.norm(phi))) * K @ K
+    return np.array(right_jacobian_inverse_list(phi.tolist() if isinstance(phi, np.ndarray) else phi))
+
+
+def right_jacobian_inverse_list(phi) -> list[list[float]]:
+    """:func:`right_jacobian_inverse_so3` on Python floats (rows): ``Jr⁻¹ = I + ½[φ]× + c(θ)[φ]×²``
+    with ``[φ]×² = φφᵀ - θ² I``, written out entry by entry."""
+    x, y, z = phi
+    t2 = x * x + y * y + z * z
+    c = _jacobian_coefficient(math.sqrt(t2))
+    d = 1.0 - c * t2
+    return [
+        [d + c * x * x, c * x * y - 0.5 * z, c * x * z + 0.5 * y],
+        [c * x * y + 0.5 * z, d + c * y * y, c * y * z - 0.5 * x],
+        [c * x * z - 0.5 * y, c * y * z + 0.5 * x, d + c * z * z],
+    ]
 
 
 def left_jacobian_inverse_so3(phi: np.ndarray) -> np.ndarray:
@@ -115,3 +139,52 @@ def quaternion_exp(phi: np.ndarray) -> np.ndarray:
     if theta < 1e-8:
         return np.concatenate([[1.0 - theta**2 / 8], 0.5 * phi])
     return np.concatenate([[np.cos(theta / 2)], (np.sin(theta / 2) / theta) * phi])
+
+
+# --- the same on Python floats (the device's hot path; cheaper than numpy for 3- and 4-vectors) ---
+
+
+def se3_translation_list(v, omega) -> list[float]:
+    """:func:`se3_translation` on Python floats."""
+    theta = math.sqrt(omega[0] * omega[0] + omega[1] * omega[1] + omega[2] * omega[2])
+    w_v = _cross_list(omega, v)
+    w_w_v = _cross_list(omega, w_v)
+    if theta < 1e-6:
+        a, b = 0.5, 1.0 / 6.0
+    else:
+        a, b = (1.0 - math.cos(theta)) / theta**2, (theta - math.sin(theta)) / theta**3
+    return [v[i] + a * w_v[i] + b * w_w_v[i] for i in range(3)]
+
+
+def _cross_list(a, b) -> list[float]:
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def quaternion_wxyz_to_rotation_list(w: float, x: float, y: float, z: float) -> list[list[float]]:
+    """:func:`quaternion_wxyz_to_rotation` of a unit quaternion, rows of Python floats."""
+    return [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ]
+
+
+def quaternion_multiply_list(a, b) -> list[float]:
+    """:func:`quaternion_multiply` on Python floats."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return [
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ]
+
+
+def quaternion_exp_list(phi) -> list[float]:
+    """:func:`quaternion_exp` on Python floats."""
+    theta = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    if theta < 1e-8:
+        return [1.0 - theta**2 / 8, 0.5 * phi[0], 0.5 * phi[1], 0.5 * phi[2]]
+    k = math.sin(theta / 2) / theta
+    return [math.cos(theta / 2), k * phi[0], k * phi[1], k * phi[2]]

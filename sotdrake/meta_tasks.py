@@ -81,8 +81,7 @@ class _MetaTask:
         self.task = robot.add_task(task)
         connect = robot.builder.Connect
         connect(feature.GetOutputPort("error"), self.gain.GetInputPort("error"))
-        for port in ("error", "jacobian", "errordot"):
-            connect(feature.GetOutputPort(port), self.task.GetInputPort(port))
+        connect(feature.GetOutputPort("signals"), self.task.GetInputPort("feature"))
         connect(self.gain.GetOutputPort("gain"), self.task.GetInputPort("controlGain"))
 
 

@@ -10,9 +10,11 @@
   with rate λ, and is driven back at that rate when outside. Only solvers that take inequalities
   (``SolverKine``) accept it; the basic ``SOT`` refuses it at ``push``.
 
-Inputs ``error`` (``e``), ``jacobian`` (``J = ∂e/∂v``), ``controlGain`` (``λ``, 1/s) and, optional,
-``errordot``. Outputs ``task``, a :class:`TaskLevel` for the solvers, and ``error_norm`` (``‖e‖``,
-for tracing).
+Inputs ``feature`` (a feature's ``signals``: ``e``, ``J = ∂e/∂v`` and ``ė_ref`` together, as
+sot-core's ``task.add(feature)``) and ``controlGain`` (``λ``, 1/s). When ``feature`` is not
+connected, the task reads ``error`` (``e``), ``jacobian`` (``J``) and, optional, ``errordot``
+instead (any source of rows). Outputs ``task``, a :class:`TaskLevel` for the solvers, and
+``error_norm`` (``‖e‖``, for tracing).
 """
 
 from __future__ import annotations
@@ -23,10 +25,11 @@ from typing import NamedTuple
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context, LeafSystem, ValueProducer
+from pydrake.systems.framework import Context, LeafSystem
 
 from .entity import Entity
 from .exceptions import InvalidInput, check_finite
+from .features.base import FeatureValue, optional_input, usual_input
 
 
 class TaskLevel(NamedTuple):
@@ -62,38 +65,40 @@ class _TaskBase:
 
     def _declare_ports(self, nv: int) -> None:
         self.nv = nv
+        self.feature = self.DeclareAbstractInputPort(
+            "feature", AbstractValue.Make(FeatureValue(np.zeros(0), np.zeros((0, nv)), np.zeros(0))))
         self.error = self.DeclareAbstractInputPort("error", AbstractValue.Make(np.zeros(0)))
         self.jacobian = self.DeclareAbstractInputPort("jacobian", AbstractValue.Make(np.zeros((0, nv))))
         self.controlGain = self.DeclareVectorInputPort("controlGain", 1)
         self.errordot = self.DeclareAbstractInputPort("errordot", AbstractValue.Make(np.zeros(0)))
-        self._level = self.DeclareCacheEntry(
-            "level",
-            ValueProducer(allocate=lambda: AbstractValue.Make(_empty(nv)), calc=self._calc),
-            prerequisites_of_calc={self.all_sources_ticket()},
-        )
-        self.DeclareAbstractOutputPort(
-            "task", lambda: AbstractValue.Make(_empty(nv)), lambda c, o: o.set_value(self._level.Eval(c))
-        )
+        self._task_output = self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(_empty(nv)), self._calc)
         self.DeclareVectorOutputPort(
-            "error_norm", 1, lambda c, o: o.SetAtIndex(0, _norm(self._level.Eval(c).error))
+            "error_norm", 1, lambda c, o: o.SetAtIndex(0, _norm(self._task_output.Eval(c).error)),
+            prerequisites_of_calc={self.cache_entry_ticket(self._task_output.cache_entry().cache_index())},
         )
 
     @property
     def name(self) -> str:
         return self.get_name()
 
-    def _calc(self, context: Context, value: AbstractValue) -> None:
+    def _inputs(self, context: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """``(e, J, ė_ref)`` from ``feature``, else from ``error``, ``jacobian``, ``errordot``."""
+        value = usual_input(self.feature, context, None)
+        if value is not None:
+            return value
         e = self.error.Eval(context)
+        return e, self.jacobian.Eval(context), optional_input(self.errordot, context, None)
+
+    def _calc(self, context: Context, value: AbstractValue) -> None:
+        e, J, e_dot = self._inputs(context)
         lower, upper = self._rows(context, e, self.controlGain.Eval(context)[0])
-        if self.errordot.HasValue(context):
-            e_dot = self.errordot.Eval(context)
+        if e_dot is not None and np.count_nonzero(e_dot):
             if e_dot.shape != e.shape:
                 raise InvalidInput(f"{self.name}: errordot has {e_dot.size} rows, error has {e.size}")
-            if e_dot.any():
-                equality = upper is lower  # keep an equality one array (TaskLevel.is_equality)
-                lower = lower - e_dot
-                upper = lower if equality else upper - e_dot
-        value.set_value(TaskLevel(self.jacobian.Eval(context), lower, upper, e))
+            equality = upper is lower  # keep an equality one array (TaskLevel.is_equality)
+            lower = lower - e_dot
+            upper = lower if equality else upper - e_dot
+        value.set_value(TaskLevel(J, lower, upper, e))
 
 
 class Task(_TaskBase, LeafSystem):
@@ -131,7 +136,7 @@ class TaskPD(_TaskBase, Entity[PDSettings]):
         self._command(context, lambda s: setattr(s, "beta", float(beta)))
 
     def _remember(self, context: Context, state) -> None:
-        state.get_mutable_abstract_state(self._previous).set_value(self.error.Eval(context).copy())
+        state.get_mutable_abstract_state(self._previous).set_value(self._inputs(context)[0].copy())
 
     def _rows(self, context, e, gain):
         previous = context.get_abstract_state(self._previous).get_value()

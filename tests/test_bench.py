@@ -1,6 +1,7 @@
 """The benchmark harness builds its stacks and measures (no timing is asserted: numbers live in
 bench/, not in tests)."""
 
+import json
 import sys
 from pathlib import Path
 
@@ -15,13 +16,13 @@ import run as bench  # noqa: E402
 def test_stacks_and_timing():
     robot, sot, hand, diagram = bench.build_stack("cascade", tasks=10)
     assert len(sot.stack()) == 10 and sot.stack()[:3] == ["taskcontactRF", "taskcontactLF", "taskcom"]
-    times, simulator = bench.time_ticks(diagram, 20, 5)
-    assert times.shape == (20,)
+    times, simulator, cpu = bench.time_ticks(diagram, 20, 5)
+    assert times.shape == (20,) and cpu.shape == (20,)
     # 5 + 20 calls, each advancing over exactly one device tick (at 0, 1 ms, …, 24 ms)
     assert simulator.get_context().get_time() == pytest.approx(24.5e-3, abs=1e-12)
     assert simulator.get_num_discrete_updates() == 25
     summary = bench.stats(times)
-    assert summary["n"] == 20 and summary["median"] <= summary["p95"] <= summary["max"]
+    assert summary["n"] == 20 and summary["median"] <= summary["p95"] <= summary["p99"] <= summary["max"]
     _, sot_arm, _, _ = bench.build_stack("cascade", variant="left_arm", tasks=1)
     assert sot_arm.stack() == ["tasklh"]
 
@@ -36,3 +37,12 @@ def test_breakdown_accounts_for_the_whole_tick():
     assert calls["device.Device._update"] == 20 and calls["sot.SOT._calc"] == 20
     assert calls["kinematics.Dynamic._calc_plant_context"] == 20
     assert calls["base.Feature._calc"] == 4 * 20 and calls["task._TaskBase._calc"] == 4 * 20
+
+
+def test_reference_run_renders_and_its_targets_are_recomputed():
+    """The committed reference run regenerates the README's tables, with the verdicts it stores."""
+    reference = json.loads(bench.REFERENCE.read_text())
+    assert bench.check_targets(reference) == reference["targets"]
+    table = bench.markdown(reference)
+    assert f"{reference['tick_us']['median']:.0f}" in table and "marginal cost" in table
+    assert table.count("\n| ") >= 10  # the peers' rows and the targets' rows

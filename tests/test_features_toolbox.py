@@ -7,13 +7,14 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from sotdrake.configuration import Layout, integrate
+from sotdrake.configuration import Layout
 from sotdrake.exceptions import InvalidInput
 from sotdrake.features import Feature1D, FeatureJointLimits
 from sotdrake.lie import exp_so3
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKine6dRel, MetaTaskKineCom, MetaTaskKinePosture, MetaTaskVisualPoint
 from sotdrake.robot import Robot
 from tests.conftest import random_configuration
+from tests.finite_differences import manifold_jacobian
 from tests.test_features import feature_at
 
 
@@ -60,12 +61,7 @@ def test_jacobian_by_finite_differences(rig, name, seed):
     feature = features[name]
     e, J = feature_at(robot, feature, context, q)
     assert np.linalg.norm(e) > 1e-3
-    h = 1e-6
-    numeric = np.column_stack([
-        (feature_at(robot, feature, context, integrate(q, d, h, layout))[0]
-         - feature_at(robot, feature, context, integrate(q, d, -h, layout))[0]) / (2 * h)
-        for d in np.eye(robot.model.nv)
-    ])
+    numeric = manifold_jacobian(lambda q: feature_at(robot, feature, context, q)[0], q, layout, robot.model.nv)
     np.testing.assert_allclose(J, numeric, atol=2e-6 * max(1.0, np.abs(J).max()))
 
 

@@ -1,13 +1,17 @@
-"""SoT features: an error ``e = s ⊖ s*``, its Jacobian ``∂e/∂v`` and ``ė_ref``, selected rows only."""
+"""SoT features: an error ``e = s ⊖ s*``, its Jacobian ``∂e/∂v`` and ``ė_ref``, selected rows only.
 
-from .base import Feature
-from .feature1d import Feature1D
+Each feature's maths is a pure function over numpy arrays (``…_error_and_jacobian``), which its
+``LeafSystem`` calls with the values of its input ports.
+"""
+
+from .base import Feature, FeatureValue
+from .feature1d import Feature1D, feature1d_error_and_jacobian
 from .feature6d import Feature6d, Feature6dDesired, pose_error_and_jacobian, shift_jacobian
-from .generic import FeatureGeneric, FeatureGenericDesired
-from .joint_limits import FeatureJointLimits
-from .posture import FeaturePosture
-from .relative import FeatureRelative6d
-from .visual_point import FeatureVisualPoint
+from .generic import FeatureGeneric, FeatureGenericDesired, generic_error_and_jacobian
+from .joint_limits import FeatureJointLimits, joint_limits_error_and_jacobian
+from .posture import FeaturePosture, posture_error_and_jacobian
+from .relative import FeatureRelative6d, relative_pose_error_and_jacobian
+from .visual_point import FeatureVisualPoint, visual_point_error_and_jacobian
 
 __all__ = [
     "Feature",
@@ -19,7 +23,14 @@ __all__ = [
     "FeatureJointLimits",
     "FeaturePosture",
     "FeatureRelative6d",
+    "FeatureValue",
     "FeatureVisualPoint",
+    "feature1d_error_and_jacobian",
+    "generic_error_and_jacobian",
+    "joint_limits_error_and_jacobian",
     "pose_error_and_jacobian",
+    "posture_error_and_jacobian",
+    "relative_pose_error_and_jacobian",
     "shift_jacobian",
+    "visual_point_error_and_jacobian",
 ]

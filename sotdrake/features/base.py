@@ -1,26 +1,53 @@
-"""What every feature shares: a selection mask, and one cached computation of ``(e, J, ė_ref)``.
+"""What every feature shares: a selection mask, and one computation of ``(e, J, ė_ref)``.
 
 A feature gives its full error ``e``, its Jacobian ``J = ∂e/∂v`` and ``ė_ref``, the rate of change
-of ``e`` due to a moving reference alone (``errordot``; zero for a fixed one). Outputs ``error``,
-``jacobian`` and ``errordot`` are their selected rows. A task with a moving reference then asks
+of ``e`` due to a moving reference alone (``errordot``; zero for a fixed one). The output
+``signals`` carries the selected rows of all three together (a :class:`FeatureValue`), computed
+once per change of the feature's inputs; a task reads it through one port (sot-core's
+``task.add(feature)``). The outputs ``error``, ``jacobian`` and ``errordot`` are the same rows, one
+signal each, for the gain, the tracer and introspection. A task with a moving reference then asks
 ``J v = -λ e - ė_ref`` (velocity feed-forward).
+
+Each feature's maths is a pure function over numpy arrays (``…_error_and_jacobian``), which its
+``_compute`` calls with the values of its input ports.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context, ValueProducer
+from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..selection import parse_selection
 
 
+class FeatureValue(NamedTuple):
+    """The selected rows of a feature: error ``e``, Jacobian ``J = ∂e/∂v``, ``ė_ref``."""
+
+    error: np.ndarray
+    jacobian: np.ndarray
+    errordot: np.ndarray
+
+
 def optional_input(port, context: Context, default):
-    """The value of an optional input port, or ``default`` when it is not connected."""
+    """The value of an optional input port, or ``default`` when it is not connected (for a port
+    seldom connected: ``HasValue`` is cheap then)."""
     return port.Eval(context) if port.HasValue(context) else default
+
+
+def usual_input(port, context: Context, default):
+    """:func:`optional_input` for a port usually connected: one evaluation on that path
+    (``HasValue`` evaluates the upstream port too), the check only when the evaluation fails."""
+    try:
+        return port.Eval(context)
+    except RuntimeError:
+        if port.HasValue(context):
+            raise
+        return default
 
 
 @dataclass
@@ -36,27 +63,27 @@ class Feature(Entity):
         self.dimension, self.nv = dimension, nv
 
     def _declare_outputs(self) -> None:
-        """Call once the inputs are declared (the cache depends on all of them)."""
+        """Call once the inputs are declared (``signals`` depends on all of them)."""
         nv = self.nv
-        self._result = self.DeclareCacheEntry(
-            "error_jacobian_errordot",
-            ValueProducer(allocate=lambda: AbstractValue.Make((np.zeros(0), np.zeros((0, nv)), np.zeros(0))),
-                          calc=self._calc),
-            prerequisites_of_calc={self.all_sources_ticket()},
-        )
-        for i, name in enumerate(("error", "jacobian", "errordot")):
-            empty = np.zeros((0, nv)) if name == "jacobian" else np.zeros(0)
-            self.DeclareAbstractOutputPort(name, lambda e=empty: AbstractValue.Make(e),
-                                           lambda c, o, i=i: o.set_value(self._result.Eval(c)[i]))
+        empty = FeatureValue(np.zeros(0), np.zeros((0, nv)), np.zeros(0))
+        self.signals = self.DeclareAbstractOutputPort("signals", lambda: AbstractValue.Make(empty), self._calc)
+        ticket = {self.cache_entry_ticket(self.signals.cache_entry().cache_index())}
+        for i, name in enumerate(FeatureValue._fields):
+            self.DeclareAbstractOutputPort(name, lambda i=i: AbstractValue.Make(empty[i]),
+                                           lambda c, o, i=i: o.set_value(self.signals.Eval(c)[i]),
+                                           prerequisites_of_calc=ticket)
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         settings = self._settings_of(context)
         rows = parse_selection(settings.selection, self.dimension)
-        e, J, e_dot = self._compute(context, settings, rows)
-        value.set_value((e[rows], J[rows], e_dot[rows]))
+        all_rows = rows.size == self.dimension
+        e, J, e_dot = self._compute(context, settings, None if all_rows else rows)
+        value.set_value(FeatureValue(e, J, e_dot) if all_rows or e.size == rows.size
+                        else FeatureValue(e[rows], J[rows], e_dot[rows]))
 
-    def _compute(self, context: Context, settings, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The full ``(e, J, ė_ref)``; ``rows`` (the selected ones) may be used to skip work."""
+    def _compute(self, context: Context, settings, rows: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(e, J, ė_ref)``: all rows, or, when ``rows`` (the selected ones, None for all) is
+        given, either all rows or only those (a feature may skip the work of the others)."""
         raise NotImplementedError
 
     def selec(self, mask: str, context: Context | None = None) -> None:

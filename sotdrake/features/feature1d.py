@@ -21,5 +21,13 @@ class Feature1D(Feature):
 
     def _compute(self, context: Context, settings, rows):
         e_in = self.errorIN.Eval(context)
-        e_dot_in = optional_input(self.errordotIN, context, np.zeros_like(e_in))
-        return np.array([0.5 * e_in @ e_in]), (e_in @ self.jacobianIN.Eval(context))[None, :], np.array([e_in @ e_dot_in])
+        e_dot_in = optional_input(self.errordotIN, context, None)
+        return feature1d_error_and_jacobian(e_in, self.jacobianIN.Eval(context), e_dot_in)
+
+
+def feature1d_error_and_jacobian(
+    e_in: np.ndarray, J_in: np.ndarray, e_dot_in: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``e = ½‖e_in‖²``, ``J = e_inᵀ J_in``, ``ė_ref = e_inᵀ ė_ref,in`` (zero for None), as 1-row arrays."""
+    e_dot = 0.0 if e_dot_in is None else e_in @ e_dot_in
+    return np.array([0.5 * e_in @ e_in]), (e_in @ J_in)[None, :], np.array([e_dot])

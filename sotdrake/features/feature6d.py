@@ -29,45 +29,114 @@ from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite
-from ..lie import hat, left_jacobian_inverse_so3, log_so3, right_jacobian_inverse_so3
-from .base import Feature, FeatureSettings, optional_input
+from ..lie import hat, log_so3_list, right_jacobian_inverse_list
+from .base import Feature, FeatureSettings, usual_input
 
 FRAMES = ("desired", "current")
 
 
+def _matrix(X) -> np.ndarray:
+    """A 4×4 homogeneous matrix from a ``RigidTransform`` or a 4×4 array."""
+    return X.GetAsMatrix4() if isinstance(X, RigidTransform) else np.asarray(X)
+
+
+def _rotation_translation(X) -> tuple[list, list]:
+    """``(R, p)`` of a 4×4 homogeneous matrix, as Python lists (rows of R)."""
+    r0, r1, r2 = _matrix(X).tolist()[:3]
+    return [r0[:3], r1[:3], r2[:3]], [r0[3], r1[3], r2[3]]
+
+
+def _mul(A, B) -> list:
+    """``A·B`` of 3×3 matrices given by rows."""
+    Bt = list(zip(*B))
+    return [[a[0] * b[0] + a[1] * b[1] + a[2] * b[2] for b in Bt] for a in A]
+
+
+def _mul_t(A, B) -> list:
+    """``A·Bᵀ`` of 3×3 matrices given by rows."""
+    return [[a[0] * b[0] + a[1] * b[1] + a[2] * b[2] for b in B] for a in A]
+
+
+def _apply(A, x) -> list:
+    """``A·x`` of a 3×3 matrix given by rows and a 3-vector."""
+    return [a[0] * x[0] + a[1] * x[1] + a[2] * x[2] for a in A]
+
+
+def _cross(a, b) -> list:
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _hat(a) -> list:
+    return [[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]]
+
+
 def pose_error_and_jacobian(
-    X_WF: RigidTransform, J_WF: np.ndarray, X_WFd: RigidTransform, frame: str, V_WFd: np.ndarray | None = None,
-    rotation: bool = True,
+    X_WOp, J_WOp: np.ndarray, X_WFd, frame: str = "desired", V_WFd: np.ndarray | None = None,
+    X_OpF=None, rows: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Full 6D error ``e``, its Jacobian ``∂e/∂v`` (6×nv) and ``ė_ref`` for the target's spatial
-    velocity ``V_WFd = (ω*, ṗ*)`` (zero when None); see the module docstring. With
-    ``rotation=False`` the rotation rows are left at zero (a selection without them: no log to take)."""
-    R, p = X_WF.rotation().matrix(), X_WF.translation()
-    Rd, pd = X_WFd.rotation().matrix(), X_WFd.translation()
-    moving = V_WFd is not None and V_WFd.any()
-    if not rotation:
-        if frame == "desired":
-            e_t, J_t = Rd.T @ (p - pd), Rd.T @ J_WF[3:]
-            e_dot_t = -Rd.T @ V_WFd[3:] + hat(e_t) @ (Rd.T @ V_WFd[:3]) if moving else np.zeros(3)
-        else:
-            e_t = R.T @ (pd - p)
-            J_t = -R.T @ J_WF[3:] + hat(e_t) @ (R.T @ J_WF[:3])
-            e_dot_t = R.T @ V_WFd[3:] if moving else np.zeros(3)
-        zeros = np.zeros(3)
-        return np.concatenate([e_t, zeros]), np.vstack([J_t, np.zeros_like(J_t)]), np.concatenate([e_dot_t, zeros])
-    Jw_F = R.T @ J_WF[:3]  # body angular-velocity rows
-    wd = Rd.T @ V_WFd[:3] if moving else None
+    """6D error ``e``, its Jacobian ``∂e/∂v`` and ``ė_ref`` of the frame ``F = Op · X_OpF``.
+
+    ``X_WOp`` (pose of the op point), ``X_WFd`` (desired pose of F) and ``X_OpF`` (the ``opmodif``,
+    None for the identity) are 4×4 homogeneous matrices (or ``RigidTransform``); ``J_WOp`` is the
+    op point's 6×nv spatial Jacobian (rows ``(ω; v)``, world); ``V_WFd = (ω*, ṗ*)`` the target's
+    spatial velocity (world; None or zero for a fixed target). ``rows``: the components to return
+    (None: all six); without rotation rows no logarithm is taken. See the module docstring for the
+    formulas. The Jacobian is ``M·S·J_WOp`` with ``S = [[I, 0], [-[r]×, I]]`` the shift to F
+    (``r = R_WOp p_OpF``) and ``M`` the 6×6 map of the error's frame: the 3×3 algebra is done on
+    Python floats (cheaper than numpy at this size) and ``J_WOp`` is touched by one product.
+    """
+    R, p = _rotation_translation(X_WOp)
+    Rd, pd = _rotation_translation(X_WFd)
+    r = None
+    if X_OpF is not None:
+        R_OpF, p_OpF = _rotation_translation(X_OpF)
+        r = _apply(R, p_OpF)  # p_OpF in world axes
+        p = [p[0] + r[0], p[1] + r[1], p[2] + r[2]]
+        R = _mul(R, R_OpF)
+    rotation = rows is None or rows[-1] >= 3
+    moving = V_WFd is not None and np.count_nonzero(V_WFd) > 0
+    if moving:
+        w_star, p_star_dot = V_WFd[:3].tolist(), V_WFd[3:].tolist()
+    RdT, RT = [list(c) for c in zip(*Rd)], [list(c) for c in zip(*R)]
+    zero3 = [0.0, 0.0, 0.0]
+    e_r = e_dot_t = e_dot_r = zero3
+    bottom = [0.0] * 18  # rows 3-5 of M, flat
     if frame == "desired":
-        e_t = Rd.T @ (p - pd)
-        e_r = log_so3(Rd.T @ R)
-        J = np.vstack([Rd.T @ J_WF[3:], right_jacobian_inverse_so3(e_r) @ Jw_F])
-        e_dot = np.concatenate([-Rd.T @ V_WFd[3:] + hat(e_t) @ wd, -left_jacobian_inverse_so3(e_r) @ wd]) if moving else np.zeros(6)
+        e_t = _apply(RdT, [p[0] - pd[0], p[1] - pd[1], p[2] - pd[2]])
+        if r is None:
+            top = [0.0, 0.0, 0.0, *RdT[0], 0.0, 0.0, 0.0, *RdT[1], 0.0, 0.0, 0.0, *RdT[2]]
+        else:
+            left = _mul(RdT, _hat([-r[0], -r[1], -r[2]]))
+            top = [*left[0], *RdT[0], *left[1], *RdT[1], *left[2], *RdT[2]]
+        if rotation:
+            e_r = log_so3_list(_mul_t(RdT, RT))
+            a, b, c = _mul(right_jacobian_inverse_list(e_r), RT)
+            bottom = [*a, 0.0, 0.0, 0.0, *b, 0.0, 0.0, 0.0, *c, 0.0, 0.0, 0.0]
+        if moving:
+            wd = _apply(RdT, w_star)
+            e_dot_t = [a - b for a, b in zip(_cross(e_t, wd), _apply(RdT, p_star_dot))]
+            if rotation:
+                e_dot_r = [-x for x in _apply(right_jacobian_inverse_list([-x for x in e_r]), wd)]
+    elif frame == "current":
+        e_t = _apply(RT, [pd[0] - p[0], pd[1] - p[1], pd[2] - p[2]])
+        left = _mul(_hat(e_t), RT)
+        if r is not None:
+            left = [[a + b for a, b in zip(u, w)] for u, w in zip(left, _mul(RT, _hat(r)))]
+        top = [x for i in range(3) for x in (*left[i], -RT[i][0], -RT[i][1], -RT[i][2])]
+        if rotation:
+            e_r = log_so3_list(_mul(RT, Rd))
+            JlRT = _mul(right_jacobian_inverse_list([-x for x in e_r]), RT)
+            bottom = [x for row in JlRT for x in (-row[0], -row[1], -row[2], 0.0, 0.0, 0.0)]
+        if moving:
+            e_dot_t = _apply(RT, p_star_dot)
+            if rotation:
+                e_dot_r = _apply(right_jacobian_inverse_list(e_r), _apply(RdT, w_star))
     else:
-        e_t = R.T @ (pd - p)
-        e_r = log_so3(R.T @ Rd)
-        J = np.vstack([-R.T @ J_WF[3:] + hat(e_t) @ Jw_F, -left_jacobian_inverse_so3(e_r) @ Jw_F])
-        e_dot = np.concatenate([R.T @ V_WFd[3:], right_jacobian_inverse_so3(e_r) @ wd]) if moving else np.zeros(6)
-    return np.concatenate([e_t, e_r]), J, e_dot
+        raise InvalidInput(f"frame: expected one of {FRAMES}, got {frame!r}")
+    M = np.array(top + bottom).reshape(6, 6)
+    if rows is None:
+        return np.array(e_t + e_r), M @ J_WOp, np.array(e_dot_t + e_dot_r)
+    return np.array(e_t + e_r)[rows], M[rows] @ J_WOp, np.array(e_dot_t + e_dot_r)[rows]
 
 
 def shift_jacobian(X_WOp: RigidTransform, J_WOp: np.ndarray, X_OpF: RigidTransform):
@@ -118,8 +187,14 @@ class Feature6dDesired(Entity[Feature6dDesiredSettings]):
         Entity.__init__(self, name, Feature6dDesiredSettings())
         self.translation_in = self.DeclareVectorInputPort("translation_in", 3)
         self.translation_velocity_in = self.DeclareVectorInputPort("translation_velocity_in", 3)
-        self.DeclareAbstractOutputPort("position", lambda: AbstractValue.Make(RigidTransform()), self._position)
-        self.DeclareVectorOutputPort("velocity", 6, self._velocity)
+        # Narrow prerequisites: computed once, until a setting or a connected input changes.
+        settings = self.abstract_state_ticket(self._settings_index)
+        self.DeclareAbstractOutputPort(
+            "position", lambda: AbstractValue.Make(RigidTransform()), self._position,
+            prerequisites_of_calc={settings, self.input_port_ticket(self.translation_in.get_index())})
+        self.DeclareVectorOutputPort(
+            "velocity", 6, self._velocity,
+            prerequisites_of_calc={settings, self.input_port_ticket(self.translation_velocity_in.get_index())})
 
     def _position(self, context: Context, output: AbstractValue) -> None:
         X = self._settings_of(context).position
@@ -166,11 +241,9 @@ class Feature6d(Feature):
         self._declare_outputs()
 
     def _compute(self, context: Context, s, rows):
-        X_WF, J_WF = self.position.Eval(context), self.Jq.Eval(context)
-        if s.opmodif is not None:
-            X_WF, J_WF = shift_jacobian(X_WF, J_WF, s.opmodif)
-        V = optional_input(self.reference_velocity, context, None)
-        return pose_error_and_jacobian(X_WF, J_WF, self.reference.Eval(context), s.frame, V, rotation=rows[-1] >= 3)
+        V = usual_input(self.reference_velocity, context, None)
+        return pose_error_and_jacobian(self.position.Eval(context).GetAsMatrix4(), self.Jq.Eval(context),
+                                       self.reference.Eval(context).GetAsMatrix4(), s.frame, V, s.opmodif, rows)
 
     def frame(self, which: str, context: Context | None = None) -> None:
         """Frame in which the error is expressed: ``'desired'`` or ``'current'``."""

@@ -15,7 +15,7 @@ from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..exceptions import check_finite
-from .base import Feature, optional_input
+from .base import Feature, optional_input, usual_input
 
 
 @dataclass
@@ -34,10 +34,14 @@ class FeatureGenericDesired(Entity[FeatureGenericDesiredSettings]):
         self.dimension = dimension
         self.value_in = self.DeclareVectorInputPort("value_in", dimension)
         self.velocity_in = self.DeclareVectorInputPort("velocity_in", dimension)
+        # Narrow prerequisites: computed once, until a setting or a connected input changes.
+        settings = self.abstract_state_ticket(self._settings_index)
         self.DeclareVectorOutputPort("errorIN", dimension, lambda c, o: o.SetFromVector(
-            optional_input(self.value_in, c, self._settings_of(c).errorIN)))
+            optional_input(self.value_in, c, self._settings_of(c).errorIN)),
+            prerequisites_of_calc={settings, self.input_port_ticket(self.value_in.get_index())})
         self.DeclareVectorOutputPort("velocity", dimension, lambda c, o: o.SetFromVector(
-            optional_input(self.velocity_in, c, self._settings_of(c).velocity)))
+            optional_input(self.velocity_in, c, self._settings_of(c).velocity)),
+            prerequisites_of_calc={settings, self.input_port_ticket(self.velocity_in.get_index())})
 
     def setReference(self, value, context: Context | None = None) -> None:
         """Set ``s*``."""
@@ -62,6 +66,18 @@ class FeatureGeneric(Feature):
         self._declare_outputs()
 
     def _compute(self, context: Context, settings, rows):
-        e = self.errorIN.Eval(context) - self.reference.Eval(context)
-        e_dot = -optional_input(self.reference_velocity, context, np.zeros(self.dimension))
-        return e, self.jacobianIN.Eval(context), e_dot
+        velocity = usual_input(self.reference_velocity, context, None)
+        return generic_error_and_jacobian(self.errorIN.Eval(context), self.jacobianIN.Eval(context),
+                                          self.reference.Eval(context), velocity, rows)
+
+
+def generic_error_and_jacobian(
+    s: np.ndarray, J_s: np.ndarray, s_star: np.ndarray, s_star_dot: np.ndarray | None = None,
+    rows: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``e = s - s*``, ``J = ∂s/∂v``, ``ė_ref = -ṡ*`` (zero for None), the ``rows`` only (None: all)."""
+    e = s - s_star
+    e_dot = np.zeros(e.shape) if s_star_dot is None else -s_star_dot
+    if rows is None:
+        return e, J_s, e_dot
+    return e[rows], J_s[rows], e_dot[rows]

@@ -33,9 +33,16 @@ class FeatureJointLimits(Feature):
         self._declare_outputs()
 
     def _compute(self, context: Context, settings, rows):
-        q = self.state.Eval(context)
-        e = 2.0 * (q[self._q] - self._lower) / self._width - 1.0
-        J = np.zeros((self.dimension, self.nv))
-        J[np.arange(self.dimension), self._v] = 2.0 / self._width
-        return e, J, np.zeros(self.dimension)
+        return joint_limits_error_and_jacobian(self.state.Eval(context), self._q, self._v, self._lower, self._width, self.nv)
+
+
+def joint_limits_error_and_jacobian(
+    q: np.ndarray, q_index: np.ndarray, v_index: np.ndarray, lower: np.ndarray, width: np.ndarray, nv: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``e = 2(q - l)/(u - l) - 1`` of the coordinates ``q_index`` (limits ``lower``, ``width = u - l``),
+    Jacobian ``2/(u - l)`` on the velocities ``v_index``, ``ė_ref = 0``."""
+    e = 2.0 * (q[q_index] - lower) / width - 1.0
+    J = np.zeros((e.size, nv))
+    J[np.arange(e.size), v_index] = 2.0 / width
+    return e, J, np.zeros(e.size)
 

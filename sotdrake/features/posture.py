@@ -47,22 +47,9 @@ class FeaturePosture(Feature):
         self._declare_outputs()
 
     def _compute(self, context: Context, s, rows):
-        q = self.state.Eval(context)
         q_star = optional_input(self.posture_in, context, s.posture)
         v_star = optional_input(self.postureDot_in, context, s.postureDot)
-        nv, layout = self.nv, self.layout
-        e, J, e_dot = np.zeros(nv), np.eye(nv), -v_star.copy()
-        e[layout.joints_v] = q[layout.joints_q] - q_star[layout.joints_q]
-        if layout.base_q is not None:
-            iq, iv = layout.base_q, layout.base_v
-            R = quaternion_wxyz_to_rotation(q[iq : iq + 4])
-            Rd = quaternion_wxyz_to_rotation(q_star[iq : iq + 4])
-            e_r = log_so3(Rd.T @ R)
-            e[iv : iv + 3] = e_r
-            e[iv + 3 : iv + 6] = q[iq + 4 : iq + 7] - q_star[iq + 4 : iq + 7]
-            J[iv : iv + 3, iv : iv + 3] = right_jacobian_inverse_so3(e_r) @ R.T
-            e_dot[iv : iv + 3] = -left_jacobian_inverse_so3(e_r) @ (Rd.T @ v_star[iv : iv + 3])
-        return e, J, e_dot
+        return posture_error_and_jacobian(self.state.Eval(context), q_star, v_star, self.layout)
 
     def selectDof(self, index: int, selected: bool, context: Context | None = None) -> None:
         """Select (or not) the component of velocity index ``index`` (sot-core ``selectDof``)."""
@@ -85,6 +72,26 @@ class FeaturePosture(Feature):
     def setPostureDot(self, velocity, context: Context | None = None) -> None:
         v_star = check_finite(f"{self.name}.postureDot", velocity, (self.nv,)).copy()
         self._command(context, lambda s: setattr(s, "postureDot", v_star))
+
+
+def posture_error_and_jacobian(
+    q: np.ndarray, q_star: np.ndarray, v_star: np.ndarray, layout: Layout,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every component of the posture error (one per velocity), its Jacobian and ``ė_ref`` for the
+    reference's velocity ``v*``; see the module docstring. ``layout``: where the floating base is."""
+    nv = v_star.size
+    e, J, e_dot = np.zeros(nv), np.eye(nv), -v_star
+    e[layout.joints_v] = q[layout.joints_q] - q_star[layout.joints_q]
+    if layout.base_q is not None:
+        iq, iv = layout.base_q, layout.base_v
+        R = quaternion_wxyz_to_rotation(q[iq : iq + 4])
+        Rd = quaternion_wxyz_to_rotation(q_star[iq : iq + 4])
+        e_r = log_so3(Rd.T @ R)
+        e[iv : iv + 3] = e_r
+        e[iv + 3 : iv + 6] = q[iq + 4 : iq + 7] - q_star[iq + 4 : iq + 7]
+        J[iv : iv + 3, iv : iv + 3] = right_jacobian_inverse_so3(e_r) @ R.T
+        e_dot[iv : iv + 3] = -left_jacobian_inverse_so3(e_r) @ (Rd.T @ v_star[iv : iv + 3])
+    return e, J, e_dot
 
 
 def _mask(selected: np.ndarray) -> str:

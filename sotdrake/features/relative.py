@@ -33,15 +33,24 @@ class FeatureRelative6d(Feature):
         self._declare_outputs()
 
     def _compute(self, context: Context, settings, rows):
-        X_WA, J_A = self.position.Eval(context), self.Jq.Eval(context)
-        X_WB, J_B = self.positionRef.Eval(context), self.JqRef.Eval(context)
-        X_BAd = self.reference.Eval(context)
-        R_WA, R_WB = X_WA.rotation().matrix(), X_WB.rotation().matrix()
-        X_BA = X_WB.inverse().multiply(X_WA)
-        Rd = X_BAd.rotation().matrix()
-        e_t = Rd.T @ (X_BA.translation() - X_BAd.translation())
-        e_r = log_so3(Rd.T @ X_BA.rotation().matrix())
-        r = X_WA.translation() - X_WB.translation()
-        J_t = Rd.T @ R_WB.T @ (J_A[3:] - J_B[3:] + hat(r) @ J_B[:3])
-        J_r = right_jacobian_inverse_so3(e_r) @ R_WA.T @ (J_A[:3] - J_B[:3])
-        return np.concatenate([e_t, e_r]), np.vstack([J_t, J_r]), np.zeros(6)
+        return relative_pose_error_and_jacobian(
+            self.position.Eval(context).GetAsMatrix4(), self.Jq.Eval(context),
+            self.positionRef.Eval(context).GetAsMatrix4(), self.JqRef.Eval(context),
+            self.reference.Eval(context).GetAsMatrix4())
+
+
+def relative_pose_error_and_jacobian(
+    X_WA: np.ndarray, J_A: np.ndarray, X_WB: np.ndarray, J_B: np.ndarray, X_BAd: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The error of ``X_BA`` against ``X_BA*`` and its Jacobian (see the module docstring), from the
+    4×4 poses ``X_WA``, ``X_WB``, ``X_BA*`` and the 6×nv spatial Jacobians ``J_A``, ``J_B``."""
+    R_WA, p_WA = X_WA[:3, :3], X_WA[:3, 3]
+    R_WB, p_WB = X_WB[:3, :3], X_WB[:3, 3]
+    Rd, pd = X_BAd[:3, :3], X_BAd[:3, 3]
+    R_BA, p_BA = R_WB.T @ R_WA, R_WB.T @ (p_WA - p_WB)
+    e_t = Rd.T @ (p_BA - pd)
+    e_r = log_so3(Rd.T @ R_BA)
+    r = p_WA - p_WB
+    J_t = Rd.T @ R_WB.T @ (J_A[3:] - J_B[3:] + hat(r) @ J_B[:3])
+    J_r = right_jacobian_inverse_so3(e_r) @ R_WA.T @ (J_A[:3] - J_B[:3])
+    return np.concatenate([e_t, e_r]), np.vstack([J_t, J_r]), np.zeros(6)

@@ -42,18 +42,12 @@ class FeatureVisualPoint(Feature):
         self._declare_outputs()
 
     def _compute(self, context: Context, settings, rows):
-        X_WC, J = self.position.Eval(context), self.Jq.Eval(context)
-        p_W = self.point.Eval(context)
-        R = X_WC.rotation().matrix()
-        d = p_W - X_WC.translation()
-        x, y, z = R.T @ d
-        if z <= 1e-6:
-            raise SolverError(f"{self.name}: the point {p_W} is behind the camera (depth {z:.3g} m)")
-        L = np.array([[1.0, 0.0, -x / z], [0.0, 1.0, -y / z]]) / z
-        s = np.array([x / z, y / z])
-        jacobian = -L @ R.T @ (J[3:] - hat(d) @ J[:3])
-        e_dot = L @ R.T @ optional_input(self.point_velocity, context, np.zeros(3))
-        return s - settings.desired, jacobian, e_dot
+        try:
+            return visual_point_error_and_jacobian(
+                self.position.Eval(context).GetAsMatrix4(), self.Jq.Eval(context), self.point.Eval(context),
+                settings.desired, optional_input(self.point_velocity, context, None))
+        except SolverError as error:
+            raise SolverError(f"{self.name}: {error}") from None
 
     def setDesired(self, image_point, context: Context | None = None) -> None:
         """Desired normalized image position ``s*`` (``(0, 0)``: the image centre)."""
@@ -61,3 +55,21 @@ class FeatureVisualPoint(Feature):
         if np.any(np.abs(desired) > 10):
             raise InvalidInput(f"{self.name}: normalized image coordinates {desired} are implausible")
         self._command(context, lambda s: setattr(s, "desired", desired))
+
+
+def visual_point_error_and_jacobian(
+    X_WC: np.ndarray, J_WC: np.ndarray, p_W: np.ndarray, desired: np.ndarray, p_W_dot: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``e = s - s*``, ``J`` and ``ė_ref`` of the point ``p_W`` seen from the camera ``X_WC`` (4×4)
+    with spatial Jacobian ``J_WC``; ``p_W_dot`` the point's velocity (None: fixed). See the module
+    docstring. Raises :class:`SolverError` when the point is not in front of the camera."""
+    R = X_WC[:3, :3]
+    d = p_W - X_WC[:3, 3]
+    x, y, z = R.T @ d
+    if z <= 1e-6:
+        raise SolverError(f"the point {p_W} is behind the camera (depth {z:.3g} m)")
+    L = np.array([[1.0, 0.0, -x / z], [0.0, 1.0, -y / z]]) / z
+    s = np.array([x / z, y / z])
+    jacobian = -L @ R.T @ (J_WC[3:] - hat(d) @ J_WC[:3])
+    e_dot = np.zeros(2) if p_W_dot is None else L @ R.T @ p_W_dot
+    return s - desired, jacobian, e_dot

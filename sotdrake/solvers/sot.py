@@ -13,6 +13,7 @@ Outputs: ``control`` (``v``, size nv, Drake generalized velocities) and ``residu
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,7 +23,21 @@ from pydrake.systems.framework import Context, InputPort, ValueProducer
 from ..entity import Entity
 from ..exceptions import InvalidInput, SolverError, StackError, TaskNotFound
 from ..task import Task, TaskLevel
-from .cascade import CascadeResult, solve_cascade
+from .cascade import CascadeResult, cascade_residuals, solve_cascade
+
+
+class _CascadeSolution:
+    """The cascade's velocity and ranks; the residuals are computed when the ``residuals`` output
+    is read (most ticks only need the velocity)."""
+
+    def __init__(self, velocity: np.ndarray, ranks: np.ndarray, levels: list[tuple[np.ndarray, np.ndarray]]):
+        self.velocity, self.ranks, self._levels, self._residuals = velocity, ranks, levels, None
+
+    @property
+    def residuals(self) -> np.ndarray:
+        if self._residuals is None:
+            self._residuals = cascade_residuals(self._levels, self.velocity)
+        return self._residuals
 
 
 @dataclass
@@ -209,12 +224,16 @@ class SOT(Entity[StackSettings]):
         self._command(context, lambda s: setattr(s, "control_selection", mask))
 
     # --- solve -----------------------------------------------------------------------------
-    def _levels(self, context: Context, settings: StackSettings) -> list[TaskLevel]:
-        """The levels, highest first (the contacts stacked as one level, then the stack), checked:
-        sizes fit nv, no NaN (±inf only as inequality bounds)."""
+    def _levels(self, context: Context, settings: StackSettings, check: bool = True) -> list[TaskLevel]:
+        """The levels, highest first (the contacts stacked as one level, then the stack), checked
+        (with ``check``): sizes fit nv, no NaN (±inf only as inequality bounds)."""
         levels = []
-        for name in [*settings.contacts, *settings.tasks]:
-            level = self._task_ports[name].Eval(context)
+        ports = self._task_ports
+        for name in [*settings.contacts, *settings.tasks] if settings.contacts else settings.tasks:
+            level = ports[name].Eval(context)
+            if not check:
+                levels.append(level)
+                continue
             J = level.jacobian
             if J.ndim != 2 or J.shape[1] != self.nv or level.lower.shape != (J.shape[0],) or level.upper.shape != (J.shape[0],):
                 raise SolverError(f"task {name}: jacobian {J.shape} and bounds {level.lower.shape} do not fit nv = {self.nv}")
@@ -233,8 +252,23 @@ class SOT(Entity[StackSettings]):
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         s = self._settings_of(context)
-        levels = self._levels(context, s)
-        if not all(level.is_equality for level in levels):
-            raise SolverError(f"{self.name} cannot solve inequality rows: use the hierarchical QP")
+        # The checks of every level's values run only when the solve goes wrong (to name the
+        # task); the shapes and the equality of each level are checked on every tick.
+        levels = self._levels(context, s, check=False)
+        nv = self.nv
+        for level in levels:
+            J = level.jacobian
+            if J.ndim != 2 or J.shape[1] != nv or level.lower.shape != (J.shape[0],) or level.upper.shape != (J.shape[0],):
+                self._levels(context, s)  # raises, naming the task
+            if not level.is_equality:
+                self._levels(context, s)  # a NaN makes unequal bounds: named first
+                raise SolverError(f"{self.name} cannot solve inequality rows: use the hierarchical QP")
         pairs = [(level.jacobian, level.reference) for level in levels]
-        value.set_value(solve_cascade(pairs, self.nv, s.svd_threshold, s.damping, s.control_selection))
+        try:
+            result = solve_cascade(pairs, nv, s.svd_threshold, s.damping, s.control_selection, with_residuals=False)
+        except (SolverError, ValueError, np.linalg.LinAlgError):
+            result = None
+        if result is None or not math.isfinite(result.velocity.sum() + sum(r.sum() for _, r in pairs)):
+            self._levels(context, s)  # a non-finite level: raises, naming the task
+            raise SolverError(f"{self.name}: the cascade gave a non-finite control at t = {context.get_time()}")
+        value.set_value(_CascadeSolution(result.velocity, result.ranks, pairs))

@@ -22,18 +22,9 @@ import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams
 from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource
 
 from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd, hold_feet_and_com
-from sotdrake.physics import (
-    SOLE_BOX,
-    ContactMonitor,
-    DesiredState,
-    KinematicBaseEstimator,
-    PhysicalTalos,
-    Push,
-    add_physical_talos,
-)
+from sotdrake.physics import SOLE_BOX, KinematicBaseEstimator, PhysicalTalos, TalosStation, add_talos_station, fall_time
 from sotdrake.robot import Robot, add_sot
 from sotdrake.robots import load_talos
 from sotdrake.sequencer import attime
@@ -51,6 +42,7 @@ class Physics:
     diagram: Diagram
     robot: Robot
     physical: PhysicalTalos
+    station: TalosStation
     sot: SOT
     taskRH: MetaTaskKine6d
     tracer: Tracer
@@ -63,10 +55,9 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
     if scenario not in ("stand", "reach") or loop not in ("open", "closed"):
         raise ValueError(f"scenario is 'stand' or 'reach', loop 'open' or 'closed'; got {scenario!r}, {loop!r}")
     builder = DiagramBuilder()
-    physical = add_physical_talos(builder, time_step=dt)
-    plant = physical.plant
     model = load_talos("reduced")
-    plant.SetDefaultPositions(model.half_sitting)
+    station = add_talos_station(builder, model.half_sitting, dt, push_force=[push, 0.0, 0.0] if push else None)
+    physical, plant = station.physical, station.physical.plant
     measured = None
     if loop == "closed":  # measured joints, base by leg odometry (see KinematicBaseEstimator)
         estimator = builder.AddNamedSystem("estimator", KinematicBaseEstimator(model, model.half_sitting))
@@ -84,22 +75,14 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
         gotoNd(taskRH, TARGET, "111", (4.9, 0.9, 0.01, 0.9))
         attime(1.0, lambda: sot.push(taskRH.task.name), "push taskrh: move the right hand")
 
-    desired = robot.add(DesiredState(physical))
-    builder.Connect(robot.device.GetOutputPort("state"), desired.GetInputPort("position"))
-    builder.Connect(sot.GetOutputPort("control"), desired.GetInputPort("velocity"))
-    builder.Connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))
-    feedforward = robot.add(ConstantVectorSource(np.zeros(plant.num_actuated_dofs(physical.instance))), "feedforward_torque")
-    builder.Connect(feedforward.get_output_port(), plant.get_actuation_input_port(physical.instance))
-    monitor = robot.add(ContactMonitor(physical))
-    builder.Connect(plant.get_contact_results_output_port(), monitor.get_input_port())
-    if push:
-        pusher = robot.add(Push(plant, "torso_2_link", [push, 0.0, 0.0], start=2.0, duration=0.1))
-        builder.Connect(pusher.get_output_port(), plant.get_applied_spatial_force_input_port())
+    builder.Connect(robot.device.GetOutputPort("state"), station.position)
+    builder.Connect(sot.GetOutputPort("control"), station.velocity)
 
     tracer = Tracer(builder, dt)
     tracer.add(plant.get_state_output_port(), "x_plant")
     tracer.add(robot.device.GetOutputPort("state"), "q_device")
-    tracer.add(monitor.get_output_port(), "feet")
+    tracer.add(station.feet, "feet")
+    tracer.add(station.other_contact, "other_contact")
     visualizer = None
     if meshcat is not None:
         visualizer = MeshcatVisualizer.AddToBuilder(builder, physical.scene_graph, meshcat, MeshcatVisualizerParams(publish_period=1 / 60))
@@ -111,7 +94,7 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
         meshcat.SetCameraPose(camera_in_world=[1.6, -2.2, 1.3], target_in_world=[0.1, -0.1, 0.7])
     diagram = builder.Build()
     diagram.set_name("talos_physics")
-    return Physics(diagram, robot, physical, sot, taskRH, tracer, scenario, visualizer)
+    return Physics(diagram, robot, physical, station, sot, taskRH, tracer, scenario, visualizer)
 
 
 def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[dict, dict]:
@@ -132,6 +115,7 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
     low, high = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
     cop = feet[:, 6:8]
     cop_margin = np.nanmin(np.minimum(cop - low, high - cop))
+    fell_at = fall_time(trace["time"], base[1:, 2], trace["other_contact"][:, 0])
     summary = {
         "scenario": run.scenario,
         "hand_error_m": float(np.linalg.norm(hand[-1] - np.asarray(TARGET))),
@@ -143,6 +127,11 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
         "max_foot_slip_m": float(slip),
         "min_cop_margin_m": float(cop_margin),
         "support_polygon_m": [low.tolist(), high.tolist()],
+        # fell: the base below FALL_BASE_HEIGHT or another body than the soles on the ground.
+        "fell": fell_at is not None,
+        "fell_at_s": fell_at,
+        "min_base_height_m": float(base[:, 2].min()),
+        "max_other_contact_n": float(trace["other_contact"].max()),
         "duration_s": duration,
         "ticks": len(trace["time"]),
         "wall_s": wall,

@@ -26,7 +26,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from .entity import own_context
-from .exceptions import InvalidInput, SolverError, check_finite
+from .exceptions import InvalidInput, SolverError, SotError, check_finite
 from .lie import quaternion_exp, quaternion_multiply, quaternion_wxyz_to_rotation, se3_translation
 
 log = logging.getLogger("sotdrake.device")
@@ -118,6 +118,10 @@ class Device(LeafSystem):
 
     def set_position(self, context: Context, q: np.ndarray) -> None:
         """Set ``q`` in ``context`` (the root diagram context or the device's own)."""
+        from .entity import recording
+
+        if recording():
+            raise SotError(f"{self.get_name()}.set_position changes the state now: it cannot be recorded by attime")
         own_context(self, context).SetDiscreteState(self._q, check_finite("q", q, (self.nq,)))
 
     def position(self, context: Context) -> np.ndarray:

@@ -60,17 +60,29 @@ class StackError(SotError):
     """
 
 
+class RobotDescriptionError(SotError, ValueError):
+    """A robot description (URDF) Drake would reject or abort on; the message names the joint."""
+
+
 class SolverError(SotError):
     """The solver met a non-finite Jacobian or reference; the message names the task."""
 
 
-def check_finite(name: str, value, shape: tuple[int, ...] | None = None):
-    """Return ``value`` as a float array after checking its shape and finiteness."""
+def check_finite(name: str, value, shape: tuple[int, ...] | None = None, bound: float | None = None):
+    """Return ``value`` as a float array after checking its shape, finiteness and, with ``bound``,
+    ``|value| ≤ bound`` element-wise; anything else raises :class:`InvalidInput` naming ``name``."""
     import numpy as np
 
-    array = np.asarray(value, dtype=float)
+    expected = f"{'' if shape is None else f'shape {shape}, '}finite numbers" + (
+        "" if bound is None else f" in [-{bound:g}, {bound:g}]")
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInput(f"{name}: expected {expected}, got {value!r:.200}") from None
     if shape is not None and array.shape != shape:
-        raise InvalidInput(f"{name}: expected shape {shape}, got {array.shape}")
+        raise InvalidInput(f"{name}: expected {expected}, got shape {array.shape}")
     if not np.all(np.isfinite(array)):
-        raise InvalidInput(f"{name}: contains NaN or infinity: {array}")
+        raise InvalidInput(f"{name}: expected {expected}; contains NaN or infinity: {array}")
+    if bound is not None and array.size and np.abs(array).max() > bound:
+        raise InvalidInput(f"{name}: expected {expected}, got {np.abs(array).max():g} in absolute value")
     return array

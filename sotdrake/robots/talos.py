@@ -34,6 +34,7 @@ from pydrake.multibody.tree import Frame, FrameIndex, JointActuatorIndex, ModelI
 from ..exceptions import FrameNotFound, RobotNotFound, SotError
 from .mesh_cache import obj_for_stl
 from .srdf import read_group_state
+from .urdf_checks import check_urdf_limits
 
 #: URDF file of each TALOS variant, under ``robots/talos_data/robots/``.
 VARIANTS: dict[str, str] = {
@@ -89,6 +90,7 @@ def fixed_urdf_text(variant: str, meshes: bool, collision: bool = True) -> str:
     """The URDF of ``variant`` with the fix-ups listed in the module docstring applied; without
     ``collision`` the ``<collision>`` elements are dropped (the physics model adds its own soles)."""
     text = talos_urdf_path(variant).read_text()
+    check_urdf_limits(text, str(talos_urdf_path(variant)))  # before any parser sees it
     share = example_robot_data_dir()
 
     def fix_joint(match: re.Match) -> str:

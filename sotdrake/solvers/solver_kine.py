@@ -85,13 +85,13 @@ class SolverKine(SOT):
         SOT.setDamping(self, damping, context)
 
     def setPositionMargin(self, margin: float, context: Context | None = None) -> None:
-        if not (np.isfinite(margin) and margin >= 0):
-            raise InvalidInput(f"position margin must be finite and ≥ 0, got {margin}")
+        if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not (np.isfinite(margin) and 0 <= margin <= 0.5):
+            raise InvalidInput(f"position margin must be a number in [0, 0.5] (rad or m), got {margin!r}")
         self._command(context, lambda s: setattr(s, "position_margin", float(margin)))
 
     def setSolver(self, solver: str, context: Context | None = None) -> None:
         """The Drake solver of the levels that need one (``'clarabel'``, ``'osqp'``, ``'snopt'``)."""
-        check_solver(solver)
+        check_solver(solver if isinstance(solver, str) else repr(solver))
         self._command(context, lambda s: setattr(s, "solver", solver))
 
     def _calc(self, context: Context, value: AbstractValue) -> None:

@@ -25,6 +25,15 @@ from ..task import Task, TaskLevel
 from .cascade import CascadeResult, solve_cascade
 
 
+#: Accepted ranges: the SVD threshold (a singular value, unit of the Jacobian) and the damping δ.
+MAX_SVD_THRESHOLD = 1.0
+MAX_DAMPING = 1e4
+
+
+def _real(value) -> bool:
+    return isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool) and bool(np.isfinite(value))
+
+
 @dataclass
 class StackSettings:
     tasks: list[str] = field(default_factory=list)
@@ -82,8 +91,8 @@ class SOT(Entity[StackSettings]):
         return list(self._task_ports)
 
     def _known(self, name: str) -> str:
-        if name not in self._task_ports:
-            raise TaskNotFound(name, list(self._task_ports))
+        if not isinstance(name, str) or name not in self._task_ports:
+            raise TaskNotFound(str(name), list(self._task_ports))
         return name
 
     def _task_name(self, task) -> str:
@@ -187,14 +196,14 @@ class SOT(Entity[StackSettings]):
 
     def setThreshold(self, svd_threshold: float, context: Context | None = None) -> None:
         """Singular values of ``J_i P_{i-1}`` at or below this are treated as zero (rank)."""
-        if not np.isfinite(svd_threshold) or svd_threshold < 0:
-            raise InvalidInput(f"svd_threshold must be finite and ≥ 0, got {svd_threshold}")
+        if not _real(svd_threshold) or not 0 <= svd_threshold <= MAX_SVD_THRESHOLD:
+            raise InvalidInput(f"svd_threshold must be a number in [0, {MAX_SVD_THRESHOLD:g}], got {svd_threshold!r}")
         self._command(context, lambda s: setattr(s, "svd_threshold", float(svd_threshold)))
 
     def setDamping(self, damping: float, context: Context | None = None) -> None:
         """True damping δ (``min ‖A x - r‖² + δ‖x‖²`` at each level); 0 for the pseudo-inverse."""
-        if not np.isfinite(damping) or damping < 0:
-            raise InvalidInput(f"damping must be finite and ≥ 0, got {damping}")
+        if not _real(damping) or not 0 <= damping <= MAX_DAMPING:
+            raise InvalidInput(f"damping must be a number in [0, {MAX_DAMPING:g}], got {damping!r}")
         self._command(context, lambda s: setattr(s, "damping", float(damping)))
 
     def setControlSelection(self, selection, context: Context | None = None) -> None:
@@ -203,8 +212,8 @@ class SOT(Entity[StackSettings]):
         mask = None
         if selection is not None:
             mask = np.asarray(selection)
-            if mask.dtype != bool or mask.shape != (self.nv,):
-                raise InvalidInput(f"control selection: expected {self.nv} booleans, got {mask.dtype} {mask.shape}")
+            if mask.dtype != bool or mask.shape != (self.nv,) or not mask.any():
+                raise InvalidInput(f"control selection: expected {self.nv} booleans, at least one True, got {mask.dtype} {mask.shape}")
             mask = mask.copy()
         self._command(context, lambda s: setattr(s, "control_selection", mask))
 

@@ -23,6 +23,7 @@ from ..device import Layout
 from ..exceptions import InvalidInput, SolverError
 from ..robots import RobotModel
 from .hqp import HierarchicalQP, LevelRows, check_solver
+from .base_velocity import MAX_BASE_VELOCITY, default_base_velocity_limit
 from .limits import velocity_bounds
 from .sot import SOT, StackSettings
 
@@ -33,6 +34,7 @@ log = logging.getLogger("sotdrake.solver_kine")
 class HqpSettings(StackSettings):
     position_margin: float = 1e-3  # rad (or m): joints stop this far from their position limits
     solver: str = "clarabel"
+    base_velocity_limit: tuple[float, float] | None = None  # (rad/s, m/s), see .base_velocity
 
 
 @dataclass
@@ -65,15 +67,16 @@ class SolverKine(SOT):
         position_margin: float = 1e-3,
         solver: str = "clarabel",
     ):
-        SOT.__init__(self, name, model.nv, damping=damping, settings=HqpSettings())
+        SOT.__init__(self, name, model.nv, damping=damping, settings=HqpSettings(), dt=dt, layout=Layout.of(model.plant))
         self.setSolver(solver)
         self.setPositionMargin(position_margin)
         self.dt = float(dt)
         self.layout = Layout.of(model.plant)
+        if self.layout.base_v is not None:
+            self.setBaseVelocityLimit(*default_base_velocity_limit(model))
         limits = model.joint_limits()
         self._limits = (limits["position_lower"], limits["position_upper"],
                         limits["velocity_lower"], limits["velocity_upper"])
-        self.position = self.DeclareVectorInputPort("position", model.nq)
         self._hqp = HierarchicalQP(model.nv)  # its programs are a cache: results never depend on it
         self.DeclareAbstractOutputPort(
             "diagnostics", lambda: AbstractValue.Make(HqpDiagnostics()),
@@ -89,6 +92,16 @@ class SolverKine(SOT):
             raise InvalidInput(f"position margin must be a number in [0, 0.5] (rad or m), got {margin!r}")
         self._command(context, lambda s: setattr(s, "position_margin", float(margin)))
 
+    def setBaseVelocityLimit(self, angular: float, linear: float, context: Context | None = None) -> None:
+        """Bound each component of the floating base's angular (rad/s) and linear (m/s) velocity,
+        both in ``(0, 100]``; the default comes from the legs' limits (:mod:`.base_velocity`)."""
+        for name, value in (("angular", angular), ("linear", linear)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= MAX_BASE_VELOCITY:
+                raise InvalidInput(f"{self.name}.setBaseVelocityLimit: {name} must be a number in (0, {MAX_BASE_VELOCITY:g}], got {value!r}")
+        if self.layout.base_v is None:
+            raise InvalidInput(f"{self.name}.setBaseVelocityLimit: the robot has no floating base")
+        self._command(context, lambda s: setattr(s, "base_velocity_limit", (float(angular), float(linear))))
+
     def setSolver(self, solver: str, context: Context | None = None) -> None:
         """The Drake solver of the levels that need one (``'clarabel'``, ``'osqp'``, ``'snopt'``)."""
         check_solver(solver if isinstance(solver, str) else repr(solver))
@@ -98,7 +111,8 @@ class SolverKine(SOT):
         s = self._settings_of(context)
         levels = [LevelRows(level.jacobian, level.lower, level.upper) for level in self._levels(context, s)]
         lower, upper = velocity_bounds(
-            self.position.Eval(context), *self._limits, self.dt, s.position_margin, self.layout, s.control_selection
+            self.position.Eval(context), *self._limits, self.dt, s.position_margin, self.layout, s.control_selection,
+            base_velocity=s.base_velocity_limit,
         )
         diagnostics = HqpDiagnostics(tasks=(["contacts"] if s.contacts else []) + list(s.tasks))
         try:

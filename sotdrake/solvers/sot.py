@@ -13,7 +13,9 @@ Outputs: ``control`` (``v``, size nv, Drake generalized velocities) and ``residu
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -23,6 +25,18 @@ from ..entity import Entity
 from ..exceptions import InvalidInput, SolverError, StackError, TaskNotFound
 from ..task import Task, TaskLevel
 from .cascade import CascadeResult, solve_cascade
+from ..device import Layout, difference
+from .second_order import curvature_correction
+from .velocity_scaling import scale_to_limits, velocity_scale
+
+log = logging.getLogger("sotdrake.sot")
+
+
+class _ScaledCascade(NamedTuple):
+    velocity: np.ndarray
+    residuals: np.ndarray
+    ranks: np.ndarray
+    scale: float
 
 
 #: Accepted ranges: the SVD threshold (a singular value, unit of the Jacobian) and the damping δ.
@@ -41,6 +55,7 @@ class StackSettings:
     svd_threshold: float = 1e-4
     damping: float = 0.0
     control_selection: np.ndarray | None = None  # nv booleans; None: every component
+    velocity_limit: np.ndarray | None = None  # nv limits > 0 (inf: none); None: no scaling
 
 
 class SOT(Entity[StackSettings]):
@@ -55,9 +70,26 @@ class SOT(Entity[StackSettings]):
         svd_threshold: float = 1e-4,
         damping: float = 0.0,
         settings: StackSettings | None = None,
+        dt: float | None = None,
+        layout: Layout | None = None,
     ):
+        """``dt`` (the control period, s) and ``layout`` (of the robot's ``q``): with both, the
+        solver reads ``q`` on its ``position`` input and corrects each level for the curvature of
+        the tick (:mod:`.second_order`), the last two ticks' ``q`` and Jacobians kept in the Context."""
         Entity.__init__(self, name, settings or StackSettings())
         self.nv = nv
+        self.dt = dt
+        if dt is not None:
+            if not (isinstance(dt, (int, float)) and np.isfinite(dt) and dt > 0):
+                raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
+        self.layout = layout
+        self.position = None
+        if layout is not None:
+            nq = len(layout.joints_q) + (7 if layout.base_q is not None else 0)
+            self.position = self.DeclareVectorInputPort("position", nq)
+            if dt is not None:
+                self._history = self.DeclareAbstractState(AbstractValue.Make({}))
+                self.DeclarePeriodicUnrestrictedUpdateEvent(dt, 0.0, self._remember)
         self.setThreshold(svd_threshold)
         self.setDamping(damping)
         self._task_ports: dict[str, InputPort] = {}
@@ -72,6 +104,11 @@ class SOT(Entity[StackSettings]):
         self.DeclareAbstractOutputPort(
             "residuals", lambda: AbstractValue.Make(np.zeros(0)), lambda c, o: o.set_value(self._solution.Eval(c).residuals)
         )
+        # s of the velocity scaling (1: the stack's solution was within the limits).
+        self.DeclareVectorOutputPort(
+            "velocity_scale", 1, lambda c, o: o.SetAtIndex(0, getattr(self._solution.Eval(c), "scale", 1.0))
+        )
+        self._warned_scaling = False  # logging only: warn once per solver, results never depend on it
 
     # --- wiring (build time) ---------------------------------------------------------------
     def declare_task_input(self, task: Task) -> InputPort:
@@ -217,11 +254,49 @@ class SOT(Entity[StackSettings]):
             mask = mask.copy()
         self._command(context, lambda s: setattr(s, "control_selection", mask))
 
+    def setVelocityLimit(self, limit, context: Context | None = None) -> None:
+        """Bound the command by ``limit`` (nv values > 0, ``inf`` for none; rad/s, m/s), scaling the
+        whole solution uniformly when it exceeds them (:mod:`.velocity_scaling`); ``None``: no
+        bound. ``add_sot`` sets the robot's joint limits and the base bound of :mod:`.base_velocity`."""
+        value = None
+        if limit is not None:
+            try:
+                value = np.asarray(limit, dtype=float).copy()
+            except (TypeError, ValueError):
+                value = np.full(0, np.nan)
+            if value.shape != (self.nv,) or np.isnan(value).any() or not (value > 0).all():
+                raise InvalidInput(f"{self.name}.setVelocityLimit: expected {self.nv} numbers > 0 (inf for none), got {limit!r:.200}")
+        self._command(context, lambda s: setattr(s, "velocity_limit", value))
+
     # --- solve -----------------------------------------------------------------------------
-    def _levels(self, context: Context, settings: StackSettings) -> list[TaskLevel]:
+    def _remember(self, context: Context, state) -> None:
+        """Keep ``q`` and each level's Jacobian of the last two ticks. Drake applies this update
+        before the device's update of the same tick, which then finds ``latest`` at the current
+        ``q``: :meth:`_last_tick` tells the two cases apart."""
+        s = self._settings_of(context)
+        kept = context.get_abstract_state(self._history).get_value()
+        q = self.position.Eval(context).copy()
+        jacobians = {name: self._task_ports[name].Eval(context).jacobian.copy() for name in [*s.contacts, *s.tasks]}
+        state.get_mutable_abstract_state(self._history).set_value(
+            {"before": kept.get("latest"), "latest": (q, jacobians)})
+
+    def _last_tick(self, context: Context) -> tuple[np.ndarray, dict] | None:
+        """``(Δq, Jacobians)`` of the tick before the current ``q`` (see :meth:`_remember`), or None."""
+        kept = context.get_abstract_state(self._history).get_value()
+        q = self.position.Eval(context)
+        latest = kept.get("latest")
+        previous = kept.get("before") if latest is not None and np.array_equal(latest[0], q) else latest
+        if previous is None:
+            return None
+        return difference(q, previous[0], self.layout), previous[1]
+
+    def _levels(self, context: Context, settings: StackSettings, correct: bool = True) -> list[TaskLevel]:
         """The levels, highest first (the contacts stacked as one level, then the stack), checked:
-        sizes fit nv, no NaN (±inf only as inequality bounds)."""
+        sizes fit nv, no NaN (±inf only as inequality bounds); with ``dt``, each Jacobian at mid-tick."""
         levels = []
+        last_tick = None
+        if correct and self.dt is not None and self.position is not None and self.position.HasValue(context):
+            last_tick = self._last_tick(context)
         for name in [*settings.contacts, *settings.tasks]:
             level = self._task_ports[name].Eval(context)
             J = level.jacobian
@@ -231,6 +306,12 @@ class SOT(Entity[StackSettings]):
                 raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")
             if level.is_equality and not np.isfinite(level.lower).all():
                 raise SolverError(f"task {name}: non-finite reference at t = {context.get_time()}")
+            if last_tick is not None:
+                correction = curvature_correction(J, last_tick[1].get(name), last_tick[0], self.dt)
+                if correction is not None:
+                    lower = level.lower - correction
+                    upper = lower if level.upper is level.lower else level.upper - correction
+                    level = level._replace(lower=lower, upper=upper)
             levels.append(level)
         if settings.contacts:
             contacts, levels = levels[: len(settings.contacts)], levels[len(settings.contacts) :]
@@ -246,4 +327,23 @@ class SOT(Entity[StackSettings]):
         if not all(level.is_equality for level in levels):
             raise SolverError(f"{self.name} cannot solve inequality rows: use the hierarchical QP")
         pairs = [(level.jacobian, level.reference) for level in levels]
-        value.set_value(solve_cascade(pairs, self.nv, s.svd_threshold, s.damping, s.control_selection))
+        result = solve_cascade(pairs, self.nv, s.svd_threshold, s.damping, s.control_selection)
+        scale = 1.0
+        if s.velocity_limit is not None:
+            scale = velocity_scale(result.velocity, s.velocity_limit)
+            if scale < 1.0:
+                # The cascade is linear in the references: scale the tasks' ė* but not the
+                # curvature correction c (its size is the one of the scaled motion), i.e. solve
+                # for s·ė* - c = s·(ė* - c) - (1 - s)·c, then keep within the limits.
+                plain = [level.reference for level in self._levels(context, s, correct=False)]
+                pairs = [(J, scale * r - (1.0 - scale) * (p - r)) for (J, r), p in zip(pairs, plain)]
+                result = solve_cascade(pairs, self.nv, s.svd_threshold, s.damping, s.control_selection)
+                v, second = scale_to_limits(result.velocity, s.velocity_limit)
+                scale *= second
+                if not self._warned_scaling:
+                    self._warned_scaling = True
+                    log.warning("%s: t = %.3f s: the stack asks more than the velocity limits; the command is "
+                                "scaled by %.3g (warned once)", self.name, context.get_time(), scale)
+                residuals = np.array([np.linalg.norm(J @ v - r) for J, r in pairs])
+                result = CascadeResult(v, residuals, result.ranks)
+        value.set_value(_ScaledCascade(*result, scale))

@@ -33,6 +33,7 @@ from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from .entity import own_context
 from .exceptions import InvalidInput, SolverError, SotError, check_finite
+from .ranges import MAX_JOINT_TARGET
 from .lie import log_so3, quaternion_exp, quaternion_multiply, quaternion_wxyz_to_rotation
 
 log = logging.getLogger("sotdrake.device")
@@ -138,7 +139,12 @@ class Device(LeafSystem):
 
         if recording():
             raise SotError(f"{self.get_name()}.set_position changes the state now: it cannot be recorded by attime")
-        own_context(self, context).SetDiscreteState(self._q, check_finite("q", q, (self.nq,)))
+        q = check_finite("q (rad, m)", q, (self.nq,), MAX_JOINT_TARGET)
+        if self.layout.base_q is not None:
+            norm = np.linalg.norm(q[self.layout.base_q : self.layout.base_q + 4])
+            if abs(norm - 1.0) > 1e-3:
+                raise InvalidInput(f"{self.get_name()}.set_position: the base quaternion must have norm 1 (± 1e-3), got {norm:g}")
+        own_context(self, context).SetDiscreteState(self._q, q)
 
     def position(self, context: Context) -> np.ndarray:
         return own_context(self, context).get_discrete_state(self._q).get_value().copy()

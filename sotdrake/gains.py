@@ -106,7 +106,12 @@ def from_point(gain0: float, gain_inf: float, error_ref: float, fraction: float)
 def from_numbers(numbers) -> AdaptiveCoefficients:
     """``gotoNd``'s gain argument: 1 number (constant), 3 (``set``) or 4 (``setByPoint``)."""
     try:
-        values = [float(x) for x in (numbers if np.ndim(numbers) else [numbers])]
+        if isinstance(numbers, (str, bytes, dict)) or numbers is None:
+            raise TypeError("not numbers")
+        values = [x for x in (numbers if np.ndim(numbers) else [numbers])]
+        for x in values:
+            _finite(gain=x)
+        values = [float(x) for x in values]
     except (TypeError, ValueError):
         raise InvalidInput(f"a gain is given by 1, 3 or 4 finite numbers, got {numbers!r:.200}") from None
     makers = {1: constant, 3: from_slope, 4: from_point}

@@ -13,7 +13,7 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
 
 from .device import Device
-from .exceptions import InvalidInput, NotFound
+from .exceptions import InvalidInput, NotFound, SotError
 from .kinematics import Dynamic
 from .robots import RobotModel, load_talos
 from .solvers import SOT, SolverKine
@@ -66,6 +66,9 @@ class Robot:
 
     def add(self, system: LeafSystem, name: str | None = None) -> LeafSystem:
         """Add ``system`` to the builder under ``name`` (default: its own), which must be new."""
+        if self.builder.already_built():
+            raise SotError(f"cannot add {system.get_name() or type(system).__name__!r}: the diagram is already built "
+                           "(create tasks and entities before builder.Build())")
         if name is not None:
             system.set_name(name)
         name = system.get_name()

@@ -24,7 +24,7 @@ DAMPING_RANGE = (0.0, 10.0)
 def set_pd_gains(plant: MultibodyPlant, stiffness: float, damping: float) -> None:
     """``kp = stiffness · effort_limit``, ``kd = damping · kp`` on every actuator, then
     :func:`check_pd_gains`."""
-    ok = all(isinstance(x, (int, float)) and np.isfinite(x) for x in (stiffness, damping))
+    ok = all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in (stiffness, damping))
     if not (ok and STIFFNESS_RANGE[0] <= stiffness <= STIFFNESS_RANGE[1] and DAMPING_RANGE[0] <= damping <= DAMPING_RANGE[1]):
         raise InvalidInput(
             f"PD gains: stiffness in [{STIFFNESS_RANGE[0]}, {STIFFNESS_RANGE[1]}] rad⁻¹ and damping in "

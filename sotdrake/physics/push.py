@@ -9,7 +9,7 @@ from pydrake.multibody.plant import ExternallyAppliedSpatialForce, MultibodyPlan
 from pydrake.multibody.tree import BodyIndex
 from pydrake.systems.framework import Context, LeafSystem
 
-from ..exceptions import InvalidInput, NotFound
+from ..exceptions import InvalidInput, NotFound, check_finite
 
 #: Largest accepted push (N): ten times TALOS' weight.
 MAX_PUSH_FORCE = 1e4
@@ -26,9 +26,9 @@ class Push(LeafSystem):
             raise NotFound(str(body_name), sorted(plant.get_body(BodyIndex(i)).name() for i in range(plant.num_bodies())))
         self.body_index = plant.GetBodyByName(body_name).index()
         try:
-            self.force = np.asarray(force, dtype=float)
-            times_ok = all(isinstance(x, (int, float)) and np.isfinite(x) for x in (start, duration))
-        except (TypeError, ValueError):
+            self.force = check_finite("force", force)
+            times_ok = all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in (start, duration))
+        except InvalidInput:
             self.force, times_ok = np.full(1, np.nan), False
         if (self.force.shape != (3,) or not np.all(np.isfinite(self.force)) or np.linalg.norm(self.force) > MAX_PUSH_FORCE
                 or not times_ok or not duration > 0 or start < 0):

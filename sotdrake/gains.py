@@ -69,8 +69,13 @@ def _norm(x: np.ndarray) -> float:
     return math.sqrt(x @ x)
 
 
+_SYMBOLS = {"gain": "λ", "gain0": "λ0", "gain_inf": "λ∞", "tan_at0": "tanAt0", "decal0": "decal0",
+            "slope": "slope", "error_ref": "e_ref", "fraction": "p"}
+
+
 def _finite(**values: float) -> None:
-    for name, value in values.items():
+    for key, value in values.items():
+        name = _SYMBOLS.get(key, key)
         if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(value):
             raise InvalidInput(f"gain {name} must be a finite number, got {value!r}")
         if abs(value) > MAX_GAIN_INPUT:

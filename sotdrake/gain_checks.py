@@ -14,7 +14,13 @@ import logging
 import math
 
 from .exceptions import InvalidInput
-from .ranges import ERROR_SCALE, GAIN_DT_REFUSED, GAIN_DT_WARNED, MAX_GAIN, MAX_GAIN_DECAY
+from .ranges import (
+    ERROR_SCALE,
+    GAIN_DT_REFUSED,
+    GAIN_DT_WARNED,
+    MAX_GAIN,
+    MAX_GAIN_DECAY,
+)
 
 log = logging.getLogger("sotdrake.gains")
 

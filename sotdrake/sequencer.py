@@ -11,7 +11,6 @@ Call it before creating the simulator's context.
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Callable
 from typing import NamedTuple
 

@@ -26,7 +26,6 @@ import math
 import os
 import subprocess
 import sys
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, is_dataclass
 from pathlib import Path
@@ -187,8 +186,8 @@ def bad_inputs() -> list[tuple[str, Callable]]:
     from sotdrake.robots.urdf_checks import check_urdf_limits
     from sotdrake.sequencer import attime
 
-    T = lambda fx, name: fx.tasks[name]  # noqa: E731
-    c = lambda fx: fx.context  # noqa: E731
+    T = lambda fx, name: fx.tasks[name]
+    c = lambda fx: fx.context
     table: list[tuple[str, Callable]] = []
     add = table.extend
     # gains
@@ -298,7 +297,8 @@ def bad_inputs() -> list[tuple[str, Callable]]:
                          ("upper NaN", '<limit lower="0" upper="nan" effort="1" velocity="1"/>'),
                          ("negative effort", '<limit lower="0" upper="1" effort="-1" velocity="1"/>'),
                          ("negative velocity", '<limit lower="0" upper="1" effort="1" velocity="-2"/>')]:
-        table.append((f"check_urdf_limits({label})", lambda fx, t=_urdf_with(limit): check_urdf_limits(t)))
+        text = _urdf_with(limit)
+        table.append((f"check_urdf_limits({label})", lambda fx, t=text: check_urdf_limits(t)))
     table.append(("check_urdf_limits(not XML)", lambda fx: check_urdf_limits("<robot>")))
     table.append(("check_urdf_limits(<sdf>)", lambda fx: check_urdf_limits("<sdf/>")))
     # physics
@@ -454,9 +454,17 @@ def worker(kind: str, solver: str, indices: list[int], duration: float) -> None:
 
 
 def run_attempts(kind: str, solver: str, indices: list[int], duration: float = 0.1,
-                 timeout: float = 120.0) -> dict[int, dict]:
+                 timeout: float = 120.0, log: Path | None = None) -> dict[int, dict]:
     """Results by index; an attempt whose worker died is ``{"status": "process_exit", ...}``, one
-    that stayed silent longer than ``timeout`` seconds ``{"status": "hang"}``."""
+    that stayed silent longer than ``timeout`` seconds ``{"status": "hang"}``. With ``log``, each
+    result is also appended to that file as a JSON line as it comes."""
+
+    def record(index: int, result: dict) -> None:
+        results[index] = result
+        if log is not None:
+            with open(log, "a") as f:
+                f.write(json.dumps({"kind": kind, "solver": solver, "index": index, "result": result}, default=repr) + "\n")
+
     import queue
     import threading
 
@@ -482,7 +490,7 @@ def run_attempts(kind: str, solver: str, indices: list[int], duration: float = 0
             except queue.Empty:
                 process.kill()
                 if current is not None:
-                    results[current] = {"status": "hang"}
+                    record(current, {"status": "hang"})
                 break
             if line is None:
                 break
@@ -491,14 +499,15 @@ def run_attempts(kind: str, solver: str, indices: list[int], duration: float = 0
             if "start" in message:
                 current = message["start"]
             elif "done" in message:
-                results[message["done"]] = message["result"]
+                record(message["done"], message["result"])
                 current = None
         process.wait()
         if current is not None and current not in results:
-            results[current] = {"status": "process_exit", "returncode": process.returncode}
+            record(current, {"status": "process_exit", "returncode": process.returncode})
         if current is None:  # died outside an attempt (building the fixture): nothing to go on with
             for i in pending:
-                results.setdefault(i, {"status": "worker_failed", "returncode": process.returncode})
+                if i not in results:
+                    record(i, {"status": "worker_failed", "returncode": process.returncode})
         pending = [i for i in pending if i not in results]
     return results
 

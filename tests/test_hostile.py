@@ -112,7 +112,7 @@ def test_far_reach_keeps_the_feet_to_a_micrometre():
     appli = load_diagram("talos_appli")
     handles = appli.build_diagram(target=(3.5, -0.2, 1.0), push_time=0.05)
     simulator, wall = appli.simulate(handles, 0.3, progress=False)
-    summary, trace = appli.summarize(handles, simulator, 0.3, wall)
+    summary, _ = appli.summarize(handles, simulator, 0.3, wall)
     assert summary["min_velocity_scale"] < 0.5 and summary["scaled_ticks"] > 100
     assert summary["max_foot_drift_m"] < 1e-6
 

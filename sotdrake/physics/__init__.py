@@ -16,12 +16,25 @@ The loop is *open* (the SoT's kinematics reads the device's own ``q``, as sot-ta
 robot) or *closed* (it reads the simulated joints and a base pose from leg odometry).
 """
 
-from .actuators import DAMPING_RANGE, STIFFNESS_RANGE, DesiredState, check_pd_gains, set_pd_gains
+from .actuators import (
+    DAMPING_RANGE,
+    STIFFNESS_RANGE,
+    DesiredState,
+    check_pd_gains,
+    set_pd_gains,
+)
 from .body_collision import fit_link_boxes
 from .contact_monitor import ContactMonitor
 from .estimator import KinematicBaseEstimator
 from .fall import FALL_BASE_HEIGHT, FALL_CONTACT_FORCE, fall_time
-from .plant import FRICTION, SOLE_BOX, SOLE_DISSIPATION, SOLE_MODULUS, PhysicalTalos, add_physical_talos
+from .plant import (
+    FRICTION,
+    SOLE_BOX,
+    SOLE_DISSIPATION,
+    SOLE_MODULUS,
+    PhysicalTalos,
+    add_physical_talos,
+)
 from .push import MAX_PUSH_FORCE, Push
 from .station import TalosStation, add_talos_station
 

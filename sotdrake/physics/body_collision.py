@@ -20,7 +20,18 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from pydrake.geometry import Box, Capsule, Convex, Cylinder, Ellipsoid, GeometrySet, Mesh, Role, SceneGraph, Sphere
+from pydrake.geometry import (
+    Box,
+    Capsule,
+    Convex,
+    Cylinder,
+    Ellipsoid,
+    GeometrySet,
+    Mesh,
+    Role,
+    SceneGraph,
+    Sphere,
+)
 from pydrake.multibody.plant import MultibodyPlant
 
 from ..exceptions import SotError

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..device import Layout
+from ..exceptions import SotError
 
 #: Largest accepted base velocity bound (rad/s, m/s).
 MAX_BASE_VELOCITY = 100.0
@@ -42,8 +43,8 @@ def default_base_velocity_limit(model) -> tuple[float, float]:
         plant.SetPositions(context, model.half_sitting)
         base = plant.get_body(next(iter(plant.GetFloatingBaseBodies()))).body_frame()
         length = float(np.linalg.norm(plant.CalcRelativeTransform(context, base, model.frame("left-sole")).translation()))
-    except Exception:  # no floating base or no sole: the documented 1 m
-        pass
+    except (StopIteration, SotError):  # no floating base or no sole: the documented 1 m
+        length = 1.0
     return angular, angular * length
 
 

@@ -83,6 +83,7 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
     tracer.add(robot.device.GetOutputPort("state"), "q_device")
     tracer.add(station.feet, "feet")
     tracer.add(station.other_contact, "other_contact")
+    tracer.add(sot.GetOutputPort("velocity_scale"), "velocity_scale")
     visualizer = None
     if meshcat is not None:
         visualizer = MeshcatVisualizer.AddToBuilder(builder, physical.scene_graph, meshcat, MeshcatVisualizerParams(publish_period=1 / 60))
@@ -132,6 +133,9 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
         "fell_at_s": fell_at,
         "min_base_height_m": float(base[:, 2].min()),
         "max_other_contact_n": float(trace["other_contact"].max()),
+        # The command scaled into the velocity limits (1: never): the smallest factor, and how often.
+        "min_velocity_scale": float(trace["velocity_scale"].min()),
+        "scaled_ticks": int(np.count_nonzero(trace["velocity_scale"] < 1.0)),
         "duration_s": duration,
         "ticks": len(trace["time"]),
         "wall_s": wall,

@@ -30,7 +30,7 @@ sys.path.insert(0, str(HERE.parent))
 from pydrake.systems.analysis import Simulator  # noqa: E402
 from pydrake.systems.framework import DiagramBuilder  # noqa: E402
 
-from sotdrake.device import Layout, integrate  # noqa: E402
+from sotdrake.configuration import Layout, integrate  # noqa: E402
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture, gotoNd  # noqa: E402
 from sotdrake.robot import Robot, add_sot  # noqa: E402
 from sotdrake.robots import load_talos  # noqa: E402

@@ -111,6 +111,7 @@ def build_diagram(
     # --- tracer: q at every tick, the task errors
     tracer = Tracer(builder, dt)
     tracer.add(robot.device.GetOutputPort("state"), "q")
+    tracer.add(sot.GetOutputPort("velocity_scale"), "velocity_scale")
     for meta in (contactRF, contactLF, taskCom, taskRH):
         tracer.add(meta.task.GetOutputPort("error_norm"), f"error_{meta.task.name}")
 
@@ -161,6 +162,9 @@ def summarize(appli: Appli, simulator: Simulator, duration: float, wall: float) 
         "max_foot_rotation_drift_rad": float(foot_rotation_drift),
         "max_com_drift_m": float(com_drift),
         "min_joint_limit_margin_rad": float(margin),
+        # The command scaled into the velocity limits (1: never): the smallest factor, and how often.
+        "min_velocity_scale": float(trace["velocity_scale"].min()),
+        "scaled_ticks": int(np.count_nonzero(trace["velocity_scale"] < 1.0)),
         "solver": type(appli.sot).__name__,
         "final_stack": appli.sot.stack(context),
         "final_level_residuals": appli.sot.GetOutputPort("residuals").Eval(appli.sot.GetMyContextFromRoot(context)).tolist(),

@@ -22,7 +22,6 @@ import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams
 from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource
 
 from sotdrake import (
     MetaTaskKine6d,
@@ -40,7 +39,7 @@ from sotdrake import (
     start,
     write_run,
 )
-from sotdrake.physics import SOLE_BOX, ContactMonitor, DesiredState, KinematicBaseEstimator, PhysicalTalos, Push, add_physical_talos
+from sotdrake.physics import SOLE_BOX, KinematicBaseEstimator, PhysicalTalos, TalosStation, add_talos_station, fall_time
 
 TARGET = (0.5, -0.2, 1.0)
 HAND_OFFSET = (0.1, 0.0, 0.0)
@@ -52,6 +51,7 @@ class Physics:
     diagram: Diagram
     robot: Robot
     physical: PhysicalTalos
+    station: TalosStation
     sot: SOT
     taskRH: MetaTaskKine6d
     tracer: Tracer
@@ -65,10 +65,9 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
     if scenario not in ("stand", "reach") or loop not in ("open", "closed"):
         raise ValueError(f"scenario is 'stand' or 'reach', loop 'open' or 'closed'; got {scenario!r}, {loop!r}")
     builder = DiagramBuilder()
-    physical = add_physical_talos(builder, time_step=dt)
-    plant = physical.plant
     model = load_talos("reduced")
-    plant.SetDefaultPositions(model.half_sitting)
+    station = add_talos_station(builder, model.half_sitting, dt, push_force=[push, 0.0, 0.0] if push else None)
+    physical, plant = station.physical, station.physical.plant
     measured = None
     if loop == "closed":  # measured joints, base by leg odometry (see KinematicBaseEstimator)
         estimator = builder.AddNamedSystem("estimator", KinematicBaseEstimator(model, model.half_sitting))
@@ -86,22 +85,15 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
         gotoNd(taskRH, TARGET, "111", (4.9, 0.9, 0.01, 0.9))
         attime(1.0, lambda: sot.push(taskRH.task.name), "push taskrh: move the right hand")
 
-    desired = robot.add(DesiredState(physical))
-    builder.Connect(robot.device.GetOutputPort("state"), desired.GetInputPort("position"))
-    builder.Connect(sot.GetOutputPort("control"), desired.GetInputPort("velocity"))
-    builder.Connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))
-    feedforward = robot.add(ConstantVectorSource(np.zeros(plant.num_actuated_dofs(physical.instance))), "feedforward_torque")
-    builder.Connect(feedforward.get_output_port(), plant.get_actuation_input_port(physical.instance))
-    monitor = robot.add(ContactMonitor(physical))
-    builder.Connect(plant.get_contact_results_output_port(), monitor.get_input_port())
-    if push:
-        pusher = robot.add(Push(plant, "torso_2_link", [push, 0.0, 0.0], start=2.0, duration=0.1))
-        builder.Connect(pusher.get_output_port(), plant.get_applied_spatial_force_input_port())
+    builder.Connect(robot.device.GetOutputPort("state"), station.position)
+    builder.Connect(sot.GetOutputPort("control"), station.velocity)
 
     tracer = Tracer(builder, dt)
     tracer.add(plant.get_state_output_port(), "x_plant")
     tracer.add(robot.device.GetOutputPort("state"), "q_device")
-    tracer.add(monitor.get_output_port(), "feet")
+    tracer.add(station.feet, "feet")
+    tracer.add(station.other_contact, "other_contact")
+    tracer.add(sot.GetOutputPort("velocity_scale"), "velocity_scale")
     visualizer = None
     if meshcat is not None:
         visualizer = MeshcatVisualizer.AddToBuilder(builder, physical.scene_graph, meshcat, MeshcatVisualizerParams(publish_period=1 / 60))
@@ -113,7 +105,7 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
         meshcat.SetCameraPose(camera_in_world=[1.5, -1.6, 1.3], target_in_world=[0.15, -0.1, 0.65])
     diagram = builder.Build()
     diagram.set_name("talos_physics")
-    return Physics(diagram, robot, physical, sot, taskRH, tracer, scenario, visualizer, taskCom)
+    return Physics(diagram, robot, physical, station, sot, taskRH, tracer, scenario, visualizer, taskCom)
 
 
 def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[dict, dict]:
@@ -134,6 +126,7 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
     low, high = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
     cop = feet[:, 6:8]
     cop_margin = np.nanmin(np.minimum(cop - low, high - cop))
+    fell_at = fall_time(trace["time"], base[1:, 2], trace["other_contact"][:, 0])
     summary = {
         "scenario": run.scenario,
         "hand_error_m": float(np.linalg.norm(hand[-1] - np.asarray(TARGET))),
@@ -145,6 +138,14 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
         "max_foot_slip_m": float(slip),
         "min_cop_margin_m": float(cop_margin),
         "support_polygon_m": [low.tolist(), high.tolist()],
+        # fell: the base below FALL_BASE_HEIGHT or another body than the soles on the ground.
+        "fell": fell_at is not None,
+        "fell_at_s": fell_at,
+        "min_base_height_m": float(base[:, 2].min()),
+        "max_other_contact_n": float(trace["other_contact"].max()),
+        # The command scaled into the velocity limits (1: never): the smallest factor, and how often.
+        "min_velocity_scale": float(trace["velocity_scale"].min()),
+        "scaled_ticks": int(np.count_nonzero(trace["velocity_scale"] < 1.0)),
         "duration_s": duration,
         "ticks": len(trace["time"]),
         "wall_s": wall,

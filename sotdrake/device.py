@@ -4,8 +4,8 @@ Discrete state ``q`` (Drake positions), updated every ``dt`` seconds by ``q ← 
 the ``control`` input (Drake generalized velocities) evaluated at the start of the tick. Output
 ``state`` is ``q``.
 
-``⊕`` is :func:`sotdrake.configuration.integrate`: exact for a velocity held constant over the
-tick, the floating base on SE(3), the joints additively.
+``⊕`` is :func:`sotdrake.configuration.integrate`: exact for Drake's generalized velocity ``v``
+held constant over the tick (see there).
 
 Joint limits are *not* enforced here (nothing is silently clamped): the solvers own limits. The
 device logs a warning each time a joint crosses one of its position limits, and the diagrams report
@@ -21,11 +21,12 @@ import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from .configuration import Layout, integrate, position_names
+from .configuration import Layout, difference, integrate, position_names
 from .entity import own_context
-from .exceptions import InvalidInput, SolverError, check_finite
+from .exceptions import InvalidInput, SolverError, SotError, check_finite
+from .ranges import MAX_JOINT_TARGET
 
-__all__ = ["Device", "Layout", "integrate"]  # Layout and integrate live in sotdrake.configuration
+__all__ = ["Device", "Layout", "difference", "integrate"]  # they live in sotdrake.configuration
 
 log = logging.getLogger("sotdrake.device")
 
@@ -66,7 +67,16 @@ class Device(LeafSystem):
 
     def set_position(self, context: Context, q: np.ndarray) -> None:
         """Set ``q`` in ``context`` (the root diagram context or the device's own)."""
-        own_context(self, context).SetDiscreteState(self._q, check_finite("q", q, (self.nq,)))
+        from .entity import recording
+
+        if recording():
+            raise SotError(f"{self.get_name()}.set_position changes the state now: it cannot be recorded by attime")
+        q = check_finite("q (rad, m)", q, (self.nq,), MAX_JOINT_TARGET)
+        if self.layout.base_q is not None:
+            norm = np.linalg.norm(q[self.layout.base_q : self.layout.base_q + 4])
+            if abs(norm - 1.0) > 1e-3:
+                raise InvalidInput(f"{self.get_name()}.set_position: the base quaternion must have norm 1 (± 1e-3), got {norm:g}")
+        own_context(self, context).SetDiscreteState(self._q, q)
 
     def position(self, context: Context) -> np.ndarray:
         return own_context(self, context).get_discrete_state(self._q).get_value().copy()

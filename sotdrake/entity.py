@@ -25,6 +25,8 @@ from typing import Any, Generic, TypeVar
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem
 
+from .exceptions import SotError
+
 S = TypeVar("S")
 
 #: Recorders of :func:`sotdrake.sequencer.attime`, innermost last.
@@ -83,6 +85,10 @@ class Entity(LeafSystem, Generic[S]):
         return own_context.get_abstract_state(self._settings_index).get_value()
 
     def _command(self, context: Context | None, change: Callable[[S], None]) -> None:
+        if context is not None and _recorders:  # refused before anything changes
+            raise SotError(
+                f"{self.name}: a command inside attime is recorded and replayed at its time: "
+                "call it without context= (got a context)")
         if context is None and _recorders:
             _recorders[-1].append((self, change))
             return

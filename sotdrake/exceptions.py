@@ -64,17 +64,58 @@ class StackError(SotError):
     """
 
 
+class RobotDescriptionError(SotError, ValueError):
+    """A robot description (URDF) Drake would reject or abort on; the message names the joint."""
+
+
 class SolverError(SotError):
     """The solver met a non-finite Jacobian or reference; the message names the task."""
 
 
-def check_finite(name: str, value, shape: tuple[int, ...] | None = None):
-    """Return ``value`` as a float array after checking its shape and finiteness."""
+def _all_numbers(value) -> bool:
+    """True if ``value`` is a real number or nested sequences/arrays of them (no str, bool, None)."""
+    import numbers
+
     import numpy as np
 
-    array = np.asarray(value, dtype=float)
+    if isinstance(value, np.ndarray):
+        return value.dtype.kind in "iuf" or (value.dtype.kind == "O" and all(_all_numbers(v) for v in value.ravel()))
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    if isinstance(value, numbers.Real):
+        return True
+    if isinstance(value, (list, tuple)):
+        return all(_all_numbers(v) for v in value)
+    return False
+
+
+def check_number(name: str, value, low: float, high: float, unit: str = "") -> float:
+    """``value`` as a float if it is a real number (not a bool) in ``[low, high]``, else InvalidInput."""
+    if not _all_numbers(value) or isinstance(value, (list, tuple)) or getattr(value, "ndim", 0) != 0:
+        raise InvalidInput(f"{name} must be a number in [{low:g}, {high:g}]{unit}, got {value!r:.100}")
+    number = float(value)
+    if not low <= number <= high:  # NaN fails too
+        raise InvalidInput(f"{name} must be a number in [{low:g}, {high:g}]{unit}, got {value!r:.100}")
+    return number
+
+
+def check_finite(name: str, value, shape: tuple[int, ...] | None = None, bound: float | None = None):
+    """Return ``value`` as a float array after checking its shape, finiteness and, with ``bound``,
+    ``|value| ≤ bound`` element-wise; anything else raises :class:`InvalidInput` naming ``name``."""
+    import numpy as np
+
+    expected = f"{'' if shape is None else f'shape {shape}, '}finite numbers" + (
+        "" if bound is None else f" in [-{bound:g}, {bound:g}]")
+    try:
+        if not _all_numbers(value):
+            raise TypeError("not numbers")
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInput(f"{name}: expected {expected}, got {value!r:.200}") from None
     if shape is not None and array.shape != shape:
-        raise InvalidInput(f"{name}: expected shape {shape}, got {array.shape}")
+        raise InvalidInput(f"{name}: expected {expected}, got shape {array.shape}")
     if not np.all(np.isfinite(array)):
-        raise InvalidInput(f"{name}: contains NaN or infinity: {array}")
+        raise InvalidInput(f"{name}: expected {expected}; contains NaN or infinity: {array}")
+    if bound is not None and array.size and np.abs(array).max() > bound:
+        raise InvalidInput(f"{name}: expected {expected}, got {np.abs(array).max():g} in absolute value")
     return array

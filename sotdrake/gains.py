@@ -28,6 +28,11 @@ from pydrake.systems.framework import Context
 
 from .entity import Entity
 from .exceptions import InvalidInput
+from .gain_checks import check_gain
+from .ranges import ERROR_SCALE
+
+#: Largest magnitude of a number given to a gain command (λ0, λ∞, slope, tanAt0 …).
+MAX_GAIN_INPUT = 1e9
 
 
 @dataclass(frozen=True)
@@ -64,10 +69,17 @@ def _norm(x: np.ndarray) -> float:
     return math.sqrt(x @ x)
 
 
+_SYMBOLS = {"gain": "λ", "gain0": "λ0", "gain_inf": "λ∞", "tan_at0": "tanAt0", "decal0": "decal0",
+            "slope": "slope", "error_ref": "e_ref", "fraction": "p"}
+
+
 def _finite(**values: float) -> None:
-    for name, value in values.items():
-        if not math.isfinite(value):
-            raise InvalidInput(f"gain {name} must be finite, got {value}")
+    for key, value in values.items():
+        name = _SYMBOLS.get(key, key)
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(value):
+            raise InvalidInput(f"gain {name} must be a finite number, got {value!r}")
+        if abs(value) > MAX_GAIN_INPUT:
+            raise InvalidInput(f"gain {name} must be in [-{MAX_GAIN_INPUT:g}, {MAX_GAIN_INPUT:g}], got {value!r}")
 
 
 def constant(gain: float) -> AdaptiveCoefficients:
@@ -89,16 +101,24 @@ def from_slope(gain0: float, gain_inf: float, slope: float) -> AdaptiveCoefficie
 def from_point(gain0: float, gain_inf: float, error_ref: float, fraction: float) -> AdaptiveCoefficients:
     """sot-core ``GainAdaptive.setByPoint(λ0, λ∞, e_ref, p)``."""
     _finite(gain0=gain0, gain_inf=gain_inf, error_ref=error_ref, fraction=fraction)
-    if gain_inf < 0 or gain0 < gain_inf or error_ref <= 0 or not 0 < fraction < 1:
+    if gain_inf < 0 or gain0 < gain_inf or not ERROR_SCALE[0] <= error_ref <= ERROR_SCALE[1] or not 0 < fraction < 1:
         raise InvalidInput(
-            f"expected λ0 ≥ λ∞ ≥ 0, e_ref > 0, 0 < p < 1, got ({gain0}, {gain_inf}, {error_ref}, {fraction})"
+            f"expected λ0 ≥ λ∞ ≥ 0, e_ref in [{ERROR_SCALE[0]:g}, {ERROR_SCALE[1]:g}], 0 < p < 1, got ({gain0}, {gain_inf}, {error_ref}, {fraction})"
         )
     return AdaptiveCoefficients(gain0 - gain_inf, -math.log(fraction) / error_ref, gain_inf)
 
 
 def from_numbers(numbers) -> AdaptiveCoefficients:
     """``gotoNd``'s gain argument: 1 number (constant), 3 (``set``) or 4 (``setByPoint``)."""
-    values = [float(x) for x in (numbers if np.ndim(numbers) else [numbers])]
+    try:
+        if isinstance(numbers, (str, bytes, dict)) or numbers is None:
+            raise TypeError("not numbers")
+        values = [x for x in (numbers if np.ndim(numbers) else [numbers])]
+        for x in values:
+            _finite(gain=x)
+        values = [float(x) for x in values]
+    except (TypeError, ValueError):
+        raise InvalidInput(f"a gain is given by 1, 3 or 4 finite numbers, got {numbers!r:.200}") from None
     makers = {1: constant, 3: from_slope, 4: from_point}
     if len(values) not in makers:
         raise InvalidInput(f"a gain is given by 1, 3 or 4 numbers, got {len(values)}: {values}")
@@ -113,8 +133,13 @@ class GainSettings:
 class _Gain(Entity[GainSettings]):
     """Input ``error`` (any size); output ``gain`` = ``λ(‖error‖)`` (1-vector). Starts at λ = 1."""
 
-    def __init__(self, name: str):
+    def __init__(self, name: str, dt: float | None = None):
+        """``dt``: the control period (s) of the loop the gain serves; with it, gains with
+        ``λ·dt ≥ 2`` are refused (see :mod:`sotdrake.gain_checks`)."""
         Entity.__init__(self, name, GainSettings(constant(1.0)))
+        if dt is not None and not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
+        self.dt = dt
         self.error = self.DeclareAbstractInputPort("error", AbstractValue.Make(np.zeros(0)))
         self.DeclareVectorOutputPort("gain", 1, self._calc_gain)
 
@@ -125,6 +150,7 @@ class _Gain(Entity[GainSettings]):
         self.setCoefficients(constant(gain), context)
 
     def setCoefficients(self, coefficients, context: Context | None = None) -> None:
+        check_gain(coefficients, self.dt, self.name)
         self._command(context, lambda s: setattr(s, "coefficients", coefficients))
 
 

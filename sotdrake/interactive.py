@@ -9,6 +9,8 @@
 
 from __future__ import annotations
 
+import math
+import numbers
 import sys
 import time
 
@@ -18,10 +20,23 @@ from pydrake.systems.framework import Context, Diagram
 from .exceptions import InvalidInput
 
 
+#: Longest run one ``go`` or ``advance_to`` accepts (s of simulated time): a day.
+MAX_DURATION = 86400.0
+
+
+def _number(name: str, value, low: float, high: float, low_open: bool = False) -> float:
+    """``value`` as a float in ``[low, high]`` (``(low, high]`` with ``low_open``), else InvalidInput."""
+    ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
+    if not ok or value > high or value < low or (low_open and value == low):
+        bracket = "(" if low_open else "["
+        raise InvalidInput(f"{name} must be a number in {bracket}{low:g}, {high:g}], got {value!r}")
+    return float(value)
+
+
 class Runner:
     def __init__(self, diagram: Diagram, dt: float, realtime_rate: float = 0.0):
-        if not dt > 0:
-            raise InvalidInput(f"dt must be > 0, got {dt}")
+        _number("dt", dt, 0.0, 1.0, low_open=True)
+        _number("realtime_rate", realtime_rate, 0.0, 1e6)
         self.dt = dt
         self.simulator = Simulator(diagram)
         self.simulator.set_target_realtime_rate(realtime_rate)
@@ -40,15 +55,25 @@ class Runner:
         return self.step(1)
 
     def step(self, ticks: int = 1) -> float:
-        if ticks < 0:
-            raise InvalidInput(f"cannot step {ticks} ticks backwards")
+        if not isinstance(ticks, numbers.Integral) or isinstance(ticks, bool) or not 0 <= ticks <= MAX_DURATION / self.dt:
+            raise InvalidInput(f"ticks must be an integer in [0, {int(MAX_DURATION / self.dt)}], got {ticks!r}")
         # The tick at t is processed when the simulator reaches t; land just before the next one.
         target = (round(self.t / self.dt) + ticks) * self.dt
         self.simulator.AdvanceTo(target)
         return self.t
 
+    def advance_to(self, target: float) -> float:
+        """Advance to the simulated time ``target`` (s), which must not be earlier than now."""
+        _number("target", target, self.t, self.t + MAX_DURATION)
+        self.simulator.AdvanceTo(target)
+        return self.t
+
     def go(self, duration: float | None = None, chunk: float = 0.1) -> float:
-        """Run ``duration`` seconds (None: until Ctrl-C), printing the time now and then."""
+        """Run ``duration`` seconds (None: until Ctrl-C), printing the time now and then; the
+        simulator advances ``chunk`` seconds at a time (``chunk`` in ``[dt, 60]`` s)."""
+        if duration is not None:
+            _number("duration", duration, 0.0, MAX_DURATION)
+        _number("chunk", chunk, self.dt, 60.0)
         end = None if duration is None else self.t + duration
         last = time.monotonic()
         try:

@@ -35,6 +35,8 @@ from .features import (
 )
 from .features.feature6d import as_transform
 from .gains import GainAdaptive, from_numbers
+from .gain_checks import check_gain
+from .ranges import MAX_TARGET_POSITION
 from .kinematics import Dynamic
 from .robot import Robot
 from .selection import parse_selection
@@ -72,7 +74,7 @@ class _MetaTask:
             raise InvalidInput("a task is an inequality or a PD task, not both")
         self.robot, self.name = robot, name
         self.feature = feature
-        self.gain = robot.add(GainAdaptive("gain" + name))
+        self.gain = robot.add(GainAdaptive("gain" + name, robot.dt))
         nv = robot.dimension
         if inequality:
             task: Task = TaskInequality("task" + name, nv)
@@ -262,13 +264,17 @@ def gotoNd(
     """
     # Validate everything first: a rejected gotoNd changes nothing.
     coefficients = None if gain is None else from_numbers(gain)
+    if coefficients is not None:
+        check_gain(coefficients, getattr(getattr(task, "gain", None), "dt", None), f"gotoNd({getattr(task, 'name', task)!r}) gain")
     if isinstance(task, MetaTaskKine6d):
         target, dimension = as_transform(position, f"gotoNd({task.name})"), 6
     elif isinstance(task, MetaTaskKineCom):
-        target, dimension = check_finite(f"gotoNd({task.name})", position, (3,)), 3
+        target, dimension = check_finite(f"gotoNd({task.name}) position (m)", position, (3,), MAX_TARGET_POSITION), 3
     else:
         raise InvalidInput(f"gotoNd takes a MetaTaskKine6d or MetaTaskKineCom, got {type(task).__name__}")
     if selec is not None:
+        if not isinstance(selec, str):
+            raise InvalidInput(f"gotoNd({task.name}): selec must be a string of '0' and '1', got {selec!r}")
         parse_selection(selec, dimension)
 
     if isinstance(task, MetaTaskKine6d):

@@ -15,10 +15,11 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder, OutputPort, System
 
 from .device import Device
-from .exceptions import InvalidInput, NotFound
+from .exceptions import InvalidInput, NotFound, SotError
 from .kinematics import Dynamic
 from .robots import RobotModel, load_robot
 from .solvers import SOT, SolverKine
+from .solvers.base_velocity import velocity_limit_vector
 from .task import Task
 
 SystemT = TypeVar("SystemT", bound=System)
@@ -68,6 +69,9 @@ class Robot:
 
     def add(self, system: SystemT, name: str | None = None) -> SystemT:
         """Add ``system`` to the builder under ``name`` (default: its own), which must be new."""
+        if self.builder.already_built():
+            raise SotError(f"cannot add {system.get_name() or type(system).__name__!r}: the diagram is already built "
+                           "(create tasks and entities before builder.Build())")
         if name is not None:
             system.set_name(name)
         name = system.get_name()
@@ -133,11 +137,13 @@ def add_sot(
     """sot-core's ``sot = SOT('sot'); sot.setSize(...); plug(sot.control, robot.device.control)``.
 
     ``solver='cascade'``: the basic ``SOT`` (pseudo-inverse cascade; ``svd_threshold``, ``damping``
-    on every level). ``solver='hqp'``: ``SolverKine`` (hierarchical QP with inequalities and joint
+    on every level; the command scaled uniformly into the joints' velocity limits and the base bound). ``solver='hqp'``: ``SolverKine`` (hierarchical QP with inequalities and joint
     limits; ``damping`` on the last level, ``position_margin``, ``qp_solver``).
     """
     if solver == "cascade":
-        return robot.add_solver(SOT(name, robot.dimension, svd_threshold, damping))
+        sot = SOT(name, robot.dimension, svd_threshold, damping, dt=robot.dt, layout=robot.device.layout)
+        sot.setVelocityLimit(velocity_limit_vector(robot.model))
+        return robot.add_solver(sot)
     if solver == "hqp":
         return robot.add_solver(SolverKine(name, robot.model, robot.dt, damping, position_margin, qp_solver))
     raise InvalidInput(f"unknown solver {solver!r}: 'cascade' (SOT) or 'hqp' (SolverKine)")

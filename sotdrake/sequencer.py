@@ -11,12 +11,14 @@ Call it before creating the simulator's context.
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Callable
 from typing import NamedTuple
 
 from .entity import Entity, _recorders
-from .exceptions import InvalidInput, SotError
+from .exceptions import InvalidInput, SotError, check_number
+
+#: Latest time an attime command may be scheduled at (s): a year of simulated time.
+MAX_TIME = 3.2e7
 
 log = logging.getLogger("sotdrake.sequencer")
 
@@ -31,8 +33,9 @@ def attime(time: float, command: Callable[[], object] | tuple, description: str 
     """Schedule ``command`` (entity commands without a context) at simulated time ``time`` (s)."""
     if isinstance(command, tuple):
         command, description = command
-    if not (isinstance(time, (int, float)) and math.isfinite(time) and time >= 0):
-        raise InvalidInput(f"attime: the time must be finite and ≥ 0, got {time!r}")
+    check_number("attime: the time (s)", time, 0.0, MAX_TIME)
+    if not callable(command):
+        raise InvalidInput(f"attime: the command must be callable (a lambda issuing entity commands), got {command!r:.100}")
     recorded: list = []
     _recorders.append(recorded)
     try:

@@ -30,6 +30,10 @@ from pydrake.systems.framework import Context, LeafSystem
 from .entity import Entity
 from .exceptions import InvalidInput, check_finite
 from .features.base import FeatureValue, optional_input, usual_input
+from .ranges import MAX_TARGET_POSITION
+
+#: Largest derivative gain β of a TaskPD (dimensionless: ė* = -λ e - β ė).
+MAX_BETA = 100.0
 
 
 class TaskLevel(NamedTuple):
@@ -131,8 +135,8 @@ class TaskPD(_TaskBase, Entity[PDSettings]):
         self.DeclarePeriodicUnrestrictedUpdateEvent(self.dt, 0.0, self._remember)
 
     def setBeta(self, beta: float, context: Context | None = None) -> None:
-        if not (np.isfinite(beta) and beta >= 0):
-            raise InvalidInput(f"{self.name}: β must be finite and ≥ 0, got {beta}")
+        if isinstance(beta, bool) or not isinstance(beta, (int, float)) or not (math.isfinite(beta) and 0 <= beta <= MAX_BETA):
+            raise InvalidInput(f"{self.name}: β must be a number in [0, {MAX_BETA:g}], got {beta!r}")
         self._command(context, lambda s: setattr(s, "beta", float(beta)))
 
     def _remember(self, context: Context, state) -> None:
@@ -163,11 +167,17 @@ class TaskInequality(_TaskBase, Entity[InequalityBounds]):
         self._declare_ports(nv)
 
     def setBounds(self, lower, upper, context: Context | None = None) -> None:
-        lower = np.asarray(lower, dtype=float).reshape(-1)
-        upper = np.asarray(upper, dtype=float).reshape(-1)
+        try:
+            lower = np.asarray(lower, dtype=float).reshape(-1)
+            upper = np.asarray(upper, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise InvalidInput(f"{self.name}.setBounds: lower and upper must be numbers, got {lower!r:.100}, {upper!r:.100}") from None
         for what, bound in (("lower", lower), ("upper", upper)):
-            if bound.shape != upper.shape or bound.size == 0 or np.any(np.isnan(bound)):
-                raise InvalidInput(f"{self.name}: {what} bound must be as many numbers as the other (±inf allowed, no NaN)")
+            finite = bound[np.isfinite(bound)]
+            if bound.shape != upper.shape or bound.size == 0 or np.any(np.isnan(bound)) or np.any(np.abs(finite) > MAX_TARGET_POSITION):
+                raise InvalidInput(
+                    f"{self.name}: {what} bound must be as many numbers as the other, each ±inf or in "
+                    f"[-{MAX_TARGET_POSITION:g}, {MAX_TARGET_POSITION:g}] (no NaN)")
         if np.any(lower > upper):
             raise InvalidInput(f"{self.name}: lower bound above upper bound: {lower} > {upper}")
         self._command(context, lambda s: (setattr(s, "lower", lower.copy()), setattr(s, "upper", upper.copy())))

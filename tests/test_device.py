@@ -1,11 +1,11 @@
-"""The device integrates on SE(3) × R^n, consistently with Drake's velocity convention."""
+"""The device integrates Drake's v held constant over each tick (q̇ = N(q) v), exactly."""
 
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
-from sotdrake.configuration import Layout, integrate
+from sotdrake.configuration import Layout, difference, integrate
 from sotdrake.device import Device
 from sotdrake.lie import hat, quaternion_wxyz_to_rotation
 from tests.test_lie import expm
@@ -26,50 +26,39 @@ def test_integration_matches_drake_q_dot(talos_model, rng):
         np.testing.assert_allclose((integrate(q, v, dt, layout) - q) / dt, q_dot, atol=2e-6)
 
 
-class BodyTwistSource(LeafSystem):
-    """Drake v whose free-flyer part is the constant body twist (v_B, ω_B) at the current pose."""
-
-    def __init__(self, nq, v_joints, v_B, w_B):
-        super().__init__()
-        self.q = self.DeclareVectorInputPort("q", nq)
-        self.v_joints, self.v_B, self.w_B = v_joints, v_B, w_B
-        self.DeclareVectorOutputPort("v", 6 + len(v_joints), self._calc)
-
-    def _calc(self, context, output: BasicVector):
-        R = quaternion_wxyz_to_rotation(self.q.Eval(context)[:4])
-        output.SetFromVector(np.concatenate([R @ self.w_B, R @ self.v_B, self.v_joints]))
-
-
 def test_constant_velocity_for_two_seconds(talos_model, rng):
+    """Drake's v held constant: the base turns at ω_W about the world axes (R = exp([ω_W] t) R0) and
+    its origin moves on a straight line (p = p0 + v_WBo t), exactly, over 2000 ticks."""
+    from pydrake.systems.primitives import ConstantVectorSource
+
     plant = talos_model.plant
     nv = talos_model.nv
-    v_B, w_B = np.array([0.3, -0.1, 0.2]), np.array([0.4, -0.7, 0.25])
-    v_joints = 0.1 * rng.normal(size=nv - 6)
+    w_W, v_W = np.array([0.4, -0.7, 0.25]), np.array([0.3, -0.1, 0.2])
+    v = np.concatenate([w_W, v_W, 0.1 * rng.normal(size=nv - 6)])
     q0 = talos_model.half_sitting
     builder = DiagramBuilder()
     device = builder.AddSystem(Device(plant, 1e-3, q0))
-    source = builder.AddSystem(BodyTwistSource(talos_model.nq, v_joints, v_B, w_B))
-    builder.Connect(device.GetOutputPort("state"), source.get_input_port())
+    source = builder.AddSystem(ConstantVectorSource(v))
     builder.Connect(source.get_output_port(), device.GetInputPort("control"))
     simulator = Simulator(builder.Build())
     simulator.AdvanceTo(2.0 - 1e-4)  # ticks at 0, 1 ms, …, 1.999 s: 2000 ticks of 1 ms
     q = device.position(simulator.get_context())
 
-    twist = np.zeros((4, 4))
-    twist[:3, :3], twist[:3, 3] = hat(w_B), v_B
-    X0 = np.eye(4)
-    X0[:3, :3], X0[:3, 3] = quaternion_wxyz_to_rotation(q0[:4]), q0[4:7]
-    X = X0 @ expm(2.0 * twist)
-    np.testing.assert_allclose(quaternion_wxyz_to_rotation(q[:4]), X[:3, :3], atol=1e-9)
-    np.testing.assert_allclose(q[4:7], X[:3, 3], atol=1e-9)
-    np.testing.assert_allclose(np.linalg.norm(q[:4]), 1.0, atol=1e-12)
-    np.testing.assert_allclose(q[7:], q0[7:] + 2.0 * v_joints, atol=1e-9)
-    # Not the naive R³ × SO(3) flow of a constant world velocity: the test can tell them apart.
-    assert np.linalg.norm(q[4:7] - (q0[4:7] + 2.0 * X0[:3, :3] @ v_B)) > 1e-2
-    # ⊕ is exact for a constant body twist: one step of 2 s lands where 2000 steps of 1 ms do.
     R0 = quaternion_wxyz_to_rotation(q0[:4])
-    one_step = integrate(q0, np.concatenate([R0 @ w_B, R0 @ v_B, v_joints]), 2.0, Layout.of(plant))
-    np.testing.assert_allclose(one_step, q, atol=1e-9)
+    np.testing.assert_allclose(quaternion_wxyz_to_rotation(q[:4]), expm(2.0 * hat(w_W)) @ R0, atol=1e-9)
+    np.testing.assert_allclose(q[4:7], q0[4:7] + 2.0 * v_W, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(q[:4]), 1.0, atol=1e-12)
+    np.testing.assert_allclose(q[7:], q0[7:] + 2.0 * v[6:], atol=1e-9)
+    # ⊕ is exact for a constant v: one step of 2 s lands where 2000 steps of 1 ms do.
+    np.testing.assert_allclose(integrate(q0, v, 2.0, Layout.of(plant)), q, atol=1e-9)
+
+
+def test_difference_inverts_integrate(talos_model, rng):
+    layout = Layout.of(talos_model.plant)
+    for _ in range(5):
+        q = integrate(talos_model.half_sitting, rng.normal(size=talos_model.nv), 0.3, layout)
+        delta = 0.05 * rng.normal(size=talos_model.nv)
+        np.testing.assert_allclose(difference(integrate(q, delta, 1.0, layout), q, layout), delta, atol=1e-12)
 
 
 def test_device_never_clamps_and_reports_a_limit_crossing(talos_model, caplog):

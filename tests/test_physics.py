@@ -31,6 +31,7 @@ def test_standing_holds(physics):
     total = trace["feet"][-1, 2] + trace["feet"][-1, 5]
     assert total == pytest.approx(90.27 * 9.81, rel=0.03)  # the feet carry the robot's weight
     assert summary["min_cop_margin_m"] > 0.02
+    assert not summary["fell"] and summary["max_other_contact_n"] == 0.0  # no link but the soles touches
 
 
 def test_short_reach_keeps_balance(physics):
@@ -97,3 +98,34 @@ def test_base_estimator_is_leg_odometry(talos_model):
     q = estimator.get_output_port().Eval(context)
     assert q[knee] == x[knee] and np.linalg.norm(q[4:7] - talos_model.half_sitting[4:7]) > 1e-3
     assert np.linalg.norm(q[:4]) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("body_collision", [True, False])
+def test_a_fall_lands_on_the_ground(talos_model, body_collision):
+    """Limp actuators: the robot collapses. With the links' boxes it lies on the ground (its base a
+    few centimetres up, a link pressing on the ground: it fell); with the soles alone it sinks
+    through the floor."""
+    from pydrake.systems.analysis import Simulator
+
+    from sotdrake.physics import FALL_BASE_HEIGHT, add_talos_station, fall_time
+
+    builder = DiagramBuilder()
+    station = add_talos_station(builder, talos_model.half_sitting, stiffness=1e-3, body_collision=body_collision)
+    builder.ExportInput(station.position, "position")
+    builder.ExportInput(station.velocity, "velocity")
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    diagram.get_input_port(0).FixValue(context, talos_model.half_sitting)
+    diagram.get_input_port(1).FixValue(context, np.zeros(talos_model.nv))
+    heights, other, times = [], [], []
+    for t in np.arange(0.1, 1.51, 0.1):
+        simulator.AdvanceTo(t)
+        heights.append(station.plant_state.Eval(station.physical.plant.GetMyContextFromRoot(context))[6])
+        other.append(station.other_contact.Eval(station.monitor.GetMyContextFromRoot(context))[0])
+        times.append(t)
+    if body_collision:
+        assert 0.05 < heights[-1] < FALL_BASE_HEIGHT and max(other) > 100.0
+        assert fall_time(np.array(times), np.array(heights), np.array(other)) is not None
+    else:
+        assert heights[-1] < -0.3  # through the floor

@@ -22,6 +22,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context
 
 from ..entity import Entity
+from ..exceptions import InvalidInput
 from ..selection import parse_selection
 
 
@@ -88,5 +89,7 @@ class Feature(Entity):
 
     def selec(self, mask: str, context: Context | None = None) -> None:
         """Selection mask, read right to left (``'000011'`` selects components 0 and 1)."""
+        if not isinstance(mask, str):
+            raise InvalidInput(f"{self.name}.selec: the mask must be a string of '0' and '1', got {mask!r}")
         parse_selection(mask, self.dimension)
         self._command(context, lambda s: setattr(s, "selection", mask))

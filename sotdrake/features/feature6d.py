@@ -29,6 +29,7 @@ from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite
+from ..ranges import MAX_TARGET_ANGLE, MAX_TARGET_POSITION, MAX_TARGET_VELOCITY
 from ..lie import hat, log_so3_list, right_jacobian_inverse_list
 from .base import Feature, FeatureSettings, usual_input
 
@@ -152,6 +153,7 @@ def as_transform(value, what: str) -> RigidTransform:
     (translation, identity rotation) or a 6-vector ``(x, y, z, roll, pitch, yaw)``, as sot-core's
     ``generic6dReference`` accepts."""
     if isinstance(value, RigidTransform):
+        check_finite(f"{what} translation (m)", value.translation(), bound=MAX_TARGET_POSITION)
         return value
     array = check_finite(what, value)
     if array.shape == (4, 4):
@@ -160,10 +162,13 @@ def as_transform(value, what: str) -> RigidTransform:
         R = array[:3, :3]
         if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
             raise InvalidInput(f"{what}: the 3×3 block is not a rotation matrix")
+        check_finite(f"{what} translation (m)", array[:3, 3], bound=MAX_TARGET_POSITION)
         return RigidTransform(RotationMatrix(R), array[:3, 3])
     if array.shape == (3,):
-        return RigidTransform(array)
+        return RigidTransform(check_finite(f"{what} (m)", array, bound=MAX_TARGET_POSITION))
     if array.shape == (6,):
+        check_finite(f"{what} translation (m)", array[:3], bound=MAX_TARGET_POSITION)
+        check_finite(f"{what} roll, pitch, yaw (rad)", array[3:], bound=MAX_TARGET_ANGLE)
         return RigidTransform(RollPitchYaw(array[3:]), array[:3])
     raise InvalidInput(f"{what}: expected a 4×4 matrix, 3 or 6 numbers, got shape {array.shape}")
 
@@ -215,7 +220,7 @@ class Feature6dDesired(Entity[Feature6dDesiredSettings]):
 
     def setVelocity(self, velocity, context: Context | None = None) -> None:
         """Set the target's spatial velocity ``(ω*, ṗ*)`` (world frame) for the feed-forward."""
-        V = check_finite(f"{self.name}.velocity", velocity, (6,)).copy()
+        V = check_finite(f"{self.name}.velocity (rad/s, m/s)", velocity, (6,), MAX_TARGET_VELOCITY).copy()
         self._command(context, lambda s: setattr(s, "velocity", V))
 
 

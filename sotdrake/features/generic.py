@@ -15,6 +15,7 @@ from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..exceptions import check_finite
+from ..ranges import MAX_TARGET_POSITION, MAX_TARGET_VELOCITY
 from .base import Feature, optional_input, usual_input
 
 
@@ -45,12 +46,12 @@ class FeatureGenericDesired(Entity[FeatureGenericDesiredSettings]):
 
     def setReference(self, value, context: Context | None = None) -> None:
         """Set ``s*``."""
-        s_star = check_finite(f"{self.name}.errorIN", value, (self.dimension,)).copy()
+        s_star = check_finite(f"{self.name}.errorIN", value, (self.dimension,), MAX_TARGET_POSITION).copy()
         self._command(context, lambda s: setattr(s, "errorIN", s_star))
 
     def setVelocity(self, value, context: Context | None = None) -> None:
         """Set ``ṡ*`` (feed-forward)."""
-        v = check_finite(f"{self.name}.velocity", value, (self.dimension,)).copy()
+        v = check_finite(f"{self.name}.velocity", value, (self.dimension,), MAX_TARGET_VELOCITY).copy()
         self._command(context, lambda s: setattr(s, "velocity", v))
 
 

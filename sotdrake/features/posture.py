@@ -22,6 +22,7 @@ from pydrake.systems.framework import Context
 
 from ..configuration import Layout
 from ..exceptions import InvalidInput, check_finite
+from ..ranges import MAX_JOINT_TARGET, MAX_TARGET_VELOCITY
 from ..lie import left_jacobian_inverse_so3, log_so3, quaternion_wxyz_to_rotation, right_jacobian_inverse_so3
 from .base import Feature, FeatureSettings, optional_input
 
@@ -66,11 +67,11 @@ class FeaturePosture(Feature):
         self._command(context, change)
 
     def setPosture(self, posture, context: Context | None = None) -> None:
-        q_star = check_finite(f"{self.name}.posture", posture, (self.nq,)).copy()
+        q_star = check_finite(f"{self.name}.posture", posture, (self.nq,), MAX_JOINT_TARGET).copy()
         self._command(context, lambda s: setattr(s, "posture", q_star))
 
     def setPostureDot(self, velocity, context: Context | None = None) -> None:
-        v_star = check_finite(f"{self.name}.postureDot", velocity, (self.nv,)).copy()
+        v_star = check_finite(f"{self.name}.postureDot", velocity, (self.nv,), MAX_TARGET_VELOCITY).copy()
         self._command(context, lambda s: setattr(s, "postureDot", v_star))
 
 

@@ -23,6 +23,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context
 
 from ..exceptions import InvalidInput, SolverError, check_finite
+from ..ranges import MAX_TARGET_POSITION
 from ..lie import hat
 from .base import Feature, FeatureSettings, optional_input
 
@@ -51,7 +52,7 @@ class FeatureVisualPoint(Feature):
 
     def setDesired(self, image_point, context: Context | None = None) -> None:
         """Desired normalized image position ``s*`` (``(0, 0)``: the image centre)."""
-        desired = check_finite(f"{self.name}.desired", image_point, (2,)).copy()
+        desired = check_finite(f"{self.name}.desired", image_point, (2,), MAX_TARGET_POSITION).copy()
         if np.any(np.abs(desired) > 10):
             raise InvalidInput(f"{self.name}: normalized image coordinates {desired} are implausible")
         self._command(context, lambda s: setattr(s, "desired", desired))

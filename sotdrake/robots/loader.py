@@ -94,7 +94,8 @@ def srdf_path(name: str, variant: str | None = None) -> Path | None:
 
 def robot_urdf_text(name: str, variant: str | None = None, meshes: bool = False, collision: bool = True) -> str:
     """The URDF text of a robot variant, fixed up for Drake (:func:`prepare_urdf`)."""
-    return prepare_urdf(urdf_path(name, variant).read_text(), example_robot_data_dir(), meshes, collision)
+    path = urdf_path(name, variant)
+    return prepare_urdf(path.read_text(), example_robot_data_dir(), meshes, collision, str(path))
 
 
 def _root_link(urdf_text: str) -> str:

@@ -30,6 +30,7 @@ from pathlib import Path
 
 from ..exceptions import SotError
 from .mesh_cache import obj_for_mesh
+from .urdf_checks import check_urdf_limits
 
 #: Mesh formats converted to OBJ (Drake's Meshcat and proximity geometry want OBJ or glTF).
 CONVERTED_MESH_SUFFIXES = (".stl", ".dae")
@@ -59,13 +60,16 @@ def _mesh_uri(uri: str, share: Path) -> str:
     return path.as_uri()
 
 
-def prepare_urdf(text: str, share: Path, meshes: bool, collision: bool = True) -> str:
-    """``text`` with the fix-ups of the module docstring applied.
+def prepare_urdf(text: str, share: Path, meshes: bool, collision: bool = True, source: str = "URDF") -> str:
+    """``text`` with the fix-ups of the module docstring applied, after its joint limits are checked
+    (:func:`~sotdrake.robots.urdf_checks.check_urdf_limits`: Drake would abort the process on them).
 
     ``meshes``: keep visual and collision geometry (resolved, converted); otherwise drop it.
     ``collision``: with meshes, keep the ``<collision>`` elements too (a physics model may add its
-    own contact geometry instead). ``share`` is example-robot-data's ``share/example-robot-data``.
+    own contact geometry instead). ``share`` is example-robot-data's ``share/example-robot-data``;
+    ``source`` names the file in error messages.
     """
+    check_urdf_limits(text, source)  # before any parser sees it
 
     def fix_joint(match: re.Match) -> str:
         joint = match.group(0)

@@ -9,7 +9,10 @@ For a joint with position limits ``[q_min, q_max]``, velocity limits ``[v_min, v
 
 then capped by ``v_max``; the lower bound is symmetric. Where the two would cross (a violated limit
 faster than the velocity limit allows to fix), the position side wins within the velocity limit.
-The floating base is never limited; coordinates excluded by a control selection get ``[0, 0]``.
+The floating base's velocity is bounded only when ``base_velocity = (ω̄, v̄)`` is given: each
+component of its angular velocity in ``[-ω̄, ω̄]`` (rad/s), of its linear velocity in ``[-v̄, v̄]``
+(m/s) (default of the solvers: :mod:`.base_velocity`). Coordinates excluded by a control selection
+get ``[0, 0]``.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ def velocity_bounds(
     margin: float,
     layout: Layout,
     control_selection: np.ndarray | None = None,
+    base_velocity: tuple[float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(lower, upper)`` bounds on ``v`` (size nv); see the module docstring."""
     nv = len(velocity_lower)
@@ -41,6 +45,11 @@ def velocity_bounds(
     up = np.clip(up, velocity_lower[iv], velocity_upper[iv])
     down = np.clip(down, velocity_lower[iv], velocity_upper[iv])
     upper[iv], lower[iv] = up, np.minimum(down, up)
+    if base_velocity is not None and layout.base_v is not None:
+        b = layout.base_v
+        angular, linear = base_velocity
+        lower[b : b + 3], upper[b : b + 3] = -angular, angular
+        lower[b + 3 : b + 6], upper[b + 3 : b + 6] = -linear, linear
     if control_selection is not None:
         lower[~control_selection] = upper[~control_selection] = 0.0
     return lower, upper

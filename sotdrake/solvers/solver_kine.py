@@ -22,6 +22,7 @@ from pydrake.systems.framework import Context
 from ..configuration import Layout
 from ..exceptions import InvalidInput, SolverError
 from ..robots import RobotModel
+from .base_velocity import MAX_BASE_VELOCITY, default_base_velocity_limit
 from .hqp import ACTIVE_SET, HierarchicalQP, LevelRows, check_solver
 from .limits import velocity_bounds
 from .sot import SOT, StackSettings
@@ -33,6 +34,7 @@ log = logging.getLogger("sotdrake.solver_kine")
 class HqpSettings(StackSettings):
     position_margin: float = 1e-3  # rad (or m): joints stop this far from their position limits
     solver: str = ACTIVE_SET
+    base_velocity_limit: tuple[float, float] | None = None  # (rad/s, m/s), see .base_velocity
 
 
 @dataclass
@@ -67,15 +69,16 @@ class SolverKine(SOT):
         position_margin: float = 1e-3,
         solver: str = ACTIVE_SET,
     ):
-        SOT.__init__(self, name, model.nv, damping=damping, settings=HqpSettings())
+        SOT.__init__(self, name, model.nv, damping=damping, settings=HqpSettings(), dt=dt, layout=Layout.of(model.plant))
         self.setSolver(solver)
         self.setPositionMargin(position_margin)
         self.dt = float(dt)
         self.layout = Layout.of(model.plant)
+        if self.layout.base_v is not None:
+            self.setBaseVelocityLimit(*default_base_velocity_limit(model))
         limits = model.joint_limits()
         self._limits = (limits["position_lower"], limits["position_upper"],
                         limits["velocity_lower"], limits["velocity_upper"])
-        self.position = self.DeclareVectorInputPort("position", model.nq)
         self._hqp = HierarchicalQP(model.nv)  # its programs and working sets are caches (warm starts)
         self.DeclareAbstractOutputPort(
             "diagnostics", lambda: AbstractValue.Make(HqpDiagnostics()),
@@ -87,21 +90,32 @@ class SolverKine(SOT):
         SOT.setDamping(self, damping, context)
 
     def setPositionMargin(self, margin: float, context: Context | None = None) -> None:
-        if not (np.isfinite(margin) and margin >= 0):
-            raise InvalidInput(f"position margin must be finite and ≥ 0, got {margin}")
+        if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not (np.isfinite(margin) and 0 <= margin <= 0.5):
+            raise InvalidInput(f"position margin must be a number in [0, 0.5] (rad or m), got {margin!r}")
         self._command(context, lambda s: setattr(s, "position_margin", float(margin)))
+
+    def setBaseVelocityLimit(self, angular: float, linear: float, context: Context | None = None) -> None:
+        """Bound each component of the floating base's angular (rad/s) and linear (m/s) velocity,
+        both in ``(0, 100]``; the default comes from the legs' limits (:mod:`.base_velocity`)."""
+        for name, value in (("angular", angular), ("linear", linear)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= MAX_BASE_VELOCITY:
+                raise InvalidInput(f"{self.name}.setBaseVelocityLimit: {name} must be a number in (0, {MAX_BASE_VELOCITY:g}], got {value!r}")
+        if self.layout.base_v is None:
+            raise InvalidInput(f"{self.name}.setBaseVelocityLimit: the robot has no floating base")
+        self._command(context, lambda s: setattr(s, "base_velocity_limit", (float(angular), float(linear))))
 
     def setSolver(self, solver: str, context: Context | None = None) -> None:
         """How the levels are solved: ``'active-set'`` (default, exact), or a Drake solver
         (``'clarabel'``, ``'osqp'``, ``'snopt'``) polished by the active-set method."""
-        check_solver(solver)
+        check_solver(solver if isinstance(solver, str) else repr(solver))
         self._command(context, lambda s: setattr(s, "solver", solver))
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         s = self._settings_of(context)
         levels = [LevelRows(level.jacobian, level.lower, level.upper) for level in self._levels(context, s)]
         lower, upper = velocity_bounds(
-            self.position.Eval(context), *self._limits, self.dt, s.position_margin, self.layout, s.control_selection
+            self.position.Eval(context), *self._limits, self.dt, s.position_margin, self.layout, s.control_selection,
+            base_velocity=s.base_velocity_limit,
         )
         diagnostics = HqpDiagnostics(tasks=(["contacts"] if s.contacts else []) + list(s.tasks))
         try:

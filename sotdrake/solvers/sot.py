@@ -13,8 +13,10 @@ Outputs: ``control`` (``v``, size nv, Drake generalized velocities) and ``residu
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -23,21 +25,38 @@ from pydrake.systems.framework import Context, InputPort, ValueProducer
 from ..entity import Entity
 from ..exceptions import InvalidInput, SolverError, StackError, TaskNotFound
 from ..task import Task, TaskLevel
+from ..configuration import Layout, difference
 from .cascade import CascadeResult, cascade_residuals, solve_cascade
+from .second_order import curvature_correction
+from .velocity_scaling import scale_to_limits, velocity_scale
+
+log = logging.getLogger("sotdrake.sot")
 
 
 class _CascadeSolution:
-    """The cascade's velocity and ranks; the residuals are computed when the ``residuals`` output
-    is read (most ticks only need the velocity)."""
+    """The cascade's velocity, ranks and the uniform scale applied to fit the velocity limits (1: none);
+    the residuals are computed when the ``residuals`` output is read (most ticks only need the
+    velocity)."""
 
-    def __init__(self, velocity: np.ndarray, ranks: np.ndarray, levels: list[tuple[np.ndarray, np.ndarray]]):
+    def __init__(self, velocity: np.ndarray, ranks: np.ndarray, levels: list[tuple[np.ndarray, np.ndarray]],
+                 scale: float = 1.0):
         self.velocity, self.ranks, self._levels, self._residuals = velocity, ranks, levels, None
+        self.scale = scale
 
     @property
     def residuals(self) -> np.ndarray:
         if self._residuals is None:
             self._residuals = cascade_residuals(self._levels, self.velocity)
         return self._residuals
+
+
+#: Accepted ranges: the SVD threshold (a singular value, unit of the Jacobian) and the damping δ.
+MAX_SVD_THRESHOLD = 1.0
+MAX_DAMPING = 1e4
+
+
+def _real(value) -> bool:
+    return isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool) and bool(np.isfinite(value))
 
 
 @dataclass
@@ -47,6 +66,7 @@ class StackSettings:
     svd_threshold: float = 1e-4
     damping: float = 0.0
     control_selection: np.ndarray | None = None  # nv booleans; None: every component
+    velocity_limit: np.ndarray | None = None  # nv limits > 0 (inf: none); None: no scaling
 
 
 class SOT(Entity[StackSettings]):
@@ -61,9 +81,26 @@ class SOT(Entity[StackSettings]):
         svd_threshold: float = 1e-4,
         damping: float = 0.0,
         settings: StackSettings | None = None,
+        dt: float | None = None,
+        layout: Layout | None = None,
     ):
+        """``dt`` (the control period, s) and ``layout`` (of the robot's ``q``): with both, the
+        solver reads ``q`` on its ``position`` input and corrects each level for the curvature of
+        the tick (:mod:`.second_order`), the last two ticks' ``q`` and Jacobians kept in the Context."""
         Entity.__init__(self, name, settings or StackSettings())
         self.nv = nv
+        self.dt = dt
+        if dt is not None:
+            if not (isinstance(dt, (int, float)) and np.isfinite(dt) and dt > 0):
+                raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
+        self.layout = layout
+        self.position = None
+        if layout is not None:
+            nq = len(layout.joints_q) + (7 if layout.base_q is not None else 0)
+            self.position = self.DeclareVectorInputPort("position", nq)
+            if dt is not None:
+                self._history = self.DeclareAbstractState(AbstractValue.Make({}))
+                self.DeclarePeriodicUnrestrictedUpdateEvent(dt, 0.0, self._remember)
         self.setThreshold(svd_threshold)
         self.setDamping(damping)
         self._task_ports: dict[str, InputPort] = {}
@@ -78,6 +115,11 @@ class SOT(Entity[StackSettings]):
         self.DeclareAbstractOutputPort(
             "residuals", lambda: AbstractValue.Make(np.zeros(0)), lambda c, o: o.set_value(self._solution.Eval(c).residuals)
         )
+        # s of the velocity scaling (1: the stack's solution was within the limits).
+        self.DeclareVectorOutputPort(
+            "velocity_scale", 1, lambda c, o: o.SetAtIndex(0, getattr(self._solution.Eval(c), "scale", 1.0))
+        )
+        self._warned_scaling = False  # logging only: warn once per solver, results never depend on it
 
     # --- wiring (build time) ---------------------------------------------------------------
     def declare_task_input(self, task: Task) -> InputPort:
@@ -97,8 +139,8 @@ class SOT(Entity[StackSettings]):
         return list(self._task_ports)
 
     def _known(self, name: str) -> str:
-        if name not in self._task_ports:
-            raise TaskNotFound(name, list(self._task_ports))
+        if not isinstance(name, str) or name not in self._task_ports:
+            raise TaskNotFound(str(name), list(self._task_ports))
         return name
 
     def _task_name(self, task) -> str:
@@ -202,14 +244,14 @@ class SOT(Entity[StackSettings]):
 
     def setThreshold(self, svd_threshold: float, context: Context | None = None) -> None:
         """Singular values of ``J_i P_{i-1}`` at or below this are treated as zero (rank)."""
-        if not np.isfinite(svd_threshold) or svd_threshold < 0:
-            raise InvalidInput(f"svd_threshold must be finite and ≥ 0, got {svd_threshold}")
+        if not _real(svd_threshold) or not 0 <= svd_threshold <= MAX_SVD_THRESHOLD:
+            raise InvalidInput(f"svd_threshold must be a number in [0, {MAX_SVD_THRESHOLD:g}], got {svd_threshold!r}")
         self._command(context, lambda s: setattr(s, "svd_threshold", float(svd_threshold)))
 
     def setDamping(self, damping: float, context: Context | None = None) -> None:
         """True damping δ (``min ‖A x - r‖² + δ‖x‖²`` at each level); 0 for the pseudo-inverse."""
-        if not np.isfinite(damping) or damping < 0:
-            raise InvalidInput(f"damping must be finite and ≥ 0, got {damping}")
+        if not _real(damping) or not 0 <= damping <= MAX_DAMPING:
+            raise InvalidInput(f"damping must be a number in [0, {MAX_DAMPING:g}], got {damping!r}")
         self._command(context, lambda s: setattr(s, "damping", float(damping)))
 
     def setControlSelection(self, selection, context: Context | None = None) -> None:
@@ -218,29 +260,72 @@ class SOT(Entity[StackSettings]):
         mask = None
         if selection is not None:
             mask = np.asarray(selection)
-            if mask.dtype != bool or mask.shape != (self.nv,):
-                raise InvalidInput(f"control selection: expected {self.nv} booleans, got {mask.dtype} {mask.shape}")
+            if mask.dtype != bool or mask.shape != (self.nv,) or not mask.any():
+                raise InvalidInput(f"control selection: expected {self.nv} booleans, at least one True, got {mask.dtype} {mask.shape}")
             mask = mask.copy()
         self._command(context, lambda s: setattr(s, "control_selection", mask))
 
+    def setVelocityLimit(self, limit, context: Context | None = None) -> None:
+        """Bound the command by ``limit`` (nv values > 0, ``inf`` for none; rad/s, m/s), scaling the
+        whole solution uniformly when it exceeds them (:mod:`.velocity_scaling`); ``None``: no
+        bound. ``add_sot`` sets the robot's joint limits and the base bound of :mod:`.base_velocity`."""
+        value = None
+        if limit is not None:
+            try:
+                value = np.asarray(limit, dtype=float).copy()
+            except (TypeError, ValueError):
+                value = np.full(0, np.nan)
+            if value.shape != (self.nv,) or np.isnan(value).any() or not (value > 0).all():
+                raise InvalidInput(f"{self.name}.setVelocityLimit: expected {self.nv} numbers > 0 (inf for none), got {limit!r:.200}")
+        self._command(context, lambda s: setattr(s, "velocity_limit", value))
+
     # --- solve -----------------------------------------------------------------------------
-    def _levels(self, context: Context, settings: StackSettings, check: bool = True) -> list[TaskLevel]:
+    def _remember(self, context: Context, state) -> None:
+        """Keep ``q`` and each level's Jacobian of the last two ticks. Drake applies this update
+        before the device's update of the same tick, which then finds ``latest`` at the current
+        ``q``: :meth:`_last_tick` tells the two cases apart."""
+        s = self._settings_of(context)
+        kept = context.get_abstract_state(self._history).get_value()
+        q = self.position.Eval(context).copy()
+        jacobians = {name: self._task_ports[name].Eval(context).jacobian.copy() for name in [*s.contacts, *s.tasks]}
+        state.get_mutable_abstract_state(self._history).set_value(
+            {"before": kept.get("latest"), "latest": (q, jacobians)})
+
+    def _last_tick(self, context: Context) -> tuple[np.ndarray, dict] | None:
+        """``(Δq, Jacobians)`` of the tick before the current ``q`` (see :meth:`_remember`), or None."""
+        kept = context.get_abstract_state(self._history).get_value()
+        q = self.position.Eval(context)
+        latest = kept.get("latest")
+        previous = kept.get("before") if latest is not None and np.array_equal(latest[0], q) else latest
+        if previous is None:
+            return None
+        return difference(q, previous[0], self.layout), previous[1]
+
+    def _levels(self, context: Context, settings: StackSettings, check: bool = True, correct: bool = True) -> list[TaskLevel]:
         """The levels, highest first (the contacts stacked as one level, then the stack), checked
-        (with ``check``): sizes fit nv, no NaN (±inf only as inequality bounds)."""
+        (with ``check``): sizes fit nv, no NaN (±inf only as inequality bounds); with ``dt`` and
+        ``correct``, each level's reference corrected for the curvature of the tick (:mod:`.second_order`)."""
         levels = []
+        last_tick = None
+        if correct and self.dt is not None and self.position is not None and self.position.HasValue(context):
+            last_tick = self._last_tick(context)
         ports = self._task_ports
         for name in [*settings.contacts, *settings.tasks] if settings.contacts else settings.tasks:
             level = ports[name].Eval(context)
-            if not check:
-                levels.append(level)
-                continue
             J = level.jacobian
-            if J.ndim != 2 or J.shape[1] != self.nv or level.lower.shape != (J.shape[0],) or level.upper.shape != (J.shape[0],):
-                raise SolverError(f"task {name}: jacobian {J.shape} and bounds {level.lower.shape} do not fit nv = {self.nv}")
-            if not np.isfinite(J).all() or np.isnan(level.lower).any() or np.isnan(level.upper).any():
-                raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")
-            if level.is_equality and not np.isfinite(level.lower).all():
-                raise SolverError(f"task {name}: non-finite reference at t = {context.get_time()}")
+            if check:
+                if J.ndim != 2 or J.shape[1] != self.nv or level.lower.shape != (J.shape[0],) or level.upper.shape != (J.shape[0],):
+                    raise SolverError(f"task {name}: jacobian {J.shape} and bounds {level.lower.shape} do not fit nv = {self.nv}")
+                if not np.isfinite(J).all() or np.isnan(level.lower).any() or np.isnan(level.upper).any():
+                    raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")
+                if level.is_equality and not np.isfinite(level.lower).all():
+                    raise SolverError(f"task {name}: non-finite reference at t = {context.get_time()}")
+            if last_tick is not None:
+                correction = curvature_correction(J, last_tick[1].get(name), last_tick[0], self.dt)
+                if correction is not None:
+                    lower = level.lower - correction
+                    upper = lower if level.upper is level.lower else level.upper - correction
+                    level = level._replace(lower=lower, upper=upper)
             levels.append(level)
         if settings.contacts:
             contacts, levels = levels[: len(settings.contacts)], levels[len(settings.contacts) :]
@@ -271,4 +356,20 @@ class SOT(Entity[StackSettings]):
         if result is None or not math.isfinite(result.velocity.sum() + sum(r.sum() for _, r in pairs)):
             self._levels(context, s)  # a non-finite level: raises, naming the task
             raise SolverError(f"{self.name}: the cascade gave a non-finite control at t = {context.get_time()}")
-        value.set_value(_CascadeSolution(result.velocity, result.ranks, pairs))
+        velocity, scale = result.velocity, 1.0
+        if s.velocity_limit is not None:
+            scale = velocity_scale(velocity, s.velocity_limit)
+            if scale < 1.0:
+                # The cascade is linear in the references: scale the tasks' ė* but not the
+                # curvature correction c (its size is the one of the scaled motion), i.e. solve
+                # for s·ė* - c = s·(ė* - c) - (1 - s)·c, then keep within the limits.
+                plain = [level.reference for level in self._levels(context, s, check=False, correct=False)]
+                pairs = [(J, scale * r - (1.0 - scale) * (p - r)) for (J, r), p in zip(pairs, plain)]
+                result = solve_cascade(pairs, nv, s.svd_threshold, s.damping, s.control_selection, with_residuals=False)
+                velocity, second = scale_to_limits(result.velocity, s.velocity_limit)
+                scale *= second
+                if not self._warned_scaling:
+                    self._warned_scaling = True
+                    log.warning("%s: t = %.3f s: the stack asks more than the velocity limits; the command is "
+                                "scaled by %.3g (warned once)", self.name, context.get_time(), scale)
+        value.set_value(_CascadeSolution(velocity, result.ranks, pairs, scale))

@@ -1,0 +1,63 @@
+"""A physically simulated TALOS driven by the SoT, as the real robot is (seed: the SoT "is not a
+dynamic simulator"; the tutorial uses Gazebo and ros_control for that).
+
+One concept a module:
+
+* :mod:`.plant`: the discrete plant on the ground, sole boxes, whole-body collision boxes
+  (:mod:`.body_collision`);
+* :mod:`.actuators`: the PD-controlled actuators and their references (``DesiredState``);
+* :mod:`.estimator`: the closed loop's leg-odometry base estimate (``KinematicBaseEstimator``);
+* :mod:`.contact_monitor`: sole forces, centre of pressure, other bodies on the ground;
+* :mod:`.fall`: when the robot counts as fallen;
+* :mod:`.push`: an external push;
+* :mod:`.station`: all of the above wired as one station (``add_talos_station``).
+
+The loop is *open* (the SoT's kinematics reads the device's own ``q``, as sot-talos does on the
+robot) or *closed* (it reads the simulated joints and a base pose from leg odometry).
+"""
+
+from .actuators import (
+    DAMPING_RANGE,
+    STIFFNESS_RANGE,
+    DesiredState,
+    check_pd_gains,
+    set_pd_gains,
+)
+from .body_collision import fit_link_boxes
+from .contact_monitor import ContactMonitor
+from .estimator import KinematicBaseEstimator
+from .fall import FALL_BASE_HEIGHT, FALL_CONTACT_FORCE, fall_time
+from .plant import (
+    FRICTION,
+    SOLE_BOX,
+    SOLE_DISSIPATION,
+    SOLE_MODULUS,
+    PhysicalTalos,
+    add_physical_talos,
+)
+from .push import MAX_PUSH_FORCE, Push
+from .station import TalosStation, add_talos_station
+
+__all__ = [
+    "DAMPING_RANGE",
+    "FALL_BASE_HEIGHT",
+    "FALL_CONTACT_FORCE",
+    "FRICTION",
+    "MAX_PUSH_FORCE",
+    "SOLE_BOX",
+    "SOLE_DISSIPATION",
+    "SOLE_MODULUS",
+    "STIFFNESS_RANGE",
+    "ContactMonitor",
+    "DesiredState",
+    "KinematicBaseEstimator",
+    "PhysicalTalos",
+    "Push",
+    "TalosStation",
+    "add_physical_talos",
+    "add_talos_station",
+    "check_pd_gains",
+    "fall_time",
+    "fit_link_boxes",
+    "set_pd_gains",
+]

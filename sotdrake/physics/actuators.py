@@ -1,0 +1,68 @@
+"""The simulated TALOS' actuators: the plant's PD controllers and their references.
+
+Every actuator is PD-controlled by the plant (as ros_control's position controllers), with
+``kp = stiffness · effort_limit`` and ``kd = damping · kp`` (defaults 30 rad⁻¹ and 0.05 s), set after
+``Finalize()`` and checked: a missing or non-positive gain is an error, never a silent fall. Torques
+are saturated at the URDF effort limits by the plant. The SoT device's ``q`` (and its velocity
+command) become the PD references of the actuated joints (:class:`DesiredState`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import PdControllerGains
+from pydrake.systems.framework import BasicVector, Context, LeafSystem
+
+from ..exceptions import InvalidInput, SotError
+
+#: Accepted ranges of the PD gains: stiffness (rad⁻¹, kp = stiffness · effort limit) and damping (s).
+STIFFNESS_RANGE = (1e-3, 1e4)
+DAMPING_RANGE = (0.0, 10.0)
+
+
+def set_pd_gains(plant: MultibodyPlant, stiffness: float, damping: float) -> None:
+    """``kp = stiffness · effort_limit``, ``kd = damping · kp`` on every actuator, then
+    :func:`check_pd_gains`."""
+    ok = all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in (stiffness, damping))
+    if not (ok and STIFFNESS_RANGE[0] <= stiffness <= STIFFNESS_RANGE[1] and DAMPING_RANGE[0] <= damping <= DAMPING_RANGE[1]):
+        raise InvalidInput(
+            f"PD gains: stiffness in [{STIFFNESS_RANGE[0]}, {STIFFNESS_RANGE[1]}] rad⁻¹ and damping in "
+            f"[{DAMPING_RANGE[0]}, {DAMPING_RANGE[1]}] s, got {stiffness!r}, {damping!r}")
+    for index in plant.GetJointActuatorIndices():
+        actuator = plant.get_joint_actuator(index)
+        kp = stiffness * actuator.effort_limit()
+        actuator.set_controller_gains(PdControllerGains(p=kp, d=damping * kp))
+    check_pd_gains(plant)
+
+
+def check_pd_gains(plant: MultibodyPlant) -> None:
+    """Every actuator must have a PD controller with finite ``kp > 0`` and ``kd ≥ 0`` (else the
+    plant ignores its desired state for that joint and the robot falls without a word)."""
+    bad = []
+    for index in plant.GetJointActuatorIndices():
+        actuator = plant.get_joint_actuator(index)
+        if not actuator.has_controller():
+            bad.append(f"{actuator.name()}: no PD controller")
+            continue
+        gains = actuator.get_controller_gains()
+        if not (np.isfinite(gains.p) and gains.p > 0 and np.isfinite(gains.d) and gains.d >= 0):
+            bad.append(f"{actuator.name()}: kp = {gains.p}, kd = {gains.d}")
+    if bad:
+        raise SotError("PD gains not set on every actuator: " + "; ".join(bad))
+
+
+class DesiredState(LeafSystem):
+    """The PD references: inputs ``position`` (the device's ``q``) and ``velocity`` (the solver's
+    ``v``); output ``desired_state`` = ``(q, v)`` of the actuated joints, in actuator order."""
+
+    def __init__(self, robot, name: str = "desired_state"):
+        LeafSystem.__init__(self)
+        self.set_name(name)
+        self._q, self._v = robot.actuated_q, robot.actuated_v
+        self.position = self.DeclareVectorInputPort("position", robot.plant.num_positions())
+        self.velocity = self.DeclareVectorInputPort("velocity", robot.plant.num_velocities())
+        self.DeclareVectorOutputPort("desired_state", 2 * len(self._q), self._calc)
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(np.concatenate([self.position.Eval(context)[self._q], self.velocity.Eval(context)[self._v]]))

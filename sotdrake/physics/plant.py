@@ -1,0 +1,130 @@
+"""The simulated TALOS' plant: a discrete ``MultibodyPlant`` on a ground half-space, with soles and
+whole-body collision boxes.
+
+* A discrete ``MultibodyPlant`` (1 ms, Drake's SAP solver) on a ground half-space (drawn as a flat
+  6 m plate), gravity on.
+* Soles: one box per sole, ``SOLE_BOX`` (0.211 × 0.124 m, the footprint of TALOS' foot collision
+  mesh, bottom at the sole frame), compliant-hydroelastic (``SOLE_MODULUS`` Pa, a 2 cm thick layer,
+  Hunt-Crossley dissipation ``SOLE_DISSIPATION`` s/m) against a rigid-hydroelastic ground. Friction
+  ``μ = 0.9`` (static), ``0.8`` (dynamic). (Point contact at the box corners made the loaded feet
+  creep by millimetres in seconds; the distributed hydroelastic pressure holds them.)
+* Every other link: the box bounding its collision meshes (:mod:`.body_collision`), point contact
+  with the ground only (self-collisions filtered), so a fall lands on the ground.
+* Every actuator PD-controlled by the plant (:mod:`.actuators`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.geometry import (
+    AddCompliantHydroelasticProperties,
+    AddContactMaterial,
+    AddRigidHydroelasticProperties,
+    Box,
+    CollisionFilterDeclaration,
+    GeometrySet,
+    HalfSpace,
+    ProximityProperties,
+    SceneGraph,
+)
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import (
+    AddMultibodyPlantSceneGraph,
+    CoulombFriction,
+    MultibodyPlant,
+)
+from pydrake.multibody.tree import ModelInstanceIndex
+from pydrake.systems.framework import DiagramBuilder
+
+from ..drake_logging import drop_drake_message
+from ..exceptions import InvalidInput
+from ..robots.talos import add_talos
+from .actuators import set_pd_gains
+from .body_collision import fit_link_boxes
+
+#: Sole box in the sole frame: size (m) and centre (the bottom face lies on the sole plane).
+SOLE_BOX = (np.array([0.211, 0.124, 0.02]), np.array([-0.0054, 0.0, 0.01]))
+FRICTION = CoulombFriction(0.9, 0.8)
+SOLE_MODULUS = 5e6  # Pa
+SOLE_DISSIPATION = 50.0  # s/m
+#: The ground's drawing: a plate (m) and its colour (RGBA).
+GROUND_PLATE = (6.0, 6.0, 0.01)
+GROUND_COLOR = np.array([0.62, 0.64, 0.60, 1.0])
+
+
+@dataclass
+class PhysicalTalos:
+    plant: MultibodyPlant
+    scene_graph: SceneGraph
+    instance: ModelInstanceIndex
+    actuated_q: np.ndarray  # q index of each actuator's joint, in actuator order
+    actuated_v: np.ndarray
+    sole_frames: dict[str, object]
+    body_boxes: tuple[str, ...] = ()  # the links that got a collision box
+
+
+def add_physical_talos(
+    builder: DiagramBuilder,
+    variant: str = "reduced",
+    time_step: float = 1e-3,
+    stiffness: float = 30.0,
+    damping: float = 0.05,
+    body_collision: bool = True,
+) -> PhysicalTalos:
+    """Add the simulated TALOS (plant + SceneGraph, visual meshes, sole boxes, link boxes unless
+    ``body_collision=False``, ground, PD actuators)."""
+    if not (isinstance(time_step, (int, float)) and np.isfinite(time_step) and 0 < time_step <= 0.01):
+        raise InvalidInput(f"the physics needs a discrete plant: time_step in (0, 0.01] s, got {time_step!r}")
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step)
+    plant.set_name("talos_plant")
+    instance = add_talos(plant, variant, meshes=True, collision=False)
+    ground = ProximityProperties()
+    AddRigidHydroelasticProperties(ground)
+    AddContactMaterial(friction=FRICTION, properties=ground)
+    # Each new context would make Drake warn that a rigid half-space gives no contact data with
+    # *deformable* bodies. There are none here (the soles are compliant-hydroelastic boxes, which
+    # the half-space does touch), so that warning is dropped.
+    drop_drake_message("Rigid (non-deformable) half spaces are not currently supported for deformable contact")
+    plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(), HalfSpace(), "ground", ground)
+    # Drawn as a flat plate (the half-space itself has no illustration), its top 1 mm under z = 0.
+    plant.RegisterVisualGeometry(plant.world_body(), RigidTransform([0.0, 0.0, -GROUND_PLATE[2] / 2 - 1e-3]),
+                                 Box(*GROUND_PLATE), "ground_visual", GROUND_COLOR)
+    sole_material = ProximityProperties()
+    AddCompliantHydroelasticProperties(resolution_hint=0.02, hydroelastic_modulus=SOLE_MODULUS, properties=sole_material)
+    AddContactMaterial(dissipation=SOLE_DISSIPATION, friction=FRICTION, properties=sole_material)
+    size, centre = SOLE_BOX
+    soles = {}
+    robot_geometries = []
+    for side in ("left", "right"):
+        sole = plant.GetFrameByName(f"{side}_sole_link")
+        X_BS = sole.GetFixedPoseInBodyFrame()
+        robot_geometries.append(plant.RegisterCollisionGeometry(
+            sole.body(), X_BS.multiply(RigidTransform(centre)), Box(*size), f"{side}_sole", sole_material))
+        soles[side] = sole
+    boxed = []
+    if body_collision:
+        # The feet: each sole's body and the links welded to it keep the sole box alone.
+        sole_bodies = {body.name() for frame in soles.values() for body in plant.GetBodiesWeldedTo(frame.body())}
+        link_material = ProximityProperties()
+        AddContactMaterial(friction=FRICTION, properties=link_material)
+        for name, (box_size, box_centre) in fit_link_boxes(variant).items():
+            if name in sole_bodies or not plant.HasBodyNamed(name, instance):
+                continue
+            body = plant.GetBodyByName(name, instance)
+            robot_geometries.append(plant.RegisterCollisionGeometry(
+                body, RigidTransform(box_centre), Box(*box_size), f"{name}_box", link_material))
+            boxed.append(name)
+    plant.Finalize()
+    # The robot collides with the ground only (see body_collision's docstring).
+    scene_graph.collision_filter_manager().Apply(
+        CollisionFilterDeclaration().ExcludeWithin(GeometrySet(robot_geometries)))
+    set_pd_gains(plant, stiffness, damping)
+    actuators = [plant.get_joint_actuator(i) for i in plant.GetJointActuatorIndices()]
+    return PhysicalTalos(
+        plant, scene_graph, instance,
+        np.array([a.joint().position_start() for a in actuators]),
+        np.array([a.joint().velocity_start() for a in actuators]),
+        soles, tuple(boxed),
+    )

@@ -1,0 +1,45 @@
+"""A push on the simulated robot (an external force, as a hand pushing the torso)."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.multibody.math import SpatialForce
+from pydrake.multibody.plant import ExternallyAppliedSpatialForce, MultibodyPlant
+from pydrake.multibody.tree import BodyIndex
+from pydrake.systems.framework import Context, LeafSystem
+
+from ..exceptions import InvalidInput, NotFound, check_finite
+
+#: Largest accepted push (N): ten times TALOS' weight.
+MAX_PUSH_FORCE = 1e4
+
+
+class Push(LeafSystem):
+    """A push on a body: ``force`` (N, world frame, ‖force‖ ≤ ``MAX_PUSH_FORCE``) at the body
+    origin during ``[start, start + duration)`` (s). Output ``applied_spatial_force`` for the plant."""
+
+    def __init__(self, plant: MultibodyPlant, body_name: str, force, start: float, duration: float):
+        LeafSystem.__init__(self)
+        self.set_name("push")
+        if not (isinstance(body_name, str) and plant.HasBodyNamed(body_name)):
+            raise NotFound(str(body_name), sorted(plant.get_body(BodyIndex(i)).name() for i in range(plant.num_bodies())))
+        self.body_index = plant.GetBodyByName(body_name).index()
+        try:
+            self.force = check_finite("force", force)
+            times_ok = all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in (start, duration))
+        except InvalidInput:
+            self.force, times_ok = np.full(1, np.nan), False
+        if (self.force.shape != (3,) or not np.all(np.isfinite(self.force)) or np.linalg.norm(self.force) > MAX_PUSH_FORCE
+                or not times_ok or not duration > 0 or start < 0):
+            raise InvalidInput(f"push: force a finite 3-vector of norm ≤ {MAX_PUSH_FORCE:g} N, start ≥ 0 s and "
+                               f"duration > 0 s, got {force!r}, {start!r}, {duration!r}")
+        self.start, self.end = float(start), float(start) + float(duration)
+        self.DeclareAbstractOutputPort("applied_spatial_force", lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]), self._calc)
+
+    def _calc(self, context: Context, output: AbstractValue) -> None:
+        push = ExternallyAppliedSpatialForce()
+        push.body_index = self.body_index
+        active = self.start <= context.get_time() < self.end
+        push.F_Bq_W = SpatialForce(np.zeros(3), self.force if active else np.zeros(3))
+        output.set_value([push])

@@ -1,0 +1,80 @@
+"""The TALOS station: the physics side of every physics script, built once.
+
+``add_talos_station(builder, ...)`` adds the simulated robot (:mod:`.plant`), its PD references
+(:class:`~.actuators.DesiredState`, zero feed-forward torque), the contact monitor and, optionally, a
+push, and returns :class:`TalosStation`, the handles of its ports:
+
+* inputs: ``position`` (the device's ``q``) and ``velocity`` (the solver's ``v``) of ``desired_state``;
+* outputs: ``plant_state`` (``(q, v)`` of the simulated robot), ``feet`` and ``other_contact``
+  (:class:`~.contact_monitor.ContactMonitor`), ``contact_results``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.systems.framework import DiagramBuilder, InputPort, OutputPort
+from pydrake.systems.primitives import ConstantVectorSource
+
+from .actuators import DesiredState
+from .contact_monitor import ContactMonitor
+from .plant import PhysicalTalos, add_physical_talos
+from .push import Push
+
+
+@dataclass
+class TalosStation:
+    physical: PhysicalTalos
+    desired: DesiredState
+    monitor: ContactMonitor
+    push: Push | None
+
+    @property
+    def position(self) -> InputPort:
+        return self.desired.GetInputPort("position")
+
+    @property
+    def velocity(self) -> InputPort:
+        return self.desired.GetInputPort("velocity")
+
+    @property
+    def plant_state(self) -> OutputPort:
+        return self.physical.plant.get_state_output_port()
+
+    @property
+    def feet(self) -> OutputPort:
+        return self.monitor.GetOutputPort("feet")
+
+    @property
+    def other_contact(self) -> OutputPort:
+        return self.monitor.GetOutputPort("other_contact")
+
+
+def add_talos_station(
+    builder: DiagramBuilder,
+    q0: np.ndarray,
+    time_step: float = 1e-3,
+    push_force=None,
+    push_body: str = "torso_2_link",
+    push_start: float = 2.0,
+    push_duration: float = 0.1,
+    **plant_options,
+) -> TalosStation:
+    """The station (see the module docstring); the plant starts at ``q0``. ``push_force`` (N, world)
+    adds a :class:`~.push.Push` on ``push_body`` during ``[push_start, push_start + push_duration)``."""
+    physical = add_physical_talos(builder, time_step=time_step, **plant_options)
+    plant = physical.plant
+    plant.SetDefaultPositions(q0)
+    desired = builder.AddNamedSystem("desired_state", DesiredState(physical))
+    builder.Connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))
+    feedforward = builder.AddNamedSystem(
+        "feedforward_torque", ConstantVectorSource(np.zeros(plant.num_actuated_dofs(physical.instance))))
+    builder.Connect(feedforward.get_output_port(), plant.get_actuation_input_port(physical.instance))
+    monitor = builder.AddNamedSystem("contact_monitor", ContactMonitor(physical))
+    builder.Connect(plant.get_contact_results_output_port(), monitor.get_input_port())
+    push = None
+    if push_force is not None:
+        push = builder.AddNamedSystem("push", Push(plant, push_body, push_force, push_start, push_duration))
+        builder.Connect(push.get_output_port(), plant.get_applied_spatial_force_input_port())
+    return TalosStation(physical, desired, monitor, push)

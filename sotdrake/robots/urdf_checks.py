@@ -1,0 +1,52 @@
+"""Checks of a URDF's text before Drake parses it.
+
+Drake stops the whole process (an assertion, not an exception) on some inconsistent URDFs, e.g. a
+joint whose lower position limit is above its upper one. :func:`check_urdf_limits` finds them first
+and raises :class:`~sotdrake.exceptions.RobotDescriptionError` naming the joint, the attribute and
+the accepted range:
+
+* the text must be well-formed XML with a ``<robot>`` root;
+* each ``<limit>`` attribute present (``lower``, ``upper``, ``effort``, ``velocity``) is a number,
+  not NaN; ``lower ≤ upper`` (rad or m); ``effort ≥ 0`` (N·m or N) and ``velocity ≥ 0`` (rad/s or m/s).
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+
+from ..exceptions import RobotDescriptionError
+
+
+def check_urdf_limits(urdf_text: str, source: str = "URDF") -> None:
+    """Raise :class:`RobotDescriptionError` if ``urdf_text`` is not XML or a joint's ``<limit>`` is
+    inconsistent (see the module docstring); ``source`` names the file in the message."""
+    try:
+        root = ET.fromstring(urdf_text)
+    except ET.ParseError as error:
+        raise RobotDescriptionError(f"{source}: not well-formed XML ({error})") from None
+    if root.tag != "robot":
+        raise RobotDescriptionError(f"{source}: the root element must be <robot>, got <{root.tag}>")
+    for joint in root.iter("joint"):
+        limit = joint.find("limit")
+        if limit is None:
+            continue
+        name = joint.get("name", "?")
+        values = {}
+        for attribute in ("lower", "upper", "effort", "velocity"):
+            text = limit.get(attribute)
+            if text is None:
+                continue
+            try:
+                values[attribute] = float(text)
+            except ValueError:
+                raise RobotDescriptionError(f"{source}: joint {name!r}: limit {attribute}={text!r} is not a number") from None
+            if math.isnan(values[attribute]):
+                raise RobotDescriptionError(f"{source}: joint {name!r}: limit {attribute} is NaN")
+        for attribute in ("effort", "velocity"):
+            if values.get(attribute, 0.0) < 0:
+                raise RobotDescriptionError(
+                    f"{source}: joint {name!r}: limit {attribute}={values[attribute]} must be ≥ 0")
+        if "lower" in values and "upper" in values and values["lower"] > values["upper"]:
+            raise RobotDescriptionError(
+                f"{source}: joint {name!r}: limit lower={values['lower']} must be ≤ upper={values['upper']}")

@@ -3,7 +3,8 @@ by a list of steps (``pg.setSteps([(dx, dy, dθ), …])``).
 
 The command is the entity's setting, in its Context (set at build time, with ``context=`` between
 ``AdvanceTo`` calls, or from ``attime``); the plan (:class:`~.plan.WalkPlan`) is abstract state.
-An update every ``dt`` replans when the command has changed (or, walking by velocity, to extend
+An update every ``dt`` replans when the command has changed (a command issued at time T, e.g.
+by ``attime``, is planned from the tick after T) (or, walking by velocity, to extend
 the plan ahead): see :func:`~.plan.replan`. Outputs, at the Context's time (world frame; m, m/s,
 m/s², rad):
 

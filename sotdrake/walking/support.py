@@ -35,10 +35,13 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
     """Counter-clockwise hull of 2D ``points`` (Andrew's monotone chain)."""
     pts = sorted(map(tuple, np.asarray(points, dtype=float)))
 
+    def turn(o, a, b) -> float:  # z of (a - o) × (b - o)
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
     def half(sequence):
         chain: list = []
         for p in sequence:
-            while len(chain) >= 2 and np.cross(np.subtract(chain[-1], chain[-2]), np.subtract(p, chain[-2])) <= 0:
+            while len(chain) >= 2 and turn(chain[-2], chain[-1], p) <= 0:
                 chain.pop()
             chain.append(p)
         return chain

@@ -30,7 +30,6 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import Meshcat
-from pydrake.math import RollPitchYaw
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
@@ -76,6 +75,8 @@ MODES = ("kinematic", "physics")
 #: Task gains (1/s): the tracked references, and the lower-priority orientations.
 TRACKING_GAIN = 100.0
 POSTURE_GAIN = 10.0
+#: A sole carrying more than this (N) stands: its motion then is slip.
+SLIP_LOAD_N = 100.0
 #: How far (m) a wrist may move back, relative to the waist, from where it started.
 ARM_BACKWARD_MARGIN = 0.01
 
@@ -90,6 +91,7 @@ class Walk:
     tracer: Tracer
     mode: str
     spec: WalkingRobot
+    robot_name: str = "talos"
     physical: object = None
     commands: list = field(default_factory=list)
     visualizer: object = None
@@ -194,7 +196,7 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
         meshcat.SetCameraPose(camera_in_world=[1.5, -2.5, 1.4], target_in_world=[0.6, 0.0, 0.7])
     diagram = builder.Build()
     diagram.set_name("walk")
-    return Walk(diagram, bot, pg, sot, tasks, tracer, mode, spec, physical, commands, visualizer)
+    return Walk(diagram, bot, pg, sot, tasks, tracer, mode, spec, robot, physical, commands, visualizer)
 
 
 # --- post-processing ------------------------------------------------------------------------
@@ -203,10 +205,11 @@ def _planar(poses: np.ndarray) -> np.ndarray:
     return np.column_stack([poses[:, 0, 3], poses[:, 1, 3], np.unwrap(np.arctan2(poses[:, 1, 0], poses[:, 0, 0]))])
 
 
-def _segment_velocity(t, base, plan, t0, t1) -> tuple[np.ndarray, float, float] | None:
+def _segment_velocity(t, base, plan, t0, t1, gait: GaitParameters) -> tuple[np.ndarray, float, float] | None:
     """Mean realised velocity ``(vx, vy, ω)`` (walking frame at the window's start) of the base
-    over a whole, even number of steps inside ``[t0, t1]``: between touch-downs."""
-    touchdowns = [s.touchdown for s in plan.steps if t0 + 0.8 <= s.touchdown <= t1]  # skip the start-up step
+    over a whole, even number of steps inside ``[t0, t1]``: between touch-downs, from the second
+    step after ``t0 + start_duration`` (a new command applies from the next step)."""
+    touchdowns = [s.touchdown for s in plan.steps if t0 + gait.start_duration + 2 * gait.step_duration <= s.touchdown <= t1]
     if len(touchdowns) < 3:
         return None
     a, b = touchdowns[0], touchdowns[-1 - (len(touchdowns) - 1) % 2]
@@ -254,18 +257,25 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
     c, s = np.cos(yaw_ref), np.sin(yaw_ref)
     planned_base = trace["pg_com"][-1, :2] + np.array([c * offset0[0] - s * offset0[1], s * offset0[0] + c * offset0[1]])
     final_error = float(np.linalg.norm(base[-1, :2] - planned_base))
-    # Slip: how far each sole moves (xy) while it stands, from touch-down to its next lift-off.
+    # Slip: how far each sole moves (xy) while it stands, from touch-down to its next lift-off;
+    # with physics, over the samples where it carries more than SLIP_LOAD_N (a late landing is a
+    # tracking error, not a slip).
+    loaded = None
+    if physics:
+        loaded = np.column_stack([trace["contact"][:, 2], trace["contact"][:, 5]]) > SLIP_LOAD_N
     slips = []
     for i, side in enumerate(("left", "right")):
         xy = path[spec.feet[i]][:, :2, 3]
         landings = [0.0] + [st.touchdown for st in plan.steps if st.side == side]
         liftoffs = [st.liftoff for st in plan.steps if st.side == side] + [np.inf]
         for down, up in zip(landings, liftoffs):
-            ia, ib = np.searchsorted(t, down), np.searchsorted(t, min(up, t[-1]))
-            if ib > ia:
-                slips.append(float(np.linalg.norm(xy[ia:ib] - xy[ia], axis=1).max()))
+            stance = np.flatnonzero((t >= down) & (t <= up))
+            if loaded is not None:
+                stance = stance[loaded[stance, i]]
+            if stance.size > 1:
+                slips.append(float(np.linalg.norm(xy[stance] - xy[stance[0]], axis=1).max()))
     summary = {
-        "robot": "talos" if spec is ROBOTS["talos"] else "?",
+        "robot": walk.robot_name,
         "mode": walk.mode,
         "solver": type(walk.sot).__name__,
         "fell": fell,
@@ -285,7 +295,7 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
         segments.append((change, duration, np.asarray(then[1:], dtype=float)))
     ratios = []
     for t0, t1, command in segments:
-        measured = _segment_velocity(t, base, plan, t0, t1)
+        measured = _segment_velocity(t, base, plan, t0, t1, gait)
         if measured is None or not np.any(command):
             ratios.append(None)
             continue

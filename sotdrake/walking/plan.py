@@ -22,7 +22,7 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from .com_planner import INPUT_COST, ComPlan, plan_com
 from .footsteps import Footstep, closing_steps, first_side, other, plan_steps, velocity_displacement
 from .gait import GaitParameters
-from .support import sole_centre, support_polygon
+from .support import support_polygon
 from .swing import foot_trajectory
 from .zmp_reference import zmp_reference
 
@@ -208,8 +208,3 @@ def foot_pose(reference, X_WS0: RigidTransform, yaw0: float) -> RigidTransform:
     R = RotationMatrix.MakeZRotation(reference[3] - yaw0).multiply(X_WS0.rotation())
     return RigidTransform(R, reference[:3])
 
-
-def footprint_centres(plan: WalkPlan, gait: GaitParameters) -> np.ndarray:
-    """Centres of every planned footprint (start, then steps), k×2."""
-    poses = [plan.start.foot("left"), plan.start.foot("right")] + [(s.x, s.y, s.yaw) for s in plan.steps]
-    return np.array([sole_centre(p, gait) for p in poses])

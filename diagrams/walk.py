@@ -214,16 +214,19 @@ def _segment_velocity(t, base, plan, t0, t1, gait: GaitParameters) -> tuple[np.n
         return None
     a, b = touchdowns[0], touchdowns[-1 - (len(touchdowns) - 1) % 2]
     ia, ib = np.searchsorted(t, a), np.searchsorted(t, b)
-    yaw = base[ia, 2]
-    # Arc length by summed chords along the path (a turn's chord is shorter than its arc).
-    path = base[ia : ib + 1]
-    delta_world = path[-1, :2] - path[0, :2]
-    c, s = np.cos(yaw), np.sin(yaw)
-    forward = np.array([c * delta_world[0] + s * delta_world[1], -s * delta_world[0] + c * delta_world[1]])
-    chords = np.linalg.norm(np.diff(path[:: max(1, (ib - ia) // 50), :2], axis=0), axis=1).sum()
-    if np.linalg.norm(forward) > 0:
-        forward = forward / np.linalg.norm(forward) * chords
-    return np.append(forward, path[-1, 2] - path[0, 2]) / (b - a), a, b
+    return _mean_velocity(base[ia], base[ib], b - a), a, b
+
+
+def _mean_velocity(start, end, duration: float) -> np.ndarray:
+    """``(vx, vy, ω)`` from base poses ``(x, y, yaw)`` at the same phase of the gait ``duration``
+    apart: the displacement in the walking frame at mid-turn, the chord of a circular arc turned
+    into its length (``arc = chord · (Δθ/2) / sin(Δθ/2)``)."""
+    turn = end[2] - start[2]
+    heading = start[2] + turn / 2
+    c, s = np.cos(heading), np.sin(heading)
+    dx, dy = end[:2] - start[:2]
+    chord_to_arc = 1.0 if abs(turn) < 1e-9 else (turn / 2) / np.sin(turn / 2)
+    return np.array([c * dx + s * dy, -s * dx + c * dy, turn]) * np.array([chord_to_arc, chord_to_arc, 1.0]) / duration
 
 
 def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) -> tuple[dict, dict]:
@@ -301,7 +304,7 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
             continue
         v, a, b = measured
         linear = np.linalg.norm(command[:2])
-        ratio = abs(np.linalg.norm(v[:2]) - linear) / linear if linear else None
+        ratio = float(np.linalg.norm(v[:2] - command[:2]) / linear) if linear else None
         ratios.append({"command": command.tolist(), "realised": v.tolist(), "window_s": [a, b], "linear_ratio": ratio,
                        "yaw_rate_ratio": abs(v[2] - command[2]) / abs(command[2]) if command[2] else None})
     summary["velocity_error_ratio"] = ratios[0]["linear_ratio"] if ratios[0] else None
@@ -354,7 +357,7 @@ def plot(walk: Walk, simulator, trace: dict, path: Path) -> Path:
     ax.set_xlabel("time (s)")
     ax.legend(fontsize=7)
     ax = axes[1, 0]
-    window = max(1, int(round(gait.step_duration / walk.robot.dt)))
+    window = max(1, int(round(2 * gait.step_duration / walk.robot.dt)))  # a left and a right step: the sway cancels
     base = trace["base"]
     if len(base) > window:
         rate = (base[window:] - base[:-window]) / (window * walk.robot.dt)
@@ -362,7 +365,7 @@ def plot(walk: Walk, simulator, trace: dict, path: Path) -> Path:
         forward = np.cos(yaw) * rate[:, 0] + np.sin(yaw) * rate[:, 1]
         lateral = -np.sin(yaw) * rate[:, 0] + np.cos(yaw) * rate[:, 1]
         tm = t[:-window] + 0.5 * window * walk.robot.dt
-        ax.plot(tm, forward, "C0", label="realised vx (mean over one step)")
+        ax.plot(tm, forward, "C0", label="realised vx (mean over two steps)")
         ax.plot(tm, lateral, "C1", label="realised vy")
         ax.plot(tm, rate[:, 2], "C2", label="realised ω")
     command = trace["pg_velocity_command"]

@@ -157,7 +157,10 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     if solver == "hqp":
         for name, wrist in zip(("ArmL", "ArmR"), spec.wrists):
             arm = MetaTaskKine6dRel(name, dyn, name.lower(), "waist", wrist, spec.waist, inequality=True)
-            arm.feature.selec("000001")  # x of the wrist in the waist frame (relative to its start)
+            # The desired relative pose without its rotation: the error's x is then along the
+            # waist's x axis, e = x_wrist - x_wrist(0) in the waist frame.
+            arm.featureDes.setPosition(arm.featureDes.settings().position.translation())
+            arm.feature.selec("000001")
             arm.task.setBounds([-ARM_BACKWARD_MARGIN], [np.inf])
             arm.gain.setConstant(POSTURE_GAIN)
             tasks[arm.task.name] = arm

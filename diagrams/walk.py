@@ -232,6 +232,12 @@ def _mean_velocity(start, end, duration: float) -> np.ndarray:
     return np.array([c * dx + s * dy, -s * dx + c * dy, turn]) * np.array([chord_to_arc, chord_to_arc, 1.0]) / duration
 
 
+def _stretches(flags: np.ndarray) -> list[np.ndarray]:
+    """The index ranges where ``flags`` is True, each as an array of indices."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(int), [0]])))
+    return [np.arange(a, b) for a, b in zip(edges[::2], edges[1::2])]
+
+
 def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) -> tuple[dict, dict]:
     context = simulator.get_context()
     trace = walk.tracer.data(context)
@@ -263,23 +269,19 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
     c, s = np.cos(yaw_ref), np.sin(yaw_ref)
     planned_base = trace["pg_com"][-1, :2] + np.array([c * offset0[0] - s * offset0[1], s * offset0[0] + c * offset0[1]])
     final_error = float(np.linalg.norm(base[-1, :2] - planned_base))
-    # Slip: how far each sole moves (xy) while it stands, from touch-down to its next lift-off;
-    # with physics, over the samples where it carries more than SLIP_LOAD_N (a late landing is a
-    # tracking error, not a slip).
-    loaded = None
-    if physics:
-        loaded = np.column_stack([trace["contact"][:, 2], trace["contact"][:, 5]]) > SLIP_LOAD_N
+    # Slip: how far each sole moves (xy) while it stands: kinematic, over each planned stance
+    # (touch-down to the next lift-off); physics, over each stretch where it carries more than
+    # SLIP_LOAD_N (a sole that lands early, late or bounces moves in the air: a tracking error).
     slips = []
     for i, side in enumerate(("left", "right")):
         xy = path[spec.feet[i]][:, :2, 3]
-        landings = [0.0] + [st.touchdown for st in plan.steps if st.side == side]
-        liftoffs = [st.liftoff for st in plan.steps if st.side == side] + [np.inf]
-        for down, up in zip(landings, liftoffs):
-            stance = np.flatnonzero((t >= down) & (t <= up))
-            if loaded is not None:
-                stance = stance[loaded[stance, i]]
-            if stance.size > 1:
-                slips.append(float(np.linalg.norm(xy[stance] - xy[stance[0]], axis=1).max()))
+        if physics:
+            stretches = _stretches(trace["contact"][:, 2 + 3 * i] > SLIP_LOAD_N)
+        else:
+            landings = [0.0] + [st.touchdown for st in plan.steps if st.side == side]
+            liftoffs = [st.liftoff for st in plan.steps if st.side == side] + [np.inf]
+            stretches = [np.flatnonzero((t >= down) & (t <= up)) for down, up in zip(landings, liftoffs)]
+        slips += [float(np.linalg.norm(xy[k] - xy[k[0]], axis=1).max()) for k in stretches if k.size > 1]
     summary = {
         "robot": walk.robot_name,
         "mode": walk.mode,

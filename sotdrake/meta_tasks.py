@@ -173,10 +173,12 @@ class MetaTaskKinePosture(_MetaTask):
 
 class MetaTaskKine6dRel(_MetaTask):
     """Task on the pose of op point A with respect to op point B (``FeatureRelative6d``), e.g. one
-    hand with respect to the other. The desired relative pose starts as the current one."""
+    hand with respect to the other. The desired relative pose starts as the current one.
+    ``inequality=True``: a ``TaskInequality`` on the relative error (e.g. a hand kept in front of
+    the waist)."""
 
     def __init__(self, name: str, robot: Robot, opPoint: str, opPointBase: str,
-                 opPointRef: str | None = None, opPointBaseRef: str | None = None):
+                 opPointRef: str | None = None, opPointBaseRef: str | None = None, inequality: bool = False):
         robot = _as_robot(robot, "MetaTaskKine6dRel")
         dyn = robot.dynamic
         self.dyn, self.opPoint, self.opPointBase = dyn, opPoint, opPointBase
@@ -188,7 +190,7 @@ class MetaTaskKine6dRel(_MetaTask):
         for port, source in (("position", a), ("Jq", Ja), ("positionRef", b), ("JqRef", Jb)):
             connect(source, feature.GetInputPort(port))
         connect(self.featureDes.GetOutputPort("position"), feature.GetInputPort("reference"))
-        self._finish(robot, name, feature)
+        self._finish(robot, name, feature, inequality)
         self.keep()
 
     def keep(self, context: Context | None = None) -> None:

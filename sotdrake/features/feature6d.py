@@ -31,7 +31,7 @@ from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite
 from ..ranges import MAX_TARGET_ANGLE, MAX_TARGET_POSITION, MAX_TARGET_VELOCITY
 from ..lie import hat, log_so3_list, right_jacobian_inverse_list
-from .base import Feature, FeatureSettings, usual_input
+from .base import Feature, FeatureSettings, optional_input, usual_input
 
 FRAMES = ("desired", "current")
 
@@ -183,32 +183,37 @@ class Feature6dDesired(Entity[Feature6dDesiredSettings]):
     """Desired pose ``X_WF*`` (the SoT ``featureDes``). Outputs ``position`` and ``velocity``
     (``(ω*, ṗ*)``, world frame).
 
-    Optional inputs for a moving target: ``translation_in`` (``p*``, m) and
-    ``translation_velocity_in`` (``ṗ*``, m/s); when connected they override the settings'
-    translation and translational velocity (the rotation stays the settings').
+    Optional inputs for a moving target: ``pose_in`` (``X_WF*``) and ``spatial_velocity_in``
+    (``(ω*, ṗ*)``), which override the settings' pose and velocity; ``translation_in`` (``p*``, m)
+    and ``translation_velocity_in`` (``ṗ*``, m/s), which override the translation and
+    translational velocity only (applied after ``pose_in``/``spatial_velocity_in``).
     """
 
     def __init__(self, name: str):
         Entity.__init__(self, name, Feature6dDesiredSettings())
+        self.pose_in = self.DeclareAbstractInputPort("pose_in", AbstractValue.Make(RigidTransform()))
+        self.spatial_velocity_in = self.DeclareVectorInputPort("spatial_velocity_in", 6)
         self.translation_in = self.DeclareVectorInputPort("translation_in", 3)
         self.translation_velocity_in = self.DeclareVectorInputPort("translation_velocity_in", 3)
         # Narrow prerequisites: computed once, until a setting or a connected input changes.
         settings = self.abstract_state_ticket(self._settings_index)
         self.DeclareAbstractOutputPort(
             "position", lambda: AbstractValue.Make(RigidTransform()), self._position,
-            prerequisites_of_calc={settings, self.input_port_ticket(self.translation_in.get_index())})
+            prerequisites_of_calc={settings, self.input_port_ticket(self.pose_in.get_index()),
+                                   self.input_port_ticket(self.translation_in.get_index())})
         self.DeclareVectorOutputPort(
             "velocity", 6, self._velocity,
-            prerequisites_of_calc={settings, self.input_port_ticket(self.translation_velocity_in.get_index())})
+            prerequisites_of_calc={settings, self.input_port_ticket(self.spatial_velocity_in.get_index()),
+                                   self.input_port_ticket(self.translation_velocity_in.get_index())})
 
     def _position(self, context: Context, output: AbstractValue) -> None:
-        X = self._settings_of(context).position
+        X = optional_input(self.pose_in, context, self._settings_of(context).position)
         if self.translation_in.HasValue(context):
             X = RigidTransform(X.rotation(), self.translation_in.Eval(context))
         output.set_value(X)
 
     def _velocity(self, context: Context, output) -> None:
-        V = self._settings_of(context).velocity.copy()
+        V = np.array(optional_input(self.spatial_velocity_in, context, self._settings_of(context).velocity))
         if self.translation_velocity_in.HasValue(context):
             V[3:] = self.translation_velocity_in.Eval(context)
         output.SetFromVector(V)

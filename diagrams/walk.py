@@ -1,0 +1,429 @@
+#!/usr/bin/env python3
+"""The seed's kinematic walk (walkromeo) on TALOS: a pattern generator commanded by velocity.
+
+``pg.setVelocity(x, y, θ)`` (the ``PatternGenerator``: footsteps, ZMP reference, CoM by Drake's
+``ZmpPlanner``, swing trajectories) feeds the desired values of the seed's stack, in priority
+order: the waist's height, roll and pitch (``taskWaist``, ``'011100'``), both soles in 6D
+(``taskRF``, ``taskLF``), the CoM in x, y (``taskCom``, ``'011'``, with the planned CoM velocity as
+feed-forward), then the head's orientation following the right foot (``taskHead``, ``'110000'``: pitch and yaw),
+the waist's yaw (``taskWaistOr``, ``'100000'``) and, with ``SolverKine`` (``--solver hqp``, the
+default), both wrists kept from moving backward relative to the waist (``taskArmL``,
+``taskArmR``: ``TaskInequality`` on the x of ``FeatureRelative6d``). Every moving target comes with
+its velocity (feed-forward).
+
+``--mode kinematic``: the SoT integrates its velocity at 1 kHz (no dynamics). ``--mode physics``:
+the same control graph drives the physically simulated TALOS through position servos (the PD
+actuators of :mod:`sotdrake.physics`, open loop, as ``diagrams/talos_physics.py``).
+``--then T X Y THETA`` changes the command at time T (``attime``); ``--steps N --step-length L``
+walks N steps of L metres (the walking frame's advance per step) instead of a velocity.
+
+    python diagrams/walk.py --robot talos --velocity 0.1 0 0 --then 10 0.1 0 0.1 --duration 15 --out out/walk
+    python diagrams/walk.py --mode physics --steps 8 --step-length 0.2 --duration 10 --out out/walk_physics
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import Meshcat
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource
+
+from sotdrake import (
+    add_sot,
+    attime,
+    load_talos,
+    MetaTaskKine6d,
+    MetaTaskKine6dRel,
+    MetaTaskKineCom,
+    Robot,
+    script_arguments,
+    simulate,
+    SOT,
+    start,
+    Tracer,
+    write_run,
+)
+from sotdrake.robots import RobotModel
+from sotdrake.walking import GaitParameters, PatternGenerator, start_of
+from sotdrake.walking.com_planner import GRAVITY
+from sotdrake.walking.support import footprint, polygon_margin, support_polygon
+
+
+@dataclass(frozen=True)
+class WalkingRobot:
+    """What the walk needs of a robot: its loader, op points (feet soles, waist, head, wrists),
+    the joints the SoT leaves alone, and (for ``--mode physics``) its physical model."""
+
+    load: Callable[[], RobotModel]
+    feet: tuple[str, str] = ("left-sole", "right-sole")
+    waist: str = "waist"
+    head: str = "gaze"
+    wrists: tuple[str, str] = ("left-wrist", "right-wrist")
+    excluded: tuple[str, ...] = ()
+    add_physical: Callable | None = None
+
+
+def _add_physical_talos(builder, dt):
+    from sotdrake.physics import add_physical_talos
+
+    return add_physical_talos(builder, time_step=dt)
+
+
+#: Adding a robot is adding an entry.
+ROBOTS: dict[str, WalkingRobot] = {
+    "talos": WalkingRobot(load=lambda: load_talos("reduced"),
+                          excluded=("gripper_left_joint", "gripper_right_joint"),
+                          add_physical=_add_physical_talos),
+}
+MODES = ("kinematic", "physics")
+#: Task gains (1/s): the tracked references, and the lower-priority orientations.
+TRACKING_GAIN = 100.0
+POSTURE_GAIN = 10.0
+#: A sole carrying more than this (N) stands: its motion then is slip.
+SLIP_LOAD_N = 100.0
+#: How far (m) a wrist may move back, relative to the waist, from where it started.
+ARM_BACKWARD_MARGIN = 0.01
+
+
+@dataclass
+class Walk:
+    diagram: Diagram
+    robot: Robot
+    pg: PatternGenerator
+    sot: SOT
+    tasks: dict
+    tracer: Tracer
+    mode: str
+    spec: WalkingRobot
+    robot_name: str = "talos"
+    physical: object = None
+    commands: list = field(default_factory=list)
+    visualizer: object = None
+
+
+def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | None = None,
+                  steps: tuple[int, float] | None = None, mode: str = "kinematic", solver: str = "hqp",
+                  dt: float = 1e-3, gait: GaitParameters | None = None, meshcat: Meshcat | None = None) -> Walk:
+    """The walk's diagram. ``velocity``: the command from t = 0; ``then``: ``(T, x, y, θ)``, a new
+    command at T; ``steps``: ``(n, length)`` instead of a velocity; ``solver``: ``'hqp'``
+    (``SolverKine``, with the arms' inequality tasks) or ``'cascade'`` (basic ``SOT``, without them)."""
+    if robot not in ROBOTS:
+        from sotdrake.exceptions import NotFound
+
+        raise NotFound(robot, list(ROBOTS))
+    if mode not in MODES:
+        raise ValueError(f"mode is one of {MODES}, got {mode!r} ('dynamic' needs SolverDyn)")
+    spec = ROBOTS[robot]
+    builder = DiagramBuilder()
+    model = spec.load()
+    physical = None
+    if mode == "physics":
+        if spec.add_physical is None:
+            raise ValueError(f"no physical model for {robot!r}")
+        physical = spec.add_physical(builder, dt)
+        physical.plant.SetDefaultPositions(model.half_sitting)
+    bot = Robot(builder, model, dt)
+    dyn = bot.dynamic
+    pg = bot.add(PatternGenerator(start_of(dyn, bot.device.initial_position, spec.feet, spec.waist), dt, gait))
+    if steps is not None:
+        pg.setSteps([(steps[1], 0.0, 0.0)] * int(steps[0]))
+    else:
+        pg.setVelocity(*velocity)
+    commands = []
+    if then is not None:
+        commands.append(attime(then[0], lambda: pg.setVelocity(*then[1:]), f"pg.setVelocity{tuple(then[1:])}"))
+
+    sot = add_sot(bot, "sot", solver=solver)
+    sot.setControlSelection(bot.velocity_selection(excluding=list(spec.excluded)))
+    connect = builder.Connect
+    tasks = {}
+
+    def six_d(name, op, frame, selection, pose, velocity, gain):
+        meta = MetaTaskKine6d(name, bot, op, frame)
+        meta.feature.selec(selection)
+        meta.gain.setConstant(gain)
+        connect(pg.GetOutputPort(pose), meta.featureDes.GetInputPort("pose_in"))
+        connect(pg.GetOutputPort(velocity), meta.featureDes.GetInputPort("spatial_velocity_in"))
+        tasks[meta.task.name] = meta
+        return meta
+
+    six_d("Waist", "waist", spec.waist, "011100", "waist_pose", "waist_velocity", TRACKING_GAIN)
+    six_d("RF", "RF", spec.feet[1], "111111", "right_foot_pose", "right_foot_velocity", TRACKING_GAIN)
+    six_d("LF", "LF", spec.feet[0], "111111", "left_foot_pose", "left_foot_velocity", TRACKING_GAIN)
+    com = MetaTaskKineCom(bot)
+    com.feature.selec("011")
+    com.gain.setConstant(TRACKING_GAIN)
+    connect(pg.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
+    connect(pg.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
+    tasks[com.task.name] = com
+    six_d("Head", "head", spec.head, "110000", "right_foot_pose", "right_foot_velocity", POSTURE_GAIN)
+    six_d("WaistOr", "waist", spec.waist, "100000", "waist_pose", "waist_velocity", POSTURE_GAIN)
+    if solver == "hqp":
+        for name, wrist in zip(("ArmL", "ArmR"), spec.wrists):
+            arm = MetaTaskKine6dRel(name, bot, name.lower(), "waist", wrist, spec.waist, inequality=True)
+            # The desired relative pose without its rotation: the error's x is then along the
+            # waist's x axis, e = x_wrist - x_wrist(0) in the waist frame.
+            arm.featureDes.setPosition(arm.featureDes.settings().position.translation())
+            arm.feature.selec("000001")
+            arm.task.setBounds([-ARM_BACKWARD_MARGIN], [np.inf])
+            arm.gain.setConstant(POSTURE_GAIN)
+            tasks[arm.task.name] = arm
+    for name in tasks:
+        sot.push(name)
+
+    tracer = Tracer(builder, dt)
+    tracer.add(bot.device.GetOutputPort("state"), "q_device")
+    for port in ("com", "com_velocity", "com_acceleration", "zmp_reference", "feet", "support_phase", "velocity_command"):
+        tracer.add(pg.GetOutputPort(port), f"pg_{port}")
+    visualizer = None
+    if physical is not None:
+        from sotdrake.physics import ContactMonitor, DesiredState
+
+        plant = physical.plant
+        desired = bot.add(DesiredState(physical))
+        connect(bot.device.GetOutputPort("state"), desired.GetInputPort("position"))
+        connect(sot.GetOutputPort("control"), desired.GetInputPort("velocity"))
+        connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))
+        feedforward = bot.add(ConstantVectorSource(np.zeros(plant.num_actuated_dofs(physical.instance))), "feedforward_torque")
+        connect(feedforward.get_output_port(), plant.get_actuation_input_port(physical.instance))
+        monitor = bot.add(ContactMonitor(physical))
+        connect(plant.get_contact_results_output_port(), monitor.get_input_port())
+        tracer.add(plant.get_state_output_port(), "x_plant")
+        tracer.add(monitor.get_output_port(), "contact")
+        if meshcat is not None:
+            from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
+
+            visualizer = MeshcatVisualizer.AddToBuilder(builder, physical.scene_graph, meshcat,
+                                                        MeshcatVisualizerParams(publish_period=1 / 60))
+    elif meshcat is not None:
+        from sotdrake.visualization import add_robot_visualizer
+
+        visualizer = add_robot_visualizer(bot, meshcat)
+    if meshcat is not None:
+        meshcat.SetCameraPose(camera_in_world=[1.5, -2.5, 1.4], target_in_world=[0.6, 0.0, 0.7])
+    diagram = builder.Build()
+    diagram.set_name("walk")
+    return Walk(diagram, bot, pg, sot, tasks, tracer, mode, spec, robot, physical, commands, visualizer)
+
+
+# --- post-processing ------------------------------------------------------------------------
+def _planar(poses: np.ndarray) -> np.ndarray:
+    """(k, 4, 4) poses → (k, 3) ``(x, y, yaw)``."""
+    return np.column_stack([poses[:, 0, 3], poses[:, 1, 3], np.unwrap(np.arctan2(poses[:, 1, 0], poses[:, 0, 0]))])
+
+
+def _segment_velocity(t, base, plan, t0, t1, gait: GaitParameters) -> tuple[np.ndarray, float, float] | None:
+    """Mean realised velocity ``(vx, vy, ω)`` (walking frame at the window's start) of the base
+    over a whole, even number of steps inside ``[t0, t1]``: between touch-downs, from the second
+    step after ``t0 + start_duration`` (a new command applies from the next step)."""
+    touchdowns = [s.touchdown for s in plan.steps if t0 + gait.start_duration + 2 * gait.step_duration <= s.touchdown <= t1]
+    if len(touchdowns) < 3:
+        return None
+    a, b = touchdowns[0], touchdowns[-1 - (len(touchdowns) - 1) % 2]
+    ia, ib = np.searchsorted(t, a), np.searchsorted(t, b)
+    return _mean_velocity(base[ia], base[ib], b - a), a, b
+
+
+def _mean_velocity(start, end, duration: float) -> np.ndarray:
+    """``(vx, vy, ω)`` from base poses ``(x, y, yaw)`` at the same phase of the gait ``duration``
+    apart: the displacement in the walking frame at mid-turn, the chord of a circular arc turned
+    into its length (``arc = chord · (Δθ/2) / sin(Δθ/2)``)."""
+    turn = end[2] - start[2]
+    heading = start[2] + turn / 2
+    c, s = np.cos(heading), np.sin(heading)
+    dx, dy = end[:2] - start[:2]
+    chord_to_arc = 1.0 if abs(turn) < 1e-9 else (turn / 2) / np.sin(turn / 2)
+    return np.array([c * dx + s * dy, -s * dx + c * dy, turn]) * np.array([chord_to_arc, chord_to_arc, 1.0]) / duration
+
+
+def _stretches(flags: np.ndarray) -> list[np.ndarray]:
+    """The index ranges where ``flags`` is True, each as an array of indices."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(int), [0]])))
+    return [np.arange(a, b) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) -> tuple[dict, dict]:
+    context = simulator.get_context()
+    trace = walk.tracer.data(context)
+    bot, spec, gait = walk.robot, walk.spec, walk.pg.gait
+    nq = bot.model.nq
+    physics = walk.mode == "physics"
+    qs = trace["x_plant"][:, :nq] if physics else trace["q_device"]
+    t = trace["time"]
+    path = bot.dynamic.trajectory([spec.feet[0], spec.feet[1], spec.waist], qs)
+    plan = walk.pg.plan(context)
+    feet_ref = trace["pg_feet"]
+    # Each tick's q (logged after its update) is what the next tick's tasks see: compare q[k]
+    # with the references at k + 1.
+    foot_errors = np.concatenate([np.linalg.norm(path[spec.feet[i]][:-1, :3, 3] - feet_ref[1:, 4 * i : 4 * i + 3], axis=1)
+                                  for i in range(2)])
+    com_error = np.linalg.norm(path["com"][:-1, :2] - trace["pg_com"][1:, :2], axis=1)
+    # Planned ZMP (of the planned CoM) and reference against the planned support polygons.
+    zmp_planned = trace["pg_com"][:, :2] - trace["pg_com"][:, 2:3] / GRAVITY * trace["pg_com_acceleration"][:, :2]
+    polygons = [plan.support_polygon(tk, gait) for tk in t]
+    zmp_margin = np.array([polygon_margin(z, P) for z, P in zip(zmp_planned, polygons)])
+    ref_margin = np.array([polygon_margin(z, P) for z, P in zip(trace["pg_zmp_reference"], polygons)])
+    base = _planar(path[spec.waist])
+    base_z = path[spec.waist][:, 2, 3]
+    fell = bool(base_z.min() < base_z[0] - 0.25)
+    # The planned base: the planned CoM plus the start's base-to-CoM offset (turned with the feet).
+    q0 = bot.device.initial_position
+    offset0 = bot.dynamic.pose_at(spec.waist, q0).translation()[:2] - bot.dynamic.com_at(q0)[:2]
+    yaw_ref = 0.5 * (feet_ref[-1, 3] + feet_ref[-1, 7]) - 0.5 * (feet_ref[0, 3] + feet_ref[0, 7])
+    c, s = np.cos(yaw_ref), np.sin(yaw_ref)
+    planned_base = trace["pg_com"][-1, :2] + np.array([c * offset0[0] - s * offset0[1], s * offset0[0] + c * offset0[1]])
+    final_error = float(np.linalg.norm(base[-1, :2] - planned_base))
+    # Slip: how far each sole moves (xy) while it stands: kinematic, over each planned stance
+    # (touch-down to the next lift-off); physics, over each stretch where it carries more than
+    # SLIP_LOAD_N (a sole that lands early, late or bounces moves in the air: a tracking error).
+    slips = []
+    for i, side in enumerate(("left", "right")):
+        xy = path[spec.feet[i]][:, :2, 3]
+        if physics:
+            stretches = _stretches(trace["contact"][:, 2 + 3 * i] > SLIP_LOAD_N)
+        else:
+            landings = [0.0] + [st.touchdown for st in plan.steps if st.side == side]
+            liftoffs = [st.liftoff for st in plan.steps if st.side == side] + [np.inf]
+            stretches = [np.flatnonzero((t >= down) & (t <= up)) for down, up in zip(landings, liftoffs)]
+        slips += [float(np.linalg.norm(xy[k] - xy[k[0]], axis=1).max()) for k in stretches if k.size > 1]
+    summary = {
+        "robot": walk.robot_name,
+        "mode": walk.mode,
+        "solver": type(walk.sot).__name__,
+        "fell": fell,
+        "max_foot_tracking_error_m": float(foot_errors.max()),
+        "max_com_tracking_error_m": float(com_error.max()),
+        "min_zmp_margin_m": float(zmp_margin.min()),
+        "min_zmp_reference_margin_m": float(ref_margin.min()),
+        "max_zmp_planned_minus_reference_m": float(np.linalg.norm(zmp_planned - trace["pg_zmp_reference"], axis=1)[1:].max()),
+        "final_position_error_m": final_error,
+        "max_slip_per_step_m": max(slips) if slips else 0.0,
+        "steps": int(sum(1 for st in plan.steps if st.touchdown <= t[-1])),
+        "input_cost": walk.pg.input_cost,
+    }
+    change = then[0] if then is not None else duration
+    segments = [(0.0, change, trace["pg_velocity_command"][0])]
+    if then is not None:
+        segments.append((change, duration, np.asarray(then[1:], dtype=float)))
+    ratios = []
+    for t0, t1, command in segments:
+        measured = _segment_velocity(t, base, plan, t0, t1, gait)
+        if measured is None or not np.any(command):
+            ratios.append(None)
+            continue
+        v, a, b = measured
+        linear = np.linalg.norm(command[:2])
+        ratio = float(np.linalg.norm(v[:2] - command[:2]) / linear) if linear else None
+        ratios.append({"command": command.tolist(), "realised": v.tolist(), "window_s": [a, b], "linear_ratio": ratio,
+                       "yaw_rate_ratio": abs(v[2] - command[2]) / abs(command[2]) if command[2] else None})
+    summary["velocity_error_ratio"] = ratios[0]["linear_ratio"] if ratios[0] else None
+    summary["velocity_segments"] = ratios
+    if physics:
+        contact = trace["contact"]
+        loaded = np.column_stack([contact[:, 2] > 20.0, contact[:, 5] > 20.0])
+        soles = [_planar(path[spec.feet[i]]) for i in range(2)]
+        cop_margin = [polygon_margin(contact[k, 6:8], support_polygon([soles[i][k] for i in range(2) if loaded[k, i]], gait))
+                      for k in range(1, len(t)) if loaded[k].any() and np.all(np.isfinite(contact[k, 6:8]))]
+        summary["min_cop_margin_m"] = float(min(cop_margin)) if cop_margin else None
+        trace["cop"] = contact[:, 6:8]
+    else:
+        summary["min_cop_margin_m"] = None  # no contact forces without physics
+    summary.update(duration_s=duration, dt_s=bot.dt, wall_s=wall, realtime_factor=duration / wall)
+    trace.update(base=base, com_realised=path["com"], zmp_planned=zmp_planned, zmp_margin=zmp_margin,
+                 foot_error=np.column_stack(np.split(foot_errors, 2)), com_error=com_error)
+    return summary, trace
+
+
+def plot(walk: Walk, simulator, trace: dict, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Polygon
+
+    gait, plan = walk.pg.gait, walk.pg.plan(simulator.get_context())
+    t = trace["time"]
+    fig, axes = plt.subplots(2, 2, figsize=(14, 9))
+    ax = axes[0, 0]
+    poses = [plan.start.foot("left"), plan.start.foot("right")] + [(s.x, s.y, s.yaw) for s in plan.steps if s.touchdown <= t[-1]]
+    for k, pose in enumerate(poses):
+        ax.add_patch(Polygon(footprint(pose, gait), closed=True, fill=False, color="C0" if k % 2 == 0 else "C3", lw=0.8))
+    ax.plot(trace["pg_zmp_reference"][:, 0], trace["pg_zmp_reference"][:, 1], "k--", lw=0.8, label="ZMP reference")
+    ax.plot(trace["zmp_planned"][:, 0], trace["zmp_planned"][:, 1], "g", lw=0.8, label="ZMP of the planned CoM")
+    ax.plot(trace["pg_com"][:, 0], trace["pg_com"][:, 1], "b", lw=1.2, label="CoM planned")
+    ax.plot(trace["com_realised"][:, 0], trace["com_realised"][:, 1], "m:", lw=1.2, label="CoM realised")
+    if "cop" in trace:
+        ax.plot(trace["cop"][:, 0], trace["cop"][:, 1], ".", color="orange", ms=0.6, label="CoP (physics)")
+    ax.set_aspect("equal")
+    ax.set_title("footprints, CoM and ZMP")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.legend(fontsize=7)
+    ax = axes[0, 1]
+    ax.plot(t, trace["zmp_margin"], label="planned ZMP margin in the support polygon")
+    ax.axhline(0.02, color="grey", ls=":", lw=0.8)
+    ax.set_ylabel("margin (m)")
+    ax.set_xlabel("time (s)")
+    ax.legend(fontsize=7)
+    ax = axes[1, 0]
+    window = max(1, int(round(2 * gait.step_duration / walk.robot.dt)))  # a left and a right step: the sway cancels
+    base = trace["base"]
+    if len(base) > window:
+        rate = (base[window:] - base[:-window]) / (window * walk.robot.dt)
+        yaw = base[:-window, 2]
+        forward = np.cos(yaw) * rate[:, 0] + np.sin(yaw) * rate[:, 1]
+        lateral = -np.sin(yaw) * rate[:, 0] + np.cos(yaw) * rate[:, 1]
+        tm = t[:-window] + 0.5 * window * walk.robot.dt
+        ax.plot(tm, forward, "C0", label="realised vx (mean over two steps)")
+        ax.plot(tm, lateral, "C1", label="realised vy")
+        ax.plot(tm, rate[:, 2], "C2", label="realised ω")
+    command = trace["pg_velocity_command"]
+    for i, name in enumerate(("vx", "vy", "ω")):
+        ax.plot(t, command[:, i], f"C{i}--", lw=0.8, label=f"commanded {name}")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("m/s, rad/s")
+    ax.set_title("commanded vs realised velocity (base)")
+    ax.legend(fontsize=7)
+    ax = axes[1, 1]
+    ax.semilogy(t[1:], np.maximum(trace["foot_error"], 1e-9), label=["left sole", "right sole"])
+    ax.semilogy(t[1:], np.maximum(trace["com_error"], 1e-9), label="CoM xy")
+    ax.axhline(1e-3, color="grey", ls=":", lw=0.8)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("tracking error (m)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = script_arguments(__doc__, "out/walk", duration=15.0)
+    parser.add_argument("--robot", choices=sorted(ROBOTS), default="talos")
+    parser.add_argument("--velocity", type=float, nargs=3, default=(0.1, 0.0, 0.0), metavar=("X", "Y", "THETA"))
+    parser.add_argument("--then", type=float, nargs=4, default=None, metavar=("T", "X", "Y", "THETA"),
+                        help="pg.setVelocity(X, Y, THETA) at time T")
+    parser.add_argument("--steps", type=int, default=None, help="walk this many steps instead of a velocity")
+    parser.add_argument("--step-length", type=float, default=0.2, help="with --steps: advance per step (m)")
+    parser.add_argument("--mode", choices=MODES, default="kinematic")
+    parser.add_argument("--solver", choices=["hqp", "cascade"], default="hqp")
+    args = parser.parse_args(argv)
+    meshcat = start(args)
+    steps = (args.steps, args.step_length) if args.steps else None
+    walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, meshcat=meshcat)
+    simulator, wall = simulate(walk.diagram, args.duration, walk.visualizer, not args.quiet)
+    summary, trace = summarize(walk, simulator, args.duration, wall, args.then)
+    args.out.mkdir(parents=True, exist_ok=True)
+    plot(walk, simulator, trace, args.out / "plots.png")
+    write_run(args.out, walk.diagram, summary, trace, meshcat, walk.visualizer)
+    print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
+    return summary
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,70 @@
+"""Gait parameters of the pattern generator, and the velocity command's accepted range.
+
+Timing as the walkromeo generator's: a step lasts ``step_duration`` = 0.8 s, ``single_support``
+= 0.7 s with one foot in the air then ``step_duration - single_support`` = 0.1 s of double support;
+feet ``feet_distance`` = 0.2 m apart (sole origins, across the walking direction), swing apex
+``swing_height`` = 5 cm above the ground. The sole is a rectangle ``sole_length × sole_width``
+centred at ``sole_centre`` in the sole frame (TALOS: the footprint of its foot, 0.211 × 0.124 m,
+centre 5.4 mm behind the sole frame); the ZMP reference sits at that centre in single support.
+Units: m, s, rad.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import InvalidInput, check_finite
+
+#: The seed's range of ``pg.setVelocity(x, y, θ)``: ``-0.2 ≤ x, y ≤ 0.2`` (m/s).
+MAX_LINEAR_VELOCITY = 0.2
+#: Accepted yaw rate (rad/s): one step then turns by at most 0.32 rad.
+MAX_YAW_RATE = 0.4
+
+
+@dataclass(frozen=True)
+class GaitParameters:
+    step_duration: float = 0.8
+    single_support: float = 0.7
+    feet_distance: float = 0.2
+    swing_height: float = 0.05
+    start_duration: float = 0.8  # double support before the first lift-off: the CoM shifts onto the support foot
+    stop_duration: float = 0.8  # after the last touch-down: the ZMP returns between the feet
+    sole_length: float = 0.211
+    sole_width: float = 0.124
+    sole_centre: tuple[float, float] = (-0.0054, 0.0)
+    horizon_steps: int = 6  # steps planned ahead when walking by velocity
+    replan_steps: int = 3  # extend the plan when fewer steps than this remain ahead
+
+    def __post_init__(self) -> None:
+        checks = {
+            "step_duration": self.step_duration > 0,
+            "single_support": 0 < self.single_support < self.step_duration,
+            "feet_distance": self.feet_distance > 0,
+            "swing_height": self.swing_height >= 0,
+            "start_duration": self.start_duration > 0,
+            "stop_duration": self.stop_duration > 0,
+            "sole_length": self.sole_length > 0,
+            "sole_width": self.sole_width > 0,
+            "horizon_steps": self.horizon_steps >= 2,
+            "replan_steps": 1 <= self.replan_steps < self.horizon_steps,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise InvalidInput(f"GaitParameters.{name} out of range: {getattr(self, name)!r}")
+
+    @property
+    def double_support(self) -> float:
+        return self.step_duration - self.single_support
+
+
+def check_velocity(x: float, y: float, theta: float) -> np.ndarray:
+    """The command ``(x, y, θ)`` (m/s, m/s, rad/s, in the walking frame: x forward, y left, θ
+    counter-clockwise) as an array, or :class:`InvalidInput` naming the component and its range."""
+    v = check_finite("pg.setVelocity(x, y, theta)", [x, y, theta], (3,))
+    for name, value, limit in (("x", v[0], MAX_LINEAR_VELOCITY), ("y", v[1], MAX_LINEAR_VELOCITY), ("theta", v[2], MAX_YAW_RATE)):
+        if abs(value) > limit:
+            unit = "rad/s" if name == "theta" else "m/s"
+            raise InvalidInput(f"pg.setVelocity: {name} = {value} {unit} is out of range; accepted: -{limit} ≤ {name} ≤ {limit}")
+    return v

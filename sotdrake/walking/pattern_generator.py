@@ -1,0 +1,141 @@
+"""``PatternGenerator``: the seed's ``pg``, commanded by velocity (``pg.setVelocity(x, y, θ)``) or
+by a list of steps (``pg.setSteps([(dx, dy, dθ), …])``).
+
+The command is the entity's setting, in its Context (set at build time, with ``context=`` between
+``AdvanceTo`` calls, or from ``attime``); the plan (:class:`~.plan.WalkPlan`) is abstract state.
+An update every ``dt`` replans when the command has changed (a command issued at time T, e.g.
+by ``attime``, is planned from the tick after T) (or, walking by velocity, to extend
+the plan ahead): see :func:`~.plan.replan`. Outputs, at the Context's time (world frame; m, m/s,
+m/s², rad):
+
+* ``com``, ``com_velocity``, ``com_acceleration`` (3): the planned CoM (constant height);
+* ``zmp_reference`` (2): the reference ZMP;
+* ``left_foot_pose``, ``right_foot_pose`` (``RigidTransform``, sole frames ``X_WS``) and
+  ``left_foot_velocity``, ``right_foot_velocity`` (6: ``(ω, ṗ)``);
+* ``waist_pose`` (``RigidTransform``: the start's waist height and tilt, turned by the mean yaw of
+  the feet, above the planned CoM) and ``waist_velocity`` (6);
+* ``support_phase`` (1): 0 in double support, 1 on the left foot only, −1 on the right only;
+* ``feet`` (8: ``x, y, z, yaw`` of the left sole then the right one) and ``velocity_command`` (3),
+  for tracing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.systems.framework import Context, ValueProducer
+
+from ..entity import Entity
+from ..exceptions import InvalidInput, check_finite
+from .com_planner import INPUT_COST
+from .gait import MAX_LINEAR_VELOCITY, MAX_YAW_RATE, GaitParameters, check_velocity
+from .plan import References, Start, WalkCommand, WalkPlan, foot_pose, initial_plan, replan
+
+SIDES = ("left", "right")
+
+
+@dataclass
+class PatternGeneratorSettings:
+    command: WalkCommand = field(default_factory=WalkCommand)
+
+
+class PatternGenerator(Entity[PatternGeneratorSettings]):
+    """See the module docstring. ``start``: the robot's sole poses, CoM and waist pose at t = 0."""
+
+    def __init__(self, start: Start, dt: float, gait: GaitParameters | None = None,
+                 input_cost: float = INPUT_COST, name: str = "pg"):
+        Entity.__init__(self, name, PatternGeneratorSettings())
+        if not dt > 0:
+            raise InvalidInput(f"{name}: dt must be > 0, got {dt}")
+        if not (np.isfinite(input_cost) and input_cost > 0):
+            raise InvalidInput(f"{name}: input_cost must be finite and > 0, got {input_cost}")
+        self.gait = gait or GaitParameters()
+        self.start, self.dt, self.input_cost = start, float(dt), float(input_cost)
+        self._yaw0 = {side: start.foot(side)[2] for side in SIDES}
+        self._plan = self.DeclareAbstractState(AbstractValue.Make(initial_plan(start, self.gait, input_cost)))
+        self.DeclareInitializationUnrestrictedUpdateEvent(self._update)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(self.dt, 0.0, self._update)
+        self._references = self.DeclareCacheEntry(
+            "references", ValueProducer(allocate=lambda: AbstractValue.Make(object()), calc=self._calc_references),
+            prerequisites_of_calc={self.time_ticket(), self.abstract_state_ticket(self._plan)})
+        vector = self.DeclareVectorOutputPort
+        vector("com", 3, lambda c, o: o.SetFromVector(self._refs(c).com))
+        vector("com_velocity", 3, lambda c, o: o.SetFromVector(self._refs(c).com_velocity))
+        vector("com_acceleration", 3, lambda c, o: o.SetFromVector(self._refs(c).com_acceleration))
+        vector("zmp_reference", 2, lambda c, o: o.SetFromVector(self._refs(c).zmp))
+        for side in SIDES:
+            self.DeclareAbstractOutputPort(f"{side}_foot_pose", lambda: AbstractValue.Make(RigidTransform()),
+                                           lambda c, o, s=side: o.set_value(self._foot_pose(c, s)))
+            vector(f"{side}_foot_velocity", 6, lambda c, o, s=side: o.SetFromVector(self._foot_velocity(c, s)))
+        self.DeclareAbstractOutputPort("waist_pose", lambda: AbstractValue.Make(RigidTransform()), self._waist_pose)
+        vector("waist_velocity", 6, self._waist_velocity)
+        vector("support_phase", 1, lambda c, o: o.SetAtIndex(0, self._refs(c).support))
+        vector("feet", 8, lambda c, o: o.SetFromVector(np.concatenate([self._refs(c).feet[s] for s in SIDES])))
+        vector("velocity_command", 3, lambda c, o: o.SetFromVector(np.asarray(self._settings_of(c).command.velocity)))
+
+    # --- commands ---------------------------------------------------------------------------
+    def setVelocity(self, x: float, y: float, theta: float, context: Context | None = None) -> None:
+        """Walk at ``(x, y, θ)`` (m/s, m/s, rad/s; x forward, y left, θ counter-clockwise, in the
+        walking frame): ``|x|, |y| ≤ 0.2``, ``|θ| ≤ 0.4``; ``(0, 0, 0)`` closes the feet and stops."""
+        v = tuple(float(a) for a in check_velocity(x, y, theta))
+        self._command(context, lambda s: setattr(s, "command", WalkCommand(velocity=v)))
+
+    def setSteps(self, steps, context: Context | None = None) -> None:
+        """Walk the steps ``[(dx, dy, dθ), …]`` (displacements of the walking frame per step, m and
+        rad, each ``|dx|, |dy| ≤ 0.4``, ``|dθ| ≤ 0.4``), then close the feet and stop."""
+        array = check_finite(f"{self.name}.setSteps", steps)
+        if array.ndim != 2 or array.shape[1] != 3 or len(array) == 0:
+            raise InvalidInput(f"{self.name}.setSteps: expected a non-empty list of (dx, dy, dθ), got shape {array.shape}")
+        limit = 2 * MAX_LINEAR_VELOCITY * self.gait.step_duration
+        if np.abs(array[:, :2]).max() > limit or np.abs(array[:, 2]).max() > MAX_YAW_RATE:
+            raise InvalidInput(f"{self.name}.setSteps: accepted |dx|, |dy| ≤ {limit:g} m, |dθ| ≤ {MAX_YAW_RATE} rad; "
+                               f"got {array.tolist()}")
+        command = WalkCommand(steps=tuple(tuple(float(a) for a in row) for row in array))
+        self._command(context, lambda s: setattr(s, "command", command))
+
+    def plan(self, context: Context) -> WalkPlan:
+        """The current plan in ``context`` (read-only)."""
+        return self.own_context(context).get_abstract_state(self._plan).get_value()
+
+    # --- calc -------------------------------------------------------------------------------
+    def _update(self, context: Context, state) -> None:
+        plan = context.get_abstract_state(self._plan).get_value()
+        command, t = self._settings_of(context).command, context.get_time()
+        if plan.needs_replan(command, t, self.gait):
+            state.get_mutable_abstract_state(self._plan).set_value(replan(plan, command, t, self.gait, self.input_cost))
+
+    def _calc_references(self, context: Context, value: AbstractValue) -> None:
+        value.set_value(context.get_abstract_state(self._plan).get_value().references(context.get_time()))
+
+    def _refs(self, context: Context) -> References:
+        return self._references.Eval(context)
+
+    def _foot_pose(self, context: Context, side: str) -> RigidTransform:
+        return foot_pose(self._refs(context).feet[side], self.start.feet[side], self._yaw0[side])
+
+    def _foot_velocity(self, context: Context, side: str) -> np.ndarray:
+        rate = self._refs(context).feet_velocity[side]
+        return np.array([0.0, 0.0, rate[3], rate[0], rate[1], rate[2]])
+
+    def _waist_pose(self, context: Context, output: AbstractValue) -> None:
+        refs = self._refs(context)
+        yaw = 0.5 * sum(refs.feet[s][3] - self._yaw0[s] for s in SIDES)
+        R = RotationMatrix.MakeZRotation(yaw).multiply(self.start.waist.rotation())
+        output.set_value(RigidTransform(R, [refs.com[0], refs.com[1], self.start.waist.translation()[2]]))
+
+    def _waist_velocity(self, context: Context, output) -> None:
+        refs = self._refs(context)
+        yaw_rate = 0.5 * sum(refs.feet_velocity[s][3] for s in SIDES)
+        output.SetFromVector([0.0, 0.0, yaw_rate, refs.com_velocity[0], refs.com_velocity[1], 0.0])
+
+
+def start_of(dynamic, q0: np.ndarray, feet=("left-sole", "right-sole"), waist: str = "waist") -> Start:
+    """The :class:`Start` of a robot at ``q0`` from its ``dynamic`` entity (op points or frames)."""
+    return Start({side: dynamic.pose_at(name, q0) for side, name in zip(SIDES, feet)},
+                 dynamic.com_at(q0), dynamic.pose_at(waist, q0))
+
+
+__all__ = ["PatternGenerator", "PatternGeneratorSettings", "start_of"]

@@ -1,0 +1,210 @@
+"""A walk plan: footsteps, ZMP reference, CoM and foot trajectories, and how it is replanned.
+
+:func:`initial_plan` stands still at the start (feet where they are, the ZMP reference moving from
+the CoM's projection to the mid-point of the feet). :func:`replan` at time ``t`` for a new command
+keeps every step already lifted off (a swinging foot lands where it was going), plans the next
+ones from the walking frame after them, and replans the CoM with ``ZmpPlanner`` from the previous
+plan's CoM state at ``t``: position and velocity are continuous across a replan. The reference
+ZMP starts from the previous reference's value at ``t``.
+
+Commands (:class:`WalkCommand`): a velocity ``(vx, vy, ω)`` (walk on, the plan extended a few
+steps ahead as time goes; zero: the feet close up and the robot stands), or a list of step
+displacements ``(dx, dy, dθ)`` of the walking frame (then the feet close up and it stands).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+
+from .com_planner import INPUT_COST, ComPlan, plan_com
+from .footsteps import Footstep, closing_steps, first_side, other, plan_steps, velocity_displacement
+from .gait import GaitParameters
+from .support import support_polygon
+from .swing import foot_trajectory
+from .zmp_reference import zmp_reference
+
+
+@dataclass(frozen=True)
+class WalkCommand:
+    """``velocity`` ``(vx, vy, ω)`` (m/s, m/s, rad/s, walking frame) or ``steps``, a tuple of
+    displacements ``(dx, dy, dθ)`` (m, m, rad); at most one of them non-zero."""
+
+    velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    steps: tuple[tuple[float, float, float], ...] = ()
+
+    @property
+    def walking(self) -> bool:
+        """True when the command walks on indefinitely (a non-zero velocity)."""
+        return any(self.velocity) and not self.steps
+
+
+@dataclass(frozen=True)
+class Start:
+    """Where the walk starts: sole poses ``X_WS`` of both feet, the CoM ``p_WCm`` and the waist pose."""
+
+    feet: dict  # side → RigidTransform
+    com: np.ndarray
+    waist: RigidTransform
+
+    def foot(self, side: str) -> tuple[float, float, float]:
+        """``(x, y, yaw)`` of a sole at the start."""
+        X = self.feet[side]
+        return (X.translation()[0], X.translation()[1], RollPitchYaw(X.rotation()).yaw_angle())
+
+    @property
+    def body(self) -> tuple[float, float, float]:
+        """The walking frame at the start: the mid-point of the soles, their mean yaw."""
+        left, right = self.foot("left"), self.foot("right")
+        return tuple(0.5 * (np.array(left) + np.array(right)))
+
+
+@dataclass(frozen=True)
+class References:
+    """Everything the pattern generator outputs at one time (world frame; m, m/s, rad)."""
+
+    com: np.ndarray  # (3,)
+    com_velocity: np.ndarray
+    com_acceleration: np.ndarray
+    zmp: np.ndarray  # (2,), the reference
+    feet: dict  # side → (x, y, z, yaw)
+    feet_velocity: dict  # side → (ẋ, ẏ, ż, yaw rate)
+    support: int  # 0 double support, 1 left foot only, -1 right foot only
+
+
+@dataclass(frozen=True)
+class WalkPlan:
+    command: WalkCommand | None  # None: not yet planned for any command
+    planned_at: float
+    start: Start
+    steps: tuple[Footstep, ...]
+    zmp: object  # PiecewisePolynomial (2 rows)
+    com: ComPlan
+    feet: dict = field(default_factory=dict)  # side → PiecewisePolynomial (x, y, z, yaw)
+    feet_rate: dict = field(default_factory=dict)
+
+    def __deepcopy__(self, memo) -> "WalkPlan":
+        # Immutable (its trajectories are never modified): Drake's copies of the state share it.
+        return self
+
+    @property
+    def end(self) -> float:
+        return self.com.end
+
+    def steps_ahead(self, t: float) -> int:
+        return sum(1 for s in self.steps if s.liftoff > t)
+
+    def needs_replan(self, command: WalkCommand, t: float, gait: GaitParameters) -> bool:
+        """For a new command, or to extend the plan of a walking one."""
+        return command != self.command or (command.walking and self.steps_ahead(t) < gait.replan_steps)
+
+    def zmp_reference(self, t: float) -> np.ndarray:
+        return self.zmp.value(min(max(t, self.zmp.start_time()), self.zmp.end_time())).ravel()
+
+    def feet_at(self, t: float) -> dict:
+        """Sole poses ``(x, y, yaw)`` at ``t`` as the ZMP reference sees them: a swinging foot
+        where it lifted off."""
+        feet = {side: self.start.foot(side) for side in ("left", "right")}
+        for s in self.steps:
+            if s.touchdown <= t:
+                feet[s.side] = (s.x, s.y, s.yaw)
+        return feet
+
+    def swinging(self, t: float) -> str | None:
+        for s in self.steps:
+            if s.liftoff <= t < s.touchdown:
+                return s.side
+        return None
+
+    def support_polygon(self, t: float, gait: GaitParameters) -> np.ndarray:
+        """The footprints' hull of the feet on the ground at ``t``."""
+        feet, swinging = self.feet_at(t), self.swinging(t)
+        return support_polygon([p for side, p in feet.items() if side != swinging], gait)
+
+    def references(self, t: float) -> References:
+        com, com_velocity, com_acceleration = self.com.state(t)
+        z = self.com.height
+        feet, rates = {}, {}
+        for side, trajectory in self.feet.items():
+            tc = min(max(t, trajectory.start_time()), trajectory.end_time())
+            feet[side] = trajectory.value(tc).ravel()
+            rates[side] = self.feet_rate[side].value(tc).ravel()
+        swinging = self.swinging(t)
+        support = 0 if swinging is None else (1 if swinging == "right" else -1)
+        return References(np.append(com, z), np.append(com_velocity, 0.0), np.append(com_acceleration, 0.0),
+                          self.zmp_reference(t), feet, rates, support)
+
+
+def _trajectories(start: Start, steps: list[Footstep], gait: GaitParameters, end: float) -> tuple[dict, dict]:
+    feet, rates = {}, {}
+    for side in ("left", "right"):
+        z0 = start.feet[side].translation()[2]
+        feet[side] = foot_trajectory(start.foot(side), z0, steps, side, gait.swing_height, end)
+        rates[side] = feet[side].derivative(1)
+    return feet, rates
+
+
+def initial_plan(start: Start, gait: GaitParameters, input_cost: float = INPUT_COST) -> WalkPlan:
+    """Standing at t = 0: the CoM at rest, the ZMP reference from under it to the feet's mid-point."""
+    feet = {side: start.foot(side) for side in ("left", "right")}
+    zmp = zmp_reference(0.0, start.com[:2], feet, [], gait)
+    com = plan_com(zmp, start.com[:2], np.zeros(2), start.com[2], input_cost)
+    trajectories, rates = _trajectories(start, [], gait, com.end)
+    return WalkPlan(None, 0.0, start, (), zmp, com, trajectories, rates)
+
+
+def new_steps(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParameters) -> tuple[list[Footstep], list[Footstep]]:
+    """``(kept, new)``: the steps lifted off by ``t``, and those ``command`` adds after them."""
+    kept = [s for s in plan.steps if s.liftoff <= t]
+    feet = {side: plan.start.foot(side) for side in ("left", "right")}
+    for s in kept:
+        feet[s.side] = (s.x, s.y, s.yaw)
+    if kept:
+        body, side = kept[-1].body, other(kept[-1].side)
+        liftoff = kept[-1].touchdown + gait.double_support  # walking on: keep the rhythm
+        if liftoff <= t:  # it had stopped: start again
+            liftoff = t + gait.start_duration
+    else:
+        body, side = plan.start.body, first_side(command.steps[0] if command.steps else command.velocity)
+        liftoff = t + gait.start_duration
+    if command.steps:
+        new = plan_steps(body, side, liftoff, command.steps, gait)
+        last = new[-1]
+        new += closing_steps(last.body, other(last.side), last.liftoff + gait.step_duration,
+                             {**feet, **{s.side: (s.x, s.y, s.yaw) for s in new}}, gait)
+    elif command.walking:
+        new, s, lift = [], side, liftoff
+        for _ in range(gait.horizon_steps):
+            step = plan_steps(body, s, lift, [velocity_displacement(command.velocity, s, gait)], gait)[0]
+            new.append(step)
+            body, s, lift = step.body, other(s), lift + gait.step_duration
+    elif kept:
+        new = closing_steps(body, side, liftoff, feet, gait)
+    else:
+        new = []
+    return kept, new
+
+
+def replan(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParameters, input_cost: float = INPUT_COST) -> WalkPlan:
+    """The plan for ``command`` from time ``t`` (see the module docstring)."""
+    kept, new = new_steps(plan, command, t, gait)
+    steps = kept + new
+    landed = {side: plan.start.foot(side) for side in ("left", "right")}
+    for s in steps:
+        if s.touchdown <= t:
+            landed[s.side] = (s.x, s.y, s.yaw)
+    ahead = [s for s in steps if s.touchdown > t]
+    zmp = zmp_reference(t, plan.zmp_reference(t), landed, ahead, gait)
+    position, velocity, _ = plan.com.state(t)
+    com = plan_com(zmp, position, velocity, plan.com.height, input_cost)
+    trajectories, rates = _trajectories(plan.start, steps, gait, com.end)
+    return WalkPlan(command, t, plan.start, tuple(steps), zmp, com, trajectories, rates)
+
+
+def foot_pose(reference, X_WS0: RigidTransform, yaw0: float) -> RigidTransform:
+    """The sole pose for ``reference = (x, y, z, yaw)``: the start's tilt turned by ``yaw − yaw0``."""
+    R = RotationMatrix.MakeZRotation(reference[3] - yaw0).multiply(X_WS0.rotation())
+    return RigidTransform(R, reference[:3])
+

@@ -1,0 +1,64 @@
+"""Support polygons and the margin of a point inside them.
+
+A sole's footprint is the rectangle of :class:`GaitParameters` (``sole_length × sole_width``
+around ``sole_centre`` in the sole frame) placed at the sole pose ``(x, y, yaw)``. In double
+support the polygon is the convex hull of both footprints. The margin of a point ``p`` in a convex
+polygon is its signed distance to the boundary: ``min_i n_iᵀ (p - a_i)`` over the edges (``a_i`` a
+vertex, ``n_i`` the inward unit normal), positive inside (m).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .gait import GaitParameters
+
+
+def sole_centre(pose, gait: GaitParameters) -> np.ndarray:
+    """The footprint's centre (world xy) for a sole at ``(x, y, yaw)``."""
+    x, y, yaw = pose
+    c, s = np.cos(yaw), np.sin(yaw)
+    cx, cy = gait.sole_centre
+    return np.array([x + c * cx - s * cy, y + s * cx + c * cy])
+
+
+def footprint(pose, gait: GaitParameters) -> np.ndarray:
+    """The footprint's four corners (4×2, counter-clockwise) for a sole at ``(x, y, yaw)``."""
+    x, y, yaw = pose
+    c, s = np.cos(yaw), np.sin(yaw)
+    half = np.array([gait.sole_length, gait.sole_width]) / 2
+    local = np.array(gait.sole_centre) + half * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])
+    return np.array([x, y]) + local @ np.array([[c, s], [-s, c]])
+
+
+def convex_hull(points: np.ndarray) -> np.ndarray:
+    """Counter-clockwise hull of 2D ``points`` (Andrew's monotone chain)."""
+    pts = sorted(map(tuple, np.asarray(points, dtype=float)))
+
+    def turn(o, a, b) -> float:  # z of (a - o) × (b - o)
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    def half(sequence):
+        chain: list = []
+        for p in sequence:
+            while len(chain) >= 2 and turn(chain[-2], chain[-1], p) <= 0:
+                chain.pop()
+            chain.append(p)
+        return chain
+
+    lower, upper = half(pts), half(reversed(pts))
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def support_polygon(poses: list, gait: GaitParameters) -> np.ndarray:
+    """The convex hull of the footprints of the soles at ``poses`` (one or two ``(x, y, yaw)``)."""
+    return convex_hull(np.vstack([footprint(p, gait) for p in poses]))
+
+
+def polygon_margin(point, polygon: np.ndarray) -> float:
+    """Signed distance (m) from ``point`` to the boundary of the counter-clockwise convex
+    ``polygon``: positive inside."""
+    p = np.asarray(point, dtype=float)
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    normals = np.column_stack([-edges[:, 1], edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]
+    return float(np.min(np.einsum("ij,ij->i", normals, p - polygon)))

@@ -82,6 +82,8 @@ def scaled_least_squares(U: np.ndarray, s: np.ndarray, Vt: np.ndarray, k: int, m
     U_k, s_k = U[:, :k], s[:k]
     if np.all(m_scale == m_scale[0]):
         c = (U_k.T @ r) / (m_scale[0] * s_k)
+    elif k == len(m_scale):  # independent rows: B u = r is solved exactly, c = s⁻¹ Uᵀ D⁻¹ r (U square)
+        c = (U_k.T @ (r / m_scale)) / s_k
     else:
         Q, R = np.linalg.qr(m_scale[:, None] * (U_k * s_k))
         c = np.linalg.solve(R, Q.T @ r)

@@ -240,25 +240,6 @@ def _guessed_sides(guess: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> n
     return side
 
 
-def try_guess(
-    M: np.ndarray,
-    t: np.ndarray,
-    m_scale: np.ndarray,
-    G: np.ndarray,
-    lower: np.ndarray,
-    upper: np.ndarray,
-    guess: np.ndarray,
-    threshold: float = RANK_THRESHOLD,
-    feasibility: float = 1e-10,
-) -> ActiveSetResult | None:
-    """The optimum if the working set ``guess`` satisfies the KKT conditions (the same exact check
-    as the first step of :func:`solve_least_squares_qp`, one EQP, no iteration), else None."""
-    side = _guessed_sides(guess, lower, upper)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility)
-    return None if candidate is None else ActiveSetResult(candidate, side, 0, True)
-
-
 def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, upper: np.ndarray,
                regularization: float = 1e-9) -> np.ndarray | None:
     """A guess of the working set (a side per row of ``G``) from Goldfarb-Idnani's dual active-set

@@ -251,6 +251,29 @@ def test_bounds_beat_tasks_and_the_hierarchy_degrades_gracefully():
     assert result.solver_calls == 0 and 0 in result.active_bounds
 
 
+def test_equality_levels_inside_the_bounds_are_their_least_squares_steps():
+    """Equality-only levels whose least-squares steps stay inside the bounds (solved by that step,
+    without the active set): the lexicographic minimum-norm solution, computed here by pseudo-inverses
+    in the null space of the level above; a bound in the way changes the answer and is respected."""
+    rng = np.random.default_rng(5)
+    n = 9
+    A0, A1 = rng.normal(size=(3, n)), rng.normal(size=(4, n)) * [[1e-3], [1.0], [1e3], [1.0]]
+    A1[0] = 2.0 * A0[1] - A0[0]  # a conflicting row: fixed by level 0, its target differs
+    b0, b1 = rng.normal(size=3), rng.normal(size=4)
+    levels = [LevelRows(A0, b0, b0), LevelRows(A1, b1, b1)]
+    x0 = np.linalg.pinv(A0) @ b0
+    N = np.linalg.svd(A0)[2][3:].T
+    expected = x0 + N @ (np.linalg.pinv(A1 @ N, rcond=1e-10) @ (b1 - A1 @ x0))
+    loose = np.full(n, 10.0 * np.abs(expected).max())
+    result = HierarchicalQP(n).solve(levels, -loose, loose)
+    np.testing.assert_allclose(result.x, expected, atol=1e-9 * max(1.0, np.abs(expected).max()))
+    assert result.iterations == [0, 0, 0] and result.fallbacks == [] and len(result.active_bounds) == 0
+    tight = np.abs(expected) * 0.5
+    bounded = HierarchicalQP(n).solve(levels, -tight, tight)
+    assert bounds_hold(bounded.x, -tight, tight) and len(bounded.active_bounds) > 0
+    assert bounded.slack_norms[0] > result.slack_norms[0] + 1e-3  # the bounds now beat level 0
+
+
 def test_inequality_rows_and_their_activity():
     hqp = HierarchicalQP(2)
     levels = [LevelRows(np.array([[0.0, 1.0]]), [-np.inf], [0.5]),  # x1 ≤ 0.5

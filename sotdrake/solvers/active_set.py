@@ -74,6 +74,22 @@ def independent_rows(E: np.ndarray, threshold: float) -> np.ndarray:
     return np.sort(pivots[: int(np.count_nonzero(diagonal > threshold))])
 
 
+def scaled_least_squares(U: np.ndarray, s: np.ndarray, Vt: np.ndarray, k: int, m_scale: np.ndarray,
+                         r: np.ndarray) -> np.ndarray:
+    """The minimum-norm ``u`` minimising ``‖B u - r‖`` given the SVD ``U diag(s) Vt`` of the unit-row
+    matrix ``B / m_scale`` cut at its first ``k`` singular values (``B = D U_k s_k V_kᵀ`` with
+    ``D = diag(m_scale)``: a weighted least squares in ``c``, ``u = V_k c``)."""
+    U_k, s_k = U[:, :k], s[:k]
+    if np.all(m_scale == m_scale[0]):
+        c = (U_k.T @ r) / (m_scale[0] * s_k)
+    elif k == len(m_scale):  # independent rows: B u = r is solved exactly, c = s⁻¹ Uᵀ D⁻¹ r (U square)
+        c = (U_k.T @ (r / m_scale)) / s_k
+    else:
+        Q, R = np.linalg.qr(m_scale[:, None] * (U_k * s_k))
+        c = np.linalg.solve(R, Q.T @ r)
+    return Vt[:k].T @ c
+
+
 def eqp(
     M: np.ndarray,
     t: np.ndarray,
@@ -105,14 +121,7 @@ def eqp(
             U2, s2, V2t = np.linalg.svd(B / m_scale[:, None], full_matrices=False)
             k2 = int(np.count_nonzero(s2 > threshold))
             if k2:
-                # minimise ‖D (U2_k s2_k c - r / D)‖ with D = m_scale: weighted least squares in c.
-                W = m_scale[:, None] * (U2[:, :k2] * s2[:k2])
-                if np.all(m_scale == m_scale[0]):
-                    c = (U2[:, :k2].T @ r) / (m_scale[0] * s2[:k2])
-                else:
-                    Q, R = np.linalg.qr(W)
-                    c = np.linalg.solve(R, Q.T @ r)
-                u = V2t[:k2].T @ c
+                u = scaled_least_squares(U2, s2, V2t, k2, m_scale, r)
                 z = z + (u if N is None else N @ u)
     if len(E):
         gradient = M.T @ (M @ z - t) if len(M) else np.zeros(p)
@@ -139,12 +148,15 @@ def solve_least_squares_qp(
 
     ``guess``: a side per row of ``G`` (-1, 0, +1), tried first. Raises :class:`ActiveSetFailure`
     if the iterations do not converge."""
+    with np.errstate(divide="ignore", invalid="ignore"):  # ±∞ sides: once here, not per operation
+        return _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations)
+
+
+def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations) -> ActiveSetResult:
     m = len(G)
     equality = lower == upper
     if guess is not None and len(guess) == m:
-        side = np.where(equality, 1, np.asarray(guess, dtype=int))
-        side[(side < 0) & ~np.isfinite(lower)] = 0
-        side[(side > 0) & ~np.isfinite(upper)] = 0
+        side = _guessed_sides(guess, lower, upper)
         candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility)
         if candidate is not None:
             return ActiveSetResult(candidate, side, 0, True)
@@ -177,9 +189,8 @@ def solve_least_squares_qp(
         else:
             GN = G @ N
             movable = ~held & (np.sqrt(np.einsum("ij,ij->i", GN, GN)) > threshold)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            up = np.where(movable & (rate > 0.0), (upper - value) / rate, np.inf)
-            down = np.where(movable & (rate < 0.0), (lower - value) / rate, np.inf)
+        up = np.where(movable & (rate > 0.0), (upper - value) / rate, np.inf)  # (errstate: set by the caller)
+        down = np.where(movable & (rate < 0.0), (lower - value) / rate, np.inf)
         ratio = np.maximum(np.minimum(up, down), 0.0)
         alpha = float(ratio.min(initial=np.inf))
         if alpha < 1.0:
@@ -198,6 +209,7 @@ def solve_least_squares_qp(
                     bland = True
                 seen.add(key)
             continue
+        at_origin = not np.any(z)  # then the step is the absolute EQP point itself (bit for bit)
         z = target
         # Multipliers: λ ≥ 0 at an upper side, ≤ 0 at a lower side (equality rows: free), up to a
         # round-off tolerance relative to the gradient's scale.
@@ -214,8 +226,18 @@ def solve_least_squares_qp(
                 bland = True
             seen.add(key)
             continue
+        if at_origin:  # _finish would recompute this very point
+            return ActiveSetResult(z, side, iteration, False)
         return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration)
     raise ActiveSetFailure(f"no convergence in {max_iterations} active-set iterations")
+
+
+def _guessed_sides(guess: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """A guess made a valid working set: equality rows held, no row held at an infinite side."""
+    side = np.where(lower == upper, 1, np.asarray(guess, dtype=int))
+    side[(side < 0) & ~np.isfinite(lower)] = 0
+    side[(side > 0) & ~np.isfinite(upper)] = 0
+    return side
 
 
 def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, upper: np.ndarray,
@@ -257,24 +279,25 @@ def _eqp_of(M, t, m_scale, G, lower, upper, side, threshold):
     return eqp(M, t, m_scale, G[held], e, threshold)
 
 
-def _feasible(G, lower, upper, z, feasibility) -> bool:
+def feasible(G: np.ndarray, lower: np.ndarray, upper: np.ndarray, z: np.ndarray, feasibility: float) -> bool:
+    """Whether ``lower ≤ G z ≤ upper`` holds to ``feasibility`` (absolute, relative above 1); the
+    caller silences numpy's warnings on ±∞ sides."""
     value = G @ z
-    with np.errstate(invalid="ignore"):
-        return not (np.any(value < lower - feasibility * np.maximum(1.0, np.abs(lower)))
-                    or np.any(value > upper + feasibility * np.maximum(1.0, np.abs(upper))))
+    return not (np.any(value < lower - feasibility * np.maximum(1.0, np.abs(lower)))
+                or np.any(value > upper + feasibility * np.maximum(1.0, np.abs(upper))))
 
 
 def _feasible_eqp(M, t, m_scale, G, lower, upper, side, threshold, feasibility) -> np.ndarray | None:
     """The (absolute, minimum-norm) EQP point of the working set ``side`` if it is feasible."""
     z = _eqp_of(M, t, m_scale, G, lower, upper, side, threshold)[0]
-    return z if _feasible(G, lower, upper, z, feasibility) else None
+    return z if feasible(G, lower, upper, z, feasibility) else None
 
 
 def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility) -> np.ndarray | None:
     """The EQP point of the working set ``side`` if it satisfies the KKT conditions, else None."""
     held = side != 0
     z, lam, _ = _eqp_of(M, t, m_scale, G, lower, upper, side, threshold)
-    if not _feasible(G, lower, upper, z, feasibility):
+    if not feasible(G, lower, upper, z, feasibility):
         return None
     equality = (lower == upper)[held]
     wrong = np.where(equality, 0.0, -side[held] * lam)

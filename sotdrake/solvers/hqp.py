@@ -68,6 +68,8 @@ from .active_set import (
     RANK_THRESHOLD,
     ActiveSetFailure,
     dual_guess,
+    feasible,
+    scaled_least_squares,
     solve_least_squares_qp,
 )
 
@@ -256,6 +258,11 @@ class HierarchicalQP:
             if level.A.shape[1] != n:
                 raise InvalidInput(f"a level has {level.A.shape[1]} columns, expected {n}")
         start = time.perf_counter()
+        with np.errstate(invalid="ignore", divide="ignore"):  # ±∞ bounds: once here, not per operation
+            return self._solve_stages(levels, x_lower, x_upper, damping, solver, start)
+
+    def _solve_stages(self, levels, x_lower, x_upper, damping, solver, start) -> HqpResult:
+        n = self.n
         fixed = x_lower == x_upper
         x = np.where(fixed, x_lower, 0.0)
         Z = np.eye(n)[:, ~fixed]
@@ -270,7 +277,14 @@ class HierarchicalQP:
             mu = damping if k == len(levels) - 1 else 0.0
             name = self.level_solvers[k] if k < len(self.level_solvers) and level is not None else solver
             hard = (free, hard_norms, hard_A, hard_lower, hard_upper, hard_side)
-            x, side, how, count = self._stage(k, level, x, Z, hard, mu, name, list(carried), fallbacks)
+            eq = None if level is None else level.equality
+            # One SVD of the level's (unit-row) projected equality rows: its null space is the next
+            # levels' Z, and an equality-only level may be solved by its least-squares step alone.
+            eq_svd = None
+            if level is not None and eq.any() and Z.shape[1]:
+                U, sigma, Vt = np.linalg.svd(level.A[eq] @ Z / _row_norms(level.A[eq])[:, None], full_matrices=True)
+                eq_svd = (U, sigma, Vt, int(np.count_nonzero(sigma > self.rank_threshold)))
+            x, side, how, count = self._stage(k, level, x, Z, hard, mu, name, list(carried), fallbacks, eq_svd)
             if level is not None and level.extend is not None:
                 carried.append(level.extend)
             used.append(how)
@@ -278,18 +292,17 @@ class HierarchicalQP:
             if level is None:
                 break
             hard_side = side
-            eq = level.equality
-            if eq.any():
-                AZ = level.A[eq] @ Z
-                Z = Z @ null_space(AZ / _row_norms(level.A[eq])[:, None], self.rank_threshold)
+            if eq_svd is not None:  # = null_space(A_eq Z / ‖rows of A_eq‖), the same SVD
+                Z = Z @ eq_svd[2][eq_svd[3]:].T
+            elif eq.any():
+                Z = Z[:, :0]
             if (~eq).any():
                 A_in, lo, hi = level.A[~eq], level.lower[~eq], level.upper[~eq]
                 value = A_in @ x
                 slack = np.maximum(np.maximum(lo - value, value - hi), 0.0)
                 band = self.hold_tolerance * np.maximum(1.0, np.abs(value))
-                with np.errstate(invalid="ignore"):
-                    row_side = np.where(value >= hi - 1e-12 * np.maximum(1.0, np.abs(value)), 1,
-                                        np.where(value <= lo + 1e-12 * np.maximum(1.0, np.abs(value)), -1, 0))
+                row_side = np.where(value >= hi - 1e-12 * np.maximum(1.0, np.abs(value)), 1,
+                                    np.where(value <= lo + 1e-12 * np.maximum(1.0, np.abs(value)), -1, 0))
                 hard_A = np.vstack([hard_A, A_in])
                 hard_norms = np.concatenate([hard_norms, _row_norms(A_in)])
                 hard_lower = np.concatenate([hard_lower, lo - slack - band])
@@ -312,10 +325,9 @@ class HierarchicalQP:
         keep = projected > tau * reference  # the others are constant over the stage
         offset = np.concatenate([x0[free], held @ x0])[keep]
         scale = projected[keep]
-        with np.errstate(invalid="ignore"):
-            # Never ask more than the previous point achieves (y = 0 stays feasible).
-            c_lower = (np.minimum(hard_lower[keep], offset) - offset) / scale
-            c_upper = (np.maximum(hard_upper[keep], offset) - offset) / scale
+        # Never ask more than the previous point achieves (y = 0 stays feasible).
+        c_lower = (np.minimum(hard_lower[keep], offset) - offset) / scale
+        c_upper = (np.maximum(hard_upper[keep], offset) - offset) / scale
         G_hard = C[keep] / scale[:, None]
         if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)
             return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), G_hard, c_lower, c_upper, np.zeros(r), r,
@@ -345,22 +357,33 @@ class HierarchicalQP:
         soft_scale = np.sqrt(np.einsum("ij,ij->i", soft, soft))
         w0 = np.clip(0.0, value - level.upper[~eq], value - level.lower[~eq])
         G = np.vstack([np.hstack([G_hard, np.zeros((len(G_hard), m_in))]), soft / soft_scale[:, None]])
-        with np.errstate(invalid="ignore"):
-            lower = np.concatenate([c_lower, (level.lower[~eq] - value) / soft_scale])
-            upper = np.concatenate([c_upper, (level.upper[~eq] - value) / soft_scale])
+        lower = np.concatenate([c_lower, (level.lower[~eq] - value) / soft_scale])
+        upper = np.concatenate([c_upper, (level.upper[~eq] - value) / soft_scale])
         return _Stage(np.vstack(blocks), np.concatenate(targets), np.concatenate(scales), G, lower, upper,
                       np.concatenate([np.zeros(r), w0]), r, np.flatnonzero(keep),
                       np.concatenate([hard_side[keep], np.zeros(m_in, dtype=int)]))
 
-    def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks):
+    def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks, eq_svd=None):
         """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard
-        rows at the end, how it was solved, the active-set iterations."""
+        rows at the end, how it was solved, the active-set iterations. ``eq_svd``: the SVD
+        ``(U, σ, Vt, rank)`` of the level's unit-row projected equality rows, if it has some."""
         r = Z.shape[1]
         if r == 0:
             return x0, hard[5].copy(), ACTIVE_SET, 0
         stage = self._build(level, x0, Z, hard, mu)
         _, _, hard_A, hard_lower, hard_upper, hard_side = hard
         key = (k, level is None, stage.G.shape, stage.M.shape)
+        if (eq_svd is not None and name == ACTIVE_SET and mu == 0.0 and level.extend is None and not carried
+                and len(stage.M) == len(eq_svd[0]) and not np.any(stage.lower == stage.upper)):
+            # An equality-only level: if its least-squares step (the EQP point of the empty working
+            # set, from the SVD above) satisfies the bounds and held rows, it is the optimum (KKT
+            # with no multiplier): one check, no active set, no guess.
+            U, sigma, Vt, rank = eq_svd
+            y = scaled_least_squares(U, sigma, Vt, rank, stage.m_scale, stage.t) if rank else np.zeros(r)
+            if feasible(stage.G, stage.lower, stage.upper, y, 1e-10) and self._accept(stage, y):
+                side = np.zeros(len(stage.G), dtype=int)
+                self._working_sets[key] = side
+                return x0 + Z @ y, self._hard_sides(hard_side, stage, side), ACTIVE_SET, 0
         cached = self._working_sets.get(key)
         guess = cached if cached is not None else stage.guess
         what = "the minimum-norm stage" if level is None else f"level {k}"
@@ -409,7 +432,7 @@ class HierarchicalQP:
                 failures.append(f"{path}: {error}")
                 continue
             y = solution.z[:r]
-            if not (np.all(np.isfinite(y)) and self._bounds_hold(stage, y)):
+            if not self._accept(stage, y):
                 failures.append(f"{path}: a point outside the bounds")
                 continue
             self._working_sets[key] = solution.side
@@ -417,21 +440,23 @@ class HierarchicalQP:
             return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
 
+    def _accept(self, stage: _Stage, y: np.ndarray) -> bool:
+        """A path's point is kept if it is finite and inside the bounds."""
+        return bool(np.all(np.isfinite(y))) and self._bounds_hold(stage, y)
+
     def _bounds_hold(self, stage: _Stage, y: np.ndarray) -> bool:
         m_hard = len(stage.hard)
         value = stage.G[:m_hard, :stage.r] @ y
         lo, hi = stage.lower[:m_hard], stage.upper[:m_hard]
         tol = self.feasibility_tolerance
-        with np.errstate(invalid="ignore"):
-            return bool(np.all(value >= lo - tol * np.maximum(1.0, np.abs(lo)))
-                        and np.all(value <= hi + tol * np.maximum(1.0, np.abs(hi))))
+        return bool(np.all(value >= lo - tol * np.maximum(1.0, np.abs(lo)))
+                    and np.all(value <= hi + tol * np.maximum(1.0, np.abs(hi))))
 
     @staticmethod
     def _sides(stage: _Stage, z: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:
         value = stage.G @ z
         near = tolerance * np.maximum(1.0, np.abs(value))
-        with np.errstate(invalid="ignore"):
-            return np.where(value >= stage.upper - near, 1, np.where(value <= stage.lower + near, -1, 0))
+        return np.where(value >= stage.upper - near, 1, np.where(value <= stage.lower + near, -1, 0))
 
     @staticmethod
     def _hard_sides(hard_side: np.ndarray, stage: _Stage, side: np.ndarray) -> np.ndarray:
@@ -446,9 +471,8 @@ class HierarchicalQP:
         m = 0 if level is None else level.A.shape[0]
         extended = carried is not None
         offset = hard_A @ x0
-        with np.errstate(invalid="ignore"):
-            c_lower = np.minimum(hard_lower, offset) - offset
-            c_upper = np.maximum(hard_upper, offset) - offset
+        c_lower = np.minimum(hard_lower, offset) - offset
+        c_upper = np.maximum(hard_upper, offset) - offset
         C = hard_A @ Z
         rows_A, rows_lower, rows_upper = [np.hstack([C, np.zeros((len(C), m))])], [c_lower], [c_upper]
         if level is not None:

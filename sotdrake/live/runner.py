@@ -2,10 +2,11 @@
 
 The loop advances the ``Simulator`` one control tick at a time (``AdvanceTo((k+1)·dt)``, Drake
 pacing it at ``realtime_rate``). At each tick boundary it applies the ``attime`` commands that are
-due, then the queued commands of the :class:`~.server.CommandServer`: while the run is less than
-``max_lag`` seconds behind the wall clock, for as long as it stays so (at least one command per
-tick), so commands use the time the simulator would otherwise sleep and the run keeps real time as
-long as the machine can.
+due, then the queued commands of the :class:`~.server.CommandServer`, for as long as the run stays
+less than ``max_lag`` simulated seconds behind the wall clock (the time the simulator would
+otherwise sleep), and in any case for ``command_share`` of the tick's wall period (3 %, at least
+one command): a flood of commands slows a run that has no slack by 3 % at most, and a run with
+slack not at all.
 
 The run stops on Ctrl-C (SIGINT), SIGTERM, the ``stop()`` command, or after ``duration`` seconds;
 then it writes what the diagram script writes (trace, summary, control graph) and removes its
@@ -56,12 +57,16 @@ class LiveRun:
     returned (its meta tasks and solver get their field names in the vocabulary)."""
 
     def __init__(self, diagram: Diagram, dt: float, handles: object = None, realtime_rate: float = 1.0,
-                 port: int = 0, max_lag: float = 0.004, meshcat_url: str | None = None):
+                 port: int = 0, max_lag: float = 0.004, command_share: float = 0.03,
+                 meshcat_url: str | None = None):
         if not (isinstance(dt, float | int) and dt > 0):
             raise InvalidInput(f"dt must be > 0 s, got {dt!r}")
-        if not (math.isfinite(realtime_rate) and realtime_rate >= 0):
-            raise InvalidInput(f"realtime_rate must be finite and ≥ 0 (0: as fast as possible), got {realtime_rate!r}")
+        if not (math.isfinite(realtime_rate) and realtime_rate > 0):
+            raise InvalidInput(f"realtime_rate must be finite and > 0, got {realtime_rate!r}")
+        if not 0 <= command_share < 1:
+            raise InvalidInput(f"command_share must be in [0, 1), got {command_share!r}")
         self.diagram, self.dt, self.rate, self.max_lag = diagram, float(dt), float(realtime_rate), max_lag
+        self.command_share = command_share
         self.simulator = Simulator(diagram)
         self.simulator.set_target_realtime_rate(self.rate)
         self.vocabulary = Vocabulary(diagram, handles)
@@ -157,8 +162,8 @@ class LiveRun:
         wall = time.monotonic()
         lag = (wall - self._wall0) * self.rate - (now - self._t0)  # simulated seconds behind
         self._max_lag_ticks = max(self._max_lag_ticks, math.floor(lag / self.dt + 1e-9))
-        budget = (self.max_lag - lag) / self.rate
-        self.server.process(context, wall + max(budget, 0.0), minimum=1)
+        budget = max((self.max_lag - lag) / self.rate, self.command_share * self.dt / self.rate)
+        self.server.process(context, wall + budget, minimum=1)
 
 
 def _pid() -> int:

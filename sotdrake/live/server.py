@@ -1,17 +1,18 @@
 """The command server inside a live run: TCP on 127.0.0.1, a token, a bounded queue.
 
 Threads: one accepts connections (at most ``max_connections`` at a time); each connection has a
-reader and a writer. The reader checks the token (first line, within ``auth_timeout`` s), then for
-each line parses it (:func:`~.grammar.parse_command`) and checks it against the vocabulary
-(:meth:`~.vocabulary.Vocabulary.prepare`): anything rejected there is answered at once and never
-reaches the simulation. A prepared command goes into one bounded queue (``queue_size``); when the
-queue is full the reader waits (so a flooding client is slowed down by TCP itself) and after
-``busy_timeout`` s answers ``busy``. The writer sends the answers; a client that does not read its
-answers is dropped once ``max_unsent`` of them are waiting.
+reader and a writer. The reader checks the token (first line, within ``auth_timeout`` s), then cuts
+the stream into lines (at most 64 KiB: a longer one is answered at once and skipped) and puts them
+in one bounded queue (``queue_size``); when the queue is full the reader waits, so a flooding client
+is slowed down by TCP itself, and after ``busy_timeout`` s answers ``busy``. The writer sends the
+answers; a client that does not read them is dropped once ``max_unsent`` are waiting.
 
-The simulation thread calls :meth:`CommandServer.process` at tick boundaries: it applies queued
-commands to the context, in arrival order, until its deadline (at least ``minimum`` per call), and
-answers each ``ok`` (or the value asked for) or the error the API raised.
+The simulation thread calls :meth:`CommandServer.process` at tick boundaries: for each queued line,
+in arrival order, until its deadline (at least ``minimum`` per call), it parses the line
+(:func:`~.grammar.parse_command`), checks it against the allow-list
+(:meth:`~.vocabulary.Vocabulary.prepare`) and applies it to the context, and answers ``ok`` (or the
+value asked for) or why it was refused: the grammar's, the allow-list's or the API's error. All the
+work a command costs is thus done within the time the runner grants it.
 """
 
 from __future__ import annotations
@@ -146,7 +147,7 @@ class CommandServer:
         if host not in ("127.0.0.1", "::1", "localhost"):
             raise SotError(f"the command server listens on the loopback only, not {host!r}")
         self.vocabulary, self.token = vocabulary, token
-        self.queue: queue.Queue[tuple[_Client, int, Prepared]] = queue.Queue(maxsize=queue_size)
+        self.queue: queue.Queue[tuple[_Client, int, bytes]] = queue.Queue(maxsize=queue_size)
         self.max_connections, self.auth_timeout = max_connections, auth_timeout
         self.busy_timeout, self.max_unsent = busy_timeout, max_unsent
         self.counts = ServerCounts()
@@ -187,41 +188,48 @@ class CommandServer:
             setattr(self.counts, field, getattr(self.counts, field) + 1)
 
     def _handle_line(self, client: _Client, ident: int, line: bytes | LineTooLong) -> None:
+        """Queue the line for the simulation thread (waiting while the queue is full); a line too
+        long is answered here, without queueing."""
         self._count("received")
-        try:
-            if isinstance(line, LineTooLong):
-                raise SotError(f"line too long: more than {MAX_LINE} bytes; skipped")
-            try:
-                text = line.decode("utf-8")
-            except UnicodeDecodeError:
-                raise SotError("not UTF-8 text") from None
-            prepared = self.vocabulary.prepare(parse_command(text))
-        except SotError as error:
+        if isinstance(line, LineTooLong):
             self._count("rejected")
-            client.send(answer(ident, False, str(error)))
+            client.send(answer(ident, False, f"line too long: more than {MAX_LINE} bytes; skipped"))
             return
         client.queued()
         try:
-            self.queue.put((client, ident, prepared), timeout=self.busy_timeout)
+            self.queue.put((client, ident, line), timeout=self.busy_timeout)
         except queue.Full:
             self._count("rejected")
             client.send(answer(ident, False, f"busy: {self.queue.maxsize} commands waiting; rejected"), queued=True)
 
     # --- simulation thread -----------------------------------------------------------------
     def process(self, context: Context, deadline: float, minimum: int = 1) -> int:
-        """Apply queued commands to ``context`` until ``time.monotonic() ≥ deadline`` (at least
-        ``minimum`` if queued); returns how many were applied."""
+        """Read, check and apply queued commands to ``context`` until ``time.monotonic() ≥
+        deadline`` (at least ``minimum`` if queued); returns how many were handled. All the work
+        of a command (parsing included) is done here, so the caller's deadline bounds it."""
         done = 0
         while done < minimum or time.monotonic() < deadline:
             try:
-                client, ident, prepared = self.queue.get_nowait()
+                client, ident, line = self.queue.get_nowait()
             except queue.Empty:
                 break
             done += 1
-            ok, text = apply(prepared, context)
+            ok, text = self.handle(line, context)
             self._count("accepted" if ok else "rejected")
             client.send(answer(ident, ok, text), queued=True)
         return done
+
+    def handle(self, line: bytes, context: Context) -> tuple[bool, str]:
+        """One command line: ``(True, answer)`` or ``(False, why it was refused)``."""
+        try:
+            text = line.decode("utf-8")
+        except UnicodeDecodeError:
+            return False, "not UTF-8 text"
+        try:
+            prepared = self.vocabulary.prepare(parse_command(text))
+        except SotError as error:
+            return False, str(error)
+        return apply(prepared, context)
 
     def close(self) -> None:
         try:

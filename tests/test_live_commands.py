@@ -234,3 +234,35 @@ def test_server_token_framing_and_answers(vocabulary, context, appli):
             assert server.counts == ServerCounts(received=5, accepted=2, rejected=3)
     finally:
         server.close()
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered")
+def test_a_run_broken_by_a_valid_command_stops_and_writes_its_files(tmp_path, appli):
+    """A command can be valid and still drive the robot somewhere absurd: the run stops at the
+    failing tick, writes the trace and summary, and ``run_live`` raises."""
+    import json
+    import threading
+
+    from sotdrake.live.runner import run_live
+
+    out = tmp_path / "out"
+    answers = []
+
+    def poke():
+        while not (out / "live.json").exists():
+            time.sleep(0.01)
+        with Client(out / "live.json") as client:
+            answers.append(client.command("sot.push('taskrh')"))
+            answers.append(client.command("gotoNd(taskRH, (1e300, 0, 0), '111', 1000)"))
+
+    os.environ["XDG_RUNTIME_DIR"] = str(tmp_path)
+    try:
+        threading.Thread(target=poke, daemon=True).start()
+        with pytest.raises(SotError, match="non-finite"):
+            run_live(appli, out, duration=20.0)
+    finally:
+        del os.environ["XDG_RUNTIME_DIR"]
+    assert [a["ok"] for a in answers] == [True, True]
+    summary = json.loads((out / "summary.json").read_text())
+    assert "non-finite" in summary["live"]["error"] and summary["duration_s"] < 20.0
+    assert (out / "trace.npz").is_file() and not (out / "live.json").exists()

@@ -8,9 +8,10 @@ otherwise sleep), and in any case for ``command_share`` of the tick's wall perio
 one command): a flood of commands slows a run that has no slack by 3 % at most, and a run with
 slack not at all.
 
-The run stops on Ctrl-C (SIGINT), SIGTERM, the ``stop()`` command, or after ``duration`` seconds;
+The run stops on Ctrl-C (SIGINT), SIGTERM, the ``stop()`` command, after ``duration`` seconds, or
+when the simulation raises (a command may be valid and still drive the robot somewhere absurd);
 then it writes what the diagram script writes (trace, summary, control graph) and removes its
-connection file.
+connection file; :func:`run_live` then raises if the simulation failed.
 
 Figures (``status()``): ``t`` (simulated s), ``wall`` (s since the loop started), ``ticks``,
 ``lag_ticks`` (ticks the run is behind the wall clock now, ``⌊wall·rate/dt⌋ - ticks``),
@@ -34,7 +35,7 @@ from pathlib import Path
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, Diagram
 
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, SotError
 from .connection import Connection, default_path, new_token, remove_connection, write_connection
 from .server import CommandServer, apply
 from .vocabulary import Param, Prepared, Vocabulary
@@ -84,6 +85,7 @@ class LiveRun:
         self._t0 = 0.0
         self._max_lag_ticks = 0
         self.connection_files: list[Path] = []
+        self.error: str | None = None  # why the simulation stopped, if it failed
 
     @property
     def context(self) -> Context:
@@ -142,7 +144,12 @@ class LiveRun:
                 next_time = self._t0 + (self._ticks + 1) * self.dt
                 if end is not None and next_time > end + 1e-9:
                     break
-                simulator.AdvanceTo(next_time)
+                try:
+                    simulator.AdvanceTo(next_time)
+                except (SotError, RuntimeError, ValueError) as error:  # e.g. a command drove q to NaN
+                    self.error = f"{type(error).__name__}: {error}"
+                    log.error("live: the simulation stopped at t = %.4f s: %s", context.get_time(), self.error)
+                    break
                 self._ticks += 1
                 self._boundary(context)
         finally:
@@ -197,17 +204,26 @@ def run_live(handles: object, out: Path, meshcat=None, duration: float | None = 
     simulator = live.simulator
     simulated = simulator.get_context().get_time()
     print(f"sotdrake live: stopped at t = {simulated:.3f} s after {wall:.1f} s; writing {out}", file=sys.stderr, flush=True)
+    summary, trace = None, None
     if summarize is not None:
-        summary, trace = summarize(handles, simulator, simulated, wall)
-    else:
+        try:
+            summary, trace = summarize(handles, simulator, simulated, wall)
+        except (SotError, RuntimeError, ValueError) as error:
+            if live.error is None:
+                raise
+            log.warning("live: the script's summary failed after the failure (%s); writing the trace only", error)
+    if summary is None:
         tracer = getattr(handles, "tracer", None)
         trace = tracer.data(simulator.get_context()) if tracer is not None else None
         summary = {"duration_s": simulated, "wall_s": wall, "realtime_factor": simulated / wall if wall else None}
     summary["live"] = json.loads(live.status())
-    if write is not None:
+    summary["live"]["error"] = live.error
+    if write is not None and live.error is None:
         write(out, summary, trace)
     else:
         write_run(out, diagram, summary, trace)
+    if live.error is not None:
+        raise SotError(f"the live run failed at t = {simulated:.4f} s (files written in {out}): {live.error}")
     return summary
 
 

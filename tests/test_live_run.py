@@ -217,19 +217,30 @@ def test_ctrl_c_stops_and_writes_the_run(live):
 
 def test_any_script_runs_live(tmp_path):
     """``python -m sotdrake.live <script>``: a script that only exposes ``build_diagram`` (and
-    ``summarize``) runs live; with ``--duration`` it stops by itself and writes its files."""
+    ``summarize``) runs live; ``stop()`` ends it, and it writes its files."""
     out = tmp_path / "out"
     env = dict(os.environ, PYTHONPATH=str(ROOT), XDG_RUNTIME_DIR=str(tmp_path))
-    result = subprocess.run(
-        [sys.executable, "-m", "sotdrake.live", str(ROOT / "diagrams" / "kinesimple.py"), "--out", str(out),
-         "--duration", "0.3", "--no-meshcat"],
-        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
-    assert result.returncode == 0, result.stderr
-    assert "commands: sotdrake-shell --connection" in result.stderr and "meshcat:" not in result.stderr
+    with open(tmp_path / "log", "w") as log:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "sotdrake.live", str(ROOT / "diagrams" / "kinesimple.py"), "--out", str(out),
+             "--no-meshcat"], cwd=tmp_path, env=env, stdout=log, stderr=subprocess.STDOUT)
+    try:
+        deadline = time.monotonic() + 120
+        while not (tmp_path / "sotdrake" / "live.json").exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        default = tmp_path / "sotdrake" / "live.json"  # the shell's default: the latest run of this user
+        result = subprocess.run([sys.executable, "-m", "sotdrake.live.shell", "sot.stack()", "stop()"], cwd=ROOT,
+                                env=env, capture_output=True, text=True, timeout=60)
+        assert result.returncode == 0, result.stderr
+        assert result.stdout.split("\n")[:2] == ["['tasklw']", "ok: stopping"]
+        assert process.wait(120) == 0
+    finally:
+        process.kill()
+    text = (tmp_path / "log").read_text()
+    assert "commands: sotdrake-shell --connection" in text and "meshcat:" not in text
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["live"]["ticks"] == 300 and summary["hand_error_m"] < summary["hand_initial_error_m"]
-    assert (out / "trace.npz").is_file() and not (out / "live.json").exists()
-    assert not (tmp_path / "sotdrake" / "live.json").exists()  # the per-user default is removed too
+    assert summary["live"]["ticks"] > 0 and summary["live"]["accepted"] == 2
+    assert (out / "trace.npz").is_file() and not (out / "live.json").exists() and not default.exists()
 
 
 def test_the_shell_is_an_entry_point():

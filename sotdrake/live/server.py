@@ -56,6 +56,7 @@ class _Client:
         self._lock = threading.Lock()
         self._in_flight = 0  # commands queued for the simulation, not answered yet
         self._reading = True
+        self.writer: threading.Thread | None = None
 
     def send(self, data: bytes, queued: bool = False) -> None:
         """Queue an answer (``queued``: the answer to a command that was in the simulation queue)."""
@@ -176,7 +177,8 @@ class CommandServer:
                 finally:
                     sock.close()
                 continue
-            threading.Thread(target=client.write_loop, name="live-write", daemon=True).start()
+            client.writer = threading.Thread(target=client.write_loop, name="live-write", daemon=True)
+            client.writer.start()
             threading.Thread(target=client.read_loop, name="live-read", daemon=True).start()
 
     def _forget(self, client: _Client) -> None:
@@ -231,7 +233,9 @@ class CommandServer:
             return False, str(error)
         return apply(prepared, context)
 
-    def close(self) -> None:
+    def close(self, flush: float = 1.0) -> None:
+        """Stop listening; send the answers already due (for up to ``flush`` s), then drop every
+        connection."""
         try:
             self._listener.close()
         except OSError:
@@ -239,6 +243,14 @@ class CommandServer:
         with self._lock:
             clients = list(self._clients)
         for client in clients:
+            try:
+                client.outgoing.put_nowait(None)
+            except queue.Full:
+                pass
+        deadline = time.monotonic() + flush
+        for client in clients:
+            if client.writer is not None:
+                client.writer.join(max(0.0, deadline - time.monotonic()))
             client.close()
 
 

@@ -24,6 +24,7 @@ import heapq
 import json
 import logging
 import math
+import os
 import signal
 import sys
 import threading
@@ -38,7 +39,7 @@ from pydrake.systems.framework import Context, Diagram
 from ..exceptions import InvalidInput, SotError
 from .connection import Connection, default_path, new_token, remove_connection, write_connection
 from .server import CommandServer, apply
-from .vocabulary import Param, Prepared, Vocabulary
+from .vocabulary import Prepared, Vocabulary
 
 log = logging.getLogger("sotdrake.live")
 
@@ -76,7 +77,7 @@ class LiveRun:
         self.vocabulary.add_function("stop", (), lambda c: self.stop(), "stop the run (writes its files)")
         self.server = CommandServer(self.vocabulary, new_token(), port=port)
         self.connection = Connection(self.server.host, self.server.port, self.server.token,
-                                     _pid(), meshcat_url)
+                                     os.getpid(), meshcat_url)
         self._stop = threading.Event()
         self._scheduled: list[_Scheduled] = []
         self._order = 0
@@ -171,12 +172,6 @@ class LiveRun:
         self._max_lag_ticks = max(self._max_lag_ticks, math.floor(lag / self.dt + 1e-9))
         budget = max((self.max_lag - lag) / self.rate, self.command_share * self.dt / self.rate)
         self.server.process(context, wall + budget, minimum=1)
-
-
-def _pid() -> int:
-    import os
-
-    return os.getpid()
 
 
 def run_live(handles: object, out: Path, meshcat=None, duration: float | None = None, port: int = 0,

@@ -45,7 +45,7 @@ from pydrake.systems.framework import Context, Diagram, System
 from .. import introspection
 from ..exceptions import CommandRejected, NotFound
 from ..features import Feature, Feature6d, Feature6dDesired, FeatureGenericDesired
-from ..gains import GainAdaptive, GainHyperbolic, _Gain
+from ..gains import GainAdaptive, GainHyperbolic
 from ..meta_tasks import MetaTaskKine6d, MetaTaskKineCom, _MetaTask, gotoNd
 from ..solvers import SOT
 from ..task import TaskInequality, TaskPD
@@ -180,7 +180,7 @@ class Vocabulary:
         if isinstance(system, SOT):
             self._solver = self._solver or system
             methods.update(_solver_methods(system))
-        if isinstance(system, _Gain):
+        if isinstance(system, (GainAdaptive, GainHyperbolic)):
             methods["setConstant"] = Method((Param("gain", "number"),), lambda c, g, s=system: s.setConstant(g, c))
         if isinstance(system, GainAdaptive):
             methods["set"] = Method(tuple(Param(n, "number") for n in ("gain0", "gain_inf", "slope")),

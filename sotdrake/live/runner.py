@@ -133,7 +133,9 @@ class LiveRun:
         """Run until stopped (or ``duration`` s of simulated time); returns the wall time (s)."""
         if duration is not None and not duration > 0:
             raise InvalidInput(f"duration must be > 0 s or None, got {duration!r}")
-        previous = {s: signal.signal(s, lambda *_: self._stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+        previous = {}
+        if threading.current_thread() is threading.main_thread():  # signals reach the main thread only
+            previous = {s: signal.signal(s, lambda *_: self._stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
         simulator, context = self.simulator, self.context
         try:
             simulator.Initialize()

@@ -108,6 +108,8 @@ def test_commands_apply_through_the_api(vocabulary, context, appli):
     desired = appli.taskRH.featureDes.settings(context).position.translation()
     np.testing.assert_allclose(desired, [0.4, -0.3, 0.9])
     assert appli.taskRH.gain.settings(context).coefficients(0.0) == pytest.approx(4.9)
+    a, b, c = (float(x.split("=")[1]) for x in run(vocabulary, context, "gainrh.coefficients()").strip(")").split(", "))
+    assert (a, c) == (4.0, 0.9) and b == pytest.approx(-np.log(0.9) / 0.01)  # setByPoint(4.9, 0.9, 0.01, 0.9)
     run(vocabulary, context, "taskRH.gain.setConstant(2)")
     assert appli.taskRH.gain.settings(context).coefficients(1.0) == 2.0
     run(vocabulary, context, "gainrh.set(4, 1, 5)")

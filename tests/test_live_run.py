@@ -23,7 +23,7 @@ from sotdrake.live.burst import measure_burst
 from sotdrake.live.shell import Client
 
 ROOT = Path(__file__).resolve().parents[1]
-RATE = 0.5
+RATE = 0.25
 BURST = 10_000
 
 
@@ -128,8 +128,10 @@ def test_gotoNd_changes_the_target(live):
     assert np.linalg.norm(live.vector("signal(featurerh, 'error')")) < 0.2 * error0  # λ = 5 /s: e^-2.5 ≈ 0.08
 
 
-def _snapshot(live) -> tuple[str, str, str]:
-    return live.ask("sot.stack()"), live.ask("signal(gainrh, 'gain')"), live.ask("signal(featurerh_ref, 'position')")
+def _snapshot(live) -> tuple[str, ...]:
+    """The settings hostile commands aim at."""
+    return tuple(live.ask(text) for text in ("sot.stack()", "sot.contacts()", "gainrh.coefficients()",
+                                             "signal(featurerh_ref, 'position')", "signal(featurecom_ref, 'errorIN')"))
 
 
 HOSTILE = [
@@ -139,7 +141,7 @@ HOSTILE = [
     "sot.push.__globals__",
     "nobody.push('taskrh')",
     "sot.eval('1')",
-    "sot.push('taskrh')",            # a duplicate: the API's error
+    "sot.push('taskcom')",           # a duplicate: the API's error
     "sot.push(42)",
     "gainrh.setConstant('fast')",
     "gainrh.setConstant(-3)",

@@ -4,9 +4,9 @@ The loop advances the ``Simulator`` one control tick at a time (``AdvanceTo((k+1
 pacing it at ``realtime_rate``). At each tick boundary it applies the ``attime`` commands that are
 due, then the queued commands of the :class:`~.server.CommandServer`, for as long as the run stays
 less than ``max_lag`` simulated seconds behind the wall clock (the time the simulator would
-otherwise sleep), and in any case for ``command_share`` of the tick's wall period (3 %, at least
-one command): a flood of commands slows a run that has no slack by 3 % at most, and a run with
-slack not at all.
+otherwise sleep), and beyond that within a credit of ``command_share`` (3 %) of the wall time that
+passes: a command that overdraws the credit is paid back over the next ticks, so a flood of
+commands slows a run that has no slack by 3 % at most on average, and a run with slack not at all.
 
 The run stops on Ctrl-C (SIGINT), SIGTERM, the ``stop()`` command, after ``duration`` seconds, or
 when the simulation raises (a command may be valid and still drive the robot somewhere absurd);
@@ -85,6 +85,8 @@ class LiveRun:
         self._wall0 = time.monotonic()
         self._t0 = 0.0
         self._max_lag_ticks = 0
+        self._credit = 0.0  # wall seconds commands may still take beyond the slack
+        self._last_wall = time.monotonic()
         self.connection_files: list[Path] = []
         self.error: str | None = None  # why the simulation stopped, if it failed
 
@@ -142,7 +144,7 @@ class LiveRun:
             self._t0 = context.get_time()
             end = None if duration is None else self._t0 + duration
             simulator.ResetStatistics()
-            self._wall0 = time.monotonic()
+            self._wall0 = self._last_wall = time.monotonic()
             while not self._stop.is_set():
                 next_time = self._t0 + (self._ticks + 1) * self.dt
                 if end is not None and next_time > end + 1e-9:
@@ -172,8 +174,14 @@ class LiveRun:
         wall = time.monotonic()
         lag = (wall - self._wall0) * self.rate - (now - self._t0)  # simulated seconds behind
         self._max_lag_ticks = max(self._max_lag_ticks, math.floor(lag / self.dt + 1e-9))
-        budget = max((self.max_lag - lag) / self.rate, self.command_share * self.dt / self.rate)
-        self.server.process(context, wall + budget, minimum=1)
+        slack = max((self.max_lag - lag) / self.rate, 0.0)  # wall seconds the pacing would sleep
+        # Beyond the slack, commands earn command_share of the wall time that passes (kept up to 5 ms).
+        self._credit = min(self._credit + self.command_share * (wall - self._last_wall), 0.005)
+        self._last_wall = wall
+        if slack + self._credit <= 0:
+            return
+        self.server.process(context, wall + slack + max(self._credit, 0.0), minimum=1)
+        self._credit -= max(0.0, time.monotonic() - wall - slack)  # may go negative: paid back later
 
 
 def run_live(handles: object, out: Path, meshcat=None, duration: float | None = None, port: int = 0,

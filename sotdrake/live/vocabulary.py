@@ -18,8 +18,8 @@ object is ever reached by a name coming from a command:
 | kind | methods |
 | --- | --- |
 | ``SOT``, ``SolverKine`` | ``push``, ``pop``, ``remove``, ``up``, ``down``, ``clear``, ``addContact``, ``rmContact``, ``stack``, ``contacts``, ``setThreshold``, ``setDamping`` |
-| ``GainAdaptive`` | ``setConstant``, ``set(λ0, λ∞, slope)``, ``setByPoint(λ0, λ∞, e_ref, p)`` |
-| ``GainHyperbolic`` | ``setConstant``, ``set(λ0, λ∞, tanAt0, decal0)`` |
+| ``GainAdaptive`` | ``setConstant``, ``set(λ0, λ∞, slope)``, ``setByPoint(λ0, λ∞, e_ref, p)``, ``coefficients`` |
+| ``GainHyperbolic`` | ``setConstant``, ``set(λ0, λ∞, tanAt0, decal0)``, ``coefficients`` |
 | features | ``selec(mask)``; ``Feature6d`` also ``frame('desired' \\| 'current')`` |
 | ``Feature6dDesired`` | ``setPosition(p)``, ``setVelocity(v)`` |
 | ``FeatureGenericDesired`` | ``setReference(s)``, ``setVelocity(v)`` |
@@ -182,6 +182,8 @@ class Vocabulary:
             methods.update(_solver_methods(system))
         if isinstance(system, (GainAdaptive, GainHyperbolic)):
             methods["setConstant"] = Method((Param("gain", "number"),), lambda c, g, s=system: s.setConstant(g, c))
+            methods["coefficients"] = Method((), lambda c, s=system: repr(s.settings(c).coefficients),
+                                             "the gain's coefficients (a, b, c[, d])")
         if isinstance(system, GainAdaptive):
             methods["set"] = Method(tuple(Param(n, "number") for n in ("gain0", "gain_inf", "slope")),
                                     lambda c, *v, s=system: s.set(*v, context=c))

@@ -144,7 +144,7 @@ class CommandServer:
 
     def __init__(self, vocabulary: Vocabulary, token: str, host: str = HOST, port: int = 0,
                  queue_size: int = 1024, max_connections: int = 8, auth_timeout: float = 5.0,
-                 busy_timeout: float = 2.0, max_unsent: int = 20_000):
+                 busy_timeout: float = 30.0, max_unsent: int = 20_000):
         if host not in ("127.0.0.1", "::1", "localhost"):
             raise SotError(f"the command server listens on the loopback only, not {host!r}")
         self.vocabulary, self.token = vocabulary, token

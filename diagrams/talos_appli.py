@@ -9,12 +9,17 @@ by ``opmodif`` (0.1, 0, 0)) is pushed with ``gotoNd(taskRH, (0.5, -0.2, 1.0), '1
     python diagrams/talos_appli.py --duration 8 --out out/appli
 
 writes ``recording.html`` (Meshcat), ``trace.npz``, ``plots.png``, ``control_graph.svg`` and
-``summary.json`` in the output directory.
+``summary.json`` in the output directory. Live, steered from another terminal::
+
+    python diagrams/talos_appli.py --live --no-push     # then: sotdrake-shell "sot.push('taskrh')"
+
+runs at real-time rate until Ctrl-C, then writes the same files (no recording: Meshcat is live).
 """
 
 from __future__ import annotations
 
 import json
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,6 +43,7 @@ from sotdrake import (
     write_run,
 )
 from sotdrake import simulate as run_simulation
+from sotdrake.live import add_live_arguments, live_meshcat, run_live
 
 TARGET = (0.5, -0.2, 1.0)
 HAND_OFFSET = (0.1, 0.0, 0.0)
@@ -62,13 +68,14 @@ class Appli:
 def build_diagram(
     meshcat: Meshcat | None = None,
     target=TARGET,
-    push_time: float = 1.0,
+    push_time: float | None = 1.0,
     dt: float = 1e-3,
     variant: str = "reduced",
     solver: str = "cascade",
 ) -> Appli:
     """The tutorial's control graph; with ``meshcat``, TALOS and the target are drawn there.
-    ``solver``: ``'cascade'`` (sot-core ``SOT``) or ``'hqp'`` (``SolverKine``, joint limits hard)."""
+    ``solver``: ``'cascade'`` (sot-core ``SOT``) or ``'hqp'`` (``SolverKine``, joint limits hard).
+    ``push_time=None``: the hand task is not pushed (push it live: ``sot.push('taskrh')``)."""
     builder = DiagramBuilder()
     robot = talos(builder, variant, dt)
 
@@ -106,7 +113,8 @@ def build_diagram(
 
     # --- the hand: target set now, task pushed at push_time (the tutorial's "moving the hand")
     gotoNd(taskRH, target, "111", (4.9, 0.9, 0.01, 0.9))
-    attime(push_time, lambda: sot.push(taskRH.task.name), "push taskrh: move the right hand")
+    if push_time is not None:
+        attime(push_time, lambda: sot.push(taskRH.task.name), "push taskrh: move the right hand")
 
     # --- tracer: q at every tick, the task errors
     tracer = Tracer(builder, dt)
@@ -217,10 +225,16 @@ def main(argv: list[str] | None = None) -> dict:
     parser = script_arguments(__doc__, "out/appli")
     parser.add_argument("--solver", choices=["cascade", "hqp"], default="cascade",
                         help="basic SOT (pseudo-inverse cascade) or SolverKine (hierarchical QP, joint limits)")
+    parser.add_argument("--no-push", action="store_true", help="do not push the hand task at t = 1 s")
+    add_live_arguments(parser)
     args = parser.parse_args(argv)
+    push_time = None if args.no_push else 1.0
+    if args.live:
+        return main_live(args, push_time)
+    args.duration = 8.0 if args.duration is None else args.duration
     meshcat = start(args)
     args.out.mkdir(parents=True, exist_ok=True)
-    appli = build_diagram(meshcat, solver=args.solver)
+    appli = build_diagram(meshcat, push_time=push_time, solver=args.solver)
     simulator, wall = simulate(appli, args.duration, progress=not args.quiet)
     summary, trace = summarize(appli, simulator, args.duration, wall)
 
@@ -228,6 +242,22 @@ def main(argv: list[str] | None = None) -> dict:
     write_run(args.out, appli.diagram, summary, trace, meshcat, appli.visualizer)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
+
+
+def main_live(args, push_time: float | None) -> dict:
+    """``--live``: real-time rate until Ctrl-C (or ``--duration``), then the trace, plots, graph
+    and summary (no recording: Meshcat is live)."""
+    if args.duration is not None and not args.duration > 0:
+        raise SystemExit(f"--duration must be > 0, got {args.duration}")
+    logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
+    meshcat = None if args.no_meshcat else live_meshcat(args.meshcat_port)
+    appli = build_diagram(meshcat, push_time=push_time, solver=args.solver)
+
+    def write(out: Path, summary: dict, trace: dict) -> None:
+        plot(trace, appli.target, out / "plots.png")
+        write_run(out, appli.diagram, summary, trace)
+
+    return run_live(appli, args.out, meshcat, args.duration, args.port, args.rate, summarize, write)
 
 
 if __name__ == "__main__":

@@ -68,6 +68,11 @@ class RobotDescriptionError(SotError, ValueError):
     """A robot description (URDF) Drake would reject or abort on; the message names the joint."""
 
 
+class CommandRejected(InvalidInput):
+    """A live command the grammar or the allow-list refuses (not a call, a name that is not
+    offered, an argument of the wrong kind). Nothing is applied."""
+
+
 class SolverError(SotError):
     """The solver met a non-finite Jacobian or reference; the message names the task."""
 

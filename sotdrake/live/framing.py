@@ -1,0 +1,67 @@
+"""The wire format of the command channel: UTF-8 lines, at most :data:`MAX_LINE` bytes each.
+
+Client → server: the first line is ``token <hex>``, then one command per line. Server → client: one
+JSON object per line, ``{"id": k, "ok": true, "answer": "..."}`` or ``{"id": k, "ok": false,
+"error": "..."}``, where ``k`` counts the client's lines after the token (1, 2, …); answers to
+rejected lines may overtake answers to accepted ones, so the client matches them by ``id``.
+
+:class:`LineReader` never holds more than ``MAX_LINE`` bytes plus one ``recv``: a longer line is
+reported as too long and skipped up to its end, as it arrives.
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+from collections.abc import Iterator
+
+#: Longest line accepted, newline included (bytes).
+MAX_LINE = 64 * 1024
+_RECV = 16 * 1024
+
+
+class LineTooLong(Exception):
+    """Stands for a line that was longer than ``MAX_LINE`` bytes (already skipped)."""
+
+
+class LineReader:
+    """Lines from a socket, each at most ``limit`` bytes; too long ones yield :class:`LineTooLong`."""
+
+    def __init__(self, sock: socket.socket, limit: int = MAX_LINE):
+        self.sock, self.limit = sock, limit
+        self._buffer = bytearray()
+        self._skipping = False
+
+    def lines(self) -> Iterator[bytes | LineTooLong]:
+        """Yield each line (without its newline) until the peer closes the connection."""
+        while True:
+            chunk = self.sock.recv(_RECV)
+            if not chunk:
+                return
+            if self._skipping:
+                end = chunk.find(b"\n")
+                if end < 0:
+                    continue
+                self._skipping = False
+                chunk = chunk[end + 1 :]
+            self._buffer += chunk
+            while True:
+                end = self._buffer.find(b"\n")
+                if end < 0:
+                    break
+                line = bytes(self._buffer[:end])
+                del self._buffer[: end + 1]
+                yield LineTooLong() if end + 1 > self.limit else line
+            if len(self._buffer) >= self.limit:
+                self._buffer.clear()
+                self._skipping = True
+                yield LineTooLong()
+
+
+def answer(ident: int, ok: bool, text: str) -> bytes:
+    """One answer line."""
+    return (json.dumps({"id": ident, "ok": ok, ("answer" if ok else "error"): text}) + "\n").encode()
+
+
+def decode_answer(line: bytes) -> dict:
+    return json.loads(line)

@@ -1,0 +1,378 @@
+"""What a live command may call: an explicit allow-list per kind of entity, over the public API.
+
+A :class:`Vocabulary` is built once from a diagram and its handles (the object ``build_diagram``
+returns). Its targets are looked up by name in plain dictionaries; no attribute of any Python
+object is ever reached by a name coming from a command:
+
+* every system of the diagram, under its own name (``sot``, ``gainrh``, ``featurerh``,
+  ``featurerh_ref``, ``taskrh``, ``device`` …), with the methods of its kind (table below) plus the
+  read-only ``displaySignals()`` and ``signal('port')``;
+* every field of the handles that is a solver or an entity, under the field's name (``sot``);
+* every meta task of the handles under its field name (``taskRH``, ``taskCom``, ``contactLF``) with
+  ``keep()``, ``gotoNd(position, selec, gain)`` and ``selec(mask)``, and its parts as
+  ``taskRH.gain``, ``taskRH.feature``, ``taskRH.featureDes``, ``taskRH.task``;
+* the functions ``gotoNd(task, position, selec, gain)``, ``displaySignals(entity)``,
+  ``signal(entity, 'port')``, ``entities()``, ``stack()``, ``attime(T, command)``, ``time()`` and
+  ``help()``, plus those the live runner adds (``status()``, ``stop()``).
+
+| kind | methods |
+| --- | --- |
+| ``SOT``, ``SolverKine`` | ``push``, ``pop``, ``remove``, ``up``, ``down``, ``clear``, ``addContact``, ``rmContact``, ``stack``, ``contacts``, ``setThreshold``, ``setDamping`` |
+| ``GainAdaptive`` | ``setConstant``, ``set(λ0, λ∞, slope)``, ``setByPoint(λ0, λ∞, e_ref, p)``, ``coefficients`` |
+| ``GainHyperbolic`` | ``setConstant``, ``set(λ0, λ∞, tanAt0, decal0)``, ``coefficients`` |
+| features | ``selec(mask)``; ``Feature6d`` also ``frame('desired' \\| 'current')`` |
+| ``Feature6dDesired`` | ``setPosition(p)``, ``setVelocity(v)`` |
+| ``FeatureGenericDesired`` | ``setReference(s)``, ``setVelocity(v)`` |
+| ``TaskInequality`` / ``TaskPD`` | ``setBounds(lower, upper)`` / ``setBeta(β)`` |
+
+:meth:`Vocabulary.prepare` turns a parsed :class:`~.grammar.Command` into a :class:`Prepared`
+command: target and method found, every argument checked against its declared kind (number,
+numbers, vector, text, task, entity …). Nothing touches a context until the prepared command is
+called with one, at a tick boundary; the API then applies it on a copy of the settings and stores
+it only on success, so a rejected command changes nothing.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from pydrake.systems.framework import Context, Diagram, System
+
+from .. import introspection
+from ..exceptions import CommandRejected, NotFound
+from ..features import Feature, Feature6d, Feature6dDesired, FeatureGenericDesired
+from ..gains import GainAdaptive, GainHyperbolic
+from ..meta_tasks import MetaTaskKine6d, MetaTaskKineCom, _MetaTask, gotoNd
+from ..solvers import SOT
+from ..task import TaskInequality, TaskPD
+from .grammar import Command, EntityRef
+
+_REQUIRED = object()
+
+#: Longest vector argument (numbers), e.g. a posture of a bigger robot.
+MAX_VECTOR = 256
+
+
+@dataclass(frozen=True)
+class Param:
+    """One argument: ``kind`` is one of :data:`KINDS`; ``default`` makes it optional."""
+
+    name: str
+    kind: str
+    default: Any = _REQUIRED
+
+
+@dataclass(frozen=True)
+class Method:
+    """An allowed method: ``apply(context, *values)`` returns the answer (``None``: ``'ok'``)."""
+
+    params: tuple[Param, ...]
+    apply: Callable[..., Any]
+    doc: str = ""
+
+    def signature(self, callee: str) -> str:
+        shown = [p.name if p.default is _REQUIRED else f"{p.name}={p.default!r}" for p in self.params]
+        return f"{callee}({', '.join(shown)})"
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """A checked command, ready to be applied to a context at a tick boundary."""
+
+    command: Command
+    method: Method
+    values: tuple
+
+    def __call__(self, context: Context) -> str:
+        answer = self.method.apply(context, *self.values)
+        return "ok" if answer is None else answer if isinstance(answer, str) else _text(answer)
+
+    def __str__(self) -> str:
+        return str(self.command)
+
+
+def _text(value) -> str:
+    """An answer's text: arrays in full (to 6 digits), transforms as 4×4 matrices."""
+    if hasattr(value, "GetAsMatrix4"):
+        value = value.GetAsMatrix4()
+    if isinstance(value, np.ndarray):
+        return np.array2string(value, precision=6, suppress_small=True, max_line_width=200, threshold=100_000)
+    return repr(value)
+
+
+def _number(value, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise CommandRejected(f"{what}: expected a number, got {_kind(value)}")
+    number = float(value)  # an int too large for a float raises OverflowError, caught below
+    if not math.isfinite(number):
+        raise CommandRejected(f"{what}: expected a finite number, got {value!r}")
+    return number
+
+
+def _kind(value) -> str:
+    if isinstance(value, EntityRef):
+        return f"the name {value.name}"
+    if isinstance(value, Command):
+        return f"the command {value}"
+    return f"{type(value).__name__} {value!r:.40}"
+
+
+def _vector(value, what: str) -> np.ndarray:
+    if not isinstance(value, tuple):
+        raise CommandRejected(f"{what}: expected a tuple of numbers such as (0.5, -0.2, 1.0), got {_kind(value)}")
+
+    def flat(v, depth=0):
+        if isinstance(v, tuple) and depth < 2:
+            for item in v:
+                yield from flat(item, depth + 1)
+        else:
+            yield v
+
+    numbers = [_number(x, what) for x in flat(value)]
+    if len(numbers) > MAX_VECTOR:
+        raise CommandRejected(f"{what}: at most {MAX_VECTOR} numbers, got {len(numbers)}")
+    rows = [len(r) if isinstance(r, tuple) else None for r in value]
+    if all(r is None for r in rows):
+        return np.array(numbers)
+    if any(r is None for r in rows) or len(set(rows)) != 1:
+        raise CommandRejected(f"{what}: a matrix needs rows of equal length, got {value!r:.80}")
+    return np.array(numbers).reshape(len(rows), rows[0])
+
+
+class Vocabulary:
+    """The allow-list of one diagram: targets (name → methods) and the entities names refer to."""
+
+    def __init__(self, diagram: Diagram, handles: object = None):
+        self.diagram = diagram
+        self._methods: dict[str, dict[str, Method]] = {"": {}}
+        self._objects: dict[str, object] = {}
+        self._solver: SOT | None = None
+        self._pending_attime: Callable[[float, Prepared], str] | None = None
+        for system in diagram.GetSystems():
+            self._add_system(system.get_name(), system)
+        for name, value in _fields(handles):
+            if isinstance(value, _MetaTask):
+                self._add_meta_task(name, value)
+            elif isinstance(value, System) and value.get_name() in self._objects and name not in self._methods:
+                self._add_system(name, value)
+        self._add_functions()
+
+    # --- construction ----------------------------------------------------------------------
+    def add_function(self, name: str, params: tuple[Param, ...], apply: Callable[..., Any], doc: str = "") -> None:
+        """Offer ``name(...)`` (e.g. the runner's ``status()``); ``apply(context, *values)``."""
+        self._methods[""][name] = Method(params, apply, doc)
+
+    def set_scheduler(self, schedule: Callable[[float, Prepared], str]) -> None:
+        """Where ``attime(T, command)`` hands its prepared command (the live runner)."""
+        self._pending_attime = schedule
+
+    def _add_system(self, name: str, system: System) -> None:
+        methods: dict[str, Method] = {
+            "displaySignals": Method((), lambda c, s=system: introspection.signals_report(s, c),
+                                     "the entity's signals and their values"),
+            "signal": Method((Param("port", "text"),), lambda c, p, s=system: introspection.signal(s, p, c),
+                             "one port's value"),
+        }
+        if isinstance(system, SOT):
+            self._solver = self._solver or system
+            methods.update(_solver_methods(system))
+        if isinstance(system, (GainAdaptive, GainHyperbolic)):
+            methods["setConstant"] = Method((Param("gain", "number"),), lambda c, g, s=system: s.setConstant(g, c))
+            methods["coefficients"] = Method((), lambda c, s=system: repr(s.settings(c).coefficients),
+                                             "the gain's coefficients (a, b, c[, d])")
+        if isinstance(system, GainAdaptive):
+            methods["set"] = Method(tuple(Param(n, "number") for n in ("gain0", "gain_inf", "slope")),
+                                    lambda c, *v, s=system: s.set(*v, context=c))
+            methods["setByPoint"] = Method(tuple(Param(n, "number") for n in ("gain0", "gain_inf", "error_ref", "fraction")),
+                                           lambda c, *v, s=system: s.setByPoint(*v, context=c))
+        if isinstance(system, GainHyperbolic):
+            methods["set"] = Method(tuple(Param(n, "number") for n in ("gain0", "gain_inf", "tan_at0", "decal0")),
+                                    lambda c, *v, s=system: s.set(*v, context=c))
+        if isinstance(system, Feature):
+            methods["selec"] = Method((Param("mask", "text"),), lambda c, m, s=system: s.selec(m, c))
+        if isinstance(system, Feature6d):
+            methods["frame"] = Method((Param("which", "text"),), lambda c, w, s=system: s.frame(w, c))
+        if isinstance(system, Feature6dDesired):
+            methods["setPosition"] = Method((Param("position", "vector"),), lambda c, p, s=system: s.setPosition(p, c))
+            methods["setVelocity"] = Method((Param("velocity", "vector"),), lambda c, v, s=system: s.setVelocity(v, c))
+        if isinstance(system, FeatureGenericDesired):
+            methods["setReference"] = Method((Param("value", "vector"),), lambda c, v, s=system: s.setReference(v, c))
+            methods["setVelocity"] = Method((Param("velocity", "vector"),), lambda c, v, s=system: s.setVelocity(v, c))
+        if isinstance(system, TaskInequality):
+            methods["setBounds"] = Method((Param("lower", "vector"), Param("upper", "vector")),
+                                          lambda c, lo, up, s=system: s.setBounds(lo, up, c))
+        if isinstance(system, TaskPD):
+            methods["setBeta"] = Method((Param("beta", "number"),), lambda c, b, s=system: s.setBeta(b, c))
+        self._methods[name] = methods
+        self._objects[name] = system
+
+    def _add_meta_task(self, name: str, meta: _MetaTask) -> None:
+        methods = {
+            "selec": Method((Param("mask", "text"),), lambda c, m: meta.feature.selec(m, c)),
+        }
+        if hasattr(type(meta), "keep"):
+            methods["keep"] = Method((), lambda c: meta.keep(c), "desired value ← current value")
+        if isinstance(meta, (MetaTaskKine6d, MetaTaskKineCom)):
+            methods["gotoNd"] = Method(_GOTO_PARAMS[1:], lambda c, *v: gotoNd(meta, *v, context=c))
+        self._methods[name] = methods
+        self._objects[name] = meta
+        for part in ("gain", "feature", "featureDes", "task"):
+            system = getattr(meta, part, None)  # fixed names from this list, never from a command
+            if isinstance(system, System) and system.get_name() in self._methods:
+                self._methods[f"{name}.{part}"] = self._methods[system.get_name()]
+                self._objects[f"{name}.{part}"] = system
+
+    def _add_functions(self) -> None:
+        add = self.add_function
+        add("gotoNd", _GOTO_PARAMS, lambda c, meta, *v: gotoNd(meta, *v, context=c),
+            "drive a task to a position (1, 3 or 4 gain numbers)")
+        add("displaySignals", (Param("entity", "entity"),), lambda c, e: introspection.signals_report(e, c))
+        add("signal", (Param("entity", "entity"), Param("port", "text")), lambda c, e, p: introspection.signal(e, p, c))
+        add("entities", (), lambda c: ", ".join(introspection.entities(self.diagram)), "the diagram's systems")
+        if self._solver is not None:
+            solver = self._solver
+            add("stack", (), lambda c: repr(solver.stack(c)), f"{solver.name}'s stack, highest priority first")
+        add("attime", (Param("time", "time"), Param("command", "command")), self._attime,
+            "apply a command when the simulated time reaches T (s)")
+        add("time", (), lambda c: f"{c.get_time():.4f}", "the simulated time (s)")
+        add("help", (), lambda c: self.help(), "this list")
+
+    def _attime(self, context: Context, time: float, prepared: Prepared) -> str:
+        if self._pending_attime is None:
+            raise CommandRejected("attime: no scheduler in this run")
+        if time < context.get_time():
+            raise CommandRejected(f"attime: T = {time} s is in the past (t = {context.get_time():.4f} s)")
+        return self._pending_attime(time, prepared)
+
+    # --- use -------------------------------------------------------------------------------
+    @property
+    def targets(self) -> list[str]:
+        return [name for name in self._methods if name]
+
+    def help(self) -> str:
+        lines = [m.signature(name) for name, m in self._methods[""].items()]
+        for target, methods in self._methods.items():
+            if target:
+                lines.append(f"{target}: {', '.join(methods)}")
+        return "\n".join(lines)
+
+    def prepare(self, command: Command) -> Prepared:
+        """Check ``command`` against the allow-list and convert its arguments; no context needed."""
+        if command.target not in self._methods:
+            raise NotFound(command.target, self.targets)
+        methods = self._methods[command.target]
+        if command.method not in methods:
+            what = f"method of {command.target}" if command.target else "function"
+            raise CommandRejected(
+                f"{command.callee}: not an allowed {what}; allowed: {', '.join(sorted(methods))}"
+            )
+        method = methods[command.method]
+        callee = command.callee
+        params = method.params
+        if len(command.args) > len(params):
+            raise CommandRejected(f"{callee} takes at most {len(params)} arguments: {method.signature(callee)}")
+        given: dict[str, Any] = {p.name: a for p, a in zip(params, command.args)}
+        names = [p.name for p in params]
+        for key, value in command.kwargs:
+            if key not in names:
+                raise CommandRejected(f"{callee}: no argument {key!r}: {method.signature(callee)}")
+            if key in given:
+                raise CommandRejected(f"{callee}: argument {key!r} given twice")
+            given[key] = value
+        values = []
+        for p in params:
+            if p.name not in given:
+                if p.default is _REQUIRED:
+                    raise CommandRejected(f"{callee}: missing argument {p.name!r}: {method.signature(callee)}")
+                values.append(p.default)
+                continue
+            value = given[p.name]
+            if value is None and p.default is None:
+                values.append(None)
+                continue
+            values.append(self._convert(value, p, callee))
+        return Prepared(command, method, tuple(values))
+
+    def _convert(self, value, param: Param, callee: str):
+        what = f"{callee}: argument {param.name!r}"
+        kind = param.kind
+        try:
+            if kind == "number":
+                return _number(value, what)
+            if kind == "time":
+                time = _number(value, what)
+                if time < 0:
+                    raise CommandRejected(f"{what}: a time ≥ 0 (s), got {time}")
+                return time
+            if kind == "numbers":
+                if isinstance(value, tuple):
+                    return tuple(_number(x, what) for x in value)
+                return _number(value, what)
+            if kind == "vector":
+                return _vector(value, what)
+            if kind == "text":
+                if not isinstance(value, str):
+                    raise CommandRejected(f"{what}: expected a string, got {_kind(value)}")
+                return value
+            if kind == "task":
+                if isinstance(value, str):
+                    return value
+                if isinstance(value, EntityRef) and value.name in self._objects:
+                    task = self._objects[value.name]
+                    task = getattr(task, "task", task) if isinstance(task, _MetaTask) else task
+                    return task.get_name() if isinstance(task, System) else value.name
+                raise CommandRejected(f"{what}: expected a task name such as 'taskrh' or a task, got {_kind(value)}")
+            if kind == "meta":
+                if isinstance(value, EntityRef) and isinstance(self._objects.get(value.name), _MetaTask):
+                    return self._objects[value.name]
+                metas = [n for n, o in self._objects.items() if isinstance(o, _MetaTask)]
+                raise CommandRejected(f"{what}: expected a meta task ({', '.join(metas)}), got {_kind(value)}")
+            if kind == "entity":
+                name = value.name if isinstance(value, EntityRef) else value
+                if isinstance(name, str) and isinstance(self._objects.get(name), System):
+                    return self._objects[name]
+                raise CommandRejected(f"{what}: expected an entity such as sot, got {_kind(value)}")
+            if kind == "command":
+                if not isinstance(value, Command):
+                    raise CommandRejected(f"{what}: expected a command such as sot.push('taskrh'), got {_kind(value)}")
+                if value.target == "" and value.method == "attime":
+                    raise CommandRejected(f"{what}: attime cannot be nested")
+                return self.prepare(value)
+        except OverflowError:
+            raise CommandRejected(f"{what}: number out of range") from None
+        raise CommandRejected(f"{what}: unknown kind {kind!r}")  # pragma: no cover - a table typo
+
+
+_GOTO_PARAMS = (Param("task", "meta"), Param("position", "vector"), Param("selec", "text", None),
+                Param("gain", "numbers", None))
+
+
+def _solver_methods(solver: SOT) -> dict[str, Method]:
+    task = (Param("task", "task"),)
+    return {
+        "push": Method(task, lambda c, n: solver.push(n, c), "append at the lowest priority"),
+        "pop": Method((), lambda c: solver.pop(c), "remove the lowest-priority task"),
+        "remove": Method(task, lambda c, n: solver.remove(n, c)),
+        "up": Method(task, lambda c, n: solver.up(n, c)),
+        "down": Method(task, lambda c, n: solver.down(n, c)),
+        "clear": Method((), lambda c: solver.clear(c), "empty the stack (contacts stay)"),
+        "addContact": Method(task, lambda c, n: solver.addContact(n, c)),
+        "rmContact": Method(task, lambda c, n: solver.rmContact(n, c)),
+        "stack": Method((), lambda c: repr(solver.stack(c))),
+        "contacts": Method((), lambda c: repr(solver.contacts(c))),
+        "setThreshold": Method((Param("svd_threshold", "number"),), lambda c, x: solver.setThreshold(x, c)),
+        "setDamping": Method((Param("damping", "number"),), lambda c, x: solver.setDamping(x, c)),
+    }
+
+
+def _fields(handles: object) -> list[tuple[str, object]]:
+    """The public fields of the handles object (a dataclass or any object with ``__dict__``)."""
+    if handles is None:
+        return []
+    fields = getattr(handles, "__dataclass_fields__", None)
+    names = list(fields) if fields is not None else list(getattr(handles, "__dict__", {}))
+    return [(n, getattr(handles, n)) for n in names if not n.startswith("_") and n.isidentifier()]

@@ -66,8 +66,8 @@ def test_local_sweep_keeps_failures_as_rows(tmp_path):
     # Undamped: the energy stays near its initial ½ω² (semi-implicit Euler keeps it to O(ω dt)).
     undamped = ok[(2.0, 0.0)]
     assert undamped["energy.kinetic"] + undamped["energy.potential"] == pytest.approx(2.0, rel=5e-3)
-    # Critically damped after 2 s at ω = 8: x = (1 + ωt) e^{-ωt} ≈ 1.9e-6 (Euler within 20 %).
-    assert ok[(8.0, 1.0)]["x_final"] == pytest.approx(17 * math.exp(-16), rel=0.2)
+    # Critically damped after 2 s at ω = 8: x = (1 + ωt) e^{-ωt} ≈ 1.9e-6 (Euler within 30 %).
+    assert ok[(8.0, 1.0)]["x_final"] == pytest.approx(17 * math.exp(-16), rel=0.3)
     paths = result.write(tmp_path)
     table = read_csv(paths["csv"])
     assert list(table[0])[:5] == ["case", "omega", "zeta", "status", "error"]

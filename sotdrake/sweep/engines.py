@@ -125,6 +125,27 @@ def _runner(function: CaseFunction) -> Callable[[int, Mapping], dict]:
     return run
 
 
+def _module_to_ship(function: CaseFunction) -> types.ModuleType | None:
+    """The module of ``function`` (under any ``functools.partial``) when workers may not be able
+    to import it: not ``__main__`` (already pickled by value), not ``sotdrake`` (shipped), not an
+    installed package or the standard library."""
+    import functools
+    import sysconfig
+
+    while isinstance(function, functools.partial):
+        function = function.func
+    module = sys.modules.get(getattr(function, "__module__", None) or "")
+    if module is None or module.__name__ == "__main__" or module.__name__.split(".")[0] == "sotdrake":
+        return None
+    file = getattr(module, "__file__", None)
+    if file is None:
+        return None
+    installed = {sysconfig.get_paths()[key] for key in ("stdlib", "platstdlib", "purelib", "platlib")}
+    if any(Path(file).resolve().is_relative_to(Path(root).resolve()) for root in installed):
+        return None
+    return module
+
+
 def _start_ray(ray, address: str | None, num_cpus: int | None) -> bool:
     """Connect to ``address`` or start a local runtime; True when this call started it."""
     if ray.is_initialized():
@@ -153,8 +174,8 @@ def run_ray(function: CaseFunction, cases: Sequence[Mapping], address: str | Non
     from ray import cloudpickle
 
     modules = list(by_value)
-    module = sys.modules.get(getattr(function, "__module__", None) or "")
-    if module is not None and module.__name__ != "__main__" and not module.__name__.startswith("sotdrake"):
+    module = _module_to_ship(function)
+    if module is not None:
         modules.append(module)
     for m in modules:
         cloudpickle.register_pickle_by_value(m)

@@ -58,8 +58,11 @@ class Physics:
     visualizer: object = None
 
 
-def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0,
-                  meshcat: Meshcat | None = None, dt: float = 1e-3) -> Physics:
+def build_diagram(scenario: str = "stand", loop: str = "open", push=0.0,
+                  meshcat: Meshcat | None = None, dt: float = 1e-3,
+                  push_start: float = 2.0, push_duration: float = 0.1) -> Physics:
+    """``push``: a force on the torso (N, world) during ``[push_start, push_start + push_duration)``,
+    a number (along +x) or a 3-vector; 0: no push."""
     if scenario not in ("stand", "reach") or loop not in ("open", "closed"):
         raise ValueError(f"scenario is 'stand' or 'reach', loop 'open' or 'closed'; got {scenario!r}, {loop!r}")
     builder = DiagramBuilder()
@@ -92,8 +95,9 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0
     builder.Connect(feedforward.get_output_port(), plant.get_actuation_input_port(physical.instance))
     monitor = robot.add(ContactMonitor(physical))
     builder.Connect(plant.get_contact_results_output_port(), monitor.get_input_port())
-    if push:
-        pusher = robot.add(Push(plant, "torso_2_link", [push, 0.0, 0.0], start=2.0, duration=0.1))
+    force = np.array([push, 0.0, 0.0]) if np.ndim(push) == 0 else np.asarray(push, dtype=float)
+    if np.any(force):
+        pusher = robot.add(Push(plant, "torso_2_link", force, start=push_start, duration=push_duration))
         builder.Connect(pusher.get_output_port(), plant.get_applied_spatial_force_input_port())
 
     tracer = Tracer(builder, dt)

@@ -6,8 +6,11 @@ ground contact, open loop) pushed on the torso over a grid of magnitude × direc
 Each case: the push (``torso_2_link``'s origin, horizontal, N) starts at ``--push-start``
 (default 0.3 s) and lasts the case's duration; the run lasts ``--duration`` seconds (default 2 s,
 1 ms steps). Direction 0° pushes along +x (forward), 90° along +y (to the robot's left). A case
-*falls* when the base drops more than 0.1 m below its start (standing, it moves by about 1 mm);
-its base displacement is the largest horizontal distance of the base from its start (m).
+*falls* when the base drops more than 0.1 m below its start (standing, it moves by about 1 mm) or
+tilts more than 30° from upright (the angle between the base's z axis and the vertical); its base
+displacement is the largest horizontal distance of the base from its start (m). Only the soles
+collide with the ground: once fallen, the body sinks through it, so a fall's numbers after the
+fall (drop, contact forces) mean nothing beyond "it fell".
 
     python diagrams/push_map.py --magnitudes 150,300,600 --directions 4 --push-durations 0.1,0.3 \\
         --engine ray --out out/push_map
@@ -34,6 +37,7 @@ from sotdrake.simulation import script_arguments, simulate, write_run  # noqa: E
 from sotdrake.sweep import add_sweep_arguments, engine_options, grid, run_sweep  # noqa: E402
 
 FALL_DROP_M = 0.1
+FALL_TILT_DEG = 30.0
 TIMING = ("wall_s", "realtime_factor")
 
 
@@ -41,6 +45,14 @@ def push_force(magnitude: float, direction_deg: float) -> np.ndarray:
     """The horizontal force (N, world): ``magnitude`` along ``(cos θ, sin θ, 0)``."""
     angle = np.radians(direction_deg)
     return magnitude * np.array([np.cos(angle), np.sin(angle), 0.0])
+
+
+def base_tilt_deg(q: np.ndarray) -> np.ndarray:
+    """Tilt (deg) of the floating base at each row of ``q`` (Drake's ``(qw, qx, qy, qz, x, y, z,
+    …)``): the angle between the base's z axis and the world's, ``arccos(1 − 2(qx² + qy²))`` for a
+    unit quaternion."""
+    quaternion = q[:, :4] / np.linalg.norm(q[:, :4], axis=1, keepdims=True)
+    return np.degrees(np.arccos(np.clip(1 - 2 * (quaternion[:, 1] ** 2 + quaternion[:, 2] ** 2), -1, 1)))
 
 
 def push_case(case: dict, duration: float = 2.0, push_start: float = 0.3) -> dict:
@@ -52,10 +64,11 @@ def push_case(case: dict, duration: float = 2.0, push_start: float = 0.3) -> dic
     run = talos_physics.build_diagram("stand", "open", push_force(magnitude, case["direction_deg"]),
                                       push_start=push_start, push_duration=push_duration)
     simulator, wall = simulate(run.diagram, duration, None, progress=False)
-    summary, _ = talos_physics.summarize(run, simulator, duration, wall)
+    summary, trace = talos_physics.summarize(run, simulator, duration, wall)
     for key in TIMING + ("hand_error_m", "hand_initial_error_m", "scenario"):
         summary.pop(key, None)
-    summary["fell"] = bool(summary["base_height_drop_m"] > FALL_DROP_M)
+    summary["max_base_tilt_deg"] = float(base_tilt_deg(trace["x_plant"]).max())
+    summary["fell"] = bool(summary["base_height_drop_m"] > FALL_DROP_M or summary["max_base_tilt_deg"] > FALL_TILT_DEG)
     summary["impulse_ns"] = magnitude * push_duration
     return summary
 
@@ -115,7 +128,8 @@ def main(argv: list[str] | None = None) -> dict:
     cases = grid({"magnitude_n": args.magnitudes,
                   "direction_deg": [360.0 * k / args.directions for k in range(args.directions)],
                   "push_duration_s": args.push_durations})
-    settings = {"duration_s": args.duration, "push_start_s": args.push_start, "fall_drop_m": FALL_DROP_M}
+    settings = {"duration_s": args.duration, "push_start_s": args.push_start, "fall_drop_m": FALL_DROP_M,
+                "fall_tilt_deg": FALL_TILT_DEG}
     result = run_sweep(partial(push_case, duration=args.duration, push_start=args.push_start), cases,
                        progress=not args.quiet, label="pushes", settings=settings, by_value=[talos_physics],
                        **engine_options(args))

@@ -54,14 +54,23 @@ def test_reach_map_script_writes_the_table_and_holds_the_limits(reach_map, tmp_p
     assert json.loads((tmp_path / "reach_map.json").read_text())["settings"]["ticks_per_case"] == 20
 
 
-def test_push_direction_and_fall_detection(push_map):
+def test_push_direction_and_base_tilt(push_map):
     assert push_map.push_force(200.0, 90.0) == pytest.approx([0.0, 200.0, 0.0], abs=1e-12)
+    half = np.sqrt(0.5)  # base turned by 40° about x, then by 90° about z (which keeps the tilt)
+    q = np.array([[1, 0, 0, 0], [np.cos(np.radians(20)), np.sin(np.radians(20)), 0, 0],
+                  [np.cos(np.radians(20)) * half, np.sin(np.radians(20)) * half, np.sin(np.radians(20)) * half,
+                   np.cos(np.radians(20)) * half]])
+    assert push_map.base_tilt_deg(q) == pytest.approx([0, 40, 40], abs=1e-9)
+
+
+def test_gentle_push_absorbed_strong_push_falls(push_map):
     cases = [{"magnitude_n": 50.0, "direction_deg": 0.0, "push_duration_s": 0.05},
              {"magnitude_n": 600.0, "direction_deg": 0.0, "push_duration_s": 0.2},
              {"magnitude_n": -1.0, "direction_deg": 0.0, "push_duration_s": 0.2}]
     result = run_sweep(lambda case: push_map.push_case(case, duration=0.6, push_start=0.1), cases, progress=False)
     gentle, strong, bad = result.rows
     assert not gentle["fell"] and gentle["base_height_drop_m"] < 0.01 and gentle["base_drift_m"] < 0.02
+    assert gentle["max_base_tilt_deg"] < 2
     # 120 N s on 90 kg: about 1.3 m/s, far more than standing feet can take.
     assert strong["fell"] and strong["base_drift_m"] > 0.2
     assert bad["status"] == "error" and "magnitude_n" in bad["error"]

@@ -34,7 +34,7 @@ import talos_physics  # noqa: E402
 
 from sotdrake.exceptions import InvalidInput  # noqa: E402
 from sotdrake.simulation import script_arguments, simulate, write_run  # noqa: E402
-from sotdrake.sweep import add_sweep_arguments, engine_options, grid, run_sweep  # noqa: E402
+from sotdrake.sweep import EngineUnavailable, add_sweep_arguments, engine_options, grid, run_sweep  # noqa: E402
 
 FALL_DROP_M = 0.1
 FALL_TILT_DEG = 30.0
@@ -130,9 +130,12 @@ def main(argv: list[str] | None = None) -> dict:
                   "push_duration_s": args.push_durations})
     settings = {"duration_s": args.duration, "push_start_s": args.push_start, "fall_drop_m": FALL_DROP_M,
                 "fall_tilt_deg": FALL_TILT_DEG}
-    result = run_sweep(partial(push_case, duration=args.duration, push_start=args.push_start), cases,
-                       progress=not args.quiet, label="pushes", settings=settings, by_value=[talos_physics],
-                       **engine_options(args))
+    try:
+        result = run_sweep(partial(push_case, duration=args.duration, push_start=args.push_start), cases,
+                           progress=not args.quiet, label="pushes", settings=settings, by_value=[talos_physics],
+                           **engine_options(args))
+    except EngineUnavailable as error:
+        raise SystemExit(str(error)) from error
     paths = result.write(args.out, "push_map")
     plot(result.rows, args.out / "plots.png")
     ok = [r for r in result.rows if r["status"] == "ok"]

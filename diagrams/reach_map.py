@@ -40,7 +40,7 @@ from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd, hold_feet_and_com
 from sotdrake.robot import Robot, add_sot, talos
 from sotdrake.simulation import script_arguments, write_run
 from sotdrake.solvers import SOT
-from sotdrake.sweep import add_sweep_arguments, engine_options, grid, random_cases, run_sweep
+from sotdrake.sweep import EngineUnavailable, add_sweep_arguments, engine_options, grid, random_cases, run_sweep
 from sotdrake.tracing import Tracer
 
 HAND_OFFSET = (0.1, 0.0, 0.0)
@@ -219,8 +219,11 @@ def main(argv: list[str] | None = None) -> dict:
     settings = {"duration_s": args.duration, "dt_s": args.dt, "ticks_per_case": round(args.duration / args.dt),
                 "hand_gain": HAND_GAIN, "hand_damping": HAND_DAMPING, "sampling": args.sampling,
                 "seed": args.seed, "box_m": BOX}
-    result = run_sweep(partial(reach_case, duration=args.duration, dt=args.dt), cases, progress=not args.quiet,
-                       label="reach targets", settings=settings, **engine_options(args))
+    try:
+        result = run_sweep(partial(reach_case, duration=args.duration, dt=args.dt), cases, progress=not args.quiet,
+                           label="reach targets", settings=settings, **engine_options(args))
+    except EngineUnavailable as error:
+        raise SystemExit(str(error)) from error
     paths = result.write(args.out, "reach_map")
     plot(result.rows, args.out / "plots.png")
     ok = [r for r in result.rows if r["status"] == "ok"]

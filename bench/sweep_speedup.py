@@ -31,11 +31,16 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--targets", type=int, default=1000)
     parser.add_argument("--out", type=Path, default=Path("out/sweep_bench"))
     parser.add_argument("--result", type=Path, default=HERE / "results" / "sweep.json")
+    parser.add_argument("--engines", default="local,ray",
+                        help="engines to run now; the others are read from an earlier run's --out")
     args = parser.parse_args(argv)
     runs = {}
     for engine in ("local", "ray"):
         out = args.out / engine
-        summary = reach_map.main(["--targets", str(args.targets), "--engine", engine, "--out", str(out), "--quiet"])
+        if engine in args.engines.split(","):
+            summary = reach_map.main(["--targets", str(args.targets), "--engine", engine, "--out", str(out), "--quiet"])
+        else:
+            summary = json.loads((out / "summary.json").read_text())
         runs[engine] = {key: summary[key] for key in ("wall_s", "workers", "errors", "reached_within_1cm",
                                                       "load_average_before", "load_average_after")}
     local_csv = (args.out / "local" / "reach_map.csv").read_bytes()

@@ -40,7 +40,8 @@ from sotdrake.meta_tasks import MetaTaskKine6d, gotoNd, hold_feet_and_com
 from sotdrake.robot import Robot, add_sot, talos
 from sotdrake.simulation import script_arguments, write_run
 from sotdrake.solvers import SOT
-from sotdrake.sweep import EngineUnavailable, add_sweep_arguments, engine_options, grid, random_cases, run_sweep
+from sotdrake.sweep import (EngineUnavailable, add_sweep_arguments, engine_options, grid, per_process,
+                            random_cases, run_sweep)
 from sotdrake.tracing import Tracer
 
 HAND_OFFSET = (0.1, 0.0, 0.0)
@@ -124,15 +125,10 @@ def summarize(reach: Reach, simulator: Simulator, target) -> dict:
     }
 
 
-# One diagram per process (per Ray worker): a pure cache, every case gets a fresh context.
-_DIAGRAMS: dict[tuple[float, str], Reach] = {}
-
-
 def reach_case(case: dict, duration: float = 1.0, dt: float = 0.02, variant: str = "reduced") -> dict:
     """The sweep's case function: ``case = {'x', 'y', 'z'}`` (m) → the case's summary."""
-    reach = _DIAGRAMS.get((dt, variant))
-    if reach is None:
-        reach = _DIAGRAMS[(dt, variant)] = build_diagram(dt, variant)
+    # One diagram per process (per Ray worker): a pure cache, every case gets a fresh context.
+    reach = per_process(("reach_map", dt, variant), lambda: build_diagram(dt, variant))
     target = (case["x"], case["y"], case["z"])
     simulator = simulate_target(reach, target, duration)
     return summarize(reach, simulator, target)

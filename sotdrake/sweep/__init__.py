@@ -9,10 +9,11 @@ random sample of parameters, in this process or on Ray, gathered into one table.
 from .arguments import add_sweep_arguments, engine_options
 from .cases import Case, grid, random_cases
 from .engines import ENGINES, EngineUnavailable, SweepResult, run_case, run_local, run_ray, run_sweep
+from .per_process import per_process
 from .table import flatten, make_row, read_csv, write_csv, write_parquet
 
 __all__ = [
     "Case", "ENGINES", "EngineUnavailable", "SweepResult", "add_sweep_arguments", "engine_options", "flatten",
-    "grid", "make_row", "random_cases", "read_csv", "run_case", "run_local", "run_ray", "run_sweep", "write_csv",
+    "grid", "make_row", "per_process", "random_cases", "read_csv", "run_case", "run_local", "run_ray", "run_sweep", "write_csv",
     "write_parquet",
 ]

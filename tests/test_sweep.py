@@ -2,18 +2,23 @@
 
 import math
 import sys
+import threading
 
 import numpy as np
 import pytest
 
 from sotdrake.exceptions import InvalidInput
-from sotdrake.sweep import EngineUnavailable, grid, random_cases, read_csv, run_sweep, write_csv
+from sotdrake.sweep import EngineUnavailable, grid, per_process, random_cases, read_csv, run_sweep, write_csv
 
 
 def damped_oscillator(case: dict) -> dict:
     """A cheap case: x'' = -ω² x - 2ζω x' from x = 1 (semi-implicit Euler, 2000 steps); fails on
     a negative damping ratio, as a case function with bad parameters would."""
     omega, zeta = case["omega"], case["zeta"]
+    # Something built once per process and not picklable, as a Drake diagram is: a Ray run after a
+    # local one in the same process must not try to ship it.
+    with per_process("test_sweep.lock", threading.Lock):
+        pass
     if zeta < 0:
         raise ValueError(f"zeta must be ≥ 0, got {zeta}")
     x, v, dt, peak = 1.0, 0.0, 1e-3, 0.0

@@ -4,8 +4,8 @@ the SoT holds feet and CoM, PD actuators track its references on a discrete ``Mu
 ground contact, open loop) pushed on the torso over a grid of magnitude × direction × duration.
 
 Each case: the push (``torso_2_link``'s origin, horizontal, N) starts at ``--push-start``
-(default 0.3 s) and lasts the case's duration; the run lasts ``--duration`` seconds (default 2 s,
-1 ms steps). Direction 0° pushes along +x (forward), 90° along +y (to the robot's left). A case
+(default 0.3 s) and lasts the case's duration; the run lasts ``--duration`` seconds (default 3 s,
+1 ms steps: a push that tips TALOS may take more than 2 s to floor it). Direction 0° pushes along +x (forward), 90° along +y (to the robot's left). A case
 *falls* when the base drops more than 0.1 m below its start (standing, it moves by about 1 mm) or
 tilts more than 30° from upright (the angle between the base's z axis and the vertical); its base
 displacement is the largest horizontal distance of the base from its start (m). Only the soles
@@ -55,7 +55,7 @@ def base_tilt_deg(q: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(1 - 2 * (quaternion[:, 1] ** 2 + quaternion[:, 2] ** 2), -1, 1)))
 
 
-def push_case(case: dict, duration: float = 2.0, push_start: float = 0.3) -> dict:
+def push_case(case: dict, duration: float = 3.0, push_start: float = 0.3) -> dict:
     """The sweep's case function: ``case = {'magnitude_n', 'direction_deg', 'push_duration_s'}``
     → the stand scenario's summary with ``fell`` and the push's impulse."""
     magnitude, push_duration = case["magnitude_n"], case["push_duration_s"]
@@ -115,7 +115,7 @@ def plot(rows: list[dict], path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/push_map", duration=2.0)
+    parser = script_arguments(__doc__, "out/push_map", duration=3.0)
     parser.add_argument("--magnitudes", type=numbers, default=[150.0, 300.0, 600.0], help="forces (N), comma-separated")
     parser.add_argument("--directions", type=int, default=4, help="number of directions, evenly spaced from 0°")
     parser.add_argument("--push-durations", type=numbers, default=[0.1, 0.3], help="push durations (s), comma-separated")

@@ -60,13 +60,18 @@ class Physics:
     taskCom: MetaTaskKineCom | None = None
 
 
-def build_diagram(scenario: str = "stand", loop: str = "open", push: float = 0.0,
-                  meshcat: Meshcat | None = None, dt: float = 1e-3) -> Physics:
+def build_diagram(scenario: str = "stand", loop: str = "open", push=0.0,
+                  meshcat: Meshcat | None = None, dt: float = 1e-3,
+                  push_start: float = 2.0, push_duration: float = 0.1) -> Physics:
+    """``push``: a force on the torso (N, world) during ``[push_start, push_start + push_duration)``,
+    a number (along +x) or a 3-vector; 0: no push."""
     if scenario not in ("stand", "reach") or loop not in ("open", "closed"):
         raise ValueError(f"scenario is 'stand' or 'reach', loop 'open' or 'closed'; got {scenario!r}, {loop!r}")
     builder = DiagramBuilder()
     model = load_talos("reduced")
-    station = add_talos_station(builder, model.half_sitting, dt, push_force=[push, 0.0, 0.0] if push else None)
+    force = np.array([push, 0.0, 0.0]) if np.ndim(push) == 0 else np.asarray(push, dtype=float)
+    station = add_talos_station(builder, model.half_sitting, dt, push_force=force if np.any(force) else None,
+                                push_start=push_start, push_duration=push_duration)
     physical, plant = station.physical, station.physical.plant
     measured = None
     if loop == "closed":  # measured joints, base by leg odometry (see KinematicBaseEstimator)

@@ -1,0 +1,160 @@
+#!/usr/bin/env python3
+"""Push-recovery map: the physics stand scenario (``diagrams/talos_physics.py --scenario stand``:
+the SoT holds feet and CoM, PD actuators track its references on a discrete ``MultibodyPlant`` with
+ground contact, open loop) pushed on the torso over a grid of magnitude × direction × duration.
+
+Each case: the push (``torso_2_link``'s origin, horizontal, N) starts at ``--push-start``
+(default 0.3 s) and lasts the case's duration; the run lasts ``--duration`` seconds (default 3 s,
+1 ms steps: a push that tips TALOS may take more than 2 s to floor it). Direction 0° pushes along +x (forward), 90° along +y (to the robot's left). A case
+*falls* when the base drops more than 0.1 m below its start (standing, it moves by about 1 mm) or
+tilts more than 30° from upright (the angle between the base's z axis and the vertical); its base
+displacement is the largest horizontal distance of the base from its start (m). Every link
+collides with the ground (a box per link), so a fallen TALOS lands on it.
+
+    python diagrams/push_map.py --magnitudes 150,300,600 --directions 4 --push-durations 0.1,0.3 \\
+        --engine ray --out out/push_map
+
+writes ``push_map.csv`` (and ``.parquet`` with pyarrow), ``push_map.json``, ``plots.png`` (one
+polar map per push duration: direction × magnitude, fall or not, base displacement),
+``control_graph.svg`` and ``summary.json`` in the output directory.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the stand scenario's script, a sibling
+import talos_physics  # noqa: E402
+
+from sotdrake import InvalidInput, script_arguments, simulate, write_run  # noqa: E402
+from sotdrake.sweep import EngineUnavailable, add_sweep_arguments, engine_options, grid, run_sweep  # noqa: E402
+
+FALL_DROP_M = 0.1
+FALL_TILT_DEG = 30.0
+TIMING = ("wall_s", "realtime_factor")
+
+
+def push_force(magnitude: float, direction_deg: float) -> np.ndarray:
+    """The horizontal force (N, world): ``magnitude`` along ``(cos θ, sin θ, 0)``."""
+    angle = np.radians(direction_deg)
+    return magnitude * np.array([np.cos(angle), np.sin(angle), 0.0])
+
+
+def base_tilt_deg(q: np.ndarray) -> np.ndarray:
+    """Tilt (deg) of the floating base at each row of ``q`` (Drake's ``(qw, qx, qy, qz, x, y, z,
+    …)``): the angle between the base's z axis and the world's, ``arccos(1 − 2(qx² + qy²))`` for a
+    unit quaternion."""
+    quaternion = q[:, :4] / np.linalg.norm(q[:, :4], axis=1, keepdims=True)
+    return np.degrees(np.arccos(np.clip(1 - 2 * (quaternion[:, 1] ** 2 + quaternion[:, 2] ** 2), -1, 1)))
+
+
+def push_case(case: dict, duration: float = 3.0, push_start: float = 0.3) -> dict:
+    """The sweep's case function: ``case = {'magnitude_n', 'direction_deg', 'push_duration_s'}``
+    → the stand scenario's summary with ``fell`` and the push's impulse."""
+    magnitude, push_duration = case["magnitude_n"], case["push_duration_s"]
+    if not magnitude >= 0 or not push_duration > 0:
+        raise InvalidInput(f"magnitude_n ≥ 0 and push_duration_s > 0, got {magnitude}, {push_duration}")
+    run = talos_physics.build_diagram("stand", "open", push_force(magnitude, case["direction_deg"]),
+                                      push_start=push_start, push_duration=push_duration)
+    simulator, wall = simulate(run.diagram, duration, None, progress=False)
+    summary, trace = talos_physics.summarize(run, simulator, duration, wall)
+    for key in TIMING + ("hand_error_m", "hand_initial_error_m", "scenario"):
+        summary.pop(key, None)
+    summary["max_base_tilt_deg"] = float(base_tilt_deg(trace["x_plant"]).max())
+    summary["fell"] = bool(summary["base_height_drop_m"] > FALL_DROP_M or summary["max_base_tilt_deg"] > FALL_TILT_DEG)
+    summary["impulse_ns"] = magnitude * push_duration
+    return summary
+
+
+def numbers(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError as error:
+        raise SystemExit(f"expected comma-separated numbers, got {text!r}") from error
+    if not values:
+        raise SystemExit(f"expected comma-separated numbers, got {text!r}")
+    return values
+
+
+def plot(rows: list[dict], path: Path) -> Path:
+    """One polar map per push duration: angle = push direction, radius = magnitude; colour = base
+    displacement, a red cross where TALOS fell."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ok = [r for r in rows if r["status"] == "ok"]
+    durations = sorted({r["push_duration_s"] for r in ok})
+    top = max((r["base_drift_m"] for r in ok), default=0.1)
+    fig, axes = plt.subplots(1, len(durations), subplot_kw={"projection": "polar"},
+                             figsize=(4.4 * len(durations) + 1.2, 4.8), squeeze=False)
+    for axis, duration in zip(axes[0], durations):
+        here = [r for r in ok if r["push_duration_s"] == duration]
+        theta = np.radians([r["direction_deg"] for r in here])
+        radius = np.array([r["magnitude_n"] for r in here])
+        drift = np.array([r["base_drift_m"] for r in here])
+        fell = np.array([r["fell"] for r in here])
+        dots = axis.scatter(theta, radius, c=np.minimum(drift, top), cmap="viridis", vmin=0, vmax=top, s=160)
+        axis.scatter(theta[fell], radius[fell], marker="x", c="r", s=120, linewidths=2.5)
+        axis.set_title(f"push {duration:g} s", fontsize=10)
+        axis.set_rlim(0, 1.15 * max(radius.max(), 1))
+        axis.set_theta_zero_location("N")  # forward (+x) up, left (+y) to the left
+    fig.colorbar(dots, ax=axes[0].tolist(), label="largest base displacement (m)")
+    fig.suptitle("TALOS standing (SoT open loop, PD actuators): torso pushes; radius: force (N); red ×: fell")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = script_arguments(__doc__, "out/push_map", duration=3.0)
+    parser.add_argument("--magnitudes", type=numbers, default=[150.0, 300.0, 600.0], help="forces (N), comma-separated")
+    parser.add_argument("--directions", type=int, default=4, help="number of directions, evenly spaced from 0°")
+    parser.add_argument("--push-durations", type=numbers, default=[0.1, 0.3], help="push durations (s), comma-separated")
+    parser.add_argument("--push-start", type=float, default=0.3, help="when the push starts (s)")
+    add_sweep_arguments(parser)
+    args = parser.parse_args(argv)
+    if not args.duration > args.push_start >= 0 or args.directions < 1:
+        raise SystemExit(f"need --duration > --push-start ≥ 0 and --directions ≥ 1, got {args.duration}, "
+                         f"{args.push_start}, {args.directions}")
+    cases = grid({"magnitude_n": args.magnitudes,
+                  "direction_deg": [360.0 * k / args.directions for k in range(args.directions)],
+                  "push_duration_s": args.push_durations})
+    settings = {"duration_s": args.duration, "push_start_s": args.push_start, "fall_drop_m": FALL_DROP_M,
+                "fall_tilt_deg": FALL_TILT_DEG}
+    try:
+        result = run_sweep(partial(push_case, duration=args.duration, push_start=args.push_start), cases,
+                           progress=not args.quiet, label="pushes", settings=settings, by_value=[talos_physics],
+                           **engine_options(args))
+    except EngineUnavailable as error:
+        raise SystemExit(str(error)) from error
+    paths = result.write(args.out, "push_map")
+    plot(result.rows, args.out / "plots.png")
+    ok = [r for r in result.rows if r["status"] == "ok"]
+    summary = {
+        "cases": len(cases),
+        "errors": len(result.errors),
+        "falls": sum(r["fell"] for r in ok),
+        "largest_impulse_without_fall_ns": max((r["impulse_ns"] for r in ok if not r["fell"]), default=None),
+        "smallest_impulse_with_fall_ns": min((r["impulse_ns"] for r in ok if r["fell"]), default=None),
+        "engine": result.engine,
+        "workers": result.workers,
+        "wall_s": result.wall_s,
+        "load_average_before": result.load_average_before,
+        "load_average_after": result.load_average_after,
+        **settings,
+        "tables": {k: str(v) for k, v in paths.items()},
+    }
+    write_run(args.out, talos_physics.build_diagram("stand", "open", push_force(100.0, 0.0)).diagram, summary)
+    print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
+    return summary
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,54 @@
+"""The parameter sets of a sweep: a full grid or a seeded random sample.
+
+A *case* is a ``dict`` from parameter name to a plain value (float, int, str, bool). Cases are
+numbered by their position in the list, the ``case`` column of the sweep's table.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from ..exceptions import InvalidInput
+
+Case = dict[str, object]
+
+
+def _plain(value):
+    """numpy scalars as Python ones, so that a table cell reads the same from any engine."""
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def grid(axes: Mapping[str, Sequence]) -> list[Case]:
+    """Every combination of the values of ``axes`` (name → values), the last axis varying fastest
+    (``itertools.product`` order): ``grid({'a': [1, 2], 'b': [0, 1]})`` gives
+    ``(1, 0), (1, 1), (2, 0), (2, 1)``."""
+    if not axes:
+        raise InvalidInput("grid: give at least one axis (name → values)")
+    for name, values in axes.items():
+        if not isinstance(name, str) or not name:
+            raise InvalidInput(f"grid: axis names are non-empty strings, got {name!r}")
+        if isinstance(values, (str, bytes)) or len(values) == 0:
+            raise InvalidInput(f"grid: axis {name!r} needs a non-empty sequence of values, got {values!r}")
+    names = list(axes)
+    return [dict(zip(names, map(_plain, combination))) for combination in itertools.product(*axes.values())]
+
+
+def random_cases(count: int, ranges: Mapping[str, tuple[float, float]], seed: int) -> list[Case]:
+    """``count`` cases drawn uniformly in the box ``ranges`` (name → (low, high)) by numpy's
+    ``default_rng(seed)``: the same seed gives the same cases on any machine."""
+    if not isinstance(count, (int, np.integer)) or count < 1:
+        raise InvalidInput(f"random_cases: count must be an integer ≥ 1, got {count!r}")
+    if not ranges:
+        raise InvalidInput("random_cases: give at least one range (name → (low, high))")
+    for name, bounds in ranges.items():
+        low, high = (float(b) for b in bounds)
+        if not (np.isfinite(low) and np.isfinite(high) and low <= high):
+            raise InvalidInput(f"random_cases: range {name!r} must be finite with low ≤ high, got {bounds!r}")
+    rng = np.random.default_rng(seed)
+    lows = np.array([float(b[0]) for b in ranges.values()])
+    highs = np.array([float(b[1]) for b in ranges.values()])
+    draws = rng.uniform(lows, highs, size=(int(count), len(ranges)))
+    return [dict(zip(ranges, map(float, row))) for row in draws]

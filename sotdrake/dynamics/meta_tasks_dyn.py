@@ -30,6 +30,8 @@ class MetaTaskDyn6d(_MetaTaskDyn):
 
     def __init__(self, name: str, robot: RobotDyn, opPoint: str, opPointRef: str | None = None,
                  kp: float = 100.0, kv: float | None = None):
+        """The task's ``reference_acceleration`` input takes the 6 error rows' ``s̈*`` (with the
+        default frame ``'desired'`` and a fixed desired rotation: ``(p̈*, 0)``)."""
         self.opPoint = opPoint
         position, jacobian = robot.dynamic.createOpPoint(opPoint, opPointRef or opPoint)
         feature = robot.add(Feature6d("feature" + name, robot.dimension))
@@ -39,7 +41,7 @@ class MetaTaskDyn6d(_MetaTaskDyn):
         connect(jacobian, feature.GetInputPort("Jq"))
         connect(self.featureDes.GetOutputPort("position"), feature.GetInputPort("reference"))
         connect(self.featureDes.GetOutputPort("velocity"), feature.GetInputPort("reference_velocity"))
-        self._finish(robot, name, feature, kp, kv)
+        self._finish(robot, name, feature, kp, kv, dimension=6)
         self.keep()
 
     def initial_pose(self) -> RigidTransform:

@@ -60,6 +60,15 @@ class RobotDyn:
             self.state_port = plant.get_state_output_port()
         builder.Connect(self.state_port, self.dynamic.GetInputPort("state"))
 
+    def velocity_selection(self, excluding: list[str] = ()) -> np.ndarray:
+        """nv booleans, False on the velocities of the joints named in ``excluding``."""
+        plant = self.model.plant
+        mask = np.ones(self.dimension, dtype=bool)
+        for name in excluding:
+            joint = plant.GetJointByName(name)
+            mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
+        return mask
+
     @property
     def dimension(self) -> int:
         return self.model.nv

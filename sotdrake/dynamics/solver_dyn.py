@@ -12,7 +12,10 @@ first (:func:`dynamic_levels`):
    ``A_c w_c ≤ 0``;
 2. … the user's stack (``push``), each a :class:`~sotdrake.task.TaskLevel` over ``q̈``
    (``TaskDynPD``);
-last. ``q̈ = −K_d v``: whatever motion the stack leaves free is damped (``setDampingGain``).
+last. ``q̈ = −K_d v``: whatever motion the stack leaves free is damped (``setDampingGain``); in
+   the same level, ``ε w_t = 0`` on every contact's tangential force and torque (``ε = 10⁻³``
+   s²/kg·m: a regularization, so that the distribution of the wrenches the levels above leave free
+   prefers centred CoPs and no shear, away from the friction and CoP bounds).
 
 The hierarchical QP then takes the minimum-norm ``x`` of the optimal set (smallest torques and
 wrenches among the equivalent ones). Joints without an actuator would get no ``τ`` column: TALOS'
@@ -52,6 +55,9 @@ from .contact import Contact6d, ContactRows, world_wrench_map
 from .terms import DynamicsTerms, acceleration_bounds
 
 log = logging.getLogger("sotdrake.solver_dyn")
+
+
+WRENCH_REGULARIZATION = 1e-3
 
 
 class ContactNotFound(NotFound):
@@ -136,9 +142,16 @@ def dynamic_levels(
         A = np.zeros((task.jacobian.shape[0], n))
         A[:, :nv] = task.jacobian
         levels.append(LevelRows(A, task.lower, task.upper))
-    damping = np.zeros((nv, n))
-    damping[:, :nv] = np.eye(nv)
-    levels.append(LevelRows(damping, -damping_gain * terms.v, -damping_gain * terms.v))
+    m = sum(k - 1 for k in sizes)
+    damping = np.zeros((nv + m, n))
+    damping[:nv, :nv] = np.eye(nv)
+    row = nv
+    for sl in slices:
+        for column in range(sl.start, sl.stop - 1):  # every component but the normal force
+            damping[row, column] = WRENCH_REGULARIZATION
+            row += 1
+    target = np.concatenate([-damping_gain * terms.v, np.zeros(m)])
+    levels.append(LevelRows(damping, target, target))
     return levels, slices
 
 
@@ -319,6 +332,9 @@ class SolverDyn(SOT):
         tasks = self._tasks(context, s)
         levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False)
         a_lower, a_upper = acceleration_bounds(terms.q, terms.v, *self._limits, s.horizon, s.position_margin, self.layout)
+        if s.control_selection is not None:  # sot-core's controlSelec: the others are held (q̈ = 0)
+            a_lower, a_upper = a_lower.copy(), a_upper.copy()
+            a_lower[~s.control_selection] = a_upper[~s.control_selection] = 0.0
         lower, upper = variable_bounds(self.nv, contacts, slices, a_lower, a_upper, self.effort)
         names = ["dynamics"] + (["contacts"] if contacts else []) + list(s.tasks) + ["damping"]
         diagnostics = DynDiagnostics(levels=names)

@@ -7,8 +7,8 @@ Input ``state`` (``(q, v)``, size nq + nv). Outputs:
 * ``com`` (``p_WCm``, m), ``Jcom`` (3×nv), ``com_drift`` (``J̇_CoM v``, m/s²), the last two from
   the floating-base rows of ``M`` and ``C v`` (:func:`.terms.com_terms`);
 * ``dynamics``: :class:`.terms.DynamicsTerms` (``M`` from ``CalcMassMatrix``, ``C v`` from
-  ``CalcBiasTerm``, ``τ_g`` from ``CalcGravityGeneralizedForces``, ``h = C v − τ_g``, ``B`` from
-  ``MakeActuationMatrix``);
+  ``CalcBiasTerm``, ``τ_g`` from ``CalcGravityGeneralizedForces``, ``h = C v − τ_g + D v`` with
+  ``D`` the joints' damping, ``B`` from ``MakeActuationMatrix``);
 * per op point (:meth:`createOpPoint`): ``<name>`` (``X_WF``), ``J<name>`` (``J_WF``, rows
   ``(ω; v)`` world) and ``<name>_drift`` (``J̇_WF v``, the bias spatial acceleration of F's origin,
   ``CalcBiasSpatialAcceleration``, rows ``(α; a)`` world).
@@ -40,6 +40,11 @@ class DynamicEntity(Dynamic):
         self.nq, self.nv = model.nq, model.nv
         self.B = plant.MakeActuationMatrix()
         self.mass = plant.CalcTotalMass(plant.CreateDefaultContext())
+        self.damping = np.zeros(self.nv)  # the joints' viscous damping (N·m·s/rad), applied by the plant
+        for index in plant.GetJointIndices():
+            joint = plant.get_joint(index)
+            if joint.num_velocities():
+                self.damping[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = joint.default_damping_vector()
         self.state = self.DeclareVectorInputPort("state", self.nq + self.nv)
         self._state_context = self.DeclareCacheEntry(
             "plant_state_context",
@@ -75,8 +80,8 @@ class DynamicEntity(Dynamic):
         plant, pc = self.plant, self._plant_ctx(context)
         M = plant.CalcMassMatrix(pc)
         Cv = plant.CalcBiasTerm(pc)
-        h = Cv - plant.CalcGravityGeneralizedForces(pc)
         x = self.state.Eval(context)
+        h = Cv - plant.CalcGravityGeneralizedForces(pc) + self.damping * x[self.nq :]
         value.set_value(DynamicsTerms(M, h, Cv, self.B, x[: self.nq].copy(), x[self.nq :].copy(), self.mass))
 
     def _calc_com_jacobian(self, context: Context, output: AbstractValue) -> None:

@@ -5,8 +5,8 @@ Equations of motion (Drake's generalized coordinates, ``v`` with the floating ba
 
     M(q) q̈ + h(q, v) = B τ + Σ_c J_cᵀ W_c
 
-``h = C(q, v) v − τ_g(q)`` (Coriolis/centrifugal bias minus the generalized gravity forces, N or
-N·m), ``B`` the actuation matrix (nv × na: actuator order to velocities), ``W_c`` the contact
+``h = C(q, v) v − τ_g(q) + D v`` (Coriolis/centrifugal bias, minus the generalized gravity
+forces, plus the joints' viscous damping ``D`` from the URDF, which the plant applies; N or N·m), ``B`` the actuation matrix (nv × na: actuator order to velocities), ``W_c`` the contact
 wrench ``(torque about the contact frame's origin; force)`` in the world frame and ``J_c`` the
 spatial-velocity Jacobian of that frame (rows ``(ω; v)``, world).
 
@@ -26,7 +26,7 @@ from ..device import Layout
 
 
 class DynamicsTerms(NamedTuple):
-    """``M`` (nv×nv, kg·m² / kg), ``h`` (nv), ``Cv`` (nv, the bias without gravity), ``B``
+    """``M`` (nv×nv, kg·m² / kg), ``h`` (nv), ``Cv`` (nv, the bias without gravity and damping), ``B``
     (nv×na), the state ``q``, ``v`` and the total mass ``mass`` (kg)."""
 
     M: np.ndarray
@@ -60,9 +60,9 @@ def acceleration_bounds(
     """Joint limits as bounds on ``q̈`` (nv; the floating base free).
 
     Position: with the acceleration held over ``horizon`` T, ``q + v T + ½ q̈ T² ≤ q_max − margin``
-    gives ``q̈ ≤ 2 (q_max − margin − q − v T)/T²``; inside the margin the bound is never below
-    ``min(0, 2 (q_max − q − v T)/T²)`` (a joint on its limit may stay; one moving into it is
-    stopped). Velocity: ``v + q̈ T ≤ v_max`` gives ``q̈ ≤ (v_max − v)/T``. Lower bounds likewise;
+    gives ``q̈ ≤ 2 (q_max − margin − q − v T)/T²``; a joint already inside the margin gets
+    ``q̈ ≤ min(0, 2 (q_max − q − v T)/T²)`` instead (it may stay on its limit, as the grippers start;
+    moving into the limit it is stopped). Velocity: ``v + q̈ T ≤ v_max`` gives ``q̈ ≤ (v_max − v)/T``. Lower bounds likewise;
     where they would cross, the lower bound is lowered to the upper one.
     """
     nv = len(v)
@@ -71,8 +71,10 @@ def acceleration_bounds(
     qj, vj, T = q[iq], v[iv], horizon
     with np.errstate(invalid="ignore"):
         reach = qj + vj * T
-        up = np.maximum(2 * (position_upper[iq] - margin - reach) / T**2, np.minimum(0.0, 2 * (position_upper[iq] - reach) / T**2))
-        down = np.minimum(2 * (position_lower[iq] + margin - reach) / T**2, np.maximum(0.0, 2 * (position_lower[iq] - reach) / T**2))
+        up = np.where(qj > position_upper[iq] - margin, np.minimum(0.0, 2 * (position_upper[iq] - reach) / T**2),
+                      2 * (position_upper[iq] - margin - reach) / T**2)
+        down = np.where(qj < position_lower[iq] + margin, np.maximum(0.0, 2 * (position_lower[iq] - reach) / T**2),
+                        2 * (position_lower[iq] + margin - reach) / T**2)
     up = np.minimum(up, (velocity_upper[iv] - vj) / T)
     down = np.maximum(down, (velocity_lower[iv] - vj) / T)
     upper[iv], lower[iv] = up, np.minimum(down, up)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, SceneGraph
+from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams
 from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
 from pydrake.multibody.plant import ExternallyAppliedSpatialForceMultiplexer
 from pydrake.systems.analysis import Simulator
@@ -215,7 +215,7 @@ def simulate_ticks(run: DynamicsRun, duration: float, progress: bool = True) -> 
     if run.visualizer is not None:
         run.visualizer.StartRecording(False)
     dt = run.robot.dt
-    ticks = int(round(duration / dt))
+    ticks = round(duration / dt)
     times = np.empty(ticks)
     for k in tqdm(range(ticks), disable=not progress, file=sys.stderr, desc=f"{run.scenario}/{run.device}"):
         start = time.perf_counter()
@@ -331,11 +331,11 @@ def plot(run: DynamicsRun, trace: dict, summary: dict, path: Path) -> Path:
     ax = axes[1, 0]
     if "feet" in trace:
         nq = run.robot.model.nq
-        path = run.robot.dynamic.trajectory(["contactLF", "contactRF"], np.nan_to_num(trace["x"][:1, :nq]))
-        low, high = _support(path, ["contactLF", "contactRF"], sole_rectangle())
+        poses = run.robot.dynamic.trajectory(["contactLF", "contactRF"], np.nan_to_num(trace["x"][:1, :nq]))
+        low, high = _support(poses, ["contactLF", "contactRF"], sole_rectangle())
         ax.add_patch(Rectangle(low, *(high - low), fill=False, color="k", label="support polygon (both soles)"))
         for side in ("contactLF", "contactRF"):
-            l, h = _support(path, [side], sole_rectangle())
+            l, h = _support(poses, [side], sole_rectangle())
             ax.add_patch(Rectangle(l, *(h - l), fill=False, color="gray", ls=":"))
         ax.plot(trace["feet"][:, 6], trace["feet"][:, 7], ".", ms=1, label="CoP (plant)")
     ax.plot(trace["com"][:, 0], trace["com"][:, 1], "-", lw=0.8, label="CoM (ground projection)")
@@ -368,10 +368,10 @@ def main(argv: list[str] | None = None) -> dict:
     run = build_diagram(args.scenario, args.device, meshcat)
     simulator, times = simulate_ticks(run, args.duration, not args.quiet)
     summary, trace = summarize(run, simulator, times, args.duration)
+    print(json.dumps(summary, indent=2), flush=True)
     args.out.mkdir(parents=True, exist_ok=True)
     plot(run, trace, summary, args.out / "plots.png")
     write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer)
-    print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
 
 

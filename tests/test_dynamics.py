@@ -146,7 +146,7 @@ def test_torque_reproduces_acceleration_through_forward_dynamics(standing, rng):
 def test_contact_constraints_and_bounds_hold(standing, rng):
     robot, diagram, *_ = standing
     sot = robot.sot
-    for _ in range(4):
+    for _ in range(2):
         x = _random_state(robot.model, rng, spread=0.2)
         context = _set_state(robot, diagram, x)
         solution = _solution(robot, context)
@@ -178,7 +178,7 @@ def test_strict_hierarchy_on_random_dynamic_stacks(standing, rng):
     robot, diagram, *_ = standing
     sot = robot.sot
     nv = robot.model.nv
-    for trial in range(3):
+    for trial in range(2):
         x = _random_state(robot.model, rng, spread=0.1)
         context = _set_state(robot, diagram, x)
         terms = robot.dynamic.GetOutputPort("dynamics").Eval(robot.dynamic.GetMyContextFromRoot(context))
@@ -219,7 +219,7 @@ def test_acceleration_bounds_stop_a_joint_at_its_limit(talos_model):
 
 # --- bad inputs --------------------------------------------------------------------------------
 def test_bad_inputs_raise_and_change_nothing(standing):
-    robot, diagram, com, posture = standing
+    robot, diagram, com, _ = standing
     sot, lf = robot.sot, robot.contacts["contactLF"]
     context = diagram.CreateDefaultContext()
     for mu in (0.0, -0.5, np.nan):
@@ -274,42 +274,41 @@ def dynamics_script():
 
 
 def test_release_ramps_the_force_to_zero_then_frees_the_foot(standing):
-    robot, diagram, com, _ = standing
+    robot, diagram, *_ = standing
     simulator = Simulator(diagram)
     context = simulator.get_context()
     sot = robot.sot
     simulator.AdvanceTo(0.01)
-    sot.rmContact("contactRF", 0.05, context=context)
+    sot.rmContact("contactRF", 0.03, context=context)
     forces = []
-    for k in range(1, 8):
+    for k in range(1, 5):
         simulator.AdvanceTo(0.01 + 0.01 * k)
         forces.append(_solution(robot, context).local_wrenches.get("contactRF", np.zeros(6))[5])
     # The ramp starts at the first tick after the command (Drake runs the update of t = 0.01 s when
     # leaving 0.01 s: t0 = 0.01 s) from the force then; with the CoM held between the feet the
     # bound is active, so the force follows the line exactly.
-    f0 = forces[0] / (1 - (0.02 - 0.01) / 0.05)
+    f0 = forces[0] / (1 - (0.02 - 0.01) / 0.03)
     assert f0 > 300.0  # it carried about half the weight when released
-    for k, force in enumerate(forces[:4]):
-        assert force == pytest.approx(f0 * (1 - (0.01 * k + 0.01) / 0.05), rel=1e-6)
+    for k, force in enumerate(forces[:2]):
+        assert force == pytest.approx(f0 * (1 - (0.01 * k + 0.01) / 0.03), rel=1e-6)
     assert sot.held_contacts(context) == ["contactLF"] and forces[-1] == 0.0
 
 
-def test_lift_leg_short_on_dynsimu(dynamics_script):
-    """The seed's dynromeo in fast forward (RobotDynSimu): the CoM reaches the left sole while
-    tracking, nothing is violated."""
+def test_stand_short_on_dynsimu(dynamics_script):
+    """RobotDynSimu: the dynamics are the solver's own, so the robot stands exactly."""
     run = dynamics_script.build_diagram("stand", "dynsimu")
-    simulator, times = dynamics_script.simulate_ticks(run, 0.3, progress=False)
-    summary, trace = dynamics_script.summarize(run, simulator, times, 0.3)
+    simulator, times = dynamics_script.simulate_ticks(run, 0.2, progress=False)
+    summary, _ = dynamics_script.summarize(run, simulator, times, 0.2)
     assert not summary["fell"] and summary["com_drift_m"] < 1e-9 and summary["max_foot_slip_m"] < 1e-9
     assert summary["max_torque_ratio"] <= 1.0 + 1e-9
 
 
 def test_stand_short_on_physics(dynamics_script):
-    """Torque control of the simulated TALOS for 0.4 s: the feet carry the weight as the solver
+    """Torque control of the simulated TALOS for 0.25 s: the feet carry the weight as the solver
     says, no slip, torques within limits, the measured forces inside the friction cone."""
     run = dynamics_script.build_diagram("stand", "physics")
-    simulator, times = dynamics_script.simulate_ticks(run, 0.4, progress=False)
-    summary, trace = dynamics_script.summarize(run, simulator, times, 0.4)
+    simulator, times = dynamics_script.simulate_ticks(run, 0.25, progress=False)
+    summary, trace = dynamics_script.summarize(run, simulator, times, 0.25)
     assert not summary["fell"]
     assert summary["com_drift_m"] < 1e-3 and summary["max_foot_slip_m"] < 1e-4
     assert summary["max_torque_ratio"] <= 1.0 + 1e-9 and summary["max_friction_ratio"] < 1.0

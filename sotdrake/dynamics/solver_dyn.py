@@ -37,7 +37,6 @@ level) and ``diagnostics``.
 
 from __future__ import annotations
 
-import copy
 import logging
 from dataclasses import dataclass, field
 

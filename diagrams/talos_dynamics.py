@@ -71,10 +71,31 @@ class DynamicsRun:
     visualizer: object = None
 
 
-def _hold_move_hold(t0: float, t1: float, a: np.ndarray, b: np.ndarray, end: float = 1e3) -> PiecewisePolynomial:
-    """``a`` until t0, a cubic (zero end velocities) to ``b`` at t1, then ``b``."""
-    samples = np.column_stack([a, a, b, b])
-    return PiecewisePolynomial.CubicHermite([0.0, t0, t1, end], samples, np.zeros_like(samples))
+def _moves(start: np.ndarray, moves: list[tuple[float, float, np.ndarray]], end: float = 1e3, samples: int = 24) -> PiecewisePolynomial:
+    """From ``start``, each move ``(t0, t1, target)`` a minimum-jerk profile
+    ``s(τ) = 10τ³ − 15τ⁴ + 6τ⁵`` held still between the moves, as Drake's cubic Hermite spline
+    through ``samples`` points of each move with their exact velocities (so the acceleration
+    follows the profile closely and starts and ends near 0)."""
+    times, values, rates = [0.0], [start], [np.zeros_like(start)]
+    current = start
+    for t0, t1, target in moves:
+        for tau in np.linspace(0.0, 1.0, samples):
+            s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
+            ds = (30 * tau**2 - 60 * tau**3 + 30 * tau**4) / (t1 - t0)
+            if t0 + tau * (t1 - t0) > times[-1]:
+                times.append(t0 + tau * (t1 - t0))
+                values.append(current + s * (target - current))
+                rates.append(ds * (target - current))
+        current = target
+    times.append(end)
+    values.append(current)
+    rates.append(np.zeros_like(start))
+    return PiecewisePolynomial.CubicHermite(times, np.column_stack(values), np.column_stack(rates))
+
+
+def _hold_move_hold(t0: float, t1: float, a: np.ndarray, b: np.ndarray) -> PiecewisePolynomial:
+    """``a`` until t0, a minimum-jerk move to ``b`` at t1, then ``b``."""
+    return _moves(np.asarray(a, dtype=float), [(t0, t1, np.asarray(b, dtype=float))])
 
 
 def _trajectory_ports(robot: RobotDyn, traj: PiecewisePolynomial, name: str):
@@ -94,8 +115,7 @@ def _com_trajectory(scenario: str, com0: np.ndarray, left_sole_xy: np.ndarray) -
     if scenario == "squat":
         down = com0 - np.array([0.0, 0.0, SQUAT[4]])
         t0, t1, t2, t3, _ = SQUAT
-        samples = np.column_stack([com0, com0, down, down, com0, com0])
-        return PiecewisePolynomial.CubicHermite([0.0, t0, t1, t2, t3, 1e3], samples, np.zeros_like(samples))
+        return _moves(com0, [(t0, t1, down), (t2, t3, com0)])
     return None
 
 

@@ -46,10 +46,9 @@ def run_sotdrake(scenario: str, duration: float) -> dict:
 
 def _com_reference(scenario: str, com0: np.ndarray, left_xy: np.ndarray, t: float):
     if scenario == "sway":
-        amplitude, frequency = td.SWAY
-        w = 2 * np.pi * frequency
+        y, dy, ddy = td.sway_reference(t)
         e = np.array([0.0, 1.0, 0.0])
-        return com0 + amplitude * np.sin(w * t) * e, amplitude * w * np.cos(w * t) * e, -amplitude * w**2 * np.sin(w * t) * e
+        return com0 + y * e, dy * e, ddy * e
     traj = td._com_trajectory("lift_leg", com0, left_xy)
     return traj.value(t)[:, 0], traj.derivative(1).value(t)[:, 0], traj.derivative(2).value(t)[:, 0]
 

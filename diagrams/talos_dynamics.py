@@ -7,8 +7,9 @@ sends ``τ`` to the actuation input of a simulated TALOS (no PD, 1 kHz, closed l
 state); ``--device dynsimu`` integrates ``q̈`` (``RobotDynSimu``, no physics). Scenarios:
 
 * ``stand``: both soles held, CoM and posture held;
-* ``sway``: the CoM follows ``y = y0 + 5 cm · sin(2π · 0.5 t)`` (with velocity and acceleration
-  feed-forward);
+* ``sway``: the CoM follows ``y = y0 + e(t) · 5 cm · sin(2π · 0.5 t)`` (velocity and acceleration
+  feed-forward), the amplitude faded in by a minimum-jerk envelope ``e`` over the first 2 s (a
+  sine started at full amplitude asks a step of 16 cm/s at t = 0);
 * ``lift_leg`` (the seed's dynromeo): the CoM moves over the left sole (t = 0.5 → 2 s), the right
   contact is released at 2.2 s (its force ramps to 0 over 0.3 s), then the right sole rises 10 cm
   (2.5 → 3.5 s) and stays up;
@@ -49,7 +50,7 @@ from sotdrake.simulation import script_arguments, start, write_run
 from sotdrake.tracing import Tracer
 
 SCENARIOS = ("stand", "sway", "lift_leg", "lift_leg_no_com", "squat", "push")
-SWAY = (0.05, 0.5)  # amplitude (m), frequency (Hz)
+SWAY = (0.05, 0.5, 2.0)  # amplitude (m), frequency (Hz), fade-in (s)
 COM_SHIFT = (0.5, 2.0)  # lift_leg: the CoM moves over the left sole in this window (s)
 RELEASE = (2.2, 0.3)  # lift_leg: rmContact time (s), ramp duration (s)
 LIFT = (2.5, 3.5, 0.10)  # lift_leg: the right sole rises 10 cm in this window (s)
@@ -107,7 +108,25 @@ def _trajectory_ports(robot: RobotDyn, traj: PiecewisePolynomial, name: str):
     return split.get_output_port(0), split.get_output_port(1), split.get_output_port(2)
 
 
-def _com_trajectory(scenario: str, com0: np.ndarray, left_sole_xy: np.ndarray) -> PiecewisePolynomial | None:
+def sway_reference(t: float) -> tuple[float, float, float]:
+    """``(y, ẏ, ÿ) − y0`` of the sway at time t (see the module docstring)."""
+    amplitude, frequency, fade = SWAY
+    w = 2 * np.pi * frequency
+    tau = min(t / fade, 1.0)
+    e = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
+    de = (30 * tau**2 - 60 * tau**3 + 30 * tau**4) / fade if tau < 1 else 0.0
+    dde = (60 * tau - 180 * tau**2 + 120 * tau**3) / fade**2 if tau < 1 else 0.0
+    sin, cos = np.sin(w * t), np.cos(w * t)
+    return (amplitude * e * sin, amplitude * (de * sin + e * w * cos),
+            amplitude * (dde * sin + 2 * de * w * cos - e * w**2 * sin))
+
+
+def _com_trajectory(scenario: str, com0: np.ndarray, left_sole_xy: np.ndarray, duration: float = 30.0) -> PiecewisePolynomial | None:
+    if scenario == "sway":  # Drake's cubic Hermite spline through the exact values and rates, every 5 ms
+        times = np.arange(0.0, duration + 1e-9, 0.005)
+        values = np.array([com0 + [0.0, sway_reference(t)[0], 0.0] for t in times]).T
+        rates = np.array([[0.0, sway_reference(t)[1], 0.0] for t in times]).T
+        return PiecewisePolynomial.CubicHermite(times, values, rates)
     if scenario == "lift_leg":
         target = com0.copy()
         target[:2] = left_sole_xy
@@ -140,23 +159,8 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
         sot.push(com.task.name)
         left_xy = robot.dynamic.pose_at("contactLF", robot.q0).translation()[:2] + np.array([sum(sole_rectangle()[:2]) / 2, 0.0])
         traj = _com_trajectory(scenario, com0, left_xy)
-        if scenario == "sway":
-            from pydrake.systems.primitives import Sine
-
-            amplitude, frequency = SWAY
-            sine = robot.add(Sine(np.array([0.0, amplitude, 0.0]), np.full(3, 2 * np.pi * frequency), np.zeros(3)), "com_sine")
-            offset = robot.add(ConstantVectorSource(com0), "com_offset")
-            from pydrake.systems.primitives import Adder
-
-            total = robot.add(Adder(2, 3), "com_reference")
-            connect(sine.get_output_port(0), total.get_input_port(0))
-            connect(offset.get_output_port(), total.get_input_port(1))
-            ports = (total.get_output_port(), sine.get_output_port(1), sine.get_output_port(2))
-        elif traj is not None:
+        if traj is not None:
             ports = _trajectory_ports(robot, traj, "com_trajectory")
-        else:
-            ports = None
-        if ports is not None:
             connect(ports[0], com.featureDes.GetInputPort("value_in"))
             connect(ports[1], com.featureDes.GetInputPort("velocity_in"))
             connect(ports[2], com.task.GetInputPort("reference_acceleration"))

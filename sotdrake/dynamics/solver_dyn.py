@@ -341,16 +341,34 @@ class SolverDyn(SOT):
         hqp = self._hqps.get(n)
         if hqp is None:
             hqp = self._hqps[n] = HierarchicalQP(n)
+        relaxed = result = None
         try:
-            result = hqp.solve(levels, lower, upper, 0.0, s.solver)
+            relaxed = result = hqp.solve(levels, lower, upper, 0.0, s.solver)
             if contacts and not _wrench_rows_hold(contacts, slices, result.x):
-                levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain)
-                result = hqp.solve(levels, lower, upper, 0.0, s.solver)
+                result = None
+                full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain)
+                result = hqp.solve(full, lower, upper, 0.0, s.solver)
+                levels = full
         except SolverError as error:
+            # Never zero torque on a standing robot if avoidable: the relaxed optimum (dynamics,
+            # contact accelerations and the stack exact; friction/CoP rows possibly violated), else
+            # the dynamics and contacts alone.
             diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
-            log.warning("%s: %s; zero torque", self.name, diagnostics.failure)
-            value.set_value(DynSolution(np.zeros(self.nv), np.zeros(self.na), {}, {}, np.full(len(levels), np.nan), diagnostics))
-            return
+            if relaxed is None:
+                try:
+                    levels, slices = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False)
+                    relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver)
+                    diagnostics.failure += "; the stack is dropped for this tick"
+                except SolverError as second:
+                    diagnostics.failure += f"; {second}; zero torque"
+            else:
+                levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False)
+                diagnostics.failure += "; the contacts' wrench rows are relaxed for this tick"
+            log.warning("%s: %s", self.name, diagnostics.failure)
+            if relaxed is None:
+                value.set_value(DynSolution(np.zeros(self.nv), np.zeros(self.na), {}, {}, np.full(len(levels), np.nan), diagnostics))
+                return
+            result = relaxed
         x = result.x
         local = {c.name: x[sl].copy() for c, sl in zip(contacts, slices)}
         world = {c.name: world_wrench_map(c.rows.rotation, sl.stop - sl.start) @ x[sl] for c, sl in zip(contacts, slices)}

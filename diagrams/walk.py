@@ -194,7 +194,7 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
         monitor = bot.add(ContactMonitor(physical))
         connect(plant.get_contact_results_output_port(), monitor.get_input_port())
         tracer.add(plant.get_state_output_port(), "x_plant")
-        tracer.add(monitor.get_output_port(), "contact")
+        tracer.add(monitor.GetOutputPort("feet"), "contact")
         if meshcat is not None:
             from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
 

@@ -1,0 +1,138 @@
+#!/usr/bin/env python3
+"""The dynamic SoT against a peer on the same scenarios: sway and lift_leg.
+
+sotdrake: ``diagrams/talos_dynamics.py`` on ``RobotDynSimu`` (the solver integrates its own ``q̈``,
+as the peer does), ticks timed one by one around ``Simulator.AdvanceTo`` (Drake's framework and the
+Python entities included). Peer: placo's ``DynamicsSolver`` (C++ core over Pinocchio; weighted QP
+with "hard" and "soft" tasks, no strict priorities among soft ones), on the same URDF, the same
+CoM and foot references (the same Drake trajectories, sampled), the same gains (CoM K_p = 100,
+K_v = 20; foot 400, 40; posture 25, 10), planar sole contacts with μ = 0.7, joint, velocity and
+torque limits on. TSID is not used: its wheel needs a source build of libtsid here.
+
+    python bench/dynamics.py            # --quick: shorter runs
+
+Prints a table and writes ``bench/results/dynamics.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "diagrams"))
+
+import talos_dynamics as td
+from scenario import DT, pinocchio_half_sitting, urdf_file
+
+from sotdrake.dynamics.station import sole_rectangle
+
+
+def run_sotdrake(scenario: str, duration: float) -> dict:
+    run = td.build_diagram(scenario, "dynsimu")
+    simulator, times = td.simulate_ticks(run, duration, progress=False)
+    summary, _ = td.summarize(run, simulator, times, duration)
+    return {"tick_us_median": float(np.median(times[10:]) * 1e6), "tick_us_p95": float(np.percentile(times[10:], 95) * 1e6),
+            "com_rms_error_m": summary.get("com_rms_error_m"), "foot_rms_error_m": summary.get("foot_rms_error_m"),
+            "max_torque_ratio": summary["max_torque_ratio"], "fell": summary["fell"]}
+
+
+def _com_reference(scenario: str, com0: np.ndarray, left_xy: np.ndarray, t: float):
+    if scenario == "sway":
+        y, dy, ddy = td.sway_reference(t)
+        e = np.array([0.0, 1.0, 0.0])
+        return com0 + y * e, dy * e, ddy * e
+    traj = td._com_trajectory("lift_leg", com0, left_xy)
+    return traj.value(t)[:, 0], traj.derivative(1).value(t)[:, 0], traj.derivative(2).value(t)[:, 0]
+
+
+def run_placo(scenario: str, duration: float) -> dict:
+    import placo
+
+    robot = placo.RobotWrapper(str(urdf_file()), placo.Flags.ignore_collisions)
+    robot.state.q = pinocchio_half_sitting(robot.model)
+    robot.update_kinematics()
+    solver = placo.DynamicsSolver(robot)
+    solver.dt = DT
+    solver.enable_joint_limits(True)
+    solver.enable_velocity_limits(True)
+    solver.enable_torque_limits(True)
+    x_min, x_max, y_min, y_max = sole_rectangle()
+    feet, contacts = {}, {}
+    for side in ("left", "right"):
+        frame = f"{side}_sole_link"
+        task = solver.add_frame_task(frame, robot.get_T_world_frame(frame))
+        task.configure(frame, "hard", 1.0, 1.0)
+        contact = solver.add_planar_contact(task)
+        contact.length, contact.width, contact.mu = x_max - x_min, y_max - y_min, 0.7
+        feet[side], contacts[side] = task, contact
+    com0 = robot.com_world().copy()
+    left_xy = robot.get_T_world_frame("left_sole_link")[:2, 3] + np.array([(x_min + x_max) / 2, 0.0])
+    com = solver.add_com_task(com0)
+    com.configure("com", "soft", 1e3)  # weighted far above the posture, as TSID setups do
+    com.kp, com.kd = 100.0, 20.0
+    posture = solver.add_joints_task()
+    posture.set_joints({name: robot.get_joint(name) for name in robot.joint_names()})
+    posture.configure("posture", "soft", 1e-2)
+    posture.kp, posture.kd = 25.0, 10.0
+    foot_p0 = robot.get_T_world_frame("right_sole_link")[:3, 3].copy()
+    foot_traj = td._hold_move_hold(td.LIFT[0], td.LIFT[1], foot_p0, foot_p0 + [0, 0, td.LIFT[2]])
+    position = feet["right"].position()
+    position.kp, position.kd = 400.0, 40.0
+    times, com_err, foot_err = [], [], []
+    released = False
+    for k in range(round(duration / DT)):
+        t = k * DT
+        start = time.perf_counter()
+        target, velocity, acceleration = _com_reference(scenario, com0, left_xy, t)
+        com.target_world, com.dtarget_world, com.ddtarget_world = target, velocity, acceleration
+        if scenario == "lift_leg":
+            if t >= td.RELEASE[0] and not released:
+                contacts["right"].active = False  # no ramp in the peer: the contact is dropped
+                released = True
+            position.target_world = foot_traj.value(t)[:, 0]
+            position.dtarget_world = foot_traj.derivative(1).value(t)[:, 0]
+            position.ddtarget_world = foot_traj.derivative(2).value(t)[:, 0]
+        robot.update_kinematics()
+        solver.solve(True)
+        times.append(time.perf_counter() - start)
+        robot.update_kinematics()
+        com_err.append(np.linalg.norm(robot.com_world() - _com_reference(scenario, com0, left_xy, t + DT)[0]))
+        if scenario == "lift_leg" and t + DT >= td.LIFT[0]:
+            foot_err.append(np.linalg.norm(robot.get_T_world_frame("right_sole_link")[:3, 3] - foot_traj.value(t + DT)[:, 0]))
+    times = np.array(times[10:])
+    return {"tick_us_median": float(np.median(times) * 1e6), "tick_us_p95": float(np.percentile(times, 95) * 1e6),
+            "com_rms_error_m": float(np.sqrt(np.mean(np.square(com_err)))),
+            "foot_rms_error_m": float(np.sqrt(np.mean(np.square(foot_err)))) if foot_err else None,
+            "version": getattr(placo, "__version__", "0.10.2")}
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args(argv)
+    logging.disable(logging.WARNING)
+    durations = {"sway": 1.0 if args.quick else 4.0, "lift_leg": 3.0 if args.quick else 4.0}
+    results = {}
+    for scenario, duration in durations.items():
+        results[scenario] = {"duration_s": duration, "placo": run_placo(scenario, duration), "sotdrake": run_sotdrake(scenario, duration)}
+    out = HERE / "results" / "dynamics.json"
+    out.write_text(json.dumps(results, indent=2) + "\n")
+    print(f"{'scenario':10} {'peer':10} {'tick p50 (µs)':>14} {'p95 (µs)':>10} {'CoM RMS (m)':>12} {'foot RMS (m)':>13}")
+    for scenario, r in results.items():
+        for peer in ("sotdrake", "placo"):
+            row = r[peer]
+            foot = "-" if row["foot_rms_error_m"] is None else f"{row['foot_rms_error_m']:.2e}"
+            print(f"{scenario:10} {peer:10} {row['tick_us_median']:14.0f} {row['tick_us_p95']:10.0f} {row['com_rms_error_m']:12.2e} {foot:>13}")
+    return results
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,400 @@
+#!/usr/bin/env python3
+"""The dynamic SoT: TALOS under torque control (SolverDyn), standing, swaying, lifting a leg.
+
+The seed's dynamic level: ``SolverDyn`` computes ``(q̈, f, τ)`` in strict priority (dynamics,
+contacts with friction/CoP/torque/joint limits, then the stack, then damping). ``--device physics``
+sends ``τ`` to the actuation input of a simulated TALOS (no PD, 1 kHz, closed loop on the plant's
+state); ``--device dynsimu`` integrates ``q̈`` (``RobotDynSimu``, no physics). Scenarios:
+
+* ``stand``: both soles held, CoM and posture held;
+* ``sway``: the CoM follows ``y = y0 + e(t) · 5 cm · sin(2π · 0.5 t)`` (velocity and acceleration
+  feed-forward), the amplitude faded in by a minimum-jerk envelope ``e`` over the first 2 s (a
+  sine started at full amplitude asks a step of 16 cm/s at t = 0);
+* ``lift_leg`` (the seed's dynromeo): the CoM moves over the left sole (t = 0.5 → 2 s), the right
+  contact is released at 2.2 s (its force ramps to 0 over 0.3 s), then the right sole rises 10 cm
+  (2.5 → 3.5 s) and stays up;
+* ``lift_leg_no_com``: the same without the CoM task (the seed's "what happens?");
+* ``squat``: the CoM goes 15 cm down (0.5 → 1.5 s) and back up (2 → 3 s);
+* ``push``: standing, 500 N × 2 ms at t = 1 s and 100 N × 0.1 s at t = 2 s on the torso (+x).
+
+    python diagrams/talos_dynamics.py --scenario lift_leg --device physics --duration 5 --out out/dyn_lift
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams
+from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
+from pydrake.multibody.plant import ExternallyAppliedSpatialForceMultiplexer
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer, Multiplexer, TrajectorySource
+from pydrake.systems.rendering import MultibodyPositionToGeometryPose
+from pydrake.trajectories import PiecewisePolynomial
+
+from sotdrake.dynamics.contact import friction_ratio
+from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
+from sotdrake.dynamics.robot_dyn import RobotDyn
+from sotdrake.dynamics.station import sole_rectangle
+from sotdrake.physics import FRICTION, ContactMonitor, Push
+from sotdrake import attime, load_talos, script_arguments, start, Tracer, write_run
+
+SCENARIOS = ("stand", "sway", "lift_leg", "lift_leg_no_com", "squat", "push")
+SWAY = (0.05, 0.5, 2.0)  # amplitude (m), frequency (Hz), fade-in (s)
+COM_SHIFT = (0.5, 2.0)  # lift_leg: the CoM moves over the left sole in this window (s)
+RELEASE = (2.2, 0.3)  # lift_leg: rmContact time (s), ramp duration (s)
+LIFT = (2.5, 3.5, 0.10)  # lift_leg: the right sole rises 10 cm in this window (s)
+SQUAT = (0.5, 1.5, 2.0, 3.0, 0.15)  # down from, to, up from, to (s), depth (m)
+PUSHES = ((1.0, 0.002, 500.0), (2.0, 0.1, 100.0))  # start (s), duration (s), force along +x (N)
+
+
+@dataclass
+class DynamicsRun:
+    diagram: Diagram
+    robot: RobotDyn
+    tracer: Tracer
+    scenario: str
+    device: str
+    com: MetaTaskDynCom | None
+    foot: MetaTaskDyn6d | None
+    monitor: ContactMonitor | None
+    com_reference: np.ndarray  # the CoM reference's constant part (the initial CoM)
+    visualizer: object = None
+
+
+def _moves(start: np.ndarray, moves: list[tuple[float, float, np.ndarray]], end: float = 1e3, samples: int = 24) -> PiecewisePolynomial:
+    """From ``start``, each move ``(t0, t1, target)`` a minimum-jerk profile
+    ``s(τ) = 10τ³ − 15τ⁴ + 6τ⁵`` held still between the moves, as Drake's cubic Hermite spline
+    through ``samples`` points of each move with their exact velocities (so the acceleration
+    follows the profile closely and starts and ends near 0)."""
+    times, values, rates = [0.0], [start], [np.zeros_like(start)]
+    current = start
+    for t0, t1, target in moves:
+        for tau in np.linspace(0.0, 1.0, samples):
+            s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
+            ds = (30 * tau**2 - 60 * tau**3 + 30 * tau**4) / (t1 - t0)
+            if t0 + tau * (t1 - t0) > times[-1]:
+                times.append(t0 + tau * (t1 - t0))
+                values.append(current + s * (target - current))
+                rates.append(ds * (target - current))
+        current = target
+    times.append(end)
+    values.append(current)
+    rates.append(np.zeros_like(start))
+    return PiecewisePolynomial.CubicHermite(times, np.column_stack(values), np.column_stack(rates))
+
+
+def _hold_move_hold(t0: float, t1: float, a: np.ndarray, b: np.ndarray) -> PiecewisePolynomial:
+    """``a`` until t0, a minimum-jerk move to ``b`` at t1, then ``b``."""
+    return _moves(np.asarray(a, dtype=float), [(t0, t1, np.asarray(b, dtype=float))])
+
+
+def _trajectory_ports(robot: RobotDyn, traj: PiecewisePolynomial, name: str):
+    """Value, velocity and acceleration output ports of ``traj`` (Drake's TrajectorySource)."""
+    n = traj.rows()
+    source = robot.add(TrajectorySource(traj, output_derivative_order=2), name)
+    split = robot.add(Demultiplexer([n, n, n]), name + "_split")
+    robot.builder.Connect(source.get_output_port(), split.get_input_port())
+    return split.get_output_port(0), split.get_output_port(1), split.get_output_port(2)
+
+
+def sway_reference(t: float) -> tuple[float, float, float]:
+    """``(y, ẏ, ÿ) − y0`` of the sway at time t (see the module docstring)."""
+    amplitude, frequency, fade = SWAY
+    w = 2 * np.pi * frequency
+    tau = min(t / fade, 1.0)
+    e = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
+    de = (30 * tau**2 - 60 * tau**3 + 30 * tau**4) / fade if tau < 1 else 0.0
+    dde = (60 * tau - 180 * tau**2 + 120 * tau**3) / fade**2 if tau < 1 else 0.0
+    sin, cos = np.sin(w * t), np.cos(w * t)
+    return (amplitude * e * sin, amplitude * (de * sin + e * w * cos),
+            amplitude * (dde * sin + 2 * de * w * cos - e * w**2 * sin))
+
+
+def _com_trajectory(scenario: str, com0: np.ndarray, left_sole_xy: np.ndarray, duration: float = 30.0) -> PiecewisePolynomial | None:
+    if scenario == "sway":  # Drake's cubic Hermite spline through the exact values and rates, every 5 ms
+        times = np.arange(0.0, duration + 1e-9, 0.005)
+        values = np.array([com0 + [0.0, sway_reference(t)[0], 0.0] for t in times]).T
+        rates = np.array([[0.0, sway_reference(t)[1], 0.0] for t in times]).T
+        return PiecewisePolynomial.CubicHermite(times, values, rates)
+    if scenario == "lift_leg":
+        target = com0.copy()
+        target[:2] = left_sole_xy
+        return _hold_move_hold(*COM_SHIFT, com0, target)
+    if scenario == "squat":
+        down = com0 - np.array([0.0, 0.0, SQUAT[4]])
+        t0, t1, t2, t3, _ = SQUAT
+        return _moves(com0, [(t0, t1, down), (t2, t3, com0)])
+    return None
+
+
+def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Meshcat | None = None, dt: float = 1e-3) -> DynamicsRun:
+    if scenario not in SCENARIOS:
+        raise ValueError(f"unknown scenario {scenario!r}; available: {SCENARIOS}")
+    builder = DiagramBuilder()
+    model = load_talos("reduced")
+    robot = RobotDyn(builder, model, device, dt)
+    sot, connect = robot.sot, builder.Connect
+    # As in the tutorial, the grippers (on their upper limit at the start) are left out: q̈ = 0.
+    sot.setControlSelection(robot.velocity_selection(excluding=["gripper_left_joint", "gripper_right_joint"]))
+    contactLF = robot.add_contact("contactLF", "left-sole")
+    contactRF = robot.add_contact("contactRF", "right-sole")
+    sot.addContact(contactLF)
+    sot.addContact(contactRF)
+
+    com = None
+    com0 = robot.dynamic.com_at(robot.q0)
+    if scenario != "lift_leg_no_com":
+        com = MetaTaskDynCom(robot, kp=100.0)
+        sot.push(com.task.name)
+        left_xy = robot.dynamic.pose_at("contactLF", robot.q0).translation()[:2] + np.array([sum(sole_rectangle()[:2]) / 2, 0.0])
+        traj = _com_trajectory(scenario, com0, left_xy)
+        if traj is not None:
+            ports = _trajectory_ports(robot, traj, "com_trajectory")
+            connect(ports[0], com.featureDes.GetInputPort("value_in"))
+            connect(ports[1], com.featureDes.GetInputPort("velocity_in"))
+            connect(ports[2], com.task.GetInputPort("reference_acceleration"))
+    posture = MetaTaskDynPosture(robot, kp=25.0)
+
+    foot = None
+    if scenario.startswith("lift_leg"):
+        foot = MetaTaskDyn6d("RF", robot, "right-foot", "right-sole", kp=400.0)
+        p0 = foot.initial_pose().translation()
+        t0, t1, height = LIFT
+        value, velocity, acceleration = _trajectory_ports(robot, _hold_move_hold(t0, t1, p0, p0 + [0, 0, height]), "foot_trajectory")
+        connect(value, foot.featureDes.GetInputPort("translation_in"))
+        connect(velocity, foot.featureDes.GetInputPort("translation_velocity_in"))
+        zeros = robot.add(ConstantVectorSource(np.zeros(3)), "foot_zero_angular")
+        foot_acc = robot.add(Multiplexer([3, 3]), "foot_reference_acceleration")
+        connect(acceleration, foot_acc.get_input_port(0))
+        connect(zeros.get_output_port(), foot_acc.get_input_port(1))
+        connect(foot_acc.get_output_port(), foot.task.GetInputPort("reference_acceleration"))
+    sot.push(posture.task.name)
+    if foot is not None:
+        release_time, ramp = RELEASE
+        attime(release_time, lambda: (sot.push(foot.task.name), sot.up(foot.task.name), sot.rmContact(contactRF, ramp)),
+               "rmContact RF (its force ramped to 0), push the foot task above the posture")
+
+    monitor = None
+    if device == "physics":
+        plant = robot.physical.plant
+        monitor = robot.add(ContactMonitor(robot.physical))
+        connect(plant.get_contact_results_output_port(), monitor.get_input_port())
+        if scenario == "push":
+            mux = robot.add(ExternallyAppliedSpatialForceMultiplexer(len(PUSHES)), "pushes")
+            for i, (start, duration, force) in enumerate(PUSHES):
+                push = robot.add(Push(plant, "torso_2_link", [force, 0.0, 0.0], start, duration), f"push_{i}")
+                connect(push.get_output_port(), mux.get_input_port(i))
+            connect(mux.get_output_port(), plant.get_applied_spatial_force_input_port())
+
+    tracer = Tracer(builder, dt)
+    tracer.add(robot.state_port, "x")
+    tracer.add(robot.dynamic.GetOutputPort("com"), "com")
+    tracer.add(sot.GetOutputPort("torque"), "torque")
+    tracer.add(sot.GetOutputPort("wrenches"), "wrenches")
+    if com is not None:
+        tracer.add(com.featureDes.GetOutputPort("errorIN"), "com_reference")
+    if foot is not None:
+        tracer.add(value, "foot_reference")
+    if monitor is not None:
+        tracer.add(monitor.GetOutputPort("feet"), "feet")
+
+    visualizer = None
+    if meshcat is not None:
+        if device == "physics":
+            visualizer = MeshcatVisualizer.AddToBuilder(builder, robot.physical.scene_graph, meshcat, MeshcatVisualizerParams(publish_period=1 / 60))
+            ContactVisualizer.AddToBuilder(builder, robot.physical.plant, meshcat,
+                                           ContactVisualizerParams(publish_period=1 / 60, newtons_per_meter=1000))
+        else:
+            visual = model.with_meshes()
+            scene_graph = robot.add(visual.scene_graph, "scene_graph")
+            to_pose = robot.add(MultibodyPositionToGeometryPose(visual.plant, input_multibody_state=True), "robot_pose")
+            to_pose.visual_model = visual
+            connect(robot.state_port, to_pose.get_input_port())
+            connect(to_pose.get_output_port(), scene_graph.get_source_pose_port(visual.plant.get_source_id()))
+            visualizer = MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, MeshcatVisualizerParams(publish_period=1 / 60))
+        meshcat.SetCameraPose(camera_in_world=[1.6, -2.2, 1.3], target_in_world=[0.0, 0.0, 0.6])
+    diagram = builder.Build()
+    diagram.set_name("talos_dynamics")
+    return DynamicsRun(diagram, robot, tracer, scenario, device, com, foot, monitor, com0, visualizer)
+
+
+def simulate_ticks(run: DynamicsRun, duration: float, progress: bool = True) -> tuple[Simulator, np.ndarray]:
+    """Advance tick by tick (recording if there is a visualizer); returns the simulator and the
+    wall time of each tick (s)."""
+    from tqdm import tqdm
+
+    simulator = Simulator(run.diagram)
+    simulator.Initialize()
+    if run.visualizer is not None:
+        run.visualizer.StartRecording(False)
+    dt = run.robot.dt
+    ticks = round(duration / dt)
+    times = np.empty(ticks)
+    for k in tqdm(range(ticks), disable=not progress, file=sys.stderr, desc=f"{run.scenario}/{run.device}"):
+        start = time.perf_counter()
+        simulator.AdvanceTo((k + 1) * dt)
+        times[k] = time.perf_counter() - start
+        if not np.all(np.isfinite(run.robot.state_port.Eval(run.robot.state_port.get_system().GetMyContextFromRoot(simulator.get_context())))):
+            times = times[: k + 1]
+            break
+    return simulator, times
+
+
+def _support(path: dict, sides: list[str], margin_rectangle) -> tuple[np.ndarray, np.ndarray]:
+    x_min, x_max, y_min, y_max = margin_rectangle
+    corners = np.array([path[s][0, :3, 3] + path[s][0, :3, :3] @ np.array([x, y, 0.0])
+                        for s in sides for x in (x_min, x_max) for y in (y_min, y_max)])
+    return corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
+
+
+def summarize(run: DynamicsRun, simulator: Simulator, times: np.ndarray, duration: float) -> tuple[dict, dict]:
+    trace = run.tracer.data(simulator.get_context())
+    robot = run.robot
+    nq = robot.model.nq
+    t = trace["time"]
+    x = trace["x"]
+    q = x[:, :nq]
+    finite = np.all(np.isfinite(x), axis=1)
+    path = robot.dynamic.trajectory(["contactLF", "contactRF"], np.nan_to_num(q))
+    com = trace["com"]
+    released_at = RELEASE[0] + RELEASE[1] if run.foot is not None else np.inf
+    base_z = q[:, 6]
+    fell = bool(not finite.all() or (base_z[0] - base_z).max() > 0.25 or com[:, 2].min() < 0.5)
+    summary: dict = {"scenario": run.scenario, "device": run.device, "duration_s": duration, "ticks": len(times), "fell": fell}
+    summary["com_drift_m"] = float(np.linalg.norm(com - com[0], axis=1).max())
+    if "com_reference" in trace:
+        error = np.linalg.norm(com - trace["com_reference"], axis=1)
+        summary["com_rms_error_m"] = float(np.sqrt(np.mean(error**2)))
+        summary["com_max_error_m"] = float(error.max())
+    # Slip of each sole while it is held (xy displacement from its initial pose).
+    slips = []
+    for side, until in (("contactLF", np.inf), ("contactRF", RELEASE[0] if run.foot is not None else np.inf)):
+        held = t < until
+        slips.append(np.linalg.norm(path[side][held, :2, 3] - path[side][0, :2, 3], axis=1).max())
+    summary["max_foot_slip_m"] = float(max(slips))
+    if run.foot is not None:
+        p = path["contactRF"][:, :3, 3]
+        lifted = t >= LIFT[0]
+        error = np.linalg.norm(p - trace["foot_reference"], axis=1)
+        summary["foot_rms_error_m"] = float(np.sqrt(np.mean(error[lifted] ** 2)))
+        summary["foot_max_error_m"] = float(error[lifted].max())
+        summary["foot_height_final_m"] = float(p[-1, 2] - p[0, 2])
+    torque_ratio = np.abs(trace["torque"]) / robot.sot.effort
+    summary["max_torque_ratio"] = float(torque_ratio.max())
+    summary["max_torque_ratio_joint"] = robot.model.plant.get_joint_actuator(
+        robot.model.plant.GetJointActuatorIndices()[int(np.argmax(torque_ratio.max(axis=0)))]).joint().name()
+    summary["tick_us_median"] = float(np.median(times) * 1e6)
+    summary["tick_us_p95"] = float(np.percentile(times, 95) * 1e6)
+    summary["realtime_factor"] = float(duration / times.sum())
+    if "feet" in trace:  # measured by the plant
+        feet = trace["feet"]
+        mu = FRICTION.dynamic_friction()
+        ratios = [friction_ratio(f, np.array([0, 0, 1.0]), mu) for row in feet for f in (row[0:3], row[3:6]) if f[2] > 10.0]
+        summary["max_friction_ratio"] = float(max(ratios)) if ratios else 0.0
+        rect = sole_rectangle()
+        double = t < released_at
+        margins = []
+        for k in range(len(t)):
+            if not np.all(np.isfinite(feet[k, 6:8])) or k == 0:
+                continue
+            low, high = _support(path, ["contactLF", "contactRF"] if double[k] else ["contactLF"], rect)
+            cop = feet[k, 6:8]
+            margins.append(min((cop - low).min(), (high - cop).min()))
+        summary["min_cop_margin_m"] = float(min(margins)) if margins else float("nan")
+        if run.foot is not None:
+            k = int(np.searchsorted(t, released_at))
+            summary["released_force_at_liftoff_n"] = float(feet[min(k, len(t) - 1), 5])
+            summary["released_force_before_release_n"] = float(feet[int(np.searchsorted(t, RELEASE[0])) - 1, 5])
+        summary["min_normal_force_n"] = float(feet[1:, [2, 5]][t[1:] < min(released_at, t[-1] + 1)].min())
+    else:  # the solver's forces (no physics)
+        wrenches = trace["wrenches"]
+        mu = 0.7
+        ratios = [friction_ratio(w[3:], np.array([0, 0, 1.0]), mu) for row in wrenches for w in (row[:6], row[6:]) if w[5] > 10.0]
+        summary["max_friction_ratio"] = float(max(ratios)) if ratios else 0.0
+        if run.foot is not None:
+            summary["released_force_at_liftoff_n"] = float(wrenches[int(np.searchsorted(t, released_at)) - 1, 11])
+    trace["tick_s"] = times
+    return summary, trace
+
+
+def plot(run: DynamicsRun, trace: dict, summary: dict, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
+
+    t = trace["time"]
+    fig, axes = plt.subplots(2, 2, figsize=(13, 8))
+    ax = axes[0, 0]
+    for i, axis in enumerate("xyz"):
+        ax.plot(t, trace["com"][:, i] - run.com_reference[i], label=f"CoM {axis}")
+        if "com_reference" in trace:
+            ax.plot(t, trace["com_reference"][:, i] - run.com_reference[i], "--", color=ax.lines[-1].get_color(), label=f"ref {axis}")
+    ax.set_ylabel("CoM − initial CoM (m)")
+    ax.legend(fontsize=7, ncol=2)
+    ax = axes[0, 1]
+    if "feet" in trace:
+        ax.plot(t, trace["feet"][:, 2], label="left sole (plant)")
+        ax.plot(t, trace["feet"][:, 5], label="right sole (plant)")
+    ax.plot(t, trace["wrenches"][:, 5], ":", label="left sole (solver)")
+    ax.plot(t, trace["wrenches"][:, 11], ":", label="right sole (solver)")
+    ax.set_ylabel("normal force (N)")
+    ax.legend(fontsize=7)
+    ax = axes[1, 0]
+    if "feet" in trace:
+        nq = run.robot.model.nq
+        poses = run.robot.dynamic.trajectory(["contactLF", "contactRF"], np.nan_to_num(trace["x"][:1, :nq]))
+        low, high = _support(poses, ["contactLF", "contactRF"], sole_rectangle())
+        ax.add_patch(Rectangle(low, *(high - low), fill=False, color="k", label="support polygon (both soles)"))
+        for side in ("contactLF", "contactRF"):
+            l, h = _support(poses, [side], sole_rectangle())
+            ax.add_patch(Rectangle(l, *(h - l), fill=False, color="gray", ls=":"))
+        ax.plot(trace["feet"][:, 6], trace["feet"][:, 7], ".", ms=1, label="CoP (plant)")
+    ax.plot(trace["com"][:, 0], trace["com"][:, 1], "-", lw=0.8, label="CoM (ground projection)")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.legend(fontsize=7)
+    ax = axes[1, 1]
+    ratio = trace["torque"] / run.robot.sot.effort
+    ax.plot(t, ratio, lw=0.6)
+    ax.axhline(1, color="r", ls="--")
+    ax.axhline(-1, color="r", ls="--")
+    ax.set_ylabel("τ / effort limit (each joint)")
+    for a in (axes[0, 0], axes[0, 1], axes[1, 1]):
+        a.set_xlabel("time (s)")
+    fig.suptitle(f"{run.scenario} on {run.device}: fell = {summary['fell']}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = script_arguments(__doc__, "out/dynamics", duration=5.0)
+    parser.add_argument("--scenario", choices=SCENARIOS, default="lift_leg")
+    parser.add_argument("--device", choices=["physics", "dynsimu"], default="physics")
+    args = parser.parse_args(argv)
+    meshcat = start(args)
+    logging.getLogger("drake").setLevel(logging.WARNING)
+    run = build_diagram(args.scenario, args.device, meshcat)
+    simulator, times = simulate_ticks(run, args.duration, not args.quiet)
+    summary, trace = summarize(run, simulator, times, args.duration)
+    print(json.dumps(summary, indent=2), flush=True)
+    args.out.mkdir(parents=True, exist_ok=True)
+    plot(run, trace, summary, args.out / "plots.png")
+    write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer)
+    return summary
+
+
+if __name__ == "__main__":
+    main()

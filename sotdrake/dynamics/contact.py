@@ -1,0 +1,161 @@
+"""Contacts as entities (sot-dyninv ``addContact``): a 6D sole contact, or a point contact.
+
+A contact C is a frame of the robot (a sole: z up out of the ground, origin on the sole plane)
+held still on the environment. Its unknown is the contact wrench ``w = (n, f)`` (torque about C's
+origin, force; N·m and N) *expressed in C*. The world wrench is ``W = diag(R, R) w`` with
+``R = R_WC``; the generalized force it produces is ``J_Cᵀ W`` (``J_C`` the spatial-velocity
+Jacobian of C, rows ``(ω; v)``, world).
+
+Constraints on ``w`` (all linear, so the hierarchy keeps them exactly):
+
+* unilateral: ``f_z ≥ f_min`` (a bound), and ``f_z ≤ f_max`` while it is released (a ramp);
+* friction pyramid inscribed in the cone of coefficient ``μ``: ``|f_x|, |f_y| ≤ μ/√2 · f_z``, so
+  ``‖f_t‖ ≤ μ f_z``;
+* centre of pressure ``p = (−n_y/f_z, n_x/f_z)`` inside the sole rectangle ``[x_min, x_max] ×
+  [y_min, y_max]`` (C's frame) shrunk by ``cop_margin``: ``−n_y − x_max f_z ≤ 0``,
+  ``n_y + x_min f_z ≤ 0``, ``n_x − y_max f_z ≤ 0``, ``−n_x + y_min f_z ≤ 0``;
+* yaw torque ``|n_z| ≤ μ · r · f_z`` with ``r`` the sole's smaller half-size (a conservative
+  torsional friction).
+
+A point contact (``rectangle=None``) has only the force ``f`` (3 unknowns, friction rows only) and
+only the translational rows of ``J_C``. The contact's motion constraint is
+``J_C q̈ + J̇_C v = −K_v J_C v`` (zero acceleration, with an optional damping of any
+residual contact velocity, ``velocity_gain`` K_v ≥ 0, 1/s; default 30: on the compliant
+soles of the physics plant, K_v = 0 lets the ankles chatter within 30 ms).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import Context
+
+from ..entity import Entity
+from ..exceptions import InvalidInput
+
+
+class ContactRows(NamedTuple):
+    """What the solver needs of one contact (see the module docstring): ``wrench_rows`` ``A w ≤ 0``
+    on the local wrench (size k = 6, or 3 for a point contact); ``f_min`` the normal force's lower
+    bound (N); ``jacobian`` (k×nv), ``acceleration`` (k: the reference ``J_C q̈ = acceleration``),
+    ``rotation`` ``R_WC``. The normal force is the wrench's last component."""
+
+    jacobian: np.ndarray
+    acceleration: np.ndarray
+    rotation: np.ndarray
+    wrench_rows: np.ndarray
+    f_min: float
+    mu: float
+
+
+def wrench_constraints(mu: float, rectangle: tuple[float, float, float, float] | None, cop_margin: float) -> np.ndarray:
+    """Rows ``A w ≤ 0`` (friction, CoP, yaw) on ``w = (n_x, n_y, n_z, f_x, f_y, f_z)``, or on
+    ``w = f`` for a point contact (``rectangle=None``)."""
+    k = mu / math.sqrt(2.0)
+    rows = [
+        [0, 0, 0, 1, 0, -k], [0, 0, 0, -1, 0, -k],
+        [0, 0, 0, 0, 1, -k], [0, 0, 0, 0, -1, -k],
+    ]
+    if rectangle is None:
+        return np.array(rows, dtype=float)[:, 3:]
+    else:
+        x_min, x_max, y_min, y_max = rectangle
+        x_min, x_max, y_min, y_max = x_min + cop_margin, x_max - cop_margin, y_min + cop_margin, y_max - cop_margin
+        r = min(x_max - x_min, y_max - y_min) / 2
+        rows += [
+            [0, -1, 0, 0, 0, -x_max], [0, 1, 0, 0, 0, x_min],
+            [1, 0, 0, 0, 0, -y_max], [-1, 0, 0, 0, 0, y_min],
+            [0, 0, 1, 0, 0, -mu * r], [0, 0, -1, 0, 0, -mu * r],
+        ]
+    return np.array(rows, dtype=float)
+
+
+def world_wrench_map(R: np.ndarray, k: int = 6) -> np.ndarray:
+    """``diag(R, R)`` (or ``R`` for a point contact, k = 3): the local wrench to the world wrench."""
+    if k == 3:
+        return R
+    out = np.zeros((6, 6))
+    out[:3, :3] = out[3:, 3:] = R
+    return out
+
+
+def friction_ratio(force_world: np.ndarray, normal: np.ndarray, mu: float) -> float:
+    """``‖f_t‖ / (μ f_n)`` of a force (world) against a surface of unit ``normal`` (inf if f_n ≤ 0)."""
+    fn = float(force_world @ normal)
+    ft = np.linalg.norm(force_world - fn * normal)
+    return ft / (mu * fn) if fn > 0 else (0.0 if ft == 0 else math.inf)
+
+
+@dataclass
+class ContactSettings:
+    mu: float = 0.7
+    f_min: float = 1.0
+    cop_margin: float = 0.01
+    velocity_gain: float = 30.0
+
+
+class Contact6d(Entity[ContactSettings]):
+    """A contact entity (sot-dyninv's ``contactLF``). Inputs ``position`` (``X_WC``), ``jacobian``
+    (``J_WC``), ``drift`` (``J̇_WC v``), ``velocity`` (v). Output ``contact``: :class:`ContactRows`.
+    ``rectangle = (x_min, x_max, y_min, y_max)`` (m, in C) is the sole; None for a point contact."""
+
+    def __init__(self, name: str, nv: int, rectangle: tuple[float, float, float, float] | None,
+                 mu: float = 0.7, f_min: float = 1.0, cop_margin: float = 0.01):
+        Entity.__init__(self, name, ContactSettings())
+        self.nv = nv
+        if rectangle is not None:
+            rectangle = tuple(float(a) for a in rectangle)
+            if len(rectangle) != 4 or not (rectangle[0] < rectangle[1] and rectangle[2] < rectangle[3]):
+                raise InvalidInput(f"{name}: rectangle is (x_min, x_max, y_min, y_max) with min < max, got {rectangle}")
+        self.rectangle = rectangle
+        self.setFriction(mu)
+        self.setMinimumNormalForce(f_min)
+        self.setCopMargin(cop_margin)
+        self.position = self.DeclareAbstractInputPort("position", AbstractValue.Make(RigidTransform()))
+        self.jacobian = self.DeclareAbstractInputPort("jacobian", AbstractValue.Make(np.zeros((6, nv))))
+        self.drift = self.DeclareVectorInputPort("drift", 6)
+        self.velocity = self.DeclareVectorInputPort("velocity", nv)
+        k = 6 if rectangle is not None else 3
+        empty = ContactRows(np.zeros((k, nv)), np.zeros(k), np.eye(3), np.zeros((0, k)), 0.0, 1.0)
+        self.DeclareAbstractOutputPort("contact", lambda: AbstractValue.Make(empty), self._calc)
+
+    def setFriction(self, mu: float, context: Context | None = None) -> None:
+        """Friction coefficient μ > 0 of the pyramid."""
+        if not (np.isfinite(mu) and mu > 0):
+            raise InvalidInput(f"{self.name}: friction coefficient μ must be finite and > 0, got {mu}")
+        self._command(context, lambda s: setattr(s, "mu", float(mu)))
+
+    def setMinimumNormalForce(self, f_min: float, context: Context | None = None) -> None:
+        """``f_min ≥ 0`` (N): the normal force never goes below it while the contact is held."""
+        if not (np.isfinite(f_min) and f_min >= 0):
+            raise InvalidInput(f"{self.name}: minimum normal force must be finite and ≥ 0, got {f_min}")
+        self._command(context, lambda s: setattr(s, "f_min", float(f_min)))
+
+    def setCopMargin(self, margin: float, context: Context | None = None) -> None:
+        """How far (m) the CoP stays inside the sole's edges: ``0 ≤ margin <`` half the sole's width."""
+        limit = math.inf if self.rectangle is None else min(self.rectangle[1] - self.rectangle[0], self.rectangle[3] - self.rectangle[2]) / 2
+        if not (np.isfinite(margin) and 0 <= margin < limit):
+            raise InvalidInput(f"{self.name}: CoP margin must be in [0, {limit}) m, got {margin}")
+        self._command(context, lambda s: setattr(s, "cop_margin", float(margin)))
+
+    def setVelocityGain(self, gain: float, context: Context | None = None) -> None:
+        """``K_v ≥ 0`` (1/s): damping of a residual contact velocity."""
+        if not (np.isfinite(gain) and gain >= 0):
+            raise InvalidInput(f"{self.name}: velocity gain must be finite and ≥ 0, got {gain}")
+        self._command(context, lambda s: setattr(s, "velocity_gain", float(gain)))
+
+    def _calc(self, context: Context, output: AbstractValue) -> None:
+        s = self._settings_of(context)
+        rows = slice(0, 6) if self.rectangle is not None else slice(3, 6)
+        J = self.jacobian.Eval(context)[rows]
+        acceleration = -self.drift.Eval(context)[rows]
+        if s.velocity_gain:
+            acceleration = acceleration - s.velocity_gain * (J @ self.velocity.Eval(context))
+        A = wrench_constraints(s.mu, self.rectangle, s.cop_margin)
+        R = self.position.Eval(context).rotation().matrix()
+        output.set_value(ContactRows(J, acceleration, R, A, s.f_min, s.mu))

@@ -1,0 +1,83 @@
+"""Dynamic meta tasks (sot-dyninv ``MetaTaskDyn6d``, ``MetaTaskDynCom``, ``MetaTaskDynPosture``).
+
+Each adds ``feature<name>`` (an existing feature, unchanged), ``feature<name>_ref`` (its desired
+value) and ``task<name>`` (:class:`.task_dyn_pd.TaskDynPD`), plugged as in the kinematic meta tasks,
+and connects the task to the robot's ``SolverDyn``. Desired values start as the current ones at the
+robot's initial configuration (the task holds still until told otherwise).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import Context
+
+from ..features import Feature6d, Feature6dDesired, FeatureGeneric, FeatureGenericDesired, FeaturePosture
+from .robot_dyn import RobotDyn
+from .task_dyn_pd import TaskDynPD
+
+
+class _MetaTaskDyn:
+    def _finish(self, robot: RobotDyn, name: str, feature, kp: float, kv: float | None, dimension: int | None = None) -> None:
+        self.robot, self.name, self.feature = robot, name, feature
+        self.task = robot.add_task(TaskDynPD("task" + name, robot.dimension, robot.dt, kp, kv, dimension))
+        for port in ("error", "jacobian", "errordot"):
+            robot.builder.Connect(feature.GetOutputPort(port), self.task.GetInputPort(port))
+
+
+class MetaTaskDyn6d(_MetaTaskDyn):
+    """Pose of an op point (``Feature6d``, frame ``'desired'``), e.g. a foot to lift."""
+
+    def __init__(self, name: str, robot: RobotDyn, opPoint: str, opPointRef: str | None = None,
+                 kp: float = 100.0, kv: float | None = None):
+        """The task's ``reference_acceleration`` input takes the 6 error rows' ``s̈*`` (with the
+        default frame ``'desired'`` and a fixed desired rotation: ``(p̈*, 0)``)."""
+        self.opPoint = opPoint
+        position, jacobian = robot.dynamic.createOpPoint(opPoint, opPointRef or opPoint)
+        feature = robot.add(Feature6d("feature" + name, robot.dimension))
+        self.featureDes = robot.add(Feature6dDesired("feature" + name + "_ref"))
+        connect = robot.builder.Connect
+        connect(position, feature.GetInputPort("position"))
+        connect(jacobian, feature.GetInputPort("Jq"))
+        connect(self.featureDes.GetOutputPort("position"), feature.GetInputPort("reference"))
+        connect(self.featureDes.GetOutputPort("velocity"), feature.GetInputPort("reference_velocity"))
+        self._finish(robot, name, feature, kp, kv, dimension=6)
+        self.keep()
+
+    def initial_pose(self) -> RigidTransform:
+        return self.robot.dynamic.pose_at(self.opPoint, self.robot.q0)
+
+    def keep(self, context: Context | None = None) -> None:
+        """Desired pose ← the op point's pose at the initial configuration."""
+        self.featureDes.setPosition(self.initial_pose(), context)
+
+
+class MetaTaskDynCom(_MetaTaskDyn):
+    """The centre of mass (``FeatureGeneric`` over ``dynamic.com``) with the exact CoM drift."""
+
+    def __init__(self, robot: RobotDyn, name: str = "com", kp: float = 100.0, kv: float | None = None):
+        feature = robot.add(FeatureGeneric("feature" + name, 3, robot.dimension))
+        self.featureDes = robot.add(FeatureGenericDesired("feature" + name + "_ref", 3))
+        connect = robot.builder.Connect
+        connect(robot.dynamic.GetOutputPort("com"), feature.GetInputPort("errorIN"))
+        connect(robot.dynamic.GetOutputPort("Jcom"), feature.GetInputPort("jacobianIN"))
+        connect(self.featureDes.GetOutputPort("errorIN"), feature.GetInputPort("reference"))
+        connect(self.featureDes.GetOutputPort("velocity"), feature.GetInputPort("reference_velocity"))
+        self._finish(robot, name, feature, kp, kv, dimension=3)
+        connect(robot.dynamic.GetOutputPort("com_drift"), self.task.GetInputPort("drift"))
+        self.keep()
+
+    def initial_com(self) -> np.ndarray:
+        return self.robot.dynamic.com_at(self.robot.q0)
+
+    def keep(self, context: Context | None = None) -> None:
+        self.featureDes.setReference(self.initial_com(), context)
+
+
+class MetaTaskDynPosture(_MetaTaskDyn):
+    """Every joint towards the initial posture (``FeaturePosture``; the free flyer left free)."""
+
+    def __init__(self, robot: RobotDyn, name: str = "posture", kp: float = 25.0, kv: float | None = None):
+        feature = robot.add(FeaturePosture("feature" + name, robot.model.plant, robot.q0))
+        robot.builder.Connect(robot.dynamic.GetOutputPort("position"), feature.GetInputPort("state"))
+        self._finish(robot, name, feature, kp, kv)

@@ -1,0 +1,110 @@
+"""The dynamic SoT's ``robot`` (the seed's ``Robot('robot', device=RobotDynSimu('robot'))``).
+
+Creating it adds and plugs, in a ``DiagramBuilder``: the dynamic entity ``dynamic``
+(:class:`.dynamic_entity.DynamicEntity`), the solver ``sot`` (:class:`.solver_dyn.SolverDyn`,
+``dynamic.dynamics → sot.dynamics``) and the device:
+
+* ``device='dynsimu'``: ``RobotDynSimu`` (``sot.control`` = ``q̈`` → ``device.control``,
+  ``device.state → dynamic.state``);
+* ``device='physics'``: the torque-driven plant of :mod:`.station` (``sot.torque`` → the plant's
+  actuation input, the plant's state → ``dynamic.state``: closed loop, no PD).
+
+Tasks (:mod:`.meta_tasks_dyn`) and contacts (:meth:`add_contact`) are connected to the solver as
+they are created; the stack and the contact set are the solver's settings in the Context.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+
+from ..exceptions import InvalidInput
+from ..robots import RobotModel
+from ..solvers.hqp import ACTIVE_SET
+from .contact import Contact6d
+from .device import RobotDynSimu
+from .dynamic_entity import DynamicEntity
+from .solver_dyn import SolverDyn
+from .station import add_torque_driven_talos, sole_rectangle
+from .task_dyn_pd import TaskDynPD
+
+DEVICES = ("dynsimu", "physics")
+
+
+class RobotDyn:
+    def __init__(self, builder: DiagramBuilder, model: RobotModel, device: str = "dynsimu", dt: float = 1e-3,
+                 q0: np.ndarray | None = None, max_contacts: int = 2, solver: str = ACTIVE_SET):
+        if device not in DEVICES:
+            raise InvalidInput(f"unknown device {device!r}; available: {list(DEVICES)}")
+        self.builder, self.model, self.dt, self.device_kind = builder, model, float(dt), device
+        self.OperationalPointsMap = model.OperationalPointsMap
+        self.q0 = (model.half_sitting if q0 is None else np.asarray(q0, dtype=float)).copy()
+        self.tasks: dict[str, TaskDynPD] = {}
+        self.contacts: dict[str, Contact6d] = {}
+        self._names: set[str] = set()
+        self.dynamic = self.add(DynamicEntity(model, "dynamic"))
+        self.sot = self.add(SolverDyn("sot", model, dt, max_contacts=max_contacts, solver=solver))
+        builder.Connect(self.dynamic.GetOutputPort("dynamics"), self.sot.GetInputPort("dynamics"))
+        self.physical = None
+        if device == "dynsimu":
+            self.device = self.add(RobotDynSimu(model.plant, dt, self.q0, name="device"))
+            builder.Connect(self.sot.GetOutputPort("control"), self.device.GetInputPort("control"))
+            self.state_port = self.device.GetOutputPort("state")
+        else:
+            self.physical = add_torque_driven_talos(builder, model.variant, time_step=dt)
+            plant = self.physical.plant
+            if plant.num_positions() != model.nq or plant.num_actuators() != model.plant.num_actuators():
+                raise InvalidInput("the physics plant and the control model differ in size")
+            plant.SetDefaultPositions(self.q0)
+            self.device = plant
+            builder.Connect(self.sot.GetOutputPort("torque"), plant.get_actuation_input_port(self.physical.instance))
+            self.state_port = plant.get_state_output_port()
+        builder.Connect(self.state_port, self.dynamic.GetInputPort("state"))
+
+    def velocity_selection(self, excluding: list[str] = ()) -> np.ndarray:
+        """nv booleans, False on the velocities of the joints named in ``excluding``."""
+        plant = self.model.plant
+        mask = np.ones(self.dimension, dtype=bool)
+        for name in excluding:
+            joint = plant.GetJointByName(name)
+            mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
+        return mask
+
+    @property
+    def dimension(self) -> int:
+        return self.model.nv
+
+    def add(self, system: LeafSystem, name: str | None = None) -> LeafSystem:
+        """Add ``system`` under ``name`` (default: its own), which must be new."""
+        if name is not None:
+            system.set_name(name)
+        name = system.get_name()
+        if not name or name in self._names:
+            raise InvalidInput(f"an entity needs a new name, got {name!r}")
+        self._names.add(name)
+        return self.builder.AddNamedSystem(name, system)
+
+    def add_task(self, task: TaskDynPD) -> TaskDynPD:
+        """Add a task, plug ``dynamic.velocity`` into it and connect it to the solver."""
+        self.add(task)
+        self.tasks[task.name] = task
+        self.builder.Connect(self.dynamic.GetOutputPort("velocity"), task.GetInputPort("velocity"))
+        self.builder.Connect(task.GetOutputPort("task"), self.sot.declare_task_input(task))
+        return task
+
+    def add_contact(self, name: str, opPoint: str, rectangle: tuple[float, float, float, float] | None = "sole",
+                    mu: float = 0.7, f_min: float = 1.0, cop_margin: float = 0.01) -> Contact6d:
+        """A contact entity on op point ``opPoint`` (e.g. ``'left-sole'``), plugged to the
+        dynamic entity and the solver (not yet held: ``sot.addContact``). ``rectangle='sole'``
+        is TALOS' sole box; None makes a point contact."""
+        rectangle = sole_rectangle() if rectangle == "sole" else rectangle
+        contact = self.add(Contact6d(name, self.dimension, rectangle, mu, f_min, cop_margin))
+        pose, jacobian = self.dynamic.createOpPoint(name, opPoint)
+        connect = self.builder.Connect
+        connect(pose, contact.GetInputPort("position"))
+        connect(jacobian, contact.GetInputPort("jacobian"))
+        connect(self.dynamic.drift_port(name), contact.GetInputPort("drift"))
+        connect(self.dynamic.GetOutputPort("velocity"), contact.GetInputPort("velocity"))
+        connect(contact.GetOutputPort("contact"), self.sot.declare_contact_input(contact))
+        self.contacts[name] = contact
+        return contact

@@ -1,0 +1,400 @@
+"""``SolverDyn`` (sot-dyninv): the stack solved for ``x = (q̈, w_1 … w_k, τ)`` in strict priority.
+
+Unknowns: the generalized acceleration ``q̈`` (nv), each active contact's local wrench ``w_c``
+(6, or 3 for a point contact; see :mod:`.contact`) and the actuator torques ``τ`` (na, actuator
+order). Hard bounds on ``x`` (never violated): the joint limits as acceleration bounds
+(:func:`.terms.acceleration_bounds`), ``|τ| ≤`` the effort limits, and each normal force
+``f_min ≤ f_z ≤ f_max`` (``f_max`` finite only while the contact is released). The levels, highest
+first (:func:`dynamic_levels`):
+
+0. the dynamics ``M q̈ − Σ J_cᵀ diag(R_c, R_c) w_c − B τ = −h`` (exact: it is physics);
+1. the contacts: ``J_c q̈ = −J̇_c v`` (zero acceleration) with the friction, CoP and yaw rows
+   ``A_c w_c ≤ 0``;
+2. … the user's stack (``push``), each a :class:`~sotdrake.task.TaskLevel` over ``q̈``
+   (``TaskDynPD``);
+last. ``q̈ = −K_d v``: whatever motion the stack leaves free is damped (``setDampingGain``); in
+   the same level, ``ε w_t = 0`` on every contact's tangential force and torque (``ε = 10⁻³``
+   s²/kg·m: a regularization, so that the distribution of the wrenches the levels above leave free
+   prefers centred CoPs and no shear, away from the friction and CoP bounds).
+
+The hierarchical QP then takes the minimum-norm ``x`` of the optimal set (smallest torques and
+wrenches among the equivalent ones). Joints without an actuator would get no ``τ`` column: TALOS'
+loaded models actuate every joint (the loader adds the differential joints' actuators), so ``B``
+is a permutation of the joint rows; a model with unactuated joints keeps them passive through the
+dynamics rows.
+
+``rmContact(name, duration)`` releases a contact smoothly: from the first tick after the command,
+its normal force's upper bound ramps linearly from the normal force it carried then down to 0 over
+``duration`` seconds (the lower bound drops to 0); the contact is removed once the ramp ends, so the
+foot lifts off carrying no force. The ramps are discrete state; the contact set is a setting.
+
+Inputs: ``dynamics`` (:class:`.terms.DynamicsTerms`), one per contact (``contact<name>``
+ports, :class:`.contact.ContactRows`) and one per task. Outputs: ``control`` (``q̈``, the seed's
+name), ``torque`` (τ), ``wrenches`` (the world wrench of each declared contact about its origin,
+``(n, f)``, 6 per contact in declaration order, zero when inactive), ``residuals`` (slack norm per
+level) and ``diagnostics``.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Context, InputPort
+
+from ..device import Layout
+from ..exceptions import InvalidInput, NotFound, SolverError, StackError
+from ..robots import RobotModel
+from ..solvers.hqp import ACTIVE_SET, HierarchicalQP, LevelRows, check_solver
+from ..solvers.sot import SOT, StackSettings
+from ..task import TaskLevel
+from .contact import Contact6d, ContactRows, world_wrench_map
+from .terms import DynamicsTerms, acceleration_bounds
+
+log = logging.getLogger("sotdrake.solver_dyn")
+
+
+WRENCH_REGULARIZATION = 1e-3
+
+
+class ContactNotFound(NotFound):
+    kind = "contact"
+
+
+@dataclass
+class DynSettings(StackSettings):
+    releasing: dict[str, float] = field(default_factory=dict)  # contact name → ramp duration (s)
+    damping_gain: float = 10.0  # K_d of the last level (1/s)
+    horizon: float = 0.05  # s, joint limits as acceleration bounds
+    position_margin: float = 1e-3
+    solver: str = ACTIVE_SET
+
+
+@dataclass
+class DynDiagnostics:
+    levels: list[str] = field(default_factory=list)
+    slack_norms: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    level_solvers: list[str] = field(default_factory=list)
+    active_bounds: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    solve_time_s: float = 0.0
+    failure: str = ""
+
+
+@dataclass
+class DynSolution:
+    acceleration: np.ndarray
+    torque: np.ndarray
+    wrenches: dict[str, np.ndarray]  # world wrench (n, f) of each active contact
+    local_wrenches: dict[str, np.ndarray]
+    residuals: np.ndarray
+    diagnostics: DynDiagnostics
+
+    @property
+    def velocity(self) -> np.ndarray:  # what SOT's ``control`` output reads
+        return self.acceleration
+
+
+@dataclass
+class ActiveContact:
+    name: str
+    rows: ContactRows
+    f_max: float = np.inf  # the release ramp's bound on the normal force
+
+
+def dynamic_levels(
+    terms: DynamicsTerms, contacts: list[ActiveContact], tasks: list[TaskLevel], damping_gain: float,
+    with_inequalities: bool = True,
+) -> tuple[list[LevelRows], list[slice]]:
+    """The levels of the module docstring over ``x = (q̈, w…, τ)``, and the slice of each contact's
+    wrench in ``x``. ``with_inequalities=False`` leaves the contacts' wrench rows out (the
+    relaxed problem of :meth:`SolverDyn._calc`)."""
+    nv, na = terms.B.shape
+    sizes = [c.rows.jacobian.shape[0] for c in contacts]
+    n = nv + sum(sizes) + na
+    slices, start = [], nv
+    for k in sizes:
+        slices.append(slice(start, start + k))
+        start += k
+    dyn = np.zeros((nv, n))
+    dyn[:, :nv] = terms.M
+    dyn[:, nv + sum(sizes):] = -terms.B
+    for c, sl in zip(contacts, slices):
+        dyn[:, sl] = -c.rows.jacobian.T @ world_wrench_map(c.rows.rotation, sl.stop - sl.start)
+    levels = [LevelRows(dyn, -terms.h, -terms.h)]
+    if contacts:
+        m_eq = sum(sizes)
+        m_in = sum(len(c.rows.wrench_rows) for c in contacts) if with_inequalities else 0
+        A = np.zeros((m_eq + m_in, n))
+        lower = np.concatenate([np.concatenate([c.rows.acceleration for c in contacts]), np.full(m_in, -np.inf)])
+        upper = np.concatenate([lower[:m_eq], np.zeros(m_in)])
+        r_eq, r_in = 0, m_eq
+        for c, sl in zip(contacts, slices):
+            k, m = sl.stop - sl.start, len(c.rows.wrench_rows) if with_inequalities else 0
+            A[r_eq : r_eq + k, :nv] = c.rows.jacobian
+            if m:
+                A[r_in : r_in + m, sl] = c.rows.wrench_rows
+            r_eq, r_in = r_eq + k, r_in + m
+        levels.append(LevelRows(A, lower, upper))
+    for task in tasks:
+        A = np.zeros((task.jacobian.shape[0], n))
+        A[:, :nv] = task.jacobian
+        levels.append(LevelRows(A, task.lower, task.upper))
+    m = sum(k - 1 for k in sizes)
+    damping = np.zeros((nv + m, n))
+    damping[:nv, :nv] = np.eye(nv)
+    row = nv
+    for sl in slices:
+        for column in range(sl.start, sl.stop - 1):  # every component but the normal force
+            damping[row, column] = WRENCH_REGULARIZATION
+            row += 1
+    target = np.concatenate([-damping_gain * terms.v, np.zeros(m)])
+    levels.append(LevelRows(damping, target, target))
+    return levels, slices
+
+
+def variable_bounds(
+    nv: int, contacts: list[ActiveContact], slices: list[slice], acceleration_lower: np.ndarray,
+    acceleration_upper: np.ndarray, effort: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds on ``x``: joint accelerations, the normal forces (``f_min``, the ramp), the torques."""
+    lower = np.concatenate([acceleration_lower, np.full(sum(s.stop - s.start for s in slices), -np.inf), -effort])
+    upper = np.concatenate([acceleration_upper, np.full(len(lower) - nv - len(effort), np.inf), effort])
+    for c, sl in zip(contacts, slices):
+        normal = sl.stop - 1  # f_z, the wrench's last component
+        released = np.isfinite(c.f_max)
+        lower[normal], upper[normal] = (0.0, c.f_max) if released else (c.rows.f_min, np.inf)
+    return lower, upper
+
+
+def _wrench_rows_hold(contacts: list[ActiveContact], slices: list[slice], x: np.ndarray, tolerance: float = 1e-9) -> bool:
+    for c, sl in zip(contacts, slices):
+        w = x[sl]
+        if np.any(c.rows.wrench_rows @ w > tolerance * max(1.0, float(np.abs(w).max()))):
+            return False
+    return True
+
+
+class SolverDyn(SOT):
+    """Inverse-dynamics solver with contacts (see the module docstring)."""
+
+    accepts_inequalities = True
+
+    def __init__(self, name: str, model: RobotModel, dt: float, max_contacts: int = 2, damping_gain: float = 10.0,
+                 solver: str = ACTIVE_SET):
+        SOT.__init__(self, name, model.nv, settings=DynSettings())
+        self.dt, self.model = float(dt), model
+        self.layout = Layout.of(model.plant)
+        limits = model.joint_limits()
+        self._limits = (limits["position_lower"], limits["position_upper"], limits["velocity_lower"], limits["velocity_upper"])
+        self.effort = limits["effort"]
+        self.na = len(self.effort)
+        self.max_contacts = max_contacts
+        self.setDampingGain(damping_gain)
+        self.setSolver(solver)
+        self._contact_ports: dict[str, InputPort] = {}
+        self._hqps: dict[int, HierarchicalQP] = {}  # a cache of solvers per problem size
+        self.dynamics = self.DeclareAbstractInputPort("dynamics", AbstractValue.Make(
+            DynamicsTerms(np.eye(self.nv), np.zeros(self.nv), np.zeros(self.nv), np.zeros((self.nv, self.na)),
+                          np.zeros(model.nq), np.zeros(self.nv), 1.0)))
+        # Discrete state: the release ramp of each declared contact, (t0, f0) (NaN: none). A discrete
+        # update is computed from the same context as the device's and the plant's.
+        self._ramps = self.DeclareDiscreteState(np.full(2 * max_contacts, np.nan))
+        self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._update)
+        self.DeclareVectorOutputPort("torque", self.na, lambda c, o: o.SetFromVector(self._solution.Eval(c).torque))
+        self.DeclareVectorOutputPort("wrenches", 6 * max_contacts, self._calc_wrenches)
+        self.DeclareAbstractOutputPort("diagnostics", lambda: AbstractValue.Make(DynDiagnostics()),
+                                       lambda c, o: o.set_value(self._solution.Eval(c).diagnostics))
+
+    # --- wiring ------------------------------------------------------------------------------
+    def declare_contact_input(self, contact: Contact6d) -> InputPort:
+        """The input port of ``contact`` (its ``contact`` output goes there)."""
+        if contact.name in self._contact_ports:
+            return self._contact_ports[contact.name]
+        if len(self._contact_ports) == self.max_contacts:
+            raise InvalidInput(f"{self.name} was built for {self.max_contacts} contacts (max_contacts)")
+        if contact.nv != self.nv:
+            raise InvalidInput(f"contact {contact.name} has nv = {contact.nv}, solver {self.name} has nv = {self.nv}")
+        port = self.DeclareAbstractInputPort("contact" + contact.name if not contact.name.startswith("contact") else contact.name,
+                                             AbstractValue.Make(ContactRows(np.zeros((6, self.nv)), np.zeros(6), np.eye(3), np.zeros((0, 6)), 0.0, 1.0)))
+        self._contact_ports[contact.name] = port
+        return port
+
+    @property
+    def known_contacts(self) -> list[str]:
+        return list(self._contact_ports)
+
+    def _contact_name(self, contact) -> str:
+        name = getattr(contact, "name", contact)
+        if name not in self._contact_ports:
+            raise ContactNotFound(name, list(self._contact_ports))
+        return name
+
+    # --- commands ----------------------------------------------------------------------------
+    def addContact(self, contact, context: Context | None = None) -> None:
+        """Hold ``contact`` (a name or a :class:`Contact6d`); a contact being released is held again."""
+        name = self._contact_name(contact)
+
+        def change(s: DynSettings) -> None:
+            if name in s.contacts and name not in s.releasing:
+                raise StackError(f"{self.name}.addContact: {name!r} is already a contact")
+            s.releasing.pop(name, None)
+            if name not in s.contacts:
+                s.contacts.append(name)
+
+        self._command(context, change)
+
+    def rmContact(self, contact, duration: float = 0.3, context: Context | None = None) -> None:
+        """Release ``contact``: its normal force ramps to 0 over ``duration`` s (≥ 0), then it is
+        removed. Removing the last held contact is refused."""
+        name = self._contact_name(contact)
+        if not (np.isfinite(duration) and duration >= 0):
+            raise InvalidInput(f"{self.name}.rmContact: duration must be finite and ≥ 0 s, got {duration}")
+
+        def change(s: DynSettings) -> None:
+            held = [c for c in s.contacts if c not in s.releasing]
+            if name not in held:
+                raise StackError(f"{self.name}.rmContact: {name!r} is not a held contact {held}")
+            if len(held) == 1:
+                raise StackError(f"{self.name}.rmContact: {name!r} is the last contact; the robot would lose its support")
+            if duration == 0:
+                s.contacts.remove(name)
+            else:
+                s.releasing[name] = float(duration)
+
+        self._command(context, change)
+
+    def setDampingGain(self, gain: float, context: Context | None = None) -> None:
+        """``K_d ≥ 0`` (1/s) of the last level ``q̈ = −K_d v``."""
+        if not (np.isfinite(gain) and gain >= 0):
+            raise InvalidInput(f"{self.name}: damping gain must be finite and ≥ 0, got {gain}")
+        self._command(context, lambda s: setattr(s, "damping_gain", float(gain)))
+
+    def setSolver(self, solver: str, context: Context | None = None) -> None:
+        check_solver(solver)
+        self._command(context, lambda s: setattr(s, "solver", solver))
+
+    def setJointLimitHorizon(self, horizon: float, margin: float = 1e-3, context: Context | None = None) -> None:
+        """Joint limits as acceleration bounds over ``horizon`` s (> 0), ``margin`` rad (≥ 0)."""
+        if not (np.isfinite(horizon) and horizon > 0 and np.isfinite(margin) and margin >= 0):
+            raise InvalidInput(f"{self.name}: horizon must be > 0 s and margin ≥ 0, got {horizon}, {margin}")
+        self._command(context, lambda s: (setattr(s, "horizon", float(horizon)), setattr(s, "position_margin", float(margin))))
+
+    # --- solve -------------------------------------------------------------------------------
+    def _ramp(self, context: Context, name: str) -> tuple[float, float]:
+        i = list(self._contact_ports).index(name)
+        ramps = context.get_discrete_state(self._ramps).get_value()
+        return float(ramps[2 * i]), float(ramps[2 * i + 1])
+
+    def _active_contacts(self, context: Context, s: DynSettings) -> list[ActiveContact]:
+        """The held contacts, and the released ones whose ramp has not ended (with their bound)."""
+        out = []
+        for name in s.contacts:
+            f_max = np.inf
+            if name in s.releasing:
+                t0, f0 = self._ramp(context, name)
+                if not np.isnan(t0):
+                    fraction = 1.0 - (context.get_time() - t0) / s.releasing[name]
+                    if fraction <= 1e-9:
+                        continue  # released: the foot is free
+                    f_max = max(0.0, f0 * fraction)
+            out.append(ActiveContact(name, self._contact_ports[name].Eval(context), f_max))
+        return out
+
+    def held_contacts(self, context: Context) -> list[str]:
+        """The contacts the solver uses at the context's time (being released ones included)."""
+        own = self.own_context(context)
+        return [c.name for c in self._active_contacts(own, self._settings_of(own))]
+
+    def _tasks(self, context: Context, s: DynSettings) -> list[TaskLevel]:
+        tasks = []
+        for name in s.tasks:
+            level = self._task_ports[name].Eval(context)
+            J = level.jacobian
+            if J.ndim != 2 or J.shape[1] != self.nv or level.lower.shape != (J.shape[0],):
+                raise SolverError(f"task {name}: jacobian {J.shape} and bounds {level.lower.shape} do not fit nv = {self.nv}")
+            if not np.isfinite(J).all() or np.isnan(level.lower).any() or np.isnan(level.upper).any():
+                raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")
+            tasks.append(level)
+        return tasks
+
+    def _calc(self, context: Context, value: AbstractValue) -> None:
+        """Solve the hierarchy. First without the contacts' wrench inequalities: every level is then
+        an equality (closed forms, no program). If that optimum satisfies those rows it is the
+        exact optimum of the full hierarchy too (each level's optimal set with the rows is the one
+        without them intersected with the rows, and the optimum lies in it), else the full
+        hierarchy is solved."""
+        s = self._settings_of(context)
+        terms = self.dynamics.Eval(context)
+        contacts = self._active_contacts(context, s)
+        tasks = self._tasks(context, s)
+        levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False)
+        a_lower, a_upper = acceleration_bounds(terms.q, terms.v, *self._limits, s.horizon, s.position_margin, self.layout)
+        if s.control_selection is not None:  # sot-core's controlSelec: the others are held (q̈ = 0)
+            a_lower, a_upper = a_lower.copy(), a_upper.copy()
+            a_lower[~s.control_selection] = a_upper[~s.control_selection] = 0.0
+        lower, upper = variable_bounds(self.nv, contacts, slices, a_lower, a_upper, self.effort)
+        names = ["dynamics"] + (["contacts"] if contacts else []) + list(s.tasks) + ["damping"]
+        diagnostics = DynDiagnostics(levels=names)
+        n = len(lower)
+        hqp = self._hqps.get(n)
+        if hqp is None:
+            hqp = self._hqps[n] = HierarchicalQP(n)
+        relaxed = result = None
+        try:
+            relaxed = result = hqp.solve(levels, lower, upper, 0.0, s.solver)
+            if contacts and not _wrench_rows_hold(contacts, slices, result.x):
+                result = None
+                full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain)
+                result = hqp.solve(full, lower, upper, 0.0, s.solver)
+                levels = full
+        except SolverError as error:
+            # Never zero torque on a standing robot if avoidable: the relaxed optimum (dynamics,
+            # contact accelerations and the stack exact; friction/CoP rows possibly violated), else
+            # the dynamics and contacts alone.
+            diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
+            if relaxed is None:
+                try:
+                    levels, slices = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False)
+                    relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver)
+                    diagnostics.failure += "; the stack is dropped for this tick"
+                except SolverError as second:
+                    diagnostics.failure += f"; {second}; zero torque"
+            else:
+                levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False)
+                diagnostics.failure += "; the contacts' wrench rows are relaxed for this tick"
+            log.warning("%s: %s", self.name, diagnostics.failure)
+            if relaxed is None:
+                value.set_value(DynSolution(np.zeros(self.nv), np.zeros(self.na), {}, {}, np.full(len(levels), np.nan), diagnostics))
+                return
+            result = relaxed
+        x = result.x
+        local = {c.name: x[sl].copy() for c, sl in zip(contacts, slices)}
+        world = {c.name: world_wrench_map(c.rows.rotation, sl.stop - sl.start) @ x[sl] for c, sl in zip(contacts, slices)}
+        diagnostics.slack_norms = result.slack_norms
+        diagnostics.level_solvers = result.level_solvers
+        diagnostics.active_bounds = result.active_bounds
+        diagnostics.solve_time_s = result.solve_time_s
+        value.set_value(DynSolution(x[: self.nv].copy(), x[n - self.na :].copy(), world, local, result.slack_norms, diagnostics))
+
+    def _calc_wrenches(self, context: Context, output) -> None:
+        wrenches = self._solution.Eval(context).wrenches
+        out = np.zeros(6 * self.max_contacts)
+        for i, name in enumerate(self._contact_ports):
+            if name in wrenches:
+                w = wrenches[name]
+                out[6 * i + 6 - len(w) : 6 * i + 6] = w
+        output.SetFromVector(out)
+
+    def _update(self, context: Context, state) -> None:
+        """Start the ramp of a newly released contact, from the normal force it carries now."""
+        s = self._settings_of(context)
+        ramps = context.get_discrete_state(self._ramps).get_value().copy()
+        for i, name in enumerate(self._contact_ports):
+            if name not in s.releasing or name not in s.contacts:
+                ramps[2 * i : 2 * i + 2] = np.nan
+            elif np.isnan(ramps[2 * i]):
+                local = self._solution.Eval(context).local_wrenches
+                ramps[2 * i : 2 * i + 2] = context.get_time(), float(local[name][-1]) if name in local else 0.0
+        state.set_value(self._ramps, ramps)

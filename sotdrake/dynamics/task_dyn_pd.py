@@ -1,0 +1,134 @@
+"""``TaskDynPD`` (sot-dyninv): an acceleration-level task over any feature.
+
+With the feature's error ``e``, Jacobian ``J = ∂e/∂v`` and ``ė_ref`` (``errordot``: the error's rate
+due to a moving reference alone), the error's rate is ``ė = J v + ė_ref`` and its acceleration
+``ë = J q̈ + J̇ v − s̈*`` (``s̈*`` the reference's acceleration in the error's rows). The task asks
+``ë = ë* = −K_p e − K_v ė``, i.e. the rows (in ``q̈``)::
+
+    J q̈ = −K_p e − K_v ė + ë_ref − J̇ v
+
+with ``ë_ref`` the optional ``reference_acceleration`` input (default 0). ``J̇ v`` is the optional
+``drift`` input when connected (exact, e.g. the CoM's from the dynamic entity), else the Jacobian's
+finite difference over the control tick, ``(J_k − J_{k−1})/dt · v`` (as sot-dyninv's ``TaskDynPD``
+does; the previous Jacobian is discrete state, and the first tick takes ``J̇ = 0``). Gains
+``K_p ≥ 0`` (1/s²) and ``K_v ≥ 0`` (1/s) are settings in the Context (``setGain``, ``setKp``,
+``setKv``); ``setGain(Kp)`` alone takes the critical damping ``K_v = 2√K_p``.
+
+Inputs ``error``, ``jacobian``, ``errordot`` (optional), ``velocity`` (v), ``drift`` (optional),
+``reference_acceleration`` (optional). Outputs ``task`` (a :class:`~sotdrake.task.TaskLevel` over
+``q̈``) and ``error_norm``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Context, ValueProducer
+
+from ..entity import Entity
+from ..exceptions import InvalidInput
+from ..task import TaskLevel
+
+
+@dataclass
+class DynPDSettings:
+    kp: float = 100.0
+    kv: float = 20.0
+
+
+def pd_reference(e: np.ndarray, e_dot: np.ndarray, kp: float, kv: float, reference_acceleration: np.ndarray | None,
+                 drift: np.ndarray) -> np.ndarray:
+    """``−K_p e − K_v ė + ë_ref − J̇ v``: the right-hand side of the task rows."""
+    out = -kp * e - kv * e_dot - drift
+    return out if reference_acceleration is None else out + reference_acceleration
+
+
+class TaskDynPD(Entity[DynPDSettings]):
+    """Acceleration task (see the module docstring)."""
+
+    is_inequality = False
+
+    def __init__(self, name: str, nv: int, dt: float, kp: float = 100.0, kv: float | None = None,
+                 dimension: int | None = None):
+        """``dimension``: the size of the (vector) inputs ``drift`` and ``reference_acceleration``,
+        which exist only when it is given (the feature's number of selected rows)."""
+        Entity.__init__(self, name, DynPDSettings())
+        if not (np.isfinite(dt) and dt > 0):
+            raise InvalidInput(f"{name}: dt must be > 0, got {dt}")
+        self.nv, self.dt = nv, float(dt)
+        self.setGain(kp, kv)
+        self.error = self.DeclareAbstractInputPort("error", AbstractValue.Make(np.zeros(0)))
+        self.jacobian = self.DeclareAbstractInputPort("jacobian", AbstractValue.Make(np.zeros((0, nv))))
+        self.errordot = self.DeclareAbstractInputPort("errordot", AbstractValue.Make(np.zeros(0)))
+        self.velocity = self.DeclareVectorInputPort("velocity", nv)
+        self.drift = self.reference_acceleration = None
+        if dimension is not None:
+            self.drift = self.DeclareVectorInputPort("drift", dimension)
+            self.reference_acceleration = self.DeclareVectorInputPort("reference_acceleration", dimension)
+        # The previous Jacobian as discrete state (rows, then J row-major, up to nv rows): a discrete
+        # update is computed from the same context as the device's and the plant's, so every
+        # system of a tick sees the same J̇ (an unrestricted update would be applied before them).
+        self._previous = self.DeclareDiscreteState(np.zeros(1 + nv * nv))
+        self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._remember)
+        empty = TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
+        self._level = self.DeclareCacheEntry(
+            "level", ValueProducer(allocate=lambda: AbstractValue.Make(empty), calc=self._calc),
+            prerequisites_of_calc={self.all_sources_ticket()},
+        )
+        self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(empty), lambda c, o: o.set_value(self._level.Eval(c)))
+        self.DeclareVectorOutputPort("error_norm", 1, lambda c, o: o.SetAtIndex(0, float(np.linalg.norm(self._level.Eval(c).error))))
+
+    # --- settings ----------------------------------------------------------------------------
+    def setGain(self, kp: float, kv: float | None = None, context: Context | None = None) -> None:
+        """``K_p`` (1/s²) and ``K_v`` (1/s, default ``2√K_p``: critically damped), both finite ≥ 0."""
+        kv = 2.0 * math.sqrt(kp) if kv is None and np.isfinite(kp) and kp >= 0 else kv
+        for what, value in (("Kp", kp), ("Kv", kv)):
+            if value is None or not (np.isfinite(value) and value >= 0):
+                raise InvalidInput(f"{self.name}: {what} must be finite and ≥ 0, got {value}")
+        self._command(context, lambda s: (setattr(s, "kp", float(kp)), setattr(s, "kv", float(kv))))
+
+    def setKp(self, kp: float, context: Context | None = None) -> None:
+        self.setGain(kp, self.settings(context).kv, context)
+
+    def setKv(self, kv: float, context: Context | None = None) -> None:
+        self.setGain(self.settings(context).kp, kv, context)
+
+    # --- calc --------------------------------------------------------------------------------
+    def _remember(self, context: Context, state) -> None:
+        J = self.jacobian.Eval(context)
+        if J.shape[0] > self.nv:
+            raise InvalidInput(f"{self.name}: a Jacobian with more rows than nv = {self.nv}")
+        memory = np.zeros(1 + self.nv * self.nv)
+        memory[0] = J.shape[0]
+        memory[1 : 1 + J.size] = J.ravel()
+        state.set_value(self._previous, memory)
+
+    def _previous_jacobian(self, context: Context) -> np.ndarray:
+        memory = context.get_discrete_state(self._previous).get_value()
+        rows = int(memory[0])
+        return memory[1 : 1 + rows * self.nv].reshape(rows, self.nv)
+
+    def _calc(self, context: Context, value: AbstractValue) -> None:
+        s = self._settings_of(context)
+        e, J, v = self.error.Eval(context), self.jacobian.Eval(context), self.velocity.Eval(context)
+        e_dot = J @ v
+        if self.errordot.HasValue(context):
+            e_dot = e_dot + self._sized("errordot", self.errordot.Eval(context), e)
+        if self.drift is not None and self.drift.HasValue(context):
+            drift = self._sized("drift", self.drift.Eval(context), e)
+        else:
+            previous = self._previous_jacobian(context)
+            drift = (J - previous) @ v / self.dt if previous.shape == J.shape and previous.shape[0] else np.zeros_like(e)
+        reference = self._sized("reference_acceleration", self.reference_acceleration.Eval(context), e) \
+            if self.reference_acceleration is not None and self.reference_acceleration.HasValue(context) else None
+        rhs = pd_reference(e, e_dot, s.kp, s.kv, reference, drift)
+        value.set_value(TaskLevel(J, rhs, rhs, e))
+
+    def _sized(self, what: str, value: np.ndarray, e: np.ndarray) -> np.ndarray:
+        value = np.asarray(value, dtype=float).reshape(-1)
+        if value.shape != e.shape:
+            raise InvalidInput(f"{self.name}: {what} has {value.size} rows, the error has {e.size}")
+        return value

@@ -1,0 +1,81 @@
+"""Dynamics terms of the control model, and the pure maths built on them.
+
+Equations of motion (Drake's generalized coordinates, ``v`` with the floating base first as
+``(ω_WB, v_WBo)`` in the world frame)::
+
+    M(q) q̈ + h(q, v) = B τ + Σ_c J_cᵀ W_c
+
+``h = C(q, v) v − τ_g(q) + D v`` (Coriolis/centrifugal bias, minus the generalized gravity
+forces, plus the joints' viscous damping ``D`` from the URDF, which the plant applies; N or N·m), ``B`` the actuation matrix (nv × na: actuator order to velocities), ``W_c`` the contact
+wrench ``(torque about the contact frame's origin; force)`` in the world frame and ``J_c`` the
+spatial-velocity Jacobian of that frame (rows ``(ω; v)``, world).
+
+CoM from the floating-base rows: the base's translational velocity rows of the equations of motion
+are Newton's law for the whole robot, ``m p̈_CoM = Σ F_ext`` (the partial velocity of every point
+with respect to ``v_WBo`` is the identity). Hence, with ``M_t`` and ``(C v)_t`` those three rows,
+``J_CoM = M_t / m`` and ``J̇_CoM v = (C v)_t / m`` (exact; tested against Drake's CoM functions).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..device import Layout
+
+
+class DynamicsTerms(NamedTuple):
+    """``M`` (nv×nv, kg·m² / kg), ``h`` (nv), ``Cv`` (nv, the bias without gravity and damping), ``B``
+    (nv×na), the state ``q``, ``v`` and the total mass ``mass`` (kg)."""
+
+    M: np.ndarray
+    h: np.ndarray
+    Cv: np.ndarray
+    B: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    mass: float
+
+
+def com_terms(M: np.ndarray, Cv: np.ndarray, mass: float, layout: Layout) -> tuple[np.ndarray, np.ndarray]:
+    """``(J_CoM, J̇_CoM v)`` from the base's translational rows (see the module docstring)."""
+    if layout.base_v is None:
+        raise ValueError("the CoM from the base rows needs a floating base")
+    rows = slice(layout.base_v + 3, layout.base_v + 6)
+    return M[rows] / mass, Cv[rows] / mass
+
+
+def acceleration_bounds(
+    q: np.ndarray,
+    v: np.ndarray,
+    position_lower: np.ndarray,
+    position_upper: np.ndarray,
+    velocity_lower: np.ndarray,
+    velocity_upper: np.ndarray,
+    horizon: float,
+    margin: float,
+    layout: Layout,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Joint limits as bounds on ``q̈`` (nv; the floating base free).
+
+    Position: with the acceleration held over ``horizon`` T, ``q + v T + ½ q̈ T² ≤ q_max − margin``
+    gives ``q̈ ≤ 2 (q_max − margin − q − v T)/T²``; a joint already inside the margin gets
+    ``q̈ ≤ min(0, 2 (q_max − q − v T)/T²)`` instead (it may stay on its limit, as the grippers start;
+    moving into the limit it is stopped). Velocity: ``v + q̈ T ≤ v_max`` gives ``q̈ ≤ (v_max − v)/T``. Lower bounds likewise;
+    where they would cross, the lower bound is lowered to the upper one.
+    """
+    nv = len(v)
+    lower, upper = np.full(nv, -np.inf), np.full(nv, np.inf)
+    iq, iv = layout.joints_q, layout.joints_v
+    qj, vj, T = q[iq], v[iv], horizon
+    with np.errstate(invalid="ignore"):
+        reach = qj + vj * T
+        up = np.where(qj > position_upper[iq] - margin, np.minimum(0.0, 2 * (position_upper[iq] - reach) / T**2),
+                      2 * (position_upper[iq] - margin - reach) / T**2)
+        down = np.where(qj < position_lower[iq] + margin, np.maximum(0.0, 2 * (position_lower[iq] - reach) / T**2),
+                        2 * (position_lower[iq] + margin - reach) / T**2)
+    up = np.minimum(up, (velocity_upper[iv] - vj) / T)
+    down = np.maximum(down, (velocity_lower[iv] - vj) / T)
+    upper[iv], lower[iv] = up, np.minimum(down, up)
+    return lower, upper

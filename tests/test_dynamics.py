@@ -1,0 +1,317 @@
+"""The dynamic SoT: dynamics terms against Drake, τ reproducing q̈, contacts, strictness, bad
+inputs, the release ramp, and short runs on RobotDynSimu and on the physics plant."""
+
+import numpy as np
+import pytest
+from pydrake.multibody.math import SpatialForce
+from pydrake.multibody.plant import ExternallyAppliedSpatialForce
+from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from sotdrake.device import Layout, integrate
+from sotdrake.dynamics.contact import Contact6d, friction_ratio, wrench_constraints
+from sotdrake.dynamics.device import integrate_acceleration
+from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDynCom, MetaTaskDynPosture
+from sotdrake.dynamics.robot_dyn import RobotDyn
+from sotdrake.dynamics.solver_dyn import ActiveContact, ContactNotFound, dynamic_levels, variable_bounds
+from sotdrake.dynamics.task_dyn_pd import pd_reference
+from sotdrake.dynamics.terms import acceleration_bounds, com_terms
+from sotdrake.exceptions import InvalidInput, StackError
+from sotdrake.robots import load_talos
+from sotdrake.solvers.hqp import HierarchicalQP
+from sotdrake.task import TaskLevel
+from tests.conftest import load_diagram, random_configuration
+
+SOLES = (("contactLF", "left_sole_link"), ("contactRF", "right_sole_link"))
+
+
+@pytest.fixture(scope="module")
+def standing():
+    """A dynsimu diagram: both soles held, CoM and posture tasks; and a continuous plant of the same
+    model (for Drake's forward dynamics)."""
+    builder = DiagramBuilder()
+    model = load_talos("reduced")
+    robot = RobotDyn(builder, model, "dynsimu")
+    lf, rf = robot.add_contact("contactLF", "left-sole"), robot.add_contact("contactRF", "right-sole")
+    com, posture = MetaTaskDynCom(robot), MetaTaskDynPosture(robot)
+    robot.sot.addContact(lf)
+    robot.sot.addContact(rf)
+    robot.sot.push(com.task.name)
+    robot.sot.push(posture.task.name)
+    diagram = builder.Build()
+    return robot, diagram, com, posture
+
+
+def _set_state(robot, diagram, x):
+    context = diagram.CreateDefaultContext()
+    robot.device.GetMyContextFromRoot(context).SetDiscreteState(x)
+    return context
+
+
+def _solution(robot, context):
+    return robot.sot._solution.Eval(robot.sot.GetMyContextFromRoot(context))
+
+
+def _random_state(model, rng, spread=0.3):
+    return np.concatenate([random_configuration(model, rng, spread), rng.normal(scale=0.5, size=model.nv)])
+
+
+# --- dynamics terms --------------------------------------------------------------------------
+def test_terms_match_inverse_dynamics(standing, rng):
+    robot, diagram, *_ = standing
+    plant = robot.model.plant
+    plant_context = plant.CreateDefaultContext()
+    for _ in range(5):
+        x = _random_state(robot.model, rng)
+        context = _set_state(robot, diagram, x)
+        terms = robot.dynamic.GetOutputPort("dynamics").Eval(robot.dynamic.GetMyContextFromRoot(context))
+        plant.SetPositionsAndVelocities(plant_context, x)
+        a = rng.normal(size=plant.num_velocities())
+        forces = MultibodyForces(plant)
+        plant.CalcForceElementsContribution(plant_context, forces)  # gravity is a force element
+        tau_id = plant.CalcInverseDynamics(plant_context, a, forces)
+        np.testing.assert_allclose(terms.M @ a + terms.h, tau_id, atol=1e-9 * max(1.0, np.abs(tau_id).max()))
+        np.testing.assert_allclose(terms.M, terms.M.T, atol=1e-12)
+
+
+def test_com_terms_from_base_rows_equal_drakes(standing, rng):
+    robot, diagram, *_ = standing
+    plant, dynamic = robot.model.plant, robot.dynamic
+    plant_context = plant.CreateDefaultContext()
+    world = plant.world_frame()
+    for _ in range(5):
+        x = _random_state(robot.model, rng)
+        context = dynamic.GetMyContextFromRoot(_set_state(robot, diagram, x))
+        plant.SetPositionsAndVelocities(plant_context, x)
+        J = plant.CalcJacobianCenterOfMassTranslationalVelocity(plant_context, JacobianWrtVariable.kV, world, world)
+        drift = plant.CalcBiasCenterOfMassTranslationalAcceleration(plant_context, JacobianWrtVariable.kV, world, world)
+        np.testing.assert_allclose(dynamic.GetOutputPort("Jcom").Eval(context), J, atol=1e-12)
+        np.testing.assert_allclose(dynamic.GetOutputPort("com_drift").Eval(context), drift, atol=1e-10)
+
+
+def test_op_point_drift_is_the_jacobians_rate(standing, rng):
+    """``J̇ v`` against a central difference of ``J`` along the motion (on SE(3) × joints)."""
+    robot, diagram, *_ = standing
+    plant, layout = robot.model.plant, Layout.of(robot.model.plant)
+    frame = plant.GetFrameByName("right_sole_link")
+    x = _random_state(robot.model, rng)
+    q, v = x[:39], x[39:]
+    context = robot.dynamic.GetMyContextFromRoot(_set_state(robot, diagram, x))
+    drift = robot.dynamic.GetOutputPort("contactRF_drift").Eval(context)
+    pc = plant.CreateDefaultContext()
+
+    def jacobian(qq):
+        plant.SetPositions(pc, qq)
+        return plant.CalcJacobianSpatialVelocity(pc, JacobianWrtVariable.kV, frame, np.zeros(3), plant.world_frame(), plant.world_frame())
+
+    h = 1e-6
+    # The base velocity is (ω, v) in the world; the device's integration takes exactly that twist.
+    J_dot = (jacobian(integrate(q, v, h, layout)) - jacobian(integrate(q, v, -h, layout))) / (2 * h)
+    np.testing.assert_allclose(drift, J_dot @ v, atol=1e-5 * max(1.0, np.abs(drift).max()))
+
+
+def test_com_terms_need_a_floating_base():
+    with pytest.raises(ValueError):
+        com_terms(np.eye(3), np.zeros(3), 1.0, Layout(None, None, np.arange(3), np.arange(3)))
+
+
+# --- the solver ------------------------------------------------------------------------------
+def test_torque_reproduces_acceleration_through_forward_dynamics(standing, rng):
+    """Drake's forward dynamics of a continuous plant, driven by the solver's τ on its actuation
+    input and the contact wrenches as external forces, gives the solver's q̈."""
+    robot, diagram, *_ = standing
+    model = load_talos("reduced")  # its own plant: the actuation input is free
+    plant = model.plant
+    for _ in range(3):
+        x = _random_state(model, rng, spread=0.1)
+        solution = _solution(robot, _set_state(robot, diagram, x))
+        context = plant.CreateDefaultContext()
+        plant.SetPositionsAndVelocities(context, x)
+        plant.get_actuation_input_port().FixValue(context, solution.torque)
+        forces = []
+        for name, frame_name in SOLES:
+            frame = plant.GetFrameByName(frame_name)
+            force = ExternallyAppliedSpatialForce()
+            force.body_index = frame.body().index()
+            force.p_BoBq_B = frame.GetFixedPoseInBodyFrame().translation()
+            W = solution.wrenches[name]
+            force.F_Bq_W = SpatialForce(W[:3], W[3:])
+            forces.append(force)
+        plant.get_applied_spatial_force_input_port().FixValue(context, forces)
+        v_dot = plant.EvalTimeDerivatives(context).get_vector().CopyToVector()[model.nq :]
+        np.testing.assert_allclose(v_dot, solution.acceleration, atol=1e-6 * max(1.0, np.abs(v_dot).max()))
+
+
+def test_contact_constraints_and_bounds_hold(standing, rng):
+    robot, diagram, *_ = standing
+    sot = robot.sot
+    for _ in range(2):
+        x = _random_state(robot.model, rng, spread=0.2)
+        context = _set_state(robot, diagram, x)
+        solution = _solution(robot, context)
+        slack = solution.diagnostics.slack_norms
+        assert slack[0] < 1e-8 and slack[1] < 1e-6  # dynamics, contacts
+        assert np.all(np.abs(solution.torque) <= sot.effort * (1 + 1e-9))
+        for name in ("contactLF", "contactRF"):
+            contact = robot.contacts[name]
+            rows = contact.GetOutputPort("contact").Eval(contact.GetMyContextFromRoot(context))
+            w = solution.local_wrenches[name]
+            assert np.all(rows.wrench_rows @ w <= 1e-6 * np.abs(w).max())
+            assert w[5] >= rows.f_min - 1e-9
+            np.testing.assert_allclose(rows.jacobian @ solution.acceleration, rows.acceleration, atol=1e-6)
+            assert friction_ratio(solution.wrenches[name][3:], rows.rotation[:, 2], rows.mu) <= 1 + 1e-6
+
+
+def test_friction_and_cop_rows():
+    A = wrench_constraints(0.5, (-0.1, 0.1, -0.05, 0.05), 0.0)
+    inside = np.array([1.0, -2.0, 0.0, 10.0, 10.0, 100.0])  # CoP (0.02, 0.01), ‖f_t‖ = 14 N ≤ 50 N
+    assert np.all(A @ inside <= 0)
+    for bad in ([0, -11.0, 0, 0, 0, 100], [6.0, 0, 0, 0, 0, 100], [0, 0, 0, 36.0, 0, 100]):
+        assert np.any(A @ np.array(bad) > 0)  # CoP at x = 0.11, y = 0.06; f_x > μ/√2 f_z
+    assert wrench_constraints(0.5, None, 0.0).shape == (4, 3)  # a point contact: friction only
+
+
+def test_strict_hierarchy_on_random_dynamic_stacks(standing, rng):
+    """A lower task never changes a higher level's optimal slack (strictness), on random
+    conflicting acceleration tasks under the dynamics and both contacts."""
+    robot, diagram, *_ = standing
+    sot = robot.sot
+    nv = robot.model.nv
+    for trial in range(2):
+        x = _random_state(robot.model, rng, spread=0.1)
+        context = _set_state(robot, diagram, x)
+        terms = robot.dynamic.GetOutputPort("dynamics").Eval(robot.dynamic.GetMyContextFromRoot(context))
+        contacts = [ActiveContact(name, robot.contacts[name].GetOutputPort("contact").Eval(
+            robot.contacts[name].GetMyContextFromRoot(context))) for name in ("contactLF", "contactRF")]
+        tasks = []
+        for size in rng.integers(3, 12, size=3):
+            J = rng.normal(size=(size, nv))
+            b = rng.normal(scale=5.0, size=size)
+            tasks.append(TaskLevel(J, b, b, b))
+        a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout)
+        hqp = HierarchicalQP(nv + 12 + sot.na)
+        slacks = []
+        for k in range(1, 4):
+            levels, slices = dynamic_levels(terms, contacts, tasks[:k], 10.0)
+            lower, upper = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
+            slacks.append(hqp.solve(levels, lower, upper).slack_norms)
+        for k in range(1, 3):  # the levels common to both stacks keep their slack
+            common = 2 + k  # dynamics, contacts, tasks[:k]
+            np.testing.assert_allclose(slacks[k][:common], slacks[k - 1][:common], atol=1e-6, rtol=1e-6)
+        assert slacks[-1][0] < 1e-8 and slacks[-1][1] < 1e-6
+
+
+def test_acceleration_bounds_stop_a_joint_at_its_limit(talos_model):
+    layout = Layout.of(talos_model.plant)
+    limits = talos_model.joint_limits()
+    q, v = talos_model.half_sitting.copy(), np.zeros(talos_model.nv)
+    joint = talos_model.plant.GetJointByName("leg_left_4_joint")
+    iq, iv = joint.position_start(), joint.velocity_start()
+    q[iq] = limits["position_upper"][iq] - 0.01
+    v[iv] = 1.0
+    lower, upper = acceleration_bounds(q, v, limits["position_lower"], limits["position_upper"],
+                                       limits["velocity_lower"], limits["velocity_upper"], 0.05, 1e-3, layout)
+    assert np.all(lower <= upper) and np.isinf(upper[:6]).all()
+    T = 0.05  # q + v T + ½ a T² stays below the limit with the largest allowed a
+    assert q[iq] + v[iv] * T + 0.5 * upper[iv] * T**2 <= limits["position_upper"][iq] - 1e-3 + 1e-12
+
+
+# --- bad inputs --------------------------------------------------------------------------------
+def test_bad_inputs_raise_and_change_nothing(standing):
+    robot, diagram, com, _ = standing
+    sot, lf = robot.sot, robot.contacts["contactLF"]
+    context = diagram.CreateDefaultContext()
+    for mu in (0.0, -0.5, np.nan):
+        with pytest.raises(InvalidInput, match="μ"):
+            lf.setFriction(mu, context)
+    assert lf.settings(context).mu == 0.7
+    with pytest.raises(InvalidInput):
+        Contact6d("bad", robot.model.nv, (-0.1, 0.1, -0.05, 0.05), mu=0.0)
+    with pytest.raises(ContactNotFound, match="contactLF"):
+        sot.rmContact("contactXX", context=context)
+    with pytest.raises(ContactNotFound):
+        sot.addContact("contactXX", context=context)
+    sot.rmContact("contactRF", 0.2, context=context)
+    with pytest.raises(StackError, match="last contact"):
+        sot.rmContact("contactLF", context=context)
+    assert sot.settings(context).contacts == ["contactLF", "contactRF"]
+    assert sot.settings(context).releasing == {"contactRF": 0.2}
+    with pytest.raises(InvalidInput):
+        sot.rmContact("contactLF", -1.0, context=context)
+    for kp, kv in ((-1.0, 1.0), (1.0, -1.0), (np.inf, 1.0)):
+        with pytest.raises(InvalidInput, match="K"):
+            com.task.setGain(kp, kv, context)
+    assert (com.task.settings(context).kp, com.task.settings(context).kv) == (100.0, 20.0)
+    with pytest.raises(InvalidInput):
+        sot.setDampingGain(-1.0, context)
+    with pytest.raises(InvalidInput):
+        lf.setMinimumNormalForce(-1.0, context)
+
+
+def test_pd_reference_formula():
+    e, e_dot, drift, ref = np.array([0.1, -0.2]), np.array([1.0, 0.5]), np.array([0.3, 0.0]), np.array([2.0, 1.0])
+    np.testing.assert_allclose(pd_reference(e, e_dot, 100.0, 20.0, ref, drift), -100 * e - 20 * e_dot + ref - drift)
+
+
+def test_robot_dyn_simu_integrates_exactly(talos_model):
+    layout = Layout.of(talos_model.plant)
+    q, v = talos_model.half_sitting.copy(), np.zeros(talos_model.nv)
+    a = np.zeros(talos_model.nv)
+    a[layout.joints_v] = 0.5
+    dt, n = 1e-3, 100
+    for _ in range(n):
+        q, v = integrate_acceleration(q, v, a, dt, layout)
+    # semi-implicit Euler: q_n = q_0 + a dt² n (n + 1)/2
+    np.testing.assert_allclose(q[layout.joints_q] - talos_model.half_sitting[layout.joints_q], 0.5 * dt**2 * n * (n + 1) / 2)
+    np.testing.assert_allclose(v[layout.joints_v], 0.5 * n * dt)
+
+
+# --- runs ----------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def dynamics_script():
+    return load_diagram("talos_dynamics")
+
+
+def test_release_ramps_the_force_to_zero_then_frees_the_foot(standing):
+    robot, diagram, *_ = standing
+    simulator = Simulator(diagram)
+    context = simulator.get_context()
+    sot = robot.sot
+    simulator.AdvanceTo(0.01)
+    sot.rmContact("contactRF", 0.03, context=context)
+    forces = []
+    for k in range(1, 5):
+        simulator.AdvanceTo(0.01 + 0.01 * k)
+        forces.append(_solution(robot, context).local_wrenches.get("contactRF", np.zeros(6))[5])
+    # The ramp starts at the first tick after the command (Drake runs the update of t = 0.01 s when
+    # leaving 0.01 s: t0 = 0.01 s) from the force then; with the CoM held between the feet the
+    # bound is active, so the force follows the line exactly.
+    f0 = forces[0] / (1 - (0.02 - 0.01) / 0.03)
+    assert f0 > 300.0  # it carried about half the weight when released
+    for k, force in enumerate(forces[:2]):
+        assert force == pytest.approx(f0 * (1 - (0.01 * k + 0.01) / 0.03), rel=1e-6)
+    assert sot.held_contacts(context) == ["contactLF"] and forces[-1] == 0.0
+
+
+def test_stand_short_on_dynsimu(dynamics_script):
+    """RobotDynSimu: the dynamics are the solver's own, so the robot stands exactly."""
+    run = dynamics_script.build_diagram("stand", "dynsimu")
+    simulator, times = dynamics_script.simulate_ticks(run, 0.2, progress=False)
+    summary, _ = dynamics_script.summarize(run, simulator, times, 0.2)
+    assert not summary["fell"] and summary["com_drift_m"] < 1e-9 and summary["max_foot_slip_m"] < 1e-9
+    assert summary["max_torque_ratio"] <= 1.0 + 1e-9
+
+
+def test_stand_short_on_physics(dynamics_script):
+    """Torque control of the simulated TALOS for 0.25 s: the feet carry the weight as the solver
+    says, no slip, torques within limits, the measured forces inside the friction cone."""
+    run = dynamics_script.build_diagram("stand", "physics")
+    simulator, times = dynamics_script.simulate_ticks(run, 0.25, progress=False)
+    summary, trace = dynamics_script.summarize(run, simulator, times, 0.25)
+    assert not summary["fell"]
+    assert summary["com_drift_m"] < 1e-3 and summary["max_foot_slip_m"] < 1e-4
+    assert summary["max_torque_ratio"] <= 1.0 + 1e-9 and summary["max_friction_ratio"] < 1.0
+    feet = trace["feet"][-1]
+    assert feet[2] + feet[5] == pytest.approx(90.27 * 9.81, rel=0.02)
+    np.testing.assert_allclose(feet[[2, 5]], trace["wrenches"][-1, [5, 11]], rtol=0.05)

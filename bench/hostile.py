@@ -23,7 +23,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from tests.hostile import CONTACT_TOLERANCE, bad_input_solver, bad_inputs, run_attempts  
+from tests.hostile import CONTACT_TOLERANCE, bad_input_solver, bad_inputs, run_attempts
 
 
 def solver_of_run(seed: int) -> str:

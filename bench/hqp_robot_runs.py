@@ -27,13 +27,13 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from pydrake.systems.analysis import Simulator  # noqa: E402
-from pydrake.systems.framework import DiagramBuilder  # noqa: E402
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
 
-from sotdrake.configuration import Layout, integrate  # noqa: E402
-from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture, gotoNd  # noqa: E402
-from sotdrake.robot import Robot, add_sot  # noqa: E402
-from sotdrake.robots import load_talos  # noqa: E402
+from sotdrake.configuration import Layout, integrate
+from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture, gotoNd
+from sotdrake.robot import Robot, add_sot
+from sotdrake.robots import load_talos
 
 GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]
 DT = 1e-3

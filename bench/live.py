@@ -27,8 +27,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sotdrake.live.burst import measure_burst  # noqa: E402
-from sotdrake.live.shell import Client  # noqa: E402
+from sotdrake.live.burst import measure_burst
+from sotdrake.live.shell import Client
 
 COMMANDS = ["sot.stack()", "gainrh.setConstant(-1)", "__import__('os').system('touch X')", "sot.up('taskcontactRF')"]
 

@@ -11,8 +11,18 @@ from __future__ import annotations
 import time
 
 import numpy as np
-
-from scenario import DT, FEET, GAIN_COM, GAIN_FEET, GAIN_HAND, HAND_FRAME, TARGET, pinocchio_half_sitting, urdf_file, urdf_text
+from scenario import (
+    DT,
+    FEET,
+    GAIN_COM,
+    GAIN_FEET,
+    GAIN_HAND,
+    HAND_FRAME,
+    TARGET,
+    pinocchio_half_sitting,
+    urdf_file,
+    urdf_text,
+)
 
 
 def _version(distribution: str) -> str:
@@ -28,14 +38,14 @@ def _version(distribution: str) -> str:
 def _accuracy(hand, feet, feet0, com, com0) -> dict:
     return {
         "hand_error_m": float(np.linalg.norm(hand - TARGET)),
-        "max_foot_drift_m": float(max(np.linalg.norm(f - f0) for f, f0 in zip(feet, feet0))),
+        "max_foot_drift_m": float(max(np.linalg.norm(f - f0) for f, f0 in zip(feet, feet0, strict=False))),
         "max_com_drift_m": float(np.linalg.norm(com - com0)),
     }
 
 
 def run_pink(ticks: int, warmup: int, solver: str = "daqp") -> dict:
-    import pinocchio as pin
     import pink
+    import pinocchio as pin
     from pink.limits import ConfigurationLimit, VelocityLimit
     from pink.tasks import ComTask, FrameTask
 
@@ -63,7 +73,7 @@ def run_pink(ticks: int, warmup: int, solver: str = "daqp") -> dict:
         times.append(time.perf_counter() - start)
         cpu.append(time.thread_time() - start_cpu)
         if k % 10 == 0:  # outside the timed region
-            drift = max(drift, max(np.linalg.norm(configuration.get_transform_frame_to_world(f).translation - f0) for f, f0 in zip(FEET, feet0)))
+            drift = max(drift, max(np.linalg.norm(configuration.get_transform_frame_to_world(f).translation - f0) for f, f0 in zip(FEET, feet0, strict=False)))
     accuracy = _accuracy(configuration.get_transform_frame_to_world(HAND_FRAME).translation,
                          [configuration.get_transform_frame_to_world(f).translation for f in FEET], feet0,
                          pin.centerOfMass(model, data, configuration.q), com0)
@@ -100,7 +110,7 @@ def run_placo(ticks: int, warmup: int) -> dict:
         times.append(time.perf_counter() - start)
         cpu.append(time.thread_time() - start_cpu)
         if k % 10 == 0:
-            drift = max(drift, max(np.linalg.norm(robot.get_T_world_frame(f)[:3, 3] - f0) for f, f0 in zip(FEET, feet0)))
+            drift = max(drift, max(np.linalg.norm(robot.get_T_world_frame(f)[:3, 3] - f0) for f, f0 in zip(FEET, feet0, strict=False)))
     accuracy = _accuracy(robot.get_T_world_frame(HAND_FRAME)[:3, 3], [robot.get_T_world_frame(f)[:3, 3] for f in FEET],
                          feet0, robot.com_world(), com0)
     accuracy["max_foot_drift_m"] = max(accuracy["max_foot_drift_m"], drift)

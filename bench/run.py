@@ -34,6 +34,7 @@ import argparse
 import cProfile
 import io
 import json
+import os
 import platform
 import pstats
 import sys
@@ -41,24 +42,22 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-import os
-
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # a control loop's small matrices: one thread, for every peer alike
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE.parent / "diagrams"))
 
-from pydrake.systems.analysis import Simulator  # noqa: E402
-from pydrake.systems.framework import DiagramBuilder  # noqa: E402
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from scenario import DT, GAIN_COM, GAIN_FEET, GAIN_HAND, TARGET
 
-from scenario import DT, GAIN_COM, GAIN_FEET, GAIN_HAND, TARGET  # noqa: E402
-from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture, gotoNd  # noqa: E402
-from sotdrake.robot import Robot, add_sot  # noqa: E402
-from sotdrake.robots import load_talos  # noqa: E402
+from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture, gotoNd
+from sotdrake.robot import Robot, add_sot
+from sotdrake.robots import load_talos
 
 GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]
 
@@ -149,7 +148,7 @@ def sotdrake_run(solver: str, ticks: int, warmup: int, target=TARGET) -> dict:
     def sample(context):
         q = robot.device.position(context)
         drift["feet"] = max(drift["feet"], max(np.linalg.norm(robot.dynamic.pose_at(f, q).translation() - f0)
-                                               for f, f0 in zip(("left-sole", "right-sole"), feet0)))
+                                               for f, f0 in zip(("left-sole", "right-sole"), feet0, strict=False)))
         drift["com"] = max(drift["com"], np.linalg.norm(robot.dynamic.com_at(q) - com0))
         finite = np.isfinite(limits["position_lower"])
         margin[0] = min(margin[0], np.min(np.minimum(q - limits["position_lower"], limits["position_upper"] - q)[finite]))

@@ -23,7 +23,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE.parent / "diagrams"))
 
-import reach_map  # noqa: E402
+import reach_map
 
 
 def main(argv: list[str] | None = None) -> dict:

@@ -29,7 +29,22 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from sotdrake import add_robot_visualizer, add_sot, add_target_marker, gotoNd, MetaTaskKine6d, MetaTaskKineCom, Robot, robot as make_robot, script_arguments, simulate, SOT, start, Tracer, write_run
+from sotdrake import (
+    SOT,
+    MetaTaskKine6d,
+    MetaTaskKineCom,
+    Robot,
+    Tracer,
+    add_robot_visualizer,
+    add_sot,
+    add_target_marker,
+    gotoNd,
+    script_arguments,
+    simulate,
+    start,
+    write_run,
+)
+from sotdrake import robot as make_robot
 
 TARGET = (0.5, -0.2, 0.8)
 HAND_OFFSET = (0.1, 0.0, 0.0)

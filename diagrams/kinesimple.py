@@ -24,11 +24,10 @@ import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from sotdrake.configuration import velocity_names
 from sotdrake import (
+    SOT,
     MetaTaskKine6d,
     Robot,
-    SOT,
     Tracer,
     add_sot,
     gotoNd,
@@ -38,6 +37,7 @@ from sotdrake import (
     talos,
     write_run,
 )
+from sotdrake.configuration import velocity_names
 
 OFFSET = (0.1, 0.1, 0.2)  # the target, from the hand's initial position (m, world)
 

@@ -22,10 +22,10 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Adder, ConstantVectorSource, Sine
 
 from sotdrake import (
+    SOT,
     MetaTaskKinePosture,
     MetaTaskVisualPoint,
     Robot,
-    SOT,
     Tracer,
     add_sot,
     hold_feet_and_com,

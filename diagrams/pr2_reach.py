@@ -30,7 +30,21 @@ from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from sotdrake import add_robot_visualizer, add_sot, add_target_marker, gotoNd, MetaTaskKine6d, Robot, robot as make_robot, script_arguments, simulate, SOT, start, Tracer, write_run
+from sotdrake import (
+    SOT,
+    MetaTaskKine6d,
+    Robot,
+    Tracer,
+    add_robot_visualizer,
+    add_sot,
+    add_target_marker,
+    gotoNd,
+    script_arguments,
+    simulate,
+    start,
+    write_run,
+)
+from sotdrake import robot as make_robot
 
 #: The table: centre of its top surface (m, world) and its size (m).
 TABLE_TOP = np.array([1.45, 0.0, 0.72])

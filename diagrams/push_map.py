@@ -29,10 +29,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the stand scenario's script, a sibling
-import talos_physics  # noqa: E402
+import talos_physics
 
-from sotdrake import InvalidInput, script_arguments, simulate, write_run  # noqa: E402
-from sotdrake.sweep import EngineUnavailable, add_sweep_arguments, engine_options, grid, run_sweep  # noqa: E402
+from sotdrake import InvalidInput, script_arguments, simulate, write_run
+from sotdrake.sweep import EngineUnavailable, add_sweep_arguments, engine_options, grid, run_sweep
 
 FALL_DROP_M = 0.1
 FALL_TILT_DEG = 30.0
@@ -94,7 +94,7 @@ def plot(rows: list[dict], path: Path) -> Path:
     top = max((r["base_drift_m"] for r in ok), default=0.1)
     fig, axes = plt.subplots(1, len(durations), subplot_kw={"projection": "polar"},
                              figsize=(4.4 * len(durations) + 1.2, 4.8), squeeze=False)
-    for axis, duration in zip(axes[0], durations):
+    for axis, duration in zip(axes[0], durations, strict=False):
         here = [r for r in ok if r["push_duration_s"] == duration]
         theta = np.radians([r["direction_deg"] for r in here])
         radius = np.array([r["magnitude_n"] for r in here])

@@ -36,20 +36,27 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake import (
-    add_sot,
-    gotoNd,
-    hold_feet_and_com,
+    SOT,
     InvalidInput,
     MetaTaskKine6d,
     Robot,
-    script_arguments,
-    SOT,
-    talos,
     Tracer,
+    add_sot,
+    gotoNd,
+    hold_feet_and_com,
+    script_arguments,
+    talos,
     write_run,
 )
-from sotdrake.sweep import (EngineUnavailable, add_sweep_arguments, engine_options, grid, per_process,
-                            random_cases, run_sweep)
+from sotdrake.sweep import (
+    EngineUnavailable,
+    add_sweep_arguments,
+    engine_options,
+    grid,
+    per_process,
+    random_cases,
+    run_sweep,
+)
 
 HAND_OFFSET = (0.1, 0.0, 0.0)
 GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]

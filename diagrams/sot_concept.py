@@ -155,7 +155,7 @@ def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict
     lower, upper = limits["position_lower"][joints_q], limits["position_upper"][joints_q]
     margins = np.minimum(qs[:, joints_q] - lower, upper - qs[:, joints_q])
     ratio = np.abs(trace["v"][:, joints_v]) / limits["velocity_upper"][joints_v]
-    names = [name for name, keep in zip(_joint_names(robot), controlled) if keep]
+    names = [name for name, keep in zip(_joint_names(robot), controlled, strict=False) if keep]
     worst_margin = np.unravel_index(np.argmin(margins), margins.shape)
     residuals = concept.sot.GetOutputPort("residuals").Eval(concept.sot.GetMyContextFromRoot(context))
     summary = {

@@ -29,10 +29,10 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake import (
+    SOT,
     MetaTaskKine6d,
     MetaTaskKineCom,
     Robot,
-    SOT,
     Tracer,
     add_sot,
     attime,

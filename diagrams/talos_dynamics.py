@@ -39,12 +39,13 @@ from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer, Mult
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 from pydrake.trajectories import PiecewisePolynomial
 
+from sotdrake import Tracer, attime, load_talos, script_arguments, start, write_run
 from sotdrake.dynamics.contact import friction_ratio
 from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
 from sotdrake.dynamics.station import sole_rectangle
 from sotdrake.physics import FRICTION, ContactMonitor, Push
-from sotdrake import attime, load_talos, script_arguments, start, Tracer, write_run
+from sotdrake.solvers.hqp import ACTIVE_SET, SOLVERS
 
 SCENARIOS = ("stand", "sway", "lift_leg", "lift_leg_no_com", "squat", "push")
 SWAY = (0.05, 0.5, 2.0)  # amplitude (m), frequency (Hz), fade-in (s)
@@ -135,12 +136,13 @@ def _com_trajectory(scenario: str, com0: np.ndarray, left_sole_xy: np.ndarray, d
     return None
 
 
-def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Meshcat | None = None, dt: float = 1e-3) -> DynamicsRun:
+def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Meshcat | None = None, dt: float = 1e-3,
+                  solver: str = ACTIVE_SET) -> DynamicsRun:
     if scenario not in SCENARIOS:
         raise ValueError(f"unknown scenario {scenario!r}; available: {SCENARIOS}")
     builder = DiagramBuilder()
     model = load_talos("reduced")
-    robot = RobotDyn(builder, model, device, dt)
+    robot = RobotDyn(builder, model, device, dt, solver=solver)
     sot, connect = robot.sot, builder.Connect
     # As in the tutorial, the grippers (on their upper limit at the start) are left out: q̈ = 0.
     sot.setControlSelection(robot.velocity_selection(excluding=["gripper_left_joint", "gripper_right_joint"]))
@@ -383,10 +385,12 @@ def main(argv: list[str] | None = None) -> dict:
     parser = script_arguments(__doc__, "out/dynamics", duration=5.0)
     parser.add_argument("--scenario", choices=SCENARIOS, default="lift_leg")
     parser.add_argument("--device", choices=["physics", "dynsimu"], default="physics")
+    parser.add_argument("--solver", choices=[ACTIVE_SET, *sorted(SOLVERS)], default=ACTIVE_SET,
+                        help="how SolverDyn's QP levels are solved (the exact active set, or a Drake solver polished by it)")
     args = parser.parse_args(argv)
     meshcat = start(args)
     logging.getLogger("drake").setLevel(logging.WARNING)
-    run = build_diagram(args.scenario, args.device, meshcat)
+    run = build_diagram(args.scenario, args.device, meshcat, solver=args.solver)
     simulator, times = simulate_ticks(run, args.duration, not args.quiet)
     summary, trace = summarize(run, simulator, times, args.duration)
     print(json.dumps(summary, indent=2), flush=True)

@@ -24,10 +24,10 @@ from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake import (
+    SOT,
     MetaTaskKine6d,
     MetaTaskKineCom,
     Robot,
-    SOT,
     Tracer,
     add_sot,
     attime,

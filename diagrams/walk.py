@@ -34,18 +34,18 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
 from sotdrake import (
-    add_sot,
-    attime,
-    load_talos,
+    SOT,
     MetaTaskKine6d,
     MetaTaskKine6dRel,
     MetaTaskKineCom,
     Robot,
+    Tracer,
+    add_sot,
+    attime,
+    load_talos,
     script_arguments,
     simulate,
-    SOT,
     start,
-    Tracer,
     write_run,
 )
 from sotdrake.robots import RobotModel
@@ -164,7 +164,7 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     six_d("Head", "head", spec.head, "110000", "right_foot_pose", "right_foot_velocity", POSTURE_GAIN)
     six_d("WaistOr", "waist", spec.waist, "100000", "waist_pose", "waist_velocity", POSTURE_GAIN)
     if solver == "hqp":
-        for name, wrist in zip(("ArmL", "ArmR"), spec.wrists):
+        for name, wrist in zip(("ArmL", "ArmR"), spec.wrists, strict=False):
             arm = MetaTaskKine6dRel(name, bot, name.lower(), "waist", wrist, spec.waist, inequality=True)
             # The desired relative pose without its rotation: the error's x is then along the
             # waist's x axis, e = x_wrist - x_wrist(0) in the waist frame.
@@ -244,7 +244,7 @@ def _mean_velocity(start, end, duration: float) -> np.ndarray:
 def _stretches(flags: np.ndarray) -> list[np.ndarray]:
     """The index ranges where ``flags`` is True, each as an array of indices."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(int), [0]])))
-    return [np.arange(a, b) for a, b in zip(edges[::2], edges[1::2])]
+    return [np.arange(a, b) for a, b in zip(edges[::2], edges[1::2], strict=False)]
 
 
 def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) -> tuple[dict, dict]:
@@ -266,8 +266,8 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
     # Planned ZMP (of the planned CoM) and reference against the planned support polygons.
     zmp_planned = trace["pg_com"][:, :2] - trace["pg_com"][:, 2:3] / GRAVITY * trace["pg_com_acceleration"][:, :2]
     polygons = [plan.support_polygon(tk, gait) for tk in t]
-    zmp_margin = np.array([polygon_margin(z, P) for z, P in zip(zmp_planned, polygons)])
-    ref_margin = np.array([polygon_margin(z, P) for z, P in zip(trace["pg_zmp_reference"], polygons)])
+    zmp_margin = np.array([polygon_margin(z, P) for z, P in zip(zmp_planned, polygons, strict=False)])
+    ref_margin = np.array([polygon_margin(z, P) for z, P in zip(trace["pg_zmp_reference"], polygons, strict=False)])
     base = _planar(path[spec.waist])
     base_z = path[spec.waist][:, 2, 3]
     fell = bool(base_z.min() < base_z[0] - 0.25)
@@ -289,7 +289,7 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
         else:
             landings = [0.0] + [st.touchdown for st in plan.steps if st.side == side]
             liftoffs = [st.liftoff for st in plan.steps if st.side == side] + [np.inf]
-            stretches = [np.flatnonzero((t >= down) & (t <= up)) for down, up in zip(landings, liftoffs)]
+            stretches = [np.flatnonzero((t >= down) & (t <= up)) for down, up in zip(landings, liftoffs, strict=False)]
         slips += [float(np.linalg.norm(xy[k] - xy[k[0]], axis=1).max()) for k in stretches if k.size > 1]
     summary = {
         "robot": walk.robot_name,

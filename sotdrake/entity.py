@@ -30,7 +30,7 @@ from .exceptions import SotError
 S = TypeVar("S")
 
 #: Recorders of :func:`sotdrake.sequencer.attime`, innermost last.
-_recorders: list[list[tuple["Entity", Callable[[Any], None]]]] = []
+_recorders: list[list[tuple[Entity, Callable[[Any], None]]]] = []
 
 
 def own_context(system: LeafSystem, context: Context) -> Context:
@@ -47,7 +47,7 @@ class _DefaultsSnapshot:
     """Model value of the settings state: each copy Drake makes of it (for a new context or a
     ``SetDefaultContext``) is a deep copy of the owner's defaults *at that moment*."""
 
-    def __init__(self, owner: "Entity"):
+    def __init__(self, owner: Entity):
         self.owner = owner
 
     def __deepcopy__(self, memo):

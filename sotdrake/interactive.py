@@ -19,7 +19,6 @@ from pydrake.systems.framework import Context, Diagram
 
 from .exceptions import InvalidInput
 
-
 #: Longest run one ``go`` or ``advance_to`` accepts (s of simulated time): a day.
 MAX_DURATION = 86400.0
 

@@ -34,10 +34,10 @@ from .features import (
     FeatureVisualPoint,
 )
 from .features.feature6d import as_transform
-from .gains import GainAdaptive, from_numbers
 from .gain_checks import check_gain
-from .ranges import MAX_TARGET_POSITION
+from .gains import GainAdaptive, from_numbers
 from .kinematics import Dynamic
+from .ranges import MAX_TARGET_POSITION
 from .robot import Robot
 from .selection import parse_selection
 from .task import Task, TaskInequality, TaskPD

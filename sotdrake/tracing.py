@@ -80,7 +80,7 @@ class Tracer:
             if name not in self.sinks:
                 raise InvalidInput(f"tracer: unknown signal {name!r}; traced: {list(self.sinks)}")
         fig, axes = plt.subplots(len(names), 1, figsize=(9, 2.6 * len(names) + 0.6), sharex=True, squeeze=False)
-        for axis, name in zip(axes[:, 0], names):
+        for axis, name in zip(axes[:, 0], names, strict=False):
             values = data[name]
             components = legends.get(name) or ([name] if values.shape[1] == 1 else
                                                [f"{name}[{i}]" for i in range(values.shape[1])])

@@ -353,7 +353,7 @@ def attempt_bad_input(fx: Fixture, label: str, call: Callable) -> dict:
     except SotError as error:
         result["status"] = "sot_error"
         result["message"] = str(error)[:300]
-    except Exception as error:  # noqa: BLE001 - what the table is looking for
+    except Exception as error:
         result["status"] = "other_error"
         result["message"] = f"{type(error).__name__}: {str(error)[:300]}"
     result["unchanged"] = fingerprint(fx) == before
@@ -424,7 +424,7 @@ def random_run(fx: Fixture, seed: int, duration: float = 0.1) -> dict:
                 drift = max(drift, float(np.linalg.norm(robot.dynamic.pose_at(op, q).translation() - p0)))
             violation = max(violation, float(np.max(np.maximum(lower - q, q - upper))))
             scale = min(scale, float(sot.GetOutputPort("velocity_scale").Eval(sot.GetMyContextFromRoot(context))[0]))
-    except Exception as exc:  # noqa: BLE001 - recorded: a clean exception, not a crash
+    except Exception as exc:
         error = f"{type(exc).__name__}: {str(exc)[:200]}"
     description.update(contact_drift_m=drift, limit_violation=max(violation, 0.0), finite=finite,
                        min_velocity_scale=scale, error=error, time=context.get_time())

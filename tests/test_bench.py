@@ -5,12 +5,11 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 
-import run as bench  # noqa: E402
+import run as bench
 
 
 def test_stacks_and_timing():

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import DiagramBuilder
 
 from sotdrake.configuration import Layout, difference, integrate
 from sotdrake.device import Device

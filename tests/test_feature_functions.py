@@ -14,8 +14,8 @@ from sotdrake.features import (
     feature1d_error_and_jacobian,
     generic_error_and_jacobian,
     joint_limits_error_and_jacobian,
-    posture_error_and_jacobian,
     pose_error_and_jacobian,
+    posture_error_and_jacobian,
     relative_pose_error_and_jacobian,
     visual_point_error_and_jacobian,
 )

@@ -11,7 +11,13 @@ from sotdrake.configuration import Layout
 from sotdrake.exceptions import InvalidInput
 from sotdrake.features import Feature1D, FeatureJointLimits
 from sotdrake.lie import exp_so3
-from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKine6dRel, MetaTaskKineCom, MetaTaskKinePosture, MetaTaskVisualPoint
+from sotdrake.meta_tasks import (
+    MetaTaskKine6d,
+    MetaTaskKine6dRel,
+    MetaTaskKineCom,
+    MetaTaskKinePosture,
+    MetaTaskVisualPoint,
+)
 from sotdrake.robot import Robot
 from tests.conftest import random_configuration
 from tests.finite_differences import manifold_jacobian

@@ -2,9 +2,9 @@ import math
 
 import numpy as np
 import pytest
+from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource
-from pydrake.common.value import AbstractValue
 
 from sotdrake.exceptions import InvalidInput
 from sotdrake.gains import GainAdaptive, constant, from_numbers, from_point, from_slope

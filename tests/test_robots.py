@@ -15,7 +15,7 @@ def test_variants_load_with_every_joint_actuated(variant, nq, nv):
     actuated = {plant.get_joint_actuator(i).joint().name() for i in plant.GetJointActuatorIndices()}
     for index in plant.GetJointIndices():
         joint = plant.get_joint(index)
-        if joint.num_velocities() == 1 and "gripper" not in joint.name() or joint.name().endswith("gripper_left_joint"):
+        if (joint.num_velocities() == 1 and "gripper" not in joint.name()) or joint.name().endswith("gripper_left_joint"):
             assert joint.name() in actuated, joint.name()
     for name in ("torso_1_joint", "head_2_joint", "arm_right_7_joint"):  # differential transmissions
         if plant.HasJointNamed(name):

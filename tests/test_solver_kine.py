@@ -13,7 +13,6 @@ from sotdrake.solvers import HierarchicalQP, SolverKine
 from tests.conftest import load_diagram
 
 
-
 @pytest.fixture(scope="module")
 def concept():
     return load_diagram("sot_concept")

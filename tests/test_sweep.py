@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sotdrake.exceptions import InvalidInput
-from sotdrake.sweep import EngineUnavailable, grid, per_process, random_cases, read_csv, run_sweep, write_csv
+from sotdrake.sweep import EngineUnavailable, grid, per_process, random_cases, read_csv, run_sweep
 
 
 def damped_oscillator(case: dict) -> dict:

@@ -1,8 +1,8 @@
 """The tutorial diagram: a short run, and the script's outputs."""
 
 import base64
-import re
 import json
+import re
 
 import numpy as np
 import pytest

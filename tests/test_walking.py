@@ -48,7 +48,7 @@ def test_forward_footsteps_alternate_advance_and_keep_the_feet_apart():
     steps = plan.steps
     assert len(steps) == GAIT.horizon_steps
     assert [s.side for s in steps[:4]] == ["right", "left", "right", "left"]
-    for a, b in zip(steps, steps[1:]):
+    for a, b in zip(steps, steps[1:], strict=False):
         assert b.liftoff - a.liftoff == pytest.approx(GAIT.step_duration)
         assert a.touchdown - a.liftoff == pytest.approx(GAIT.single_support)
         assert b.body[0] - a.body[0] == pytest.approx(0.1 * GAIT.step_duration)  # v·T per step
@@ -141,7 +141,7 @@ def test_replanning_mid_swing_keeps_the_swing_and_the_com_continuous():
     t = plan.steps[1].liftoff + 0.3  # the left foot in the air
     new = replan(plan, WalkCommand(velocity=(0.0, 0.1, 0.2)), t, GAIT)
     assert new.steps[:2] == plan.steps[:2]
-    for a, b in zip(plan.com.state(t)[:2], new.com.state(t)[:2]):
+    for a, b in zip(plan.com.state(t)[:2], new.com.state(t)[:2], strict=False):
         assert np.allclose(a, b, atol=1e-9)
     assert np.allclose(plan.references(t).feet["left"], new.references(t).feet["left"])
     assert new.steps[2].body[2] == pytest.approx(0.2 * GAIT.step_duration)  # the new command from the next step

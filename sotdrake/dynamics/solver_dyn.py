@@ -120,7 +120,7 @@ def dynamic_levels(
     dyn = np.zeros((nv, n))
     dyn[:, :nv] = terms.M
     dyn[:, nv + sum(sizes):] = -terms.B
-    for c, sl in zip(contacts, slices):
+    for c, sl in zip(contacts, slices, strict=False):
         dyn[:, sl] = -c.rows.jacobian.T @ world_wrench_map(c.rows.rotation, sl.stop - sl.start)
     levels = [LevelRows(dyn, -terms.h, -terms.h)]
     if contacts:
@@ -130,7 +130,7 @@ def dynamic_levels(
         lower = np.concatenate([np.concatenate([c.rows.acceleration for c in contacts]), np.full(m_in, -np.inf)])
         upper = np.concatenate([lower[:m_eq], np.zeros(m_in)])
         r_eq, r_in = 0, m_eq
-        for c, sl in zip(contacts, slices):
+        for c, sl in zip(contacts, slices, strict=False):
             k, m = sl.stop - sl.start, len(c.rows.wrench_rows) if with_inequalities else 0
             A[r_eq : r_eq + k, :nv] = c.rows.jacobian
             if m:
@@ -161,7 +161,7 @@ def variable_bounds(
     """Bounds on ``x``: joint accelerations, the normal forces (``f_min``, the ramp), the torques."""
     lower = np.concatenate([acceleration_lower, np.full(sum(s.stop - s.start for s in slices), -np.inf), -effort])
     upper = np.concatenate([acceleration_upper, np.full(len(lower) - nv - len(effort), np.inf), effort])
-    for c, sl in zip(contacts, slices):
+    for c, sl in zip(contacts, slices, strict=False):
         normal = sl.stop - 1  # f_z, the wrench's last component
         released = np.isfinite(c.f_max)
         lower[normal], upper[normal] = (0.0, c.f_max) if released else (c.rows.f_min, np.inf)
@@ -169,7 +169,7 @@ def variable_bounds(
 
 
 def _wrench_rows_hold(contacts: list[ActiveContact], slices: list[slice], x: np.ndarray, tolerance: float = 1e-9) -> bool:
-    for c, sl in zip(contacts, slices):
+    for c, sl in zip(contacts, slices, strict=False):
         w = x[sl]
         if np.any(c.rows.wrench_rows @ w > tolerance * max(1.0, float(np.abs(w).max()))):
             return False
@@ -370,8 +370,8 @@ class SolverDyn(SOT):
                 return
             result = relaxed
         x = result.x
-        local = {c.name: x[sl].copy() for c, sl in zip(contacts, slices)}
-        world = {c.name: world_wrench_map(c.rows.rotation, sl.stop - sl.start) @ x[sl] for c, sl in zip(contacts, slices)}
+        local = {c.name: x[sl].copy() for c, sl in zip(contacts, slices, strict=False)}
+        world = {c.name: world_wrench_map(c.rows.rotation, sl.stop - sl.start) @ x[sl] for c, sl in zip(contacts, slices, strict=False)}
         diagnostics.slack_norms = result.slack_norms
         diagnostics.level_solvers = result.level_solvers
         diagnostics.active_bounds = result.active_bounds

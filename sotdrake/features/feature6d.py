@@ -29,8 +29,8 @@ from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite
-from ..ranges import MAX_TARGET_ANGLE, MAX_TARGET_POSITION, MAX_TARGET_VELOCITY
 from ..lie import hat, log_so3_list, right_jacobian_inverse_list
+from ..ranges import MAX_TARGET_ANGLE, MAX_TARGET_POSITION, MAX_TARGET_VELOCITY
 from .base import Feature, FeatureSettings, optional_input, usual_input
 
 FRAMES = ("desired", "current")
@@ -49,7 +49,7 @@ def _rotation_translation(X) -> tuple[list, list]:
 
 def _mul(A, B) -> list:
     """``A·B`` of 3×3 matrices given by rows."""
-    Bt = list(zip(*B))
+    Bt = list(zip(*B, strict=False))
     return [[a[0] * b[0] + a[1] * b[1] + a[2] * b[2] for b in Bt] for a in A]
 
 
@@ -98,7 +98,7 @@ def pose_error_and_jacobian(
     moving = V_WFd is not None and np.count_nonzero(V_WFd) > 0
     if moving:
         w_star, p_star_dot = V_WFd[:3].tolist(), V_WFd[3:].tolist()
-    RdT, RT = [list(c) for c in zip(*Rd)], [list(c) for c in zip(*R)]
+    RdT, RT = [list(c) for c in zip(*Rd, strict=False)], [list(c) for c in zip(*R, strict=False)]
     zero3 = [0.0, 0.0, 0.0]
     e_r = e_dot_t = e_dot_r = zero3
     bottom = [0.0] * 18  # rows 3-5 of M, flat
@@ -115,14 +115,14 @@ def pose_error_and_jacobian(
             bottom = [*a, 0.0, 0.0, 0.0, *b, 0.0, 0.0, 0.0, *c, 0.0, 0.0, 0.0]
         if moving:
             wd = _apply(RdT, w_star)
-            e_dot_t = [a - b for a, b in zip(_cross(e_t, wd), _apply(RdT, p_star_dot))]
+            e_dot_t = [a - b for a, b in zip(_cross(e_t, wd), _apply(RdT, p_star_dot), strict=False)]
             if rotation:
                 e_dot_r = [-x for x in _apply(right_jacobian_inverse_list([-x for x in e_r]), wd)]
     elif frame == "current":
         e_t = _apply(RT, [pd[0] - p[0], pd[1] - p[1], pd[2] - p[2]])
         left = _mul(_hat(e_t), RT)
         if r is not None:
-            left = [[a + b for a, b in zip(u, w)] for u, w in zip(left, _mul(RT, _hat(r)))]
+            left = [[a + b for a, b in zip(u, w, strict=False)] for u, w in zip(left, _mul(RT, _hat(r)), strict=False)]
         top = [x for i in range(3) for x in (*left[i], -RT[i][0], -RT[i][1], -RT[i][2])]
         if rotation:
             e_r = log_so3_list(_mul(RT, Rd))

@@ -22,8 +22,8 @@ from pydrake.systems.framework import Context
 
 from ..configuration import Layout
 from ..exceptions import InvalidInput, check_finite
-from ..ranges import MAX_JOINT_TARGET, MAX_TARGET_VELOCITY
 from ..lie import left_jacobian_inverse_so3, log_so3, quaternion_wxyz_to_rotation, right_jacobian_inverse_so3
+from ..ranges import MAX_JOINT_TARGET, MAX_TARGET_VELOCITY
 from .base import Feature, FeatureSettings, optional_input
 
 

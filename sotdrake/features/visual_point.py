@@ -23,8 +23,8 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context
 
 from ..exceptions import InvalidInput, SolverError, check_finite
-from ..ranges import MAX_TARGET_POSITION
 from ..lie import hat
+from ..ranges import MAX_TARGET_POSITION
 from .base import Feature, FeatureSettings, optional_input
 
 

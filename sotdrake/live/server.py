@@ -29,7 +29,7 @@ from pydrake.systems.framework import Context
 
 from ..exceptions import SotError
 from .connection import HOST
-from .framing import LineReader, LineTooLong, MAX_LINE, answer
+from .framing import MAX_LINE, LineReader, LineTooLong, answer
 from .grammar import parse_command
 from .vocabulary import Prepared, Vocabulary
 
@@ -49,7 +49,7 @@ class ServerCounts:
 class _Client:
     """One connection: a reader thread, a writer thread and the answers waiting to be sent."""
 
-    def __init__(self, server: "CommandServer", sock: socket.socket, address):
+    def __init__(self, server: CommandServer, sock: socket.socket, address):
         self.server, self.sock, self.address = server, sock, address
         self.outgoing: queue.Queue[bytes | None] = queue.Queue(maxsize=server.max_unsent)
         self.closed = threading.Event()

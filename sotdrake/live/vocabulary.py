@@ -275,7 +275,7 @@ class Vocabulary:
         params = method.params
         if len(command.args) > len(params):
             raise CommandRejected(f"{callee} takes at most {len(params)} arguments: {method.signature(callee)}")
-        given: dict[str, Any] = {p.name: a for p, a in zip(params, command.args)}
+        given: dict[str, Any] = {p.name: a for p, a in zip(params, command.args, strict=False)}
         names = [p.name for p in params]
         for key, value in command.kwargs:
             if key not in names:

@@ -50,7 +50,7 @@ class KinematicBaseEstimator(LeafSystem):
         plant_context = self._plant_context.Eval(context).context
         q = self.plant.GetPositions(plant_context)
         poses = [X_WS0.multiply(self.plant.CalcRelativeTransform(plant_context, self._base, sole).inverse())
-                 for X_WS0, sole in zip(self._X_WS0, self._soles)]
+                 for X_WS0, sole in zip(self._X_WS0, self._soles, strict=False)]
         quaternions = [X.rotation().ToQuaternion().wxyz() for X in poses]
         if quaternions[0] @ quaternions[1] < 0:
             quaternions[1] = -quaternions[1]

@@ -71,7 +71,7 @@ class RobotModel:
         self._frames[name] = frame
         return frame
 
-    def with_meshes(self) -> "RobotModel":
+    def with_meshes(self) -> RobotModel:
         """The same robot with visual and collision meshes, on its own plant and SceneGraph."""
         from .loader import load_robot
 

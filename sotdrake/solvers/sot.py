@@ -16,16 +16,15 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort, ValueProducer
 
+from ..configuration import Layout, difference
 from ..entity import Entity
 from ..exceptions import InvalidInput, SolverError, StackError, TaskNotFound
 from ..task import Task, TaskLevel
-from ..configuration import Layout, difference
 from .cascade import CascadeResult, cascade_residuals, solve_cascade
 from .second_order import curvature_correction
 from .velocity_scaling import scale_to_limits, velocity_scale
@@ -364,7 +363,7 @@ class SOT(Entity[StackSettings]):
                 # curvature correction c (its size is the one of the scaled motion), i.e. solve
                 # for s·ė* - c = s·(ė* - c) - (1 - s)·c, then keep within the limits.
                 plain = [level.reference for level in self._levels(context, s, check=False, correct=False)]
-                pairs = [(J, scale * r - (1.0 - scale) * (p - r)) for (J, r), p in zip(pairs, plain)]
+                pairs = [(J, scale * r - (1.0 - scale) * (p - r)) for (J, r), p in zip(pairs, plain, strict=False)]
                 result = solve_cascade(pairs, nv, s.svd_threshold, s.damping, s.control_selection, with_residuals=False)
                 velocity, second = scale_to_limits(result.velocity, s.velocity_limit)
                 scale *= second

@@ -13,7 +13,22 @@ from .per_process import per_process
 from .table import flatten, make_row, read_csv, write_csv, write_parquet
 
 __all__ = [
-    "Case", "ENGINES", "EngineUnavailable", "SweepResult", "add_sweep_arguments", "engine_options", "flatten",
-    "grid", "make_row", "per_process", "random_cases", "read_csv", "run_case", "run_local", "run_ray", "run_sweep", "write_csv",
+    "ENGINES",
+    "Case",
+    "EngineUnavailable",
+    "SweepResult",
+    "add_sweep_arguments",
+    "engine_options",
+    "flatten",
+    "grid",
+    "make_row",
+    "per_process",
+    "random_cases",
+    "read_csv",
+    "run_case",
+    "run_local",
+    "run_ray",
+    "run_sweep",
+    "write_csv",
     "write_parquet",
 ]

@@ -33,7 +33,7 @@ def grid(axes: Mapping[str, Sequence]) -> list[Case]:
         if isinstance(values, (str, bytes)) or len(values) == 0:
             raise InvalidInput(f"grid: axis {name!r} needs a non-empty sequence of values, got {values!r}")
     names = list(axes)
-    return [dict(zip(names, map(_plain, combination))) for combination in itertools.product(*axes.values())]
+    return [dict(zip(names, map(_plain, combination), strict=False)) for combination in itertools.product(*axes.values())]
 
 
 def random_cases(count: int, ranges: Mapping[str, tuple[float, float]], seed: int) -> list[Case]:
@@ -51,4 +51,4 @@ def random_cases(count: int, ranges: Mapping[str, tuple[float, float]], seed: in
     lows = np.array([float(b[0]) for b in ranges.values()])
     highs = np.array([float(b[1]) for b in ranges.values()])
     draws = rng.uniform(lows, highs, size=(int(count), len(ranges)))
-    return [dict(zip(ranges, map(float, row))) for row in draws]
+    return [dict(zip(ranges, map(float, row), strict=False)) for row in draws]

@@ -134,7 +134,7 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
 
 def start_of(dynamic, q0: np.ndarray, feet=("left-sole", "right-sole"), waist: str = "waist") -> Start:
     """The :class:`Start` of a robot at ``q0`` from its ``dynamic`` entity (op points or frames)."""
-    return Start({side: dynamic.pose_at(name, q0) for side, name in zip(SIDES, feet)},
+    return Start({side: dynamic.pose_at(name, q0) for side, name in zip(SIDES, feet, strict=False)},
                  dynamic.com_at(q0), dynamic.pose_at(waist, q0))
 
 

@@ -85,7 +85,7 @@ class WalkPlan:
     feet: dict = field(default_factory=dict)  # side → PiecewisePolynomial (x, y, z, yaw)
     feet_rate: dict = field(default_factory=dict)
 
-    def __deepcopy__(self, memo) -> "WalkPlan":
+    def __deepcopy__(self, memo) -> WalkPlan:
         # Immutable (its trajectories are never modified): Drake's copies of the state share it.
         return self
 

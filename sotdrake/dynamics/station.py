@@ -24,6 +24,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
 from pydrake.systems.framework import DiagramBuilder
 
+from ..drake_logging import drop_drake_message
 from ..exceptions import InvalidInput, SotError
 from ..physics import FRICTION, SOLE_BOX, SOLE_DISSIPATION, SOLE_MODULUS, PhysicalTalos
 from ..robots.talos import add_talos
@@ -40,6 +41,9 @@ def add_torque_driven_talos(builder: DiagramBuilder, variant: str = "reduced", t
     ground = ProximityProperties()
     AddRigidHydroelasticProperties(ground)
     AddContactMaterial(friction=FRICTION, properties=ground)
+    # Drake would warn at each new context that a rigid half-space gives no contact data with
+    # deformable bodies; there are none here (see sotdrake.physics.plant).
+    drop_drake_message("Rigid (non-deformable) half spaces are not currently supported for deformable contact")
     plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(), HalfSpace(), "ground", ground)
     sole_material = ProximityProperties()
     AddCompliantHydroelasticProperties(resolution_hint=0.02, hydroelastic_modulus=SOLE_MODULUS, properties=sole_material)

@@ -1,8 +1,8 @@
 """The physics plant under torque control: TALOS on the ground, its actuators driven by ``τ``.
 
-The same world as :mod:`sotdrake.physics` (a discrete ``MultibodyPlant`` with Drake's SAP solver,
-gravity, a rigid-hydroelastic ground, the compliant-hydroelastic sole boxes ``SOLE_BOX`` with the
-same modulus, dissipation and friction), but *no PD controller* on the actuators: the actuation
+The world of :mod:`sotdrake.physics` itself (a discrete ``MultibodyPlant`` with Drake's SAP solver,
+gravity, a rigid-hydroelastic ground, the compliant-hydroelastic sole boxes ``SOLE_BOX``, a box per
+link so that a fall lands on the ground), but *no PD controller* on the actuators: the actuation
 input is the torque itself (actuator order, N·m), and the plant's state output is what the
 controller reads back (closed loop). Every actuator is checked to have no PD controller (a PD left
 on would silently add a position servo). The torque limits
@@ -11,59 +11,20 @@ are the controller's hard bounds (``SolverDyn``), and the diagrams report ``max 
 
 from __future__ import annotations
 
-import numpy as np
-from pydrake.geometry import (
-    AddCompliantHydroelasticProperties,
-    AddContactMaterial,
-    AddRigidHydroelasticProperties,
-    Box,
-    HalfSpace,
-    ProximityProperties,
-)
-from pydrake.math import RigidTransform
-from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
+from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import DiagramBuilder
 
-from ..drake_logging import drop_drake_message
-from ..exceptions import InvalidInput, SotError
-from ..physics import FRICTION, SOLE_BOX, SOLE_DISSIPATION, SOLE_MODULUS, PhysicalTalos
-from ..robots.talos import add_talos
+from ..exceptions import SotError
+from ..physics import SOLE_BOX, PhysicalTalos, add_physical_talos
 
 
 def add_torque_driven_talos(builder: DiagramBuilder, variant: str = "reduced", time_step: float = 1e-3) -> PhysicalTalos:
-    """Add the simulated TALOS (plant + SceneGraph, visual meshes, sole boxes, ground), its
-    actuators torque-driven (see the module docstring)."""
-    if not time_step > 0:
-        raise InvalidInput(f"the physics needs a discrete plant: time_step > 0, got {time_step}")
-    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step)
-    plant.set_name("talos_plant")
-    instance = add_talos(plant, variant, meshes=True, collision=False)
-    ground = ProximityProperties()
-    AddRigidHydroelasticProperties(ground)
-    AddContactMaterial(friction=FRICTION, properties=ground)
-    # Drake would warn at each new context that a rigid half-space gives no contact data with
-    # deformable bodies; there are none here (see sotdrake.physics.plant).
-    drop_drake_message("Rigid (non-deformable) half spaces are not currently supported for deformable contact")
-    plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(), HalfSpace(), "ground", ground)
-    sole_material = ProximityProperties()
-    AddCompliantHydroelasticProperties(resolution_hint=0.02, hydroelastic_modulus=SOLE_MODULUS, properties=sole_material)
-    AddContactMaterial(dissipation=SOLE_DISSIPATION, friction=FRICTION, properties=sole_material)
-    size, centre = SOLE_BOX
-    soles = {}
-    for side in ("left", "right"):
-        sole = plant.GetFrameByName(f"{side}_sole_link")
-        X_BS = sole.GetFixedPoseInBodyFrame()
-        plant.RegisterCollisionGeometry(sole.body(), X_BS.multiply(RigidTransform(centre)), Box(*size), f"{side}_sole", sole_material)
-        soles[side] = sole
-    plant.Finalize()
-    check_torque_driven(plant)
-    actuators = [plant.get_joint_actuator(i) for i in plant.GetJointActuatorIndices()]
-    return PhysicalTalos(
-        plant, scene_graph, instance,
-        np.array([a.joint().position_start() for a in actuators]),
-        np.array([a.joint().velocity_start() for a in actuators]),
-        soles,
-    )
+    """Add the simulated TALOS of :func:`sotdrake.physics.add_physical_talos` (plant + SceneGraph,
+    visual meshes, ground, sole and link boxes) with its actuators torque-driven: no PD controller,
+    checked (see the module docstring)."""
+    physical = add_physical_talos(builder, variant, time_step, pd_gains=False)
+    check_torque_driven(physical.plant)
+    return physical
 
 
 def check_torque_driven(plant: MultibodyPlant) -> None:

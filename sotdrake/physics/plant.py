@@ -72,9 +72,11 @@ def add_physical_talos(
     stiffness: float = 30.0,
     damping: float = 0.05,
     body_collision: bool = True,
+    pd_gains: bool = True,
 ) -> PhysicalTalos:
     """Add the simulated TALOS (plant + SceneGraph, visual meshes, sole boxes, link boxes unless
-    ``body_collision=False``, ground, PD actuators)."""
+    ``body_collision=False``, ground, PD actuators; ``pd_gains=False`` leaves the actuators without PD
+    controllers, driven by the actuation input alone: torque control)."""
     if not (isinstance(time_step, (int, float)) and np.isfinite(time_step) and 0 < time_step <= 0.01):
         raise InvalidInput(f"the physics needs a discrete plant: time_step in (0, 0.01] s, got {time_step!r}")
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step)
@@ -120,7 +122,8 @@ def add_physical_talos(
     # The robot collides with the ground only (see body_collision's docstring).
     scene_graph.collision_filter_manager().Apply(
         CollisionFilterDeclaration().ExcludeWithin(GeometrySet(robot_geometries)))
-    set_pd_gains(plant, stiffness, damping)
+    if pd_gains:
+        set_pd_gains(plant, stiffness, damping)
     actuators = [plant.get_joint_actuator(i) for i in plant.GetJointActuatorIndices()]
     return PhysicalTalos(
         plant, scene_graph, instance,

@@ -130,7 +130,8 @@ def main(argv=None) -> dict:
         for peer in ("sotdrake", "placo"):
             row = r[peer]
             foot = "-" if row["foot_rms_error_m"] is None else f"{row['foot_rms_error_m']:.2e}"
-            print(f"{scenario:10} {peer:10} {row['tick_us_median']:14.0f} {row['tick_us_p95']:10.0f} {row['com_rms_error_m']:12.2e} {foot:>13}")
+            print(f"{scenario:10} {peer:10} {row['tick_us_median']:14.0f} {row['tick_us_p95']:10.0f} "
+                  f"{row['com_rms_error_m']:12.2e} {foot:>13}")
     return results
 
 

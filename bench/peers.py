@@ -73,7 +73,8 @@ def run_pink(ticks: int, warmup: int, solver: str = "daqp") -> dict:
         times.append(time.perf_counter() - start)
         cpu.append(time.thread_time() - start_cpu)
         if k % 10 == 0:  # outside the timed region
-            drift = max(drift, max(np.linalg.norm(configuration.get_transform_frame_to_world(f).translation - f0) for f, f0 in zip(FEET, feet0, strict=False)))
+            drift = max(drift, max(np.linalg.norm(configuration.get_transform_frame_to_world(f).translation - f0)
+                                   for f, f0 in zip(FEET, feet0, strict=False)))
     accuracy = _accuracy(configuration.get_transform_frame_to_world(HAND_FRAME).translation,
                          [configuration.get_transform_frame_to_world(f).translation for f in FEET], feet0,
                          pin.centerOfMass(model, data, configuration.q), com0)

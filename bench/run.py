@@ -396,10 +396,14 @@ TARGETS = {
     "ratio_vs_pink_stretch": ("ratio_vs_pink_cpu_paired", "ratio_vs_pink_paired", "<=", 0.5, "the same, stretch target"),
     "tick_p99": ("tick_cpu_us_p99", "tick_us_p99", "<=", 1000.0, "basic SOT tick p99 (µs)"),
     "marginal_task": ("marginal_task_cpu_us", "marginal_task_us", "<=", 40.0, "marginal cost of one more task (µs)"),
-    "realtime_factor_kinematic": ("realtime_factor_kinematic_cpu", "realtime_factor_kinematic", ">=", 3.0, "real-time factor, kinematic tutorial"),
-    "realtime_factor_physics": ("realtime_factor_physics_cpu", "realtime_factor_physics", ">=", 1.0, "real-time factor, physics (talos_physics reach)"),
-    "hqp_random_median": ("hqp_random_solve_cpu_ms_median", "hqp_random_solve_ms_median", "<=", 1.0, "HQP on random stacks, median solve (ms)"),
-    "hqp_active_ratio": ("hqp_active_ratio_vs_pink", "hqp_active_ratio_vs_pink", "<=", 2.0, "`SolverKine` tick with active limits / pink's median"),
+    "realtime_factor_kinematic": ("realtime_factor_kinematic_cpu", "realtime_factor_kinematic", ">=", 3.0,
+                                  "real-time factor, kinematic tutorial"),
+    "realtime_factor_physics": ("realtime_factor_physics_cpu", "realtime_factor_physics", ">=", 1.0,
+                                "real-time factor, physics (talos_physics reach)"),
+    "hqp_random_median": ("hqp_random_solve_cpu_ms_median", "hqp_random_solve_ms_median", "<=", 1.0,
+                          "HQP on random stacks, median solve (ms)"),
+    "hqp_active_ratio": ("hqp_active_ratio_vs_pink", "hqp_active_ratio_vs_pink", "<=", 2.0,
+                         "`SolverKine` tick with active limits / pink's median"),
 }
 
 
@@ -534,7 +538,8 @@ def markdown(r: dict) -> str:
         return (f"| {name} | {cpu_text} | {t['median']:.0f} | {t['p95']:.0f} | {_fmt(t.get('p99'), '.0f')} | "
                 f"{acc['hand_error_m']:.1e} | {acc['max_foot_drift_m']:.1e} | {acc['max_com_drift_m']:.1e} |")
 
-    lines = ["| peer (same scenario, same run) | CPU median / p99 (µs) | wall median (µs) | wall p95 (µs) | wall p99 (µs) | hand error (m) | max foot drift (m) | max CoM drift (m) |",
+    lines = ["| peer (same scenario, same run) | CPU median / p99 (µs) | wall median (µs) | wall p95 (µs) | wall p99 (µs) "
+             "| hand error (m) | max foot drift (m) | max CoM drift (m) |",
              "| --- | --- | --- | --- | --- | --- | --- | --- |",
              row("sotdrake `SOT` (strict cascade)", r["tick_us"], r["accuracy"]["sotdrake"], r.get("tick_cpu_us")),
              row("sotdrake `SolverKine` (HQP, limits hard)", r["hqp_tick_us"], r["accuracy"]["sotdrake_hqp"]),
@@ -543,7 +548,8 @@ def markdown(r: dict) -> str:
     for name, label in (("pink", "pink {} (weighted QP, daqp)"), ("placo", "placo {} (C++ core; feet hard, CoM and hand soft)")):
         peer_run = r.get(name, {})
         if peer_run.get("available"):
-            lines.append(row(label.format(peer_run.get("version", "")), peer_run["tick_us"], peer_run["accuracy"], peer_run.get("tick_cpu_us")))
+            lines.append(row(label.format(peer_run.get("version", "")), peer_run["tick_us"], peer_run["accuracy"],
+                             peer_run.get("tick_cpu_us")))
         else:
             lines.append(f"| {name} | {peer_run.get('reason', 'not run')} | | | | | | |")
     met = r.get("targets", {})
@@ -555,19 +561,23 @@ def markdown(r: dict) -> str:
                      f"{sense.replace('<=', '≤').replace('>=', '≥')} {bound:g}{verdict} |")
     for key, label in (("ratio_vs_pink_cpu", "basic SOT tick / pink's, the long runs above (CPU time)"),
                        ("ratio_vs_pink", "basic SOT tick / pink's, the long runs above (wall clock)"),
-                       ("hqp_ratio_vs_pink", "`SolverKine` tick / pink's (wall clock)"), ("ratio_vs_placo", "basic SOT tick / placo's (wall clock)")):
+                       ("hqp_ratio_vs_pink", "`SolverKine` tick / pink's (wall clock)"),
+                       ("ratio_vs_placo", "basic SOT tick / placo's (wall clock)")):
         if key in r:
             lines.append(f"| {label} | {r[key]:.2f} | | |")
     lines += ["", "Median tick, CPU time (µs), by number of tasks: "
               + ", ".join(f"{n}: {v:.0f}" for n, v in r.get("tick_cpu_us_median_by_tasks", {}).items())
-              + "; by DoF, one hand task: " + ", ".join(f"{n}: {v:.0f}" for n, v in r.get("tick_cpu_us_median_by_dof", {}).items()) + ".",
-              "Median tick, wall clock (µs), by number of tasks: " + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_tasks"].items())
+              + "; by DoF, one hand task: "
+              + ", ".join(f"{n}: {v:.0f}" for n, v in r.get("tick_cpu_us_median_by_dof", {}).items()) + ".",
+              "Median tick, wall clock (µs), by number of tasks: "
+              + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_tasks"].items())
               + "; by DoF, one hand task: " + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_dof"].items()) + ".",
               "Breakdown of the basic tick (exclusive time): "
               + ", ".join(f"{k} {100 * v:.0f}%" for k, v in sorted(r["breakdown_fraction"].items(), key=lambda x: -x[1])) + "."]
     if "machine" in r:
         m = r["machine"]
-        lines.append(f"Measured {r.get('date', '')} on {m.get('cpus')} CPUs, load average {', '.join(f'{x:.1f}' for x in m.get('load_average', []))}.")
+        lines.append(f"Measured {r.get('date', '')} on {m.get('cpus')} CPUs, "
+                     f"load average {', '.join(f'{x:.1f}' for x in m.get('load_average', []))}.")
     return "\n".join(lines)
 
 
@@ -577,7 +587,8 @@ def print_table(r: dict) -> None:
                 f"{acc['hand_error_m']:10.2e} {acc['max_foot_drift_m']:10.2e} {acc['max_com_drift_m']:10.2e}")
 
     print(f"\nhand error and drifts after {r['accuracy_after_s']:.1f} s of the run; real-time factors without Meshcat")
-    print(f"\n{'tick (µs), accuracy (m)':28s} {'p50':>9s} {'p95':>9s} {'p99':>9s} {'max':>9s}   {'hand err':>10s} {'foot drift':>10s} {'CoM drift':>10s}")
+    print(f"\n{'tick (µs), accuracy (m)':28s} {'p50':>9s} {'p95':>9s} {'p99':>9s} {'max':>9s}   "
+          f"{'hand err':>10s} {'foot drift':>10s} {'CoM drift':>10s}")
     print(row("sotdrake SOT (cascade)", r["tick_us"], r["accuracy"]["sotdrake"]))
     print(row("  … its CPU time", r["tick_cpu_us"], r["accuracy"]["sotdrake"]))
     print(row("sotdrake SolverKine (HQP)", r["hqp_tick_us"], r["accuracy"]["sotdrake_hqp"]))
@@ -588,19 +599,21 @@ def print_table(r: dict) -> None:
         else:
             print(f"{name:28s} {r[name]['reason']}")
     print()
-    for key in ("ratio_vs_pink_cpu_paired", "ratio_vs_pink_paired", "ratio_vs_pink_cpu", "ratio_vs_pink", "hqp_ratio_vs_pink", "hqp_active_ratio_vs_pink",
-                "ratio_vs_placo", "marginal_task_cpu_us", "marginal_task_us", "realtime_factor_kinematic_cpu",
+    for key in ("ratio_vs_pink_cpu_paired", "ratio_vs_pink_paired", "ratio_vs_pink_cpu", "ratio_vs_pink", "hqp_ratio_vs_pink",
+                "hqp_active_ratio_vs_pink", "ratio_vs_placo", "marginal_task_cpu_us", "marginal_task_us", "realtime_factor_kinematic_cpu",
                 "realtime_factor_kinematic", "realtime_factor_physics_cpu", "realtime_factor_physics"):
         if key in r:
             print(f"{key:28s} {r[key]:.2f}")
     h = r["hqp_random"]
     print(f"\nHQP on {h['count']} random stacks (ms): median {h['median']:.3f}, p99 {h['p99']:.3f}, max {h['max']:.3f}"
-          + (f"; quadprog sequential reference median {h['quadprog_reference_ms_median']:.3f}" if "quadprog_reference_ms_median" in h else "")
+          + (f"; quadprog sequential reference median {h['quadprog_reference_ms_median']:.3f}"
+             if "quadprog_reference_ms_median" in h else "")
           + f"; CPU time median {h['cpu_ms_median']:.3f}"
           + (f" (reference {h['quadprog_reference_cpu_ms_median']:.3f})" if "quadprog_reference_cpu_ms_median" in h else ""))
     print(f"HQP solver's own share of the active-limits tick: median {r['hqp_active_solver_us_median']:.0f} µs"
           f" of {r['hqp_active_tick_us_median']:.0f} µs")
-    print("\nbreakdown of the basic tick: " + ", ".join(f"{k} {100 * v:.0f}%" for k, v in sorted(r["breakdown_fraction"].items(), key=lambda x: -x[1])))
+    print("\nbreakdown of the basic tick: "
+          + ", ".join(f"{k} {100 * v:.0f}%" for k, v in sorted(r["breakdown_fraction"].items(), key=lambda x: -x[1])))
     print("tick (µs) by number of tasks: " + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_tasks"].items()))
     print(f"marginal cost of one more task: {r['marginal_task_cpu_us']:.1f} µs CPU, {r['marginal_task_us']:.1f} µs wall clock")
     print("tick (µs) by DoF (one hand task): " + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_dof"].items()))

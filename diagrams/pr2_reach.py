@@ -53,7 +53,8 @@ TABLE_SIZE = np.array([0.6, 1.0, 0.04])
 OBJECT = np.array([1.3, -0.25, 0.78])
 BASE_GOAL = np.array([0.75, 0.0])  # x, y of base_link (m); yaw 0
 #: The joints the solver moves: the planar base, the torso lift and the right arm.
-CONTROLLED = re.compile(r"^(root_joint|torso_lift_joint|r_(shoulder_pan|shoulder_lift|upper_arm_roll|elbow_flex|forearm_roll|wrist_flex|wrist_roll)_joint)$")
+CONTROLLED = re.compile(r"^(root_joint|torso_lift_joint|r_(shoulder_pan|shoulder_lift|upper_arm_roll|elbow_flex|"
+                        r"forearm_roll|wrist_flex|wrist_roll)_joint)$")
 
 
 @dataclass

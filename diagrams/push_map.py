@@ -5,11 +5,12 @@ ground contact, open loop) pushed on the torso over a grid of magnitude × direc
 
 Each case: the push (``torso_2_link``'s origin, horizontal, N) starts at ``--push-start``
 (default 0.3 s) and lasts the case's duration; the run lasts ``--duration`` seconds (default 3 s,
-1 ms steps: a push that tips TALOS may take more than 2 s to floor it). Direction 0° pushes along +x (forward), 90° along +y (to the robot's left). A case
-*falls* when the base drops more than 0.1 m below its start (standing, it moves by about 1 mm) or
-tilts more than 30° from upright (the angle between the base's z axis and the vertical); its base
-displacement is the largest horizontal distance of the base from its start (m). Every link
-collides with the ground (a box per link), so a fallen TALOS lands on it.
+1 ms steps: a push that tips TALOS may take more than 2 s to floor it). Direction 0° pushes along
++x (forward), 90° along +y (to the robot's left). A case *falls* when the base drops more than
+0.1 m below its start (standing, it moves by about 1 mm) or tilts more than 30° from upright (the
+angle between the base's z axis and the vertical); its base displacement is the largest
+horizontal distance of the base from its start (m). Every link collides with the ground (a box
+per link), so a fallen TALOS lands on it.
 
     python diagrams/push_map.py --magnitudes 150,300,600 --directions 4 --push-durations 0.1,0.3 \\
         --engine ray --out out/push_map

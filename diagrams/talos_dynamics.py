@@ -211,7 +211,8 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
     visualizer = None
     if meshcat is not None:
         if device == "physics":
-            visualizer = MeshcatVisualizer.AddToBuilder(builder, robot.physical.scene_graph, meshcat, MeshcatVisualizerParams(publish_period=1 / 60))
+            visualizer = MeshcatVisualizer.AddToBuilder(builder, robot.physical.scene_graph, meshcat,
+                                                        MeshcatVisualizerParams(publish_period=1 / 60))
             ContactVisualizer.AddToBuilder(builder, robot.physical.plant, meshcat,
                                            ContactVisualizerParams(publish_period=1 / 60, newtons_per_meter=1000))
         else:
@@ -244,7 +245,8 @@ def simulate_ticks(run: DynamicsRun, duration: float, progress: bool = True) -> 
         start = time.perf_counter()
         simulator.AdvanceTo((k + 1) * dt)
         times[k] = time.perf_counter() - start
-        if not np.all(np.isfinite(run.robot.state_port.Eval(run.robot.state_port.get_system().GetMyContextFromRoot(simulator.get_context())))):
+        state_context = run.robot.state_port.get_system().GetMyContextFromRoot(simulator.get_context())
+        if not np.all(np.isfinite(run.robot.state_port.Eval(state_context))):
             times = times[: k + 1]
             break
     return simulator, times
@@ -358,8 +360,8 @@ def plot(run: DynamicsRun, trace: dict, summary: dict, path: Path) -> Path:
         low, high = _support(poses, ["contactLF", "contactRF"], sole_rectangle())
         ax.add_patch(Rectangle(low, *(high - low), fill=False, color="k", label="support polygon (both soles)"))
         for side in ("contactLF", "contactRF"):
-            l, h = _support(poses, [side], sole_rectangle())
-            ax.add_patch(Rectangle(l, *(h - l), fill=False, color="gray", ls=":"))
+            lo, hi = _support(poses, [side], sole_rectangle())
+            ax.add_patch(Rectangle(lo, *(hi - lo), fill=False, color="gray", ls=":"))
         ax.plot(trace["feet"][:, 6], trace["feet"][:, 7], ".", ms=1, label="CoP (plant)")
     ax.plot(trace["com"][:, 0], trace["com"][:, 1], "-", lw=0.8, label="CoM (ground projection)")
     ax.set_aspect("equal")

@@ -371,7 +371,7 @@ def plot(walk: Walk, simulator, trace: dict, path: Path) -> Path:
     ax.set_xlabel("time (s)")
     ax.legend(fontsize=7)
     ax = axes[1, 0]
-    window = max(1, int(round(2 * gait.step_duration / walk.robot.dt)))  # a left and a right step: the sway cancels
+    window = max(1, round(2 * gait.step_duration / walk.robot.dt))  # a left and a right step: the sway cancels
     base = trace["base"]
     if len(base) > window:
         rate = (base[window:] - base[:-window]) / (window * walk.robot.dt)

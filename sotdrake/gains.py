@@ -103,7 +103,8 @@ def from_point(gain0: float, gain_inf: float, error_ref: float, fraction: float)
     _finite(gain0=gain0, gain_inf=gain_inf, error_ref=error_ref, fraction=fraction)
     if gain_inf < 0 or gain0 < gain_inf or not ERROR_SCALE[0] <= error_ref <= ERROR_SCALE[1] or not 0 < fraction < 1:
         raise InvalidInput(
-            f"expected λ0 ≥ λ∞ ≥ 0, e_ref in [{ERROR_SCALE[0]:g}, {ERROR_SCALE[1]:g}], 0 < p < 1, got ({gain0}, {gain_inf}, {error_ref}, {fraction})"
+            f"expected λ0 ≥ λ∞ ≥ 0, e_ref in [{ERROR_SCALE[0]:g}, {ERROR_SCALE[1]:g}], 0 < p < 1, "
+            f"got ({gain0}, {gain_inf}, {error_ref}, {fraction})"
         )
     return AdaptiveCoefficients(gain0 - gain_inf, -math.log(fraction) / error_ref, gain_inf)
 

@@ -33,7 +33,7 @@ class RobotStateMessage(LeafSystem):
 
     def _calc(self, context: Context, output: AbstractValue) -> None:
         message = lcmt_robot_state()
-        message.utime = int(round(context.get_time() * 1e6))
+        message.utime = round(context.get_time() * 1e6)
         message.num_joints = len(self.names)
         message.joint_name = self.names
         message.joint_position = list(self.state.Eval(context))

@@ -137,8 +137,9 @@ def add_sot(
     """sot-core's ``sot = SOT('sot'); sot.setSize(...); plug(sot.control, robot.device.control)``.
 
     ``solver='cascade'``: the basic ``SOT`` (pseudo-inverse cascade; ``svd_threshold``, ``damping``
-    on every level; the command scaled uniformly into the joints' velocity limits and the base bound). ``solver='hqp'``: ``SolverKine`` (hierarchical QP with inequalities and joint
-    limits; ``damping`` on the last level, ``position_margin``, ``qp_solver``).
+    on every level; the command scaled uniformly into the joints' velocity limits and the base
+    bound). ``solver='hqp'``: ``SolverKine`` (hierarchical QP with inequalities and joint limits;
+    ``damping`` on the last level, ``position_margin``, ``qp_solver``).
     """
     if solver == "cascade":
         sot = SOT(name, robot.dimension, svd_threshold, damping, dt=robot.dt, layout=robot.device.layout)

@@ -186,8 +186,12 @@ def bad_inputs() -> list[tuple[str, Callable]]:
     from sotdrake.robots.urdf_checks import check_urdf_limits
     from sotdrake.sequencer import attime
 
-    T = lambda fx, name: fx.tasks[name]
-    c = lambda fx: fx.context
+    def T(fx, name):
+        return fx.tasks[name]
+
+    def c(fx):
+        return fx.context
+
     table: list[tuple[str, Callable]] = []
     add = table.extend
     # gains
@@ -210,7 +214,8 @@ def bad_inputs() -> list[tuple[str, Callable]]:
     add(_numbers("gotoNd(rh, (x, 0, 1))", lambda fx, v: gotoNd(T(fx, "rh"), [v, 0.0, 1.0], context=c(fx)), [101.0, -1e5]))
     add(_numbers("gotoNd(rh, 6D roll)", lambda fx, v: gotoNd(T(fx, "rh"), [0.5, 0.0, 1.0, v, 0.0, 0.0], context=c(fx)), [7.0, -1e4]))
     add(_numbers("gotoNd(com, (0, 0, z))", lambda fx, v: gotoNd(T(fx, "com"), [0.0, 0.0, v], context=c(fx)), [1e3]))
-    add(_numbers("gotoNd(rh, gain=λ)", lambda fx, v: gotoNd(T(fx, "rh"), [0.5, -0.2, 1.0], gain=v, context=c(fx)), [2000.0, -1.0], skip=(None, [1.0])))
+    add(_numbers("gotoNd(rh, gain=λ)", lambda fx, v: gotoNd(T(fx, "rh"), [0.5, -0.2, 1.0], gain=v, context=c(fx)), [2000.0, -1.0],
+                 skip=(None, [1.0])))
     add(_numbers("featureDes.setVelocity", lambda fx, v: T(fx, "rh").featureDes.setVelocity([v, 0, 0, 0, 0, 0], c(fx)), [1e3]))
     add(_numbers("com featureDes.setVelocity", lambda fx, v: T(fx, "com").featureDes.setVelocity([0.0, v, 0.0], c(fx)), [1e3]))
     add(_numbers("posture.setPosture(q[10])", lambda fx, v: T(fx, "posture").feature.setPosture(_with(fx, 10, v), c(fx)), [1e3]))
@@ -414,7 +419,7 @@ def random_run(fx: Fixture, seed: int, duration: float = 0.1) -> dict:
     steps = max(1, round(duration / (10 * robot.dt)))
     error = None
     try:
-        for k in range(1, steps + 1):
+        for _k in range(1, steps + 1):
             simulator.AdvanceTo(context.get_time() + 10 * robot.dt)
             q = robot.device.position(context)
             if not np.all(np.isfinite(q)):

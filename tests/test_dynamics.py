@@ -178,7 +178,7 @@ def test_strict_hierarchy_on_random_dynamic_stacks(standing, rng):
     robot, diagram, *_ = standing
     sot = robot.sot
     nv = robot.model.nv
-    for trial in range(2):
+    for _trial in range(2):
         x = _random_state(robot.model, rng, spread=0.1)
         context = _set_state(robot, diagram, x)
         terms = robot.dynamic.GetOutputPort("dynamics").Eval(robot.dynamic.GetMyContextFromRoot(context))

@@ -22,7 +22,8 @@ from sotdrake.features import (
 from sotdrake.lie import exp_so3
 from tests.finite_differences import manifold_jacobian
 
-LINK = '<link name="{0}"><inertial><mass value="{1}"/><origin xyz="0 0 0.1"/><inertia ixx="0.01" iyy="0.02" izz="0.03" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+LINK = ('<link name="{0}"><inertial><mass value="{1}"/><origin xyz="0 0 0.1"/>'
+        '<inertia ixx="0.01" iyy="0.02" izz="0.03" ixy="0" ixz="0" iyz="0"/></inertial></link>')
 JOINT = ('<joint name="j{0}" type="revolute"><parent link="l{1}"/><child link="l{0}"/><origin xyz="0.05 0.1 0.2" rpy="0.3 -0.2 0.1"/>'
          '<axis xyz="{2}"/><limit lower="-2" upper="{3}" effort="1" velocity="1"/></joint>')
 AXES = ["0 0 1", "0 1 0", "1 0 0", "0 0.6 0.8"]

@@ -61,7 +61,8 @@ def test_jacobian_by_finite_differences(rig, name, seed):
         metas["posture"].feature.setPosture(random_configuration(robot.model, rng, spread=0.3), context)
     if name == "relative":
         X = metas["relative"].featureDes.settings(context).position
-        metas["relative"].featureDes.setPosition(RigidTransform(X.rotation().multiply(RotationMatrix(exp_so3(rng.uniform(-1, 1, 3)))), X.translation() + 0.1), context)
+        rotation = X.rotation().multiply(RotationMatrix(exp_so3(rng.uniform(-1, 1, 3))))
+        metas["relative"].featureDes.setPosition(RigidTransform(rotation, X.translation() + 0.1), context)
     if name == "feature1d":
         metas["hand"].featureDes.setPosition(metas["hand"].current_pose(context).translation() + 0.2, context)
     feature = features[name]

@@ -141,7 +141,7 @@ def test_targets_beyond_the_physical_range_are_refused(talos_model):
     from sotdrake.features.feature6d import as_transform
 
     for target in ([1e300, 0, 0], [101.0, 0, 0], [0, 0, 1, 7.0, 0, 0]):
-        with pytest.raises(InvalidInput, match="100|6.28"):
+        with pytest.raises(InvalidInput, match=r"100|6.28"):
             as_transform(target, "target")
     as_transform([99.0, 0, 0, 3.0, 0, 0], "target")
 
@@ -170,7 +170,7 @@ def test_a_urdf_with_lower_above_upper_is_refused_before_drake_parses_it():
 
     joint = ('<robot name="r"><link name="a"/><link name="b"/><joint name="knee" type="revolute">'
              '<parent link="a"/><child link="b"/><limit lower="1" upper="-1" effort="1" velocity="1"/></joint></robot>')
-    with pytest.raises(RobotDescriptionError, match="knee.*lower=1.0 must be ≤ upper=-1.0"):
+    with pytest.raises(RobotDescriptionError, match=r"knee.*lower=1.0 must be ≤ upper=-1.0"):
         check_urdf_limits(joint)
     check_urdf_limits(joint.replace('lower="1" upper="-1"', 'lower="-1" upper="1"'))
 

@@ -58,7 +58,7 @@ def reference_slack_norms(n, levels, x_lower, x_upper, epsilon=1e-12):
         size = r + 2 * m  # z = (y, up, down)
         rows, rhs = [], []  # rows · z ≥ rhs
 
-        def at_least(coefficients, value):
+        def at_least(coefficients, value, rows=rows, rhs=rhs):
             if not np.isfinite(value):
                 return
             if np.linalg.norm(coefficients) < 1e-12:  # nothing left to constrain (y = 0 satisfies it)

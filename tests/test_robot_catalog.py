@@ -86,7 +86,7 @@ def test_robot_loads_with_mass_dof_and_op_points(name, variant):
 
 
 def test_unknown_robot_lists_the_available_ones():
-    with pytest.raises(RobotNotFound, match="romeo.*pr2|pr2.*romeo") as error:
+    with pytest.raises(RobotNotFound, match=r"romeo.*pr2|pr2.*romeo") as error:
         load_robot("rome")
     assert "did you mean 'romeo'" in str(error.value)
     with pytest.raises(VariantNotFound, match="'full', 'small'"):

@@ -3,6 +3,8 @@ entity, and a short kinematic walk of TALOS."""
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
@@ -48,7 +50,7 @@ def test_forward_footsteps_alternate_advance_and_keep_the_feet_apart():
     steps = plan.steps
     assert len(steps) == GAIT.horizon_steps
     assert [s.side for s in steps[:4]] == ["right", "left", "right", "left"]
-    for a, b in zip(steps, steps[1:], strict=False):
+    for a, b in pairwise(steps):
         assert b.liftoff - a.liftoff == pytest.approx(GAIT.step_duration)
         assert a.touchdown - a.liftoff == pytest.approx(GAIT.single_support)
         assert b.body[0] - a.body[0] == pytest.approx(0.1 * GAIT.step_duration)  # v·T per step
@@ -171,7 +173,7 @@ def test_set_velocity_out_of_range_is_refused_and_changes_nothing():
     _, pg = pattern_generator_diagram()
     pg.setVelocity(0.1, 0.0, 0.0)
     for bad in [(0.25, 0.0, 0.0), (0.0, -0.21, 0.0), (0.0, 0.0, 1.0), (np.nan, 0.0, 0.0)]:
-        with pytest.raises(SotError, match="out of range|NaN"):
+        with pytest.raises(SotError, match=r"out of range|NaN"):
             pg.setVelocity(*bad)
     with pytest.raises(InvalidInput, match=r"x = 0.25 m/s is out of range; accepted: -0.2 ≤ x ≤ 0.2"):
         pg.setVelocity(0.25, 0, 0)

@@ -138,7 +138,10 @@ class Contact6d(Entity[ContactSettings]):
 
     def setCopMargin(self, margin: float, context: Context | None = None) -> None:
         """How far (m) the CoP stays inside the sole's edges: ``0 ≤ margin <`` half the sole's width."""
-        limit = math.inf if self.rectangle is None else min(self.rectangle[1] - self.rectangle[0], self.rectangle[3] - self.rectangle[2]) / 2
+        if self.rectangle is None:
+            limit = math.inf
+        else:
+            limit = min(self.rectangle[1] - self.rectangle[0], self.rectangle[3] - self.rectangle[2]) / 2
         if not (np.isfinite(margin) and 0 <= margin < limit):
             raise InvalidInput(f"{self.name}: CoP margin must be in [0, {limit}) m, got {margin}")
         self._command(context, lambda s: setattr(s, "cop_margin", float(margin)))

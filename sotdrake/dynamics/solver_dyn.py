@@ -216,8 +216,10 @@ class SolverDyn(SOT):
             raise InvalidInput(f"{self.name} was built for {self.max_contacts} contacts (max_contacts)")
         if contact.nv != self.nv:
             raise InvalidInput(f"contact {contact.name} has nv = {contact.nv}, solver {self.name} has nv = {self.nv}")
-        port = self.DeclareAbstractInputPort("contact" + contact.name if not contact.name.startswith("contact") else contact.name,
-                                             AbstractValue.Make(ContactRows(np.zeros((6, self.nv)), np.zeros(6), np.eye(3), np.zeros((0, 6)), 0.0, 1.0)))
+        port = self.DeclareAbstractInputPort(
+            "contact" + contact.name if not contact.name.startswith("contact") else contact.name,
+            AbstractValue.Make(ContactRows(np.zeros((6, self.nv)), np.zeros(6), np.eye(3), np.zeros((0, 6)), 0.0, 1.0)),
+        )
         self._contact_ports[contact.name] = port
         return port
 

@@ -6,7 +6,8 @@ Equations of motion (Drake's generalized coordinates, ``v`` with the floating ba
     M(q) q̈ + h(q, v) = B τ + Σ_c J_cᵀ W_c
 
 ``h = C(q, v) v − τ_g(q) + D v`` (Coriolis/centrifugal bias, minus the generalized gravity
-forces, plus the joints' viscous damping ``D`` from the URDF, which the plant applies; N or N·m), ``B`` the actuation matrix (nv × na: actuator order to velocities), ``W_c`` the contact
+forces, plus the joints' viscous damping ``D`` from the URDF, which the plant applies; N or N·m),
+``B`` the actuation matrix (nv × na: actuator order to velocities), ``W_c`` the contact
 wrench ``(torque about the contact frame's origin; force)`` in the world frame and ``J_c`` the
 spatial-velocity Jacobian of that frame (rows ``(ω; v)``, world).
 

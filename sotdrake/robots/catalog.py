@@ -181,7 +181,13 @@ ROBOTS: dict[str, RobotSpec] = {
             variants={"default": "tiago.urdf", "no_hand": "tiago_no_hand.urdf"},
             base="planar",
             bases=("planar", "free", "fixed"),
-            op_points={"wrist": "arm_7_joint", "tool": "arm_tool_link", "gaze": "head_2_joint", "waist": "base_link", "chest": "torso_lift_joint"},
+            op_points={
+                "wrist": "arm_7_joint",
+                "tool": "arm_tool_link",
+                "gaze": "head_2_joint",
+                "waist": "base_link",
+                "chest": "torso_lift_joint",
+            },
             notes="PAL Robotics; `default` has the five-finger hand",
         ),
         *[

@@ -101,7 +101,7 @@ def robot_urdf_text(name: str, variant: str | None = None, meshes: bool = False,
 def _root_link(urdf_text: str) -> str:
     root = ET.fromstring(urdf_text)
     children = {j.find("child").get("link") for j in root.findall("joint")}
-    (link,) = [l.get("name") for l in root.findall("link") if l.get("name") not in children]
+    (link,) = [element.get("name") for element in root.findall("link") if element.get("name") not in children]
     return link
 
 

@@ -195,7 +195,9 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
         alpha = float(ratio.min(initial=np.inf))
         if alpha < 1.0:
             blocking = int(np.flatnonzero(ratio <= alpha * (1 + 1e-12))[0]) if bland else int(np.argmin(ratio))
-            if blocking == last_dropped and alpha * float(np.abs(step).max(initial=0.0)) <= 1e-12 * max(1.0, float(np.abs(z).max(initial=0.0))):
+            if blocking == last_dropped and (
+                alpha * float(np.abs(step).max(initial=0.0)) <= 1e-12 * max(1.0, float(np.abs(z).max(initial=0.0)))
+            ):
                 # The row just dropped blocks at once: its multiplier's sign was round-off, the
                 # previous point (where it was held) is optimal.
                 side[blocking] = dropped_side

@@ -99,7 +99,9 @@ class SolverKine(SOT):
         both in ``(0, 100]``; the default comes from the legs' limits (:mod:`.base_velocity`)."""
         for name, value in (("angular", angular), ("linear", linear)):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= MAX_BASE_VELOCITY:
-                raise InvalidInput(f"{self.name}.setBaseVelocityLimit: {name} must be a number in (0, {MAX_BASE_VELOCITY:g}], got {value!r}")
+                raise InvalidInput(
+                    f"{self.name}.setBaseVelocityLimit: {name} must be a number in (0, {MAX_BASE_VELOCITY:g}], got {value!r}"
+                )
         if self.layout.base_v is None:
             raise InvalidInput(f"{self.name}.setBaseVelocityLimit: the robot has no floating base")
         self._command(context, lambda s: setattr(s, "base_velocity_limit", (float(angular), float(linear))))

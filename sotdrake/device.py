@@ -21,12 +21,10 @@ import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from .configuration import Layout, difference, integrate, position_names
+from .configuration import Layout, integrate, position_names
 from .entity import own_context
 from .exceptions import InvalidInput, SolverError, SotError, check_finite
 from .ranges import MAX_JOINT_TARGET
-
-__all__ = ["Device", "Layout", "difference", "integrate"]  # they live in sotdrake.configuration
 
 log = logging.getLogger("sotdrake.device")
 

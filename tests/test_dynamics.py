@@ -9,7 +9,7 @@ from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from sotdrake.device import Layout, integrate
+from sotdrake.configuration import Layout, integrate
 from sotdrake.dynamics.contact import Contact6d, friction_ratio, wrench_constraints
 from sotdrake.dynamics.device import integrate_acceleration
 from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDynCom, MetaTaskDynPosture

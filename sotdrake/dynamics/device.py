@@ -15,7 +15,7 @@ import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from ..device import Layout, integrate
+from ..configuration import Layout, integrate
 from ..exceptions import InvalidInput, SolverError, check_finite
 
 

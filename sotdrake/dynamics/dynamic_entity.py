@@ -23,7 +23,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import BasicVector, Context, OutputPort, ValueProducer
 
-from ..device import Layout
+from ..configuration import Layout
 from ..exceptions import InvalidInput
 from ..kinematics import Dynamic, PlantContextHolder
 from ..robots import RobotModel

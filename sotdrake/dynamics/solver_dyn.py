@@ -44,7 +44,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort
 
-from ..device import Layout
+from ..configuration import Layout
 from ..exceptions import InvalidInput, NotFound, SolverError, StackError
 from ..robots import RobotModel
 from ..solvers.hqp import ACTIVE_SET, HierarchicalQP, LevelRows, check_solver

@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..device import Layout
+from ..configuration import Layout
 
 
 class DynamicsTerms(NamedTuple):

@@ -39,7 +39,8 @@ def curvature_correction(J: np.ndarray, previous_velocity: np.ndarray | None,
     if previous_velocity is None or previous_task_velocity is None or previous_task_velocity.shape != (J.shape[0],):
         return None
     change = J @ previous_velocity - previous_task_velocity
-    scale = MAX_RELATIVE_CHANGE**2 * np.sum(J * J) * previous_velocity.dot(previous_velocity)
+    flat = J.reshape(-1)
+    scale = MAX_RELATIVE_CHANGE**2 * flat.dot(flat) * previous_velocity.dot(previous_velocity)
     if change.dot(change) > scale:
         return None
     return 0.5 * change

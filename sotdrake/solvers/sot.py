@@ -303,16 +303,17 @@ class SOT(Entity[StackSettings]):
         the ``v`` kept here."""
         s = self._settings_of(context)
         v = self._solution.Eval(context).velocity
-        discrete_state.get_mutable_vector(self._last_velocity).SetFromVector(np.concatenate(([1.0], v)))
+        kept = discrete_state.get_mutable_value(self._last_velocity)
+        kept[0], kept[1:] = 1.0, v
         in_stack = {*s.contacts, *s.tasks}
         for name, index in self._last_task_velocity.items():
-            kept = np.full(1 + self.nv, -1.0)
-            if name in in_stack:
-                J = self._task_ports[name].Eval(context).jacobian
-                if J.shape[0] <= self.nv:
-                    kept[0] = J.shape[0]
-                    kept[1 : 1 + J.shape[0]] = J @ v
-            discrete_state.get_mutable_vector(index).SetFromVector(kept)
+            kept = discrete_state.get_mutable_value(index)
+            J = self._task_ports[name].Eval(context).jacobian if name in in_stack else None
+            if J is None or J.shape[0] > self.nv:
+                kept[0] = -1.0
+            else:
+                kept[0] = J.shape[0]
+                kept[1 : 1 + J.shape[0]] = J @ v
 
     def _last_tick(self, context: Context) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
         """``(v_{k-1}, {task: J_{k-1} v_{k-1}})`` of the last tick, or None before the first."""

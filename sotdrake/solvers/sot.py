@@ -112,7 +112,9 @@ class SOT(Entity[StackSettings]):
         empty = CascadeResult(np.zeros(nv), np.zeros(0), np.zeros(0, dtype=int))
         # The solution depends on the inputs, the settings and the last tick; the last tick is
         # left out of the prerequisites: it changes only in the update that also moves the
-        # device, so the solve a publisher asked for after a tick is the one the next tick uses.
+        # device (so the inputs change with it), and the solve a publisher asked for after a tick
+        # is the one the next tick uses. (A tick with v = 0 exactly leaves q, hence the cached
+        # solution, as they were.)
         self._solution = self.DeclareCacheEntry(
             "solution",
             ValueProducer(allocate=lambda: AbstractValue.Make(empty), calc=self._calc),

@@ -43,17 +43,31 @@ def own_context(system: LeafSystem, context: Context) -> Context:
     return system.GetMyContextFromRoot(context)
 
 
+class _Frozen:
+    """The settings held in a Context. A command never changes them in place: it stores a changed
+    copy (copy on write), so the copies Drake makes of the state (context clones, the scratch state
+    of every unrestricted update) can share them instead of deep-copying them at each tick."""
+
+    __slots__ = ("value",)
+
+    def __init__(self, value: Any):
+        self.value = value
+
+    def __deepcopy__(self, memo: dict) -> _Frozen:
+        return self
+
+
 class _DefaultsSnapshot:
     """Model value of the settings state: each copy Drake makes of it (for a new context or a
-    ``SetDefaultContext``) is a deep copy of the owner's defaults *at that moment*."""
+    ``SetDefaultContext``) holds a deep copy of the owner's defaults *at that moment*."""
 
     def __init__(self, owner: Entity):
         self.owner = owner
 
-    def __deepcopy__(self, memo):
+    def __deepcopy__(self, memo: dict) -> _DefaultsSnapshot | _Frozen:
         if self.owner._declaring:
             return _DefaultsSnapshot(self.owner)
-        return copy.deepcopy(self.owner._defaults, memo)
+        return _Frozen(copy.deepcopy(self.owner._defaults, memo))
 
 
 class Entity(LeafSystem, Generic[S]):
@@ -79,11 +93,11 @@ class Entity(LeafSystem, Generic[S]):
         """The settings in ``context`` (a read-only view), or the defaults without one."""
         if context is None:
             return self._defaults
-        return self.own_context(context).get_abstract_state(self._settings_index).get_value()
+        return self.own_context(context).get_abstract_state(self._settings_index).get_value().value
 
     def _settings_of(self, own_context: Context) -> S:
         """Fast read for calc callbacks, which always receive this entity's own context."""
-        return own_context.get_abstract_state(self._settings_index).get_value()
+        return own_context.get_abstract_state(self._settings_index).get_value().value
 
     def _command(self, context: Context | None, change: Callable[[S], None]) -> None:
         if context is not None and _recorders:  # refused before anything changes
@@ -99,19 +113,19 @@ class Entity(LeafSystem, Generic[S]):
             self._defaults = new
             return
         own = self.own_context(context)
-        new = copy.deepcopy(own.get_abstract_state(self._settings_index).get_value())
+        new = copy.deepcopy(own.get_abstract_state(self._settings_index).get_value().value)
         change(new)
-        own.get_mutable_abstract_state(self._settings_index).set_value(new)
+        own.get_mutable_abstract_state(self._settings_index).set_value(_Frozen(new))
 
     def _declare_timed_change(self, time: float, changes: list[Callable[[S], None]]) -> None:
         """A one-shot event at ``time`` that applies ``changes`` in order (see ``attime``)."""
 
         def update(context, state):
             value = state.get_mutable_abstract_state(self._settings_index)
-            new = copy.deepcopy(value.get_value())
+            new = copy.deepcopy(value.get_value().value)
             for change in changes:
                 change(new)
-            value.set_value(new)
+            value.set_value(_Frozen(new))
 
         # A periodic event whose period outlasts any simulation is a one-shot event at `offset`.
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_sec=1e12, offset_sec=time, update=update)

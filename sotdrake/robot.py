@@ -142,7 +142,7 @@ def add_sot(
     ``damping`` on the last level, ``position_margin``, ``qp_solver``).
     """
     if solver == "cascade":
-        sot = SOT(name, robot.dimension, svd_threshold, damping, dt=robot.dt, layout=robot.device.layout)
+        sot = SOT(name, robot.dimension, svd_threshold, damping, dt=robot.dt)
         sot.setVelocityLimit(velocity_limit_vector(robot.model))
         return robot.add_solver(sot)
     if solver == "hqp":

@@ -21,7 +21,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort, ValueProducer
 
-from ..configuration import Layout, difference
+from ..configuration import Layout
 from ..entity import Entity
 from ..exceptions import InvalidInput, SolverError, StackError, TaskNotFound
 from ..task import Task, TaskLevel
@@ -83,9 +83,10 @@ class SOT(Entity[StackSettings]):
         dt: float | None = None,
         layout: Layout | None = None,
     ):
-        """``dt`` (the control period, s) and ``layout`` (of the robot's ``q``): with both, the
-        solver reads ``q`` on its ``position`` input and corrects each level for the curvature of
-        the tick (:mod:`.second_order`), the last two ticks' ``q`` and Jacobians kept in the Context."""
+        """``dt`` (the control period, s): with it, the solver corrects each level for the curvature
+        of the tick (:mod:`.second_order`), its last command ``v`` and each level's ``J v`` kept in
+        the Context (discrete state, updated every ``dt``). ``layout`` (of the robot's ``q``): for a
+        solver that reads ``q`` on a ``position`` input (``SolverKine``'s joint limits)."""
         Entity.__init__(self, name, settings or StackSettings())
         self.nv = nv
         self.dt = dt
@@ -97,18 +98,27 @@ class SOT(Entity[StackSettings]):
         if layout is not None:
             nq = len(layout.joints_q) + (7 if layout.base_q is not None else 0)
             self.position = self.DeclareVectorInputPort("position", nq)
-            if dt is not None:
-                self._history = self.DeclareAbstractState(AbstractValue.Make({}))
-                self.DeclarePeriodicUnrestrictedUpdateEvent(dt, 0.0, self._remember)
+        # The last tick (discrete state): [1, v] (or [0, …] before the first tick), and per task
+        # [rows, J v] (rows -1: not in the stack, or more rows than nv).
+        self._last_velocity: int | None = None
+        self._last_task_velocity: dict[str, int] = {}
+        if dt is not None:
+            self._last_velocity = int(self.DeclareDiscreteState(np.zeros(1 + nv)))
+            self.DeclarePeriodicDiscreteUpdateEvent(dt, 0.0, self._remember)
         self.setThreshold(svd_threshold)
         self.setDamping(damping)
         self._task_ports: dict[str, InputPort] = {}
         self._inequality_tasks: set[str] = set()
         empty = CascadeResult(np.zeros(nv), np.zeros(0), np.zeros(0, dtype=int))
+        # The solution depends on the inputs, the settings and the last tick; the last tick is
+        # left out of the prerequisites: it changes only in the update that also moves the
+        # device (so the inputs change with it), and the solve a publisher asked for after a tick
+        # is the one the next tick uses. (A tick with v = 0 exactly leaves q, hence the cached
+        # solution, as they were.)
         self._solution = self.DeclareCacheEntry(
             "solution",
             ValueProducer(allocate=lambda: AbstractValue.Make(empty), calc=self._calc),
-            prerequisites_of_calc={self.all_sources_ticket()},
+            prerequisites_of_calc=self._solution_prerequisites(),
         )
         self.DeclareVectorOutputPort("control", nv, lambda c, o: o.SetFromVector(self._solution.Eval(c).velocity))
         self.DeclareAbstractOutputPort(
@@ -119,6 +129,14 @@ class SOT(Entity[StackSettings]):
             "velocity_scale", 1, lambda c, o: o.SetAtIndex(0, getattr(self._solution.Eval(c), "scale", 1.0))
         )
         self._warned_scaling = False  # logging only: warn once per solver, results never depend on it
+
+    def _solution_prerequisites(self) -> set:
+        """Every source of the solution but time (the references reach it through the inputs) and,
+        with ``dt``, the last tick: the inputs, the parameters, the settings, and the numeric state
+        of a solver without ``dt`` (``SolverDyn``'s contact ramps)."""
+        tickets = {self.all_input_ports_ticket(), self.all_parameters_ticket(), self.xc_ticket(),
+                   self.abstract_state_ticket(self._settings_index)}
+        return tickets if self.dt is not None else tickets | {self.xd_ticket()}
 
     # --- wiring (build time) ---------------------------------------------------------------
     def declare_task_input(self, task: Task) -> InputPort:
@@ -131,6 +149,8 @@ class SOT(Entity[StackSettings]):
             )
             if task.is_inequality:
                 self._inequality_tasks.add(task.name)
+            if self._last_velocity is not None:
+                self._last_task_velocity[task.name] = int(self.DeclareDiscreteState(np.full(1 + self.nv, -1.0)))
         return self._task_ports[task.name]
 
     @property
@@ -279,26 +299,35 @@ class SOT(Entity[StackSettings]):
         self._command(context, lambda s: setattr(s, "velocity_limit", value))
 
     # --- solve -----------------------------------------------------------------------------
-    def _remember(self, context: Context, state) -> None:
-        """Keep ``q`` and each level's Jacobian of the last two ticks. Drake applies this update
-        before the device's update of the same tick, which then finds ``latest`` at the current
-        ``q``: :meth:`_last_tick` tells the two cases apart."""
+    def _remember(self, context: Context, discrete_state) -> None:
+        """Keep this tick's command ``v`` and each level's ``J v`` (see :mod:`.second_order`). Drake
+        computes every discrete update of a tick from the same context, so the device moves with
+        the ``v`` kept here."""
         s = self._settings_of(context)
-        kept = context.get_abstract_state(self._history).get_value()
-        q = self.position.Eval(context).copy()
-        jacobians = {name: self._task_ports[name].Eval(context).jacobian.copy() for name in [*s.contacts, *s.tasks]}
-        state.get_mutable_abstract_state(self._history).set_value(
-            {"before": kept.get("latest"), "latest": (q, jacobians)})
+        v = self._solution.Eval(context).velocity
+        kept = discrete_state.get_mutable_value(self._last_velocity)
+        kept[0], kept[1:] = 1.0, v
+        in_stack = {*s.contacts, *s.tasks}
+        for name, index in self._last_task_velocity.items():
+            kept = discrete_state.get_mutable_value(index)
+            J = self._task_ports[name].Eval(context).jacobian if name in in_stack else None
+            if J is None or J.shape[0] > self.nv:
+                kept[0] = -1.0
+            else:
+                kept[0] = J.shape[0]
+                kept[1 : 1 + J.shape[0]] = J @ v
 
-    def _last_tick(self, context: Context) -> tuple[np.ndarray, dict] | None:
-        """``(Δq, Jacobians)`` of the tick before the current ``q`` (see :meth:`_remember`), or None."""
-        kept = context.get_abstract_state(self._history).get_value()
-        q = self.position.Eval(context)
-        latest = kept.get("latest")
-        previous = kept.get("before") if latest is not None and np.array_equal(latest[0], q) else latest
-        if previous is None:
+    def _last_tick(self, context: Context) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
+        """``(v_{k-1}, {task: J_{k-1} v_{k-1}})`` of the last tick, or None before the first."""
+        kept = context.get_discrete_state(self._last_velocity).get_value()
+        if kept[0] != 1.0:
             return None
-        return difference(q, previous[0], self.layout), previous[1]
+        task_velocities = {}
+        for name, index in self._last_task_velocity.items():
+            y = context.get_discrete_state(index).get_value()
+            if y[0] >= 0:
+                task_velocities[name] = y[1 : 1 + int(y[0])]
+        return kept[1:], task_velocities
 
     def _levels(self, context: Context, settings: StackSettings, check: bool = True, correct: bool = True) -> list[TaskLevel]:
         """The levels, highest first (the contacts stacked as one level, then the stack), checked
@@ -306,7 +335,7 @@ class SOT(Entity[StackSettings]):
         ``correct``, each level's reference corrected for the curvature of the tick (:mod:`.second_order`)."""
         levels = []
         last_tick = None
-        if correct and self.dt is not None and self.position is not None and self.position.HasValue(context):
+        if correct and self._last_velocity is not None:
             last_tick = self._last_tick(context)
         ports = self._task_ports
         for name in [*settings.contacts, *settings.tasks] if settings.contacts else settings.tasks:
@@ -320,7 +349,7 @@ class SOT(Entity[StackSettings]):
                 if level.is_equality and not np.isfinite(level.lower).all():
                     raise SolverError(f"task {name}: non-finite reference at t = {context.get_time()}")
             if last_tick is not None:
-                correction = curvature_correction(J, last_tick[1].get(name), last_tick[0], self.dt)
+                correction = curvature_correction(J, last_tick[0], last_tick[1].get(name))
                 if correction is not None:
                     lower = level.lower - correction
                     upper = lower if level.upper is level.lower else level.upper - correction

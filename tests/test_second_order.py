@@ -1,0 +1,55 @@
+"""The tick-curvature correction (:mod:`sotdrake.solvers.second_order`) on a planar two-link arm,
+whose hand position and Jacobian are known in closed form."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sotdrake.solvers.second_order import curvature_correction
+
+L1, L2 = 0.7, 0.5
+
+
+def hand(q: np.ndarray) -> np.ndarray:
+    return np.array([L1 * np.cos(q[0]) + L2 * np.cos(q[0] + q[1]), L1 * np.sin(q[0]) + L2 * np.sin(q[0] + q[1])])
+
+
+def jacobian(q: np.ndarray) -> np.ndarray:
+    s1, c1, s12, c12 = np.sin(q[0]), np.cos(q[0]), np.sin(q[0] + q[1]), np.cos(q[0] + q[1])
+    return np.array([[-L1 * s1 - L2 * s12, -L2 * s12], [L1 * c1 + L2 * c12, L2 * c12]])
+
+
+def one_tick_errors(dt: float, rng: np.random.Generator) -> tuple[float, float]:
+    """The hand's motion over a tick against ``J_k v dt`` (first order) and ``(J_k v + c_k) dt``
+    (corrected), ``v`` held over the last tick and this one, as the device holds it."""
+    q_before = rng.uniform(-2.0, 2.0, 2)
+    v = rng.uniform(-2.0, 2.0, 2)
+    q = q_before + v * dt
+    J = jacobian(q)
+    moved = hand(q + v * dt) - hand(q)
+    correction = curvature_correction(J, v, jacobian(q_before) @ v)
+    assert correction is not None
+    return float(np.linalg.norm(moved - J @ v * dt)), float(np.linalg.norm(moved - (J @ v + correction) * dt))
+
+
+def test_the_correction_leaves_a_third_order_residual():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        state = rng.bit_generator.state
+        first, corrected = one_tick_errors(1e-3, rng)
+        rng.bit_generator.state = state
+        first_half, corrected_half = one_tick_errors(5e-4, rng)
+        assert corrected < 0.05 * first  # a sign error would double the residual instead
+        assert 3.5 < first / first_half < 4.5  # second order without the correction
+        assert corrected / corrected_half > 7.0  # third order with it
+
+
+def test_the_correction_is_skipped_on_a_jump_a_resize_and_the_first_tick():
+    rng = np.random.default_rng(4)
+    q, v = rng.uniform(-2.0, 2.0, 2), rng.uniform(-2.0, 2.0, 2)
+    J = jacobian(q)
+    assert curvature_correction(J, None, None) is None  # the first tick
+    assert curvature_correction(J, v, np.zeros(3)) is None  # the level changed size
+    assert curvature_correction(J, v, -(J @ v)) is None  # the Jacobian jumped (a new frame)
+    assert curvature_correction(J, np.zeros(2), np.zeros(2)) is not None  # at rest: zero, not skipped
+    np.testing.assert_array_equal(curvature_correction(J, np.zeros(2), np.zeros(2)), np.zeros(2))

@@ -36,6 +36,8 @@ class RobotDyn:
                  q0: np.ndarray | None = None, max_contacts: int = 2, solver: str = ACTIVE_SET):
         if device not in DEVICES:
             raise InvalidInput(f"unknown device {device!r}; available: {list(DEVICES)}")
+        if device == "physics" and model.name != "talos":
+            raise InvalidInput(f"device='physics' is TALOS' torque-driven plant; {model.name} runs on device='dynsimu'")
         self.builder, self.model, self.dt, self.device_kind = builder, model, float(dt), device
         self.OperationalPointsMap = model.OperationalPointsMap
         self.q0 = (model.half_sitting if q0 is None else np.asarray(q0, dtype=float)).copy()
@@ -70,6 +72,15 @@ class RobotDyn:
             mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
         return mask
 
+    def sole_rectangle(self, opPoint: str) -> tuple[float, float, float, float]:
+        """The contact rectangle ``(x_min, x_max, y_min, y_max)`` (m, sole frame) of a sole op point."""
+        if opPoint in self.model.sole_rectangles:
+            return self.model.sole_rectangles[opPoint]
+        if self.model.name == "talos":
+            return sole_rectangle()
+        raise InvalidInput(f"no sole rectangle known for {self.model.name}'s {opPoint!r} "
+                           f"(known: {sorted(self.model.sole_rectangles)}); pass rectangle=(x_min, x_max, y_min, y_max)")
+
     @property
     def dimension(self) -> int:
         return self.model.nv
@@ -96,8 +107,10 @@ class RobotDyn:
                     mu: float = 0.7, f_min: float = 1.0, cop_margin: float = 0.01) -> Contact6d:
         """A contact entity on op point ``opPoint`` (e.g. ``'left-sole'``), plugged to the
         dynamic entity and the solver (not yet held: ``sot.addContact``). ``rectangle='sole'``
-        is TALOS' sole box; None makes a point contact."""
-        rectangle = sole_rectangle() if rectangle == "sole" else rectangle
+        is the robot model's rectangle for that op point (``model.sole_rectangles``; TALOS': its
+        physics sole box); None makes a point contact."""
+        if isinstance(rectangle, str) and rectangle == "sole":
+            rectangle = self.sole_rectangle(opPoint)
         contact = self.add(Contact6d(name, self.dimension, rectangle, mu, f_min, cop_margin))
         pose, jacobian = self.dynamic.createOpPoint(name, opPoint)
         connect = self.builder.Connect

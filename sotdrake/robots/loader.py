@@ -223,6 +223,7 @@ def load_robot(
         srdf_path=srdf_path(name, variant),
         name=name,
         base=_base(spec, variant, base),
+        sole_rectangles=dict(spec.sole_rectangles),
     )
     model.OperationalPointsMap.update(
         {op: target for op, target in spec.op_points.items() if _has_target(plant, target)}

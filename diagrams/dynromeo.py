@@ -278,7 +278,8 @@ def plot(run: DynRomeo, trace: dict, summary: dict, path: Path) -> Path:
     for side, sole, style in (("contactLF", "left-sole", "-"), ("contactRF", "right-sole", ":")):
         x_min, x_max, y_min, y_max = run.robot.sole_rectangle(sole)
         X = poses[side][0]
-        corners = np.array([X[:3, 3] + X[:3, :3] @ [cx, cy, 0.0] for cx, cy in ((x_min, y_min), (x_max, y_min), (x_max, y_max), (x_min, y_max))])
+        square = ((x_min, y_min), (x_max, y_min), (x_max, y_max), (x_min, y_max))
+        corners = np.array([X[:3, 3] + X[:3, :3] @ [cx, cy, 0.0] for cx, cy in square])
         ax.add_patch(Polygon(corners[:, :2], fill=False, ls=style, color="k", label=f"{sole} support"))
     ax.plot(trace["com"][:, 0], trace["com"][:, 1], lw=0.8, label="CoM (ground projection)")
     loaded = (trace["wrenches"][:, 5] > 10.0) & (t < (summary["fell_at_s"] or np.inf))

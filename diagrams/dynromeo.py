@@ -203,6 +203,7 @@ def summarize(run: DynRomeo, simulator: Simulator, times: np.ndarray, duration: 
     cop_margin = np.minimum.reduce([local[:, 0] - x_min, x_max - local[:, 0], local[:, 1] - y_min, y_max - local[:, 1]])
     com_local = np.einsum("kji,kj->ki", left[:, :2, :2], com[:, :2] - left[:, :2, 3])
     com_margin = np.minimum.reduce([com_local[:, 0] - x_min, x_max - com_local[:, 0], com_local[:, 1] - y_min, y_max - com_local[:, 1]])
+    release, liftoff = _index(t, RELEASE[0]), _index(t, RELEASE[0] + RELEASE[1] - robot.dt)  # the ramp's first and last ticks
     summary: dict = {
         "robot": robot.model.name, "variant": robot.model.variant, "scenario": run.scenario, "device": "RobotDynSimu",
         "com_task": run.taskCom is not None, "duration_s": duration, "dt_s": robot.dt, "ticks": len(times),
@@ -210,11 +211,11 @@ def summarize(run: DynRomeo, simulator: Simulator, times: np.ndarray, duration: 
         "max_left_sole_move_m": float(left_move.max()), "max_left_sole_tilt_rad": float(left_tilt.max()),
         "com_drop_m": float(com_drop.max()),
         "com_shift_at_end_m": (com[-1] - com[0]).tolist(),
-        "com_margin_in_left_sole_at_release_m": float(com_margin[int(np.searchsorted(t, RELEASE[0]))]),
+        "com_margin_in_left_sole_at_release_m": None if release is None else float(com_margin[release]),
         "min_com_margin_in_left_sole_after_release_m": float(com_margin[released].min()) if released.any() else None,
         "min_cop_margin_in_left_sole_after_release_m": float(np.nanmin(cop_margin[standing])) if standing.any() else None,
-        "right_force_at_release_n": float(wrenches[int(np.searchsorted(t, RELEASE[0])), 11]),
-        "right_force_at_liftoff_n": float(wrenches[int(np.searchsorted(t, RELEASE[0] + RELEASE[1])) - 1, 11]),
+        "right_force_at_release_n": None if release is None else float(wrenches[release, 11]),
+        "right_force_at_liftoff_n": None if liftoff is None else float(wrenches[liftoff, 11]),
         "foot_height_final_m": float(right[-1, 2, 3] - right[0, 2, 3]),
         "max_torque_ratio": float(np.nanmax(np.abs(trace["torque"]) / robot.sot.effort)),
     }
@@ -232,7 +233,15 @@ def summarize(run: DynRomeo, simulator: Simulator, times: np.ndarray, duration: 
     return summary, trace
 
 
+def _index(t: np.ndarray, when: float) -> int | None:
+    """The first sample at or after ``when`` (s), None if the run ended before."""
+    k = int(np.searchsorted(t, when - 1e-9))
+    return k if k < len(t) else None
+
+
 def _answer(s: dict) -> str:
+    if s["com_margin_in_left_sole_at_release_m"] is None:
+        return "the run ended before the right contact was removed"
     outside = -s["com_margin_in_left_sole_at_release_m"]
     if s["fell"]:
         why = ("without the CoM task nothing moves the CoM over the left sole" if not s["com_task"]

@@ -7,8 +7,10 @@ The seed runs it on the dynamic solver with the left sole's support shrunk to 6 
 is the kinematic SoT (``SolverKine``, joint position and velocity limits hard) with the
 quasi-static counterpart of that support: the CoM (X, Y) as an *inequality* task inside the same
 shrunken rectangle, right below the contacts, so every other task moves the body only as far as
-the CoM stays over it. Under it, in the seed's order and at the seed's times (its iterations of
-5 ms, the CoM given 1.5 s more to reach the rectangle before the right foot leaves):
+the CoM stays over it. At the bottom of the stack, always, the rest posture (half-sitting, gain
+1): the seed's solver holds its own ``sot.posture`` there. In between, in the seed's order and at
+the seed's times (its iterations of 5 ms, the CoM given 0.8 s more to reach the rectangle before
+the right foot leaves), each task pushed just above the rest posture:
 
 ==========  ===============================================================================
 t (s)       ``attime`` command
@@ -24,8 +26,8 @@ t (s)       ``attime`` command
 8.3         remove the chest task; the posture folds the arms, leg and head back to half-sitting
 9.8         remove the posture, push ``taskrf``: the right ankle to (−0.1, −0.1, 0.25) m
 11.8, 12.8  the right ankle 7 cm above its initial pose, then on it (6D)
-14.0        ``sot.addContact(contactRF)``, the CoM bounds widened to the double support, the
-            whole posture back to half-sitting
+14.0        ``sot.addContact(contactRF)``, remove ``taskrf``, the CoM bounds widened to the
+            double support; the rest posture brings the robot back to half-sitting
 ==========  ===============================================================================
 
     python diagrams/planche.py --duration 16 --out out/planche
@@ -97,6 +99,7 @@ class Planche:
     taskrf: MetaTaskKine6d
     taskChest: MetaTaskKine6d
     taskPosture: MetaTaskKinePosture
+    taskRest: MetaTaskKinePosture
     tracer: Tracer
     support_centre: np.ndarray  # the left ankle's (x, y) (m): the shrunken rectangle is around it
     visualizer: object = None
@@ -155,41 +158,46 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = DT) -> Planche:
     taskChest.gain.setByPoint(2, 0.5, DEG, 0.9)
     taskPosture = MetaTaskKinePosture(robot)
     taskPosture.gain.setConstant(2)
+    # The seed's solver holds its own posture below every task (``sot.posture``): here the rest
+    # posture, half-sitting, always at the bottom of the stack.
+    taskRest = MetaTaskKinePosture(robot, "rest")
+    taskRest.gain.setConstant(1)
+    sot.push(taskRest.task.name)
     above = rf0.copy()
     above[2, 3] += 0.07
 
     # --- the sequence
-    attime(T["lift"], lambda: (sot.rmContact(contactRF), sot.push(taskrf.task.name), gotoNd(taskrf, UP, "000110")),
+    def push(meta) -> tuple:  # sot.push, above the rest posture
+        return sot.push(meta.task.name), sot.up(meta.task.name)
+
+    attime(T["lift"], lambda: (sot.rmContact(contactRF), push(taskrf), gotoNd(taskrf, UP, "000110")),
            "remove the RF contact, add RF, up foot RF")
     attime(T["extend"], lambda: gotoNd(taskrf, EXTEND, "000101"), "extend RF")
-    attime(T["chest"], lambda: (gotoNd(taskChest, (0, 0, 0, 0, CHEST, 0), "111000"), sot.push(taskChest.task.name)), "add chest")
+    attime(T["chest"], lambda: (gotoNd(taskChest, (0, 0, 0, 0, CHEST, 0), "111000"), push(taskChest)), "add chest")
     body, body_mask = gotoq(robot, q0, chest=(0,), rleg=(0, 0, 0, MAX_EXT, 0, 0), head=(0, 0, 0, 0))
     attime(T["body"], lambda: (sot.remove(taskrf.task.name), taskPosture.feature.setPosture(body), taskPosture.feature.selec(body_mask),
-                               sot.push(taskPosture.task.name)), "remove RF, add the posture, extend the body")
+                               push(taskPosture)),
+           "remove RF, add the posture, extend the body")
     fold, fold_mask = gotoq(robot, q0, chest=(0,), rleg=tuple(q0[plant.GetJointByName(j).position_start()] for j in CHAINS["rleg"]),
                             head=(0, 0, 0, 0), rarm=tuple(q0[plant.GetJointByName(j).position_start()] for j in CHAINS["rarm"]),
                             larm=tuple(q0[plant.GetJointByName(j).position_start()] for j in CHAINS["larm"]))
     attime(T["fold"], lambda: (sot.remove(taskChest.task.name), taskPosture.feature.setPosture(fold),
                                taskPosture.feature.selec(fold_mask)), "remove the chest, fold arms and leg")
-    attime(T["back"], lambda: (sot.remove(taskPosture.task.name), sot.push(taskrf.task.name), gotoNd(taskrf, BACK, "111")),
+    attime(T["back"], lambda: (sot.remove(taskPosture.task.name), push(taskrf), gotoNd(taskrf, BACK, "111")),
            "remove the posture, add RF, back RF")
     attime(T["above"], lambda: gotoNd(taskrf, above, "111111", (4, 1, 0.005, 0.9)), "RF to upper ground")
     attime(T["ground"], lambda: gotoNd(taskrf, rf0, "111111", (4, 1, 0.005, 0.9)), "RF to ground")
     double_centre = (support_centre + contactRF.current_pose().translation()[:2]) / 2
     half_width = abs(support_centre[1] - double_centre[1])
-    joints = np.zeros(robot.dimension, dtype=bool)
-    joints[robot.device.layout.joints_v] = True
-    all_joints = "".join("1" if s else "0" for s in reversed(joints))
     attime(T["contact"], lambda: (sot.remove(taskrf.task.name), sot.addContact(contactRF),
                                   taskCom.featureDes.setReference([*double_centre, 0.0]),
                                   taskCom.task.setBounds([x_min, y_min - half_width], [x_max, y_max + half_width]),
-                                  taskPosture.feature.setPosture(q0), taskPosture.feature.selec(all_joints),
-                                  sot.push(taskPosture.task.name)),
-           "RF to contact, the CoM over the double support, the robot to its initial pose")
+                                  ),
+           "RF to contact, the CoM over the double support (the rest posture brings the robot to its initial pose)")
 
     tracer = Tracer(builder, dt)
     tracer.add(robot.device.GetOutputPort("state"), "q")
-    for meta in (contactLF, contactRF, taskCom, taskrf, taskChest, taskPosture):
+    for meta in (contactLF, contactRF, taskCom, taskrf, taskChest, taskPosture, taskRest):
         tracer.add(meta.task.GetOutputPort("error_norm"), f"error_{meta.task.name}")
 
     visualizer = None
@@ -199,7 +207,7 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = DT) -> Planche:
         meshcat.SetCameraPose(camera_in_world=[0.4, -1.9, 0.9], target_in_world=[0.0, 0.0, 0.5])
     diagram = builder.Build()
     diagram.set_name("planche")
-    return Planche(diagram, robot, sot, contactLF, contactRF, taskCom, taskrf, taskChest, taskPosture, tracer,
+    return Planche(diagram, robot, sot, contactLF, contactRF, taskCom, taskrf, taskChest, taskPosture, taskRest, tracer,
                    np.asarray(support_centre), visualizer)
 
 
@@ -289,7 +297,7 @@ def plot(trace: dict, summary: dict, path: Path) -> Path:
             if when <= t[-1]:
                 a.axvline(when, color="0.8", lw=0.6)
     fig.suptitle(f"planche on Romeo ({summary['solver']}): chest lean up to {summary['max_chest_lean_deg']:.0f}°, "
-                 f"CoM margin ≥ {(summary['min_com_margin_single_support_m'] or 0) * 100:.2f} cm on one foot")
+                 f"CoM within {-(summary['min_com_margin_single_support_m'] or 0) * 1e3:.4f} mm of the shrunken support on one foot")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

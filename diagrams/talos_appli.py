@@ -30,6 +30,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake import (
     SOT,
+    TALOS_GRIPPERS,
     MetaTaskKine6d,
     MetaTaskKineCom,
     Robot,
@@ -106,7 +107,7 @@ def build_diagram(
     # The grippers are not the SoT's to move (on TALOS they have their own controllers); left
     # free, the CoM task would use their mass and push them past their upper limit, where both
     # start.
-    sot.setControlSelection(robot.velocity_selection(excluding=["gripper_left_joint", "gripper_right_joint"]))
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
     sot.push(contactRF.task.name)
     sot.push(contactLF.task.name)
     sot.push(taskCom.task.name)

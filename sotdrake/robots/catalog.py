@@ -50,6 +50,11 @@ class RobotSpec:
         return self.srdf.get(variant) if isinstance(self.srdf, dict) else self.srdf
 
 
+#: TALOS' gripper joints. Both start on their upper limit (0) in half-sitting, and the tutorial
+#: leaves them out of the whole-body control: ``sot.setControlSelection(robot.velocity_selection(
+#: excluding=TALOS_GRIPPERS))``.
+TALOS_GRIPPERS: tuple[str, ...] = ("gripper_left_joint", "gripper_right_joint")
+
 _HUMANOID_BASES = ("free", "fixed")
 _QUADRUPED_FEET = {"front-left-foot": "FL", "front-right-foot": "FR", "hind-left-foot": "HL", "hind-right-foot": "HR"}
 

@@ -300,7 +300,7 @@ def plot(run: DynRomeo, trace: dict, summary: dict, path: Path) -> Path:
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title("support, CoM and CoP (world, seen from above)")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=6, loc="lower right")
     ax = axes[1, 1]
     ax.plot(t, trace["right_sole_height"] * 100, label="right sole height (cm)")
     ax.plot(t, (trace["foot_reference"][:, 2] - trace["foot_reference"][0, 2]) * 100, "--", label="its reference (cm)")

@@ -223,9 +223,7 @@ def plot(trace: dict, target: np.ndarray, path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/appli")
-    parser.add_argument("--solver", choices=["cascade", "hqp"], default="cascade",
-                        help="basic SOT (pseudo-inverse cascade) or SolverKine (hierarchical QP, joint limits)")
+    parser = script_arguments(__doc__, "out/appli", solver="cascade")
     parser.add_argument("--no-push", action="store_true", help="do not push the hand task at t = 1 s")
     add_live_arguments(parser)
     args = parser.parse_args(argv)

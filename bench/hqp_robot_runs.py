@@ -33,9 +33,9 @@ from pydrake.systems.framework import DiagramBuilder
 from sotdrake.configuration import Layout, integrate
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture, gotoNd
 from sotdrake.robot import Robot, add_sot
-from sotdrake.robots import load_talos
+from sotdrake.robots import TALOS_GRIPPERS, load_talos
 
-GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]
+GRIPPERS = TALOS_GRIPPERS
 DT = 1e-3
 
 

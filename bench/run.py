@@ -57,9 +57,9 @@ from scenario import DT, GAIN_COM, GAIN_FEET, GAIN_HAND, TARGET
 
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture, gotoNd
 from sotdrake.robot import Robot, add_sot
-from sotdrake.robots import load_talos
+from sotdrake.robots import TALOS_GRIPPERS, load_talos
 
-GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]
+GRIPPERS = TALOS_GRIPPERS
 
 # --- the sotdrake stacks ---------------------------------------------------------------------
 

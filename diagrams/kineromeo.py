@@ -207,10 +207,8 @@ def plot(trace: dict, target: np.ndarray, title: str, path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/kineromeo", duration=5.0)
+    parser = script_arguments(__doc__, "out/kineromeo", duration=5.0, solver="cascade")
     parser.add_argument("--robot", choices=sorted(VARIANTS), default="romeo", help="the humanoid")
-    parser.add_argument("--solver", choices=["cascade", "hqp"], default="cascade",
-                        help="basic SOT (pseudo-inverse cascade) or SolverKine (hierarchical QP, joint limits)")
     args = parser.parse_args(argv)
     meshcat = start(args)
     kine = build_diagram(meshcat, args.robot, args.solver)

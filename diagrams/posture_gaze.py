@@ -23,6 +23,7 @@ from pydrake.systems.primitives import Adder, ConstantVectorSource, Sine
 
 from sotdrake import (
     SOT,
+    TALOS_GRIPPERS,
     MetaTaskKinePosture,
     MetaTaskVisualPoint,
     Robot,
@@ -61,7 +62,7 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3, feedforward:
     builder = DiagramBuilder()
     robot = talos(builder, "reduced", dt)
     sot = add_sot(robot)
-    sot.setControlSelection(robot.velocity_selection(excluding=["gripper_left_joint", "gripper_right_joint"]))
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
     hold_feet_and_com(robot, sot)
 
     # The moving point: Drake's Sine gives p and ṗ, a constant moves it in front of the robot.

@@ -207,9 +207,7 @@ def plot(trace: dict, target: np.ndarray, path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/pr2_reach", duration=6.0)
-    parser.add_argument("--solver", choices=["hqp", "cascade"], default="hqp",
-                        help="SolverKine (joint limits hard, the default) or the basic SOT")
+    parser = script_arguments(__doc__, "out/pr2_reach", duration=6.0, solver="hqp")
     args = parser.parse_args(argv)
     meshcat = start(args)
     kine = build_diagram(meshcat, solver=args.solver)

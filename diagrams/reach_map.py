@@ -37,6 +37,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake import (
     SOT,
+    TALOS_GRIPPERS,
     InvalidInput,
     MetaTaskKine6d,
     Robot,
@@ -59,7 +60,6 @@ from sotdrake.sweep import (
 )
 
 HAND_OFFSET = (0.1, 0.0, 0.0)
-GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]
 BOX = {"x": (-0.4, 0.9), "y": (-1.1, 0.5), "z": (0.2, 1.8)}
 HAND_GAIN = 8.0
 HAND_DAMPING = 1e-2
@@ -83,7 +83,7 @@ def build_diagram(dt: float = 0.02, variant: str = "reduced") -> Reach:
     builder = DiagramBuilder()
     robot = talos(builder, variant, dt)
     sot = add_sot(robot, "sot", solver="hqp", damping=HAND_DAMPING)
-    sot.setControlSelection(robot.velocity_selection(excluding=GRIPPERS))
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
     hold_feet_and_com(robot, sot)
     taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)
@@ -122,7 +122,7 @@ def summarize(reach: Reach, simulator: Simulator, target) -> dict:
     hand = path["rh"][:, :3, :3] @ np.asarray(HAND_OFFSET) + path["rh"][:, :3, 3]
     error = np.linalg.norm(hand - np.asarray(target, dtype=float), axis=1)
     joints = [plant.get_joint(j) for j in plant.GetJointIndices()]
-    joints = [j for j in joints if j.num_positions() == 1 and j.name() not in GRIPPERS]
+    joints = [j for j in joints if j.num_positions() == 1 and j.name() not in TALOS_GRIPPERS]
     index = np.array([j.position_start() for j in joints])
     lower, upper = plant.GetPositionLowerLimits()[index], plant.GetPositionUpperLimits()[index]
     margins = np.minimum(qs[:, index] - lower, upper - qs[:, index]).min(axis=0)

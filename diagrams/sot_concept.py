@@ -40,6 +40,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake import (
     SOT,
+    TALOS_GRIPPERS,
     MetaTaskKine6d,
     Robot,
     Tracer,
@@ -56,7 +57,6 @@ from sotdrake import (
 from sotdrake.configuration import velocity_names
 
 HAND_OFFSET = (0.1, 0.0, 0.0)
-GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]
 
 
 @dataclass(frozen=True)
@@ -109,7 +109,7 @@ def build_diagram(config: Configuration, meshcat: Meshcat | None = None, dt: flo
     builder = DiagramBuilder()
     robot = talos(builder, "reduced", dt)
     sot = add_sot(robot, "sot", solver=config.solver, damping=config.damping)
-    sot.setControlSelection(robot.velocity_selection(excluding=GRIPPERS))
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
     if config.contacts:
         hold_feet_and_com(robot, sot, com=config.com)
     taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])

@@ -30,6 +30,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake import (
     SOT,
+    TALOS_GRIPPERS,
     MetaTaskKine6d,
     MetaTaskKineCom,
     Robot,
@@ -106,7 +107,7 @@ def build_diagram(
     # The grippers are not the SoT's to move (on TALOS they have their own controllers); left
     # free, the CoM task would use their mass and push them past their upper limit, where both
     # start.
-    sot.setControlSelection(robot.velocity_selection(excluding=["gripper_left_joint", "gripper_right_joint"]))
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
     sot.push(contactRF.task.name)
     sot.push(contactLF.task.name)
     sot.push(taskCom.task.name)
@@ -222,9 +223,7 @@ def plot(trace: dict, target: np.ndarray, path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/appli")
-    parser.add_argument("--solver", choices=["cascade", "hqp"], default="cascade",
-                        help="basic SOT (pseudo-inverse cascade) or SolverKine (hierarchical QP, joint limits)")
+    parser = script_arguments(__doc__, "out/appli", solver="cascade")
     parser.add_argument("--no-push", action="store_true", help="do not push the hand task at t = 1 s")
     add_live_arguments(parser)
     args = parser.parse_args(argv)

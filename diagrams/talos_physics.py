@@ -25,6 +25,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake import (
     SOT,
+    TALOS_GRIPPERS,
     MetaTaskKine6d,
     MetaTaskKineCom,
     Robot,
@@ -43,7 +44,6 @@ from sotdrake.physics import SOLE_BOX, KinematicBaseEstimator, PhysicalTalos, Ta
 
 TARGET = (0.5, -0.2, 1.0)
 HAND_OFFSET = (0.1, 0.0, 0.0)
-GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]
 
 
 @dataclass
@@ -80,7 +80,7 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push=0.0,
         measured = estimator.get_output_port()
     robot = Robot(builder, model, dt, measured_position=measured)
     sot = add_sot(robot)
-    sot.setControlSelection(robot.velocity_selection(excluding=GRIPPERS))
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
     _, _, taskCom = hold_feet_and_com(robot, sot)  # contactRF, contactLF, taskCom as in the tutorial (gain 10)
     taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)

@@ -27,7 +27,7 @@ from .meta_tasks import (
     hold_feet_and_com,
 )
 from .robot import Robot, add_sot, robot, talos
-from .robots import load_robot, load_talos
+from .robots import TALOS_GRIPPERS, load_robot, load_talos
 from .sequencer import attime
 from .simulation import script_arguments, simulate, start, write_run
 from .solvers import SOT, SolverKine
@@ -42,6 +42,7 @@ from .visualization import (
 
 __all__ = [
     "SOT",
+    "TALOS_GRIPPERS",
     "FrameNotFound",
     "InvalidInput",
     "MetaTaskKine6d",

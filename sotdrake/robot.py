@@ -9,6 +9,7 @@ stack order, a run-time setting held in the Context.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TypeVar
 
 import numpy as np
@@ -55,7 +56,7 @@ class Robot:
     def dt(self) -> float:
         return self.device.dt
 
-    def velocity_selection(self, excluding: list[str] = ()) -> np.ndarray:
+    def velocity_selection(self, excluding: Sequence[str] = ()) -> np.ndarray:
         """nv booleans, False on the velocities of the joints named in ``excluding``."""
         plant = self.model.plant
         mask = np.ones(self.dimension, dtype=bool)

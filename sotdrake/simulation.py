@@ -17,10 +17,15 @@ from pydrake.systems.framework import Diagram
 
 from .exceptions import InvalidInput
 
+#: The kinematic solvers a script offers with ``--solver`` (see :func:`sotdrake.robot.add_sot`).
+SOLVER_HELP = {"cascade": "the basic SOT (pseudo-inverse cascade)", "hqp": "SolverKine (hierarchical QP, joint limits hard)"}
 
-def script_arguments(doc: str, out: str, duration: float | None = 8.0) -> argparse.ArgumentParser:
+
+def script_arguments(doc: str, out: str, duration: float | None = 8.0, solver: str | None = None) -> argparse.ArgumentParser:
     """The arguments every script in ``diagrams/`` takes: ``--duration``, ``--out``,
-    ``--no-meshcat`` and ``--quiet``; add the script's own, then call ``parse_args``."""
+    ``--no-meshcat`` and ``--quiet``, and with ``solver`` (its default: ``'cascade'`` or
+    ``'hqp'``) ``--solver`` for :func:`sotdrake.robot.add_sot`; add the script's own, then call
+    ``parse_args``."""
     parser = argparse.ArgumentParser(description=doc.split("\n\n")[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--duration", type=float, default=duration,
@@ -28,6 +33,11 @@ def script_arguments(doc: str, out: str, duration: float | None = 8.0) -> argpar
     parser.add_argument("--out", type=Path, default=Path(out), help="output directory")
     parser.add_argument("--no-meshcat", action="store_true", help="no recording (faster)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    if solver is not None:
+        if solver not in SOLVER_HELP:
+            raise InvalidInput(f"script_arguments: solver must be one of {sorted(SOLVER_HELP)}, got {solver!r}")
+        parser.add_argument("--solver", choices=sorted(SOLVER_HELP), default=solver,
+                            help="; ".join(f"{name}: {text}" for name, text in SOLVER_HELP.items()))
     return parser
 
 

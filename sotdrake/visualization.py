@@ -12,6 +12,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Rgba, Sphere
@@ -21,6 +22,9 @@ from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
 from .drake_logging import drake_log_level
 from .robot import Robot
+
+if TYPE_CHECKING:
+    from .dynamics.robot_dyn import RobotDyn
 
 log = logging.getLogger("sotdrake.visualization")
 
@@ -38,14 +42,17 @@ def start_meshcat(live: bool = False) -> Meshcat:
     return meshcat
 
 
-def add_robot_visualizer(robot: Robot, meshcat: Meshcat, publish_period: float = 1 / 60) -> MeshcatVisualizer:
-    """Draw ``robot.device.state`` in ``meshcat`` (illustration geometry, OBJ meshes)."""
+def add_robot_visualizer(robot: Robot | RobotDyn, meshcat: Meshcat, publish_period: float = 1 / 60) -> MeshcatVisualizer:
+    """Draw ``robot.device.state`` in ``meshcat`` (illustration geometry, OBJ meshes): ``q`` (the
+    kinematic device) or ``(q, v)`` (the dynamic SoT's ``RobotDynSimu``)."""
     builder = robot.builder
     visual = robot.model.with_meshes()
+    state = robot.device.GetOutputPort("state")
     scene_graph = builder.AddNamedSystem("scene_graph", visual.scene_graph)
-    to_pose = builder.AddNamedSystem("robot_pose", MultibodyPositionToGeometryPose(visual.plant))
+    to_pose = builder.AddNamedSystem("robot_pose", MultibodyPositionToGeometryPose(
+        visual.plant, input_multibody_state=state.size() == visual.plant.num_multibody_states()))
     to_pose.visual_model = visual  # keeps the plant alive as long as the system
-    builder.Connect(robot.device.GetOutputPort("state"), to_pose.get_input_port())
+    builder.Connect(state, to_pose.get_input_port())
     builder.Connect(to_pose.get_output_port(), scene_graph.get_source_pose_port(visual.plant.get_source_id()))
     params = MeshcatVisualizerParams(publish_period=publish_period)
     return MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, params)

@@ -34,7 +34,6 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 CONTACT_TOLERANCE = 1e-4  # m
-GRIPPERS = ["gripper_left_joint", "gripper_right_joint"]
 
 
 # --- the fixture: the tutorial's graph with every task known to the solver ----------------------
@@ -59,6 +58,7 @@ def build_fixture(solver: str = "cascade") -> Fixture:
     from sotdrake.interactive import Runner
     from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture
     from sotdrake.robot import add_sot, talos
+    from sotdrake.robots import TALOS_GRIPPERS
 
     builder = DiagramBuilder()
     robot = talos(builder)
@@ -74,7 +74,7 @@ def build_fixture(solver: str = "cascade") -> Fixture:
     for name in ("contactRF", "contactLF"):
         tasks[name].gain.setConstant(10.0)
     sot = add_sot(robot, solver=solver)
-    sot.setControlSelection(robot.velocity_selection(excluding=GRIPPERS))
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
     sot.addContact(tasks["contactRF"])
     sot.addContact(tasks["contactLF"])
     sot.push(tasks["com"].task.name)

@@ -63,3 +63,59 @@ def test_pr2_reach_moves_the_base_and_the_arm_within_limits(pr2_reach, tmp_path)
         if joint.num_positions() and joint.name() not in moved:
             start = joint.position_start()
             assert np.ptp(q[:, start : start + joint.num_positions()]) == 0.0, joint.name()
+
+
+@pytest.fixture(scope="module")
+def dynromeo():
+    return load_diagram("dynromeo")
+
+
+@pytest.fixture(scope="module")
+def planche():
+    return load_diagram("planche")
+
+
+def test_dynromeo_com_goes_over_the_left_sole_with_both_soles_held(dynromeo, tmp_path):
+    summary = dynromeo.main(["--duration", "1.2", "--out", str(tmp_path), "--quiet", "--no-meshcat"])
+    for name in OUTPUTS:
+        assert (tmp_path / name).is_file(), name
+    assert (summary["robot"], summary["device"], summary["com_task"]) == ("romeo", "RobotDynSimu", True)
+    assert summary["ticks"] == 240 and not summary["fell"]
+    assert summary["max_left_sole_move_m"] < 1e-3 and summary["max_left_sole_tilt_rad"] < 1e-3  # held (no position feedback)
+    assert summary["com_rms_error_m"] < 1e-3  # the CoM follows its minimum-jerk reference
+    assert summary["max_torque_ratio"] <= 1 + 1e-9  # torque limits are hard bounds
+    trace = np.load(tmp_path / "trace.npz")
+    forces = trace["wrenches"][:, [5, 11]]
+    assert np.allclose(forces.sum(axis=1), forces[0].sum(), rtol=0.05)  # the weight, shared
+    assert forces[-1, 0] > 1.5 * forces[-1, 1]  # shifted onto the left sole
+    graph = (tmp_path / "control_graph.dot").read_text()
+    for entity in ("sot", "device", "dynamic", "contactLF", "contactRF", "taskcom", "taskRF"):
+        assert entity in graph
+
+
+def test_dynromeo_without_the_com_task_romeo_falls(dynromeo, tmp_path):
+    """The seed's "what happens?": the right contact removed with the CoM between the feet."""
+    summary = dynromeo.main(["--scenario", "lift_leg_no_com", "--duration", "3.0", "--out", str(tmp_path), "--quiet",
+                             "--no-meshcat"])
+    assert not summary["com_task"] and summary["fell"]
+    assert dynromeo.RELEASE[0] < summary["fell_at_s"] < 3.0
+    assert summary["com_margin_in_left_sole_at_release_m"] < -0.03  # the CoM outside the left sole
+    assert summary["right_force_at_release_n"] > 150  # the right sole carried half the weight
+    assert summary["com_shift_at_end_m"][1] < -0.1  # tipping over towards the right
+    assert summary["what_happens"].startswith("Romeo falls")
+
+
+def test_planche_com_inside_the_shrunken_support_before_the_foot_leaves(planche, tmp_path):
+    summary = planche.main(["--duration", "2.0", "--out", str(tmp_path), "--quiet", "--no-meshcat"])
+    for name in OUTPUTS:
+        assert (tmp_path / name).is_file(), name
+    assert summary["solver"] == "SolverKine" and summary["ticks"] == 401
+    assert summary["final_contacts"] == ["taskcontactLF"] and summary["final_stack"] == ["taskcom", "taskrf", "taskrest"]
+    assert summary["com_in_shrunken_support_from_s"] < planche.T["lift"]
+    assert summary["min_com_margin_single_support_m"] >= -1e-5  # the inequality holds on one foot
+    assert summary["max_left_ankle_drift_m"] < 1e-4
+    assert summary["max_right_ankle_height_m"] > 0.2  # the right foot goes up
+    assert summary["min_joint_limit_margin_rad"] >= 0.0
+    trace = np.load(tmp_path / "trace.npz")
+    lifted = trace["time"] >= planche.T["lift"]
+    assert np.all(trace["com_margin"][lifted] >= -1e-5)

@@ -9,6 +9,7 @@ from pydrake.systems.framework import DiagramBuilder
 from sotdrake.exceptions import InvalidInput, SolverError, StackError
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.robot import Robot, add_sot
+from sotdrake.robots import TALOS_GRIPPERS
 from sotdrake.solvers import HierarchicalQP, SolverKine
 from tests.conftest import load_diagram
 
@@ -46,7 +47,7 @@ def build_reach(model, com_kind, ball=(1.05, -0.35, 0.75), dt=1e-3):
     builder = DiagramBuilder()
     robot = Robot(builder, model, dt)
     sot = add_sot(robot, solver="hqp")
-    sot.setControlSelection(robot.velocity_selection(["gripper_left_joint", "gripper_right_joint"]))
+    sot.setControlSelection(robot.velocity_selection(TALOS_GRIPPERS))
     for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle")):
         contact = MetaTaskKine6d(name, robot, name[-2:], op)
         contact.gain.setConstant(10)

@@ -8,6 +8,7 @@ from pydrake.systems.framework import DiagramBuilder
 from sotdrake.exceptions import InvalidInput, SolverError, SotError, StackError, TaskNotFound
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.robot import Robot, add_sot
+from sotdrake.robots import TALOS_GRIPPERS
 from sotdrake.sequencer import attime
 from sotdrake.solvers import SOT
 from sotdrake.task import Task, TaskLevel
@@ -21,7 +22,7 @@ def build(model, with_sequence=True):
     com = MetaTaskKineCom(robot)
     sot = add_sot(robot)  # created after the tasks: still connected to all of them
     lh = MetaTaskKine6d("lh", robot, "lh", "left-wrist")  # and to the ones created after
-    sot.setControlSelection(robot.velocity_selection(["gripper_left_joint", "gripper_right_joint"]))
+    sot.setControlSelection(robot.velocity_selection(TALOS_GRIPPERS))
     sot.push(lf.task.name)
     sot.push(com.task.name)
     gotoNd(rh, (0.4, -0.3, 1.0), "111", 2.0)

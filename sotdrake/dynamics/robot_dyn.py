@@ -15,6 +15,8 @@ they are created; the stack and the contact set are the solver's settings in the
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
@@ -36,6 +38,8 @@ class RobotDyn:
                  q0: np.ndarray | None = None, max_contacts: int = 2, solver: str = ACTIVE_SET):
         if device not in DEVICES:
             raise InvalidInput(f"unknown device {device!r}; available: {list(DEVICES)}")
+        if device == "physics" and model.name != "talos":
+            raise InvalidInput(f"device='physics' is TALOS' torque-driven plant; {model.name} runs on device='dynsimu'")
         self.builder, self.model, self.dt, self.device_kind = builder, model, float(dt), device
         self.OperationalPointsMap = model.OperationalPointsMap
         self.q0 = (model.half_sitting if q0 is None else np.asarray(q0, dtype=float)).copy()
@@ -61,7 +65,7 @@ class RobotDyn:
             self.state_port = plant.get_state_output_port()
         builder.Connect(self.state_port, self.dynamic.GetInputPort("state"))
 
-    def velocity_selection(self, excluding: list[str] = ()) -> np.ndarray:
+    def velocity_selection(self, excluding: Sequence[str] = ()) -> np.ndarray:
         """nv booleans, False on the velocities of the joints named in ``excluding``."""
         plant = self.model.plant
         mask = np.ones(self.dimension, dtype=bool)
@@ -69,6 +73,15 @@ class RobotDyn:
             joint = plant.GetJointByName(name)
             mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
         return mask
+
+    def sole_rectangle(self, opPoint: str) -> tuple[float, float, float, float]:
+        """The contact rectangle ``(x_min, x_max, y_min, y_max)`` (m, sole frame) of a sole op point."""
+        if opPoint in self.model.sole_rectangles:
+            return self.model.sole_rectangles[opPoint]
+        if self.model.name == "talos":
+            return sole_rectangle()
+        raise InvalidInput(f"no sole rectangle known for {self.model.name}'s {opPoint!r} "
+                           f"(known: {sorted(self.model.sole_rectangles)}); pass rectangle=(x_min, x_max, y_min, y_max)")
 
     @property
     def dimension(self) -> int:
@@ -92,12 +105,16 @@ class RobotDyn:
         self.builder.Connect(task.GetOutputPort("task"), self.sot.declare_task_input(task))
         return task
 
-    def add_contact(self, name: str, opPoint: str, rectangle: tuple[float, float, float, float] | None = "sole",
+    def add_contact(self, name: str, opPoint: str, rectangle: tuple[float, float, float, float] | str | None = "sole",
                     mu: float = 0.7, f_min: float = 1.0, cop_margin: float = 0.01) -> Contact6d:
         """A contact entity on op point ``opPoint`` (e.g. ``'left-sole'``), plugged to the
         dynamic entity and the solver (not yet held: ``sot.addContact``). ``rectangle='sole'``
-        is TALOS' sole box; None makes a point contact."""
-        rectangle = sole_rectangle() if rectangle == "sole" else rectangle
+        is the robot model's rectangle for that op point (``model.sole_rectangles``; TALOS': its
+        physics sole box); None makes a point contact."""
+        if isinstance(rectangle, str):
+            if rectangle != "sole":
+                raise InvalidInput(f"{name}: rectangle is 'sole', (x_min, x_max, y_min, y_max) or None, got {rectangle!r}")
+            rectangle = self.sole_rectangle(opPoint)
         contact = self.add(Contact6d(name, self.dimension, rectangle, mu, f_min, cop_margin))
         pose, jacobian = self.dynamic.createOpPoint(name, opPoint)
         connect = self.builder.Connect

@@ -4,7 +4,7 @@
 ``load_talos`` is its TALOS case.
 """
 
-from .catalog import BASES, ROBOTS, RobotSpec
+from .catalog import BASES, ROBOTS, TALOS_GRIPPERS, RobotSpec
 from .loader import add_robot, available_robots, example_robot_data_dir, load_robot, robot_spec
 from .model import RobotModel
 from .talos import OPERATIONAL_POINTS, VARIANTS, add_talos, load_talos
@@ -13,6 +13,7 @@ __all__ = [
     "BASES",
     "OPERATIONAL_POINTS",
     "ROBOTS",
+    "TALOS_GRIPPERS",
     "VARIANTS",
     "RobotModel",
     "RobotSpec",

@@ -12,7 +12,7 @@ for the humanoids (Romeo's are sot-romeo's), ``left-sole``/``right-sole`` where 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 #: How the robot's root link is attached to the world.
 #: ``free``: a 6-DOF floating base, ``q = (qw, qx, qy, qz, x, y, z)``, ``v = (ω_WB, v_WB)`` in world;
@@ -37,6 +37,9 @@ class RobotSpec:
     posture: tuple[str, ...] = ()  #: SRDF ``group_state`` names, applied in order
     soles: tuple[str, ...] = ()  #: frames put on the ground (z = 0) when the SRDF has no base pose
     fixed_base_variants: tuple[str, ...] = ()  #: variants welded whatever the robot's base
+    #: sole op point → its contact rectangle ``(x_min, x_max, y_min, y_max)`` (m, in the sole frame),
+    #: for the dynamic SoT's 6D contacts (TALOS' is the physics plant's sole box)
+    sole_rectangles: dict[str, tuple[float, float, float, float]] = field(default_factory=dict)
     notes: str = ""
 
     @property
@@ -46,6 +49,11 @@ class RobotSpec:
     def srdf_file(self, variant: str) -> str | None:
         return self.srdf.get(variant) if isinstance(self.srdf, dict) else self.srdf
 
+
+#: TALOS' gripper joints. Both start on their upper limit (0) in half-sitting, and the tutorial
+#: leaves them out of the whole-body control: ``sot.setControlSelection(robot.velocity_selection(
+#: excluding=TALOS_GRIPPERS))``.
+TALOS_GRIPPERS: tuple[str, ...] = ("gripper_left_joint", "gripper_right_joint")
 
 _HUMANOID_BASES = ("free", "fixed")
 _QUADRUPED_FEET = {"front-left-foot": "FL", "front-right-foot": "FR", "hind-left-foot": "HL", "hind-right-foot": "HR"}
@@ -106,6 +114,9 @@ ROBOTS: dict[str, RobotSpec] = {
                 "left-sole": "l_sole",
                 "right-sole": "r_sole",
             },
+            # sot-dyninv's supports for Romeo (ros-dynromeo.py), inside the foot's collision mesh
+            # (x from -0.089 to 0.155 m, y from -0.056 m inside to 0.071 m outside)
+            sole_rectangles={"left-sole": (-0.08, 0.11, -0.045, 0.07), "right-sole": (-0.08, 0.11, -0.07, 0.045)},
             notes="Aldebaran; sot-romeo's op points; `full` has the 22 finger joints",
         ),
         RobotSpec(

@@ -35,6 +35,8 @@ class RobotModel:
     srdf_path: Path | None = None
     name: str = "talos"
     base: str = "free"  #: ``free``, ``planar`` or ``fixed`` (see :data:`sotdrake.robots.catalog.BASES`)
+    #: sole op point → contact rectangle ``(x_min, x_max, y_min, y_max)`` (m, sole frame), where known
+    sole_rectangles: dict[str, tuple[float, float, float, float]] = field(default_factory=dict)
     _frames: dict[str, Frame] = field(default_factory=dict, repr=False)
 
     @property

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import quadprog
-import scipy.linalg
+from scipy.linalg import lapack
 
 RANK_THRESHOLD = 1e-8
 """Default τ: singular values ≤ τ of unit-row matrices count as zero (see the module docstring)."""
@@ -60,18 +60,42 @@ class ActiveSetResult:
     guess_accepted: bool
 
 
-def _svd(a: np.ndarray):
-    return np.linalg.svd(a, full_matrices=True)
+def svd(a: np.ndarray, full_matrices: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``U, σ, Vᵀ`` of ``a`` (σ decreasing): LAPACK's ``dgesdd`` called directly (the same routine
+    as ``numpy.linalg.svd``, without its per-call overhead, which dominates on the small matrices
+    of a level), numpy's if LAPACK reports a failure or ``a`` is empty."""
+    if a.shape[0] and a.shape[1]:
+        U, sigma, Vt, info = lapack.dgesdd(a, compute_uv=1, full_matrices=int(full_matrices))
+        if info == 0:
+            return U, sigma, Vt
+    return np.linalg.svd(a, full_matrices=full_matrices)
 
 
 def independent_rows(E: np.ndarray, threshold: float) -> np.ndarray:
     """Indices of a linearly independent subset of ``E``'s (unit) rows spanning the same space:
-    QR with column pivoting of ``Eᵀ``, pivots with ``|R_ii| > threshold``."""
+    QR with column pivoting of ``Eᵀ`` (LAPACK ``dgeqp3``), pivots with ``|R_ii| > threshold``."""
     if len(E) == 0:
         return np.zeros(0, dtype=int)
-    R, pivots = scipy.linalg.qr(E.T, mode="r", pivoting=True)
+    R, pivots, _, _, info = lapack.dgeqp3(np.array(E.T, order="F"))
+    if info != 0:
+        raise ActiveSetFailure(f"QR with column pivoting failed (LAPACK info {info})")
     diagonal = np.abs(np.diag(R))
-    return np.sort(pivots[: int(np.count_nonzero(diagonal > threshold))])
+    return np.sort(pivots[: int(np.count_nonzero(diagonal > threshold))] - 1)
+
+
+def full_rank_least_squares(B: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``argmin_c ‖B c - r‖`` for ``B`` (m × k, m ≥ k) of full column rank: Householder QR
+    (LAPACK ``dgeqrf``), ``Qᵀ r``, then the triangular solve ``R c = (Qᵀ r)_{:k}``."""
+    k = B.shape[1]
+    qr, tau, _, info = lapack.dgeqrf(B)
+    if info == 0:
+        qtr, _, info = lapack.dormqr("L", "T", qr, tau, r[:, None], max(1, len(r)))
+    if info == 0:
+        c, info = lapack.dtrtrs(qr[:k, :k], qtr[:k], lower=0)
+    if info != 0:  # LAPACK refused (a zero pivot): numpy's QR and solve raise their own error
+        Q, R = np.linalg.qr(B)
+        return np.linalg.solve(R, Q.T @ r)
+    return c[:, 0]
 
 
 def scaled_least_squares(U: np.ndarray, s: np.ndarray, Vt: np.ndarray, k: int, m_scale: np.ndarray,
@@ -85,8 +109,7 @@ def scaled_least_squares(U: np.ndarray, s: np.ndarray, Vt: np.ndarray, k: int, m
     elif k == len(m_scale):  # independent rows: B u = r is solved exactly, c = s⁻¹ Uᵀ D⁻¹ r (U square)
         c = (U_k.T @ (r / m_scale)) / s_k
     else:
-        Q, R = np.linalg.qr(m_scale[:, None] * (U_k * s_k))
-        c = np.linalg.solve(R, Q.T @ r)
+        c = full_rank_least_squares(m_scale[:, None] * (U_k * s_k), r)
     return Vt[:k].T @ c
 
 
@@ -103,7 +126,7 @@ def eqp(
     an orthonormal basis ``N`` of ``E``'s null space (None: the whole space)."""
     p = M.shape[1]
     if len(E):
-        U, s, Vt = _svd(E)
+        U, s, Vt = svd(E)
         k = int(np.count_nonzero(s > threshold))
         U_k, s_k, V_k = U[:, :k], s[:k], Vt[:k].T
         z = V_k @ ((U_k.T @ e) / s_k)
@@ -118,7 +141,7 @@ def eqp(
         B = M if N is None else M @ N
         if B.shape[1]:
             r = t - M @ z
-            U2, s2, V2t = np.linalg.svd(B / m_scale[:, None], full_matrices=False)
+            U2, s2, V2t = svd(B / m_scale[:, None], full_matrices=False)
             k2 = int(np.count_nonzero(s2 > threshold))
             if k2:
                 u = scaled_least_squares(U2, s2, V2t, k2, m_scale, r)

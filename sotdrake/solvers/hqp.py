@@ -68,9 +68,9 @@ from .active_set import (
     RANK_THRESHOLD,
     ActiveSetFailure,
     dual_guess,
-    feasible,
     scaled_least_squares,
     solve_least_squares_qp,
+    svd,
 )
 
 SOLVERS = {"clarabel": ClarabelSolver, "osqp": OsqpSolver, "snopt": SnoptSolver}
@@ -175,7 +175,7 @@ def null_space(M: np.ndarray, threshold: float) -> np.ndarray:
     and singular values ≤ ``threshold`` count as zero."""
     if M.shape[0] == 0:
         return np.eye(M.shape[1])
-    _, sigma, Vt = np.linalg.svd(M, full_matrices=True)
+    _, sigma, Vt = svd(M)
     return Vt[int(np.count_nonzero(sigma > threshold)):].T
 
 
@@ -282,8 +282,10 @@ class HierarchicalQP:
             # levels' Z, and an equality-only level may be solved by its least-squares step alone.
             eq_svd = None
             if level is not None and eq.any() and Z.shape[1]:
-                U, sigma, Vt = np.linalg.svd(level.A[eq] @ Z / _row_norms(level.A[eq])[:, None], full_matrices=True)
-                eq_svd = (U, sigma, Vt, int(np.count_nonzero(sigma > self.rank_threshold)))
+                A_eq = level.A[eq]
+                norms = _row_norms(A_eq)
+                U, sigma, Vt = svd(A_eq @ Z / norms[:, None])
+                eq_svd = (U, sigma, Vt, int(np.count_nonzero(sigma > self.rank_threshold)), norms)
             x, side, how, count = self._stage(k, level, x, Z, hard, mu, name, list(carried), fallbacks, eq_svd)
             if level is not None and level.extend is not None:
                 carried.append(level.extend)
@@ -366,24 +368,18 @@ class HierarchicalQP:
     def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks, eq_svd=None):
         """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard
         rows at the end, how it was solved, the active-set iterations. ``eq_svd``: the SVD
-        ``(U, σ, Vt, rank)`` of the level's unit-row projected equality rows, if it has some."""
+        ``(U, σ, Vt, rank, row norms)`` of the level's unit-row projected equality rows, if it has some."""
         r = Z.shape[1]
         if r == 0:
             return x0, hard[5].copy(), ACTIVE_SET, 0
+        if (eq_svd is not None and name == ACTIVE_SET and mu == 0.0 and level.extend is None and not carried
+                and level.equality.all()):
+            x = self._least_squares_level(k, level, x0, Z, hard, eq_svd)
+            if x is not None:
+                return x, np.zeros(len(hard[5]), dtype=int), ACTIVE_SET, 0
         stage = self._build(level, x0, Z, hard, mu)
         _, _, hard_A, hard_lower, hard_upper, hard_side = hard
         key = (k, level is None, stage.G.shape, stage.M.shape)
-        if (eq_svd is not None and name == ACTIVE_SET and mu == 0.0 and level.extend is None and not carried
-                and len(stage.M) == len(eq_svd[0]) and not np.any(stage.lower == stage.upper)):
-            # An equality-only level: if its least-squares step (the EQP point of the empty working
-            # set, from the SVD above) satisfies the bounds and held rows, it is the optimum (KKT
-            # with no multiplier): one check, no active set, no guess.
-            U, sigma, Vt, rank = eq_svd
-            y = scaled_least_squares(U, sigma, Vt, rank, stage.m_scale, stage.t) if rank else np.zeros(r)
-            if feasible(stage.G, stage.lower, stage.upper, y, 1e-10) and self._accept(stage, y):
-                side = np.zeros(len(stage.G), dtype=int)
-                self._working_sets[key] = side
-                return x0 + Z @ y, self._hard_sides(hard_side, stage, side), ACTIVE_SET, 0
         cached = self._working_sets.get(key)
         guess = cached if cached is not None else stage.guess
         what = "the minimum-norm stage" if level is None else f"level {k}"
@@ -439,6 +435,37 @@ class HierarchicalQP:
             fallbacks += [f"{what}: {failure}" for failure in failures]
             return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
+
+    def _least_squares_level(self, k, level, x0, Z, hard, eq_svd) -> np.ndarray | None:
+        """An equality-only level by its least-squares step alone, or None: the EQP point of the
+        empty working set (the minimum-norm weighted least-squares step, from the level's SVD) is
+        the level's optimum if it satisfies the bounds and held rows (the KKT conditions with no
+        multiplier). The check is the stage's own (unit rows, the constant rows left out, 1e-10
+        absolute, relative above 1), written in x: a hard row ``c`` of projected norm ``s = ‖c Z‖``
+        with the step ``d = Z y`` must satisfy ``lo - c·x0 - 1e-10·max(s, |lo - c·x0|) ≤ c·d``
+        (and the same at the upper side), ``lo`` relaxed to ``c·x0`` where x0 is outside."""
+        U, sigma, Vt, rank, norms = eq_svd
+        r = Z.shape[1]
+        y = scaled_least_squares(U, sigma, Vt, rank, norms, level.lower - level.A @ x0) if rank else np.zeros(r)
+        if not np.all(np.isfinite(y)):
+            return None
+        free, reference, hard_A, hard_lower, hard_upper, _ = hard
+        held = hard_A[len(free):]
+        C = np.vstack([Z[free], held @ Z]) if len(held) else Z[free]
+        scale = np.sqrt(np.einsum("ij,ij->i", C, C))
+        keep = scale > self.rank_threshold * reference
+        offset = np.concatenate([x0[free], held @ x0]) if len(held) else x0[free]
+        lo = np.minimum(hard_lower, offset) - offset
+        hi = np.maximum(hard_upper, offset) - offset
+        if np.any(keep & (lo == hi)):  # a pinned row: the general path holds it in the working set
+            return None
+        change = C @ y
+        if np.any(keep & ((change < lo - 1e-10 * np.maximum(scale, np.abs(lo)))
+                          | (change > hi + 1e-10 * np.maximum(scale, np.abs(hi))))):
+            return None
+        n_keep = int(np.count_nonzero(keep))
+        self._working_sets[(k, False, (n_keep, r), (len(norms), r))] = np.zeros(n_keep, dtype=int)
+        return x0 + Z @ y
 
     def _accept(self, stage: _Stage, y: np.ndarray) -> bool:
         """A path's point is kept if it is finite and inside the bounds."""

@@ -124,6 +124,13 @@ class LevelRows:
         if np.any(~np.isfinite(lower[self.equality])):
             raise InvalidInput("level rows: an equality row needs a finite value")
         self.extend = extend
+        # The split the solver reads at every stage, made once.
+        inequality = ~self.equality
+        self.all_equality = not inequality.any()
+        self.any_equality = bool(self.equality.any())
+        self.A_eq, self.b_eq = (A, lower) if self.all_equality else (A[self.equality], lower[self.equality])
+        self.eq_norms = _row_norms(self.A_eq)
+        self.A_in, self.lower_in, self.upper_in = A[inequality], lower[inequality], upper[inequality]
 
     def slack(self, x: np.ndarray) -> np.ndarray:
         """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows."""
@@ -277,14 +284,12 @@ class HierarchicalQP:
             mu = damping if k == len(levels) - 1 else 0.0
             name = self.level_solvers[k] if k < len(self.level_solvers) and level is not None else solver
             hard = (free, hard_norms, hard_A, hard_lower, hard_upper, hard_side)
-            eq = None if level is None else level.equality
             # One SVD of the level's (unit-row) projected equality rows: its null space is the next
             # levels' Z, and an equality-only level may be solved by its least-squares step alone.
             eq_svd = None
-            if level is not None and eq.any() and Z.shape[1]:
-                A_eq = level.A[eq]
-                norms = _row_norms(A_eq)
-                U, sigma, Vt = svd(A_eq @ Z / norms[:, None])
+            if level is not None and level.any_equality and Z.shape[1]:
+                norms = level.eq_norms
+                U, sigma, Vt = svd(level.A_eq @ Z / norms[:, None])
                 eq_svd = (U, sigma, Vt, int(np.count_nonzero(sigma > self.rank_threshold)), norms)
             x, side, how, count = self._stage(k, level, x, Z, hard, mu, name, list(carried), fallbacks, eq_svd)
             if level is not None and level.extend is not None:
@@ -296,17 +301,17 @@ class HierarchicalQP:
             hard_side = side
             if eq_svd is not None:  # = null_space(A_eq Z / ‖rows of A_eq‖), the same SVD
                 Z = Z @ eq_svd[2][eq_svd[3]:].T
-            elif eq.any():
+            elif level.any_equality:
                 Z = Z[:, :0]
-            if (~eq).any():
-                A_in, lo, hi = level.A[~eq], level.lower[~eq], level.upper[~eq]
+            if not level.all_equality:
+                A_in, lo, hi = level.A_in, level.lower_in, level.upper_in
                 value = A_in @ x
                 slack = np.maximum(np.maximum(lo - value, value - hi), 0.0)
                 band = self.hold_tolerance * np.maximum(1.0, np.abs(value))
                 row_side = np.where(value >= hi - 1e-12 * np.maximum(1.0, np.abs(value)), 1,
                                     np.where(value <= lo + 1e-12 * np.maximum(1.0, np.abs(value)), -1, 0))
                 hard_A = np.vstack([hard_A, A_in])
-                hard_norms = np.concatenate([hard_norms, _row_norms(A_in)])
+                hard_norms = np.concatenate([hard_norms, _row_norms(A_in)])  # (once per level)
                 hard_lower = np.concatenate([hard_lower, lo - slack - band])
                 hard_upper = np.concatenate([hard_upper, hi + slack + band])
                 hard_side = np.concatenate([hard_side, row_side])
@@ -334,11 +339,10 @@ class HierarchicalQP:
         if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)
             return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), G_hard, c_lower, c_upper, np.zeros(r), r,
                           np.flatnonzero(keep), hard_side[keep])
-        eq = level.equality
-        A_eq, A_in = level.A[eq], level.A[~eq]
+        A_eq, A_in = level.A_eq, level.A_in
         m_in = len(A_in)
         if m_in == 0:  # no soft row: z = y
-            M, t, m_scale = A_eq @ Z, level.lower[eq] - A_eq @ x0, _row_norms(A_eq)
+            M, t, m_scale = A_eq @ Z, level.b_eq - A_eq @ x0, level.eq_norms
             if mu > 0.0:
                 M = np.vstack([M, np.sqrt(mu) * np.eye(r)])
                 t = np.concatenate([t, np.zeros(r)])
@@ -347,8 +351,8 @@ class HierarchicalQP:
                           hard_side[keep])
         blocks = [np.hstack([A_eq @ Z, np.zeros((len(A_eq), m_in))]),
                   np.hstack([np.zeros((m_in, r)), np.eye(m_in)])]
-        targets = [level.lower[eq] - A_eq @ x0, np.zeros(m_in)]
-        scales = [_row_norms(A_eq), np.ones(m_in)]
+        targets = [level.b_eq - A_eq @ x0, np.zeros(m_in)]
+        scales = [level.eq_norms, np.ones(m_in)]
         if mu > 0.0:
             blocks.append(np.hstack([np.sqrt(mu) * np.eye(r), np.zeros((r, m_in))]))
             targets.append(np.zeros(r))
@@ -357,10 +361,10 @@ class HierarchicalQP:
         value = A_in @ x0
         soft = np.hstack([A_in @ Z, -np.eye(m_in)])
         soft_scale = np.sqrt(np.einsum("ij,ij->i", soft, soft))
-        w0 = np.clip(0.0, value - level.upper[~eq], value - level.lower[~eq])
+        w0 = np.clip(0.0, value - level.upper_in, value - level.lower_in)
         G = np.vstack([np.hstack([G_hard, np.zeros((len(G_hard), m_in))]), soft / soft_scale[:, None]])
-        lower = np.concatenate([c_lower, (level.lower[~eq] - value) / soft_scale])
-        upper = np.concatenate([c_upper, (level.upper[~eq] - value) / soft_scale])
+        lower = np.concatenate([c_lower, (level.lower_in - value) / soft_scale])
+        upper = np.concatenate([c_upper, (level.upper_in - value) / soft_scale])
         return _Stage(np.vstack(blocks), np.concatenate(targets), np.concatenate(scales), G, lower, upper,
                       np.concatenate([np.zeros(r), w0]), r, np.flatnonzero(keep),
                       np.concatenate([hard_side[keep], np.zeros(m_in, dtype=int)]))
@@ -373,7 +377,7 @@ class HierarchicalQP:
         if r == 0:
             return x0, hard[5].copy(), ACTIVE_SET, 0
         if (eq_svd is not None and name == ACTIVE_SET and mu == 0.0 and level.extend is None and not carried
-                and level.equality.all()):
+                and level.all_equality):
             x = self._least_squares_level(k, level, x0, Z, hard, eq_svd)
             if x is not None:
                 return x, np.zeros(len(hard[5]), dtype=int), ACTIVE_SET, 0

@@ -63,6 +63,7 @@ class ActiveSetResult:
     side: np.ndarray  # per row of G: -1 held at lower, +1 held at upper, 0 free (the final working set)
     iterations: int
     guess_accepted: bool
+    verified: bool = False  # z was checked to satisfy every row to ``feasibility``
 
 
 def svd(a: np.ndarray, full_matrices: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -237,11 +238,15 @@ def solve_least_squares_qp(
     threshold: float = RANK_THRESHOLD,
     feasibility: float = 1e-10,
     max_iterations: int | None = None,
+    errstate: bool = True,
 ) -> ActiveSetResult:
     """Solve the problem of the module docstring from the feasible point ``z`` (``G`` unit rows).
 
     ``guess``: a side per row of ``G`` (-1, 0, +1), tried first. Raises :class:`ActiveSetFailure`
-    if the iterations do not converge."""
+    if the iterations do not converge. ``errstate=False``: the caller has already silenced numpy's
+    warnings on ±∞ sides (``np.errstate(divide="ignore", invalid="ignore")``)."""
+    if not errstate:
+        return _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations)
     with np.errstate(divide="ignore", invalid="ignore"):  # ±∞ sides: once here, not per operation
         return _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations)
 
@@ -253,7 +258,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
         side = _guessed_sides(guess, lower, upper)
         candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility)
         if candidate is not None:
-            return ActiveSetResult(candidate, side, 0, True)
+            return ActiveSetResult(candidate, side, 0, True, True)
         value = G @ z
         near = feasibility * 10
         side = np.where((side < 0) & (value <= lower + near), -1, np.where((side > 0) & (value >= upper - near), 1, 0))
@@ -331,8 +336,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
 def _guessed_sides(guess: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """A guess made a valid working set: equality rows held, no row held at an infinite side."""
     side = np.where(lower == upper, 1, np.asarray(guess, dtype=int))
-    side[(side < 0) & ~np.isfinite(lower)] = 0
-    side[(side > 0) & ~np.isfinite(upper)] = 0
+    side[((side < 0) & (lower == -np.inf)) | ((side > 0) & (upper == np.inf))] = 0  # (no NaN: refused at input)
     return side
 
 
@@ -343,9 +347,8 @@ def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
     by ``‖M‖²``). Only a guess: the caller checks it exactly. None if quadprog refuses."""
     p = G.shape[1]
     H = M.T @ M
-    H[np.diag_indices(p)] += regularization * max(1.0, float(np.trace(H)) / max(p, 1))
-    has_lower, has_upper = np.isfinite(lower), np.isfinite(upper)
-    lower_rows, upper_rows = np.flatnonzero(has_lower), np.flatnonzero(has_upper)
+    H.flat[:: p + 1] += regularization * max(1.0, float(H.trace()) / max(p, 1))
+    lower_rows, upper_rows = np.flatnonzero(lower > -np.inf), np.flatnonzero(upper < np.inf)
     C = np.vstack([G[lower_rows], -G[upper_rows]])
     b = np.concatenate([lower[lower_rows], -upper[upper_rows]])
     if len(C) == 0:
@@ -366,7 +369,7 @@ def _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, ite
     """The optimum: the absolute minimum-norm EQP point of the final working set if it is feasible
     (a function of the working set alone), else the iterate (same objective value)."""
     final = _feasible_eqp(M, t, m_scale, G, lower, upper, side, threshold, feasibility)
-    return ActiveSetResult(z if final is None else final, side, iteration, False)
+    return ActiveSetResult(z if final is None else final, side, iteration, False, final is not None)
 
 
 def _eqp_of(M, t, m_scale, G, lower, upper, side, threshold):
@@ -391,14 +394,17 @@ def _feasible_eqp(M, t, m_scale, G, lower, upper, side, threshold, feasibility) 
 
 def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility) -> np.ndarray | None:
     """The EQP point of the working set ``side`` if it satisfies the KKT conditions, else None."""
-    held = side != 0
-    z, lam, _ = _eqp_of(M, t, m_scale, G, lower, upper, side, threshold)
+    held = np.flatnonzero(side)
+    held_side, held_lower, held_upper = side[held], lower[held], upper[held]
+    z, lam, _ = eqp(M, t, m_scale, G[held], np.where(held_side > 0, held_upper, held_lower), threshold)
     if not feasible(G, lower, upper, z, feasibility):
         return None
-    equality = (lower == upper)[held]
-    wrong = np.where(equality, 0.0, -side[held] * lam)
-    residual = M @ z - t if len(M) else np.zeros(0)
-    tolerance = 1e-9 * max(1.0, float(m_scale.max(initial=0.0)) * float(np.linalg.norm(residual)))
-    if wrong.size and wrong.max() > tolerance:
-        return None
+    if len(held):
+        wrong = -held_side * lam
+        wrong[held_lower == held_upper] = 0.0  # equality rows: either sign
+        worst = float(wrong.max())
+        if worst > 1e-9:  # the tolerance is at least 1e-9: only then is it worth computing
+            residual = M @ z - t if len(M) else np.zeros(0)
+            if worst > 1e-9 * max(1.0, float(m_scale.max(initial=0.0)) * float(np.linalg.norm(residual))):
+                return None
     return z

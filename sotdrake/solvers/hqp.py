@@ -132,9 +132,10 @@ class LevelRows:
         self.eq_norms = _row_norms(self.A_eq)
         self.A_in, self.lower_in, self.upper_in = A[inequality], lower[inequality], upper[inequality]
 
-    def slack(self, x: np.ndarray) -> np.ndarray:
-        """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows."""
-        r = self.A @ x
+    def slack(self, x: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
+        """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows
+        (``r``: ``A x`` if the caller has it)."""
+        r = self.A @ x if r is None else r
         violation = np.maximum(np.maximum(self.lower - r, r - self.upper), 0.0)
         return np.where(self.equality, r - self.lower, violation)
 
@@ -327,47 +328,62 @@ class HierarchicalQP:
         tau, r = self.rank_threshold, Z.shape[1]
         free, reference, hard_A, hard_lower, hard_upper, hard_side = hard
         held = hard_A[len(free):]
-        C = np.vstack([Z[free], held @ Z]) if len(held) else Z[free]  # bound rows are unit rows of x
+        if len(held):
+            C = np.vstack([Z[free], held @ Z])  # bound rows are unit rows of x
+            offset = np.concatenate([x0[free], held @ x0])
+        else:
+            C, offset = Z[free], x0[free]
         projected = np.sqrt(np.einsum("ij,ij->i", C, C))
         keep = projected > tau * reference  # the others are constant over the stage
-        offset = np.concatenate([x0[free], held @ x0])[keep]
-        scale = projected[keep]
+        if keep.all():
+            kept, scale, low, high, sides = np.arange(len(keep)), projected, hard_lower, hard_upper, hard_side
+        else:
+            kept = np.flatnonzero(keep)
+            C, offset, scale, low, high, sides = C[kept], offset[kept], projected[kept], hard_lower[kept], hard_upper[kept], hard_side[kept]
         # Never ask more than the previous point achieves (y = 0 stays feasible).
-        c_lower = (np.minimum(hard_lower[keep], offset) - offset) / scale
-        c_upper = (np.maximum(hard_upper[keep], offset) - offset) / scale
-        G_hard = C[keep] / scale[:, None]
+        c_lower = (np.minimum(low, offset) - offset) / scale
+        c_upper = (np.maximum(high, offset) - offset) / scale
+        G_hard = C / scale[:, None]
         if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)
-            return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), G_hard, c_lower, c_upper, np.zeros(r), r,
-                          np.flatnonzero(keep), hard_side[keep])
+            return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), G_hard, c_lower, c_upper, np.zeros(r), r, kept, sides)
         A_eq, A_in = level.A_eq, level.A_in
-        m_in = len(A_in)
+        m_eq, m_in = len(A_eq), len(A_in)
         if m_in == 0:  # no soft row: z = y
             M, t, m_scale = A_eq @ Z, level.b_eq - A_eq @ x0, level.eq_norms
             if mu > 0.0:
                 M = np.vstack([M, np.sqrt(mu) * np.eye(r)])
                 t = np.concatenate([t, np.zeros(r)])
                 m_scale = np.concatenate([m_scale, np.full(r, np.sqrt(mu))])
-            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, np.flatnonzero(keep),
-                          hard_side[keep])
-        blocks = [np.hstack([A_eq @ Z, np.zeros((len(A_eq), m_in))]),
-                  np.hstack([np.zeros((m_in, r)), np.eye(m_in)])]
-        targets = [level.b_eq - A_eq @ x0, np.zeros(m_in)]
-        scales = [level.eq_norms, np.ones(m_in)]
+            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, kept, sides)
+        # The objective ‖A_eq (x0 + Z y) - b‖² + ‖w‖² (+ μ‖y‖²): M = [[A_eq Z, 0], [0, I], [√μ I, 0]].
+        m_damped = r if mu > 0.0 else 0
+        M = np.zeros((m_eq + m_in + m_damped, r + m_in))
+        M[:m_eq, :r] = A_eq @ Z
+        rows = np.arange(m_in)
+        M[m_eq + rows, r + rows] = 1.0
+        t = np.zeros(len(M))
+        t[:m_eq] = level.b_eq - A_eq @ x0
+        m_scale = np.ones(len(M))
+        m_scale[:m_eq] = level.eq_norms
         if mu > 0.0:
-            blocks.append(np.hstack([np.sqrt(mu) * np.eye(r), np.zeros((r, m_in))]))
-            targets.append(np.zeros(r))
-            scales.append(np.full(r, np.sqrt(mu)))
-        # Soft rows: lo ≤ a y - w ≤ hi, scaled to unit norm; w starts at the violation at y = 0.
+            diagonal = np.arange(r)
+            M[m_eq + m_in + diagonal, diagonal] = np.sqrt(mu)
+            m_scale[m_eq + m_in:] = np.sqrt(mu)
+        # Soft rows: lo ≤ a y - w ≤ hi, scaled to unit norm (‖(a Z, -1)‖); w starts at the violation at y = 0.
         value = A_in @ x0
-        soft = np.hstack([A_in @ Z, -np.eye(m_in)])
-        soft_scale = np.sqrt(np.einsum("ij,ij->i", soft, soft))
+        AZ = A_in @ Z
+        soft_scale = np.sqrt(np.einsum("ij,ij->i", AZ, AZ) + 1.0)
         w0 = np.clip(0.0, value - level.upper_in, value - level.lower_in)
-        G = np.vstack([np.hstack([G_hard, np.zeros((len(G_hard), m_in))]), soft / soft_scale[:, None]])
+        m_hard = len(G_hard)
+        G = np.zeros((m_hard + m_in, r + m_in))
+        G[:m_hard, :r] = G_hard
+        G[m_hard:, :r] = AZ / soft_scale[:, None]
+        G[m_hard + rows, r + rows] = -1.0 / soft_scale
         lower = np.concatenate([c_lower, (level.lower_in - value) / soft_scale])
         upper = np.concatenate([c_upper, (level.upper_in - value) / soft_scale])
-        return _Stage(np.vstack(blocks), np.concatenate(targets), np.concatenate(scales), G, lower, upper,
-                      np.concatenate([np.zeros(r), w0]), r, np.flatnonzero(keep),
-                      np.concatenate([hard_side[keep], np.zeros(m_in, dtype=int)]))
+        z0 = np.zeros(r + m_in)
+        z0[r:] = w0
+        return _Stage(M, t, m_scale, G, lower, upper, z0, r, kept, np.concatenate([sides, np.zeros(m_in, dtype=int)]))
 
     def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks, eq_svd=None):
         """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard
@@ -426,13 +442,16 @@ class HierarchicalQP:
                     start_guess, label = self._sides(stage, z), path + "+polish"
                 solution = solve_least_squares_qp(
                     stage.M, stage.t, stage.m_scale, stage.G, stage.lower, stage.upper, stage.z0.copy(),
-                    guess=start_guess, threshold=self.rank_threshold,
+                    guess=start_guess, threshold=self.rank_threshold, errstate=False,
                 )
             except ActiveSetFailure as error:
                 failures.append(f"{path}: {error}")
                 continue
             y = solution.z[:r]
-            if not self._accept(stage, y):
+            # A point the active set verified on every row to 1e-10 (≤ the feasibility tolerance)
+            # only needs to be finite; any other is checked on the bounds and held rows.
+            verified = solution.verified and self.feasibility_tolerance >= 1e-10
+            if not (bool(np.all(np.isfinite(y))) if verified else self._accept(stage, y)):
                 failures.append(f"{path}: a point outside the bounds")
                 continue
             self._working_sets[key] = solution.side
@@ -543,10 +562,10 @@ class HierarchicalQP:
         return x, ""
 
     def _result(self, levels, x, x_lower, x_upper, fixed, used) -> HqpResult:
-        slacks = [level.slack(x) for level in levels]
-        active = []
+        slacks, active = [], []
         for level in levels:
             r = level.A @ x
+            slacks.append(level.slack(x, r))
             scale = 1e-7 * np.maximum(1.0, np.abs(r))
             at_bound = (np.abs(r - level.lower) <= scale) | (np.abs(r - level.upper) <= scale)
             active.append(np.flatnonzero(at_bound & ~level.equality))
@@ -555,7 +574,7 @@ class HierarchicalQP:
         return HqpResult(
             x=x,
             slacks=slacks,
-            slack_norms=np.array([np.linalg.norm(s) for s in slacks]),
+            slack_norms=np.array([np.sqrt(s @ s) for s in slacks]),
             active_rows=active,
             active_bounds=bounds,
             level_solvers=used,

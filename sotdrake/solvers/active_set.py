@@ -110,7 +110,7 @@ def scaled_least_squares(U: np.ndarray, s: np.ndarray, Vt: np.ndarray, k: int, m
     matrix ``B / m_scale`` cut at its first ``k`` singular values (``B = D U_k s_k V_kᵀ`` with
     ``D = diag(m_scale)``: a weighted least squares in ``c``, ``u = V_k c``)."""
     U_k, s_k = U[:, :k], s[:k]
-    if np.all(m_scale == m_scale[0]):
+    if (m_scale == m_scale[0]).all():
         c = (U_k.T @ r) / (m_scale[0] * s_k)
     elif k == len(m_scale):  # independent rows: B u = r is solved exactly, c = s⁻¹ Uᵀ D⁻¹ r (U square)
         c = (U_k.T @ (r / m_scale)) / s_k
@@ -159,7 +159,7 @@ def _full_rank_step(B: np.ndarray, m_scale: np.ndarray, r: np.ndarray, threshold
         if factors is None:
             return None
         Q1, R_inv = factors
-        if np.all(m_scale == m_scale[0]):
+        if (m_scale == m_scale[0]).all():
             return R_inv @ (Q1.T @ r) / m_scale[0]
         return full_rank_least_squares(B, r)
     factors = independent_qr(unit.T, threshold)
@@ -199,8 +199,8 @@ def eqp(
             N = Vt[k:].T
     else:
         z, N = np.zeros(p), None
-    identity = (M.shape[0] == p and np.count_nonzero(M) == p and bool(np.all(M.diagonal() == 1.0))
-                and bool(np.all(m_scale == 1.0)))
+    identity = (M.shape[0] == p and np.count_nonzero(M) == p and bool((M.diagonal() == 1.0).all())
+                and bool((m_scale == 1.0).all()))
     if identity:  # ½‖z - t‖² (the minimum-norm stage): N has orthonormal columns, no decomposition
         r = t - z
         z = z + (r if N is None else N @ (N.T @ r))
@@ -263,7 +263,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
         near = feasibility * 10
         side = np.where((side < 0) & (value <= lower + near), -1, np.where((side > 0) & (value >= upper - near), 1, 0))
         side[equality] = 1
-        held = np.flatnonzero(side)
+        held = side.nonzero()[0]
         dependent = np.setdiff1d(held, held[independent_rows(G[held], threshold)])
         side[dependent] = 0  # a working set is linearly independent (equality rows come first in rank)
     else:
@@ -293,7 +293,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
         ratio = np.maximum(np.minimum(up, down), 0.0)
         alpha = float(ratio.min(initial=np.inf))
         if alpha < 1.0:
-            blocking = int(np.flatnonzero(ratio <= alpha * (1 + 1e-12))[0]) if bland else int(np.argmin(ratio))
+            blocking = int((ratio <= alpha * (1 + 1e-12)).nonzero()[0][0]) if bland else int(np.argmin(ratio))
             if blocking == last_dropped and (
                 alpha * float(np.abs(step).max(initial=0.0)) <= 1e-12 * max(1.0, float(np.abs(z).max(initial=0.0)))
             ):
@@ -310,16 +310,16 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
                     bland = True
                 seen.add(key)
             continue
-        at_origin = not np.any(z)  # then the step is the absolute EQP point itself (bit for bit)
+        at_origin = not z.any()  # then the step is the absolute EQP point itself (bit for bit)
         z = target
         # Multipliers: λ ≥ 0 at an upper side, ≤ 0 at a lower side (equality rows: free), up to a
         # round-off tolerance relative to the gradient's scale.
-        held_index = np.flatnonzero(held)
+        held_index = held.nonzero()[0]
         residual = M @ z - t if len(M) else np.zeros(0)
         tolerance = 1e-9 * max(1.0, float(m_scale.max(initial=0.0)) * float(np.linalg.norm(residual)))
         wrong = np.where(equality[held_index], 0.0, -side[held_index] * lam)
         if wrong.size and wrong.max() > tolerance:
-            leaving = held_index[int(np.flatnonzero(wrong > tolerance)[0]) if bland else int(np.argmax(wrong))]
+            leaving = held_index[int((wrong > tolerance).nonzero()[0][0]) if bland else int(np.argmax(wrong))]
             last_dropped, dropped_side = leaving, side[leaving]
             side[leaving] = 0
             key = side.tobytes()
@@ -348,8 +348,8 @@ def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
     p = G.shape[1]
     H = M.T @ M
     H.flat[:: p + 1] += regularization * max(1.0, float(H.trace()) / max(p, 1))
-    lower_rows, upper_rows = np.flatnonzero(lower > -np.inf), np.flatnonzero(upper < np.inf)
-    C = np.vstack([G[lower_rows], -G[upper_rows]])
+    lower_rows, upper_rows = (lower > -np.inf).nonzero()[0], (upper < np.inf).nonzero()[0]
+    C = np.concatenate([G[lower_rows], -G[upper_rows]])
     b = np.concatenate([lower[lower_rows], -upper[upper_rows]])
     if len(C) == 0:
         return np.zeros(len(G), dtype=int)
@@ -382,8 +382,8 @@ def feasible(G: np.ndarray, lower: np.ndarray, upper: np.ndarray, z: np.ndarray,
     """Whether ``lower ≤ G z ≤ upper`` holds to ``feasibility`` (absolute, relative above 1); the
     caller silences numpy's warnings on ±∞ sides."""
     value = G @ z
-    return not (np.any(value < lower - feasibility * np.maximum(1.0, np.abs(lower)))
-                or np.any(value > upper + feasibility * np.maximum(1.0, np.abs(upper))))
+    return not ((value < lower - feasibility * np.maximum(1.0, np.abs(lower))).any()
+                or (value > upper + feasibility * np.maximum(1.0, np.abs(upper))).any())
 
 
 def _feasible_eqp(M, t, m_scale, G, lower, upper, side, threshold, feasibility) -> np.ndarray | None:
@@ -394,7 +394,7 @@ def _feasible_eqp(M, t, m_scale, G, lower, upper, side, threshold, feasibility) 
 
 def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility) -> np.ndarray | None:
     """The EQP point of the working set ``side`` if it satisfies the KKT conditions, else None."""
-    held = np.flatnonzero(side)
+    held = side.nonzero()[0]
     held_side, held_lower, held_upper = side[held], lower[held], upper[held]
     z, lam, _ = eqp(M, t, m_scale, G[held], np.where(held_side > 0, held_upper, held_lower), threshold)
     if not feasible(G, lower, upper, z, feasibility):

@@ -274,7 +274,7 @@ class HierarchicalQP:
         fixed = x_lower == x_upper
         x = np.where(fixed, x_lower, 0.0)
         Z = np.eye(n)[:, ~fixed]
-        free = np.flatnonzero(~fixed & (np.isfinite(x_lower) | np.isfinite(x_upper)))  # bound rows that can bind
+        free = (~fixed & (np.isfinite(x_lower) | np.isfinite(x_upper))).nonzero()[0]  # bound rows that can bind
         # The hard rows (bounds, then held inequality rows), in x, with the side each was left at.
         hard_A, hard_lower, hard_upper = np.eye(n)[free], x_lower[free], x_upper[free]
         hard_norms = np.ones(len(free))  # reference norms of the hard rows
@@ -311,7 +311,7 @@ class HierarchicalQP:
                 band = self.hold_tolerance * np.maximum(1.0, np.abs(value))
                 row_side = np.where(value >= hi - 1e-12 * np.maximum(1.0, np.abs(value)), 1,
                                     np.where(value <= lo + 1e-12 * np.maximum(1.0, np.abs(value)), -1, 0))
-                hard_A = np.vstack([hard_A, A_in])
+                hard_A = np.concatenate([hard_A, A_in])
                 hard_norms = np.concatenate([hard_norms, _row_norms(A_in)])  # (once per level)
                 hard_lower = np.concatenate([hard_lower, lo - slack - band])
                 hard_upper = np.concatenate([hard_upper, hi + slack + band])
@@ -329,7 +329,7 @@ class HierarchicalQP:
         free, reference, hard_A, hard_lower, hard_upper, hard_side = hard
         held = hard_A[len(free):]
         if len(held):
-            C = np.vstack([Z[free], held @ Z])  # bound rows are unit rows of x
+            C = np.concatenate([Z[free], held @ Z])  # bound rows are unit rows of x
             offset = np.concatenate([x0[free], held @ x0])
         else:
             C, offset = Z[free], x0[free]
@@ -338,7 +338,7 @@ class HierarchicalQP:
         if keep.all():
             kept, scale, low, high, sides = np.arange(len(keep)), projected, hard_lower, hard_upper, hard_side
         else:
-            kept = np.flatnonzero(keep)
+            kept = keep.nonzero()[0]
             C, offset, scale, low, high, sides = C[kept], offset[kept], projected[kept], hard_lower[kept], hard_upper[kept], hard_side[kept]
         # Never ask more than the previous point achieves (y = 0 stays feasible).
         c_lower = (np.minimum(low, offset) - offset) / scale
@@ -451,7 +451,7 @@ class HierarchicalQP:
             # A point the active set verified on every row to 1e-10 (≤ the feasibility tolerance)
             # only needs to be finite; any other is checked on the bounds and held rows.
             verified = solution.verified and self.feasibility_tolerance >= 1e-10
-            if not (bool(np.all(np.isfinite(y))) if verified else self._accept(stage, y)):
+            if not (bool(np.isfinite(y).all()) if verified else self._accept(stage, y)):
                 failures.append(f"{path}: a point outside the bounds")
                 continue
             self._working_sets[key] = solution.side
@@ -470,17 +470,17 @@ class HierarchicalQP:
         U, sigma, Vt, rank, norms = eq_svd
         r = Z.shape[1]
         y = scaled_least_squares(U, sigma, Vt, rank, norms, level.lower - level.A @ x0) if rank else np.zeros(r)
-        if not np.all(np.isfinite(y)):
+        if not np.isfinite(y).all():
             return None
         free, reference, hard_A, hard_lower, hard_upper, _ = hard
         held = hard_A[len(free):]
-        C = np.vstack([Z[free], held @ Z]) if len(held) else Z[free]
+        C = np.concatenate([Z[free], held @ Z]) if len(held) else Z[free]
         scale = np.sqrt(np.einsum("ij,ij->i", C, C))
         keep = scale > self.rank_threshold * reference
         offset = np.concatenate([x0[free], held @ x0]) if len(held) else x0[free]
         lo = np.minimum(hard_lower, offset) - offset
         hi = np.maximum(hard_upper, offset) - offset
-        if np.any(keep & (lo == hi)):  # a pinned row: the general path holds it in the working set
+        if (keep & (lo == hi)).any():  # a pinned row: the general path holds it in the working set
             return None
         change = C @ y
         if np.any(keep & ((change < lo - 1e-10 * np.maximum(scale, np.abs(lo)))
@@ -492,15 +492,15 @@ class HierarchicalQP:
 
     def _accept(self, stage: _Stage, y: np.ndarray) -> bool:
         """A path's point is kept if it is finite and inside the bounds."""
-        return bool(np.all(np.isfinite(y))) and self._bounds_hold(stage, y)
+        return bool(np.isfinite(y).all()) and self._bounds_hold(stage, y)
 
     def _bounds_hold(self, stage: _Stage, y: np.ndarray) -> bool:
         m_hard = len(stage.hard)
         value = stage.G[:m_hard, :stage.r] @ y
         lo, hi = stage.lower[:m_hard], stage.upper[:m_hard]
         tol = self.feasibility_tolerance
-        return bool(np.all(value >= lo - tol * np.maximum(1.0, np.abs(lo)))
-                    and np.all(value <= hi + tol * np.maximum(1.0, np.abs(hi))))
+        return bool((value >= lo - tol * np.maximum(1.0, np.abs(lo))).all()
+                    and (value <= hi + tol * np.maximum(1.0, np.abs(hi))).all())
 
     @staticmethod
     def _sides(stage: _Stage, z: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:
@@ -555,7 +555,7 @@ class HierarchicalQP:
         drake_solver, options = self._drake(name)
         result = drake_solver.Solve(program.prog, np.zeros(r + m), options)
         x = x0 + Z @ result.GetSolution(program.y)
-        if not np.all(np.isfinite(x)):
+        if not np.isfinite(x).all():
             return None, str(result.get_solution_result())
         if extended and not result.is_success():
             return None, str(result.get_solution_result())
@@ -568,9 +568,9 @@ class HierarchicalQP:
             slacks.append(level.slack(x, r))
             scale = 1e-7 * np.maximum(1.0, np.abs(r))
             at_bound = (np.abs(r - level.lower) <= scale) | (np.abs(r - level.upper) <= scale)
-            active.append(np.flatnonzero(at_bound & ~level.equality))
+            active.append((at_bound & ~level.equality).nonzero()[0])
         scale = 1e-7 * np.maximum(1.0, np.abs(x))
-        bounds = np.flatnonzero(~fixed & ((np.abs(x - x_lower) <= scale) | (np.abs(x - x_upper) <= scale)))
+        bounds = (~fixed & ((np.abs(x - x_lower) <= scale) | (np.abs(x - x_upper) <= scale))).nonzero()[0]
         return HqpResult(
             x=x,
             slacks=slacks,

@@ -115,22 +115,27 @@ class LevelRows:
         A, lower, upper = (np.asarray(a, dtype=float) for a in (A, lower, upper))
         if A.ndim != 2 or lower.shape != (A.shape[0],) or upper.shape != (A.shape[0],):
             raise InvalidInput(f"level rows: A {A.shape}, lower {lower.shape}, upper {upper.shape} do not fit")
-        if not np.all(np.isfinite(A)) or np.any(np.isnan(lower)) or np.any(np.isnan(upper)):
+        if not np.isfinite(A).all() or np.isnan(lower).any() or np.isnan(upper).any():
             raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
-        if np.any(lower > upper):
+        if (lower > upper).any():
             raise InvalidInput(f"level rows: lower bound above upper bound in rows {np.flatnonzero(lower > upper)}")
         self.A, self.lower, self.upper = A, lower, upper
-        self.equality = lower == upper
-        if np.any(~np.isfinite(lower[self.equality])):
-            raise InvalidInput("level rows: an equality row needs a finite value")
+        self.equality = equality = lower == upper
         self.extend = extend
         # The split the solver reads at every stage, made once.
-        inequality = ~self.equality
-        self.all_equality = not inequality.any()
-        self.any_equality = bool(self.equality.any())
-        self.A_eq, self.b_eq = (A, lower) if self.all_equality else (A[self.equality], lower[self.equality])
+        self.all_equality = bool(equality.all())
+        if self.all_equality:
+            self.any_equality = len(A) > 0
+            self.A_eq, self.b_eq = A, lower
+            self.A_in, self.lower_in, self.upper_in = A[:0], lower[:0], upper[:0]
+        else:
+            inequality = ~equality
+            self.any_equality = bool(equality.any())
+            self.A_eq, self.b_eq = A[equality], lower[equality]
+            self.A_in, self.lower_in, self.upper_in = A[inequality], lower[inequality], upper[inequality]
+        if not np.isfinite(self.b_eq).all():
+            raise InvalidInput("level rows: an equality row needs a finite value")
         self.eq_norms = _row_norms(self.A_eq)
-        self.A_in, self.lower_in, self.upper_in = A[inequality], lower[inequality], upper[inequality]
 
     def slack(self, x: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
         """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows
@@ -394,7 +399,7 @@ class HierarchicalQP:
             return x0, hard[5].copy(), ACTIVE_SET, 0
         if (eq_svd is not None and name == ACTIVE_SET and mu == 0.0 and level.extend is None and not carried
                 and level.all_equality):
-            x = self._least_squares_level(k, level, x0, Z, hard, eq_svd)
+            x = self._least_squares_level(level, x0, Z, hard, eq_svd)
             if x is not None:
                 return x, np.zeros(len(hard[5]), dtype=int), ACTIVE_SET, 0
         stage = self._build(level, x0, Z, hard, mu)
@@ -459,14 +464,15 @@ class HierarchicalQP:
             return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
 
-    def _least_squares_level(self, k, level, x0, Z, hard, eq_svd) -> np.ndarray | None:
+    def _least_squares_level(self, level, x0, Z, hard, eq_svd) -> np.ndarray | None:
         """An equality-only level by its least-squares step alone, or None: the EQP point of the
         empty working set (the minimum-norm weighted least-squares step, from the level's SVD) is
         the level's optimum if it satisfies the bounds and held rows (the KKT conditions with no
         multiplier). The check is the stage's own (unit rows, the constant rows left out, 1e-10
         absolute, relative above 1), written in x: a hard row ``c`` of projected norm ``s = ‖c Z‖``
         with the step ``d = Z y`` must satisfy ``lo - c·x0 - 1e-10·max(s, |lo - c·x0|) ≤ c·d``
-        (and the same at the upper side), ``lo`` relaxed to ``c·x0`` where x0 is outside."""
+        (and the same at the upper side), ``lo`` relaxed to ``c·x0`` where x0 is outside. A step
+        that meets every row exactly passes it without the norms being computed."""
         U, sigma, Vt, rank, norms = eq_svd
         r = Z.shape[1]
         y = scaled_least_squares(U, sigma, Vt, rank, norms, level.lower - level.A @ x0) if rank else np.zeros(r)
@@ -474,20 +480,22 @@ class HierarchicalQP:
             return None
         free, reference, hard_A, hard_lower, hard_upper, _ = hard
         held = hard_A[len(free):]
-        C = np.concatenate([Z[free], held @ Z]) if len(held) else Z[free]
-        scale = np.sqrt(np.einsum("ij,ij->i", C, C))
-        keep = scale > self.rank_threshold * reference
-        offset = np.concatenate([x0[free], held @ x0]) if len(held) else x0[free]
+        if len(held):
+            C = np.concatenate([Z[free], held @ Z])
+            offset = np.concatenate([x0[free], held @ x0])
+        else:
+            C, offset = Z[free], x0[free]
         lo = np.minimum(hard_lower, offset) - offset
         hi = np.maximum(hard_upper, offset) - offset
-        if (keep & (lo == hi)).any():  # a pinned row: the general path holds it in the working set
-            return None
         change = C @ y
-        if np.any(keep & ((change < lo - 1e-10 * np.maximum(scale, np.abs(lo)))
-                          | (change > hi + 1e-10 * np.maximum(scale, np.abs(hi))))):
-            return None
-        n_keep = int(np.count_nonzero(keep))
-        self._working_sets[(k, False, (n_keep, r), (len(norms), r))] = np.zeros(n_keep, dtype=int)
+        if not ((change >= lo).all() and (change <= hi).all()):
+            scale = np.sqrt(np.einsum("ij,ij->i", C, C))
+            keep = scale > self.rank_threshold * reference
+            if (keep & (lo == hi)).any():  # a pinned row: the general path holds it in the working set
+                return None
+            if (keep & ((change < lo - 1e-10 * np.maximum(scale, np.abs(lo)))
+                        | (change > hi + 1e-10 * np.maximum(scale, np.abs(hi))))).any():
+                return None
         return x0 + Z @ y
 
     def _accept(self, stage: _Stage, y: np.ndarray) -> bool:

@@ -238,6 +238,7 @@ class HierarchicalQP:
         self.feasibility_tolerance = feasibility_tolerance
         self._programs: dict[tuple[int, int, int], _Program] = {}  # a cache: results never depend on it
         self._working_sets: dict[tuple, np.ndarray] = {}  # warm starts: results never depend on them
+        self._free_minimum_norm = True  # whether to try the minimum-norm stage's free point first (the same)
         self._solvers: dict[str, tuple] = {}
 
     def _drake(self, name: str):
@@ -402,6 +403,12 @@ class HierarchicalQP:
             x = self._least_squares_level(level, x0, Z, hard, eq_svd)
             if x is not None:
                 return x, np.zeros(len(hard[5]), dtype=int), ACTIVE_SET, 0
+        if level is None and name == ACTIVE_SET and not carried and self._free_minimum_norm:
+            # The minimum-norm stage's unconstrained point y = -Zᵀx0 (x0's component in range(Z)
+            # removed), tried while the last such stage ended with an empty working set.
+            x = self._free_step(x0, Z, hard, -(Z.T @ x0))
+            if x is not None:
+                return x, np.zeros(len(hard[5]), dtype=int), ACTIVE_SET, 0
         stage = self._build(level, x0, Z, hard, mu)
         _, _, hard_A, hard_lower, hard_upper, hard_side = hard
         key = (k, level is None, stage.G.shape, stage.M.shape)
@@ -460,6 +467,8 @@ class HierarchicalQP:
                 failures.append(f"{path}: a point outside the bounds")
                 continue
             self._working_sets[key] = solution.side
+            if level is None:
+                self._free_minimum_norm = not solution.side.any()
             fallbacks += [f"{what}: {failure}" for failure in failures]
             return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
@@ -476,6 +485,11 @@ class HierarchicalQP:
         U, sigma, Vt, rank, norms = eq_svd
         r = Z.shape[1]
         y = scaled_least_squares(U, sigma, Vt, rank, norms, level.lower - level.A @ x0) if rank else np.zeros(r)
+        return self._free_step(x0, Z, hard, y)
+
+    def _free_step(self, x0, Z, hard, y) -> np.ndarray | None:
+        """``x0 + Z y`` if the step ``y`` (the EQP point of a stage's empty working set) is finite and
+        satisfies the stage's bounds and held rows (see :meth:`_least_squares_level`), else None."""
         if not np.isfinite(y).all():
             return None
         free, reference, hard_A, hard_lower, hard_upper, _ = hard

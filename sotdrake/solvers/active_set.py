@@ -208,7 +208,7 @@ def eqp(
         B = M if N is None else M @ N
         if B.shape[1]:
             r = t - M @ z
-            u = _full_rank_step(B, m_scale, r, threshold)
+            u = _full_rank_step(B, m_scale, r, threshold) if min(B.shape) >= QR_MIN_SIZE else None
             if u is None:
                 U2, s2, V2t = svd(B / m_scale[:, None], full_matrices=False)
                 k2 = int(np.count_nonzero(s2 > threshold))

@@ -178,6 +178,9 @@ class _Program:
         self.cost = prog.AddQuadraticCost(np.eye(r + m), np.zeros(r + m), variables, is_convex=True)
 
 
+_FREE_MINIMUM_NORM = "free minimum-norm stage"
+
+
 def _row_norms(A: np.ndarray) -> np.ndarray:
     norms = np.sqrt(np.einsum("ij,ij->i", A, A))
     return np.where(norms > 0.0, norms, 1.0)
@@ -237,8 +240,10 @@ class HierarchicalQP:
         self.hold_tolerance, self.rank_threshold, self.regularize = hold_tolerance, rank_threshold, regularize
         self.feasibility_tolerance = feasibility_tolerance
         self._programs: dict[tuple[int, int, int], _Program] = {}  # a cache: results never depend on it
-        self._working_sets: dict[tuple, np.ndarray] = {}  # warm starts: results never depend on them
-        self._free_minimum_norm = True  # whether to try the minimum-norm stage's free point first (the same)
+        # Warm starts (results never depend on them): the working set of each stage at the last call
+        # with the same sizes, and under FREE_MINIMUM_NORM whether the last minimum-norm stage ended
+        # with an empty working set (then its unconstrained point is tried first).
+        self._working_sets: dict = {}
         self._solvers: dict[str, tuple] = {}
 
     def _drake(self, name: str):
@@ -314,9 +319,9 @@ class HierarchicalQP:
                 A_in, lo, hi = level.A_in, level.lower_in, level.upper_in
                 value = A_in @ x
                 slack = np.maximum(np.maximum(lo - value, value - hi), 0.0)
-                band = self.hold_tolerance * np.maximum(1.0, np.abs(value))
-                row_side = np.where(value >= hi - 1e-12 * np.maximum(1.0, np.abs(value)), 1,
-                                    np.where(value <= lo + 1e-12 * np.maximum(1.0, np.abs(value)), -1, 0))
+                magnitude = np.maximum(1.0, np.abs(value))
+                band = self.hold_tolerance * magnitude if self.hold_tolerance else 0.0
+                row_side = np.where(value >= hi - 1e-12 * magnitude, 1, np.where(value <= lo + 1e-12 * magnitude, -1, 0))
                 hard_A = np.concatenate([hard_A, A_in])
                 hard_norms = np.concatenate([hard_norms, _row_norms(A_in)])  # (once per level)
                 hard_lower = np.concatenate([hard_lower, lo - slack - band])
@@ -403,9 +408,10 @@ class HierarchicalQP:
             x = self._least_squares_level(level, x0, Z, hard, eq_svd)
             if x is not None:
                 return x, np.zeros(len(hard[5]), dtype=int), ACTIVE_SET, 0
-        if level is None and name == ACTIVE_SET and not carried and self._free_minimum_norm:
+        if level is None and name == ACTIVE_SET and not carried and self._working_sets.get(_FREE_MINIMUM_NORM, False):
             # The minimum-norm stage's unconstrained point y = -Zᵀx0 (x0's component in range(Z)
-            # removed), tried while the last such stage ended with an empty working set.
+            # removed), tried while the last such stage ended with an empty working set (a warm
+            # start: a cold solve, where it rarely holds, does not try it).
             x = self._free_step(x0, Z, hard, -(Z.T @ x0))
             if x is not None:
                 return x, np.zeros(len(hard[5]), dtype=int), ACTIVE_SET, 0
@@ -468,7 +474,7 @@ class HierarchicalQP:
                 continue
             self._working_sets[key] = solution.side
             if level is None:
-                self._free_minimum_norm = not solution.side.any()
+                self._working_sets[_FREE_MINIMUM_NORM] = not solution.side.any()
             fallbacks += [f"{what}: {failure}" for failure in failures]
             return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")

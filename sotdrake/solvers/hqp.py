@@ -290,7 +290,10 @@ class HierarchicalQP:
         hard_A, hard_lower, hard_upper = np.eye(n)[free], x_lower[free], x_upper[free]
         hard_norms = np.ones(len(free))  # reference norms of the hard rows
         hard_side = np.zeros(len(free), dtype=int)
-        used, iterations, carried, fallbacks = [], [], [], []
+        used: list[str] = []
+        iterations: list[int] = []
+        carried: list[Extension] = []
+        fallbacks: list[str] = []
         stages = list(levels) + ([None] if self.regularize else [])
         for k, level in enumerate(stages):
             mu = damping if k == len(levels) - 1 else 0.0
@@ -567,9 +570,9 @@ class HierarchicalQP:
         if extended:
             program = _Program(r, len(A_all), m)
         else:
-            program = self._programs.get((r, len(A_all), m))
-            if program is None:
-                program = self._programs[(r, len(A_all), m)] = _Program(r, len(A_all), m)
+            cached = self._programs.get((r, len(A_all), m))
+            program = cached if cached is not None else _Program(r, len(A_all), m)
+            self._programs[(r, len(A_all), m)] = program
         if program.rows is not None:
             program.rows.evaluator().UpdateCoefficients(A_all, np.concatenate(rows_lower), np.concatenate(rows_upper))
         program.cost.evaluator().UpdateCoefficients(Q, b)

@@ -357,10 +357,12 @@ class HierarchicalQP:
         # Never ask more than the previous point achieves (y = 0 stays feasible).
         c_lower = (np.minimum(low, offset) - offset) / scale
         c_upper = (np.maximum(high, offset) - offset) / scale
-        G_hard = C / scale[:, None]
+        A_in = None if level is None else level.A_in
+        if A_in is None or len(A_in) == 0:
+            G_hard = C / scale[:, None]
         if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)
             return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), G_hard, c_lower, c_upper, np.zeros(r), r, kept, sides)
-        A_eq, A_in = level.A_eq, level.A_in
+        A_eq = level.A_eq
         m_eq, m_in = len(A_eq), len(A_in)
         if m_in == 0:  # no soft row: z = y
             M, t, m_scale = A_eq @ Z, level.b_eq - A_eq @ x0, level.eq_norms
@@ -387,11 +389,11 @@ class HierarchicalQP:
         value = A_in @ x0
         AZ = A_in @ Z
         soft_scale = np.sqrt(np.einsum("ij,ij->i", AZ, AZ) + 1.0)
-        w0 = np.clip(0.0, value - level.upper_in, value - level.lower_in)
-        m_hard = len(G_hard)
+        w0 = np.minimum(np.maximum(value - level.upper_in, 0.0), value - level.lower_in)  # np.clip(0, ., .)
+        m_hard = len(C)
         G = np.zeros((m_hard + m_in, r + m_in))
-        G[:m_hard, :r] = G_hard
-        G[m_hard:, :r] = AZ / soft_scale[:, None]
+        np.divide(C, scale[:, None], out=G[:m_hard, :r])
+        np.divide(AZ, soft_scale[:, None], out=G[m_hard:, :r])
         G[m_hard + rows, r + rows] = -1.0 / soft_scale
         lower = np.concatenate([c_lower, (level.lower_in - value) / soft_scale])
         upper = np.concatenate([c_upper, (level.upper_in - value) / soft_scale])

@@ -24,6 +24,13 @@ computed from the SVD of ``G_W`` (particular solution plus null-space basis ``N`
 a function of ``W`` alone, so the returned point is a function of the final working set only (a
 warm start changes the path, never the answer beyond round-off).
 
+**Factorisations.** LAPACK is called directly (``dgesdd``, ``dgeqrf``, ``dorgqr``, ``dgeqp3``,
+``dtrtri``): numpy's wrappers cost more than the factorisations of these small matrices. A matrix
+with at least :data:`QR_MIN_SIZE` rows and columns that *provably* has every singular value above τ
+(``σ_min ≥ 1/‖R⁻¹‖_F > 2τ`` from its Householder QR) is handled by that QR instead of an SVD: no
+singular value would be cut, so both give the same point in exact arithmetic, and the QR costs a
+fraction of the SVD there. Any other matrix gets the SVD, which makes the rank decision.
+
 **Iterations.** From a feasible ``z`` (the previous level's point): step towards ``z_W``; the ratio
 test stops at the first blocking row (smallest index among ties, Bland's rule), which joins ``W``.
 After a full step the multipliers ``λ`` of ``∇f + G_Wᵀ λ = 0`` are checked: a row at its upper side

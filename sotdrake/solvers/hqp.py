@@ -24,9 +24,12 @@ How a level is solved:
 * the default path (``"active-set"``) is the exact primal active-set method of :mod:`.active_set`,
   started from the previous level's point (``y = 0``, feasible), and warm-started by a guess of the
   working set: the one this level had at the previous call with the same sizes (a cache: the answer
-  is a function of the final working set only), else the sides of the bounds and held rows active
-  at the end of the level above. An equality-only level with no bound in the way is one
-  least-squares step;
+  is a function of the final working set only), else the active set of Goldfarb-Idnani's dual
+  method (quadprog) on the level made strictly convex, else (quadprog refusing) the sides of the
+  bounds and held rows active at the end of the level above. An equality-only level with no bound in the way is one
+  least-squares step (from the SVD that also gives the next ``Z``), checked against the bounds and
+  held rows in ``x`` before any stage is built; the minimum-norm stage likewise tries its
+  unconstrained point first when its previous call ended with an empty working set;
 * a Drake solver (``"clarabel"``, ``"osqp"``, ``"snopt"``) can be chosen instead, for every level or
   per level: the level is then a ``MathematicalProgram`` in ``(y, w)``, and the solver's answer is
   *polished*: its active set is tried as the working-set guess of the same active-set method, which

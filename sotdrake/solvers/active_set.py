@@ -47,6 +47,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import daqp
 import numpy as np
 import quadprog
 from scipy.linalg import lapack
@@ -370,6 +371,21 @@ def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
     side[lower_rows[active[active < n_low]]] = -1
     side[upper_rows[active[active >= n_low] - n_low]] = 1
     return side
+
+
+def projection_guess(t: np.ndarray, G: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray | None:
+    """A guess of the working set of ``min ½‖z - t‖² s.t. lower ≤ G z ≤ upper`` (a projection:
+    strictly convex, its optimum is unique, so a guess can change the path to it, never the point)
+    from DAQP's dual active-set method, which takes this least-distance form and two-sided rows
+    as they are (the signs of its multipliers: > 0 at the upper side, < 0 at the lower one);
+    quadprog's guess if DAQP reports no solution."""
+    if len(G) == 0:
+        return np.zeros(0, dtype=int)
+    p = G.shape[1]
+    _, _, exitflag, info = daqp.solve(np.eye(p), -t, G, upper, lower)
+    if exitflag > 0:
+        return np.sign(info["lam"]).astype(int)
+    return dual_guess(np.eye(p), t, G, lower, upper, regularization=0.0)
 
 
 def _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration) -> ActiveSetResult:

@@ -71,6 +71,7 @@ from .active_set import (
     RANK_THRESHOLD,
     ActiveSetFailure,
     dual_guess,
+    projection_guess,
     scaled_least_squares,
     solve_least_squares_qp,
     svd,
@@ -451,7 +452,8 @@ class HierarchicalQP:
                     start_guess, label = guess, ACTIVE_SET
                     if cached is None or path == "cold":  # no warm start: ask the compiled dual method
                         start_guess = stage.guess
-                        dual = dual_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper)
+                        dual = (projection_guess(stage.t, stage.G, stage.lower, stage.upper) if level is None
+                                else dual_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper))
                         if dual is not None:
                             start_guess = dual
                 else:

@@ -145,6 +145,8 @@ class LevelRows:
         """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows
         (``r``: ``A x`` if the caller has it)."""
         r = self.A @ x if r is None else r
+        if self.all_equality:
+            return r - self.lower
         violation = np.maximum(np.maximum(self.lower - r, r - self.upper), 0.0)
         return np.where(self.equality, r - self.lower, violation)
 
@@ -269,11 +271,11 @@ class HierarchicalQP:
         solver = self.solver if solver is None else check_solver(solver)
         n = self.n
         x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
-        if x_lower.shape != (n,) or x_upper.shape != (n,) or np.any(np.isnan(x_lower)) or np.any(np.isnan(x_upper)):
+        if x_lower.shape != (n,) or x_upper.shape != (n,) or np.isnan(x_lower).any() or np.isnan(x_upper).any():
             raise InvalidInput(f"bounds must be {n} numbers without NaN")
-        if np.any(x_lower > x_upper):
+        if (x_lower > x_upper).any():
             raise InvalidInput(f"lower bound above upper bound at {np.flatnonzero(x_lower > x_upper)}")
-        if not np.all(np.isfinite(x_lower[x_lower == x_upper])):
+        if not np.isfinite(x_lower[x_lower == x_upper]).all():
             raise InvalidInput("a fixed component (lower == upper) needs a finite value")
         if not (np.isfinite(damping) and damping >= 0):
             raise InvalidInput(f"damping must be finite and ≥ 0, got {damping}")
@@ -604,6 +606,9 @@ class HierarchicalQP:
         for level in levels:
             r = level.A @ x
             slacks.append(level.slack(x, r))
+            if level.all_equality:
+                active.append(np.zeros(0, dtype=int))
+                continue
             scale = 1e-7 * np.maximum(1.0, np.abs(r))
             at_bound = (np.abs(r - level.lower) <= scale) | (np.abs(r - level.upper) <= scale)
             active.append((at_bound & ~level.equality).nonzero()[0])

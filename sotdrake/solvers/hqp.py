@@ -363,14 +363,13 @@ class HierarchicalQP:
         # Never ask more than the previous point achieves (y = 0 stays feasible).
         c_lower = (np.minimum(low, offset) - offset) / scale
         c_upper = (np.maximum(high, offset) - offset) / scale
-        A_in = None if level is None else level.A_in
-        if A_in is None or len(A_in) == 0:
-            G_hard = C / scale[:, None]
         if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)
-            return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), G_hard, c_lower, c_upper, np.zeros(r), r, kept, sides)
-        A_eq = level.A_eq
+            return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), C / scale[:, None], c_lower, c_upper, np.zeros(r), r,
+                          kept, sides)
+        A_eq, A_in = level.A_eq, level.A_in
         m_eq, m_in = len(A_eq), len(A_in)
         if m_in == 0:  # no soft row: z = y
+            G_hard = C / scale[:, None]
             M, t, m_scale = A_eq @ Z, level.b_eq - A_eq @ x0, level.eq_norms
             if mu > 0.0:
                 M = np.vstack([M, np.sqrt(mu) * np.eye(r)])

@@ -292,8 +292,9 @@ class HierarchicalQP:
         x = np.where(fixed, x_lower, 0.0)
         Z = np.eye(n)[:, ~fixed]
         free = (~fixed & (np.isfinite(x_lower) | np.isfinite(x_upper))).nonzero()[0]  # bound rows that can bind
-        # The hard rows (bounds, then held inequality rows), in x, with the side each was left at.
-        hard_A, hard_lower, hard_upper = np.eye(n)[free], x_lower[free], x_upper[free]
+        # The hard rows, in x, with the side each was left at: the bounds of the free components (unit
+        # rows, kept as indices), then the held inequality rows (their matrix: held).
+        held, hard_lower, hard_upper = np.zeros((0, n)), x_lower[free], x_upper[free]
         hard_norms = np.ones(len(free))  # reference norms of the hard rows
         hard_side = np.zeros(len(free), dtype=int)
         used: list[str] = []
@@ -304,7 +305,7 @@ class HierarchicalQP:
         for k, level in enumerate(stages):
             mu = damping if k == len(levels) - 1 else 0.0
             name = self.level_solvers[k] if k < len(self.level_solvers) and level is not None else solver
-            hard = (free, hard_norms, hard_A, hard_lower, hard_upper, hard_side)
+            hard = (free, hard_norms, held, hard_lower, hard_upper, hard_side)
             # One SVD of the level's (unit-row) projected equality rows: its null space is the next
             # levels' Z, and an equality-only level may be solved by its least-squares step alone.
             eq_svd = None
@@ -331,7 +332,7 @@ class HierarchicalQP:
                 magnitude = np.maximum(1.0, np.abs(value))
                 band = self.hold_tolerance * magnitude if self.hold_tolerance else 0.0
                 row_side = np.where(value >= hi - 1e-12 * magnitude, 1, np.where(value <= lo + 1e-12 * magnitude, -1, 0))
-                hard_A = np.concatenate([hard_A, A_in])
+                held = np.concatenate([held, A_in])
                 hard_norms = np.concatenate([hard_norms, _row_norms(A_in)])  # (once per level)
                 hard_lower = np.concatenate([hard_lower, lo - slack - band])
                 hard_upper = np.concatenate([hard_upper, hi + slack + band])
@@ -346,8 +347,7 @@ class HierarchicalQP:
     def _build(self, level, x0, Z, hard, mu) -> _Stage:
         """The stage in ``z = (y, w)`` (see :class:`_Stage`), rows scaled to unit norm."""
         tau, r = self.rank_threshold, Z.shape[1]
-        free, reference, hard_A, hard_lower, hard_upper, hard_side = hard
-        held = hard_A[len(free):]
+        free, reference, held, hard_lower, hard_upper, hard_side = hard
         if len(held):
             C = np.concatenate([Z[free], held @ Z])  # bound rows are unit rows of x
             offset = np.concatenate([x0[free], held @ x0])
@@ -426,7 +426,7 @@ class HierarchicalQP:
             if x is not None:
                 return x, np.zeros(len(hard[5]), dtype=int), ACTIVE_SET, 0
         stage = self._build(level, x0, Z, hard, mu)
-        _, _, hard_A, hard_lower, hard_upper, hard_side = hard
+        hard_side = hard[5]
         key = (k, level is None, stage.G.shape, stage.M.shape)
         cached = self._working_sets.get(key)
         guess = cached if cached is not None else stage.guess
@@ -435,7 +435,7 @@ class HierarchicalQP:
         if (level is not None and level.extend is not None) or carried:
             drake_name = name if name in SOLVERS else "clarabel"
             for attempt in dict.fromkeys([drake_name, "osqp"]):
-                x, message = self._program(level, x0, Z, hard_A, hard_lower, hard_upper, mu, attempt, carried)
+                x, message = self._program(level, x0, Z, hard, mu, attempt, carried)
                 if x is not None and self._bounds_hold(stage, Z.T @ (x - x0)):
                     side = self._sides(stage, np.concatenate([Z.T @ (x - x0), np.zeros(len(stage.z0) - r)]))
                     return x, self._hard_sides(hard_side, stage, side), attempt, 0
@@ -458,7 +458,7 @@ class HierarchicalQP:
                         if dual is not None:
                             start_guess = dual
                 else:
-                    x, message = self._program(level, x0, Z, hard_A, hard_lower, hard_upper, mu, path)
+                    x, message = self._program(level, x0, Z, hard, mu, path)
                     if x is None:
                         failures.append(f"{path}: {message}")
                         continue
@@ -509,8 +509,7 @@ class HierarchicalQP:
         satisfies the stage's bounds and held rows (see :meth:`_least_squares_level`), else None."""
         if not np.isfinite(y).all():
             return None
-        free, reference, hard_A, hard_lower, hard_upper, _ = hard
-        held = hard_A[len(free):]
+        free, reference, held, hard_lower, hard_upper, _ = hard
         if len(held):
             C = np.concatenate([Z[free], held @ Z])
             offset = np.concatenate([x0[free], held @ x0])
@@ -553,9 +552,11 @@ class HierarchicalQP:
         out[stage.hard] = side[:len(stage.hard)]
         return out
 
-    def _program(self, level, x0, Z, hard_A, hard_lower, hard_upper, mu, name, carried=None):
+    def _program(self, level, x0, Z, hard, mu, name, carried=None):
         """The stage as a ``MathematicalProgram`` in ``(y, w)`` solved by Drake's ``name``:
         ``(x, "")`` or ``(None, why)``."""
+        free, _, held, hard_lower, hard_upper, _ = hard
+        hard_A = np.concatenate([np.eye(self.n)[free], held])  # the bound rows (unit rows of x), the held rows
         r = Z.shape[1]
         m = 0 if level is None else level.A.shape[0]
         extended = carried is not None

@@ -24,6 +24,13 @@ computed from the SVD of ``G_W`` (particular solution plus null-space basis ``N`
 a function of ``W`` alone, so the returned point is a function of the final working set only (a
 warm start changes the path, never the answer beyond round-off).
 
+**Factorisations.** LAPACK is called directly (``dgesdd``, ``dgeqrf``, ``dorgqr``, ``dgeqp3``,
+``dtrtri``): numpy's wrappers cost more than the factorisations of these small matrices. A matrix
+with at least :data:`QR_MIN_SIZE` rows and columns that *provably* has every singular value above τ
+(``σ_min ≥ 1/‖R⁻¹‖_F > 2τ`` from its Householder QR) is handled by that QR instead of an SVD: no
+singular value would be cut, so both give the same point in exact arithmetic, and the QR costs a
+fraction of the SVD there. Any other matrix gets the SVD, which makes the rank decision.
+
 **Iterations.** From a feasible ``z`` (the previous level's point): step towards ``z_W``; the ratio
 test stops at the first blocking row (smallest index among ties, Bland's rule), which joins ``W``.
 After a full step the multipliers ``λ`` of ``∇f + G_Wᵀ λ = 0`` are checked: a row at its upper side
@@ -40,12 +47,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import daqp
 import numpy as np
 import quadprog
-import scipy.linalg
+from scipy.linalg import lapack
 
 RANK_THRESHOLD = 1e-8
 """Default τ: singular values ≤ τ of unit-row matrices count as zero (see the module docstring)."""
+
+
+QR_MIN_SIZE = 10
+"""Below this smaller dimension LAPACK's SVD costs less than the QR route's several calls (measured:
+a 4 × 20 SVD takes a quarter of the QR route's time, a 16 × 20 one twice it), so it is taken directly."""
 
 
 class ActiveSetFailure(RuntimeError):
@@ -58,20 +71,45 @@ class ActiveSetResult:
     side: np.ndarray  # per row of G: -1 held at lower, +1 held at upper, 0 free (the final working set)
     iterations: int
     guess_accepted: bool
+    verified: bool = False  # z was checked to satisfy every row to ``feasibility``
 
 
-def _svd(a: np.ndarray):
-    return np.linalg.svd(a, full_matrices=True)
+def svd(a: np.ndarray, full_matrices: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``U, σ, Vᵀ`` of ``a`` (σ decreasing): LAPACK's ``dgesdd`` called directly (the same routine
+    as ``numpy.linalg.svd``, without its per-call overhead, which dominates on the small matrices
+    of a level), numpy's if LAPACK reports a failure or ``a`` is empty."""
+    if a.shape[0] and a.shape[1]:
+        U, sigma, Vt, info = lapack.dgesdd(a, compute_uv=1, full_matrices=int(full_matrices))
+        if info == 0:
+            return U, sigma, Vt
+    return np.linalg.svd(a, full_matrices=full_matrices)
 
 
 def independent_rows(E: np.ndarray, threshold: float) -> np.ndarray:
     """Indices of a linearly independent subset of ``E``'s (unit) rows spanning the same space:
-    QR with column pivoting of ``Eᵀ``, pivots with ``|R_ii| > threshold``."""
+    QR with column pivoting of ``Eᵀ`` (LAPACK ``dgeqp3``), pivots with ``|R_ii| > threshold``."""
     if len(E) == 0:
         return np.zeros(0, dtype=int)
-    R, pivots = scipy.linalg.qr(E.T, mode="r", pivoting=True)
+    R, pivots, _, _, info = lapack.dgeqp3(np.array(E.T, order="F"))
+    if info != 0:
+        raise ActiveSetFailure(f"QR with column pivoting failed (LAPACK info {info})")
     diagonal = np.abs(np.diag(R))
-    return np.sort(pivots[: int(np.count_nonzero(diagonal > threshold))])
+    return np.sort(pivots[: int(np.count_nonzero(diagonal > threshold))] - 1)
+
+
+def full_rank_least_squares(B: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``argmin_c ‖B c - r‖`` for ``B`` (m × k, m ≥ k) of full column rank: Householder QR
+    (LAPACK ``dgeqrf``), ``Qᵀ r``, then the triangular solve ``R c = (Qᵀ r)_{:k}``."""
+    k = B.shape[1]
+    qr, tau, _, info = lapack.dgeqrf(B)
+    if info == 0:
+        qtr, _, info = lapack.dormqr("L", "T", qr, tau, r[:, None], max(1, len(r)))
+    if info == 0:
+        c, info = lapack.dtrtrs(qr[:k, :k], qtr[:k], lower=0)
+    if info != 0:  # LAPACK refused (a zero pivot): numpy's QR and solve raise their own error
+        Q, R = np.linalg.qr(B)
+        return np.linalg.solve(R, Q.T @ r)
+    return c[:, 0]
 
 
 def scaled_least_squares(U: np.ndarray, s: np.ndarray, Vt: np.ndarray, k: int, m_scale: np.ndarray,
@@ -80,14 +118,63 @@ def scaled_least_squares(U: np.ndarray, s: np.ndarray, Vt: np.ndarray, k: int, m
     matrix ``B / m_scale`` cut at its first ``k`` singular values (``B = D U_k s_k V_kᵀ`` with
     ``D = diag(m_scale)``: a weighted least squares in ``c``, ``u = V_k c``)."""
     U_k, s_k = U[:, :k], s[:k]
-    if np.all(m_scale == m_scale[0]):
+    if (m_scale == m_scale[0]).all():
         c = (U_k.T @ r) / (m_scale[0] * s_k)
     elif k == len(m_scale):  # independent rows: B u = r is solved exactly, c = s⁻¹ Uᵀ D⁻¹ r (U square)
         c = (U_k.T @ (r / m_scale)) / s_k
     else:
-        Q, R = np.linalg.qr(m_scale[:, None] * (U_k * s_k))
-        c = np.linalg.solve(R, Q.T @ r)
+        c = full_rank_least_squares(m_scale[:, None] * (U_k * s_k), r)
     return Vt[:k].T @ c
+
+
+def independent_qr(A: np.ndarray, threshold: float, full: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(Q, R⁻¹)`` of the Householder QR ``A = Q R`` (LAPACK ``dgeqrf``; ``A`` is p × k, k at least
+    :data:`QR_MIN_SIZE`) if every singular value of ``A`` is *provably* above ``threshold``, else None (then the caller takes the
+    SVD, which decides the rank itself). The proof: ``σ_min(A) = σ_min(R) ≥ 1/‖R⁻¹‖_F``, asked to
+    exceed ``2·threshold`` (a margin far above the round-off of R). With every singular value above
+    τ the SVD-based computations keep them all, so a QR-based one is the same computation in exact
+    arithmetic, at a fraction of the cost. ``Q``: p × p if ``full`` (the last p − k columns: an
+    orthonormal basis of the orthogonal complement of A's columns), else p × k."""
+    p, k = A.shape
+    if k > p or k < QR_MIN_SIZE:
+        return None
+    qr, tau, _, info = lapack.dgeqrf(A)
+    if info != 0:
+        return None
+    R_inv, info = lapack.dtrtri(qr[:k])  # reads the upper triangle only
+    if info != 0:
+        return None
+    R_inv = np.triu(R_inv)
+    if not 2.0 * threshold * float(np.sqrt(np.einsum("ij,ij->", R_inv, R_inv))) < 1.0:
+        return None
+    if full and k < p:
+        padded = np.zeros((p, p), order="F")
+        padded[:, :k] = qr
+        qr = padded
+    Q, _, info = lapack.dorgqr(qr, tau)
+    return (Q, R_inv) if info == 0 else None
+
+
+def _full_rank_step(B: np.ndarray, m_scale: np.ndarray, r: np.ndarray, threshold: float) -> np.ndarray | None:
+    """The minimum-norm ``u`` minimising ``‖B u - r‖`` when ``B / m_scale`` provably has full rank
+    (every singular value above τ, see :func:`independent_qr`): then no singular value is cut and
+    the answer is the plain least-squares solution (full column rank) or the minimum-norm solution
+    of ``B u = r`` (full row rank). None otherwise."""
+    m, q = B.shape
+    unit = B / m_scale[:, None]
+    if m >= q:
+        factors = independent_qr(unit, threshold)
+        if factors is None:
+            return None
+        Q1, R_inv = factors
+        if (m_scale == m_scale[0]).all():
+            return R_inv @ (Q1.T @ r) / m_scale[0]
+        return full_rank_least_squares(B, r)
+    factors = independent_qr(unit.T, threshold)
+    if factors is None:
+        return None
+    Q1, R_inv = factors  # unit = Rᵀ Q1ᵀ: B u = r ⇔ Rᵀ Q1ᵀ u = r / m_scale
+    return Q1 @ (R_inv.T @ (r / m_scale))
 
 
 def eqp(
@@ -100,17 +187,28 @@ def eqp(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """The minimum-norm minimiser of ``½‖M z - t‖²`` s.t. ``E z = e`` (``E`` with unit rows), the
     multipliers ``λ`` of ``Mᵀ(M z - t) + Eᵀ λ = 0`` (minimum norm if ``E`` is rank deficient), and
-    an orthonormal basis ``N`` of ``E``'s null space (None: the whole space)."""
+    an orthonormal basis ``N`` of ``E``'s null space (None: the whole space).
+
+    Each factorisation is a QR when the matrix provably has full rank for τ (:func:`independent_qr`)
+    and an SVD cut at τ otherwise; both give the same point in exact arithmetic."""
     p = M.shape[1]
     if len(E):
-        U, s, Vt = _svd(E)
-        k = int(np.count_nonzero(s > threshold))
-        U_k, s_k, V_k = U[:, :k], s[:k], Vt[:k].T
-        z = V_k @ ((U_k.T @ e) / s_k)
-        N = Vt[k:].T
+        factors = independent_qr(E.T, threshold, full=True)
+        if factors is not None:
+            Q, R_inv = factors
+            k = len(E)
+            z = Q[:, :k] @ (R_inv.T @ e)
+            N = Q[:, k:]
+        else:
+            U, s, Vt = svd(E)
+            k = int(np.count_nonzero(s > threshold))
+            U_k, s_k, V_k = U[:, :k], s[:k], Vt[:k].T
+            z = V_k @ ((U_k.T @ e) / s_k)
+            N = Vt[k:].T
     else:
         z, N = np.zeros(p), None
-    identity = M.shape[0] == p and bool(np.all(m_scale == 1.0)) and np.array_equal(M, np.eye(p))
+    identity = (M.shape[0] == p and np.count_nonzero(M) == p and bool((M.diagonal() == 1.0).all())
+                and bool((m_scale == 1.0).all()))
     if identity:  # ½‖z - t‖² (the minimum-norm stage): N has orthonormal columns, no decomposition
         r = t - z
         z = z + (r if N is None else N @ (N.T @ r))
@@ -118,14 +216,19 @@ def eqp(
         B = M if N is None else M @ N
         if B.shape[1]:
             r = t - M @ z
-            U2, s2, V2t = np.linalg.svd(B / m_scale[:, None], full_matrices=False)
-            k2 = int(np.count_nonzero(s2 > threshold))
-            if k2:
-                u = scaled_least_squares(U2, s2, V2t, k2, m_scale, r)
+            u = _full_rank_step(B, m_scale, r, threshold) if min(B.shape) >= QR_MIN_SIZE else None
+            if u is None:
+                U2, s2, V2t = svd(B / m_scale[:, None], full_matrices=False)
+                k2 = int(np.count_nonzero(s2 > threshold))
+                u = scaled_least_squares(U2, s2, V2t, k2, m_scale, r) if k2 else None
+            if u is not None:
                 z = z + (u if N is None else N @ u)
     if len(E):
         gradient = M.T @ (M @ z - t) if len(M) else np.zeros(p)
-        lam = -(U_k @ ((V_k.T @ gradient) / s_k))
+        if factors is not None:
+            lam = -(R_inv @ (Q[:, :k].T @ gradient))
+        else:
+            lam = -(U_k @ ((V_k.T @ gradient) / s_k))
     else:
         lam = np.zeros(0)
     return z, lam, N
@@ -143,11 +246,15 @@ def solve_least_squares_qp(
     threshold: float = RANK_THRESHOLD,
     feasibility: float = 1e-10,
     max_iterations: int | None = None,
+    errstate: bool = True,
 ) -> ActiveSetResult:
     """Solve the problem of the module docstring from the feasible point ``z`` (``G`` unit rows).
 
     ``guess``: a side per row of ``G`` (-1, 0, +1), tried first. Raises :class:`ActiveSetFailure`
-    if the iterations do not converge."""
+    if the iterations do not converge. ``errstate=False``: the caller has already silenced numpy's
+    warnings on ±∞ sides (``np.errstate(divide="ignore", invalid="ignore")``)."""
+    if not errstate:
+        return _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations)
     with np.errstate(divide="ignore", invalid="ignore"):  # ±∞ sides: once here, not per operation
         return _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations)
 
@@ -159,12 +266,12 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
         side = _guessed_sides(guess, lower, upper)
         candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility)
         if candidate is not None:
-            return ActiveSetResult(candidate, side, 0, True)
+            return ActiveSetResult(candidate, side, 0, True, True)
         value = G @ z
         near = feasibility * 10
         side = np.where((side < 0) & (value <= lower + near), -1, np.where((side > 0) & (value >= upper - near), 1, 0))
         side[equality] = 1
-        held = np.flatnonzero(side)
+        held = side.nonzero()[0]
         dependent = np.setdiff1d(held, held[independent_rows(G[held], threshold)])
         side[dependent] = 0  # a working set is linearly independent (equality rows come first in rank)
     else:
@@ -194,7 +301,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
         ratio = np.maximum(np.minimum(up, down), 0.0)
         alpha = float(ratio.min(initial=np.inf))
         if alpha < 1.0:
-            blocking = int(np.flatnonzero(ratio <= alpha * (1 + 1e-12))[0]) if bland else int(np.argmin(ratio))
+            blocking = int((ratio <= alpha * (1 + 1e-12)).nonzero()[0][0]) if bland else int(np.argmin(ratio))
             if blocking == last_dropped and (
                 alpha * float(np.abs(step).max(initial=0.0)) <= 1e-12 * max(1.0, float(np.abs(z).max(initial=0.0)))
             ):
@@ -211,16 +318,16 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
                     bland = True
                 seen.add(key)
             continue
-        at_origin = not np.any(z)  # then the step is the absolute EQP point itself (bit for bit)
+        at_origin = not z.any()  # then the step is the absolute EQP point itself (bit for bit)
         z = target
         # Multipliers: λ ≥ 0 at an upper side, ≤ 0 at a lower side (equality rows: free), up to a
         # round-off tolerance relative to the gradient's scale.
-        held_index = np.flatnonzero(held)
+        held_index = held.nonzero()[0]
         residual = M @ z - t if len(M) else np.zeros(0)
         tolerance = 1e-9 * max(1.0, float(m_scale.max(initial=0.0)) * float(np.linalg.norm(residual)))
         wrong = np.where(equality[held_index], 0.0, -side[held_index] * lam)
         if wrong.size and wrong.max() > tolerance:
-            leaving = held_index[int(np.flatnonzero(wrong > tolerance)[0]) if bland else int(np.argmax(wrong))]
+            leaving = held_index[int((wrong > tolerance).nonzero()[0][0]) if bland else int(np.argmax(wrong))]
             last_dropped, dropped_side = leaving, side[leaving]
             side[leaving] = 0
             key = side.tobytes()
@@ -237,8 +344,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
 def _guessed_sides(guess: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """A guess made a valid working set: equality rows held, no row held at an infinite side."""
     side = np.where(lower == upper, 1, np.asarray(guess, dtype=int))
-    side[(side < 0) & ~np.isfinite(lower)] = 0
-    side[(side > 0) & ~np.isfinite(upper)] = 0
+    side[((side < 0) & (lower == -np.inf)) | ((side > 0) & (upper == np.inf))] = 0  # (no NaN: refused at input)
     return side
 
 
@@ -249,10 +355,9 @@ def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
     by ``‖M‖²``). Only a guess: the caller checks it exactly. None if quadprog refuses."""
     p = G.shape[1]
     H = M.T @ M
-    H[np.diag_indices(p)] += regularization * max(1.0, float(np.trace(H)) / max(p, 1))
-    has_lower, has_upper = np.isfinite(lower), np.isfinite(upper)
-    lower_rows, upper_rows = np.flatnonzero(has_lower), np.flatnonzero(has_upper)
-    C = np.vstack([G[lower_rows], -G[upper_rows]])
+    H.flat[:: p + 1] += regularization * max(1.0, float(H.trace()) / max(p, 1))
+    lower_rows, upper_rows = (lower > -np.inf).nonzero()[0], (upper < np.inf).nonzero()[0]
+    C = np.concatenate([G[lower_rows], -G[upper_rows]])
     b = np.concatenate([lower[lower_rows], -upper[upper_rows]])
     if len(C) == 0:
         return np.zeros(len(G), dtype=int)
@@ -268,11 +373,26 @@ def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
     return side
 
 
+def projection_guess(t: np.ndarray, G: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray | None:
+    """A guess of the working set of ``min ½‖z - t‖² s.t. lower ≤ G z ≤ upper`` (a projection:
+    strictly convex, its optimum is unique, so a guess can change the path to it, never the point)
+    from DAQP's dual active-set method, which takes this least-distance form and two-sided rows
+    as they are (the signs of its multipliers: > 0 at the upper side, < 0 at the lower one);
+    quadprog's guess if DAQP reports no solution."""
+    if len(G) == 0:
+        return np.zeros(0, dtype=int)
+    p = G.shape[1]
+    _, _, exitflag, info = daqp.solve(np.eye(p), -t, G, upper, lower)
+    if exitflag > 0:
+        return np.sign(info["lam"]).astype(int)
+    return dual_guess(np.eye(p), t, G, lower, upper, regularization=0.0)
+
+
 def _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration) -> ActiveSetResult:
     """The optimum: the absolute minimum-norm EQP point of the final working set if it is feasible
     (a function of the working set alone), else the iterate (same objective value)."""
     final = _feasible_eqp(M, t, m_scale, G, lower, upper, side, threshold, feasibility)
-    return ActiveSetResult(z if final is None else final, side, iteration, False)
+    return ActiveSetResult(z if final is None else final, side, iteration, False, final is not None)
 
 
 def _eqp_of(M, t, m_scale, G, lower, upper, side, threshold):
@@ -285,8 +405,8 @@ def feasible(G: np.ndarray, lower: np.ndarray, upper: np.ndarray, z: np.ndarray,
     """Whether ``lower ≤ G z ≤ upper`` holds to ``feasibility`` (absolute, relative above 1); the
     caller silences numpy's warnings on ±∞ sides."""
     value = G @ z
-    return not (np.any(value < lower - feasibility * np.maximum(1.0, np.abs(lower)))
-                or np.any(value > upper + feasibility * np.maximum(1.0, np.abs(upper))))
+    return not ((value < lower - feasibility * np.maximum(1.0, np.abs(lower))).any()
+                or (value > upper + feasibility * np.maximum(1.0, np.abs(upper))).any())
 
 
 def _feasible_eqp(M, t, m_scale, G, lower, upper, side, threshold, feasibility) -> np.ndarray | None:
@@ -297,14 +417,17 @@ def _feasible_eqp(M, t, m_scale, G, lower, upper, side, threshold, feasibility) 
 
 def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility) -> np.ndarray | None:
     """The EQP point of the working set ``side`` if it satisfies the KKT conditions, else None."""
-    held = side != 0
-    z, lam, _ = _eqp_of(M, t, m_scale, G, lower, upper, side, threshold)
+    held = side.nonzero()[0]
+    held_side, held_lower, held_upper = side[held], lower[held], upper[held]
+    z, lam, _ = eqp(M, t, m_scale, G[held], np.where(held_side > 0, held_upper, held_lower), threshold)
     if not feasible(G, lower, upper, z, feasibility):
         return None
-    equality = (lower == upper)[held]
-    wrong = np.where(equality, 0.0, -side[held] * lam)
-    residual = M @ z - t if len(M) else np.zeros(0)
-    tolerance = 1e-9 * max(1.0, float(m_scale.max(initial=0.0)) * float(np.linalg.norm(residual)))
-    if wrong.size and wrong.max() > tolerance:
-        return None
+    if len(held):
+        wrong = -held_side * lam
+        wrong[held_lower == held_upper] = 0.0  # equality rows: either sign
+        worst = float(wrong.max())
+        if worst > 1e-9:  # the tolerance is at least 1e-9: only then is it worth computing
+            residual = M @ z - t if len(M) else np.zeros(0)
+            if worst > 1e-9 * max(1.0, float(m_scale.max(initial=0.0)) * float(np.linalg.norm(residual))):
+                return None
     return z

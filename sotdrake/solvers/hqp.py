@@ -24,9 +24,12 @@ How a level is solved:
 * the default path (``"active-set"``) is the exact primal active-set method of :mod:`.active_set`,
   started from the previous level's point (``y = 0``, feasible), and warm-started by a guess of the
   working set: the one this level had at the previous call with the same sizes (a cache: the answer
-  is a function of the final working set only), else the sides of the bounds and held rows active
-  at the end of the level above. An equality-only level with no bound in the way is one
-  least-squares step;
+  is a function of the final working set only), else the active set of Goldfarb-Idnani's dual
+  method (quadprog) on the level made strictly convex, else (quadprog refusing) the sides of the
+  bounds and held rows active at the end of the level above. An equality-only level with no bound in the way is one
+  least-squares step (from the SVD that also gives the next ``Z``), checked against the bounds and
+  held rows in ``x`` before any stage is built; the minimum-norm stage likewise tries its
+  unconstrained point first when its previous call ended with an empty working set;
 * a Drake solver (``"clarabel"``, ``"osqp"``, ``"snopt"``) can be chosen instead, for every level or
   per level: the level is then a ``MathematicalProgram`` in ``(y, w)``, and the solver's answer is
   *polished*: its active set is tried as the working-set guess of the same active-set method, which
@@ -68,9 +71,10 @@ from .active_set import (
     RANK_THRESHOLD,
     ActiveSetFailure,
     dual_guess,
-    feasible,
+    projection_guess,
     scaled_least_squares,
     solve_least_squares_qp,
+    svd,
 )
 
 SOLVERS = {"clarabel": ClarabelSolver, "osqp": OsqpSolver, "snopt": SnoptSolver}
@@ -115,19 +119,34 @@ class LevelRows:
         A, lower, upper = (np.asarray(a, dtype=float) for a in (A, lower, upper))
         if A.ndim != 2 or lower.shape != (A.shape[0],) or upper.shape != (A.shape[0],):
             raise InvalidInput(f"level rows: A {A.shape}, lower {lower.shape}, upper {upper.shape} do not fit")
-        if not np.all(np.isfinite(A)) or np.any(np.isnan(lower)) or np.any(np.isnan(upper)):
+        if not np.isfinite(A).all() or np.isnan(lower).any() or np.isnan(upper).any():
             raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
-        if np.any(lower > upper):
+        if (lower > upper).any():
             raise InvalidInput(f"level rows: lower bound above upper bound in rows {np.flatnonzero(lower > upper)}")
         self.A, self.lower, self.upper = A, lower, upper
-        self.equality = lower == upper
-        if np.any(~np.isfinite(lower[self.equality])):
-            raise InvalidInput("level rows: an equality row needs a finite value")
+        self.equality = equality = lower == upper
         self.extend = extend
+        # The split the solver reads at every stage, made once.
+        self.all_equality = bool(equality.all())
+        if self.all_equality:
+            self.any_equality = len(A) > 0
+            self.A_eq, self.b_eq = A, lower
+            self.A_in, self.lower_in, self.upper_in = A[:0], lower[:0], upper[:0]
+        else:
+            inequality = ~equality
+            self.any_equality = bool(equality.any())
+            self.A_eq, self.b_eq = A[equality], lower[equality]
+            self.A_in, self.lower_in, self.upper_in = A[inequality], lower[inequality], upper[inequality]
+        if not np.isfinite(self.b_eq).all():
+            raise InvalidInput("level rows: an equality row needs a finite value")
+        self.eq_norms = _row_norms(self.A_eq)
 
-    def slack(self, x: np.ndarray) -> np.ndarray:
-        """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows."""
-        r = self.A @ x
+    def slack(self, x: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
+        """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows
+        (``r``: ``A x`` if the caller has it)."""
+        r = self.A @ x if r is None else r
+        if self.all_equality:
+            return r - self.lower
         violation = np.maximum(np.maximum(self.lower - r, r - self.upper), 0.0)
         return np.where(self.equality, r - self.lower, violation)
 
@@ -165,6 +184,9 @@ class _Program:
         self.cost = prog.AddQuadraticCost(np.eye(r + m), np.zeros(r + m), variables, is_convex=True)
 
 
+_FREE_MINIMUM_NORM = "free minimum-norm stage"
+
+
 def _row_norms(A: np.ndarray) -> np.ndarray:
     norms = np.sqrt(np.einsum("ij,ij->i", A, A))
     return np.where(norms > 0.0, norms, 1.0)
@@ -175,7 +197,7 @@ def null_space(M: np.ndarray, threshold: float) -> np.ndarray:
     and singular values ≤ ``threshold`` count as zero."""
     if M.shape[0] == 0:
         return np.eye(M.shape[1])
-    _, sigma, Vt = np.linalg.svd(M, full_matrices=True)
+    _, sigma, Vt = svd(M)
     return Vt[int(np.count_nonzero(sigma > threshold)):].T
 
 
@@ -224,7 +246,10 @@ class HierarchicalQP:
         self.hold_tolerance, self.rank_threshold, self.regularize = hold_tolerance, rank_threshold, regularize
         self.feasibility_tolerance = feasibility_tolerance
         self._programs: dict[tuple[int, int, int], _Program] = {}  # a cache: results never depend on it
-        self._working_sets: dict[tuple, np.ndarray] = {}  # warm starts: results never depend on them
+        # Warm starts (results never depend on them): the working set of each stage at the last call
+        # with the same sizes, and under FREE_MINIMUM_NORM whether the last minimum-norm stage ended
+        # with an empty working set (then its unconstrained point is tried first).
+        self._working_sets: dict = {}
         self._solvers: dict[str, tuple] = {}
 
     def _drake(self, name: str):
@@ -246,11 +271,11 @@ class HierarchicalQP:
         solver = self.solver if solver is None else check_solver(solver)
         n = self.n
         x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
-        if x_lower.shape != (n,) or x_upper.shape != (n,) or np.any(np.isnan(x_lower)) or np.any(np.isnan(x_upper)):
+        if x_lower.shape != (n,) or x_upper.shape != (n,) or np.isnan(x_lower).any() or np.isnan(x_upper).any():
             raise InvalidInput(f"bounds must be {n} numbers without NaN")
-        if np.any(x_lower > x_upper):
+        if (x_lower > x_upper).any():
             raise InvalidInput(f"lower bound above upper bound at {np.flatnonzero(x_lower > x_upper)}")
-        if not np.all(np.isfinite(x_lower[x_lower == x_upper])):
+        if not np.isfinite(x_lower[x_lower == x_upper]).all():
             raise InvalidInput("a fixed component (lower == upper) needs a finite value")
         if not (np.isfinite(damping) and damping >= 0):
             raise InvalidInput(f"damping must be finite and ≥ 0, got {damping}")
@@ -266,24 +291,28 @@ class HierarchicalQP:
         fixed = x_lower == x_upper
         x = np.where(fixed, x_lower, 0.0)
         Z = np.eye(n)[:, ~fixed]
-        free = np.flatnonzero(~fixed & (np.isfinite(x_lower) | np.isfinite(x_upper)))  # bound rows that can bind
-        # The hard rows (bounds, then held inequality rows), in x, with the side each was left at.
-        hard_A, hard_lower, hard_upper = np.eye(n)[free], x_lower[free], x_upper[free]
+        free = (~fixed & (np.isfinite(x_lower) | np.isfinite(x_upper))).nonzero()[0]  # bound rows that can bind
+        # The hard rows, in x, with the side each was left at: the bounds of the free components (unit
+        # rows, kept as indices), then the held inequality rows (their matrix: held).
+        held, hard_lower, hard_upper = np.zeros((0, n)), x_lower[free], x_upper[free]
         hard_norms = np.ones(len(free))  # reference norms of the hard rows
         hard_side = np.zeros(len(free), dtype=int)
-        used, iterations, carried, fallbacks = [], [], [], []
+        used: list[str] = []
+        iterations: list[int] = []
+        carried: list[Extension] = []
+        fallbacks: list[str] = []
         stages = list(levels) + ([None] if self.regularize else [])
         for k, level in enumerate(stages):
             mu = damping if k == len(levels) - 1 else 0.0
             name = self.level_solvers[k] if k < len(self.level_solvers) and level is not None else solver
-            hard = (free, hard_norms, hard_A, hard_lower, hard_upper, hard_side)
-            eq = None if level is None else level.equality
+            hard = (free, hard_norms, held, hard_lower, hard_upper, hard_side)
             # One SVD of the level's (unit-row) projected equality rows: its null space is the next
             # levels' Z, and an equality-only level may be solved by its least-squares step alone.
             eq_svd = None
-            if level is not None and eq.any() and Z.shape[1]:
-                U, sigma, Vt = np.linalg.svd(level.A[eq] @ Z / _row_norms(level.A[eq])[:, None], full_matrices=True)
-                eq_svd = (U, sigma, Vt, int(np.count_nonzero(sigma > self.rank_threshold)))
+            if level is not None and level.any_equality and Z.shape[1]:
+                norms = level.eq_norms
+                U, sigma, Vt = svd(level.A_eq @ Z / norms[:, None])
+                eq_svd = (U, sigma, Vt, int(np.count_nonzero(sigma > self.rank_threshold)), norms)
             x, side, how, count = self._stage(k, level, x, Z, hard, mu, name, list(carried), fallbacks, eq_svd)
             if level is not None and level.extend is not None:
                 carried.append(level.extend)
@@ -294,17 +323,17 @@ class HierarchicalQP:
             hard_side = side
             if eq_svd is not None:  # = null_space(A_eq Z / ‖rows of A_eq‖), the same SVD
                 Z = Z @ eq_svd[2][eq_svd[3]:].T
-            elif eq.any():
+            elif level.any_equality:
                 Z = Z[:, :0]
-            if (~eq).any():
-                A_in, lo, hi = level.A[~eq], level.lower[~eq], level.upper[~eq]
+            if not level.all_equality:
+                A_in, lo, hi = level.A_in, level.lower_in, level.upper_in
                 value = A_in @ x
                 slack = np.maximum(np.maximum(lo - value, value - hi), 0.0)
-                band = self.hold_tolerance * np.maximum(1.0, np.abs(value))
-                row_side = np.where(value >= hi - 1e-12 * np.maximum(1.0, np.abs(value)), 1,
-                                    np.where(value <= lo + 1e-12 * np.maximum(1.0, np.abs(value)), -1, 0))
-                hard_A = np.vstack([hard_A, A_in])
-                hard_norms = np.concatenate([hard_norms, _row_norms(A_in)])
+                magnitude = np.maximum(1.0, np.abs(value))
+                band = self.hold_tolerance * magnitude if self.hold_tolerance else 0.0
+                row_side = np.where(value >= hi - 1e-12 * magnitude, 1, np.where(value <= lo + 1e-12 * magnitude, -1, 0))
+                held = np.concatenate([held, A_in])
+                hard_norms = np.concatenate([hard_norms, _row_norms(A_in)])  # (once per level)
                 hard_lower = np.concatenate([hard_lower, lo - slack - band])
                 hard_upper = np.concatenate([hard_upper, hi + slack + band])
                 hard_side = np.concatenate([hard_side, row_side])
@@ -318,72 +347,87 @@ class HierarchicalQP:
     def _build(self, level, x0, Z, hard, mu) -> _Stage:
         """The stage in ``z = (y, w)`` (see :class:`_Stage`), rows scaled to unit norm."""
         tau, r = self.rank_threshold, Z.shape[1]
-        free, reference, hard_A, hard_lower, hard_upper, hard_side = hard
-        held = hard_A[len(free):]
-        C = np.vstack([Z[free], held @ Z]) if len(held) else Z[free]  # bound rows are unit rows of x
+        free, reference, held, hard_lower, hard_upper, hard_side = hard
+        if len(held):
+            C = np.concatenate([Z[free], held @ Z])  # bound rows are unit rows of x
+            offset = np.concatenate([x0[free], held @ x0])
+        else:
+            C, offset = Z[free], x0[free]
         projected = np.sqrt(np.einsum("ij,ij->i", C, C))
         keep = projected > tau * reference  # the others are constant over the stage
-        offset = np.concatenate([x0[free], held @ x0])[keep]
-        scale = projected[keep]
+        if keep.all():
+            kept, scale, low, high, sides = np.arange(len(keep)), projected, hard_lower, hard_upper, hard_side
+        else:
+            kept = keep.nonzero()[0]
+            C, offset, scale, low, high, sides = C[kept], offset[kept], projected[kept], hard_lower[kept], hard_upper[kept], hard_side[kept]
         # Never ask more than the previous point achieves (y = 0 stays feasible).
-        c_lower = (np.minimum(hard_lower[keep], offset) - offset) / scale
-        c_upper = (np.maximum(hard_upper[keep], offset) - offset) / scale
-        G_hard = C[keep] / scale[:, None]
+        c_lower = (np.minimum(low, offset) - offset) / scale
+        c_upper = (np.maximum(high, offset) - offset) / scale
         if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)
-            return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), G_hard, c_lower, c_upper, np.zeros(r), r,
-                          np.flatnonzero(keep), hard_side[keep])
-        eq = level.equality
-        A_eq, A_in = level.A[eq], level.A[~eq]
-        m_in = len(A_in)
+            return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), C / scale[:, None], c_lower, c_upper, np.zeros(r), r,
+                          kept, sides)
+        A_eq, A_in = level.A_eq, level.A_in
+        m_eq, m_in = len(A_eq), len(A_in)
         if m_in == 0:  # no soft row: z = y
-            M, t, m_scale = A_eq @ Z, level.lower[eq] - A_eq @ x0, _row_norms(A_eq)
+            G_hard = C / scale[:, None]
+            M, t, m_scale = A_eq @ Z, level.b_eq - A_eq @ x0, level.eq_norms
             if mu > 0.0:
                 M = np.vstack([M, np.sqrt(mu) * np.eye(r)])
                 t = np.concatenate([t, np.zeros(r)])
                 m_scale = np.concatenate([m_scale, np.full(r, np.sqrt(mu))])
-            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, np.flatnonzero(keep),
-                          hard_side[keep])
-        blocks = [np.hstack([A_eq @ Z, np.zeros((len(A_eq), m_in))]),
-                  np.hstack([np.zeros((m_in, r)), np.eye(m_in)])]
-        targets = [level.lower[eq] - A_eq @ x0, np.zeros(m_in)]
-        scales = [_row_norms(A_eq), np.ones(m_in)]
+            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, kept, sides)
+        # The objective ‖A_eq (x0 + Z y) - b‖² + ‖w‖² (+ μ‖y‖²): M = [[A_eq Z, 0], [0, I], [√μ I, 0]].
+        m_damped = r if mu > 0.0 else 0
+        M = np.zeros((m_eq + m_in + m_damped, r + m_in))
+        M[:m_eq, :r] = A_eq @ Z
+        rows = np.arange(m_in)
+        M[m_eq + rows, r + rows] = 1.0
+        t = np.zeros(len(M))
+        t[:m_eq] = level.b_eq - A_eq @ x0
+        m_scale = np.ones(len(M))
+        m_scale[:m_eq] = level.eq_norms
         if mu > 0.0:
-            blocks.append(np.hstack([np.sqrt(mu) * np.eye(r), np.zeros((r, m_in))]))
-            targets.append(np.zeros(r))
-            scales.append(np.full(r, np.sqrt(mu)))
-        # Soft rows: lo ≤ a y - w ≤ hi, scaled to unit norm; w starts at the violation at y = 0.
+            diagonal = np.arange(r)
+            M[m_eq + m_in + diagonal, diagonal] = np.sqrt(mu)
+            m_scale[m_eq + m_in:] = np.sqrt(mu)
+        # Soft rows: lo ≤ a y - w ≤ hi, scaled to unit norm (‖(a Z, -1)‖); w starts at the violation at y = 0.
         value = A_in @ x0
-        soft = np.hstack([A_in @ Z, -np.eye(m_in)])
-        soft_scale = np.sqrt(np.einsum("ij,ij->i", soft, soft))
-        w0 = np.clip(0.0, value - level.upper[~eq], value - level.lower[~eq])
-        G = np.vstack([np.hstack([G_hard, np.zeros((len(G_hard), m_in))]), soft / soft_scale[:, None]])
-        lower = np.concatenate([c_lower, (level.lower[~eq] - value) / soft_scale])
-        upper = np.concatenate([c_upper, (level.upper[~eq] - value) / soft_scale])
-        return _Stage(np.vstack(blocks), np.concatenate(targets), np.concatenate(scales), G, lower, upper,
-                      np.concatenate([np.zeros(r), w0]), r, np.flatnonzero(keep),
-                      np.concatenate([hard_side[keep], np.zeros(m_in, dtype=int)]))
+        AZ = A_in @ Z
+        soft_scale = np.sqrt(np.einsum("ij,ij->i", AZ, AZ) + 1.0)
+        w0 = np.minimum(np.maximum(value - level.upper_in, 0.0), value - level.lower_in)  # np.clip(0, ., .)
+        m_hard = len(C)
+        G = np.zeros((m_hard + m_in, r + m_in))
+        np.divide(C, scale[:, None], out=G[:m_hard, :r])
+        np.divide(AZ, soft_scale[:, None], out=G[m_hard:, :r])
+        G[m_hard + rows, r + rows] = -1.0 / soft_scale
+        lower = np.concatenate([c_lower, (level.lower_in - value) / soft_scale])
+        upper = np.concatenate([c_upper, (level.upper_in - value) / soft_scale])
+        z0 = np.zeros(r + m_in)
+        z0[r:] = w0
+        return _Stage(M, t, m_scale, G, lower, upper, z0, r, kept, np.concatenate([sides, np.zeros(m_in, dtype=int)]))
 
     def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks, eq_svd=None):
         """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard
         rows at the end, how it was solved, the active-set iterations. ``eq_svd``: the SVD
-        ``(U, σ, Vt, rank)`` of the level's unit-row projected equality rows, if it has some."""
+        ``(U, σ, Vt, rank, row norms)`` of the level's unit-row projected equality rows, if it has some."""
         r = Z.shape[1]
         if r == 0:
             return x0, hard[5].copy(), ACTIVE_SET, 0
-        stage = self._build(level, x0, Z, hard, mu)
-        _, _, hard_A, hard_lower, hard_upper, hard_side = hard
-        key = (k, level is None, stage.G.shape, stage.M.shape)
         if (eq_svd is not None and name == ACTIVE_SET and mu == 0.0 and level.extend is None and not carried
-                and len(stage.M) == len(eq_svd[0]) and not np.any(stage.lower == stage.upper)):
-            # An equality-only level: if its least-squares step (the EQP point of the empty working
-            # set, from the SVD above) satisfies the bounds and held rows, it is the optimum (KKT
-            # with no multiplier): one check, no active set, no guess.
-            U, sigma, Vt, rank = eq_svd
-            y = scaled_least_squares(U, sigma, Vt, rank, stage.m_scale, stage.t) if rank else np.zeros(r)
-            if feasible(stage.G, stage.lower, stage.upper, y, 1e-10) and self._accept(stage, y):
-                side = np.zeros(len(stage.G), dtype=int)
-                self._working_sets[key] = side
-                return x0 + Z @ y, self._hard_sides(hard_side, stage, side), ACTIVE_SET, 0
+                and level.all_equality):
+            x = self._least_squares_level(level, x0, Z, hard, eq_svd)
+            if x is not None:
+                return x, np.zeros(len(hard[5]), dtype=int), ACTIVE_SET, 0
+        if level is None and name == ACTIVE_SET and not carried and self._working_sets.get(_FREE_MINIMUM_NORM, False):
+            # The minimum-norm stage's unconstrained point y = -Zᵀx0 (x0's component in range(Z)
+            # removed), tried while the last such stage ended with an empty working set (a warm
+            # start: a cold solve, where it rarely holds, does not try it).
+            x = self._free_step(x0, Z, hard, -(Z.T @ x0))
+            if x is not None:
+                return x, np.zeros(len(hard[5]), dtype=int), ACTIVE_SET, 0
+        stage = self._build(level, x0, Z, hard, mu)
+        hard_side = hard[5]
+        key = (k, level is None, stage.G.shape, stage.M.shape)
         cached = self._working_sets.get(key)
         guess = cached if cached is not None else stage.guess
         what = "the minimum-norm stage" if level is None else f"level {k}"
@@ -391,7 +435,7 @@ class HierarchicalQP:
         if (level is not None and level.extend is not None) or carried:
             drake_name = name if name in SOLVERS else "clarabel"
             for attempt in dict.fromkeys([drake_name, "osqp"]):
-                x, message = self._program(level, x0, Z, hard_A, hard_lower, hard_upper, mu, attempt, carried)
+                x, message = self._program(level, x0, Z, hard, mu, attempt, carried)
                 if x is not None and self._bounds_hold(stage, Z.T @ (x - x0)):
                     side = self._sides(stage, np.concatenate([Z.T @ (x - x0), np.zeros(len(stage.z0) - r)]))
                     return x, self._hard_sides(hard_side, stage, side), attempt, 0
@@ -409,11 +453,12 @@ class HierarchicalQP:
                     start_guess, label = guess, ACTIVE_SET
                     if cached is None or path == "cold":  # no warm start: ask the compiled dual method
                         start_guess = stage.guess
-                        dual = dual_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper)
+                        dual = (projection_guess(stage.t, stage.G, stage.lower, stage.upper) if level is None
+                                else dual_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper))
                         if dual is not None:
                             start_guess = dual
                 else:
-                    x, message = self._program(level, x0, Z, hard_A, hard_lower, hard_upper, mu, path)
+                    x, message = self._program(level, x0, Z, hard, mu, path)
                     if x is None:
                         failures.append(f"{path}: {message}")
                         continue
@@ -426,31 +471,74 @@ class HierarchicalQP:
                     start_guess, label = self._sides(stage, z), path + "+polish"
                 solution = solve_least_squares_qp(
                     stage.M, stage.t, stage.m_scale, stage.G, stage.lower, stage.upper, stage.z0.copy(),
-                    guess=start_guess, threshold=self.rank_threshold,
+                    guess=start_guess, threshold=self.rank_threshold, errstate=False,
                 )
             except ActiveSetFailure as error:
                 failures.append(f"{path}: {error}")
                 continue
             y = solution.z[:r]
-            if not self._accept(stage, y):
+            # A point the active set verified on every row to 1e-10 (≤ the feasibility tolerance)
+            # only needs to be finite; any other is checked on the bounds and held rows.
+            verified = solution.verified and self.feasibility_tolerance >= 1e-10
+            if not (bool(np.isfinite(y).all()) if verified else self._accept(stage, y)):
                 failures.append(f"{path}: a point outside the bounds")
                 continue
             self._working_sets[key] = solution.side
+            if level is None:
+                self._working_sets[_FREE_MINIMUM_NORM] = not solution.side.any()
             fallbacks += [f"{what}: {failure}" for failure in failures]
             return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
 
+    def _least_squares_level(self, level, x0, Z, hard, eq_svd) -> np.ndarray | None:
+        """An equality-only level by its least-squares step alone, or None: the EQP point of the
+        empty working set (the minimum-norm weighted least-squares step, from the level's SVD) is
+        the level's optimum if it satisfies the bounds and held rows (the KKT conditions with no
+        multiplier). The check is the stage's own (unit rows, the constant rows left out, 1e-10
+        absolute, relative above 1), written in x: a hard row ``c`` of projected norm ``s = ‖c Z‖``
+        with the step ``d = Z y`` must satisfy ``lo - c·x0 - 1e-10·max(s, |lo - c·x0|) ≤ c·d``
+        (and the same at the upper side), ``lo`` relaxed to ``c·x0`` where x0 is outside. A step
+        that meets every row exactly passes it without the norms being computed."""
+        U, sigma, Vt, rank, norms = eq_svd
+        r = Z.shape[1]
+        y = scaled_least_squares(U, sigma, Vt, rank, norms, level.lower - level.A @ x0) if rank else np.zeros(r)
+        return self._free_step(x0, Z, hard, y)
+
+    def _free_step(self, x0, Z, hard, y) -> np.ndarray | None:
+        """``x0 + Z y`` if the step ``y`` (the EQP point of a stage's empty working set) is finite and
+        satisfies the stage's bounds and held rows (see :meth:`_least_squares_level`), else None."""
+        if not np.isfinite(y).all():
+            return None
+        free, reference, held, hard_lower, hard_upper, _ = hard
+        if len(held):
+            C = np.concatenate([Z[free], held @ Z])
+            offset = np.concatenate([x0[free], held @ x0])
+        else:
+            C, offset = Z[free], x0[free]
+        lo = np.minimum(hard_lower, offset) - offset
+        hi = np.maximum(hard_upper, offset) - offset
+        change = C @ y
+        if not ((change >= lo).all() and (change <= hi).all()):
+            scale = np.sqrt(np.einsum("ij,ij->i", C, C))
+            keep = scale > self.rank_threshold * reference
+            if (keep & (lo == hi)).any():  # a pinned row: the general path holds it in the working set
+                return None
+            if (keep & ((change < lo - 1e-10 * np.maximum(scale, np.abs(lo)))
+                        | (change > hi + 1e-10 * np.maximum(scale, np.abs(hi))))).any():
+                return None
+        return x0 + Z @ y
+
     def _accept(self, stage: _Stage, y: np.ndarray) -> bool:
         """A path's point is kept if it is finite and inside the bounds."""
-        return bool(np.all(np.isfinite(y))) and self._bounds_hold(stage, y)
+        return bool(np.isfinite(y).all()) and self._bounds_hold(stage, y)
 
     def _bounds_hold(self, stage: _Stage, y: np.ndarray) -> bool:
         m_hard = len(stage.hard)
         value = stage.G[:m_hard, :stage.r] @ y
         lo, hi = stage.lower[:m_hard], stage.upper[:m_hard]
         tol = self.feasibility_tolerance
-        return bool(np.all(value >= lo - tol * np.maximum(1.0, np.abs(lo)))
-                    and np.all(value <= hi + tol * np.maximum(1.0, np.abs(hi))))
+        return bool((value >= lo - tol * np.maximum(1.0, np.abs(lo))).all()
+                    and (value <= hi + tol * np.maximum(1.0, np.abs(hi))).all())
 
     @staticmethod
     def _sides(stage: _Stage, z: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:
@@ -464,9 +552,11 @@ class HierarchicalQP:
         out[stage.hard] = side[:len(stage.hard)]
         return out
 
-    def _program(self, level, x0, Z, hard_A, hard_lower, hard_upper, mu, name, carried=None):
+    def _program(self, level, x0, Z, hard, mu, name, carried=None):
         """The stage as a ``MathematicalProgram`` in ``(y, w)`` solved by Drake's ``name``:
         ``(x, "")`` or ``(None, why)``."""
+        free, _, held, hard_lower, hard_upper, _ = hard
+        hard_A = np.concatenate([np.eye(self.n)[free], held])  # the bound rows (unit rows of x), the held rows
         r = Z.shape[1]
         m = 0 if level is None else level.A.shape[0]
         extended = carried is not None
@@ -489,9 +579,9 @@ class HierarchicalQP:
         if extended:
             program = _Program(r, len(A_all), m)
         else:
-            program = self._programs.get((r, len(A_all), m))
-            if program is None:
-                program = self._programs[(r, len(A_all), m)] = _Program(r, len(A_all), m)
+            cached = self._programs.get((r, len(A_all), m))
+            program = cached if cached is not None else _Program(r, len(A_all), m)
+            self._programs[(r, len(A_all), m)] = program
         if program.rows is not None:
             program.rows.evaluator().UpdateCoefficients(A_all, np.concatenate(rows_lower), np.concatenate(rows_upper))
         program.cost.evaluator().UpdateCoefficients(Q, b)
@@ -505,26 +595,29 @@ class HierarchicalQP:
         drake_solver, options = self._drake(name)
         result = drake_solver.Solve(program.prog, np.zeros(r + m), options)
         x = x0 + Z @ result.GetSolution(program.y)
-        if not np.all(np.isfinite(x)):
+        if not np.isfinite(x).all():
             return None, str(result.get_solution_result())
         if extended and not result.is_success():
             return None, str(result.get_solution_result())
         return x, ""
 
     def _result(self, levels, x, x_lower, x_upper, fixed, used) -> HqpResult:
-        slacks = [level.slack(x) for level in levels]
-        active = []
+        slacks, active = [], []
         for level in levels:
             r = level.A @ x
+            slacks.append(level.slack(x, r))
+            if level.all_equality:
+                active.append(np.zeros(0, dtype=int))
+                continue
             scale = 1e-7 * np.maximum(1.0, np.abs(r))
             at_bound = (np.abs(r - level.lower) <= scale) | (np.abs(r - level.upper) <= scale)
-            active.append(np.flatnonzero(at_bound & ~level.equality))
+            active.append((at_bound & ~level.equality).nonzero()[0])
         scale = 1e-7 * np.maximum(1.0, np.abs(x))
-        bounds = np.flatnonzero(~fixed & ((np.abs(x - x_lower) <= scale) | (np.abs(x - x_upper) <= scale)))
+        bounds = (~fixed & ((np.abs(x - x_lower) <= scale) | (np.abs(x - x_upper) <= scale))).nonzero()[0]
         return HqpResult(
             x=x,
             slacks=slacks,
-            slack_norms=np.array([np.linalg.norm(s) for s in slacks]),
+            slack_norms=np.array([np.sqrt(s @ s) for s in slacks]),
             active_rows=active,
             active_bounds=bounds,
             level_solvers=used,

@@ -42,8 +42,9 @@ def velocity_bounds(
     with np.errstate(invalid="ignore"):  # infinite position limits give ±inf bounds
         up = np.maximum((hi - margin - qj) / dt, np.minimum(0.0, (hi - qj) / dt))
         down = np.minimum((lo + margin - qj) / dt, np.maximum(0.0, (lo - qj) / dt))
-    up = np.clip(up, velocity_lower[iv], velocity_upper[iv])
-    down = np.clip(down, velocity_lower[iv], velocity_upper[iv])
+    v_lo, v_hi = velocity_lower[iv], velocity_upper[iv]
+    up = np.minimum(np.maximum(up, v_lo), v_hi)  # np.clip, without its wrapper's cost
+    down = np.minimum(np.maximum(down, v_lo), v_hi)
     upper[iv], lower[iv] = up, np.minimum(down, up)
     if base_velocity is not None and layout.base_v is not None:
         b = layout.base_v

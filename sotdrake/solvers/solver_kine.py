@@ -14,10 +14,11 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context
+from pydrake.systems.framework import Context, InputPort
 
 from ..configuration import Layout
 from ..exceptions import InvalidInput, SolverError
@@ -72,9 +73,10 @@ class SolverKine(SOT):
         SOT.__init__(self, name, model.nv, damping=damping, settings=HqpSettings(), dt=dt, layout=Layout.of(model.plant))
         self.setSolver(solver)
         self.setPositionMargin(position_margin)
-        self.dt = float(dt)
-        self.layout = Layout.of(model.plant)
-        if self.layout.base_v is not None:
+        self._position: InputPort = self.GetInputPort("position")  # q, for the joint limits
+        self._period = float(dt)
+        self._layout = Layout.of(model.plant)
+        if self._layout.base_v is not None:
             self.setBaseVelocityLimit(*default_base_velocity_limit(model))
         limits = model.joint_limits()
         self._limits = (limits["position_lower"], limits["position_upper"],
@@ -102,7 +104,7 @@ class SolverKine(SOT):
                 raise InvalidInput(
                     f"{self.name}.setBaseVelocityLimit: {name} must be a number in (0, {MAX_BASE_VELOCITY:g}], got {value!r}"
                 )
-        if self.layout.base_v is None:
+        if self._layout.base_v is None:
             raise InvalidInput(f"{self.name}.setBaseVelocityLimit: the robot has no floating base")
         self._command(context, lambda s: setattr(s, "base_velocity_limit", (float(angular), float(linear))))
 
@@ -113,10 +115,11 @@ class SolverKine(SOT):
         self._command(context, lambda s: setattr(s, "solver", solver))
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
-        s = self._settings_of(context)
+        s = cast(HqpSettings, self._settings_of(context))
         levels = [LevelRows(level.jacobian, level.lower, level.upper) for level in self._levels(context, s)]
         lower, upper = velocity_bounds(
-            self.position.Eval(context), *self._limits, self.dt, s.position_margin, self.layout, s.control_selection,
+            self._position.Eval(context), *self._limits, self._period, s.position_margin,
+            self._layout, s.control_selection,
             base_velocity=s.base_velocity_limit,
         )
         diagnostics = HqpDiagnostics(tasks=(["contacts"] if s.contacts else []) + list(s.tasks))

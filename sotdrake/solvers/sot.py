@@ -39,7 +39,8 @@ class _CascadeSolution:
 
     def __init__(self, velocity: np.ndarray, ranks: np.ndarray, levels: list[tuple[np.ndarray, np.ndarray]],
                  scale: float = 1.0):
-        self.velocity, self.ranks, self._levels, self._residuals = velocity, ranks, levels, None
+        self.velocity, self.ranks, self._levels = velocity, ranks, levels
+        self._residuals: np.ndarray | None = None
         self.scale = scale
 
     @property

@@ -9,9 +9,11 @@ stack order, a run-time setting held in the Context.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TypeVar
 
 import numpy as np
+from pydrake.lcm import DrakeLcm
 from pydrake.systems.framework import DiagramBuilder, OutputPort, System
 
 from .device import Device
@@ -42,6 +44,7 @@ class Robot:
         self.tasks: dict[str, Task] = {}
         self.solver: SOT | None = None
         self._names: set[str] = set()
+        self.lcm: DrakeLcm | None = None  # the LCM instance of the publishers (sotdrake.publishing), made by the first
         self.dynamic = self.add(Dynamic(model, "dynamic"))
         self.device = self.add(Device(model.plant, dt, model.half_sitting if q0 is None else q0, "device"))
         builder.Connect(measured_position or self.device.GetOutputPort("state"), self.dynamic.GetInputPort("position"))
@@ -55,7 +58,7 @@ class Robot:
     def dt(self) -> float:
         return self.device.dt
 
-    def velocity_selection(self, excluding: list[str] = ()) -> np.ndarray:
+    def velocity_selection(self, excluding: Sequence[str] = ()) -> np.ndarray:
         """nv booleans, False on the velocities of the joints named in ``excluding``."""
         plant = self.model.plant
         mask = np.ones(self.dimension, dtype=bool)

@@ -43,7 +43,7 @@ def example_robot_data_dir() -> Path:
         raise SotError(
             "the robot package example-robot-data is not installed: `pip install example-robot-data`"
         ) from None
-    path = Path(dist.locate_file("cmeel.prefix/share/example-robot-data"))
+    path = Path(str(dist.locate_file("cmeel.prefix/share/example-robot-data")))
     if not (path / "robots").is_dir():
         raise SotError(f"example-robot-data is installed but has no robots directory at {path}")
     return path
@@ -100,21 +100,23 @@ def robot_urdf_text(name: str, variant: str | None = None, meshes: bool = False,
 
 def _root_link(urdf_text: str) -> str:
     root = ET.fromstring(urdf_text)
-    children = {j.find("child").get("link") for j in root.findall("joint")}
-    (link,) = [element.get("name") for element in root.findall("link") if element.get("name") not in children]
+    children = {child.get("link") for joint in root.findall("joint") if (child := joint.find("child")) is not None}
+    (link,) = [element.get("name", "") for element in root.findall("link") if element.get("name") not in children]
     return link
 
 
 def _joint_table(urdf_text: str) -> tuple[dict[str, float], set[str]]:
     """Effort limit of each joint and the set of mimic followers, read from the URDF."""
     root = ET.fromstring(urdf_text)
-    effort, followers = {}, set()
+    effort: dict[str, float] = {}
+    followers: set[str] = set()
     for joint in root.iter("joint"):
-        limit = joint.find("limit")
-        if limit is not None and float(limit.get("effort") or 0) > 0:  # 0: not given (Romeo's fingers)
-            effort[joint.get("name")] = float(limit.get("effort"))
+        name, limit = joint.get("name", ""), joint.find("limit")
+        limit_effort = float((limit.get("effort") if limit is not None else None) or 0)
+        if limit_effort > 0:  # 0: not given (Romeo's fingers)
+            effort[name] = limit_effort
         if joint.find("mimic") is not None and joint.get("type") != "fixed":
-            followers.add(joint.get("name"))
+            followers.add(name)
     return effort, followers
 
 

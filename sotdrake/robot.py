@@ -44,7 +44,7 @@ class Robot:
         self.tasks: dict[str, Task] = {}
         self.solver: SOT | None = None
         self._names: set[str] = set()
-        self.lcm: DrakeLcm | None = None  # the LCM instance of the publishers (sotdrake.publishing), made by the first
+        self.lcm: DrakeLcm | None = None  # the publishers' LCM instance (sotdrake.publishing), made by the first of them
         self.dynamic = self.add(Dynamic(model, "dynamic"))
         self.device = self.add(Device(model.plant, dt, model.half_sitting if q0 is None else q0, "device"))
         builder.Connect(measured_position or self.device.GetOutputPort("state"), self.dynamic.GetInputPort("position"))

@@ -184,6 +184,7 @@ class TaskInequality(_TaskBase, Entity[InequalityBounds]):
                     f"[-{MAX_TARGET_POSITION:g}, {MAX_TARGET_POSITION:g}] (no NaN)")
         if np.any(lower > upper):
             raise InvalidInput(f"{self.name}: lower bound above upper bound: {lower} > {upper}")
+
         def set_bounds(s: InequalityBounds) -> None:
             s.lower, s.upper = lower.copy(), upper.copy()
 

@@ -112,7 +112,7 @@ def _joint_table(urdf_text: str) -> tuple[dict[str, float], set[str]]:
     followers: set[str] = set()
     for joint in root.iter("joint"):
         name, limit = joint.get("name", ""), joint.find("limit")
-        limit_effort = float((limit.get("effort") if limit is not None else None) or 0)
+        limit_effort = float(limit.get("effort") or 0) if limit is not None else 0.0
         if limit_effort > 0:  # 0: not given (Romeo's fingers)
             effort[name] = limit_effort
         if joint.find("mimic") is not None and joint.get("type") != "fixed":

@@ -20,13 +20,15 @@ def concept():
 
 def test_tutorial_with_the_hqp_has_the_same_outcome():
     """The tutorial's reach under ``SolverKine``, judged as the tutorial's test judges it 2.5 s after
-    the hand task is pushed. The push is at t = 0 rather than 1 s: before it nothing moves (that
-    idle second is checked on the tutorial itself, tests/test_talos_appli.py)."""
+    the hand task is pushed. The push is at 0.2 s rather than 1 s: the idle ticks before it, where
+    nothing may move, are 200 rather than 1000."""
     appli = load_diagram("talos_appli")
-    handles = appli.build_diagram(solver="hqp", push_time=0.0)
+    handles = appli.build_diagram(solver="hqp", push_time=0.2)
     assert isinstance(handles.sot, SolverKine)
-    simulator, wall = appli.simulate(handles, 2.5, progress=False)
-    summary, _ = appli.summarize(handles, simulator, 2.5, wall)
+    simulator, wall = appli.simulate(handles, 2.7, progress=False)
+    summary, trace = appli.summarize(handles, simulator, 2.7, wall)
+    before = trace["time"] < 0.2
+    assert before.sum() == 200 and np.ptp(trace["q"][before], axis=0).max() < 1e-12
     assert summary["final_stack"] == ["taskcontactRF", "taskcontactLF", "taskcom", "taskrh"]
     assert summary["hand_initial_error_m"] == pytest.approx(0.414, abs=1e-3)
     assert summary["hand_error_m"] < 5e-3

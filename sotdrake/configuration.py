@@ -81,7 +81,7 @@ def integrate(q: np.ndarray, v: np.ndarray, dt: float, layout: Layout) -> np.nda
         out[layout.joints_q_slice] += dt * v[layout.joints_v_slice]
     else:
         out[layout.joints_q] += dt * v[layout.joints_v]
-    if layout.base_q is not None:
+    if layout.base_q is not None and layout.base_v is not None:
         iq, iv = layout.base_q, layout.base_v
         wx, wy, wz, vx, vy, vz = v[iv : iv + 6].tolist()
         quaternion = quaternion_multiply_list(quaternion_exp_list((wx * dt, wy * dt, wz * dt)), q[iq : iq + 4].tolist())
@@ -96,7 +96,7 @@ def difference(q: np.ndarray, q_previous: np.ndarray, layout: Layout) -> np.ndar
     the base ``(log(R R_prevᵀ), p - p_prev)``, world frame."""
     out = np.empty(len(layout.joints_v) + (6 if layout.base_v is not None else 0))
     out[layout.joints_v] = q[layout.joints_q] - q_previous[layout.joints_q]
-    if layout.base_q is not None:
+    if layout.base_q is not None and layout.base_v is not None:
         iq, iv = layout.base_q, layout.base_v
         R = quaternion_wxyz_to_rotation(q[iq : iq + 4])
         R_previous = quaternion_wxyz_to_rotation(q_previous[iq : iq + 4])

@@ -20,6 +20,7 @@ Units: λ in 1/s (the task asks ``ė* = -λ e``), ``‖e‖`` in the feature's u
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -120,7 +121,7 @@ def from_numbers(numbers) -> AdaptiveCoefficients:
         values = [float(x) for x in values]
     except (TypeError, ValueError):
         raise InvalidInput(f"a gain is given by 1, 3 or 4 finite numbers, got {numbers!r:.200}") from None
-    makers = {1: constant, 3: from_slope, 4: from_point}
+    makers: dict[int, Callable[..., AdaptiveCoefficients]] = {1: constant, 3: from_slope, 4: from_point}
     if len(values) not in makers:
         raise InvalidInput(f"a gain is given by 1, 3 or 4 numbers, got {len(values)}: {values}")
     return makers[len(values)](*values)

@@ -69,6 +69,6 @@ def add_signal_publisher(robot: Robot, port: OutputPort, channel: str, lcm: Drak
 def _lcm_of(robot: Robot) -> DrakeLcm:
     """The robot's LCM instance (Drake's default URL), created once and kept alive with the robot:
     the publishers only hold a reference to it."""
-    if getattr(robot, "lcm", None) is None:
+    if robot.lcm is None:
         robot.lcm = DrakeLcm()
     return robot.lcm

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from typing import TypeVar
 
 import numpy as np
+from pydrake.lcm import DrakeLcm
 from pydrake.systems.framework import DiagramBuilder, OutputPort, System
 
 from .device import Device
@@ -43,6 +44,7 @@ class Robot:
         self.tasks: dict[str, Task] = {}
         self.solver: SOT | None = None
         self._names: set[str] = set()
+        self.lcm: DrakeLcm | None = None  # the publishers' LCM instance (sotdrake.publishing), made by the first of them
         self.dynamic = self.add(Dynamic(model, "dynamic"))
         self.device = self.add(Device(model.plant, dt, model.half_sitting if q0 is None else q0, "device"))
         builder.Connect(measured_position or self.device.GetOutputPort("state"), self.dynamic.GetInputPort("position"))

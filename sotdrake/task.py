@@ -62,10 +62,14 @@ def _empty(nv: int) -> TaskLevel:
     return TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
 
 
-class _TaskBase:
+class _TaskBase(LeafSystem):
     """Ports shared by the task kinds; ``_rows(context, e, gain)`` gives ``(lower, upper)``."""
 
     is_inequality = False
+
+    def _rows(self, context: Context, e: np.ndarray, gain: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(lower, upper)`` of the rows ``lower ≤ J v ≤ upper`` (the same array for an equality)."""
+        raise NotImplementedError
 
     def _declare_ports(self, nv: int) -> None:
         self.nv = nv
@@ -105,7 +109,7 @@ class _TaskBase:
         value.set_value(TaskLevel(J, lower, upper, e))
 
 
-class Task(_TaskBase, LeafSystem):
+class Task(_TaskBase):
     """Equality task ``J v = -λ(e)·e``."""
 
     def __init__(self, name: str, nv: int):
@@ -180,7 +184,11 @@ class TaskInequality(_TaskBase, Entity[InequalityBounds]):
                     f"[-{MAX_TARGET_POSITION:g}, {MAX_TARGET_POSITION:g}] (no NaN)")
         if np.any(lower > upper):
             raise InvalidInput(f"{self.name}: lower bound above upper bound: {lower} > {upper}")
-        self._command(context, lambda s: (setattr(s, "lower", lower.copy()), setattr(s, "upper", upper.copy())))
+
+        def set_bounds(s: InequalityBounds) -> None:
+            s.lower, s.upper = lower.copy(), upper.copy()
+
+        self._command(context, set_bounds)
 
     def _rows(self, context, e, gain):
         s = self._settings_of(context)

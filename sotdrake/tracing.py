@@ -43,7 +43,7 @@ class Tracer:
         return out
 
     def save(self, context: Context, path: Path) -> Path:
-        np.savez_compressed(path, **self.data(context))
+        np.savez_compressed(path, allow_pickle=False, **self.data(context))  # numbers only
         return Path(path)
 
     def save_csv(self, context: Context, path: Path) -> Path:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import http.server
 import shutil
 import subprocess
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -45,10 +46,13 @@ def screenshot_after(url: str, path: Path, wait: float = 10.0, size: tuple[int, 
     threading.Thread(target=server.serve_forever, daemon=True).start()
     try:
         path = Path(path)
-        subprocess.run(
-            [chromium, "--headless", "--no-sandbox", "--enable-unsafe-swiftshader", "--hide-scrollbars",
-             f"--window-size={size[0]},{size[1]}", f"--screenshot={path}", f"http://127.0.0.1:{server.server_address[1]}/"],
-            capture_output=True, timeout=wait + 90, check=True)
+        # A profile of its own: another Chromium on the host (another test run) never shares it.
+        with tempfile.TemporaryDirectory(prefix="chromium-profile-", ignore_cleanup_errors=True) as profile:
+            subprocess.run(
+                [chromium, "--headless", "--no-sandbox", "--enable-unsafe-swiftshader", "--hide-scrollbars",
+                 f"--user-data-dir={profile}", f"--window-size={size[0]},{size[1]}", f"--screenshot={path}",
+                 f"http://127.0.0.1:{server.server_address[1]}/"],
+                capture_output=True, timeout=wait + 90, check=True)
         return path
     finally:
         server.shutdown()

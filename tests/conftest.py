@@ -3,6 +3,20 @@ import pytest
 
 from sotdrake.robots import load_talos
 
+#: The longest test files (most wall time first), started before the others. The suite is spread
+#: over the cores file by file (pyproject.toml's addopts: ``--dist loadfile --no-loadscope-reorder``,
+#: files handed out in collection order); started last, a long file would leave one worker running
+#: it alone at the end. A file missing here only costs balance.
+LONGEST_FIRST = (
+    "test_live_run.py", "test_solver_kine.py", "test_physics.py", "test_toolbox.py", "test_sweep.py",
+    "test_hqp.py", "test_sweep_maps.py", "test_types.py", "test_talos_appli.py", "test_hostile.py", "test_dynamics.py",
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the order within a file is kept
+
 
 @pytest.fixture(scope="session")
 def talos_model():

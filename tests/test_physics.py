@@ -23,8 +23,21 @@ def run(physics, scenario, duration, **kwargs):
     return physics.summarize(handles, simulator, duration, wall)
 
 
-def test_standing_holds(physics):
-    summary, trace = run(physics, "stand", 2.0)
+@pytest.fixture(scope="module")
+def stand_then_push(physics):
+    """One standing run pushed by 150 N along +x at t = 2 s for 0.1 s, summarized at 2 s (before the
+    push: the standing run, the push force being zero until then) and again at 2.6 s."""
+    handles = physics.build_diagram("stand", push=150.0, push_start=2.0)
+    simulator, wall = physics.simulate(handles.diagram, 2.0, progress=False)
+    standing = physics.summarize(handles, simulator, 2.0, wall)
+    simulator.AdvanceTo(2.6)
+    pushed = physics.summarize(handles, simulator, 2.6, wall)
+    return standing, pushed
+
+
+def test_standing_holds(stand_then_push):
+    (summary, trace), _ = stand_then_push
+    assert summary["ticks"] == 2001 and trace["time"][-1] == pytest.approx(2.0)  # up to the push, not after
     assert summary["base_drift_m"] < 0.01 and summary["base_height_drop_m"] < 0.005
     assert summary["max_foot_slip_m"] < 1e-3
     assert summary["min_normal_force_n"] > 100.0  # both feet loaded from the first step on
@@ -41,11 +54,13 @@ def test_short_reach_keeps_balance(physics):
     assert summary["max_foot_slip_m"] < 1e-3 and summary["min_cop_margin_m"] > 0.0
 
 
-def test_a_push_is_applied_and_survived(physics):
-    summary, trace = run(physics, "stand", 2.6, push=150.0)
+def test_a_push_is_applied_and_survived(stand_then_push):
+    (_, before), (summary, trace) = stand_then_push
     base = trace["base_position"]
     moved = np.abs(base[:, 0] - base[0, 0]).max()
     assert moved > 0.005  # the push did something …
+    at_push = len(before["time"]) - 1  # t = 2 s: the standing run settled the base by ~5 mm before it
+    assert np.abs(base[at_push:, 0] - base[at_push, 0]).max() > 0.005  # … from t = 2 s on
     assert summary["min_normal_force_n"] > 0.0 and summary["max_foot_slip_m"] < 1e-3  # … and it stood
 
 

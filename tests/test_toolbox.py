@@ -5,6 +5,7 @@ import json
 import math
 import subprocess
 import sys
+import uuid
 from pathlib import Path
 
 import numpy as np
@@ -158,7 +159,7 @@ def test_state_published_at_100_hz_to_another_process(talos_model, tmp_path):
     retransmit, and on this machine the receiving processes lose a varying part of the stream
     (from none to 60 % of it, on either channel, in repeated runs), so each must get some of it
     (10 states of 101, 3 scopes of 21), not all of it."""
-    channel = f"sot_control/state_{tmp_path.name}"
+    channel = f"sot_control/state_{uuid.uuid4().hex[:12]}"  # unique: no other run on this host shares it
     subscriber = [sys.executable, str(ROOT / "tests" / "lcm_subscriber.py")]
     # Each listener stops on a "done" message sent after the run (a timeout only if it never comes).
     listener = subprocess.Popen([*subscriber, channel, "state", "30", str(tmp_path / "state.jsonl")], stdout=subprocess.PIPE, text=True)

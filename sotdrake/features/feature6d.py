@@ -95,8 +95,9 @@ def pose_error_and_jacobian(
         p = [p[0] + r[0], p[1] + r[1], p[2] + r[2]]
         R = _mul(R, R_OpF)
     rotation = rows is None or rows[-1] >= 3
-    moving = V_WFd is not None and np.count_nonzero(V_WFd) > 0
-    if moving:
+    moving = False
+    if V_WFd is not None and np.count_nonzero(V_WFd) > 0:
+        moving = True
         w_star, p_star_dot = V_WFd[:3].tolist(), V_WFd[3:].tolist()
     RdT, RT = [list(c) for c in zip(*Rd, strict=False)], [list(c) for c in zip(*R, strict=False)]
     zero3 = [0.0, 0.0, 0.0]

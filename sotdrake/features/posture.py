@@ -83,7 +83,7 @@ def posture_error_and_jacobian(
     nv = v_star.size
     e, J, e_dot = np.zeros(nv), np.eye(nv), -v_star
     e[layout.joints_v] = q[layout.joints_q] - q_star[layout.joints_q]
-    if layout.base_q is not None:
+    if layout.base_q is not None and layout.base_v is not None:
         iq, iv = layout.base_q, layout.base_v
         R = quaternion_wxyz_to_rotation(q[iq : iq + 4])
         Rd = quaternion_wxyz_to_rotation(q_star[iq : iq + 4])

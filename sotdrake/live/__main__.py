@@ -23,6 +23,8 @@ def load_script(path: Path):
     if not path.is_file():
         raise SystemExit(f"no such script: {path}")
     spec = importlib.util.spec_from_file_location(path.stem, path)
+    if spec is None or spec.loader is None:
+        raise SystemExit(f"not a Python script: {path}")
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
     spec.loader.exec_module(module)

@@ -143,7 +143,7 @@ def _argument(node: ast.expr):
         raise CommandRejected(f"literal of type {type(value).__name__} is not allowed: {value!r:.40}")
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
         operand = node.operand
-        if isinstance(operand, ast.Constant) and type(operand.value) in (int, float):
+        if isinstance(operand, ast.Constant) and isinstance(operand.value, (int, float)) and not isinstance(operand.value, bool):
             value = operand.value
             return -value if isinstance(node.op, ast.USub) else value
         raise CommandRejected("a sign applies to a number only")

@@ -32,6 +32,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol
 
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, Diagram
@@ -45,6 +46,14 @@ log = logging.getLogger("sotdrake.live")
 
 #: Most ``attime`` commands waiting at once.
 MAX_SCHEDULED = 1000
+
+
+class DiagramHandles(Protocol):
+    """What a script's ``build_diagram`` returns: the built ``diagram``, usually with its ``robot``,
+    meta tasks and solver as further fields."""
+
+    @property
+    def diagram(self) -> Diagram: ...
 
 
 @dataclass(order=True)
@@ -184,7 +193,7 @@ class LiveRun:
         self._credit -= max(0.0, time.monotonic() - wall - slack)  # may go negative: paid back later
 
 
-def run_live(handles: object, out: Path, meshcat=None, duration: float | None = None, port: int = 0,
+def run_live(handles: DiagramHandles, out: Path, meshcat=None, duration: float | None = None, port: int = 0,
              realtime_rate: float = 1.0, summarize: Callable | None = None,
              write: Callable | None = None) -> dict:
     """Run ``handles.diagram`` live (dt from ``handles.robot.dt``), print how to reach it, and when

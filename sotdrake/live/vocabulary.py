@@ -139,9 +139,10 @@ def _vector(value, what: str) -> np.ndarray:
     rows = [len(r) if isinstance(r, tuple) else None for r in value]
     if all(r is None for r in rows):
         return np.array(numbers)
-    if any(r is None for r in rows) or len(set(rows)) != 1:
+    lengths = [r for r in rows if r is not None]
+    if len(lengths) != len(rows) or len(set(lengths)) != 1:
         raise CommandRejected(f"{what}: a matrix needs rows of equal length, got {value!r:.80}")
-    return np.array(numbers).reshape(len(rows), rows[0])
+    return np.array(numbers).reshape(len(rows), lengths[0])
 
 
 class Vocabulary:
@@ -215,10 +216,11 @@ class Vocabulary:
         methods = {
             "selec": Method((Param("mask", "text"),), lambda c, m: meta.feature.selec(m, c)),
         }
-        if hasattr(type(meta), "keep"):
-            methods["keep"] = Method((), lambda c: meta.keep(c), "desired value ← current value")
+        keep = getattr(meta, "keep", None)  # the meta tasks with a desired value of their own
+        if callable(keep):
+            methods["keep"] = Method((), lambda c: keep(c), "desired value ← current value")
         if isinstance(meta, (MetaTaskKine6d, MetaTaskKineCom)):
-            methods["gotoNd"] = Method(_GOTO_PARAMS[1:], lambda c, *v: gotoNd(meta, *v, context=c))
+            methods["gotoNd"] = Method(_GOTO_PARAMS[1:], lambda c, position, selec, gain: gotoNd(meta, position, selec, gain, context=c))
         self._methods[name] = methods
         self._objects[name] = meta
         for part in ("gain", "feature", "featureDes", "task"):
@@ -229,7 +231,7 @@ class Vocabulary:
 
     def _add_functions(self) -> None:
         add = self.add_function
-        add("gotoNd", _GOTO_PARAMS, lambda c, meta, *v: gotoNd(meta, *v, context=c),
+        add("gotoNd", _GOTO_PARAMS, lambda c, meta, position, selec, gain: gotoNd(meta, position, selec, gain, context=c),
             "drive a task to a position (1, 3 or 4 gain numbers)")
         add("displaySignals", (Param("entity", "entity"),), lambda c, e: introspection.signals_report(e, c))
         add("signal", (Param("entity", "entity"), Param("port", "text")), lambda c, e, p: introspection.signal(e, p, c))

@@ -28,6 +28,7 @@ class KinematicBaseEstimator(LeafSystem):
         self.layout = Layout.of(self.plant)
         if self.layout.base_q is None:
             raise InvalidInput("the base estimator needs a floating base")
+        self._base_q: int = self.layout.base_q  # where the base's (quaternion, position) sits in q
         self._base = self.plant.get_body(next(iter(self.plant.GetFloatingBaseBodies()))).body_frame()
         self._soles = [model.frame("left-sole"), model.frame("right-sole")]
         context = self.plant.CreateDefaultContext()
@@ -55,7 +56,7 @@ class KinematicBaseEstimator(LeafSystem):
         if quaternions[0] @ quaternions[1] < 0:
             quaternions[1] = -quaternions[1]
         mean = quaternions[0] + quaternions[1]  # (w, x, y, z), as Drake's q
-        iq = self.layout.base_q
+        iq = self._base_q
         q[iq : iq + 4] = mean / np.linalg.norm(mean)
         q[iq + 4 : iq + 7] = 0.5 * (poses[0].translation() + poses[1].translation())
         output.SetFromVector(q)

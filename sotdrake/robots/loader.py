@@ -100,7 +100,7 @@ def robot_urdf_text(name: str, variant: str | None = None, meshes: bool = False,
 
 def _root_link(urdf_text: str) -> str:
     root = ET.fromstring(urdf_text)
-    children = {child.get("link", "") for j in root.findall("joint") if (child := j.find("child")) is not None}
+    children = {child.get("link") for joint in root.findall("joint") if (child := joint.find("child")) is not None}
     (link,) = [element.get("name", "") for element in root.findall("link") if element.get("name") not in children]
     return link
 
@@ -111,9 +111,10 @@ def _joint_table(urdf_text: str) -> tuple[dict[str, float], set[str]]:
     effort: dict[str, float] = {}
     followers: set[str] = set()
     for joint in root.iter("joint"):
-        limit, name = joint.find("limit"), joint.get("name", "")
-        if limit is not None and float(limit.get("effort") or 0) > 0:  # 0: not given (Romeo's fingers)
-            effort[name] = float(limit.get("effort") or 0)
+        name, limit = joint.get("name", ""), joint.find("limit")
+        limit_effort = float(limit.get("effort") or 0) if limit is not None else 0.0
+        if limit_effort > 0:  # 0: not given (Romeo's fingers)
+            effort[name] = limit_effort
         if joint.find("mimic") is not None and joint.get("type") != "fixed":
             followers.add(name)
     return effort, followers

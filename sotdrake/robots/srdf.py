@@ -20,10 +20,7 @@ def read_group_state(srdf_path: Path, name: str) -> dict[str, np.ndarray]:
     A floating ``root_joint`` is given as in the SRDF: ``(x, y, z, qx, qy, qz, qw)``.
     """
     root = ET.parse(srdf_path).getroot()
-    states = {s.get("name"): s for s in root.iter("group_state")}
+    states = {s.get("name", ""): s for s in root.iter("group_state")}
     if name not in states:
         raise PostureNotFound(name, states)
-    return {
-        j.get("name"): np.array([float(x) for x in j.get("value").split()])
-        for j in states[name].iter("joint")
-    }
+    return {j.get("name", ""): np.array([float(x) for x in j.get("value", "").split()]) for j in states[name].iter("joint")}

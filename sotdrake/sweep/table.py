@@ -24,7 +24,11 @@ from ..exceptions import InvalidInput
 RESERVED = ("case", "status", "error")
 
 
-def _cell(value):
+Cell = bool | int | float | str | None
+"""A table cell: a scalar, or JSON text for anything else."""
+
+
+def _cell(value) -> Cell:
     if isinstance(value, np.generic):
         value = value.item()
     if value is None or isinstance(value, (bool, int, float, str)):
@@ -34,9 +38,9 @@ def _cell(value):
     return json.dumps(value, sort_keys=True, default=str)
 
 
-def flatten(summary: Mapping, prefix: str = "") -> dict:
+def flatten(summary: Mapping, prefix: str = "") -> dict[str, Cell]:
     """``summary`` with nested mappings flattened to dotted keys and every value a table cell."""
-    flat = {}
+    flat: dict[str, Cell] = {}
     for key, value in summary.items():
         name = f"{prefix}{key}"
         if isinstance(value, Mapping):
@@ -46,10 +50,10 @@ def flatten(summary: Mapping, prefix: str = "") -> dict:
     return flat
 
 
-def make_row(index: int, case: Mapping, summary: Mapping | None, error: str = "") -> dict:
+def make_row(index: int, case: Mapping, summary: Mapping | None, error: str = "") -> dict[str, Cell]:
     """The row of case ``index``: its parameters, status, error and flattened ``summary``.
     A summary key that repeats a parameter or a reserved column is prefixed with ``summary.``."""
-    row = {"case": int(index)}
+    row: dict[str, Cell] = {"case": int(index)}
     for name, value in case.items():
         if name in RESERVED:
             raise InvalidInput(f"a case parameter cannot be named {name!r} (reserved columns: {RESERVED})")

@@ -16,11 +16,6 @@ ROOT = Path(__file__).resolve().parents[1]
 #: Files (or folders, ending in /) whose owners are still fixing their errors: ``test_mypy_passes``
 #: is expected to fail until then. Empty this list and remove the xfail when they are clean.
 REMAINING = (
-    "sotdrake/solvers/hqp.py",
-    "sotdrake/solvers/active_set.py",
-    "sotdrake/solvers/solver_kine.py",
-    "sotdrake/solvers/sot.py",
-    "sotdrake/solvers/second_order.py",
     "sotdrake/dynamics/",
     "sotdrake/walking/",
 )

@@ -54,6 +54,9 @@ RELEASE = (2.2, 0.3)  # lift_leg: rmContact time (s), ramp duration (s)
 LIFT = (2.5, 3.5, 0.10)  # lift_leg: the right sole rises 10 cm in this window (s)
 SQUAT = (0.5, 1.5, 2.0, 3.0, 0.15)  # down from, to, up from, to (s), depth (m)
 PUSHES = ((1.0, 0.002, 500.0), (2.0, 0.1, 100.0))  # start (s), duration (s), force along +x (N)
+#: Each held sole presses at least this hard (N): with 1 N, the sole the sway unloads lifted 0.6 mm
+#: off the compliant ground and drifted 0.3 mm (the solver's zero acceleration is not a position).
+F_MIN = 30.0
 
 
 @dataclass
@@ -146,8 +149,8 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
     sot, connect = robot.sot, builder.Connect
     # As in the tutorial, the grippers (on their upper limit at the start) are left out: q̈ = 0.
     sot.setControlSelection(robot.velocity_selection(excluding=["gripper_left_joint", "gripper_right_joint"]))
-    contactLF = robot.add_contact("contactLF", "left-sole")
-    contactRF = robot.add_contact("contactRF", "right-sole")
+    contactLF = robot.add_contact("contactLF", "left-sole", f_min=F_MIN)
+    contactRF = robot.add_contact("contactRF", "right-sole", f_min=F_MIN)
     sot.addContact(contactLF)
     sot.addContact(contactRF)
 

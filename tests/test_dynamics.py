@@ -202,6 +202,38 @@ def test_strict_hierarchy_on_random_dynamic_stacks(standing, rng):
         assert slacks[-1][0] < 1e-8 and slacks[-1][1] < 1e-6
 
 
+def test_shear_follows_the_load(standing):
+    """The wrench regularization shares the shear in proportion to the normal forces (each sole
+    uses the same fraction of its friction cone). With the regularization unweighted (no loads) the
+    shear was shared equally, and the nearly unloaded sole of the sway reached its friction bound
+    (then slipped on the physics plant): here the light sole's ratio was 5× the loaded one's."""
+    robot, diagram, *_ = standing
+    sot, nv = robot.sot, robot.model.nv
+    context = _set_state(robot, diagram, np.concatenate([robot.q0, np.zeros(nv)]))
+    terms = robot.dynamic.GetOutputPort("dynamics").Eval(robot.dynamic.GetMyContextFromRoot(context))
+    contacts = [ActiveContact(name, robot.contacts[name].GetOutputPort("contact").Eval(
+        robot.contacts[name].GetMyContextFromRoot(context))) for name, _ in SOLES]
+    Jcom = robot.dynamic.GetOutputPort("Jcom").Eval(robot.dynamic.GetMyContextFromRoot(context))
+    com = TaskLevel(Jcom, np.array([0.3, -0.5, 0.0]), np.array([0.3, -0.5, 0.0]), np.zeros(3))  # ZMP ~4.5 cm left
+    a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout)
+    hqp = HierarchicalQP(nv + 12 + sot.na)
+
+    def ratios(loads):
+        levels, slices = dynamic_levels(terms, contacts, [com], 10.0, loads=loads)
+        lower, upper = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
+        x = hqp.solve(levels, lower, upper).x
+        w = [x[sl] for sl in slices]
+        return np.array([np.hypot(*wc[3:5]) / wc[5] for wc in w]), np.array([wc[5] for wc in w])
+
+    equal, loads = ratios(None)
+    assert loads[0] > 4 * loads[1]  # the left sole carries most of the weight
+    assert equal[1] > 4 * equal[0]  # equal shares: the light sole near its bound
+    for _ in range(2):  # the loads of the previous tick, as SolverDyn does
+        weighted, loads = ratios(loads)
+    np.testing.assert_allclose(weighted[1], weighted[0], rtol=0.01)
+    assert weighted.max() < 0.5 * equal.max()
+
+
 def test_acceleration_bounds_stop_a_joint_at_its_limit(talos_model):
     layout = Layout.of(talos_model.plant)
     limits = talos_model.joint_limits()

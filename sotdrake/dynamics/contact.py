@@ -43,7 +43,7 @@ class ContactRows(NamedTuple):
     """What the solver needs of one contact (see the module docstring): ``wrench_rows`` ``A w ≤ 0``
     on the local wrench (size k = 6, or 3 for a point contact); ``f_min`` the normal force's lower
     bound (N); ``jacobian`` (k×nv), ``acceleration`` (k: the reference ``J_C q̈ = acceleration``),
-    ``rotation`` ``R_WC``. The normal force is the wrench's last component."""
+    ``rotation`` ``R_WC``; ``centre`` the sole's centre. The normal force is the wrench's last component."""
 
     jacobian: np.ndarray
     acceleration: np.ndarray
@@ -51,6 +51,7 @@ class ContactRows(NamedTuple):
     wrench_rows: np.ndarray
     f_min: float
     mu: float
+    centre: tuple[float, float] = (0.0, 0.0)  # the sole rectangle's centre (m, in C): where the CoP is best
 
 
 def wrench_constraints(mu: float, rectangle: tuple[float, float, float, float] | None, cop_margin: float) -> np.ndarray:
@@ -161,4 +162,6 @@ class Contact6d(Entity[ContactSettings]):
             acceleration = acceleration - s.velocity_gain * (J @ self.velocity.Eval(context))
         A = wrench_constraints(s.mu, self.rectangle, s.cop_margin)
         R = self.position.Eval(context).rotation().matrix()
-        output.set_value(ContactRows(J, acceleration, R, A, s.f_min, s.mu))
+        centre = (0.0, 0.0) if self.rectangle is None else \
+            ((self.rectangle[0] + self.rectangle[1]) / 2, (self.rectangle[2] + self.rectangle[3]) / 2)
+        output.set_value(ContactRows(J, acceleration, R, A, s.f_min, s.mu, centre))

@@ -13,9 +13,17 @@ first (:func:`dynamic_levels`):
 2. … the user's stack (``push``), each a :class:`~sotdrake.task.TaskLevel` over ``q̈``
    (``TaskDynPD``);
 last. ``q̈ = −K_d v``: whatever motion the stack leaves free is damped (``setDampingGain``); in
-   the same level, ``ε w_t = 0`` on every contact's tangential force and torque (``ε = 10⁻³``
-   s²/kg·m: a regularization, so that the distribution of the wrenches the levels above leave free
-   prefers centred CoPs and no shear, away from the friction and CoP bounds).
+   the same level, a regularization of the contact wrenches (:func:`wrench_regularization`) so that
+   the distribution the levels above leave free keeps away from the friction and CoP bounds, *in
+   proportion to the normal forces*: ``ε √(f̄/f_c) (n_x − y_c f_z, n_y + x_c f_z, n_z, f_x, f_y) = 0``
+   (``ε = 10⁻³`` s²/kg·m, ``(x_c, y_c)`` the sole's centre, ``f_c`` the normal force contact c
+   carried at the previous tick, ``f̄`` their mean). Minimizing ``Σ_c ‖f_t,c‖²/f_c`` under
+   ``Σ_c f_t,c = F_t`` gives ``f_t,c = F_t f_c/Σ f``: every contact uses the same fraction of its
+   friction cone; likewise ``Σ_c f_c d_c²`` (``d_c`` the CoP's offset from the sole's centre)
+   gives every sole the same CoP offset. With the rows unweighted, the shear and the moments are
+   shared *equally*: at the sway's extremes the nearly unloaded sole (40 N) carried half of the
+   45 N of lateral force, at the edge of its friction pyramid, and half of the moment, its CoP at
+   the edge of the sole; on the physics plant it rolled on that edge and slipped.
 
 The hierarchical QP then takes the minimum-norm ``x`` of the optimal set (smallest torques and
 wrenches among the equivalent ones). Joints without an actuator would get no ``τ`` column: TALOS'
@@ -103,13 +111,42 @@ class ActiveContact:
     f_max: float = np.inf  # the release ramp's bound on the normal force
 
 
+def shear_weights(loads: np.ndarray | None, count: int) -> np.ndarray:
+    """The factor ``√(f̄/f_c)`` of each contact's shear regularization (see the module docstring)
+    from the normal forces ``loads`` (N) the contacts carried at the previous tick; ones if there
+    is no such record (NaN: a new contact) or a single contact. Each load is floored at 1 % of the
+    mean (and 1 N), so a contact that carried nothing gets a large, finite weight."""
+    if loads is None or count < 2:
+        return np.ones(count)
+    loads = np.asarray(loads, dtype=float)
+    if loads.shape != (count,) or not np.all(np.isfinite(loads)):
+        return np.ones(count)
+    mean = max(float(np.mean(np.maximum(loads, 0.0))), 1.0)
+    return np.sqrt(mean / np.maximum(loads, max(0.01 * mean, 1.0)))
+
+
+def wrench_regularization(contact: ActiveContact, k: int, weight: float) -> np.ndarray:
+    """The regularization rows of one contact's wrench (k = 6: ``(n, f)``; 3: ``f``), target 0,
+    all scaled by ``weight``: the CoP's offset from the sole's centre ``(x_c, y_c)`` times ``f_z``,
+    the yaw torque and the shear."""
+    centre = contact.rows.centre
+    if k == 3:
+        return WRENCH_REGULARIZATION * weight * np.eye(3)[:2]
+    rows = np.zeros((5, 6))
+    rows[0, 0], rows[0, 5] = 1.0, -centre[1]  # n_x − y_c f_z: the CoP's y offset × f_z
+    rows[1, 1], rows[1, 5] = 1.0, centre[0]  # n_y + x_c f_z: minus its x offset × f_z
+    rows[2, 2] = rows[3, 3] = rows[4, 4] = 1.0  # n_z, f_x, f_y
+    return WRENCH_REGULARIZATION * weight * rows
+
+
 def dynamic_levels(
     terms: DynamicsTerms, contacts: list[ActiveContact], tasks: list[TaskLevel], damping_gain: float,
-    with_inequalities: bool = True,
+    with_inequalities: bool = True, loads: np.ndarray | None = None,
 ) -> tuple[list[LevelRows], list[slice]]:
     """The levels of the module docstring over ``x = (q̈, w…, τ)``, and the slice of each contact's
     wrench in ``x``. ``with_inequalities=False`` leaves the contacts' wrench rows out (the
-    relaxed problem of :meth:`SolverDyn._calc`)."""
+    relaxed problem of :meth:`SolverDyn._calc`); ``loads``: the contacts' normal forces at the
+    previous tick (N, for :func:`shear_weights`; None: equal weights)."""
     nv, na = terms.B.shape
     sizes = [c.rows.jacobian.shape[0] for c in contacts]
     n = nv + sum(sizes) + na
@@ -145,10 +182,10 @@ def dynamic_levels(
     damping = np.zeros((nv + m, n))
     damping[:nv, :nv] = np.eye(nv)
     row = nv
-    for sl in slices:
-        for column in range(sl.start, sl.stop - 1):  # every component but the normal force
-            damping[row, column] = WRENCH_REGULARIZATION
-            row += 1
+    for c, sl, weight in zip(contacts, slices, shear_weights(loads, len(contacts)), strict=True):
+        rows = wrench_regularization(c, sl.stop - sl.start, float(weight))
+        damping[row : row + len(rows), sl] = rows
+        row += len(rows)
     target = np.concatenate([-damping_gain * terms.v, np.zeros(m)])
     levels.append(LevelRows(damping, target, target))
     return levels, slices
@@ -201,6 +238,9 @@ class SolverDyn(SOT):
         # Discrete state: the release ramp of each declared contact, (t0, f0) (NaN: none). A discrete
         # update is computed from the same context as the device's and the plant's.
         self._ramps = self.DeclareDiscreteState(np.full(2 * max_contacts, np.nan))
+        # and the normal force each declared contact carried at the last tick (NaN: not held), which
+        # weighs the shear regularization (:func:`shear_weights`).
+        self._loads = self.DeclareDiscreteState(np.full(max_contacts, np.nan))
         self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._update)
         self.DeclareVectorOutputPort("torque", self.na, lambda c, o: o.SetFromVector(self._solution.Eval(c).torque))
         self.DeclareVectorOutputPort("wrenches", 6 * max_contacts, self._calc_wrenches)
@@ -331,7 +371,8 @@ class SolverDyn(SOT):
         terms = self.dynamics.Eval(context)
         contacts = self._active_contacts(context, s)
         tasks = self._tasks(context, s)
-        levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False)
+        loads = self.previous_loads(context, [c.name for c in contacts])
+        levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
         a_lower, a_upper = acceleration_bounds(terms.q, terms.v, *self._limits, s.horizon, s.position_margin, self.layout)
         if s.control_selection is not None:  # sot-core's controlSelec: the others are held (q̈ = 0)
             a_lower, a_upper = a_lower.copy(), a_upper.copy()
@@ -348,7 +389,7 @@ class SolverDyn(SOT):
             relaxed = result = hqp.solve(levels, lower, upper, 0.0, s.solver)
             if contacts and not _wrench_rows_hold(contacts, slices, result.x):
                 result = None
-                full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain)
+                full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, loads=loads)
                 result = hqp.solve(full, lower, upper, 0.0, s.solver)
                 levels = full
         except SolverError as error:
@@ -358,13 +399,13 @@ class SolverDyn(SOT):
             diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
             if relaxed is None:
                 try:
-                    levels, slices = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False)
+                    levels, slices = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False, loads=loads)
                     relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver)
                     diagnostics.failure += "; the stack is dropped for this tick"
                 except SolverError as second:
                     diagnostics.failure += f"; {second}; zero torque"
             else:
-                levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False)
+                levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
                 diagnostics.failure += "; the contacts' wrench rows are relaxed for this tick"
             log.warning("%s: %s", self.name, diagnostics.failure)
             if relaxed is None:
@@ -389,14 +430,28 @@ class SolverDyn(SOT):
                 out[6 * i + 6 - len(w) : 6 * i + 6] = w
         output.SetFromVector(out)
 
+    def previous_loads(self, context: Context, names: list[str]) -> np.ndarray | None:
+        """The normal force (N) each named contact carried at the previous tick, or None if one of
+        them was not held then."""
+        record = context.get_discrete_state(self._loads).get_value()
+        ports = list(self._contact_ports)
+        loads = np.array([record[ports.index(name)] for name in names])
+        return loads if np.all(np.isfinite(loads)) else None
+
     def _update(self, context: Context, state) -> None:
-        """Start the ramp of a newly released contact, from the normal force it carries now."""
+        """Record each contact's normal force; start the ramp of a newly released contact, from
+        the normal force it carries now."""
         s = self._settings_of(context)
+        local = self._solution.Eval(context).local_wrenches
+        loads = np.full(self.max_contacts, np.nan)
+        for i, name in enumerate(self._contact_ports):
+            if name in local:
+                loads[i] = local[name][-1]
+        state.set_value(self._loads, loads)
         ramps = context.get_discrete_state(self._ramps).get_value().copy()
         for i, name in enumerate(self._contact_ports):
             if name not in s.releasing or name not in s.contacts:
                 ramps[2 * i : 2 * i + 2] = np.nan
             elif np.isnan(ramps[2 * i]):
-                local = self._solution.Eval(context).local_wrenches
                 ramps[2 * i : 2 * i + 2] = context.get_time(), float(local[name][-1]) if name in local else 0.0
         state.set_value(self._ramps, ramps)

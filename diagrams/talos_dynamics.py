@@ -54,8 +54,8 @@ RELEASE = (2.2, 0.3)  # lift_leg: rmContact time (s), ramp duration (s)
 LIFT = (2.5, 3.5, 0.10)  # lift_leg: the right sole rises 10 cm in this window (s)
 SQUAT = (0.5, 1.5, 2.0, 3.0, 0.15)  # down from, to, up from, to (s), depth (m)
 PUSHES = ((1.0, 0.002, 500.0), (2.0, 0.1, 100.0))  # start (s), duration (s), force along +x (N)
-#: Each held sole presses at least this hard (N): with 1 N, the sole the sway unloads lifted 0.6 mm
-#: off the compliant ground and drifted 0.3 mm (the solver's zero acceleration is not a position).
+#: Each held sole presses at least this hard (N). On the compliant soles a sole held at 1 N creeps:
+#: in the sway (3 s) it moved 48 µm, at 30 N 4.9 µm.
 F_MIN = 30.0
 
 

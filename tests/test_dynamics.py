@@ -234,6 +234,29 @@ def test_shear_follows_the_load(standing):
     assert weighted.max() < 0.5 * equal.max()
 
 
+def test_stiff_com_after_a_push_spends_the_torques(standing):
+    """After the long push the CoM moves at 0.11 m/s (feet still). The CoP bounds allow about
+    1 m/s² of CoM deceleration; a CoM task with K_v = 20 asks 2.2 m/s², and the hierarchy meets it
+    by whirling the upper body (angular momentum): the torques reach their limits and the posture
+    below is abandoned, which on the physics plant made the soles slip 2 cm. With K_p = 20 (the
+    push scenario's) the same state asks what the soles can give."""
+    robot, diagram, com, _ = standing
+    dynamic = robot.dynamic
+    context = _set_state(robot, diagram, np.concatenate([robot.q0, np.zeros(robot.model.nv)]))
+    own = dynamic.GetMyContextFromRoot(context)
+    A = np.vstack([dynamic.GetOutputPort("J" + name).Eval(own) for name, _ in SOLES] + [dynamic.GetOutputPort("Jcom").Eval(own)])
+    v = np.linalg.lstsq(A, np.concatenate([np.zeros(12), [0.11, 0.0, 0.0]]), rcond=None)[0]
+    outcome = {}
+    for kp in (100.0, 20.0):
+        context = _set_state(robot, diagram, np.concatenate([robot.q0, v]))
+        com.task.setGain(kp, context=context)
+        solution = _solution(robot, context)
+        assert solution.residuals[2] < 1e-8  # the CoM level is met in both cases...
+        outcome[kp] = (np.abs(solution.torque / robot.sot.effort).max(), solution.residuals[3])
+    assert outcome[100.0][0] > 0.999 and outcome[20.0][0] < 0.95  # ...at the torque limits with the stiff gain
+    assert outcome[100.0][1] > 5 * outcome[20.0][1]  # and the posture is abandoned
+
+
 def test_acceleration_bounds_stop_a_joint_at_its_limit(talos_model):
     layout = Layout.of(talos_model.plant)
     limits = talos_model.joint_limits()

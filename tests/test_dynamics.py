@@ -234,6 +234,20 @@ def test_shear_follows_the_load(standing):
     assert weighted.max() < 0.5 * equal.max()
 
 
+def test_solver_records_the_previous_loads(standing):
+    """The shear weights of a tick come from the normal forces of the tick before (discrete state)."""
+    robot, diagram, *_ = standing
+    simulator = Simulator(diagram)
+    context = simulator.get_context()
+    sot_context = robot.sot.GetMyContextFromRoot(context)
+    assert robot.sot.previous_loads(sot_context, ["contactLF", "contactRF"]) is None  # nothing recorded yet
+    simulator.AdvanceTo(0.002)
+    before = _solution(robot, context).local_wrenches
+    simulator.AdvanceTo(0.003)  # the update of t = 0.002 s records that tick's solution
+    loads = robot.sot.previous_loads(sot_context, ["contactLF", "contactRF"])
+    np.testing.assert_array_equal(loads, [before["contactLF"][5], before["contactRF"][5]])
+
+
 def test_stiff_com_after_a_push_spends_the_torques(standing):
     """After the long push the CoM moves at 0.11 m/s (feet still). The CoP bounds allow about
     1 m/s² of CoM deceleration; a CoM task with K_v = 20 asks 2.2 m/s², and the hierarchy meets it

@@ -89,7 +89,7 @@ def friction_ratio(force_world: np.ndarray, normal: np.ndarray, mu: float) -> fl
     """``‖f_t‖ / (μ f_n)`` of a force (world) against a surface of unit ``normal`` (inf if f_n ≤ 0)."""
     fn = float(force_world @ normal)
     ft = np.linalg.norm(force_world - fn * normal)
-    return ft / (mu * fn) if fn > 0 else (0.0 if ft == 0 else math.inf)
+    return float(ft / (mu * fn)) if fn > 0 else (0.0 if ft == 0 else math.inf)
 
 
 @dataclass
@@ -109,11 +109,12 @@ class Contact6d(Entity[ContactSettings]):
                  mu: float = 0.7, f_min: float = 1.0, cop_margin: float = 0.01):
         Entity.__init__(self, name, ContactSettings())
         self.nv = nv
+        self.rectangle: tuple[float, float, float, float] | None = None
         if rectangle is not None:
-            rectangle = tuple(float(a) for a in rectangle)
-            if len(rectangle) != 4 or not (rectangle[0] < rectangle[1] and rectangle[2] < rectangle[3]):
-                raise InvalidInput(f"{name}: rectangle is (x_min, x_max, y_min, y_max) with min < max, got {rectangle}")
-        self.rectangle = rectangle
+            values = tuple(float(a) for a in rectangle)
+            if len(values) != 4 or not (values[0] < values[1] and values[2] < values[3]):
+                raise InvalidInput(f"{name}: rectangle is (x_min, x_max, y_min, y_max) with min < max, got {values}")
+            self.rectangle = (values[0], values[1], values[2], values[3])
         self.setFriction(mu)
         self.setMinimumNormalForce(f_min)
         self.setCopMargin(cop_margin)

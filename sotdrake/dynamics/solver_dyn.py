@@ -46,7 +46,9 @@ level) and ``diagnostics``.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -222,7 +224,7 @@ class SolverDyn(SOT):
                  solver: str = ACTIVE_SET):
         SOT.__init__(self, name, model.nv, settings=DynSettings())
         self.dt, self.model = float(dt), model
-        self.layout = Layout.of(model.plant)
+        self.layout = self._layout = Layout.of(model.plant)
         limits = model.joint_limits()
         self._limits = (limits["position_lower"], limits["position_upper"], limits["velocity_lower"], limits["velocity_upper"])
         self.effort = limits["effort"]
@@ -274,6 +276,12 @@ class SolverDyn(SOT):
         return name
 
     # --- commands ----------------------------------------------------------------------------
+    def _settings_of(self, own_context: Context) -> DynSettings:
+        return cast(DynSettings, SOT._settings_of(self, own_context))
+
+    def _dyn_command(self, context: Context | None, change: Callable[[DynSettings], None]) -> None:
+        self._command(context, cast(Callable[[StackSettings], None], change))
+
     def addContact(self, contact, context: Context | None = None) -> None:
         """Hold ``contact`` (a name or a :class:`Contact6d`); a contact being released is held again."""
         name = self._contact_name(contact)
@@ -285,11 +293,12 @@ class SolverDyn(SOT):
             if name not in s.contacts:
                 s.contacts.append(name)
 
-        self._command(context, change)
+        self._dyn_command(context, change)
 
-    def rmContact(self, contact, duration: float = 0.3, context: Context | None = None) -> None:
+    def rmContact(self, contact, duration: float = 0.3, context: Context | None = None) -> None:  # type: ignore[override]
         """Release ``contact``: its normal force ramps to 0 over ``duration`` s (≥ 0), then it is
-        removed. Removing the last held contact is refused."""
+        removed. Removing the last held contact is refused. (sot-dyninv's ``rmContact``, with the
+        ramp's duration: not the kinematic SOT's signature.)"""
         name = self._contact_name(contact)
         if not (np.isfinite(duration) and duration >= 0):
             raise InvalidInput(f"{self.name}.rmContact: duration must be finite and ≥ 0 s, got {duration}")
@@ -305,23 +314,26 @@ class SolverDyn(SOT):
             else:
                 s.releasing[name] = float(duration)
 
-        self._command(context, change)
+        self._dyn_command(context, change)
 
     def setDampingGain(self, gain: float, context: Context | None = None) -> None:
         """``K_d ≥ 0`` (1/s) of the last level ``q̈ = −K_d v``."""
         if not (np.isfinite(gain) and gain >= 0):
             raise InvalidInput(f"{self.name}: damping gain must be finite and ≥ 0, got {gain}")
-        self._command(context, lambda s: setattr(s, "damping_gain", float(gain)))
+        self._dyn_command(context, lambda s: setattr(s, "damping_gain", float(gain)))
 
     def setSolver(self, solver: str, context: Context | None = None) -> None:
         check_solver(solver)
-        self._command(context, lambda s: setattr(s, "solver", solver))
+        self._dyn_command(context, lambda s: setattr(s, "solver", solver))
 
     def setJointLimitHorizon(self, horizon: float, margin: float = 1e-3, context: Context | None = None) -> None:
         """Joint limits as acceleration bounds over ``horizon`` s (> 0), ``margin`` rad (≥ 0)."""
         if not (np.isfinite(horizon) and horizon > 0 and np.isfinite(margin) and margin >= 0):
             raise InvalidInput(f"{self.name}: horizon must be > 0 s and margin ≥ 0, got {horizon}, {margin}")
-        self._command(context, lambda s: (setattr(s, "horizon", float(horizon)), setattr(s, "position_margin", float(margin))))
+        def change(s: DynSettings) -> None:
+            s.horizon, s.position_margin = float(horizon), float(margin)
+
+        self._dyn_command(context, change)
 
     # --- solve -------------------------------------------------------------------------------
     def _ramp(self, context: Context, name: str) -> tuple[float, float]:
@@ -373,7 +385,7 @@ class SolverDyn(SOT):
         tasks = self._tasks(context, s)
         loads = self.previous_loads(context, [c.name for c in contacts])
         levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
-        a_lower, a_upper = acceleration_bounds(terms.q, terms.v, *self._limits, s.horizon, s.position_margin, self.layout)
+        a_lower, a_upper = acceleration_bounds(terms.q, terms.v, *self._limits, s.horizon, s.position_margin, self._layout)
         if s.control_selection is not None:  # sot-core's controlSelec: the others are held (q̈ = 0)
             a_lower, a_upper = a_lower.copy(), a_upper.copy()
             a_lower[~s.control_selection] = a_upper[~s.control_selection] = 0.0

@@ -163,6 +163,29 @@ def test_contact_constraints_and_bounds_hold(standing, rng):
             assert friction_ratio(solution.wrenches[name][3:], rows.rotation[:, 2], rows.mu) <= 1 + 1e-6
 
 
+def test_torque_elimination_gives_the_full_hierarchys_optimum(standing, rng):
+    """The fast path (τ eliminated, 50 unknowns) returns the optimum of the full hierarchy over
+    (q̈, w, τ) when its τ is within the limits and the wrench rows hold."""
+    robot, diagram, com, _ = standing
+    sot, nv = robot.sot, robot.model.nv
+    for _ in range(3):  # the CoM asked to move (≤ 0.5 m/s²): unequal loads, the CoPs inside the soles
+        context = _set_state(robot, diagram, np.concatenate([robot.q0, np.zeros(nv)]))
+        com.featureDes.setReference(com.initial_com() + np.append(rng.uniform(-0.005, 0.005, 2), 0.0), context)
+        solution = _solution(robot, context)
+        assert solution.diagnostics.torques_eliminated
+        sot_context = sot.GetMyContextFromRoot(context)
+        terms = sot.dynamics.Eval(sot_context)
+        contacts = [ActiveContact(name, sot._contact_ports[name].Eval(sot_context)) for name, _ in SOLES]
+        tasks = sot._tasks(sot_context, sot._settings_of(sot_context))
+        levels, slices = dynamic_levels(terms, contacts, tasks, 10.0, loads=None)
+        a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout)
+        lower, upper = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
+        full = HierarchicalQP(len(lower)).solve(levels, lower, upper).x
+        np.testing.assert_allclose(solution.acceleration, full[:nv], atol=1e-6)
+        np.testing.assert_allclose(solution.torque, full[-sot.na:], atol=1e-5 * np.abs(full[-sot.na:]).max())
+        np.testing.assert_allclose(solution.local_wrenches["contactLF"], full[slices[0]], atol=1e-4)
+
+
 def test_friction_and_cop_rows():
     A = wrench_constraints(0.5, (-0.1, 0.1, -0.05, 0.05), 0.0)
     inside = np.array([1.0, -2.0, 0.0, 10.0, 10.0, 100.0])  # CoP (0.02, 0.01), ‖f_t‖ = 14 N ≤ 50 N

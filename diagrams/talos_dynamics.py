@@ -305,6 +305,7 @@ def summarize(run: DynamicsRun, simulator: Simulator, times: np.ndarray, duratio
         summary["foot_height_final_m"] = float(p[-1, 2] - p[0, 2])
     torque_ratio = np.abs(trace["torque"]) / robot.sot.effort
     summary["max_torque_ratio"] = float(torque_ratio.max())
+    summary["torque_at_limit_ticks"] = int(np.count_nonzero(torque_ratio.max(axis=1) >= 1 - 1e-6))  # some |τ| on its limit
     summary["max_torque_ratio_joint"] = robot.model.plant.get_joint_actuator(
         robot.model.plant.GetJointActuatorIndices()[int(np.argmax(torque_ratio.max(axis=0)))]).joint().name()
     summary["tick_us_median"] = float(np.median(times) * 1e6)

@@ -386,6 +386,25 @@ def test_release_ramps_the_force_to_zero_then_frees_the_foot(standing):
     assert sot.held_contacts(context) == ["contactLF"] and forces[-1] == 0.0
 
 
+def test_release_ramps_both_bounds_of_the_normal_force(standing):
+    """While a contact is released its normal force lies between f_min·(1 − s) and f0·(1 − s)
+    (s the ramp's progress): no jump from f_min to 0 at the release."""
+    robot, diagram, *_ = standing
+    context = _set_state(robot, diagram, np.concatenate([robot.q0, np.zeros(robot.model.nv)]))
+    contact = robot.contacts["contactRF"]
+    rows = contact.GetOutputPort("contact").Eval(contact.GetMyContextFromRoot(context))._replace(f_min=30.0)
+    nv = robot.model.nv
+    releasing = ActiveContact("contactRF", rows, f_max=0.4 * 200.0, f_low=0.4 * 30.0)
+    lower, upper = variable_bounds(nv, [releasing], [slice(nv, nv + 6)], np.zeros(nv), np.zeros(nv), robot.sot.effort)
+    assert (lower[nv + 5], upper[nv + 5]) == (12.0, 80.0)
+    nearly_free = ActiveContact("contactRF", rows, f_max=5.0, f_low=12.0)  # a force released below f_min
+    lower, upper = variable_bounds(nv, [nearly_free], [slice(nv, nv + 6)], np.zeros(nv), np.zeros(nv), robot.sot.effort)
+    assert (lower[nv + 5], upper[nv + 5]) == (5.0, 5.0)
+    held = ActiveContact("contactRF", rows)
+    lower, upper = variable_bounds(nv, [held], [slice(nv, nv + 6)], np.zeros(nv), np.zeros(nv), robot.sot.effort)
+    assert (lower[nv + 5], upper[nv + 5]) == (30.0, np.inf)
+
+
 def test_stand_short_on_dynsimu(dynamics_script):
     """RobotDynSimu: the dynamics are the solver's own, so the robot stands exactly."""
     run = dynamics_script.build_diagram("stand", "dynsimu")

@@ -39,7 +39,8 @@ dynamics rows.
 
 ``rmContact(name, duration)`` releases a contact smoothly: from the first tick after the command,
 its normal force's upper bound ramps linearly from the normal force it carried then down to 0 over
-``duration`` seconds (the lower bound drops to 0); the contact is removed once the ramp ends, so the
+``duration`` seconds, and its lower bound from ``f_min`` down to 0 (so the force never jumps: with
+the lower bound dropped to 0 at once, a sole held at 30 N went to 0 N in one tick); the contact is removed once the ramp ends, so the
 foot lifts off carrying no force. The ramps are discrete state; the contact set is a setting.
 
 Inputs: ``dynamics`` (:class:`.terms.DynamicsTerms`), one per contact (``contact<name>``
@@ -117,7 +118,8 @@ class DynSolution:
 class ActiveContact:
     name: str
     rows: ContactRows
-    f_max: float = np.inf  # the release ramp's bound on the normal force
+    f_max: float = np.inf  # the release ramp's bounds on the normal force: upper,
+    f_low: float = 0.0  # and lower (used when f_max is finite)
 
 
 def shear_weights(loads: np.ndarray | None, count: int) -> np.ndarray:
@@ -239,7 +241,7 @@ def variable_bounds(
     for c, sl in zip(contacts, slices, strict=False):
         normal = sl.stop - 1  # f_z, the wrench's last component
         released = np.isfinite(c.f_max)
-        lower[normal], upper[normal] = (0.0, c.f_max) if released else (c.rows.f_min, np.inf)
+        lower[normal], upper[normal] = (min(c.f_low, c.f_max), c.f_max) if released else (c.rows.f_min, np.inf)
     return lower, upper
 
 
@@ -382,7 +384,7 @@ class SolverDyn(SOT):
         """The held contacts, and the released ones whose ramp has not ended (with their bound)."""
         out = []
         for name in s.contacts:
-            f_max = np.inf
+            f_max, fraction = np.inf, 1.0
             if name in s.releasing:
                 t0, f0 = self._ramp(context, name)
                 if not np.isnan(t0):
@@ -390,7 +392,8 @@ class SolverDyn(SOT):
                     if fraction <= 1e-9:
                         continue  # released: the foot is free
                     f_max = max(0.0, f0 * fraction)
-            out.append(ActiveContact(name, self._contact_ports[name].Eval(context), f_max))
+            rows = self._contact_ports[name].Eval(context)
+            out.append(ActiveContact(name, rows, f_max, rows.f_min * fraction))
         return out
 
     def held_contacts(self, context: Context) -> list[str]:

@@ -27,8 +27,8 @@ last. ``q̈ = −K_d v``: whatever motion the stack leaves free is damped (``set
 
 Solved first with ``τ`` eliminated when ``B`` is a selection (TALOS: every joint actuated):
 the actuated rows of the dynamics then only define ``τ``, and the hierarchy over ``(q̈, w)``
-keeps the floating base's six rows (:func:`eliminate_torques`, 50 unknowns instead of 82 with
-both soles). If that optimum's ``τ`` is within the effort limits and the contacts' wrench rows
+keeps the floating base's six rows (``dynamic_levels(..., actuated=...)``, 50 unknowns instead of
+82 with both soles). If that optimum's ``τ`` is within the effort limits and the contacts' wrench rows
 hold, it is the optimum of the full problem; only otherwise is the full problem solved.
 
 The hierarchical QP then takes the minimum-norm ``x`` of the optimal set (smallest torques and
@@ -150,27 +150,42 @@ def wrench_regularization(contact: ActiveContact, k: int, weight: float) -> np.n
     return WRENCH_REGULARIZATION * weight * rows
 
 
+def wrench_slices(nv: int, contacts: list[ActiveContact]) -> list[slice]:
+    """Where each contact's wrench lies in ``x = (q̈, w…, τ)``."""
+    slices, start = [], nv
+    for c in contacts:
+        k = c.rows.jacobian.shape[0]
+        slices.append(slice(start, start + k))
+        start += k
+    return slices
+
+
 def dynamic_levels(
     terms: DynamicsTerms, contacts: list[ActiveContact], tasks: list[TaskLevel], damping_gain: float,
-    with_inequalities: bool = True, loads: np.ndarray | None = None,
+    with_inequalities: bool = True, loads: np.ndarray | None = None, actuated: np.ndarray | None = None,
 ) -> tuple[list[LevelRows], list[slice]]:
     """The levels of the module docstring over ``x = (q̈, w…, τ)``, and the slice of each contact's
     wrench in ``x``. ``with_inequalities=False`` leaves the contacts' wrench rows out (the
     relaxed problem of :meth:`SolverDyn._calc`); ``loads``: the contacts' normal forces at the
-    previous tick (N, for :func:`shear_weights`; None: equal weights)."""
+    previous tick (N, for :func:`shear_weights`; None: equal weights). ``actuated`` (from
+    :func:`actuated_rows`): ``τ`` eliminated, the levels over ``(q̈, w…)`` with only the
+    dynamics' unactuated rows (the actuated ones define ``τ``: :func:`torques_of`)."""
     nv, na = terms.B.shape
     sizes = [c.rows.jacobian.shape[0] for c in contacts]
-    n = nv + sum(sizes) + na
-    slices, start = [], nv
-    for k in sizes:
-        slices.append(slice(start, start + k))
-        start += k
+    n = nv + sum(sizes) + (na if actuated is None else 0)
+    slices = wrench_slices(nv, contacts)
     dyn = np.zeros((nv, n))
     dyn[:, :nv] = terms.M
-    dyn[:, nv + sum(sizes):] = -terms.B
+    if actuated is None:
+        dyn[:, nv + sum(sizes):] = -terms.B
     for c, sl in zip(contacts, slices, strict=False):
         dyn[:, sl] = -c.rows.jacobian.T @ world_wrench_map(c.rows.rotation, sl.stop - sl.start)
-    levels = [LevelRows(dyn, -terms.h, -terms.h)]
+    if actuated is None:
+        levels = [LevelRows(dyn, -terms.h, -terms.h)]
+    else:
+        passive = np.ones(nv, dtype=bool)
+        passive[actuated] = False
+        levels = [LevelRows(dyn[passive], -terms.h[passive], -terms.h[passive])]
     if contacts:
         m_eq = sum(sizes)
         m_in = sum(len(c.rows.wrench_rows) for c in contacts) if with_inequalities else 0
@@ -211,24 +226,14 @@ def actuated_rows(B: np.ndarray) -> np.ndarray | None:
     return np.argmax(ones, axis=0)
 
 
-def eliminate_torques(levels: list[LevelRows], rows: np.ndarray, na: int) -> list[LevelRows]:
-    """The levels of :func:`dynamic_levels` over ``(q̈, w)`` alone, ``τ`` eliminated: with ``B`` a
-    selection (:func:`actuated_rows`), the dynamics' actuated rows only define ``τ`` (τ_j is row
-    ``rows[j]`` of ``M q̈ + h − Σ J_cᵀ W_c``) and the unactuated ones (the floating base's) stay
-    as the first level; no other level has a ``τ`` column."""
-    m = levels[0].A.shape[1] - na
-    passive = np.ones(levels[0].A.shape[0], dtype=bool)
-    passive[rows] = False
-    dynamics = levels[0]
-    reduced = [LevelRows(dynamics.A[passive, :m], dynamics.lower[passive], dynamics.upper[passive])]
-    return reduced + [LevelRows(level.A[:, :m], level.lower, level.upper) for level in levels[1:]]
-
-
-def torques_of(dynamics: LevelRows, y: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """``τ`` from ``y = (q̈, w)``: the actuated rows of ``M q̈ − Σ J_cᵀ W_c + h`` (the dynamics
-    level is ``[M, −J_cᵀ R_c…, −B] x = −h``)."""
-    m = len(y)
-    return (dynamics.A[rows, :m] @ y - dynamics.lower[rows])
+def torques_of(terms: DynamicsTerms, contacts: list[ActiveContact], slices: list[slice], y: np.ndarray,
+               actuated: np.ndarray) -> np.ndarray:
+    """``τ`` from ``y = (q̈, w…)`` with ``B`` a selection: the actuated rows of
+    ``M q̈ + h − Σ_c J_cᵀ diag(R_c, R_c) w_c``."""
+    generalized = terms.M @ y[: terms.M.shape[0]] + terms.h
+    for c, sl in zip(contacts, slices, strict=True):
+        generalized -= c.rows.jacobian.T @ (world_wrench_map(c.rows.rotation, sl.stop - sl.start) @ y[sl])
+    return generalized[actuated]
 
 
 def variable_bounds(
@@ -424,7 +429,7 @@ class SolverDyn(SOT):
         contacts = self._active_contacts(context, s)
         tasks = self._tasks(context, s)
         loads = self.previous_loads(context, [c.name for c in contacts])
-        levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
+        slices = wrench_slices(self.nv, contacts)
         a_lower, a_upper = acceleration_bounds(terms.q, terms.v, *self._limits, s.horizon, s.position_margin, self._layout)
         if s.control_selection is not None:  # sot-core's controlSelec: the others are held (q̈ = 0)
             a_lower, a_upper = a_lower.copy(), a_upper.copy()
@@ -437,19 +442,21 @@ class SolverDyn(SOT):
         if hqp is None:
             hqp = self._hqps[n] = HierarchicalQP(n)
         relaxed = result = None
+        levels: list[LevelRows] = []
         # The fast path: τ eliminated (a smaller problem, no τ bounds). If its τ is within the
         # effort limits and the wrench rows hold, it is the optimum of the full hierarchy (the same
         # argument as for the wrench rows; after the damping level x is unique, so the last
         # minimum-norm stage changes nothing).
-        rows = actuated_rows(terms.B)
-        if rows is not None:
+        actuated = actuated_rows(terms.B)
+        if actuated is not None:
             m = n - self.na
             small = self._reduced_hqps.get(m)
             if small is None:
                 small = self._reduced_hqps[m] = HierarchicalQP(m)
             try:
-                fast = small.solve(eliminate_torques(levels, rows, self.na), lower[:m], upper[:m], 0.0, s.solver)
-                tau = torques_of(levels[0], fast.x, rows)
+                reduced, _ = dynamic_levels(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
+                fast = small.solve(reduced, lower[:m], upper[:m], 0.0, s.solver)
+                tau = torques_of(terms, contacts, slices, fast.x, actuated)
                 x = np.concatenate([fast.x, tau])
                 if np.all(np.abs(tau) <= self.effort * (1 + 1e-9)) and (not contacts or _wrench_rows_hold(contacts, slices, x)):
                     fast.x = x
@@ -459,12 +466,12 @@ class SolverDyn(SOT):
                 pass
         try:
             if result is None:
+                levels, _ = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
                 relaxed = result = hqp.solve(levels, lower, upper, 0.0, s.solver)
             if contacts and not _wrench_rows_hold(contacts, slices, result.x):
                 result = None
                 full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, loads=loads)
                 result = hqp.solve(full, lower, upper, 0.0, s.solver)
-                levels = full
         except SolverError as error:
             # Never zero torque on a standing robot if avoidable: the relaxed optimum (dynamics,
             # contact accelerations and the stack exact; friction/CoP rows possibly violated), else

@@ -296,7 +296,7 @@ def summarize(run: DynamicsRun, simulator: Simulator, times: np.ndarray, duratio
         held = t < until
         slips.append(np.linalg.norm(path[side][held, :2, 3] - path[side][0, :2, 3], axis=1).max())
     summary["max_foot_slip_m"] = float(max(slips))
-    if run.foot is not None:
+    if run.foot is not None and t[-1] >= LIFT[0]:  # (a run stopped before the lift has no foot error)
         p = path["contactRF"][:, :3, 3]
         lifted = t >= LIFT[0]
         error = np.linalg.norm(p - trace["foot_reference"], axis=1)

@@ -3,7 +3,8 @@
 
 sotdrake: ``diagrams/talos_dynamics.py`` on ``RobotDynSimu`` (the solver integrates its own ``q̈``,
 as the peer does), ticks timed one by one around ``Simulator.AdvanceTo`` (Drake's framework and the
-Python entities included). Peer: placo's ``DynamicsSolver`` (C++ core over Pinocchio; weighted QP
+Python entities included), by the wall clock and by the thread's CPU time (``time.thread_time``: on
+a loaded machine the wall clock also counts the waits for a core). Peer: placo's ``DynamicsSolver`` (C++ core over Pinocchio; weighted QP
 with "hard" and "soft" tasks, no strict priorities among soft ones), on the same URDF, the same
 CoM and foot references (the same Drake trajectories, sampled), the same gains (CoM K_p = 100,
 K_v = 20; foot 400, 40; posture 25, 10), planar sole contacts with μ = 0.7, joint, velocity and
@@ -35,13 +36,29 @@ from scenario import DT, pinocchio_half_sitting, urdf_file
 from sotdrake.dynamics.station import sole_rectangle
 
 
+def _tick_numbers(wall: list[float], cpu: list[float]) -> dict:
+    """Medians and p95 of the ticks after the first 10 (µs): wall clock and the thread's CPU time."""
+    wall_a, cpu_a = np.array(wall[10:]), np.array(cpu[10:])
+    return {"tick_us_median": float(np.median(wall_a) * 1e6), "tick_us_p95": float(np.percentile(wall_a, 95) * 1e6),
+            "tick_cpu_us_median": float(np.median(cpu_a) * 1e6), "tick_cpu_us_p95": float(np.percentile(cpu_a, 95) * 1e6)}
+
+
 def run_sotdrake(scenario: str, duration: float) -> dict:
+    from pydrake.systems.analysis import Simulator
+
     run = td.build_diagram(scenario, "dynsimu")
-    simulator, times = td.simulate_ticks(run, duration, progress=False)
-    summary, _ = td.summarize(run, simulator, times, duration)
-    return {"tick_us_median": float(np.median(times[10:]) * 1e6), "tick_us_p95": float(np.percentile(times[10:], 95) * 1e6),
-            "com_rms_error_m": summary.get("com_rms_error_m"), "foot_rms_error_m": summary.get("foot_rms_error_m"),
-            "max_torque_ratio": summary["max_torque_ratio"], "fell": summary["fell"]}
+    simulator = Simulator(run.diagram)
+    simulator.Initialize()
+    wall, cpu = [], []
+    for k in range(round(duration / DT)):
+        start, start_cpu = time.perf_counter(), time.thread_time()
+        simulator.AdvanceTo((k + 1) * DT)
+        cpu.append(time.thread_time() - start_cpu)
+        wall.append(time.perf_counter() - start)
+    summary, _ = td.summarize(run, simulator, np.array(wall), duration)
+    return {**_tick_numbers(wall, cpu), "com_rms_error_m": summary.get("com_rms_error_m"),
+            "foot_rms_error_m": summary.get("foot_rms_error_m"), "max_torque_ratio": summary["max_torque_ratio"],
+            "max_friction_ratio": summary["max_friction_ratio"], "fell": summary["fell"]}
 
 
 def _com_reference(scenario: str, com0: np.ndarray, left_xy: np.ndarray, t: float):
@@ -86,11 +103,11 @@ def run_placo(scenario: str, duration: float) -> dict:
     foot_traj = td._hold_move_hold(td.LIFT[0], td.LIFT[1], foot_p0, foot_p0 + [0, 0, td.LIFT[2]])
     position = feet["right"].position()
     position.kp, position.kd = 400.0, 40.0
-    times, com_err, foot_err = [], [], []
+    times, cpu, com_err, foot_err = [], [], [], []
     released = False
     for k in range(round(duration / DT)):
         t = k * DT
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.thread_time()
         target, velocity, acceleration = _com_reference(scenario, com0, left_xy, t)
         com.target_world, com.dtarget_world, com.ddtarget_world = target, velocity, acceleration
         if scenario == "lift_leg":
@@ -102,13 +119,13 @@ def run_placo(scenario: str, duration: float) -> dict:
             position.ddtarget_world = foot_traj.derivative(2).value(t)[:, 0]
         robot.update_kinematics()
         solver.solve(True)
+        cpu.append(time.thread_time() - start_cpu)
         times.append(time.perf_counter() - start)
         robot.update_kinematics()
         com_err.append(np.linalg.norm(robot.com_world() - _com_reference(scenario, com0, left_xy, t + DT)[0]))
         if scenario == "lift_leg" and t + DT >= td.LIFT[0]:
             foot_err.append(np.linalg.norm(robot.get_T_world_frame("right_sole_link")[:3, 3] - foot_traj.value(t + DT)[:, 0]))
-    times = np.array(times[10:])
-    return {"tick_us_median": float(np.median(times) * 1e6), "tick_us_p95": float(np.percentile(times, 95) * 1e6),
+    return {**_tick_numbers(times, cpu),
             "com_rms_error_m": float(np.sqrt(np.mean(np.square(com_err)))),
             "foot_rms_error_m": float(np.sqrt(np.mean(np.square(foot_err)))) if foot_err else None,
             "version": getattr(placo, "__version__", "0.10.2")}
@@ -125,13 +142,14 @@ def main(argv=None) -> dict:
         results[scenario] = {"duration_s": duration, "placo": run_placo(scenario, duration), "sotdrake": run_sotdrake(scenario, duration)}
     out = HERE / "results" / "dynamics.json"
     out.write_text(json.dumps(results, indent=2) + "\n")
-    print(f"{'scenario':10} {'peer':10} {'tick p50 (µs)':>14} {'p95 (µs)':>10} {'CoM RMS (m)':>12} {'foot RMS (m)':>13}")
+    print(f"{'scenario':10} {'peer':10} {'CPU p50 (µs)':>13} {'CPU p95':>8} {'wall p50 (µs)':>14} {'wall p95':>9} "
+          f"{'CoM RMS (m)':>12} {'foot RMS (m)':>13}")
     for scenario, r in results.items():
         for peer in ("sotdrake", "placo"):
             row = r[peer]
             foot = "-" if row["foot_rms_error_m"] is None else f"{row['foot_rms_error_m']:.2e}"
-            print(f"{scenario:10} {peer:10} {row['tick_us_median']:14.0f} {row['tick_us_p95']:10.0f} "
-                  f"{row['com_rms_error_m']:12.2e} {foot:>13}")
+            print(f"{scenario:10} {peer:10} {row['tick_cpu_us_median']:13.0f} {row['tick_cpu_us_p95']:8.0f} "
+                  f"{row['tick_us_median']:14.0f} {row['tick_us_p95']:9.0f} {row['com_rms_error_m']:12.2e} {foot:>13}")
     return results
 
 

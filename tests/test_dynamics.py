@@ -163,6 +163,29 @@ def test_contact_constraints_and_bounds_hold(standing, rng):
             assert friction_ratio(solution.wrenches[name][3:], rows.rotation[:, 2], rows.mu) <= 1 + 1e-6
 
 
+def test_torque_elimination_gives_the_full_hierarchys_optimum(standing, rng):
+    """The fast path (τ eliminated, 50 unknowns) returns the optimum of the full hierarchy over
+    (q̈, w, τ) when its τ is within the limits and the wrench rows hold."""
+    robot, diagram, com, _ = standing
+    sot, nv = robot.sot, robot.model.nv
+    for _ in range(3):  # the CoM asked to move (≤ 0.5 m/s²): unequal loads, the CoPs inside the soles
+        context = _set_state(robot, diagram, np.concatenate([robot.q0, np.zeros(nv)]))
+        com.featureDes.setReference(com.initial_com() + np.append(rng.uniform(-0.005, 0.005, 2), 0.0), context)
+        solution = _solution(robot, context)
+        assert solution.diagnostics.torques_eliminated
+        sot_context = sot.GetMyContextFromRoot(context)
+        terms = sot.dynamics.Eval(sot_context)
+        contacts = [ActiveContact(name, sot._contact_ports[name].Eval(sot_context)) for name, _ in SOLES]
+        tasks = sot._tasks(sot_context, sot._settings_of(sot_context))
+        levels, slices = dynamic_levels(terms, contacts, tasks, 10.0, loads=None)
+        a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout)
+        lower, upper = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
+        full = HierarchicalQP(len(lower)).solve(levels, lower, upper).x
+        np.testing.assert_allclose(solution.acceleration, full[:nv], atol=1e-6)
+        np.testing.assert_allclose(solution.torque, full[-sot.na:], atol=1e-5 * np.abs(full[-sot.na:]).max())
+        np.testing.assert_allclose(solution.local_wrenches["contactLF"], full[slices[0]], atol=1e-4)
+
+
 def test_friction_and_cop_rows():
     A = wrench_constraints(0.5, (-0.1, 0.1, -0.05, 0.05), 0.0)
     inside = np.array([1.0, -2.0, 0.0, 10.0, 10.0, 100.0])  # CoP (0.02, 0.01), ‖f_t‖ = 14 N ≤ 50 N
@@ -200,6 +223,75 @@ def test_strict_hierarchy_on_random_dynamic_stacks(standing, rng):
             common = 2 + k  # dynamics, contacts, tasks[:k]
             np.testing.assert_allclose(slacks[k][:common], slacks[k - 1][:common], atol=1e-6, rtol=1e-6)
         assert slacks[-1][0] < 1e-8 and slacks[-1][1] < 1e-6
+
+
+def test_shear_follows_the_load(standing):
+    """The wrench regularization shares the shear in proportion to the normal forces (each sole
+    uses the same fraction of its friction cone). With the regularization unweighted (no loads) the
+    shear was shared equally, and the nearly unloaded sole of the sway reached its friction bound
+    (then slipped on the physics plant): here the light sole's ratio was 5× the loaded one's."""
+    robot, diagram, *_ = standing
+    sot, nv = robot.sot, robot.model.nv
+    context = _set_state(robot, diagram, np.concatenate([robot.q0, np.zeros(nv)]))
+    terms = robot.dynamic.GetOutputPort("dynamics").Eval(robot.dynamic.GetMyContextFromRoot(context))
+    contacts = [ActiveContact(name, robot.contacts[name].GetOutputPort("contact").Eval(
+        robot.contacts[name].GetMyContextFromRoot(context))) for name, _ in SOLES]
+    Jcom = robot.dynamic.GetOutputPort("Jcom").Eval(robot.dynamic.GetMyContextFromRoot(context))
+    com = TaskLevel(Jcom, np.array([0.3, -0.5, 0.0]), np.array([0.3, -0.5, 0.0]), np.zeros(3))  # ZMP ~4.5 cm left
+    a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout)
+    hqp = HierarchicalQP(nv + 12 + sot.na)
+
+    def ratios(loads):
+        levels, slices = dynamic_levels(terms, contacts, [com], 10.0, loads=loads)
+        lower, upper = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
+        x = hqp.solve(levels, lower, upper).x
+        w = [x[sl] for sl in slices]
+        return np.array([np.hypot(*wc[3:5]) / wc[5] for wc in w]), np.array([wc[5] for wc in w])
+
+    equal, loads = ratios(None)
+    assert loads[0] > 4 * loads[1]  # the left sole carries most of the weight
+    assert equal[1] > 4 * equal[0]  # equal shares: the light sole near its bound
+    for _ in range(2):  # the loads of the previous tick, as SolverDyn does
+        weighted, loads = ratios(loads)
+    np.testing.assert_allclose(weighted[1], weighted[0], rtol=0.01)
+    assert weighted.max() < 0.5 * equal.max()
+
+
+def test_solver_records_the_previous_loads(standing):
+    """The shear weights of a tick come from the normal forces of the tick before (discrete state)."""
+    robot, diagram, *_ = standing
+    simulator = Simulator(diagram)
+    context = simulator.get_context()
+    sot_context = robot.sot.GetMyContextFromRoot(context)
+    assert robot.sot.previous_loads(sot_context, ["contactLF", "contactRF"]) is None  # nothing recorded yet
+    simulator.AdvanceTo(0.002)
+    before = _solution(robot, context).local_wrenches
+    simulator.AdvanceTo(0.003)  # the update of t = 0.002 s records that tick's solution
+    loads = robot.sot.previous_loads(sot_context, ["contactLF", "contactRF"])
+    np.testing.assert_array_equal(loads, [before["contactLF"][5], before["contactRF"][5]])
+
+
+def test_stiff_com_after_a_push_spends_the_torques(standing):
+    """After the long push the CoM moves at 0.11 m/s (feet still). The CoP bounds allow about
+    1 m/s² of CoM deceleration; a CoM task with K_v = 20 asks 2.2 m/s², and the hierarchy meets it
+    by whirling the upper body (angular momentum): the torques reach their limits and the posture
+    below is abandoned, which on the physics plant made the soles slip 2 cm. With K_p = 20 (the
+    push scenario's) the same state asks what the soles can give."""
+    robot, diagram, com, _ = standing
+    dynamic = robot.dynamic
+    context = _set_state(robot, diagram, np.concatenate([robot.q0, np.zeros(robot.model.nv)]))
+    own = dynamic.GetMyContextFromRoot(context)
+    A = np.vstack([dynamic.GetOutputPort("J" + name).Eval(own) for name, _ in SOLES] + [dynamic.GetOutputPort("Jcom").Eval(own)])
+    v = np.linalg.lstsq(A, np.concatenate([np.zeros(12), [0.11, 0.0, 0.0]]), rcond=None)[0]
+    outcome = {}
+    for kp in (100.0, 20.0):
+        context = _set_state(robot, diagram, np.concatenate([robot.q0, v]))
+        com.task.setGain(kp, context=context)
+        solution = _solution(robot, context)
+        assert solution.residuals[2] < 1e-8  # the CoM level is met in both cases...
+        outcome[kp] = (np.abs(solution.torque / robot.sot.effort).max(), solution.residuals[3])
+    assert outcome[100.0][0] > 0.999 and outcome[20.0][0] < 0.95  # ...at the torque limits with the stiff gain
+    assert outcome[100.0][1] > 5 * outcome[20.0][1]  # and the posture is abandoned
 
 
 def test_acceleration_bounds_stop_a_joint_at_its_limit(talos_model):
@@ -292,6 +384,25 @@ def test_release_ramps_the_force_to_zero_then_frees_the_foot(standing):
     for k, force in enumerate(forces[:2]):
         assert force == pytest.approx(f0 * (1 - (0.01 * k + 0.01) / 0.03), rel=1e-6)
     assert sot.held_contacts(context) == ["contactLF"] and forces[-1] == 0.0
+
+
+def test_release_ramps_both_bounds_of_the_normal_force(standing):
+    """While a contact is released its normal force lies between f_min·(1 − s) and f0·(1 − s)
+    (s the ramp's progress): no jump from f_min to 0 at the release."""
+    robot, diagram, *_ = standing
+    context = _set_state(robot, diagram, np.concatenate([robot.q0, np.zeros(robot.model.nv)]))
+    contact = robot.contacts["contactRF"]
+    rows = contact.GetOutputPort("contact").Eval(contact.GetMyContextFromRoot(context))._replace(f_min=30.0)
+    nv = robot.model.nv
+    releasing = ActiveContact("contactRF", rows, f_max=0.4 * 200.0, f_low=0.4 * 30.0)
+    lower, upper = variable_bounds(nv, [releasing], [slice(nv, nv + 6)], np.zeros(nv), np.zeros(nv), robot.sot.effort)
+    assert (lower[nv + 5], upper[nv + 5]) == (12.0, 80.0)
+    nearly_free = ActiveContact("contactRF", rows, f_max=5.0, f_low=12.0)  # a force released below f_min
+    lower, upper = variable_bounds(nv, [nearly_free], [slice(nv, nv + 6)], np.zeros(nv), np.zeros(nv), robot.sot.effort)
+    assert (lower[nv + 5], upper[nv + 5]) == (5.0, 5.0)
+    held = ActiveContact("contactRF", rows)
+    lower, upper = variable_bounds(nv, [held], [slice(nv, nv + 6)], np.zeros(nv), np.zeros(nv), robot.sot.effort)
+    assert (lower[nv + 5], upper[nv + 5]) == (30.0, np.inf)
 
 
 def test_stand_short_on_dynsimu(dynamics_script):

@@ -43,7 +43,7 @@ class ContactRows(NamedTuple):
     """What the solver needs of one contact (see the module docstring): ``wrench_rows`` ``A w ≤ 0``
     on the local wrench (size k = 6, or 3 for a point contact); ``f_min`` the normal force's lower
     bound (N); ``jacobian`` (k×nv), ``acceleration`` (k: the reference ``J_C q̈ = acceleration``),
-    ``rotation`` ``R_WC``. The normal force is the wrench's last component."""
+    ``rotation`` ``R_WC``; ``centre`` the sole's centre. The normal force is the wrench's last component."""
 
     jacobian: np.ndarray
     acceleration: np.ndarray
@@ -51,6 +51,7 @@ class ContactRows(NamedTuple):
     wrench_rows: np.ndarray
     f_min: float
     mu: float
+    centre: tuple[float, float] = (0.0, 0.0)  # the sole rectangle's centre (m, in C): where the CoP is best
 
 
 def wrench_constraints(mu: float, rectangle: tuple[float, float, float, float] | None, cop_margin: float) -> np.ndarray:
@@ -88,7 +89,7 @@ def friction_ratio(force_world: np.ndarray, normal: np.ndarray, mu: float) -> fl
     """``‖f_t‖ / (μ f_n)`` of a force (world) against a surface of unit ``normal`` (inf if f_n ≤ 0)."""
     fn = float(force_world @ normal)
     ft = np.linalg.norm(force_world - fn * normal)
-    return ft / (mu * fn) if fn > 0 else (0.0 if ft == 0 else math.inf)
+    return float(ft / (mu * fn)) if fn > 0 else (0.0 if ft == 0 else math.inf)
 
 
 @dataclass
@@ -108,11 +109,12 @@ class Contact6d(Entity[ContactSettings]):
                  mu: float = 0.7, f_min: float = 1.0, cop_margin: float = 0.01):
         Entity.__init__(self, name, ContactSettings())
         self.nv = nv
+        self.rectangle: tuple[float, float, float, float] | None = None
         if rectangle is not None:
-            rectangle = tuple(float(a) for a in rectangle)
-            if len(rectangle) != 4 or not (rectangle[0] < rectangle[1] and rectangle[2] < rectangle[3]):
-                raise InvalidInput(f"{name}: rectangle is (x_min, x_max, y_min, y_max) with min < max, got {rectangle}")
-        self.rectangle = rectangle
+            values = tuple(float(a) for a in rectangle)
+            if len(values) != 4 or not (values[0] < values[1] and values[2] < values[3]):
+                raise InvalidInput(f"{name}: rectangle is (x_min, x_max, y_min, y_max) with min < max, got {values}")
+            self.rectangle = (values[0], values[1], values[2], values[3])
         self.setFriction(mu)
         self.setMinimumNormalForce(f_min)
         self.setCopMargin(cop_margin)
@@ -161,4 +163,6 @@ class Contact6d(Entity[ContactSettings]):
             acceleration = acceleration - s.velocity_gain * (J @ self.velocity.Eval(context))
         A = wrench_constraints(s.mu, self.rectangle, s.cop_margin)
         R = self.position.Eval(context).rotation().matrix()
-        output.set_value(ContactRows(J, acceleration, R, A, s.f_min, s.mu))
+        centre = (0.0, 0.0) if self.rectangle is None else \
+            ((self.rectangle[0] + self.rectangle[1]) / 2, (self.rectangle[2] + self.rectangle[3]) / 2)
+        output.set_value(ContactRows(J, acceleration, R, A, s.f_min, s.mu, centre))

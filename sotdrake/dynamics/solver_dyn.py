@@ -13,9 +13,23 @@ first (:func:`dynamic_levels`):
 2. … the user's stack (``push``), each a :class:`~sotdrake.task.TaskLevel` over ``q̈``
    (``TaskDynPD``);
 last. ``q̈ = −K_d v``: whatever motion the stack leaves free is damped (``setDampingGain``); in
-   the same level, ``ε w_t = 0`` on every contact's tangential force and torque (``ε = 10⁻³``
-   s²/kg·m: a regularization, so that the distribution of the wrenches the levels above leave free
-   prefers centred CoPs and no shear, away from the friction and CoP bounds).
+   the same level, a regularization of the contact wrenches (:func:`wrench_regularization`) so that
+   the distribution the levels above leave free keeps away from the friction and CoP bounds, *in
+   proportion to the normal forces*: ``ε √(f̄/f_c) (n_x − y_c f_z, n_y + x_c f_z, n_z, f_x, f_y) = 0``
+   (``ε = 10⁻³`` s²/kg·m, ``(x_c, y_c)`` the sole's centre, ``f_c`` the normal force contact c
+   carried at the previous tick, ``f̄`` their mean). Minimizing ``Σ_c ‖f_t,c‖²/f_c`` under
+   ``Σ_c f_t,c = F_t`` gives ``f_t,c = F_t f_c/Σ f``: every contact uses the same fraction of its
+   friction cone; likewise ``Σ_c f_c d_c²`` (``d_c`` the CoP's offset from the sole's centre)
+   gives every sole the same CoP offset. With the rows unweighted, the shear and the moments are
+   shared *equally*: at the sway's extremes the nearly unloaded sole (40 N) carried half of the
+   45 N of lateral force, at the edge of its friction pyramid, and half of the moment, its CoP at
+   the edge of the sole; on the physics plant it rolled on that edge and slipped.
+
+Solved first with ``τ`` eliminated when ``B`` is a selection (TALOS: every joint actuated):
+the actuated rows of the dynamics then only define ``τ``, and the hierarchy over ``(q̈, w)``
+keeps the floating base's six rows (``dynamic_levels(..., actuated=...)``, 50 unknowns instead of
+82 with both soles). If that optimum's ``τ`` is within the effort limits and the contacts' wrench rows
+hold, it is the optimum of the full problem; only otherwise is the full problem solved.
 
 The hierarchical QP then takes the minimum-norm ``x`` of the optimal set (smallest torques and
 wrenches among the equivalent ones). Joints without an actuator would get no ``τ`` column: TALOS'
@@ -25,7 +39,8 @@ dynamics rows.
 
 ``rmContact(name, duration)`` releases a contact smoothly: from the first tick after the command,
 its normal force's upper bound ramps linearly from the normal force it carried then down to 0 over
-``duration`` seconds (the lower bound drops to 0); the contact is removed once the ramp ends, so the
+``duration`` seconds, and its lower bound from ``f_min`` down to 0 (so the force never jumps: with
+the lower bound dropped to 0 at once, a sole held at 30 N went to 0 N in one tick); the contact is removed once the ramp ends, so the
 foot lifts off carrying no force. The ramps are discrete state; the contact set is a setting.
 
 Inputs: ``dynamics`` (:class:`.terms.DynamicsTerms`), one per contact (``contact<name>``
@@ -38,7 +53,9 @@ level) and ``diagnostics``.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -80,6 +97,7 @@ class DynDiagnostics:
     active_bounds: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     solve_time_s: float = 0.0
     failure: str = ""
+    torques_eliminated: bool = False  # solved over (q̈, w) with τ eliminated (the fast path)
 
 
 @dataclass
@@ -100,29 +118,74 @@ class DynSolution:
 class ActiveContact:
     name: str
     rows: ContactRows
-    f_max: float = np.inf  # the release ramp's bound on the normal force
+    f_max: float = np.inf  # the release ramp's bounds on the normal force: upper,
+    f_low: float = 0.0  # and lower (used when f_max is finite)
+
+
+def shear_weights(loads: np.ndarray | None, count: int) -> np.ndarray:
+    """The factor ``√(f̄/f_c)`` of each contact's shear regularization (see the module docstring)
+    from the normal forces ``loads`` (N) the contacts carried at the previous tick; ones if there
+    is no such record (NaN: a new contact) or a single contact. Each load is floored at 1 % of the
+    mean (and 1 N), so a contact that carried nothing gets a large, finite weight."""
+    if loads is None or count < 2:
+        return np.ones(count)
+    loads = np.asarray(loads, dtype=float)
+    if loads.shape != (count,) or not np.all(np.isfinite(loads)):
+        return np.ones(count)
+    mean = max(float(np.mean(np.maximum(loads, 0.0))), 1.0)
+    return np.sqrt(mean / np.maximum(loads, max(0.01 * mean, 1.0)))
+
+
+def wrench_regularization(contact: ActiveContact, k: int, weight: float) -> np.ndarray:
+    """The regularization rows of one contact's wrench (k = 6: ``(n, f)``; 3: ``f``), target 0,
+    all scaled by ``weight``: the CoP's offset from the sole's centre ``(x_c, y_c)`` times ``f_z``,
+    the yaw torque and the shear."""
+    centre = contact.rows.centre
+    if k == 3:
+        return WRENCH_REGULARIZATION * weight * np.eye(3)[:2]
+    rows = np.zeros((5, 6))
+    rows[0, 0], rows[0, 5] = 1.0, -centre[1]  # n_x − y_c f_z: the CoP's y offset × f_z
+    rows[1, 1], rows[1, 5] = 1.0, centre[0]  # n_y + x_c f_z: minus its x offset × f_z
+    rows[2, 2] = rows[3, 3] = rows[4, 4] = 1.0  # n_z, f_x, f_y
+    return WRENCH_REGULARIZATION * weight * rows
+
+
+def wrench_slices(nv: int, contacts: list[ActiveContact]) -> list[slice]:
+    """Where each contact's wrench lies in ``x = (q̈, w…, τ)``."""
+    slices, start = [], nv
+    for c in contacts:
+        k = c.rows.jacobian.shape[0]
+        slices.append(slice(start, start + k))
+        start += k
+    return slices
 
 
 def dynamic_levels(
     terms: DynamicsTerms, contacts: list[ActiveContact], tasks: list[TaskLevel], damping_gain: float,
-    with_inequalities: bool = True,
+    with_inequalities: bool = True, loads: np.ndarray | None = None, actuated: np.ndarray | None = None,
 ) -> tuple[list[LevelRows], list[slice]]:
     """The levels of the module docstring over ``x = (q̈, w…, τ)``, and the slice of each contact's
     wrench in ``x``. ``with_inequalities=False`` leaves the contacts' wrench rows out (the
-    relaxed problem of :meth:`SolverDyn._calc`)."""
+    relaxed problem of :meth:`SolverDyn._calc`); ``loads``: the contacts' normal forces at the
+    previous tick (N, for :func:`shear_weights`; None: equal weights). ``actuated`` (from
+    :func:`actuated_rows`): ``τ`` eliminated, the levels over ``(q̈, w…)`` with only the
+    dynamics' unactuated rows (the actuated ones define ``τ``: :func:`torques_of`)."""
     nv, na = terms.B.shape
     sizes = [c.rows.jacobian.shape[0] for c in contacts]
-    n = nv + sum(sizes) + na
-    slices, start = [], nv
-    for k in sizes:
-        slices.append(slice(start, start + k))
-        start += k
+    n = nv + sum(sizes) + (na if actuated is None else 0)
+    slices = wrench_slices(nv, contacts)
     dyn = np.zeros((nv, n))
     dyn[:, :nv] = terms.M
-    dyn[:, nv + sum(sizes):] = -terms.B
+    if actuated is None:
+        dyn[:, nv + sum(sizes):] = -terms.B
     for c, sl in zip(contacts, slices, strict=False):
         dyn[:, sl] = -c.rows.jacobian.T @ world_wrench_map(c.rows.rotation, sl.stop - sl.start)
-    levels = [LevelRows(dyn, -terms.h, -terms.h)]
+    if actuated is None:
+        levels = [LevelRows(dyn, -terms.h, -terms.h)]
+    else:
+        passive = np.ones(nv, dtype=bool)
+        passive[actuated] = False
+        levels = [LevelRows(dyn[passive], -terms.h[passive], -terms.h[passive])]
     if contacts:
         m_eq = sum(sizes)
         m_in = sum(len(c.rows.wrench_rows) for c in contacts) if with_inequalities else 0
@@ -145,13 +208,32 @@ def dynamic_levels(
     damping = np.zeros((nv + m, n))
     damping[:nv, :nv] = np.eye(nv)
     row = nv
-    for sl in slices:
-        for column in range(sl.start, sl.stop - 1):  # every component but the normal force
-            damping[row, column] = WRENCH_REGULARIZATION
-            row += 1
+    for c, sl, weight in zip(contacts, slices, shear_weights(loads, len(contacts)), strict=True):
+        rows = wrench_regularization(c, sl.stop - sl.start, float(weight))
+        damping[row : row + len(rows), sl] = rows
+        row += len(rows)
     target = np.concatenate([-damping_gain * terms.v, np.zeros(m)])
     levels.append(LevelRows(damping, target, target))
     return levels, slices
+
+
+def actuated_rows(B: np.ndarray) -> np.ndarray | None:
+    """The velocity row each actuator drives if ``B`` is a selection (every column a single 1, no
+    row driven twice), else None."""
+    ones = B == 1.0
+    if not (np.all(ones | (B == 0.0)) and np.all(ones.sum(axis=0) == 1) and np.all(ones.sum(axis=1) <= 1)):
+        return None
+    return np.argmax(ones, axis=0)
+
+
+def torques_of(terms: DynamicsTerms, contacts: list[ActiveContact], slices: list[slice], y: np.ndarray,
+               actuated: np.ndarray) -> np.ndarray:
+    """``τ`` from ``y = (q̈, w…)`` with ``B`` a selection: the actuated rows of
+    ``M q̈ + h − Σ_c J_cᵀ diag(R_c, R_c) w_c``."""
+    generalized = terms.M @ y[: terms.M.shape[0]] + terms.h
+    for c, sl in zip(contacts, slices, strict=True):
+        generalized -= c.rows.jacobian.T @ (world_wrench_map(c.rows.rotation, sl.stop - sl.start) @ y[sl])
+    return generalized[actuated]
 
 
 def variable_bounds(
@@ -164,7 +246,7 @@ def variable_bounds(
     for c, sl in zip(contacts, slices, strict=False):
         normal = sl.stop - 1  # f_z, the wrench's last component
         released = np.isfinite(c.f_max)
-        lower[normal], upper[normal] = (0.0, c.f_max) if released else (c.rows.f_min, np.inf)
+        lower[normal], upper[normal] = (min(c.f_low, c.f_max), c.f_max) if released else (c.rows.f_min, np.inf)
     return lower, upper
 
 
@@ -185,7 +267,7 @@ class SolverDyn(SOT):
                  solver: str = ACTIVE_SET):
         SOT.__init__(self, name, model.nv, settings=DynSettings())
         self.dt, self.model = float(dt), model
-        self.layout = Layout.of(model.plant)
+        self.layout = self._layout = Layout.of(model.plant)
         limits = model.joint_limits()
         self._limits = (limits["position_lower"], limits["position_upper"], limits["velocity_lower"], limits["velocity_upper"])
         self.effort = limits["effort"]
@@ -195,12 +277,16 @@ class SolverDyn(SOT):
         self.setSolver(solver)
         self._contact_ports: dict[str, InputPort] = {}
         self._hqps: dict[int, HierarchicalQP] = {}  # a cache of solvers per problem size
+        self._reduced_hqps: dict[int, HierarchicalQP] = {}  # the same, τ eliminated
         self.dynamics = self.DeclareAbstractInputPort("dynamics", AbstractValue.Make(
             DynamicsTerms(np.eye(self.nv), np.zeros(self.nv), np.zeros(self.nv), np.zeros((self.nv, self.na)),
                           np.zeros(model.nq), np.zeros(self.nv), 1.0)))
         # Discrete state: the release ramp of each declared contact, (t0, f0) (NaN: none). A discrete
         # update is computed from the same context as the device's and the plant's.
         self._ramps = self.DeclareDiscreteState(np.full(2 * max_contacts, np.nan))
+        # and the normal force each declared contact carried at the last tick (NaN: not held), which
+        # weighs the shear regularization (:func:`shear_weights`).
+        self._loads = self.DeclareDiscreteState(np.full(max_contacts, np.nan))
         self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._update)
         self.DeclareVectorOutputPort("torque", self.na, lambda c, o: o.SetFromVector(self._solution.Eval(c).torque))
         self.DeclareVectorOutputPort("wrenches", 6 * max_contacts, self._calc_wrenches)
@@ -234,6 +320,12 @@ class SolverDyn(SOT):
         return name
 
     # --- commands ----------------------------------------------------------------------------
+    def _settings_of(self, own_context: Context) -> DynSettings:
+        return cast(DynSettings, SOT._settings_of(self, own_context))
+
+    def _dyn_command(self, context: Context | None, change: Callable[[DynSettings], None]) -> None:
+        self._command(context, cast(Callable[[StackSettings], None], change))
+
     def addContact(self, contact, context: Context | None = None) -> None:
         """Hold ``contact`` (a name or a :class:`Contact6d`); a contact being released is held again."""
         name = self._contact_name(contact)
@@ -245,11 +337,12 @@ class SolverDyn(SOT):
             if name not in s.contacts:
                 s.contacts.append(name)
 
-        self._command(context, change)
+        self._dyn_command(context, change)
 
-    def rmContact(self, contact, duration: float = 0.3, context: Context | None = None) -> None:
+    def rmContact(self, contact, duration: float = 0.3, context: Context | None = None) -> None:  # type: ignore[override]
         """Release ``contact``: its normal force ramps to 0 over ``duration`` s (≥ 0), then it is
-        removed. Removing the last held contact is refused."""
+        removed. Removing the last held contact is refused. (sot-dyninv's ``rmContact``, with the
+        ramp's duration: not the kinematic SOT's signature.)"""
         name = self._contact_name(contact)
         if not (np.isfinite(duration) and duration >= 0):
             raise InvalidInput(f"{self.name}.rmContact: duration must be finite and ≥ 0 s, got {duration}")
@@ -265,23 +358,26 @@ class SolverDyn(SOT):
             else:
                 s.releasing[name] = float(duration)
 
-        self._command(context, change)
+        self._dyn_command(context, change)
 
     def setDampingGain(self, gain: float, context: Context | None = None) -> None:
         """``K_d ≥ 0`` (1/s) of the last level ``q̈ = −K_d v``."""
         if not (np.isfinite(gain) and gain >= 0):
             raise InvalidInput(f"{self.name}: damping gain must be finite and ≥ 0, got {gain}")
-        self._command(context, lambda s: setattr(s, "damping_gain", float(gain)))
+        self._dyn_command(context, lambda s: setattr(s, "damping_gain", float(gain)))
 
     def setSolver(self, solver: str, context: Context | None = None) -> None:
         check_solver(solver)
-        self._command(context, lambda s: setattr(s, "solver", solver))
+        self._dyn_command(context, lambda s: setattr(s, "solver", solver))
 
     def setJointLimitHorizon(self, horizon: float, margin: float = 1e-3, context: Context | None = None) -> None:
         """Joint limits as acceleration bounds over ``horizon`` s (> 0), ``margin`` rad (≥ 0)."""
         if not (np.isfinite(horizon) and horizon > 0 and np.isfinite(margin) and margin >= 0):
             raise InvalidInput(f"{self.name}: horizon must be > 0 s and margin ≥ 0, got {horizon}, {margin}")
-        self._command(context, lambda s: (setattr(s, "horizon", float(horizon)), setattr(s, "position_margin", float(margin))))
+        def change(s: DynSettings) -> None:
+            s.horizon, s.position_margin = float(horizon), float(margin)
+
+        self._dyn_command(context, change)
 
     # --- solve -------------------------------------------------------------------------------
     def _ramp(self, context: Context, name: str) -> tuple[float, float]:
@@ -293,7 +389,7 @@ class SolverDyn(SOT):
         """The held contacts, and the released ones whose ramp has not ended (with their bound)."""
         out = []
         for name in s.contacts:
-            f_max = np.inf
+            f_max, fraction = np.inf, 1.0
             if name in s.releasing:
                 t0, f0 = self._ramp(context, name)
                 if not np.isnan(t0):
@@ -301,7 +397,8 @@ class SolverDyn(SOT):
                     if fraction <= 1e-9:
                         continue  # released: the foot is free
                     f_max = max(0.0, f0 * fraction)
-            out.append(ActiveContact(name, self._contact_ports[name].Eval(context), f_max))
+            rows = self._contact_ports[name].Eval(context)
+            out.append(ActiveContact(name, rows, f_max, rows.f_min * fraction))
         return out
 
     def held_contacts(self, context: Context) -> list[str]:
@@ -331,8 +428,9 @@ class SolverDyn(SOT):
         terms = self.dynamics.Eval(context)
         contacts = self._active_contacts(context, s)
         tasks = self._tasks(context, s)
-        levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False)
-        a_lower, a_upper = acceleration_bounds(terms.q, terms.v, *self._limits, s.horizon, s.position_margin, self.layout)
+        loads = self.previous_loads(context, [c.name for c in contacts])
+        slices = wrench_slices(self.nv, contacts)
+        a_lower, a_upper = acceleration_bounds(terms.q, terms.v, *self._limits, s.horizon, s.position_margin, self._layout)
         if s.control_selection is not None:  # sot-core's controlSelec: the others are held (q̈ = 0)
             a_lower, a_upper = a_lower.copy(), a_upper.copy()
             a_lower[~s.control_selection] = a_upper[~s.control_selection] = 0.0
@@ -344,13 +442,36 @@ class SolverDyn(SOT):
         if hqp is None:
             hqp = self._hqps[n] = HierarchicalQP(n)
         relaxed = result = None
+        levels: list[LevelRows] = []
+        # The fast path: τ eliminated (a smaller problem, no τ bounds). If its τ is within the
+        # effort limits and the wrench rows hold, it is the optimum of the full hierarchy (the same
+        # argument as for the wrench rows; after the damping level x is unique, so the last
+        # minimum-norm stage changes nothing).
+        actuated = actuated_rows(terms.B)
+        if actuated is not None:
+            m = n - self.na
+            small = self._reduced_hqps.get(m)
+            if small is None:
+                small = self._reduced_hqps[m] = HierarchicalQP(m)
+            try:
+                reduced, _ = dynamic_levels(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
+                fast = small.solve(reduced, lower[:m], upper[:m], 0.0, s.solver)
+                tau = torques_of(terms, contacts, slices, fast.x, actuated)
+                x = np.concatenate([fast.x, tau])
+                if np.all(np.abs(tau) <= self.effort * (1 + 1e-9)) and (not contacts or _wrench_rows_hold(contacts, slices, x)):
+                    fast.x = x
+                    result = fast
+                    diagnostics.torques_eliminated = True
+            except SolverError:
+                pass
         try:
-            relaxed = result = hqp.solve(levels, lower, upper, 0.0, s.solver)
+            if result is None:
+                levels, _ = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
+                relaxed = result = hqp.solve(levels, lower, upper, 0.0, s.solver)
             if contacts and not _wrench_rows_hold(contacts, slices, result.x):
                 result = None
-                full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain)
+                full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, loads=loads)
                 result = hqp.solve(full, lower, upper, 0.0, s.solver)
-                levels = full
         except SolverError as error:
             # Never zero torque on a standing robot if avoidable: the relaxed optimum (dynamics,
             # contact accelerations and the stack exact; friction/CoP rows possibly violated), else
@@ -358,13 +479,13 @@ class SolverDyn(SOT):
             diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
             if relaxed is None:
                 try:
-                    levels, slices = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False)
+                    levels, slices = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False, loads=loads)
                     relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver)
                     diagnostics.failure += "; the stack is dropped for this tick"
                 except SolverError as second:
                     diagnostics.failure += f"; {second}; zero torque"
             else:
-                levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False)
+                levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
                 diagnostics.failure += "; the contacts' wrench rows are relaxed for this tick"
             log.warning("%s: %s", self.name, diagnostics.failure)
             if relaxed is None:
@@ -389,14 +510,28 @@ class SolverDyn(SOT):
                 out[6 * i + 6 - len(w) : 6 * i + 6] = w
         output.SetFromVector(out)
 
+    def previous_loads(self, context: Context, names: list[str]) -> np.ndarray | None:
+        """The normal force (N) each named contact carried at the previous tick, or None if one of
+        them was not held then."""
+        record = context.get_discrete_state(self._loads).get_value()
+        ports = list(self._contact_ports)
+        loads = np.array([record[ports.index(name)] for name in names])
+        return loads if np.all(np.isfinite(loads)) else None
+
     def _update(self, context: Context, state) -> None:
-        """Start the ramp of a newly released contact, from the normal force it carries now."""
+        """Record each contact's normal force; start the ramp of a newly released contact, from
+        the normal force it carries now."""
         s = self._settings_of(context)
+        local = self._solution.Eval(context).local_wrenches
+        loads = np.full(self.max_contacts, np.nan)
+        for i, name in enumerate(self._contact_ports):
+            if name in local:
+                loads[i] = local[name][-1]
+        state.set_value(self._loads, loads)
         ramps = context.get_discrete_state(self._ramps).get_value().copy()
         for i, name in enumerate(self._contact_ports):
             if name not in s.releasing or name not in s.contacts:
                 ramps[2 * i : 2 * i + 2] = np.nan
             elif np.isnan(ramps[2 * i]):
-                local = self._solution.Eval(context).local_wrenches
                 ramps[2 * i : 2 * i + 2] = context.get_time(), float(local[name][-1]) if name in local else 0.0
         state.set_value(self._ramps, ramps)

@@ -84,11 +84,17 @@ class TaskDynPD(Entity[DynPDSettings]):
     # --- settings ----------------------------------------------------------------------------
     def setGain(self, kp: float, kv: float | None = None, context: Context | None = None) -> None:
         """``K_p`` (1/s²) and ``K_v`` (1/s, default ``2√K_p``: critically damped), both finite ≥ 0."""
-        kv = 2.0 * math.sqrt(kp) if kv is None and np.isfinite(kp) and kp >= 0 else kv
+        if kv is None:
+            kv = 2.0 * math.sqrt(kp) if np.isfinite(kp) and kp >= 0 else math.nan  # a bad K_p is named below
         for what, value in (("Kp", kp), ("Kv", kv)):
-            if value is None or not (np.isfinite(value) and value >= 0):
+            if not (np.isfinite(value) and value >= 0):
                 raise InvalidInput(f"{self.name}: {what} must be finite and ≥ 0, got {value}")
-        self._command(context, lambda s: (setattr(s, "kp", float(kp)), setattr(s, "kv", float(kv))))
+        gains = (float(kp), float(kv))
+
+        def change(s: DynPDSettings) -> None:
+            s.kp, s.kv = gains
+
+        self._command(context, change)
 
     def setKp(self, kp: float, context: Context | None = None) -> None:
         self.setGain(kp, self.settings(context).kv, context)

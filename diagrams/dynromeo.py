@@ -40,13 +40,11 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, Multiplexer
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # the TALOS dynamic scripts' helpers, a sibling
-import talos_dynamics
-
 from sotdrake import Tracer, add_robot_visualizer, attime, load_robot, script_arguments, start, write_run
 from sotdrake.dynamics.contact import Contact6d
 from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
+from sotdrake.dynamics.trajectories import hold_move_hold, trajectory_ports
 
 SCENARIOS = ("lift_leg", "lift_leg_no_com")
 DT = 5e-3  # the seed's dt (s)
@@ -108,7 +106,7 @@ def build_diagram(scenario: str = "lift_leg", meshcat: Meshcat | None = None, dt
         target = com0.copy()
         target[:2] = sole_centre(robot, "contactLF", "left-sole")
         target[2] += COM_RISE
-        ports = talos_dynamics._trajectory_ports(robot, talos_dynamics._hold_move_hold(*COM_SHIFT, com0, target), "com_trajectory")
+        ports = trajectory_ports(robot, hold_move_hold(*COM_SHIFT, com0, target), "com_trajectory")
         connect(ports[0], taskCom.featureDes.GetInputPort("value_in"))
         connect(ports[1], taskCom.featureDes.GetInputPort("velocity_in"))
         connect(ports[2], taskCom.task.GetInputPort("reference_acceleration"))
@@ -120,8 +118,8 @@ def build_diagram(scenario: str = "lift_leg", meshcat: Meshcat | None = None, dt
     taskRF = MetaTaskDyn6d("RF", robot, "right-foot", "right-sole", kp=400.0)
     p0 = taskRF.initial_pose().translation()
     t0, t1, height = LIFT
-    value, velocity, acceleration = talos_dynamics._trajectory_ports(
-        robot, talos_dynamics._hold_move_hold(t0, t1, p0, p0 + [0, 0, height]), "foot_trajectory")
+    value, velocity, acceleration = trajectory_ports(
+        robot, hold_move_hold(t0, t1, p0, p0 + [0, 0, height]), "foot_trajectory")
     connect(value, taskRF.featureDes.GetInputPort("translation_in"))
     connect(velocity, taskRF.featureDes.GetInputPort("translation_velocity_in"))
     zeros = robot.add(ConstantVectorSource(np.zeros(3)), "foot_zero_angular")

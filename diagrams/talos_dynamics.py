@@ -37,7 +37,7 @@ from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
 from pydrake.multibody.plant import ExternallyAppliedSpatialForceMultiplexer
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer, Multiplexer, TrajectorySource
+from pydrake.systems.primitives import ConstantVectorSource, Multiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -46,6 +46,7 @@ from sotdrake.dynamics.contact import friction_ratio
 from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
 from sotdrake.dynamics.station import sole_rectangle
+from sotdrake.dynamics.trajectories import hold_move_hold, minimum_jerk_moves, trajectory_ports
 from sotdrake.physics import FRICTION, ContactMonitor, Push
 from sotdrake.solvers.hqp import ACTIVE_SET, SOLVERS
 
@@ -82,42 +83,6 @@ class DynamicsRun:
     visualizer: object = None
 
 
-def _moves(start: np.ndarray, moves: list[tuple[float, float, np.ndarray]], end: float = 1e3, samples: int = 24) -> PiecewisePolynomial:
-    """From ``start``, each move ``(t0, t1, target)`` a minimum-jerk profile
-    ``s(τ) = 10τ³ − 15τ⁴ + 6τ⁵`` held still between the moves, as Drake's cubic Hermite spline
-    through ``samples`` points of each move with their exact velocities (so the acceleration
-    follows the profile closely and starts and ends near 0)."""
-    times, values, rates = [0.0], [start], [np.zeros_like(start)]
-    current = start
-    for t0, t1, target in moves:
-        for tau in np.linspace(0.0, 1.0, samples):
-            s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
-            ds = (30 * tau**2 - 60 * tau**3 + 30 * tau**4) / (t1 - t0)
-            if t0 + tau * (t1 - t0) > times[-1]:
-                times.append(t0 + tau * (t1 - t0))
-                values.append(current + s * (target - current))
-                rates.append(ds * (target - current))
-        current = target
-    times.append(end)
-    values.append(current)
-    rates.append(np.zeros_like(start))
-    return PiecewisePolynomial.CubicHermite(times, np.column_stack(values), np.column_stack(rates))
-
-
-def _hold_move_hold(t0: float, t1: float, a: np.ndarray, b: np.ndarray) -> PiecewisePolynomial:
-    """``a`` until t0, a minimum-jerk move to ``b`` at t1, then ``b``."""
-    return _moves(np.asarray(a, dtype=float), [(t0, t1, np.asarray(b, dtype=float))])
-
-
-def _trajectory_ports(robot: RobotDyn, traj: PiecewisePolynomial, name: str):
-    """Value, velocity and acceleration output ports of ``traj`` (Drake's TrajectorySource)."""
-    n = traj.rows()
-    source = robot.add(TrajectorySource(traj, output_derivative_order=2), name)
-    split = robot.add(Demultiplexer([n, n, n]), name + "_split")
-    robot.builder.Connect(source.get_output_port(), split.get_input_port())
-    return split.get_output_port(0), split.get_output_port(1), split.get_output_port(2)
-
-
 def sway_reference(t: float) -> tuple[float, float, float]:
     """``(y, ẏ, ÿ) − y0`` of the sway at time t (see the module docstring)."""
     amplitude, frequency, fade = SWAY
@@ -140,11 +105,11 @@ def _com_trajectory(scenario: str, com0: np.ndarray, left_sole_xy: np.ndarray, d
     if scenario == "lift_leg":
         target = com0.copy()
         target[:2] = left_sole_xy
-        return _hold_move_hold(*COM_SHIFT, com0, target)
+        return hold_move_hold(*COM_SHIFT, com0, target)
     if scenario == "squat":
         down = com0 - np.array([0.0, 0.0, SQUAT[4]])
         t0, t1, t2, t3, _ = SQUAT
-        return _moves(com0, [(t0, t1, down), (t2, t3, com0)])
+        return minimum_jerk_moves(com0, [(t0, t1, down), (t2, t3, com0)])
     return None
 
 
@@ -171,7 +136,7 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
         left_xy = robot.dynamic.pose_at("contactLF", robot.q0).translation()[:2] + np.array([sum(sole_rectangle()[:2]) / 2, 0.0])
         traj = _com_trajectory(scenario, com0, left_xy)
         if traj is not None:
-            ports = _trajectory_ports(robot, traj, "com_trajectory")
+            ports = trajectory_ports(robot, traj, "com_trajectory")
             connect(ports[0], com.featureDes.GetInputPort("value_in"))
             connect(ports[1], com.featureDes.GetInputPort("velocity_in"))
             connect(ports[2], com.task.GetInputPort("reference_acceleration"))
@@ -182,7 +147,7 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
         foot = MetaTaskDyn6d("RF", robot, "right-foot", "right-sole", kp=400.0)
         p0 = foot.initial_pose().translation()
         t0, t1, height = LIFT
-        value, velocity, acceleration = _trajectory_ports(robot, _hold_move_hold(t0, t1, p0, p0 + [0, 0, height]), "foot_trajectory")
+        value, velocity, acceleration = trajectory_ports(robot, hold_move_hold(t0, t1, p0, p0 + [0, 0, height]), "foot_trajectory")
         connect(value, foot.featureDes.GetInputPort("translation_in"))
         connect(velocity, foot.featureDes.GetInputPort("translation_velocity_in"))
         zeros = robot.add(ConstantVectorSource(np.zeros(3)), "foot_zero_angular")

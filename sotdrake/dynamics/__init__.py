@@ -8,7 +8,8 @@
 * :mod:`.solver_dyn`: ``SolverDyn``, the strict hierarchy over ``(q̈, f, τ)``;
 * :mod:`.device`: ``RobotDynSimu``, integration of ``q̈`` on SE(3) × joints;
 * :mod:`.station`: the physics plant driven by ``τ`` (no PD);
-* :mod:`.robot_dyn`: ``RobotDyn`` and the dynamic meta tasks.
+* :mod:`.robot_dyn`: ``RobotDyn`` and the dynamic meta tasks;
+* :mod:`.trajectories`: minimum-jerk references and the ports that feed them to a task.
 """
 
 from .contact import Contact6d, ContactRows

@@ -1,0 +1,54 @@
+"""Reference trajectories for the dynamic scripts: minimum-jerk moves between held values, as
+Drake trajectories, and the ports that feed them (value, velocity, acceleration) to a task."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from pydrake.systems.framework import OutputPort
+from pydrake.systems.primitives import Demultiplexer, TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
+
+from .robot_dyn import RobotDyn
+
+
+def minimum_jerk_moves(start: np.ndarray, moves: Sequence[tuple[float, float, np.ndarray]], end: float = 1e3,
+                       samples: int = 24) -> PiecewisePolynomial:
+    """From ``start``, each move ``(t0, t1, target)`` a minimum-jerk profile
+    ``s(τ) = 10τ³ − 15τ⁴ + 6τ⁵`` (``τ = (t − t0)/(t1 − t0)``), held still between the moves and
+    after the last until ``end`` (s), as Drake's cubic Hermite spline through ``samples`` points of
+    each move with their exact velocities (so the acceleration follows the profile closely and
+    starts and ends near 0)."""
+    start = np.asarray(start, dtype=float)
+    times, values, rates = [0.0], [start], [np.zeros_like(start)]
+    current = start
+    for t0, t1, target in moves:
+        target = np.asarray(target, dtype=float)
+        for tau in np.linspace(0.0, 1.0, samples):
+            s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
+            ds = (30 * tau**2 - 60 * tau**3 + 30 * tau**4) / (t1 - t0)
+            if t0 + tau * (t1 - t0) > times[-1]:
+                times.append(t0 + tau * (t1 - t0))
+                values.append(current + s * (target - current))
+                rates.append(ds * (target - current))
+        current = target
+    times.append(end)
+    values.append(current)
+    rates.append(np.zeros_like(start))
+    return PiecewisePolynomial.CubicHermite(times, np.column_stack(values), np.column_stack(rates))
+
+
+def hold_move_hold(t0: float, t1: float, a: np.ndarray, b: np.ndarray) -> PiecewisePolynomial:
+    """``a`` until ``t0``, a minimum-jerk move to ``b`` at ``t1``, then ``b``."""
+    return minimum_jerk_moves(np.asarray(a, dtype=float), [(t0, t1, np.asarray(b, dtype=float))])
+
+
+def trajectory_ports(robot: RobotDyn, trajectory: PiecewisePolynomial, name: str) -> tuple[OutputPort, OutputPort, OutputPort]:
+    """Value, velocity and acceleration output ports of ``trajectory`` (Drake's
+    ``TrajectorySource`` named ``name``, split by a ``Demultiplexer``)."""
+    n = trajectory.rows()
+    source = robot.add(TrajectorySource(trajectory, output_derivative_order=2), name)
+    split = robot.add(Demultiplexer([n, n, n]), name + "_split")
+    robot.builder.Connect(source.get_output_port(), split.get_input_port())
+    return split.get_output_port(0), split.get_output_port(1), split.get_output_port(2)

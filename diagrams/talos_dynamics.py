@@ -114,12 +114,13 @@ def _com_trajectory(scenario: str, com0: np.ndarray, left_sole_xy: np.ndarray, d
 
 
 def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Meshcat | None = None, dt: float = 1e-3,
-                  solver: str = ACTIVE_SET) -> DynamicsRun:
+                  solver: str = ACTIVE_SET, effort_scale: float = 1.0) -> DynamicsRun:
+    """``effort_scale``: the solver's torque bounds as a fraction of TALOS' effort limits."""
     if scenario not in SCENARIOS:
         raise ValueError(f"unknown scenario {scenario!r}; available: {SCENARIOS}")
     builder = DiagramBuilder()
     model = load_talos("reduced")
-    robot = RobotDyn(builder, model, device, dt, solver=solver)
+    robot = RobotDyn(builder, model, device, dt, solver=solver, effort_scale=effort_scale)
     sot, connect = robot.sot, builder.Connect
     # As in the tutorial, the grippers (on their upper limit at the start) are left out: q̈ = 0.
     sot.setControlSelection(robot.velocity_selection(excluding=["gripper_left_joint", "gripper_right_joint"]))
@@ -268,7 +269,8 @@ def summarize(run: DynamicsRun, simulator: Simulator, times: np.ndarray, duratio
         summary["foot_rms_error_m"] = float(np.sqrt(np.mean(error[lifted] ** 2)))
         summary["foot_max_error_m"] = float(error[lifted].max())
         summary["foot_height_final_m"] = float(p[-1, 2] - p[0, 2])
-    torque_ratio = np.abs(trace["torque"]) / robot.sot.effort
+    torque_ratio = np.abs(trace["torque"]) / robot.sot.effort  # of the solver's bounds
+    summary["effort_scale"] = robot.sot.effort_scale
     summary["max_torque_ratio"] = float(torque_ratio.max())
     summary["torque_at_limit_ticks"] = int(np.count_nonzero(torque_ratio.max(axis=1) >= 1 - 1e-6))  # some |τ| on its limit
     summary["max_torque_ratio_joint"] = robot.model.plant.get_joint_actuator(
@@ -351,7 +353,8 @@ def plot(run: DynamicsRun, trace: dict, summary: dict, path: Path) -> Path:
     ax.plot(t, ratio, lw=0.6)
     ax.axhline(1, color="r", ls="--")
     ax.axhline(-1, color="r", ls="--")
-    ax.set_ylabel("τ / effort limit (each joint)")
+    scale = run.robot.sot.effort_scale
+    ax.set_ylabel("τ / effort limit (each joint)" if scale == 1 else f"τ / bound (each joint; {scale:g} × effort limit)")
     for a in (axes[0, 0], axes[0, 1], axes[1, 1]):
         a.set_xlabel("time (s)")
     fig.suptitle(f"{run.scenario} on {run.device}: fell = {summary['fell']}")
@@ -367,10 +370,12 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--device", choices=["physics", "dynsimu"], default="physics")
     parser.add_argument("--solver", choices=[ACTIVE_SET, *sorted(SOLVERS)], default=ACTIVE_SET,
                         help="how SolverDyn's QP levels are solved (the exact active set, or a Drake solver polished by it)")
+    parser.add_argument("--effort-scale", type=float, default=1.0,
+                        help="the solver's torque bounds as a fraction in (0, 1] of TALOS' effort limits (a derated robot)")
     args = parser.parse_args(argv)
     meshcat = start(args)
     logging.getLogger("drake").setLevel(logging.WARNING)
-    run = build_diagram(args.scenario, args.device, meshcat, solver=args.solver)
+    run = build_diagram(args.scenario, args.device, meshcat, solver=args.solver, effort_scale=args.effort_scale)
     simulator, times = simulate_ticks(run, args.duration, not args.quiet)
     summary, trace = summarize(run, simulator, times, args.duration)
     print(json.dumps(summary, indent=2), flush=True)

@@ -426,3 +426,30 @@ def test_stand_short_on_physics(dynamics_script):
     feet = trace["feet"][-1]
     assert feet[2] + feet[5] == pytest.approx(90.27 * 9.81, rel=0.02)
     np.testing.assert_allclose(feet[[2, 5]], trace["wrenches"][-1, [5, 11]], rtol=0.05)
+
+
+def test_derated_torque_bounds_bind_and_hold(standing):
+    """``effort_scale``: TALOS standing needs about 0.27 of its effort limits; with the solver's
+    bounds at 20 % of them, some |τ| sits on its bound and none exceeds it."""
+    robot, diagram, *_ = standing
+    x0 = np.concatenate([robot.q0, np.zeros(robot.model.nv)])
+    full = np.abs(_solution(robot, _set_state(robot, diagram, x0)).torque) / robot.sot.effort
+    assert full.max() > 0.22
+    builder = DiagramBuilder()
+    derated = RobotDyn(builder, robot.model, "dynsimu", effort_scale=0.2)
+    lf, rf = derated.add_contact("contactLF", "left-sole"), derated.add_contact("contactRF", "right-sole")
+    com, posture = MetaTaskDynCom(derated), MetaTaskDynPosture(derated)
+    for contact in (lf, rf):
+        derated.sot.addContact(contact)
+    derated.sot.push(com.task.name)
+    derated.sot.push(posture.task.name)
+    diagram_derated = builder.Build()
+    np.testing.assert_allclose(derated.sot.effort, 0.2 * robot.sot.effort)
+    ratio = np.abs(_solution(derated, _set_state(derated, diagram_derated, x0)).torque) / derated.sot.effort
+    assert ratio.max() <= 1 + 1e-9 and ratio.max() > 1 - 1e-6
+
+
+@pytest.mark.parametrize("scale", [0.0, -0.5, 1.5, float("nan"), True, "1"])
+def test_effort_scale_outside_its_range_is_refused(scale):
+    with pytest.raises(InvalidInput, match="effort_scale"):
+        RobotDyn(DiagramBuilder(), load_talos("reduced"), "dynsimu", effort_scale=scale)

@@ -35,7 +35,7 @@ DEVICES = ("dynsimu", "physics")
 
 class RobotDyn:
     def __init__(self, builder: DiagramBuilder, model: RobotModel, device: str = "dynsimu", dt: float = 1e-3,
-                 q0: np.ndarray | None = None, max_contacts: int = 2, solver: str = ACTIVE_SET):
+                 q0: np.ndarray | None = None, max_contacts: int = 2, solver: str = ACTIVE_SET, effort_scale: float = 1.0):
         if device not in DEVICES:
             raise InvalidInput(f"unknown device {device!r}; available: {list(DEVICES)}")
         if device == "physics" and model.name != "talos":
@@ -47,7 +47,7 @@ class RobotDyn:
         self.contacts: dict[str, Contact6d] = {}
         self._names: set[str] = set()
         self.dynamic = self.add(DynamicEntity(model, "dynamic"))
-        self.sot = self.add(SolverDyn("sot", model, dt, max_contacts=max_contacts, solver=solver))
+        self.sot = self.add(SolverDyn("sot", model, dt, max_contacts=max_contacts, solver=solver, effort_scale=effort_scale))
         builder.Connect(self.dynamic.GetOutputPort("dynamics"), self.sot.GetInputPort("dynamics"))
         self.physical = None
         if device == "dynsimu":

@@ -264,13 +264,18 @@ class SolverDyn(SOT):
     accepts_inequalities = True
 
     def __init__(self, name: str, model: RobotModel, dt: float, max_contacts: int = 2, damping_gain: float = 10.0,
-                 solver: str = ACTIVE_SET):
+                 solver: str = ACTIVE_SET, effort_scale: float = 1.0):
+        """``effort_scale`` in (0, 1]: the torque bounds are this fraction of the model's effort
+        limits (a derated robot; 1: the limits of the URDF)."""
+        if isinstance(effort_scale, bool) or not isinstance(effort_scale, (int, float)) or not 0 < effort_scale <= 1:
+            raise InvalidInput(f"{name}: effort_scale must be a number in (0, 1], got {effort_scale!r}")
         SOT.__init__(self, name, model.nv, settings=DynSettings())
         self.dt, self.model = float(dt), model
         self.layout = self._layout = Layout.of(model.plant)
         limits = model.joint_limits()
         self._limits = (limits["position_lower"], limits["position_upper"], limits["velocity_lower"], limits["velocity_upper"])
-        self.effort = limits["effort"]
+        self.effort = limits["effort"] * float(effort_scale)  # |τ| bounds (N·m, N)
+        self.effort_scale = float(effort_scale)
         self.na = len(self.effort)
         self.max_contacts = max_contacts
         self.setDampingGain(damping_gain)

@@ -24,6 +24,7 @@ walks N steps of L metres (the walking frame's advance per step) instead of a ve
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,14 +43,17 @@ from sotdrake import (
     Tracer,
     add_sot,
     attime,
+    load_robot,
     load_talos,
     script_arguments,
     simulate,
     start,
     write_run,
 )
+from sotdrake.exceptions import InvalidInput
 from sotdrake.robots import RobotModel
-from sotdrake.walking import GaitParameters, PatternGenerator, start_of
+from sotdrake.walking.gravity_feedforward import GravityFeedforward
+from sotdrake.walking import DcmStabilizer, GaitParameters, MeasuredCom, PatternGenerator, start_of
 from sotdrake.walking.com_planner import GRAVITY
 from sotdrake.walking.support import footprint, polygon_margin, support_polygon
 
@@ -66,12 +70,13 @@ class WalkingRobot:
     wrists: tuple[str, str] = ("left-wrist", "right-wrist")
     excluded: tuple[str, ...] = ()
     add_physical: Callable | None = None
+    gait: GaitParameters = field(default_factory=GaitParameters)
 
 
-def _add_physical_talos(builder, dt):
+def _add_physical_talos(builder, dt, **options):
     from sotdrake.physics import add_physical_talos
 
-    return add_physical_talos(builder, time_step=dt)
+    return add_physical_talos(builder, time_step=dt, **options)
 
 
 #: Adding a robot is adding an entry.
@@ -79,6 +84,12 @@ ROBOTS: dict[str, WalkingRobot] = {
     "talos": WalkingRobot(load=lambda: load_talos("reduced"),
                           excluded=("gripper_left_joint", "gripper_right_joint"),
                           add_physical=_add_physical_talos),
+    # Romeo (sot-romeo's 31-joint model): its foot is the bounding box of the collision mesh of
+    # its ankle link, 0.244 m long from 8.9 cm behind the sole frame, 0.112 m wide (the narrower
+    # half mirrored, so one footprint serves both feet). No physical model: the physics station
+    # is TALOS' (sole boxes, link boxes and PD gains fitted to TALOS).
+    "romeo": WalkingRobot(load=lambda: load_robot("romeo", "small"),
+                          gait=GaitParameters(sole_length=0.244, sole_width=0.112, sole_centre=(0.033, 0.0))),
 }
 MODES = ("kinematic", "physics")
 #: Task gains (1/s): the tracked references, and the lower-priority orientations.
@@ -108,7 +119,8 @@ class Walk:
 
 def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | None = None,
                   steps: tuple[int, float] | None = None, mode: str = "kinematic", solver: str = "hqp",
-                  dt: float = 1e-3, gait: GaitParameters | None = None, meshcat: Meshcat | None = None) -> Walk:
+                  dt: float = 1e-3, gait: GaitParameters | None = None, meshcat: Meshcat | None = None,
+                  stabilize: bool = True) -> Walk:
     """The walk's diagram. ``velocity``: the command from t = 0; ``then``: ``(T, x, y, θ)``, a new
     command at T; ``steps``: ``(n, length)`` instead of a velocity; ``solver``: ``'hqp'``
     (``SolverKine``, with the arms' inequality tasks) or ``'cascade'`` (basic ``SOT``, without them)."""
@@ -119,16 +131,23 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     if mode not in MODES:
         raise ValueError(f"mode is one of {MODES}, got {mode!r} ('dynamic' needs SolverDyn)")
     spec = ROBOTS[robot]
+    if mode == "physics" and spec.add_physical is None:
+        raise InvalidInput(f"--mode {mode}: no physical model for {robot!r}; the physics station of sotdrake.physics is "
+                           f"TALOS' (its sole and link boxes, PD gains and torque limits); {robot!r} walks in kinematic mode")
     builder = DiagramBuilder()
     model = spec.load()
     physical = None
     if mode == "physics":
-        if spec.add_physical is None:
-            raise ValueError(f"no physical model for {robot!r}")
-        physical = spec.add_physical(builder, dt)
+        import os
+        physical = spec.add_physical(builder, dt, stiffness=float(os.environ.get("WALK_KP", 30)))
         physical.plant.SetDefaultPositions(model.half_sitting)
     bot = Robot(builder, model, dt)
     dyn = bot.dynamic
+    import dataclasses
+    import os
+    gait = gait or spec.gait
+    if "WALK_STEP" in os.environ:
+        gait = dataclasses.replace(gait, step_duration=float(os.environ["WALK_STEP"]), single_support=float(os.environ["WALK_SS"]))
     pg = bot.add(PatternGenerator(start_of(dyn, bot.device.initial_position, spec.feet, spec.waist), dt, gait))
     if steps is not None:
         pg.setSteps([(steps[1], 0.0, 0.0)] * int(steps[0]))
@@ -158,8 +177,21 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     com = MetaTaskKineCom(bot)
     com.feature.selec("011")
     com.gain.setConstant(TRACKING_GAIN)
-    connect(pg.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
-    connect(pg.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
+    stabilizer = None
+    if physical is not None and stabilize:
+        import os
+        stabilizer = bot.add(DcmStabilizer(pg.start.com[2], dt, gain=float(os.environ.get("WALK_K", 2.0)), law=os.environ.get("WALK_LAW", "dcm")))
+        measured = bot.add(MeasuredCom(model))
+        connect(physical.plant.get_state_output_port(), measured.GetInputPort("state"))
+        connect(measured.GetOutputPort("com"), stabilizer.GetInputPort("measured_com"))
+        connect(measured.GetOutputPort("com_velocity"), stabilizer.GetInputPort("measured_com_velocity"))
+        connect(pg.GetOutputPort("com"), stabilizer.GetInputPort("com_reference"))
+        connect(pg.GetOutputPort("com_velocity"), stabilizer.GetInputPort("com_velocity_reference"))
+        connect(stabilizer.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
+        connect(stabilizer.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
+    else:
+        connect(pg.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
+        connect(pg.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
     tasks[com.task.name] = com
     six_d("Head", "head", spec.head, "110000", "right_foot_pose", "right_foot_velocity", POSTURE_GAIN)
     six_d("WaistOr", "waist", spec.waist, "100000", "waist_pose", "waist_velocity", POSTURE_GAIN)
@@ -189,12 +221,22 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
         connect(bot.device.GetOutputPort("state"), desired.GetInputPort("position"))
         connect(sot.GetOutputPort("control"), desired.GetInputPort("velocity"))
         connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))
-        feedforward = bot.add(ConstantVectorSource(np.zeros(plant.num_actuated_dofs(physical.instance))), "feedforward_torque")
+        if os.environ.get("WALK_FF", "0") == "1":
+            feedforward = bot.add(GravityFeedforward(model, physical.actuated_v, spec.feet, pg.gait.sole_centre))
+            connect(bot.device.GetOutputPort("state"), feedforward.GetInputPort("position"))
+            connect(pg.GetOutputPort("support_phase"), feedforward.GetInputPort("support_phase"))
+            connect(pg.GetOutputPort("zmp_reference"), feedforward.GetInputPort("zmp_reference"))
+            tracer.add(feedforward.get_output_port(), "feedforward_torque")
+        else:
+            feedforward = bot.add(ConstantVectorSource(np.zeros(plant.num_actuated_dofs(physical.instance))), "feedforward_torque")
         connect(feedforward.get_output_port(), plant.get_actuation_input_port(physical.instance))
         monitor = bot.add(ContactMonitor(physical))
         connect(plant.get_contact_results_output_port(), monitor.get_input_port())
         tracer.add(plant.get_state_output_port(), "x_plant")
         tracer.add(monitor.GetOutputPort("feet"), "contact")
+        if stabilizer is not None:
+            tracer.add(stabilizer.GetOutputPort("offset"), "stabilizer_offset")
+            tracer.add(stabilizer.GetOutputPort("dcm_error"), "dcm_error")
         if meshcat is not None:
             from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
 
@@ -412,10 +454,12 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--step-length", type=float, default=0.2, help="with --steps: advance per step (m)")
     parser.add_argument("--mode", choices=MODES, default="kinematic")
     parser.add_argument("--solver", choices=["hqp", "cascade"], default="hqp")
+    parser.add_argument("--no-stabilizer", action="store_true", help="physics: no DCM feedback on the CoM reference")
     args = parser.parse_args(argv)
     meshcat = start(args)
     steps = (args.steps, args.step_length) if args.steps else None
-    walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, meshcat=meshcat)
+    walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, meshcat=meshcat,
+                         stabilize=not args.no_stabilizer)
     simulator, wall = simulate(walk.diagram, args.duration, walk.visualizer, not args.quiet)
     summary, trace = summarize(walk, simulator, args.duration, wall, args.then)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -10,12 +10,35 @@ trajectories), :mod:`.plan` (a walk plan and its replanning), :mod:`.pattern_gen
 from .com_planner import GRAVITY, INPUT_COST, ComPlan, plan_com
 from .footsteps import Footstep, plan_steps
 from .gait import MAX_LINEAR_VELOCITY, MAX_YAW_RATE, GaitParameters, check_velocity
+from .measured_com import MeasuredCom
 from .pattern_generator import PatternGenerator, start_of
 from .plan import Start, WalkCommand, WalkPlan, initial_plan, replan
+from .stabilizer import DCM_GAIN, DcmStabilizer
 from .support import footprint, polygon_margin, sole_centre, support_polygon
 
 __all__ = [
-    "GRAVITY", "INPUT_COST", "MAX_LINEAR_VELOCITY", "MAX_YAW_RATE", "ComPlan", "Footstep", "GaitParameters",
-    "PatternGenerator", "Start", "WalkCommand", "WalkPlan", "check_velocity", "footprint", "initial_plan",
-    "plan_com", "plan_steps", "polygon_margin", "replan", "sole_centre", "start_of", "support_polygon",
+    "DCM_GAIN",
+    "GRAVITY",
+    "INPUT_COST",
+    "MAX_LINEAR_VELOCITY",
+    "MAX_YAW_RATE",
+    "ComPlan",
+    "DcmStabilizer",
+    "Footstep",
+    "GaitParameters",
+    "MeasuredCom",
+    "PatternGenerator",
+    "Start",
+    "WalkCommand",
+    "WalkPlan",
+    "check_velocity",
+    "footprint",
+    "initial_plan",
+    "plan_com",
+    "plan_steps",
+    "polygon_margin",
+    "replan",
+    "sole_centre",
+    "start_of",
+    "support_polygon",
 ]

@@ -1,0 +1,131 @@
+"""The walk's physics helpers (servo feed-forward, stabiliser, measured CoM) and the walk's robots."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydrake.multibody.math import SpatialForce
+from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces
+from pydrake.systems.analysis import Simulator
+
+from sotdrake.exceptions import InvalidInput
+from sotdrake.walking.gravity_feedforward import GravityFeedforward, left_share, support_wrench
+from tests.conftest import load_diagram, random_configuration
+
+
+@pytest.mark.parametrize("phase, zmp", [(1.0, (0.0, 0.0)), (-1.0, (0.0, 0.0)), (0.0, (0.0, 0.03)), (0.0, (0.0, -0.5))])
+def test_static_torques_balance_gravity_by_drakes_inverse_dynamics(talos_model, rng, phase, zmp):
+    """Drake's inverse dynamics at rest, with the soles' wrenches applied as external forces, needs
+    no force on the floating base and the feed-forward's torques on the joints."""
+    plant = talos_model.plant
+    actuated = np.arange(6, plant.num_velocities())
+    ff = GravityFeedforward(talos_model, actuated)
+    context = ff.CreateDefaultContext()
+    q = random_configuration(talos_model, rng, spread=0.2)
+    ff.GetInputPort("position").FixValue(context, q)
+    ff.GetInputPort("support_phase").FixValue(context, [phase])
+    ff.GetInputPort("zmp_reference").FixValue(context, zmp)
+    torque = ff.GetOutputPort("torque").Eval(context)
+    # The soles' wrenches the feed-forward assumes, rebuilt from its pure functions.
+    pc = plant.CreateDefaultContext()
+    plant.SetPositions(pc, q)
+    world = plant.world_frame()
+    g = plant.CalcGravityGeneralizedForces(pc)
+    frames = {side: talos_model.frame(f"{side}-sole") for side in ("left", "right")}
+    J = {s: plant.CalcJacobianSpatialVelocity(pc, JacobianWrtVariable.kV, f, np.zeros(3), world, world) for s, f in frames.items()}
+    centres = {s: plant.CalcPointsPositions(pc, f, np.zeros(3), world).ravel()[:2] for s, f in frames.items()}
+    alpha = 1.0 if phase > 0 else 0.0 if phase < 0 else left_share(np.array(zmp), centres["left"], centres["right"])
+    forces = MultibodyForces(plant)
+    plant.CalcForceElementsContribution(pc, forces)  # gravity
+    for side, share in (("left", alpha), ("right", 1 - alpha)):
+        w = share * support_wrench(g[:6], J[side][:, :6])
+        frame = frames[side]
+        body = frame.body()
+        p_BS_W = body.EvalPoseInWorld(pc).rotation() @ frame.GetFixedPoseInBodyFrame().translation()
+        body.AddInForce(pc, p_BS_W, SpatialForce(w[:3], w[3:]), world, forces)
+    required = plant.CalcInverseDynamics(pc, np.zeros(plant.num_velocities()), forces)
+    assert np.abs(required[:6]).max() < 1e-6 * np.abs(g).max()  # the base is balanced by the soles
+    assert np.allclose(required[6:], torque, atol=1e-6 * np.abs(g).max())
+    assert np.abs(torque).max() > 10.0  # TALOS' legs really carry torque
+
+
+def test_left_share_is_the_zmp_along_the_feet():
+    left, right = np.array([0.0, 0.1]), np.array([0.0, -0.1])
+    assert left_share(np.array([0.05, 0.0]), left, right) == pytest.approx(0.5)
+    assert left_share(np.array([0.0, 0.05]), left, right) == pytest.approx(0.75)
+    assert left_share(np.array([0.0, 0.3]), left, right) == 1.0
+    assert left_share(np.array([0.0, -0.3]), left, right) == 0.0
+
+
+# --- the walk's robots ----------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def walk_script():
+    return load_diagram("walk")
+
+
+def test_romeo_walks_kinematically(walk_script):
+    """``--robot romeo``: the first step of a walk at 0.1 m/s under ``SolverKine`` (joint position and
+    velocity limits hard), feet and CoM on their references."""
+    walk = walk_script.build_diagram("romeo", velocity=(0.1, 0.0, 0.0), dt=2e-3)
+    simulator = Simulator(walk.diagram)
+    simulator.AdvanceTo(1.6)  # the right foot lands at 1.5 s
+    summary, trace = walk_script.summarize(walk, simulator, 1.6, 1.0)
+    assert summary["robot"] == "romeo" and summary["steps"] == 1 and not summary["fell"]
+    assert summary["max_foot_tracking_error_m"] < 1e-3
+    assert summary["max_com_tracking_error_m"] < 3e-3  # 2.1 mm at the touch-down (TALOS: < 1 mm)
+    assert summary["min_zmp_margin_m"] >= 0.02
+    assert summary["max_slip_per_step_m"] < 1e-4
+    assert trace["pg_feet"][-1, 4] - trace["pg_feet"][0, 4] == pytest.approx(0.08)  # v·T
+    # Romeo's own feet: 0.192 m apart at the start (TALOS': 0.17 m)
+    assert trace["pg_feet"][0, 1] - trace["pg_feet"][0, 5] == pytest.approx(0.192, abs=1e-3)
+
+
+def test_romeo_has_no_physical_model(walk_script):
+    with pytest.raises(InvalidInput, match=r"no physical model for 'romeo'.*kinematic"):
+        walk_script.build_diagram("romeo", mode="physics")
+
+
+# --- the CoM stabiliser ---------------------------------------------------------------------
+def test_feedback_rate_signs_and_a_missing_cop():
+    """A CoM behind its reference is pushed forward; a ZMP behind its reference slows the CoM
+    command (the deceleration moves the ZMP forward); no CoP (NaN): the CoM term alone."""
+    from sotdrake.walking.stabilizer import feedback_rate
+
+    zero = np.zeros(2)
+    assert np.allclose(feedback_rate(zero, [-0.01, 0.0], zero, zero, 5.0, 1.0), [0.05, 0.0])
+    assert np.allclose(feedback_rate(zero, zero, zero, [-0.02, 0.01], 5.0, 1.0), [-0.02, 0.01])
+    assert np.allclose(feedback_rate(zero, [0.0, 0.01], zero, [np.nan, np.nan], 5.0, 1.0), [0.0, -0.05])
+
+
+def test_stabilizer_cancels_a_steady_com_offset_and_leaves_exact_tracking_alone():
+    """The robot's CoM follows the command with a constant error ``e`` (a servo sag): the
+    stabiliser's offset converges to ``−e`` and the measured CoM to the plan; without an error the
+    plan is passed through unchanged."""
+    from sotdrake.walking import ComStabilizer
+
+    dt = 1e-3
+    stabilizer = ComStabilizer(0.877, dt, com_gain=8.0)
+    context = stabilizer.CreateDefaultContext()
+    plan = np.array([0.1, -0.05, 0.877])
+    for port, value in (("com_reference", plan), ("com_velocity_reference", np.zeros(3)),
+                        ("com_acceleration_reference", np.zeros(3)), ("measured_cop", [np.nan, np.nan])):
+        stabilizer.GetInputPort(port).FixValue(context, value)
+    sag = np.array([0.012, -0.004, 0.0])
+    for _ in range(2000):  # 2 s of ticks
+        command = stabilizer.GetOutputPort("com").Eval(context)
+        stabilizer.GetInputPort("measured_com").FixValue(context, command + sag)
+        context.SetDiscreteState(stabilizer.EvalUniquePeriodicDiscreteUpdate(context).get_vector().get_value())
+    assert np.allclose(stabilizer.GetOutputPort("offset").Eval(context), -sag[:2], atol=1e-6)
+    assert np.allclose(stabilizer.GetOutputPort("com").Eval(context) + sag, plan, atol=1e-6)
+    # Exact tracking: nothing to correct.
+    context.SetDiscreteState(np.zeros(2))
+    stabilizer.GetInputPort("measured_com").FixValue(context, plan)
+    assert not stabilizer.EvalUniquePeriodicDiscreteUpdate(context).get_vector().get_value().any()
+
+
+@pytest.mark.parametrize("kwargs", [{"com_gain": 3.0}, {"zmp_gain": 3.4}, {"zmp_gain": -1.0}, {"max_offset": 0.0}])
+def test_stabilizer_gains_outside_the_stable_range_are_refused(kwargs):
+    from sotdrake.walking import ComStabilizer
+
+    with pytest.raises(InvalidInput, match=r"must be"):
+        ComStabilizer(0.877, 1e-3, **kwargs)

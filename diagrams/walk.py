@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer
+from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer, Multiplexer
 
 from sotdrake import (
     SOT,
@@ -232,17 +232,23 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
         connect(bot.device.GetOutputPort("state"), desired.GetInputPort("position"))
         connect(sot.GetOutputPort("control"), desired.GetInputPort("velocity"))
         connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))
+        monitor = bot.add(ContactMonitor(physical))
+        connect(plant.get_contact_results_output_port(), monitor.get_input_port())
         if servos.feedforward:
             feedforward = bot.add(GravityFeedforward(model, physical.actuated_v, spec.feet, pg.gait.sole_centre), "feedforward_torque")
             connect(bot.device.GetOutputPort("state"), feedforward.GetInputPort("position"))
-            connect(pg.GetOutputPort("support_phase"), feedforward.GetInputPort("support_phase"))
             connect(pg.GetOutputPort("zmp_reference"), feedforward.GetInputPort("zmp_reference"))
+            # (f_left, f_right, cop) → the normal forces (the CoP is NaN in the air: selected out, not multiplied by 0).
+            split = bot.add(Demultiplexer([2, 1, 2, 1, 2]), "sole_forces")
+            normal = bot.add(Multiplexer([1, 1]), "sole_normal_forces")
+            connect(monitor.GetOutputPort("feet"), split.get_input_port())
+            connect(split.get_output_port(1), normal.get_input_port(0))
+            connect(split.get_output_port(3), normal.get_input_port(1))
+            connect(normal.get_output_port(), feedforward.GetInputPort("normal_forces"))
             tracer.add(feedforward.get_output_port(), "feedforward_torque")
         else:
             feedforward = bot.add(ConstantVectorSource(np.zeros(plant.num_actuated_dofs(physical.instance))), "feedforward_torque")
         connect(feedforward.get_output_port(), plant.get_actuation_input_port(physical.instance))
-        monitor = bot.add(ContactMonitor(physical))
-        connect(plant.get_contact_results_output_port(), monitor.get_input_port())
         tracer.add(plant.get_state_output_port(), "x_plant")
         tracer.add(monitor.GetOutputPort("feet"), "contact")
         if stabilizer is not None:
@@ -278,12 +284,11 @@ def _build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | No
                    meshcat: Meshcat | None) -> Walk:
     """``--mode dynamic``: ``SolverDyn`` drives the torque-controlled TALOS (no PD, closed loop on
     the plant's state). Both soles start as contacts (``addContact``); each step releases its foot's
-    contact over the double support before the lift-off (``rmContact(contact, T_ds)``) and adds it
+    contact over the double support before the lift-off (``rmContact(contact, T_ds − dt)``) and adds it
     back at the touch-down (``addContact``), at the times of the plan (``attime``). Stack: the soles
     (6D, planned pose, velocity and acceleration), the CoM (planned position, velocity and
     acceleration), the posture."""
     from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
-    from pydrake.systems.primitives import Multiplexer
 
     from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
     from sotdrake.dynamics.robot_dyn import RobotDyn
@@ -330,10 +335,12 @@ def _build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | No
     # The contact switches, at the plan's times (the plan the pattern generator makes at t = 0).
     plan = replan(initial_plan(start, gait, pg.input_cost), WalkCommand(steps=pg.settings().command.steps), 0.0, gait, pg.input_cost)
     commands = []
+    # The release starts a tick after the other foot's touch-down (commands at one time all see
+    # the contact set before them) and ends at the lift-off.
+    ramp = gait.double_support - dt
     for step in plan.steps:
         contact = contacts[step.side]
-        commands.append(attime(step.liftoff - gait.double_support, lambda c=contact: sot.rmContact(c, gait.double_support),
-                               f"rmContact {contact.name}"))
+        commands.append(attime(step.liftoff - ramp, lambda c=contact: sot.rmContact(c, ramp), f"rmContact {contact.name}"))
         commands.append(attime(step.touchdown, lambda c=contact: sot.addContact(c), f"addContact {contact.name}"))
     monitor = bot.add(ContactMonitor(bot.physical))
     connect(bot.physical.plant.get_contact_results_output_port(), monitor.get_input_port())
@@ -557,6 +564,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--solver", choices=["hqp", "cascade"], default="hqp")
     parser.add_argument("--step-duration", type=float, default=None, help="a step's duration (s; default 0.8, as walkromeo)")
     parser.add_argument("--single-support", type=float, default=None, help="its single support (s; default 0.7)")
+    parser.add_argument("--landing-depth", type=float, default=None, help="the swing ends this far below the ground (m; default 0)")
     defaults = Servos()
     parser.add_argument("--stiffness", type=float, default=defaults.stiffness, help="physics: servo kp = STIFFNESS · effort limit (1/rad)")
     parser.add_argument("--no-feedforward", action="store_true", help="physics: no static feed-forward torque in the servos")
@@ -571,6 +579,8 @@ def main(argv: list[str] | None = None) -> dict:
         duration = args.step_duration or gait.step_duration
         gait = dataclasses.replace(gait, step_duration=duration,
                                    single_support=args.single_support or duration - gait.double_support)
+    if args.landing_depth is not None:
+        gait = dataclasses.replace(gait, landing_depth=args.landing_depth)
     walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, gait=gait, meshcat=meshcat,
                          servos=servos)
     simulator, wall = simulate(walk.diagram, args.duration, walk.visualizer, not args.quiet)

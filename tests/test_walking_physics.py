@@ -13,17 +13,19 @@ from sotdrake.walking.gravity_feedforward import GravityFeedforward, left_share,
 from tests.conftest import load_diagram, random_configuration
 
 
-@pytest.mark.parametrize("phase, zmp", [(1.0, (0.0, 0.0)), (-1.0, (0.0, 0.0)), (0.0, (0.0, 0.03)), (0.0, (0.0, -0.5))])
-def test_static_torques_balance_gravity_by_drakes_inverse_dynamics(talos_model, rng, phase, zmp):
+@pytest.mark.parametrize("forces, zmp", [((400.0, 0.0), (0.0, 0.0)), ((0.0, 400.0), (0.0, 0.0)), ((400.0, 400.0), (0.0, 0.03)),
+                                         ((400.0, 400.0), (0.0, -0.5)), ((0.0, 0.0), (0.0, 0.02))])
+def test_static_torques_balance_gravity_by_drakes_inverse_dynamics(talos_model, rng, forces, zmp):
     """Drake's inverse dynamics at rest, with the soles' wrenches applied as external forces, needs
-    no force on the floating base and the feed-forward's torques on the joints."""
+    no force on the floating base and the feed-forward's torques on the joints; a sole measured in
+    the air carries nothing."""
     plant = talos_model.plant
     actuated = np.arange(6, plant.num_velocities())
     ff = GravityFeedforward(talos_model, actuated)
     context = ff.CreateDefaultContext()
     q = random_configuration(talos_model, rng, spread=0.2)
     ff.GetInputPort("position").FixValue(context, q)
-    ff.GetInputPort("support_phase").FixValue(context, [phase])
+    ff.GetInputPort("normal_forces").FixValue(context, forces)
     ff.GetInputPort("zmp_reference").FixValue(context, zmp)
     torque = ff.GetOutputPort("torque").Eval(context)
     # The soles' wrenches the feed-forward assumes, rebuilt from its pure functions.
@@ -34,7 +36,8 @@ def test_static_torques_balance_gravity_by_drakes_inverse_dynamics(talos_model, 
     frames = {side: talos_model.frame(f"{side}-sole") for side in ("left", "right")}
     J = {s: plant.CalcJacobianSpatialVelocity(pc, JacobianWrtVariable.kV, f, np.zeros(3), world, world) for s, f in frames.items()}
     centres = {s: plant.CalcPointsPositions(pc, f, np.zeros(3), world).ravel()[:2] for s, f in frames.items()}
-    alpha = 1.0 if phase > 0 else 0.0 if phase < 0 else left_share(np.array(zmp), centres["left"], centres["right"])
+    loaded = [f > 20.0 for f in forces]
+    alpha = float(loaded[0]) if loaded[0] != loaded[1] else left_share(np.array(zmp), centres["left"], centres["right"])
     forces = MultibodyForces(plant)
     plant.CalcForceElementsContribution(pc, forces)  # gravity
     for side, share in (("left", alpha), ("right", 1 - alpha)):
@@ -47,6 +50,15 @@ def test_static_torques_balance_gravity_by_drakes_inverse_dynamics(talos_model, 
     assert np.abs(required[:6]).max() < 1e-6 * np.abs(g).max()  # the base is balanced by the soles
     assert np.allclose(required[6:], torque, atol=1e-6 * np.abs(g).max())
     assert np.abs(torque).max() > 10.0  # TALOS' legs really carry torque
+
+
+def test_the_measured_contact_only_switches_a_share_off():
+    from sotdrake.walking.gravity_feedforward import gated_share
+
+    assert gated_share(0.3, 500.0, 400.0) == 0.3  # both on the ground: the plan's share
+    assert gated_share(0.3, 500.0, 5.0) == 1.0  # the right sole in the air
+    assert gated_share(0.3, 0.0, 800.0) == 0.0
+    assert gated_share(0.3, 0.0, 0.0) == 0.3
 
 
 def test_left_share_is_the_zmp_along_the_feet():
@@ -129,3 +141,26 @@ def test_stabilizer_gains_outside_the_stable_range_are_refused(kwargs):
 
     with pytest.raises(InvalidInput, match=r"must be"):
         ComStabilizer(0.877, 1e-3, **kwargs)
+
+
+# --- landing below the ground (position servos) ---------------------------------------------
+def test_landing_depth_presses_the_sole_then_returns_to_the_ground():
+    from sotdrake.walking import GaitParameters, Start, WalkCommand, initial_plan, replan
+    from tests.test_walking import START
+
+    depth = 0.01
+    plans = {d: replan(initial_plan(START, g := GaitParameters(landing_depth=d)), WalkCommand(steps=((0.2, 0.0, 0.0),) * 2), 0.0, g)
+             for d in (0.0, depth)}
+    step = plans[depth].steps[0]
+    gait = GaitParameters()
+    z = {d: (lambda t, p=p: p.references(t).feet[step.side][2]) for d, p in plans.items()}
+    assert z[depth](step.touchdown) == pytest.approx(-depth, abs=1e-9)
+    assert z[depth](step.touchdown + gait.double_support) == pytest.approx(0.0, abs=1e-9)
+    assert z[0.0](step.touchdown) == pytest.approx(0.0, abs=1e-12)
+    # Before the touch-down the two swings rise alike to the apex; the planned CoM and ZMP are the same.
+    mid = 0.5 * (step.liftoff + step.touchdown)
+    assert z[depth](mid) == pytest.approx(gait.swing_height) == pytest.approx(z[0.0](mid))
+    assert plans[depth].com.state(1.3)[0] == pytest.approx(plans[0.0].com.state(1.3)[0])
+    assert isinstance(START, Start)
+    with pytest.raises(InvalidInput, match="landing_depth"):
+        GaitParameters(landing_depth=0.05)

@@ -13,12 +13,19 @@ its velocity (feed-forward).
 
 ``--mode kinematic``: the SoT integrates its velocity at 1 kHz (no dynamics). ``--mode physics``:
 the same control graph drives the physically simulated TALOS through position servos (the PD
-actuators of :mod:`sotdrake.physics`, open loop, as ``diagrams/talos_physics.py``).
+actuators of :mod:`sotdrake.physics`, open loop, as ``diagrams/talos_physics.py``), with the
+servo options of :class:`Servos` (``--stiffness``, the static feed-forward torque unless
+``--no-feedforward``, the CoM/ZMP stabiliser's ``--com-gain``/``--zmp-gain``) and the gait's
+``--landing-depth``. ``--mode dynamic``: ``SolverDyn`` drives the torque-controlled TALOS, the soles'
+contacts released and added back at each step (``rmContact``/``addContact``; ``--steps`` only).
 ``--then T X Y THETA`` changes the command at time T (``attime``); ``--steps N --step-length L``
 walks N steps of L metres (the walking frame's advance per step) instead of a velocity.
+``--robot romeo`` walks Romeo (kinematic mode: the physics station is TALOS').
 
     python diagrams/walk.py --robot talos --velocity 0.1 0 0 --then 10 0.1 0 0.1 --duration 15 --out out/walk
     python diagrams/walk.py --mode physics --steps 8 --step-length 0.2 --duration 10 --out out/walk_physics
+    python diagrams/walk.py --mode dynamic --steps 8 --step-length 0.2 --duration 10 --out out/walk_dynamic
+    python diagrams/walk.py --robot romeo --velocity 0.1 0 0 --duration 6 --out out/walk_romeo
 """
 
 from __future__ import annotations
@@ -277,7 +284,10 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
 
 
 #: Dynamic mode: gains (1/s²) of the CoM, the feet and the posture (``TaskDynPD``, ``K_v = 2√K_p``).
-DYNAMIC_GAINS = {"com": 100.0, "feet": 400.0, "posture": 25.0}
+DYNAMIC_GAINS = {"com": 100.0, "feet": 400.0, "waist": 100.0, "posture": 25.0}
+#: Dynamic mode: the contacts' friction coefficient, below the plant's (0.8): the solver keeps the
+#: soles' yaw torque (bounded by μ · r · f_z) and tangential forces away from what makes them slip.
+DYNAMIC_FRICTION = 0.4
 
 
 def _build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | None, dt: float, gait: GaitParameters,
@@ -287,7 +297,7 @@ def _build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | No
     contact over the double support before the lift-off (``rmContact(contact, T_ds − dt)``) and adds it
     back at the touch-down (``addContact``), at the times of the plan (``attime``). Stack: the soles
     (6D, planned pose, velocity and acceleration), the CoM (planned position, velocity and
-    acceleration), the posture."""
+    acceleration), the waist's orientation (the plan's), the posture."""
     from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
 
     from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
@@ -305,6 +315,7 @@ def _build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | No
     sot.setControlSelection(bot.velocity_selection(excluding=list(spec.excluded)))
     contacts = {side: bot.add_contact(f"contact{side[0].upper()}F", frame) for side, frame in zip(SIDES, spec.feet, strict=True)}
     for contact in contacts.values():
+        contact.setFriction(DYNAMIC_FRICTION)
         sot.addContact(contact)
     start = start_of(bot.dynamic, bot.q0, spec.feet, spec.waist)
     pg = bot.add(PatternGenerator(start, dt, gait))
@@ -323,11 +334,16 @@ def _build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | No
         connect(split.get_output_port(0), swap.get_input_port(1))
         connect(swap.get_output_port(), foot.task.GetInputPort("reference_acceleration"))
         tasks[foot.task.name] = foot
+    waist = MetaTaskDyn6d("Waist", bot, "waist", spec.waist, kp=DYNAMIC_GAINS["waist"])
+    waist.feature.selec("111000")  # its orientation: the plan's (level, turned with the feet)
+    connect(pg.GetOutputPort("waist_pose"), waist.featureDes.GetInputPort("pose_in"))
+    connect(pg.GetOutputPort("waist_velocity"), waist.featureDes.GetInputPort("spatial_velocity_in"))
     com = MetaTaskDynCom(bot, kp=DYNAMIC_GAINS["com"])
     connect(pg.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
     connect(pg.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
     connect(pg.GetOutputPort("com_acceleration"), com.task.GetInputPort("reference_acceleration"))
     tasks[com.task.name] = com
+    tasks[waist.task.name] = waist
     posture = MetaTaskDynPosture(bot, kp=DYNAMIC_GAINS["posture"])
     tasks[posture.task.name] = posture
     for name in tasks:

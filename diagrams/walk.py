@@ -14,8 +14,8 @@ its velocity (feed-forward).
 ``--mode kinematic``: the SoT integrates its velocity at 1 kHz (no dynamics). ``--mode physics``:
 the same control graph drives the physically simulated TALOS through position servos (the PD
 actuators of :mod:`sotdrake.physics`, open loop, as ``diagrams/talos_physics.py``), with the
-servo options of :class:`Servos` (``--stiffness``, the static feed-forward torque unless
-``--no-feedforward``, the CoM/ZMP stabiliser's ``--com-gain``/``--zmp-gain``) and the gait's
+servo options of :class:`Servos` (``--stiffness``, the static feed-forward torque with
+``--feedforward``, the CoM/ZMP stabiliser's ``--com-gain``/``--zmp-gain``) and the gait's
 ``--landing-depth``. ``--mode dynamic``: ``SolverDyn`` drives the torque-controlled TALOS, the soles'
 contacts released and added back at each step (``rmContact``/``addContact``; ``--steps`` only).
 ``--then T X Y THETA`` changes the command at time T (``attime``); ``--steps N --step-length L``
@@ -114,12 +114,12 @@ ARM_BACKWARD_MARGIN = 0.01
 class Servos:
     """The physics mode's servos: ``stiffness`` (``kp = stiffness · effort limit``, rad⁻¹, the
     station's default 30), ``feedforward`` (the static torques of the planned posture,
-    :class:`~sotdrake.walking.gravity_feedforward.GravityFeedforward`, else none), ``com_gain`` and
+    :class:`~sotdrake.walking.gravity_feedforward.GravityFeedforward`; default: none), ``com_gain`` and
     ``zmp_gain`` (1/s) of the CoM stabiliser (:class:`~sotdrake.walking.stabilizer.ComStabilizer`;
     ``com_gain = 0``: none)."""
 
     stiffness: float = 30.0
-    feedforward: bool = True
+    feedforward: bool = False
     com_gain: float = 0.0
     zmp_gain: float = 0.0
 
@@ -287,7 +287,7 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
 DYNAMIC_GAINS = {"com": 100.0, "feet": 400.0, "waist": 100.0, "posture": 25.0}
 #: Dynamic mode: the contacts' friction coefficient, below the plant's (0.8): the solver keeps the
 #: soles' yaw torque (bounded by μ · r · f_z) and tangential forces away from what makes them slip.
-DYNAMIC_FRICTION = 0.4
+DYNAMIC_FRICTION = 0.3
 
 
 def _build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | None, dt: float, gait: GaitParameters,
@@ -583,13 +583,13 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--landing-depth", type=float, default=None, help="the swing ends this far below the ground (m; default 0)")
     defaults = Servos()
     parser.add_argument("--stiffness", type=float, default=defaults.stiffness, help="physics: servo kp = STIFFNESS · effort limit (1/rad)")
-    parser.add_argument("--no-feedforward", action="store_true", help="physics: no static feed-forward torque in the servos")
+    parser.add_argument("--feedforward", action="store_true", help="physics: the static feed-forward torque in the servos")
     parser.add_argument("--com-gain", type=float, default=defaults.com_gain, help="physics: the stabiliser's CoM gain k_c (1/s; 0: none)")
     parser.add_argument("--zmp-gain", type=float, default=defaults.zmp_gain, help="physics: the stabiliser's ZMP gain k_z (1/s)")
     args = parser.parse_args(argv)
     meshcat = start(args)
     steps = (args.steps, args.step_length) if args.steps else None
-    servos = Servos(args.stiffness, not args.no_feedforward, args.com_gain, args.zmp_gain)
+    servos = Servos(args.stiffness, args.feedforward, args.com_gain, args.zmp_gain)
     gait = ROBOTS[args.robot].gait
     if args.step_duration is not None or args.single_support is not None:
         duration = args.step_duration or gait.step_duration

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from pydrake.multibody.math import SpatialForce
@@ -164,3 +166,33 @@ def test_landing_depth_presses_the_sole_then_returns_to_the_ground():
     assert isinstance(START, Start)
     with pytest.raises(InvalidInput, match="landing_depth"):
         GaitParameters(landing_depth=0.05)
+
+
+# --- the dynamic walk -----------------------------------------------------------------------
+def test_dynamic_walk_switches_the_contacts_and_steps(walk_script):
+    """``--mode dynamic``: SolverDyn on the torque-driven plant; the right sole's contact is released
+    before its lift-off and added back at its touch-down; the first step of 0.2 m lands where planned
+    with the CoM on its plan, no slip and the CoP well inside the soles."""
+    gait = dataclasses.replace(walk_script.ROBOTS["talos"].gait, start_duration=0.4)
+    walk = walk_script.build_diagram(mode="dynamic", steps=(2, 0.2), gait=gait)
+    assert [c.description for c in walk.commands[:2]] == ["rmContact contactRF", "addContact contactRF"]
+    simulator = Simulator(walk.diagram)
+    simulator.AdvanceTo(0.7)  # the right foot in the air: its contact released
+    assert walk.sot.held_contacts(simulator.get_context()) == ["contactLF"]
+    simulator.AdvanceTo(1.15)  # it landed at 1.1 s; the left one is being released for its lift-off at 1.2 s
+    assert sorted(walk.sot.held_contacts(simulator.get_context())) == ["contactLF", "contactRF"]
+    simulator.AdvanceTo(1.2)
+    assert walk.sot.held_contacts(simulator.get_context()) == ["contactRF"]
+    summary, trace = walk_script.summarize(walk, simulator, 1.2, 1.0)
+    assert summary["steps"] == 1 and not summary["fell"]
+    assert summary["max_com_tracking_error_m"] < 2e-3
+    assert summary["max_foot_tracking_error_m"] < 5e-3
+    assert summary["max_slip_per_step_m"] < 2e-3
+    assert summary["min_cop_margin_m"] > 0.02
+    right = walk.robot.dynamic.pose_at("right-sole", trace["x_plant"][-1, : walk.robot.model.nq]).translation()
+    assert right[0] - trace["pg_feet"][0, 4] == pytest.approx(0.2, abs=5e-3)
+
+
+def test_dynamic_walk_needs_a_list_of_steps(walk_script):
+    with pytest.raises(InvalidInput, match="--steps"):
+        walk_script.build_diagram(mode="dynamic", velocity=(0.1, 0.0, 0.0))

@@ -59,9 +59,8 @@ from sotdrake import (
 )
 from sotdrake.exceptions import InvalidInput
 from sotdrake.robots import RobotModel
-from sotdrake.walking import ComStabilizer, GaitParameters, MeasuredCom, PatternGenerator, start_of
+from sotdrake.walking import ComStabilizer, GaitParameters, GravityFeedforward, MeasuredCom, PatternGenerator, start_of
 from sotdrake.walking.com_planner import GRAVITY
-from sotdrake.walking.gravity_feedforward import GravityFeedforward
 from sotdrake.walking.support import footprint, polygon_margin, support_polygon
 
 

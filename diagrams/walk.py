@@ -115,12 +115,14 @@ class Servos:
     station's default 30), ``feedforward`` (the static torques of the planned posture,
     :class:`~sotdrake.walking.gravity_feedforward.GravityFeedforward`; default: none), ``com_gain`` and
     ``zmp_gain`` (1/s) of the CoM stabiliser (:class:`~sotdrake.walking.stabilizer.ComStabilizer`;
-    ``com_gain = 0``: none)."""
+    ``com_gain = 0``: none), ``closed_loop`` (the SoT's kinematics reads the plant's ``q``, a perfect
+    estimator, instead of the device's)."""
 
     stiffness: float = 30.0
     feedforward: bool = False
     com_gain: float = 0.0
     zmp_gain: float = 0.0
+    closed_loop: bool = False  # the SoT's kinematics reads the plant's q (a perfect estimator), not the device's
 
 
 @dataclass
@@ -167,7 +169,13 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     if mode == "physics":
         physical = spec.add_physical(builder, dt, stiffness=servos.stiffness)
         physical.plant.SetDefaultPositions(model.half_sitting)
-    bot = Robot(builder, model, dt)
+    measured_q = None
+    if physical is not None and servos.closed_loop:
+        state = physical.plant
+        split = builder.AddNamedSystem("measured_position", Demultiplexer([state.num_positions(), state.num_velocities()]))
+        builder.Connect(state.get_state_output_port(), split.get_input_port())
+        measured_q = split.get_output_port(0)
+    bot = Robot(builder, model, dt, measured_position=measured_q)
     dyn = bot.dynamic
     gait = gait or spec.gait
     pg = bot.add(PatternGenerator(start_of(dyn, bot.device.initial_position, spec.feet, spec.waist), dt, gait))
@@ -585,10 +593,11 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--feedforward", action="store_true", help="physics: the static feed-forward torque in the servos")
     parser.add_argument("--com-gain", type=float, default=defaults.com_gain, help="physics: the stabiliser's CoM gain k_c (1/s; 0: none)")
     parser.add_argument("--zmp-gain", type=float, default=defaults.zmp_gain, help="physics: the stabiliser's ZMP gain k_z (1/s)")
+    parser.add_argument("--closed-loop", action="store_true", help="physics: the SoT reads the plant's q (perfect estimation)")
     args = parser.parse_args(argv)
     meshcat = start(args)
     steps = (args.steps, args.step_length) if args.steps else None
-    servos = Servos(args.stiffness, args.feedforward, args.com_gain, args.zmp_gain)
+    servos = Servos(args.stiffness, args.feedforward, args.com_gain, args.zmp_gain, args.closed_loop)
     gait = ROBOTS[args.robot].gait
     if args.step_duration is not None or args.single_support is not None:
         duration = args.step_duration or gait.step_duration

@@ -196,3 +196,20 @@ def test_dynamic_walk_switches_the_contacts_and_steps(walk_script):
 def test_dynamic_walk_needs_a_list_of_steps(walk_script):
     with pytest.raises(InvalidInput, match="--steps"):
         walk_script.build_diagram(mode="dynamic", velocity=(0.1, 0.0, 0.0))
+
+
+def test_physics_walk_closed_loop_reads_the_plants_q(walk_script):
+    walk = walk_script.build_diagram(mode="physics", steps=(2, 0.2), solver="cascade",
+                                     servos=walk_script.Servos(closed_loop=True, feedforward=True))
+    simulator = Simulator(walk.diagram)
+    simulator.AdvanceTo(0.05)
+    context = simulator.get_context()
+    dynamic = walk.robot.dynamic
+    q_read = dynamic.GetInputPort("position").Eval(dynamic.GetMyContextFromRoot(context))
+    plant = walk.physical.plant
+    q_plant = plant.GetPositions(plant.GetMyContextFromRoot(context))
+    assert np.array_equal(q_read, q_plant)
+    device = walk.robot.device
+    assert not np.array_equal(q_plant, device.GetOutputPort("state").Eval(device.GetMyContextFromRoot(context)))
+    ff = walk.diagram.GetSubsystemByName("feedforward_torque")
+    assert np.abs(ff.get_output_port().Eval(ff.GetMyContextFromRoot(context))).max() > 10.0  # the legs' static torques

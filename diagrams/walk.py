@@ -13,16 +13,24 @@ its velocity (feed-forward).
 
 ``--mode kinematic``: the SoT integrates its velocity at 1 kHz (no dynamics). ``--mode physics``:
 the same control graph drives the physically simulated TALOS through position servos (the PD
-actuators of :mod:`sotdrake.physics`, open loop, as ``diagrams/talos_physics.py``).
+actuators of :mod:`sotdrake.physics`, open loop, as ``diagrams/talos_physics.py``), with the
+servo options of :class:`Servos` (``--stiffness``, the static feed-forward torque with
+``--feedforward``, the CoM/ZMP stabiliser's ``--com-gain``/``--zmp-gain``) and the gait's
+``--landing-depth``. ``--mode dynamic``: ``SolverDyn`` drives the torque-controlled TALOS, the soles'
+contacts released and added back at each step (``rmContact``/``addContact``; ``--steps`` only).
 ``--then T X Y THETA`` changes the command at time T (``attime``); ``--steps N --step-length L``
 walks N steps of L metres (the walking frame's advance per step) instead of a velocity.
+``--robot romeo`` walks Romeo (kinematic mode: the physics station is TALOS').
 
     python diagrams/walk.py --robot talos --velocity 0.1 0 0 --then 10 0.1 0 0.1 --duration 15 --out out/walk
     python diagrams/walk.py --mode physics --steps 8 --step-length 0.2 --duration 10 --out out/walk_physics
+    python diagrams/walk.py --mode dynamic --steps 8 --step-length 0.2 --duration 10 --out out/walk_dynamic
+    python diagrams/walk.py --robot romeo --velocity 0.1 0 0 --duration 6 --out out/walk_romeo
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -31,7 +39,7 @@ from pathlib import Path
 import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource
+from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer, Multiplexer
 
 from sotdrake import (
     SOT,
@@ -42,14 +50,16 @@ from sotdrake import (
     Tracer,
     add_sot,
     attime,
+    load_robot,
     load_talos,
     script_arguments,
     simulate,
     start,
     write_run,
 )
+from sotdrake.exceptions import InvalidInput
 from sotdrake.robots import RobotModel
-from sotdrake.walking import GaitParameters, PatternGenerator, start_of
+from sotdrake.walking import ComStabilizer, GaitParameters, GravityFeedforward, MeasuredCom, PatternGenerator, start_of
 from sotdrake.walking.com_planner import GRAVITY
 from sotdrake.walking.support import footprint, polygon_margin, support_polygon
 
@@ -66,21 +76,30 @@ class WalkingRobot:
     wrists: tuple[str, str] = ("left-wrist", "right-wrist")
     excluded: tuple[str, ...] = ()
     add_physical: Callable | None = None
+    gait: GaitParameters = field(default_factory=GaitParameters)
 
 
-def _add_physical_talos(builder, dt):
+def _add_physical_talos(builder, dt, **options):
     from sotdrake.physics import add_physical_talos
 
-    return add_physical_talos(builder, time_step=dt)
+    return add_physical_talos(builder, time_step=dt, **options)
 
 
+SIDES = ("left", "right")
 #: Adding a robot is adding an entry.
 ROBOTS: dict[str, WalkingRobot] = {
     "talos": WalkingRobot(load=lambda: load_talos("reduced"),
                           excluded=("gripper_left_joint", "gripper_right_joint"),
                           add_physical=_add_physical_talos),
+    # Romeo (sot-romeo's 31-joint model): its foot is the bounding box of the collision mesh of
+    # its ankle link, 0.244 m long from 8.9 cm behind the sole frame, 0.112 m wide (the narrower
+    # half mirrored, so one footprint serves both feet). Swing apex 3 cm: at 5 cm the swinging
+    # ankle needs more dorsiflexion than its limit (-0.52 rad) with the sole kept flat. No
+    # physical model: the physics station is TALOS' (sole boxes, link boxes and PD gains fitted to TALOS).
+    "romeo": WalkingRobot(load=lambda: load_robot("romeo", "small"),
+                          gait=GaitParameters(sole_length=0.244, sole_width=0.112, sole_centre=(0.033, 0.0), swing_height=0.03)),
 }
-MODES = ("kinematic", "physics")
+MODES = ("kinematic", "physics", "dynamic")
 #: Task gains (1/s): the tracked references, and the lower-priority orientations.
 TRACKING_GAIN = 100.0
 POSTURE_GAIN = 10.0
@@ -90,12 +109,28 @@ SLIP_LOAD_N = 100.0
 ARM_BACKWARD_MARGIN = 0.01
 
 
+@dataclass(frozen=True)
+class Servos:
+    """The physics mode's servos: ``stiffness`` (``kp = stiffness · effort limit``, rad⁻¹, the
+    station's default 30), ``feedforward`` (the static torques of the planned posture,
+    :class:`~sotdrake.walking.gravity_feedforward.GravityFeedforward`; default: none), ``com_gain`` and
+    ``zmp_gain`` (1/s) of the CoM stabiliser (:class:`~sotdrake.walking.stabilizer.ComStabilizer`;
+    ``com_gain = 0``: none), ``closed_loop`` (the SoT's kinematics reads the plant's ``q``, a perfect
+    estimator, instead of the device's)."""
+
+    stiffness: float = 30.0
+    feedforward: bool = False
+    com_gain: float = 0.0
+    zmp_gain: float = 0.0
+    closed_loop: bool = False  # the SoT's kinematics reads the plant's q (a perfect estimator), not the device's
+
+
 @dataclass
 class Walk:
     diagram: Diagram
-    robot: Robot
+    robot: Robot  # RobotDyn in dynamic mode
     pg: PatternGenerator
-    sot: SOT
+    sot: SOT  # SolverDyn in dynamic mode
     tasks: dict
     tracer: Tracer
     mode: str
@@ -104,31 +139,45 @@ class Walk:
     physical: object = None
     commands: list = field(default_factory=list)
     visualizer: object = None
+    servos: Servos | None = None  # physics mode
 
 
 def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | None = None,
                   steps: tuple[int, float] | None = None, mode: str = "kinematic", solver: str = "hqp",
-                  dt: float = 1e-3, gait: GaitParameters | None = None, meshcat: Meshcat | None = None) -> Walk:
+                  dt: float = 1e-3, gait: GaitParameters | None = None, meshcat: Meshcat | None = None,
+                  servos: Servos | None = None) -> Walk:
     """The walk's diagram. ``velocity``: the command from t = 0; ``then``: ``(T, x, y, θ)``, a new
     command at T; ``steps``: ``(n, length)`` instead of a velocity; ``solver``: ``'hqp'``
-    (``SolverKine``, with the arms' inequality tasks) or ``'cascade'`` (basic ``SOT``, without them)."""
+    (``SolverKine``, with the arms' inequality tasks) or ``'cascade'`` (basic ``SOT``, without them);
+    ``servos``: the physics mode's servo options (:class:`Servos`)."""
     if robot not in ROBOTS:
         from sotdrake.exceptions import NotFound
 
         raise NotFound(robot, list(ROBOTS))
     if mode not in MODES:
-        raise ValueError(f"mode is one of {MODES}, got {mode!r} ('dynamic' needs SolverDyn)")
+        raise InvalidInput(f"mode is one of {MODES}, got {mode!r}")
     spec = ROBOTS[robot]
+    if mode != "kinematic" and spec.add_physical is None:
+        raise InvalidInput(f"--mode {mode}: no physical model for {robot!r}; the physics station of sotdrake.physics is "
+                           f"TALOS' (its sole and link boxes, PD gains and torque limits); {robot!r} walks in kinematic mode")
+    if mode == "dynamic":
+        return _build_dynamic(robot, spec, steps, dt, gait or spec.gait, meshcat)
     builder = DiagramBuilder()
     model = spec.load()
+    servos = servos or Servos()
     physical = None
     if mode == "physics":
-        if spec.add_physical is None:
-            raise ValueError(f"no physical model for {robot!r}")
-        physical = spec.add_physical(builder, dt)
+        physical = spec.add_physical(builder, dt, stiffness=servos.stiffness)
         physical.plant.SetDefaultPositions(model.half_sitting)
-    bot = Robot(builder, model, dt)
+    measured_q = None
+    if physical is not None and servos.closed_loop:
+        state = physical.plant
+        split = builder.AddNamedSystem("measured_position", Demultiplexer([state.num_positions(), state.num_velocities()]))
+        builder.Connect(state.get_state_output_port(), split.get_input_port())
+        measured_q = split.get_output_port(0)
+    bot = Robot(builder, model, dt, measured_position=measured_q)
     dyn = bot.dynamic
+    gait = gait or spec.gait
     pg = bot.add(PatternGenerator(start_of(dyn, bot.device.initial_position, spec.feet, spec.waist), dt, gait))
     if steps is not None:
         pg.setSteps([(steps[1], 0.0, 0.0)] * int(steps[0]))
@@ -158,8 +207,16 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     com = MetaTaskKineCom(bot)
     com.feature.selec("011")
     com.gain.setConstant(TRACKING_GAIN)
-    connect(pg.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
-    connect(pg.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
+    stabilizer = None
+    if physical is not None and servos.com_gain:
+        stabilizer = bot.add(ComStabilizer(pg.start.com[2], dt, servos.com_gain, servos.zmp_gain))
+        for port in ("com", "com_velocity", "com_acceleration"):
+            connect(pg.GetOutputPort(port), stabilizer.GetInputPort(f"{port}_reference"))
+        connect(stabilizer.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
+        connect(stabilizer.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
+    else:
+        connect(pg.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
+        connect(pg.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
     tasks[com.task.name] = com
     six_d("Head", "head", spec.head, "110000", "right_foot_pose", "right_foot_velocity", POSTURE_GAIN)
     six_d("WaistOr", "waist", spec.waist, "100000", "waist_pose", "waist_velocity", POSTURE_GAIN)
@@ -189,12 +246,33 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
         connect(bot.device.GetOutputPort("state"), desired.GetInputPort("position"))
         connect(sot.GetOutputPort("control"), desired.GetInputPort("velocity"))
         connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))
-        feedforward = bot.add(ConstantVectorSource(np.zeros(plant.num_actuated_dofs(physical.instance))), "feedforward_torque")
-        connect(feedforward.get_output_port(), plant.get_actuation_input_port(physical.instance))
         monitor = bot.add(ContactMonitor(physical))
         connect(plant.get_contact_results_output_port(), monitor.get_input_port())
+        if servos.feedforward:
+            feedforward = bot.add(GravityFeedforward(model, physical.actuated_v, spec.feet, pg.gait.sole_centre), "feedforward_torque")
+            connect(bot.device.GetOutputPort("state"), feedforward.GetInputPort("position"))
+            connect(pg.GetOutputPort("zmp_reference"), feedforward.GetInputPort("zmp_reference"))
+            # (f_left, f_right, cop) → the normal forces (the CoP is NaN in the air: selected out, not multiplied by 0).
+            split = bot.add(Demultiplexer([2, 1, 2, 1, 2]), "sole_forces")
+            normal = bot.add(Multiplexer([1, 1]), "sole_normal_forces")
+            connect(monitor.GetOutputPort("feet"), split.get_input_port())
+            connect(split.get_output_port(1), normal.get_input_port(0))
+            connect(split.get_output_port(3), normal.get_input_port(1))
+            connect(normal.get_output_port(), feedforward.GetInputPort("normal_forces"))
+            tracer.add(feedforward.get_output_port(), "feedforward_torque")
+        else:
+            feedforward = bot.add(ConstantVectorSource(np.zeros(plant.num_actuated_dofs(physical.instance))), "feedforward_torque")
+        connect(feedforward.get_output_port(), plant.get_actuation_input_port(physical.instance))
         tracer.add(plant.get_state_output_port(), "x_plant")
         tracer.add(monitor.GetOutputPort("feet"), "contact")
+        if stabilizer is not None:
+            measured = bot.add(MeasuredCom(model))
+            connect(plant.get_state_output_port(), measured.GetInputPort("state"))
+            connect(measured.GetOutputPort("com"), stabilizer.GetInputPort("measured_com"))
+            cop = bot.add(Demultiplexer([6, 2]), "cop")
+            connect(monitor.GetOutputPort("feet"), cop.get_input_port())
+            connect(cop.get_output_port(1), stabilizer.GetInputPort("measured_cop"))
+            tracer.add(stabilizer.GetOutputPort("offset"), "stabilizer_offset")
         if meshcat is not None:
             from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
 
@@ -208,7 +286,101 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
         meshcat.SetCameraPose(camera_in_world=[1.5, -2.5, 1.4], target_in_world=[0.6, 0.0, 0.7])
     diagram = builder.Build()
     diagram.set_name("walk")
-    return Walk(diagram, bot, pg, sot, tasks, tracer, mode, spec, robot, physical, commands, visualizer)
+    return Walk(diagram, bot, pg, sot, tasks, tracer, mode, spec, robot, physical, commands, visualizer,
+                servos if physical is not None else None)
+
+
+#: Dynamic mode: gains (1/s²) of the CoM, the feet and the posture (``TaskDynPD``, ``K_v = 2√K_p``).
+DYNAMIC_GAINS = {"com": 100.0, "feet": 400.0, "waist": 100.0, "posture": 25.0}
+#: Dynamic mode: the contacts' friction coefficient, below the plant's (0.8): the solver keeps the
+#: soles' yaw torque (bounded by μ · r · f_z) and tangential forces away from what makes them slip.
+DYNAMIC_FRICTION = 0.3
+
+
+def _build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | None, dt: float, gait: GaitParameters,
+                   meshcat: Meshcat | None) -> Walk:
+    """``--mode dynamic``: ``SolverDyn`` drives the torque-controlled TALOS (no PD, closed loop on
+    the plant's state). Both soles start as contacts (``addContact``); each step releases its foot's
+    contact over the double support before the lift-off (``rmContact(contact, T_ds − dt)``) and adds it
+    back at the touch-down (``addContact``), at the times of the plan (``attime``). Stack: the soles
+    (6D, planned pose, velocity and acceleration), the CoM (planned position, velocity and
+    acceleration), the waist's orientation (the plan's), the posture."""
+    from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
+
+    from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
+    from sotdrake.dynamics.robot_dyn import RobotDyn
+    from sotdrake.physics import ContactMonitor
+    from sotdrake.walking import WalkCommand, initial_plan, replan
+
+    if steps is None:
+        raise InvalidInput("--mode dynamic walks a list of steps (--steps N --step-length L): the contact switches are "
+                           "scheduled from the plan at build time")
+    builder = DiagramBuilder()
+    model = spec.load()
+    bot = RobotDyn(builder, model, "physics", dt)
+    sot, connect = bot.sot, builder.Connect
+    sot.setControlSelection(bot.velocity_selection(excluding=list(spec.excluded)))
+    contacts = {side: bot.add_contact(f"contact{side[0].upper()}F", frame) for side, frame in zip(SIDES, spec.feet, strict=True)}
+    for contact in contacts.values():
+        contact.setFriction(DYNAMIC_FRICTION)
+        sot.addContact(contact)
+    start = start_of(bot.dynamic, bot.q0, spec.feet, spec.waist)
+    pg = bot.add(PatternGenerator(start, dt, gait))
+    pg.setSteps([(steps[1], 0.0, 0.0)] * int(steps[0]))
+    tasks: dict = {}
+    for side, frame in zip(SIDES, spec.feet, strict=True):
+        name = f"{side[0].upper()}F"
+        foot = MetaTaskDyn6d(name, bot, f"{side}-foot", frame, kp=DYNAMIC_GAINS["feet"])
+        connect(pg.GetOutputPort(f"{side}_foot_pose"), foot.featureDes.GetInputPort("pose_in"))
+        connect(pg.GetOutputPort(f"{side}_foot_velocity"), foot.featureDes.GetInputPort("spatial_velocity_in"))
+        # The task's rows are (translation, rotation): the plan's (ω̇, p̈) swapped.
+        split = bot.add(Demultiplexer([3, 3]), f"{side}_foot_acceleration_split")
+        swap = bot.add(Multiplexer([3, 3]), f"{side}_foot_reference_acceleration")
+        connect(pg.GetOutputPort(f"{side}_foot_acceleration"), split.get_input_port())
+        connect(split.get_output_port(1), swap.get_input_port(0))
+        connect(split.get_output_port(0), swap.get_input_port(1))
+        connect(swap.get_output_port(), foot.task.GetInputPort("reference_acceleration"))
+        tasks[foot.task.name] = foot
+    waist = MetaTaskDyn6d("Waist", bot, "waist", spec.waist, kp=DYNAMIC_GAINS["waist"])
+    waist.feature.selec("111000")  # its orientation: the plan's (level, turned with the feet)
+    connect(pg.GetOutputPort("waist_pose"), waist.featureDes.GetInputPort("pose_in"))
+    connect(pg.GetOutputPort("waist_velocity"), waist.featureDes.GetInputPort("spatial_velocity_in"))
+    com = MetaTaskDynCom(bot, kp=DYNAMIC_GAINS["com"])
+    connect(pg.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
+    connect(pg.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
+    connect(pg.GetOutputPort("com_acceleration"), com.task.GetInputPort("reference_acceleration"))
+    tasks[com.task.name] = com
+    tasks[waist.task.name] = waist
+    posture = MetaTaskDynPosture(bot, kp=DYNAMIC_GAINS["posture"])
+    tasks[posture.task.name] = posture
+    for name in tasks:
+        sot.push(name)
+    # The contact switches, at the plan's times (the plan the pattern generator makes at t = 0).
+    plan = replan(initial_plan(start, gait, pg.input_cost), WalkCommand(steps=pg.settings().command.steps), 0.0, gait, pg.input_cost)
+    commands = []
+    # The release starts a tick after the other foot's touch-down (commands at one time all see
+    # the contact set before them) and ends at the lift-off.
+    ramp = gait.double_support - dt
+    for step in plan.steps:
+        contact = contacts[step.side]
+        commands.append(attime(step.liftoff - ramp, lambda c=contact: sot.rmContact(c, ramp), f"rmContact {contact.name}"))
+        commands.append(attime(step.touchdown, lambda c=contact: sot.addContact(c), f"addContact {contact.name}"))
+    monitor = bot.add(ContactMonitor(bot.physical))
+    connect(bot.physical.plant.get_contact_results_output_port(), monitor.get_input_port())
+    tracer = Tracer(builder, dt)
+    tracer.add(bot.state_port, "x_plant")
+    tracer.add(monitor.GetOutputPort("feet"), "contact")
+    tracer.add(sot.GetOutputPort("torque"), "torque")
+    for port in ("com", "com_velocity", "com_acceleration", "zmp_reference", "feet", "support_phase", "velocity_command"):
+        tracer.add(pg.GetOutputPort(port), f"pg_{port}")
+    visualizer = None
+    if meshcat is not None:
+        visualizer = MeshcatVisualizer.AddToBuilder(builder, bot.physical.scene_graph, meshcat,
+                                                    MeshcatVisualizerParams(publish_period=1 / 60))
+        meshcat.SetCameraPose(camera_in_world=[1.5, -2.5, 1.4], target_in_world=[0.6, 0.0, 0.7])
+    diagram = builder.Build()
+    diagram.set_name("walk")
+    return Walk(diagram, bot, pg, sot, tasks, tracer, "dynamic", spec, robot, bot.physical, commands, visualizer)
 
 
 # --- post-processing ------------------------------------------------------------------------
@@ -252,7 +424,7 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
     trace = walk.tracer.data(context)
     bot, spec, gait = walk.robot, walk.spec, walk.pg.gait
     nq = bot.model.nq
-    physics = walk.mode == "physics"
+    physics = walk.mode in ("physics", "dynamic")
     qs = trace["x_plant"][:, :nq] if physics else trace["q_device"]
     t = trace["time"]
     path = bot.dynamic.trajectory([spec.feet[0], spec.feet[1], spec.waist], qs)
@@ -272,7 +444,7 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
     base_z = path[spec.waist][:, 2, 3]
     fell = bool(base_z.min() < base_z[0] - 0.25)
     # The planned base: the planned CoM plus the start's base-to-CoM offset (turned with the feet).
-    q0 = bot.device.initial_position
+    q0 = bot.q0 if walk.mode == "dynamic" else bot.device.initial_position
     offset0 = bot.dynamic.pose_at(spec.waist, q0).translation()[:2] - bot.dynamic.com_at(q0)[:2]
     yaw_ref = 0.5 * (feet_ref[-1, 3] + feet_ref[-1, 7]) - 0.5 * (feet_ref[0, 3] + feet_ref[0, 7])
     c, s = np.cos(yaw_ref), np.sin(yaw_ref)
@@ -330,6 +502,7 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
         cop_margin = [polygon_margin(contact[k, 6:8], support_polygon([soles[i][k] for i in range(2) if loaded[k, i]], gait))
                       for k in range(1, len(t)) if loaded[k].any() and np.all(np.isfinite(contact[k, 6:8]))]
         summary["min_cop_margin_m"] = float(min(cop_margin)) if cop_margin else None
+        summary["servos"] = dataclasses.asdict(walk.servos) if walk.servos is not None else None
         trace["cop"] = contact[:, 6:8]
     else:
         summary["min_cop_margin_m"] = None  # no contact forces without physics
@@ -412,10 +585,28 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--step-length", type=float, default=0.2, help="with --steps: advance per step (m)")
     parser.add_argument("--mode", choices=MODES, default="kinematic")
     parser.add_argument("--solver", choices=["hqp", "cascade"], default="hqp")
+    parser.add_argument("--step-duration", type=float, default=None, help="a step's duration (s; default 0.8, as walkromeo)")
+    parser.add_argument("--single-support", type=float, default=None, help="its single support (s; default 0.7)")
+    parser.add_argument("--landing-depth", type=float, default=None, help="the swing ends this far below the ground (m; default 0)")
+    defaults = Servos()
+    parser.add_argument("--stiffness", type=float, default=defaults.stiffness, help="physics: servo kp = STIFFNESS · effort limit (1/rad)")
+    parser.add_argument("--feedforward", action="store_true", help="physics: the static feed-forward torque in the servos")
+    parser.add_argument("--com-gain", type=float, default=defaults.com_gain, help="physics: the stabiliser's CoM gain k_c (1/s; 0: none)")
+    parser.add_argument("--zmp-gain", type=float, default=defaults.zmp_gain, help="physics: the stabiliser's ZMP gain k_z (1/s)")
+    parser.add_argument("--closed-loop", action="store_true", help="physics: the SoT reads the plant's q (perfect estimation)")
     args = parser.parse_args(argv)
     meshcat = start(args)
     steps = (args.steps, args.step_length) if args.steps else None
-    walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, meshcat=meshcat)
+    servos = Servos(args.stiffness, args.feedforward, args.com_gain, args.zmp_gain, args.closed_loop)
+    gait = ROBOTS[args.robot].gait
+    if args.step_duration is not None or args.single_support is not None:
+        duration = args.step_duration or gait.step_duration
+        gait = dataclasses.replace(gait, step_duration=duration,
+                                   single_support=args.single_support or duration - gait.double_support)
+    if args.landing_depth is not None:
+        gait = dataclasses.replace(gait, landing_depth=args.landing_depth)
+    walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, gait=gait, meshcat=meshcat,
+                         servos=servos)
     simulator, wall = simulate(walk.diagram, args.duration, walk.visualizer, not args.quiet)
     summary, trace = summarize(walk, simulator, args.duration, wall, args.then)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -210,7 +210,8 @@ def test_outputs_velocities_are_the_derivatives_of_the_positions():
     samples = []
     for _ in range(3):
         values = {port: pg.GetOutputPort(port).Eval(own) for port in
-                  ("com", "com_velocity", "left_foot_pose", "left_foot_velocity", "waist_pose", "waist_velocity")}
+                  ("com", "com_velocity", "left_foot_pose", "left_foot_velocity", "left_foot_acceleration", "waist_pose",
+                   "waist_velocity")}
         samples.append({k: RigidTransform(v) if isinstance(v, RigidTransform) else np.array(v) for k, v in values.items()})
         simulator.AdvanceTo(context.get_time() + h)
     middle = samples[1]
@@ -222,6 +223,10 @@ def test_outputs_velocities_are_the_derivatives_of_the_positions():
         assert np.allclose((p[2] - p[0]) / (2 * h), V[3:], atol=1e-3), pose
         assert (yaw[2] - yaw[0]) / (2 * h) == pytest.approx(V[2], abs=1e-3)
     assert np.linalg.norm(middle["left_foot_velocity"][3:]) > 0.05  # really swinging
+    # The foot's acceleration (ω̇, p̈) is the derivative of its velocity.
+    rate = (samples[2]["left_foot_velocity"] - samples[0]["left_foot_velocity"]) / (2 * h)
+    assert np.allclose(rate, middle["left_foot_acceleration"], atol=1e-2)
+    assert np.linalg.norm(middle["left_foot_acceleration"][3:]) > 0.1
 
 
 def test_feature6d_desired_pose_input_overrides_the_setting():

@@ -4,18 +4,43 @@ One concept a file: :mod:`.gait` (timing, sizes, the command's range), :mod:`.fo
 footstep planner), :mod:`.support` (support polygons, margins), :mod:`.zmp_reference` (the ZMP
 reference), :mod:`.com_planner` (the CoM by Drake's ``ZmpPlanner``), :mod:`.swing` (foot
 trajectories), :mod:`.plan` (a walk plan and its replanning), :mod:`.pattern_generator` (the
-``PatternGenerator`` LeafSystem).
+``PatternGenerator`` LeafSystem); for the physics plant: :mod:`.measured_com`, :mod:`.stabilizer`
+(CoM/ZMP feedback), :mod:`.gravity_feedforward` (the servos' static torques).
 """
 
 from .com_planner import GRAVITY, INPUT_COST, ComPlan, plan_com
 from .footsteps import Footstep, plan_steps
 from .gait import MAX_LINEAR_VELOCITY, MAX_YAW_RATE, GaitParameters, check_velocity
+from .gravity_feedforward import GravityFeedforward
+from .measured_com import MeasuredCom
 from .pattern_generator import PatternGenerator, start_of
 from .plan import Start, WalkCommand, WalkPlan, initial_plan, replan
+from .stabilizer import ComStabilizer
 from .support import footprint, polygon_margin, sole_centre, support_polygon
 
 __all__ = [
-    "GRAVITY", "INPUT_COST", "MAX_LINEAR_VELOCITY", "MAX_YAW_RATE", "ComPlan", "Footstep", "GaitParameters",
-    "PatternGenerator", "Start", "WalkCommand", "WalkPlan", "check_velocity", "footprint", "initial_plan",
-    "plan_com", "plan_steps", "polygon_margin", "replan", "sole_centre", "start_of", "support_polygon",
+    "GRAVITY",
+    "INPUT_COST",
+    "MAX_LINEAR_VELOCITY",
+    "MAX_YAW_RATE",
+    "ComPlan",
+    "ComStabilizer",
+    "Footstep",
+    "GaitParameters",
+    "GravityFeedforward",
+    "MeasuredCom",
+    "PatternGenerator",
+    "Start",
+    "WalkCommand",
+    "WalkPlan",
+    "check_velocity",
+    "footprint",
+    "initial_plan",
+    "plan_com",
+    "plan_steps",
+    "polygon_margin",
+    "replan",
+    "sole_centre",
+    "start_of",
+    "support_polygon",
 ]

@@ -11,6 +11,7 @@ pattern generator uses ``INPUT_COST`` (see the README for the measured margins).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from pydrake.planning import ZmpPlanner
@@ -25,9 +26,9 @@ INPUT_COST = 1e-6
 class ComPlan:
     """CoM trajectories (x, y; world; m, m/s, m/s²) valid on ``[start, end]``, held outside."""
 
-    position: object
-    velocity: object
-    acceleration: object
+    position: Any  # PiecewisePolynomial (2 rows)
+    velocity: Any
+    acceleration: Any
     height: float
     start: float
     end: float

@@ -3,7 +3,8 @@
 Timing as the walkromeo generator's: a step lasts ``step_duration`` = 0.8 s, ``single_support``
 = 0.7 s with one foot in the air then ``step_duration - single_support`` = 0.1 s of double support;
 feet ``feet_distance`` = 0.2 m apart (sole origins, across the walking direction), swing apex
-``swing_height`` = 5 cm above the ground. The sole is a rectangle ``sole_length × sole_width``
+``swing_height`` = 5 cm above the ground; ``landing_depth`` (0 to 2 cm, default 0) makes the swing end
+below the ground, for position servos that would otherwise stop short of it. The sole is a rectangle ``sole_length × sole_width``
 centred at ``sole_centre`` in the sole frame (TALOS: the footprint of its foot, 0.211 × 0.124 m,
 centre 5.4 mm behind the sole frame); the ZMP reference sits at that centre in single support.
 Units: m, s, rad.
@@ -36,6 +37,7 @@ class GaitParameters:
     sole_centre: tuple[float, float] = (-0.0054, 0.0)
     horizon_steps: int = 6  # steps planned ahead when walking by velocity
     replan_steps: int = 3  # extend the plan when fewer steps than this remain ahead
+    landing_depth: float = 0.0  # the swing ends this far below the ground, back on it over the double support
 
     def __post_init__(self) -> None:
         checks = {
@@ -49,6 +51,7 @@ class GaitParameters:
             "sole_width": self.sole_width > 0,
             "horizon_steps": self.horizon_steps >= 2,
             "replan_steps": 1 <= self.replan_steps < self.horizon_steps,
+            "landing_depth": 0 <= self.landing_depth <= 0.02,
         }
         for name, ok in checks.items():
             if not ok:

@@ -11,7 +11,8 @@ m/s², rad):
 * ``com``, ``com_velocity``, ``com_acceleration`` (3): the planned CoM (constant height);
 * ``zmp_reference`` (2): the reference ZMP;
 * ``left_foot_pose``, ``right_foot_pose`` (``RigidTransform``, sole frames ``X_WS``) and
-  ``left_foot_velocity``, ``right_foot_velocity`` (6: ``(ω, ṗ)``);
+  ``left_foot_velocity``, ``right_foot_velocity`` (6: ``(ω, ṗ)``), ``left_foot_acceleration``,
+  ``right_foot_acceleration`` (6: ``(ω̇, p̈)``);
 * ``waist_pose`` (``RigidTransform``: the start's waist height and tilt, turned by the mean yaw of
   the feet, above the planned CoM) and ``waist_velocity`` (6);
 * ``support_phase`` (1): 0 in double support, 1 on the left foot only, −1 on the right only;
@@ -70,6 +71,7 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
             self.DeclareAbstractOutputPort(f"{side}_foot_pose", lambda: AbstractValue.Make(RigidTransform()),
                                            lambda c, o, s=side: o.set_value(self._foot_pose(c, s)))
             vector(f"{side}_foot_velocity", 6, lambda c, o, s=side: o.SetFromVector(self._foot_velocity(c, s)))
+            vector(f"{side}_foot_acceleration", 6, lambda c, o, s=side: o.SetFromVector(self._foot_acceleration(c, s)))
         self.DeclareAbstractOutputPort("waist_pose", lambda: AbstractValue.Make(RigidTransform()), self._waist_pose)
         vector("waist_velocity", 6, self._waist_velocity)
         vector("support_phase", 1, lambda c, o: o.SetAtIndex(0, self._refs(c).support))
@@ -80,7 +82,8 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
     def setVelocity(self, x: float, y: float, theta: float, context: Context | None = None) -> None:
         """Walk at ``(x, y, θ)`` (m/s, m/s, rad/s; x forward, y left, θ counter-clockwise, in the
         walking frame): ``|x|, |y| ≤ 0.2``, ``|θ| ≤ 0.4``; ``(0, 0, 0)`` closes the feet and stops."""
-        v = tuple(float(a) for a in check_velocity(x, y, theta))
+        vx, vy, w = (float(a) for a in check_velocity(x, y, theta))
+        v = (vx, vy, w)
         self._command(context, lambda s: setattr(s, "command", WalkCommand(velocity=v)))
 
     def setSteps(self, steps, context: Context | None = None) -> None:
@@ -93,7 +96,7 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
         if np.abs(array[:, :2]).max() > limit or np.abs(array[:, 2]).max() > MAX_YAW_RATE:
             raise InvalidInput(f"{self.name}.setSteps: accepted |dx|, |dy| ≤ {limit:g} m, |dθ| ≤ {MAX_YAW_RATE} rad; "
                                f"got {array.tolist()}")
-        command = WalkCommand(steps=tuple(tuple(float(a) for a in row) for row in array))
+        command = WalkCommand(steps=tuple((float(dx), float(dy), float(dtheta)) for dx, dy, dtheta in array))
         self._command(context, lambda s: setattr(s, "command", command))
 
     def plan(self, context: Context) -> WalkPlan:
@@ -119,6 +122,10 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
     def _foot_velocity(self, context: Context, side: str) -> np.ndarray:
         rate = self._refs(context).feet_velocity[side]
         return np.array([0.0, 0.0, rate[3], rate[0], rate[1], rate[2]])
+
+    def _foot_acceleration(self, context: Context, side: str) -> np.ndarray:
+        a = self._refs(context).feet_acceleration[side]
+        return np.array([0.0, 0.0, a[3], a[0], a[1], a[2]])
 
     def _waist_pose(self, context: Context, output: AbstractValue) -> None:
         refs = self._refs(context)

@@ -15,6 +15,7 @@ displacements ``(dx, dy, dθ)`` of the walking frame (then the feet close up and
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
@@ -71,6 +72,7 @@ class References:
     zmp: np.ndarray  # (2,), the reference
     feet: dict  # side → (x, y, z, yaw)
     feet_velocity: dict  # side → (ẋ, ẏ, ż, yaw rate)
+    feet_acceleration: dict  # side → (ẍ, ÿ, z̈, yaw acceleration)
     support: int  # 0 double support, 1 left foot only, -1 right foot only
 
 
@@ -80,10 +82,11 @@ class WalkPlan:
     planned_at: float
     start: Start
     steps: tuple[Footstep, ...]
-    zmp: object  # PiecewisePolynomial (2 rows)
+    zmp: Any  # PiecewisePolynomial (2 rows)
     com: ComPlan
     feet: dict = field(default_factory=dict)  # side → PiecewisePolynomial (x, y, z, yaw)
     feet_rate: dict = field(default_factory=dict)
+    feet_acceleration: dict = field(default_factory=dict)
 
     def __deepcopy__(self, memo) -> WalkPlan:
         # Immutable (its trajectories are never modified): Drake's copies of the state share it.
@@ -126,24 +129,28 @@ class WalkPlan:
     def references(self, t: float) -> References:
         com, com_velocity, com_acceleration = self.com.state(t)
         z = self.com.height
-        feet, rates = {}, {}
+        feet, rates, accelerations = {}, {}, {}
         for side, trajectory in self.feet.items():
             tc = min(max(t, trajectory.start_time()), trajectory.end_time())
             feet[side] = trajectory.value(tc).ravel()
             rates[side] = self.feet_rate[side].value(tc).ravel()
+            accelerations[side] = self.feet_acceleration[side].value(tc).ravel()
         swinging = self.swinging(t)
         support = 0 if swinging is None else (1 if swinging == "right" else -1)
         return References(np.append(com, z), np.append(com_velocity, 0.0), np.append(com_acceleration, 0.0),
-                          self.zmp_reference(t), feet, rates, support)
+                          self.zmp_reference(t), feet, rates, accelerations, support)
 
 
-def _trajectories(start: Start, steps: list[Footstep], gait: GaitParameters, end: float) -> tuple[dict, dict]:
-    feet, rates = {}, {}
+def _trajectories(start: Start, steps: list[Footstep], gait: GaitParameters, end: float) -> tuple[dict, dict, dict]:
+    """Each foot's trajectory, its rate and its acceleration."""
+    feet, rates, accelerations = {}, {}, {}
     for side in ("left", "right"):
         z0 = start.feet[side].translation()[2]
-        feet[side] = foot_trajectory(start.foot(side), z0, steps, side, gait.swing_height, end)
+        feet[side] = foot_trajectory(start.foot(side), z0, steps, side, gait.swing_height, end,
+                                     gait.landing_depth, gait.double_support)
         rates[side] = feet[side].derivative(1)
-    return feet, rates
+        accelerations[side] = feet[side].derivative(2)
+    return feet, rates, accelerations
 
 
 def initial_plan(start: Start, gait: GaitParameters, input_cost: float = INPUT_COST) -> WalkPlan:
@@ -151,8 +158,8 @@ def initial_plan(start: Start, gait: GaitParameters, input_cost: float = INPUT_C
     feet = {side: start.foot(side) for side in ("left", "right")}
     zmp = zmp_reference(0.0, start.com[:2], feet, [], gait)
     com = plan_com(zmp, start.com[:2], np.zeros(2), start.com[2], input_cost)
-    trajectories, rates = _trajectories(start, [], gait, com.end)
-    return WalkPlan(None, 0.0, start, (), zmp, com, trajectories, rates)
+    trajectories, rates, accelerations = _trajectories(start, [], gait, com.end)
+    return WalkPlan(None, 0.0, start, (), zmp, com, trajectories, rates, accelerations)
 
 
 def new_steps(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParameters) -> tuple[list[Footstep], list[Footstep]]:
@@ -173,13 +180,13 @@ def new_steps(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParamete
         new = plan_steps(body, side, liftoff, command.steps, gait)
         last = new[-1]
         new += closing_steps(last.body, other(last.side), last.liftoff + gait.step_duration,
-                             {**feet, **{s.side: (s.x, s.y, s.yaw) for s in new}}, gait)
+                             {**feet, **{step.side: (step.x, step.y, step.yaw) for step in new}}, gait)
     elif command.walking:
-        new, s, lift = [], side, liftoff
+        new, stepping, lift = [], side, liftoff
         for _ in range(gait.horizon_steps):
-            step = plan_steps(body, s, lift, [velocity_displacement(command.velocity, s, gait)], gait)[0]
+            step = plan_steps(body, stepping, lift, [velocity_displacement(command.velocity, stepping, gait)], gait)[0]
             new.append(step)
-            body, s, lift = step.body, other(s), lift + gait.step_duration
+            body, stepping, lift = step.body, other(stepping), lift + gait.step_duration
     elif kept:
         new = closing_steps(body, side, liftoff, feet, gait)
     else:
@@ -199,8 +206,8 @@ def replan(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParameters,
     zmp = zmp_reference(t, plan.zmp_reference(t), landed, ahead, gait)
     position, velocity, _ = plan.com.state(t)
     com = plan_com(zmp, position, velocity, plan.com.height, input_cost)
-    trajectories, rates = _trajectories(plan.start, steps, gait, com.end)
-    return WalkPlan(command, t, plan.start, tuple(steps), zmp, com, trajectories, rates)
+    trajectories, rates, accelerations = _trajectories(plan.start, steps, gait, com.end)
+    return WalkPlan(command, t, plan.start, tuple(steps), zmp, com, trajectories, rates, accelerations)
 
 
 def foot_pose(reference, X_WS0: RigidTransform, yaw0: float) -> RigidTransform:

@@ -41,7 +41,7 @@ from pydrake.systems.primitives import ConstantVectorSource, Multiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 from pydrake.trajectories import PiecewisePolynomial
 
-from sotdrake import Tracer, attime, load_talos, script_arguments, start, write_run
+from sotdrake import TALOS_GRIPPERS, Tracer, attime, load_talos, script_arguments, start, write_run
 from sotdrake.dynamics.contact import friction_ratio
 from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
@@ -123,7 +123,7 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
     robot = RobotDyn(builder, model, device, dt, solver=solver, effort_scale=effort_scale)
     sot, connect = robot.sot, builder.Connect
     # As in the tutorial, the grippers (on their upper limit at the start) are left out: q̈ = 0.
-    sot.setControlSelection(robot.velocity_selection(excluding=["gripper_left_joint", "gripper_right_joint"]))
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
     contactLF = robot.add_contact("contactLF", "left-sole", f_min=F_MIN)
     contactRF = robot.add_contact("contactRF", "right-sole", f_min=F_MIN)
     sot.addContact(contactLF)

@@ -43,6 +43,7 @@ from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer, Mult
 
 from sotdrake import (
     SOT,
+    TALOS_GRIPPERS,
     MetaTaskKine6d,
     MetaTaskKine6dRel,
     MetaTaskKineCom,
@@ -89,7 +90,7 @@ SIDES = ("left", "right")
 #: Adding a robot is adding an entry.
 ROBOTS: dict[str, WalkingRobot] = {
     "talos": WalkingRobot(load=lambda: load_talos("reduced"),
-                          excluded=("gripper_left_joint", "gripper_right_joint"),
+                          excluded=TALOS_GRIPPERS,
                           add_physical=_add_physical_talos),
     # Romeo (sot-romeo's 31-joint model): its foot is the bounding box of the collision mesh of
     # its ankle link, 0.244 m long from 8.9 cm behind the sole frame, 0.112 m wide (the narrower

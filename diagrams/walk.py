@@ -543,6 +543,7 @@ def plot(walk: Walk, simulator, trace: dict, path: Path) -> Path:
     ax.axhline(0.02, color="grey", ls=":", lw=0.8)
     ax.set_ylabel("margin (m)")
     ax.set_xlabel("time (s)")
+    ax.set_title("planned ZMP margin (dotted: the 2 cm target)")
     ax.legend(fontsize=7)
     ax = axes[1, 0]
     window = max(1, round(2 * gait.step_duration / walk.robot.dt))  # a left and a right step: the sway cancels
@@ -556,12 +557,16 @@ def plot(walk: Walk, simulator, trace: dict, path: Path) -> Path:
         ax.plot(tm, forward, "C0", label="realised vx (mean over two steps)")
         ax.plot(tm, lateral, "C1", label="realised vy")
         ax.plot(tm, rate[:, 2], "C2", label="realised ω")
+        planned = (trace["pg_com"][window:, :2] - trace["pg_com"][:-window, :2]) / (window * walk.robot.dt)
+        ax.plot(tm, np.cos(yaw) * planned[:, 0] + np.sin(yaw) * planned[:, 1], "k:", lw=1.0,
+                label="planned vx (the CoM plan, mean over two steps)")
     command = trace["pg_velocity_command"]
-    for i, name in enumerate(("vx", "vy", "ω")):
-        ax.plot(t, command[:, i], f"C{i}--", lw=0.8, label=f"commanded {name}")
+    if np.any(command):  # a velocity command (a list of footsteps has none)
+        for i, name in enumerate(("vx", "vy", "ω")):
+            ax.plot(t, command[:, i], f"C{i}--", lw=0.8, label=f"commanded {name}")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("m/s, rad/s")
-    ax.set_title("commanded vs realised velocity (base)")
+    ax.set_title("commanded, planned and realised velocity (base frame)")
     ax.legend(fontsize=7)
     ax = axes[1, 1]
     ax.semilogy(t[1:], np.maximum(trace["foot_error"], 1e-9), label=["left sole", "right sole"])
@@ -569,7 +574,9 @@ def plot(walk: Walk, simulator, trace: dict, path: Path) -> Path:
     ax.axhline(1e-3, color="grey", ls=":", lw=0.8)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("tracking error (m)")
+    ax.set_title("feet and CoM tracking (dotted: 1 mm)")
     ax.legend(fontsize=7)
+    fig.suptitle(f"walk: {walk.robot_name}, {walk.mode} mode, {len(poses) - 2} steps shown")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -70,12 +70,14 @@ class SolverKine(SOT):
         position_margin: float = 1e-3,
         solver: str = ACTIVE_SET,
     ):
-        SOT.__init__(self, name, model.nv, damping=damping, settings=HqpSettings(), dt=dt, layout=Layout.of(model.plant))
+        layout = Layout.of(model.plant)
+        SOT.__init__(self, name, model.nv, damping=damping, settings=HqpSettings(), dt=dt, layout=layout)
         self.setSolver(solver)
         self.setPositionMargin(position_margin)
-        self._position: InputPort = self.GetInputPort("position")  # q, for the joint limits
+        # SOT's position port, period and layout, typed as never None here (q for the joint limits).
+        self._position: InputPort = self.GetInputPort("position")
         self._period = float(dt)
-        self._layout = Layout.of(model.plant)
+        self._layout = layout
         if self._layout.base_v is not None:
             self.setBaseVelocityLimit(*default_base_velocity_limit(model))
         limits = model.joint_limits()

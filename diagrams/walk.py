@@ -162,7 +162,7 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
         raise InvalidInput(f"--mode {mode}: no physical model for {robot!r}; the physics station of sotdrake.physics is "
                            f"TALOS' (its sole and link boxes, PD gains and torque limits); {robot!r} walks in kinematic mode")
     if mode == "dynamic":
-        return _build_dynamic(robot, spec, steps, dt, gait or spec.gait, meshcat)
+        return _build_dynamic(robot, spec, steps, dt, gait or dataclasses.replace(spec.gait, swing_profile=DYNAMIC_SWING_PROFILE), meshcat)
     builder = DiagramBuilder()
     model = spec.load()
     servos = servos or Servos()
@@ -296,6 +296,8 @@ DYNAMIC_GAINS = {"com": 100.0, "feet": 400.0, "waist": 100.0, "posture": 25.0}
 #: Dynamic mode: the contacts' friction coefficient, below the plant's (0.8): the solver keeps the
 #: soles' yaw torque (bounded by μ · r · f_z) and tangential forces away from what makes them slip.
 DYNAMIC_FRICTION = 0.3
+#: Dynamic mode's swing profile: ``'quintic'`` (zero acceleration at the lift-off and touch-down).
+DYNAMIC_SWING_PROFILE = "quintic"
 
 
 def _build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | None, dt: float, gait: GaitParameters,
@@ -596,6 +598,8 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--step-duration", type=float, default=None, help="a step's duration (s; default 0.8, as walkromeo)")
     parser.add_argument("--single-support", type=float, default=None, help="its single support (s; default 0.7)")
     parser.add_argument("--landing-depth", type=float, default=None, help="the swing ends this far below the ground (m; default 0)")
+    parser.add_argument("--swing-profile", choices=["cubic", "quintic"], default=None,
+                        help="the swing's profile (default: quintic in dynamic mode, else cubic)")
     defaults = Servos()
     parser.add_argument("--stiffness", type=float, default=defaults.stiffness, help="physics: servo kp = STIFFNESS · effort limit (1/rad)")
     parser.add_argument("--feedforward", action="store_true", help="physics: the static feed-forward torque in the servos")
@@ -613,6 +617,8 @@ def main(argv: list[str] | None = None) -> dict:
                                    single_support=args.single_support or duration - gait.double_support)
     if args.landing_depth is not None:
         gait = dataclasses.replace(gait, landing_depth=args.landing_depth)
+    if args.swing_profile is not None or args.mode == "dynamic":
+        gait = dataclasses.replace(gait, swing_profile=args.swing_profile or DYNAMIC_SWING_PROFILE)
     walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, gait=gait, meshcat=meshcat,
                          servos=servos)
     simulator, wall = simulate(walk.diagram, args.duration, walk.visualizer, not args.quiet)

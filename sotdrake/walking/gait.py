@@ -7,6 +7,8 @@ feet ``feet_distance`` = 0.2 m apart (sole origins, across the walking direction
 below the ground, for position servos that would otherwise stop short of it. The sole is a rectangle ``sole_length × sole_width``
 centred at ``sole_centre`` in the sole frame (TALOS: the footprint of its foot, 0.211 × 0.124 m,
 centre 5.4 mm behind the sole frame); the ZMP reference sits at that centre in single support.
+``swing_profile``: ``'cubic'`` (default) or ``'quintic'`` (zero acceleration at the lift-off, apex
+and touch-down; see :mod:`.swing`).
 Units: m, s, rad.
 """
 

@@ -301,7 +301,7 @@ DYNAMIC_FRICTION = 0.3
 #: Dynamic mode's swing profile: ``'quintic'`` (zero acceleration at the lift-off and touch-down).
 #: With the cubic the swing foot's forward acceleration jumps to 6 Δ/T² (4.9 m/s²) at the lift-off:
 #: in that tick the stance sole's yaw torque jumps to ~9 N·m and its CoP 5 cm forward; the sole rolls
-#: onto its toe, whose patch cannot hold that torque, and spins by ~20 mrad (1.2 mm at its origin).
+#: onto its toe, whose patch cannot hold that torque, and spins by up to 20 mrad (1.2 mm at its origin).
 DYNAMIC_SWING_PROFILE = "quintic"
 
 

@@ -17,7 +17,9 @@ actuators of :mod:`sotdrake.physics`, open loop, as ``diagrams/talos_physics.py`
 servo options of :class:`Servos` (``--stiffness``, the static feed-forward torque with
 ``--feedforward``, the CoM/ZMP stabiliser's ``--com-gain``/``--zmp-gain``) and the gait's
 ``--landing-depth``. ``--mode dynamic``: ``SolverDyn`` drives the torque-controlled TALOS, the soles'
-contacts released and added back at each step (``rmContact``/``addContact``; ``--steps`` only).
+contacts released and added back at each step (``rmContact``/``addContact``; ``--steps`` only), the
+swing quintic (``--swing-profile``; zero acceleration at the lift-off: with the cubic, the stance
+sole spins when the other foot lifts off).
 ``--then T X Y THETA`` changes the command at time T (``attime``); ``--steps N --step-length L``
 walks N steps of L metres (the walking frame's advance per step) instead of a velocity.
 ``--robot romeo`` walks Romeo (kinematic mode: the physics station is TALOS').
@@ -162,7 +164,7 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
         raise InvalidInput(f"--mode {mode}: no physical model for {robot!r}; the physics station of sotdrake.physics is "
                            f"TALOS' (its sole and link boxes, PD gains and torque limits); {robot!r} walks in kinematic mode")
     if mode == "dynamic":
-        return _build_dynamic(robot, spec, steps, dt, gait or spec.gait, meshcat)
+        return _build_dynamic(robot, spec, steps, dt, gait or dataclasses.replace(spec.gait, swing_profile=DYNAMIC_SWING_PROFILE), meshcat)
     builder = DiagramBuilder()
     model = spec.load()
     servos = servos or Servos()
@@ -296,6 +298,11 @@ DYNAMIC_GAINS = {"com": 100.0, "feet": 400.0, "waist": 100.0, "posture": 25.0}
 #: Dynamic mode: the contacts' friction coefficient, below the plant's (0.8): the solver keeps the
 #: soles' yaw torque (bounded by μ · r · f_z) and tangential forces away from what makes them slip.
 DYNAMIC_FRICTION = 0.3
+#: Dynamic mode's swing profile: ``'quintic'`` (zero acceleration at the lift-off and touch-down).
+#: With the cubic the swing foot's forward acceleration jumps to 6 Δ/T² (4.9 m/s²) at the lift-off:
+#: in that tick the stance sole's yaw torque jumps to ~9 N·m and its CoP 5 cm forward; the sole rolls
+#: onto its toe, whose patch cannot hold that torque, and spins by up to 20 mrad (1.2 mm at its origin).
+DYNAMIC_SWING_PROFILE = "quintic"
 
 
 def _build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | None, dt: float, gait: GaitParameters,
@@ -305,7 +312,8 @@ def _build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | No
     contact over the double support before the lift-off (``rmContact(contact, T_ds − dt)``) and adds it
     back at the touch-down (``addContact``), at the times of the plan (``attime``). Stack: the soles
     (6D, planned pose, velocity and acceleration), the CoM (planned position, velocity and
-    acceleration), the waist's orientation (the plan's), the posture."""
+    acceleration), the waist's orientation (the plan's), the posture. ``gait``: its ``swing_profile``
+    is the caller's (:func:`build_diagram` without a gait: :data:`DYNAMIC_SWING_PROFILE`)."""
     from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
 
     from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
@@ -596,6 +604,8 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--step-duration", type=float, default=None, help="a step's duration (s; default 0.8, as walkromeo)")
     parser.add_argument("--single-support", type=float, default=None, help="its single support (s; default 0.7)")
     parser.add_argument("--landing-depth", type=float, default=None, help="the swing ends this far below the ground (m; default 0)")
+    parser.add_argument("--swing-profile", choices=["cubic", "quintic"], default=None,
+                        help="the swing's profile (default: quintic in dynamic mode, else cubic)")
     defaults = Servos()
     parser.add_argument("--stiffness", type=float, default=defaults.stiffness, help="physics: servo kp = STIFFNESS · effort limit (1/rad)")
     parser.add_argument("--feedforward", action="store_true", help="physics: the static feed-forward torque in the servos")
@@ -613,6 +623,8 @@ def main(argv: list[str] | None = None) -> dict:
                                    single_support=args.single_support or duration - gait.double_support)
     if args.landing_depth is not None:
         gait = dataclasses.replace(gait, landing_depth=args.landing_depth)
+    if args.swing_profile is not None or args.mode == "dynamic":
+        gait = dataclasses.replace(gait, swing_profile=args.swing_profile or DYNAMIC_SWING_PROFILE)
     walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, gait=gait, meshcat=meshcat,
                          servos=servos)
     simulator, wall = simulate(walk.diagram, args.duration, walk.visualizer, not args.quiet)

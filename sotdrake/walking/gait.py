@@ -7,6 +7,8 @@ feet ``feet_distance`` = 0.2 m apart (sole origins, across the walking direction
 below the ground, for position servos that would otherwise stop short of it. The sole is a rectangle ``sole_length × sole_width``
 centred at ``sole_centre`` in the sole frame (TALOS: the footprint of its foot, 0.211 × 0.124 m,
 centre 5.4 mm behind the sole frame); the ZMP reference sits at that centre in single support.
+``swing_profile``: ``'cubic'`` (default) or ``'quintic'`` (zero acceleration at the lift-off, apex
+and touch-down; see :mod:`.swing`).
 Units: m, s, rad.
 """
 
@@ -38,6 +40,7 @@ class GaitParameters:
     horizon_steps: int = 6  # steps planned ahead when walking by velocity
     replan_steps: int = 3  # extend the plan when fewer steps than this remain ahead
     landing_depth: float = 0.0  # the swing ends this far below the ground, back on it over the double support
+    swing_profile: str = "cubic"  # or "quintic": zero acceleration at the lift-off, apex and touch-down (see .swing)
 
     def __post_init__(self) -> None:
         checks = {
@@ -52,6 +55,7 @@ class GaitParameters:
             "horizon_steps": self.horizon_steps >= 2,
             "replan_steps": 1 <= self.replan_steps < self.horizon_steps,
             "landing_depth": 0 <= self.landing_depth <= 0.02,
+            "swing_profile": self.swing_profile in ("cubic", "quintic"),
         }
         for name, ok in checks.items():
             if not ok:

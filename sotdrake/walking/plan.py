@@ -147,7 +147,7 @@ def _trajectories(start: Start, steps: list[Footstep], gait: GaitParameters, end
     for side in ("left", "right"):
         z0 = start.feet[side].translation()[2]
         feet[side] = foot_trajectory(start.foot(side), z0, steps, side, gait.swing_height, end,
-                                     gait.landing_depth, gait.double_support)
+                                     gait.landing_depth, gait.double_support, gait.swing_profile)
         rates[side] = feet[side].derivative(1)
         accelerations[side] = feet[side].derivative(2)
     return feet, rates, accelerations

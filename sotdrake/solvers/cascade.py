@@ -21,6 +21,18 @@ orthogonal projector on the null space of every level so far (up to the truncate
 values), lower levels only move in ``range(P_i)``, and a lower level never changes a higher
 level's residual (strict priority). One thin SVD per level (LAPACK ``gesdd`` of the ``nv × m``
 matrix ``A_iᵀ``, no full ``nv × nv`` basis) and two ``nv × nv`` products.
+
+**Full-rank fast path** (no damping): stack the levels, ``B = [J_1; …; J_n] P_0`` (``M`` rows,
+``M ≤ nv``), and take one Householder QR ``Bᵀ = Q R`` in priority order (no pivoting), so that
+``B = L Qᵀ`` with ``L = Rᵀ`` lower triangular. While the higher levels are full rank,
+``P_{i-1} = P_0 - Q_{<i} Q_{<i}ᵀ`` and ``A_i = J_i P_{i-1} = L_ii Q_iᵀ``: the singular values of
+``A_i`` are those of the diagonal block ``L_ii``. If every block is certified above the
+threshold, ``σ_min(L_ii) ≥ 1 / ‖L_ii⁻¹‖_F > svd_threshold``, the cascade keeps every direction,
+solves every level exactly, and its ``v`` is the one point of ``range(Q)`` that does so:
+``v = Q L⁻¹ r``. That is what this path returns (one QR, one triangular inverse; the blocks of
+``R⁻¹`` on its diagonal are the ``R_ii⁻¹``). When a block is not certified (a rank loss, a
+conflict with a higher level, a singular value within ``√m_i`` of the threshold, a NaN), the SVD
+cascade above decides.
 """
 
 from __future__ import annotations
@@ -31,7 +43,10 @@ from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
+from scipy.linalg.lapack import dgeqrf as _geqrf
 from scipy.linalg.lapack import dgesdd as _gesdd
+from scipy.linalg.lapack import dormqr as _ormqr
+from scipy.linalg.lapack import dtrtri as _trtri
 
 from ..exceptions import SolverError
 
@@ -49,6 +64,51 @@ def _projector(selection: bytes) -> np.ndarray:
     P = np.diag(np.frombuffer(selection, dtype=bool).astype(float))
     P.flags.writeable = False
     return P
+
+
+@lru_cache(maxsize=32)
+def _triangle_masks(sizes: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For levels of ``sizes`` rows (``M`` in all): the ``M × M`` masks of the upper triangle and
+    of the upper triangles of the diagonal blocks, and each block's first row."""
+    total = sum(sizes)
+    upper = np.triu(np.ones((total, total)))
+    blocks = np.zeros((total, total))
+    starts = np.cumsum((0, *sizes[:-1]))
+    for start, size in zip(starts.tolist(), sizes, strict=True):
+        blocks[start : start + size, start : start + size] = upper[:size, :size]
+    for array in (upper, blocks, starts):
+        array.flags.writeable = False
+    return upper, blocks, starts
+
+
+def _full_rank_velocity(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
+                        selection: np.ndarray | None) -> np.ndarray | None:
+    """The cascade's ``v`` when every level is certified full rank in what the higher levels
+    leave free (see the module docstring), else None."""
+    levels = [level for level in levels if level[0].shape[0]]  # an empty level changes nothing
+    sizes = tuple(J.shape[0] for J, _ in levels)
+    total = sum(sizes)
+    if total == 0 or total > nv:
+        return None
+    B = np.vstack([J for J, _ in levels])
+    if selection is not None:
+        B = B * selection
+    qr, tau, _, info = _geqrf(B.T)
+    if info != 0:
+        return None
+    R_inverse, info = _trtri(qr[:total, :total])  # reads R, the upper triangle, only
+    if info != 0:
+        return None
+    upper, blocks, starts = _triangle_masks(sizes)
+    R_inverse *= upper  # below the diagonal: the QR's reflectors, left by trtri
+    squares = R_inverse * R_inverse
+    squares *= blocks
+    if not (np.add.reduceat(squares.sum(axis=1), starts) * (svd_threshold * svd_threshold) < 1.0).all():
+        return None  # not certified (also on a NaN): the SVD cascade decides
+    y = np.zeros(nv)
+    y[:total] = R_inverse.T @ np.concatenate([r for _, r in levels])
+    v, _, info = _ormqr("L", "N", qr, tau, y, lwork=max(1, nv))
+    return v if info == 0 else None
 
 
 class CascadeResult(NamedTuple):
@@ -72,15 +132,27 @@ def solve_cascade(
     ``damping`` is one δ for every level or one per level. ``with_residuals=False`` leaves
     ``residuals`` None (see :func:`cascade_residuals`).
 
-    Each level takes one LAPACK ``gesdd`` of ``A_iᵀ`` (Fortran-ordered as it comes, no copy):
-    ``A_iᵀ = W Σ Uᵀ``, so ``W``'s columns are ``A_i``'s right singular vectors. A LAPACK failure
-    raises :class:`~sotdrake.exceptions.SolverError`.
+    Without damping, the full-rank fast path first (see the module docstring); otherwise, or when
+    it cannot certify every level, :func:`svd_cascade`: one LAPACK ``gesdd`` of ``A_iᵀ`` per level
+    (Fortran-ordered as it comes, no copy): ``A_iᵀ = W Σ Uᵀ``, so ``W``'s columns are ``A_i``'s
+    right singular vectors. A LAPACK failure raises :class:`~sotdrake.exceptions.SolverError`.
     """
+    dampings = [float(damping)] * len(levels) if isinstance(damping, (int, float)) else list(damping)
+    v = _full_rank_velocity(levels, nv, svd_threshold, control_selection) if not any(dampings) else None
+    if v is not None:
+        ranks = np.array([J.shape[0] for J, _ in levels], dtype=int)
+    else:
+        v, ranks = svd_cascade(levels, nv, svd_threshold, dampings, control_selection)
+    return CascadeResult(v, cascade_residuals(levels, v) if with_residuals else None, ranks)
+
+
+def svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
+                dampings: Sequence[float], control_selection: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """``(v, ranks)`` of the cascade, one SVD per level (no fast path); ``dampings``: one δ per level."""
     v = np.zeros(nv)
     P = _identity(nv) if control_selection is None else _projector(np.asarray(control_selection, dtype=bool).tobytes())
     ranks = np.zeros(len(levels), dtype=int)
     last = len(levels) - 1
-    dampings = [float(damping)] * len(levels) if isinstance(damping, (int, float)) else list(damping)
     for i, (J, reference) in enumerate(levels):
         if J.shape[0] == 0:
             continue
@@ -98,7 +170,7 @@ def solve_cascade(
             v = v + V @ (inverse * rhs)
             if i < last:
                 P = P - V @ V.T
-    return CascadeResult(v, cascade_residuals(levels, v) if with_residuals else None, ranks)
+    return v, ranks
 
 
 def cascade_residuals(levels: Sequence[tuple[np.ndarray, np.ndarray]], v: np.ndarray) -> np.ndarray:

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from sotdrake.solvers import solve_cascade
-from sotdrake.solvers.cascade import _full_rank_velocity, svd_cascade
+from sotdrake.solvers.cascade import _full_rank_prefix, svd_cascade
 
 
 def random_stack(rng, nv):
@@ -96,8 +96,9 @@ def test_full_rank_fast_path_is_the_svd_cascade(seed):
     if rng.random() < 0.5:
         selection = rng.random(nv) < 0.8
         selection[: sum(J.shape[0] for J, _ in levels)] = True  # enough free velocities
-    fast = _full_rank_velocity(levels, nv, 1e-4, selection)
-    assert fast is not None
+    prefix = _full_rank_prefix(levels, nv, 1e-4, selection)
+    assert prefix is not None and prefix.count == len(levels) and prefix.basis is None
+    fast = prefix.velocity
     v, ranks = svd_cascade(levels, nv, 1e-4, [0.0] * len(levels), selection)
     np.testing.assert_allclose(fast, v, rtol=0, atol=1e-10 * max(1.0, np.abs(v).max()))
     assert list(ranks) == [J.shape[0] for J, _ in levels]
@@ -106,17 +107,25 @@ def test_full_rank_fast_path_is_the_svd_cascade(seed):
     np.testing.assert_allclose(solve_cascade(levels, nv, control_selection=selection).velocity, fast, rtol=0, atol=0)
 
 
-@pytest.mark.parametrize("seed", range(30))
-def test_fast_path_declines_rank_losses_and_conflicts(seed):
-    """A level that loses rank or repeats a higher level's row goes to the SVD cascade, which
-    truncates it: solve_cascade then matches svd_cascade exactly."""
+@pytest.mark.parametrize("seed", range(60))
+def test_qr_prefix_stops_at_the_first_rank_loss(seed):
+    """Full-rank levels, then levels that lose rank or repeat a higher level's row (and, half of
+    the time, a posture level of nv rows): the QR path solves the leading full-rank levels only,
+    the SVD cascade goes on from there and truncates; the result is the plain SVD cascade's."""
     rng = np.random.default_rng(seed)
-    nv = 12
-    levels = random_stack(rng, nv)
-    v, ranks = svd_cascade(levels, nv, 1e-4, [0.0] * len(levels), None)
-    if any(rank < J.shape[0] for rank, (J, _) in zip(ranks, levels, strict=True)):
-        assert _full_rank_velocity(levels, nv, 1e-4, None) is None
-    result = solve_cascade(levels, nv)
+    nv = int(rng.integers(8, 40))
+    levels = full_rank_stack(rng, nv // 2) if rng.random() < 0.7 else []
+    levels = [(np.hstack([J, rng.normal(size=(J.shape[0], nv - J.shape[1]))]), r) for J, r in levels]
+    levels += random_stack(rng, nv)
+    if rng.random() < 0.5:
+        levels.append((np.eye(nv), rng.normal(size=nv)))
+    selection = rng.random(nv) < 0.9 if rng.random() < 0.3 else None
+    v, ranks = svd_cascade(levels, nv, 1e-4, [0.0] * len(levels), selection)
+    prefix = _full_rank_prefix(levels, nv, 1e-4, selection)
+    deficient = [i for i, (rank, (J, _)) in enumerate(zip(ranks, levels, strict=True)) if rank < J.shape[0]]
+    if prefix is not None and deficient:
+        assert prefix.count <= deficient[0]
+    result = solve_cascade(levels, nv, control_selection=selection)
     np.testing.assert_allclose(result.velocity, v, rtol=0, atol=1e-9 * max(1.0, np.abs(v).max()))
     assert list(result.ranks) == list(ranks)
 
@@ -138,10 +147,13 @@ def test_near_the_threshold_the_rank_decision_is_the_svd_one(ratio):
     np.testing.assert_allclose(result.velocity, v, rtol=1e-9, atol=1e-9)
 
 
-def test_fast_path_declines_nan_and_empty_stacks():
+def test_qr_prefix_on_nan_and_empty_levels():
     nv = 4
     J = np.ones((1, nv))
-    assert _full_rank_velocity([(np.full((1, nv), np.nan), np.zeros(1))], nv, 1e-4, None) is None
-    assert _full_rank_velocity([(np.zeros((0, nv)), np.zeros(0))], nv, 1e-4, None) is None
+    assert _full_rank_prefix([(np.full((1, nv), np.nan), np.zeros(1))], nv, 1e-4, None) is None
+    assert _full_rank_prefix([(np.zeros((0, nv)), np.zeros(0))], nv, 1e-4, None) is None
     with_empty = [(np.zeros((0, nv)), np.zeros(0)), (J, np.ones(1))]
-    np.testing.assert_allclose(_full_rank_velocity(with_empty, nv, 1e-4, None), np.full(nv, 0.25))
+    np.testing.assert_allclose(_full_rank_prefix(with_empty, nv, 1e-4, None).velocity, np.full(nv, 0.25))
+    # a NaN below a full-rank level: the level above is solved, the NaN is left to the SVD cascade
+    prefix = _full_rank_prefix([(J, np.ones(1)), (np.full((1, nv), np.nan), np.zeros(1))], nv, 1e-4, None)
+    assert prefix.count == 1 and np.isfinite(prefix.velocity).all() and np.isfinite(prefix.basis).all()

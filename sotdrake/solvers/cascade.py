@@ -85,10 +85,10 @@ def _triangle_masks(sizes: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.
 
 
 class _Prefix(NamedTuple):
-    """The first ``count`` levels solved by the QR path: ``v`` after them and, when levels remain,
+    """The first ``solved`` levels solved by the QR path: ``v`` after them and, when levels remain,
     ``basis``, an orthonormal basis ``Q_K`` of what they fix (``P_count = P_0 - Q_K Q_Kᵀ``)."""
 
-    count: int
+    solved: int
     velocity: np.ndarray
     basis: np.ndarray | None
 
@@ -169,7 +169,7 @@ def solve_cascade(
     """
     dampings = [float(damping)] * len(levels) if isinstance(damping, (int, float)) else list(damping)
     prefix = _full_rank_prefix(levels, nv, svd_threshold, control_selection) if not any(dampings) else None
-    if prefix is not None and prefix.count == len(levels):
+    if prefix is not None and prefix.solved == len(levels):
         v, ranks = prefix.velocity, np.array([J.shape[0] for J, _ in levels], dtype=int)
     else:
         v, ranks = svd_cascade(levels, nv, svd_threshold, dampings, control_selection, prefix)
@@ -186,7 +186,7 @@ def svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_th
     ranks = np.zeros(len(levels), dtype=int)
     first = 0
     if prefix is not None:
-        first, v = prefix.count, prefix.velocity
+        first, v = prefix.solved, prefix.velocity
         ranks[:first] = [J.shape[0] for J, _ in levels[:first]]
         if prefix.basis is not None:
             P = P - prefix.basis @ prefix.basis.T

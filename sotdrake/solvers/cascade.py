@@ -86,7 +86,7 @@ def _triangle_masks(sizes: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.
 
 class _Prefix(NamedTuple):
     """The first ``solved`` levels solved by the QR path: ``v`` after them and, when levels remain,
-    ``basis``, an orthonormal basis ``Q_K`` of what they fix (``P_count = P_0 - Q_K Q_Kᵀ``)."""
+    ``basis``, an orthonormal basis ``Q_K`` of what they fix (``P_solved = P_0 - Q_K Q_Kᵀ``)."""
 
     solved: int
     velocity: np.ndarray

@@ -218,9 +218,21 @@ def dynamic_levels(
     return levels, slices
 
 
+_last_actuation: list = [None, None]  # (B, its actuated rows): B is the same array at every tick
+
+
 def actuated_rows(B: np.ndarray) -> np.ndarray | None:
     """The velocity row each actuator drives if ``B`` is a selection (every column a single 1, no
-    row driven twice), else None."""
+    row driven twice), else None. (Kept for the last ``B`` object seen, which is read-only.)"""
+    if B is _last_actuation[0]:
+        return _last_actuation[1]
+    rows = _actuated_rows(B)
+    if not B.flags.writeable:
+        _last_actuation[:] = B, rows
+    return rows
+
+
+def _actuated_rows(B: np.ndarray) -> np.ndarray | None:
     ones = B == 1.0
     if not (np.all(ones | (B == 0.0)) and np.all(ones.sum(axis=0) == 1) and np.all(ones.sum(axis=1) <= 1)):
         return None

@@ -377,6 +377,32 @@ def test_pd_reference_formula():
     np.testing.assert_allclose(pd_reference(e, e_dot, 100.0, 20.0, ref, drift), -100 * e - 20 * e_dot + ref - drift)
 
 
+def test_task_dyn_pd_reads_a_feature_or_its_three_signals():
+    """The ``feature`` port (one FeatureValue) and the ``error``/``jacobian``/``errordot`` ports
+    give the same rows ``J q̈ = −K_p e − K_v (J v + ė_ref)`` (first tick: no J̇)."""
+    from sotdrake.dynamics.task_dyn_pd import TaskDynPD
+    from sotdrake.features import FeatureValue
+
+    rng = np.random.default_rng(3)
+    nv = 5
+    e, J, e_ref, v = rng.normal(size=2), rng.normal(size=(2, nv)), rng.normal(size=2), rng.normal(size=nv)
+    rows = []
+    for through_feature in (True, False):
+        task = TaskDynPD("task", nv, 1e-3, kp=9.0, kv=4.0)
+        context = task.CreateDefaultContext()
+        if through_feature:
+            task.GetInputPort("feature").FixValue(context, FeatureValue(e, J, e_ref))
+        else:
+            task.GetInputPort("error").FixValue(context, e)
+            task.GetInputPort("jacobian").FixValue(context, J)
+            task.GetInputPort("errordot").FixValue(context, e_ref)
+        task.GetInputPort("velocity").FixValue(context, v)
+        rows.append(task.GetOutputPort("task").Eval(context))
+    for level in rows:
+        np.testing.assert_array_equal(level.jacobian, J)
+        np.testing.assert_allclose(level.lower, -9.0 * e - 4.0 * (J @ v + e_ref), rtol=1e-14)
+
+
 def test_robot_dyn_simu_integrates_exactly(talos_model):
     layout = Layout.of(talos_model.plant)
     q, v = talos_model.half_sitting.copy(), np.zeros(talos_model.nv)

@@ -45,6 +45,11 @@ class AdaptiveCoefficients:
     def __call__(self, error_norm: float) -> float:
         return self.a * math.exp(-self.b * error_norm) + self.c
 
+    @property
+    def is_constant(self) -> bool:
+        """``λ = c`` whatever the error (``a = 0``)."""
+        return self.a == 0.0
+
 
 @dataclass(frozen=True)
 class HyperbolicCoefficients:
@@ -55,6 +60,11 @@ class HyperbolicCoefficients:
 
     def __call__(self, error_norm: float) -> float:
         return self.a * 0.5 * (math.tanh(-self.b * (error_norm - self.d)) + 1.0) + self.c
+
+    @property
+    def is_constant(self) -> bool:
+        """``λ = c`` whatever the error (``a = 0``)."""
+        return self.a == 0.0
 
 
 def hyperbolic(gain0: float, gain_inf: float, tan_at0: float, decal0: float) -> HyperbolicCoefficients:
@@ -146,7 +156,9 @@ class _Gain(Entity[GainSettings]):
         self.DeclareVectorOutputPort("gain", 1, self._calc_gain)
 
     def _calc_gain(self, context: Context, output) -> None:
-        output.SetAtIndex(0, self._settings_of(context).coefficients(_norm(self.error.Eval(context))))
+        coefficients = self._settings_of(context).coefficients
+        # A constant gain does not read its error (nor makes the feature compute it).
+        output.SetAtIndex(0, coefficients.c if coefficients.is_constant else coefficients(_norm(self.error.Eval(context))))
 
     def setConstant(self, gain: float, context: Context | None = None) -> None:
         self.setCoefficients(constant(gain), context)

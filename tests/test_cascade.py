@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from sotdrake.solvers import solve_cascade
+from sotdrake.solvers.cascade import _full_rank_prefix, svd_cascade
 
 
 def random_stack(rng, nv):
@@ -72,3 +73,87 @@ def test_singular_level_is_truncated_not_amplified():
     result = solve_cascade([(J, np.array([1.0, 1.0]))], 2, svd_threshold=1e-4)
     np.testing.assert_allclose(result.velocity, [1.0, 0.0])
     assert result.ranks[0] == 1
+
+
+def full_rank_stack(rng, nv):
+    """Levels whose stacked rows are independent: every level full rank below the ones above."""
+    levels, total = [], 0
+    while total < nv - 1 and (not levels or rng.random() < 0.8):
+        m = int(rng.integers(1, min(7, nv - total) + 1))
+        scale = 10.0 ** rng.uniform(-2, 2)
+        levels.append((scale * rng.normal(size=(m, nv)), rng.normal(size=m)))
+        total += m
+    return levels
+
+
+@pytest.mark.parametrize("seed", range(100))
+def test_full_rank_fast_path_is_the_svd_cascade(seed):
+    """The QR path returns the SVD cascade's v (to rounding), and is the one taken on such stacks."""
+    rng = np.random.default_rng(seed)
+    nv = int(rng.integers(2, 45))
+    levels = full_rank_stack(rng, nv)
+    selection = None
+    if rng.random() < 0.5:
+        selection = rng.random(nv) < 0.8
+        selection[: sum(J.shape[0] for J, _ in levels)] = True  # enough free velocities
+    prefix = _full_rank_prefix(levels, nv, 1e-4, selection)
+    assert prefix is not None and prefix.solved == len(levels) and prefix.basis is None
+    fast = prefix.velocity
+    v, ranks = svd_cascade(levels, nv, 1e-4, [0.0] * len(levels), selection)
+    np.testing.assert_allclose(fast, v, rtol=0, atol=1e-10 * max(1.0, np.abs(v).max()))
+    assert list(ranks) == [J.shape[0] for J, _ in levels]
+    if selection is not None:
+        assert np.all(fast[~selection] == 0)
+    np.testing.assert_allclose(solve_cascade(levels, nv, control_selection=selection).velocity, fast, rtol=0, atol=0)
+
+
+@pytest.mark.parametrize("seed", range(60))
+def test_qr_prefix_stops_at_the_first_rank_loss(seed):
+    """Full-rank levels, then levels that lose rank or repeat a higher level's row (and, half of
+    the time, a posture level of nv rows): the QR path solves the leading full-rank levels only,
+    the SVD cascade goes on from there and truncates; the result is the plain SVD cascade's."""
+    rng = np.random.default_rng(seed)
+    nv = int(rng.integers(8, 40))
+    levels = full_rank_stack(rng, nv // 2) if rng.random() < 0.7 else []
+    levels = [(np.hstack([J, rng.normal(size=(J.shape[0], nv - J.shape[1]))]), r) for J, r in levels]
+    levels += random_stack(rng, nv)
+    if rng.random() < 0.5:
+        levels.append((np.eye(nv), rng.normal(size=nv)))
+    selection = rng.random(nv) < 0.9 if rng.random() < 0.3 else None
+    v, ranks = svd_cascade(levels, nv, 1e-4, [0.0] * len(levels), selection)
+    prefix = _full_rank_prefix(levels, nv, 1e-4, selection)
+    deficient = [i for i, (rank, (J, _)) in enumerate(zip(ranks, levels, strict=True)) if rank < J.shape[0]]
+    if prefix is not None and deficient:
+        assert prefix.solved <= deficient[0]
+    result = solve_cascade(levels, nv, control_selection=selection)
+    np.testing.assert_allclose(result.velocity, v, rtol=0, atol=1e-9 * max(1.0, np.abs(v).max()))
+    assert list(result.ranks) == list(ranks)
+
+
+@pytest.mark.parametrize("ratio", [0.5, 0.999, 1.001, 1.5, 2.0, 3.0, 10.0])
+def test_near_the_threshold_the_rank_decision_is_the_svd_one(ratio):
+    """A second level whose smallest singular value (in the first level's null space) is ``ratio``
+    times the threshold: kept above it, truncated at or below it, whichever path solves it."""
+    rng = np.random.default_rng(7)
+    nv, threshold = 8, 1e-3
+    J1 = rng.normal(size=(2, nv))
+    Q = np.linalg.qr(rng.normal(size=(nv, nv)))[0]
+    J1 = np.array([Q[:, 0], Q[:, 1]]) * 3.0
+    J2 = np.array([Q[:, 2] + Q[:, 0], ratio * threshold * Q[:, 3] + 0.5 * Q[:, 1]])  # σ = (√2·…, ratio·thr)
+    levels = [(J1, rng.normal(size=2)), (J2, rng.normal(size=2))]
+    result = solve_cascade(levels, nv, svd_threshold=threshold)
+    v, ranks = svd_cascade(levels, nv, threshold, [0.0, 0.0], None)
+    assert list(result.ranks) == list(ranks) == [2, 2 if ratio > 1 else 1]
+    np.testing.assert_allclose(result.velocity, v, rtol=1e-9, atol=1e-9)
+
+
+def test_qr_prefix_on_nan_and_empty_levels():
+    nv = 4
+    J = np.ones((1, nv))
+    assert _full_rank_prefix([(np.full((1, nv), np.nan), np.zeros(1))], nv, 1e-4, None) is None
+    assert _full_rank_prefix([(np.zeros((0, nv)), np.zeros(0))], nv, 1e-4, None) is None
+    with_empty = [(np.zeros((0, nv)), np.zeros(0)), (J, np.ones(1))]
+    np.testing.assert_allclose(_full_rank_prefix(with_empty, nv, 1e-4, None).velocity, np.full(nv, 0.25))
+    # a NaN below a full-rank level: the level above is solved, the NaN is left to the SVD cascade
+    prefix = _full_rank_prefix([(J, np.ones(1)), (np.full((1, nv), np.nan), np.zeros(1))], nv, 1e-4, None)
+    assert prefix.solved == 1 and np.isfinite(prefix.velocity).all() and np.isfinite(prefix.basis).all()

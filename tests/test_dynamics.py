@@ -14,11 +14,12 @@ from sotdrake.dynamics.contact import Contact6d, friction_ratio, wrench_constrai
 from sotdrake.dynamics.device import integrate_acceleration
 from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
-from sotdrake.dynamics.solver_dyn import ActiveContact, ContactNotFound, dynamic_levels, variable_bounds
+from sotdrake.dynamics.solver_dyn import ActiveContact, ContactNotFound, actuated_rows, dynamic_levels, variable_bounds
 from sotdrake.dynamics.task_dyn_pd import pd_reference
 from sotdrake.dynamics.terms import acceleration_bounds, com_terms
 from sotdrake.exceptions import InvalidInput, StackError
 from sotdrake.robots import load_talos
+from sotdrake.solvers.equality_hierarchy import solve_equality_hierarchy
 from sotdrake.solvers.hqp import HierarchicalQP
 from sotdrake.task import TaskLevel
 from tests.conftest import load_diagram, random_configuration
@@ -173,6 +174,7 @@ def test_torque_elimination_gives_the_full_hierarchys_optimum(standing, rng):
         com.featureDes.setReference(com.initial_com() + np.append(rng.uniform(-0.005, 0.005, 2), 0.0), context)
         solution = _solution(robot, context)
         assert solution.diagnostics.torques_eliminated
+        assert set(solution.diagnostics.level_solvers) == {"qr"}  # the equality hierarchy's QR path
         sot_context = sot.GetMyContextFromRoot(context)
         terms = sot.dynamics.Eval(sot_context)
         contacts = [ActiveContact(name, sot._contact_ports[name].Eval(sot_context)) for name, _ in SOLES]
@@ -184,6 +186,35 @@ def test_torque_elimination_gives_the_full_hierarchys_optimum(standing, rng):
         np.testing.assert_allclose(solution.acceleration, full[:nv], atol=1e-6)
         np.testing.assert_allclose(solution.torque, full[-sot.na:], atol=1e-5 * np.abs(full[-sot.na:]).max())
         np.testing.assert_allclose(solution.local_wrenches["contactLF"], full[slices[0]], atol=1e-4)
+
+
+def test_qr_path_is_the_hqps_answer_on_talos(standing, rng):
+    """On TALOS' dynamic levels (both soles, CoM, posture, damping; τ eliminated; the grippers
+    fixed by the control selection), the QR path gives the hierarchical QP's point."""
+    robot, diagram, com, _ = standing
+    sot, nv = robot.sot, robot.model.nv
+    for spread in (0.0, 0.05):
+        x = _random_state(robot.model, rng, spread) if spread else np.concatenate([robot.q0, np.zeros(nv)])
+        context = _set_state(robot, diagram, x)
+        sot_context = sot.GetMyContextFromRoot(context)
+        terms = sot.dynamics.Eval(sot_context)
+        contacts = [ActiveContact(name, sot._contact_ports[name].Eval(sot_context)) for name, _ in SOLES]
+        tasks = sot._tasks(sot_context, sot._settings_of(sot_context))
+        actuated = actuated_rows(terms.B)
+        levels, slices = dynamic_levels(terms, contacts, tasks, 10.0, False, np.array([400.0, 300.0]), actuated)
+        a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout)
+        a_lo[:6] = a_up[:6] = 0.0  # some fixed components too
+        lower, upper = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
+        m = len(lower) - sot.na
+        qr = solve_equality_hierarchy(levels, lower[:m], upper[:m])
+        reference = HierarchicalQP(m).solve(levels, lower[:m], upper[:m])
+        if not spread:
+            assert qr is not None  # standing: no bound in the way, every rank decision clear
+        assert qr is not None or not np.all((reference.x >= lower[:m]) & (reference.x <= upper[:m]))
+        if qr is not None:
+            scale = np.abs(reference.x).max()
+            np.testing.assert_allclose(qr.x, reference.x, rtol=0, atol=1e-9 * scale)
+            np.testing.assert_allclose(qr.slack_norms, reference.slack_norms, rtol=1e-6, atol=1e-9 * scale)
 
 
 def test_friction_and_cop_rows():
@@ -344,6 +375,32 @@ def test_bad_inputs_raise_and_change_nothing(standing):
 def test_pd_reference_formula():
     e, e_dot, drift, ref = np.array([0.1, -0.2]), np.array([1.0, 0.5]), np.array([0.3, 0.0]), np.array([2.0, 1.0])
     np.testing.assert_allclose(pd_reference(e, e_dot, 100.0, 20.0, ref, drift), -100 * e - 20 * e_dot + ref - drift)
+
+
+def test_task_dyn_pd_reads_a_feature_or_its_three_signals():
+    """The ``feature`` port (one FeatureValue) and the ``error``/``jacobian``/``errordot`` ports
+    give the same rows ``J q̈ = −K_p e − K_v (J v + ė_ref)`` (first tick: no J̇)."""
+    from sotdrake.dynamics.task_dyn_pd import TaskDynPD
+    from sotdrake.features import FeatureValue
+
+    rng = np.random.default_rng(3)
+    nv = 5
+    e, J, e_ref, v = rng.normal(size=2), rng.normal(size=(2, nv)), rng.normal(size=2), rng.normal(size=nv)
+    rows = []
+    for through_feature in (True, False):
+        task = TaskDynPD("task", nv, 1e-3, kp=9.0, kv=4.0)
+        context = task.CreateDefaultContext()
+        if through_feature:
+            task.GetInputPort("feature").FixValue(context, FeatureValue(e, J, e_ref))
+        else:
+            task.GetInputPort("error").FixValue(context, e)
+            task.GetInputPort("jacobian").FixValue(context, J)
+            task.GetInputPort("errordot").FixValue(context, e_ref)
+        task.GetInputPort("velocity").FixValue(context, v)
+        rows.append(task.GetOutputPort("task").Eval(context))
+    for level in rows:
+        np.testing.assert_array_equal(level.jacobian, J)
+        np.testing.assert_allclose(level.lower, -9.0 * e - 4.0 * (J @ v + e_ref), rtol=1e-14)
 
 
 def test_robot_dyn_simu_integrates_exactly(talos_model):

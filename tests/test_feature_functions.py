@@ -19,6 +19,7 @@ from sotdrake.features import (
     relative_pose_error_and_jacobian,
     visual_point_error_and_jacobian,
 )
+from sotdrake.features.posture import joint_rows
 from sotdrake.lie import exp_so3
 from tests.finite_differences import manifold_jacobian
 
@@ -133,6 +134,18 @@ def test_posture_with_the_free_base(arm, seed):
     v_star = np.zeros(arm.nv)
     e, J, _ = posture_error_and_jacobian(q, q_star, v_star, arm.layout)
     check(lambda q: posture_error_and_jacobian(q, q_star, v_star, arm.layout)[0], q, arm, J)
+
+
+def test_posture_joint_rows_are_the_full_functions_rows(arm, rng):
+    """The joints-only fast path (the posture's default selection) returns the selected rows of
+    the full function, whatever their order in q and v."""
+    q, q_star, v_star = arm.random_q(rng), arm.random_q(rng), rng.normal(size=arm.nv)
+    joint_q = np.full(arm.nv, -1)
+    joint_q[arm.layout.joints_v] = arm.layout.joints_q
+    full = posture_error_and_jacobian(q, q_star, v_star, arm.layout)
+    for rows in (arm.layout.joints_v, arm.layout.joints_v[::2], arm.layout.joints_v[-1:]):
+        for part, whole in zip(joint_rows(q, q_star, v_star, joint_q, rows), full, strict=True):
+            np.testing.assert_array_equal(part, whole[rows])
 
 
 def test_posture_errordot_by_moving_the_reference(arm, rng):

@@ -60,3 +60,17 @@ def test_gain_entity_output_and_commands():
     assert port.Eval(gain.GetMyContextFromRoot(context))[0] == 7.0
     assert port.Eval(gain.GetMyContextFromRoot(fresh))[0] == pytest.approx(1.00052, abs=1e-5)
     assert port.Eval(gain.GetMyContextFromRoot(diagram.CreateDefaultContext()))[0] == 2.0
+
+
+def test_constant_gain_does_not_read_its_error_and_adaptive_gains_do():
+    """A constant λ needs no error: with ``error`` unconnected it still gives λ, while an adaptive
+    gain reads it (an unconnected error is then an error, not a silent λ(0))."""
+    builder = DiagramBuilder()
+    gain = builder.AddSystem(GainAdaptive("gain"))
+    gain.setConstant(3.5)
+    context = builder.Build().CreateDefaultContext()
+    port, own = gain.GetOutputPort("gain"), gain.GetMyContextFromRoot(context)
+    assert port.Eval(own)[0] == 3.5
+    gain.set(4, 1, 5, context)
+    with pytest.raises(RuntimeError, match="error"):
+        port.Eval(own)

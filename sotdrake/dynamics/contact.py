@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -54,9 +55,17 @@ class ContactRows(NamedTuple):
     centre: tuple[float, float] = (0.0, 0.0)  # the sole rectangle's centre (m, in C): where the CoP is best
 
 
+@lru_cache(maxsize=64)
 def wrench_constraints(mu: float, rectangle: tuple[float, float, float, float] | None, cop_margin: float) -> np.ndarray:
     """Rows ``A w ≤ 0`` (friction, CoP, yaw) on ``w = (n_x, n_y, n_z, f_x, f_y, f_z)``, or on
-    ``w = f`` for a point contact (``rectangle=None``)."""
+    ``w = f`` for a point contact (``rectangle=None``). Read-only and cached: contacts ask at every
+    tick."""
+    A = _wrench_constraints(mu, rectangle, cop_margin)
+    A.flags.writeable = False
+    return A
+
+
+def _wrench_constraints(mu: float, rectangle: tuple[float, float, float, float] | None, cop_margin: float) -> np.ndarray:
     k = mu / math.sqrt(2.0)
     rows = [
         [0, 0, 0, 1, 0, -k], [0, 0, 0, -1, 0, -k],

@@ -21,8 +21,7 @@ class _MetaTaskDyn:
     def _finish(self, robot: RobotDyn, name: str, feature, kp: float, kv: float | None, dimension: int | None = None) -> None:
         self.robot, self.name, self.feature = robot, name, feature
         self.task = robot.add_task(TaskDynPD("task" + name, robot.dimension, robot.dt, kp, kv, dimension))
-        for port in ("error", "jacobian", "errordot"):
-            robot.builder.Connect(feature.GetOutputPort(port), self.task.GetInputPort(port))
+        robot.builder.Connect(feature.GetOutputPort("signals"), self.task.GetInputPort("feature"))
 
 
 class MetaTaskDyn6d(_MetaTaskDyn):

@@ -64,7 +64,8 @@ from pydrake.systems.framework import Context, InputPort
 from ..configuration import Layout
 from ..exceptions import InvalidInput, NotFound, SolverError, StackError
 from ..robots import RobotModel
-from ..solvers.hqp import ACTIVE_SET, HierarchicalQP, LevelRows, check_solver
+from ..solvers.equality_hierarchy import solve_equality_hierarchy
+from ..solvers.hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, check_solver
 from ..solvers.sot import SOT, StackSettings
 from ..task import TaskLevel
 from .contact import Contact6d, ContactRows, world_wrench_map
@@ -217,9 +218,21 @@ def dynamic_levels(
     return levels, slices
 
 
+_last_actuation: list = [None, None]  # (B, its actuated rows): B is the same array at every tick
+
+
 def actuated_rows(B: np.ndarray) -> np.ndarray | None:
     """The velocity row each actuator drives if ``B`` is a selection (every column a single 1, no
-    row driven twice), else None."""
+    row driven twice), else None. (Kept for the last ``B`` object seen, which is read-only.)"""
+    if B is _last_actuation[0]:
+        return _last_actuation[1]
+    rows = _actuated_rows(B)
+    if not B.flags.writeable:
+        _last_actuation[:] = B, rows
+    return rows
+
+
+def _actuated_rows(B: np.ndarray) -> np.ndarray | None:
     ones = B == 1.0
     if not (np.all(ones | (B == 0.0)) and np.all(ones.sum(axis=0) == 1) and np.all(ones.sum(axis=1) <= 1)):
         return None
@@ -460,7 +473,7 @@ class SolverDyn(SOT):
                 small = self._reduced_hqps[m] = HierarchicalQP(m)
             try:
                 reduced, _ = dynamic_levels(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
-                fast = small.solve(reduced, lower[:m], upper[:m], 0.0, s.solver)
+                fast = self._solve(small, reduced, lower[:m], upper[:m], s.solver)
                 tau = torques_of(terms, contacts, slices, fast.x, actuated)
                 x = np.concatenate([fast.x, tau])
                 if np.all(np.abs(tau) <= self.effort * (1 + 1e-9)) and (not contacts or _wrench_rows_hold(contacts, slices, x)):
@@ -472,7 +485,7 @@ class SolverDyn(SOT):
         try:
             if result is None:
                 levels, _ = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
-                relaxed = result = hqp.solve(levels, lower, upper, 0.0, s.solver)
+                relaxed = result = self._solve(hqp, levels, lower, upper, s.solver)
             if contacts and not _wrench_rows_hold(contacts, slices, result.x):
                 result = None
                 full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, loads=loads)
@@ -505,6 +518,17 @@ class SolverDyn(SOT):
         diagnostics.active_bounds = result.active_bounds
         diagnostics.solve_time_s = result.solve_time_s
         value.set_value(DynSolution(x[: self.nv].copy(), x[n - self.na :].copy(), world, local, result.slack_norms, diagnostics))
+
+    @staticmethod
+    def _solve(hqp: HierarchicalQP, levels: list[LevelRows], lower: np.ndarray, upper: np.ndarray, solver: str) -> HqpResult:
+        """The hierarchy through its QR path when that is clear-cut (every level an equality, no
+        bound in the way: :mod:`..solvers.equality_hierarchy`, the same answer), else ``hqp``. A
+        chosen Drake solver is always used."""
+        if solver == ACTIVE_SET:
+            result = solve_equality_hierarchy(levels, lower, upper)
+            if result is not None:
+                return result
+        return hqp.solve(levels, lower, upper, 0.0, solver)
 
     def _calc_wrenches(self, context: Context, output) -> None:
         wrenches = self._solution.Eval(context).wrenches

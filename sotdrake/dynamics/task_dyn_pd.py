@@ -14,7 +14,9 @@ does; the previous Jacobian is discrete state, and the first tick takes ``J̇ = 
 ``K_p ≥ 0`` (1/s²) and ``K_v ≥ 0`` (1/s) are settings in the Context (``setGain``, ``setKp``,
 ``setKv``); ``setGain(Kp)`` alone takes the critical damping ``K_v = 2√K_p``.
 
-Inputs ``error``, ``jacobian``, ``errordot`` (optional), ``velocity`` (v), ``drift`` (optional),
+Inputs ``feature`` (a feature's ``signals``: ``e``, ``J`` and ``ė_ref`` through one port, as the
+kinematic :class:`~sotdrake.task.Task` reads them) or, when it is not connected, ``error``,
+``jacobian`` and ``errordot`` (optional); ``velocity`` (v), ``drift`` (optional),
 ``reference_acceleration`` (optional). Outputs ``task`` (a :class:`~sotdrake.task.TaskLevel` over
 ``q̈``) and ``error_norm``.
 """
@@ -30,6 +32,7 @@ from pydrake.systems.framework import Context, ValueProducer
 
 from ..entity import Entity
 from ..exceptions import InvalidInput
+from ..features.base import FeatureValue, optional_input, usual_input
 from ..task import TaskLevel
 
 
@@ -60,6 +63,8 @@ class TaskDynPD(Entity[DynPDSettings]):
             raise InvalidInput(f"{name}: dt must be > 0, got {dt}")
         self.nv, self.dt = nv, float(dt)
         self.setGain(kp, kv)
+        self.feature = self.DeclareAbstractInputPort(
+            "feature", AbstractValue.Make(FeatureValue(np.zeros(0), np.zeros((0, nv)), np.zeros(0))))
         self.error = self.DeclareAbstractInputPort("error", AbstractValue.Make(np.zeros(0)))
         self.jacobian = self.DeclareAbstractInputPort("jacobian", AbstractValue.Make(np.zeros((0, nv))))
         self.errordot = self.DeclareAbstractInputPort("errordot", AbstractValue.Make(np.zeros(0)))
@@ -103,8 +108,15 @@ class TaskDynPD(Entity[DynPDSettings]):
         self.setGain(self.settings(context).kp, kv, context)
 
     # --- calc --------------------------------------------------------------------------------
+    def _inputs(self, context: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """``(e, J, ė_ref)`` from ``feature``, else from ``error``, ``jacobian``, ``errordot``."""
+        value = usual_input(self.feature, context, None)
+        if value is not None:
+            return value
+        return self.error.Eval(context), self.jacobian.Eval(context), optional_input(self.errordot, context, None)
+
     def _remember(self, context: Context, state) -> None:
-        J = self.jacobian.Eval(context)
+        J = self._inputs(context)[1]
         if J.shape[0] > self.nv:
             raise InvalidInput(f"{self.name}: a Jacobian with more rows than nv = {self.nv}")
         memory = np.zeros(1 + self.nv * self.nv)
@@ -119,12 +131,14 @@ class TaskDynPD(Entity[DynPDSettings]):
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         s = self._settings_of(context)
-        e, J, v = self.error.Eval(context), self.jacobian.Eval(context), self.velocity.Eval(context)
+        e, J, errordot = self._inputs(context)
+        v = self.velocity.Eval(context)
         e_dot = J @ v
-        if self.errordot.HasValue(context):
-            e_dot = e_dot + self._sized("errordot", self.errordot.Eval(context), e)
-        if self.drift is not None and self.drift.HasValue(context):
-            drift = self._sized("drift", self.drift.Eval(context), e)
+        if errordot is not None:
+            e_dot = e_dot + self._sized("errordot", errordot, e)
+        drift = optional_input(self.drift, context, None) if self.drift is not None else None
+        if drift is not None:
+            drift = self._sized("drift", drift, e)
         else:
             previous = self._previous_jacobian(context)
             drift = (J - previous) @ v / self.dt if previous.shape == J.shape and previous.shape[0] else np.zeros_like(e)

@@ -16,6 +16,7 @@ the optional inputs ``posture_in`` (nq) and ``postureDot_in`` (nv).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from pydrake.systems.framework import Context
@@ -42,6 +43,8 @@ class FeaturePosture(Feature):
         settings = PostureSettings(_mask(mask), check_finite("posture", posture, (nq,)).copy(), np.zeros(nv))
         Feature.__init__(self, name, nv, nv, settings)
         self.nq = nq
+        self._joint_q = np.full(nv, -1)  # the q index of each joint velocity (-1: the floating base)
+        self._joint_q[self.layout.joints_v] = self.layout.joints_q
         self.state = self.DeclareVectorInputPort("state", nq)
         self.posture_in = self.DeclareVectorInputPort("posture_in", nq)
         self.postureDot_in = self.DeclareVectorInputPort("postureDot_in", nv)
@@ -50,7 +53,10 @@ class FeaturePosture(Feature):
     def _compute(self, context: Context, s, rows):
         q_star = optional_input(self.posture_in, context, s.posture)
         v_star = optional_input(self.postureDot_in, context, s.postureDot)
-        return posture_error_and_jacobian(self.state.Eval(context), q_star, v_star, self.layout)
+        q = self.state.Eval(context)
+        if rows is not None and self._joint_q[rows].min() >= 0:  # joints only: the selected rows
+            return joint_rows(q, q_star, v_star, self._joint_q, rows)
+        return posture_error_and_jacobian(q, q_star, v_star, self.layout)
 
     def selectDof(self, index: int, selected: bool, context: Context | None = None) -> None:
         """Select (or not) the component of velocity index ``index`` (sot-core ``selectDof``)."""
@@ -93,6 +99,22 @@ def posture_error_and_jacobian(
         J[iv : iv + 3, iv : iv + 3] = right_jacobian_inverse_so3(e_r) @ R.T
         e_dot[iv : iv + 3] = -left_jacobian_inverse_so3(e_r) @ (Rd.T @ v_star[iv : iv + 3])
     return e, J, e_dot
+
+
+@lru_cache(maxsize=32)
+def _selection_rows(rows: bytes, nv: int) -> np.ndarray:
+    """The rows ``rows`` (int64 bytes) of the nv × nv identity, read-only."""
+    J = np.eye(nv)[np.frombuffer(rows, dtype=np.int64)]
+    J.flags.writeable = False
+    return J
+
+
+def joint_rows(q: np.ndarray, q_star: np.ndarray, v_star: np.ndarray, joint_q: np.ndarray,
+               rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The rows ``rows`` (joint velocity indices only) of :func:`posture_error_and_jacobian`:
+    ``e = q_j − q*_j``, identity rows, ``ė_ref = −v*``; ``joint_q``: the q index of each velocity."""
+    iq = joint_q[rows]
+    return q[iq] - q_star[iq], _selection_rows(np.asarray(rows, dtype=np.int64).tobytes(), v_star.size), -v_star[rows]
 
 
 def _mask(selected: np.ndarray) -> str:

@@ -21,6 +21,20 @@ orthogonal projector on the null space of every level so far (up to the truncate
 values), lower levels only move in ``range(P_i)``, and a lower level never changes a higher
 level's residual (strict priority). One thin SVD per level (LAPACK ``gesdd`` of the ``nv × m``
 matrix ``A_iᵀ``, no full ``nv × nv`` basis) and two ``nv × nv`` products.
+
+**Full-rank fast path** (no damping): stack the levels, ``B = [J_1; …; J_n] P_0`` (``M`` rows,
+``M ≤ nv``), and take one Householder QR ``Bᵀ = Q R`` in priority order (no pivoting), so that
+``B = L Qᵀ`` with ``L = Rᵀ`` lower triangular. While the higher levels are full rank,
+``P_{i-1} = P_0 - Q_{<i} Q_{<i}ᵀ`` and ``A_i = J_i P_{i-1} = L_ii Q_iᵀ``: the singular values of
+``A_i`` are those of the diagonal block ``L_ii``. If every block is certified above the
+threshold, ``σ_min(L_ii) ≥ 1 / ‖L_ii⁻¹‖_F > svd_threshold``, the cascade keeps every direction,
+solves every level exactly, and its ``v`` is the one point of ``range(Q)`` that does so:
+``v = Q L⁻¹ r``. That is what this path returns (one QR, one triangular inverse; the blocks of
+``R⁻¹`` on its diagonal are the ``R_ii⁻¹``). The QR of the first rows does not depend on the rows
+below, so the path also solves the leading certified levels of any stack: when a block is not
+certified (a rank loss, a conflict with a higher level, a singular value within ``√m_i`` of the
+threshold, a NaN, or more rows than ``nv``), the SVD cascade above goes on from
+``P = P_0 - Q_K Q_Kᵀ`` (``Q_K``: the solved levels' columns of ``Q``) and decides.
 """
 
 from __future__ import annotations
@@ -31,7 +45,11 @@ from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
+from scipy.linalg.lapack import dgeqrf as _geqrf
 from scipy.linalg.lapack import dgesdd as _gesdd
+from scipy.linalg.lapack import dorgqr as _orgqr
+from scipy.linalg.lapack import dormqr as _ormqr
+from scipy.linalg.lapack import dtrtri as _trtri
 
 from ..exceptions import SolverError
 
@@ -49,6 +67,78 @@ def _projector(selection: bytes) -> np.ndarray:
     P = np.diag(np.frombuffer(selection, dtype=bool).astype(float))
     P.flags.writeable = False
     return P
+
+
+@lru_cache(maxsize=32)
+def _triangle_masks(sizes: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For levels of ``sizes`` rows (``M`` in all): the ``M × M`` masks of the upper triangle and
+    of the upper triangles of the diagonal blocks, and each block's first row."""
+    total = sum(sizes)
+    upper = np.triu(np.ones((total, total), dtype=bool))
+    blocks = np.zeros((total, total), dtype=bool)
+    starts = np.cumsum((0, *sizes[:-1]))
+    for start, size in zip(starts.tolist(), sizes, strict=True):
+        blocks[start : start + size, start : start + size] = upper[:size, :size]
+    for array in (upper, blocks, starts):
+        array.flags.writeable = False
+    return upper, blocks, starts
+
+
+class _Prefix(NamedTuple):
+    """The first ``solved`` levels solved by the QR path: ``v`` after them and, when levels remain,
+    ``basis``, an orthonormal basis ``Q_K`` of what they fix (``P_solved = P_0 - Q_K Q_Kᵀ``)."""
+
+    solved: int
+    velocity: np.ndarray
+    basis: np.ndarray | None
+
+
+def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
+                      selection: np.ndarray | None) -> _Prefix | None:
+    """The leading levels that the QR path can certify full rank (see the module docstring), or
+    None when not even the first can be. The QR of the first ``K`` rows does not depend on the
+    rows below them, so one QR of the stack serves every prefix."""
+    taken, total = 0, 0
+    for J, _ in levels:  # the levels whose rows fit in nv
+        if total + J.shape[0] > nv:
+            break
+        taken, total = taken + 1, total + J.shape[0]
+    rows = [(i, J, r) for i, (J, r) in enumerate(levels[:taken]) if J.shape[0]]  # an empty level changes nothing
+    if not rows:
+        return None
+    sizes = tuple(J.shape[0] for _, J, _ in rows)
+    B = np.vstack([J for _, J, _ in rows])
+    if selection is not None:
+        B = B * selection
+    qr, tau, _, info = _geqrf(B.T)
+    if info != 0:
+        return None
+    R_inverse, info = _trtri(qr[:total, :total])  # reads R, the upper triangle, only
+    if info != 0:
+        return None
+    upper, blocks, starts = _triangle_masks(sizes)
+    # Below the diagonal: the QR's reflectors, left by trtri. (Masks by selection, not products:
+    # a NaN in a lower level's rows must not reach the blocks above it.)
+    R_inverse = np.where(upper, R_inverse, 0.0)
+    squares = np.where(blocks, R_inverse * R_inverse, 0.0)
+    certified = (np.add.reduceat(squares.sum(axis=1), starts) * (svd_threshold * svd_threshold) < 1.0).tolist()
+    solved = certified.index(False) if False in certified else len(rows)  # a NaN is not certified
+    if solved == 0:
+        return None
+    K = int(starts[solved]) if solved < len(rows) else total
+    y = np.zeros(nv)
+    y[:K] = R_inverse[:K, :K].T @ np.concatenate([r for _, _, r in rows[:solved]])
+    reflectors, scales = qr[:, :K], tau[:K]  # the next ones may hold a NaN
+    v, _, info = _ormqr("L", "N", reflectors, scales, y, lwork=max(1, nv))
+    if info != 0:
+        return None
+    count = rows[solved][0] if solved < len(rows) else len(levels) if taken == len(levels) else taken
+    basis = None
+    if count < len(levels):
+        basis, _, info = _orgqr(reflectors, scales)
+        if info != 0:
+            return None
+    return _Prefix(count, v, basis)
 
 
 class CascadeResult(NamedTuple):
@@ -72,16 +162,37 @@ def solve_cascade(
     ``damping`` is one δ for every level or one per level. ``with_residuals=False`` leaves
     ``residuals`` None (see :func:`cascade_residuals`).
 
-    Each level takes one LAPACK ``gesdd`` of ``A_iᵀ`` (Fortran-ordered as it comes, no copy):
-    ``A_iᵀ = W Σ Uᵀ``, so ``W``'s columns are ``A_i``'s right singular vectors. A LAPACK failure
-    raises :class:`~sotdrake.exceptions.SolverError`.
+    Without damping, the full-rank fast path first (see the module docstring); otherwise, or when
+    it cannot certify every level, :func:`svd_cascade`: one LAPACK ``gesdd`` of ``A_iᵀ`` per level
+    (Fortran-ordered as it comes, no copy): ``A_iᵀ = W Σ Uᵀ``, so ``W``'s columns are ``A_i``'s
+    right singular vectors. A LAPACK failure raises :class:`~sotdrake.exceptions.SolverError`.
     """
+    dampings = [float(damping)] * len(levels) if isinstance(damping, (int, float)) else list(damping)
+    prefix = _full_rank_prefix(levels, nv, svd_threshold, control_selection) if not any(dampings) else None
+    if prefix is not None and prefix.solved == len(levels):
+        v, ranks = prefix.velocity, np.array([J.shape[0] for J, _ in levels], dtype=int)
+    else:
+        v, ranks = svd_cascade(levels, nv, svd_threshold, dampings, control_selection, prefix)
+    return CascadeResult(v, cascade_residuals(levels, v) if with_residuals else None, ranks)
+
+
+def svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
+                dampings: Sequence[float], control_selection: np.ndarray | None,
+                prefix: _Prefix | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(v, ranks)`` of the cascade, one SVD per level; ``dampings``: one δ per level. With
+    ``prefix``, its levels are taken as solved (full rank) and the cascade goes on from them."""
     v = np.zeros(nv)
     P = _identity(nv) if control_selection is None else _projector(np.asarray(control_selection, dtype=bool).tobytes())
     ranks = np.zeros(len(levels), dtype=int)
+    first = 0
+    if prefix is not None:
+        first, v = prefix.solved, prefix.velocity
+        ranks[:first] = [J.shape[0] for J, _ in levels[:first]]
+        if prefix.basis is not None:
+            P = P - prefix.basis @ prefix.basis.T
     last = len(levels) - 1
-    dampings = [float(damping)] * len(levels) if isinstance(damping, (int, float)) else list(damping)
-    for i, (J, reference) in enumerate(levels):
+    for i in range(first, len(levels)):
+        J, reference = levels[i]
         if J.shape[0] == 0:
             continue
         A = J @ P
@@ -98,7 +209,7 @@ def solve_cascade(
             v = v + V @ (inverse * rhs)
             if i < last:
                 P = P - V @ V.T
-    return CascadeResult(v, cascade_residuals(levels, v) if with_residuals else None, ranks)
+    return v, ranks
 
 
 def cascade_residuals(levels: Sequence[tuple[np.ndarray, np.ndarray]], v: np.ndarray) -> np.ndarray:

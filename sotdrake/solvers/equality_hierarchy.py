@@ -1,0 +1,206 @@
+"""A hierarchy of equality levels under bounds, solved by QR factorizations when it is clear-cut.
+
+The problem is :class:`~.hqp.HierarchicalQP`'s: levels ``A_k x = b_k`` in strict priority (each
+a least-squares problem in what the levels above leave free), hard bounds ``x_min ≤ x ≤ x_max``,
+then the minimum-norm ``x`` of the optimal set. Fixed components (``x_min = x_max``) are
+eliminated. With ``Z`` an orthonormal basis of what the levels above leave free (``r`` columns),
+``B = A_k Z`` and ``ρ = b_k − A_k x``, a level is *clear-cut* when either
+
+* ``m_k ≤ r`` and ``B`` has full row rank: one Householder QR ``Bᵀ = Q R`` solves it exactly,
+  ``x ← x + Z Q_1 R⁻ᵀ ρ``, and ``Z ← Z Q_2`` (``Q = [Q_1, Q_2]``);
+* ``m_k > r`` and ``B`` has full column rank: its least-squares solution ``x ← x + Z R⁻¹ Q_1ᵀ ρ``
+  (QR ``B = Q R``) fixes every remaining direction, and the levels below only read their
+  residuals;
+* otherwise, the scaled rows ``D B`` have a clear rank gap (every singular value above
+  :data:`CERTIFIED` or below :data:`NEGLIGIBLE`; certified from a QR with column pivoting, else
+  from the SVD ``D B = U Σ Vᵀ``): with ``V = [V_k, V_0]`` the bases of the row and null spaces, the
+  level's least-squares step in its row space ``x ← x + Z V_k argmin ‖B V_k z − ρ‖`` (by QR;
+  the raw rows, as the level's objective is ``‖A_k x − b_k‖``) and ``Z ← Z V_0``.
+
+Rank is certified on the rows scaled to unit norm (their norm before projection), as the
+hierarchical QP decides it, with a margin: in the first two cases the smallest singular value of
+the scaled ``B`` must be at least :data:`CERTIFIED` (``10³ τ``, ``τ`` the QP's rank threshold), through
+``σ_min(R) ≥ 1/‖R⁻¹‖_F`` (row rank: ``σ(D B) = σ(R D)`` with ``D`` the row scaling; column rank:
+``σ_min(D B) ≥ σ_min(D) σ_min(B)``). The optimum without the free bounds is then unique up to the
+final minimum-norm step. If it lies within the bounds it is the optimum with them (the bounded
+optimal set is a subset of the unbounded one and contains that point), and so the hierarchical
+QP's answer; :func:`solve_equality_hierarchy` returns it. Otherwise (an inequality row, a rank
+decision that is not clear-cut, a bound in the way) it returns None and the hierarchical QP
+decides. Cost: one QR and one triangular inverse per full-rank level (an SVD for the others)
+instead of the QP's SVDs and stages.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from functools import lru_cache
+
+import numpy as np
+from scipy.linalg.lapack import dgeqp3 as _geqp3
+from scipy.linalg.lapack import dgeqrf as _geqrf
+from scipy.linalg.lapack import dgesdd as _gesdd
+from scipy.linalg.lapack import dorgqr as _orgqr
+from scipy.linalg.lapack import dormqr as _ormqr
+from scipy.linalg.lapack import dtrtri as _trtri
+
+from .active_set import RANK_THRESHOLD
+from .hqp import HqpResult, LevelRows
+
+#: The smallest singular value (rows at unit norm) that counts as clearly non-zero,
+CERTIFIED = 1e3 * RANK_THRESHOLD
+#: and the largest that counts as clearly zero (round-off of a row the levels above fix).
+NEGLIGIBLE = 1e-3 * RANK_THRESHOLD
+
+SOLVER_NAME = "qr"
+
+
+@lru_cache(maxsize=64)
+def _upper(k: int) -> np.ndarray:
+    mask = np.triu(np.ones((k, k), dtype=bool))
+    mask.flags.writeable = False
+    return mask
+
+
+def _upper_inverse(R: np.ndarray) -> np.ndarray | None:
+    """``R⁻¹`` of the upper triangle of ``R`` (zeros below), or None if singular."""
+    inverse, info = _trtri(R)
+    if info != 0:
+        return None
+    return np.where(_upper(R.shape[0]), inverse, 0.0)
+
+
+def _pivoted_null_space(scaled: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(V_k, V_0)``, orthonormal bases of the row space and the null space of ``scaled`` (m × r),
+    from a QR with column pivoting ``scaled Π = Q [[R_11, R_12], [0, R_22]]`` when its rank ``k``
+    is clear-cut: ``σ_k ≥ σ_min(R_11) ≥ 1/‖R_11⁻¹‖_F > CERTIFIED`` and
+    ``σ_{k+1} ≤ ‖R_22‖_F < NEGLIGIBLE``; else None. The null space is
+    ``Π [−R_11⁻¹ R_12; I]``, orthonormalized."""
+    m, r = scaled.shape
+    qr, pivots, tau, _, info = _geqp3(scaled)
+    if info != 0:
+        return None
+    diagonal = np.abs(np.diagonal(qr))
+    k = int(np.count_nonzero(diagonal > CERTIFIED))
+    if k == 0 or k == r:
+        return None
+    R11_inverse = _upper_inverse(qr[:k, :k])
+    if R11_inverse is None:
+        return None
+    R22 = np.where(_upper(r - k)[: min(m, r) - k], qr[k : min(m, r), k:], 0.0)
+    flat = R11_inverse.ravel()
+    if not (flat.dot(flat) * CERTIFIED * CERTIFIED < 1.0 and float(np.sum(R22 * R22)) < NEGLIGIBLE * NEGLIGIBLE):
+        return None
+    null = np.empty((r, r - k))
+    null[pivots[:k] - 1] = -R11_inverse @ qr[:k, k:]
+    null[pivots[k:] - 1] = np.eye(r - k)
+    basis, tau, _, info = _geqrf(null)
+    if info != 0:
+        return None
+    square = np.zeros((r, r), order="F")
+    square[:, : r - k] = basis
+    Q, _, info = _orgqr(square, tau)
+    return (Q[:, r - k :], Q[:, : r - k]) if info == 0 else None
+
+
+def _least_squares(C: np.ndarray, residual: np.ndarray) -> np.ndarray | None:
+    """``argmin ‖C z − residual‖`` of a full-column-rank ``C`` (m × k, m ≥ k), by QR."""
+    k = C.shape[1]
+    qr, tau, _, info = _geqrf(C)
+    if info != 0:
+        return None
+    R_inverse = _upper_inverse(qr[:k, :k])
+    if R_inverse is None:
+        return None
+    projected, _, info = _ormqr("L", "T", qr, tau, residual, lwork=max(1, C.shape[0]))
+    return R_inverse @ projected[:k] if info == 0 else None
+
+
+def _clear_cut_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None] | None:
+    """``(step, basis)`` of one level in the free space: the least-squares step ``z`` (None: none)
+    and the basis of what is left in the free space's coordinates (None: all of it), or None when
+    the level's rank is not clear-cut. ``B``: the level's rows in the free space (m × r),
+    ``norms``: the rows' norms before projection."""
+    m, r = B.shape
+    if m <= r:  # full row rank?
+        qr, tau, _, info = _geqrf(B.T)
+        R_inverse = _upper_inverse(qr[:m, :m]) if info == 0 else None
+        if R_inverse is not None:
+            scaled = (R_inverse * norms[:, None]).ravel()  # (R D)⁻¹ = D⁻¹ R⁻¹, D = diag(1/‖row‖)
+            if scaled.dot(scaled) * CERTIFIED * CERTIFIED < 1.0:  # False on NaN too
+                square = np.zeros((r, r), order="F")
+                square[:, :m] = qr
+                Q, _, info = _orgqr(square, tau)  # r × r: Q_1 then Q_2
+                if info == 0:
+                    return Q[:, :m] @ (R_inverse.T @ residual), Q[:, m:]
+    else:  # full column rank?
+        qr, tau, _, info = _geqrf(B)
+        R_inverse = _upper_inverse(qr[:r, :r]) if info == 0 else None
+        if R_inverse is not None:
+            flat = R_inverse.ravel()
+            if flat.dot(flat) * (CERTIFIED * float(norms.max())) ** 2 < 1.0:
+                projected, _, info = _ormqr("L", "T", qr, tau, residual, lwork=max(1, m))
+                if info == 0:
+                    return R_inverse @ projected[:r], np.zeros((r, 0))
+    # Neither: the rank of the scaled rows from a pivoted QR, else their SVD, if its gap is clear.
+    scaled = B / norms[:, None]
+    bases = _pivoted_null_space(scaled)
+    if bases is None:
+        _, sigma, Vt, info = _gesdd(scaled, compute_uv=1, full_matrices=1)
+        if info != 0 or not np.all((sigma > CERTIFIED) | (sigma < NEGLIGIBLE)):
+            return None
+        rank = int(np.count_nonzero(sigma > CERTIFIED))
+        if rank == 0:
+            return None, None
+        bases = Vt[:rank].T, Vt[rank:].T
+    kept, left = bases
+    z = _least_squares(B @ kept, residual)  # raw rows: the level's objective is ‖B z − ρ‖
+    return None if z is None else (kept @ z, left)
+
+
+def solve_equality_hierarchy(levels: Sequence[LevelRows], x_lower: np.ndarray, x_upper: np.ndarray) -> HqpResult | None:
+    """The hierarchical QP's answer to equality ``levels`` under the bounds, or None when it is not
+    clear-cut (see the module docstring). The bounds are expected as the QP checks them (same
+    sizes, ``x_lower ≤ x_upper``, no NaN)."""
+    start = time.perf_counter()
+    fixed = x_lower == x_upper
+    free = ~fixed
+    x = np.where(fixed, x_lower, 0.0)
+    n_free = int(free.sum())
+    all_free = n_free == len(x)
+    Z: np.ndarray | None = None  # None: the identity on the free components
+    r = n_free
+    x_free = np.zeros(n_free)
+    for level in levels:
+        if level.extend is not None or not level.all_equality:
+            return None
+        m = level.A.shape[0]
+        if m == 0 or r == 0:
+            continue
+        if all_free:
+            A, residual = level.A, level.b_eq - level.A @ x_free
+        else:
+            x[free] = x_free
+            A, residual = level.A[:, free], level.b_eq - level.A @ x
+        B = A if Z is None else A @ Z
+        step_basis = _clear_cut_step(B, residual, level.eq_norms)
+        if step_basis is None:
+            return None
+        step, basis = step_basis
+        if step is not None:
+            x_free = x_free + (step if Z is None else Z @ step)
+        if basis is not None:
+            Z = basis if Z is None else Z @ basis
+            r = Z.shape[1]
+    if r and Z is not None:
+        x_free = x_free - Z @ (Z.T @ x_free)  # the minimum-norm point of what is left
+    x[free] = x_free
+    if not (np.all(x >= x_lower) and np.all(x <= x_upper)):
+        return None
+    slacks = [level.slack(x) for level in levels]
+    return HqpResult(
+        x=x, slacks=slacks, slack_norms=np.array([float(np.sqrt(s @ s)) for s in slacks]),
+        active_rows=[np.zeros(0, dtype=int) for _ in levels],
+        active_bounds=np.flatnonzero(free & ((x <= x_lower) | (x >= x_upper))),
+        solve_time_s=time.perf_counter() - start, level_solvers=[SOLVER_NAME] * len(levels),
+        iterations=[0] * len(levels))

@@ -64,6 +64,8 @@ def test_control_selection_leaves_unselected_velocities_at_zero(rng):
     levels = [(rng.normal(size=(2, nv)), rng.normal(size=2))]
     selection = np.array([True, False, True, True, False, True])
     result = solve_cascade(levels, nv, control_selection=selection)
+    if selection is not None:
+        assert np.all(result.velocity[~selection] == 0.0)  # exactly: an unselected joint never moves
     assert np.all(result.velocity[~selection] == 0)
     assert result.residuals[0] < 1e-10  # 4 free velocities still solve 2 rows
 

@@ -138,6 +138,8 @@ def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, 
         basis, _, info = _orgqr(reflectors, scales)
         if info != 0:
             return None
+        if selection is not None:  # the fixed directions lie in the selected space (round-off aside)
+            basis[~np.asarray(selection, dtype=bool)] = 0.0
     return _Prefix(count, v, basis)
 
 
@@ -173,6 +175,8 @@ def solve_cascade(
         v, ranks = prefix.velocity, np.array([J.shape[0] for J, _ in levels], dtype=int)
     else:
         v, ranks = svd_cascade(levels, nv, svd_threshold, dampings, control_selection, prefix)
+    if control_selection is not None:  # zero in exact arithmetic; the QR and SVD leave round-off
+        v[~np.asarray(control_selection, dtype=bool)] = 0.0
     return CascadeResult(v, cascade_residuals(levels, v) if with_residuals else None, ranks)
 
 

@@ -24,6 +24,11 @@ class ContactMonitor(LeafSystem):
         self._bodies = {side: {b.index() for b in plant.GetBodiesWeldedTo(frame.body())}
                         for side, frame in robot.sole_frames.items()}
         self._world = plant.world_body().index()
+        # Each foot body → the offset of its side's force in the summary (a body welded to both
+        # soles counts for the first, as before).
+        self._side_of = {}
+        for offset, side in ((3, "right"), (0, "left")):
+            self._side_of.update(dict.fromkeys(self._bodies[side], offset))
         inspector = robot.scene_graph.model_inspector()
         self._geometry_bodies = {
             geometry: plant.GetBodyFromFrameId(inspector.GetFrameId(geometry)).index()
@@ -40,31 +45,39 @@ class ContactMonitor(LeafSystem):
 
     def _summarize(self, context: Context, value: AbstractValue) -> None:
         results = self.contact_results.Eval(context)
-        forces = {"left": np.zeros(3), "right": np.zeros(3)}
-        moment, total = np.zeros(2), 0.0
-        other = 0.0
-        soles = set().union(*self._bodies.values())
+        out = [0.0] * 9  # f_left, f_right, (Σ c_x f_z − τ_y, Σ c_y f_z + τ_x), Σ f_z, other
+        side_of, world = self._side_of, self._world
 
-        def add(body_a, body_b, force, torque, point):
-            nonlocal total, other
-            for side, bodies in self._bodies.items():
-                sign = 1.0 if body_a in bodies else -1.0 if body_b in bodies else 0.0
-                if sign:  # the force on the foot
-                    f, tau = sign * force, sign * torque
-                    forces[side] += f
-                    moment[:] += [point[0] * f[2] - tau[1], point[1] * f[2] + tau[0]]
-                    total += f[2]
-            if body_a not in soles and body_b not in soles and self._world in (body_a, body_b):
-                other += abs(force[2])
+        def add(body_a, body_b, force, torque, point) -> None:
+            fx, fy, fz = force
+            side, sign = side_of.get(body_a), 1.0
+            if side is None:
+                side, sign = side_of.get(body_b), -1.0
+            if side is not None:  # the force on the foot
+                fx, fy, fz = sign * fx, sign * fy, sign * fz
+                out[side] += fx
+                out[side + 1] += fy
+                out[side + 2] += fz
+                if torque is not None:
+                    out[6] += point[0] * fz - sign * torque[1]
+                    out[7] += point[1] * fz + sign * torque[0]
+                else:
+                    out[6] += point[0] * fz
+                    out[7] += point[1] * fz
+                out[8] += fz
+            elif world in (body_a, body_b):
+                other[0] += abs(fz)
 
+        other = [0.0]
         for i in range(results.num_hydroelastic_contacts()):
             info = results.hydroelastic_contact_info(i)
             surface = info.contact_surface()
             F = info.F_Ac_W()  # on the body of geometry M, at the surface's centroid
-            body_m, body_n = self._geometry_bodies[surface.id_M()], self._geometry_bodies[surface.id_N()]
-            add(body_m, body_n, F.translational(), F.rotational(), surface.centroid())
+            add(self._geometry_bodies[surface.id_M()], self._geometry_bodies[surface.id_N()],
+                F.translational().tolist(), F.rotational().tolist(), surface.centroid().tolist())
         for i in range(results.num_point_pair_contacts()):
             info = results.point_pair_contact_info(i)  # force on body B at the contact point
-            add(info.bodyB_index(), info.bodyA_index(), info.contact_force(), np.zeros(3), info.contact_point())
-        cop = moment / total if total > 1e-9 else np.full(2, np.nan)
-        value.set_value(np.concatenate([forces["left"], forces["right"], cop, [other]]))
+            add(info.bodyB_index(), info.bodyA_index(), info.contact_force().tolist(), None, info.contact_point().tolist())
+        total = out[8]
+        cop = [out[6] / total, out[7] / total] if total > 1e-9 else [np.nan, np.nan]
+        value.set_value(np.array([*out[:6], *cop, other[0]]))

@@ -206,7 +206,7 @@ def test_qr_path_is_the_hqps_answer_on_talos(standing, rng):
         a_lo[:6] = a_up[:6] = 0.0  # some fixed components too
         lower, upper = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
         m = len(lower) - sot.na
-        qr = solve_equality_hierarchy(levels, lower[:m], upper[:m])
+        qr = solve_equality_hierarchy([(level.A, level.b_eq) for level in levels], lower[:m], upper[:m])
         reference = HierarchicalQP(m).solve(levels, lower[:m], upper[:m])
         if not spread:
             assert qr is not None  # standing: no bound in the way, every rank decision clear

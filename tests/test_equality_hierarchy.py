@@ -7,6 +7,10 @@ from sotdrake.solvers.equality_hierarchy import solve_equality_hierarchy
 from sotdrake.solvers.hqp import HierarchicalQP, LevelRows
 
 
+def pairs(levels):
+    return [(level.A, level.b_eq) for level in levels]
+
+
 def random_levels(rng, n, conflicting=False):
     levels, rows = [], []
     for _ in range(int(rng.integers(1, 6))):
@@ -31,7 +35,7 @@ def test_qr_path_is_the_hierarchical_qp(seed):
     lower, upper = np.full(n, -1e6), np.full(n, 1e6)
     fixed = rng.random(n) < 0.15
     lower[fixed] = upper[fixed] = rng.normal(size=fixed.sum())
-    result = solve_equality_hierarchy(levels, lower, upper)
+    result = solve_equality_hierarchy(pairs(levels), lower, upper)
     if not conflicting:
         assert result is not None
     if result is None:
@@ -59,7 +63,7 @@ def test_conflicts_and_rank_losses_are_the_qps_answer(seed):
                    [LevelRows(dependent, np.array([1.0, 2.0, 0.0]), np.array([1.0, 2.0, 0.0])),
                     LevelRows(last, np.ones(4), np.ones(4))]):
         bounds = np.full(n, -10.0), np.full(n, 10.0)
-        result = solve_equality_hierarchy(levels, *bounds)
+        result = solve_equality_hierarchy(pairs(levels), *bounds)
         reference = HierarchicalQP(n).solve(levels, *bounds)
         assert result is not None
         np.testing.assert_allclose(result.x, reference.x, atol=1e-9)
@@ -72,22 +76,23 @@ def test_a_rank_decision_near_the_threshold_is_left_to_the_qp():
     A = np.eye(2, n)
     near = np.array([[1.0, 0.0, 1e-9, 0.0, 0.0, 0.0]])  # projects to 1e-9 (unit-norm row)
     levels = [LevelRows(A, np.zeros(2), np.zeros(2)), LevelRows(near, np.ones(1), np.ones(1))]
-    assert solve_equality_hierarchy(levels, np.full(n, -1e12), np.full(n, 1e12)) is None
+    assert solve_equality_hierarchy(pairs(levels), np.full(n, -1e12), np.full(n, 1e12)) is None
 
 
-def test_a_bound_in_the_way_or_an_inequality_is_left_to_the_qp():
+def test_a_bound_in_the_way_or_a_nan_is_left_to_the_qp():
     n = 4
     A = np.eye(2, n)
     b = np.array([2.0, -2.0])
-    assert solve_equality_hierarchy([LevelRows(A, b, b)], np.full(n, -1.0), np.full(n, 1.0)) is None
-    assert solve_equality_hierarchy([LevelRows(A, b, b)], np.full(n, -3.0), np.full(n, 3.0)) is not None
-    assert solve_equality_hierarchy([LevelRows(A, b - 1, b)], np.full(n, -3.0), np.full(n, 3.0)) is None
+    assert solve_equality_hierarchy([(A, b)], np.full(n, -1.0), np.full(n, 1.0)) is None
+    assert solve_equality_hierarchy([(A, b)], np.full(n, -3.0), np.full(n, 3.0)) is not None
+    assert solve_equality_hierarchy([(A, b * np.nan)], np.full(n, -3.0), np.full(n, 3.0)) is None
+    assert solve_equality_hierarchy([(A * np.nan, b)], np.full(n, -3.0), np.full(n, 3.0)) is None
 
 
 def test_minimum_norm_of_what_is_left_and_fixed_components():
     """One row x0 + x1 = 2 with x2 fixed at 5: the minimum-norm point is (1, 1, 5, 0)."""
     A = np.array([[1.0, 1.0, 1.0, 0.0]])
     lower, upper = np.array([-9.0, -9.0, 5.0, -9.0]), np.array([9.0, 9.0, 5.0, 9.0])
-    result = solve_equality_hierarchy([LevelRows(A, np.array([7.0]), np.array([7.0]))], lower, upper)
+    result = solve_equality_hierarchy([(A, np.array([7.0]))], lower, upper)
     np.testing.assert_allclose(result.x, [1.0, 1.0, 5.0, 0.0], atol=1e-14)
     assert result.slack_norms[0] == pytest.approx(0.0, abs=1e-14)

@@ -161,10 +161,22 @@ def wrench_slices(nv: int, contacts: list[ActiveContact]) -> list[slice]:
     return slices
 
 
+Rows = tuple[np.ndarray, np.ndarray, np.ndarray]  # (A, lower, upper) of one level; lower is upper: equalities
+
+
 def dynamic_levels(
     terms: DynamicsTerms, contacts: list[ActiveContact], tasks: list[TaskLevel], damping_gain: float,
     with_inequalities: bool = True, loads: np.ndarray | None = None, actuated: np.ndarray | None = None,
 ) -> tuple[list[LevelRows], list[slice]]:
+    """:func:`dynamic_rows` as the hierarchical QP's levels."""
+    rows, slices = dynamic_rows(terms, contacts, tasks, damping_gain, with_inequalities, loads, actuated)
+    return [LevelRows(*level) for level in rows], slices
+
+
+def dynamic_rows(
+    terms: DynamicsTerms, contacts: list[ActiveContact], tasks: list[TaskLevel], damping_gain: float,
+    with_inequalities: bool = True, loads: np.ndarray | None = None, actuated: np.ndarray | None = None,
+) -> tuple[list[Rows], list[slice]]:
     """The levels of the module docstring over ``x = (q̈, w…, τ)``, and the slice of each contact's
     wrench in ``x``. ``with_inequalities=False`` leaves the contacts' wrench rows out (the
     relaxed problem of :meth:`SolverDyn._calc`); ``loads``: the contacts' normal forces at the
@@ -181,18 +193,21 @@ def dynamic_levels(
         dyn[:, nv + sum(sizes):] = -terms.B
     for c, sl in zip(contacts, slices, strict=False):
         dyn[:, sl] = -c.rows.jacobian.T @ world_wrench_map(c.rows.rotation, sl.stop - sl.start)
+    levels: list[Rows]
     if actuated is None:
-        levels = [LevelRows(dyn, -terms.h, -terms.h)]
+        b = -terms.h
+        levels = [(dyn, b, b)]
     else:
         passive = np.ones(nv, dtype=bool)
         passive[actuated] = False
-        levels = [LevelRows(dyn[passive], -terms.h[passive], -terms.h[passive])]
+        b = -terms.h[passive]
+        levels = [(dyn[passive], b, b)]
     if contacts:
         m_eq = sum(sizes)
         m_in = sum(len(c.rows.wrench_rows) for c in contacts) if with_inequalities else 0
         A = np.zeros((m_eq + m_in, n))
         lower = np.concatenate([np.concatenate([c.rows.acceleration for c in contacts]), np.full(m_in, -np.inf)])
-        upper = np.concatenate([lower[:m_eq], np.zeros(m_in)])
+        upper = np.concatenate([lower[:m_eq], np.zeros(m_in)]) if m_in else lower
         r_eq, r_in = 0, m_eq
         for c, sl in zip(contacts, slices, strict=False):
             k, m = sl.stop - sl.start, len(c.rows.wrench_rows) if with_inequalities else 0
@@ -200,11 +215,11 @@ def dynamic_levels(
             if m:
                 A[r_in : r_in + m, sl] = c.rows.wrench_rows
             r_eq, r_in = r_eq + k, r_in + m
-        levels.append(LevelRows(A, lower, upper))
+        levels.append((A, lower, upper))
     for task in tasks:
         A = np.zeros((task.jacobian.shape[0], n))
         A[:, :nv] = task.jacobian
-        levels.append(LevelRows(A, task.lower, task.upper))
+        levels.append((A, task.lower, task.upper))
     m = sum(k - 1 for k in sizes)
     damping = np.zeros((nv + m, n))
     damping[:nv, :nv] = np.eye(nv)
@@ -214,7 +229,7 @@ def dynamic_levels(
         damping[row : row + len(rows), sl] = rows
         row += len(rows)
     target = np.concatenate([-damping_gain * terms.v, np.zeros(m)])
-    levels.append(LevelRows(damping, target, target))
+    levels.append((damping, target, target))
     return levels, slices
 
 
@@ -472,7 +487,7 @@ class SolverDyn(SOT):
             if small is None:
                 small = self._reduced_hqps[m] = HierarchicalQP(m)
             try:
-                reduced, _ = dynamic_levels(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
+                reduced, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
                 fast = self._solve(small, reduced, lower[:m], upper[:m], s.solver)
                 tau = torques_of(terms, contacts, slices, fast.x, actuated)
                 x = np.concatenate([fast.x, tau])
@@ -484,8 +499,8 @@ class SolverDyn(SOT):
                 pass
         try:
             if result is None:
-                levels, _ = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
-                relaxed = result = self._solve(hqp, levels, lower, upper, s.solver)
+                rows, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
+                relaxed = result = self._solve(hqp, rows, lower, upper, s.solver)
             if contacts and not _wrench_rows_hold(contacts, slices, result.x):
                 result = None
                 full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, loads=loads)
@@ -520,15 +535,15 @@ class SolverDyn(SOT):
         value.set_value(DynSolution(x[: self.nv].copy(), x[n - self.na :].copy(), world, local, result.slack_norms, diagnostics))
 
     @staticmethod
-    def _solve(hqp: HierarchicalQP, levels: list[LevelRows], lower: np.ndarray, upper: np.ndarray, solver: str) -> HqpResult:
+    def _solve(hqp: HierarchicalQP, rows: list[Rows], lower: np.ndarray, upper: np.ndarray, solver: str) -> HqpResult:
         """The hierarchy through its QR path when that is clear-cut (every level an equality, no
-        bound in the way: :mod:`..solvers.equality_hierarchy`, the same answer), else ``hqp``. A
-        chosen Drake solver is always used."""
-        if solver == ACTIVE_SET:
-            result = solve_equality_hierarchy(levels, lower, upper)
+        bound in the way: :mod:`..solvers.equality_hierarchy`, the same answer), else ``hqp``
+        (which checks the rows). A chosen Drake solver is always used."""
+        if solver == ACTIVE_SET and all(lo is hi for _, lo, hi in rows):
+            result = solve_equality_hierarchy([(A, b) for A, b, _ in rows], lower, upper)
             if result is not None:
                 return result
-        return hqp.solve(levels, lower, upper, 0.0, solver)
+        return hqp.solve([LevelRows(*level) for level in rows], lower, upper, 0.0, solver)
 
     def _calc_wrenches(self, context: Context, output) -> None:
         wrenches = self._solution.Eval(context).wrenches

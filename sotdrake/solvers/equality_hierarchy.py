@@ -45,7 +45,7 @@ from scipy.linalg.lapack import dormqr as _ormqr
 from scipy.linalg.lapack import dtrtri as _trtri
 
 from .active_set import RANK_THRESHOLD
-from .hqp import HqpResult, LevelRows
+from .hqp import HqpResult
 
 #: The smallest singular value (rows at unit norm) that counts as clearly non-zero,
 CERTIFIED = 1e3 * RANK_THRESHOLD
@@ -158,10 +158,12 @@ def _clear_cut_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> t
     return None if z is None else (kept @ z, left)
 
 
-def solve_equality_hierarchy(levels: Sequence[LevelRows], x_lower: np.ndarray, x_upper: np.ndarray) -> HqpResult | None:
-    """The hierarchical QP's answer to equality ``levels`` under the bounds, or None when it is not
-    clear-cut (see the module docstring). The bounds are expected as the QP checks them (same
-    sizes, ``x_lower ≤ x_upper``, no NaN)."""
+def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_lower: np.ndarray,
+                             x_upper: np.ndarray) -> HqpResult | None:
+    """The hierarchical QP's answer to the equality ``levels`` ``[(A_k, b_k), …]`` under the bounds,
+    or None when it is not clear-cut (see the module docstring). The bounds are expected as the QP
+    checks them (same sizes, ``x_lower ≤ x_upper``, no NaN); a non-finite level is never clear-cut
+    (the QP then says what is wrong with it)."""
     start = time.perf_counter()
     fixed = x_lower == x_upper
     free = ~fixed
@@ -171,19 +173,18 @@ def solve_equality_hierarchy(levels: Sequence[LevelRows], x_lower: np.ndarray, x
     Z: np.ndarray | None = None  # None: the identity on the free components
     r = n_free
     x_free = np.zeros(n_free)
-    for level in levels:
-        if level.extend is not None or not level.all_equality:
-            return None
-        m = level.A.shape[0]
+    for A_full, b in levels:
+        m = A_full.shape[0]
         if m == 0 or r == 0:
             continue
         if all_free:
-            A, residual = level.A, level.b_eq - level.A @ x_free
+            A, residual = A_full, b - A_full @ x_free
         else:
             x[free] = x_free
-            A, residual = level.A[:, free], level.b_eq - level.A @ x
+            A, residual = A_full[:, free], b - A_full @ x
         B = A if Z is None else A @ Z
-        step_basis = _clear_cut_step(B, residual, level.eq_norms)
+        norms = np.sqrt(np.einsum("ij,ij->i", A_full, A_full))  # before projection, as the QP's
+        step_basis = _clear_cut_step(B, residual, np.where(norms > 0.0, norms, 1.0))
         if step_basis is None:
             return None
         step, basis = step_basis
@@ -195,9 +196,9 @@ def solve_equality_hierarchy(levels: Sequence[LevelRows], x_lower: np.ndarray, x
     if r and Z is not None:
         x_free = x_free - Z @ (Z.T @ x_free)  # the minimum-norm point of what is left
     x[free] = x_free
-    if not (np.all(x >= x_lower) and np.all(x <= x_upper)):
+    if not (np.all(x >= x_lower) and np.all(x <= x_upper)):  # False on NaN too
         return None
-    slacks = [level.slack(x) for level in levels]
+    slacks = [A @ x - b for A, b in levels]
     return HqpResult(
         x=x, slacks=slacks, slack_norms=np.array([float(np.sqrt(s @ s)) for s in slacks]),
         active_rows=[np.zeros(0, dtype=int) for _ in levels],

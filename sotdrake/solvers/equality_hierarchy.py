@@ -12,10 +12,11 @@ eliminated. With ``Z`` an orthonormal basis of what the levels above leave free 
   (QR ``B = Q R``) fixes every remaining direction, and the levels below only read their
   residuals;
 * otherwise, the scaled rows ``D B`` have a clear rank gap (every singular value above
-  :data:`CERTIFIED` or below :data:`NEGLIGIBLE`; certified from a QR with column pivoting, else
-  from the SVD ``D B = U Σ Vᵀ``): with ``V = [V_k, V_0]`` the bases of the row and null spaces, the
-  level's least-squares step in its row space ``x ← x + Z V_k argmin ‖B V_k z − ρ‖`` (by QR;
-  the raw rows, as the level's objective is ``‖A_k x − b_k‖``) and ``Z ← Z V_0``.
+  :data:`CERTIFIED` or below :data:`NEGLIGIBLE`): a least-squares step ``x ← x + Z z``
+  (``z`` minimizes ``‖B z − ρ‖``, the raw rows, as the level's objective is ``‖A_k x − b_k‖``)
+  and ``Z ← Z V_0``, ``V_0`` an orthonormal basis of the null space; from a QR with column
+  pivoting when its triangle certifies the gap (:func:`_pivoted_step`), else from the SVD
+  ``D B = U Σ Vᵀ``.
 
 Rank is certified on the rows scaled to unit norm (their norm before projection), as the
 hierarchical QP decides it, with a margin: in the first two cases the smallest singular value of
@@ -70,18 +71,20 @@ def _upper_inverse(R: np.ndarray) -> np.ndarray | None:
     return np.where(_upper(R.shape[0]), inverse, 0.0)
 
 
-def _pivoted_null_space(scaled: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(V_k, V_0)``, orthonormal bases of the row space and the null space of ``scaled`` (m × r),
-    from a QR with column pivoting ``scaled Π = Q [[R_11, R_12], [0, R_22]]`` when its rank ``k``
-    is clear-cut: ``σ_k ≥ σ_min(R_11) ≥ 1/‖R_11⁻¹‖_F > CERTIFIED`` and
-    ``σ_{k+1} ≤ ‖R_22‖_F < NEGLIGIBLE``; else None. The null space is
-    ``Π [−R_11⁻¹ R_12; I]``, orthonormalized."""
-    m, r = scaled.shape
-    qr, pivots, tau, _, info = _geqp3(scaled)
+def _pivoted_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(z, V_0)`` of a level of rank ``k`` in the free space, from one QR with column pivoting
+    ``B Π = Q [[R_11, R_12], [0, R_22]]``: ``z = Π [R_11⁻¹ Q_1ᵀ ρ; 0]`` minimizes ``‖B z − ρ‖``
+    (another minimizer differs by a null vector, which the levels below and the final
+    minimum-norm step take care of), and ``V_0`` is an orthonormal basis of the null space
+    ``Π [−R_11⁻¹ R_12; I]``. The rank must be clear-cut for the scaled rows ``D B``
+    (``D = diag(1/‖row‖)``): ``σ_k(D B) ≥ min(D)/‖R_11⁻¹‖_F > CERTIFIED`` and
+    ``σ_{k+1}(D B) ≤ max(D) ‖R_22‖_F < NEGLIGIBLE``; else None."""
+    m, r = B.shape
+    qr, pivots, tau, _, info = _geqp3(B)
     if info != 0:
         return None
-    diagonal = np.abs(np.diagonal(qr))
-    k = int(np.count_nonzero(diagonal > CERTIFIED))
+    d_min, d_max = 1.0 / float(norms.max()), 1.0 / float(norms.min())
+    k = int(np.count_nonzero(np.abs(np.diagonal(qr)) * d_min > CERTIFIED))
     if k == 0 or k == r:
         return None
     R11_inverse = _upper_inverse(qr[:k, :k])
@@ -89,18 +92,23 @@ def _pivoted_null_space(scaled: np.ndarray) -> tuple[np.ndarray, np.ndarray] | N
         return None
     R22 = np.where(_upper(r - k)[: min(m, r) - k], qr[k : min(m, r), k:], 0.0)
     flat = R11_inverse.ravel()
-    if not (flat.dot(flat) * CERTIFIED * CERTIFIED < 1.0 and float(np.sum(R22 * R22)) < NEGLIGIBLE * NEGLIGIBLE):
+    if not (flat.dot(flat) * CERTIFIED * CERTIFIED < d_min * d_min
+            and float(np.sum(R22 * R22)) * d_max * d_max < NEGLIGIBLE * NEGLIGIBLE):
         return None
+    projected, _, info = _ormqr("L", "T", qr[:, : len(tau)], tau, residual, lwork=max(1, m))
+    if info != 0:
+        return None
+    columns = pivots - 1
+    z = np.zeros(r)
+    z[columns[:k]] = R11_inverse @ projected[:k]
     null = np.empty((r, r - k))
-    null[pivots[:k] - 1] = -R11_inverse @ qr[:k, k:]
-    null[pivots[k:] - 1] = np.eye(r - k)
+    null[columns[:k]] = -R11_inverse @ qr[:k, k:]
+    null[columns[k:]] = np.eye(r - k)
     basis, tau, _, info = _geqrf(null)
     if info != 0:
         return None
-    square = np.zeros((r, r), order="F")
-    square[:, : r - k] = basis
-    Q, _, info = _orgqr(square, tau)
-    return (Q[:, r - k :], Q[:, : r - k]) if info == 0 else None
+    V0, _, info = _orgqr(basis, tau)
+    return (z, V0) if info == 0 else None
 
 
 def _least_squares(C: np.ndarray, residual: np.ndarray) -> np.ndarray | None:
@@ -116,24 +124,44 @@ def _least_squares(C: np.ndarray, residual: np.ndarray) -> np.ndarray | None:
     return R_inverse @ projected[:k] if info == 0 else None
 
 
+def _row_rank_prefix(B: np.ndarray, residual: np.ndarray, norms: np.ndarray, sizes: list[int]) -> tuple[int, np.ndarray, np.ndarray] | None:
+    """``(c, step, basis)`` for the first ``c ≥ 1`` of consecutive levels stacked in ``B`` (``sizes``
+    rows each, ``M ≤ r`` in all) certified of full row rank below each other: one QR
+    ``Bᵀ = Q R``; level k's rows in what the ones above leave free are ``R_kkᵀ Q_kᵀ``, certified when
+    ``σ_min(R_kk D_k) ≥ 1/‖D_k⁻¹ R_kk⁻¹‖_F > CERTIFIED`` (``R_kk⁻¹``: the diagonal block of ``R⁻¹``);
+    their exact solution ``step = Q_1 R_1⁻ᵀ ρ_1`` (the first ``K`` rows) and ``basis = Q_2``. None when
+    not even the first is certified. (The QR of the first rows does not depend on the rows below.)"""
+    M, r = B.shape[0], B.shape[1]
+    qr, tau, _, info = _geqrf(B.T)
+    if info != 0:
+        return None
+    R_inverse = _upper_inverse(qr[:M, :M])
+    if R_inverse is None:
+        return None
+    scaled = R_inverse * norms[:, None]  # (R D)⁻¹ = D⁻¹ R⁻¹, D = diag(1/‖row‖)
+    count, K = 0, 0
+    for size in sizes:
+        block = scaled[K : K + size, K : K + size].ravel()
+        if not block.dot(block) * CERTIFIED * CERTIFIED < 1.0:  # False on NaN too
+            break
+        count, K = count + 1, K + size
+    if count == 0:
+        return None
+    square = np.zeros((r, r), order="F")
+    square[:, :K] = qr[:, :K]
+    Q, _, info = _orgqr(square, tau[:K])  # r × r: Q_1 then Q_2
+    if info != 0:
+        return None
+    return count, Q[:, :K] @ (R_inverse[:K, :K].T @ residual[:K]), Q[:, K:]
+
+
 def _clear_cut_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None] | None:
-    """``(step, basis)`` of one level in the free space: the least-squares step ``z`` (None: none)
-    and the basis of what is left in the free space's coordinates (None: all of it), or None when
-    the level's rank is not clear-cut. ``B``: the level's rows in the free space (m × r),
-    ``norms``: the rows' norms before projection."""
+    """``(step, basis)`` of one level that is not of full row rank in the free space (or has more
+    rows than it): the least-squares step ``z`` (None: none) and the basis of what is left in the
+    free space's coordinates, or None when the level's rank is not clear-cut. ``B``: the level's
+    rows in the free space (m × r), ``norms``: the rows' norms before projection."""
     m, r = B.shape
-    if m <= r:  # full row rank?
-        qr, tau, _, info = _geqrf(B.T)
-        R_inverse = _upper_inverse(qr[:m, :m]) if info == 0 else None
-        if R_inverse is not None:
-            scaled = (R_inverse * norms[:, None]).ravel()  # (R D)⁻¹ = D⁻¹ R⁻¹, D = diag(1/‖row‖)
-            if scaled.dot(scaled) * CERTIFIED * CERTIFIED < 1.0:  # False on NaN too
-                square = np.zeros((r, r), order="F")
-                square[:, :m] = qr
-                Q, _, info = _orgqr(square, tau)  # r × r: Q_1 then Q_2
-                if info == 0:
-                    return Q[:, :m] @ (R_inverse.T @ residual), Q[:, m:]
-    else:  # full column rank?
+    if m > r:  # full column rank?
         qr, tau, _, info = _geqrf(B)
         R_inverse = _upper_inverse(qr[:r, :r]) if info == 0 else None
         if R_inverse is not None:
@@ -142,20 +170,20 @@ def _clear_cut_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> t
                 projected, _, info = _ormqr("L", "T", qr, tau, residual, lwork=max(1, m))
                 if info == 0:
                     return R_inverse @ projected[:r], np.zeros((r, 0))
-    # Neither: the rank of the scaled rows from a pivoted QR, else their SVD, if its gap is clear.
+    # The rank from a pivoted QR, else from the SVD of the scaled rows, if clear-cut.
+    pivoted = _pivoted_step(B, residual, norms)
+    if pivoted is not None:
+        return pivoted
     scaled = B / norms[:, None]
-    bases = _pivoted_null_space(scaled)
-    if bases is None:
-        _, sigma, Vt, info = _gesdd(scaled, compute_uv=1, full_matrices=1)
-        if info != 0 or not np.all((sigma > CERTIFIED) | (sigma < NEGLIGIBLE)):
-            return None
-        rank = int(np.count_nonzero(sigma > CERTIFIED))
-        if rank == 0:
-            return None, None
-        bases = Vt[:rank].T, Vt[rank:].T
-    kept, left = bases
+    _, sigma, Vt, info = _gesdd(scaled, compute_uv=1, full_matrices=1)
+    if info != 0 or not np.all((sigma > CERTIFIED) | (sigma < NEGLIGIBLE)):
+        return None
+    rank = int(np.count_nonzero(sigma > CERTIFIED))
+    if rank == 0:
+        return None, None
+    kept = Vt[:rank].T
     z = _least_squares(B @ kept, residual)  # raw rows: the level's objective is ‖B z − ρ‖
-    return None if z is None else (kept @ z, left)
+    return None if z is None else (kept @ z, Vt[rank:].T)
 
 
 def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_lower: np.ndarray,
@@ -173,26 +201,45 @@ def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_
     Z: np.ndarray | None = None  # None: the identity on the free components
     r = n_free
     x_free = np.zeros(n_free)
-    for A_full, b in levels:
-        m = A_full.shape[0]
-        if m == 0 or r == 0:
+    i = 0
+    while i < len(levels) and r:
+        # The next levels whose rows fit in what is left, stacked: solved by one QR if full rank.
+        group, total = [], 0
+        for A_full, _ in levels[i:]:
+            if not 0 < total + A_full.shape[0] <= r:
+                break
+            group.append(A_full.shape[0])
+            total += A_full.shape[0]
+        if levels[i][0].shape[0] == 0:
+            i += 1
             continue
-        if all_free:
-            A, residual = A_full, b - A_full @ x_free
-        else:
+        count = len(group) or 1
+        if not all_free:
             x[free] = x_free
-            A, residual = A_full[:, free], b - A_full @ x
+        A_full = levels[i][0] if count == 1 else np.vstack([A for A, _ in levels[i : i + count]])
+        b = levels[i][1] if count == 1 else np.concatenate([b for _, b in levels[i : i + count]])
+        A = A_full if all_free else A_full[:, free]
+        residual = b - A_full @ (x_free if all_free else x)
         B = A if Z is None else A @ Z
         norms = np.sqrt(np.einsum("ij,ij->i", A_full, A_full))  # before projection, as the QP's
-        step_basis = _clear_cut_step(B, residual, np.where(norms > 0.0, norms, 1.0))
-        if step_basis is None:
-            return None
-        step, basis = step_basis
+        norms = np.where(norms > 0.0, norms, 1.0)
+        step: np.ndarray | None
+        basis: np.ndarray | None
+        prefix = _row_rank_prefix(B, residual, norms, group) if group else None
+        if prefix is not None:
+            solved, step, basis = prefix
+        else:  # the first level alone
+            m = levels[i][0].shape[0]
+            step_basis = _clear_cut_step(B[:m], residual[:m], norms[:m])
+            if step_basis is None:
+                return None
+            solved, (step, basis) = 1, step_basis
         if step is not None:
             x_free = x_free + (step if Z is None else Z @ step)
         if basis is not None:
             Z = basis if Z is None else Z @ basis
             r = Z.shape[1]
+        i += solved
     if r and Z is not None:
         x_free = x_free - Z @ (Z.T @ x_free)  # the minimum-norm point of what is left
     x[free] = x_free

@@ -68,9 +68,11 @@ from pydrake.solvers import (
 
 from ..exceptions import InvalidInput, SolverError
 from .active_set import (
+    QR_MIN_SIZE,
     RANK_THRESHOLD,
     ActiveSetFailure,
     dual_guess,
+    independent_qr,
     projection_guess,
     scaled_least_squares,
     solve_least_squares_qp,
@@ -201,6 +203,37 @@ def null_space(M: np.ndarray, threshold: float) -> np.ndarray:
     return Vt[int(np.count_nonzero(sigma > threshold)):].T
 
 
+class _EqualityFactors:
+    """A level's projected equality rows at unit norm, ``B = (A_eq Z) / ‖rows of A_eq‖`` (m × r),
+    factorised once: the orthonormal basis ``null`` of ``{y : B y = 0}`` (the next levels' ``Z`` is
+    ``Z @ null``) and the minimum-norm least-squares step :meth:`step`. Householder QR of ``Bᵀ`` if
+    it proves every singular value of ``B`` above τ (:func:`~.active_set.independent_qr`: the rows
+    are independent, the step solves them exactly), else the SVD cut at τ; both give the same
+    subspace and step in exact arithmetic."""
+
+    __slots__ = ("null", "norms", "qr", "svd", "rank")
+
+    def __init__(self, B: np.ndarray, norms: np.ndarray, threshold: float):
+        self.norms = norms
+        m, r = B.shape
+        self.qr = independent_qr(B.T, threshold, full=True) if m >= QR_MIN_SIZE else None
+        if self.qr is not None:
+            self.null, self.rank = self.qr[0][:, m:], m
+        else:
+            U, sigma, Vt = svd(B)
+            self.svd = (U, sigma, Vt)
+            self.rank = rank = int(np.count_nonzero(sigma > threshold))
+            self.null = Vt[rank:].T
+
+    def step(self, rhs: np.ndarray) -> np.ndarray:
+        """The minimum-norm ``y`` minimising ``‖A_eq Z y - rhs‖`` (rank decisions on ``B``)."""
+        if self.qr is not None:  # B = Rᵀ Q1ᵀ: B y = rhs / norms exactly, y = Q1 R⁻ᵀ (rhs / norms)
+            Q, R_inv = self.qr
+            return Q[:, :self.rank] @ (R_inv.T @ (rhs / self.norms))
+        U, sigma, Vt = self.svd
+        return scaled_least_squares(U, sigma, Vt, self.rank, self.norms, rhs)
+
+
 @dataclass
 class _Stage:
     """One stage in ``z = (y, w)``: min ½‖M z - t‖² s.t. lower ≤ G z ≤ upper (G unit rows)."""
@@ -251,6 +284,7 @@ class HierarchicalQP:
         # with an empty working set (then its unconstrained point is tried first).
         self._working_sets: dict = {}
         self._solvers: dict[str, tuple] = {}
+        self._identity = np.eye(n)  # a constant (never written to)
 
     def _drake(self, name: str):
         if name not in self._solvers:
@@ -289,8 +323,11 @@ class HierarchicalQP:
     def _solve_stages(self, levels, x_lower, x_upper, damping, solver, start) -> HqpResult:
         n = self.n
         fixed = x_lower == x_upper
-        x = np.where(fixed, x_lower, 0.0)
-        Z = np.eye(n)[:, ~fixed]
+        if fixed.any():
+            x = np.where(fixed, x_lower, 0.0)
+            Z = self._identity[:, ~fixed]
+        else:
+            x, Z = np.zeros(n), self._identity  # (read only: every later Z is a new array)
         free = (~fixed & (np.isfinite(x_lower) | np.isfinite(x_upper))).nonzero()[0]  # bound rows that can bind
         # The hard rows, in x, with the side each was left at: the bounds of the free components (unit
         # rows, kept as indices), then the held inequality rows (their matrix: held).
@@ -306,14 +343,13 @@ class HierarchicalQP:
             mu = damping if k == len(levels) - 1 else 0.0
             name = self.level_solvers[k] if k < len(self.level_solvers) and level is not None else solver
             hard = (free, hard_norms, held, hard_lower, hard_upper, hard_side)
-            # One SVD of the level's (unit-row) projected equality rows: its null space is the next
-            # levels' Z, and an equality-only level may be solved by its least-squares step alone.
-            eq_svd = None
+            # One factorisation of the level's (unit-row) projected equality rows: its null space is the
+            # next levels' Z, and an equality-only level may be solved by its least-squares step alone.
+            eq_factors = None
             if level is not None and level.any_equality and Z.shape[1]:
                 norms = level.eq_norms
-                U, sigma, Vt = svd(level.A_eq @ Z / norms[:, None])
-                eq_svd = (U, sigma, Vt, int(np.count_nonzero(sigma > self.rank_threshold)), norms)
-            x, side, how, count = self._stage(k, level, x, Z, hard, mu, name, list(carried), fallbacks, eq_svd)
+                eq_factors = _EqualityFactors(level.A_eq @ Z / norms[:, None], norms, self.rank_threshold)
+            x, side, how, count = self._stage(k, level, x, Z, hard, mu, name, carried, fallbacks, eq_factors)
             if level is not None and level.extend is not None:
                 carried.append(level.extend)
             used.append(how)
@@ -321,8 +357,8 @@ class HierarchicalQP:
             if level is None:
                 break
             hard_side = side
-            if eq_svd is not None:  # = null_space(A_eq Z / ‖rows of A_eq‖), the same SVD
-                Z = Z @ eq_svd[2][eq_svd[3]:].T
+            if eq_factors is not None:  # = null_space(A_eq Z / ‖rows of A_eq‖), the same factorisation
+                Z = Z @ eq_factors.null
             elif level.any_equality:
                 Z = Z[:, :0]
             if not level.all_equality:
@@ -406,16 +442,16 @@ class HierarchicalQP:
         z0[r:] = w0
         return _Stage(M, t, m_scale, G, lower, upper, z0, r, kept, np.concatenate([sides, np.zeros(m_in, dtype=int)]))
 
-    def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks, eq_svd=None):
+    def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks, eq_factors=None):
         """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard
         rows at the end, how it was solved, the active-set iterations. ``eq_svd``: the SVD
         ``(U, σ, Vt, rank, row norms)`` of the level's unit-row projected equality rows, if it has some."""
         r = Z.shape[1]
         if r == 0:
             return x0, hard[5].copy(), ACTIVE_SET, 0
-        if (eq_svd is not None and name == ACTIVE_SET and mu == 0.0 and level.extend is None and not carried
+        if (eq_factors is not None and name == ACTIVE_SET and mu == 0.0 and level.extend is None and not carried
                 and level.all_equality):
-            x = self._least_squares_level(level, x0, Z, hard, eq_svd)
+            x = self._least_squares_level(level, x0, Z, hard, eq_factors)
             if x is not None:
                 return x, np.zeros(len(hard[5]), dtype=int), ACTIVE_SET, 0
         if level is None and name == ACTIVE_SET and not carried and self._working_sets.get(_FREE_MINIMUM_NORM, False):
@@ -431,7 +467,7 @@ class HierarchicalQP:
         cached = self._working_sets.get(key)
         guess = cached if cached is not None else stage.guess
         what = "the minimum-norm stage" if level is None else f"level {k}"
-        failures = []
+        failures: list[str] = []
         if (level is not None and level.extend is not None) or carried:
             drake_name = name if name in SOLVERS else "clarabel"
             for attempt in dict.fromkeys([drake_name, "osqp"]):
@@ -490,7 +526,7 @@ class HierarchicalQP:
             return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
 
-    def _least_squares_level(self, level, x0, Z, hard, eq_svd) -> np.ndarray | None:
+    def _least_squares_level(self, level, x0, Z, hard, eq_factors) -> np.ndarray | None:
         """An equality-only level by its least-squares step alone, or None: the EQP point of the
         empty working set (the minimum-norm weighted least-squares step, from the level's SVD) is
         the level's optimum if it satisfies the bounds and held rows (the KKT conditions with no
@@ -499,9 +535,7 @@ class HierarchicalQP:
         with the step ``d = Z y`` must satisfy ``lo - c·x0 - 1e-10·max(s, |lo - c·x0|) ≤ c·d``
         (and the same at the upper side), ``lo`` relaxed to ``c·x0`` where x0 is outside. A step
         that meets every row exactly passes it without the norms being computed."""
-        U, sigma, Vt, rank, norms = eq_svd
-        r = Z.shape[1]
-        y = scaled_least_squares(U, sigma, Vt, rank, norms, level.lower - level.A @ x0) if rank else np.zeros(r)
+        y = eq_factors.step(level.lower - level.A @ x0) if eq_factors.rank else np.zeros(Z.shape[1])
         return self._free_step(x0, Z, hard, y)
 
     def _free_step(self, x0, Z, hard, y) -> np.ndarray | None:

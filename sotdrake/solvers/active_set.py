@@ -396,11 +396,13 @@ def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
         active = quadprog.solve_qp(H, M.T @ t, C.T, b, 0)[5]
     except ValueError:
         return None
-    active = active[active > 0] - 1
-    side = np.zeros(len(G), dtype=int)
+    active = active[active > 0] - 1  # (1-based indices into C's rows: lower sides first)
     n_low = len(lower_rows)
-    side[lower_rows[active[active < n_low]]] = -1
-    side[upper_rows[active[active >= n_low] - n_low]] = 1
+    side = np.zeros(len(G), dtype=int)
+    if len(active):
+        low = active < n_low
+        side[lower_rows[active[low]]] = -1
+        side[upper_rows[active[~low] - n_low]] = 1
     return side
 
 

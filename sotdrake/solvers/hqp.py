@@ -211,7 +211,7 @@ class _EqualityFactors:
     are independent, the step solves them exactly), else the SVD cut at τ; both give the same
     subspace and step in exact arithmetic."""
 
-    __slots__ = ("null", "norms", "qr", "svd", "rank")
+    __slots__ = ("norms", "null", "qr", "rank", "svd")
 
     def __init__(self, B: np.ndarray, norms: np.ndarray, threshold: float):
         self.norms = norms
@@ -246,8 +246,9 @@ class _Stage:
     upper: np.ndarray
     z0: np.ndarray
     r: int
-    hard: np.ndarray  # indices (into the full list of hard rows) of G's first rows
+    hard: np.ndarray | None  # indices (into the full list of hard rows) of G's first rows (None: all of them)
     guess: np.ndarray  # a side per row of G
+    m_hard: int = 0  # how many of G's first rows are hard rows
 
 
 class HierarchicalQP:
@@ -392,7 +393,7 @@ class HierarchicalQP:
         projected = np.sqrt(np.einsum("ij,ij->i", C, C))
         keep = projected > tau * reference  # the others are constant over the stage
         if keep.all():
-            kept, scale, low, high, sides = np.arange(len(keep)), projected, hard_lower, hard_upper, hard_side
+            kept, scale, low, high, sides = None, projected, hard_lower, hard_upper, hard_side
         else:
             kept = keep.nonzero()[0]
             C, offset, scale, low, high, sides = C[kept], offset[kept], projected[kept], hard_lower[kept], hard_upper[kept], hard_side[kept]
@@ -401,7 +402,7 @@ class HierarchicalQP:
         c_upper = (np.maximum(high, offset) - offset) / scale
         if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)
             return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), C / scale[:, None], c_lower, c_upper, np.zeros(r), r,
-                          kept, sides)
+                          kept, sides, len(C))
         A_eq, A_in = level.A_eq, level.A_in
         m_eq, m_in = len(A_eq), len(A_in)
         if m_in == 0:  # no soft row: z = y
@@ -411,13 +412,14 @@ class HierarchicalQP:
                 M = np.vstack([M, np.sqrt(mu) * np.eye(r)])
                 t = np.concatenate([t, np.zeros(r)])
                 m_scale = np.concatenate([m_scale, np.full(r, np.sqrt(mu))])
-            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, kept, sides)
+            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, kept, sides, len(C))
         # The objective ‖A_eq (x0 + Z y) - b‖² + ‖w‖² (+ μ‖y‖²): M = [[A_eq Z, 0], [0, I], [√μ I, 0]].
         m_damped = r if mu > 0.0 else 0
-        M = np.zeros((m_eq + m_in + m_damped, r + m_in))
+        p = r + m_in
+        M = np.zeros((m_eq + m_in + m_damped, p))
         M[:m_eq, :r] = A_eq @ Z
-        rows = np.arange(m_in)
-        M[m_eq + rows, r + rows] = 1.0
+        start = m_eq * p + r  # M's diagonal block at (m_eq, r), through a flat view
+        M.reshape(-1)[start : start + m_in * (p + 1) : p + 1] = 1.0
         t = np.zeros(len(M))
         t[:m_eq] = level.b_eq - A_eq @ x0
         m_scale = np.ones(len(M))
@@ -432,15 +434,18 @@ class HierarchicalQP:
         soft_scale = np.sqrt(np.einsum("ij,ij->i", AZ, AZ) + 1.0)
         w0 = np.minimum(np.maximum(value - level.upper_in, 0.0), value - level.lower_in)  # np.clip(0, ., .)
         m_hard = len(C)
-        G = np.zeros((m_hard + m_in, r + m_in))
+        G = np.zeros((m_hard + m_in, p))
         np.divide(C, scale[:, None], out=G[:m_hard, :r])
         np.divide(AZ, soft_scale[:, None], out=G[m_hard:, :r])
-        G[m_hard + rows, r + rows] = -1.0 / soft_scale
+        start = m_hard * p + r
+        G.reshape(-1)[start : start + m_in * (p + 1) : p + 1] = -1.0 / soft_scale
         lower = np.concatenate([c_lower, (level.lower_in - value) / soft_scale])
         upper = np.concatenate([c_upper, (level.upper_in - value) / soft_scale])
-        z0 = np.zeros(r + m_in)
+        z0 = np.zeros(p)
         z0[r:] = w0
-        return _Stage(M, t, m_scale, G, lower, upper, z0, r, kept, np.concatenate([sides, np.zeros(m_in, dtype=int)]))
+        guess = np.zeros(m_hard + m_in, dtype=int)
+        guess[:m_hard] = sides
+        return _Stage(M, t, m_scale, G, lower, upper, z0, r, kept, guess, m_hard)
 
     def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks, eq_factors=None):
         """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard
@@ -522,7 +527,8 @@ class HierarchicalQP:
             self._working_sets[key] = solution.side
             if level is None:
                 self._working_sets[_FREE_MINIMUM_NORM] = not solution.side.any()
-            fallbacks += [f"{what}: {failure}" for failure in failures]
+            if failures:
+                fallbacks += [f"{what}: {failure}" for failure in failures]
             return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
 
@@ -567,7 +573,7 @@ class HierarchicalQP:
         return bool(np.isfinite(y).all()) and self._bounds_hold(stage, y)
 
     def _bounds_hold(self, stage: _Stage, y: np.ndarray) -> bool:
-        m_hard = len(stage.hard)
+        m_hard = stage.m_hard
         value = stage.G[:m_hard, :stage.r] @ y
         lo, hi = stage.lower[:m_hard], stage.upper[:m_hard]
         tol = self.feasibility_tolerance
@@ -582,8 +588,10 @@ class HierarchicalQP:
 
     @staticmethod
     def _hard_sides(hard_side: np.ndarray, stage: _Stage, side: np.ndarray) -> np.ndarray:
+        if stage.hard is None:
+            return side[:stage.m_hard].copy()
         out = np.zeros(len(hard_side), dtype=int)
-        out[stage.hard] = side[:len(stage.hard)]
+        out[stage.hard] = side[:stage.m_hard]
         return out
 
     def _program(self, level, x0, Z, hard, mu, name, carried=None):

@@ -53,6 +53,7 @@ library default cutoff is used.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -550,15 +551,16 @@ class HierarchicalQP:
         if not np.isfinite(y).all():
             return None
         free, reference, held, hard_lower, hard_upper, _ = hard
+        d = Z @ y  # the step in x: a hard row c (a bound's unit row, or a held row) changes by c·d
         if len(held):
-            C = np.concatenate([Z[free], held @ Z])
+            change = np.concatenate([d[free], held @ d])
             offset = np.concatenate([x0[free], held @ x0])
         else:
-            C, offset = Z[free], x0[free]
+            change, offset = d[free], x0[free]
         lo = np.minimum(hard_lower, offset) - offset
         hi = np.maximum(hard_upper, offset) - offset
-        change = C @ y
         if not ((change >= lo).all() and (change <= hi).all()):
+            C = np.concatenate([Z[free], held @ Z]) if len(held) else Z[free]
             scale = np.sqrt(np.einsum("ij,ij->i", C, C))
             keep = scale > self.rank_threshold * reference
             if (keep & (lo == hi)).any():  # a pinned row: the general path holds it in the working set
@@ -566,7 +568,7 @@ class HierarchicalQP:
             if (keep & ((change < lo - 1e-10 * np.maximum(scale, np.abs(lo)))
                         | (change > hi + 1e-10 * np.maximum(scale, np.abs(hi))))).any():
                 return None
-        return x0 + Z @ y
+        return x0 + d
 
     def _accept(self, stage: _Stage, y: np.ndarray) -> bool:
         """A path's point is kept if it is finite and inside the bounds."""
@@ -659,7 +661,7 @@ class HierarchicalQP:
         return HqpResult(
             x=x,
             slacks=slacks,
-            slack_norms=np.array([np.sqrt(s @ s) for s in slacks]),
+            slack_norms=np.array([math.sqrt(float(s @ s)) for s in slacks]),
             active_rows=active,
             active_bounds=bounds,
             level_solvers=used,

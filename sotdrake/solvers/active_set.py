@@ -76,6 +76,18 @@ class ActiveSetResult:
     verified: bool = False  # z was checked to satisfy every row to ``feasibility``
 
 
+def all_true(mask: np.ndarray) -> bool:
+    """``mask.all()`` through ``np.count_nonzero``, a direct C call: ``ndarray.all`` and ``any`` go
+    through a Python wrapper that costs more than the test itself on these small arrays (measured:
+    0.4 against 1.3 µs)."""
+    return np.count_nonzero(mask) == mask.size
+
+
+def any_true(mask: np.ndarray) -> bool:
+    """``mask.any()`` (for a float array: any nonzero entry), see :func:`all_true`."""
+    return bool(np.count_nonzero(mask))
+
+
 _UPPER: dict[int, np.ndarray] = {}
 """A cache of k × k upper-triangular masks of ones (zeroing what LAPACK leaves below a triangle)."""
 
@@ -133,7 +145,7 @@ def scaled_least_squares(U: np.ndarray, s: np.ndarray, Vt: np.ndarray, k: int, m
     every entry of ``m_scale`` is the same (computed if None)."""
     U_k, s_k = U[:, :k], s[:k]
     if uniform is None:
-        uniform = bool((m_scale == m_scale[0]).all())
+        uniform = all_true(m_scale == m_scale[0])
     if uniform:
         c = (U_k.T @ r) / (m_scale[0] * s_k)
     elif k == len(m_scale):  # independent rows: B u = r is solved exactly, c = s⁻¹ Uᵀ D⁻¹ r (U square)
@@ -198,9 +210,9 @@ def objective_kind(M: np.ndarray, m_scale: np.ndarray) -> tuple[bool, bool]:
     """``(identity, uniform)`` of an objective ``½‖M z - t‖²``: whether ``M`` is the identity with unit
     reference norms (a projection), and whether every reference norm is the same."""
     p = M.shape[1]
-    uniform = len(m_scale) > 0 and bool((m_scale == m_scale[0]).all())
+    uniform = len(m_scale) > 0 and all_true(m_scale == m_scale[0])
     identity = (uniform and M.shape[0] == p and float(m_scale[0]) == 1.0 and np.count_nonzero(M) == p
-                and bool((M.diagonal() == 1.0).all()))
+                and all_true(M.diagonal() == 1.0))
     return identity, uniform
 
 
@@ -275,22 +287,25 @@ def solve_least_squares_qp(
     feasibility: float = 1e-10,
     max_iterations: int | None = None,
     errstate: bool = True,
+    kind: tuple[bool, bool] | None = None,
 ) -> ActiveSetResult:
     """Solve the problem of the module docstring from the feasible point ``z`` (``G`` unit rows).
 
     ``guess``: a side per row of ``G`` (-1, 0, +1), tried first. Raises :class:`ActiveSetFailure`
     if the iterations do not converge. ``errstate=False``: the caller has already silenced numpy's
-    warnings on ±∞ sides (``np.errstate(divide="ignore", invalid="ignore")``)."""
+    warnings on ±∞ sides (``np.errstate(divide="ignore", invalid="ignore")``). ``kind``: the
+    objective's :func:`objective_kind`, if the caller knows it. ``z`` is not written to."""
+    if kind is None:
+        kind = objective_kind(M, m_scale)
     if not errstate:
-        return _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations)
+        return _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind)
     with np.errstate(divide="ignore", invalid="ignore"):  # ±∞ sides: once here, not per operation
-        return _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations)
+        return _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind)
 
 
-def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations) -> ActiveSetResult:
+def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind) -> ActiveSetResult:
     m = len(G)
     equality = lower == upper
-    kind = objective_kind(M, m_scale)
     if guess is not None and len(guess) == m:
         side = _guessed_sides(guess, lower, upper, equality)
         candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality)
@@ -348,7 +363,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
                     bland = True
                 seen.add(key)
             continue
-        at_origin = not z.any()  # then the step is the absolute EQP point itself (bit for bit)
+        at_origin = not any_true(z)  # then the step is the absolute EQP point itself (bit for bit)
         z = target
         # Multipliers: λ ≥ 0 at an upper side, ≤ 0 at a lower side (equality rows: free), up to a
         # round-off tolerance relative to the gradient's scale.
@@ -388,16 +403,18 @@ def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
     H = M.T @ M  # (a new C-ordered array: reshape gives a view of its diagonal)
     H.reshape(-1)[:: p + 1] += regularization * max(1.0, float(H.trace()) / max(p, 1))
     lower_rows, upper_rows = (lower > -np.inf).nonzero()[0], (upper < np.inf).nonzero()[0]
-    C = np.concatenate([G[lower_rows], -G[upper_rows]])
-    b = np.concatenate([lower[lower_rows], -upper[upper_rows]])
-    if len(C) == 0:
+    n_low = len(lower_rows)
+    rows = np.concatenate([lower_rows, upper_rows])
+    if len(rows) == 0:
         return np.zeros(len(G), dtype=int)
+    C = G[rows]
+    C[n_low:] *= -1.0
+    b = np.concatenate([lower, -upper])[np.concatenate([lower_rows, upper_rows + len(G)])]
     try:
         active = quadprog.solve_qp(H, M.T @ t, C.T, b, 0)[5]
     except ValueError:
         return None
     active = active[active > 0] - 1  # (1-based indices into C's rows: lower sides first)
-    n_low = len(lower_rows)
     side = np.zeros(len(G), dtype=int)
     if len(active):
         low = active < n_low
@@ -435,17 +452,17 @@ def feasible(G: np.ndarray, lower: np.ndarray, upper: np.ndarray, z: np.ndarray,
     """Whether ``lower ≤ G z ≤ upper`` holds to ``feasibility`` (absolute, relative above 1); the
     caller silences numpy's warnings on ±∞ sides. A point inside the sides exactly passes at once."""
     value = G @ z
-    if (value >= lower).all() and (value <= upper).all():
+    if all_true(value >= lower) and all_true(value <= upper):
         return True
-    return not ((value < lower - feasibility * np.maximum(1.0, np.abs(lower))).any()
-                or (value > upper + feasibility * np.maximum(1.0, np.abs(upper))).any())
+    return not (any_true(value < lower - feasibility * np.maximum(1.0, np.abs(lower)))
+                or any_true(value > upper + feasibility * np.maximum(1.0, np.abs(upper))))
 
 
 def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality) -> np.ndarray | None:
     """The EQP point of the working set ``side`` if it satisfies the KKT conditions, else None."""
     held = side.nonzero()[0]
     held_side = side[held]
-    z, lam, _ = eqp(M, t, m_scale, G[held], np.where(held_side > 0, upper[held], lower[held]), threshold, kind)
+    z, lam, _ = eqp(M, t, m_scale, G[held], np.where(side > 0, upper, lower)[held], threshold, kind)
     if not feasible(G, lower, upper, z, feasibility):
         return None
     if len(held):

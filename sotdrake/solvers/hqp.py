@@ -72,6 +72,8 @@ from .active_set import (
     QR_MIN_SIZE,
     RANK_THRESHOLD,
     ActiveSetFailure,
+    all_true,
+    any_true,
     dual_guess,
     independent_qr,
     projection_guess,
@@ -122,25 +124,25 @@ class LevelRows:
         A, lower, upper = (np.asarray(a, dtype=float) for a in (A, lower, upper))
         if A.ndim != 2 or lower.shape != (A.shape[0],) or upper.shape != (A.shape[0],):
             raise InvalidInput(f"level rows: A {A.shape}, lower {lower.shape}, upper {upper.shape} do not fit")
-        if not np.isfinite(A).all() or np.isnan(lower).any() or np.isnan(upper).any():
+        if not all_true(np.isfinite(A)) or any_true(np.isnan(lower)) or any_true(np.isnan(upper)):
             raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
-        if (lower > upper).any():
+        if any_true(lower > upper):
             raise InvalidInput(f"level rows: lower bound above upper bound in rows {np.flatnonzero(lower > upper)}")
         self.A, self.lower, self.upper = A, lower, upper
         self.equality = equality = lower == upper
         self.extend = extend
         # The split the solver reads at every stage, made once.
-        self.all_equality = bool(equality.all())
+        self.all_equality = all_true(equality)
         if self.all_equality:
             self.any_equality = len(A) > 0
             self.A_eq, self.b_eq = A, lower
             self.A_in, self.lower_in, self.upper_in = A[:0], lower[:0], upper[:0]
         else:
             inequality = ~equality
-            self.any_equality = bool(equality.any())
+            self.any_equality = any_true(equality)
             self.A_eq, self.b_eq = A[equality], lower[equality]
             self.A_in, self.lower_in, self.upper_in = A[inequality], lower[inequality], upper[inequality]
-        if not np.isfinite(self.b_eq).all():
+        if not all_true(np.isfinite(self.b_eq)):
             raise InvalidInput("level rows: an equality row needs a finite value")
         self.eq_norms = _row_norms(self.A_eq)
 
@@ -188,6 +190,8 @@ class _Program:
 
 
 _FREE_MINIMUM_NORM = "free minimum-norm stage"
+_WARM_PATHS = (ACTIVE_SET, "cold", "clarabel", "osqp")  # the default path's order, with a cached working set
+_COLD_PATHS = (ACTIVE_SET, "clarabel", "osqp")
 
 
 def _row_norms(A: np.ndarray) -> np.ndarray:
@@ -250,6 +254,7 @@ class _Stage:
     hard: np.ndarray | None  # indices (into the full list of hard rows) of G's first rows (None: all of them)
     guess: np.ndarray  # a side per row of G
     m_hard: int = 0  # how many of G's first rows are hard rows
+    kind: tuple[bool, bool] | None = None  # the objective's active_set.objective_kind, if known
 
 
 class HierarchicalQP:
@@ -307,11 +312,11 @@ class HierarchicalQP:
         solver = self.solver if solver is None else check_solver(solver)
         n = self.n
         x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
-        if x_lower.shape != (n,) or x_upper.shape != (n,) or np.isnan(x_lower).any() or np.isnan(x_upper).any():
+        if x_lower.shape != (n,) or x_upper.shape != (n,) or any_true(np.isnan(x_lower)) or any_true(np.isnan(x_upper)):
             raise InvalidInput(f"bounds must be {n} numbers without NaN")
-        if (x_lower > x_upper).any():
+        if any_true(x_lower > x_upper):
             raise InvalidInput(f"lower bound above upper bound at {np.flatnonzero(x_lower > x_upper)}")
-        if not np.isfinite(x_lower[x_lower == x_upper]).all():
+        if not all_true(np.isfinite(x_lower[x_lower == x_upper])):
             raise InvalidInput("a fixed component (lower == upper) needs a finite value")
         if not (np.isfinite(damping) and damping >= 0):
             raise InvalidInput(f"damping must be finite and ≥ 0, got {damping}")
@@ -325,7 +330,7 @@ class HierarchicalQP:
     def _solve_stages(self, levels, x_lower, x_upper, damping, solver, start) -> HqpResult:
         n = self.n
         fixed = x_lower == x_upper
-        if fixed.any():
+        if any_true(fixed):
             x = np.where(fixed, x_lower, 0.0)
             Z = self._identity[:, ~fixed]
         else:
@@ -393,7 +398,7 @@ class HierarchicalQP:
             C, offset = Z[free], x0[free]
         projected = np.sqrt(np.einsum("ij,ij->i", C, C))
         keep = projected > tau * reference  # the others are constant over the stage
-        if keep.all():
+        if all_true(keep):
             kept, scale, low, high, sides = None, projected, hard_lower, hard_upper, hard_side
         else:
             kept = keep.nonzero()[0]
@@ -403,7 +408,7 @@ class HierarchicalQP:
         c_upper = (np.maximum(high, offset) - offset) / scale
         if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)
             return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), C / scale[:, None], c_lower, c_upper, np.zeros(r), r,
-                          kept, sides, len(C))
+                          kept, sides, len(C), (True, True))
         A_eq, A_in = level.A_eq, level.A_in
         m_eq, m_in = len(A_eq), len(A_in)
         if m_in == 0:  # no soft row: z = y
@@ -485,10 +490,12 @@ class HierarchicalQP:
             raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
         # The active set warm (the cached working set), then cold (the dual method's guess) if the
         # warm path failed, then the Drake solvers polished.
-        paths = [name] if name == ACTIVE_SET else [name, ACTIVE_SET]
-        if cached is not None:
-            paths.insert(paths.index(ACTIVE_SET) + 1, "cold")
-        paths += [p for p in ("clarabel", "osqp") if p not in paths]
+        paths: Sequence[str]
+        if name == ACTIVE_SET:
+            paths = _WARM_PATHS if cached is not None else _COLD_PATHS
+        else:
+            first = [name, ACTIVE_SET] + (["cold"] if cached is not None else [])
+            paths = first + [p for p in ("clarabel", "osqp") if p not in first]
         for path in paths:
             try:
                 if path in (ACTIVE_SET, "cold"):
@@ -512,8 +519,8 @@ class HierarchicalQP:
                         z[r:] = value - np.clip(value, level.lower[~level.equality], level.upper[~level.equality])
                     start_guess, label = self._sides(stage, z), path + "+polish"
                 solution = solve_least_squares_qp(
-                    stage.M, stage.t, stage.m_scale, stage.G, stage.lower, stage.upper, stage.z0.copy(),
-                    guess=start_guess, threshold=self.rank_threshold, errstate=False,
+                    stage.M, stage.t, stage.m_scale, stage.G, stage.lower, stage.upper, stage.z0,
+                    guess=start_guess, threshold=self.rank_threshold, errstate=False, kind=stage.kind,
                 )
             except ActiveSetFailure as error:
                 failures.append(f"{path}: {error}")
@@ -522,12 +529,12 @@ class HierarchicalQP:
             # A point the active set verified on every row to 1e-10 (≤ the feasibility tolerance)
             # only needs to be finite; any other is checked on the bounds and held rows.
             verified = solution.verified and self.feasibility_tolerance >= 1e-10
-            if not (bool(np.isfinite(y).all()) if verified else self._accept(stage, y)):
+            if not (all_true(np.isfinite(y)) if verified else self._accept(stage, y)):
                 failures.append(f"{path}: a point outside the bounds")
                 continue
             self._working_sets[key] = solution.side
             if level is None:
-                self._working_sets[_FREE_MINIMUM_NORM] = not solution.side.any()
+                self._working_sets[_FREE_MINIMUM_NORM] = not any_true(solution.side)
             if failures:
                 fallbacks += [f"{what}: {failure}" for failure in failures]
             return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
@@ -548,7 +555,7 @@ class HierarchicalQP:
     def _free_step(self, x0, Z, hard, y) -> np.ndarray | None:
         """``x0 + Z y`` if the step ``y`` (the EQP point of a stage's empty working set) is finite and
         satisfies the stage's bounds and held rows (see :meth:`_least_squares_level`), else None."""
-        if not np.isfinite(y).all():
+        if not all_true(np.isfinite(y)):
             return None
         free, reference, held, hard_lower, hard_upper, _ = hard
         d = Z @ y  # the step in x: a hard row c (a bound's unit row, or a held row) changes by c·d
@@ -559,28 +566,28 @@ class HierarchicalQP:
             change, offset = d[free], x0[free]
         lo = np.minimum(hard_lower, offset) - offset
         hi = np.maximum(hard_upper, offset) - offset
-        if not ((change >= lo).all() and (change <= hi).all()):
+        if not (all_true(change >= lo) and all_true(change <= hi)):
             C = np.concatenate([Z[free], held @ Z]) if len(held) else Z[free]
             scale = np.sqrt(np.einsum("ij,ij->i", C, C))
             keep = scale > self.rank_threshold * reference
-            if (keep & (lo == hi)).any():  # a pinned row: the general path holds it in the working set
+            if any_true(keep & (lo == hi)):  # a pinned row: the general path holds it in the working set
                 return None
-            if (keep & ((change < lo - 1e-10 * np.maximum(scale, np.abs(lo)))
-                        | (change > hi + 1e-10 * np.maximum(scale, np.abs(hi))))).any():
+            if any_true(keep & ((change < lo - 1e-10 * np.maximum(scale, np.abs(lo)))
+                                | (change > hi + 1e-10 * np.maximum(scale, np.abs(hi))))):
                 return None
         return x0 + d
 
     def _accept(self, stage: _Stage, y: np.ndarray) -> bool:
         """A path's point is kept if it is finite and inside the bounds."""
-        return bool(np.isfinite(y).all()) and self._bounds_hold(stage, y)
+        return all_true(np.isfinite(y)) and self._bounds_hold(stage, y)
 
     def _bounds_hold(self, stage: _Stage, y: np.ndarray) -> bool:
         m_hard = stage.m_hard
         value = stage.G[:m_hard, :stage.r] @ y
         lo, hi = stage.lower[:m_hard], stage.upper[:m_hard]
         tol = self.feasibility_tolerance
-        return bool((value >= lo - tol * np.maximum(1.0, np.abs(lo))).all()
-                    and (value <= hi + tol * np.maximum(1.0, np.abs(hi))).all())
+        return (all_true(value >= lo - tol * np.maximum(1.0, np.abs(lo)))
+                and all_true(value <= hi + tol * np.maximum(1.0, np.abs(hi))))
 
     @staticmethod
     def _sides(stage: _Stage, z: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:

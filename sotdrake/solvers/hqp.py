@@ -124,9 +124,10 @@ class LevelRows:
         A, lower, upper = (np.asarray(a, dtype=float) for a in (A, lower, upper))
         if A.ndim != 2 or lower.shape != (A.shape[0],) or upper.shape != (A.shape[0],):
             raise InvalidInput(f"level rows: A {A.shape}, lower {lower.shape}, upper {upper.shape} do not fit")
-        if not all_true(np.isfinite(A)) or any_true(np.isnan(lower)) or any_true(np.isnan(upper)):
+        ordered = lower <= upper  # False on a NaN side too: the cause is looked for only then
+        if not all_true(np.isfinite(A)) or (not all_true(ordered) and any_true(np.isnan(lower) | np.isnan(upper))):
             raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
-        if any_true(lower > upper):
+        if not all_true(ordered):
             raise InvalidInput(f"level rows: lower bound above upper bound in rows {np.flatnonzero(lower > upper)}")
         self.A, self.lower, self.upper = A, lower, upper
         self.equality = equality = lower == upper
@@ -135,16 +136,18 @@ class LevelRows:
         self.all_equality = all_true(equality)
         if self.all_equality:
             self.any_equality = len(A) > 0
+            self.inequality = _NO_ROW_MASK if len(A) == 0 else np.zeros(len(A), dtype=bool)
             self.A_eq, self.b_eq = A, lower
             self.A_in, self.lower_in, self.upper_in = A[:0], lower[:0], upper[:0]
         else:
-            inequality = ~equality
+            self.inequality = inequality = ~equality
             self.any_equality = any_true(equality)
             self.A_eq, self.b_eq = A[equality], lower[equality]
             self.A_in, self.lower_in, self.upper_in = A[inequality], lower[inequality], upper[inequality]
         if not all_true(np.isfinite(self.b_eq)):
             raise InvalidInput("level rows: an equality row needs a finite value")
         self.eq_norms = _row_norms(self.A_eq)
+        self.in_norms = _row_norms(self.A_in)  # (the reference norms of its rows once they are held)
 
     def slack(self, x: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
         """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows
@@ -190,6 +193,10 @@ class _Program:
 
 
 _FREE_MINIMUM_NORM = "free minimum-norm stage"
+_NO_ROWS = np.zeros(0, dtype=int)  # the active rows of an equality-only level (shared, read only)
+_NO_ROWS.flags.writeable = False
+_NO_ROW_MASK = np.zeros(0, dtype=bool)
+_NO_ROW_MASK.flags.writeable = False
 _WARM_PATHS = (ACTIVE_SET, "cold", "clarabel", "osqp")  # the default path's order, with a cached working set
 _COLD_PATHS = (ACTIVE_SET, "clarabel", "osqp")
 
@@ -312,9 +319,11 @@ class HierarchicalQP:
         solver = self.solver if solver is None else check_solver(solver)
         n = self.n
         x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
-        if x_lower.shape != (n,) or x_upper.shape != (n,) or any_true(np.isnan(x_lower)) or any_true(np.isnan(x_upper)):
+        if x_lower.shape != (n,) or x_upper.shape != (n,):
             raise InvalidInput(f"bounds must be {n} numbers without NaN")
-        if any_true(x_lower > x_upper):
+        if not all_true(x_lower <= x_upper):  # (False on a NaN too: the cause is looked for only then)
+            if any_true(np.isnan(x_lower) | np.isnan(x_upper)):
+                raise InvalidInput(f"bounds must be {n} numbers without NaN")
             raise InvalidInput(f"lower bound above upper bound at {np.flatnonzero(x_lower > x_upper)}")
         if not all_true(np.isfinite(x_lower[x_lower == x_upper])):
             raise InvalidInput("a fixed component (lower == upper) needs a finite value")
@@ -373,12 +382,13 @@ class HierarchicalQP:
                 value = A_in @ x
                 slack = np.maximum(np.maximum(lo - value, value - hi), 0.0)
                 magnitude = np.maximum(1.0, np.abs(value))
-                band = self.hold_tolerance * magnitude if self.hold_tolerance else 0.0
                 row_side = np.where(value >= hi - 1e-12 * magnitude, 1, np.where(value <= lo + 1e-12 * magnitude, -1, 0))
                 held = np.concatenate([held, A_in])
-                hard_norms = np.concatenate([hard_norms, _row_norms(A_in)])  # (once per level)
-                hard_lower = np.concatenate([hard_lower, lo - slack - band])
-                hard_upper = np.concatenate([hard_upper, hi + slack + band])
+                hard_norms = np.concatenate([hard_norms, level.in_norms])
+                if self.hold_tolerance:
+                    slack = slack + self.hold_tolerance * magnitude
+                hard_lower = np.concatenate([hard_lower, lo - slack])
+                hard_upper = np.concatenate([hard_upper, hi + slack])
                 hard_side = np.concatenate([hard_side, row_side])
         result = self._result(levels, x, x_lower, x_upper, fixed, used)
         result.iterations = iterations
@@ -658,11 +668,11 @@ class HierarchicalQP:
             r = level.A @ x
             slacks.append(level.slack(x, r))
             if level.all_equality:
-                active.append(np.zeros(0, dtype=int))
+                active.append(_NO_ROWS)
                 continue
             scale = 1e-7 * np.maximum(1.0, np.abs(r))
             at_bound = (np.abs(r - level.lower) <= scale) | (np.abs(r - level.upper) <= scale)
-            active.append((at_bound & ~level.equality).nonzero()[0])
+            active.append((at_bound & level.inequality).nonzero()[0])
         scale = 1e-7 * np.maximum(1.0, np.abs(x))
         bounds = (~fixed & ((np.abs(x - x_lower) <= scale) | (np.abs(x - x_upper) <= scale))).nonzero()[0]
         return HqpResult(

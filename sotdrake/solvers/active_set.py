@@ -288,26 +288,29 @@ def solve_least_squares_qp(
     max_iterations: int | None = None,
     errstate: bool = True,
     kind: tuple[bool, bool] | None = None,
+    guess_valid: bool = False,
 ) -> ActiveSetResult:
     """Solve the problem of the module docstring from the feasible point ``z`` (``G`` unit rows).
 
     ``guess``: a side per row of ``G`` (-1, 0, +1), tried first. Raises :class:`ActiveSetFailure`
     if the iterations do not converge. ``errstate=False``: the caller has already silenced numpy's
     warnings on ±∞ sides (``np.errstate(divide="ignore", invalid="ignore")``). ``kind``: the
-    objective's :func:`objective_kind`, if the caller knows it. ``z`` is not written to."""
+    objective's :func:`objective_kind`, if the caller knows it. ``z`` is not written to.
+    ``guess_valid``: no row of ``guess`` is held at an infinite side (as in :func:`dual_guess`'s)."""
     if kind is None:
         kind = objective_kind(M, m_scale)
+    args = (M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid)
     if not errstate:
-        return _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind)
+        return _solve(*args)
     with np.errstate(divide="ignore", invalid="ignore"):  # ±∞ sides: once here, not per operation
-        return _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind)
+        return _solve(*args)
 
 
-def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind) -> ActiveSetResult:
+def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid) -> ActiveSetResult:
     m = len(G)
     equality = lower == upper
     if guess is not None and len(guess) == m:
-        side = _guessed_sides(guess, lower, upper, equality)
+        side = np.where(equality, 1, guess) if guess_valid else _guessed_sides(guess, lower, upper, equality)
         candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality)
         if candidate is not None:
             return ActiveSetResult(candidate, side, 0, True, True)
@@ -398,7 +401,8 @@ def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
                regularization: float = 1e-9) -> np.ndarray | None:
     """A guess of the working set (a side per row of ``G``) from Goldfarb-Idnani's dual active-set
     method (quadprog, compiled) on the problem made strictly convex by ``regularization``·I (scaled
-    by ``‖M‖²``). Only a guess: the caller checks it exactly. None if quadprog refuses."""
+    by ``‖M‖²``). Only a guess: the caller checks it exactly. None if quadprog refuses. A row is
+    never held at an infinite side (those sides are not given to quadprog)."""
     p = G.shape[1]
     H = M.T @ M  # (a new C-ordered array: reshape gives a view of its diagonal)
     H.reshape(-1)[:: p + 1] += regularization * max(1.0, float(H.trace()) / max(p, 1))

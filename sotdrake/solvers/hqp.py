@@ -76,6 +76,7 @@ from .active_set import (
     any_true,
     dual_guess,
     independent_qr,
+    objective_kind,
     projection_guess,
     scaled_least_squares,
     solve_least_squares_qp,
@@ -147,7 +148,7 @@ class LevelRows:
         if not all_true(np.isfinite(self.b_eq)):
             raise InvalidInput("level rows: an equality row needs a finite value")
         self.eq_norms = _row_norms(self.A_eq)
-        self.in_norms = _row_norms(self.A_in)  # (the reference norms of its rows once they are held)
+        self.in_norms = _row_norms(self.A_in) if len(self.A_in) else lower[:0]  # (reference norms once held)
 
     def slack(self, x: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
         """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows
@@ -428,7 +429,8 @@ class HierarchicalQP:
                 M = np.vstack([M, np.sqrt(mu) * np.eye(r)])
                 t = np.concatenate([t, np.zeros(r)])
                 m_scale = np.concatenate([m_scale, np.full(r, np.sqrt(mu))])
-            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, kept, sides, len(C))
+            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, kept, sides, len(C),
+                          objective_kind(M, m_scale))
         # The objective ‖A_eq (x0 + Z y) - b‖² + ‖w‖² (+ μ‖y‖²): M = [[A_eq Z, 0], [0, I], [√μ I, 0]].
         m_damped = r if mu > 0.0 else 0
         p = r + m_in
@@ -461,7 +463,8 @@ class HierarchicalQP:
         z0[r:] = w0
         guess = np.zeros(m_hard + m_in, dtype=int)
         guess[:m_hard] = sides
-        return _Stage(M, t, m_scale, G, lower, upper, z0, r, kept, guess, m_hard)
+        # (M holds a slack's identity block beside its other columns: never the identity itself)
+        return _Stage(M, t, m_scale, G, lower, upper, z0, r, kept, guess, m_hard, (False, all_true(m_scale == m_scale[0])))
 
     def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks, eq_factors=None):
         """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard
@@ -508,6 +511,7 @@ class HierarchicalQP:
             paths = first + [p for p in ("clarabel", "osqp") if p not in first]
         for path in paths:
             try:
+                valid = False  # whether no row of the guess is held at an infinite side
                 if path in (ACTIVE_SET, "cold"):
                     start_guess, label = guess, ACTIVE_SET
                     if cached is None or path == "cold":  # no warm start: ask the compiled dual method
@@ -515,7 +519,7 @@ class HierarchicalQP:
                         dual = (projection_guess(stage.t, stage.G, stage.lower, stage.upper) if level is None
                                 else dual_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper))
                         if dual is not None:
-                            start_guess = dual
+                            start_guess, valid = dual, level is not None
                 else:
                     x, message = self._program(level, x0, Z, hard, mu, path)
                     if x is None:
@@ -530,7 +534,7 @@ class HierarchicalQP:
                     start_guess, label = self._sides(stage, z), path + "+polish"
                 solution = solve_least_squares_qp(
                     stage.M, stage.t, stage.m_scale, stage.G, stage.lower, stage.upper, stage.z0,
-                    guess=start_guess, threshold=self.rank_threshold, errstate=False, kind=stage.kind,
+                    guess=start_guess, threshold=self.rank_threshold, errstate=False, kind=stage.kind, guess_valid=valid,
                 )
             except ActiveSetFailure as error:
                 failures.append(f"{path}: {error}")

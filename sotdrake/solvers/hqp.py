@@ -300,6 +300,16 @@ class HierarchicalQP:
         self._working_sets: dict = {}
         self._solvers: dict[str, tuple] = {}
         self._identity = np.eye(n)  # a constant (never written to)
+        self._unit: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # a cache of constants, see _constants
+
+    def _constants(self, r: int) -> tuple[np.ndarray, np.ndarray]:
+        """The minimum-norm stage's objective ``(I_r, ones(r))``, made once per size, read only."""
+        pair = self._unit.get(r)
+        if pair is None:
+            identity, ones = np.eye(r), np.ones(r)
+            identity.flags.writeable = ones.flags.writeable = False
+            pair = self._unit[r] = (identity, ones)
+        return pair
 
     def _drake(self, name: str):
         if name not in self._solvers:
@@ -418,7 +428,8 @@ class HierarchicalQP:
         c_lower = (np.minimum(low, offset) - offset) / scale
         c_upper = (np.maximum(high, offset) - offset) / scale
         if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)
-            return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), C / scale[:, None], c_lower, c_upper, np.zeros(r), r,
+            identity, ones = self._constants(r)
+            return _Stage(identity, -(Z.T @ x0), ones, C / scale[:, None], c_lower, c_upper, np.zeros(r), r,
                           kept, sides, len(C), (True, True))
         A_eq, A_in = level.A_eq, level.A_in
         m_eq, m_in = len(A_eq), len(A_in)
@@ -435,13 +446,15 @@ class HierarchicalQP:
         m_damped = r if mu > 0.0 else 0
         p = r + m_in
         M = np.zeros((m_eq + m_in + m_damped, p))
-        M[:m_eq, :r] = A_eq @ Z
         start = m_eq * p + r  # M's diagonal block at (m_eq, r), through a flat view
         M.reshape(-1)[start : start + m_in * (p + 1) : p + 1] = 1.0
         t = np.zeros(len(M))
-        t[:m_eq] = level.b_eq - A_eq @ x0
-        m_scale = np.ones(len(M))
-        m_scale[:m_eq] = level.eq_norms
+        m_scale = np.empty(len(M))
+        m_scale.fill(1.0)  # (np.ones: a Python wrapper around these two calls)
+        if m_eq:
+            M[:m_eq, :r] = A_eq @ Z
+            t[:m_eq] = level.b_eq - A_eq @ x0
+            m_scale[:m_eq] = level.eq_norms
         if mu > 0.0:
             diagonal = np.arange(r)
             M[m_eq + m_in + diagonal, diagonal] = np.sqrt(mu)

@@ -418,12 +418,10 @@ def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
         active = quadprog.solve_qp(H, M.T @ t, C.T, b, 0)[5]
     except ValueError:
         return None
-    active = active[active > 0] - 1  # (1-based indices into C's rows: lower sides first)
+    active = active - 1  # (quadprog's 1-based indices of its active rows of C: the lower sides first)
     side = np.zeros(len(G), dtype=int)
-    if len(active):
-        low = active < n_low
-        side[lower_rows[active[low]]] = -1
-        side[upper_rows[active[~low] - n_low]] = 1
+    if len(active):  # (a row held at both sides has lower == upper: the caller holds it as an equality)
+        side[rows[active]] = np.where(active < n_low, -1, 1)
     return side
 
 

@@ -361,6 +361,8 @@ class HierarchicalQP:
         held, hard_lower, hard_upper = np.zeros((0, n)), x_lower[free], x_upper[free]
         hard_norms = np.ones(len(free))  # reference norms of the hard rows
         hard_side = np.zeros(len(free), dtype=int)
+        if len(free) == n:  # every component bounded: its rows are read as views, not copied
+            free = slice(None)
         used: list[str] = []
         iterations: list[int] = []
         carried: list[Extension] = []

@@ -27,7 +27,7 @@ How a level is solved:
   is a function of the final working set only), else the active set of Goldfarb-Idnani's dual
   method (quadprog) on the level made strictly convex, else (quadprog refusing) the sides of the
   bounds and held rows active at the end of the level above. An equality-only level with no bound in the way is one
-  least-squares step (from the SVD that also gives the next ``Z``), checked against the bounds and
+  least-squares step (from the factorisation, QR or SVD, that also gives the next ``Z``), checked against the bounds and
   held rows in ``x`` before any stage is built; the minimum-norm stage likewise tries its
   unconstrained point first when its previous call ended with an empty working set;
 * a Drake solver (``"clarabel"``, ``"osqp"``, ``"snopt"``) can be chosen instead, for every level or
@@ -483,8 +483,8 @@ class HierarchicalQP:
 
     def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks, eq_factors=None):
         """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard
-        rows at the end, how it was solved, the active-set iterations. ``eq_svd``: the SVD
-        ``(U, σ, Vt, rank, row norms)`` of the level's unit-row projected equality rows, if it has some."""
+        rows at the end, how it was solved, the active-set iterations. ``eq_factors``: the
+        :class:`_EqualityFactors` of the level's unit-row projected equality rows, if it has some."""
         r = Z.shape[1]
         if r == 0:
             return x0, hard[5].copy(), ACTIVE_SET, 0

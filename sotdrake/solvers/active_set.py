@@ -45,6 +45,7 @@ rows that are active there.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import daqp
@@ -56,9 +57,10 @@ RANK_THRESHOLD = 1e-8
 """Default τ: singular values ≤ τ of unit-row matrices count as zero (see the module docstring)."""
 
 
-QR_MIN_SIZE = 10
-"""Below this smaller dimension LAPACK's SVD costs less than the QR route's several calls (measured:
-a 4 × 20 SVD takes a quarter of the QR route's time, a 16 × 20 one twice it), so it is taken directly."""
+QR_MIN_SIZE = 4
+"""Below this smaller dimension LAPACK's SVD costs about as much as the QR route's several calls, so
+it is taken directly (measured, full SVD against the QR route with its full Q: 3 × 20 7.9 against
+8.4 µs, 5 × 20 17 against 11 µs, 9 × 21 34 against 14 µs, 12 × 30 60 against 19 µs)."""
 
 
 class ActiveSetFailure(RuntimeError):
@@ -72,6 +74,29 @@ class ActiveSetResult:
     iterations: int
     guess_accepted: bool
     verified: bool = False  # z was checked to satisfy every row to ``feasibility``
+
+
+def all_true(mask: np.ndarray) -> bool:
+    """``mask.all()`` through ``np.count_nonzero``, a direct C call: ``ndarray.all`` and ``any`` go
+    through a Python wrapper that costs more than the test itself on these small arrays (measured:
+    0.4 against 1.3 µs)."""
+    return np.count_nonzero(mask) == mask.size
+
+
+def any_true(mask: np.ndarray) -> bool:
+    """``mask.any()`` (for a float array: any nonzero entry), see :func:`all_true`."""
+    return bool(np.count_nonzero(mask))
+
+
+_UPPER: dict[int, np.ndarray] = {}
+"""A cache of k × k upper-triangular masks of ones (zeroing what LAPACK leaves below a triangle)."""
+
+
+def _upper_mask(k: int) -> np.ndarray:
+    mask = _UPPER.get(k)
+    if mask is None:
+        mask = _UPPER[k] = np.asfortranarray(np.triu(np.ones((k, k))))
+    return mask
 
 
 def svd(a: np.ndarray, full_matrices: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -113,12 +138,15 @@ def full_rank_least_squares(B: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 def scaled_least_squares(U: np.ndarray, s: np.ndarray, Vt: np.ndarray, k: int, m_scale: np.ndarray,
-                         r: np.ndarray) -> np.ndarray:
+                         r: np.ndarray, uniform: bool | None = None) -> np.ndarray:
     """The minimum-norm ``u`` minimising ``‖B u - r‖`` given the SVD ``U diag(s) Vt`` of the unit-row
     matrix ``B / m_scale`` cut at its first ``k`` singular values (``B = D U_k s_k V_kᵀ`` with
-    ``D = diag(m_scale)``: a weighted least squares in ``c``, ``u = V_k c``)."""
+    ``D = diag(m_scale)``: a weighted least squares in ``c``, ``u = V_k c``). ``uniform``: whether
+    every entry of ``m_scale`` is the same (computed if None)."""
     U_k, s_k = U[:, :k], s[:k]
-    if (m_scale == m_scale[0]).all():
+    if uniform is None:
+        uniform = all_true(m_scale == m_scale[0])
+    if uniform:
         c = (U_k.T @ r) / (m_scale[0] * s_k)
     elif k == len(m_scale):  # independent rows: B u = r is solved exactly, c = s⁻¹ Uᵀ D⁻¹ r (U square)
         c = (U_k.T @ (r / m_scale)) / s_k
@@ -144,8 +172,9 @@ def independent_qr(A: np.ndarray, threshold: float, full: bool = False) -> tuple
     R_inv, info = lapack.dtrtri(qr[:k])  # reads the upper triangle only
     if info != 0:
         return None
-    R_inv = np.triu(R_inv)
-    if not 2.0 * threshold * float(np.sqrt(np.einsum("ij,ij->", R_inv, R_inv))) < 1.0:
+    R_inv *= _upper_mask(k)  # (below the triangle: the finite Householder vectors, zeroed)
+    flat = R_inv.ravel(order="K")
+    if not 2.0 * threshold * math.sqrt(float(flat @ flat)) < 1.0:
         return None
     if full and k < p:
         padded = np.zeros((p, p), order="F")
@@ -155,7 +184,7 @@ def independent_qr(A: np.ndarray, threshold: float, full: bool = False) -> tuple
     return (Q, R_inv) if info == 0 else None
 
 
-def _full_rank_step(B: np.ndarray, m_scale: np.ndarray, r: np.ndarray, threshold: float) -> np.ndarray | None:
+def _full_rank_step(B: np.ndarray, m_scale: np.ndarray, r: np.ndarray, threshold: float, uniform: bool) -> np.ndarray | None:
     """The minimum-norm ``u`` minimising ``‖B u - r‖`` when ``B / m_scale`` provably has full rank
     (every singular value above τ, see :func:`independent_qr`): then no singular value is cut and
     the answer is the plain least-squares solution (full column rank) or the minimum-norm solution
@@ -167,7 +196,7 @@ def _full_rank_step(B: np.ndarray, m_scale: np.ndarray, r: np.ndarray, threshold
         if factors is None:
             return None
         Q1, R_inv = factors
-        if (m_scale == m_scale[0]).all():
+        if uniform:
             return R_inv @ (Q1.T @ r) / m_scale[0]
         return full_rank_least_squares(B, r)
     factors = independent_qr(unit.T, threshold)
@@ -177,6 +206,16 @@ def _full_rank_step(B: np.ndarray, m_scale: np.ndarray, r: np.ndarray, threshold
     return Q1 @ (R_inv.T @ (r / m_scale))
 
 
+def objective_kind(M: np.ndarray, m_scale: np.ndarray) -> tuple[bool, bool]:
+    """``(identity, uniform)`` of an objective ``½‖M z - t‖²``: whether ``M`` is the identity with unit
+    reference norms (a projection), and whether every reference norm is the same."""
+    p = M.shape[1]
+    uniform = len(m_scale) > 0 and all_true(m_scale == m_scale[0])
+    identity = (uniform and M.shape[0] == p and float(m_scale[0]) == 1.0 and np.count_nonzero(M) == p
+                and all_true(M.diagonal() == 1.0))
+    return identity, uniform
+
+
 def eqp(
     M: np.ndarray,
     t: np.ndarray,
@@ -184,14 +223,17 @@ def eqp(
     E: np.ndarray,
     e: np.ndarray,
     threshold: float,
+    kind: tuple[bool, bool] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """The minimum-norm minimiser of ``½‖M z - t‖²`` s.t. ``E z = e`` (``E`` with unit rows), the
     multipliers ``λ`` of ``Mᵀ(M z - t) + Eᵀ λ = 0`` (minimum norm if ``E`` is rank deficient), and
-    an orthonormal basis ``N`` of ``E``'s null space (None: the whole space).
+    an orthonormal basis ``N`` of ``E``'s null space (None: the whole space). ``kind``: the
+    objective's :func:`objective_kind` (computed if None).
 
     Each factorisation is a QR when the matrix provably has full rank for τ (:func:`independent_qr`)
     and an SVD cut at τ otherwise; both give the same point in exact arithmetic."""
     p = M.shape[1]
+    identity, uniform = objective_kind(M, m_scale) if kind is None else kind
     if len(E):
         factors = independent_qr(E.T, threshold, full=True)
         if factors is not None:
@@ -207,8 +249,6 @@ def eqp(
             N = Vt[k:].T
     else:
         z, N = np.zeros(p), None
-    identity = (M.shape[0] == p and np.count_nonzero(M) == p and bool((M.diagonal() == 1.0).all())
-                and bool((m_scale == 1.0).all()))
     if identity:  # ½‖z - t‖² (the minimum-norm stage): N has orthonormal columns, no decomposition
         r = t - z
         z = z + (r if N is None else N @ (N.T @ r))
@@ -216,15 +256,15 @@ def eqp(
         B = M if N is None else M @ N
         if B.shape[1]:
             r = t - M @ z
-            u = _full_rank_step(B, m_scale, r, threshold) if min(B.shape) >= QR_MIN_SIZE else None
+            u = _full_rank_step(B, m_scale, r, threshold, uniform) if min(B.shape) >= QR_MIN_SIZE else None
             if u is None:
                 U2, s2, V2t = svd(B / m_scale[:, None], full_matrices=False)
                 k2 = int(np.count_nonzero(s2 > threshold))
-                u = scaled_least_squares(U2, s2, V2t, k2, m_scale, r) if k2 else None
+                u = scaled_least_squares(U2, s2, V2t, k2, m_scale, r, uniform) if k2 else None
             if u is not None:
                 z = z + (u if N is None else N @ u)
     if len(E):
-        gradient = M.T @ (M @ z - t) if len(M) else np.zeros(p)
+        gradient = (z - t if identity else M.T @ (M @ z - t)) if len(M) else np.zeros(p)
         if factors is not None:
             lam = -(R_inv @ (Q[:, :k].T @ gradient))
         else:
@@ -247,24 +287,31 @@ def solve_least_squares_qp(
     feasibility: float = 1e-10,
     max_iterations: int | None = None,
     errstate: bool = True,
+    kind: tuple[bool, bool] | None = None,
+    guess_valid: bool = False,
 ) -> ActiveSetResult:
     """Solve the problem of the module docstring from the feasible point ``z`` (``G`` unit rows).
 
     ``guess``: a side per row of ``G`` (-1, 0, +1), tried first. Raises :class:`ActiveSetFailure`
     if the iterations do not converge. ``errstate=False``: the caller has already silenced numpy's
-    warnings on ±∞ sides (``np.errstate(divide="ignore", invalid="ignore")``)."""
+    warnings on ±∞ sides (``np.errstate(divide="ignore", invalid="ignore")``). ``kind``: the
+    objective's :func:`objective_kind`, if the caller knows it. ``z`` is not written to.
+    ``guess_valid``: no row of ``guess`` is held at an infinite side (as in :func:`dual_guess`'s)."""
+    if kind is None:
+        kind = objective_kind(M, m_scale)
+    args = (M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid)
     if not errstate:
-        return _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations)
+        return _solve(*args)
     with np.errstate(divide="ignore", invalid="ignore"):  # ±∞ sides: once here, not per operation
-        return _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations)
+        return _solve(*args)
 
 
-def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations) -> ActiveSetResult:
+def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid) -> ActiveSetResult:
     m = len(G)
     equality = lower == upper
     if guess is not None and len(guess) == m:
-        side = _guessed_sides(guess, lower, upper)
-        candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility)
+        side = np.where(equality, 1, guess) if guess_valid else _guessed_sides(guess, lower, upper, equality)
+        candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality)
         if candidate is not None:
             return ActiveSetResult(candidate, side, 0, True, True)
         value = G @ z
@@ -279,6 +326,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
     if max_iterations is None:
         max_iterations = 10 * (m + M.shape[1]) + 50
     seen: set[bytes] = set()
+    m_max = float(m_scale.max(initial=0.0))
     bland = False
     last_dropped, dropped_side = -1, 0
     for iteration in range(1, max_iterations + 1):
@@ -287,7 +335,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
         e = np.where(side > 0, upper, lower)[held]
         # The minimum-norm step from z: along it a dropped row is left on its feasible side
         # (the absolute minimum-norm point is recomputed at the end).
-        step, lam, N = eqp(M, t - M @ z, m_scale, E, e - E @ z, threshold)
+        step, lam, N = eqp(M, t - M @ z, m_scale, E, e - E @ z, threshold, kind)
         target = z + step
         value, rate = G @ z, G @ step
         # Only rows independent of the working set can block (a dependent row's rate is round-off).
@@ -308,7 +356,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
                 # The row just dropped blocks at once: its multiplier's sign was round-off, the
                 # previous point (where it was held) is optimal.
                 side[blocking] = dropped_side
-                return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration)
+                return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration, kind)
             z = z + alpha * step
             side[blocking] = 1 if up[blocking] <= down[blocking] else -1
             last_dropped = -1
@@ -318,13 +366,13 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
                     bland = True
                 seen.add(key)
             continue
-        at_origin = not z.any()  # then the step is the absolute EQP point itself (bit for bit)
+        at_origin = not any_true(z)  # then the step is the absolute EQP point itself (bit for bit)
         z = target
         # Multipliers: λ ≥ 0 at an upper side, ≤ 0 at a lower side (equality rows: free), up to a
         # round-off tolerance relative to the gradient's scale.
         held_index = held.nonzero()[0]
         residual = M @ z - t if len(M) else np.zeros(0)
-        tolerance = 1e-9 * max(1.0, float(m_scale.max(initial=0.0)) * float(np.linalg.norm(residual)))
+        tolerance = 1e-9 * max(1.0, m_max * math.sqrt(float(residual @ residual)))
         wrong = np.where(equality[held_index], 0.0, -side[held_index] * lam)
         if wrong.size and wrong.max() > tolerance:
             leaving = held_index[int((wrong > tolerance).nonzero()[0][0]) if bland else int(np.argmax(wrong))]
@@ -337,13 +385,14 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
             continue
         if at_origin:  # _finish would recompute this very point
             return ActiveSetResult(z, side, iteration, False)
-        return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration)
+        return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration, kind)
     raise ActiveSetFailure(f"no convergence in {max_iterations} active-set iterations")
 
 
-def _guessed_sides(guess: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """A guess made a valid working set: equality rows held, no row held at an infinite side."""
-    side = np.where(lower == upper, 1, np.asarray(guess, dtype=int))
+def _guessed_sides(guess: np.ndarray, lower: np.ndarray, upper: np.ndarray, equality: np.ndarray) -> np.ndarray:
+    """A guess made a valid working set: equality rows held, no row held at an infinite side
+    (``equality``: ``lower == upper``)."""
+    side = np.where(equality, 1, guess)
     side[((side < 0) & (lower == -np.inf)) | ((side > 0) & (upper == np.inf))] = 0  # (no NaN: refused at input)
     return side
 
@@ -352,24 +401,27 @@ def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
                regularization: float = 1e-9) -> np.ndarray | None:
     """A guess of the working set (a side per row of ``G``) from Goldfarb-Idnani's dual active-set
     method (quadprog, compiled) on the problem made strictly convex by ``regularization``·I (scaled
-    by ``‖M‖²``). Only a guess: the caller checks it exactly. None if quadprog refuses."""
+    by ``‖M‖²``). Only a guess: the caller checks it exactly. None if quadprog refuses. A row is
+    never held at an infinite side (those sides are not given to quadprog)."""
     p = G.shape[1]
-    H = M.T @ M
-    H.flat[:: p + 1] += regularization * max(1.0, float(H.trace()) / max(p, 1))
+    H = M.T @ M  # (a new C-ordered array: reshape gives a view of its diagonal)
+    H.reshape(-1)[:: p + 1] += regularization * max(1.0, float(H.trace()) / max(p, 1))
     lower_rows, upper_rows = (lower > -np.inf).nonzero()[0], (upper < np.inf).nonzero()[0]
-    C = np.concatenate([G[lower_rows], -G[upper_rows]])
-    b = np.concatenate([lower[lower_rows], -upper[upper_rows]])
-    if len(C) == 0:
+    n_low = len(lower_rows)
+    rows = np.concatenate([lower_rows, upper_rows])
+    if len(rows) == 0:
         return np.zeros(len(G), dtype=int)
+    C = G[rows]
+    C[n_low:] *= -1.0
+    b = np.concatenate([lower, -upper])[np.concatenate([lower_rows, upper_rows + len(G)])]
     try:
         active = quadprog.solve_qp(H, M.T @ t, C.T, b, 0)[5]
     except ValueError:
         return None
-    active = active[active > 0] - 1
+    active = active - 1  # (quadprog's 1-based indices of its active rows of C: the lower sides first)
     side = np.zeros(len(G), dtype=int)
-    n_low = len(lower_rows)
-    side[lower_rows[active[active < n_low]]] = -1
-    side[upper_rows[active[active >= n_low] - n_low]] = 1
+    if len(active):  # (a row held at both sides has lower == upper: the caller holds it as an equality)
+        side[rows[active]] = np.where(active < n_low, -1, 1)
     return side
 
 
@@ -388,46 +440,39 @@ def projection_guess(t: np.ndarray, G: np.ndarray, lower: np.ndarray, upper: np.
     return dual_guess(np.eye(p), t, G, lower, upper, regularization=0.0)
 
 
-def _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration) -> ActiveSetResult:
+def _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration, kind) -> ActiveSetResult:
     """The optimum: the absolute minimum-norm EQP point of the final working set if it is feasible
     (a function of the working set alone), else the iterate (same objective value)."""
-    final = _feasible_eqp(M, t, m_scale, G, lower, upper, side, threshold, feasibility)
-    return ActiveSetResult(z if final is None else final, side, iteration, False, final is not None)
-
-
-def _eqp_of(M, t, m_scale, G, lower, upper, side, threshold):
     held = side != 0
-    e = np.where(side > 0, upper, lower)[held]
-    return eqp(M, t, m_scale, G[held], e, threshold)
+    final = eqp(M, t, m_scale, G[held], np.where(side > 0, upper, lower)[held], threshold, kind)[0]
+    if not feasible(G, lower, upper, final, feasibility):
+        return ActiveSetResult(z, side, iteration, False, False)
+    return ActiveSetResult(final, side, iteration, False, True)
 
 
 def feasible(G: np.ndarray, lower: np.ndarray, upper: np.ndarray, z: np.ndarray, feasibility: float) -> bool:
     """Whether ``lower ≤ G z ≤ upper`` holds to ``feasibility`` (absolute, relative above 1); the
-    caller silences numpy's warnings on ±∞ sides."""
+    caller silences numpy's warnings on ±∞ sides. A point inside the sides exactly passes at once."""
     value = G @ z
-    return not ((value < lower - feasibility * np.maximum(1.0, np.abs(lower))).any()
-                or (value > upper + feasibility * np.maximum(1.0, np.abs(upper))).any())
+    if all_true(value >= lower) and all_true(value <= upper):
+        return True
+    return not (any_true(value < lower - feasibility * np.maximum(1.0, np.abs(lower)))
+                or any_true(value > upper + feasibility * np.maximum(1.0, np.abs(upper))))
 
 
-def _feasible_eqp(M, t, m_scale, G, lower, upper, side, threshold, feasibility) -> np.ndarray | None:
-    """The (absolute, minimum-norm) EQP point of the working set ``side`` if it is feasible."""
-    z = _eqp_of(M, t, m_scale, G, lower, upper, side, threshold)[0]
-    return z if feasible(G, lower, upper, z, feasibility) else None
-
-
-def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility) -> np.ndarray | None:
+def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality) -> np.ndarray | None:
     """The EQP point of the working set ``side`` if it satisfies the KKT conditions, else None."""
     held = side.nonzero()[0]
-    held_side, held_lower, held_upper = side[held], lower[held], upper[held]
-    z, lam, _ = eqp(M, t, m_scale, G[held], np.where(held_side > 0, held_upper, held_lower), threshold)
+    held_side = side[held]
+    z, lam, _ = eqp(M, t, m_scale, G[held], np.where(side > 0, upper, lower)[held], threshold, kind)
     if not feasible(G, lower, upper, z, feasibility):
         return None
     if len(held):
         wrong = -held_side * lam
-        wrong[held_lower == held_upper] = 0.0  # equality rows: either sign
+        wrong[equality[held]] = 0.0  # equality rows: either sign
         worst = float(wrong.max())
         if worst > 1e-9:  # the tolerance is at least 1e-9: only then is it worth computing
             residual = M @ z - t if len(M) else np.zeros(0)
-            if worst > 1e-9 * max(1.0, float(m_scale.max(initial=0.0)) * float(np.linalg.norm(residual))):
+            if worst > 1e-9 * max(1.0, float(m_scale.max(initial=0.0)) * math.sqrt(float(residual @ residual))):
                 return None
     return z

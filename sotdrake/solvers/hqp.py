@@ -27,7 +27,7 @@ How a level is solved:
   is a function of the final working set only), else the active set of Goldfarb-Idnani's dual
   method (quadprog) on the level made strictly convex, else (quadprog refusing) the sides of the
   bounds and held rows active at the end of the level above. An equality-only level with no bound in the way is one
-  least-squares step (from the SVD that also gives the next ``Z``), checked against the bounds and
+  least-squares step (from the factorisation, QR or SVD, that also gives the next ``Z``), checked against the bounds and
   held rows in ``x`` before any stage is built; the minimum-norm stage likewise tries its
   unconstrained point first when its previous call ended with an empty working set;
 * a Drake solver (``"clarabel"``, ``"osqp"``, ``"snopt"``) can be chosen instead, for every level or
@@ -53,6 +53,7 @@ library default cutoff is used.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -68,9 +69,14 @@ from pydrake.solvers import (
 
 from ..exceptions import InvalidInput, SolverError
 from .active_set import (
+    QR_MIN_SIZE,
     RANK_THRESHOLD,
     ActiveSetFailure,
+    all_true,
+    any_true,
     dual_guess,
+    independent_qr,
+    objective_kind,
     projection_guess,
     scaled_least_squares,
     solve_least_squares_qp,
@@ -119,27 +125,30 @@ class LevelRows:
         A, lower, upper = (np.asarray(a, dtype=float) for a in (A, lower, upper))
         if A.ndim != 2 or lower.shape != (A.shape[0],) or upper.shape != (A.shape[0],):
             raise InvalidInput(f"level rows: A {A.shape}, lower {lower.shape}, upper {upper.shape} do not fit")
-        if not np.isfinite(A).all() or np.isnan(lower).any() or np.isnan(upper).any():
+        ordered = lower <= upper  # False on a NaN side too: the cause is looked for only then
+        if not all_true(np.isfinite(A)) or (not all_true(ordered) and any_true(np.isnan(lower) | np.isnan(upper))):
             raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
-        if (lower > upper).any():
+        if not all_true(ordered):
             raise InvalidInput(f"level rows: lower bound above upper bound in rows {np.flatnonzero(lower > upper)}")
         self.A, self.lower, self.upper = A, lower, upper
         self.equality = equality = lower == upper
         self.extend = extend
         # The split the solver reads at every stage, made once.
-        self.all_equality = bool(equality.all())
+        self.all_equality = all_true(equality)
         if self.all_equality:
             self.any_equality = len(A) > 0
+            self.inequality = _NO_ROW_MASK if len(A) == 0 else np.zeros(len(A), dtype=bool)
             self.A_eq, self.b_eq = A, lower
             self.A_in, self.lower_in, self.upper_in = A[:0], lower[:0], upper[:0]
         else:
-            inequality = ~equality
-            self.any_equality = bool(equality.any())
+            self.inequality = inequality = ~equality
+            self.any_equality = any_true(equality)
             self.A_eq, self.b_eq = A[equality], lower[equality]
             self.A_in, self.lower_in, self.upper_in = A[inequality], lower[inequality], upper[inequality]
-        if not np.isfinite(self.b_eq).all():
+        if not all_true(np.isfinite(self.b_eq)):
             raise InvalidInput("level rows: an equality row needs a finite value")
         self.eq_norms = _row_norms(self.A_eq)
+        self.in_norms = _row_norms(self.A_in) if len(self.A_in) else lower[:0]  # (reference norms once held)
 
     def slack(self, x: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
         """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows
@@ -185,6 +194,12 @@ class _Program:
 
 
 _FREE_MINIMUM_NORM = "free minimum-norm stage"
+_NO_ROWS = np.zeros(0, dtype=int)  # the active rows of an equality-only level (shared, read only)
+_NO_ROWS.flags.writeable = False
+_NO_ROW_MASK = np.zeros(0, dtype=bool)
+_NO_ROW_MASK.flags.writeable = False
+_WARM_PATHS = (ACTIVE_SET, "cold", "clarabel", "osqp")  # the default path's order, with a cached working set
+_COLD_PATHS = (ACTIVE_SET, "clarabel", "osqp")
 
 
 def _row_norms(A: np.ndarray) -> np.ndarray:
@@ -201,6 +216,37 @@ def null_space(M: np.ndarray, threshold: float) -> np.ndarray:
     return Vt[int(np.count_nonzero(sigma > threshold)):].T
 
 
+class _EqualityFactors:
+    """A level's projected equality rows at unit norm, ``B = (A_eq Z) / ‖rows of A_eq‖`` (m × r),
+    factorised once: the orthonormal basis ``null`` of ``{y : B y = 0}`` (the next levels' ``Z`` is
+    ``Z @ null``) and the minimum-norm least-squares step :meth:`step`. Householder QR of ``Bᵀ`` if
+    it proves every singular value of ``B`` above τ (:func:`~.active_set.independent_qr`: the rows
+    are independent, the step solves them exactly), else the SVD cut at τ; both give the same
+    subspace and step in exact arithmetic."""
+
+    __slots__ = ("norms", "null", "qr", "rank", "svd")
+
+    def __init__(self, B: np.ndarray, norms: np.ndarray, threshold: float):
+        self.norms = norms
+        m, r = B.shape
+        self.qr = independent_qr(B.T, threshold, full=True) if m >= QR_MIN_SIZE else None
+        if self.qr is not None:
+            self.null, self.rank = self.qr[0][:, m:], m
+        else:
+            U, sigma, Vt = svd(B)
+            self.svd = (U, sigma, Vt)
+            self.rank = rank = int(np.count_nonzero(sigma > threshold))
+            self.null = Vt[rank:].T
+
+    def step(self, rhs: np.ndarray) -> np.ndarray:
+        """The minimum-norm ``y`` minimising ``‖A_eq Z y - rhs‖`` (rank decisions on ``B``)."""
+        if self.qr is not None:  # B = Rᵀ Q1ᵀ: B y = rhs / norms exactly, y = Q1 R⁻ᵀ (rhs / norms)
+            Q, R_inv = self.qr
+            return Q[:, :self.rank] @ (R_inv.T @ (rhs / self.norms))
+        U, sigma, Vt = self.svd
+        return scaled_least_squares(U, sigma, Vt, self.rank, self.norms, rhs)
+
+
 @dataclass
 class _Stage:
     """One stage in ``z = (y, w)``: min ½‖M z - t‖² s.t. lower ≤ G z ≤ upper (G unit rows)."""
@@ -213,8 +259,10 @@ class _Stage:
     upper: np.ndarray
     z0: np.ndarray
     r: int
-    hard: np.ndarray  # indices (into the full list of hard rows) of G's first rows
+    hard: np.ndarray | None  # indices (into the full list of hard rows) of G's first rows (None: all of them)
     guess: np.ndarray  # a side per row of G
+    m_hard: int = 0  # how many of G's first rows are hard rows
+    kind: tuple[bool, bool] | None = None  # the objective's active_set.objective_kind, if known
 
 
 class HierarchicalQP:
@@ -251,6 +299,17 @@ class HierarchicalQP:
         # with an empty working set (then its unconstrained point is tried first).
         self._working_sets: dict = {}
         self._solvers: dict[str, tuple] = {}
+        self._identity = np.eye(n)  # a constant (never written to)
+        self._unit: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # a cache of constants, see _constants
+
+    def _constants(self, r: int) -> tuple[np.ndarray, np.ndarray]:
+        """The minimum-norm stage's objective ``(I_r, ones(r))``, made once per size, read only."""
+        pair = self._unit.get(r)
+        if pair is None:
+            identity, ones = np.eye(r), np.ones(r)
+            identity.flags.writeable = ones.flags.writeable = False
+            pair = self._unit[r] = (identity, ones)
+        return pair
 
     def _drake(self, name: str):
         if name not in self._solvers:
@@ -271,11 +330,13 @@ class HierarchicalQP:
         solver = self.solver if solver is None else check_solver(solver)
         n = self.n
         x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
-        if x_lower.shape != (n,) or x_upper.shape != (n,) or np.isnan(x_lower).any() or np.isnan(x_upper).any():
+        if x_lower.shape != (n,) or x_upper.shape != (n,):
             raise InvalidInput(f"bounds must be {n} numbers without NaN")
-        if (x_lower > x_upper).any():
+        if not all_true(x_lower <= x_upper):  # (False on a NaN too: the cause is looked for only then)
+            if any_true(np.isnan(x_lower) | np.isnan(x_upper)):
+                raise InvalidInput(f"bounds must be {n} numbers without NaN")
             raise InvalidInput(f"lower bound above upper bound at {np.flatnonzero(x_lower > x_upper)}")
-        if not np.isfinite(x_lower[x_lower == x_upper]).all():
+        if not all_true(np.isfinite(x_lower[x_lower == x_upper])):
             raise InvalidInput("a fixed component (lower == upper) needs a finite value")
         if not (np.isfinite(damping) and damping >= 0):
             raise InvalidInput(f"damping must be finite and ≥ 0, got {damping}")
@@ -289,14 +350,19 @@ class HierarchicalQP:
     def _solve_stages(self, levels, x_lower, x_upper, damping, solver, start) -> HqpResult:
         n = self.n
         fixed = x_lower == x_upper
-        x = np.where(fixed, x_lower, 0.0)
-        Z = np.eye(n)[:, ~fixed]
+        if any_true(fixed):
+            x = np.where(fixed, x_lower, 0.0)
+            Z = self._identity[:, ~fixed]
+        else:
+            x, Z = np.zeros(n), self._identity  # (read only: every later Z is a new array)
         free = (~fixed & (np.isfinite(x_lower) | np.isfinite(x_upper))).nonzero()[0]  # bound rows that can bind
         # The hard rows, in x, with the side each was left at: the bounds of the free components (unit
         # rows, kept as indices), then the held inequality rows (their matrix: held).
         held, hard_lower, hard_upper = np.zeros((0, n)), x_lower[free], x_upper[free]
         hard_norms = np.ones(len(free))  # reference norms of the hard rows
         hard_side = np.zeros(len(free), dtype=int)
+        if len(free) == n:  # every component bounded: its rows are read as views, not copied
+            free = slice(None)
         used: list[str] = []
         iterations: list[int] = []
         carried: list[Extension] = []
@@ -306,14 +372,13 @@ class HierarchicalQP:
             mu = damping if k == len(levels) - 1 else 0.0
             name = self.level_solvers[k] if k < len(self.level_solvers) and level is not None else solver
             hard = (free, hard_norms, held, hard_lower, hard_upper, hard_side)
-            # One SVD of the level's (unit-row) projected equality rows: its null space is the next
-            # levels' Z, and an equality-only level may be solved by its least-squares step alone.
-            eq_svd = None
+            # One factorisation of the level's (unit-row) projected equality rows: its null space is the
+            # next levels' Z, and an equality-only level may be solved by its least-squares step alone.
+            eq_factors = None
             if level is not None and level.any_equality and Z.shape[1]:
                 norms = level.eq_norms
-                U, sigma, Vt = svd(level.A_eq @ Z / norms[:, None])
-                eq_svd = (U, sigma, Vt, int(np.count_nonzero(sigma > self.rank_threshold)), norms)
-            x, side, how, count = self._stage(k, level, x, Z, hard, mu, name, list(carried), fallbacks, eq_svd)
+                eq_factors = _EqualityFactors(level.A_eq @ Z / norms[:, None], norms, self.rank_threshold)
+            x, side, how, count = self._stage(k, level, x, Z, hard, mu, name, carried, fallbacks, eq_factors)
             if level is not None and level.extend is not None:
                 carried.append(level.extend)
             used.append(how)
@@ -321,8 +386,8 @@ class HierarchicalQP:
             if level is None:
                 break
             hard_side = side
-            if eq_svd is not None:  # = null_space(A_eq Z / ‖rows of A_eq‖), the same SVD
-                Z = Z @ eq_svd[2][eq_svd[3]:].T
+            if eq_factors is not None:  # = null_space(A_eq Z / ‖rows of A_eq‖), the same factorisation
+                Z = Z @ eq_factors.null
             elif level.any_equality:
                 Z = Z[:, :0]
             if not level.all_equality:
@@ -330,12 +395,13 @@ class HierarchicalQP:
                 value = A_in @ x
                 slack = np.maximum(np.maximum(lo - value, value - hi), 0.0)
                 magnitude = np.maximum(1.0, np.abs(value))
-                band = self.hold_tolerance * magnitude if self.hold_tolerance else 0.0
                 row_side = np.where(value >= hi - 1e-12 * magnitude, 1, np.where(value <= lo + 1e-12 * magnitude, -1, 0))
                 held = np.concatenate([held, A_in])
-                hard_norms = np.concatenate([hard_norms, _row_norms(A_in)])  # (once per level)
-                hard_lower = np.concatenate([hard_lower, lo - slack - band])
-                hard_upper = np.concatenate([hard_upper, hi + slack + band])
+                hard_norms = np.concatenate([hard_norms, level.in_norms])
+                if self.hold_tolerance:
+                    slack = slack + self.hold_tolerance * magnitude
+                hard_lower = np.concatenate([hard_lower, lo - slack])
+                hard_upper = np.concatenate([hard_upper, hi + slack])
                 hard_side = np.concatenate([hard_side, row_side])
         result = self._result(levels, x, x_lower, x_upper, fixed, used)
         result.iterations = iterations
@@ -355,8 +421,8 @@ class HierarchicalQP:
             C, offset = Z[free], x0[free]
         projected = np.sqrt(np.einsum("ij,ij->i", C, C))
         keep = projected > tau * reference  # the others are constant over the stage
-        if keep.all():
-            kept, scale, low, high, sides = np.arange(len(keep)), projected, hard_lower, hard_upper, hard_side
+        if all_true(keep):
+            kept, scale, low, high, sides = None, projected, hard_lower, hard_upper, hard_side
         else:
             kept = keep.nonzero()[0]
             C, offset, scale, low, high, sides = C[kept], offset[kept], projected[kept], hard_lower[kept], hard_upper[kept], hard_side[kept]
@@ -364,8 +430,9 @@ class HierarchicalQP:
         c_lower = (np.minimum(low, offset) - offset) / scale
         c_upper = (np.maximum(high, offset) - offset) / scale
         if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)
-            return _Stage(np.eye(r), -(Z.T @ x0), np.ones(r), C / scale[:, None], c_lower, c_upper, np.zeros(r), r,
-                          kept, sides)
+            identity, ones = self._constants(r)
+            return _Stage(identity, -(Z.T @ x0), ones, C / scale[:, None], c_lower, c_upper, np.zeros(r), r,
+                          kept, sides, len(C), (True, True))
         A_eq, A_in = level.A_eq, level.A_in
         m_eq, m_in = len(A_eq), len(A_in)
         if m_in == 0:  # no soft row: z = y
@@ -375,17 +442,21 @@ class HierarchicalQP:
                 M = np.vstack([M, np.sqrt(mu) * np.eye(r)])
                 t = np.concatenate([t, np.zeros(r)])
                 m_scale = np.concatenate([m_scale, np.full(r, np.sqrt(mu))])
-            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, kept, sides)
+            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, kept, sides, len(C),
+                          objective_kind(M, m_scale))
         # The objective ‖A_eq (x0 + Z y) - b‖² + ‖w‖² (+ μ‖y‖²): M = [[A_eq Z, 0], [0, I], [√μ I, 0]].
         m_damped = r if mu > 0.0 else 0
-        M = np.zeros((m_eq + m_in + m_damped, r + m_in))
-        M[:m_eq, :r] = A_eq @ Z
-        rows = np.arange(m_in)
-        M[m_eq + rows, r + rows] = 1.0
+        p = r + m_in
+        M = np.zeros((m_eq + m_in + m_damped, p))
+        start = m_eq * p + r  # M's diagonal block at (m_eq, r), through a flat view
+        M.reshape(-1)[start : start + m_in * (p + 1) : p + 1] = 1.0
         t = np.zeros(len(M))
-        t[:m_eq] = level.b_eq - A_eq @ x0
-        m_scale = np.ones(len(M))
-        m_scale[:m_eq] = level.eq_norms
+        m_scale = np.empty(len(M))
+        m_scale.fill(1.0)  # (np.ones: a Python wrapper around these two calls)
+        if m_eq:
+            M[:m_eq, :r] = A_eq @ Z
+            t[:m_eq] = level.b_eq - A_eq @ x0
+            m_scale[:m_eq] = level.eq_norms
         if mu > 0.0:
             diagonal = np.arange(r)
             M[m_eq + m_in + diagonal, diagonal] = np.sqrt(mu)
@@ -396,26 +467,30 @@ class HierarchicalQP:
         soft_scale = np.sqrt(np.einsum("ij,ij->i", AZ, AZ) + 1.0)
         w0 = np.minimum(np.maximum(value - level.upper_in, 0.0), value - level.lower_in)  # np.clip(0, ., .)
         m_hard = len(C)
-        G = np.zeros((m_hard + m_in, r + m_in))
+        G = np.zeros((m_hard + m_in, p))
         np.divide(C, scale[:, None], out=G[:m_hard, :r])
         np.divide(AZ, soft_scale[:, None], out=G[m_hard:, :r])
-        G[m_hard + rows, r + rows] = -1.0 / soft_scale
+        start = m_hard * p + r
+        G.reshape(-1)[start : start + m_in * (p + 1) : p + 1] = -1.0 / soft_scale
         lower = np.concatenate([c_lower, (level.lower_in - value) / soft_scale])
         upper = np.concatenate([c_upper, (level.upper_in - value) / soft_scale])
-        z0 = np.zeros(r + m_in)
+        z0 = np.zeros(p)
         z0[r:] = w0
-        return _Stage(M, t, m_scale, G, lower, upper, z0, r, kept, np.concatenate([sides, np.zeros(m_in, dtype=int)]))
+        guess = np.zeros(m_hard + m_in, dtype=int)
+        guess[:m_hard] = sides
+        # (M holds a slack's identity block beside its other columns: never the identity itself)
+        return _Stage(M, t, m_scale, G, lower, upper, z0, r, kept, guess, m_hard, (False, all_true(m_scale == m_scale[0])))
 
-    def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks, eq_svd=None):
+    def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks, eq_factors=None):
         """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard
-        rows at the end, how it was solved, the active-set iterations. ``eq_svd``: the SVD
-        ``(U, σ, Vt, rank, row norms)`` of the level's unit-row projected equality rows, if it has some."""
+        rows at the end, how it was solved, the active-set iterations. ``eq_factors``: the
+        :class:`_EqualityFactors` of the level's unit-row projected equality rows, if it has some."""
         r = Z.shape[1]
         if r == 0:
             return x0, hard[5].copy(), ACTIVE_SET, 0
-        if (eq_svd is not None and name == ACTIVE_SET and mu == 0.0 and level.extend is None and not carried
+        if (eq_factors is not None and name == ACTIVE_SET and mu == 0.0 and level.extend is None and not carried
                 and level.all_equality):
-            x = self._least_squares_level(level, x0, Z, hard, eq_svd)
+            x = self._least_squares_level(level, x0, Z, hard, eq_factors)
             if x is not None:
                 return x, np.zeros(len(hard[5]), dtype=int), ACTIVE_SET, 0
         if level is None and name == ACTIVE_SET and not carried and self._working_sets.get(_FREE_MINIMUM_NORM, False):
@@ -431,7 +506,7 @@ class HierarchicalQP:
         cached = self._working_sets.get(key)
         guess = cached if cached is not None else stage.guess
         what = "the minimum-norm stage" if level is None else f"level {k}"
-        failures = []
+        failures: list[str] = []
         if (level is not None and level.extend is not None) or carried:
             drake_name = name if name in SOLVERS else "clarabel"
             for attempt in dict.fromkeys([drake_name, "osqp"]):
@@ -443,12 +518,15 @@ class HierarchicalQP:
             raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
         # The active set warm (the cached working set), then cold (the dual method's guess) if the
         # warm path failed, then the Drake solvers polished.
-        paths = [name] if name == ACTIVE_SET else [name, ACTIVE_SET]
-        if cached is not None:
-            paths.insert(paths.index(ACTIVE_SET) + 1, "cold")
-        paths += [p for p in ("clarabel", "osqp") if p not in paths]
+        paths: Sequence[str]
+        if name == ACTIVE_SET:
+            paths = _WARM_PATHS if cached is not None else _COLD_PATHS
+        else:
+            first = [name, ACTIVE_SET] + (["cold"] if cached is not None else [])
+            paths = first + [p for p in ("clarabel", "osqp") if p not in first]
         for path in paths:
             try:
+                valid = False  # whether no row of the guess is held at an infinite side
                 if path in (ACTIVE_SET, "cold"):
                     start_guess, label = guess, ACTIVE_SET
                     if cached is None or path == "cold":  # no warm start: ask the compiled dual method
@@ -456,7 +534,7 @@ class HierarchicalQP:
                         dual = (projection_guess(stage.t, stage.G, stage.lower, stage.upper) if level is None
                                 else dual_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper))
                         if dual is not None:
-                            start_guess = dual
+                            start_guess, valid = dual, level is not None
                 else:
                     x, message = self._program(level, x0, Z, hard, mu, path)
                     if x is None:
@@ -470,8 +548,8 @@ class HierarchicalQP:
                         z[r:] = value - np.clip(value, level.lower[~level.equality], level.upper[~level.equality])
                     start_guess, label = self._sides(stage, z), path + "+polish"
                 solution = solve_least_squares_qp(
-                    stage.M, stage.t, stage.m_scale, stage.G, stage.lower, stage.upper, stage.z0.copy(),
-                    guess=start_guess, threshold=self.rank_threshold, errstate=False,
+                    stage.M, stage.t, stage.m_scale, stage.G, stage.lower, stage.upper, stage.z0,
+                    guess=start_guess, threshold=self.rank_threshold, errstate=False, kind=stage.kind, guess_valid=valid,
                 )
             except ActiveSetFailure as error:
                 failures.append(f"{path}: {error}")
@@ -480,17 +558,18 @@ class HierarchicalQP:
             # A point the active set verified on every row to 1e-10 (≤ the feasibility tolerance)
             # only needs to be finite; any other is checked on the bounds and held rows.
             verified = solution.verified and self.feasibility_tolerance >= 1e-10
-            if not (bool(np.isfinite(y).all()) if verified else self._accept(stage, y)):
+            if not (all_true(np.isfinite(y)) if verified else self._accept(stage, y)):
                 failures.append(f"{path}: a point outside the bounds")
                 continue
             self._working_sets[key] = solution.side
             if level is None:
-                self._working_sets[_FREE_MINIMUM_NORM] = not solution.side.any()
-            fallbacks += [f"{what}: {failure}" for failure in failures]
+                self._working_sets[_FREE_MINIMUM_NORM] = not any_true(solution.side)
+            if failures:
+                fallbacks += [f"{what}: {failure}" for failure in failures]
             return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
 
-    def _least_squares_level(self, level, x0, Z, hard, eq_svd) -> np.ndarray | None:
+    def _least_squares_level(self, level, x0, Z, hard, eq_factors) -> np.ndarray | None:
         """An equality-only level by its least-squares step alone, or None: the EQP point of the
         empty working set (the minimum-norm weighted least-squares step, from the level's SVD) is
         the level's optimum if it satisfies the bounds and held rows (the KKT conditions with no
@@ -499,46 +578,45 @@ class HierarchicalQP:
         with the step ``d = Z y`` must satisfy ``lo - c·x0 - 1e-10·max(s, |lo - c·x0|) ≤ c·d``
         (and the same at the upper side), ``lo`` relaxed to ``c·x0`` where x0 is outside. A step
         that meets every row exactly passes it without the norms being computed."""
-        U, sigma, Vt, rank, norms = eq_svd
-        r = Z.shape[1]
-        y = scaled_least_squares(U, sigma, Vt, rank, norms, level.lower - level.A @ x0) if rank else np.zeros(r)
+        y = eq_factors.step(level.lower - level.A @ x0) if eq_factors.rank else np.zeros(Z.shape[1])
         return self._free_step(x0, Z, hard, y)
 
     def _free_step(self, x0, Z, hard, y) -> np.ndarray | None:
         """``x0 + Z y`` if the step ``y`` (the EQP point of a stage's empty working set) is finite and
         satisfies the stage's bounds and held rows (see :meth:`_least_squares_level`), else None."""
-        if not np.isfinite(y).all():
+        if not all_true(np.isfinite(y)):
             return None
         free, reference, held, hard_lower, hard_upper, _ = hard
+        d = Z @ y  # the step in x: a hard row c (a bound's unit row, or a held row) changes by c·d
         if len(held):
-            C = np.concatenate([Z[free], held @ Z])
+            change = np.concatenate([d[free], held @ d])
             offset = np.concatenate([x0[free], held @ x0])
         else:
-            C, offset = Z[free], x0[free]
+            change, offset = d[free], x0[free]
         lo = np.minimum(hard_lower, offset) - offset
         hi = np.maximum(hard_upper, offset) - offset
-        change = C @ y
-        if not ((change >= lo).all() and (change <= hi).all()):
+        if not (all_true(change >= lo) and all_true(change <= hi)):
+            C = np.concatenate([Z[free], held @ Z]) if len(held) else Z[free]
             scale = np.sqrt(np.einsum("ij,ij->i", C, C))
             keep = scale > self.rank_threshold * reference
-            if (keep & (lo == hi)).any():  # a pinned row: the general path holds it in the working set
+            if any_true(keep & (lo == hi)):  # a pinned row: the general path holds it in the working set
                 return None
-            if (keep & ((change < lo - 1e-10 * np.maximum(scale, np.abs(lo)))
-                        | (change > hi + 1e-10 * np.maximum(scale, np.abs(hi))))).any():
+            if any_true(keep & ((change < lo - 1e-10 * np.maximum(scale, np.abs(lo)))
+                                | (change > hi + 1e-10 * np.maximum(scale, np.abs(hi))))):
                 return None
-        return x0 + Z @ y
+        return x0 + d
 
     def _accept(self, stage: _Stage, y: np.ndarray) -> bool:
         """A path's point is kept if it is finite and inside the bounds."""
-        return bool(np.isfinite(y).all()) and self._bounds_hold(stage, y)
+        return all_true(np.isfinite(y)) and self._bounds_hold(stage, y)
 
     def _bounds_hold(self, stage: _Stage, y: np.ndarray) -> bool:
-        m_hard = len(stage.hard)
+        m_hard = stage.m_hard
         value = stage.G[:m_hard, :stage.r] @ y
         lo, hi = stage.lower[:m_hard], stage.upper[:m_hard]
         tol = self.feasibility_tolerance
-        return bool((value >= lo - tol * np.maximum(1.0, np.abs(lo))).all()
-                    and (value <= hi + tol * np.maximum(1.0, np.abs(hi))).all())
+        return (all_true(value >= lo - tol * np.maximum(1.0, np.abs(lo)))
+                and all_true(value <= hi + tol * np.maximum(1.0, np.abs(hi))))
 
     @staticmethod
     def _sides(stage: _Stage, z: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:
@@ -548,8 +626,10 @@ class HierarchicalQP:
 
     @staticmethod
     def _hard_sides(hard_side: np.ndarray, stage: _Stage, side: np.ndarray) -> np.ndarray:
+        if stage.hard is None:
+            return side[:stage.m_hard].copy()
         out = np.zeros(len(hard_side), dtype=int)
-        out[stage.hard] = side[:len(stage.hard)]
+        out[stage.hard] = side[:stage.m_hard]
         return out
 
     def _program(self, level, x0, Z, hard, mu, name, carried=None):
@@ -607,17 +687,17 @@ class HierarchicalQP:
             r = level.A @ x
             slacks.append(level.slack(x, r))
             if level.all_equality:
-                active.append(np.zeros(0, dtype=int))
+                active.append(_NO_ROWS)
                 continue
             scale = 1e-7 * np.maximum(1.0, np.abs(r))
             at_bound = (np.abs(r - level.lower) <= scale) | (np.abs(r - level.upper) <= scale)
-            active.append((at_bound & ~level.equality).nonzero()[0])
+            active.append((at_bound & level.inequality).nonzero()[0])
         scale = 1e-7 * np.maximum(1.0, np.abs(x))
         bounds = (~fixed & ((np.abs(x - x_lower) <= scale) | (np.abs(x - x_upper) <= scale))).nonzero()[0]
         return HqpResult(
             x=x,
             slacks=slacks,
-            slack_norms=np.array([np.sqrt(s @ s) for s in slacks]),
+            slack_norms=np.array([math.sqrt(float(s @ s)) for s in slacks]),
             active_rows=active,
             active_bounds=bounds,
             level_solvers=used,

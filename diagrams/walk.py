@@ -60,7 +60,16 @@ from sotdrake import (
 )
 from sotdrake.exceptions import InvalidInput
 from sotdrake.robots import RobotModel
-from sotdrake.walking import ComStabilizer, GaitParameters, GravityFeedforward, MeasuredCom, PatternGenerator, start_of
+from sotdrake.walking import (
+    ComStabilizer,
+    GaitParameters,
+    GravityFeedforward,
+    MeasuredCom,
+    PatternGenerator,
+    leg_masses,
+    motion_zmp,
+    start_of,
+)
 from sotdrake.walking.com_planner import GRAVITY
 from sotdrake.walking.support import footprint, polygon_margin, support_polygon
 
@@ -78,6 +87,8 @@ class WalkingRobot:
     excluded: tuple[str, ...] = ()
     add_physical: Callable | None = None
     gait: GaitParameters = field(default_factory=GaitParameters)
+    #: For ``--multibody-zmp``: the name prefixes of the legs' bodies and the sole frames (left, right).
+    legs: tuple[tuple[str, str], tuple[str, str]] | None = None
 
 
 def _add_physical_talos(builder, dt, **options):
@@ -91,7 +102,8 @@ SIDES = ("left", "right")
 ROBOTS: dict[str, WalkingRobot] = {
     "talos": WalkingRobot(load=lambda: load_talos("reduced"),
                           excluded=TALOS_GRIPPERS,
-                          add_physical=_add_physical_talos),
+                          add_physical=_add_physical_talos,
+                          legs=(("leg_left_", "leg_right_"), ("left_sole_link", "right_sole_link"))),
     # Romeo (sot-romeo's 31-joint model): its foot is the bounding box of the collision mesh of
     # its ankle link, 0.244 m long from 8.9 cm behind the sole frame, 0.112 m wide (the narrower
     # half mirrored, so one footprint serves both feet). Swing apex 3 cm: at 5 cm the swinging
@@ -146,11 +158,13 @@ class Walk:
 def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | None = None,
                   steps: tuple[int, float] | None = None, mode: str = "kinematic", solver: str = "hqp",
                   dt: float = 1e-3, gait: GaitParameters | None = None, meshcat: Meshcat | None = None,
-                  servos: Servos | None = None) -> Walk:
+                  servos: Servos | None = None, multibody_zmp: bool = False) -> Walk:
     """The walk's diagram. ``velocity``: the command from t = 0; ``then``: ``(T, x, y, θ)``, a new
     command at T; ``steps``: ``(n, length)`` instead of a velocity; ``solver``: ``'hqp'``
     (``SolverKine``, with the arms' inequality tasks) or ``'cascade'`` (basic ``SOT``, without them);
-    ``servos``: the physics mode's servo options (:class:`Servos`)."""
+    ``servos``: the physics mode's servo options (:class:`Servos`); ``multibody_zmp``: the CoM is
+    planned with the legs' momentum (:func:`~sotdrake.walking.multibody_zmp.leg_masses`), kinematic
+    and physics modes."""
     if robot not in ROBOTS:
         from sotdrake.exceptions import NotFound
 
@@ -179,7 +193,12 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     bot = Robot(builder, model, dt, measured_position=measured_q)
     dyn = bot.dynamic
     gait = gait or spec.gait
-    pg = bot.add(PatternGenerator(start_of(dyn, bot.device.initial_position, spec.feet, spec.waist), dt, gait))
+    legs = None
+    if multibody_zmp:
+        if spec.legs is None:
+            raise InvalidInput(f"--multibody-zmp: no leg bodies known for {robot!r} (WalkingRobot.legs)")
+        legs = leg_masses(model, bot.device.initial_position, soles=spec.legs[1], prefixes=spec.legs[0])
+    pg = bot.add(PatternGenerator(start_of(dyn, bot.device.initial_position, spec.feet, spec.waist), dt, gait, legs=legs))
     if steps is not None:
         pg.setSteps([(steps[1], 0.0, 0.0)] * int(steps[0]))
     else:
@@ -479,6 +498,15 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
         "steps": int(sum(1 for st in plan.steps if st.touchdown <= t[-1])),
         "input_cost": walk.pg.input_cost,
     }
+    # The multibody ZMP of the motion the SoT commands (the device's q, Drake's momentum), every
+    # 10 ticks from the first lift-off: how far the whole body's ZMP strays from the reference.
+    liftoffs = [st.liftoff for st in plan.steps]
+    walking = np.flatnonzero(t >= liftoffs[0])[::10] if liftoffs else np.array([], dtype=int)
+    if walking.size >= 3:
+        device_zmp, _ = motion_zmp(bot.model.plant, t[walking], trace["q_device"][walking][:, :nq])
+        error = np.linalg.norm(device_zmp - trace["pg_zmp_reference"][walking], axis=1)[1:-1]  # (one-sided differences at the ends)
+        summary["max_multibody_zmp_minus_reference_m"] = float(error.max())
+        summary["multibody_zmp_correction"] = walk.pg.legs is not None
     change = then[0] if then is not None else duration
     segments = [(0.0, change, trace["pg_velocity_command"][0])]
     if then is not None:
@@ -602,6 +630,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--com-gain", type=float, default=defaults.com_gain, help="physics: the stabiliser's CoM gain k_c (1/s; 0: none)")
     parser.add_argument("--zmp-gain", type=float, default=defaults.zmp_gain, help="physics: the stabiliser's ZMP gain k_z (1/s)")
     parser.add_argument("--closed-loop", action="store_true", help="physics: the SoT reads the plant's q (perfect estimation)")
+    parser.add_argument("--multibody-zmp", action="store_true", help="plan the CoM with the legs' momentum (multibody ZMP correction)")
     args = parser.parse_args(argv)
     meshcat = start(args)
     steps = (args.steps, args.step_length) if args.steps else None
@@ -614,7 +643,7 @@ def main(argv: list[str] | None = None) -> dict:
     if args.landing_depth is not None:
         gait = dataclasses.replace(gait, landing_depth=args.landing_depth)
     walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, gait=gait, meshcat=meshcat,
-                         servos=servos)
+                         servos=servos, multibody_zmp=args.multibody_zmp)
     simulator, wall = simulate(walk.diagram, args.duration, walk.visualizer, not args.quiet)
     summary, trace = summarize(walk, simulator, args.duration, wall, args.then)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -6,11 +6,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from pydrake.multibody.tree import MultibodyForces
+from pydrake.systems.analysis import Simulator
 
 from sotdrake.walking import GaitParameters, WalkCommand, initial_plan, leg_masses, motion_zmp, replan, zmp_from_momentum
 from sotdrake.walking.com_planner import GRAVITY
 from sotdrake.walking.multibody_zmp import point_masses_zmp
+from tests.conftest import load_diagram
 from tests.test_walking import START
+
+
+@pytest.fixture(scope="module")
+def walk_script():
+    return load_diagram("walk")
 
 
 @pytest.fixture(scope="module")
@@ -135,3 +142,29 @@ def test_corrected_plan_puts_the_legs_zmp_on_the_reference(legs):
             assert plan.lipm_zmp is not None
     assert errors["lipm"] > 0.03  # the legs' swing moves the whole body's ZMP by centimetres
     assert errors["corrected"] < 0.003
+
+
+def test_the_sots_motion_has_its_multibody_zmp_closer_to_the_reference_with_the_correction(walk_script):
+    # A short kinematic walk (one step of 0.2 m), planned by the pendulum alone then with the legs:
+    # the ZMP of the whole body's motion the SoT realises (Drake's momentum), along the walking
+    # direction, against the reference over the swing.
+    errors = {}
+    for corrected in (False, True):
+        walk = walk_script.build_diagram(steps=(1, 0.2), solver="cascade", dt=2e-3, gait=GaitParameters(start_duration=0.4),
+                                         multibody_zmp=corrected)
+        assert (walk.pg.legs is not None) == corrected
+        simulator = Simulator(walk.diagram)
+        simulator.AdvanceTo(1.2)  # the step lifts off at 0.4 s and lands at 1.1 s
+        summary, trace = walk_script.summarize(walk, simulator, 1.2, 1.0)
+        assert summary["max_foot_tracking_error_m"] < 1e-3 and summary["max_com_tracking_error_m"] < 1e-3
+        swing = np.flatnonzero((trace["time"] >= 0.4) & (trace["time"] <= 1.1))[::5]
+        zmp, _ = motion_zmp(walk.robot.model.plant, trace["time"][swing], trace["q_device"][swing])
+        errors[corrected] = np.abs(zmp - trace["pg_zmp_reference"][swing])[2:-2, 0].max()
+    assert errors[False] > 0.01, errors
+    assert errors[True] < 0.4 * errors[False], errors
+
+
+def test_the_physics_walk_plans_with_the_legs_by_default(walk_script):
+    assert walk_script.build_diagram(mode="physics", steps=(1, 0.2), solver="cascade").pg.legs is not None
+    assert walk_script.build_diagram(mode="physics", steps=(1, 0.2), solver="cascade", multibody_zmp=False).pg.legs is None
+    assert walk_script.build_diagram(steps=(1, 0.2), solver="cascade").pg.legs is None  # kinematic: the pendulum's plan

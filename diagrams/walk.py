@@ -132,13 +132,14 @@ class Servos:
     :class:`~sotdrake.walking.gravity_feedforward.GravityFeedforward`; default: none), ``com_gain`` and
     ``zmp_gain`` (1/s) of the CoM stabiliser (:class:`~sotdrake.walking.stabilizer.ComStabilizer`;
     ``com_gain = 0``: none), ``closed_loop`` (the SoT's kinematics reads the plant's ``q``, a perfect
-    estimator, instead of the device's)."""
+    estimator, instead of the device's), ``damping`` (``kd = damping · kp``, s)."""
 
     stiffness: float = 300.0
     feedforward: bool = False
     com_gain: float = 0.0
     zmp_gain: float = 0.0
     closed_loop: bool = False  # the SoT's kinematics reads the plant's q (a perfect estimator), not the device's
+    damping: float = 0.05  # kd = damping · kp (s), the physics station's default
 
 
 @dataclass
@@ -185,7 +186,7 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     servos = servos or Servos()
     physical = None
     if mode == "physics":
-        physical = spec.add_physical(builder, dt, stiffness=servos.stiffness)
+        physical = spec.add_physical(builder, dt, stiffness=servos.stiffness, damping=servos.damping)
         physical.plant.SetDefaultPositions(model.half_sitting)
     measured_q = None
     if physical is not None and servos.closed_loop:
@@ -629,6 +630,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--landing-depth", type=float, default=None, help="the swing ends this far below the ground (m; default 0)")
     defaults = Servos()
     parser.add_argument("--stiffness", type=float, default=defaults.stiffness, help="physics: servo kp = STIFFNESS · effort limit (1/rad)")
+    parser.add_argument("--damping", type=float, default=defaults.damping, help="physics: servo kd = DAMPING · kp (s)")
     parser.add_argument("--feedforward", action="store_true", help="physics: the static feed-forward torque in the servos")
     parser.add_argument("--com-gain", type=float, default=defaults.com_gain, help="physics: the stabiliser's CoM gain k_c (1/s; 0: none)")
     parser.add_argument("--zmp-gain", type=float, default=defaults.zmp_gain, help="physics: the stabiliser's ZMP gain k_z (1/s)")
@@ -638,7 +640,7 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     meshcat = start(args)
     steps = (args.steps, args.step_length) if args.steps else None
-    servos = Servos(args.stiffness, args.feedforward, args.com_gain, args.zmp_gain, args.closed_loop)
+    servos = Servos(args.stiffness, args.feedforward, args.com_gain, args.zmp_gain, args.closed_loop, args.damping)
     gait = ROBOTS[args.robot].gait
     if args.step_duration is not None or args.single_support is not None:
         duration = args.step_duration or gait.step_duration

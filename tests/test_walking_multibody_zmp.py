@@ -168,3 +168,18 @@ def test_the_physics_walk_plans_with_the_legs_by_default(walk_script):
     assert walk_script.build_diagram(mode="physics", steps=(1, 0.2), solver="cascade").pg.legs is not None
     assert walk_script.build_diagram(mode="physics", steps=(1, 0.2), solver="cascade", multibody_zmp=False).pg.legs is None
     assert walk_script.build_diagram(steps=(1, 0.2), solver="cascade").pg.legs is None  # kinematic: the pendulum's plan
+
+
+def test_first_physics_step_of_0_2_m_on_position_servos(walk_script):
+    # CI's physics walk: the first step (0.2 m, lift-off at 0.4 s, touch-down at 1.1 s), the walk's
+    # default servos and the corrected plan, then 0.3 s on both feet.
+    walk = walk_script.build_diagram(mode="physics", steps=(1, 0.2), solver="cascade", gait=GaitParameters(start_duration=0.4))
+    simulator = Simulator(walk.diagram)
+    simulator.AdvanceTo(1.4)
+    summary, trace = walk_script.summarize(walk, simulator, 1.4, 1.0)
+    assert summary["steps"] == 1 and not summary["fell"]
+    assert summary["max_slip_per_step_m"] < 5e-3
+    assert summary["min_cop_margin_m"] > 0.0
+    right = trace["contact"][:, 5]  # the right sole's normal force: in the air, then carrying weight again
+    swing = (trace["time"] > 0.6) & (trace["time"] < 0.9)
+    assert right[swing].max() < 1.0 and right[-1] > 100.0

@@ -17,7 +17,9 @@ it). A leg's CoM follows its hip (which moves with the CoM) and a fixed share of
 relative to the hip: ``s_l = s_l0 + Δc + K_l (Δf_l − Δc)`` (``Δ``: from the standing posture;
 ``Δc`` the horizontal CoM displacement; ``K_l`` (3×3) the leg's CoM displacement per sole
 displacement with the hip fixed and the sole's orientation kept, from the leg's Jacobians at the
-standing posture, turned with the walking frame's yaw). The rest is where the total CoM ``c``
+standing posture, turned with the walking frame's yaw; the legs' rest offsets are not turned, a
+few millimetres' error on a turn). Links are points: their rotational inertia is left out. The
+rest is where the total CoM ``c``
 puts it: ``m_b b_xy = m c_xy − Σ m_l s_l,xy``. The ZMP of point masses ``i`` is
 
     ``p = Σ m_i (x_i (z̈_i + g) − z_i ẍ_i) / Σ m_i (z̈_i + g)``  (per horizontal axis).
@@ -73,7 +75,8 @@ def motion_zmp(plant, times, positions) -> tuple[np.ndarray, np.ndarray]:
     """The multibody ZMP (k×2) and CoM (k×3) of ``plant`` along the motion ``positions`` (k×nq) at
     ``times`` (k,): velocities from central differences of ``q`` (mapped by Drake's
     ``MapQDotToVelocity``), ``L`` from ``CalcSpatialMomentumInWorldAboutPoint`` about the CoM,
-    ``c̈`` and ``L̇`` by central differences."""
+    ``c̈`` and ``L̇`` by central differences (one-sided, hence less accurate, at the first two and
+    last two samples)."""
     t = np.asarray(times, dtype=float)
     q = np.asarray(positions, dtype=float)
     if q.ndim != 2 or len(q) != len(t) or len(t) < 3:
@@ -166,6 +169,8 @@ class LegMasses:
         of ``zmp``, ``e`` along the plan ``com`` (see :meth:`zmp_error`), except on the reference's
         final hold (its last segment), which stays ``p_d``: the stationary end ``ZmpPlanner`` needs."""
         end, hold = zmp.end_time(), zmp.get_segment_times()[-2]
+        if start >= hold:  # already on the final hold: nothing moves
+            return zmp
         # The soles' accelerations jump at their knots (lift-off, mid-swing, touch-down): e jumps
         # there too, sampled on both sides.
         breaks = np.concatenate([feet_acceleration[s].get_segment_times() for s in SIDES])

@@ -183,3 +183,23 @@ def test_first_physics_step_of_0_2_m_on_position_servos(walk_script):
     right = trace["contact"][:, 5]  # the right sole's normal force: in the air, then carrying weight again
     swing = (trace["time"] > 0.6) & (trace["time"] < 0.9)
     assert right[swing].max() < 1.0 and right[-1] > 100.0
+
+
+def test_stabilizer_takes_the_zmp_reference_when_it_is_given():
+    # A multibody plan's pendulum ZMP is off the reference: connected, the reference is what the CoP is compared with.
+    from sotdrake.walking import ComStabilizer
+
+    stabilizer = ComStabilizer(0.877, 1e-3, com_gain=8.0, zmp_gain=2.0)
+    context = stabilizer.CreateDefaultContext()
+    plan = np.array([0.1, -0.05, 0.877])
+    for port, value in (("com_reference", plan), ("com_velocity_reference", np.zeros(3)), ("measured_com", plan),
+                        ("com_acceleration_reference", [0.3, 0.0, 0.0]), ("measured_cop", [0.07, -0.05])):
+        stabilizer.GetInputPort(port).FixValue(context, value)
+
+    def rate():
+        return (stabilizer.EvalUniquePeriodicDiscreteUpdate(context).get_vector().get_value()) / 1e-3
+
+    pendulum_zmp = plan[:2] - np.array([0.3, 0.0]) * 0.877 / GRAVITY
+    assert np.allclose(rate(), -2.0 * (pendulum_zmp - [0.07, -0.05]))
+    stabilizer.GetInputPort("zmp_reference").FixValue(context, [0.1, -0.05])
+    assert np.allclose(rate(), -2.0 * (np.array([0.1, -0.05]) - [0.07, -0.05]))

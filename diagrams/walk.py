@@ -14,8 +14,8 @@ its velocity (feed-forward).
 ``--mode kinematic``: the SoT integrates its velocity at 1 kHz (no dynamics). ``--mode physics``:
 the same control graph drives the physically simulated TALOS through position servos (the PD
 actuators of :mod:`sotdrake.physics`, open loop, as ``diagrams/talos_physics.py``), with the
-servo options of :class:`Servos` (``--stiffness``, the static feed-forward torque with
-``--feedforward``, the CoM/ZMP stabiliser's ``--com-gain``/``--zmp-gain``) and the gait's
+servo options of :class:`Servos` (``--stiffness``, ``--damping``, the static feed-forward torque with
+``--feedforward``, the CoM/ZMP stabiliser's ``--com-gain``/``--zmp-gain``, on by default) and the gait's
 ``--landing-depth``; its CoM is planned with the legs' momentum (the multibody ZMP correction of
 :mod:`sotdrake.walking.multibody_zmp`; ``--zmp-model lipm``: the pendulum alone, ``--zmp-model
 multibody`` in kinematic mode). ``--mode dynamic``: ``SolverDyn`` drives the torque-controlled TALOS, the soles'

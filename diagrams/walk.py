@@ -14,9 +14,11 @@ its velocity (feed-forward).
 ``--mode kinematic``: the SoT integrates its velocity at 1 kHz (no dynamics). ``--mode physics``:
 the same control graph drives the physically simulated TALOS through position servos (the PD
 actuators of :mod:`sotdrake.physics`, open loop, as ``diagrams/talos_physics.py``), with the
-servo options of :class:`Servos` (``--stiffness``, the static feed-forward torque with
-``--feedforward``, the CoM/ZMP stabiliser's ``--com-gain``/``--zmp-gain``) and the gait's
-``--landing-depth``. ``--mode dynamic``: ``SolverDyn`` drives the torque-controlled TALOS, the soles'
+servo options of :class:`Servos` (``--stiffness``, ``--damping``, the static feed-forward torque with
+``--feedforward``, the CoM/ZMP stabiliser's ``--com-gain``/``--zmp-gain``, on by default) and the gait's
+``--landing-depth``; its CoM is planned with the legs' momentum (the multibody ZMP correction of
+:mod:`sotdrake.walking.multibody_zmp`; ``--zmp-model lipm``: the pendulum alone, ``--zmp-model
+multibody`` in kinematic mode). ``--mode dynamic``: ``SolverDyn`` drives the torque-controlled TALOS, the soles'
 contacts released and added back at each step (``rmContact``/``addContact``; ``--steps`` only), the
 swing quintic (``--swing-profile``; zero acceleration at the lift-off: with the cubic, the stance
 sole spins when the other foot lifts off).
@@ -62,7 +64,16 @@ from sotdrake import (
 )
 from sotdrake.exceptions import InvalidInput
 from sotdrake.robots import RobotModel
-from sotdrake.walking import ComStabilizer, GaitParameters, GravityFeedforward, MeasuredCom, PatternGenerator, start_of
+from sotdrake.walking import (
+    ComStabilizer,
+    GaitParameters,
+    GravityFeedforward,
+    MeasuredCom,
+    PatternGenerator,
+    leg_masses,
+    motion_zmp,
+    start_of,
+)
 from sotdrake.walking.com_planner import GRAVITY
 from sotdrake.walking.support import footprint, polygon_margin, support_polygon
 
@@ -80,6 +91,8 @@ class WalkingRobot:
     excluded: tuple[str, ...] = ()
     add_physical: Callable | None = None
     gait: GaitParameters = field(default_factory=GaitParameters)
+    #: For ``--zmp-model multibody``: the name prefixes of the legs' bodies and the sole frames (left, right).
+    legs: tuple[tuple[str, str], tuple[str, str]] | None = None
 
 
 def _add_physical_talos(builder, dt, **options):
@@ -93,7 +106,8 @@ SIDES = ("left", "right")
 ROBOTS: dict[str, WalkingRobot] = {
     "talos": WalkingRobot(load=lambda: load_talos("reduced"),
                           excluded=TALOS_GRIPPERS,
-                          add_physical=_add_physical_talos),
+                          add_physical=_add_physical_talos,
+                          legs=(("leg_left_", "leg_right_"), ("left_sole_link", "right_sole_link"))),
     # Romeo (sot-romeo's 31-joint model): its foot is the bounding box of the collision mesh of
     # its ankle link, 0.244 m long from 8.9 cm behind the sole frame, 0.112 m wide (the narrower
     # half mirrored, so one footprint serves both feet). Swing apex 3 cm: at 5 cm the swinging
@@ -114,18 +128,22 @@ ARM_BACKWARD_MARGIN = 0.01
 
 @dataclass(frozen=True)
 class Servos:
-    """The physics mode's servos: ``stiffness`` (``kp = stiffness · effort limit``, rad⁻¹, the
-    station's default 30), ``feedforward`` (the static torques of the planned posture,
+    """The physics mode's servos: ``stiffness`` (``kp = stiffness · effort limit``, rad⁻¹; 300, ten
+    times the physics station's default: with 30 the legs' sag makes TALOS fall at 0.2 m per step),
+    ``feedforward`` (the static torques of the planned posture,
     :class:`~sotdrake.walking.gravity_feedforward.GravityFeedforward`; default: none), ``com_gain`` and
-    ``zmp_gain`` (1/s) of the CoM stabiliser (:class:`~sotdrake.walking.stabilizer.ComStabilizer`;
-    ``com_gain = 0``: none), ``closed_loop`` (the SoT's kinematics reads the plant's ``q``, a perfect
-    estimator, instead of the device's)."""
+    ``zmp_gain`` (1/s) of the CoM stabiliser (:class:`~sotdrake.walking.stabilizer.ComStabilizer`,
+    fed by the plant's CoM and CoP; ``com_gain = 0``: none; default 8 and 2: with the multibody
+    plan it keeps the CoP within millimetres of the reference; ``k_z = 0`` made the loop
+    unstable), ``closed_loop`` (the SoT's kinematics reads the plant's ``q``, a perfect estimator,
+    instead of the device's), ``damping`` (``kd = damping · kp``, s)."""
 
-    stiffness: float = 30.0
+    stiffness: float = 300.0
     feedforward: bool = False
-    com_gain: float = 0.0
-    zmp_gain: float = 0.0
+    com_gain: float = 8.0
+    zmp_gain: float = 2.0
     closed_loop: bool = False  # the SoT's kinematics reads the plant's q (a perfect estimator), not the device's
+    damping: float = 0.05  # kd = damping · kp (s), the physics station's default
 
 
 @dataclass
@@ -148,11 +166,13 @@ class Walk:
 def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | None = None,
                   steps: tuple[int, float] | None = None, mode: str = "kinematic", solver: str = "hqp",
                   dt: float = 1e-3, gait: GaitParameters | None = None, meshcat: Meshcat | None = None,
-                  servos: Servos | None = None) -> Walk:
+                  servos: Servos | None = None, multibody_zmp: bool | None = None) -> Walk:
     """The walk's diagram. ``velocity``: the command from t = 0; ``then``: ``(T, x, y, θ)``, a new
     command at T; ``steps``: ``(n, length)`` instead of a velocity; ``solver``: ``'hqp'``
     (``SolverKine``, with the arms' inequality tasks) or ``'cascade'`` (basic ``SOT``, without them);
-    ``servos``: the physics mode's servo options (:class:`Servos`)."""
+    ``servos``: the physics mode's servo options (:class:`Servos`); ``multibody_zmp``: the CoM is
+    planned with the legs' momentum (:func:`~sotdrake.walking.multibody_zmp.leg_masses`), kinematic
+    and physics modes (None: in physics mode only)."""
     if robot not in ROBOTS:
         from sotdrake.exceptions import NotFound
 
@@ -170,7 +190,7 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     servos = servos or Servos()
     physical = None
     if mode == "physics":
-        physical = spec.add_physical(builder, dt, stiffness=servos.stiffness)
+        physical = spec.add_physical(builder, dt, stiffness=servos.stiffness, damping=servos.damping)
         physical.plant.SetDefaultPositions(model.half_sitting)
     measured_q = None
     if physical is not None and servos.closed_loop:
@@ -181,7 +201,12 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     bot = Robot(builder, model, dt, measured_position=measured_q)
     dyn = bot.dynamic
     gait = gait or spec.gait
-    pg = bot.add(PatternGenerator(start_of(dyn, bot.device.initial_position, spec.feet, spec.waist), dt, gait))
+    legs = None
+    if multibody_zmp or (multibody_zmp is None and mode == "physics"):
+        if spec.legs is None:
+            raise InvalidInput(f"--zmp-model multibody: no leg bodies known for {robot!r} (WalkingRobot.legs)")
+        legs = leg_masses(model, bot.device.initial_position, soles=spec.legs[1], prefixes=spec.legs[0])
+    pg = bot.add(PatternGenerator(start_of(dyn, bot.device.initial_position, spec.feet, spec.waist), dt, gait, legs=legs))
     if steps is not None:
         pg.setSteps([(steps[1], 0.0, 0.0)] * int(steps[0]))
     else:
@@ -215,6 +240,8 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
         stabilizer = bot.add(ComStabilizer(pg.start.com[2], dt, servos.com_gain, servos.zmp_gain))
         for port in ("com", "com_velocity", "com_acceleration"):
             connect(pg.GetOutputPort(port), stabilizer.GetInputPort(f"{port}_reference"))
+        if legs is not None:  # the pendulum's ZMP of a multibody plan is off the reference, the CoP belongs on it
+            connect(pg.GetOutputPort("zmp_reference"), stabilizer.GetInputPort("zmp_reference"))
         connect(stabilizer.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
         connect(stabilizer.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
     else:
@@ -487,6 +514,15 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
         "steps": int(sum(1 for st in plan.steps if st.touchdown <= t[-1])),
         "input_cost": walk.pg.input_cost,
     }
+    # The multibody ZMP of the motion the SoT commands (the device's q, Drake's momentum), every
+    # 10 ticks from the first lift-off: how far the whole body's ZMP strays from the reference.
+    liftoffs = [st.liftoff for st in plan.steps]
+    walking = np.flatnonzero(t >= liftoffs[0])[::10] if liftoffs else np.array([], dtype=int)
+    if walking.size >= 5 and "q_device" in trace:  # (the dynamic walk traces no device)
+        device_zmp, _ = motion_zmp(bot.model.plant, t[walking], trace["q_device"][walking][:, :nq])
+        error = np.linalg.norm(device_zmp - trace["pg_zmp_reference"][walking], axis=1)[2:-2]  # (one-sided differences at the ends)
+        summary["max_multibody_zmp_minus_reference_m"] = float(error.max())
+        summary["multibody_zmp_correction"] = walk.pg.legs is not None
     change = then[0] if then is not None else duration
     segments = [(0.0, change, trace["pg_velocity_command"][0])]
     if then is not None:
@@ -608,14 +644,17 @@ def main(argv: list[str] | None = None) -> dict:
                         help="the swing's profile (default: quintic in dynamic mode, else cubic)")
     defaults = Servos()
     parser.add_argument("--stiffness", type=float, default=defaults.stiffness, help="physics: servo kp = STIFFNESS · effort limit (1/rad)")
+    parser.add_argument("--damping", type=float, default=defaults.damping, help="physics: servo kd = DAMPING · kp (s)")
     parser.add_argument("--feedforward", action="store_true", help="physics: the static feed-forward torque in the servos")
     parser.add_argument("--com-gain", type=float, default=defaults.com_gain, help="physics: the stabiliser's CoM gain k_c (1/s; 0: none)")
     parser.add_argument("--zmp-gain", type=float, default=defaults.zmp_gain, help="physics: the stabiliser's ZMP gain k_z (1/s)")
     parser.add_argument("--closed-loop", action="store_true", help="physics: the SoT reads the plant's q (perfect estimation)")
+    parser.add_argument("--zmp-model", choices=["lipm", "multibody"], default=None,
+                        help="the CoM plan: the pendulum alone, or with the legs' momentum (default: multibody in physics mode)")
     args = parser.parse_args(argv)
     meshcat = start(args)
     steps = (args.steps, args.step_length) if args.steps else None
-    servos = Servos(args.stiffness, args.feedforward, args.com_gain, args.zmp_gain, args.closed_loop)
+    servos = Servos(args.stiffness, args.feedforward, args.com_gain, args.zmp_gain, args.closed_loop, args.damping)
     gait = ROBOTS[args.robot].gait
     if args.step_duration is not None or args.single_support is not None:
         duration = args.step_duration or gait.step_duration
@@ -626,7 +665,7 @@ def main(argv: list[str] | None = None) -> dict:
     if args.swing_profile is not None or args.mode == "dynamic":
         gait = dataclasses.replace(gait, swing_profile=args.swing_profile or DYNAMIC_SWING_PROFILE)
     walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, gait=gait, meshcat=meshcat,
-                         servos=servos)
+                         servos=servos, multibody_zmp=None if args.zmp_model is None else args.zmp_model == "multibody")
     simulator, wall = simulate(walk.diagram, args.duration, walk.visualizer, not args.quiet)
     summary, trace = summarize(walk, simulator, args.duration, wall, args.then)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -5,7 +5,8 @@ footstep planner), :mod:`.support` (support polygons, margins), :mod:`.zmp_refer
 reference), :mod:`.com_planner` (the CoM by Drake's ``ZmpPlanner``), :mod:`.swing` (foot
 trajectories), :mod:`.plan` (a walk plan and its replanning), :mod:`.pattern_generator` (the
 ``PatternGenerator`` LeafSystem); for the physics plant: :mod:`.measured_com`, :mod:`.stabilizer`
-(CoM/ZMP feedback), :mod:`.gravity_feedforward` (the servos' static torques).
+(CoM/ZMP feedback), :mod:`.gravity_feedforward` (the servos' static torques), :mod:`.multibody_zmp`
+(the whole body's ZMP, and the legs' momentum in the CoM plan).
 """
 
 from .com_planner import GRAVITY, INPUT_COST, ComPlan, plan_com
@@ -13,6 +14,7 @@ from .footsteps import Footstep, plan_steps
 from .gait import MAX_LINEAR_VELOCITY, MAX_YAW_RATE, GaitParameters, check_velocity
 from .gravity_feedforward import GravityFeedforward
 from .measured_com import MeasuredCom
+from .multibody_zmp import LegMasses, leg_masses, motion_zmp, zmp_from_momentum
 from .pattern_generator import PatternGenerator, start_of
 from .plan import Start, WalkCommand, WalkPlan, initial_plan, replan
 from .stabilizer import ComStabilizer
@@ -28,6 +30,7 @@ __all__ = [
     "Footstep",
     "GaitParameters",
     "GravityFeedforward",
+    "LegMasses",
     "MeasuredCom",
     "PatternGenerator",
     "Start",
@@ -36,6 +39,8 @@ __all__ = [
     "check_velocity",
     "footprint",
     "initial_plan",
+    "leg_masses",
+    "motion_zmp",
     "plan_com",
     "plan_steps",
     "polygon_margin",
@@ -43,4 +48,5 @@ __all__ = [
     "sole_centre",
     "start_of",
     "support_polygon",
+    "zmp_from_momentum",
 ]

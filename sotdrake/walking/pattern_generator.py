@@ -33,6 +33,7 @@ from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite
 from .com_planner import INPUT_COST
 from .gait import MAX_LINEAR_VELOCITY, MAX_YAW_RATE, GaitParameters, check_velocity
+from .multibody_zmp import LegMasses
 from .plan import References, Start, WalkCommand, WalkPlan, foot_pose, initial_plan, replan
 
 SIDES = ("left", "right")
@@ -44,19 +45,21 @@ class PatternGeneratorSettings:
 
 
 class PatternGenerator(Entity[PatternGeneratorSettings]):
-    """See the module docstring. ``start``: the robot's sole poses, CoM and waist pose at t = 0."""
+    """See the module docstring. ``start``: the robot's sole poses, CoM and waist pose at t = 0;
+    ``legs``: a leg-mass model (:func:`~.multibody_zmp.leg_masses`) puts the legs' momentum in the
+    CoM plan (the multibody ZMP correction), None the pendulum alone."""
 
     def __init__(self, start: Start, dt: float, gait: GaitParameters | None = None,
-                 input_cost: float = INPUT_COST, name: str = "pg"):
+                 input_cost: float = INPUT_COST, name: str = "pg", legs: LegMasses | None = None):
         Entity.__init__(self, name, PatternGeneratorSettings())
         if not dt > 0:
             raise InvalidInput(f"{name}: dt must be > 0, got {dt}")
         if not (np.isfinite(input_cost) and input_cost > 0):
             raise InvalidInput(f"{name}: input_cost must be finite and > 0, got {input_cost}")
         self.gait = gait or GaitParameters()
-        self.start, self.dt, self.input_cost = start, float(dt), float(input_cost)
+        self.start, self.dt, self.input_cost, self.legs = start, float(dt), float(input_cost), legs
         self._yaw0 = {side: start.foot(side)[2] for side in SIDES}
-        self._plan = self.DeclareAbstractState(AbstractValue.Make(initial_plan(start, self.gait, input_cost)))
+        self._plan = self.DeclareAbstractState(AbstractValue.Make(initial_plan(start, self.gait, input_cost, legs)))
         self.DeclareInitializationUnrestrictedUpdateEvent(self._update)
         self.DeclarePeriodicUnrestrictedUpdateEvent(self.dt, 0.0, self._update)
         self._references = self.DeclareCacheEntry(
@@ -108,7 +111,7 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
         plan = context.get_abstract_state(self._plan).get_value()
         command, t = self._settings_of(context).command, context.get_time()
         if plan.needs_replan(command, t, self.gait):
-            state.get_mutable_abstract_state(self._plan).set_value(replan(plan, command, t, self.gait, self.input_cost))
+            state.get_mutable_abstract_state(self._plan).set_value(replan(plan, command, t, self.gait, self.input_cost, self.legs))
 
     def _calc_references(self, context: Context, value: AbstractValue) -> None:
         value.set_value(context.get_abstract_state(self._plan).get_value().references(context.get_time()))

@@ -5,7 +5,10 @@ the CoM's projection to the mid-point of the feet). :func:`replan` at time ``t``
 keeps every step already lifted off (a swinging foot lands where it was going), plans the next
 ones from the walking frame after them, and replans the CoM with ``ZmpPlanner`` from the previous
 plan's CoM state at ``t``: position and velocity are continuous across a replan. The reference
-ZMP starts from the previous reference's value at ``t``.
+ZMP starts from the previous reference's value at ``t``. With a leg-mass model
+(:class:`~.multibody_zmp.LegMasses`) the CoM is planned for the reference minus the legs' ZMP
+error, so that the ZMP of the whole body's planned motion, not the pendulum's, follows the reference
+(:func:`corrected_com`).
 
 Commands (:class:`WalkCommand`): a velocity ``(vx, vy, ω)`` (walk on, the plan extended a few
 steps ahead as time goes; zero: the feet close up and the robot stands), or a list of step
@@ -23,6 +26,7 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from .com_planner import INPUT_COST, ComPlan, plan_com
 from .footsteps import Footstep, closing_steps, first_side, other, plan_steps, velocity_displacement
 from .gait import GaitParameters
+from .multibody_zmp import PASSES, LegMasses
 from .support import support_polygon
 from .swing import foot_trajectory
 from .zmp_reference import zmp_reference
@@ -87,6 +91,7 @@ class WalkPlan:
     feet: dict = field(default_factory=dict)  # side → PiecewisePolynomial (x, y, z, yaw)
     feet_rate: dict = field(default_factory=dict)
     feet_acceleration: dict = field(default_factory=dict)
+    lipm_zmp: Any = None  # PiecewisePolynomial: the reference the CoM was planned for (with a leg-mass model), else None
 
     def __deepcopy__(self, memo) -> WalkPlan:
         # Immutable (its trajectories are never modified): Drake's copies of the state share it.
@@ -153,13 +158,28 @@ def _trajectories(start: Start, steps: list[Footstep], gait: GaitParameters, end
     return feet, rates, accelerations
 
 
-def initial_plan(start: Start, gait: GaitParameters, input_cost: float = INPUT_COST) -> WalkPlan:
+def corrected_com(zmp, position, velocity, height: float, input_cost: float, t: float, feet: dict, accelerations: dict,
+                  legs: LegMasses | None, passes: int = PASSES) -> tuple[ComPlan, Any]:
+    """The CoM planned from ``(position, velocity)`` at ``t`` for the reference ``zmp``: by the
+    pendulum alone without ``legs``; with them, ``passes`` times replanned for ``p_d − e``, ``e`` the
+    legs' ZMP error along the previous pass (:meth:`LegMasses.lipm_reference`). Returns the plan and
+    the reference it was planned for (None without ``legs``)."""
+    com = plan_com(zmp, position, velocity, height, input_cost)
+    lipm = None
+    for _ in range(passes if legs is not None else 0):
+        assert legs is not None
+        lipm = legs.lipm_reference(zmp, com, feet, accelerations, t)
+        com = plan_com(lipm, position, velocity, height, input_cost)
+    return com, lipm
+
+
+def initial_plan(start: Start, gait: GaitParameters, input_cost: float = INPUT_COST, legs: LegMasses | None = None) -> WalkPlan:
     """Standing at t = 0: the CoM at rest, the ZMP reference from under it to the feet's mid-point."""
     feet = {side: start.foot(side) for side in ("left", "right")}
     zmp = zmp_reference(0.0, start.com[:2], feet, [], gait)
-    com = plan_com(zmp, start.com[:2], np.zeros(2), start.com[2], input_cost)
-    trajectories, rates, accelerations = _trajectories(start, [], gait, com.end)
-    return WalkPlan(None, 0.0, start, (), zmp, com, trajectories, rates, accelerations)
+    trajectories, rates, accelerations = _trajectories(start, [], gait, zmp.end_time())
+    com, lipm = corrected_com(zmp, start.com[:2], np.zeros(2), start.com[2], input_cost, 0.0, trajectories, accelerations, legs)
+    return WalkPlan(None, 0.0, start, (), zmp, com, trajectories, rates, accelerations, lipm)
 
 
 def new_steps(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParameters) -> tuple[list[Footstep], list[Footstep]]:
@@ -194,7 +214,8 @@ def new_steps(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParamete
     return kept, new
 
 
-def replan(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParameters, input_cost: float = INPUT_COST) -> WalkPlan:
+def replan(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParameters, input_cost: float = INPUT_COST,
+           legs: LegMasses | None = None) -> WalkPlan:
     """The plan for ``command`` from time ``t`` (see the module docstring)."""
     kept, new = new_steps(plan, command, t, gait)
     steps = kept + new
@@ -205,9 +226,9 @@ def replan(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParameters,
     ahead = [s for s in steps if s.touchdown > t]
     zmp = zmp_reference(t, plan.zmp_reference(t), landed, ahead, gait)
     position, velocity, _ = plan.com.state(t)
-    com = plan_com(zmp, position, velocity, plan.com.height, input_cost)
-    trajectories, rates, accelerations = _trajectories(plan.start, steps, gait, com.end)
-    return WalkPlan(command, t, plan.start, tuple(steps), zmp, com, trajectories, rates, accelerations)
+    trajectories, rates, accelerations = _trajectories(plan.start, steps, gait, zmp.end_time())
+    com, lipm = corrected_com(zmp, position, velocity, plan.com.height, input_cost, t, trajectories, accelerations, legs)
+    return WalkPlan(command, t, plan.start, tuple(steps), zmp, com, trajectories, rates, accelerations, lipm)
 
 
 def foot_pose(reference, X_WS0: RigidTransform, yaw0: float) -> RigidTransform:

@@ -10,9 +10,11 @@ embedded motion"): the CoM velocity commanded to the SoT is
 
     ``ċ_cmd = ċ_r + k_c (c_r − c_m) − k_z (p_r − p_m)``,
 
-``p_r = c_r − c̈_r/ω²`` the planned ZMP. With the CoM following its command, the closed loop is
-stable for ``k_c > ω`` and ``0 ≤ k_z < ω`` (their Theorem 1). The correction is integrated every
-tick as an offset on the plan, ``c_cmd = c_r + δ``, ``δ̇ = k_c (c_r − c_m) − k_z (p_r − p_m)``
+``p_r = c_r − c̈_r/ω²`` the planned ZMP (the pendulum's), or the ``zmp_reference`` input when it is
+connected: a CoM planned with the legs' momentum (:mod:`.multibody_zmp`) has its pendulum ZMP off
+the reference by the legs' share, while the robot's CoP belongs at the reference itself. With the
+CoM following its command, the closed loop is stable for ``k_c > ω`` and ``0 ≤ k_z < ω`` (their
+Theorem 1). The correction is integrated every tick as an offset on the plan, ``c_cmd = c_r + δ``, ``δ̇ = k_c (c_r − c_m) − k_z (p_r − p_m)``
 (discrete state, explicit Euler), clamped to ``±max_offset`` per axis; ``p_m`` is ignored (``k_z``
 term dropped) while it is not finite (nothing on the ground). Horizontal axes only (x, y; world;
 m, m/s); the height is the plan's.
@@ -47,7 +49,8 @@ class ComStabilizer(LeafSystem):
     """The stabiliser entity (see the module docstring).
 
     Inputs: ``com_reference``, ``com_velocity_reference``, ``com_acceleration_reference`` (3, the
-    plan), ``measured_com`` (3) and ``measured_cop`` (2, NaN when nothing touches). Outputs:
+    plan), ``measured_com`` (3), ``measured_cop`` (2, NaN when nothing touches) and, optional,
+    ``zmp_reference`` (2: the ZMP the plan means, instead of the pendulum's). Outputs:
     ``com`` and ``com_velocity`` (3: the plan plus ``δ``, ``δ̇`` in x, y) and ``offset`` (2: ``δ``).
     ``height``: the pendulum's CoM height (m).
     """
@@ -74,6 +77,7 @@ class ComStabilizer(LeafSystem):
         self.com_acceleration_reference = vector("com_acceleration_reference", 3)
         self.measured_com = vector("measured_com", 3)
         self.measured_cop = vector("measured_cop", 2)
+        self.zmp_reference = vector("zmp_reference", 2)
         self._state = self.DeclareDiscreteState(2)  # δ (xy)
         self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._update)
         self.DeclareVectorOutputPort("com", 3, self._calc_com, {self.all_input_ports_ticket(), self.xd_ticket()})
@@ -85,7 +89,10 @@ class ComStabilizer(LeafSystem):
 
     def _rate(self, context: Context) -> np.ndarray:
         c_r = self.com_reference.Eval(context)[:2]
-        p_r = c_r - self.com_acceleration_reference.Eval(context)[:2] / self.omega**2
+        if self.zmp_reference.HasValue(context):
+            p_r = self.zmp_reference.Eval(context)
+        else:
+            p_r = c_r - self.com_acceleration_reference.Eval(context)[:2] / self.omega**2
         rate = feedback_rate(c_r, self.measured_com.Eval(context)[:2], p_r, self.measured_cop.Eval(context),
                              self.com_gain, self.zmp_gain)
         held = np.abs(self._offset(context)) >= self.max_offset

@@ -34,6 +34,7 @@ import talos_dynamics as td
 from scenario import DT, pinocchio_half_sitting, urdf_file
 
 from sotdrake.dynamics.station import sole_rectangle
+from sotdrake.dynamics.trajectories import hold_move_hold
 
 
 def _tick_numbers(wall: list[float], cpu: list[float]) -> dict:
@@ -100,7 +101,7 @@ def run_placo(scenario: str, duration: float) -> dict:
     posture.configure("posture", "soft", 1e-2)
     posture.kp, posture.kd = 25.0, 10.0
     foot_p0 = robot.get_T_world_frame("right_sole_link")[:3, 3].copy()
-    foot_traj = td._hold_move_hold(td.LIFT[0], td.LIFT[1], foot_p0, foot_p0 + [0, 0, td.LIFT[2]])
+    foot_traj = hold_move_hold(td.LIFT[0], td.LIFT[1], foot_p0, foot_p0 + [0, 0, td.LIFT[2]])
     position = feet["right"].position()
     position.kp, position.kd = 400.0, 40.0
     times, cpu, com_err, foot_err = [], [], [], []

@@ -45,3 +45,14 @@ def test_reference_run_renders_and_its_targets_are_recomputed():
     table = bench.markdown(reference)
     assert f"{reference['tick_us']['median']:.0f}" in table and "marginal cost" in table
     assert table.count("\n| ") >= 10  # the peers' rows and the targets' rows
+
+
+def test_dynamics_bench_runs_both_peers_briefly():
+    """bench/dynamics.py's runners on a few ticks (placo's only where it is installed: the bench
+    extra), so the bench does not rot between reference runs."""
+    import dynamics as dynamics_bench
+
+    row = dynamics_bench.run_sotdrake("lift_leg", 0.02)
+    assert {"tick_cpu_us_median", "com_rms_error_m", "max_torque_ratio"} <= set(row) and not row["fell"]
+    pytest.importorskip("placo")
+    assert dynamics_bench.run_placo("lift_leg", 0.02)["com_rms_error_m"] < 1e-3

@@ -7,7 +7,9 @@ eliminated. With ``Z`` an orthonormal basis of what the levels above leave free 
 ``B = A_k Z`` and ``ρ = b_k − A_k x``, a level is *clear-cut* when either
 
 * ``m_k ≤ r`` and ``B`` has full row rank: one Householder QR ``Bᵀ = Q R`` solves it exactly,
-  ``x ← x + Z Q_1 R⁻ᵀ ρ``, and ``Z ← Z Q_2`` (``Q = [Q_1, Q_2]``);
+  ``x ← x + Z Q_1 R⁻ᵀ ρ``, and ``Z ← Z Q_2`` (``Q = [Q_1, Q_2]``); consecutive such levels are
+  stacked into one QR (level k's rows below the ones above are ``R_kkᵀ Q_kᵀ``, see
+  :func:`_row_rank_prefix`);
 * ``m_k > r`` and ``B`` has full column rank: its least-squares solution ``x ← x + Z R⁻¹ Q_1ᵀ ρ``
   (QR ``B = Q R``) fixes every remaining direction, and the levels below only read their
   residuals;
@@ -25,10 +27,11 @@ the scaled ``B`` must be at least :data:`CERTIFIED` (``10³ τ``, ``τ`` the QP'
 ``σ_min(D B) ≥ σ_min(D) σ_min(B)``). The optimum without the free bounds is then unique up to the
 final minimum-norm step. If it lies within the bounds it is the optimum with them (the bounded
 optimal set is a subset of the unbounded one and contains that point), and so the hierarchical
-QP's answer; :func:`solve_equality_hierarchy` returns it. Otherwise (an inequality row, a rank
-decision that is not clear-cut, a bound in the way) it returns None and the hierarchical QP
-decides. Cost: one QR and one triangular inverse per full-rank level (an SVD for the others)
-instead of the QP's SVDs and stages.
+QP's answer; :func:`solve_equality_hierarchy` returns it. Otherwise (a rank decision that is not
+clear-cut, a bound in the way, a non-finite level) it returns None and the hierarchical QP decides.
+Cost: one QR and one triangular inverse per group of full-row-rank levels, a QR (pivoted when
+rank-deficient; an SVD only when that cannot certify the gap) for the others, instead of the QP's
+SVDs and stages.
 """
 
 from __future__ import annotations

@@ -10,9 +10,9 @@ eliminated. With ``Z`` an orthonormal basis of what the levels above leave free 
   ``x ← x + Z Q_1 R⁻ᵀ ρ``, and ``Z ← Z Q_2`` (``Q = [Q_1, Q_2]``); consecutive such levels are
   stacked into one QR (level k's rows below the ones above are ``R_kkᵀ Q_kᵀ``, see
   :func:`_row_rank_prefix`);
-* ``m_k > r`` and ``B`` has full column rank: its least-squares solution ``x ← x + Z R⁻¹ Q_1ᵀ ρ``
-  (QR ``B = Q R``) fixes every remaining direction, and the levels below only read their
-  residuals;
+* ``m_k > r`` and ``B`` has full column rank: its least-squares solution ``x ← x + Z Π R⁻¹ Q_1ᵀ ρ``
+  (QR with column pivoting ``B Π = Q R``) fixes every remaining direction, and the levels below
+  only read their residuals;
 * otherwise, the scaled rows ``D B`` have a clear rank gap (every singular value above
   :data:`CERTIFIED` or below :data:`NEGLIGIBLE`): a least-squares step ``x ← x + Z z``
   (``z`` minimizes ``‖B z − ρ‖``, the raw rows, as the level's objective is ``‖A_k x − b_k‖``)
@@ -75,7 +75,7 @@ def _upper_inverse(R: np.ndarray) -> np.ndarray | None:
 
 
 def _pivoted_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(z, V_0)`` of a level of rank ``k`` in the free space, from one QR with column pivoting
+    """``(z, V_0)`` of a level of rank ``k ≤ r`` in the free space, from one QR with column pivoting
     ``B Π = Q [[R_11, R_12], [0, R_22]]``: ``z = Π [R_11⁻¹ Q_1ᵀ ρ; 0]`` minimizes ``‖B z − ρ‖``
     (another minimizer differs by a null vector, which the levels below and the final
     minimum-norm step take care of), and ``V_0`` is an orthonormal basis of the null space
@@ -88,22 +88,26 @@ def _pivoted_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tup
         return None
     d_min, d_max = 1.0 / float(norms.max()), 1.0 / float(norms.min())
     k = int(np.count_nonzero(np.abs(np.diagonal(qr)) * d_min > CERTIFIED))
-    if k == 0 or k == r:
+    if k == 0:
         return None
     R11_inverse = _upper_inverse(qr[:k, :k])
     if R11_inverse is None:
         return None
-    R22 = np.where(_upper(r - k)[: min(m, r) - k], qr[k : min(m, r), k:], 0.0)
     flat = R11_inverse.ravel()
-    if not (flat.dot(flat) * CERTIFIED * CERTIFIED < d_min * d_min
-            and float(np.sum(R22 * R22)) * d_max * d_max < NEGLIGIBLE * NEGLIGIBLE):
+    if not flat.dot(flat) * CERTIFIED * CERTIFIED < d_min * d_min:  # False on NaN too
         return None
+    if k < r:
+        R22 = np.where(_upper(r - k)[: min(m, r) - k], qr[k : min(m, r), k:], 0.0)
+        if not float(np.sum(R22 * R22)) * d_max * d_max < NEGLIGIBLE * NEGLIGIBLE:
+            return None
     projected, _, info = _ormqr("L", "T", qr[:, : len(tau)], tau, residual, lwork=max(1, m))
     if info != 0:
         return None
     columns = pivots - 1
     z = np.zeros(r)
     z[columns[:k]] = R11_inverse @ projected[:k]
+    if k == r:  # full column rank: the level fixes what is left
+        return z, np.zeros((r, 0))
     null = np.empty((r, r - k))
     null[columns[:k]] = -R11_inverse @ qr[:k, k:]
     null[columns[k:]] = np.eye(r - k)
@@ -162,17 +166,8 @@ def _clear_cut_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> t
     """``(step, basis)`` of one level that is not of full row rank in the free space (or has more
     rows than it): the least-squares step ``z`` (None: none) and the basis of what is left in the
     free space's coordinates, or None when the level's rank is not clear-cut. ``B``: the level's
-    rows in the free space (m × r), ``norms``: the rows' norms before projection."""
-    m, r = B.shape
-    if m > r:  # full column rank?
-        qr, tau, _, info = _geqrf(B)
-        R_inverse = _upper_inverse(qr[:r, :r]) if info == 0 else None
-        if R_inverse is not None:
-            flat = R_inverse.ravel()
-            if flat.dot(flat) * (CERTIFIED * float(norms.max())) ** 2 < 1.0:
-                projected, _, info = _ormqr("L", "T", qr, tau, residual, lwork=max(1, m))
-                if info == 0:
-                    return R_inverse @ projected[:r], np.zeros((r, 0))
+    rows in the free space (m × r), ``norms``: the rows' norms before projection. One QR with
+    column pivoting (full column rank included), else the SVD of the scaled rows."""
     # The rank from a pivoted QR, else from the SVD of the scaled rows, if clear-cut.
     pivoted = _pivoted_step(B, residual, norms)
     if pivoted is not None:

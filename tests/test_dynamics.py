@@ -9,6 +9,7 @@ from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
+from sotdrake import TALOS_GRIPPERS
 from sotdrake.configuration import Layout, integrate
 from sotdrake.dynamics.contact import Contact6d, friction_ratio, wrench_constraints
 from sotdrake.dynamics.device import integrate_acceleration
@@ -300,6 +301,32 @@ def test_solver_records_the_previous_loads(standing):
     simulator.AdvanceTo(0.003)  # the update of t = 0.002 s records that tick's solution
     loads = robot.sot.previous_loads(sot_context, ["contactLF", "contactRF"])
     np.testing.assert_array_equal(loads, [before["contactLF"][5], before["contactRF"][5]])
+
+
+def test_a_bound_in_the_way_sends_the_next_tick_straight_to_the_qp(standing, monkeypatch):
+    """A tick whose optimum has a bound active (the right sole's normal force held at a raised
+    f_min, which the QP enforces: it starts inside the bounds) is solved by the QP after the QR
+    path's attempt; the next ticks skip the attempt (a flag in the Context) while the bound stays in
+    the way, and the QR path answers again once it is not."""
+    import sotdrake.dynamics.solver_dyn as solver_dyn
+
+    robot, diagram, *_ = standing
+    attempts: list[bool] = []
+    solve = solver_dyn.solve_equality_hierarchy
+    monkeypatch.setattr(solver_dyn, "solve_equality_hierarchy", lambda *a: attempts.append(True) or solve(*a))
+    simulator = Simulator(diagram)
+    context = simulator.get_context()
+    robot.sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS), context)  # as the scripts
+    right = robot.contacts["contactRF"]
+    right.setMinimumNormalForce(600.0, context)  # more than its share of TALOS' weight
+    simulator.AdvanceTo(0.0005)  # the tick at t = 0
+    assert len(attempts) == 1 and _solution(robot, context).diagnostics.active_bounds.size
+    assert _solution(robot, context).local_wrenches["contactRF"][5] == pytest.approx(600.0, abs=1e-6)
+    simulator.AdvanceTo(0.0035)  # three more ticks, the bound still in the way: no attempt
+    assert len(attempts) == 1
+    right.setMinimumNormalForce(1.0, context)
+    simulator.AdvanceTo(0.0065)  # one tick for the QP to find the bound out of the way, then QR
+    assert len(attempts) >= 2 and set(_solution(robot, context).diagnostics.level_solvers) == {"qr"}
 
 
 def test_stiff_com_after_a_push_spends_the_torques(standing):

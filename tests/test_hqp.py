@@ -320,3 +320,18 @@ def test_bad_bounds_and_solver_names_are_rejected():
         hqp.solve([], -np.ones(2), np.ones(2), damping=-1.0)
     with pytest.raises(InvalidInput):
         HierarchicalQP(2, solver="quadprog")
+
+
+def test_a_start_inside_the_bounds_enforces_a_bound_that_excludes_zero():
+    """x₀ ≥ 2 with one level asking x₀ = x₁ = 1: from the default start 0 the bound is relaxed to
+    0 (a start outside a bound is kept, as a joint already past its limit); from a start inside
+    the bounds it holds, and the level's least squares is taken under it."""
+    A = np.array([[1.0, 0.0], [0.0, 1.0]])
+    b = np.ones(2)
+    lower, upper = np.array([2.0, -np.inf]), np.array([np.inf, np.inf])
+    hqp = HierarchicalQP(2)
+    assert hqp.solve([LevelRows(A, b, b)], lower, upper).x[0] == pytest.approx(1.0)
+    held = hqp.solve([LevelRows(A, b, b)], lower, upper, start=np.minimum(np.maximum(0.0, lower), upper)).x
+    np.testing.assert_allclose(held, [2.0, 1.0], atol=1e-12)
+    with pytest.raises(InvalidInput):
+        hqp.solve([LevelRows(A, b, b)], lower, upper, start=np.array([np.nan, 0.0]))

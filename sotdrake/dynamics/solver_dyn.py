@@ -151,6 +151,13 @@ def wrench_regularization(contact: ActiveContact, k: int, weight: float) -> np.n
     return WRENCH_REGULARIZATION * weight * rows
 
 
+def inside(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """The point of the box ``[lower, upper]`` nearest 0: where the hierarchical QP starts, so that
+    every bound holds (it keeps a start that violates a bound where it is, see
+    :meth:`HierarchicalQP.solve`): ``f_z ≥ f_min > 0`` excludes ``x = 0``."""
+    return np.minimum(np.maximum(0.0, lower), upper)
+
+
 def wrench_slices(nv: int, contacts: list[ActiveContact]) -> list[slice]:
     """Where each contact's wrench lies in ``x = (q̈, w…, τ)``."""
     slices, start = [], nv
@@ -320,6 +327,9 @@ class SolverDyn(SOT):
         # and the normal force each declared contact carried at the last tick (NaN: not held), which
         # weighs the shear regularization (:func:`shear_weights`).
         self._loads = self.DeclareDiscreteState(np.full(max_contacts, np.nan))
+        # and whether a bound was in the way at the last tick (1: the QP solves the next tick at
+        # once, without the QR path's attempt; the same answer, found without that cost).
+        self._bound_in_the_way = self.DeclareDiscreteState(np.zeros(1))
         self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._update)
         self.DeclareVectorOutputPort("torque", self.na, lambda c, o: o.SetFromVector(self._solution.Eval(c).torque))
         self.DeclareVectorOutputPort("wrenches", 6 * max_contacts, self._calc_wrenches)
@@ -488,7 +498,7 @@ class SolverDyn(SOT):
                 small = self._reduced_hqps[m] = HierarchicalQP(m)
             try:
                 reduced, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
-                fast = self._solve(small, reduced, lower[:m], upper[:m], s.solver)
+                fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver)
                 tau = torques_of(terms, contacts, slices, fast.x, actuated)
                 x = np.concatenate([fast.x, tau])
                 if np.all(np.abs(tau) <= self.effort * (1 + 1e-9)) and (not contacts or _wrench_rows_hold(contacts, slices, x)):
@@ -500,11 +510,11 @@ class SolverDyn(SOT):
         try:
             if result is None:
                 rows, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
-                relaxed = result = self._solve(hqp, rows, lower, upper, s.solver)
+                relaxed = result = self._solve(context, hqp, rows, lower, upper, s.solver)
             if contacts and not _wrench_rows_hold(contacts, slices, result.x):
                 result = None
                 full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, loads=loads)
-                result = hqp.solve(full, lower, upper, 0.0, s.solver)
+                result = hqp.solve(full, lower, upper, 0.0, s.solver, start=inside(lower, upper))
         except SolverError as error:
             # Never zero torque on a standing robot if avoidable: the relaxed optimum (dynamics,
             # contact accelerations and the stack exact; friction/CoP rows possibly violated), else
@@ -513,7 +523,7 @@ class SolverDyn(SOT):
             if relaxed is None:
                 try:
                     levels, slices = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False, loads=loads)
-                    relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver)
+                    relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver, start=inside(lower, upper))
                     diagnostics.failure += "; the stack is dropped for this tick"
                 except SolverError as second:
                     diagnostics.failure += f"; {second}; zero torque"
@@ -534,16 +544,18 @@ class SolverDyn(SOT):
         diagnostics.solve_time_s = result.solve_time_s
         value.set_value(DynSolution(x[: self.nv].copy(), x[n - self.na :].copy(), world, local, result.slack_norms, diagnostics))
 
-    @staticmethod
-    def _solve(hqp: HierarchicalQP, rows: list[Rows], lower: np.ndarray, upper: np.ndarray, solver: str) -> HqpResult:
+    def _solve(self, context: Context, hqp: HierarchicalQP, rows: list[Rows], lower: np.ndarray, upper: np.ndarray,
+               solver: str) -> HqpResult:
         """The hierarchy through its QR path when that is clear-cut (every level an equality, no
         bound in the way: :mod:`..solvers.equality_hierarchy`, the same answer), else ``hqp``
-        (which checks the rows). A chosen Drake solver is always used."""
-        if solver == ACTIVE_SET and all(lo is hi for _, lo, hi in rows):
+        (which checks the rows). The QR path is not tried when a bound was in the way at the last
+        tick (discrete state), nor when a Drake solver is chosen."""
+        tried = context.get_discrete_state(self._bound_in_the_way).get_value()[0] == 0.0
+        if tried and solver == ACTIVE_SET and all(lo is hi for _, lo, hi in rows):
             result = solve_equality_hierarchy([(A, b) for A, b, _ in rows], lower, upper)
             if result is not None:
                 return result
-        return hqp.solve([LevelRows(*level) for level in rows], lower, upper, 0.0, solver)
+        return hqp.solve([LevelRows(*level) for level in rows], lower, upper, 0.0, solver, start=inside(lower, upper))
 
     def _calc_wrenches(self, context: Context, output) -> None:
         wrenches = self._solution.Eval(context).wrenches
@@ -572,6 +584,7 @@ class SolverDyn(SOT):
             if name in local:
                 loads[i] = local[name][-1]
         state.set_value(self._loads, loads)
+        state.set_value(self._bound_in_the_way, [1.0 if self._solution.Eval(context).diagnostics.active_bounds.size else 0.0])
         ramps = context.get_discrete_state(self._ramps).get_value().copy()
         for i, name in enumerate(self._contact_ports):
             if name not in s.releasing or name not in s.contacts:

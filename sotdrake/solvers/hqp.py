@@ -323,10 +323,17 @@ class HierarchicalQP:
         x_upper: np.ndarray,
         damping: float = 0.0,
         solver: str | None = None,
+        start: np.ndarray | None = None,
     ) -> HqpResult:
         """Solve in strict priority; ``damping`` μ applies to the last level; ``solver`` overrides
         the default path for this call. Raises :class:`SolverError` naming the stage if every path
-        fails (which the tests have never seen with consistent bounds)."""
+        fails (which the tests have never seen with consistent bounds).
+
+        ``start`` (n numbers, default 0): the point the first level starts from. Each stage
+        relaxes a hard bound that its starting point violates to that point (a joint already past
+        its limit may stay there rather than be pushed off at once), so a bound that excludes the
+        start is not enforced: give a start inside the bounds (e.g. ``clip(0, x_lower, x_upper)``)
+        to have every bound hold."""
         solver = self.solver if solver is None else check_solver(solver)
         n = self.n
         x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
@@ -343,18 +350,25 @@ class HierarchicalQP:
         for level in levels:
             if level.A.shape[1] != n:
                 raise InvalidInput(f"a level has {level.A.shape[1]} columns, expected {n}")
-        start = time.perf_counter()
+        if start is not None:
+            start = np.asarray(start, dtype=float)
+            if start.shape != (n,) or not all_true(np.isfinite(start)):
+                raise InvalidInput(f"start must be {n} finite numbers")
+        began = time.perf_counter()
         with np.errstate(invalid="ignore", divide="ignore"):  # ±∞ bounds: once here, not per operation
-            return self._solve_stages(levels, x_lower, x_upper, damping, solver, start)
+            return self._solve_stages(levels, x_lower, x_upper, damping, solver, began, start)
 
-    def _solve_stages(self, levels, x_lower, x_upper, damping, solver, start) -> HqpResult:
+    def _solve_stages(self, levels, x_lower, x_upper, damping, solver, began, start=None) -> HqpResult:
         n = self.n
         fixed = x_lower == x_upper
+        origin = 0.0 if start is None else start
         if any_true(fixed):
-            x = np.where(fixed, x_lower, 0.0)
+            x = np.where(fixed, x_lower, origin)
             Z = self._identity[:, ~fixed]
-        else:
+        elif start is None:
             x, Z = np.zeros(n), self._identity  # (read only: every later Z is a new array)
+        else:
+            x, Z = start.copy(), self._identity
         free = (~fixed & (np.isfinite(x_lower) | np.isfinite(x_upper))).nonzero()[0]  # bound rows that can bind
         # The hard rows, in x, with the side each was left at: the bounds of the free components (unit
         # rows, kept as indices), then the held inequality rows (their matrix: held).
@@ -406,7 +420,7 @@ class HierarchicalQP:
         result = self._result(levels, x, x_lower, x_upper, fixed, used)
         result.iterations = iterations
         result.fallbacks = fallbacks
-        result.solve_time_s = time.perf_counter() - start
+        result.solve_time_s = time.perf_counter() - began
         return result
 
     # --- one stage --------------------------------------------------------------------------

@@ -29,7 +29,7 @@ from pydrake.systems.framework import Context, LeafSystem
 
 from .entity import Entity
 from .exceptions import InvalidInput, check_finite
-from .features.base import FeatureValue, optional_input, usual_input
+from .features.base import FeatureValue, feature_signals
 from .ranges import MAX_TARGET_POSITION
 
 #: Largest derivative gain β of a TaskPD (dimensionless: ė* = -λ e - β ė).
@@ -91,11 +91,7 @@ class _TaskBase(LeafSystem):
 
     def _inputs(self, context: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """``(e, J, ė_ref)`` from ``feature``, else from ``error``, ``jacobian``, ``errordot``."""
-        value = usual_input(self.feature, context, None)
-        if value is not None:
-            return value
-        e = self.error.Eval(context)
-        return e, self.jacobian.Eval(context), optional_input(self.errordot, context, None)
+        return feature_signals(context, self.feature, self.error, self.jacobian, self.errordot)
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         e, J, e_dot = self._inputs(context)

@@ -32,7 +32,7 @@ from pydrake.systems.framework import Context, ValueProducer
 
 from ..entity import Entity
 from ..exceptions import InvalidInput
-from ..features.base import FeatureValue, optional_input, usual_input
+from ..features.base import FeatureValue, feature_signals, optional_input
 from ..task import TaskLevel
 
 
@@ -110,10 +110,7 @@ class TaskDynPD(Entity[DynPDSettings]):
     # --- calc --------------------------------------------------------------------------------
     def _inputs(self, context: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """``(e, J, ė_ref)`` from ``feature``, else from ``error``, ``jacobian``, ``errordot``."""
-        value = usual_input(self.feature, context, None)
-        if value is not None:
-            return value
-        return self.error.Eval(context), self.jacobian.Eval(context), optional_input(self.errordot, context, None)
+        return feature_signals(context, self.feature, self.error, self.jacobian, self.errordot)
 
     def _remember(self, context: Context, state) -> None:
         J = self._inputs(context)[1]

@@ -51,6 +51,16 @@ def usual_input(port, context: Context, default):
         return default
 
 
+def feature_signals(context: Context, feature, error, jacobian, errordot) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """``(e, J, ė_ref)`` that a task reads: from its ``feature`` port (a :class:`FeatureValue`, the
+    usual wiring), else from its ``error``, ``jacobian`` and optional ``errordot`` ports (``ė_ref``
+    None when not connected)."""
+    value = usual_input(feature, context, None)
+    if value is not None:
+        return value
+    return error.Eval(context), jacobian.Eval(context), optional_input(errordot, context, None)
+
+
 @dataclass
 class FeatureSettings:
     selection: str

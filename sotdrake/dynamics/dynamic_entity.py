@@ -39,7 +39,7 @@ class DynamicEntity(Dynamic):
         self.layout = Layout.of(plant)
         self.nq, self.nv = model.nq, model.nv
         self.B = plant.MakeActuationMatrix()
-        self.B.flags.writeable = False  # the same array in every DynamicsTerms (solvers key on it)
+        self.B.flags.writeable = False  # the same array in every DynamicsTerms (SolverDyn caches on it)
         self.mass = plant.CalcTotalMass(plant.CreateDefaultContext())
         self.damping = np.zeros(self.nv)  # the joints' viscous damping (N·m·s/rad), applied by the plant
         for index in plant.GetJointIndices():

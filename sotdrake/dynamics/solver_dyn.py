@@ -240,21 +240,9 @@ def dynamic_rows(
     return levels, slices
 
 
-_last_actuation: list = [None, None]  # (B, its actuated rows): B is the same array at every tick
-
-
 def actuated_rows(B: np.ndarray) -> np.ndarray | None:
     """The velocity row each actuator drives if ``B`` is a selection (every column a single 1, no
-    row driven twice), else None. (Kept for the last ``B`` object seen, which is read-only.)"""
-    if B is _last_actuation[0]:
-        return _last_actuation[1]
-    rows = _actuated_rows(B)
-    if not B.flags.writeable:
-        _last_actuation[:] = B, rows
-    return rows
-
-
-def _actuated_rows(B: np.ndarray) -> np.ndarray | None:
+    row driven twice), else None."""
     ones = B == 1.0
     if not (np.all(ones | (B == 0.0)) and np.all(ones.sum(axis=0) == 1) and np.all(ones.sum(axis=1) <= 1)):
         return None
@@ -317,6 +305,7 @@ class SolverDyn(SOT):
         self.setSolver(solver)
         self._contact_ports: dict[str, InputPort] = {}
         self._hqps: dict[int, HierarchicalQP] = {}  # a cache of solvers per problem size
+        self._actuation: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # see _actuated_rows
         self._reduced_hqps: dict[int, HierarchicalQP] = {}  # the same, τ eliminated
         self.dynamics = self.DeclareAbstractInputPort("dynamics", AbstractValue.Make(
             DynamicsTerms(np.eye(self.nv), np.zeros(self.nv), np.zeros(self.nv), np.zeros((self.nv, self.na)),
@@ -490,7 +479,7 @@ class SolverDyn(SOT):
         # effort limits and the wrench rows hold, it is the optimum of the full hierarchy (the same
         # argument as for the wrench rows; after the damping level x is unique, so the last
         # minimum-norm stage changes nothing).
-        actuated = actuated_rows(terms.B)
+        actuated = self._actuated_rows(terms.B)
         if actuated is not None:
             m = n - self.na
             small = self._reduced_hqps.get(m)
@@ -544,6 +533,16 @@ class SolverDyn(SOT):
         diagnostics.solve_time_s = result.solve_time_s
         value.set_value(DynSolution(x[: self.nv].copy(), x[n - self.na :].copy(), world, local, result.slack_norms, diagnostics))
 
+    def _actuated_rows(self, B: np.ndarray) -> np.ndarray | None:
+        """:func:`actuated_rows`, kept for a read-only ``B`` (the dynamic entity's, the same array at
+        every tick): a pure cache."""
+        cached, rows = self._actuation
+        if B is not cached:
+            rows = actuated_rows(B)
+            if not B.flags.writeable:
+                self._actuation = (B, rows)
+        return rows
+
     def _solve(self, context: Context, hqp: HierarchicalQP, rows: list[Rows], lower: np.ndarray, upper: np.ndarray,
                solver: str) -> HqpResult:
         """The hierarchy through its QR path when that is clear-cut (every level an equality, no
@@ -578,13 +577,14 @@ class SolverDyn(SOT):
         """Record each contact's normal force; start the ramp of a newly released contact, from
         the normal force it carries now."""
         s = self._settings_of(context)
-        local = self._solution.Eval(context).local_wrenches
+        solution = self._solution.Eval(context)
+        local = solution.local_wrenches
         loads = np.full(self.max_contacts, np.nan)
         for i, name in enumerate(self._contact_ports):
             if name in local:
                 loads[i] = local[name][-1]
         state.set_value(self._loads, loads)
-        state.set_value(self._bound_in_the_way, [1.0 if self._solution.Eval(context).diagnostics.active_bounds.size else 0.0])
+        state.set_value(self._bound_in_the_way, [1.0 if solution.diagnostics.active_bounds.size else 0.0])
         ramps = context.get_discrete_state(self._ramps).get_value().copy()
         for i, name in enumerate(self._contact_ports):
             if name not in s.releasing or name not in s.contacts:

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import daqp
 import numpy as np
@@ -88,15 +89,23 @@ def any_true(mask: np.ndarray) -> bool:
     return bool(np.count_nonzero(mask))
 
 
-_UPPER: dict[int, np.ndarray] = {}
-"""A cache of k × k upper-triangular masks of ones (zeroing what LAPACK leaves below a triangle)."""
-
-
-def _upper_mask(k: int) -> np.ndarray:
-    mask = _UPPER.get(k)
-    if mask is None:
-        mask = _UPPER[k] = np.asfortranarray(np.triu(np.ones((k, k))))
+@lru_cache(maxsize=128)
+def upper_triangle(k: int) -> np.ndarray:
+    """The k × k boolean mask of the upper triangle (read-only, cached): in LAPACK's square output of
+    a QR, what is R (below it lie the Householder vectors)."""
+    mask = np.triu(np.ones((k, k), dtype=bool))
+    mask.flags.writeable = False
     return mask
+
+
+def upper_inverse(R: np.ndarray) -> np.ndarray | None:
+    """``R⁻¹`` of the upper triangle of the square ``R`` (LAPACK ``dtrtri``, which reads only that
+    triangle), zeros below; None if singular. What lies below the triangle is masked out by
+    selection, not by a product, so a NaN there stays out."""
+    inverse, info = lapack.dtrtri(R)
+    if info != 0:
+        return None
+    return np.where(upper_triangle(R.shape[0]), inverse, 0.0)
 
 
 def svd(a: np.ndarray, full_matrices: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -169,10 +178,9 @@ def independent_qr(A: np.ndarray, threshold: float, full: bool = False) -> tuple
     qr, tau, _, info = lapack.dgeqrf(A)
     if info != 0:
         return None
-    R_inv, info = lapack.dtrtri(qr[:k])  # reads the upper triangle only
-    if info != 0:
+    R_inv = upper_inverse(qr[:k])
+    if R_inv is None:
         return None
-    R_inv *= _upper_mask(k)  # (below the triangle: the finite Householder vectors, zeroed)
     flat = R_inv.ravel(order="K")
     if not 2.0 * threshold * math.sqrt(float(flat @ flat)) < 1.0:
         return None

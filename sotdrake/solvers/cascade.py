@@ -49,9 +49,9 @@ from scipy.linalg.lapack import dgeqrf as _geqrf
 from scipy.linalg.lapack import dgesdd as _gesdd
 from scipy.linalg.lapack import dorgqr as _orgqr
 from scipy.linalg.lapack import dormqr as _ormqr
-from scipy.linalg.lapack import dtrtri as _trtri
 
 from ..exceptions import SolverError
+from .active_set import upper_inverse, upper_triangle
 
 
 @lru_cache(maxsize=8)
@@ -70,18 +70,17 @@ def _projector(selection: bytes) -> np.ndarray:
 
 
 @lru_cache(maxsize=32)
-def _triangle_masks(sizes: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For levels of ``sizes`` rows (``M`` in all): the ``M × M`` masks of the upper triangle and
-    of the upper triangles of the diagonal blocks, and each block's first row."""
+def _diagonal_blocks(sizes: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """For levels of ``sizes`` rows (``M`` in all): the ``M × M`` mask of the upper triangles of
+    the diagonal blocks, and each block's first row."""
     total = sum(sizes)
-    upper = np.triu(np.ones((total, total), dtype=bool))
     blocks = np.zeros((total, total), dtype=bool)
     starts = np.cumsum((0, *sizes[:-1]))
     for start, size in zip(starts.tolist(), sizes, strict=True):
-        blocks[start : start + size, start : start + size] = upper[:size, :size]
-    for array in (upper, blocks, starts):
+        blocks[start : start + size, start : start + size] = upper_triangle(size)
+    for array in (blocks, starts):
         array.flags.writeable = False
-    return upper, blocks, starts
+    return blocks, starts
 
 
 class _Prefix(NamedTuple):
@@ -113,13 +112,12 @@ def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, 
     qr, tau, _, info = _geqrf(B.T)
     if info != 0:
         return None
-    R_inverse, info = _trtri(qr[:total, :total])  # reads R, the upper triangle, only
-    if info != 0:
+    R_inverse = upper_inverse(qr[:total, :total])
+    if R_inverse is None:
         return None
-    upper, blocks, starts = _triangle_masks(sizes)
-    # Below the diagonal: the QR's reflectors, left by trtri. (Masks by selection, not products:
-    # a NaN in a lower level's rows must not reach the blocks above it.)
-    R_inverse = np.where(upper, R_inverse, 0.0)
+    blocks, starts = _diagonal_blocks(sizes)
+    # (A mask by selection, not a product: a NaN in a lower level's rows must not reach the blocks
+    # above it.)
     squares = np.where(blocks, R_inverse * R_inverse, 0.0)
     certified = (np.add.reduceat(squares.sum(axis=1), starts) * (svd_threshold * svd_threshold) < 1.0).tolist()
     solved = certified.index(False) if False in certified else len(rows)  # a NaN is not certified

@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from functools import lru_cache
 
 import numpy as np
 from scipy.linalg.lapack import dgeqp3 as _geqp3
@@ -46,9 +45,8 @@ from scipy.linalg.lapack import dgeqrf as _geqrf
 from scipy.linalg.lapack import dgesdd as _gesdd
 from scipy.linalg.lapack import dorgqr as _orgqr
 from scipy.linalg.lapack import dormqr as _ormqr
-from scipy.linalg.lapack import dtrtri as _trtri
 
-from .active_set import RANK_THRESHOLD
+from .active_set import RANK_THRESHOLD, upper_inverse, upper_triangle
 from .hqp import HqpResult
 
 #: The smallest singular value (rows at unit norm) that counts as clearly non-zero,
@@ -57,21 +55,6 @@ CERTIFIED = 1e3 * RANK_THRESHOLD
 NEGLIGIBLE = 1e-3 * RANK_THRESHOLD
 
 SOLVER_NAME = "qr"
-
-
-@lru_cache(maxsize=64)
-def _upper(k: int) -> np.ndarray:
-    mask = np.triu(np.ones((k, k), dtype=bool))
-    mask.flags.writeable = False
-    return mask
-
-
-def _upper_inverse(R: np.ndarray) -> np.ndarray | None:
-    """``R⁻¹`` of the upper triangle of ``R`` (zeros below), or None if singular."""
-    inverse, info = _trtri(R)
-    if info != 0:
-        return None
-    return np.where(_upper(R.shape[0]), inverse, 0.0)
 
 
 def _pivoted_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -90,14 +73,14 @@ def _pivoted_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tup
     k = int(np.count_nonzero(np.abs(np.diagonal(qr)) * d_min > CERTIFIED))
     if k == 0:
         return None
-    R11_inverse = _upper_inverse(qr[:k, :k])
+    R11_inverse = upper_inverse(qr[:k, :k])
     if R11_inverse is None:
         return None
     flat = R11_inverse.ravel()
     if not flat.dot(flat) * CERTIFIED * CERTIFIED < d_min * d_min:  # False on NaN too
         return None
     if k < r:
-        R22 = np.where(_upper(r - k)[: min(m, r) - k], qr[k : min(m, r), k:], 0.0)
+        R22 = np.where(upper_triangle(r - k)[: min(m, r) - k], qr[k : min(m, r), k:], 0.0)
         if not float(np.sum(R22 * R22)) * d_max * d_max < NEGLIGIBLE * NEGLIGIBLE:
             return None
     projected, _, info = _ormqr("L", "T", qr[:, : len(tau)], tau, residual, lwork=max(1, m))
@@ -124,7 +107,7 @@ def _least_squares(C: np.ndarray, residual: np.ndarray) -> np.ndarray | None:
     qr, tau, _, info = _geqrf(C)
     if info != 0:
         return None
-    R_inverse = _upper_inverse(qr[:k, :k])
+    R_inverse = upper_inverse(qr[:k, :k])
     if R_inverse is None:
         return None
     projected, _, info = _ormqr("L", "T", qr, tau, residual, lwork=max(1, C.shape[0]))
@@ -142,7 +125,7 @@ def _row_rank_prefix(B: np.ndarray, residual: np.ndarray, norms: np.ndarray, siz
     qr, tau, _, info = _geqrf(B.T)
     if info != 0:
         return None
-    R_inverse = _upper_inverse(qr[:M, :M])
+    R_inverse = upper_inverse(qr[:M, :M])
     if R_inverse is None:
         return None
     scaled = R_inverse * norms[:, None]  # (R D)⁻¹ = D⁻¹ R⁻¹, D = diag(1/‖row‖)

@@ -25,7 +25,7 @@ from ..configuration import Layout
 from ..entity import Entity
 from ..exceptions import InvalidInput, SolverError, StackError, TaskNotFound
 from ..task import Task, TaskLevel
-from .cascade import CascadeResult, cascade_residuals, solve_cascade
+from .cascade import CascadeResult, cascade_factorization, cascade_residuals
 from .second_order import curvature_correction
 from .velocity_scaling import scale_to_limits, velocity_scale
 
@@ -382,7 +382,7 @@ class SOT(Entity[StackSettings]):
                 raise SolverError(f"{self.name} cannot solve inequality rows: use the hierarchical QP")
         pairs = [(level.jacobian, level.reference) for level in levels]
         try:
-            result = solve_cascade(pairs, nv, s.svd_threshold, s.damping, s.control_selection, with_residuals=False)
+            result = cascade_factorization(pairs, nv, s.svd_threshold, s.damping, s.control_selection)
         except (SolverError, ValueError, np.linalg.LinAlgError):
             result = None
         if result is None or not math.isfinite(result.velocity.sum() + sum(r.sum() for _, r in pairs)):
@@ -392,13 +392,13 @@ class SOT(Entity[StackSettings]):
         if s.velocity_limit is not None:
             scale = velocity_scale(velocity, s.velocity_limit)
             if scale < 1.0:
-                # The cascade is linear in the references: scale the tasks' ė* but not the
-                # curvature correction c (its size is the one of the scaled motion), i.e. solve
-                # for s·ė* - c = s·(ė* - c) - (1 - s)·c, then keep within the limits.
+                # The cascade is linear in the references (for its rank decisions, which depend on
+                # the Jacobians only): scale the tasks' ė* but not the curvature correction c (its
+                # size is the one of the scaled motion), i.e. solve the same factorisation for
+                # s·ė* - c = s·(ė* - c) - (1 - s)·c, then keep within the limits.
                 plain = [level.reference for level in self._levels(context, s, check=False, correct=False)]
                 pairs = [(J, scale * r - (1.0 - scale) * (p - r)) for (J, r), p in zip(pairs, plain, strict=False)]
-                result = solve_cascade(pairs, nv, s.svd_threshold, s.damping, s.control_selection, with_residuals=False)
-                velocity, second = scale_to_limits(result.velocity, s.velocity_limit)
+                velocity, second = scale_to_limits(result.solve([r for _, r in pairs]), s.velocity_limit)
                 scale *= second
                 if not self._warned_scaling:
                     self._warned_scaling = True

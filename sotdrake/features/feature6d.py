@@ -121,8 +121,8 @@ def pose_error_and_jacobian(
         p = (p[0] + r[0], p[1] + r[1], p[2] + r[2])
         R = _mm(R, R_OpF)
     rotation = rows is None or rows[-1] >= 3
-    V = None if V_WFd is None else V_WFd.tolist()
-    moving = V is not None and any(V)
+    V: list[float] = [] if V_WFd is None else V_WFd.tolist()
+    moving = any(V)
     if moving:
         w_star, p_star_dot = V[0:3], V[3:6]
     RdT, RT = _t(Rd), _t(R)

@@ -79,7 +79,7 @@ class _MetaTask:
         if inequality:
             task: Task = TaskInequality("task" + name, nv)
         else:
-            task = TaskPD("task" + name, nv, robot.dt) if pd else Task("task" + name, nv)
+            task = TaskPD("task" + name, nv, robot.dt, max(nv, feature.dimension)) if pd else Task("task" + name, nv)
         self.task = robot.add_task(task)
         connect = robot.builder.Connect
         connect(feature.GetOutputPort("error"), self.gain.GetInputPort("error"))

@@ -125,26 +125,46 @@ class PDSettings:
 
 class TaskPD(_TaskBase, Entity[PDSettings]):
     """``ė* = -λ e - β ė - ė_ref`` with ``ė = (e_k - e_{k-1})/dt`` (zero on the first tick and when
-    the error changes size). The previous error is discrete state, updated every ``dt``."""
+    the error changes size).
 
-    def __init__(self, name: str, nv: int, dt: float):
+    The previous error is discrete state ``[rows, e_{k-1}, 0…]`` (rows -1 before the first tick),
+    updated every ``dt`` together with the device: Drake computes every discrete update of a tick
+    from the same context, so the command of tick k sees ``e_{k-1}``. (An unrestricted update would
+    run before the device's update and hand it ``e_k``, i.e. ``ė = 0``.) ``max_rows`` (default nv)
+    is the largest error the task keeps; a larger one is refused."""
+
+    def __init__(self, name: str, nv: int, dt: float, max_rows: int | None = None):
         Entity.__init__(self, name, PDSettings())
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
         self.dt = float(dt)
+        self.max_rows = nv if max_rows is None else int(max_rows)
+        if self.max_rows < 1:
+            raise InvalidInput(f"{name}: max_rows must be ≥ 1, got {max_rows!r}")
         self._declare_ports(nv)
-        self._previous = self.DeclareAbstractState(AbstractValue.Make(np.zeros(0)))
-        self.DeclarePeriodicUnrestrictedUpdateEvent(self.dt, 0.0, self._remember)
+        self._previous = self.DeclareDiscreteState(np.concatenate([[-1.0], np.zeros(self.max_rows)]))
+        self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._remember)
 
     def setBeta(self, beta: float, context: Context | None = None) -> None:
         if isinstance(beta, bool) or not isinstance(beta, (int, float)) or not (math.isfinite(beta) and 0 <= beta <= MAX_BETA):
             raise InvalidInput(f"{self.name}: β must be a number in [0, {MAX_BETA:g}], got {beta!r}")
         self._command(context, lambda s: setattr(s, "beta", float(beta)))
 
-    def _remember(self, context: Context, state) -> None:
-        state.get_mutable_abstract_state(self._previous).set_value(self._inputs(context)[0].copy())
+    def _error(self, context: Context) -> np.ndarray:
+        e = self._inputs(context)[0]
+        if e.size > self.max_rows:
+            raise InvalidInput(f"{self.name}: the error has {e.size} rows, more than the {self.max_rows} this TaskPD keeps "
+                               "(its max_rows)")
+        return e
+
+    def _remember(self, context: Context, discrete_state) -> None:
+        e = self._error(context)
+        kept = discrete_state.get_mutable_value(self._previous)
+        kept[0], kept[1 : 1 + e.size] = e.size, e
 
     def _rows(self, context, e, gain):
-        previous = context.get_abstract_state(self._previous).get_value()
-        rate = (e - previous) / self.dt if previous.shape == e.shape else np.zeros_like(e)
+        kept = context.get_discrete_state(self._previous).get_value()
+        rate = (e - kept[1 : 1 + e.size]) / self.dt if kept[0] == e.size else np.zeros_like(e)
         reference = -gain * e - self._settings_of(context).beta * rate
         return reference, reference
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from sotdrake.solvers import solve_cascade
-from sotdrake.solvers.cascade import _full_rank_prefix, svd_cascade
+from sotdrake.solvers.cascade import _full_rank_prefix, cascade_factorization, svd_cascade
 
 
 def random_stack(rng, nv):
@@ -159,3 +159,25 @@ def test_qr_prefix_on_nan_and_empty_levels():
     # a NaN below a full-rank level: the level above is solved, the NaN is left to the SVD cascade
     prefix = _full_rank_prefix([(J, np.ones(1)), (np.full((1, nv), np.nan), np.zeros(1))], nv, 1e-4, None)
     assert prefix.solved == 1 and np.isfinite(prefix.velocity).all() and np.isfinite(prefix.basis).all()
+
+
+@pytest.mark.parametrize("seed", range(120))
+def test_the_factorization_solves_other_references(seed):
+    """A kept factorisation solved for new references gives the cascade's v for them: the QR path,
+    the SVD levels after it, rank-deficient and conflicting levels, damping and control selection."""
+    rng = np.random.default_rng(seed)
+    nv = int(rng.integers(4, 40))
+    levels = full_rank_stack(rng, nv // 2) if rng.random() < 0.7 else []
+    levels = [(np.hstack([J, rng.normal(size=(J.shape[0], nv - J.shape[1]))]), r) for J, r in levels]
+    if rng.random() < 0.7:
+        levels += random_stack(rng, nv)
+    if not levels:
+        levels = random_stack(rng, nv)
+    selection = rng.random(nv) < 0.9 if rng.random() < 0.3 else None
+    damping = 1e-3 if rng.random() < 0.2 else 0.0
+    kept = cascade_factorization(levels, nv, 1e-4, damping, selection)
+    np.testing.assert_array_equal(kept.velocity, solve_cascade(levels, nv, 1e-4, damping, selection).velocity)
+    others = [rng.normal(size=J.shape[0]) for J, _ in levels]
+    expected = solve_cascade([(J, r) for (J, _), r in zip(levels, others, strict=True)], nv, 1e-4, damping, selection)
+    np.testing.assert_allclose(kept.solve(others), expected.velocity, rtol=0, atol=1e-9 * max(1.0, np.abs(expected.velocity).max()))
+    assert kept.solve([r for _, r in levels]) == pytest.approx(kept.velocity, abs=1e-9 * max(1.0, np.abs(kept.velocity).max()))

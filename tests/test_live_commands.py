@@ -259,14 +259,14 @@ def test_a_run_broken_mid_way_stops_and_writes_its_files(tmp_path, appli, monkey
     out = tmp_path / "out"
     answers = []
     broken = threading.Event()
-    solve = sot_module.solve_cascade
+    solve = sot_module.cascade_factorization
 
     def failing_solve(*args, **kwargs):
         if broken.is_set():
             raise SolverError("non-finite control (injected by the test)")
         return solve(*args, **kwargs)
 
-    monkeypatch.setattr(sot_module, "solve_cascade", failing_solve)
+    monkeypatch.setattr(sot_module, "cascade_factorization", failing_solve)
 
     def poke():
         while not (out / "live.json").exists():

@@ -110,6 +110,40 @@ def test_task_pd_uses_the_error_rate(talos_model):
     np.testing.assert_allclose(level.reference, -2.0 * np.array([0.9, 0.1, -1.0]) - 0.5 * rate)
     with pytest.raises(InvalidInput):
         task.setBeta(-1.0)
+    small = TaskPD("small", talos_model.nv, dt=0.01, max_rows=2)  # keeps at most 2 rows
+    context = small.CreateDefaultContext()
+    small.GetInputPort("jacobian").FixValue(context, J)
+    small.GetInputPort("controlGain").FixValue(context, [2.0])
+    small.GetInputPort("error").FixValue(context, np.array([1.0, 0.0, -1.0]))
+    with pytest.raises(InvalidInput, match="max_rows"):
+        Simulator(small, context).AdvanceTo(0.005)
+    with pytest.raises(InvalidInput):
+        TaskPD("bad", talos_model.nv, dt=0.0)
+
+
+def test_task_pd_closes_the_loop_with_the_last_ticks_error(talos_model):
+    """In a diagram, tick k's command sees e_{k-1}, not e_k (the β term acts): the hand's error
+    follows e_{k+1} = e_k - dt λ e_k - β (e_k - e_{k-1}) (first order in dt; the feet held)."""
+    builder = DiagramBuilder()
+    robot = Robot(builder, talos_model)
+    sot = add_sot(robot)
+    for name, op in (("RF", "right-ankle"), ("LF", "left-ankle")):
+        sot.push(MetaTaskKine6d(name, robot, name, op).task.name)
+    hand = MetaTaskKine6d("rh", robot, "rh", "right-wrist", pd=True)
+    gotoNd(hand, hand.current_pose().translation() + [0.01, -0.005, 0.01], "111", 5.0)
+    hand.task.setBeta(0.5)
+    sot.push(hand.task.name)
+    simulator = Simulator(builder.Build())
+    context = simulator.get_mutable_context()
+    port, dt = hand.feature.GetOutputPort("error"), robot.dt
+    errors = []
+    for k in range(30):
+        errors.append(port.Eval(hand.feature.GetMyContextFromRoot(context)).copy())
+        simulator.AdvanceTo((k + 0.5) * dt)
+    e = np.array(errors)
+    predicted = e[1:-1] - dt * 5.0 * e[1:-1] - 0.5 * (e[1:-1] - e[:-2])
+    assert np.abs(0.5 * (e[1:-1] - e[:-2])).max() > 1e-5  # the β term is large …
+    np.testing.assert_allclose(e[2:], predicted, rtol=0, atol=1e-7)  # … and acts
 
 
 def test_introspection(stack):

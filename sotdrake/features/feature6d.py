@@ -41,34 +41,60 @@ def _matrix(X) -> np.ndarray:
     return X.GetAsMatrix4() if isinstance(X, RigidTransform) else np.asarray(X)
 
 
-def _rotation_translation(X) -> tuple[list, list]:
-    """``(R, p)`` of a 4×4 homogeneous matrix, as Python lists (rows of R)."""
-    r0, r1, r2 = _matrix(X).tolist()[:3]
-    return [r0[:3], r1[:3], r2[:3]], [r0[3], r1[3], r2[3]]
+def _flat(X) -> tuple[tuple, tuple]:
+    """``(R, p)`` of a 4×4 homogeneous matrix (or ``RigidTransform``): R as 9 Python floats, row
+    by row, p as 3."""
+    a, b, c = _matrix(X).tolist()[:3]
+    return (a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]), (a[3], b[3], c[3])
 
 
-def _mul(A, B) -> list:
-    """``A·B`` of 3×3 matrices given by rows."""
-    Bt = list(zip(*B, strict=False))
-    return [[a[0] * b[0] + a[1] * b[1] + a[2] * b[2] for b in Bt] for a in A]
+# 3×3 matrices as 9 floats row by row, 3-vectors as 3 floats: the features' hot path is a few dozen
+# products, cheaper written out on Python floats than through numpy calls at this size.
+def _t(A) -> tuple:
+    """``Aᵀ``."""
+    return (A[0], A[3], A[6], A[1], A[4], A[7], A[2], A[5], A[8])
 
 
-def _mul_t(A, B) -> list:
-    """``A·Bᵀ`` of 3×3 matrices given by rows."""
-    return [[a[0] * b[0] + a[1] * b[1] + a[2] * b[2] for b in B] for a in A]
+def _mm(A, B) -> tuple:
+    """``A·B``."""
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = A
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = B
+    return (a0 * b0 + a1 * b3 + a2 * b6, a0 * b1 + a1 * b4 + a2 * b7, a0 * b2 + a1 * b5 + a2 * b8,
+            a3 * b0 + a4 * b3 + a5 * b6, a3 * b1 + a4 * b4 + a5 * b7, a3 * b2 + a4 * b5 + a5 * b8,
+            a6 * b0 + a7 * b3 + a8 * b6, a6 * b1 + a7 * b4 + a8 * b7, a6 * b2 + a7 * b5 + a8 * b8)
 
 
-def _apply(A, x) -> list:
-    """``A·x`` of a 3×3 matrix given by rows and a 3-vector."""
-    return [a[0] * x[0] + a[1] * x[1] + a[2] * x[2] for a in A]
+def _mv(A, x) -> tuple:
+    """``A·x``."""
+    x0, x1, x2 = x
+    return (A[0] * x0 + A[1] * x1 + A[2] * x2, A[3] * x0 + A[4] * x1 + A[5] * x2, A[6] * x0 + A[7] * x1 + A[8] * x2)
 
 
-def _cross(a, b) -> list:
-    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+def _cross(a, b) -> tuple:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-def _hat(a) -> list:
-    return [[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]]
+def _hat(a) -> tuple:
+    return (0.0, -a[2], a[1], a[2], 0.0, -a[0], -a[1], a[0], 0.0)
+
+
+def _log(A) -> tuple:
+    """``log`` of the rotation ``A`` (9 floats)."""
+    return tuple(log_so3_list((A[0:3], A[3:6], A[6:9])))
+
+
+def _jr_inv(phi) -> tuple:
+    """``Jr⁻¹(φ)`` as 9 floats."""
+    a, b, c = right_jacobian_inverse_list(phi)
+    return (*a, *b, *c)
+
+
+def _neg(x) -> tuple:
+    return (-x[0], -x[1], -x[2])
+
+
+_ZERO3 = (0.0, 0.0, 0.0)
+_ZERO18 = (0.0,) * 18
 
 
 def pose_error_and_jacobian(
@@ -86,53 +112,53 @@ def pose_error_and_jacobian(
     (``r = R_WOp p_OpF``) and ``M`` the 6×6 map of the error's frame: the 3×3 algebra is done on
     Python floats (cheaper than numpy at this size) and ``J_WOp`` is touched by one product.
     """
-    R, p = _rotation_translation(X_WOp)
-    Rd, pd = _rotation_translation(X_WFd)
+    R, p = _flat(X_WOp)
+    Rd, pd = _flat(X_WFd)
     r = None
     if X_OpF is not None:
-        R_OpF, p_OpF = _rotation_translation(X_OpF)
-        r = _apply(R, p_OpF)  # p_OpF in world axes
-        p = [p[0] + r[0], p[1] + r[1], p[2] + r[2]]
-        R = _mul(R, R_OpF)
+        R_OpF, p_OpF = _flat(X_OpF)
+        r = _mv(R, p_OpF)  # p_OpF in world axes
+        p = (p[0] + r[0], p[1] + r[1], p[2] + r[2])
+        R = _mm(R, R_OpF)
     rotation = rows is None or rows[-1] >= 3
-    moving = False
-    if V_WFd is not None and np.count_nonzero(V_WFd) > 0:
-        moving = True
-        w_star, p_star_dot = V_WFd[:3].tolist(), V_WFd[3:].tolist()
-    RdT, RT = [list(c) for c in zip(*Rd, strict=False)], [list(c) for c in zip(*R, strict=False)]
-    zero3 = [0.0, 0.0, 0.0]
-    e_r = e_dot_t = e_dot_r = zero3
-    bottom = [0.0] * 18  # rows 3-5 of M, flat
+    V: list[float] = [] if V_WFd is None else V_WFd.tolist()
+    moving = any(V)
+    if moving:
+        w_star, p_star_dot = V[0:3], V[3:6]
+    RdT, RT = _t(Rd), _t(R)
+    e_r = e_dot_t = e_dot_r = _ZERO3
+    bottom = _ZERO18  # rows 3-5 of M, flat
     if frame == "desired":
-        e_t = _apply(RdT, [p[0] - pd[0], p[1] - pd[1], p[2] - pd[2]])
+        e_t = _mv(RdT, (p[0] - pd[0], p[1] - pd[1], p[2] - pd[2]))
         if r is None:
-            top = [0.0, 0.0, 0.0, *RdT[0], 0.0, 0.0, 0.0, *RdT[1], 0.0, 0.0, 0.0, *RdT[2]]
+            top = (0.0, 0.0, 0.0, *RdT[0:3], 0.0, 0.0, 0.0, *RdT[3:6], 0.0, 0.0, 0.0, *RdT[6:9])
         else:
-            left = _mul(RdT, _hat([-r[0], -r[1], -r[2]]))
-            top = [*left[0], *RdT[0], *left[1], *RdT[1], *left[2], *RdT[2]]
+            left = _mm(RdT, _hat(_neg(r)))
+            top = (*left[0:3], *RdT[0:3], *left[3:6], *RdT[3:6], *left[6:9], *RdT[6:9])
         if rotation:
-            e_r = log_so3_list(_mul_t(RdT, RT))
-            a, b, c = _mul(right_jacobian_inverse_list(e_r), RT)
-            bottom = [*a, 0.0, 0.0, 0.0, *b, 0.0, 0.0, 0.0, *c, 0.0, 0.0, 0.0]
+            e_r = _log(_mm(RdT, R))
+            a = _mm(_jr_inv(e_r), RT)
+            bottom = (*a[0:3], 0.0, 0.0, 0.0, *a[3:6], 0.0, 0.0, 0.0, *a[6:9], 0.0, 0.0, 0.0)
         if moving:
-            wd = _apply(RdT, w_star)
-            e_dot_t = [a - b for a, b in zip(_cross(e_t, wd), _apply(RdT, p_star_dot), strict=False)]
+            wd = _mv(RdT, w_star)
+            c, d = _cross(e_t, wd), _mv(RdT, p_star_dot)
+            e_dot_t = (c[0] - d[0], c[1] - d[1], c[2] - d[2])
             if rotation:
-                e_dot_r = [-x for x in _apply(right_jacobian_inverse_list([-x for x in e_r]), wd)]
+                e_dot_r = _neg(_mv(_jr_inv(_neg(e_r)), wd))
     elif frame == "current":
-        e_t = _apply(RT, [pd[0] - p[0], pd[1] - p[1], pd[2] - p[2]])
-        left = _mul(_hat(e_t), RT)
+        e_t = _mv(RT, (pd[0] - p[0], pd[1] - p[1], pd[2] - p[2]))
+        left = _mm(_hat(e_t), RT)
         if r is not None:
-            left = [[a + b for a, b in zip(u, w, strict=False)] for u, w in zip(left, _mul(RT, _hat(r)), strict=False)]
-        top = [x for i in range(3) for x in (*left[i], -RT[i][0], -RT[i][1], -RT[i][2])]
+            left = tuple(a + b for a, b in zip(left, _mm(RT, _hat(r)), strict=True))
+        top = (*left[0:3], -RT[0], -RT[1], -RT[2], *left[3:6], -RT[3], -RT[4], -RT[5], *left[6:9], -RT[6], -RT[7], -RT[8])
         if rotation:
-            e_r = log_so3_list(_mul(RT, Rd))
-            JlRT = _mul(right_jacobian_inverse_list([-x for x in e_r]), RT)
-            bottom = [x for row in JlRT for x in (-row[0], -row[1], -row[2], 0.0, 0.0, 0.0)]
+            e_r = _log(_mm(RT, Rd))
+            a = _mm(_jr_inv(_neg(e_r)), RT)
+            bottom = (-a[0], -a[1], -a[2], 0.0, 0.0, 0.0, -a[3], -a[4], -a[5], 0.0, 0.0, 0.0, -a[6], -a[7], -a[8], 0.0, 0.0, 0.0)
         if moving:
-            e_dot_t = _apply(RT, p_star_dot)
+            e_dot_t = _mv(RT, p_star_dot)
             if rotation:
-                e_dot_r = _apply(right_jacobian_inverse_list(e_r), _apply(RdT, w_star))
+                e_dot_r = _mv(_jr_inv(e_r), _mv(RdT, w_star))
     else:
         raise InvalidInput(f"frame: expected one of {FRAMES}, got {frame!r}")
     M = np.array(top + bottom).reshape(6, 6)

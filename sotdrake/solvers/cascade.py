@@ -85,11 +85,29 @@ def _diagonal_blocks(sizes: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
 
 class _Prefix(NamedTuple):
     """The first ``solved`` levels solved by the QR path: ``v`` after them and, when levels remain,
-    ``basis``, an orthonormal basis ``Q_K`` of what they fix (``P_solved = P_0 - Q_K Q_Kᵀ``)."""
+    ``basis``, an orthonormal basis ``Q_K`` of what they fix (``P_solved = P_0 - Q_K Q_Kᵀ``).
+    ``levels`` (indices of the solved levels with rows), ``L_inverse_T`` (``(L⁻¹)ᵀ`` of their
+    rows), ``reflectors`` and ``scales`` (their Householder ``Q``) give ``v`` for other
+    references: ``v = Q L⁻¹ r``."""
 
     solved: int
     velocity: np.ndarray
     basis: np.ndarray | None
+    levels: list[int]
+    L_inverse_T: np.ndarray
+    reflectors: np.ndarray
+    scales: np.ndarray
+
+    def resolve(self, references: Sequence[np.ndarray]) -> np.ndarray:
+        """``v`` of the solved levels for ``references`` (one per level of the stack)."""
+        nv = self.reflectors.shape[0]
+        y = np.zeros(nv)
+        K = self.L_inverse_T.shape[0]
+        y[:K] = self.L_inverse_T @ np.concatenate([references[i] for i in self.levels])
+        v, _, info = _ormqr("L", "N", self.reflectors, self.scales, y, lwork=max(1, nv))
+        if info != 0:
+            raise SolverError(f"the QR path failed (LAPACK info {info})")
+        return v
 
 
 def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
@@ -125,7 +143,8 @@ def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, 
         return None
     K = int(starts[solved]) if solved < len(rows) else total
     y = np.zeros(nv)
-    y[:K] = R_inverse[:K, :K].T @ np.concatenate([r for _, _, r in rows[:solved]])
+    L_inverse_T = R_inverse[:K, :K].T
+    y[:K] = L_inverse_T @ np.concatenate([r for _, _, r in rows[:solved]])
     reflectors, scales = qr[:, :K], tau[:K]  # the next ones may hold a NaN
     v, _, info = _ormqr("L", "N", reflectors, scales, y, lwork=max(1, nv))
     if info != 0:
@@ -138,13 +157,67 @@ def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, 
             return None
         if selection is not None:  # the fixed directions lie in the selected space (round-off aside)
             basis[~np.asarray(selection, dtype=bool)] = 0.0
-    return _Prefix(count, v, basis)
+    return _Prefix(count, v, basis, [i for i, _, _ in rows[:solved]], L_inverse_T, reflectors, scales)
 
 
 class CascadeResult(NamedTuple):
     velocity: np.ndarray
     residuals: np.ndarray | None  # ‖J_i v - ė_i*‖ of each level, for the returned v
     ranks: np.ndarray  # numerical rank of each A_i
+
+
+class _Step(NamedTuple):
+    """One SVD level kept for re-solving: ``v ← v + V (inverse ⊙ (Uᵀ (ė* - J v)))``."""
+
+    level: int
+    jacobian: np.ndarray
+    V: np.ndarray
+    inverse: np.ndarray
+    Ut: np.ndarray
+
+
+class CascadeFactorization:
+    """The cascade of a stack of Jacobians, solved for its references, and kept so that it solves
+    the same Jacobians for other references without factorising again (:meth:`solve`): for given
+    rank decisions the cascade's ``v`` is linear in the references. ``velocity`` and ``ranks``:
+    those of the references it was built with."""
+
+    def __init__(self, prefix: _Prefix | None, steps: list[_Step], velocity: np.ndarray, ranks: np.ndarray,
+                 selection: np.ndarray | None):
+        self._prefix, self._steps, self._selection = prefix, steps, selection
+        self.velocity, self.ranks = velocity, ranks
+
+    def solve(self, references: Sequence[np.ndarray]) -> np.ndarray:
+        """``v`` for ``references`` (one per level, the sizes of the Jacobians')."""
+        v = self._prefix.resolve(references) if self._prefix is not None else np.zeros(self.velocity.size)
+        for step in self._steps:
+            reference = references[step.level]
+            v = v + step.V @ (step.inverse * (step.Ut @ (reference - step.jacobian @ v)))
+        if self._selection is not None:
+            v[~self._selection] = 0.0
+        return v
+
+
+def cascade_factorization(
+    levels: Sequence[tuple[np.ndarray, np.ndarray]],
+    nv: int,
+    svd_threshold: float = 1e-4,
+    damping: float | Sequence[float] = 0.0,
+    control_selection: np.ndarray | None = None,
+) -> CascadeFactorization:
+    """:func:`solve_cascade`'s solve, kept for other references (:class:`CascadeFactorization`)."""
+    dampings = [float(damping)] * len(levels) if isinstance(damping, (int, float)) else list(damping)
+    prefix = _full_rank_prefix(levels, nv, svd_threshold, control_selection) if not any(dampings) else None
+    steps: list[_Step] = []
+    if prefix is not None and prefix.solved == len(levels):
+        v, ranks = prefix.velocity, np.array([J.shape[0] for J, _ in levels], dtype=int)
+    else:
+        v, ranks = svd_cascade(levels, nv, svd_threshold, dampings, control_selection, prefix, steps)
+    selection = None
+    if control_selection is not None:  # zero in exact arithmetic; the QR and SVD leave round-off
+        selection = np.asarray(control_selection, dtype=bool)
+        v[~selection] = 0.0
+    return CascadeFactorization(prefix, steps, v, ranks, selection)
 
 
 def solve_cascade(
@@ -167,22 +240,17 @@ def solve_cascade(
     (Fortran-ordered as it comes, no copy): ``A_iᵀ = W Σ Uᵀ``, so ``W``'s columns are ``A_i``'s
     right singular vectors. A LAPACK failure raises :class:`~sotdrake.exceptions.SolverError`.
     """
-    dampings = [float(damping)] * len(levels) if isinstance(damping, (int, float)) else list(damping)
-    prefix = _full_rank_prefix(levels, nv, svd_threshold, control_selection) if not any(dampings) else None
-    if prefix is not None and prefix.solved == len(levels):
-        v, ranks = prefix.velocity, np.array([J.shape[0] for J, _ in levels], dtype=int)
-    else:
-        v, ranks = svd_cascade(levels, nv, svd_threshold, dampings, control_selection, prefix)
-    if control_selection is not None:  # zero in exact arithmetic; the QR and SVD leave round-off
-        v[~np.asarray(control_selection, dtype=bool)] = 0.0
-    return CascadeResult(v, cascade_residuals(levels, v) if with_residuals else None, ranks)
+    solved = cascade_factorization(levels, nv, svd_threshold, damping, control_selection)
+    v = solved.velocity
+    return CascadeResult(v, cascade_residuals(levels, v) if with_residuals else None, solved.ranks)
 
 
 def svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
                 dampings: Sequence[float], control_selection: np.ndarray | None,
-                prefix: _Prefix | None = None) -> tuple[np.ndarray, np.ndarray]:
+                prefix: _Prefix | None = None, steps: list[_Step] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(v, ranks)`` of the cascade, one SVD per level; ``dampings``: one δ per level. With
-    ``prefix``, its levels are taken as solved (full rank) and the cascade goes on from them."""
+    ``prefix``, its levels are taken as solved (full rank) and the cascade goes on from them. With
+    ``steps``, each level that moves ``v`` is appended to it (:class:`CascadeFactorization`)."""
     v = np.zeros(nv)
     P = _identity(nv) if control_selection is None else _projector(np.asarray(control_selection, dtype=bool).tobytes())
     ranks = np.zeros(len(levels), dtype=int)
@@ -209,6 +277,8 @@ def svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_th
             V = W[:, :rank]
             rhs = Ut[:rank] @ (reference - J @ v if i else reference)
             v = v + V @ (inverse * rhs)
+            if steps is not None:
+                steps.append(_Step(i, J, V, inverse, Ut[:rank]))
             if i < last:
                 P = P - V @ V.T
     return v, ranks

@@ -25,7 +25,7 @@ from ..configuration import Layout
 from ..entity import Entity
 from ..exceptions import InvalidInput, SolverError, StackError, TaskNotFound
 from ..task import Task, TaskLevel
-from .cascade import CascadeResult, cascade_residuals, solve_cascade
+from .cascade import CascadeResult, cascade_factorization, cascade_residuals
 from .second_order import curvature_correction
 from .velocity_scaling import scale_to_limits, velocity_scale
 
@@ -306,26 +306,28 @@ class SOT(Entity[StackSettings]):
         the ``v`` kept here."""
         s = self._settings_of(context)
         v = self._solution.Eval(context).velocity
-        kept = discrete_state.get_mutable_value(self._last_velocity)
-        kept[0], kept[1:] = 1.0, v
+        discrete_state.set_value(self._last_velocity, np.concatenate(([1.0], v)))
         in_stack = {*s.contacts, *s.tasks}
         for name, index in self._last_task_velocity.items():
             kept = discrete_state.get_mutable_value(index)
-            J = self._task_ports[name].Eval(context).jacobian if name in in_stack else None
-            if J is None or J.shape[0] > self.nv:
-                kept[0] = -1.0
-            else:
-                kept[0] = J.shape[0]
-                kept[1 : 1 + J.shape[0]] = J @ v
+            if name in in_stack:
+                y = self._task_ports[name].Eval(context).jacobian @ v
+                if y.size <= self.nv:
+                    kept[0], kept[1 : 1 + y.size] = y.size, y
+                    continue
+            kept[0] = -1.0
 
-    def _last_tick(self, context: Context) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
-        """``(v_{k-1}, {task: J_{k-1} v_{k-1}})`` of the last tick, or None before the first."""
-        kept = context.get_discrete_state(self._last_velocity).get_value()
+    def _last_tick(self, context: Context, names: list[str]) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
+        """``(v_{k-1}, {task: J_{k-1} v_{k-1}})`` of the last tick for the tasks ``names``, or None
+        before the first."""
+        state = context.get_discrete_state()
+        kept = state.get_value(self._last_velocity)
         if kept[0] != 1.0:
             return None
         task_velocities = {}
-        for name, index in self._last_task_velocity.items():
-            y = context.get_discrete_state(index).get_value()
+        indices = self._last_task_velocity
+        for name in names:
+            y = state.get_value(indices[name])
             if y[0] >= 0:
                 task_velocities[name] = y[1 : 1 + int(y[0])]
         return kept[1:], task_velocities
@@ -335,11 +337,12 @@ class SOT(Entity[StackSettings]):
         (with ``check``): sizes fit nv, no NaN (±inf only as inequality bounds); with ``dt`` and
         ``correct``, each level's reference corrected for the curvature of the tick (:mod:`.second_order`)."""
         levels = []
+        names = [*settings.contacts, *settings.tasks] if settings.contacts else settings.tasks
         last_tick = None
         if correct and self._last_velocity is not None:
-            last_tick = self._last_tick(context)
+            last_tick = self._last_tick(context, names)
         ports = self._task_ports
-        for name in [*settings.contacts, *settings.tasks] if settings.contacts else settings.tasks:
+        for name in names:
             level = ports[name].Eval(context)
             J = level.jacobian
             if check:
@@ -354,7 +357,7 @@ class SOT(Entity[StackSettings]):
                 if correction is not None:
                     lower = level.lower - correction
                     upper = lower if level.upper is level.lower else level.upper - correction
-                    level = level._replace(lower=lower, upper=upper)
+                    level = TaskLevel(J, lower, upper, level.error)
             levels.append(level)
         if settings.contacts:
             contacts, levels = levels[: len(settings.contacts)], levels[len(settings.contacts) :]
@@ -379,7 +382,7 @@ class SOT(Entity[StackSettings]):
                 raise SolverError(f"{self.name} cannot solve inequality rows: use the hierarchical QP")
         pairs = [(level.jacobian, level.reference) for level in levels]
         try:
-            result = solve_cascade(pairs, nv, s.svd_threshold, s.damping, s.control_selection, with_residuals=False)
+            result = cascade_factorization(pairs, nv, s.svd_threshold, s.damping, s.control_selection)
         except (SolverError, ValueError, np.linalg.LinAlgError):
             result = None
         if result is None or not math.isfinite(result.velocity.sum() + sum(r.sum() for _, r in pairs)):
@@ -389,13 +392,13 @@ class SOT(Entity[StackSettings]):
         if s.velocity_limit is not None:
             scale = velocity_scale(velocity, s.velocity_limit)
             if scale < 1.0:
-                # The cascade is linear in the references: scale the tasks' ė* but not the
-                # curvature correction c (its size is the one of the scaled motion), i.e. solve
-                # for s·ė* - c = s·(ė* - c) - (1 - s)·c, then keep within the limits.
+                # The cascade is linear in the references (for its rank decisions, which depend on
+                # the Jacobians only): scale the tasks' ė* but not the curvature correction c (its
+                # size is the one of the scaled motion), i.e. solve the same factorisation for
+                # s·ė* - c = s·(ė* - c) - (1 - s)·c, then keep within the limits.
                 plain = [level.reference for level in self._levels(context, s, check=False, correct=False)]
                 pairs = [(J, scale * r - (1.0 - scale) * (p - r)) for (J, r), p in zip(pairs, plain, strict=False)]
-                result = solve_cascade(pairs, nv, s.svd_threshold, s.damping, s.control_selection, with_residuals=False)
-                velocity, second = scale_to_limits(result.velocity, s.velocity_limit)
+                velocity, second = scale_to_limits(result.solve([r for _, r in pairs]), s.velocity_limit)
                 scale *= second
                 if not self._warned_scaling:
                     self._warned_scaling = True

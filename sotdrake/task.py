@@ -150,15 +150,11 @@ class TaskPD(_TaskBase, Entity[PDSettings]):
             raise InvalidInput(f"{self.name}: β must be a number in [0, {MAX_BETA:g}], got {beta!r}")
         self._command(context, lambda s: setattr(s, "beta", float(beta)))
 
-    def _error(self, context: Context) -> np.ndarray:
+    def _remember(self, context: Context, discrete_state) -> None:
         e = self._inputs(context)[0]
         if e.size > self.max_rows:
             raise InvalidInput(f"{self.name}: the error has {e.size} rows, more than the {self.max_rows} this TaskPD keeps "
                                "(its max_rows)")
-        return e
-
-    def _remember(self, context: Context, discrete_state) -> None:
-        e = self._error(context)
         kept = discrete_state.get_mutable_value(self._previous)
         kept[0], kept[1 : 1 + e.size] = e.size, e
 

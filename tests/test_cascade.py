@@ -97,7 +97,7 @@ def test_full_rank_fast_path_is_the_svd_cascade(seed):
         selection = rng.random(nv) < 0.8
         selection[: sum(J.shape[0] for J, _ in levels)] = True  # enough free velocities
     prefix = _full_rank_prefix(levels, nv, 1e-4, selection)
-    assert prefix is not None and prefix.solved == len(levels) and prefix.basis is None
+    assert prefix is not None and prefix.solved == len(levels) and prefix.free is None
     fast = prefix.velocity
     v, ranks = svd_cascade(levels, nv, 1e-4, [0.0] * len(levels), selection)
     np.testing.assert_allclose(fast, v, rtol=0, atol=1e-10 * max(1.0, np.abs(v).max()))
@@ -158,7 +158,7 @@ def test_qr_prefix_on_nan_and_empty_levels():
     np.testing.assert_allclose(_full_rank_prefix(with_empty, nv, 1e-4, None).velocity, np.full(nv, 0.25))
     # a NaN below a full-rank level: the level above is solved, the NaN is left to the SVD cascade
     prefix = _full_rank_prefix([(J, np.ones(1)), (np.full((1, nv), np.nan), np.zeros(1))], nv, 1e-4, None)
-    assert prefix.solved == 1 and np.isfinite(prefix.velocity).all() and np.isfinite(prefix.basis).all()
+    assert prefix.solved == 1 and np.isfinite(prefix.velocity).all() and np.isfinite(prefix.free).all()
 
 
 @pytest.mark.parametrize("seed", range(120))

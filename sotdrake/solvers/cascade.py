@@ -19,8 +19,12 @@ the thin SVD ``A = U Σ Vᵀ``:
 The right singular vectors of ``J_i P_{i-1}`` lie in ``range(P_{i-1})``, so ``P_i`` stays the
 orthogonal projector on the null space of every level so far (up to the truncated singular
 values), lower levels only move in ``range(P_i)``, and a lower level never changes a higher
-level's residual (strict priority). One thin SVD per level (LAPACK ``gesdd`` of the ``nv × m``
-matrix ``A_iᵀ``, no full ``nv × nv`` basis) and two ``nv × nv`` products.
+level's residual (strict priority). ``P_i`` is kept as an orthonormal basis ``Z_i`` of its range
+(``P_i = P_0 Z_i Z_iᵀ``, ``P_0`` a mask on the Jacobians' columns): ``A_i = (J_i P_0 Z_{i-1}) Z_{i-1}ᵀ``,
+so each level takes one SVD (LAPACK ``gesdd``) of the ``m × d_i`` matrix ``J_i P_0 Z_{i-1}``, whose
+right singular vectors ``W`` give ``V_i = Z_{i-1} W_{≤rank}`` and ``Z_i = Z_{i-1} W_{>rank}``;
+``d_i``, what is left free, shrinks down the stack (a posture level of nv rows at the bottom of a
+stack is an ``nv × d`` SVD, not ``nv × nv``).
 
 **Full-rank fast path** (no damping): stack the levels, ``B = [J_1; …; J_n] P_0`` (``M`` rows,
 ``M ≤ nv``), and take one Householder QR ``Bᵀ = Q R`` in priority order (no pivoting), so that
@@ -33,8 +37,8 @@ solves every level exactly, and its ``v`` is the one point of ``range(Q)`` that 
 ``R⁻¹`` on its diagonal are the ``R_ii⁻¹``). The QR of the first rows does not depend on the rows
 below, so the path also solves the leading certified levels of any stack: when a block is not
 certified (a rank loss, a conflict with a higher level, a singular value within ``√m_i`` of the
-threshold, a NaN, or more rows than ``nv``), the SVD cascade above goes on from
-``P = P_0 - Q_K Q_Kᵀ`` (``Q_K``: the solved levels' columns of ``Q``) and decides.
+threshold, a NaN, or more rows than ``nv``), the SVD cascade above goes on from ``Z`` = the
+other columns of ``Q`` (``P = P_0 - Q_K Q_Kᵀ``, ``Q_K``: the solved levels' columns) and decides.
 """
 
 from __future__ import annotations
@@ -54,21 +58,6 @@ from ..exceptions import SolverError
 from .active_set import upper_inverse, upper_triangle
 
 
-@lru_cache(maxsize=8)
-def _identity(n: int) -> np.ndarray:
-    identity = np.eye(n)
-    identity.flags.writeable = False
-    return identity
-
-
-@lru_cache(maxsize=8)
-def _projector(selection: bytes) -> np.ndarray:
-    """The projector on the selected velocities (``diag(selection)``), read-only and cached."""
-    P = np.diag(np.frombuffer(selection, dtype=bool).astype(float))
-    P.flags.writeable = False
-    return P
-
-
 @lru_cache(maxsize=32)
 def _diagonal_blocks(sizes: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
     """For levels of ``sizes`` rows (``M`` in all): the ``M × M`` mask of the upper triangles of
@@ -85,14 +74,15 @@ def _diagonal_blocks(sizes: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
 
 class _Prefix(NamedTuple):
     """The first ``solved`` levels solved by the QR path: ``v`` after them and, when levels remain,
-    ``basis``, an orthonormal basis ``Q_K`` of what they fix (``P_solved = P_0 - Q_K Q_Kᵀ``).
+    ``free``, the last ``nv - K`` columns of the full ``Q``: an orthonormal basis of ``Q_K``'s
+    orthogonal complement (what the solved levels leave free, with ``P_0``'s mask on the Jacobians).
     ``levels`` (indices of the solved levels with rows), ``L_inverse_T`` (``(L⁻¹)ᵀ`` of their
     rows), ``reflectors`` and ``scales`` (their Householder ``Q``) give ``v`` for other
     references: ``v = Q L⁻¹ r``."""
 
     solved: int
     velocity: np.ndarray
-    basis: np.ndarray | None
+    free: np.ndarray | None
     levels: list[int]
     L_inverse_T: np.ndarray
     reflectors: np.ndarray
@@ -150,14 +140,15 @@ def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, 
     if info != 0:
         return None
     count = rows[solved][0] if solved < len(rows) else len(levels) if taken == len(levels) else taken
-    basis = None
+    free = None
     if count < len(levels):
-        basis, _, info = _orgqr(reflectors, scales)
+        padded = np.zeros((nv, nv), order="F")
+        padded[:, :K] = reflectors
+        Q, _, info = _orgqr(padded, scales)
         if info != 0:
             return None
-        if selection is not None:  # the fixed directions lie in the selected space (round-off aside)
-            basis[~np.asarray(selection, dtype=bool)] = 0.0
-    return _Prefix(count, v, basis, [i for i, _, _ in rows[:solved]], L_inverse_T, reflectors, scales)
+        free = Q[:, K:]
+    return _Prefix(count, v, free, [i for i, _, _ in rows[:solved]], L_inverse_T, reflectors, scales)
 
 
 class CascadeResult(NamedTuple):
@@ -252,21 +243,26 @@ def svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_th
     ``prefix``, its levels are taken as solved (full rank) and the cascade goes on from them. With
     ``steps``, each level that moves ``v`` is appended to it (:class:`CascadeFactorization`)."""
     v = np.zeros(nv)
-    P = _identity(nv) if control_selection is None else _projector(np.asarray(control_selection, dtype=bool).tobytes())
+    mask = None if control_selection is None else np.asarray(control_selection, dtype=bool)
+    Z = None  # an orthonormal basis of what the levels above leave free (None: every direction)
     ranks = np.zeros(len(levels), dtype=int)
     first = 0
     if prefix is not None:
         first, v = prefix.solved, prefix.velocity
         ranks[:first] = [J.shape[0] for J, _ in levels[:first]]
-        if prefix.basis is not None:
-            P = P - prefix.basis @ prefix.basis.T
+        Z = prefix.free
     last = len(levels) - 1
     for i in range(first, len(levels)):
         J, reference = levels[i]
-        if J.shape[0] == 0:
+        if J.shape[0] == 0 or (Z is not None and Z.shape[1] == 0):  # nothing asked, or nothing left free
             continue
-        A = J @ P
-        W, sigma, Ut, info = _gesdd(A.T, compute_uv=1, full_matrices=0)
+        # A_i = J P_0 P_{i-1} with P_{i-1} = Z Zᵀ: the SVD of J P_0 Z (m × d), whose right singular
+        # vectors W map back by Z; (J P_0 Z)ᵀ = W Σ Uᵀ. Below the last level W comes in full: its
+        # columns past the rank span what is left free.
+        A = J if mask is None else J * mask
+        if Z is not None:
+            A = A @ Z
+        W, sigma, Ut, info = _gesdd(A.T, compute_uv=1, full_matrices=int(i < last))
         if info != 0:
             raise SolverError(f"level {i}: the SVD failed (LAPACK info {info}); is the level finite?")
         rank = sum(1 for x in sigma.tolist() if x > svd_threshold)
@@ -274,13 +270,13 @@ def svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_th
         if rank:
             s = sigma[:rank]
             inverse = 1.0 / s if dampings[i] == 0.0 else s / (s * s + dampings[i])
-            V = W[:, :rank]
-            rhs = Ut[:rank] @ (reference - J @ v if i else reference)
-            v = v + V @ (inverse * rhs)
+            V = W[:, :rank] if Z is None else Z @ W[:, :rank]
+            Ut = Ut[:rank]
+            v = v + V @ (inverse * (Ut @ (reference - J @ v if i else reference)))
             if steps is not None:
-                steps.append(_Step(i, J, V, inverse, Ut[:rank]))
-            if i < last:
-                P = P - V @ V.T
+                steps.append(_Step(i, J, V, inverse, Ut))
+        if i < last:
+            Z = W[:, rank:] if Z is None else Z @ W[:, rank:]
     return v, ranks
 
 

@@ -99,6 +99,7 @@ class DynDiagnostics:
     solve_time_s: float = 0.0
     failure: str = ""
     torques_eliminated: bool = False  # solved over (q̈, w) with τ eliminated (the fast path)
+    held_bounds: np.ndarray = field(default_factory=lambda: np.zeros(HELD_BOUNDS))  # see held_bounds()
 
 
 @dataclass
@@ -273,6 +274,20 @@ def variable_bounds(
     return lower, upper
 
 
+#: How many bounds at the optimum the solver remembers from one tick to the next.
+HELD_BOUNDS = 8
+
+
+def held_bounds(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """The components ``active`` of ``x`` at a bound, signed: ``i + 1`` at its lower bound, ``−(i + 1)``
+    at its upper one, padded with 0 to :data:`HELD_BOUNDS` entries (the first ones kept)."""
+    out = np.zeros(HELD_BOUNDS)
+    active = active[:HELD_BOUNDS]
+    at_lower = np.abs(x[active] - lower[active]) <= np.abs(x[active] - upper[active])
+    out[: len(active)] = np.where(at_lower, active + 1.0, -(active + 1.0))
+    return out
+
+
 def _wrench_rows_hold(contacts: list[ActiveContact], slices: list[slice], x: np.ndarray, tolerance: float = 1e-9) -> bool:
     for c, sl in zip(contacts, slices, strict=False):
         w = x[sl]
@@ -316,9 +331,9 @@ class SolverDyn(SOT):
         # and the normal force each declared contact carried at the last tick (NaN: not held), which
         # weighs the shear regularization (:func:`shear_weights`).
         self._loads = self.DeclareDiscreteState(np.full(max_contacts, np.nan))
-        # and whether a bound was in the way at the last tick (1: the QP solves the next tick at
-        # once, without the QR path's attempt; the same answer, found without that cost).
-        self._bound_in_the_way = self.DeclareDiscreteState(np.zeros(1))
+        # and the bounds held at the last tick's optimum (:data:`HELD_BOUNDS` signed entries, see
+        # :func:`held_bounds`): the QR path starts from them (a guess: the answer does not depend on it).
+        self._held_bounds = self.DeclareDiscreteState(np.zeros(HELD_BOUNDS))
         self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._update)
         self.DeclareVectorOutputPort("torque", self.na, lambda c, o: o.SetFromVector(self._solution.Eval(c).torque))
         self.DeclareVectorOutputPort("wrenches", 6 * max_contacts, self._calc_wrenches)
@@ -530,6 +545,7 @@ class SolverDyn(SOT):
         diagnostics.slack_norms = result.slack_norms
         diagnostics.level_solvers = result.level_solvers
         diagnostics.active_bounds = result.active_bounds
+        diagnostics.held_bounds = held_bounds(x, lower, upper, result.active_bounds)
         diagnostics.solve_time_s = result.solve_time_s
         value.set_value(DynSolution(x[: self.nv].copy(), x[n - self.na :].copy(), world, local, result.slack_norms, diagnostics))
 
@@ -545,13 +561,16 @@ class SolverDyn(SOT):
 
     def _solve(self, context: Context, hqp: HierarchicalQP, rows: list[Rows], lower: np.ndarray, upper: np.ndarray,
                solver: str) -> HqpResult:
-        """The hierarchy through its QR path when that is clear-cut (every level an equality, no
-        bound in the way: :mod:`..solvers.equality_hierarchy`, the same answer), else ``hqp``
-        (which checks the rows). The QR path is not tried when a bound was in the way at the last
-        tick (discrete state), nor when a Drake solver is chosen."""
-        tried = context.get_discrete_state(self._bound_in_the_way).get_value()[0] == 0.0
-        if tried and solver == ACTIVE_SET and all(lo is hi for _, lo, hi in rows):
-            result = solve_equality_hierarchy([(A, b) for A, b, _ in rows], lower, upper)
+        """The hierarchy through its QR path when that is clear-cut (every level an equality, the
+        bounds at the optimum held as equalities and certified by their multipliers:
+        :mod:`..solvers.equality_hierarchy`, the same answer), else ``hqp`` (which checks the rows).
+        The QR path starts from the bounds held at the last tick (discrete state); it is not tried
+        when a Drake solver is chosen."""
+        if solver == ACTIVE_SET and all(lo is hi for _, lo, hi in rows):
+            guess = context.get_discrete_state(self._held_bounds).get_value()
+            at_lower = [int(g) - 1 for g in guess if g > 0]
+            at_upper = [int(-g) - 1 for g in guess if g < 0]
+            result = solve_equality_hierarchy([(A, b) for A, b, _ in rows], lower, upper, at_lower, at_upper)
             if result is not None:
                 return result
         return hqp.solve([LevelRows(*level) for level in rows], lower, upper, 0.0, solver, start=inside(lower, upper))
@@ -584,7 +603,7 @@ class SolverDyn(SOT):
             if name in local:
                 loads[i] = local[name][-1]
         state.set_value(self._loads, loads)
-        state.set_value(self._bound_in_the_way, [1.0 if solution.diagnostics.active_bounds.size else 0.0])
+        state.set_value(self._held_bounds, solution.diagnostics.held_bounds)
         ramps = context.get_discrete_state(self._ramps).get_value().copy()
         for i, name in enumerate(self._contact_ports):
             if name not in s.releasing or name not in s.contacts:

@@ -69,7 +69,7 @@ from ..solvers.hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, chec
 from ..solvers.sot import SOT, StackSettings
 from ..task import TaskLevel
 from .contact import Contact6d, ContactRows, world_wrench_map
-from .terms import DynamicsTerms, acceleration_bounds
+from .terms import DynamicsTerms, joint_acceleration_bounds
 
 log = logging.getLogger("sotdrake.solver_dyn")
 
@@ -132,9 +132,9 @@ def shear_weights(loads: np.ndarray | None, count: int) -> np.ndarray:
     if loads is None or count < 2:
         return np.ones(count)
     loads = np.asarray(loads, dtype=float)
-    if loads.shape != (count,) or not np.all(np.isfinite(loads)):
+    if loads.shape != (count,) or not np.isfinite(loads).all():
         return np.ones(count)
-    mean = max(float(np.mean(np.maximum(loads, 0.0))), 1.0)
+    mean = max(float(np.maximum(loads, 0.0).mean()), 1.0)
     return np.sqrt(mean / np.maximum(loads, max(0.01 * mean, 1.0)))
 
 
@@ -193,29 +193,33 @@ def dynamic_rows(
     dynamics' unactuated rows (the actuated ones define ``τ``: :func:`torques_of`)."""
     nv, na = terms.B.shape
     sizes = [c.rows.jacobian.shape[0] for c in contacts]
-    n = nv + sum(sizes) + (na if actuated is None else 0)
+    n_w = sum(sizes)
+    n = nv + n_w + (na if actuated is None else 0)
     slices = wrench_slices(nv, contacts)
-    dyn = np.zeros((nv, n))
-    dyn[:, :nv] = terms.M
-    if actuated is None:
-        dyn[:, nv + sum(sizes):] = -terms.B
-    for c, sl in zip(contacts, slices, strict=False):
-        dyn[:, sl] = -c.rows.jacobian.T @ world_wrench_map(c.rows.rotation, sl.stop - sl.start)
-    levels: list[Rows]
-    if actuated is None:
-        b = -terms.h
-        levels = [(dyn, b, b)]
-    else:
+    passive = None
+    if actuated is not None:
         passive = np.ones(nv, dtype=bool)
         passive[actuated] = False
-        b = -terms.h[passive]
-        levels = [(dyn[passive], b, b)]
+    M = terms.M if passive is None else terms.M[passive]
+    dyn = np.empty((M.shape[0], n))
+    dyn[:, :nv] = M
+    if passive is None:
+        dyn[:, nv + n_w :] = -terms.B
+    for c, sl in zip(contacts, slices, strict=False):
+        J = c.rows.jacobian if passive is None else c.rows.jacobian[:, passive]
+        dyn[:, sl] = -(world_wrench_map(c.rows.rotation, sl.stop - sl.start).T @ J).T
+    b = -terms.h if passive is None else -terms.h[passive]
+    levels: list[Rows] = [(dyn, b, b)]
     if contacts:
-        m_eq = sum(sizes)
+        m_eq = n_w
         m_in = sum(len(c.rows.wrench_rows) for c in contacts) if with_inequalities else 0
         A = np.zeros((m_eq + m_in, n))
-        lower = np.concatenate([np.concatenate([c.rows.acceleration for c in contacts]), np.full(m_in, -np.inf)])
-        upper = np.concatenate([lower[:m_eq], np.zeros(m_in)]) if m_in else lower
+        lower = np.concatenate([c.rows.acceleration for c in contacts]) if len(contacts) > 1 else contacts[0].rows.acceleration
+        if m_in:
+            lower = np.concatenate([lower, np.full(m_in, -np.inf)])
+            upper = np.concatenate([lower[:m_eq], np.zeros(m_in)])
+        else:
+            upper = lower
         r_eq, r_in = 0, m_eq
         for c, sl in zip(contacts, slices, strict=False):
             k, m = sl.stop - sl.start, len(c.rows.wrench_rows) if with_inequalities else 0
@@ -230,13 +234,14 @@ def dynamic_rows(
         levels.append((A, task.lower, task.upper))
     m = sum(k - 1 for k in sizes)
     damping = np.zeros((nv + m, n))
-    damping[:nv, :nv] = np.eye(nv)
+    damping.ravel()[: nv * (n + 1) : n + 1] = 1.0  # q̈ (the first nv columns)
     row = nv
     for c, sl, weight in zip(contacts, slices, shear_weights(loads, len(contacts)), strict=True):
         rows = wrench_regularization(c, sl.stop - sl.start, float(weight))
         damping[row : row + len(rows), sl] = rows
         row += len(rows)
-    target = np.concatenate([-damping_gain * terms.v, np.zeros(m)])
+    target = np.zeros(nv + m)
+    target[:nv] = -damping_gain * terms.v
     levels.append((damping, target, target))
     return levels, slices
 
@@ -291,7 +296,7 @@ def held_bounds(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, active: np.
 def _wrench_rows_hold(contacts: list[ActiveContact], slices: list[slice], x: np.ndarray, tolerance: float = 1e-9) -> bool:
     for c, sl in zip(contacts, slices, strict=False):
         w = x[sl]
-        if np.any(c.rows.wrench_rows @ w > tolerance * max(1.0, float(np.abs(w).max()))):
+        if (c.rows.wrench_rows @ w).max(initial=-np.inf) > tolerance * max(1.0, float(np.abs(w).max())):
             return False
     return True
 
@@ -312,7 +317,11 @@ class SolverDyn(SOT):
         self.layout = self._layout = Layout.of(model.plant)
         limits = model.joint_limits()
         self._limits = (limits["position_lower"], limits["position_upper"], limits["velocity_lower"], limits["velocity_upper"])
+        iq, iv = self._layout.joints_q, self._layout.joints_v  # the joints' limits, indexed once
+        self._joint_limits = (self._limits[0][iq], self._limits[1][iq], self._limits[2][iv], self._limits[3][iv])
+        self._contact_index: dict[str, int] = {}  # the declaration order of the contacts
         self.effort = limits["effort"] * float(effort_scale)  # |τ| bounds (N·m, N)
+        self._effort_held = self.effort * (1 + 1e-9)  # what the fast path's τ must stay within
         self.effort_scale = float(effort_scale)
         self.na = len(self.effort)
         self.max_contacts = max_contacts
@@ -353,6 +362,7 @@ class SolverDyn(SOT):
             "contact" + contact.name if not contact.name.startswith("contact") else contact.name,
             AbstractValue.Make(ContactRows(np.zeros((6, self.nv)), np.zeros(6), np.eye(3), np.zeros((0, 6)), 0.0, 1.0)),
         )
+        self._contact_index[contact.name] = len(self._contact_ports)
         self._contact_ports[contact.name] = port
         return port
 
@@ -428,7 +438,7 @@ class SolverDyn(SOT):
 
     # --- solve -------------------------------------------------------------------------------
     def _ramp(self, context: Context, name: str) -> tuple[float, float]:
-        i = list(self._contact_ports).index(name)
+        i = self._contact_index[name]
         ramps = context.get_discrete_state(self._ramps).get_value()
         return float(ramps[2 * i]), float(ramps[2 * i + 1])
 
@@ -477,9 +487,12 @@ class SolverDyn(SOT):
         tasks = self._tasks(context, s)
         loads = self.previous_loads(context, [c.name for c in contacts])
         slices = wrench_slices(self.nv, contacts)
-        a_lower, a_upper = acceleration_bounds(terms.q, terms.v, *self._limits, s.horizon, s.position_margin, self._layout)
+        # The joint limits as acceleration bounds (:func:`.terms.acceleration_bounds`).
+        a_lower, a_upper = np.full(self.nv, -np.inf), np.full(self.nv, np.inf)
+        iq, iv = self._layout.joints_q, self._layout.joints_v
+        a_lower[iv], a_upper[iv] = joint_acceleration_bounds(terms.q[iq], terms.v[iv], *self._joint_limits, s.horizon,
+                                                             s.position_margin)
         if s.control_selection is not None:  # sot-core's controlSelec: the others are held (q̈ = 0)
-            a_lower, a_upper = a_lower.copy(), a_upper.copy()
             a_lower[~s.control_selection] = a_upper[~s.control_selection] = 0.0
         lower, upper = variable_bounds(self.nv, contacts, slices, a_lower, a_upper, self.effort)
         names = ["dynamics"] + (["contacts"] if contacts else []) + list(s.tasks) + ["damping"]
@@ -505,7 +518,7 @@ class SolverDyn(SOT):
                 fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver)
                 tau = torques_of(terms, contacts, slices, fast.x, actuated)
                 x = np.concatenate([fast.x, tau])
-                if np.all(np.abs(tau) <= self.effort * (1 + 1e-9)) and (not contacts or _wrench_rows_hold(contacts, slices, x)):
+                if np.count_nonzero(np.abs(tau) > self._effort_held) == 0 and (not contacts or _wrench_rows_hold(contacts, slices, x)):
                     fast.x = x
                     result = fast
                     diagnostics.torques_eliminated = True
@@ -515,7 +528,7 @@ class SolverDyn(SOT):
             if result is None:
                 rows, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
                 relaxed = result = self._solve(context, hqp, rows, lower, upper, s.solver)
-            if contacts and not _wrench_rows_hold(contacts, slices, result.x):
+            if contacts and not diagnostics.torques_eliminated and not _wrench_rows_hold(contacts, slices, result.x):
                 result = None
                 full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, loads=loads)
                 result = hqp.solve(full, lower, upper, 0.0, s.solver, start=inside(lower, upper))
@@ -588,9 +601,8 @@ class SolverDyn(SOT):
         """The normal force (N) each named contact carried at the previous tick, or None if one of
         them was not held then."""
         record = context.get_discrete_state(self._loads).get_value()
-        ports = list(self._contact_ports)
-        loads = np.array([record[ports.index(name)] for name in names])
-        return loads if np.all(np.isfinite(loads)) else None
+        loads = record[[self._contact_index[name] for name in names]]
+        return loads if np.isfinite(loads).all() else None
 
     def _update(self, context: Context, state) -> None:
         """Record each contact's normal force; start the ramp of a newly released contact, from

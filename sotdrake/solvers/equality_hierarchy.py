@@ -69,8 +69,8 @@ def _pivoted_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tup
     qr, pivots, tau, _, info = _geqp3(B)
     if info != 0:
         return None
-    d_min, d_max = 1.0 / float(norms.max()), 1.0 / float(norms.min())
-    k = int(np.count_nonzero(np.abs(np.diagonal(qr)) * d_min > CERTIFIED))
+    d_min, d_max = 1.0 / float(np.maximum.reduce(norms)), 1.0 / float(np.minimum.reduce(norms))
+    k = int(np.count_nonzero(np.abs(qr.diagonal()) * d_min > CERTIFIED))
     if k == 0:
         return None
     R11_inverse = upper_inverse(qr[:k, :k])
@@ -80,8 +80,8 @@ def _pivoted_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tup
     if not flat.dot(flat) * CERTIFIED * CERTIFIED < d_min * d_min:  # False on NaN too
         return None
     if k < r:
-        R22 = np.where(upper_triangle(r - k)[: min(m, r) - k], qr[k : min(m, r), k:], 0.0)
-        if not float(np.sum(R22 * R22)) * d_max * d_max < NEGLIGIBLE * NEGLIGIBLE:
+        R22 = np.where(upper_triangle(r - k)[: min(m, r) - k], qr[k : min(m, r), k:], 0.0).ravel()
+        if not float(R22.dot(R22)) * d_max * d_max < NEGLIGIBLE * NEGLIGIBLE:
             return None
     projected, _, info = _ormqr("L", "T", qr[:, : len(tau)], tau, residual, lwork=max(1, m, residual[0].size))
     if info != 0:
@@ -91,9 +91,9 @@ def _pivoted_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tup
     z[columns[:k]] = R11_inverse @ projected[:k]
     if k == r:  # full column rank: the level fixes what is left
         return z, np.zeros((r, 0))
-    null = np.empty((r, r - k))
+    null = np.zeros((r, r - k))
     null[columns[:k]] = -R11_inverse @ qr[:k, k:]
-    null[columns[k:]] = np.eye(r - k)
+    null[columns[k:], np.arange(r - k)] = 1.0
     basis, tau, _, info = _geqrf(null)
     if info != 0:
         return None
@@ -240,8 +240,8 @@ def _sweep(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_lower: np.ndarray,
     Z: np.ndarray | None = None  # None: the identity on the free components
     r = n_free
     x_free = np.zeros(n_free)
-    indices = np.fromiter(held, dtype=int, count=len(held))
-    directions = _Directions(indices, np.array([held[i] for i in indices], dtype=float), n_free)
+    indices = np.array(list(held), dtype=int)
+    directions = _Directions(indices, np.array([held[i] for i in held], dtype=float), n_free)
     u = len(indices)
     i = 0
     while i < len(levels) and (r or u):
@@ -264,7 +264,7 @@ def _sweep(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_lower: np.ndarray,
         residual = b - A_full @ (x_free if all_free else x)
         B = A if Z is None else A @ Z
         norms = np.sqrt(np.einsum("ij,ij->i", A_full, A_full))  # before projection, as the QP's
-        norms = np.where(norms > 0.0, norms, 1.0)
+        norms[norms == 0.0] = 1.0
         C = directions.rows(A_full, A) if u else None
         rhs = residual if C is None else np.column_stack([residual, -C])
         step: np.ndarray | None
@@ -340,8 +340,8 @@ def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_
                 del held[index]
             continue
         below, above = x < x_lower, x > x_upper
-        if not (np.any(below) or np.any(above)):
-            if not np.all(np.isfinite(x)):
+        if not (np.count_nonzero(below) or np.count_nonzero(above)):
+            if not np.isfinite(x).all():
                 return None
             break
         # The bound most in the way (relative to its size) is held next: several at once may hold

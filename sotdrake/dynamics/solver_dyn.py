@@ -55,6 +55,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import cast
 
 import numpy as np
@@ -142,14 +143,22 @@ def wrench_regularization(contact: ActiveContact, k: int, weight: float) -> np.n
     """The regularization rows of one contact's wrench (k = 6: ``(n, f)``; 3: ``f``), target 0,
     all scaled by ``weight``: the CoP's offset from the sole's centre ``(x_c, y_c)`` times ``f_z``,
     the yaw torque and the shear."""
-    centre = contact.rows.centre
-    if k == 3:
-        return WRENCH_REGULARIZATION * weight * np.eye(3)[:2]
-    rows = np.zeros((5, 6))
-    rows[0, 0], rows[0, 5] = 1.0, -centre[1]  # n_x − y_c f_z: the CoP's y offset × f_z
-    rows[1, 1], rows[1, 5] = 1.0, centre[0]  # n_y + x_c f_z: minus its x offset × f_z
-    rows[2, 2] = rows[3, 3] = rows[4, 4] = 1.0  # n_z, f_x, f_y
-    return WRENCH_REGULARIZATION * weight * rows
+    return WRENCH_REGULARIZATION * weight * _regularization_rows(tuple(contact.rows.centre) if k == 6 else None)
+
+
+@lru_cache(maxsize=32)
+def _regularization_rows(centre: tuple[float, float] | None) -> np.ndarray:
+    """The unweighted rows of :func:`wrench_regularization` (None: a point contact's force),
+    read-only and cached: asked at every tick."""
+    if centre is None:
+        rows = np.eye(3)[:2]
+    else:
+        rows = np.zeros((5, 6))
+        rows[0, 0], rows[0, 5] = 1.0, -centre[1]  # n_x − y_c f_z: the CoP's y offset × f_z
+        rows[1, 1], rows[1, 5] = 1.0, centre[0]  # n_y + x_c f_z: minus its x offset × f_z
+        rows[2, 2] = rows[3, 3] = rows[4, 4] = 1.0  # n_z, f_x, f_y
+    rows.flags.writeable = False
+    return rows
 
 
 def inside(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
@@ -270,8 +279,11 @@ def variable_bounds(
     acceleration_upper: np.ndarray, effort: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Bounds on ``x``: joint accelerations, the normal forces (``f_min``, the ramp), the torques."""
-    lower = np.concatenate([acceleration_lower, np.full(sum(s.stop - s.start for s in slices), -np.inf), -effort])
-    upper = np.concatenate([acceleration_upper, np.full(len(lower) - nv - len(effort), np.inf), effort])
+    start = slices[-1].stop if slices else nv  # where τ starts
+    lower, upper = np.empty(start + len(effort)), np.empty(start + len(effort))
+    lower[:nv], upper[:nv] = acceleration_lower, acceleration_upper
+    lower[nv:start], upper[nv:start] = -np.inf, np.inf
+    lower[start:], upper[start:] = -effort, effort
     for c, sl in zip(contacts, slices, strict=False):
         normal = sl.stop - 1  # f_z, the wrench's last component
         released = np.isfinite(c.f_max)
@@ -287,6 +299,8 @@ def held_bounds(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, active: np.
     """The components ``active`` of ``x`` at a bound, signed: ``i + 1`` at its lower bound, ``−(i + 1)``
     at its upper one, padded with 0 to :data:`HELD_BOUNDS` entries (the first ones kept)."""
     out = np.zeros(HELD_BOUNDS)
+    if not active.size:
+        return out
     active = active[:HELD_BOUNDS]
     at_lower = np.abs(x[active] - lower[active]) <= np.abs(x[active] - upper[active])
     out[: len(active)] = np.where(at_lower, active + 1.0, -(active + 1.0))
@@ -470,7 +484,7 @@ class SolverDyn(SOT):
             J = level.jacobian
             if J.ndim != 2 or J.shape[1] != self.nv or level.lower.shape != (J.shape[0],):
                 raise SolverError(f"task {name}: jacobian {J.shape} and bounds {level.lower.shape} do not fit nv = {self.nv}")
-            if not np.isfinite(J).all() or np.isnan(level.lower).any() or np.isnan(level.upper).any():
+            if not np.isfinite(J).all() or np.isnan(level.lower).any() or (level.upper is not level.lower and np.isnan(level.upper).any()):
                 raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")
             tasks.append(level)
         return tasks

@@ -53,6 +53,7 @@ level) and ``diagnostics``.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -133,10 +134,14 @@ def shear_weights(loads: np.ndarray | None, count: int) -> np.ndarray:
     if loads is None or count < 2:
         return np.ones(count)
     loads = np.asarray(loads, dtype=float)
-    if loads.shape != (count,) or not np.isfinite(loads).all():
+    if loads.shape != (count,):
         return np.ones(count)
-    mean = max(float(np.maximum(loads, 0.0).mean()), 1.0)
-    return np.sqrt(mean / np.maximum(loads, max(0.01 * mean, 1.0)))
+    values = loads.tolist()  # a few contacts: Python floats cost less than numpy calls
+    if not all(math.isfinite(f) for f in values):
+        return np.ones(count)
+    mean = max(sum(max(f, 0.0) for f in values) / count, 1.0)
+    floor = max(0.01 * mean, 1.0)
+    return np.array([math.sqrt(mean / max(f, floor)) for f in values])
 
 
 def wrench_regularization(contact: ActiveContact, k: int, weight: float) -> np.ndarray:

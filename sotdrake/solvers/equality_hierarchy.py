@@ -27,11 +27,27 @@ the scaled ``B`` must be at least :data:`CERTIFIED` (``10³ τ``, ``τ`` the QP'
 ``σ_min(D B) ≥ σ_min(D) σ_min(B)``). The optimum without the free bounds is then unique up to the
 final minimum-norm step. If it lies within the bounds it is the optimum with them (the bounded
 optimal set is a subset of the unbounded one and contains that point), and so the hierarchical
-QP's answer; :func:`solve_equality_hierarchy` returns it. Otherwise (a rank decision that is not
-clear-cut, a bound in the way, a non-finite level) it returns None and the hierarchical QP decides.
-Cost: one QR and one triangular inverse per group of full-row-rank levels, a QR (pivoted when
-rank-deficient; an SVD only when that cannot certify the gap) for the others, instead of the QP's
-SVDs and stages.
+QP's answer; :func:`solve_equality_hierarchy` returns it.
+
+A bound in the way is held at equality: its component becomes a fixed one and the hierarchy is
+solved again (:func:`_sweep`), the bound most in the way first. That point is the QP's answer if
+holding the bound is optimal in the lexicographic sense, which the sweep certifies by the sign of
+the bound's multiplier at the level that decides it. Along the bound's direction ``p`` (+1 on the
+held component, or −1 at an upper bound, the free components following so that every level above
+keeps its value, ``A_l p = 0``), level k's objective ``‖A_k x − b_k‖²`` changes at the rate
+``λ_k = −ρ_kᵀ E_k`` (``E_k = A_k p`` less what the free directions can compensate, ``ρ_k`` the level's
+residual at its optimum). If ``E_k`` is round-off, level k is indifferent and ``p`` passes to the
+levels below; otherwise level k decides: ``λ_k ≥ 0`` certifies the bound (the objective is convex,
+strictly along what is left of ``p``: no point off the bound does as well), ``λ_k < 0`` releases
+it and the sweep is redone. A direction that reaches the end is decided by the minimum-norm stage
+(``λ = xᵀ p ≥ 0``). Several bounds are certified together when the levels that decide them see
+them independently (:func:`_certify`); the set may change :data:`ACTIVE_SET_CHANGES` times. The
+caller may pass the bounds it expects held (those of the previous tick), which then cost no
+extra sweep; a wrong guess is released by its multiplier. Otherwise (a rank or survival decision
+that is not clear-cut, the set still changing, a non-finite level) it returns None and the
+hierarchical QP decides. Cost: one QR and one triangular inverse per group of full-row-rank
+levels, a QR (pivoted when rank-deficient; an SVD only when that cannot certify the gap) for the
+others, per sweep, instead of the QP's SVDs and stages.
 """
 
 from __future__ import annotations

@@ -303,30 +303,56 @@ def test_solver_records_the_previous_loads(standing):
     np.testing.assert_array_equal(loads, [before["contactLF"][5], before["contactRF"][5]])
 
 
-def test_a_bound_in_the_way_sends_the_next_tick_straight_to_the_qp(standing, monkeypatch):
+def test_a_bound_in_the_way_is_held_by_the_qr_path(standing, monkeypatch):
     """A tick whose optimum has a bound active (the right sole's normal force held at a raised
-    f_min, which the QP enforces: it starts inside the bounds) is solved by the QP after the QR
-    path's attempt; the next ticks skip the attempt (a flag in the Context) while the bound stays in
-    the way, and the QR path answers again once it is not."""
-    import sotdrake.dynamics.solver_dyn as solver_dyn
+    f_min) is answered by the QR path holding that bound at equality, certified by its multiplier:
+    the hierarchical QP's point. The bound is remembered (discrete state), so the next ticks start
+    from it: one sweep each. Once f_min is lowered the remembered bound is released (its multiplier
+    turns negative) and the point is the unbounded one."""
+    import sotdrake.solvers.equality_hierarchy as equality_hierarchy
 
     robot, diagram, *_ = standing
-    attempts: list[bool] = []
-    solve = solver_dyn.solve_equality_hierarchy
-    monkeypatch.setattr(solver_dyn, "solve_equality_hierarchy", lambda *a: attempts.append(True) or solve(*a))
+    sot, nv = robot.sot, robot.model.nv
+    sweeps: list[dict] = []
+    sweep = equality_hierarchy._sweep
+    monkeypatch.setattr(equality_hierarchy, "_sweep", lambda *a: sweeps.append(dict(a[3])) or sweep(*a))
     simulator = Simulator(diagram)
     context = simulator.get_context()
-    robot.sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS), context)  # as the scripts
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS), context)  # as the scripts
     right = robot.contacts["contactRF"]
     right.setMinimumNormalForce(600.0, context)  # more than its share of TALOS' weight
-    simulator.AdvanceTo(0.0005)  # the tick at t = 0
-    assert len(attempts) == 1 and _solution(robot, context).diagnostics.active_bounds.size
-    assert _solution(robot, context).local_wrenches["contactRF"][5] == pytest.approx(600.0, abs=1e-6)
-    simulator.AdvanceTo(0.0035)  # three more ticks, the bound still in the way: no attempt
-    assert len(attempts) == 1
+    solution = _solution(robot, context)  # the tick at t = 0
+    assert set(solution.diagnostics.level_solvers) == {"qr"} and solution.diagnostics.torques_eliminated
+    assert solution.local_wrenches["contactRF"][5] == pytest.approx(600.0, abs=1e-9)
+    assert len(sweeps) == 2 and not sweeps[0]  # unbounded, then with the normal force held
+    normal = nv + 11  # f_z of the right sole in (q̈, w_LF, w_RF)
+    assert list(solution.diagnostics.active_bounds) == [normal]
+
+    sot_context = sot.GetMyContextFromRoot(context)
+    terms = sot.dynamics.Eval(sot_context)
+    contacts = sot._active_contacts(sot_context, sot._settings_of(sot_context))
+    tasks = sot._tasks(sot_context, sot._settings_of(sot_context))
+    levels, slices = dynamic_levels(terms, contacts, tasks, 10.0, False, None, actuated_rows(terms.B))
+    a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout)
+    a_lo[~sot._settings_of(sot_context).control_selection] = a_up[~sot._settings_of(sot_context).control_selection] = 0.0
+    lower, upper = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
+    m = len(lower) - sot.na
+    reference = HierarchicalQP(m).solve(levels, lower[:m], upper[:m], start=np.clip(0.0, lower[:m], upper[:m]))
+    assert list(reference.active_bounds) == [normal]
+    scale = np.abs(reference.x).max()
+    np.testing.assert_allclose(solution.acceleration, reference.x[:nv], rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(solution.local_wrenches["contactRF"], reference.x[slices[1]], rtol=0, atol=1e-9 * scale)
+
+    simulator.AdvanceTo(0.0005)  # the update at t = 0 remembers the bound
+    assert sot_context.get_discrete_state(sot._held_bounds).get_value()[0] == normal + 1  # at its lower bound
+    del sweeps[:]
+    simulator.AdvanceTo(0.0035)  # three more ticks, each from the remembered bound: one sweep
+    assert sweeps == [{normal: 1.0}] * 3
     right.setMinimumNormalForce(1.0, context)
-    simulator.AdvanceTo(0.0065)  # one tick for the QP to find the bound out of the way, then QR
-    assert len(attempts) >= 2 and set(_solution(robot, context).diagnostics.level_solvers) == {"qr"}
+    del sweeps[:]
+    solution = _solution(robot, context)
+    assert sweeps == [{normal: 1.0}, {}]  # the remembered bound released, then the unbounded sweep
+    assert solution.diagnostics.active_bounds.size == 0 and solution.local_wrenches["contactRF"][5] > 1.0
 
 
 def test_stiff_com_after_a_push_spends_the_torques(standing):

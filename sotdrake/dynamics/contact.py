@@ -132,6 +132,9 @@ class Contact6d(Entity[ContactSettings]):
         self.drift = self.DeclareVectorInputPort("drift", 6)
         self.velocity = self.DeclareVectorInputPort("velocity", nv)
         k = 6 if rectangle is not None else 3
+        self._rows = slice(0, 6) if self.rectangle is not None else slice(3, 6)  # of J_WC and J̇_WC v
+        self._centre = (0.0, 0.0) if self.rectangle is None else \
+            ((self.rectangle[0] + self.rectangle[1]) / 2, (self.rectangle[2] + self.rectangle[3]) / 2)
         empty = ContactRows(np.zeros((k, nv)), np.zeros(k), np.eye(3), np.zeros((0, k)), 0.0, 1.0)
         self.DeclareAbstractOutputPort("contact", lambda: AbstractValue.Make(empty), self._calc)
 
@@ -165,13 +168,11 @@ class Contact6d(Entity[ContactSettings]):
 
     def _calc(self, context: Context, output: AbstractValue) -> None:
         s = self._settings_of(context)
-        rows = slice(0, 6) if self.rectangle is not None else slice(3, 6)
+        rows = self._rows
         J = self.jacobian.Eval(context)[rows]
         acceleration = -self.drift.Eval(context)[rows]
         if s.velocity_gain:
             acceleration = acceleration - s.velocity_gain * (J @ self.velocity.Eval(context))
         A = wrench_constraints(s.mu, self.rectangle, s.cop_margin)
         R = self.position.Eval(context).rotation().matrix()
-        centre = (0.0, 0.0) if self.rectangle is None else \
-            ((self.rectangle[0] + self.rectangle[1]) / 2, (self.rectangle[2] + self.rectangle[3]) / 2)
-        output.set_value(ContactRows(J, acceleration, R, A, s.f_min, s.mu, centre))
+        output.set_value(ContactRows(J, acceleration, R, A, s.f_min, s.mu, self._centre))

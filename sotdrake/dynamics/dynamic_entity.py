@@ -81,9 +81,10 @@ class DynamicEntity(Dynamic):
         plant, pc = self.plant, self._plant_ctx(context)
         M = plant.CalcMassMatrix(pc)
         Cv = plant.CalcBiasTerm(pc)
-        x = self.state.Eval(context)
-        h = Cv - plant.CalcGravityGeneralizedForces(pc) + self.damping * x[self.nq :]
-        value.set_value(DynamicsTerms(M, h, Cv, self.B, x[: self.nq].copy(), x[self.nq :].copy(), self.mass))
+        x = self.state.Eval(context)  # a fresh copy: q and v are views of it
+        v = x[self.nq :]
+        h = Cv - plant.CalcGravityGeneralizedForces(pc) + self.damping * v
+        value.set_value(DynamicsTerms(M, h, Cv, self.B, x[: self.nq], v, self.mass))
 
     def _calc_com_jacobian(self, context: Context, output: AbstractValue) -> None:
         terms = self._terms.Eval(context)

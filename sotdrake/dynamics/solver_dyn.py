@@ -53,8 +53,10 @@ level) and ``diagnostics``.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import cast
 
 import numpy as np
@@ -69,7 +71,7 @@ from ..solvers.hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, chec
 from ..solvers.sot import SOT, StackSettings
 from ..task import TaskLevel
 from .contact import Contact6d, ContactRows, world_wrench_map
-from .terms import DynamicsTerms, acceleration_bounds
+from .terms import DynamicsTerms, joint_acceleration_bounds
 
 log = logging.getLogger("sotdrake.solver_dyn")
 
@@ -99,6 +101,7 @@ class DynDiagnostics:
     solve_time_s: float = 0.0
     failure: str = ""
     torques_eliminated: bool = False  # solved over (q̈, w) with τ eliminated (the fast path)
+    held_bounds: np.ndarray = field(default_factory=lambda: np.zeros(HELD_BOUNDS))  # see held_bounds()
 
 
 @dataclass
@@ -131,24 +134,36 @@ def shear_weights(loads: np.ndarray | None, count: int) -> np.ndarray:
     if loads is None or count < 2:
         return np.ones(count)
     loads = np.asarray(loads, dtype=float)
-    if loads.shape != (count,) or not np.all(np.isfinite(loads)):
+    if loads.shape != (count,):
         return np.ones(count)
-    mean = max(float(np.mean(np.maximum(loads, 0.0))), 1.0)
-    return np.sqrt(mean / np.maximum(loads, max(0.01 * mean, 1.0)))
+    values = loads.tolist()  # a few contacts: Python floats cost less than numpy calls
+    if not all(math.isfinite(f) for f in values):
+        return np.ones(count)
+    mean = max(sum(max(f, 0.0) for f in values) / count, 1.0)
+    floor = max(0.01 * mean, 1.0)
+    return np.array([math.sqrt(mean / max(f, floor)) for f in values])
 
 
 def wrench_regularization(contact: ActiveContact, k: int, weight: float) -> np.ndarray:
     """The regularization rows of one contact's wrench (k = 6: ``(n, f)``; 3: ``f``), target 0,
     all scaled by ``weight``: the CoP's offset from the sole's centre ``(x_c, y_c)`` times ``f_z``,
     the yaw torque and the shear."""
-    centre = contact.rows.centre
-    if k == 3:
-        return WRENCH_REGULARIZATION * weight * np.eye(3)[:2]
-    rows = np.zeros((5, 6))
-    rows[0, 0], rows[0, 5] = 1.0, -centre[1]  # n_x − y_c f_z: the CoP's y offset × f_z
-    rows[1, 1], rows[1, 5] = 1.0, centre[0]  # n_y + x_c f_z: minus its x offset × f_z
-    rows[2, 2] = rows[3, 3] = rows[4, 4] = 1.0  # n_z, f_x, f_y
-    return WRENCH_REGULARIZATION * weight * rows
+    return WRENCH_REGULARIZATION * weight * _regularization_rows(tuple(contact.rows.centre) if k == 6 else None)
+
+
+@lru_cache(maxsize=32)
+def _regularization_rows(centre: tuple[float, float] | None) -> np.ndarray:
+    """The unweighted rows of :func:`wrench_regularization` (None: a point contact's force),
+    read-only and cached: asked at every tick."""
+    if centre is None:
+        rows = np.eye(3)[:2]
+    else:
+        rows = np.zeros((5, 6))
+        rows[0, 0], rows[0, 5] = 1.0, -centre[1]  # n_x − y_c f_z: the CoP's y offset × f_z
+        rows[1, 1], rows[1, 5] = 1.0, centre[0]  # n_y + x_c f_z: minus its x offset × f_z
+        rows[2, 2] = rows[3, 3] = rows[4, 4] = 1.0  # n_z, f_x, f_y
+    rows.flags.writeable = False
+    return rows
 
 
 def inside(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
@@ -192,29 +207,33 @@ def dynamic_rows(
     dynamics' unactuated rows (the actuated ones define ``τ``: :func:`torques_of`)."""
     nv, na = terms.B.shape
     sizes = [c.rows.jacobian.shape[0] for c in contacts]
-    n = nv + sum(sizes) + (na if actuated is None else 0)
+    n_w = sum(sizes)
+    n = nv + n_w + (na if actuated is None else 0)
     slices = wrench_slices(nv, contacts)
-    dyn = np.zeros((nv, n))
-    dyn[:, :nv] = terms.M
-    if actuated is None:
-        dyn[:, nv + sum(sizes):] = -terms.B
-    for c, sl in zip(contacts, slices, strict=False):
-        dyn[:, sl] = -c.rows.jacobian.T @ world_wrench_map(c.rows.rotation, sl.stop - sl.start)
-    levels: list[Rows]
-    if actuated is None:
-        b = -terms.h
-        levels = [(dyn, b, b)]
-    else:
+    passive = None
+    if actuated is not None:
         passive = np.ones(nv, dtype=bool)
         passive[actuated] = False
-        b = -terms.h[passive]
-        levels = [(dyn[passive], b, b)]
+    M = terms.M if passive is None else terms.M[passive]
+    dyn = np.empty((M.shape[0], n))
+    dyn[:, :nv] = M
+    if passive is None:
+        dyn[:, nv + n_w :] = -terms.B
+    for c, sl in zip(contacts, slices, strict=False):
+        J = c.rows.jacobian if passive is None else c.rows.jacobian[:, passive]
+        dyn[:, sl] = -(world_wrench_map(c.rows.rotation, sl.stop - sl.start).T @ J).T
+    b = -terms.h if passive is None else -terms.h[passive]
+    levels: list[Rows] = [(dyn, b, b)]
     if contacts:
-        m_eq = sum(sizes)
+        m_eq = n_w
         m_in = sum(len(c.rows.wrench_rows) for c in contacts) if with_inequalities else 0
         A = np.zeros((m_eq + m_in, n))
-        lower = np.concatenate([np.concatenate([c.rows.acceleration for c in contacts]), np.full(m_in, -np.inf)])
-        upper = np.concatenate([lower[:m_eq], np.zeros(m_in)]) if m_in else lower
+        lower = np.concatenate([c.rows.acceleration for c in contacts]) if len(contacts) > 1 else contacts[0].rows.acceleration
+        if m_in:
+            lower = np.concatenate([lower, np.full(m_in, -np.inf)])
+            upper = np.concatenate([lower[:m_eq], np.zeros(m_in)])
+        else:
+            upper = lower
         r_eq, r_in = 0, m_eq
         for c, sl in zip(contacts, slices, strict=False):
             k, m = sl.stop - sl.start, len(c.rows.wrench_rows) if with_inequalities else 0
@@ -229,13 +248,14 @@ def dynamic_rows(
         levels.append((A, task.lower, task.upper))
     m = sum(k - 1 for k in sizes)
     damping = np.zeros((nv + m, n))
-    damping[:nv, :nv] = np.eye(nv)
+    damping.ravel()[: nv * (n + 1) : n + 1] = 1.0  # q̈ (the first nv columns)
     row = nv
     for c, sl, weight in zip(contacts, slices, shear_weights(loads, len(contacts)), strict=True):
         rows = wrench_regularization(c, sl.stop - sl.start, float(weight))
         damping[row : row + len(rows), sl] = rows
         row += len(rows)
-    target = np.concatenate([-damping_gain * terms.v, np.zeros(m)])
+    target = np.zeros(nv + m)
+    target[:nv] = -damping_gain * terms.v
     levels.append((damping, target, target))
     return levels, slices
 
@@ -264,8 +284,11 @@ def variable_bounds(
     acceleration_upper: np.ndarray, effort: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Bounds on ``x``: joint accelerations, the normal forces (``f_min``, the ramp), the torques."""
-    lower = np.concatenate([acceleration_lower, np.full(sum(s.stop - s.start for s in slices), -np.inf), -effort])
-    upper = np.concatenate([acceleration_upper, np.full(len(lower) - nv - len(effort), np.inf), effort])
+    start = slices[-1].stop if slices else nv  # where τ starts
+    lower, upper = np.empty(start + len(effort)), np.empty(start + len(effort))
+    lower[:nv], upper[:nv] = acceleration_lower, acceleration_upper
+    lower[nv:start], upper[nv:start] = -np.inf, np.inf
+    lower[start:], upper[start:] = -effort, effort
     for c, sl in zip(contacts, slices, strict=False):
         normal = sl.stop - 1  # f_z, the wrench's last component
         released = np.isfinite(c.f_max)
@@ -273,10 +296,26 @@ def variable_bounds(
     return lower, upper
 
 
+#: How many bounds at the optimum the solver remembers from one tick to the next.
+HELD_BOUNDS = 8
+
+
+def held_bounds(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """The components ``active`` of ``x`` at a bound, signed: ``i + 1`` at its lower bound, ``−(i + 1)``
+    at its upper one, padded with 0 to :data:`HELD_BOUNDS` entries (the first ones kept)."""
+    out = np.zeros(HELD_BOUNDS)
+    if not active.size:
+        return out
+    active = active[:HELD_BOUNDS]
+    at_lower = np.abs(x[active] - lower[active]) <= np.abs(x[active] - upper[active])
+    out[: len(active)] = np.where(at_lower, active + 1.0, -(active + 1.0))
+    return out
+
+
 def _wrench_rows_hold(contacts: list[ActiveContact], slices: list[slice], x: np.ndarray, tolerance: float = 1e-9) -> bool:
     for c, sl in zip(contacts, slices, strict=False):
         w = x[sl]
-        if np.any(c.rows.wrench_rows @ w > tolerance * max(1.0, float(np.abs(w).max()))):
+        if (c.rows.wrench_rows @ w).max(initial=-np.inf) > tolerance * max(1.0, float(np.abs(w).max())):
             return False
     return True
 
@@ -297,7 +336,11 @@ class SolverDyn(SOT):
         self.layout = self._layout = Layout.of(model.plant)
         limits = model.joint_limits()
         self._limits = (limits["position_lower"], limits["position_upper"], limits["velocity_lower"], limits["velocity_upper"])
+        iq, iv = self._layout.joints_q, self._layout.joints_v  # the joints' limits, indexed once
+        self._joint_limits = (self._limits[0][iq], self._limits[1][iq], self._limits[2][iv], self._limits[3][iv])
+        self._contact_index: dict[str, int] = {}  # the declaration order of the contacts
         self.effort = limits["effort"] * float(effort_scale)  # |τ| bounds (N·m, N)
+        self._effort_held = self.effort * (1 + 1e-9)  # what the fast path's τ must stay within
         self.effort_scale = float(effort_scale)
         self.na = len(self.effort)
         self.max_contacts = max_contacts
@@ -316,9 +359,9 @@ class SolverDyn(SOT):
         # and the normal force each declared contact carried at the last tick (NaN: not held), which
         # weighs the shear regularization (:func:`shear_weights`).
         self._loads = self.DeclareDiscreteState(np.full(max_contacts, np.nan))
-        # and whether a bound was in the way at the last tick (1: the QP solves the next tick at
-        # once, without the QR path's attempt; the same answer, found without that cost).
-        self._bound_in_the_way = self.DeclareDiscreteState(np.zeros(1))
+        # and the bounds held at the last tick's optimum (:data:`HELD_BOUNDS` signed entries, see
+        # :func:`held_bounds`): the QR path starts from them (a guess: the answer does not depend on it).
+        self._held_bounds = self.DeclareDiscreteState(np.zeros(HELD_BOUNDS))
         self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._update)
         self.DeclareVectorOutputPort("torque", self.na, lambda c, o: o.SetFromVector(self._solution.Eval(c).torque))
         self.DeclareVectorOutputPort("wrenches", 6 * max_contacts, self._calc_wrenches)
@@ -338,6 +381,7 @@ class SolverDyn(SOT):
             "contact" + contact.name if not contact.name.startswith("contact") else contact.name,
             AbstractValue.Make(ContactRows(np.zeros((6, self.nv)), np.zeros(6), np.eye(3), np.zeros((0, 6)), 0.0, 1.0)),
         )
+        self._contact_index[contact.name] = len(self._contact_ports)
         self._contact_ports[contact.name] = port
         return port
 
@@ -413,7 +457,7 @@ class SolverDyn(SOT):
 
     # --- solve -------------------------------------------------------------------------------
     def _ramp(self, context: Context, name: str) -> tuple[float, float]:
-        i = list(self._contact_ports).index(name)
+        i = self._contact_index[name]
         ramps = context.get_discrete_state(self._ramps).get_value()
         return float(ramps[2 * i]), float(ramps[2 * i + 1])
 
@@ -445,7 +489,7 @@ class SolverDyn(SOT):
             J = level.jacobian
             if J.ndim != 2 or J.shape[1] != self.nv or level.lower.shape != (J.shape[0],):
                 raise SolverError(f"task {name}: jacobian {J.shape} and bounds {level.lower.shape} do not fit nv = {self.nv}")
-            if not np.isfinite(J).all() or np.isnan(level.lower).any() or np.isnan(level.upper).any():
+            if not np.isfinite(J).all() or np.isnan(level.lower).any() or (level.upper is not level.lower and np.isnan(level.upper).any()):
                 raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")
             tasks.append(level)
         return tasks
@@ -462,9 +506,12 @@ class SolverDyn(SOT):
         tasks = self._tasks(context, s)
         loads = self.previous_loads(context, [c.name for c in contacts])
         slices = wrench_slices(self.nv, contacts)
-        a_lower, a_upper = acceleration_bounds(terms.q, terms.v, *self._limits, s.horizon, s.position_margin, self._layout)
+        # The joint limits as acceleration bounds (:func:`.terms.acceleration_bounds`).
+        a_lower, a_upper = np.full(self.nv, -np.inf), np.full(self.nv, np.inf)
+        iq, iv = self._layout.joints_q, self._layout.joints_v
+        a_lower[iv], a_upper[iv] = joint_acceleration_bounds(terms.q[iq], terms.v[iv], *self._joint_limits, s.horizon,
+                                                             s.position_margin)
         if s.control_selection is not None:  # sot-core's controlSelec: the others are held (q̈ = 0)
-            a_lower, a_upper = a_lower.copy(), a_upper.copy()
             a_lower[~s.control_selection] = a_upper[~s.control_selection] = 0.0
         lower, upper = variable_bounds(self.nv, contacts, slices, a_lower, a_upper, self.effort)
         names = ["dynamics"] + (["contacts"] if contacts else []) + list(s.tasks) + ["damping"]
@@ -490,7 +537,7 @@ class SolverDyn(SOT):
                 fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver)
                 tau = torques_of(terms, contacts, slices, fast.x, actuated)
                 x = np.concatenate([fast.x, tau])
-                if np.all(np.abs(tau) <= self.effort * (1 + 1e-9)) and (not contacts or _wrench_rows_hold(contacts, slices, x)):
+                if np.count_nonzero(np.abs(tau) > self._effort_held) == 0 and (not contacts or _wrench_rows_hold(contacts, slices, x)):
                     fast.x = x
                     result = fast
                     diagnostics.torques_eliminated = True
@@ -500,7 +547,7 @@ class SolverDyn(SOT):
             if result is None:
                 rows, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
                 relaxed = result = self._solve(context, hqp, rows, lower, upper, s.solver)
-            if contacts and not _wrench_rows_hold(contacts, slices, result.x):
+            if contacts and not diagnostics.torques_eliminated and not _wrench_rows_hold(contacts, slices, result.x):
                 result = None
                 full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, loads=loads)
                 result = hqp.solve(full, lower, upper, 0.0, s.solver, start=inside(lower, upper))
@@ -530,6 +577,7 @@ class SolverDyn(SOT):
         diagnostics.slack_norms = result.slack_norms
         diagnostics.level_solvers = result.level_solvers
         diagnostics.active_bounds = result.active_bounds
+        diagnostics.held_bounds = held_bounds(x, lower, upper, result.active_bounds)
         diagnostics.solve_time_s = result.solve_time_s
         value.set_value(DynSolution(x[: self.nv].copy(), x[n - self.na :].copy(), world, local, result.slack_norms, diagnostics))
 
@@ -545,13 +593,16 @@ class SolverDyn(SOT):
 
     def _solve(self, context: Context, hqp: HierarchicalQP, rows: list[Rows], lower: np.ndarray, upper: np.ndarray,
                solver: str) -> HqpResult:
-        """The hierarchy through its QR path when that is clear-cut (every level an equality, no
-        bound in the way: :mod:`..solvers.equality_hierarchy`, the same answer), else ``hqp``
-        (which checks the rows). The QR path is not tried when a bound was in the way at the last
-        tick (discrete state), nor when a Drake solver is chosen."""
-        tried = context.get_discrete_state(self._bound_in_the_way).get_value()[0] == 0.0
-        if tried and solver == ACTIVE_SET and all(lo is hi for _, lo, hi in rows):
-            result = solve_equality_hierarchy([(A, b) for A, b, _ in rows], lower, upper)
+        """The hierarchy through its QR path when that is clear-cut (every level an equality, the
+        bounds at the optimum held as equalities and certified by their multipliers:
+        :mod:`..solvers.equality_hierarchy`, the same answer), else ``hqp`` (which checks the rows).
+        The QR path starts from the bounds held at the last tick (discrete state); it is not tried
+        when a Drake solver is chosen."""
+        if solver == ACTIVE_SET and all(lo is hi for _, lo, hi in rows):
+            guess = context.get_discrete_state(self._held_bounds).get_value()
+            at_lower = [int(g) - 1 for g in guess if g > 0]
+            at_upper = [int(-g) - 1 for g in guess if g < 0]
+            result = solve_equality_hierarchy([(A, b) for A, b, _ in rows], lower, upper, at_lower, at_upper)
             if result is not None:
                 return result
         return hqp.solve([LevelRows(*level) for level in rows], lower, upper, 0.0, solver, start=inside(lower, upper))
@@ -569,9 +620,8 @@ class SolverDyn(SOT):
         """The normal force (N) each named contact carried at the previous tick, or None if one of
         them was not held then."""
         record = context.get_discrete_state(self._loads).get_value()
-        ports = list(self._contact_ports)
-        loads = np.array([record[ports.index(name)] for name in names])
-        return loads if np.all(np.isfinite(loads)) else None
+        loads = record[[self._contact_index[name] for name in names]]
+        return loads if np.isfinite(loads).all() else None
 
     def _update(self, context: Context, state) -> None:
         """Record each contact's normal force; start the ramp of a newly released contact, from
@@ -584,7 +634,7 @@ class SolverDyn(SOT):
             if name in local:
                 loads[i] = local[name][-1]
         state.set_value(self._loads, loads)
-        state.set_value(self._bound_in_the_way, [1.0 if solution.diagnostics.active_bounds.size else 0.0])
+        state.set_value(self._held_bounds, solution.diagnostics.held_bounds)
         ramps = context.get_discrete_state(self._ramps).get_value().copy()
         for i, name in enumerate(self._contact_ports):
             if name not in s.releasing or name not in s.contacts:

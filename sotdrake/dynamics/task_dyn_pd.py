@@ -113,6 +113,8 @@ class TaskDynPD(Entity[DynPDSettings]):
         return feature_signals(context, self.feature, self.error, self.jacobian, self.errordot)
 
     def _remember(self, context: Context, state) -> None:
+        if self.drift is not None and self.drift.HasValue(context):
+            return  # the exact J̇ v is connected: the previous Jacobian is never read
         J = self._inputs(context)[1]
         if J.shape[0] > self.nv:
             raise InvalidInput(f"{self.name}: a Jacobian with more rows than nv = {self.nv}")

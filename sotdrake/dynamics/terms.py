@@ -69,14 +69,25 @@ def acceleration_bounds(
     nv = len(v)
     lower, upper = np.full(nv, -np.inf), np.full(nv, np.inf)
     iq, iv = layout.joints_q, layout.joints_v
-    qj, vj, T = q[iq], v[iv], horizon
     with np.errstate(invalid="ignore"):
-        reach = qj + vj * T
-        up = np.where(qj > position_upper[iq] - margin, np.minimum(0.0, 2 * (position_upper[iq] - reach) / T**2),
-                      2 * (position_upper[iq] - margin - reach) / T**2)
-        down = np.where(qj < position_lower[iq] + margin, np.maximum(0.0, 2 * (position_lower[iq] - reach) / T**2),
-                        2 * (position_lower[iq] + margin - reach) / T**2)
-    up = np.minimum(up, (velocity_upper[iv] - vj) / T)
-    down = np.maximum(down, (velocity_lower[iv] - vj) / T)
-    upper[iv], lower[iv] = up, np.minimum(down, up)
+        lower[iv], upper[iv] = joint_acceleration_bounds(q[iq], v[iv], position_lower[iq], position_upper[iq],
+                                                         velocity_lower[iv], velocity_upper[iv], horizon, margin)
     return lower, upper
+
+
+def joint_acceleration_bounds(
+    qj: np.ndarray, vj: np.ndarray, position_lower: np.ndarray, position_upper: np.ndarray, velocity_lower: np.ndarray,
+    velocity_upper: np.ndarray, horizon: float, margin: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`acceleration_bounds` of the joints alone: ``(lower, upper)`` over the joints' velocities,
+    from their positions ``qj``, velocities ``vj`` and limits (each already restricted to the joints)."""
+    T = horizon
+    T2 = T**2
+    reach = qj + vj * T
+    up = np.where(qj > position_upper - margin, np.minimum(0.0, 2 * (position_upper - reach) / T2),
+                  2 * (position_upper - margin - reach) / T2)
+    down = np.where(qj < position_lower + margin, np.maximum(0.0, 2 * (position_lower - reach) / T2),
+                    2 * (position_lower + margin - reach) / T2)
+    np.minimum(up, (velocity_upper - vj) / T, out=up)
+    np.maximum(down, (velocity_lower - vj) / T, out=down)
+    return np.minimum(down, up, out=down), up

@@ -27,11 +27,27 @@ the scaled ``B`` must be at least :data:`CERTIFIED` (``10³ τ``, ``τ`` the QP'
 ``σ_min(D B) ≥ σ_min(D) σ_min(B)``). The optimum without the free bounds is then unique up to the
 final minimum-norm step. If it lies within the bounds it is the optimum with them (the bounded
 optimal set is a subset of the unbounded one and contains that point), and so the hierarchical
-QP's answer; :func:`solve_equality_hierarchy` returns it. Otherwise (a rank decision that is not
-clear-cut, a bound in the way, a non-finite level) it returns None and the hierarchical QP decides.
-Cost: one QR and one triangular inverse per group of full-row-rank levels, a QR (pivoted when
-rank-deficient; an SVD only when that cannot certify the gap) for the others, instead of the QP's
-SVDs and stages.
+QP's answer; :func:`solve_equality_hierarchy` returns it.
+
+A bound in the way is held at equality: its component becomes a fixed one and the hierarchy is
+solved again (:func:`_sweep`), the bound most in the way first. That point is the QP's answer if
+holding the bound is optimal in the lexicographic sense, which the sweep certifies by the sign of
+the bound's multiplier at the level that decides it. Along the bound's direction ``p`` (+1 on the
+held component, or −1 at an upper bound, the free components following so that every level above
+keeps its value, ``A_l p = 0``), level k's objective ``‖A_k x − b_k‖²`` changes at the rate
+``λ_k = −ρ_kᵀ E_k`` (``E_k = A_k p`` less what the free directions can compensate, ``ρ_k`` the level's
+residual at its optimum). If ``E_k`` is round-off, level k is indifferent and ``p`` passes to the
+levels below; otherwise level k decides: ``λ_k ≥ 0`` certifies the bound (the objective is convex,
+strictly along what is left of ``p``: no point off the bound does as well), ``λ_k < 0`` releases
+it and the sweep is redone. A direction that reaches the end is decided by the minimum-norm stage
+(``λ = xᵀ p ≥ 0``). Several bounds are certified together when the levels that decide them see
+them independently (:func:`_certify`); the set may change :data:`ACTIVE_SET_CHANGES` times. The
+caller may pass the bounds it expects held (those of the previous tick), which then cost no
+extra sweep; a wrong guess is released by its multiplier. Otherwise (a rank or survival decision
+that is not clear-cut, the set still changing, a non-finite level) it returns None and the
+hierarchical QP decides. Cost: one QR and one triangular inverse per group of full-row-rank
+levels, a QR (pivoted when rank-deficient; an SVD only when that cannot certify the gap) for the
+others, per sweep, instead of the QP's SVDs and stages.
 """
 
 from __future__ import annotations
@@ -69,8 +85,8 @@ def _pivoted_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tup
     qr, pivots, tau, _, info = _geqp3(B)
     if info != 0:
         return None
-    d_min, d_max = 1.0 / float(norms.max()), 1.0 / float(norms.min())
-    k = int(np.count_nonzero(np.abs(np.diagonal(qr)) * d_min > CERTIFIED))
+    d_min, d_max = 1.0 / float(np.maximum.reduce(norms)), 1.0 / float(np.minimum.reduce(norms))
+    k = int(np.count_nonzero(np.abs(qr.diagonal()) * d_min > CERTIFIED))
     if k == 0:
         return None
     R11_inverse = upper_inverse(qr[:k, :k])
@@ -80,20 +96,20 @@ def _pivoted_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tup
     if not flat.dot(flat) * CERTIFIED * CERTIFIED < d_min * d_min:  # False on NaN too
         return None
     if k < r:
-        R22 = np.where(upper_triangle(r - k)[: min(m, r) - k], qr[k : min(m, r), k:], 0.0)
-        if not float(np.sum(R22 * R22)) * d_max * d_max < NEGLIGIBLE * NEGLIGIBLE:
+        R22 = np.where(upper_triangle(r - k)[: min(m, r) - k], qr[k : min(m, r), k:], 0.0).ravel()
+        if not float(R22.dot(R22)) * d_max * d_max < NEGLIGIBLE * NEGLIGIBLE:
             return None
-    projected, _, info = _ormqr("L", "T", qr[:, : len(tau)], tau, residual, lwork=max(1, m))
+    projected, _, info = _ormqr("L", "T", qr[:, : len(tau)], tau, residual, lwork=max(1, m, residual[0].size))
     if info != 0:
         return None
     columns = pivots - 1
-    z = np.zeros(r)
+    z = np.zeros((r,) + residual.shape[1:])
     z[columns[:k]] = R11_inverse @ projected[:k]
     if k == r:  # full column rank: the level fixes what is left
         return z, np.zeros((r, 0))
-    null = np.empty((r, r - k))
+    null = np.zeros((r, r - k))
     null[columns[:k]] = -R11_inverse @ qr[:k, k:]
-    null[columns[k:]] = np.eye(r - k)
+    null[columns[k:], np.arange(r - k)] = 1.0
     basis, tau, _, info = _geqrf(null)
     if info != 0:
         return None
@@ -110,7 +126,7 @@ def _least_squares(C: np.ndarray, residual: np.ndarray) -> np.ndarray | None:
     R_inverse = upper_inverse(qr[:k, :k])
     if R_inverse is None:
         return None
-    projected, _, info = _ormqr("L", "T", qr, tau, residual, lwork=max(1, C.shape[0]))
+    projected, _, info = _ormqr("L", "T", qr, tau, residual, lwork=max(1, C.shape[0], residual[0].size))
     return R_inverse @ projected[:k] if info == 0 else None
 
 
@@ -167,23 +183,84 @@ def _clear_cut_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> t
     return None if z is None else (kept @ z, Vt[rank:].T)
 
 
-def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_lower: np.ndarray,
-                             x_upper: np.ndarray) -> HqpResult | None:
-    """The hierarchical QP's answer to the equality ``levels`` ``[(A_k, b_k), …]`` under the bounds,
-    or None when it is not clear-cut (see the module docstring). The bounds are expected as the QP
-    checks them (same sizes, ``x_lower ≤ x_upper``, no NaN); a non-finite level is never clear-cut
-    (the QP then says what is wrong with it)."""
-    start = time.perf_counter()
+#: How many times the set of bounds held at equality may change before the QP decides.
+ACTIVE_SET_CHANGES = 6
+#: A bound's multiplier ``λ`` counts as negative below ``−MULTIPLIER_TOLERANCE ‖ρ‖ ‖c‖`` (round-off).
+MULTIPLIER_TOLERANCE = 1e-9
+
+
+class _Directions:
+    """The bound directions not yet certified: column j is ``p_j``, equal to ``s_j`` on the held
+    bound's component ``i_j`` (``s = +1`` at a lower bound, ``−1`` at an upper one) and ``D[:, j]`` on
+    the free components, with ``A_l p_j = 0`` for every level ``l`` above the current one."""
+
+    def __init__(self, indices: np.ndarray, signs: np.ndarray, n_free: int):
+        self.indices, self.signs = indices, signs
+        self.D = np.zeros((n_free, len(indices)))
+
+    def keep(self, alive: np.ndarray) -> None:
+        self.indices, self.signs, self.D = self.indices[alive], self.signs[alive], self.D[:, alive]
+
+    def rows(self, A_full: np.ndarray, A: np.ndarray) -> np.ndarray:
+        """``C = A p`` (m × u) of a level's rows (``A``: its free columns)."""
+        return A @ self.D + A_full[:, self.indices] * self.signs
+
+
+def _certify(C: np.ndarray, B: np.ndarray, Y: np.ndarray, rho: np.ndarray, norms: np.ndarray,
+             directions: _Directions) -> tuple[np.ndarray, np.ndarray] | None:
+    """The level's verdict on the bound directions: ``(alive, released)`` masks, or None if not
+    clear-cut. ``Y``: the least-squares solution of ``B Y = −C`` (``B`` the level's rows in the free
+    space, ``C = A p``), ``rho`` the level's residual ``b − A x`` at its optimum.
+
+    Moving along ``Σ_j t_j p_j`` (``t ≥ 0``, the free components following at their optimum, ``Y t``)
+    the level's objective is ``‖ρ − E t‖²`` with ``E = C + B Y`` (orthogonal to ``B``'s range, as ``ρ``),
+    that is ``‖ρ‖² + 2 λ·t + ‖E t‖²``, ``λ = −Eᵀ ρ`` the bounds' multipliers at this level. A direction
+    whose ``E_j`` is round-off (scaled rows, relative to ``‖p_j‖``) survives: the level is indifferent
+    to it and the levels below decide. The others: a negative ``λ_j`` releases its bound (the level
+    improves along ``p_j``); otherwise ``t = 0`` is optimal (convex objective, ``λ ≥ 0``) and the only
+    optimum if the directions with ``λ_j ≈ 0`` change the level independently (``E`` of full column
+    rank on them; else not clear-cut): their bounds hold from this level on."""
+    E = C + B @ Y if B.shape[1] else C.copy()
+    size = np.sqrt(1.0 + np.einsum("ij,ij->j", directions.D, directions.D))
+    scaled = E / norms[:, None] / size
+    change = np.sqrt(np.einsum("ij,ij->j", scaled, scaled))
+    if np.any((change >= NEGLIGIBLE) & (change <= CERTIFIED)) or not np.all(np.isfinite(change)):
+        return None
+    dies = change > CERTIFIED
+    if not dies.any():
+        return ~dies, dies
+    multiplier = -(rho @ E)
+    tolerance = MULTIPLIER_TOLERANCE * float(np.sqrt(rho @ rho)) * np.sqrt(np.einsum("ij,ij->j", E, E))
+    released = dies & (multiplier < -tolerance)
+    if released.any():
+        return ~dies, released
+    tied = dies & (multiplier <= tolerance)
+    if np.count_nonzero(tied) > 1 and np.linalg.svd(scaled[:, tied], compute_uv=False).min() <= CERTIFIED:
+        return None
+    return ~dies, released
+
+
+def _sweep(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_lower: np.ndarray, x_upper: np.ndarray,
+           held: dict[int, float]) -> tuple[np.ndarray, list[int]] | None:
+    """The hierarchy with the bounds ``held`` (component → sign: +1 its lower bound, −1 its upper)
+    as fixed components: ``(x, released)``, ``released`` the held bounds whose multiplier says the
+    optimum leaves them (then ``x`` is not the answer), or None when not clear-cut."""
     fixed = x_lower == x_upper
-    free = ~fixed
     x = np.where(fixed, x_lower, 0.0)
+    for index, sign in held.items():
+        fixed[index] = True
+        x[index] = x_lower[index] if sign > 0 else x_upper[index]
+    free = ~fixed
     n_free = int(free.sum())
     all_free = n_free == len(x)
     Z: np.ndarray | None = None  # None: the identity on the free components
     r = n_free
     x_free = np.zeros(n_free)
+    indices = np.array(list(held), dtype=int)
+    directions = _Directions(indices, np.array([held[i] for i in held], dtype=float), n_free)
+    u = len(indices)
     i = 0
-    while i < len(levels) and r:
+    while i < len(levels) and (r or u):
         # The next levels whose rows fit in what is left, stacked: solved by one QR if full rank.
         group, total = [], 0
         for A_full, _ in levels[i:]:
@@ -203,20 +280,40 @@ def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_
         residual = b - A_full @ (x_free if all_free else x)
         B = A if Z is None else A @ Z
         norms = np.sqrt(np.einsum("ij,ij->i", A_full, A_full))  # before projection, as the QP's
-        norms = np.where(norms > 0.0, norms, 1.0)
+        norms[norms == 0.0] = 1.0
+        C = directions.rows(A_full, A) if u else None
+        rhs = residual if C is None else np.column_stack([residual, -C])
         step: np.ndarray | None
         basis: np.ndarray | None
-        prefix = _row_rank_prefix(B, residual, norms, group) if group else None
-        if prefix is not None:
+        prefix = _row_rank_prefix(B, rhs, norms, group) if group else None
+        if prefix is not None:  # exact: every direction survives (λ = 0)
             solved, step, basis = prefix
         else:  # the first level alone
             m = levels[i][0].shape[0]
-            step_basis = _clear_cut_step(B[:m], residual[:m], norms[:m])
-            if step_basis is None:
-                return None
+            if r:
+                step_basis = _clear_cut_step(B[:m], rhs[:m], norms[:m])
+                if step_basis is None:
+                    return None
+            else:
+                step_basis = None, None
             solved, (step, basis) = 1, step_basis
+            if C is not None:
+                Y = np.zeros((r, u)) if step is None else step[:, 1:]
+                rho = residual[:m] - (B[:m] @ step[:, 0] if step is not None else 0.0)
+                verdict = _certify(C[:m], B[:m], Y, rho, norms[:m], directions)
+                if verdict is None:
+                    return None
+                alive, released = verdict
+                if released.any():
+                    return x, [int(j) for j in directions.indices[released]]
         if step is not None:
+            if C is not None:
+                directions.D += step[:, 1:] if Z is None else Z @ step[:, 1:]
+                step = step[:, 0]
             x_free = x_free + (step if Z is None else Z @ step)
+        if C is not None and prefix is None:
+            directions.keep(alive)
+            u = int(alive.sum())
         if basis is not None:
             Z = basis if Z is None else Z @ basis
             r = Z.shape[1]
@@ -224,7 +321,52 @@ def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_
     if r and Z is not None:
         x_free = x_free - Z @ (Z.T @ x_free)  # the minimum-norm point of what is left
     x[free] = x_free
-    if not (np.all(x >= x_lower) and np.all(x <= x_upper)):  # False on NaN too
+    if u:  # the final minimum-norm stage: λ_j = x · p_j ≥ 0
+        multiplier = x_free @ directions.D + x[directions.indices] * directions.signs
+        size = np.sqrt(1.0 + np.einsum("ij,ij->j", directions.D, directions.D))
+        released = multiplier < -MULTIPLIER_TOLERANCE * float(np.sqrt(x @ x)) * size
+        if released.any():
+            return x, [int(j) for j in directions.indices[released]]
+    return x, []
+
+
+def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_lower: np.ndarray,
+                             x_upper: np.ndarray, at_lower: Sequence[int] = (), at_upper: Sequence[int] = ()) -> HqpResult | None:
+    """The hierarchical QP's answer to the equality ``levels`` ``[(A_k, b_k), …]`` under the bounds,
+    or None when it is not clear-cut (see the module docstring). The bounds are expected as the QP
+    checks them (same sizes, ``x_lower ≤ x_upper``, no NaN); a non-finite level is never clear-cut
+    (the QP then says what is wrong with it). ``at_lower``/``at_upper``: the components expected at
+    one of their bounds (e.g. those of the previous tick), held first; a guess that is wrong costs
+    another sweep, never the answer."""
+    start = time.perf_counter()
+    n = len(x_lower)
+    free = x_lower != x_upper
+    held: dict[int, float] = {}
+    for guess, sign, bound in ((at_lower, 1.0, x_lower), (at_upper, -1.0, x_upper)):
+        for index in guess:
+            if 0 <= index < n and free[index] and np.isfinite(bound[index]):
+                held[int(index)] = sign
+    for _ in range(ACTIVE_SET_CHANGES + 1):
+        swept = _sweep(levels, x_lower, x_upper, held)
+        if swept is None:
+            return None
+        x, released = swept
+        if released:
+            for index in released:
+                del held[index]
+            continue
+        below, above = x < x_lower, x > x_upper
+        if not (np.count_nonzero(below) or np.count_nonzero(above)):
+            if not np.isfinite(x).all():
+                return None
+            break
+        # The bound most in the way (relative to its size) is held next: several at once may hold
+        # bounds that the optimum of a level they tie does not need (not clear-cut then).
+        outside = np.flatnonzero(below | above)
+        bound = np.where(below[outside], x_lower[outside], x_upper[outside])
+        index = int(outside[np.argmax(np.abs(x[outside] - bound) / np.maximum(1.0, np.abs(bound)))])
+        held[index] = 1.0 if below[index] else -1.0
+    else:
         return None
     slacks = [A @ x - b for A, b in levels]
     return HqpResult(

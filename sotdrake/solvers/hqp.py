@@ -68,6 +68,7 @@ from pydrake.solvers import (
 )
 
 from ..exceptions import InvalidInput, SolverError
+from .active_bounds import solve_with_active_bounds
 from .active_set import (
     QR_MIN_SIZE,
     RANK_THRESHOLD,
@@ -87,6 +88,9 @@ SOLVERS = {"clarabel": ClarabelSolver, "osqp": OsqpSolver, "snopt": SnoptSolver}
 """The Drake solvers a level can use (then polished by the active-set method)."""
 ACTIVE_SET = "active-set"
 """The default path: the exact active-set method alone."""
+ACTIVE_BOUNDS = "active-bounds"
+"""How every stage was solved when the equality levels were solved at once from the guessed active
+bounds (:mod:`.active_bounds`), part of the default path."""
 
 
 def check_solver(name: str) -> str:
@@ -202,6 +206,14 @@ _WARM_PATHS = (ACTIVE_SET, "cold", "clarabel", "osqp")  # the default path's ord
 _COLD_PATHS = (ACTIVE_SET, "clarabel", "osqp")
 
 
+def _sides_at_bounds(x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """+1 where ``x`` is at its (finite) upper bound, -1 at its lower bound (to 1e-9, relative
+    above 1), 0 elsewhere and on the fixed components: the guess of :mod:`.active_bounds`."""
+    upper = ~fixed & (x >= x_upper - 1e-9 * np.maximum(1.0, np.abs(x_upper))) & (x_upper < np.inf)
+    lower = ~fixed & (x <= x_lower + 1e-9 * np.maximum(1.0, np.abs(x_lower))) & (x_lower > -np.inf)
+    return np.where(upper, 1, np.where(lower, -1, 0))
+
+
 def _row_norms(A: np.ndarray) -> np.ndarray:
     norms = np.sqrt(np.einsum("ij,ij->i", A, A))
     return np.where(norms > 0.0, norms, 1.0)
@@ -301,6 +313,8 @@ class HierarchicalQP:
         self._solvers: dict[str, tuple] = {}
         self._identity = np.eye(n)  # a constant (never written to)
         self._unit: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # a cache of constants, see _constants
+        # A guess (results never depend on it): the side of each bound held at the last answer.
+        self._bound_sides = np.zeros(n, dtype=int)
 
     def _constants(self, r: int) -> tuple[np.ndarray, np.ndarray]:
         """The minimum-norm stage's objective ``(I_r, ones(r))``, made once per size, read only."""
@@ -356,7 +370,62 @@ class HierarchicalQP:
                 raise InvalidInput(f"start must be {n} finite numbers")
         began = time.perf_counter()
         with np.errstate(invalid="ignore", divide="ignore"):  # ±∞ bounds: once here, not per operation
-            return self._solve_stages(levels, x_lower, x_upper, damping, solver, began, start)
+            fixed = x_lower == x_upper
+            if solver == ACTIVE_SET and self._equalities_only(levels, x_lower, x_upper, fixed, damping, start):
+                result = self._solve_active_bounds(levels, x_lower, x_upper, fixed, began)
+                if result is not None:
+                    return result
+            result = self._solve_stages(levels, x_lower, x_upper, damping, solver, began, start)
+            self._bound_sides = _sides_at_bounds(result.x, x_lower, x_upper, fixed)
+            return result
+
+    def _equalities_only(self, levels, x_lower, x_upper, fixed, damping, start) -> bool:
+        """Whether :mod:`.active_bounds` may solve the stack: equality levels without extensions,
+        the default path on every stage, the minimum-norm stage, no damping, and the start (0, or
+        ``start``) inside the bounds of the free components (no bound is relaxed to it)."""
+        if not self.regularize or (damping > 0.0 and len(levels)) or any(name != ACTIVE_SET for name in self.level_solvers):
+            return False
+        for level in levels:
+            if not level.all_equality or level.extend is not None:
+                return False
+        if start is None:
+            return all_true(fixed | ((x_lower <= 0.0) & (x_upper >= 0.0)))
+        return all_true(fixed | ((x_lower <= start) & (x_upper >= start)))
+
+    def _solve_active_bounds(self, levels, x_lower, x_upper, fixed, began) -> HqpResult | None:
+        """The stack by :func:`~.active_bounds.solve_with_active_bounds` from the bounds held at the
+        last answer, or None (then the stages decide)."""
+        sizes = [len(level.A) for level in levels]
+        if len(levels) == 1:
+            A, b, norms = levels[0].A, levels[0].lower, levels[0].eq_norms
+        elif levels:
+            A = np.concatenate([level.A for level in levels])
+            b = np.concatenate([level.lower for level in levels])
+            norms = np.concatenate([level.eq_norms for level in levels])
+        else:
+            A, b, norms = np.zeros((0, self.n)), np.zeros(0), np.zeros(0)
+        solved = solve_with_active_bounds(A, b, norms, sizes, x_lower, x_upper, fixed, self._bound_sides,
+                                          certified=1e3 * self.rank_threshold)
+        if solved is None:
+            return None
+        x, self._bound_sides = solved
+        residual = A @ x - b
+        slacks, start = [], 0
+        for size in sizes:
+            slacks.append(residual[start : start + size])
+            start += size
+        scale = 1e-7 * np.maximum(1.0, np.abs(x))
+        stages = len(levels) + 1
+        return HqpResult(
+            x=x,
+            slacks=slacks,
+            slack_norms=np.array([math.sqrt(float(s @ s)) for s in slacks]),
+            active_rows=[_NO_ROWS] * len(levels),
+            active_bounds=(~fixed & ((np.abs(x - x_lower) <= scale) | (np.abs(x - x_upper) <= scale))).nonzero()[0],
+            solve_time_s=time.perf_counter() - began,
+            level_solvers=[ACTIVE_BOUNDS] * stages,
+            iterations=[0] * stages,
+        )
 
     def _solve_stages(self, levels, x_lower, x_upper, damping, solver, began, start=None) -> HqpResult:
         n = self.n

@@ -1,0 +1,130 @@
+"""The hierarchy of equality levels solved from a guess of its active bounds, verified by the KKT conditions.
+
+The problem is :class:`~.hqp.HierarchicalQP`'s when every level is made of equality rows: levels
+``A_k x = b_k`` in strict priority, hard bounds ``x_min ≤ x ≤ x_max`` (``x_min = x_max``: a fixed
+component), then the minimum-norm ``x`` of the optimal set. A *guess* gives a side ``s_i ∈ {-1, 0,
++1}`` per component (held at its lower bound, free, held at its upper bound), typically the bounds
+active in the previous tick's answer. With the held components ``H`` (the fixed ones and the guessed
+ones) at their bound values ``x_H``, the free components ``F`` solve
+
+    B x_F = ρ,    B = D A_F,   ρ = D (b - A_H x_H),   D = diag(1/‖rows of A‖)
+
+(every level's rows stacked, ``A_F``/``A_H`` their columns in ``F``/``H``; rows scaled to unit norm by
+their norm in ``x``, as the QP's rank decisions). One Householder QR ``Bᵀ = Q R`` (``Q`` of size
+``|F| × m``) gives the minimum-norm solution ``x_F = Q R⁻ᵀ ρ``. It is accepted only when each level is
+*certified* of full row rank in what the levels above and the held components leave free: level
+k's rows there are ``R_kkᵀ Q_kᵀ`` (``R_kk``: its diagonal block of R), and ``σ_min ≥ 1/‖R_kk⁻¹‖_F``
+must exceed :data:`~.equality_hierarchy.CERTIFIED` (10³ τ, τ the QP's rank threshold; ``R_kk⁻¹`` is
+the diagonal block of ``R⁻¹``). Then every level is solved exactly (slack 0, its least possible
+value, so every level is at its optimum whatever the bounds), and the point is the QP's answer if
+it is the minimum-norm point of the optimal set ``{A x = b} ∩ bounds``, which (a strictly convex
+problem) holds iff the KKT conditions of ``min ½‖x‖²`` there hold:
+
+* primal: every free component inside its bounds (to ``feasibility``, absolute, relative above 1);
+* dual: ``x + Aᵀμ + Σ_{i held by the guess} λ_i e_i = 0``. On ``F``: ``x_F = -A_Fᵀμ``, i.e.
+  ``ν = D⁻¹μ = -R⁻¹R⁻ᵀρ``; on a guessed component ``λ_i = -x_i - (Bᵀ ν)_i`` with ``B`` here its
+  scaled column of ``A``; a held upper bound needs ``λ_i ≥ 0``, a held lower bound ``λ_i ≤ 0``, to
+  ``1e-9·max(1, ‖x‖)`` (the active-set method's tolerance on multipliers).
+
+If they fail, the guess is corrected as a primal-dual active-set method does (a wrong-signed bound is
+released, a violated one is held) and tried again, up to ``rounds`` times; None means that no guess
+passed (or a level is not certified, or there are more rows than free components) and the QP's
+general path decides. A passing guess gives the QP's point to round-off (it satisfies the
+conditions that define it), so the guess changes the cost, never the answer.
+
+Cost: one QR of an ``|F| × m`` matrix, one triangular inverse and a few matrix-vector products per
+round, instead of a factorisation per level and an active-set stage per level a bound is in the way of.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.linalg import lapack
+
+from .active_set import all_true, any_true, upper_inverse
+
+CERTIFIED = 1e-5
+"""The smallest singular value of a level's unit rows, in what is left free, that counts as clearly
+non-zero: 10³ τ (τ = :data:`~.active_set.RANK_THRESHOLD`), the margin of :mod:`.equality_hierarchy`."""
+
+MULTIPLIER_TOLERANCE = 1e-9
+"""A held bound's multiplier may have the wrong sign by this much, relative to ``max(1, ‖x‖)``."""
+
+
+def solve_with_active_bounds(
+    A: np.ndarray,
+    b: np.ndarray,
+    norms: np.ndarray,
+    sizes: list[int],
+    x_lower: np.ndarray,
+    x_upper: np.ndarray,
+    fixed: np.ndarray,
+    guess: np.ndarray,
+    certified: float = CERTIFIED,
+    feasibility: float = 1e-10,
+    rounds: int = 3,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(x, sides)``: the answer of the equality hierarchy ``A x = b`` (levels of ``sizes`` rows,
+    stacked; ``norms``: the rows' norms, 1 for a zero row) under the bounds, and the sides of the
+    bounds held at it; or None (see the module docstring). ``fixed``: ``x_lower == x_upper``;
+    ``guess``: a side per component (-1, 0, +1). The caller silences numpy's warnings on ±∞ bounds;
+    the start of the QP (0) must lie inside the bounds of the free components, as the caller checks."""
+    m = len(b)
+    side = np.where(fixed, 0, guess)
+    side[((side > 0) & (x_upper == np.inf)) | ((side < 0) & (x_lower == -np.inf))] = 0
+    for _ in range(rounds):
+        held = fixed | (side != 0)
+        free = (~held).nonzero()[0]
+        n_free = len(free)
+        if m > n_free:
+            return None
+        x = np.where(side > 0, x_upper, x_lower)  # the held values (the free ones are written below)
+        x[free] = 0.0
+        nu = np.zeros(m)
+        if m:
+            B = A[:, free] / norms[:, None]
+            rho = (b - A @ x) / norms
+            qr, tau, _, info = lapack.dgeqrf(B.T)
+            if info != 0:
+                return None
+            R_inv = upper_inverse(qr[:m])
+            if R_inv is None:
+                return None
+            start = 0
+            for size in sizes:
+                if size:
+                    block = R_inv[start : start + size, start : start + size].ravel()
+                    if not float(block @ block) * certified * certified < 1.0:  # (False on NaN too)
+                        return None
+                    start += size
+            u = R_inv.T @ rho
+            padded = np.zeros((n_free, 1))
+            padded[:m, 0] = u
+            x_free, _, info = lapack.dormqr("L", "N", qr, tau, padded, max(1, n_free))
+            if info != 0:
+                return None
+            x[free] = x_free[:, 0]
+            nu = -(R_inv @ u)
+        if not all_true(np.isfinite(x)):
+            return None
+        # Primal: the free components inside their bounds.
+        lo, hi, x_free_values = x_lower[free], x_upper[free], x[free]
+        below = x_free_values < lo - feasibility * np.maximum(1.0, np.abs(lo))
+        above = x_free_values > hi + feasibility * np.maximum(1.0, np.abs(hi))
+        # Dual: the multipliers of the guessed bounds.
+        guessed = side.nonzero()[0]
+        wrong = np.zeros(0, dtype=bool)
+        if len(guessed):
+            lam = -x[guessed]
+            if m:
+                lam -= (A[:, guessed] / norms[:, None]).T @ nu
+            tolerance = MULTIPLIER_TOLERANCE * max(1.0, math.sqrt(float(x @ x)))
+            wrong = side[guessed] * lam < -tolerance
+        if not (any_true(below) or any_true(above) or any_true(wrong)):
+            return x, side
+        side[guessed[wrong]] = 0
+        side[free[below]] = -1
+        side[free[above]] = 1
+    return None

@@ -55,7 +55,8 @@ def test_any_guess_gives_the_stages_point_or_nothing():
         A, b, norms, sizes = stacked(levels)
         fixed = lower == upper
         with np.errstate(invalid="ignore"):
-            sides = np.where(~fixed & (np.abs(reference.x - upper) <= 1e-9), 1, np.where(~fixed & (np.abs(reference.x - lower) <= 1e-9), -1, 0))
+            at_upper, at_lower = np.abs(reference.x - upper) <= 1e-9, np.abs(reference.x - lower) <= 1e-9
+            sides = np.where(~fixed & at_upper, 1, np.where(~fixed & at_lower, -1, 0))
             solvable = float(reference.slack_norms.max()) <= 1e-9 * max(1.0, float(np.abs(b).max()))
             exact += solvable
             solved = solve_with_active_bounds(A, b, norms, sizes, lower, upper, fixed, sides, rounds=1)

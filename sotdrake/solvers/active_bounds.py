@@ -43,7 +43,7 @@ import math
 import numpy as np
 from scipy.linalg import lapack
 
-from .active_set import all_true, any_true, upper_inverse
+from .active_set import all_true, upper_inverse
 
 CERTIFIED = 1e-5
 """The smallest singular value of a level's unit rows, in what is left free, that counts as clearly
@@ -51,6 +51,26 @@ non-zero: 10³ τ (τ = :data:`~.active_set.RANK_THRESHOLD`), the margin of :mod
 
 MULTIPLIER_TOLERANCE = 1e-9
 """A held bound's multiplier may have the wrong sign by this much, relative to ``max(1, ‖x‖)``."""
+
+_NONE = np.zeros(0, dtype=int)
+_NONE.flags.writeable = False
+
+
+def _certified(R_inv: np.ndarray, sizes: list[int], certified: float) -> bool:
+    """Whether every level's diagonal block of ``R⁻¹`` has ``‖R_kk⁻¹‖_F < 1/certified`` (then
+    ``σ_min`` of its rows in what is left free exceeds ``certified``). The whole ``R⁻¹`` is tried
+    first: its norm bounds every block's."""
+    flat = R_inv.ravel()
+    limit = 1.0 / (certified * certified)
+    if float(flat @ flat) < limit:
+        return True
+    start = 0
+    for size in sizes:
+        block = R_inv[start : start + size, start : start + size].ravel()
+        if not float(block @ block) < limit:  # (False on NaN too)
+            return False
+        start += size
+    return True
 
 
 def solve_with_active_bounds(
@@ -69,11 +89,10 @@ def solve_with_active_bounds(
     """``(x, sides)``: the answer of the equality hierarchy ``A x = b`` (levels of ``sizes`` rows,
     stacked; ``norms``: the rows' norms, 1 for a zero row) under the bounds, and the sides of the
     bounds held at it; or None (see the module docstring). ``fixed``: ``x_lower == x_upper``;
-    ``guess``: a side per component (-1, 0, +1). The caller silences numpy's warnings on ±∞ bounds;
+    ``guess``: a side per component (-1, 0, +1; one at an infinite bound gives None). The caller silences numpy's warnings on ±∞ bounds;
     the start of the QP (0) must lie inside the bounds of the free components, as the caller checks."""
     m = len(b)
     side = np.where(fixed, 0, guess)
-    side[((side > 0) & (x_upper == np.inf)) | ((side < 0) & (x_lower == -np.inf))] = 0
     for _ in range(rounds):
         held = fixed | (side != 0)
         free = (~held).nonzero()[0]
@@ -82,7 +101,6 @@ def solve_with_active_bounds(
             return None
         x = np.where(side > 0, x_upper, x_lower)  # the held values (the free ones are written below)
         x[free] = 0.0
-        nu = np.zeros(m)
         if m:
             B = A[:, free] / norms[:, None]
             rho = (b - A @ x) / norms
@@ -90,15 +108,8 @@ def solve_with_active_bounds(
             if info != 0:
                 return None
             R_inv = upper_inverse(qr[:m])
-            if R_inv is None:
+            if R_inv is None or not _certified(R_inv, sizes, certified):
                 return None
-            start = 0
-            for size in sizes:
-                if size:
-                    block = R_inv[start : start + size, start : start + size].ravel()
-                    if not float(block @ block) * certified * certified < 1.0:  # (False on NaN too)
-                        return None
-                    start += size
             u = R_inv.T @ rho
             padded = np.zeros((n_free, 1))
             padded[:m, 0] = u
@@ -106,23 +117,25 @@ def solve_with_active_bounds(
             if info != 0:
                 return None
             x[free] = x_free[:, 0]
-            nu = -(R_inv @ u)
-        if not all_true(np.isfinite(x)):
+        if not all_true(np.isfinite(x)):  # (an infinite side in the guess)
             return None
-        # Primal: the free components inside their bounds.
+        # Primal: the free components inside their bounds (a point inside them exactly passes at once).
         lo, hi, x_free_values = x_lower[free], x_upper[free], x[free]
-        below = x_free_values < lo - feasibility * np.maximum(1.0, np.abs(lo))
-        above = x_free_values > hi + feasibility * np.maximum(1.0, np.abs(hi))
-        # Dual: the multipliers of the guessed bounds.
+        if all_true(x_free_values >= lo) and all_true(x_free_values <= hi):
+            below = above = _NONE
+        else:
+            below = (x_free_values < lo - feasibility * np.maximum(1.0, np.abs(lo))).nonzero()[0]
+            above = (x_free_values > hi + feasibility * np.maximum(1.0, np.abs(hi))).nonzero()[0]
+        # Dual: the multipliers of the guessed bounds, λ = -x_i - (A_iᵀ D ν) with D ν = -D R⁻¹ u.
         guessed = side.nonzero()[0]
-        wrong = np.zeros(0, dtype=bool)
+        wrong = _NONE
         if len(guessed):
             lam = -x[guessed]
             if m:
-                lam -= (A[:, guessed] / norms[:, None]).T @ nu
+                lam += A[:, guessed].T @ ((R_inv @ u) / norms)
             tolerance = MULTIPLIER_TOLERANCE * max(1.0, math.sqrt(float(x @ x)))
-            wrong = side[guessed] * lam < -tolerance
-        if not (any_true(below) or any_true(above) or any_true(wrong)):
+            wrong = (side[guessed] * lam < -tolerance).nonzero()[0]
+        if not (len(below) or len(above) or len(wrong)):
             return x, side
         side[guessed[wrong]] = 0
         side[free[below]] = -1

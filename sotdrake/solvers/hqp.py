@@ -53,6 +53,7 @@ library default cutoff is used.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -126,33 +127,50 @@ class LevelRows:
     ``MathematicalProgram`` (see :data:`Extension`); such a level is solved by its Drake solver."""
 
     def __init__(self, A: np.ndarray, lower: np.ndarray, upper: np.ndarray, extend: Extension | None = None):
-        A, lower, upper = (np.asarray(a, dtype=float) for a in (A, lower, upper))
+        same = upper is lower  # (a task's equality rows: one array of values, no order to check)
+        A, lower = np.asarray(A, dtype=float), np.asarray(lower, dtype=float)
+        upper = lower if same else np.asarray(upper, dtype=float)
         if A.ndim != 2 or lower.shape != (A.shape[0],) or upper.shape != (A.shape[0],):
             raise InvalidInput(f"level rows: A {A.shape}, lower {lower.shape}, upper {upper.shape} do not fit")
-        ordered = lower <= upper  # False on a NaN side too: the cause is looked for only then
-        if not all_true(np.isfinite(A)) or (not all_true(ordered) and any_true(np.isnan(lower) | np.isnan(upper))):
-            raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
-        if not all_true(ordered):
-            raise InvalidInput(f"level rows: lower bound above upper bound in rows {np.flatnonzero(lower > upper)}")
+        if same:
+            if not all_true(np.isfinite(A)):
+                raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
+            if not all_true(np.isfinite(lower)):
+                raise InvalidInput("level rows: an equality row needs a finite value (NaN or infinite)")
+        else:
+            ordered = lower <= upper  # False on a NaN side too: the cause is looked for only then
+            if not all_true(np.isfinite(A)) or (not all_true(ordered) and any_true(np.isnan(lower) | np.isnan(upper))):
+                raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
+            if not all_true(ordered):
+                raise InvalidInput(f"level rows: lower bound above upper bound in rows {np.flatnonzero(lower > upper)}")
         self.A, self.lower, self.upper = A, lower, upper
-        self.equality = equality = lower == upper
         self.extend = extend
         # The split the solver reads at every stage, made once.
-        self.all_equality = all_true(equality)
+        self.all_equality = same or all_true(lower == upper)
         if self.all_equality:
             self.any_equality = len(A) > 0
-            self.inequality = _NO_ROW_MASK if len(A) == 0 else np.zeros(len(A), dtype=bool)
+            self.equality = np.ones(len(A), dtype=bool)
+            self.inequality = _NO_ROW_MASK if len(A) == 0 else ~self.equality
             self.A_eq, self.b_eq = A, lower
             self.A_in, self.lower_in, self.upper_in = A[:0], lower[:0], upper[:0]
         else:
+            self.equality = equality = lower == upper
             self.inequality = inequality = ~equality
             self.any_equality = any_true(equality)
             self.A_eq, self.b_eq = A[equality], lower[equality]
             self.A_in, self.lower_in, self.upper_in = A[inequality], lower[inequality], upper[inequality]
-        if not all_true(np.isfinite(self.b_eq)):
+        if not same and not all_true(np.isfinite(self.b_eq)):
             raise InvalidInput("level rows: an equality row needs a finite value")
-        self.eq_norms = _row_norms(self.A_eq)
-        self.in_norms = _row_norms(self.A_in) if len(self.A_in) else lower[:0]  # (reference norms once held)
+
+    @functools.cached_property
+    def eq_norms(self) -> np.ndarray:
+        """The norms of the equality rows (1 for a zero row): their reference norms."""
+        return _row_norms(self.A_eq)
+
+    @functools.cached_property
+    def in_norms(self) -> np.ndarray:
+        """The norms of the inequality rows (1 for a zero row): their reference norms once held."""
+        return _row_norms(self.A_in) if len(self.A_in) else self.lower[:0]
 
     def slack(self, x: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
         """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows
@@ -397,13 +415,13 @@ class HierarchicalQP:
         last answer, or None (then the stages decide)."""
         sizes = [len(level.A) for level in levels]
         if len(levels) == 1:
-            A, b, norms = levels[0].A, levels[0].lower, levels[0].eq_norms
+            A, b = levels[0].A, levels[0].lower
         elif levels:
             A = np.concatenate([level.A for level in levels])
             b = np.concatenate([level.lower for level in levels])
-            norms = np.concatenate([level.eq_norms for level in levels])
         else:
-            A, b, norms = np.zeros((0, self.n)), np.zeros(0), np.zeros(0)
+            A, b = np.zeros((0, self.n)), np.zeros(0)
+        norms = _row_norms(A)  # (the levels' eq_norms, computed once for the stack)
         solved = solve_with_active_bounds(A, b, norms, sizes, x_lower, x_upper, fixed, self._bound_sides,
                                           certified=1e3 * self.rank_threshold)
         if solved is None:

@@ -25,7 +25,7 @@ from ..exceptions import InvalidInput, SolverError
 from ..robots import RobotModel
 from .base_velocity import MAX_BASE_VELOCITY, default_base_velocity_limit
 from .hqp import ACTIVE_SET, HierarchicalQP, LevelRows, check_solver
-from .limits import velocity_bounds
+from .limits import VelocityBounds
 from .sot import SOT, StackSettings
 
 log = logging.getLogger("sotdrake.solver_kine")
@@ -81,8 +81,8 @@ class SolverKine(SOT):
         if self._layout.base_v is not None:
             self.setBaseVelocityLimit(*default_base_velocity_limit(model))
         limits = model.joint_limits()
-        self._limits = (limits["position_lower"], limits["position_upper"],
-                        limits["velocity_lower"], limits["velocity_upper"])
+        self._bounds = VelocityBounds(limits["position_lower"], limits["position_upper"],
+                                      limits["velocity_lower"], limits["velocity_upper"], layout)
         self._hqp = HierarchicalQP(model.nv)  # its programs and working sets are caches (warm starts)
         self.DeclareAbstractOutputPort(
             "diagnostics", lambda: AbstractValue.Make(HqpDiagnostics()),
@@ -118,12 +118,17 @@ class SolverKine(SOT):
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         s = cast(HqpSettings, self._settings_of(context))
-        levels = [LevelRows(level.jacobian, level.lower, level.upper) for level in self._levels(context, s)]
-        lower, upper = velocity_bounds(
-            self._position.Eval(context), *self._limits, self._period, s.position_margin,
-            self._layout, s.control_selection,
-            base_velocity=s.base_velocity_limit,
-        )
+        # LevelRows checks every level's shapes and values (finite A, ordered sides without NaN, finite
+        # values of equality rows); only when it refuses one are the levels checked again to name the task.
+        try:
+            levels = [LevelRows(level.jacobian, level.lower, level.upper) for level in self._levels(context, s, check=False)]
+            if any(level.A.shape[1] != self.nv for level in levels):
+                raise InvalidInput("a level's columns do not fit nv")
+        except InvalidInput:
+            self._levels(context, s)  # raises SolverError naming the task, if a task's values are wrong
+            raise
+        lower, upper = self._bounds(self._position.Eval(context), self._period, s.position_margin, s.control_selection,
+                                    s.base_velocity_limit)
         diagnostics = HqpDiagnostics(tasks=(["contacts"] if s.contacts else []) + list(s.tasks))
         try:
             result = self._hqp.solve(levels, lower, upper, s.damping, s.solver)

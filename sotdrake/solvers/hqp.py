@@ -226,7 +226,8 @@ _COLD_PATHS = (ACTIVE_SET, "clarabel", "osqp")
 
 def _sides_at_bounds(x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fixed: np.ndarray) -> np.ndarray:
     """+1 where ``x`` is at its (finite) upper bound, -1 at its lower bound (to 1e-9, relative
-    above 1), 0 elsewhere and on the fixed components: the guess of :mod:`.active_bounds`."""
+    above 1), 0 elsewhere and on the ``fixed`` components (those of the call the guess is for):
+    the guess of :mod:`.active_bounds`."""
     upper = ~fixed & (x >= x_upper - 1e-9 * np.maximum(1.0, np.abs(x_upper))) & (x_upper < np.inf)
     lower = ~fixed & (x <= x_lower + 1e-9 * np.maximum(1.0, np.abs(x_lower))) & (x_lower > -np.inf)
     return np.where(upper, 1, np.where(lower, -1, 0))
@@ -331,8 +332,12 @@ class HierarchicalQP:
         self._solvers: dict[str, tuple] = {}
         self._identity = np.eye(n)  # a constant (never written to)
         self._unit: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # a cache of constants, see _constants
-        # A guess (results never depend on it): the side of each bound held at the last answer.
-        self._bound_sides = np.zeros(n, dtype=int)
+        # A guess (results never depend on it): the side of each bound held at the last answer, or
+        # that answer (x, x_lower, x_upper, fixed), read off when the next call needs it.
+        self._bound_sides: np.ndarray | tuple = np.zeros(n, dtype=int)
+        # After f failed tries of the active bounds in a row, the next 2^(f-1) - 1 calls (at most 15)
+        # skip them (a stack whose levels cannot all be met stays so for a while).
+        self._active_bounds_failures, self._active_bounds_skips = 0, 0
 
     def _constants(self, r: int) -> tuple[np.ndarray, np.ndarray]:
         """The minimum-norm stage's objective ``(I_r, ones(r))``, made once per size, read only."""
@@ -388,29 +393,32 @@ class HierarchicalQP:
                 raise InvalidInput(f"start must be {n} finite numbers")
         began = time.perf_counter()
         with np.errstate(invalid="ignore", divide="ignore"):  # ±∞ bounds: once here, not per operation
-            fixed = x_lower == x_upper
-            if solver == ACTIVE_SET and self._equalities_only(levels, x_lower, x_upper, fixed, damping, start):
-                result = self._solve_active_bounds(levels, x_lower, x_upper, fixed, began)
+            if self._active_bounds_skips:
+                self._active_bounds_skips -= 1
+            elif solver == ACTIVE_SET and self._equalities_only(levels, x_lower, x_upper, damping, start):
+                result = self._solve_active_bounds(levels, x_lower, x_upper, began)
                 if result is not None:
+                    self._active_bounds_failures = 0
                     return result
+                self._active_bounds_failures += 1
+                self._active_bounds_skips = min(2 ** (self._active_bounds_failures - 1) - 1, 15)
             result = self._solve_stages(levels, x_lower, x_upper, damping, solver, began, start)
-            self._bound_sides = _sides_at_bounds(result.x, x_lower, x_upper, fixed)
+            self._bound_sides = (result.x, x_lower, x_upper)
             return result
 
-    def _equalities_only(self, levels, x_lower, x_upper, fixed, damping, start) -> bool:
+    def _equalities_only(self, levels, x_lower, x_upper, damping, start) -> bool:
         """Whether :mod:`.active_bounds` may solve the stack: equality levels without extensions,
         the default path on every stage, the minimum-norm stage, no damping, and the start (0, or
         ``start``) inside the bounds of the free components (no bound is relaxed to it)."""
-        if not self.regularize or (damping > 0.0 and len(levels)) or any(name != ACTIVE_SET for name in self.level_solvers):
-            return False
         for level in levels:
             if not level.all_equality or level.extend is not None:
                 return False
-        if start is None:
-            return all_true(fixed | ((x_lower <= 0.0) & (x_upper >= 0.0)))
-        return all_true(fixed | ((x_lower <= start) & (x_upper >= start)))
+        if not self.regularize or (damping > 0.0 and len(levels)) or any(name != ACTIVE_SET for name in self.level_solvers):
+            return False
+        origin = 0.0 if start is None else start
+        return all_true(((x_lower <= origin) & (x_upper >= origin)) | (x_lower == x_upper))
 
-    def _solve_active_bounds(self, levels, x_lower, x_upper, fixed, began) -> HqpResult | None:
+    def _solve_active_bounds(self, levels, x_lower, x_upper, began) -> HqpResult | None:
         """The stack by :func:`~.active_bounds.solve_with_active_bounds` from the bounds held at the
         last answer, or None (then the stages decide)."""
         sizes = [len(level.A) for level in levels]
@@ -422,7 +430,11 @@ class HierarchicalQP:
         else:
             A, b = np.zeros((0, self.n)), np.zeros(0)
         norms = _row_norms(A)  # (the levels' eq_norms, computed once for the stack)
-        solved = solve_with_active_bounds(A, b, norms, sizes, x_lower, x_upper, fixed, self._bound_sides,
+        fixed = x_lower == x_upper
+        guess = self._bound_sides
+        if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
+            guess = _sides_at_bounds(*guess, fixed)
+        solved = solve_with_active_bounds(A, b, norms, sizes, x_lower, x_upper, fixed, guess,
                                           certified=1e3 * self.rank_threshold)
         if solved is None:
             return None

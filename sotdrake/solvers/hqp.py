@@ -334,7 +334,7 @@ class HierarchicalQP:
         self._unit: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # a cache of constants, see _constants
         # A guess (results never depend on it): the side of each bound held at the last answer, or
         # that answer (x, x_lower, x_upper, fixed), read off when the next call needs it.
-        self._bound_sides: np.ndarray | tuple = np.zeros(n, dtype=int)
+        self._bound_sides: np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray] = np.zeros(n, dtype=int)
         # After f failed tries of the active bounds in a row, the next 2^(f-1) - 1 calls (at most 15)
         # skip them (a stack whose levels cannot all be met stays so for a while).
         self._active_bounds_failures, self._active_bounds_skips = 0, 0
@@ -433,7 +433,7 @@ class HierarchicalQP:
         fixed = x_lower == x_upper
         guess = self._bound_sides
         if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
-            guess = _sides_at_bounds(*guess, fixed)
+            guess = _sides_at_bounds(guess[0], guess[1], guess[2], fixed)
         solved = solve_with_active_bounds(A, b, norms, sizes, x_lower, x_upper, fixed, guess,
                                           certified=1e3 * self.rank_threshold)
         if solved is None:

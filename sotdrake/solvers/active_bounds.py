@@ -117,7 +117,8 @@ def solve_with_active_bounds(
             if info != 0:
                 return None
             x[free] = x_free[:, 0]
-        if not all_true(np.isfinite(x)):  # (an infinite side in the guess)
+        squared_norm = float(x @ x)
+        if not math.isfinite(squared_norm):  # (an infinite side in the guess)
             return None
         # Primal: the free components inside their bounds (a point inside them exactly passes at once).
         lo, hi, x_free_values = x_lower[free], x_upper[free], x[free]
@@ -133,7 +134,7 @@ def solve_with_active_bounds(
             lam = -x[guessed]
             if m:
                 lam += A[:, guessed].T @ ((R_inv @ u) / norms)
-            tolerance = MULTIPLIER_TOLERANCE * max(1.0, math.sqrt(float(x @ x)))
+            tolerance = MULTIPLIER_TOLERANCE * max(1.0, math.sqrt(squared_norm))
             wrong = (side[guessed] * lam < -tolerance).nonzero()[0]
         if not (len(below) or len(above) or len(wrong)):
             return x, side

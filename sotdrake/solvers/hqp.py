@@ -451,7 +451,8 @@ class HierarchicalQP:
             slacks=slacks,
             slack_norms=np.array([math.sqrt(float(s @ s)) for s in slacks]),
             active_rows=[_NO_ROWS] * len(levels),
-            active_bounds=(~fixed & ((np.abs(x - x_lower) <= scale) | (np.abs(x - x_upper) <= scale))).nonzero()[0],
+            # (x is inside its bounds to 1e-10: |x - x_lower| ≤ scale is x - x_lower ≤ scale)
+            active_bounds=(~fixed & ((x - x_lower <= scale) | (x_upper - x <= scale))).nonzero()[0],
             solve_time_s=time.perf_counter() - began,
             level_solvers=[ACTIVE_BOUNDS] * stages,
             iterations=[0] * stages,

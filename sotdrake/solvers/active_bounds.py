@@ -43,7 +43,7 @@ import math
 import numpy as np
 from scipy.linalg import lapack
 
-from .active_set import all_true, upper_inverse
+from .active_set import upper_inverse
 
 CERTIFIED = 1e-5
 """The smallest singular value of a level's unit rows, in what is left free, that counts as clearly
@@ -89,9 +89,12 @@ def solve_with_active_bounds(
     """``(x, sides)``: the answer of the equality hierarchy ``A x = b`` (levels of ``sizes`` rows,
     stacked; ``norms``: the rows' norms, 1 for a zero row) under the bounds, and the sides of the
     bounds held at it; or None (see the module docstring). ``fixed``: ``x_lower == x_upper``;
-    ``guess``: a side per component (-1, 0, +1; one at an infinite bound gives None). The caller silences numpy's warnings on ±∞ bounds;
-    the start of the QP (0) must lie inside the bounds of the free components, as the caller checks."""
+    ``guess``: a side per component (-1, 0, +1; one at an infinite bound gives None). The caller
+    silences numpy's warnings on ±∞ bounds; the start of the QP (0) must lie inside the bounds of the
+    free components, as the caller checks."""
     m = len(b)
+    if m:
+        U, c = A / norms[:, None], b / norms  # the unit rows
     side = np.where(fixed, 0, guess)
     for _ in range(rounds):
         held = fixed | (side != 0)
@@ -102,38 +105,36 @@ def solve_with_active_bounds(
         x = np.where(side > 0, x_upper, x_lower)  # the held values (the free ones are written below)
         x[free] = 0.0
         if m:
-            B = A[:, free] / norms[:, None]
-            rho = (b - A @ x) / norms
-            qr, tau, _, info = lapack.dgeqrf(B.T)
+            qr, tau, _, info = lapack.dgeqrf(U[:, free].T)  # Bᵀ = Q R
             if info != 0:
                 return None
             R_inv = upper_inverse(qr[:m])
             if R_inv is None or not _certified(R_inv, sizes, certified):
                 return None
-            u = R_inv.T @ rho
+            u = R_inv.T @ (c - U @ x)  # R⁻ᵀ ρ
             padded = np.zeros((n_free, 1))
             padded[:m, 0] = u
             x_free, _, info = lapack.dormqr("L", "N", qr, tau, padded, max(1, n_free))
             if info != 0:
                 return None
-            x[free] = x_free[:, 0]
+            x_free = x_free[:, 0]
+            x[free] = x_free
+        else:
+            x_free = x[free]
         squared_norm = float(x @ x)
         if not math.isfinite(squared_norm):  # (an infinite side in the guess)
             return None
         # Primal: the free components inside their bounds (a point inside them exactly passes at once).
-        lo, hi, x_free_values = x_lower[free], x_upper[free], x[free]
-        if all_true(x_free_values >= lo) and all_true(x_free_values <= hi):
-            below = above = _NONE
-        else:
-            below = (x_free_values < lo - feasibility * np.maximum(1.0, np.abs(lo))).nonzero()[0]
-            above = (x_free_values > hi + feasibility * np.maximum(1.0, np.abs(hi))).nonzero()[0]
-        # Dual: the multipliers of the guessed bounds, λ = -x_i - (A_iᵀ D ν) with D ν = -D R⁻¹ u.
+        lo, hi = x_lower[free], x_upper[free]
+        below = above = _NONE
+        if np.count_nonzero((x_free < lo) | (x_free > hi)):
+            below = (x_free < lo - feasibility * np.maximum(1.0, np.abs(lo))).nonzero()[0]
+            above = (x_free > hi + feasibility * np.maximum(1.0, np.abs(hi))).nonzero()[0]
+        # Dual: the multipliers of the guessed bounds, λ = -x_i - (Aᵀμ)_i = -x_i + (Bᵀ R⁻¹ u)_i.
         guessed = side.nonzero()[0]
         wrong = _NONE
         if len(guessed):
-            lam = -x[guessed]
-            if m:
-                lam += A[:, guessed].T @ ((R_inv @ u) / norms)
+            lam = U[:, guessed].T @ (R_inv @ u) - x[guessed] if m else -x[guessed]
             tolerance = MULTIPLIER_TOLERANCE * max(1.0, math.sqrt(squared_norm))
             wrong = (side[guessed] * lam < -tolerance).nonzero()[0]
         if not (len(below) or len(above) or len(wrong)):

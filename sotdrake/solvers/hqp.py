@@ -380,7 +380,8 @@ class HierarchicalQP:
             if any_true(np.isnan(x_lower) | np.isnan(x_upper)):
                 raise InvalidInput(f"bounds must be {n} numbers without NaN")
             raise InvalidInput(f"lower bound above upper bound at {np.flatnonzero(x_lower > x_upper)}")
-        if not all_true(np.isfinite(x_lower[x_lower == x_upper])):
+        fixed = x_lower == x_upper
+        if not all_true(np.isfinite(x_lower[fixed])):
             raise InvalidInput("a fixed component (lower == upper) needs a finite value")
         if not (np.isfinite(damping) and damping >= 0):
             raise InvalidInput(f"damping must be finite and ≥ 0, got {damping}")
@@ -395,8 +396,8 @@ class HierarchicalQP:
         with np.errstate(invalid="ignore", divide="ignore"):  # ±∞ bounds: once here, not per operation
             if self._active_bounds_skips:
                 self._active_bounds_skips -= 1
-            elif solver == ACTIVE_SET and self._equalities_only(levels, x_lower, x_upper, damping, start):
-                result = self._solve_active_bounds(levels, x_lower, x_upper, began)
+            elif solver == ACTIVE_SET and self._equalities_only(levels, x_lower, x_upper, fixed, damping, start):
+                result = self._solve_active_bounds(levels, x_lower, x_upper, fixed, began)
                 if result is not None:
                     self._active_bounds_failures = 0
                     return result
@@ -406,7 +407,7 @@ class HierarchicalQP:
             self._bound_sides = (result.x, x_lower, x_upper)
             return result
 
-    def _equalities_only(self, levels, x_lower, x_upper, damping, start) -> bool:
+    def _equalities_only(self, levels, x_lower, x_upper, fixed, damping, start) -> bool:
         """Whether :mod:`.active_bounds` may solve the stack: equality levels without extensions,
         the default path on every stage, the minimum-norm stage, no damping, and the start (0, or
         ``start``) inside the bounds of the free components (no bound is relaxed to it)."""
@@ -416,9 +417,9 @@ class HierarchicalQP:
         if not self.regularize or (damping > 0.0 and len(levels)) or any(name != ACTIVE_SET for name in self.level_solvers):
             return False
         origin = 0.0 if start is None else start
-        return all_true(((x_lower <= origin) & (x_upper >= origin)) | (x_lower == x_upper))
+        return all_true(((x_lower <= origin) & (x_upper >= origin)) | fixed)
 
-    def _solve_active_bounds(self, levels, x_lower, x_upper, began) -> HqpResult | None:
+    def _solve_active_bounds(self, levels, x_lower, x_upper, fixed, began) -> HqpResult | None:
         """The stack by :func:`~.active_bounds.solve_with_active_bounds` from the bounds held at the
         last answer, or None (then the stages decide)."""
         sizes = [len(level.A) for level in levels]
@@ -430,7 +431,6 @@ class HierarchicalQP:
         else:
             A, b = np.zeros((0, self.n)), np.zeros(0)
         norms = _row_norms(A)  # (the levels' eq_norms, computed once for the stack)
-        fixed = x_lower == x_upper
         guess = self._bound_sides
         if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
             guess = _sides_at_bounds(guess[0], guess[1], guess[2], fixed)
@@ -440,16 +440,21 @@ class HierarchicalQP:
             return None
         x, self._bound_sides = solved
         residual = A @ x - b
-        slacks, start = [], 0
+        slacks, starts, start = [], [], 0
         for size in sizes:
             slacks.append(residual[start : start + size])
+            starts.append(start)
             start += size
+        if len(levels) and min(sizes) > 0:  # every level's squared norm in one call
+            slack_norms = np.sqrt(np.add.reduceat(residual * residual, starts))
+        else:
+            slack_norms = np.array([math.sqrt(float(s @ s)) for s in slacks])
         scale = 1e-7 * np.maximum(1.0, np.abs(x))
         stages = len(levels) + 1
         return HqpResult(
             x=x,
             slacks=slacks,
-            slack_norms=np.array([math.sqrt(float(s @ s)) for s in slacks]),
+            slack_norms=slack_norms,
             active_rows=[_NO_ROWS] * len(levels),
             # (x is inside its bounds to 1e-10: |x - x_lower| ≤ scale is x - x_lower ≤ scale)
             active_bounds=(~fixed & ((x - x_lower <= scale) | (x_upper - x <= scale))).nonzero()[0],

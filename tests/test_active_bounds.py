@@ -141,3 +141,30 @@ def test_warm_ticks_take_the_active_bounds_and_match_the_stages():
     assert min(held) >= 1 and max(held) >= 5  # the bounds are in the way on every call, more and more of them
     assert paths == [ACTIVE_BOUNDS if ok else ACTIVE_SET for ok in met]
     assert sum(met) >= 30 and not all(met)
+
+
+def test_solve_equalities_is_solve_without_level_rows():
+    """``HierarchicalQP.solve_equalities`` (the robot's equality stacks, no LevelRows) gives solve's
+    answer, and None where that path does not apply or its values are not finite."""
+    rng = np.random.default_rng(9)
+    n = 12
+    A = [rng.normal(size=(4, n)), rng.normal(size=(3, n))]
+    x_true = rng.normal(size=n) * 0.2
+    b = [A[0] @ x_true, A[1] @ x_true]
+    lower, upper = np.full(n, -0.3), np.full(n, 0.3)
+    reference = by_stages(n, [LevelRows(a, v, v) for a, v in zip(A, b, strict=True)], lower, upper)
+    assert len(reference.active_bounds) and reference.slack_norms.max() < 1e-9  # bounds in the way, every level met
+    hqp = HierarchicalQP(n)
+    levels = [LevelRows(a, v, v) for a, v in zip(A, b, strict=True)]
+    result = None
+    for _ in range(4):  # (the first calls may need the stages' answer as their guess)
+        result = hqp.solve_equalities(A, b, lower, upper) or hqp.solve(levels, lower, upper)
+    assert result is not None and result.level_solvers[0] == ACTIVE_BOUNDS
+    assert close(result.x, reference.x) and np.allclose(result.slack_norms, reference.slack_norms, atol=1e-12)
+    assert hqp.solve_equalities(A, b, lower, upper, damping=1e-3) is None
+    assert HierarchicalQP(n, regularize=False).solve_equalities(A, b, lower, upper) is None
+    assert hqp.solve_equalities(A, [b[0], np.full(3, np.nan)], lower, upper) is None
+    assert hqp.solve_equalities([A[0] * np.inf, A[1]], b, lower, upper) is None
+    assert hqp.solve_equalities(A, b, lower, -upper) is None  # lower above upper
+    assert hqp.solve_equalities(A, b, lower + 0.5, upper + 1.0) is None  # 0 outside the bounds: the stages relax them
+    assert hqp.solve_equalities([A[0][:, :-1], A[1]], b, lower, upper) is None

@@ -335,8 +335,9 @@ class HierarchicalQP:
         # A guess (results never depend on it): the side of each bound held at the last answer, or
         # that answer (x, x_lower, x_upper, fixed), read off when the next call needs it.
         self._bound_sides: np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray] = np.zeros(n, dtype=int)
-        # After f failed tries of the active bounds in a row, the next 2^(f-1) - 1 calls (at most 15)
-        # skip them (a stack whose levels cannot all be met stays so for a while).
+        # After f failed tries of the active bounds in a row, the next 2^(f-1) calls (at most 16) skip
+        # them (a stack whose levels cannot all be met stays so for a while; the call that follows a
+        # failed solve_equalities is the same stack's solve).
         self._active_bounds_failures, self._active_bounds_skips = 0, 0
 
     def _constants(self, r: int) -> tuple[np.ndarray, np.ndarray]:
@@ -394,15 +395,11 @@ class HierarchicalQP:
                 raise InvalidInput(f"start must be {n} finite numbers")
         began = time.perf_counter()
         with np.errstate(invalid="ignore", divide="ignore"):  # ±∞ bounds: once here, not per operation
-            if self._active_bounds_skips:
-                self._active_bounds_skips -= 1
-            elif solver == ACTIVE_SET and self._equalities_only(levels, x_lower, x_upper, fixed, damping, start):
-                result = self._solve_active_bounds(levels, x_lower, x_upper, fixed, began)
+            if solver == ACTIVE_SET and self._equalities_only(levels, x_lower, x_upper, fixed, damping, start):
+                result = self._try_active_bounds([level.A for level in levels], [level.lower for level in levels],
+                                                 x_lower, x_upper, fixed, began)
                 if result is not None:
-                    self._active_bounds_failures = 0
                     return result
-                self._active_bounds_failures += 1
-                self._active_bounds_skips = min(2 ** (self._active_bounds_failures - 1) - 1, 15)
             result = self._solve_stages(levels, x_lower, x_upper, damping, solver, began, start)
             self._bound_sides = (result.x, x_lower, x_upper)
             return result
@@ -419,15 +416,60 @@ class HierarchicalQP:
         origin = 0.0 if start is None else start
         return all_true(((x_lower <= origin) & (x_upper >= origin)) | fixed)
 
-    def _solve_active_bounds(self, levels, x_lower, x_upper, fixed, began) -> HqpResult | None:
-        """The stack by :func:`~.active_bounds.solve_with_active_bounds` from the bounds held at the
-        last answer, or None (then the stages decide)."""
-        sizes = [len(level.A) for level in levels]
-        if len(levels) == 1:
-            A, b = levels[0].A, levels[0].lower
-        elif levels:
-            A = np.concatenate([level.A for level in levels])
-            b = np.concatenate([level.lower for level in levels])
+    def solve_equalities(
+        self,
+        jacobians: Sequence[np.ndarray],
+        values: Sequence[np.ndarray],
+        x_lower: np.ndarray,
+        x_upper: np.ndarray,
+        damping: float = 0.0,
+    ) -> HqpResult | None:
+        """The stack of equality levels ``jacobians[k] x = values[k]`` (highest first) by the active
+        bounds alone (:mod:`.active_bounds`), without building :class:`LevelRows`: the answer of
+        :meth:`solve` on the default path, or None when that path does not apply (another solver,
+        damping, no minimum-norm stage, 0 outside the bounds) or does not verify; then :meth:`solve`
+        decides. The values are not checked here (a NaN or an infinite entry makes the path fail
+        and :meth:`solve`'s checks name it); shapes that do not fit give None."""
+        n = self.n
+        if (self.solver != ACTIVE_SET or not self.regularize or any(name != ACTIVE_SET for name in self.level_solvers)
+                or (damping != 0.0 and len(jacobians)) or len(values) != len(jacobians)):
+            return None
+        x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
+        if x_lower.shape != (n,) or x_upper.shape != (n,):
+            return None
+        for J, value in zip(jacobians, values, strict=True):
+            if J.ndim != 2 or J.shape[1] != n or value.shape != (J.shape[0],):
+                return None
+        began = time.perf_counter()
+        with np.errstate(invalid="ignore", divide="ignore"):
+            fixed = x_lower == x_upper
+            # The bounds in order (no NaN), and 0 inside those of the free components (as _equalities_only).
+            if not (all_true(x_lower <= x_upper) and all_true(((x_lower <= 0.0) & (x_upper >= 0.0)) | fixed)):
+                return None
+            return self._try_active_bounds(jacobians, values, x_lower, x_upper, fixed, began)
+
+    def _try_active_bounds(self, jacobians, values, x_lower, x_upper, fixed, began) -> HqpResult | None:
+        """:meth:`_solve_active_bounds` unless failures in a row make this call skip it (the
+        back-off: after f failures, the next 2^(f-1) calls, at most 16, skip it)."""
+        if self._active_bounds_skips:
+            self._active_bounds_skips -= 1
+            return None
+        result = self._solve_active_bounds(jacobians, values, x_lower, x_upper, fixed, began)
+        if result is None:
+            self._active_bounds_failures += 1
+            self._active_bounds_skips = min(2 ** (self._active_bounds_failures - 1), 16)
+        else:
+            self._active_bounds_failures = 0
+        return result
+
+    def _solve_active_bounds(self, jacobians, values, x_lower, x_upper, fixed, began) -> HqpResult | None:
+        """The equality stack by :func:`~.active_bounds.solve_with_active_bounds` from the bounds
+        held at the last answer, or None (then the stages decide)."""
+        sizes = [len(J) for J in jacobians]
+        if len(jacobians) == 1:
+            A, b = jacobians[0], values[0]
+        elif jacobians:
+            A, b = np.concatenate(jacobians), np.concatenate(values)
         else:
             A, b = np.zeros((0, self.n)), np.zeros(0)
         norms = _row_norms(A)  # (the levels' eq_norms, computed once for the stack)
@@ -445,17 +487,17 @@ class HierarchicalQP:
             slacks.append(residual[start : start + size])
             starts.append(start)
             start += size
-        if len(levels) and min(sizes) > 0:  # every level's squared norm in one call
+        if len(jacobians) and min(sizes) > 0:  # every level's squared norm in one call
             slack_norms = np.sqrt(np.add.reduceat(residual * residual, starts))
         else:
             slack_norms = np.array([math.sqrt(float(s @ s)) for s in slacks])
         scale = 1e-7 * np.maximum(1.0, np.abs(x))
-        stages = len(levels) + 1
+        stages = len(jacobians) + 1
         return HqpResult(
             x=x,
             slacks=slacks,
             slack_norms=slack_norms,
-            active_rows=[_NO_ROWS] * len(levels),
+            active_rows=[_NO_ROWS] * len(jacobians),
             # (x is inside its bounds to 1e-10: |x - x_lower| ≤ scale is x - x_lower ≤ scale)
             active_bounds=(~fixed & ((x - x_lower <= scale) | (x_upper - x <= scale))).nonzero()[0],
             solve_time_s=time.perf_counter() - began,

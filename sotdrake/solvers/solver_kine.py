@@ -118,25 +118,33 @@ class SolverKine(SOT):
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         s = cast(HqpSettings, self._settings_of(context))
-        # LevelRows checks every level's shapes and values (finite A, ordered sides without NaN, finite
-        # values of equality rows); only when it refuses one are the levels checked again to name the task.
-        try:
-            levels = [LevelRows(level.jacobian, level.lower, level.upper) for level in self._levels(context, s, check=False)]
-            if any(level.A.shape[1] != self.nv for level in levels):
-                raise InvalidInput("a level's columns do not fit nv")
-        except InvalidInput:
-            self._levels(context, s)  # raises SolverError naming the task, if a task's values are wrong
-            raise
+        task_levels = self._levels(context, s, check=False)
         lower, upper = self._bounds(self._position.Eval(context), self._period, s.position_margin, s.control_selection,
                                     s.base_velocity_limit)
         diagnostics = HqpDiagnostics(tasks=(["contacts"] if s.contacts else []) + list(s.tasks))
-        try:
-            result = self._hqp.solve(levels, lower, upper, s.damping, s.solver)
-        except SolverError as error:
-            diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
-            log.warning("%s: %s; the device holds", self.name, diagnostics.failure)
-            value.set_value(_Solution(np.zeros(self.nv), np.full(len(levels), np.nan), diagnostics))
-            return
+        result = None
+        if s.solver == ACTIVE_SET and all(level.upper is level.lower for level in task_levels):
+            # Equality tasks: the stack at once from the last tick's active limits, if that verifies
+            # (a NaN or infinite value makes it fail, and LevelRows below names it).
+            result = self._hqp.solve_equalities([level.jacobian for level in task_levels], [level.lower for level in task_levels],
+                                                lower, upper, s.damping)
+        if result is None:
+            # LevelRows checks every level's shapes and values (finite A, ordered sides without NaN, finite
+            # values of equality rows); only when it refuses one are the levels checked again to name the task.
+            try:
+                levels = [LevelRows(level.jacobian, level.lower, level.upper) for level in task_levels]
+                if any(level.A.shape[1] != self.nv for level in levels):
+                    raise InvalidInput("a level's columns do not fit nv")
+            except InvalidInput:
+                self._levels(context, s)  # raises SolverError naming the task, if a task's values are wrong
+                raise
+            try:
+                result = self._hqp.solve(levels, lower, upper, s.damping, s.solver)
+            except SolverError as error:
+                diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
+                log.warning("%s: %s; the device holds", self.name, diagnostics.failure)
+                value.set_value(_Solution(np.zeros(self.nv), np.full(len(levels), np.nan), diagnostics))
+                return
         diagnostics.slack_norms = result.slack_norms
         diagnostics.active_rows = result.active_rows
         diagnostics.active_limits = result.active_bounds

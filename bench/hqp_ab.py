@@ -113,11 +113,18 @@ def talos_ticks(modules, ticks: int, repeat: int) -> dict:
                          np.array(x_lower), np.array(x_upper), damping))
         return solve(self, levels, x_lower, x_upper, damping, solver)
 
+    # (SolverKine tries solve_equalities first: switched off while recording, so that every stack
+    # goes through solve; both trees then replay it through solve)
+    equalities = getattr(modules[0].HierarchicalQP, "solve_equalities", None)
     modules[0].HierarchicalQP.solve = record
+    if equalities is not None:
+        modules[0].HierarchicalQP.solve_equalities = lambda self, *args, **kwargs: None
     try:
         bench_run.sotdrake_run("hqp", ticks, 50, target=ACTIVE_TARGET)
     finally:
         modules[0].HierarchicalQP.solve = solve
+        if equalities is not None:
+            modules[0].HierarchicalQP.solve_equalities = equalities
     recorded = recorded[-ticks:]
     solvers = [module.HierarchicalQP(recorded[0][0]) for module in modules]
     rows = [[[module.LevelRows(*level) for level in call[1]] for module in modules] for call in recorded]

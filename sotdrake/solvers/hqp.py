@@ -30,6 +30,15 @@ How a level is solved:
   least-squares step (from the factorisation, QR or SVD, that also gives the next ``Z``), checked against the bounds and
   held rows in ``x`` before any stage is built; the minimum-norm stage likewise tries its
   unconstrained point first when its previous call ended with an empty working set;
+* before any stage, a stack of equality levels (no inequality row, no extension, no damping, the
+  start inside the bounds) is tried at once from the bounds held at the previous answer
+  (:mod:`.active_bounds`, reported as ``"active-bounds"`` for every stage): those bounds fixed, one
+  QR of all the levels' unit rows gives the minimum-norm solution; it is kept only if every level is
+  certified of full row rank (σ ≥ 10³ τ, so every level is met exactly) and the KKT conditions of
+  the minimum-norm stage hold (the other bounds, the signs of the held bounds' multipliers), which
+  make it the point the stages return. Up to three rounds release wrong-signed bounds and hold
+  violated ones; otherwise the stages decide (after failures in a row the next calls skip the try:
+  a back-off). :meth:`HierarchicalQP.solve_equalities` takes such a stack as plain arrays;
 * a Drake solver (``"clarabel"``, ``"osqp"``, ``"snopt"``) can be chosen instead, for every level or
   per level: the level is then a ``MathematicalProgram`` in ``(y, w)``, and the solver's answer is
   *polished*: its active set is tried as the working-set guess of the same active-set method, which

@@ -5,6 +5,10 @@ stack in the Context), plus a ``position`` input (``q``, from the device) for th
 which become velocity bounds over one tick (:mod:`.limits`) above every task. Inequality tasks
 (``TaskInequality``) mix freely with equality tasks in any level.
 
+A stack of equality tasks goes first to :meth:`~.hqp.HierarchicalQP.solve_equalities` (the whole
+stack by one QR from the last tick's active limits, verified; :mod:`.active_bounds`), and to the
+level-by-level solve only when that does not verify.
+
 Outputs: ``control`` (``v``), ``residuals`` (the optimal slack norm of each level) and
 ``diagnostics`` (:class:`HqpDiagnostics`). If a level cannot be solved the control is zero (the
 device holds), ``diagnostics.failure`` says which level and why, and a warning is logged.

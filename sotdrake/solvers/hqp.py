@@ -452,8 +452,9 @@ class HierarchicalQP:
         began = time.perf_counter()
         with np.errstate(invalid="ignore", divide="ignore"):
             fixed = x_lower == x_upper
-            # The bounds in order (no NaN), and 0 inside those of the free components (as _equalities_only).
-            if not (all_true(x_lower <= x_upper) and all_true(((x_lower <= 0.0) & (x_upper >= 0.0)) | fixed)):
+            # 0 inside the bounds of the free components (as _equalities_only), which also refuses bounds
+            # out of order (lower > upper cannot hold 0) and NaN bounds (every comparison is False).
+            if not all_true(((x_lower <= 0.0) & (x_upper >= 0.0)) | fixed):
                 return None
             return self._try_active_bounds(jacobians, values, x_lower, x_upper, fixed, began)
 

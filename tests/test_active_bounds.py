@@ -165,6 +165,7 @@ def test_solve_equalities_is_solve_without_level_rows():
     assert HierarchicalQP(n, regularize=False).solve_equalities(A, b, lower, upper) is None
     assert hqp.solve_equalities(A, [b[0], np.full(3, np.nan)], lower, upper) is None
     assert hqp.solve_equalities([A[0] * np.inf, A[1]], b, lower, upper) is None
-    assert hqp.solve_equalities(A, b, lower, -upper) is None  # lower above upper
+    assert hqp.solve_equalities(A, b, upper, lower) is None  # lower above upper
+    assert hqp.solve_equalities(A, b, np.full(n, np.nan), upper) is None
     assert hqp.solve_equalities(A, b, lower + 0.5, upper + 1.0) is None  # 0 outside the bounds: the stages relax them
     assert hqp.solve_equalities([A[0][:, :-1], A[1]], b, lower, upper) is None

@@ -487,7 +487,7 @@ class HierarchicalQP:
         if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
             guess = _sides_at_bounds(guess[0], guess[1], guess[2], fixed)
         solved = solve_with_active_bounds(A, b, norms, sizes, x_lower, x_upper, fixed, guess,
-                                          certified=1e3 * self.rank_threshold)
+                                          certified=1e3 * self.rank_threshold, feasibility=min(1e-10, self.feasibility_tolerance))
         if solved is None:
             return None
         x, self._bound_sides = solved

@@ -169,3 +169,46 @@ def test_solve_equalities_is_solve_without_level_rows():
     assert hqp.solve_equalities(A, b, np.full(n, np.nan), upper) is None
     assert hqp.solve_equalities(A, b, lower + 0.5, upper + 1.0) is None  # 0 outside the bounds: the stages relax them
     assert hqp.solve_equalities([A[0][:, :-1], A[1]], b, lower, upper) is None
+
+
+def test_on_talos_with_active_limits_the_answer_is_the_stages(talos_model, monkeypatch):
+    """bench/run.py's active-limits scenario (feet, CoM, the hand behind the back): every tick that
+    SolverKine solves by the active bounds, with limits in the way, gives the stages' answer."""
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+
+    from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
+    from sotdrake.robot import Robot, add_sot
+    from sotdrake.robots import TALOS_GRIPPERS
+
+    builder = DiagramBuilder()
+    robot = Robot(builder, talos_model, 1e-3)
+    sot = add_sot(robot, solver="hqp")
+    sot.setControlSelection(robot.velocity_selection(TALOS_GRIPPERS))
+    tasks = [MetaTaskKine6d("contactRF", robot, "RF", "right-ankle"), MetaTaskKine6d("contactLF", robot, "LF", "left-ankle"),
+             MetaTaskKineCom(robot), MetaTaskKine6d("rh", robot, "rh", "right-wrist")]
+    for task in tasks[:3]:
+        task.gain.setConstant(10.0)
+    tasks[3].opmodif = np.array([[1, 0, 0, 0.1], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+    gotoNd(tasks[3], np.array([-0.45, -0.35, 1.0]), "111", 4.9)
+    for task in tasks:
+        sot.push(task.task.name)
+    diagram = builder.Build()
+    checked = []
+    solve_equalities = HierarchicalQP.solve_equalities
+
+    def checking(self, jacobians, values, x_lower, x_upper, damping=0.0):
+        result = solve_equalities(self, jacobians, values, x_lower, x_upper, damping)
+        if result is not None:
+            levels = [LevelRows(J, v, v) for J, v in zip(jacobians, values, strict=True)]
+            reference = by_stages(self.n, levels, x_lower, x_upper)
+            assert close(result.x, reference.x), len(checked)
+            assert np.allclose(result.slack_norms, reference.slack_norms, atol=1e-12)
+            assert np.all(result.x >= x_lower) and np.all(result.x <= x_upper)
+            checked.append(len(result.active_bounds))
+        return result
+
+    monkeypatch.setattr(HierarchicalQP, "solve_equalities", checking)
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(0.3)
+    assert len(checked) >= 290 and sum(count > 0 for count in checked) >= 120, (len(checked), checked[-5:])

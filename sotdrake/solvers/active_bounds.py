@@ -124,22 +124,21 @@ def solve_with_active_bounds(
         squared_norm = float(x @ x)
         if not math.isfinite(squared_norm):  # (an infinite side in the guess)
             return None
-        # Primal: the free components inside their bounds (a point inside them exactly passes at once).
-        lo, hi = x_lower[free], x_upper[free]
+        # Primal: every component inside its bounds (the held ones are on them, the fixed ones too),
+        # a point inside them exactly passing at once, else the free ones checked to ``feasibility``.
         below = above = _NONE
-        if np.count_nonzero((x_free < lo) | (x_free > hi)):
+        if np.count_nonzero((x < x_lower) | (x > x_upper)):
+            lo, hi = x_lower[free], x_upper[free]
             below = (x_free < lo - feasibility * np.maximum(1.0, np.abs(lo))).nonzero()[0]
             above = (x_free > hi + feasibility * np.maximum(1.0, np.abs(hi))).nonzero()[0]
-        # Dual: the multipliers of the guessed bounds, λ = -x_i - (Aᵀμ)_i = -x_i + (Bᵀ R⁻¹ u)_i.
-        guessed = side.nonzero()[0]
-        wrong = _NONE
-        if len(guessed):
-            lam = U[:, guessed].T @ (R_inv @ u) - x[guessed] if m else -x[guessed]
-            tolerance = MULTIPLIER_TOLERANCE * max(1.0, math.sqrt(squared_norm))
-            wrong = (side[guessed] * lam < -tolerance).nonzero()[0]
+        # Dual: the multipliers of the guessed bounds, λ = -x_i - (Aᵀμ)_i = -x_i + (Bᵀ R⁻¹ u)_i, for
+        # every component at once (side 0 gives no sign to check).
+        lam = U.T @ (R_inv @ u) - x if m else -x
+        tolerance = MULTIPLIER_TOLERANCE * max(1.0, math.sqrt(squared_norm))
+        wrong = (side * lam < -tolerance).nonzero()[0]
         if not (len(below) or len(above) or len(wrong)):
             return x, side
-        side[guessed[wrong]] = 0
+        side[wrong] = 0
         side[free[below]] = -1
         side[free[above]] = 1
     return None

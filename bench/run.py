@@ -60,6 +60,7 @@ from sotdrake.robot import Robot, add_sot
 from sotdrake.robots import TALOS_GRIPPERS, load_talos
 
 GRIPPERS = TALOS_GRIPPERS
+ACTIVE_TARGET = np.array([-0.45, -0.35, 1.0])  # the hand behind the back: joint limits active
 
 # --- the sotdrake stacks ---------------------------------------------------------------------
 
@@ -369,15 +370,16 @@ def peer(name: str, ticks: int, warmup: int) -> dict:
     return {"available": True, "tick_us": stats(times), "tick_cpu_us": stats(cpu), **run}
 
 
-def paired_ratio(rounds: int, ticks: int, warmup: int) -> dict | None:
-    """The basic tick against pink's, in ``rounds`` back-to-back pairs of short runs (sotdrake, then
-    pink, each ``ticks`` ticks after ``warmup``): the ratios of the medians of each pair (wall and
-    CPU time), whose two halves see the same load on a shared machine. None without pink."""
+def paired_ratio(rounds: int, ticks: int, warmup: int, solver: str = "cascade", target=TARGET) -> dict | None:
+    """The basic tick (or ``solver``'s, with the hand ``target``) against pink's, in ``rounds``
+    back-to-back pairs of short runs (sotdrake, then pink, each ``ticks`` ticks after ``warmup``): the
+    ratios of the medians of each pair (wall and CPU time), whose two halves see the same load on a
+    shared machine. None without pink."""
     import peers
 
     out = {"ratios": [], "cpu_ratios": []}
     for _ in range(rounds):
-        _, _, _, diagram = build_stack("cascade")
+        _, _, _, diagram = build_stack(solver, target=target)
         wall, _, cpu = time_ticks(diagram, ticks, warmup)
         try:
             pink = peers.run_pink(ticks, warmup)
@@ -458,7 +460,7 @@ def main(argv=None) -> dict:
     hqp = sotdrake_run("hqp", ticks, warmup)
     log("sotdrake, SolverKine with active joint limits (a target behind the back) …")
     hqp_active = sotdrake_run("hqp", max(small, 1000) if args.ticks is None else args.ticks, 200 if args.ticks is None else 10,
-                              target=np.array([-0.45, -0.35, 1.0]))
+                              target=ACTIVE_TARGET)
     log("hierarchical QP on random stacks …")
     random_hqp = hqp_random((300 if args.quick else 1000) if args.ticks is None else 20)
     log("pink …")
@@ -475,6 +477,9 @@ def main(argv=None) -> dict:
     scale = scaling(300 if args.quick else 1000, 100) if args.ticks is None else scaling(args.ticks, 10)
     log("paired runs against pink …")
     paired = paired_ratio(3 if args.quick else 7, 1000, 100) if args.ticks is None else paired_ratio(2, args.ticks, 10)
+    log("paired runs against pink, SolverKine with active limits …")
+    paired_active = (paired_ratio(3 if args.quick else 7, 1000, 200, "hqp", ACTIVE_TARGET) if args.ticks is None
+                     else paired_ratio(2, args.ticks, 10, "hqp", ACTIVE_TARGET))
 
     tick = stats(basic["times_s"])
     tick_cpu = stats(basic["cpu_s"])
@@ -519,6 +524,10 @@ def main(argv=None) -> dict:
         results["pink_paired"] = paired
         results["ratio_vs_pink_paired"] = paired["median"]
         results["ratio_vs_pink_cpu_paired"] = paired["cpu_median"]
+    if paired_active is not None:
+        results["pink_paired_hqp_active"] = paired_active
+        results["hqp_active_ratio_vs_pink_paired"] = paired_active["median"]
+        results["hqp_active_ratio_vs_pink_cpu_paired"] = paired_active["cpu_median"]
     if placo.get("available"):
         results["placo_tick_us_median"] = placo["tick_us"]["median"]
         results["ratio_vs_placo"] = tick["median"] / placo["tick_us"]["median"]
@@ -568,6 +577,8 @@ def markdown(r: dict) -> str:
     for key, label in (("ratio_vs_pink_cpu", "basic SOT tick / pink's, the long runs above (CPU time)"),
                        ("ratio_vs_pink", "basic SOT tick / pink's, the long runs above (wall clock)"),
                        ("hqp_ratio_vs_pink", "`SolverKine` tick / pink's (wall clock)"),
+                       ("hqp_active_ratio_vs_pink_cpu_paired", "`SolverKine` tick with active limits / pink's (paired runs, CPU time)"),
+                       ("hqp_active_ratio_vs_pink_paired", "`SolverKine` tick with active limits / pink's (paired runs, wall clock)"),
                        ("ratio_vs_placo", "basic SOT tick / placo's (wall clock)")):
         if key in r:
             lines.append(f"| {label} | {r[key]:.2f} | | |")
@@ -606,10 +617,11 @@ def print_table(r: dict) -> None:
             print(f"{name:28s} {r[name]['reason']}")
     print()
     for key in ("ratio_vs_pink_cpu_paired", "ratio_vs_pink_paired", "ratio_vs_pink_cpu", "ratio_vs_pink", "hqp_ratio_vs_pink",
-                "hqp_active_ratio_vs_pink", "ratio_vs_placo", "marginal_task_cpu_us", "marginal_task_us", "realtime_factor_kinematic_cpu",
+                "hqp_active_ratio_vs_pink", "hqp_active_ratio_vs_pink_cpu_paired", "hqp_active_ratio_vs_pink_paired",
+                "ratio_vs_placo", "marginal_task_cpu_us", "marginal_task_us", "realtime_factor_kinematic_cpu",
                 "realtime_factor_kinematic", "realtime_factor_physics_cpu", "realtime_factor_physics"):
         if key in r:
-            print(f"{key:28s} {r[key]:.2f}")
+            print(f"{key:36s} {r[key]:.2f}")
     h = r["hqp_random"]
     print(f"\nHQP on {h['count']} random stacks (ms): median {h['median']:.3f}, p99 {h['p99']:.3f}, max {h['max']:.3f}"
           + (f"; quadprog sequential reference median {h['quadprog_reference_ms_median']:.3f}"

@@ -30,6 +30,15 @@ How a level is solved:
   least-squares step (from the factorisation, QR or SVD, that also gives the next ``Z``), checked against the bounds and
   held rows in ``x`` before any stage is built; the minimum-norm stage likewise tries its
   unconstrained point first when its previous call ended with an empty working set;
+* before any stage, a stack of equality levels (no inequality row, no extension, no damping, the
+  start inside the bounds) is tried at once from the bounds held at the previous answer
+  (:mod:`.active_bounds`, reported as ``"active-bounds"`` for every stage): those bounds fixed, one
+  QR of all the levels' unit rows gives the minimum-norm solution; it is kept only if every level is
+  certified of full row rank (σ ≥ 10³ τ, so every level is met exactly) and the KKT conditions of
+  the minimum-norm stage hold (the other bounds, the signs of the held bounds' multipliers), which
+  make it the point the stages return. Up to three rounds release wrong-signed bounds and hold
+  violated ones; otherwise the stages decide (after failures in a row the next calls skip the try:
+  a back-off). :meth:`HierarchicalQP.solve_equalities` takes such a stack as plain arrays;
 * a Drake solver (``"clarabel"``, ``"osqp"``, ``"snopt"``) can be chosen instead, for every level or
   per level: the level is then a ``MathematicalProgram`` in ``(y, w)``, and the solver's answer is
   *polished*: its active set is tried as the working-set guess of the same active-set method, which
@@ -53,6 +62,7 @@ library default cutoff is used.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -68,6 +78,7 @@ from pydrake.solvers import (
 )
 
 from ..exceptions import InvalidInput, SolverError
+from .active_bounds import solve_with_active_bounds
 from .active_set import (
     QR_MIN_SIZE,
     RANK_THRESHOLD,
@@ -87,6 +98,9 @@ SOLVERS = {"clarabel": ClarabelSolver, "osqp": OsqpSolver, "snopt": SnoptSolver}
 """The Drake solvers a level can use (then polished by the active-set method)."""
 ACTIVE_SET = "active-set"
 """The default path: the exact active-set method alone."""
+ACTIVE_BOUNDS = "active-bounds"
+"""How every stage was solved when the equality levels were solved at once from the guessed active
+bounds (:mod:`.active_bounds`), part of the default path."""
 
 
 def check_solver(name: str) -> str:
@@ -122,33 +136,50 @@ class LevelRows:
     ``MathematicalProgram`` (see :data:`Extension`); such a level is solved by its Drake solver."""
 
     def __init__(self, A: np.ndarray, lower: np.ndarray, upper: np.ndarray, extend: Extension | None = None):
-        A, lower, upper = (np.asarray(a, dtype=float) for a in (A, lower, upper))
+        same = upper is lower  # (a task's equality rows: one array of values, no order to check)
+        A, lower = np.asarray(A, dtype=float), np.asarray(lower, dtype=float)
+        upper = lower if same else np.asarray(upper, dtype=float)
         if A.ndim != 2 or lower.shape != (A.shape[0],) or upper.shape != (A.shape[0],):
             raise InvalidInput(f"level rows: A {A.shape}, lower {lower.shape}, upper {upper.shape} do not fit")
-        ordered = lower <= upper  # False on a NaN side too: the cause is looked for only then
-        if not all_true(np.isfinite(A)) or (not all_true(ordered) and any_true(np.isnan(lower) | np.isnan(upper))):
-            raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
-        if not all_true(ordered):
-            raise InvalidInput(f"level rows: lower bound above upper bound in rows {np.flatnonzero(lower > upper)}")
+        if same:
+            if not all_true(np.isfinite(A)):
+                raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
+            if not all_true(np.isfinite(lower)):
+                raise InvalidInput("level rows: an equality row needs a finite value (NaN or infinite)")
+        else:
+            ordered = lower <= upper  # False on a NaN side too: the cause is looked for only then
+            if not all_true(np.isfinite(A)) or (not all_true(ordered) and any_true(np.isnan(lower) | np.isnan(upper))):
+                raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
+            if not all_true(ordered):
+                raise InvalidInput(f"level rows: lower bound above upper bound in rows {np.flatnonzero(lower > upper)}")
         self.A, self.lower, self.upper = A, lower, upper
-        self.equality = equality = lower == upper
         self.extend = extend
         # The split the solver reads at every stage, made once.
-        self.all_equality = all_true(equality)
+        self.all_equality = same or all_true(lower == upper)
         if self.all_equality:
             self.any_equality = len(A) > 0
-            self.inequality = _NO_ROW_MASK if len(A) == 0 else np.zeros(len(A), dtype=bool)
+            self.equality = np.ones(len(A), dtype=bool)
+            self.inequality = _NO_ROW_MASK if len(A) == 0 else ~self.equality
             self.A_eq, self.b_eq = A, lower
             self.A_in, self.lower_in, self.upper_in = A[:0], lower[:0], upper[:0]
         else:
+            self.equality = equality = lower == upper
             self.inequality = inequality = ~equality
             self.any_equality = any_true(equality)
             self.A_eq, self.b_eq = A[equality], lower[equality]
             self.A_in, self.lower_in, self.upper_in = A[inequality], lower[inequality], upper[inequality]
-        if not all_true(np.isfinite(self.b_eq)):
+        if not same and not all_true(np.isfinite(self.b_eq)):
             raise InvalidInput("level rows: an equality row needs a finite value")
-        self.eq_norms = _row_norms(self.A_eq)
-        self.in_norms = _row_norms(self.A_in) if len(self.A_in) else lower[:0]  # (reference norms once held)
+
+    @functools.cached_property
+    def eq_norms(self) -> np.ndarray:
+        """The norms of the equality rows (1 for a zero row): their reference norms."""
+        return _row_norms(self.A_eq)
+
+    @functools.cached_property
+    def in_norms(self) -> np.ndarray:
+        """The norms of the inequality rows (1 for a zero row): their reference norms once held."""
+        return _row_norms(self.A_in) if len(self.A_in) else self.lower[:0]
 
     def slack(self, x: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
         """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows
@@ -200,6 +231,15 @@ _NO_ROW_MASK = np.zeros(0, dtype=bool)
 _NO_ROW_MASK.flags.writeable = False
 _WARM_PATHS = (ACTIVE_SET, "cold", "clarabel", "osqp")  # the default path's order, with a cached working set
 _COLD_PATHS = (ACTIVE_SET, "clarabel", "osqp")
+
+
+def _sides_at_bounds(x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """+1 where ``x`` is at its (finite) upper bound, -1 at its lower bound (to 1e-9, relative
+    above 1), 0 elsewhere and on the ``fixed`` components (those of the call the guess is for):
+    the guess of :mod:`.active_bounds`."""
+    upper = ~fixed & (x >= x_upper - 1e-9 * np.maximum(1.0, np.abs(x_upper))) & (x_upper < np.inf)
+    lower = ~fixed & (x <= x_lower + 1e-9 * np.maximum(1.0, np.abs(x_lower))) & (x_lower > -np.inf)
+    return np.where(upper, 1, np.where(lower, -1, 0))
 
 
 def _row_norms(A: np.ndarray) -> np.ndarray:
@@ -301,6 +341,13 @@ class HierarchicalQP:
         self._solvers: dict[str, tuple] = {}
         self._identity = np.eye(n)  # a constant (never written to)
         self._unit: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # a cache of constants, see _constants
+        # A guess (results never depend on it): the side of each bound held at the last answer, or
+        # that answer (x, x_lower, x_upper, fixed), read off when the next call needs it.
+        self._bound_sides: np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray] = np.zeros(n, dtype=int)
+        # After f failed tries of the active bounds in a row, the next 2^(f-1) calls (at most 16) skip
+        # them (a stack whose levels cannot all be met stays so for a while; the call that follows a
+        # failed solve_equalities is the same stack's solve).
+        self._active_bounds_failures, self._active_bounds_skips = 0, 0
 
     def _constants(self, r: int) -> tuple[np.ndarray, np.ndarray]:
         """The minimum-norm stage's objective ``(I_r, ones(r))``, made once per size, read only."""
@@ -343,7 +390,8 @@ class HierarchicalQP:
             if any_true(np.isnan(x_lower) | np.isnan(x_upper)):
                 raise InvalidInput(f"bounds must be {n} numbers without NaN")
             raise InvalidInput(f"lower bound above upper bound at {np.flatnonzero(x_lower > x_upper)}")
-        if not all_true(np.isfinite(x_lower[x_lower == x_upper])):
+        fixed = x_lower == x_upper
+        if not all_true(np.isfinite(x_lower[fixed])):
             raise InvalidInput("a fixed component (lower == upper) needs a finite value")
         if not (np.isfinite(damping) and damping >= 0):
             raise InvalidInput(f"damping must be finite and ≥ 0, got {damping}")
@@ -356,7 +404,116 @@ class HierarchicalQP:
                 raise InvalidInput(f"start must be {n} finite numbers")
         began = time.perf_counter()
         with np.errstate(invalid="ignore", divide="ignore"):  # ±∞ bounds: once here, not per operation
-            return self._solve_stages(levels, x_lower, x_upper, damping, solver, began, start)
+            if solver == ACTIVE_SET and self._equalities_only(levels, x_lower, x_upper, fixed, damping, start):
+                result = self._try_active_bounds([level.A for level in levels], [level.lower for level in levels],
+                                                 x_lower, x_upper, fixed, began)
+                if result is not None:
+                    return result
+            result = self._solve_stages(levels, x_lower, x_upper, damping, solver, began, start)
+            self._bound_sides = (result.x, x_lower, x_upper)
+            return result
+
+    def _equalities_only(self, levels, x_lower, x_upper, fixed, damping, start) -> bool:
+        """Whether :mod:`.active_bounds` may solve the stack: equality levels without extensions,
+        the default path on every stage, the minimum-norm stage, no damping, and the start (0, or
+        ``start``) inside the bounds of the free components (no bound is relaxed to it)."""
+        for level in levels:
+            if not level.all_equality or level.extend is not None:
+                return False
+        if not self.regularize or (damping > 0.0 and len(levels)) or any(name != ACTIVE_SET for name in self.level_solvers):
+            return False
+        origin = 0.0 if start is None else start
+        return all_true(((x_lower <= origin) & (x_upper >= origin)) | fixed)
+
+    def solve_equalities(
+        self,
+        jacobians: Sequence[np.ndarray],
+        values: Sequence[np.ndarray],
+        x_lower: np.ndarray,
+        x_upper: np.ndarray,
+        damping: float = 0.0,
+    ) -> HqpResult | None:
+        """The stack of equality levels ``jacobians[k] x = values[k]`` (highest first) by the active
+        bounds alone (:mod:`.active_bounds`), without building :class:`LevelRows`: the answer of
+        :meth:`solve` on the default path, or None when that path does not apply (another solver,
+        damping, no minimum-norm stage, 0 outside the bounds) or does not verify; then :meth:`solve`
+        decides. The values are not checked here (a NaN or an infinite entry makes the path fail
+        and :meth:`solve`'s checks name it); shapes that do not fit give None."""
+        n = self.n
+        if (self.solver != ACTIVE_SET or not self.regularize or any(name != ACTIVE_SET for name in self.level_solvers)
+                or (damping != 0.0 and len(jacobians)) or len(values) != len(jacobians)):
+            return None
+        x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
+        if x_lower.shape != (n,) or x_upper.shape != (n,):
+            return None
+        for J, value in zip(jacobians, values, strict=True):
+            if J.ndim != 2 or J.shape[1] != n or value.shape != (J.shape[0],):
+                return None
+        began = time.perf_counter()
+        with np.errstate(invalid="ignore", divide="ignore"):
+            fixed = x_lower == x_upper
+            # 0 inside the bounds of the free components (as _equalities_only), which also refuses bounds
+            # out of order (lower > upper cannot hold 0) and NaN bounds (every comparison is False).
+            if not all_true(((x_lower <= 0.0) & (x_upper >= 0.0)) | fixed):
+                return None
+            return self._try_active_bounds(jacobians, values, x_lower, x_upper, fixed, began)
+
+    def _try_active_bounds(self, jacobians, values, x_lower, x_upper, fixed, began) -> HqpResult | None:
+        """:meth:`_solve_active_bounds` unless failures in a row make this call skip it (the
+        back-off: after f failures, the next 2^(f-1) calls, at most 16, skip it)."""
+        if self._active_bounds_skips:
+            self._active_bounds_skips -= 1
+            return None
+        result = self._solve_active_bounds(jacobians, values, x_lower, x_upper, fixed, began)
+        if result is None:
+            self._active_bounds_failures += 1
+            self._active_bounds_skips = min(2 ** (self._active_bounds_failures - 1), 16)
+        else:
+            self._active_bounds_failures = 0
+        return result
+
+    def _solve_active_bounds(self, jacobians, values, x_lower, x_upper, fixed, began) -> HqpResult | None:
+        """The equality stack by :func:`~.active_bounds.solve_with_active_bounds` from the bounds
+        held at the last answer, or None (then the stages decide)."""
+        sizes = [len(J) for J in jacobians]
+        if len(jacobians) == 1:
+            A, b = jacobians[0], values[0]
+        elif jacobians:
+            A, b = np.concatenate(jacobians), np.concatenate(values)
+        else:
+            A, b = np.zeros((0, self.n)), np.zeros(0)
+        norms = _row_norms(A)  # (the levels' eq_norms, computed once for the stack)
+        guess = self._bound_sides
+        if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
+            guess = _sides_at_bounds(guess[0], guess[1], guess[2], fixed)
+        solved = solve_with_active_bounds(A, b, norms, sizes, x_lower, x_upper, fixed, guess,
+                                          certified=1e3 * self.rank_threshold, feasibility=min(1e-10, self.feasibility_tolerance))
+        if solved is None:
+            return None
+        x, self._bound_sides = solved
+        residual = A @ x - b
+        slacks, starts, start = [], [], 0
+        for size in sizes:
+            slacks.append(residual[start : start + size])
+            starts.append(start)
+            start += size
+        if len(jacobians) and min(sizes) > 0:  # every level's squared norm in one call
+            slack_norms = np.sqrt(np.add.reduceat(residual * residual, starts))
+        else:
+            slack_norms = np.array([math.sqrt(float(s @ s)) for s in slacks])
+        scale = 1e-7 * np.maximum(1.0, np.abs(x))
+        stages = len(jacobians) + 1
+        return HqpResult(
+            x=x,
+            slacks=slacks,
+            slack_norms=slack_norms,
+            active_rows=[_NO_ROWS] * len(jacobians),
+            # (x is inside its bounds to 1e-10: |x - x_lower| ≤ scale is x - x_lower ≤ scale)
+            active_bounds=(~fixed & ((x - x_lower <= scale) | (x_upper - x <= scale))).nonzero()[0],
+            solve_time_s=time.perf_counter() - began,
+            level_solvers=[ACTIVE_BOUNDS] * stages,
+            iterations=[0] * stages,
+        )
 
     def _solve_stages(self, levels, x_lower, x_upper, damping, solver, began, start=None) -> HqpResult:
         n = self.n

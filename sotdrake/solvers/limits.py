@@ -35,22 +35,52 @@ def velocity_bounds(
     base_velocity: tuple[float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(lower, upper)`` bounds on ``v`` (size nv); see the module docstring."""
-    nv = len(velocity_lower)
-    lower, upper = np.full(nv, -np.inf), np.full(nv, np.inf)
-    iq, iv = layout.joints_q, layout.joints_v
-    qj, lo, hi = q[iq], position_lower[iq], position_upper[iq]
-    with np.errstate(invalid="ignore"):  # infinite position limits give ±inf bounds
-        up = np.maximum((hi - margin - qj) / dt, np.minimum(0.0, (hi - qj) / dt))
-        down = np.minimum((lo + margin - qj) / dt, np.maximum(0.0, (lo - qj) / dt))
-    v_lo, v_hi = velocity_lower[iv], velocity_upper[iv]
-    up = np.minimum(np.maximum(up, v_lo), v_hi)  # np.clip, without its wrapper's cost
-    down = np.minimum(np.maximum(down, v_lo), v_hi)
-    upper[iv], lower[iv] = up, np.minimum(down, up)
-    if base_velocity is not None and layout.base_v is not None:
-        b = layout.base_v
-        angular, linear = base_velocity
-        lower[b : b + 3], upper[b : b + 3] = -angular, angular
-        lower[b + 3 : b + 6], upper[b + 3 : b + 6] = -linear, linear
-    if control_selection is not None:
-        lower[~control_selection] = upper[~control_selection] = 0.0
-    return lower, upper
+    bounds = VelocityBounds(position_lower, position_upper, velocity_lower, velocity_upper, layout)
+    return bounds(q, dt, margin, control_selection, base_velocity)
+
+
+class VelocityBounds:
+    """:func:`velocity_bounds` of one robot: its limits read at the joints' coordinates once (a
+    solver calls it every tick with the same limits)."""
+
+    def __init__(self, position_lower: np.ndarray, position_upper: np.ndarray, velocity_lower: np.ndarray,
+                 velocity_upper: np.ndarray, layout: Layout):
+        iq = layout.joints_q_slice if layout.joints_q_slice is not None else layout.joints_q
+        iv = layout.joints_v_slice if layout.joints_v_slice is not None else layout.joints_v
+        self._iq, self._iv, self._layout = iq, iv, layout
+        self._q_lower, self._q_upper = np.array(position_lower[iq], dtype=float), np.array(position_upper[iq], dtype=float)
+        self._v_lower, self._v_upper = np.array(velocity_lower[iv], dtype=float), np.array(velocity_upper[iv], dtype=float)
+        self._nv = len(velocity_lower)
+        self._unbounded: dict[tuple[float, float] | None, tuple[np.ndarray, np.ndarray]] = {}  # a cache of constants
+
+    def _outside_joints(self, base_velocity: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray]:
+        """The bounds of the components that are not joints (±∞, or the base's), made once per value."""
+        pair = self._unbounded.get(base_velocity)
+        if pair is None:
+            lower, upper = np.full(self._nv, -np.inf), np.full(self._nv, np.inf)
+            b = self._layout.base_v
+            if base_velocity is not None and b is not None:
+                angular, linear = base_velocity
+                lower[b : b + 3], upper[b : b + 3] = -angular, angular
+                lower[b + 3 : b + 6], upper[b + 3 : b + 6] = -linear, linear
+            lower.flags.writeable = upper.flags.writeable = False
+            pair = self._unbounded[base_velocity] = (lower, upper)
+        return pair
+
+    def __call__(self, q: np.ndarray, dt: float, margin: float, control_selection: np.ndarray | None = None,
+                 base_velocity: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``(lower, upper)`` bounds on ``v`` at the configuration ``q``; see the module docstring."""
+        outside_lower, outside_upper = self._outside_joints(base_velocity)
+        lower, upper = outside_lower.copy(), outside_upper.copy()
+        qj, lo, hi = q[self._iq], self._q_lower, self._q_upper
+        with np.errstate(invalid="ignore"):  # infinite position limits give ±inf bounds
+            up = np.maximum((hi - margin - qj) / dt, np.minimum(0.0, (hi - qj) / dt))
+            down = np.minimum((lo + margin - qj) / dt, np.maximum(0.0, (lo - qj) / dt))
+        v_lo, v_hi = self._v_lower, self._v_upper
+        up = np.minimum(np.maximum(up, v_lo), v_hi)  # np.clip, without its wrapper's cost
+        down = np.minimum(np.maximum(down, v_lo), v_hi)
+        upper[self._iv] = up
+        lower[self._iv] = np.minimum(down, up)
+        if control_selection is not None:
+            lower[~control_selection] = upper[~control_selection] = 0.0
+        return lower, upper

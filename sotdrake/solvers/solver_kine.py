@@ -5,6 +5,10 @@ stack in the Context), plus a ``position`` input (``q``, from the device) for th
 which become velocity bounds over one tick (:mod:`.limits`) above every task. Inequality tasks
 (``TaskInequality``) mix freely with equality tasks in any level.
 
+A stack of equality tasks goes first to :meth:`~.hqp.HierarchicalQP.solve_equalities` (the whole
+stack by one QR from the last tick's active limits, verified; :mod:`.active_bounds`), and to the
+level-by-level solve only when that does not verify.
+
 Outputs: ``control`` (``v``), ``residuals`` (the optimal slack norm of each level) and
 ``diagnostics`` (:class:`HqpDiagnostics`). If a level cannot be solved the control is zero (the
 device holds), ``diagnostics.failure`` says which level and why, and a warning is logged.
@@ -25,7 +29,7 @@ from ..exceptions import InvalidInput, SolverError
 from ..robots import RobotModel
 from .base_velocity import MAX_BASE_VELOCITY, default_base_velocity_limit
 from .hqp import ACTIVE_SET, HierarchicalQP, LevelRows, check_solver
-from .limits import velocity_bounds
+from .limits import VelocityBounds
 from .sot import SOT, StackSettings
 
 log = logging.getLogger("sotdrake.solver_kine")
@@ -81,8 +85,8 @@ class SolverKine(SOT):
         if self._layout.base_v is not None:
             self.setBaseVelocityLimit(*default_base_velocity_limit(model))
         limits = model.joint_limits()
-        self._limits = (limits["position_lower"], limits["position_upper"],
-                        limits["velocity_lower"], limits["velocity_upper"])
+        self._bounds = VelocityBounds(limits["position_lower"], limits["position_upper"],
+                                      limits["velocity_lower"], limits["velocity_upper"], layout)
         self._hqp = HierarchicalQP(model.nv)  # its programs and working sets are caches (warm starts)
         self.DeclareAbstractOutputPort(
             "diagnostics", lambda: AbstractValue.Make(HqpDiagnostics()),
@@ -118,20 +122,33 @@ class SolverKine(SOT):
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         s = cast(HqpSettings, self._settings_of(context))
-        levels = [LevelRows(level.jacobian, level.lower, level.upper) for level in self._levels(context, s)]
-        lower, upper = velocity_bounds(
-            self._position.Eval(context), *self._limits, self._period, s.position_margin,
-            self._layout, s.control_selection,
-            base_velocity=s.base_velocity_limit,
-        )
+        task_levels = self._levels(context, s, check=False)
+        lower, upper = self._bounds(self._position.Eval(context), self._period, s.position_margin, s.control_selection,
+                                    s.base_velocity_limit)
         diagnostics = HqpDiagnostics(tasks=(["contacts"] if s.contacts else []) + list(s.tasks))
-        try:
-            result = self._hqp.solve(levels, lower, upper, s.damping, s.solver)
-        except SolverError as error:
-            diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
-            log.warning("%s: %s; the device holds", self.name, diagnostics.failure)
-            value.set_value(_Solution(np.zeros(self.nv), np.full(len(levels), np.nan), diagnostics))
-            return
+        result = None
+        if s.solver == ACTIVE_SET and all(level.upper is level.lower for level in task_levels):
+            # Equality tasks: the stack at once from the last tick's active limits, if that verifies
+            # (a NaN or infinite value makes it fail, and LevelRows below names it).
+            result = self._hqp.solve_equalities([level.jacobian for level in task_levels], [level.lower for level in task_levels],
+                                                lower, upper, s.damping)
+        if result is None:
+            # LevelRows checks every level's shapes and values (finite A, ordered sides without NaN, finite
+            # values of equality rows); only when it refuses one are the levels checked again to name the task.
+            try:
+                levels = [LevelRows(level.jacobian, level.lower, level.upper) for level in task_levels]
+                if any(level.A.shape[1] != self.nv for level in levels):
+                    raise InvalidInput("a level's columns do not fit nv")
+            except InvalidInput:
+                self._levels(context, s)  # raises SolverError naming the task, if a task's values are wrong
+                raise
+            try:
+                result = self._hqp.solve(levels, lower, upper, s.damping, s.solver)
+            except SolverError as error:
+                diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
+                log.warning("%s: %s; the device holds", self.name, diagnostics.failure)
+                value.set_value(_Solution(np.zeros(self.nv), np.full(len(levels), np.nan), diagnostics))
+                return
         diagnostics.slack_norms = result.slack_norms
         diagnostics.active_rows = result.active_rows
         diagnostics.active_limits = result.active_bounds

@@ -147,7 +147,7 @@ class SolverKine(SOT):
             except SolverError as error:
                 diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
                 log.warning("%s: %s; the device holds", self.name, diagnostics.failure)
-                value.set_value(_Solution(np.zeros(self.nv), np.full(len(levels), np.nan), diagnostics))
+                value.set_value(_Solution(np.zeros(self.nv), np.full(len(levels), np.nan), diagnostics, task_levels.tasks))
                 return
         diagnostics.slack_norms = result.slack_norms
         diagnostics.active_rows = result.active_rows
@@ -156,7 +156,7 @@ class SolverKine(SOT):
         diagnostics.solve_time_s = result.solve_time_s
         diagnostics.max_iterations = max(result.iterations, default=0)
         diagnostics.fallbacks = result.fallbacks
-        value.set_value(_Solution(result.x, result.slack_norms, diagnostics))
+        value.set_value(_Solution(result.x, result.slack_norms, diagnostics, task_levels.tasks))
 
 
 @dataclass
@@ -166,3 +166,4 @@ class _Solution:
     velocity: np.ndarray
     residuals: np.ndarray
     diagnostics: HqpDiagnostics
+    tasks: list[tuple[str, np.ndarray]]  # each task's name and Jacobian (what the last tick keeps)

@@ -32,16 +32,24 @@ from .velocity_scaling import scale_to_limits, velocity_scale
 log = logging.getLogger("sotdrake.sot")
 
 
+class _Levels(list):
+    """The levels a solver solves (a list of :class:`TaskLevel`), and ``tasks``: each task's name
+    and Jacobian, in the order of the contacts, then the stack (the contacts are one level)."""
+
+    tasks: list[tuple[str, np.ndarray]]
+
+
 class _CascadeSolution:
     """The cascade's velocity, ranks and the uniform scale applied to fit the velocity limits (1: none);
     the residuals are computed when the ``residuals`` output is read (most ticks only need the
-    velocity)."""
+    velocity). ``tasks``: each task's name and Jacobian (what the last tick keeps)."""
 
     def __init__(self, velocity: np.ndarray, ranks: np.ndarray, levels: list[tuple[np.ndarray, np.ndarray]],
-                 scale: float = 1.0):
+                 scale: float = 1.0, tasks: list[tuple[str, np.ndarray]] | None = None):
         self.velocity, self.ranks, self._levels = velocity, ranks, levels
         self._residuals: np.ndarray | None = None
         self.scale = scale
+        self.tasks = tasks or []
 
     @property
     def residuals(self) -> np.ndarray:
@@ -304,18 +312,20 @@ class SOT(Entity[StackSettings]):
         """Keep this tick's command ``v`` and each level's ``J v`` (see :mod:`.second_order`). Drake
         computes every discrete update of a tick from the same context, so the device moves with
         the ``v`` kept here."""
-        s = self._settings_of(context)
-        v = self._solution.Eval(context).velocity
+        solution = self._solution.Eval(context)
+        v = solution.velocity
         discrete_state.set_value(self._last_velocity, np.concatenate(([1.0], v)))
-        in_stack = {*s.contacts, *s.tasks}
-        for name, index in self._last_task_velocity.items():
-            kept = discrete_state.get_mutable_value(index)
-            if name in in_stack:
-                y = self._task_ports[name].Eval(context).jacobian @ v
-                if y.size <= self.nv:
-                    kept[0], kept[1 : 1 + y.size] = y.size, y
-                    continue
-            kept[0] = -1.0
+        indices = self._last_task_velocity
+        kept_rows = dict.fromkeys(indices, -1)  # -1: not in the stack (or more rows than nv)
+        for name, J in solution.tasks:
+            if J.shape[0] <= self.nv:
+                y = J @ v
+                kept = discrete_state.get_mutable_value(indices[name])
+                kept[0], kept[1 : 1 + y.size] = y.size, y
+                kept_rows[name] = y.size
+        for name, rows in kept_rows.items():
+            if rows < 0:
+                discrete_state.get_mutable_value(indices[name])[0] = -1.0
 
     def _last_tick(self, context: Context, names: list[str]) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
         """``(v_{k-1}, {task: J_{k-1} v_{k-1}})`` of the last tick for the tasks ``names``, or None
@@ -332,11 +342,12 @@ class SOT(Entity[StackSettings]):
                 task_velocities[name] = y[1 : 1 + int(y[0])]
         return kept[1:], task_velocities
 
-    def _levels(self, context: Context, settings: StackSettings, check: bool = True, correct: bool = True) -> list[TaskLevel]:
+    def _levels(self, context: Context, settings: StackSettings, check: bool = True, correct: bool = True) -> _Levels:
         """The levels, highest first (the contacts stacked as one level, then the stack), checked
         (with ``check``): sizes fit nv, no NaN (±inf only as inequality bounds); with ``dt`` and
         ``correct``, each level's reference corrected for the curvature of the tick (:mod:`.second_order`)."""
-        levels = []
+        levels = _Levels()
+        levels.tasks = []
         names = [*settings.contacts, *settings.tasks] if settings.contacts else settings.tasks
         last_tick = None
         if correct and self._last_velocity is not None:
@@ -345,6 +356,7 @@ class SOT(Entity[StackSettings]):
         for name in names:
             level = ports[name].Eval(context)
             J = level.jacobian
+            levels.tasks.append((name, J))
             if check:
                 if J.ndim != 2 or J.shape[1] != self.nv or level.lower.shape != (J.shape[0],) or level.upper.shape != (J.shape[0],):
                     raise SolverError(f"task {name}: jacobian {J.shape} and bounds {level.lower.shape} do not fit nv = {self.nv}")
@@ -360,11 +372,12 @@ class SOT(Entity[StackSettings]):
                     level = TaskLevel(J, lower, upper, level.error)
             levels.append(level)
         if settings.contacts:
-            contacts, levels = levels[: len(settings.contacts)], levels[len(settings.contacts) :]
+            count = len(settings.contacts)
+            contacts = levels[:count]
             J = np.vstack([c.jacobian for c in contacts])
             lower = np.concatenate([c.lower for c in contacts])
             upper = lower if all(c.is_equality for c in contacts) else np.concatenate([c.upper for c in contacts])
-            levels.insert(0, TaskLevel(J, lower, upper, np.concatenate([c.error for c in contacts])))
+            levels[:count] = [TaskLevel(J, lower, upper, np.concatenate([c.error for c in contacts]))]
         return levels
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
@@ -404,4 +417,4 @@ class SOT(Entity[StackSettings]):
                     self._warned_scaling = True
                     log.warning("%s: t = %.3f s: the stack asks more than the velocity limits; the command is "
                                 "scaled by %.3g (warned once)", self.name, context.get_time(), scale)
-        value.set_value(_CascadeSolution(velocity, result.ranks, pairs, scale))
+        value.set_value(_CascadeSolution(velocity, result.ranks, pairs, scale, levels.tasks))

@@ -73,14 +73,15 @@ class VelocityBounds:
         outside_lower, outside_upper = self._outside_joints(base_velocity)
         lower, upper = outside_lower.copy(), outside_upper.copy()
         qj, lo, hi = q[self._iq], self._q_lower, self._q_upper
-        with np.errstate(invalid="ignore"):  # infinite position limits give ±inf bounds
-            up = np.maximum((hi - margin - qj) / dt, np.minimum(0.0, (hi - qj) / dt))
-            down = np.minimum((lo + margin - qj) / dt, np.maximum(0.0, (lo - qj) / dt))
+        # (Infinite position limits give ±inf here, never NaN: q and the margin are finite.)
+        up = np.maximum((hi - margin - qj) / dt, np.minimum(0.0, (hi - qj) / dt))
+        down = np.minimum((lo + margin - qj) / dt, np.maximum(0.0, (lo - qj) / dt))
         v_lo, v_hi = self._v_lower, self._v_upper
         up = np.minimum(np.maximum(up, v_lo), v_hi)  # np.clip, without its wrapper's cost
         down = np.minimum(np.maximum(down, v_lo), v_hi)
         upper[self._iv] = up
         lower[self._iv] = np.minimum(down, up)
         if control_selection is not None:
-            lower[~control_selection] = upper[~control_selection] = 0.0
+            unselected = ~control_selection
+            lower[unselected] = upper[unselected] = 0.0
         return lower, upper

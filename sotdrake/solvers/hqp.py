@@ -349,6 +349,14 @@ class HierarchicalQP:
         # failed solve_equalities is the same stack's solve).
         self._active_bounds_failures, self._active_bounds_skips = 0, 0
 
+
+    def forget_warm_starts(self) -> None:
+        """Drop every warm start (the working sets, the held bounds' guess, the back-off), so that
+        the next call is solved cold. Results never depend on them; timings do."""
+        self._working_sets.clear()
+        self._bound_sides = np.zeros(self.n, dtype=int)
+        self._active_bounds_failures, self._active_bounds_skips = 0, 0
+
     def _constants(self, r: int) -> tuple[np.ndarray, np.ndarray]:
         """The minimum-norm stage's objective ``(I_r, ones(r))``, made once per size, read only."""
         pair = self._unit.get(r)

@@ -433,6 +433,25 @@ def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
     return side
 
 
+def daqp_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+               regularization: float = 1e-9) -> np.ndarray | None:
+    """A guess of the working set (a side per row of ``G``) from DAQP's dual active-set method on the
+    problem made strictly convex by ``regularization``·I (scaled by ``‖M‖²``, as :func:`dual_guess`):
+    DAQP takes the two-sided rows as they are (no row is doubled) and costs about a third of
+    quadprog on a level's stage. The sides are the signs of its multipliers (> 0 at the upper side,
+    < 0 at the lower one). :func:`dual_guess` (quadprog) if DAQP reports no solution. Only a guess:
+    the caller checks it exactly."""
+    if len(G) == 0:
+        return np.zeros(0, dtype=int)
+    p = G.shape[1]
+    H = M.T @ M
+    H.reshape(-1)[:: p + 1] += regularization * max(1.0, float(H.trace()) / max(p, 1))
+    _, _, exitflag, info = daqp.solve(H, -(M.T @ t), G, upper, lower)
+    if exitflag > 0:
+        return np.sign(info["lam"]).astype(int)
+    return dual_guess(M, t, G, lower, upper, regularization)
+
+
 def projection_guess(t: np.ndarray, G: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray | None:
     """A guess of the working set of ``min ½‖z - t‖² s.t. lower ≤ G z ≤ upper`` (a projection:
     strictly convex, its optimum is unique, so a guess can change the path to it, never the point)

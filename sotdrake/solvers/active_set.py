@@ -198,6 +198,10 @@ def _full_rank_step(B: np.ndarray, m_scale: np.ndarray, r: np.ndarray, threshold
     the answer is the plain least-squares solution (full column rank) or the minimum-norm solution
     of ``B u = r`` (full row rank). None otherwise."""
     m, q = B.shape
+    if m >= q and not uniform:
+        u = _weighted_full_rank_step(B, m_scale, r, threshold)
+        if u is not None:
+            return u
     unit = B / m_scale[:, None]
     if m >= q:
         factors = independent_qr(unit, threshold)
@@ -212,6 +216,30 @@ def _full_rank_step(B: np.ndarray, m_scale: np.ndarray, r: np.ndarray, threshold
         return None
     Q1, R_inv = factors  # unit = Rᵀ Q1ᵀ: B u = r ⇔ Rᵀ Q1ᵀ u = r / m_scale
     return Q1 @ (R_inv.T @ (r / m_scale))
+
+
+def _weighted_full_rank_step(B: np.ndarray, m_scale: np.ndarray, r: np.ndarray, threshold: float) -> np.ndarray | None:
+    """:func:`full_rank_least_squares` ``(B, r)`` from one Householder QR ``B = Q R`` when that QR
+    alone proves ``B / m_scale`` of full column rank for τ, else None (then the unit-row matrix is
+    factorised as well). The proof: ``σ_min(B / m_scale) ≥ σ_min(B) / max(m_scale)`` and
+    ``σ_min(B) ≥ 1/‖R⁻¹‖_F``, asked to exceed ``2τ`` as :func:`independent_qr`; the point is then the
+    one the two-factorisation route computes, by the same LAPACK calls on ``B``."""
+    q = B.shape[1]
+    if q < QR_MIN_SIZE:
+        return None
+    qr, tau, _, info = lapack.dgeqrf(B)
+    if info != 0:
+        return None
+    R_inv = upper_inverse(qr[:q])
+    if R_inv is None:
+        return None
+    flat = R_inv.ravel(order="K")
+    if not 2.0 * threshold * float(m_scale.max()) * math.sqrt(float(flat @ flat)) < 1.0:
+        return None
+    qtr, _, info = lapack.dormqr("L", "T", qr, tau, r[:, None], max(1, len(r)))
+    if info == 0:
+        c, info = lapack.dtrtrs(qr[:q, :q], qtr[:q], lower=0)
+    return c[:, 0] if info == 0 else None
 
 
 def objective_kind(M: np.ndarray, m_scale: np.ndarray) -> tuple[bool, bool]:

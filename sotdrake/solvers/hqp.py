@@ -717,10 +717,12 @@ class HierarchicalQP:
                     start_guess, label = guess, ACTIVE_SET
                     if cached is None or path == "cold":  # no warm start: ask the compiled dual method
                         start_guess = stage.guess
-                        dual = (projection_guess(stage.t, stage.G, stage.lower, stage.upper) if level is None
-                                else self._level_guess(stage))
+                        dual, valid = ((projection_guess(stage.t, stage.G, stage.lower, stage.upper), False) if level is None
+                                       else self._level_guess(stage))
                         if dual is not None:
                             start_guess = dual
+                        else:
+                            valid = False
                 else:
                     x, message = self._program(level, x0, Z, hard, mu, path)
                     if x is None:
@@ -756,16 +758,18 @@ class HierarchicalQP:
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
 
     @staticmethod
-    def _level_guess(stage: _Stage) -> np.ndarray | None:
+    def _level_guess(stage: _Stage) -> tuple[np.ndarray | None, bool]:
         """The cold guess of a level's working set: DAQP's (:func:`~.active_set.daqp_guess`) when the
         objective's rows are of comparable weights (reference norms within :data:`_DAQP_SPREAD`),
         else quadprog's (:func:`~.active_set.dual_guess`). On a level whose weights spread further
         the two guesses can lead to different points of a numerically flat optimum (the same
-        objective to 9 digits), and the levels below then differ: quadprog's is kept there."""
+        objective to 9 digits), and the levels below then differ: quadprog's is kept there. With
+        whether the guess is valid as it is (quadprog's holds no row at an infinite side: those sides
+        are not given to it; DAQP's sides are checked by the active set)."""
         m_scale = stage.m_scale
         if len(m_scale) and float(m_scale.max()) <= _DAQP_SPREAD * float(m_scale.min()):
-            return daqp_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper)
-        return dual_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper)
+            return daqp_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper), False
+        return dual_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper), True
 
     def _least_squares_level(self, level, x0, Z, hard, eq_factors) -> np.ndarray | None:
         """An equality-only level by its least-squares step alone, or None: the EQP point of the

@@ -25,7 +25,8 @@ How a level is solved:
   started from the previous level's point (``y = 0``, feasible), and warm-started by a guess of the
   working set: the one this level had at the previous call with the same sizes (a cache: the answer
   is a function of the final working set only), else the active set of Goldfarb-Idnani's dual
-  method (quadprog) on the level made strictly convex, else (quadprog refusing) the sides of the
+  method on the level made strictly convex (DAQP's, or quadprog's on a level whose row weights spread
+  beyond 10⁶), else (both refusing) the sides of the
   bounds and held rows active at the end of the level above. An equality-only level with no bound in the way is one
   least-squares step (from the factorisation, QR or SVD, that also gives the next ``Z``), checked against the bounds and
   held rows in ``x`` before any stage is built; the minimum-norm stage likewise tries its
@@ -85,6 +86,7 @@ from .active_set import (
     ActiveSetFailure,
     all_true,
     any_true,
+    daqp_guess,
     dual_guess,
     independent_qr,
     objective_kind,
@@ -225,6 +227,11 @@ class _Program:
 
 
 _FREE_MINIMUM_NORM = "free minimum-norm stage"
+_DAQP_SPREAD = 1e6
+"""A level's cold guess comes from DAQP when its objective rows' reference norms are within this
+factor (``MᵀM``'s weights within 1e12, where the Cholesky factor DAQP works on still holds digits);
+beyond, from quadprog. Both are only guesses checked exactly; on the random stacks DAQP's costs
+about a third of quadprog's (measured: median 27 against 79 µs on 1108 level stages)."""
 _NO_ROWS = np.zeros(0, dtype=int)  # the active rows of an equality-only level (shared, read only)
 _NO_ROWS.flags.writeable = False
 _NO_ROW_MASK = np.zeros(0, dtype=bool)
@@ -710,10 +717,12 @@ class HierarchicalQP:
                     start_guess, label = guess, ACTIVE_SET
                     if cached is None or path == "cold":  # no warm start: ask the compiled dual method
                         start_guess = stage.guess
-                        dual = (projection_guess(stage.t, stage.G, stage.lower, stage.upper) if level is None
-                                else dual_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper))
+                        dual, valid = ((projection_guess(stage.t, stage.G, stage.lower, stage.upper), False) if level is None
+                                       else self._level_guess(stage))
                         if dual is not None:
-                            start_guess, valid = dual, level is not None
+                            start_guess = dual
+                        else:
+                            valid = False
                 else:
                     x, message = self._program(level, x0, Z, hard, mu, path)
                     if x is None:
@@ -747,6 +756,20 @@ class HierarchicalQP:
                 fallbacks += [f"{what}: {failure}" for failure in failures]
             return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
+
+    @staticmethod
+    def _level_guess(stage: _Stage) -> tuple[np.ndarray | None, bool]:
+        """The cold guess of a level's working set: DAQP's (:func:`~.active_set.daqp_guess`) when the
+        objective's rows are of comparable weights (reference norms within :data:`_DAQP_SPREAD`),
+        else quadprog's (:func:`~.active_set.dual_guess`). On a level whose weights spread further
+        the two guesses can lead to different points of a numerically flat optimum (the same
+        objective to 9 digits), and the levels below then differ: quadprog's is kept there. With
+        whether the guess is valid as it is (quadprog's holds no row at an infinite side: those sides
+        are not given to it; DAQP's sides are checked by the active set)."""
+        m_scale = stage.m_scale
+        if len(m_scale) and float(m_scale.max()) <= _DAQP_SPREAD * float(m_scale.min()):
+            return daqp_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper), False
+        return dual_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper), True
 
     def _least_squares_level(self, level, x0, Z, hard, eq_factors) -> np.ndarray | None:
         """An equality-only level by its least-squares step alone, or None: the EQP point of the

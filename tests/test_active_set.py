@@ -1,0 +1,61 @@
+"""The active-set method's building blocks: the DAQP guess and the one-QR weighted least-squares step."""
+
+import numpy as np
+import pytest
+
+from sotdrake.solvers.active_set import (
+    RANK_THRESHOLD,
+    _weighted_full_rank_step,
+    daqp_guess,
+    dual_guess,
+    full_rank_least_squares,
+    solve_least_squares_qp,
+)
+
+
+def strictly_convex_level(rng: np.random.Generator, p: int = 8, m: int = 12, rows: int = 10):
+    """``min ½‖M z - t‖² s.t. lower ≤ G z ≤ upper`` with ``M`` of full column rank (a unique optimum),
+    ``G`` unit rows, ``z = 0`` strictly inside, some sides infinite."""
+    M = rng.normal(size=(m, p))
+    t = 3.0 * rng.normal(size=m)
+    G = rng.normal(size=(rows, p))
+    G /= np.linalg.norm(G, axis=1)[:, None]
+    lower, upper = -rng.uniform(0.1, 1.0, rows), rng.uniform(0.1, 1.0, rows)
+    lower[rng.random(rows) < 0.2] = -np.inf
+    upper[rng.random(rows) < 0.2] = np.inf
+    return M, t, G, lower, upper
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_the_daqp_guess_is_the_optimal_working_set_of_a_strictly_convex_level(seed):
+    """On a level with a unique, non-degenerate optimum DAQP's sides are the exact method's final
+    working set (so the guess is accepted with no iteration), as quadprog's are, and no row is held
+    at an infinite side."""
+    M, t, G, lower, upper = strictly_convex_level(np.random.default_rng(seed))
+    exact = solve_least_squares_qp(M, t, np.ones(len(M)), G, lower, upper, np.zeros(M.shape[1]))
+    guess = daqp_guess(M, t, G, lower, upper)
+    assert guess is not None
+    np.testing.assert_array_equal(guess, exact.side)
+    np.testing.assert_array_equal(guess, dual_guess(M, t, G, lower, upper))
+    assert not np.any((guess > 0) & (upper == np.inf)) and not np.any((guess < 0) & (lower == -np.inf))
+    warm = solve_least_squares_qp(M, t, np.ones(len(M)), G, lower, upper, np.zeros(M.shape[1]), guess=guess)
+    assert warm.guess_accepted and warm.iterations == 0
+    np.testing.assert_allclose(warm.z, exact.z, atol=1e-12)
+
+
+def test_the_one_qr_step_is_the_two_factorisation_step_or_declines():
+    """When the QR of ``B`` proves ``B / m_scale`` of full column rank the step is exactly
+    :func:`full_rank_least_squares` (the same LAPACK calls) and the least-squares solution; when the
+    weights make that proof fail (a row scaled by 10⁹ over a column that is almost zero) it declines
+    and the caller factorises the unit rows."""
+    rng = np.random.default_rng(3)
+    B, r = rng.normal(size=(9, 5)), rng.normal(size=9)
+    m_scale = 10.0 ** rng.uniform(-2, 2, 9)
+    u = _weighted_full_rank_step(B, m_scale, r, RANK_THRESHOLD)
+    assert u is not None
+    np.testing.assert_array_equal(u, full_rank_least_squares(B, r))
+    np.testing.assert_allclose(u, np.linalg.lstsq(B, r, rcond=None)[0], rtol=1e-10, atol=1e-12)
+    B_weak = B.copy()
+    B_weak[:, 4] *= 1e-10  # σ_min(B) ≈ 1e-10: the bound σ_min(B)/max(m_scale) cannot exceed 2τ
+    assert _weighted_full_rank_step(B_weak, m_scale, r, RANK_THRESHOLD) is None
+    assert _weighted_full_rank_step(B[:, :3], m_scale, r, RANK_THRESHOLD) is None  # below QR_MIN_SIZE: the SVD decides

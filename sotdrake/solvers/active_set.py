@@ -179,14 +179,9 @@ def scaled_least_squares(U: np.ndarray, s: np.ndarray, Vt: np.ndarray, k: int, m
     return Vt[:k].T @ c
 
 
-def independent_qr(A: np.ndarray, threshold: float, full: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(Q, R⁻¹)`` of the Householder QR ``A = Q R`` (LAPACK ``dgeqrf``; ``A`` is p × k, k at least
-    :data:`QR_MIN_SIZE`) if every singular value of ``A`` is *provably* above ``threshold``, else None (then the caller takes the
-    SVD, which decides the rank itself). The proof: ``σ_min(A) = σ_min(R) ≥ 1/‖R⁻¹‖_F``, asked to
-    exceed ``2·threshold`` (a margin far above the round-off of R). With every singular value above
-    τ the SVD-based computations keep them all, so a QR-based one is the same computation in exact
-    arithmetic, at a fraction of the cost. ``Q``: p × p if ``full`` (the last p − k columns: an
-    orthonormal basis of the orthogonal complement of A's columns), else p × k."""
+def _proven_full_rank_qr(A: np.ndarray, bound: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """LAPACK ``dgeqrf``'s ``(qr, tau)`` of the p × k matrix ``A`` (p ≥ k ≥ :data:`QR_MIN_SIZE`) and
+    ``R⁻¹``, when they prove ``σ_min(A) ≥ 1/‖R⁻¹‖_F > bound``; else None."""
     p, k = A.shape
     if k > p or k < QR_MIN_SIZE:
         return None
@@ -197,8 +192,24 @@ def independent_qr(A: np.ndarray, threshold: float, full: bool = False) -> tuple
     if R_inv is None:
         return None
     flat = R_inv.ravel(order="K")
-    if not 2.0 * threshold * math.sqrt(float(flat @ flat)) < 1.0:
+    if not bound * math.sqrt(float(flat @ flat)) < 1.0:
         return None
+    return qr, tau, R_inv
+
+
+def independent_qr(A: np.ndarray, threshold: float, full: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(Q, R⁻¹)`` of the Householder QR ``A = Q R`` (LAPACK ``dgeqrf``; ``A`` is p × k, k at least
+    :data:`QR_MIN_SIZE`) if every singular value of ``A`` is *provably* above ``threshold``, else None (then the caller takes the
+    SVD, which decides the rank itself). The proof: ``σ_min(A) = σ_min(R) ≥ 1/‖R⁻¹‖_F``, asked to
+    exceed ``2·threshold`` (a margin far above the round-off of R). With every singular value above
+    τ the SVD-based computations keep them all, so a QR-based one is the same computation in exact
+    arithmetic, at a fraction of the cost. ``Q``: p × p if ``full`` (the last p − k columns: an
+    orthonormal basis of the orthogonal complement of A's columns), else p × k."""
+    p, k = A.shape
+    factors = _proven_full_rank_qr(A, 2.0 * threshold)
+    if factors is None:
+        return None
+    qr, tau, R_inv = factors
     if full and k < p:
         padded = np.zeros((p, p), order="F")
         padded[:, :k] = qr
@@ -240,17 +251,10 @@ def _weighted_full_rank_step(B: np.ndarray, m_scale: np.ndarray, r: np.ndarray, 
     ``σ_min(B) ≥ 1/‖R⁻¹‖_F``, asked to exceed ``2τ`` as :func:`independent_qr`; the point is then the
     one the two-factorisation route computes, by the same LAPACK calls on ``B``."""
     q = B.shape[1]
-    if q < QR_MIN_SIZE:
+    factors = _proven_full_rank_qr(B, 2.0 * threshold * float(m_scale.max()))
+    if factors is None:
         return None
-    qr, tau, _, info = lapack.dgeqrf(B)
-    if info != 0:
-        return None
-    R_inv = upper_inverse(qr[:q])
-    if R_inv is None:
-        return None
-    flat = R_inv.ravel(order="K")
-    if not 2.0 * threshold * float(m_scale.max()) * math.sqrt(float(flat @ flat)) < 1.0:
-        return None
+    qr, tau, _ = factors
     qtr, _, info = lapack.dormqr("L", "T", qr, tau, r[:, None], max(1, len(r)))
     if info == 0:
         c, info = lapack.dtrtrs(qr[:q, :q], qtr[:q], lower=0)

@@ -40,7 +40,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, Multiplexer
 
-from sotdrake import Tracer, add_robot_visualizer, attime, load_robot, script_arguments, start, write_run
+from sotdrake import Tracer, add_robot_visualizer, attime, load_robot, save_figure, script_arguments, start, write_run
 from sotdrake.dynamics.contact import Contact6d
 from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
@@ -312,10 +312,7 @@ def plot(run: DynRomeo, trace: dict, summary: dict, path: Path) -> Path:
             a.axvline(summary["fell_at_s"], color="r", ls="--", lw=0.8)
     com = "with" if summary["com_task"] else "without"
     fig.suptitle(f"dynromeo: Romeo lifts its right leg {com} the CoM task (RobotDynSimu, SolverDyn): fell = {summary['fell']}")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def main(argv: list[str] | None = None) -> dict:

@@ -59,6 +59,7 @@ from sotdrake import (
     add_target_marker,
     attime,
     gotoNd,
+    save_figure,
     script_arguments,
     simulate,
     start,
@@ -298,10 +299,7 @@ def plot(trace: dict, summary: dict, path: Path) -> Path:
                 a.axvline(when, color="0.8", lw=0.6)
     fig.suptitle(f"planche on Romeo ({summary['solver']}): chest lean up to {summary['max_chest_lean_deg']:.0f}°, "
                  f"CoM within {-(summary['min_com_margin_single_support_m'] or 0) * 1e3:.4f} mm of the shrunken support on one foot")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def main(argv: list[str] | None = None) -> dict:

@@ -39,6 +39,7 @@ from sotdrake import (
     add_sot,
     add_target_marker,
     gotoNd,
+    save_figure,
     script_arguments,
     simulate,
     start,
@@ -200,10 +201,7 @@ def plot(trace: dict, target: np.ndarray, path: Path) -> Path:
     axes[2].plot(t, trace["control"], lw=0.8)
     axes[2].set_ylabel("velocity command (rad/s, m/s)")
     axes[2].set_xlabel("time (s)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)
 
 
 def main(argv: list[str] | None = None) -> dict:

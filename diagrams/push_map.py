@@ -32,7 +32,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the stand scenario's script, a sibling
 import talos_physics
 
-from sotdrake import InvalidInput, script_arguments, simulate, write_run
+from sotdrake import InvalidInput, save_figure, script_arguments, simulate, write_run
 from sotdrake.sweep import EngineUnavailable, add_sweep_arguments, engine_options, grid, run_sweep
 
 FALL_DROP_M = 0.1
@@ -108,9 +108,7 @@ def plot(rows: list[dict], path: Path) -> Path:
         axis.set_theta_zero_location("N")  # forward (+x) up, left (+y) to the left
     fig.colorbar(dots, ax=axes[0].tolist(), label="largest base displacement (m)")
     fig.suptitle("TALOS standing (SoT open loop, PD actuators): torso pushes; radius: force (N); red ×: fell")
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, tight=False)
 
 
 def main(argv: list[str] | None = None) -> dict:

@@ -45,6 +45,7 @@ from sotdrake import (
     add_sot,
     gotoNd,
     hold_feet_and_com,
+    save_figure,
     script_arguments,
     talos,
     write_run,
@@ -207,9 +208,7 @@ def plot(rows: list[dict], path: Path, slices: int = 4) -> Path:
     fig.colorbar(top, ax=axes[0, :].tolist(), label="final hand error (m); white dot: < 1 cm")
     fig.colorbar(bottom, ax=axes[1, :].tolist(), label="smallest joint-limit margin (rad)")
     fig.suptitle(f"TALOS right hand, {len(ok)} targets (SolverKine, feet + CoM held); + : base")
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, tight=False)
 
 
 def main(argv: list[str] | None = None) -> dict:

@@ -47,6 +47,7 @@ from sotdrake import (
     add_sot,
     gotoNd,
     hold_feet_and_com,
+    save_figure,
     script_arguments,
     simulate,
     start,
@@ -210,10 +211,7 @@ def plot(traces: dict[str, dict], path: Path) -> Path:
         axis.set_xlabel("time (s)")
     axes[0, 0].legend(fontsize=7)
     fig.suptitle("sot-concept: TALOS grasps a ball under seven configurations")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def main(argv: list[str] | None = None) -> dict:

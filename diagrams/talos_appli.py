@@ -38,6 +38,7 @@ from sotdrake import (
     add_sot,
     attime,
     gotoNd,
+    save_figure,
     script_arguments,
     start,
     talos,
@@ -216,10 +217,7 @@ def plot(trace: dict, target: np.ndarray, path: Path) -> Path:
     axes[2].set_ylabel("drift (m)")
     axes[2].set_xlabel("time (s)")
     axes[2].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)
 
 
 def main(argv: list[str] | None = None) -> dict:

@@ -41,7 +41,7 @@ from pydrake.systems.primitives import ConstantVectorSource, Multiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 from pydrake.trajectories import PiecewisePolynomial
 
-from sotdrake import TALOS_GRIPPERS, Tracer, attime, load_talos, script_arguments, start, write_run
+from sotdrake import TALOS_GRIPPERS, Tracer, attime, load_talos, save_figure, script_arguments, start, write_run
 from sotdrake.dynamics.contact import friction_ratio
 from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
@@ -358,10 +358,7 @@ def plot(run: DynamicsRun, trace: dict, summary: dict, path: Path) -> Path:
     for a in (axes[0, 0], axes[0, 1], axes[1, 1]):
         a.set_xlabel("time (s)")
     fig.suptitle(f"{run.scenario} on {run.device}: fell = {summary['fell']}")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def main(argv: list[str] | None = None) -> dict:

@@ -35,6 +35,7 @@ from sotdrake import (
     gotoNd,
     hold_feet_and_com,
     load_talos,
+    save_figure,
     script_arguments,
     simulate,
     start,
@@ -206,10 +207,7 @@ def plot(trace: dict, path: Path, title: str = "talos_physics", target=TARGET) -
         if axis is not axes[0, 1]:
             axis.set_xlabel("time (s)")
     fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def main(argv: list[str] | None = None) -> dict:

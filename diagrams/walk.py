@@ -57,6 +57,7 @@ from sotdrake import (
     attime,
     load_robot,
     load_talos,
+    save_figure,
     script_arguments,
     simulate,
     start,
@@ -621,10 +622,7 @@ def plot(walk: Walk, simulator, trace: dict, path: Path) -> Path:
     ax.set_title("feet and CoM tracking (dotted: 1 mm)")
     ax.legend(fontsize=7)
     fig.suptitle(f"walk: {walk.robot_name}, {walk.mode} mode, {len(poses) - 2} steps shown")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def main(argv: list[str] | None = None) -> dict:

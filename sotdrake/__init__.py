@@ -29,7 +29,7 @@ from .meta_tasks import (
 from .robot import Robot, add_sot, robot, talos
 from .robots import TALOS_GRIPPERS, load_robot, load_talos
 from .sequencer import attime
-from .simulation import script_arguments, simulate, start, write_run
+from .simulation import save_figure, script_arguments, simulate, start, write_run
 from .solvers import SOT, SolverKine
 from .tracing import Tracer
 from .visualization import (
@@ -73,6 +73,7 @@ __all__ = [
     "load_robot",
     "load_talos",
     "robot",
+    "save_figure",
     "save_recording",
     "script_arguments",
     "signal",

@@ -78,6 +78,17 @@ def simulate(diagram: Diagram, duration: float, visualizer=None, progress: bool 
     return simulator, time.perf_counter() - start
 
 
+def save_figure(fig, path: Path, dpi: int = 100, tight: bool = True) -> Path:
+    """Write the matplotlib figure ``fig`` to ``path`` (laid out first with ``tight``) and close it."""
+    import matplotlib.pyplot as plt
+
+    if tight:
+        fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return Path(path)
+
+
 def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = None,
               meshcat: Meshcat | None = None, visualizer=None, graph: bool = True) -> dict:
     """Write ``trace.npz``, ``control_graph.svg`` (and ``.dot``), ``recording.html`` and

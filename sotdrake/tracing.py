@@ -15,6 +15,7 @@ from pydrake.systems.framework import Context, DiagramBuilder, OutputPort
 from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 
 from .exceptions import InvalidInput
+from .simulation import save_figure
 
 
 class Tracer:
@@ -96,7 +97,4 @@ class Tracer:
         axes[-1, 0].set_xlabel("time (s)")
         if title:
             fig.suptitle(title)
-        fig.tight_layout()
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
-        return Path(path)
+        return save_figure(fig, path)

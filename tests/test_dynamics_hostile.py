@@ -174,6 +174,20 @@ def test_stack_and_contact_commands_refuse_unknown_names(dyn):
     assert fingerprint(diagram, context) == before
 
 
+def test_kinematic_settings_are_refused_not_ignored(dyn):
+    """SolverDyn has no SVD threshold, no damped least squares and no velocity scaling: the
+    kinematic SOT's setters raise instead of storing a setting nothing reads."""
+    robot, diagram, _ = dyn
+    sot = robot.sot
+    context = diagram.CreateDefaultContext()
+    before = fingerprint(diagram, context)
+    for call in (lambda: sot.setThreshold(0.5, context), lambda: sot.setDamping(1e3, context),
+                 lambda: sot.setVelocityLimit(np.full(robot.model.nv, 1e-3), context), lambda: sot.setDamping(0.1)):
+        with pytest.raises(SotError, match="SolverDyn"):
+            call()
+    assert fingerprint(diagram, context) == before
+
+
 def test_a_contact_removed_twice_and_the_last_contact_are_refused(dyn):
     robot, diagram, _ = dyn
     sot = robot.sot

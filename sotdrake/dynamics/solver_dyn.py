@@ -370,6 +370,7 @@ class SolverDyn(SOT):
         self.DeclareVectorOutputPort("wrenches", 6 * max_contacts, self._calc_wrenches)
         self.DeclareAbstractOutputPort("diagnostics", lambda: AbstractValue.Make(DynDiagnostics()),
                                        lambda c, o: o.set_value(self._solution.Eval(c).diagnostics))
+        self._built = True  # from now on, setThreshold and setDamping are refused (see below)
 
     # --- wiring ------------------------------------------------------------------------------
     def declare_contact_input(self, contact: Contact6d) -> InputPort:
@@ -457,6 +458,23 @@ class SolverDyn(SOT):
             s.horizon, s.position_margin = values
 
         self._dyn_command(context, change)
+
+    # The kinematic solvers' settings, which SolverDyn has no use for: refused rather than ignored.
+    def setThreshold(self, svd_threshold: float, context: Context | None = None) -> None:
+        if getattr(self, "_built", False):
+            raise StackError(f"{self.name} is a SolverDyn: its levels are solved exactly (hierarchical QP), it has no SVD "
+                             "threshold (setThreshold is the kinematic SOT's)")
+        SOT.setThreshold(self, svd_threshold, context)  # SOT.__init__'s default
+
+    def setDamping(self, damping: float, context: Context | None = None) -> None:
+        if getattr(self, "_built", False):
+            raise StackError(f"{self.name} is a SolverDyn: it has no damped least squares (setDamping is the kinematic "
+                             "solvers'); the remaining motion is damped by its last level: setDampingGain")
+        SOT.setDamping(self, damping, context)  # SOT.__init__'s default
+
+    def setVelocityLimit(self, limit, context: Context | None = None) -> None:
+        raise StackError(f"{self.name} is a SolverDyn: it commands accelerations and torques, not velocities (the joints' "
+                         "velocity limits enter its acceleration bounds: setJointLimitHorizon)")
 
     # --- solve -------------------------------------------------------------------------------
     def _ramp(self, context: Context, name: str) -> tuple[float, float]:

@@ -244,6 +244,7 @@ def test_constructors_refuse_bad_arguments_by_name(talos_model):
     for call, named in cases:
         with pytest.raises(InvalidInput, match=named):
             call()
+    assert SolverDyn("s", model, 1e-3, effort_scale=np.float32(0.5)).effort_scale == 0.5  # any real number type
 
 
 def test_a_refused_task_or_contact_leaves_the_builder_usable(talos_model):

@@ -330,8 +330,7 @@ class SolverDyn(SOT):
                  solver: str = ACTIVE_SET, effort_scale: float = 1.0):
         """``effort_scale`` in (0, 1]: the torque bounds are this fraction of the model's effort
         limits (a derated robot; 1: the limits of the URDF)."""
-        if isinstance(effort_scale, bool) or not isinstance(effort_scale, (int, float)) or not 0 < effort_scale <= 1:
-            raise InvalidInput(f"{name}: effort_scale must be a number in (0, 1], got {effort_scale!r}")
+        effort_scale = check_positive(f"{name}: effort_scale", effort_scale, 1.0)  # any real number type, not a bool
         dt = check_positive(f"{name}: dt", dt, MAX_DT, " s")
         max_contacts = check_count(f"{name}: max_contacts", max_contacts, 1, MAX_CONTACTS)
         SOT.__init__(self, name, model.nv, settings=DynSettings())

@@ -16,6 +16,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram
 
 from .exceptions import InvalidInput
+from .interactive import MAX_DURATION
 
 #: The kinematic solvers a script offers with ``--solver`` (see :func:`sotdrake.robot.add_sot`).
 SOLVER_HELP = {"cascade": "the basic SOT (pseudo-inverse cascade)", "hqp": "SolverKine (hierarchical QP, joint limits hard)"}
@@ -42,13 +43,13 @@ def script_arguments(doc: str, out: str, duration: float | None = 8.0, solver: s
 
 
 def start(args: argparse.Namespace, live: bool = False) -> Meshcat | None:
-    """Check ``--duration`` (finite, > 0) and ``--out`` (a directory that can be created and
-    written: checked before the run, not after it), set up logging, and start Meshcat unless
-    ``--no-meshcat``: for the recording (no URL printed: it would stop working when the script
-    exits) or, with ``live``, to watch (the URL printed). See
+    """Check ``--duration`` (in ``(0, MAX_DURATION]``: a day, as ``Runner.go``) and ``--out`` (a
+    directory that can be created and written: checked before the run, not after it), set up
+    logging, and start Meshcat unless ``--no-meshcat``: for the recording (no URL printed: it would
+    stop working when the script exits) or, with ``live``, to watch (the URL printed). See
     :func:`sotdrake.visualization.start_meshcat`."""
-    if args.duration is not None and not 0 < args.duration < float("inf"):
-        raise SystemExit(f"--duration must be a finite number > 0 (s), got {args.duration}")
+    if args.duration is not None and not 0 < args.duration <= MAX_DURATION:
+        raise SystemExit(f"--duration must be a number in (0, {MAX_DURATION:g}] s, got {args.duration}")
     out = getattr(args, "out", None)
     if out is not None:
         check_output_directory(Path(out))

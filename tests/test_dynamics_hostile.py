@@ -286,7 +286,7 @@ def test_the_scripts_bad_arguments_stop_before_the_run(dynamics_script, tmp_path
         (["--effort-scale", "2"], 2, "--effort-scale"), (["--effort-scale", "nan"], 2, "--effort-scale"),
         (["--effort-scale", "0"], 2, "--effort-scale"), (["--duration", "abc"], 2, "--duration"),
         (["--duration", "-1"], None, "--duration"), (["--duration", "nan"], None, "--duration"),
-        (["--duration", "inf"], None, "--duration"),  # would never end
+        (["--duration", "inf"], None, "--duration"), (["--duration", "1e300"], None, "--duration"),  # would never end
         (["--out", str(blocker / "run")], None, "--out"),  # the run would be lost at its end
     ]:
         with pytest.raises(SystemExit) as stop:

@@ -118,11 +118,11 @@ class RobotDyn:
         dynamic entity and the solver (not yet held: ``sot.addContact``). ``rectangle='sole'``
         is the robot model's rectangle for that op point (``model.sole_rectangles``; TALOS': its
         physics sole box); None makes a point contact."""
+        self.model.frame(opPoint)  # an unknown op point is refused before anything is added
         if isinstance(rectangle, str):
             if rectangle != "sole":
                 raise InvalidInput(f"{name}: rectangle is 'sole', (x_min, x_max, y_min, y_max) or None, got {rectangle!r}")
             rectangle = self.sole_rectangle(opPoint)
-        self.model.frame(opPoint)  # an unknown op point is refused before anything is added
         contact = self.add(Contact6d(name, self.dimension, rectangle, mu, f_min, cop_margin))
         pose, jacobian = self.dynamic.createOpPoint(name, opPoint)
         connect = self.builder.Connect

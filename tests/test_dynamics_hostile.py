@@ -267,6 +267,11 @@ def test_a_refused_task_or_contact_leaves_the_builder_usable(talos_model):
     MetaTaskDynCom(robot)
     MetaTaskDynPosture(robot)
     robot.add_contact("contactLF", "left-sole")
+    robot.add_contact("contactRF", "right-sole")
+    systems = len(robot.builder.GetSystems())
+    with pytest.raises(InvalidInput, match="max_contacts"):  # built for 2
+        robot.add_contact("contactRH", "right-wrist", rectangle=None)
+    assert len(robot.builder.GetSystems()) == systems
 
 
 # --- the script's command line ---------------------------------------------------------------------

@@ -119,13 +119,13 @@ class RobotDyn:
         is the robot model's rectangle for that op point (``model.sole_rectangles``; TALOS': its
         physics sole box); None makes a point contact."""
         self.model.frame(opPoint)  # an unknown op point is refused before anything is added
-        if len(self.sot.known_contacts) >= self.sot.max_contacts:
-            raise InvalidInput(f"{name}: {self.sot.name} was built for {self.sot.max_contacts} contacts (RobotDyn's max_contacts), "
-                               f"it has {self.sot.known_contacts}")
         if isinstance(rectangle, str):
             if rectangle != "sole":
                 raise InvalidInput(f"{name}: rectangle is 'sole', (x_min, x_max, y_min, y_max) or None, got {rectangle!r}")
             rectangle = self.sole_rectangle(opPoint)
+        if len(self.sot.known_contacts) >= self.sot.max_contacts:
+            raise InvalidInput(f"{name}: {self.sot.name} was built for {self.sot.max_contacts} contacts (RobotDyn's max_contacts), "
+                               f"it has {self.sot.known_contacts}")
         contact = self.add(Contact6d(name, self.dimension, rectangle, mu, f_min, cop_margin))
         pose, jacobian = self.dynamic.createOpPoint(name, opPoint)
         connect = self.builder.Connect

@@ -435,7 +435,8 @@ def test_random_stacks_at_random_valid_states(dyn, seed):
 
 @pytest.mark.xfail(strict=True, reason="solver issue: at this valid state (half-sitting, the grippers 1 % inside their "
                    "limits, sole-consistent velocities, default-range settings; stack rh, com) the hierarchical QP ends "
-                   "'a point outside the bounds' on every path and SolverDyn drops the stack for the tick")
+                   "'a point outside the bounds' on every path of the last (damping) level, each point 1.6e-8 to 3.6e-8 "
+                   "beyond a bound left with no room (tolerance 1e-9), and SolverDyn drops the stack for the tick")
 def test_random_valid_case_that_the_hierarchical_qp_fails():
     robot, diagram, tasks = _build_dyn()
     x, names, _, settings = random_case(robot, tasks, 3093)
@@ -446,7 +447,8 @@ def test_random_valid_case_that_the_hierarchical_qp_fails():
 
 @pytest.mark.xfail(strict=True, reason="solver issue: the warm starts kept by SolverDyn's HierarchicalQP (said never to "
                    "change results) change the result: a case solved right after another case of the same sizes fails "
-                   "('a point outside the bounds', the stack dropped) while a fresh solver solves it")
+                   "('a point outside the bounds' on the last level, 2e-9 to 2e-8 beyond a bound with no room, tolerance "
+                   "1e-9; the stack dropped) while a fresh solver solves it")
 def test_a_solution_does_not_depend_on_the_cases_solved_before():
     stack = ["com", "rh"]
     robot, diagram, tasks = _build_dyn()

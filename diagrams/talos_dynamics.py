@@ -24,6 +24,7 @@ state); ``--device dynsimu`` integrates ``q̈`` (``RobotDynSimu``, no physics). 
 
 from __future__ import annotations
 
+import argparse
 import json
 import logging
 import sys
@@ -361,13 +362,24 @@ def plot(run: DynamicsRun, trace: dict, summary: dict, path: Path) -> Path:
     return save_figure(fig, path)
 
 
+def effort_fraction(text: str) -> float:
+    """``--effort-scale``: a number in (0, 1] (argparse reports anything else as a usage error)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0 < value <= 1:
+        raise argparse.ArgumentTypeError(f"must be a number in (0, 1], got {text!r}")
+    return value
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = script_arguments(__doc__, "out/dynamics", duration=5.0)
     parser.add_argument("--scenario", choices=SCENARIOS, default="lift_leg")
     parser.add_argument("--device", choices=["physics", "dynsimu"], default="physics")
     parser.add_argument("--solver", choices=[ACTIVE_SET, *sorted(SOLVERS)], default=ACTIVE_SET,
                         help="how SolverDyn's QP levels are solved (the exact active set, or a Drake solver polished by it)")
-    parser.add_argument("--effort-scale", type=float, default=1.0,
+    parser.add_argument("--effort-scale", type=effort_fraction, default=1.0,
                         help="the solver's torque bounds as a fraction in (0, 1] of TALOS' effort limits (a derated robot)")
     args = parser.parse_args(argv)
     meshcat = start(args)

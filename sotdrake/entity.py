@@ -25,7 +25,7 @@ from typing import Any, Generic, TypeVar
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafContext, LeafSystem
 
-from .exceptions import SotError
+from .exceptions import InvalidInput, SotError
 
 S = TypeVar("S")
 
@@ -37,10 +37,16 @@ def own_context(system: LeafSystem, context: Context) -> Context:
     """``system``'s context, given the root diagram context or its own. (A leaf context is
     validated; a diagram context is the root: asking first whether it is the system's own would
     cost a C++ exception, about a millisecond.)"""
-    if isinstance(context, LeafContext):
-        system.ValidateContext(context)
-        return context
-    return system.GetMyContextFromRoot(context)
+    if not isinstance(context, Context):
+        raise InvalidInput(f"{system.get_name()}: context must be a Drake Context of its diagram, got {context!r:.100}")
+    try:
+        if isinstance(context, LeafContext):
+            system.ValidateContext(context)
+            return context
+        return system.GetMyContextFromRoot(context)
+    except RuntimeError:  # a context of another diagram (or of another system)
+        raise InvalidInput(f"{system.get_name()}: the context given is not one of the diagram that holds "
+                           f"{system.get_name()!r} (a context of another diagram or system)") from None
 
 
 class _Frozen:

@@ -16,6 +16,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram
 
 from .exceptions import InvalidInput
+from .interactive import MAX_DURATION
 
 #: The kinematic solvers a script offers with ``--solver`` (see :func:`sotdrake.robot.add_sot`).
 SOLVER_HELP = {"cascade": "the basic SOT (pseudo-inverse cascade)", "hqp": "SolverKine (hierarchical QP, joint limits hard)"}
@@ -42,17 +43,35 @@ def script_arguments(doc: str, out: str, duration: float | None = 8.0, solver: s
 
 
 def start(args: argparse.Namespace, live: bool = False) -> Meshcat | None:
-    """Check ``--duration``, set up logging, and start Meshcat unless ``--no-meshcat``: for the
-    recording (no URL printed: it would stop working when the script exits) or, with ``live``, to
-    watch (the URL printed). See :func:`sotdrake.visualization.start_meshcat`."""
-    if args.duration is not None and not args.duration > 0:
-        raise SystemExit(f"--duration must be > 0, got {args.duration}")
+    """Check ``--duration`` (in ``(0, MAX_DURATION]``: a day, as ``Runner.go``) and ``--out`` (a
+    directory that can be created and written: checked before the run, not after it), set up
+    logging, and start Meshcat unless ``--no-meshcat``: for the recording (no URL printed: it would
+    stop working when the script exits) or, with ``live``, to watch (the URL printed). See
+    :func:`sotdrake.visualization.start_meshcat`."""
+    if args.duration is not None and not 0 < args.duration <= MAX_DURATION:
+        raise SystemExit(f"--duration must be a number in (0, {MAX_DURATION:g}] s, got {args.duration}")
+    out = getattr(args, "out", None)
+    if out is not None:
+        check_output_directory(Path(out))
     logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
     if args.no_meshcat:
         return None
     from .visualization import start_meshcat
 
     return start_meshcat(live)
+
+
+def check_output_directory(out: Path) -> None:
+    """Create ``out`` (and its parents) if needed and check that files can be written there; a
+    ``SystemExit`` naming ``--out`` and the reason otherwise (no traceback)."""
+    import os
+
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise SystemExit(f"--out {out}: cannot create the output directory ({error.strerror or error})") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise SystemExit(f"--out {out}: the output directory is not writable")
 
 
 def simulate(diagram: Diagram, duration: float, visualizer=None, progress: bool = True,

@@ -37,7 +37,8 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context
 
 from ..entity import Entity
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, check_finite, check_number
+from .checks import MAX_FRICTION, MAX_NORMAL_FORCE, MAX_RATE_GAIN, MAX_SOLE, check_count, check_positive
 
 
 class ContactRows(NamedTuple):
@@ -117,11 +118,11 @@ class Contact6d(Entity[ContactSettings]):
     def __init__(self, name: str, nv: int, rectangle: tuple[float, float, float, float] | None,
                  mu: float = 0.7, f_min: float = 1.0, cop_margin: float = 0.01):
         Entity.__init__(self, name, ContactSettings())
-        self.nv = nv
+        self.nv = check_count(f"{name}: nv", nv, 1, 10**6)
         self.rectangle: tuple[float, float, float, float] | None = None
         if rectangle is not None:
-            values = tuple(float(a) for a in rectangle)
-            if len(values) != 4 or not (values[0] < values[1] and values[2] < values[3]):
+            values = tuple(check_finite(f"{name}: rectangle (x_min, x_max, y_min, y_max)", rectangle, (4,), MAX_SOLE).tolist())
+            if not (values[0] < values[1] and values[2] < values[3]):
                 raise InvalidInput(f"{name}: rectangle is (x_min, x_max, y_min, y_max) with min < max, got {values}")
             self.rectangle = (values[0], values[1], values[2], values[3])
         self.setFriction(mu)
@@ -139,16 +140,15 @@ class Contact6d(Entity[ContactSettings]):
         self.DeclareAbstractOutputPort("contact", lambda: AbstractValue.Make(empty), self._calc)
 
     def setFriction(self, mu: float, context: Context | None = None) -> None:
-        """Friction coefficient μ > 0 of the pyramid."""
-        if not (np.isfinite(mu) and mu > 0):
-            raise InvalidInput(f"{self.name}: friction coefficient μ must be finite and > 0, got {mu}")
-        self._command(context, lambda s: setattr(s, "mu", float(mu)))
+        """Friction coefficient μ in (0, :data:`.checks.MAX_FRICTION`] of the pyramid."""
+        value = check_positive(f"{self.name}: friction coefficient μ", mu, MAX_FRICTION)
+        self._command(context, lambda s: setattr(s, "mu", value))
 
     def setMinimumNormalForce(self, f_min: float, context: Context | None = None) -> None:
-        """``f_min ≥ 0`` (N): the normal force never goes below it while the contact is held."""
-        if not (np.isfinite(f_min) and f_min >= 0):
-            raise InvalidInput(f"{self.name}: minimum normal force must be finite and ≥ 0, got {f_min}")
-        self._command(context, lambda s: setattr(s, "f_min", float(f_min)))
+        """``f_min`` in [0, :data:`.checks.MAX_NORMAL_FORCE`] (N): the normal force never goes below it
+        while the contact is held."""
+        value = check_number(f"{self.name}: minimum normal force f_min", f_min, 0.0, MAX_NORMAL_FORCE, " N")
+        self._command(context, lambda s: setattr(s, "f_min", value))
 
     def setCopMargin(self, margin: float, context: Context | None = None) -> None:
         """How far (m) the CoP stays inside the sole's edges: ``0 ≤ margin <`` half the sole's width."""
@@ -156,15 +156,15 @@ class Contact6d(Entity[ContactSettings]):
             limit = math.inf
         else:
             limit = min(self.rectangle[1] - self.rectangle[0], self.rectangle[3] - self.rectangle[2]) / 2
-        if not (np.isfinite(margin) and 0 <= margin < limit):
-            raise InvalidInput(f"{self.name}: CoP margin must be in [0, {limit}) m, got {margin}")
-        self._command(context, lambda s: setattr(s, "cop_margin", float(margin)))
+        value = check_number(f"{self.name}: CoP margin", margin, 0.0, min(limit, MAX_SOLE), " m")
+        if not value < limit:
+            raise InvalidInput(f"{self.name}: CoP margin must be in [0, {limit:g}) m, got {margin!r:.100}")
+        self._command(context, lambda s: setattr(s, "cop_margin", value))
 
     def setVelocityGain(self, gain: float, context: Context | None = None) -> None:
-        """``K_v ≥ 0`` (1/s): damping of a residual contact velocity."""
-        if not (np.isfinite(gain) and gain >= 0):
-            raise InvalidInput(f"{self.name}: velocity gain must be finite and ≥ 0, got {gain}")
-        self._command(context, lambda s: setattr(s, "velocity_gain", float(gain)))
+        """``K_v`` in [0, :data:`.checks.MAX_RATE_GAIN`] (1/s): damping of a residual contact velocity."""
+        value = check_number(f"{self.name}: velocity gain K_v", gain, 0.0, MAX_RATE_GAIN, " 1/s")
+        self._command(context, lambda s: setattr(s, "velocity_gain", value))
 
     def _calc(self, context: Context, output: AbstractValue) -> None:
         s = self._settings_of(context)

@@ -19,6 +19,14 @@ from ..configuration import Layout, integrate
 from ..exceptions import InvalidInput, SolverError, check_finite
 
 
+def check_base_quaternion(name: str, q: np.ndarray, layout: Layout) -> None:
+    """The floating base's quaternion in ``q`` must have norm 1 (± 1e-3), else :class:`InvalidInput`."""
+    if layout.base_q is not None:
+        norm = float(np.linalg.norm(q[layout.base_q : layout.base_q + 4]))
+        if abs(norm - 1.0) > 1e-3:
+            raise InvalidInput(f"{name}: the base quaternion must have norm 1 (± 1e-3), got {norm:g}")
+
+
 def integrate_acceleration(q: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float, layout: Layout) -> tuple[np.ndarray, np.ndarray]:
     """One semi-implicit Euler step: ``(q ⊕ v' dt, v')`` with ``v' = v + a dt``."""
     v_next = v + a * dt
@@ -37,6 +45,7 @@ class RobotDynSimu(LeafSystem):
         self.nq, self.nv = plant.num_positions(), plant.num_velocities()
         self.layout = Layout.of(plant)
         q0 = check_finite("q0", q0, (self.nq,))
+        check_base_quaternion("q0", q0, self.layout)
         v0 = np.zeros(self.nv) if v0 is None else check_finite("v0", v0, (self.nv,))
         self.initial_state = np.concatenate([q0, v0])
         self._x = self.DeclareDiscreteState(self.initial_state)

@@ -31,6 +31,7 @@ class MetaTaskDyn6d(_MetaTaskDyn):
                  kp: float = 100.0, kv: float | None = None):
         """The task's ``reference_acceleration`` input takes the 6 error rows' ``s̈*`` (with the
         default frame ``'desired'`` and a fixed desired rotation: ``(p̈*, 0)``)."""
+        TaskDynPD.check_gains("task" + name, kp, kv, robot.dt)  # before anything is added
         self.opPoint = opPoint
         position, jacobian = robot.dynamic.createOpPoint(opPoint, opPointRef or opPoint)
         feature = robot.add(Feature6d("feature" + name, robot.dimension))
@@ -55,6 +56,7 @@ class MetaTaskDynCom(_MetaTaskDyn):
     """The centre of mass (``FeatureGeneric`` over ``dynamic.com``) with the exact CoM drift."""
 
     def __init__(self, robot: RobotDyn, name: str = "com", kp: float = 100.0, kv: float | None = None):
+        TaskDynPD.check_gains("task" + name, kp, kv, robot.dt)  # before anything is added
         feature = robot.add(FeatureGeneric("feature" + name, 3, robot.dimension))
         self.featureDes = robot.add(FeatureGenericDesired("feature" + name + "_ref", 3))
         connect = robot.builder.Connect
@@ -77,6 +79,7 @@ class MetaTaskDynPosture(_MetaTaskDyn):
     """Every joint towards the initial posture (``FeaturePosture``; the free flyer left free)."""
 
     def __init__(self, robot: RobotDyn, name: str = "posture", kp: float = 25.0, kv: float | None = None):
+        TaskDynPD.check_gains("task" + name, kp, kv, robot.dt)  # before anything is added
         feature = robot.add(FeaturePosture("feature" + name, robot.model.plant, robot.q0))
         robot.builder.Connect(robot.dynamic.GetOutputPort("position"), feature.GetInputPort("state"))
         self._finish(robot, name, feature, kp, kv)

@@ -20,11 +20,13 @@ from collections.abc import Sequence
 import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
-from ..exceptions import InvalidInput
+from ..configuration import Layout
+from ..exceptions import InvalidInput, check_finite
 from ..robots import RobotModel
 from ..solvers.hqp import ACTIVE_SET
+from .checks import MAX_DT, check_positive
 from .contact import Contact6d
-from .device import RobotDynSimu
+from .device import RobotDynSimu, check_base_quaternion
 from .dynamic_entity import DynamicEntity
 from .solver_dyn import SolverDyn
 from .station import add_torque_driven_talos, sole_rectangle
@@ -40,9 +42,14 @@ class RobotDyn:
             raise InvalidInput(f"unknown device {device!r}; available: {list(DEVICES)}")
         if device == "physics" and model.name != "talos":
             raise InvalidInput(f"device='physics' is TALOS' torque-driven plant; {model.name} runs on device='dynsimu'")
-        self.builder, self.model, self.dt, self.device_kind = builder, model, float(dt), device
+        dt = check_positive("dt", dt, MAX_DT, " s")
+        # q0 checked before anything is added (Drake aborts the process on a non-finite or
+        # wrongly sized default position of the physics plant).
+        q0 = model.half_sitting if q0 is None else check_finite("q0", q0, (model.nq,))
+        check_base_quaternion("q0", q0, Layout.of(model.plant))
+        self.builder, self.model, self.dt, self.device_kind = builder, model, dt, device
         self.OperationalPointsMap = model.OperationalPointsMap
-        self.q0 = (model.half_sitting if q0 is None else np.asarray(q0, dtype=float)).copy()
+        self.q0 = np.array(q0, dtype=float)
         self.tasks: dict[str, TaskDynPD] = {}
         self.contacts: dict[str, Contact6d] = {}
         self._names: set[str] = set()
@@ -111,10 +118,14 @@ class RobotDyn:
         dynamic entity and the solver (not yet held: ``sot.addContact``). ``rectangle='sole'``
         is the robot model's rectangle for that op point (``model.sole_rectangles``; TALOS': its
         physics sole box); None makes a point contact."""
+        self.model.frame(opPoint)  # an unknown op point is refused before anything is added
         if isinstance(rectangle, str):
             if rectangle != "sole":
                 raise InvalidInput(f"{name}: rectangle is 'sole', (x_min, x_max, y_min, y_max) or None, got {rectangle!r}")
             rectangle = self.sole_rectangle(opPoint)
+        if len(self.sot.known_contacts) >= self.sot.max_contacts:
+            raise InvalidInput(f"{name}: {self.sot.name} was built for {self.sot.max_contacts} contacts (RobotDyn's max_contacts), "
+                               f"it has {self.sot.known_contacts}")
         contact = self.add(Contact6d(name, self.dimension, rectangle, mu, f_min, cop_margin))
         pose, jacobian = self.dynamic.createOpPoint(name, opPoint)
         connect = self.builder.Connect

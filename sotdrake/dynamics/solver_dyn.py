@@ -64,12 +64,13 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort
 
 from ..configuration import Layout
-from ..exceptions import InvalidInput, NotFound, SolverError, StackError
+from ..exceptions import InvalidInput, NotFound, SolverError, StackError, check_number
 from ..robots import RobotModel
 from ..solvers.equality_hierarchy import solve_equality_hierarchy
 from ..solvers.hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, check_solver
 from ..solvers.sot import SOT, StackSettings
 from ..task import TaskLevel
+from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, MAX_RELEASE, check_count, check_positive
 from .contact import Contact6d, ContactRows, world_wrench_map
 from .terms import DynamicsTerms, joint_acceleration_bounds
 
@@ -329,10 +330,11 @@ class SolverDyn(SOT):
                  solver: str = ACTIVE_SET, effort_scale: float = 1.0):
         """``effort_scale`` in (0, 1]: the torque bounds are this fraction of the model's effort
         limits (a derated robot; 1: the limits of the URDF)."""
-        if isinstance(effort_scale, bool) or not isinstance(effort_scale, (int, float)) or not 0 < effort_scale <= 1:
-            raise InvalidInput(f"{name}: effort_scale must be a number in (0, 1], got {effort_scale!r}")
+        effort_scale = check_positive(f"{name}: effort_scale", effort_scale, 1.0)  # any real number type, not a bool
+        dt = check_positive(f"{name}: dt", dt, MAX_DT, " s")
+        max_contacts = check_count(f"{name}: max_contacts", max_contacts, 1, MAX_CONTACTS)
         SOT.__init__(self, name, model.nv, settings=DynSettings())
-        self.dt, self.model = float(dt), model
+        self.dt, self.model = dt, model
         self.layout = self._layout = Layout.of(model.plant)
         limits = model.joint_limits()
         self._limits = (limits["position_lower"], limits["position_upper"], limits["velocity_lower"], limits["velocity_upper"])
@@ -367,6 +369,7 @@ class SolverDyn(SOT):
         self.DeclareVectorOutputPort("wrenches", 6 * max_contacts, self._calc_wrenches)
         self.DeclareAbstractOutputPort("diagnostics", lambda: AbstractValue.Make(DynDiagnostics()),
                                        lambda c, o: o.set_value(self._solution.Eval(c).diagnostics))
+        self._built = True  # from now on, setThreshold and setDamping are refused (see below)
 
     # --- wiring ------------------------------------------------------------------------------
     def declare_contact_input(self, contact: Contact6d) -> InputPort:
@@ -391,8 +394,8 @@ class SolverDyn(SOT):
 
     def _contact_name(self, contact) -> str:
         name = getattr(contact, "name", contact)
-        if name not in self._contact_ports:
-            raise ContactNotFound(name, list(self._contact_ports))
+        if not isinstance(name, str) or name not in self._contact_ports:
+            raise ContactNotFound(name if isinstance(name, str) else repr(name), list(self._contact_ports))
         return name
 
     # --- commands ----------------------------------------------------------------------------
@@ -420,8 +423,7 @@ class SolverDyn(SOT):
         removed. Removing the last held contact is refused. (sot-dyninv's ``rmContact``, with the
         ramp's duration: not the kinematic SOT's signature.)"""
         name = self._contact_name(contact)
-        if not (np.isfinite(duration) and duration >= 0):
-            raise InvalidInput(f"{self.name}.rmContact: duration must be finite and ≥ 0 s, got {duration}")
+        duration = check_number(f"{self.name}.rmContact: duration", duration, 0.0, MAX_RELEASE, " s")
 
         def change(s: DynSettings) -> None:
             held = [c for c in s.contacts if c not in s.releasing]
@@ -437,23 +439,41 @@ class SolverDyn(SOT):
         self._dyn_command(context, change)
 
     def setDampingGain(self, gain: float, context: Context | None = None) -> None:
-        """``K_d ≥ 0`` (1/s) of the last level ``q̈ = −K_d v``."""
-        if not (np.isfinite(gain) and gain >= 0):
-            raise InvalidInput(f"{self.name}: damping gain must be finite and ≥ 0, got {gain}")
-        self._dyn_command(context, lambda s: setattr(s, "damping_gain", float(gain)))
+        """``K_d`` in [0, :data:`.checks.MAX_RATE_GAIN`] (1/s) of the last level ``q̈ = −K_d v``."""
+        value = check_number(f"{self.name}: damping gain K_d", gain, 0.0, MAX_RATE_GAIN, " 1/s")
+        self._dyn_command(context, lambda s: setattr(s, "damping_gain", value))
 
     def setSolver(self, solver: str, context: Context | None = None) -> None:
         check_solver(solver)
         self._dyn_command(context, lambda s: setattr(s, "solver", solver))
 
     def setJointLimitHorizon(self, horizon: float, margin: float = 1e-3, context: Context | None = None) -> None:
-        """Joint limits as acceleration bounds over ``horizon`` s (> 0), ``margin`` rad (≥ 0)."""
-        if not (np.isfinite(horizon) and horizon > 0 and np.isfinite(margin) and margin >= 0):
-            raise InvalidInput(f"{self.name}: horizon must be > 0 s and margin ≥ 0, got {horizon}, {margin}")
+        """Joint limits as acceleration bounds over ``horizon`` s (in (0, :data:`.checks.MAX_HORIZON`]),
+        ``margin`` rad (in [0, :data:`.checks.MAX_POSITION_MARGIN`])."""
+        values = (check_positive(f"{self.name}: joint-limit horizon", horizon, MAX_HORIZON, " s"),
+                  check_number(f"{self.name}: joint-limit margin", margin, 0.0, MAX_POSITION_MARGIN, " rad"))
+
         def change(s: DynSettings) -> None:
-            s.horizon, s.position_margin = float(horizon), float(margin)
+            s.horizon, s.position_margin = values
 
         self._dyn_command(context, change)
+
+    # The kinematic solvers' settings, which SolverDyn has no use for: refused rather than ignored.
+    def setThreshold(self, svd_threshold: float, context: Context | None = None) -> None:
+        if getattr(self, "_built", False):
+            raise StackError(f"{self.name} is a SolverDyn: its levels are solved exactly (hierarchical QP), it has no SVD "
+                             "threshold (setThreshold is the kinematic SOT's)")
+        SOT.setThreshold(self, svd_threshold, context)  # SOT.__init__'s default
+
+    def setDamping(self, damping: float, context: Context | None = None) -> None:
+        if getattr(self, "_built", False):
+            raise StackError(f"{self.name} is a SolverDyn: it has no damped least squares (setDamping is the kinematic "
+                             "solvers'); the remaining motion is damped by its last level: setDampingGain")
+        SOT.setDamping(self, damping, context)  # SOT.__init__'s default
+
+    def setVelocityLimit(self, limit, context: Context | None = None) -> None:
+        raise StackError(f"{self.name} is a SolverDyn: it commands accelerations and torques, not velocities (the joints' "
+                         "velocity limits enter its acceleration bounds: setJointLimitHorizon)")
 
     # --- solve -------------------------------------------------------------------------------
     def _ramp(self, context: Context, name: str) -> tuple[float, float]:

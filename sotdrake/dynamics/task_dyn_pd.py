@@ -34,6 +34,7 @@ from ..entity import Entity
 from ..exceptions import InvalidInput
 from ..features.base import FeatureValue, feature_signals, optional_input
 from ..task import TaskLevel
+from .checks import MAX_DT, MAX_PD_GAIN, check_count, check_pd_gains, check_positive
 
 
 @dataclass
@@ -59,9 +60,10 @@ class TaskDynPD(Entity[DynPDSettings]):
         """``dimension``: the size of the (vector) inputs ``drift`` and ``reference_acceleration``,
         which exist only when it is given (the feature's number of selected rows)."""
         Entity.__init__(self, name, DynPDSettings())
-        if not (np.isfinite(dt) and dt > 0):
-            raise InvalidInput(f"{name}: dt must be > 0, got {dt}")
-        self.nv, self.dt = nv, float(dt)
+        self.nv = check_count(f"{name}: nv", nv, 1, 10**6)
+        self.dt = check_positive(f"{name}: dt", dt, MAX_DT, " s")
+        if dimension is not None:
+            dimension = check_count(f"{name}: dimension (the feature's rows)", dimension, 1, self.nv)
         self.setGain(kp, kv)
         self.feature = self.DeclareAbstractInputPort(
             "feature", AbstractValue.Make(FeatureValue(np.zeros(0), np.zeros((0, nv)), np.zeros(0))))
@@ -88,23 +90,30 @@ class TaskDynPD(Entity[DynPDSettings]):
 
     # --- settings ----------------------------------------------------------------------------
     def setGain(self, kp: float, kv: float | None = None, context: Context | None = None) -> None:
-        """``K_p`` (1/s²) and ``K_v`` (1/s, default ``2√K_p``: critically damped), both finite ≥ 0."""
-        if kv is None:
-            kv = 2.0 * math.sqrt(kp) if np.isfinite(kp) and kp >= 0 else math.nan  # a bad K_p is named below
-        for what, value in (("Kp", kp), ("Kv", kv)):
-            if not (np.isfinite(value) and value >= 0):
-                raise InvalidInput(f"{self.name}: {what} must be finite and ≥ 0, got {value}")
-        gains = (float(kp), float(kv))
+        """``K_p`` (1/s²) and ``K_v`` (1/s, default ``2√K_p``: critically damped), both numbers ≥ 0
+        that keep the loop stable at the tick ``dt`` (:func:`.checks.check_pd_gains`)."""
+        gains = self.check_gains(self.name, kp, kv, self.dt)
 
         def change(s: DynPDSettings) -> None:
             s.kp, s.kv = gains
 
         self._command(context, change)
 
+    @staticmethod
+    def check_gains(name: str, kp, kv, dt: float) -> tuple[float, float]:
+        """``(K_p, K_v)`` as :meth:`setGain` takes them (``kv=None``: ``2√K_p``), checked before a
+        task is built or a gain changed (:func:`.checks.check_pd_gains`)."""
+        if kv is None:
+            kp = check_pd_gains(name, kp, 0.0, dt)[0]  # a bad K_p is named first
+            kv = 2.0 * math.sqrt(kp)
+        return check_pd_gains(name, kp, kv, dt)
+
     def setKp(self, kp: float, context: Context | None = None) -> None:
         self.setGain(kp, self.settings(context).kv, context)
 
     def setKv(self, kv: float, context: Context | None = None) -> None:
+        if kv is None:  # setGain's None (critical damping) is not a K_v
+            raise InvalidInput(f"{self.name}: Kv must be a number in [0, {MAX_PD_GAIN:g}] 1/s, got None")
         self.setGain(self.settings(context).kp, kv, context)
 
     # --- calc --------------------------------------------------------------------------------

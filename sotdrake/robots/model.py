@@ -57,6 +57,8 @@ class RobotModel:
 
         Raises :class:`FrameNotFound` listing operational points and frame names.
         """
+        if not isinstance(name, str):
+            raise FrameNotFound(repr(name), list(self.OperationalPointsMap))
         if name in self._frames:
             return self._frames[name]
         plant, target = self.plant, self.OperationalPointsMap.get(name, name)

@@ -1,0 +1,58 @@
+"""The accepted ranges of the dynamic SoT's settings, and the checks its commands and constructors run.
+
+Every check raises :class:`~sotdrake.exceptions.InvalidInput` naming the argument and its accepted
+range *before* anything changes (a command then leaves the Context's settings as they were). A
+value must be a real number (not a bool, a string, a sequence or ``None``) inside its range; the
+upper ends are far above any sensible value and only keep out the absurd (``1e300``), which would
+otherwise reach the solver as infinite or overflowing rows.
+"""
+
+from __future__ import annotations
+
+import numbers
+
+from ..exceptions import InvalidInput, check_number
+
+MAX_FRICTION = 10.0  # μ of a contact (dimensionless): rubber on concrete is about 1
+MAX_NORMAL_FORCE = 1e4  # N: f_min of a contact (TALOS weighs 886 N)
+MAX_RATE_GAIN = 1e3  # 1/s: a contact's K_v, the solver's K_d (the tick is 1 ms: K dt ≤ 1)
+MAX_HORIZON = 10.0  # s: the joint limits' horizon
+MAX_POSITION_MARGIN = 0.1  # rad (m for a prismatic joint): the joint limits' margin
+MAX_RELEASE = 60.0  # s: the ramp of rmContact
+MAX_PD_GAIN = 1e8  # 1/s² for K_p, 1/s for K_v of TaskDynPD (the tick bounds them further: check_pd_gains)
+MAX_DT = 1.0  # s: a control period
+MAX_SOLE = 1.0  # m: |x|, |y| of a contact rectangle's edges
+MAX_CONTACTS = 16
+
+
+def check_positive(name: str, value, high: float, unit: str = "") -> float:
+    """``value`` as a float if it is a real number in ``(0, high]``, else :class:`InvalidInput`."""
+    try:
+        number = check_number(name, value, 0.0, high, unit)
+    except InvalidInput:
+        number = 0.0  # refused below, with the open range in the message
+    if not number > 0.0:
+        raise InvalidInput(f"{name} must be a number in (0, {high:g}]{unit}, got {value!r:.100}")
+    return number
+
+
+def check_count(name: str, value, low: int, high: int) -> int:
+    """``value`` as an int if it is an integer (not a bool) in ``[low, high]``, else :class:`InvalidInput`."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not low <= int(value) <= high:
+        raise InvalidInput(f"{name} must be an integer in [{low}, {high}], got {value!r:.100}")
+    return int(value)
+
+
+def check_pd_gains(name: str, kp, kv, dt: float) -> tuple[float, float]:
+    """``(K_p, K_v)`` of :class:`.task_dyn_pd.TaskDynPD` as floats, each in ``[0, MAX_PD_GAIN]``,
+    and a loop that the control tick ``dt`` keeps stable: the error ``ë = −K_p e − K_v ė``
+    integrated by the device's semi-implicit Euler step (``ė ← ė + ë dt``, ``e ← e + ė dt``) has
+    the characteristic polynomial ``z² − (2 − K_v dt − K_p dt²) z + 1 − K_v dt``, whose roots are
+    inside the unit circle iff ``K_v dt < 2`` and ``K_p dt² + 2 K_v dt < 4`` (``K_p > 0``); the
+    gains are refused when ``K_p dt² + 2 K_v dt ≥ 4`` (the error would grow at every tick)."""
+    kp = check_number(f"{name}: Kp", kp, 0.0, MAX_PD_GAIN, " 1/s²")
+    kv = check_number(f"{name}: Kv", kv, 0.0, MAX_PD_GAIN, " 1/s")
+    if kp * dt**2 + 2 * kv * dt >= 4.0:
+        raise InvalidInput(f"{name}: Kp = {kp:g} 1/s², Kv = {kv:g} 1/s make the loop unstable at dt = {dt:g} s: "
+                           f"Kp dt² + 2 Kv dt must be < 4, got {kp * dt**2 + 2 * kv * dt:g}")
+    return kp, kv

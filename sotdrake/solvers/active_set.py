@@ -13,6 +13,8 @@ on ``M / m_scale`` (rows at unit reference norm): a row that a projection has sh
 **The rank threshold.** One absolute number τ (``threshold``, default :data:`RANK_THRESHOLD`) makes
 every rank decision: a singular value of the (unit-row) working-set matrix or of the (unit-row)
 reduced objective ``M N`` at most τ counts as zero. No library default cutoff is used anywhere.
+(Only the hierarchical QP's retry at a degenerate vertex, :data:`~.hqp.DEGENERATE_RETRY`, takes the
+working set's decisions at a fixed fraction of τ: ``working_threshold``.)
 
 **The equality-constrained step (EQP).** For a working set ``W`` (rows held at one side
 ``s_i ∈ {-1: lower, +1: upper}``) the EQP point is the *minimum-norm* minimiser

@@ -335,3 +335,25 @@ def test_a_start_inside_the_bounds_enforces_a_bound_that_excludes_zero():
     np.testing.assert_allclose(held, [2.0, 1.0], atol=1e-12)
     with pytest.raises(InvalidInput):
         hqp.solve([LevelRows(A, b, b)], lower, upper, start=np.array([np.nan, 0.0]))
+
+
+def test_a_degenerate_vertex_is_solved_within_the_bounds():
+    """A stack recorded from SolverDyn at a random valid TALOS state (tests/data: 82 unknowns
+    (q̈, w, τ), levels dynamics, contacts, hand, CoM, damping): on the last level bounds meet nearly
+    dependent at the same value, and with the working set's rank decisions at τ every path ended
+    2e-8 beyond a bound, a false failure. The retry with a finer working set
+    (:data:`~sotdrake.solvers.hqp.DEGENERATE_RETRY`) solves it: bounds to 1e-9, the dynamics and
+    contacts exact, the hand level's slack the sequential quadprog reference's. (Below it the
+    problem is too ill-conditioned for the reference, whose rows are relaxed by 1e-10: its CoM and
+    damping slacks are 1e-3 and 6e-3 above the solver's.)"""
+    from pathlib import Path
+
+    data = np.load(Path(__file__).parent / "data" / "degenerate_vertex.npz")
+    levels = [LevelRows(data[f"A{k}"], data[f"lower{k}"], data[f"upper{k}"]) for k in range(int(data["levels"]))]
+    x_lower, x_upper = data["x_lower"], data["x_upper"]
+    result = HierarchicalQP(len(x_lower)).solve(levels, x_lower, x_upper, start=data["start"])
+    assert any("working set at" in fallback for fallback in result.fallbacks)  # the retry was needed
+    assert np.all(np.isfinite(result.x)) and bounds_hold(result.x, x_lower, x_upper)
+    assert np.all(result.slack_norms[:2] <= 1e-9)
+    reference = reference_slack_norms(len(x_lower), levels, x_lower, x_upper)
+    assert same_norms(result.slack_norms[2:3], reference[2:3], relative=1e-5), (result.slack_norms, reference)

@@ -13,6 +13,8 @@ on ``M / m_scale`` (rows at unit reference norm): a row that a projection has sh
 **The rank threshold.** One absolute number τ (``threshold``, default :data:`RANK_THRESHOLD`) makes
 every rank decision: a singular value of the (unit-row) working-set matrix or of the (unit-row)
 reduced objective ``M N`` at most τ counts as zero. No library default cutoff is used anywhere.
+(Only the hierarchical QP's retry at a degenerate vertex, :data:`~.hqp.DEGENERATE_RETRY`, takes the
+working set's decisions at a fixed fraction of τ: ``working_threshold``.)
 
 **The equality-constrained step (EQP).** For a working set ``W`` (rows held at one side
 ``s_i ∈ {-1: lower, +1: upper}``) the EQP point is the *minimum-norm* minimiser
@@ -279,18 +281,21 @@ def eqp(
     e: np.ndarray,
     threshold: float,
     kind: tuple[bool, bool] | None = None,
+    working_threshold: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """The minimum-norm minimiser of ``½‖M z - t‖²`` s.t. ``E z = e`` (``E`` with unit rows), the
     multipliers ``λ`` of ``Mᵀ(M z - t) + Eᵀ λ = 0`` (minimum norm if ``E`` is rank deficient), and
     an orthonormal basis ``N`` of ``E``'s null space (None: the whole space). ``kind``: the
-    objective's :func:`objective_kind` (computed if None).
+    objective's :func:`objective_kind` (computed if None). ``working_threshold``: the rank
+    threshold of ``E`` alone (default ``threshold``; see :func:`solve_least_squares_qp`).
 
     Each factorisation is a QR when the matrix provably has full rank for τ (:func:`independent_qr`)
     and an SVD cut at τ otherwise; both give the same point in exact arithmetic."""
     p = M.shape[1]
     identity, uniform = objective_kind(M, m_scale) if kind is None else kind
+    cut = threshold if working_threshold is None else working_threshold
     if len(E):
-        factors = independent_qr(E.T, threshold, full=True)
+        factors = independent_qr(E.T, cut, full=True)
         if factors is not None:
             Q, R_inv = factors
             k = len(E)
@@ -298,7 +303,7 @@ def eqp(
             N = Q[:, k:]
         else:
             U, s, Vt = svd(E)
-            k = int(np.count_nonzero(s > threshold))
+            k = int(np.count_nonzero(s > cut))
             U_k, s_k, V_k = U[:, :k], s[:k], Vt[:k].T
             z = V_k @ ((U_k.T @ e) / s_k)
             N = Vt[k:].T
@@ -344,6 +349,7 @@ def solve_least_squares_qp(
     errstate: bool = True,
     kind: tuple[bool, bool] | None = None,
     guess_valid: bool = False,
+    working_threshold: float | None = None,
 ) -> ActiveSetResult:
     """Solve the problem of the module docstring from the feasible point ``z`` (``G`` unit rows).
 
@@ -351,22 +357,29 @@ def solve_least_squares_qp(
     if the iterations do not converge. ``errstate=False``: the caller has already silenced numpy's
     warnings on ±∞ sides (``np.errstate(divide="ignore", invalid="ignore")``). ``kind``: the
     objective's :func:`objective_kind`, if the caller knows it. ``z`` is not written to.
-    ``guess_valid``: no row of ``guess`` is held at an infinite side (as in :func:`dual_guess`'s)."""
+    ``guess_valid``: no row of ``guess`` is held at an infinite side (as in :func:`dual_guess`'s).
+
+    ``working_threshold`` (default ``threshold``): the rank decisions on the working set alone (a
+    row independent of the held ones can block, and the held rows' factorisation), for the retry of
+    :meth:`~.hqp.HierarchicalQP` at a degenerate vertex. With τ, rows that the held ones imply only
+    to within τ are not held and may move off their bound by up to about τ times the step."""
     if kind is None:
         kind = objective_kind(M, m_scale)
-    args = (M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid)
+    args = (M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid,
+            threshold if working_threshold is None else working_threshold)
     if not errstate:
         return _solve(*args)
-    with np.errstate(divide="ignore", invalid="ignore"):  # ±∞ sides: once here, not per operation
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # ±∞ sides: once here, not per operation
         return _solve(*args)
 
 
-def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid) -> ActiveSetResult:
+def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid,
+           working) -> ActiveSetResult:
     m = len(G)
     equality = lower == upper
     if guess is not None and len(guess) == m:
         side = np.where(equality, 1, guess) if guess_valid else _guessed_sides(guess, lower, upper, equality)
-        candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality)
+        candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality, working)
         if candidate is not None:
             return ActiveSetResult(candidate, side, 0, True, True)
         value = G @ z
@@ -374,7 +387,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
         side = np.where((side < 0) & (value <= lower + near), -1, np.where((side > 0) & (value >= upper - near), 1, 0))
         side[equality] = 1
         held = side.nonzero()[0]
-        dependent = np.setdiff1d(held, held[independent_rows(G[held], threshold)])
+        dependent = np.setdiff1d(held, held[independent_rows(G[held], working)])
         side[dependent] = 0  # a working set is linearly independent (equality rows come first in rank)
     else:
         side = np.where(equality, 1, 0)
@@ -390,7 +403,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
         e = np.where(side > 0, upper, lower)[held]
         # The minimum-norm step from z: along it a dropped row is left on its feasible side
         # (the absolute minimum-norm point is recomputed at the end).
-        step, lam, N = eqp(M, t - M @ z, m_scale, E, e - E @ z, threshold, kind)
+        step, lam, N = eqp(M, t - M @ z, m_scale, E, e - E @ z, threshold, kind, working)
         target = z + step
         value, rate = G @ z, G @ step
         # Only rows independent of the working set can block (a dependent row's rate is round-off).
@@ -398,7 +411,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
             movable = ~held
         else:
             GN = G @ N
-            movable = ~held & (np.sqrt(np.einsum("ij,ij->i", GN, GN)) > threshold)
+            movable = ~held & (np.sqrt(np.einsum("ij,ij->i", GN, GN)) > working)
         up = np.where(movable & (rate > 0.0), (upper - value) / rate, np.inf)  # (errstate: set by the caller)
         down = np.where(movable & (rate < 0.0), (lower - value) / rate, np.inf)
         ratio = np.maximum(np.minimum(up, down), 0.0)
@@ -411,7 +424,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
                 # The row just dropped blocks at once: its multiplier's sign was round-off, the
                 # previous point (where it was held) is optimal.
                 side[blocking] = dropped_side
-                return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration, kind)
+                return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration, kind, working)
             z = z + alpha * step
             side[blocking] = 1 if up[blocking] <= down[blocking] else -1
             last_dropped = -1
@@ -440,7 +453,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
             continue
         if at_origin:  # _finish would recompute this very point
             return ActiveSetResult(z, side, iteration, False)
-        return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration, kind)
+        return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration, kind, working)
     raise ActiveSetFailure(f"no convergence in {max_iterations} active-set iterations")
 
 
@@ -520,11 +533,11 @@ def projection_guess(t: np.ndarray, G: np.ndarray, lower: np.ndarray, upper: np.
     return dual_guess(np.eye(p), t, G, lower, upper, regularization=0.0)
 
 
-def _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration, kind) -> ActiveSetResult:
+def _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration, kind, working) -> ActiveSetResult:
     """The optimum: the absolute minimum-norm EQP point of the final working set if it is feasible
     (a function of the working set alone), else the iterate (same objective value)."""
     held = side != 0
-    final = eqp(M, t, m_scale, G[held], np.where(side > 0, upper, lower)[held], threshold, kind)[0]
+    final = eqp(M, t, m_scale, G[held], np.where(side > 0, upper, lower)[held], threshold, kind, working)[0]
     if not feasible(G, lower, upper, final, feasibility):
         return ActiveSetResult(z, side, iteration, False, False)
     return ActiveSetResult(final, side, iteration, False, True)
@@ -540,11 +553,11 @@ def feasible(G: np.ndarray, lower: np.ndarray, upper: np.ndarray, z: np.ndarray,
                 or any_true(value > upper + feasibility * np.maximum(1.0, np.abs(upper))))
 
 
-def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality) -> np.ndarray | None:
+def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality, working=None) -> np.ndarray | None:
     """The EQP point of the working set ``side`` if it satisfies the KKT conditions, else None."""
     held = side.nonzero()[0]
     held_side = side[held]
-    z, lam, _ = eqp(M, t, m_scale, G[held], np.where(side > 0, upper, lower)[held], threshold, kind)
+    z, lam, _ = eqp(M, t, m_scale, G[held], np.where(side > 0, upper, lower)[held], threshold, kind, working)
     if not feasible(G, lower, upper, z, feasibility):
         return None
     if len(held):

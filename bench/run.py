@@ -330,9 +330,13 @@ def scaling(ticks: int, warmup: int) -> dict:
         robot, _, _, diagram = build_stack("cascade", variant=variant, tasks=1)
         stacks[f"{variant} (nv {robot.dimension})"] = diagram
     by_dof, by_dof_cpu = interleaved_medians(stacks, ticks, warmup)
+    import floor  # the same graph with callbacks that do no maths
+
+    framework = floor.floor_us(ticks=ticks)
     return {"tick_us_median_by_tasks": by_tasks, "marginal_task_us": _slope(by_tasks),
             "tick_cpu_us_median_by_tasks": by_tasks_cpu, "marginal_task_cpu_us": _slope(by_tasks_cpu),
-            "tick_us_median_by_dof": by_dof, "tick_cpu_us_median_by_dof": by_dof_cpu}
+            "tick_us_median_by_dof": by_dof, "tick_cpu_us_median_by_dof": by_dof_cpu,
+            "framework_floor_cpu_us_by_tasks": framework["by_tasks"], "framework_floor_cpu_us_per_task": framework["per_task"]}
 
 
 def _rtf(diagram, duration: float) -> dict:
@@ -589,6 +593,8 @@ def markdown(r: dict) -> str:
               "Median tick, wall clock (µs), by number of tasks: "
               + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_tasks"].items())
               + "; by DoF, one hand task: " + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_dof"].items()) + ".",
+              *([f"Framework floor (`bench/floor.py`: the same graph, callbacks without maths), CPU time: "
+                 f"{r['framework_floor_cpu_us_per_task']:.1f} µs per task."] if "framework_floor_cpu_us_per_task" in r else []),
               "Breakdown of the basic tick (exclusive time): "
               + ", ".join(f"{k} {100 * v:.0f}%" for k, v in sorted(r["breakdown_fraction"].items(), key=lambda x: -x[1])) + "."]
     if "machine" in r:
@@ -634,6 +640,10 @@ def print_table(r: dict) -> None:
           + ", ".join(f"{k} {100 * v:.0f}%" for k, v in sorted(r["breakdown_fraction"].items(), key=lambda x: -x[1])))
     print("tick (µs) by number of tasks: " + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_tasks"].items()))
     print(f"marginal cost of one more task: {r['marginal_task_cpu_us']:.1f} µs CPU, {r['marginal_task_us']:.1f} µs wall clock")
+    if "framework_floor_cpu_us_per_task" in r:
+        print("framework floor (bench/floor.py: the same graph, callbacks without maths): "
+              f"{r['framework_floor_cpu_us_per_task']:.1f} µs CPU per task; "
+              + ", ".join(f"{n}: {v:.0f}" for n, v in r["framework_floor_cpu_us_by_tasks"].items()))
     print("tick (µs) by DoF (one hand task): " + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_dof"].items()))
     print("targets (CPU time): " + ", ".join(f"{TARGETS[k][4]}: {'met' if v else 'NOT met'}" for k, v in r["targets"].items()))
 

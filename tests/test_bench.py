@@ -5,6 +5,7 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
@@ -56,3 +57,33 @@ def test_dynamics_bench_runs_both_peers_briefly():
     assert {"tick_cpu_us_median", "com_rms_error_m", "max_torque_ratio"} <= set(row) and not row["fell"]
     pytest.importorskip("placo")
     assert dynamics_bench.run_placo("lift_leg", 0.02)["com_rms_error_m"] < 1e-3
+
+
+def test_framework_floor_runs_every_callback_at_every_tick():
+    """bench/floor.py's graph recomputes each of its per-task callbacks once per tick (the device's
+    update invalidates them), as the real stack does: otherwise its floor would be too low."""
+    import floor
+
+    calls: dict = {}
+    originals = {cls: cls._calc for cls in (floor._Kinematics, floor._Feature, floor._Gain, floor._Task, floor._Solver)}
+
+    def counted(cls):
+        def calc(self, context, output):
+            calls[cls.__name__] = calls.get(cls.__name__, 0) + 1
+            originals[cls](self, context, output)
+        return calc
+
+    try:
+        for cls in originals:
+            cls._calc = counted(cls)
+        simulator = floor.Simulator(floor.build(3))
+        simulator.Initialize()
+        calls.clear()
+        simulator.AdvanceTo(10.5e-3)  # the ticks at 0, 1, …, 10 ms
+    finally:
+        for cls, calc in originals.items():
+            cls._calc = calc
+    ticks = 11
+    assert calls == {"_Kinematics": 2 * 3 * ticks, "_Feature": 3 * ticks, "_Gain": 3 * ticks, "_Task": 3 * ticks, "_Solver": ticks}
+    result = floor.floor_us(counts=(1, 2), ticks=100)
+    assert set(result["by_tasks"]) == {1, 2} and np.isfinite(result["per_task"])

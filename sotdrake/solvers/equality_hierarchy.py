@@ -52,8 +52,10 @@ others, per sweep, instead of the QP's SVDs and stages.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 from scipy.linalg.lapack import dgeqp3 as _geqp3
@@ -190,20 +192,17 @@ MULTIPLIER_TOLERANCE = 1e-9
 
 
 class _Directions:
-    """The bound directions not yet certified: column j is ``p_j``, equal to ``s_j`` on the held
-    bound's component ``i_j`` (``s = +1`` at a lower bound, ``−1`` at an upper one) and ``D[:, j]`` on
-    the free components, with ``A_l p_j = 0`` for every level ``l`` above the current one."""
+    """The bound directions not yet certified: column j of ``P`` (n × u) is ``p_j``, equal to ``s_j`` on
+    the held bound's component ``i_j`` (``s = +1`` at a lower bound, ``−1`` at an upper one), 0 on the
+    other fixed components, and such that ``A_l p_j = 0`` for every level ``l`` above the current one."""
 
-    def __init__(self, indices: np.ndarray, signs: np.ndarray, n_free: int):
+    def __init__(self, indices: np.ndarray, signs: np.ndarray, n: int):
         self.indices, self.signs = indices, signs
-        self.D = np.zeros((n_free, len(indices)))
+        self.P = np.zeros((n, len(indices)))
+        self.P[indices, np.arange(len(indices))] = signs
 
     def keep(self, alive: np.ndarray) -> None:
-        self.indices, self.signs, self.D = self.indices[alive], self.signs[alive], self.D[:, alive]
-
-    def rows(self, A_full: np.ndarray, A: np.ndarray) -> np.ndarray:
-        """``C = A p`` (m × u) of a level's rows (``A``: its free columns)."""
-        return A @ self.D + A_full[:, self.indices] * self.signs
+        self.indices, self.signs, self.P = self.indices[alive], self.signs[alive], self.P[:, alive]
 
 
 def _certify(C: np.ndarray, B: np.ndarray, Y: np.ndarray, rho: np.ndarray, norms: np.ndarray,
@@ -221,7 +220,7 @@ def _certify(C: np.ndarray, B: np.ndarray, Y: np.ndarray, rho: np.ndarray, norms
     optimum if the directions with ``λ_j ≈ 0`` change the level independently (``E`` of full column
     rank on them; else not clear-cut): their bounds hold from this level on."""
     E = C + B @ Y if B.shape[1] else C.copy()
-    size = np.sqrt(1.0 + np.einsum("ij,ij->j", directions.D, directions.D))
+    size = np.sqrt(np.einsum("ij,ij->j", directions.P, directions.P))
     scaled = E / norms[:, None] / size
     change = np.sqrt(np.einsum("ij,ij->j", scaled, scaled))
     if np.any((change >= NEGLIGIBLE) & (change <= CERTIFIED)) or not np.all(np.isfinite(change)):
@@ -240,48 +239,72 @@ def _certify(C: np.ndarray, B: np.ndarray, Y: np.ndarray, rho: np.ndarray, norms
     return ~dies, released
 
 
-def _sweep(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_lower: np.ndarray, x_upper: np.ndarray,
-           held: dict[int, float]) -> tuple[np.ndarray, list[int]] | None:
+class _Stack(NamedTuple):
+    """The levels' rows stacked once per solve: ``A`` (M × n), ``b``, the rows' norms (0 → 1: the
+    rank decisions scale the rows to unit norm) and ``starts`` (level k's rows are
+    ``starts[k]:starts[k + 1]``)."""
+
+    A: np.ndarray
+    b: np.ndarray
+    norms: np.ndarray
+    starts: list[int]
+
+    @staticmethod
+    def of(levels: Sequence[tuple[np.ndarray, np.ndarray]]) -> _Stack | None:
+        """None when the levels do not stack (rows of different widths): not clear-cut."""
+        starts = [0]
+        for A, _ in levels:
+            starts.append(starts[-1] + A.shape[0])
+        try:
+            A = levels[0][0] if len(levels) == 1 else np.vstack([A for A, _ in levels])
+            b = levels[0][1] if len(levels) == 1 else np.concatenate([b for _, b in levels])
+        except ValueError:
+            return None
+        if A.ndim != 2 or b.shape != (A.shape[0],):
+            return None
+        norms = np.sqrt(np.einsum("ij,ij->i", A, A))  # before projection, as the QP's
+        norms[norms == 0.0] = 1.0
+        return _Stack(A, b, norms, starts)
+
+
+def _sweep(stack: _Stack, x_lower: np.ndarray, x_upper: np.ndarray, held: dict[int, float]) -> tuple[np.ndarray, list[int]] | None:
     """The hierarchy with the bounds ``held`` (component → sign: +1 its lower bound, −1 its upper)
     as fixed components: ``(x, released)``, ``released`` the held bounds whose multiplier says the
-    optimum leaves them (then ``x`` is not the answer), or None when not clear-cut."""
+    optimum leaves them (then ``x`` is not the answer), or None when not clear-cut. ``x`` is kept in
+    full coordinates, and ``Z`` (what the levels so far leave free) as an n × r basis that is zero on
+    the fixed components (None: the identity on the free ones)."""
     fixed = x_lower == x_upper
     x = np.where(fixed, x_lower, 0.0)
     for index, sign in held.items():
         fixed[index] = True
         x[index] = x_lower[index] if sign > 0 else x_upper[index]
     free = ~fixed
-    n_free = int(free.sum())
-    all_free = n_free == len(x)
-    Z: np.ndarray | None = None  # None: the identity on the free components
-    r = n_free
-    x_free = np.zeros(n_free)
+    n = len(x)
+    r = int(np.count_nonzero(free))
+    all_free = r == n
+    Z: np.ndarray | None = None
     indices = np.array(list(held), dtype=int)
-    directions = _Directions(indices, np.array([held[i] for i in held], dtype=float), n_free)
+    directions = _Directions(indices, np.array([held[i] for i in held], dtype=float), n)
     u = len(indices)
+    starts = stack.starts
+    count_levels = len(starts) - 1
     i = 0
-    while i < len(levels) and (r or u):
-        # The next levels whose rows fit in what is left, stacked: solved by one QR if full rank.
-        group, total = [], 0
-        for A_full, _ in levels[i:]:
-            if not 0 < total + A_full.shape[0] <= r:
-                break
-            group.append(A_full.shape[0])
-            total += A_full.shape[0]
-        if levels[i][0].shape[0] == 0:
+    while i < count_levels and (r or u):
+        if starts[i + 1] == starts[i]:  # an empty level changes nothing
             i += 1
             continue
+        # The next levels whose rows fit in what is left, stacked: solved by one QR if full rank.
+        group, j = [], i
+        while j < count_levels and 0 < starts[j + 1] - starts[i] <= r:
+            group.append(starts[j + 1] - starts[j])
+            j += 1
         count = len(group) or 1
-        if not all_free:
-            x[free] = x_free
-        A_full = levels[i][0] if count == 1 else np.vstack([A for A, _ in levels[i : i + count]])
-        b = levels[i][1] if count == 1 else np.concatenate([b for _, b in levels[i : i + count]])
-        A = A_full if all_free else A_full[:, free]
-        residual = b - A_full @ (x_free if all_free else x)
-        B = A if Z is None else A @ Z
-        norms = np.sqrt(np.einsum("ij,ij->i", A_full, A_full))  # before projection, as the QP's
-        norms[norms == 0.0] = 1.0
-        C = directions.rows(A_full, A) if u else None
+        rows = slice(starts[i], starts[i + count])
+        A_full = stack.A[rows]
+        residual = stack.b[rows] - A_full @ x
+        B = A_full if Z is None and all_free else (A_full[:, free] if Z is None else A_full @ Z)
+        norms = stack.norms[rows]
+        C = A_full @ directions.P if u else None
         rhs = residual if C is None else np.column_stack([residual, -C])
         step: np.ndarray | None
         basis: np.ndarray | None
@@ -289,7 +312,7 @@ def _sweep(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_lower: np.ndarray,
         if prefix is not None:  # exact: every direction survives (λ = 0)
             solved, step, basis = prefix
         else:  # the first level alone
-            m = levels[i][0].shape[0]
+            m = starts[i + 1] - starts[i]
             if r:
                 step_basis = _clear_cut_step(B[:m], rhs[:m], norms[:m])
                 if step_basis is None:
@@ -307,27 +330,42 @@ def _sweep(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_lower: np.ndarray,
                 if released.any():
                     return x, [int(j) for j in directions.indices[released]]
         if step is not None:
+            if Z is not None:
+                step = Z @ step
+            elif not all_free:
+                full = np.zeros((n,) + step.shape[1:])
+                full[free] = step
+                step = full
             if C is not None:
-                directions.D += step[:, 1:] if Z is None else Z @ step[:, 1:]
+                directions.P += step[:, 1:]
                 step = step[:, 0]
-            x_free = x_free + (step if Z is None else Z @ step)
+            x += step
         if C is not None and prefix is None:
             directions.keep(alive)
             u = int(alive.sum())
         if basis is not None:
-            Z = basis if Z is None else Z @ basis
+            if Z is not None:
+                Z = Z @ basis
+            elif all_free:
+                Z = basis
+            else:
+                Z = np.zeros((n, basis.shape[1]))
+                Z[free] = basis
             r = Z.shape[1]
         i += solved
     if r and Z is not None:
-        x_free = x_free - Z @ (Z.T @ x_free)  # the minimum-norm point of what is left
-    x[free] = x_free
+        x -= Z @ (Z.T @ x)  # the minimum-norm point of what is left (Z is zero on the fixed components)
     if u:  # the final minimum-norm stage: λ_j = x · p_j ≥ 0
-        multiplier = x_free @ directions.D + x[directions.indices] * directions.signs
-        size = np.sqrt(1.0 + np.einsum("ij,ij->j", directions.D, directions.D))
+        multiplier = x @ directions.P
+        size = np.sqrt(np.einsum("ij,ij->j", directions.P, directions.P))
         released = multiplier < -MULTIPLIER_TOLERANCE * float(np.sqrt(x @ x)) * size
         if released.any():
             return x, [int(j) for j in directions.indices[released]]
     return x, []
+
+
+_NO_ROWS = np.zeros(0, dtype=int)  # the active rows of an equality level (shared, read only)
+_NO_ROWS.flags.writeable = False
 
 
 def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_lower: np.ndarray,
@@ -339,6 +377,11 @@ def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_
     one of their bounds (e.g. those of the previous tick), held first; a guess that is wrong costs
     another sweep, never the answer."""
     start = time.perf_counter()
+    if not levels:
+        return None
+    stack = _Stack.of(levels)
+    if stack is None or stack.A.shape[1] != len(x_lower):
+        return None
     n = len(x_lower)
     free = x_lower != x_upper
     held: dict[int, float] = {}
@@ -347,7 +390,7 @@ def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_
             if 0 <= index < n and free[index] and np.isfinite(bound[index]):
                 held[int(index)] = sign
     for _ in range(ACTIVE_SET_CHANGES + 1):
-        swept = _sweep(levels, x_lower, x_upper, held)
+        swept = _sweep(stack, x_lower, x_upper, held)
         if swept is None:
             return None
         x, released = swept
@@ -356,7 +399,7 @@ def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_
                 del held[index]
             continue
         below, above = x < x_lower, x > x_upper
-        if not (np.count_nonzero(below) or np.count_nonzero(above)):
+        if not (below.any() or above.any()):
             if not np.isfinite(x).all():
                 return None
             break
@@ -368,10 +411,12 @@ def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_
         held[index] = 1.0 if below[index] else -1.0
     else:
         return None
-    slacks = [A @ x - b for A, b in levels]
+    residuals = stack.A @ x - stack.b
+    starts = stack.starts
+    slacks = [residuals[starts[k] : starts[k + 1]] for k in range(len(levels))]
     return HqpResult(
-        x=x, slacks=slacks, slack_norms=np.array([float(np.sqrt(s @ s)) for s in slacks]),
-        active_rows=[np.zeros(0, dtype=int) for _ in levels],
+        x=x, slacks=slacks, slack_norms=np.array([math.sqrt(s @ s) for s in slacks]),
+        active_rows=[_NO_ROWS] * len(levels),
         active_bounds=np.flatnonzero(free & ((x <= x_lower) | (x >= x_upper))),
         solve_time_s=time.perf_counter() - start, level_solvers=[SOLVER_NAME] * len(levels),
         iterations=[0] * len(levels))

@@ -4,8 +4,8 @@ inputs, the release ramp, and short runs on RobotDynSimu and on the physics plan
 import numpy as np
 import pytest
 from pydrake.multibody.math import SpatialForce
-from pydrake.multibody.plant import ExternallyAppliedSpatialForce
-from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces
+from pydrake.multibody.plant import ExternallyAppliedSpatialForce, MultibodyPlant
+from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces, RevoluteJoint, SpatialInertia
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
@@ -17,7 +17,7 @@ from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
 from sotdrake.dynamics.solver_dyn import ActiveContact, ContactNotFound, actuated_rows, dynamic_levels, variable_bounds
 from sotdrake.dynamics.task_dyn_pd import pd_reference
-from sotdrake.dynamics.terms import acceleration_bounds, com_terms
+from sotdrake.dynamics.terms import acceleration_bounds, com_terms, gravity_columns
 from sotdrake.exceptions import InvalidInput, StackError
 from sotdrake.robots import load_talos
 from sotdrake.solvers.equality_hierarchy import solve_equality_hierarchy
@@ -111,6 +111,42 @@ def test_op_point_drift_is_the_jacobians_rate(standing, rng):
     # The base velocity is (ω, v) in the world; the device's integration takes exactly that twist.
     J_dot = (jacobian(integrate(q, v, h, layout)) - jacobian(integrate(q, v, -h, layout))) / (2 * h)
     np.testing.assert_allclose(drift, J_dot @ v, atol=1e-5 * max(1.0, np.abs(drift).max()))
+
+
+def test_gravity_from_the_mass_matrix_columns(standing, rng):
+    """``τ_g = M[:, t] g`` against Drake's generalized gravity forces at random configurations; a
+    plant for which it does not hold (gravity off for TALOS' instance) gets None."""
+    robot = standing[0]
+    plant = robot.model.plant
+    columns, g = gravity_columns(plant, Layout.of(plant))
+    pc = plant.CreateDefaultContext()
+    for _ in range(5):
+        plant.SetPositions(pc, random_configuration(robot.model, rng, 0.5))
+        tau_g = plant.CalcGravityGeneralizedForces(pc)
+        np.testing.assert_allclose(plant.CalcMassMatrix(pc)[:, columns] @ g, tau_g, rtol=0, atol=1e-10 * np.abs(tau_g).max())
+    # A floating body carrying an arm whose model instance has gravity off: τ_g is not M_tᵀ g.
+    plant = MultibodyPlant(0.0)
+    inertia = SpatialInertia.SolidBoxWithMass(1.0, 0.1, 0.2, 0.3)
+    base = plant.AddRigidBody("base", plant.AddModelInstance("robot"), inertia)
+    arm_instance = plant.AddModelInstance("weightless_arm")
+    arm = plant.AddRigidBody("arm", arm_instance, inertia)
+    plant.AddJoint(RevoluteJoint("shoulder", base.body_frame(), arm.body_frame(), [0.0, 1.0, 0.0]))
+    plant.mutable_gravity_field().set_enabled(arm_instance, False)
+    plant.Finalize()
+    assert gravity_columns(plant, Layout.of(plant)) is None
+
+
+def test_op_point_kinematics_is_its_pose_jacobian_and_drift(standing, rng):
+    """``<name>_kinematics`` (what a contact reads) holds exactly the op point's other outputs, and ``J v``."""
+    robot, diagram, *_ = standing
+    x = _random_state(robot.model, rng)
+    dynamic = robot.dynamic
+    context = dynamic.GetMyContextFromRoot(_set_state(robot, diagram, x))
+    motion = dynamic.kinematics_port("contactRF").Eval(context)
+    assert motion.pose.IsExactlyEqualTo(dynamic.GetOutputPort("contactRF").Eval(context))
+    np.testing.assert_array_equal(motion.jacobian, dynamic.GetOutputPort("JcontactRF").Eval(context))
+    np.testing.assert_array_equal(motion.drift, dynamic.drift_port("contactRF").Eval(context))
+    np.testing.assert_allclose(motion.velocity, motion.jacobian @ x[robot.model.nq :], rtol=1e-14, atol=1e-14)
 
 
 def test_com_terms_need_a_floating_base():

@@ -116,12 +116,9 @@ class RobotDyn:
                 raise InvalidInput(f"{name}: rectangle is 'sole', (x_min, x_max, y_min, y_max) or None, got {rectangle!r}")
             rectangle = self.sole_rectangle(opPoint)
         contact = self.add(Contact6d(name, self.dimension, rectangle, mu, f_min, cop_margin))
-        pose, jacobian = self.dynamic.createOpPoint(name, opPoint)
+        self.dynamic.createOpPoint(name, opPoint)
         connect = self.builder.Connect
-        connect(pose, contact.GetInputPort("position"))
-        connect(jacobian, contact.GetInputPort("jacobian"))
-        connect(self.dynamic.drift_port(name), contact.GetInputPort("drift"))
-        connect(self.dynamic.GetOutputPort("velocity"), contact.GetInputPort("velocity"))
+        connect(self.dynamic.kinematics_port(name), contact.GetInputPort("kinematics"))
         connect(contact.GetOutputPort("contact"), self.sot.declare_contact_input(contact))
         self.contacts[name] = contact
         return contact

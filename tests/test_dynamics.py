@@ -380,7 +380,7 @@ def test_a_bound_in_the_way_is_held_by_the_qr_path(standing, monkeypatch):
     np.testing.assert_allclose(solution.local_wrenches["contactRF"], reference.x[slices[1]], rtol=0, atol=1e-9 * scale)
 
     simulator.AdvanceTo(0.0005)  # the update at t = 0 remembers the bound
-    assert sot_context.get_discrete_state(sot._held_bounds).get_value()[0] == normal + 1  # at its lower bound
+    assert sot.held_bound_guess(sot_context)[0] == normal + 1  # at its lower bound
     del sweeps[:]
     simulator.AdvanceTo(0.0035)  # three more ticks, each from the remembered bound: one sweep
     assert sweeps == [{normal: 1.0}] * 3

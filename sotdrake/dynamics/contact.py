@@ -95,6 +95,20 @@ def world_wrench_map(R: np.ndarray, k: int = 6) -> np.ndarray:
     return out
 
 
+def world_wrench(R: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``diag(R, R) w`` (k = 6: ``(R n, R f)``; k = 3: ``R f``) without forming the 6×6 map."""
+    if len(w) == 3:
+        return R @ w
+    return (w.reshape(2, 3) @ R.T).reshape(6)
+
+
+def local_to_generalized(J: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """``Jᵀ diag(R, R)`` (or ``Jᵀ R`` for a point contact, J with 3 rows): the generalized force of
+    each component of the local wrench, ``J`` (k×p) the contact's Jacobian (or some of its columns)."""
+    k, p = J.shape
+    return (R.T @ J.reshape(k // 3, 3, p)).reshape(k, p).T  # each 3-row block: (Rᵀ J_b)ᵀ = J_bᵀ R
+
+
 def friction_ratio(force_world: np.ndarray, normal: np.ndarray, mu: float) -> float:
     """``‖f_t‖ / (μ f_n)`` of a force (world) against a surface of unit ``normal`` (inf if f_n ≤ 0)."""
     fn = float(force_world @ normal)

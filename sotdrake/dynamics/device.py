@@ -11,6 +11,8 @@ where ``⊕`` is the kinematic device's integration on SE(3) × joints
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
@@ -50,7 +52,7 @@ class RobotDynSimu(LeafSystem):
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         a = self.control.Eval(context)
-        if not np.all(np.isfinite(a)):
+        if not math.isfinite(a.sum()) and not np.isfinite(a).all():  # one sum first: finite unless it overflows
             raise SolverError(f"{self.get_name()}: non-finite acceleration at t = {context.get_time()}")
         x = context.get_discrete_state(self._x).get_value()
         q, v = integrate_acceleration(x[: self.nq], x[self.nq :], a, self.dt, self.layout)

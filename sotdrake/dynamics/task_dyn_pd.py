@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context, ValueProducer
+from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..exceptions import InvalidInput
@@ -79,12 +79,8 @@ class TaskDynPD(Entity[DynPDSettings]):
         self._previous = self.DeclareDiscreteState(np.zeros(1 + nv * nv))
         self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._remember)
         empty = TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
-        self._level = self.DeclareCacheEntry(
-            "level", ValueProducer(allocate=lambda: AbstractValue.Make(empty), calc=self._calc),
-            prerequisites_of_calc={self.all_sources_ticket()},
-        )
-        self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(empty), lambda c, o: o.set_value(self._level.Eval(c)))
-        self.DeclareVectorOutputPort("error_norm", 1, lambda c, o: o.SetAtIndex(0, float(np.linalg.norm(self._level.Eval(c).error))))
+        self._task = self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(empty), self._calc)
+        self.DeclareVectorOutputPort("error_norm", 1, lambda c, o: o.SetAtIndex(0, float(np.linalg.norm(self._task.Eval(c).error))))
 
     # --- settings ----------------------------------------------------------------------------
     def setGain(self, kp: float, kv: float | None = None, context: Context | None = None) -> None:
@@ -147,6 +143,8 @@ class TaskDynPD(Entity[DynPDSettings]):
         value.set_value(TaskLevel(J, rhs, rhs, e))
 
     def _sized(self, what: str, value: np.ndarray, e: np.ndarray) -> np.ndarray:
+        if type(value) is np.ndarray and value.shape == e.shape and value.dtype == float:
+            return value  # as the ports give it (the usual case)
         value = np.asarray(value, dtype=float).reshape(-1)
         if value.shape != e.shape:
             raise InvalidInput(f"{self.name}: {what} has {value.size} rows, the error has {e.size}")

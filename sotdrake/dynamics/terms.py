@@ -120,13 +120,27 @@ def joint_acceleration_bounds(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`acceleration_bounds` of the joints alone: ``(lower, upper)`` over the joints' velocities,
     from their positions ``qj``, velocities ``vj`` and limits (each already restricted to the joints)."""
+    upper = upper_acceleration_bounds(SIDES * qj, SIDES * vj, np.stack((position_upper, -position_lower)),
+                                      np.stack((velocity_upper, -velocity_lower)), horizon, margin)
+    return np.minimum(-upper[1], upper[0]), upper[0]
+
+
+#: The two sides of a joint's limits as one computation: the lower bounds are minus the upper
+#: bounds of the mirrored joint ``(−q, −v)`` with the limits ``(−q_min, −v_min)`` (exactly: negation
+#: is exact in floating point, and so is every comparison and rounding of the formula under it).
+SIDES = np.array([[1.0], [-1.0]])
+SIDES.flags.writeable = False
+
+
+def upper_acceleration_bounds(q: np.ndarray, v: np.ndarray, position_upper: np.ndarray, velocity_upper: np.ndarray,
+                              horizon: float, margin: float) -> np.ndarray:
+    """The upper bounds of :func:`acceleration_bounds` alone (any array shape, elementwise):
+    ``min(2 (q_max − margin − q − v T)/T², (v_max − v)/T)``, or ``min(0, 2 (q_max − q − v T)/T²)``
+    for the position part of a joint already inside the margin."""
     T = horizon
-    T2 = T**2
-    reach = qj + vj * T
-    up = np.where(qj > position_upper - margin, np.minimum(0.0, 2 * (position_upper - reach) / T2),
-                  2 * (position_upper - margin - reach) / T2)
-    down = np.where(qj < position_lower + margin, np.maximum(0.0, 2 * (position_lower - reach) / T2),
-                    2 * (position_lower + margin - reach) / T2)
-    np.minimum(up, (velocity_upper - vj) / T, out=up)
-    np.maximum(down, (velocity_lower - vj) / T, out=down)
-    return np.minimum(down, up, out=down), up
+    reach = q + v * T
+    limit = position_upper - margin
+    up = np.where(q > limit, np.minimum(0.0, position_upper - reach), limit - reach)
+    up *= 2
+    up /= T**2  # = 2 x / T² for each x above, min(0, ·) included (a monotone map that keeps 0)
+    return np.minimum(up, (velocity_upper - v) / T, out=up)

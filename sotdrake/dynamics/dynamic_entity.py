@@ -61,6 +61,8 @@ class DynamicEntity(Dynamic):
             prerequisites_of_calc={self.input_port_ticket(self.state.get_index())},
         )
         self._gravity = gravity_columns(plant, self.layout)  # τ_g from M, when it holds for this plant
+        base = self.layout.base_v  # the base's translational rows (com_terms)
+        self._base_rows = None if base is None else slice(base + 3, base + 6)
         self.DeclareVectorOutputPort("position", self.nq, lambda c, o: o.SetFromVector(self.state.Eval(c)[: self.nq]))
         self.DeclareVectorOutputPort("velocity", self.nv, lambda c, o: o.SetFromVector(self.state.Eval(c)[self.nq :]))
         self._dynamics = self.DeclareAbstractOutputPort("dynamics", lambda: AbstractValue.Make(self._empty_terms()), self._calc_terms)
@@ -96,11 +98,15 @@ class DynamicEntity(Dynamic):
 
     def _calc_com_jacobian(self, context: Context, output: AbstractValue) -> None:
         terms = self._dynamics.Eval(context)
-        output.set_value(com_terms(terms.M, terms.Cv, self.mass, self.layout)[0])
+        if self._base_rows is None:
+            com_terms(terms.M, terms.Cv, self.mass, self.layout)  # says why it cannot
+        output.set_value(terms.M[self._base_rows] / self.mass)  # com_terms' J_CoM alone
 
     def _calc_com_drift(self, context: Context, output: BasicVector) -> None:
         terms = self._dynamics.Eval(context)
-        output.SetFromVector(com_terms(terms.M, terms.Cv, self.mass, self.layout)[1])
+        if self._base_rows is None:
+            com_terms(terms.M, terms.Cv, self.mass, self.layout)
+        output.SetFromVector(terms.Cv[self._base_rows] / self.mass)  # com_terms' J̇_CoM v alone
 
     def createOpPoint(self, name: str, frame_name: str) -> tuple[OutputPort, OutputPort]:
         """As :meth:`Dynamic.createOpPoint`, plus the outputs ``<name>_drift`` (``J̇_WF v``) and

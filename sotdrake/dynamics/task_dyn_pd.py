@@ -114,10 +114,9 @@ class TaskDynPD(Entity[DynPDSettings]):
         J = self._inputs(context)[1]
         if J.shape[0] > self.nv:
             raise InvalidInput(f"{self.name}: a Jacobian with more rows than nv = {self.nv}")
-        memory = np.zeros(1 + self.nv * self.nv)
+        memory = state.get_mutable_value(self._previous)  # (the state as it is: entries past J's are not read)
         memory[0] = J.shape[0]
         memory[1 : 1 + J.size] = J.ravel()
-        state.set_value(self._previous, memory)
 
     def _previous_jacobian(self, context: Context) -> np.ndarray:
         memory = context.get_discrete_state(self._previous).get_value()

@@ -52,7 +52,7 @@ class RobotDynSimu(LeafSystem):
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         a = self.control.Eval(context)
-        if not math.isfinite(a.sum()) and not np.isfinite(a).all():  # one sum first: finite unless it overflows
+        if not math.isfinite(a @ a) and not np.isfinite(a).all():  # ‖a‖² first: finite unless a is not, or it overflows
             raise SolverError(f"{self.get_name()}: non-finite acceleration at t = {context.get_time()}")
         x = context.get_discrete_state(self._x).get_value()
         q, v = integrate_acceleration(x[: self.nq], x[self.nq :], a, self.dt, self.layout)

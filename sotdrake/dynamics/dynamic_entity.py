@@ -37,6 +37,9 @@ from ..kinematics import Dynamic, PlantContextHolder
 from ..robots import RobotModel
 from .terms import DynamicsTerms, OpPointMotion, com_terms, gravity_columns
 
+_ORIGIN = np.zeros(3)  # the op point is the frame's origin
+_ORIGIN.flags.writeable = False
+
 
 class DynamicEntity(Dynamic):
     """``dynamic`` over the measured state (see the module docstring)."""
@@ -78,7 +81,7 @@ class DynamicEntity(Dynamic):
 
     def _calc_state_context(self, context: Context, value: AbstractValue) -> None:
         x = self.state.Eval(context)
-        if not math.isfinite(x.sum()) and not np.isfinite(x).all():  # Drake would abort the process (one sum first)
+        if not math.isfinite(x @ x) and not np.isfinite(x).all():  # Drake would abort the process (‖x‖² first)
             raise InvalidInput(f"{self.get_name()}: non-finite state at t = {context.get_time()}")
         self.plant.SetPositionsAndVelocities(value.get_mutable_value().context, x)
 
@@ -128,9 +131,9 @@ class DynamicEntity(Dynamic):
 
     def _motion(self, context: Context, frame) -> OpPointMotion:
         plant, pc, world = self.plant, self._plant_ctx(context), self._world
-        J = plant.CalcJacobianSpatialVelocity(pc, JacobianWrtVariable.kV, frame, np.zeros(3), world, world)
-        drift = plant.CalcBiasSpatialAcceleration(pc, JacobianWrtVariable.kV, frame, np.zeros(3), world, world).get_coeffs()
-        return OpPointMotion(plant.CalcRelativeTransform(pc, world, frame), J, drift, J @ plant.GetVelocities(pc))
+        J = plant.CalcJacobianSpatialVelocity(pc, JacobianWrtVariable.kV, frame, _ORIGIN, world, world)
+        drift = plant.CalcBiasSpatialAcceleration(pc, JacobianWrtVariable.kV, frame, _ORIGIN, world, world).get_coeffs()
+        return OpPointMotion(plant.CalcRelativeTransform(pc, world, frame), J, drift, frame.CalcSpatialVelocityInWorld(pc).get_coeffs())
 
     def drift_port(self, name: str) -> OutputPort:
         return self.GetOutputPort(name + "_drift")

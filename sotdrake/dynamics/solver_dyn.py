@@ -578,10 +578,11 @@ class SolverDyn(SOT):
             J = level.jacobian
             if J.ndim != 2 or J.shape[1] != self.nv or level.lower.shape != (J.shape[0],):
                 raise SolverError(f"task {name}: jacobian {J.shape} and bounds {level.lower.shape} do not fit nv = {self.nv}")
-            # One sum each first: finite (no NaN) unless a NaN or an infinity is there or the sum
-            # overflows; only then the elementwise checks.
-            if not (math.isfinite(J.sum()) and not math.isnan(level.lower.sum())
-                    and (level.upper is level.lower or not math.isnan(level.upper.sum()))):
+            # Squared norms first (sums of squares: NaN only from a NaN, infinite from an infinity or
+            # an overflow); only when one is not finite, the elementwise checks.
+            entries = J.ravel()
+            if not (math.isfinite(entries @ entries) and not math.isnan(level.lower @ level.lower)
+                    and (level.upper is level.lower or not math.isnan(level.upper @ level.upper))):
                 if (not np.isfinite(J).all() or np.isnan(level.lower).any()
                         or (level.upper is not level.lower and np.isnan(level.upper).any())):
                     raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")

@@ -741,7 +741,7 @@ class SolverDyn(SOT):
         s = self._settings_of(context)
         solution = self._solution.Eval(context)
         local = solution.local_wrenches
-        memory = context.get_discrete_state(self._memory).get_value().copy()
+        memory = state.get_mutable_value(self._memory)  # initialized to the current state: changed in place
         ramps = self._ramps.start
         for i, name in enumerate(self._contact_ports):
             load = float(local[name][-1]) if name in local else math.nan
@@ -752,4 +752,3 @@ class SolverDyn(SOT):
             elif math.isnan(memory[r]):
                 memory[r], memory[r + 1] = context.get_time(), 0.0 if math.isnan(load) else load
         memory[self._held] = solution.diagnostics.held_bounds
-        state.set_value(self._memory, memory)

@@ -492,6 +492,30 @@ def test_task_dyn_pd_reads_a_feature_or_its_three_signals():
         np.testing.assert_allclose(level.lower, -9.0 * e - 4.0 * (J @ v + e_ref), rtol=1e-14)
 
 
+def test_task_dyn_pd_with_an_exact_drift_keeps_no_memory():
+    """``exact_drift=True`` (the CoM's wiring): the same rows as with the drift read when connected,
+    no discrete state and no per-tick update; without a dimension (no drift input) it is refused."""
+    from sotdrake.dynamics.task_dyn_pd import TaskDynPD
+    from sotdrake.features import FeatureValue
+
+    rng = np.random.default_rng(4)
+    nv = 5
+    e, J, e_ref, v, drift = rng.normal(size=2), rng.normal(size=(2, nv)), rng.normal(size=2), rng.normal(size=nv), rng.normal(size=2)
+    rows = []
+    for exact in (False, True):
+        task = TaskDynPD("task", nv, 1e-3, kp=9.0, kv=4.0, dimension=2, exact_drift=exact)
+        context = task.CreateDefaultContext()
+        assert context.num_discrete_state_groups() == (0 if exact else 1)
+        task.GetInputPort("feature").FixValue(context, FeatureValue(e, J, e_ref))
+        task.GetInputPort("velocity").FixValue(context, v)
+        task.GetInputPort("drift").FixValue(context, drift)
+        rows.append(task.GetOutputPort("task").Eval(context).lower)
+    np.testing.assert_array_equal(rows[0], rows[1])
+    np.testing.assert_allclose(rows[1], -9.0 * e - 4.0 * (J @ v + e_ref) - drift, rtol=1e-14)
+    with pytest.raises(InvalidInput, match="exact_drift"):
+        TaskDynPD("task", nv, 1e-3, exact_drift=True)
+
+
 def test_robot_dyn_simu_integrates_exactly(talos_model):
     layout = Layout.of(talos_model.plant)
     q, v = talos_model.half_sitting.copy(), np.zeros(talos_model.nv)

@@ -10,7 +10,8 @@ due to a moving reference alone), the error's rate is ``ė = J v + ė_ref`` and 
 with ``ë_ref`` the optional ``reference_acceleration`` input (default 0). ``J̇ v`` is the optional
 ``drift`` input when connected (exact, e.g. the CoM's from the dynamic entity), else the Jacobian's
 finite difference over the control tick, ``(J_k − J_{k−1})/dt · v`` (as sot-dyninv's ``TaskDynPD``
-does; the previous Jacobian is discrete state, and the first tick takes ``J̇ = 0``). Gains
+does; the previous Jacobian is discrete state, and the first tick takes ``J̇ = 0``; a task built
+with ``exact_drift=True`` has no such memory and no per-tick update: its ``drift`` is connected). Gains
 ``K_p ≥ 0`` (1/s²) and ``K_v ≥ 0`` (1/s) are settings in the Context (``setGain``, ``setKp``,
 ``setKv``); ``setGain(Kp)`` alone takes the critical damping ``K_v = 2√K_p``.
 
@@ -55,12 +56,17 @@ class TaskDynPD(Entity[DynPDSettings]):
     is_inequality = False
 
     def __init__(self, name: str, nv: int, dt: float, kp: float = 100.0, kv: float | None = None,
-                 dimension: int | None = None):
+                 dimension: int | None = None, exact_drift: bool = False):
         """``dimension``: the size of the (vector) inputs ``drift`` and ``reference_acceleration``,
-        which exist only when it is given (the feature's number of selected rows)."""
+        which exist only when it is given (the feature's number of selected rows).
+        ``exact_drift``: ``drift`` will always be connected (e.g. the CoM's ``J̇ v``), so the task
+        keeps no previous Jacobian and has no per-tick update (it needs ``dimension``)."""
         Entity.__init__(self, name, DynPDSettings())
         if not (np.isfinite(dt) and dt > 0):
             raise InvalidInput(f"{name}: dt must be > 0, got {dt}")
+        if exact_drift and dimension is None:
+            raise InvalidInput(f"{name}: exact_drift needs the drift input, i.e. a dimension")
+        self.exact_drift = bool(exact_drift)
         self.nv, self.dt = nv, float(dt)
         self.setGain(kp, kv)
         self.feature = self.DeclareAbstractInputPort(
@@ -76,8 +82,9 @@ class TaskDynPD(Entity[DynPDSettings]):
         # The previous Jacobian as discrete state (rows, then J row-major, up to nv rows): a discrete
         # update is computed from the same context as the device's and the plant's, so every
         # system of a tick sees the same J̇ (an unrestricted update would be applied before them).
-        self._previous = self.DeclareDiscreteState(np.zeros(1 + nv * nv))
-        self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._remember)
+        if not self.exact_drift:
+            self._previous = self.DeclareDiscreteState(np.zeros(1 + nv * nv))
+            self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._remember)
         empty = TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
         self._task = self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(empty), self._calc)
         self.DeclareVectorOutputPort("error_norm", 1, lambda c, o: o.SetAtIndex(0, float(np.linalg.norm(self._task.Eval(c).error))))
@@ -130,7 +137,10 @@ class TaskDynPD(Entity[DynPDSettings]):
         e_dot = J @ v
         if errordot is not None:
             e_dot = e_dot + self._sized("errordot", errordot, e)
-        drift = optional_input(self.drift, context, None) if self.drift is not None else None
+        if self.exact_drift:
+            drift = self.drift.Eval(context)  # type: ignore[union-attr]
+        else:
+            drift = optional_input(self.drift, context, None) if self.drift is not None else None
         if drift is not None:
             drift = self._sized("drift", drift, e)
         else:

@@ -145,14 +145,13 @@ def shear_weights(loads: np.ndarray | None, count: int) -> np.ndarray:
     return np.array(_shear_weights(loads, count))
 
 
-def _shear_weights(loads: np.ndarray | None, count: int) -> list[float]:
+def _shear_weights(loads: np.ndarray | list[float] | None, count: int) -> list[float]:
     """:func:`shear_weights` as Python floats (a few contacts: cheaper than numpy calls)."""
     if loads is None or count < 2:
         return [1.0] * count
-    loads = np.asarray(loads, dtype=float)
-    if loads.shape != (count,):
+    values = [float(f) for f in loads] if isinstance(loads, list) else np.asarray(loads, dtype=float).ravel().tolist()
+    if len(values) != count or (not isinstance(loads, list) and np.ndim(loads) != 1):
         return [1.0] * count
-    values = loads.tolist()
     if not all(math.isfinite(f) for f in values):
         return [1.0] * count
     mean = max(sum(max(f, 0.0) for f in values) / count, 1.0)
@@ -204,7 +203,7 @@ Rows = tuple[np.ndarray, np.ndarray, np.ndarray]  # (A, lower, upper) of one lev
 
 def dynamic_levels(
     terms: DynamicsTerms, contacts: list[ActiveContact], tasks: list[TaskLevel], damping_gain: float,
-    with_inequalities: bool = True, loads: np.ndarray | None = None, actuated: np.ndarray | None = None,
+    with_inequalities: bool = True, loads: np.ndarray | list[float] | None = None, actuated: np.ndarray | None = None,
 ) -> tuple[list[LevelRows], list[slice]]:
     """:func:`dynamic_rows` as the hierarchical QP's levels."""
     rows, slices = dynamic_rows(terms, contacts, tasks, damping_gain, with_inequalities, loads, actuated)
@@ -213,7 +212,7 @@ def dynamic_levels(
 
 def dynamic_rows(
     terms: DynamicsTerms, contacts: list[ActiveContact], tasks: list[TaskLevel], damping_gain: float,
-    with_inequalities: bool = True, loads: np.ndarray | None = None, actuated: np.ndarray | None = None,
+    with_inequalities: bool = True, loads: np.ndarray | list[float] | None = None, actuated: np.ndarray | None = None,
 ) -> tuple[list[Rows], list[slice]]:
     """The levels of the module docstring over ``x = (q̈, w…, τ)``, and the slice of each contact's
     wrench in ``x``. ``with_inequalities=False`` leaves the contacts' wrench rows out (the
@@ -599,7 +598,7 @@ class SolverDyn(SOT):
         terms = self.dynamics.Eval(context)
         contacts = self._active_contacts(context, s)
         tasks = self._tasks(context, s)
-        loads = self.previous_loads(context, [c.name for c in contacts])
+        loads = self._previous_loads(context, [c.name for c in contacts])
         slices = wrench_slices(self.nv, contacts)
         lower, upper = self._bounds(terms, s, contacts, slices)
         names = ["dynamics"] + (["contacts"] if contacts else []) + list(s.tasks) + ["damping"]
@@ -731,9 +730,14 @@ class SolverDyn(SOT):
     def previous_loads(self, context: Context, names: list[str]) -> np.ndarray | None:
         """The normal force (N) each named contact carried at the previous tick, or None if one of
         them was not held then."""
-        record = context.get_discrete_state(self._memory).get_value().tolist()  # a few floats
+        loads = self._previous_loads(context, names)
+        return None if loads is None else np.array(loads)
+
+    def _previous_loads(self, context: Context, names: list[str]) -> list[float] | None:
+        """:meth:`previous_loads` as Python floats."""
+        record = context.get_discrete_state(self._memory).get_value()[self._loads].tolist()  # a few floats
         loads = [record[self._contact_index[name]] for name in names]
-        return np.array(loads) if all(math.isfinite(f) for f in loads) else None
+        return loads if all(math.isfinite(f) for f in loads) else None
 
     def _update(self, context: Context, state) -> None:
         """Record each contact's normal force and the bounds held at the optimum; start the ramp of

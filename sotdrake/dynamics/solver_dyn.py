@@ -333,13 +333,13 @@ def actuated_rows(B: np.ndarray) -> np.ndarray | None:
 
 
 def torques_of(terms: DynamicsTerms, contacts: list[ActiveContact], slices: list[slice], y: np.ndarray,
-               actuated: np.ndarray, world: list[np.ndarray] | None = None) -> np.ndarray:
+               actuated: np.ndarray | slice, world: list[np.ndarray] | None = None) -> np.ndarray:
     """``τ`` from ``y = (q̈, w…)`` with ``B`` a selection: the actuated rows of
     ``M q̈ + h − Σ_c J_cᵀ W_c``, ``W_c = diag(R_c, R_c) w_c`` the world wrenches (``world``, when
     already computed)."""
     if world is None:
         world = [world_wrench(c.rows.rotation, y[sl]) for c, sl in zip(contacts, slices, strict=True)]
-    rows = index_rows(actuated)  # a slice for TALOS: views of M, h and the Jacobians
+    rows = actuated if isinstance(actuated, slice) else index_rows(actuated)  # a slice for TALOS: views of M, h, J
     tau = terms.M[rows] @ y[: terms.M.shape[0]] + terms.h[rows]
     for c, W in zip(contacts, world, strict=True):
         tau -= c.rows.jacobian[:, rows].T @ W
@@ -387,7 +387,8 @@ def held_bounds(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, active: np.
 def _wrench_rows_hold(contacts: list[ActiveContact], slices: list[slice], x: np.ndarray, tolerance: float = 1e-9) -> bool:
     for c, sl in zip(contacts, slices, strict=False):
         w = x[sl]
-        if (c.rows.wrench_rows @ w).max(initial=-np.inf) > tolerance * max(1.0, float(np.abs(w).max())):
+        A = c.rows.wrench_rows
+        if len(A) and np.maximum.reduce(A @ w) > tolerance * max(1.0, float(np.maximum.reduce(np.abs(w)))):
             return False
     return True
 
@@ -409,6 +410,9 @@ class SolverDyn(SOT):
         limits = model.joint_limits()
         self._limits = (limits["position_lower"], limits["position_upper"], limits["velocity_lower"], limits["velocity_upper"])
         iq, iv = self._layout.joints_q, self._layout.joints_v  # the joints' limits, indexed once
+        layout = self._layout  # and the joints' rows, as slices when contiguous (views, no copies)
+        self._joint_rows = (iq if layout.joints_q_slice is None else layout.joints_q_slice,
+                            iv if layout.joints_v_slice is None else layout.joints_v_slice)
         self._joint_limits = (self._limits[0][iq], self._limits[1][iq], self._limits[2][iv], self._limits[3][iv])
         # and stacked as (upper, −lower): both sides in one evaluation (:func:`.terms.joint_acceleration_bounds`)
         self._joint_upper_limits = (np.stack((self._joint_limits[1], -self._joint_limits[0])),
@@ -423,7 +427,7 @@ class SolverDyn(SOT):
         self.setSolver(solver)
         self._contact_ports: dict[str, InputPort] = {}
         self._hqps: dict[int, HierarchicalQP] = {}  # a cache of solvers per problem size
-        self._actuation: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # see _actuated_rows
+        self._actuation: tuple[np.ndarray | None, np.ndarray | None, slice | np.ndarray | None] = (None, None, None)  # _actuated_rows
         self._reduced_hqps: dict[int, HierarchicalQP] = {}  # the same, τ eliminated
         self._bound_templates: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # see _bounds
         self.dynamics = self.DeclareAbstractInputPort("dynamics", AbstractValue.Make(
@@ -613,8 +617,8 @@ class SolverDyn(SOT):
         # effort limits and the wrench rows hold, it is the optimum of the full hierarchy (the same
         # argument as for the wrench rows; after the damping level x is unique, so the last
         # minimum-norm stage changes nothing).
-        actuated = self._actuated_rows(terms.B)
-        if actuated is not None:
+        actuated, actuated_index = self._actuated_rows(terms.B)
+        if actuated is not None and actuated_index is not None:
             m = n - self.na
             small = self._reduced_hqps.get(m)
             if small is None:
@@ -623,7 +627,7 @@ class SolverDyn(SOT):
                 reduced, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
                 fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver)
                 world = [world_wrench(c.rows.rotation, fast.x[sl]) for c, sl in zip(contacts, slices, strict=True)]
-                tau = torques_of(terms, contacts, slices, fast.x, actuated, world)
+                tau = torques_of(terms, contacts, slices, fast.x, actuated_index, world)
                 if np.count_nonzero(np.abs(tau) > self._effort_held) == 0 and (not contacts or _wrench_rows_hold(contacts, slices, fast.x)):
                     fast.x = np.concatenate([fast.x, tau])
                     result = fast
@@ -683,7 +687,7 @@ class SolverDyn(SOT):
             template = self._bound_templates[n] = (_read_only(np.concatenate((-free, -self.effort))),
                                                    _read_only(np.concatenate((free, self.effort))))
         lower, upper = template[0].copy(), template[1].copy()
-        iq, iv = self._layout.joints_q, self._layout.joints_v
+        iq, iv = self._joint_rows
         up = upper_acceleration_bounds(SIDES * terms.q[iq], SIDES * terms.v[iv], *self._joint_upper_limits, s.horizon, s.position_margin)
         lower[iv], upper[iv] = np.minimum(-up[1], up[0]), up[0]
         if s.control_selection is not None:
@@ -692,15 +696,16 @@ class SolverDyn(SOT):
         normal_force_bounds(lower, upper, contacts, slices)
         return lower, upper
 
-    def _actuated_rows(self, B: np.ndarray) -> np.ndarray | None:
-        """:func:`actuated_rows`, kept for a read-only ``B`` (the dynamic entity's, the same array at
-        every tick): a pure cache."""
-        cached, rows = self._actuation
+    def _actuated_rows(self, B: np.ndarray) -> tuple[np.ndarray | None, slice | np.ndarray | None]:
+        """:func:`actuated_rows` and the same as :func:`index_rows` (a slice when contiguous), kept
+        for a read-only ``B`` (the dynamic entity's, the same array at every tick): a pure cache."""
+        cached, rows, index = self._actuation
         if B is not cached:
             rows = actuated_rows(B)
+            index = None if rows is None else index_rows(rows)
             if not B.flags.writeable:
-                self._actuation = (B, rows)
-        return rows
+                self._actuation = (B, rows, index)
+        return rows, index
 
     def _solve(self, context: Context, hqp: HierarchicalQP, rows: list[Rows], lower: np.ndarray, upper: np.ndarray,
                solver: str) -> HqpResult:

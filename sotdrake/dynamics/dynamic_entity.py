@@ -37,6 +37,18 @@ from ..kinematics import Dynamic, PlantContextHolder
 from ..robots import RobotModel
 from .terms import DynamicsTerms, OpPointMotion, com_terms, gravity_columns
 
+
+class StateContextHolder(PlantContextHolder):
+    """:class:`PlantContextHolder` whose context is set from the state ``x = (q, v)``, kept with it."""
+
+    def __init__(self, plant):
+        PlantContextHolder.__init__(self, plant)
+        self.x = np.zeros(plant.num_multibody_states())
+
+    def __deepcopy__(self, memo: dict) -> StateContextHolder:
+        return StateContextHolder(self.plant)
+
+
 _ORIGIN = np.zeros(3)  # the op point is the frame's origin
 _ORIGIN.flags.writeable = False
 
@@ -60,7 +72,7 @@ class DynamicEntity(Dynamic):
         self.state = self.DeclareVectorInputPort("state", self.nq + self.nv)
         self._state_context = self.DeclareCacheEntry(
             "plant_state_context",
-            ValueProducer(allocate=lambda: AbstractValue.Make(PlantContextHolder(plant)), calc=self._calc_state_context),
+            ValueProducer(allocate=lambda: AbstractValue.Make(StateContextHolder(plant)), calc=self._calc_state_context),
             prerequisites_of_calc={self.input_port_ticket(self.state.get_index())},
         )
         self._gravity = gravity_columns(plant, self.layout)  # τ_g from M, when it holds for this plant
@@ -83,13 +95,15 @@ class DynamicEntity(Dynamic):
         x = self.state.Eval(context)
         if not math.isfinite(x @ x) and not np.isfinite(x).all():  # Drake would abort the process (‖x‖² first)
             raise InvalidInput(f"{self.get_name()}: non-finite state at t = {context.get_time()}")
-        self.plant.SetPositionsAndVelocities(value.get_mutable_value().context, x)
+        holder = value.get_mutable_value()
+        self.plant.SetPositionsAndVelocities(holder.context, x)
+        holder.x = x
 
     def _calc_terms(self, context: Context, value: AbstractValue) -> None:
-        plant, pc = self.plant, self._plant_ctx(context)
+        plant, holder = self.plant, self._state_context.Eval(context)
+        pc, x = holder.context, holder.x  # x: the state input's value (a copy of its own: q and v are views of it)
         M = plant.CalcMassMatrix(pc)
         Cv = plant.CalcBiasTerm(pc)
-        x = self.state.Eval(context)  # a fresh copy: q and v are views of it
         v = x[self.nq :]
         if self._gravity is not None:
             columns, g = self._gravity

@@ -46,8 +46,12 @@ class DynPDSettings:
 def pd_reference(e: np.ndarray, e_dot: np.ndarray, kp: float, kv: float, reference_acceleration: np.ndarray | None,
                  drift: np.ndarray) -> np.ndarray:
     """``−K_p e − K_v ė + ë_ref − J̇ v``: the right-hand side of the task rows."""
-    out = -kp * e - kv * e_dot - drift
-    return out if reference_acceleration is None else out + reference_acceleration
+    out = -kp * e  # then in place, in the same order: (((−K_p e) − K_v ė) − J̇ v) + ë_ref
+    out -= kv * e_dot
+    out -= drift
+    if reference_acceleration is not None:
+        out += reference_acceleration
+    return out
 
 
 class TaskDynPD(Entity[DynPDSettings]):
@@ -136,7 +140,7 @@ class TaskDynPD(Entity[DynPDSettings]):
         v = self.velocity.Eval(context)
         e_dot = J @ v
         if errordot is not None:
-            e_dot = e_dot + self._sized("errordot", errordot, e)
+            e_dot += self._sized("errordot", errordot, e)
         if self.exact_drift:
             drift = self.drift.Eval(context)  # type: ignore[union-attr]
         else:

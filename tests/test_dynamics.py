@@ -254,6 +254,52 @@ def test_qr_path_is_the_hqps_answer_on_talos(standing, rng):
             np.testing.assert_allclose(qr.slack_norms, reference.slack_norms, rtol=1e-6, atol=1e-9 * scale)
 
 
+def test_levels_and_bounds_match_their_definitions(standing, rng):
+    """The levels and bounds the solver assembles (cached structure, views, batched products)
+    against a direct construction from the module docstring: ``[M, −J_cᵀ diag(R, R), −B] x = −h``,
+    the contacts' ``[J_c 0]``, each task's ``[J 0]``, ``[I 0]`` and the weighted regularization rows;
+    the bounds from :func:`acceleration_bounds` and :func:`variable_bounds` with the control
+    selection applied (exactly equal)."""
+    from sotdrake.dynamics.contact import world_wrench_map
+    from sotdrake.dynamics.solver_dyn import shear_weights, wrench_regularization
+
+    robot, diagram, *_ = standing
+    sot, nv, na = robot.sot, robot.model.nv, robot.sot.na
+    context = _set_state(robot, diagram, _random_state(robot.model, rng, 0.05))
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS), context)  # the grippers held
+    sot_context = sot.GetMyContextFromRoot(context)
+    s = sot._settings_of(sot_context)
+    terms = sot.dynamics.Eval(sot_context)
+    contacts = [ActiveContact(name, sot._contact_ports[name].Eval(sot_context)) for name, _ in SOLES]
+    tasks = sot._tasks(sot_context, s)
+    loads = np.array([400.0, 35.0])
+    for actuated in (None, actuated_rows(terms.B)):
+        levels, slices = dynamic_levels(terms, contacts, tasks, 10.0, False, loads, actuated)
+        n = nv + 12 + (na if actuated is None else 0)
+        maps = [world_wrench_map(c.rows.rotation) for c in contacts]
+        dynamics = np.hstack([terms.M] + [-c.rows.jacobian.T @ W for c, W in zip(contacts, maps, strict=True)] + [-terms.B])
+        h = terms.h
+        if actuated is not None:
+            passive = np.setdiff1d(np.arange(nv), actuated)
+            dynamics, h = dynamics[passive, :n], h[passive]
+        np.testing.assert_allclose(levels[0].A, dynamics, rtol=0, atol=1e-12 * np.abs(dynamics).max())
+        np.testing.assert_array_equal(levels[0].b_eq, -h)
+        np.testing.assert_array_equal(levels[1].A, np.hstack([np.vstack([c.rows.jacobian for c in contacts]), np.zeros((12, n - nv))]))
+        for level, task in zip(levels[2:-1], tasks, strict=True):
+            np.testing.assert_array_equal(level.A, np.hstack([task.jacobian, np.zeros((len(task.jacobian), n - nv))]))
+        damping = np.zeros((nv + 10, n))
+        damping[:nv, :nv] = np.eye(nv)
+        for i, (c, weight) in enumerate(zip(contacts, shear_weights(loads, 2), strict=True)):
+            damping[nv + 5 * i : nv + 5 * i + 5, nv + 6 * i : nv + 6 * i + 6] = wrench_regularization(c, 6, float(weight))
+        np.testing.assert_allclose(levels[-1].A, damping, rtol=1e-15, atol=0)
+        np.testing.assert_array_equal(levels[-1].b_eq, np.concatenate([-10.0 * terms.v, np.zeros(10)]))
+    a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, s.horizon, s.position_margin, sot.layout)
+    a_lo[~s.control_selection] = a_up[~s.control_selection] = 0.0
+    expected = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
+    for got, want in zip(sot._bounds(terms, s, contacts, slices), expected, strict=True):
+        np.testing.assert_array_equal(got, want)
+
+
 def test_friction_and_cop_rows():
     A = wrench_constraints(0.5, (-0.1, 0.1, -0.05, 0.05), 0.0)
     inside = np.array([1.0, -2.0, 0.0, 10.0, 10.0, 100.0])  # CoP (0.02, 0.01), ‖f_t‖ = 14 N ≤ 50 N

@@ -370,8 +370,6 @@ def normal_force_bounds(lower: np.ndarray, upper: np.ndarray, contacts: list[Act
             lower[normal], upper[normal] = c.rows.f_min, math.inf
 
 
-
-
 def held_bounds(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, active: np.ndarray) -> np.ndarray:
     """The components ``active`` of ``x`` at a bound, signed: ``i + 1`` at its lower bound, ``−(i + 1)``
     at its upper one, padded with 0 to :data:`HELD_BOUNDS` entries (the first ones kept)."""
@@ -754,7 +752,7 @@ class SolverDyn(SOT):
         ramps = self._ramps.start
         for i, name in enumerate(self._contact_ports):
             load = float(local[name][-1]) if name in local else math.nan
-            memory[i] = load
+            memory[self._loads.start + i] = load
             r = ramps + 2 * i
             if name not in s.releasing or name not in s.contacts:
                 memory[r] = memory[r + 1] = math.nan

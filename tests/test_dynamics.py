@@ -4,8 +4,8 @@ inputs, the release ramp, and short runs on RobotDynSimu and on the physics plan
 import numpy as np
 import pytest
 from pydrake.multibody.math import SpatialForce
-from pydrake.multibody.plant import ExternallyAppliedSpatialForce
-from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces
+from pydrake.multibody.plant import ExternallyAppliedSpatialForce, MultibodyPlant
+from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces, RevoluteJoint, SpatialInertia
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
@@ -17,7 +17,7 @@ from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
 from sotdrake.dynamics.solver_dyn import ActiveContact, ContactNotFound, actuated_rows, dynamic_levels, variable_bounds
 from sotdrake.dynamics.task_dyn_pd import pd_reference
-from sotdrake.dynamics.terms import acceleration_bounds, com_terms
+from sotdrake.dynamics.terms import acceleration_bounds, com_terms, gravity_columns
 from sotdrake.exceptions import InvalidInput, StackError
 from sotdrake.robots import load_talos
 from sotdrake.solvers.equality_hierarchy import solve_equality_hierarchy
@@ -111,6 +111,42 @@ def test_op_point_drift_is_the_jacobians_rate(standing, rng):
     # The base velocity is (ω, v) in the world; the device's integration takes exactly that twist.
     J_dot = (jacobian(integrate(q, v, h, layout)) - jacobian(integrate(q, v, -h, layout))) / (2 * h)
     np.testing.assert_allclose(drift, J_dot @ v, atol=1e-5 * max(1.0, np.abs(drift).max()))
+
+
+def test_gravity_from_the_mass_matrix_columns(standing, rng):
+    """``τ_g = M[:, t] g`` against Drake's generalized gravity forces at random configurations; a
+    plant for which it does not hold (gravity off for TALOS' instance) gets None."""
+    robot = standing[0]
+    plant = robot.model.plant
+    columns, g = gravity_columns(plant, Layout.of(plant))
+    pc = plant.CreateDefaultContext()
+    for _ in range(5):
+        plant.SetPositions(pc, random_configuration(robot.model, rng, 0.5))
+        tau_g = plant.CalcGravityGeneralizedForces(pc)
+        np.testing.assert_allclose(plant.CalcMassMatrix(pc)[:, columns] @ g, tau_g, rtol=0, atol=1e-10 * np.abs(tau_g).max())
+    # A floating body carrying an arm whose model instance has gravity off: τ_g is not M_tᵀ g.
+    plant = MultibodyPlant(0.0)
+    inertia = SpatialInertia.SolidBoxWithMass(1.0, 0.1, 0.2, 0.3)
+    base = plant.AddRigidBody("base", plant.AddModelInstance("robot"), inertia)
+    arm_instance = plant.AddModelInstance("weightless_arm")
+    arm = plant.AddRigidBody("arm", arm_instance, inertia)
+    plant.AddJoint(RevoluteJoint("shoulder", base.body_frame(), arm.body_frame(), [0.0, 1.0, 0.0]))
+    plant.mutable_gravity_field().set_enabled(arm_instance, False)
+    plant.Finalize()
+    assert gravity_columns(plant, Layout.of(plant)) is None
+
+
+def test_op_point_kinematics_is_its_pose_jacobian_and_drift(standing, rng):
+    """``<name>_kinematics`` (what a contact reads) holds exactly the op point's other outputs, and ``J v``."""
+    robot, diagram, *_ = standing
+    x = _random_state(robot.model, rng)
+    dynamic = robot.dynamic
+    context = dynamic.GetMyContextFromRoot(_set_state(robot, diagram, x))
+    motion = dynamic.kinematics_port("contactRF").Eval(context)
+    assert motion.pose.IsExactlyEqualTo(dynamic.GetOutputPort("contactRF").Eval(context))
+    np.testing.assert_array_equal(motion.jacobian, dynamic.GetOutputPort("JcontactRF").Eval(context))
+    np.testing.assert_array_equal(motion.drift, dynamic.drift_port("contactRF").Eval(context))
+    np.testing.assert_allclose(motion.velocity, motion.jacobian @ x[robot.model.nq :], rtol=1e-14, atol=1e-14)
 
 
 def test_com_terms_need_a_floating_base():
@@ -216,6 +252,52 @@ def test_qr_path_is_the_hqps_answer_on_talos(standing, rng):
             scale = np.abs(reference.x).max()
             np.testing.assert_allclose(qr.x, reference.x, rtol=0, atol=1e-9 * scale)
             np.testing.assert_allclose(qr.slack_norms, reference.slack_norms, rtol=1e-6, atol=1e-9 * scale)
+
+
+def test_levels_and_bounds_match_their_definitions(standing, rng):
+    """The levels and bounds the solver assembles (cached structure, views, batched products)
+    against a direct construction from the module docstring: ``[M, −J_cᵀ diag(R, R), −B] x = −h``,
+    the contacts' ``[J_c 0]``, each task's ``[J 0]``, ``[I 0]`` and the weighted regularization rows;
+    the bounds from :func:`acceleration_bounds` and :func:`variable_bounds` with the control
+    selection applied (exactly equal)."""
+    from sotdrake.dynamics.contact import world_wrench_map
+    from sotdrake.dynamics.solver_dyn import shear_weights, wrench_regularization
+
+    robot, diagram, *_ = standing
+    sot, nv, na = robot.sot, robot.model.nv, robot.sot.na
+    context = _set_state(robot, diagram, _random_state(robot.model, rng, 0.05))
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS), context)  # the grippers held
+    sot_context = sot.GetMyContextFromRoot(context)
+    s = sot._settings_of(sot_context)
+    terms = sot.dynamics.Eval(sot_context)
+    contacts = [ActiveContact(name, sot._contact_ports[name].Eval(sot_context)) for name, _ in SOLES]
+    tasks = sot._tasks(sot_context, s)
+    loads = np.array([400.0, 35.0])
+    for actuated in (None, actuated_rows(terms.B)):
+        levels, slices = dynamic_levels(terms, contacts, tasks, 10.0, False, loads, actuated)
+        n = nv + 12 + (na if actuated is None else 0)
+        maps = [world_wrench_map(c.rows.rotation) for c in contacts]
+        dynamics = np.hstack([terms.M] + [-c.rows.jacobian.T @ W for c, W in zip(contacts, maps, strict=True)] + [-terms.B])
+        h = terms.h
+        if actuated is not None:
+            passive = np.setdiff1d(np.arange(nv), actuated)
+            dynamics, h = dynamics[passive, :n], h[passive]
+        np.testing.assert_allclose(levels[0].A, dynamics, rtol=0, atol=1e-12 * np.abs(dynamics).max())
+        np.testing.assert_array_equal(levels[0].b_eq, -h)
+        np.testing.assert_array_equal(levels[1].A, np.hstack([np.vstack([c.rows.jacobian for c in contacts]), np.zeros((12, n - nv))]))
+        for level, task in zip(levels[2:-1], tasks, strict=True):
+            np.testing.assert_array_equal(level.A, np.hstack([task.jacobian, np.zeros((len(task.jacobian), n - nv))]))
+        damping = np.zeros((nv + 10, n))
+        damping[:nv, :nv] = np.eye(nv)
+        for i, (c, weight) in enumerate(zip(contacts, shear_weights(loads, 2), strict=True)):
+            damping[nv + 5 * i : nv + 5 * i + 5, nv + 6 * i : nv + 6 * i + 6] = wrench_regularization(c, 6, float(weight))
+        np.testing.assert_allclose(levels[-1].A, damping, rtol=1e-15, atol=0)
+        np.testing.assert_array_equal(levels[-1].b_eq, np.concatenate([-10.0 * terms.v, np.zeros(10)]))
+    a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, s.horizon, s.position_margin, sot.layout)
+    a_lo[~s.control_selection] = a_up[~s.control_selection] = 0.0
+    expected = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
+    for got, want in zip(sot._bounds(terms, s, contacts, slices), expected, strict=True):
+        np.testing.assert_array_equal(got, want)
 
 
 def test_friction_and_cop_rows():
@@ -344,7 +426,7 @@ def test_a_bound_in_the_way_is_held_by_the_qr_path(standing, monkeypatch):
     np.testing.assert_allclose(solution.local_wrenches["contactRF"], reference.x[slices[1]], rtol=0, atol=1e-9 * scale)
 
     simulator.AdvanceTo(0.0005)  # the update at t = 0 remembers the bound
-    assert sot_context.get_discrete_state(sot._held_bounds).get_value()[0] == normal + 1  # at its lower bound
+    assert sot.held_bound_guess(sot_context)[0] == normal + 1  # at its lower bound
     del sweeps[:]
     simulator.AdvanceTo(0.0035)  # three more ticks, each from the remembered bound: one sweep
     assert sweeps == [{normal: 1.0}] * 3
@@ -454,6 +536,30 @@ def test_task_dyn_pd_reads_a_feature_or_its_three_signals():
     for level in rows:
         np.testing.assert_array_equal(level.jacobian, J)
         np.testing.assert_allclose(level.lower, -9.0 * e - 4.0 * (J @ v + e_ref), rtol=1e-14)
+
+
+def test_task_dyn_pd_with_an_exact_drift_keeps_no_memory():
+    """``exact_drift=True`` (the CoM's wiring): the same rows as with the drift read when connected,
+    no discrete state and no per-tick update; without a dimension (no drift input) it is refused."""
+    from sotdrake.dynamics.task_dyn_pd import TaskDynPD
+    from sotdrake.features import FeatureValue
+
+    rng = np.random.default_rng(4)
+    nv = 5
+    e, J, e_ref, v, drift = rng.normal(size=2), rng.normal(size=(2, nv)), rng.normal(size=2), rng.normal(size=nv), rng.normal(size=2)
+    rows = []
+    for exact in (False, True):
+        task = TaskDynPD("task", nv, 1e-3, kp=9.0, kv=4.0, dimension=2, exact_drift=exact)
+        context = task.CreateDefaultContext()
+        assert context.num_discrete_state_groups() == (0 if exact else 1)
+        task.GetInputPort("feature").FixValue(context, FeatureValue(e, J, e_ref))
+        task.GetInputPort("velocity").FixValue(context, v)
+        task.GetInputPort("drift").FixValue(context, drift)
+        rows.append(task.GetOutputPort("task").Eval(context).lower)
+    np.testing.assert_array_equal(rows[0], rows[1])
+    np.testing.assert_allclose(rows[1], -9.0 * e - 4.0 * (J @ v + e_ref) - drift, rtol=1e-14)
+    with pytest.raises(InvalidInput, match="exact_drift"):
+        TaskDynPD("task", nv, 1e-3, exact_drift=True)
 
 
 def test_robot_dyn_simu_integrates_exactly(talos_model):

@@ -39,6 +39,7 @@ from pydrake.systems.framework import Context
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite, check_number
 from .checks import MAX_FRICTION, MAX_NORMAL_FORCE, MAX_RATE_GAIN, MAX_SOLE, check_count, check_positive
+from .terms import OpPointMotion
 
 
 class ContactRows(NamedTuple):
@@ -95,6 +96,20 @@ def world_wrench_map(R: np.ndarray, k: int = 6) -> np.ndarray:
     return out
 
 
+def world_wrench(R: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``diag(R, R) w`` (k = 6: ``(R n, R f)``; k = 3: ``R f``) without forming the 6×6 map."""
+    if len(w) == 3:
+        return R @ w
+    return (w.reshape(2, 3) @ R.T).reshape(6)
+
+
+def local_to_generalized(J: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """``Jᵀ diag(R, R)`` (or ``Jᵀ R`` for a point contact, J with 3 rows): the generalized force of
+    each component of the local wrench, ``J`` (k×p) the contact's Jacobian (or some of its columns)."""
+    k, p = J.shape
+    return (R.T @ J.reshape(k // 3, 3, p)).reshape(k, p).T  # each 3-row block: (Rᵀ J_b)ᵀ = J_bᵀ R
+
+
 def friction_ratio(force_world: np.ndarray, normal: np.ndarray, mu: float) -> float:
     """``‖f_t‖ / (μ f_n)`` of a force (world) against a surface of unit ``normal`` (inf if f_n ≤ 0)."""
     fn = float(force_world @ normal)
@@ -111,8 +126,9 @@ class ContactSettings:
 
 
 class Contact6d(Entity[ContactSettings]):
-    """A contact entity (sot-dyninv's ``contactLF``). Inputs ``position`` (``X_WC``), ``jacobian``
-    (``J_WC``), ``drift`` (``J̇_WC v``), ``velocity`` (v). Output ``contact``: :class:`ContactRows`.
+    """A contact entity (sot-dyninv's ``contactLF``). Input ``kinematics``: the op point's
+    :class:`~.terms.OpPointMotion` (``X_WC``, ``J_WC``, ``J̇_WC v``, ``J_WC v``; the dynamic
+    entity's ``<name>_kinematics``). Output ``contact``: :class:`ContactRows`.
     ``rectangle = (x_min, x_max, y_min, y_max)`` (m, in C) is the sole; None for a point contact."""
 
     def __init__(self, name: str, nv: int, rectangle: tuple[float, float, float, float] | None,
@@ -128,10 +144,8 @@ class Contact6d(Entity[ContactSettings]):
         self.setFriction(mu)
         self.setMinimumNormalForce(f_min)
         self.setCopMargin(cop_margin)
-        self.position = self.DeclareAbstractInputPort("position", AbstractValue.Make(RigidTransform()))
-        self.jacobian = self.DeclareAbstractInputPort("jacobian", AbstractValue.Make(np.zeros((6, nv))))
-        self.drift = self.DeclareVectorInputPort("drift", 6)
-        self.velocity = self.DeclareVectorInputPort("velocity", nv)
+        self.kinematics = self.DeclareAbstractInputPort(
+            "kinematics", AbstractValue.Make(OpPointMotion(RigidTransform(), np.zeros((6, nv)), np.zeros(6), np.zeros(6))))
         k = 6 if rectangle is not None else 3
         self._rows = slice(0, 6) if self.rectangle is not None else slice(3, 6)  # of J_WC and J̇_WC v
         self._centre = (0.0, 0.0) if self.rectangle is None else \
@@ -169,10 +183,10 @@ class Contact6d(Entity[ContactSettings]):
     def _calc(self, context: Context, output: AbstractValue) -> None:
         s = self._settings_of(context)
         rows = self._rows
-        J = self.jacobian.Eval(context)[rows]
-        acceleration = -self.drift.Eval(context)[rows]
+        motion = self.kinematics.Eval(context)
+        J = motion.jacobian[rows]
+        acceleration = -motion.drift[rows]
         if s.velocity_gain:
-            acceleration = acceleration - s.velocity_gain * (J @ self.velocity.Eval(context))
+            acceleration = acceleration - s.velocity_gain * motion.velocity[rows]
         A = wrench_constraints(s.mu, self.rectangle, s.cop_margin)
-        R = self.position.Eval(context).rotation().matrix()
-        output.set_value(ContactRows(J, acceleration, R, A, s.f_min, s.mu, self._centre))
+        output.set_value(ContactRows(J, acceleration, motion.pose.rotation().matrix(), A, s.f_min, s.mu, self._centre))

@@ -11,6 +11,8 @@ where ``⊕`` is the kinematic device's integration on SE(3) × joints
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
@@ -59,8 +61,7 @@ class RobotDynSimu(LeafSystem):
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         a = self.control.Eval(context)
-        if not np.all(np.isfinite(a)):
+        if not math.isfinite(a @ a) and not np.isfinite(a).all():  # ‖a‖² first: finite unless a is not, or it overflows
             raise SolverError(f"{self.get_name()}: non-finite acceleration at t = {context.get_time()}")
-        x = context.get_discrete_state(self._x).get_value()
-        q, v = integrate_acceleration(x[: self.nq], x[self.nq :], a, self.dt, self.layout)
-        discrete_state.set_value(self._x, np.concatenate([q, v]))
+        x = discrete_state.get_mutable_value(self._x)  # initialized to the current state: updated in place
+        x[: self.nq], x[self.nq :] = integrate_acceleration(x[: self.nq], x[self.nq :], a, self.dt, self.layout)

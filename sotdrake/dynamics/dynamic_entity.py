@@ -7,19 +7,27 @@ Input ``state`` (``(q, v)``, size nq + nv). Outputs:
 * ``com`` (``p_WCm``, m), ``Jcom`` (3×nv), ``com_drift`` (``J̇_CoM v``, m/s²), the last two from
   the floating-base rows of ``M`` and ``C v`` (:func:`.terms.com_terms`);
 * ``dynamics``: :class:`.terms.DynamicsTerms` (``M`` from ``CalcMassMatrix``, ``C v`` from
-  ``CalcBiasTerm``, ``τ_g`` from ``CalcGravityGeneralizedForces``, ``h = C v − τ_g + D v`` with
-  ``D`` the joints' damping, ``B`` from ``MakeActuationMatrix``);
+  ``CalcBiasTerm``, ``τ_g = M[:, t] g`` from the base's translational columns of ``M``
+  (:func:`.terms.gravity_columns`, checked at construction; else Drake's
+  ``CalcGravityGeneralizedForces``), ``h = C v − τ_g + D v`` with ``D`` the joints' damping, ``B``
+  from ``MakeActuationMatrix``);
 * per op point (:meth:`createOpPoint`): ``<name>`` (``X_WF``), ``J<name>`` (``J_WF``, rows
-  ``(ω; v)`` world) and ``<name>_drift`` (``J̇_WF v``, the bias spatial acceleration of F's origin,
-  ``CalcBiasSpatialAcceleration``, rows ``(α; a)`` world).
+  ``(ω; v)`` world), ``<name>_drift`` (``J̇_WF v``, the bias spatial acceleration of F's origin,
+  ``CalcBiasSpatialAcceleration``, rows ``(α; a)`` world) and ``<name>_kinematics`` (all of it and
+  ``J_WF v`` in one :class:`.terms.OpPointMotion`: what a contact reads, one port instead of four).
 
-The plant context lives in one cache entry that depends on ``state`` only.
+The plant context lives in one cache entry that depends on ``state`` only. Every other output is
+computed by its port (Drake caches each output port's value): ``com_drift`` and ``Jcom`` read the
+``dynamics`` port.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import BasicVector, Context, OutputPort, ValueProducer
 
@@ -27,7 +35,22 @@ from ..configuration import Layout
 from ..exceptions import InvalidInput
 from ..kinematics import Dynamic, PlantContextHolder
 from ..robots import RobotModel
-from .terms import DynamicsTerms, com_terms
+from .terms import DynamicsTerms, OpPointMotion, com_terms, gravity_columns
+
+
+class StateContextHolder(PlantContextHolder):
+    """:class:`PlantContextHolder` whose context is set from the state ``x = (q, v)``, kept with it."""
+
+    def __init__(self, plant):
+        PlantContextHolder.__init__(self, plant)
+        self.x = np.zeros(plant.num_multibody_states())
+
+    def __deepcopy__(self, memo: dict) -> StateContextHolder:
+        return StateContextHolder(self.plant)
+
+
+_ORIGIN = np.zeros(3)  # the op point is the frame's origin
+_ORIGIN.flags.writeable = False
 
 
 class DynamicEntity(Dynamic):
@@ -49,18 +72,15 @@ class DynamicEntity(Dynamic):
         self.state = self.DeclareVectorInputPort("state", self.nq + self.nv)
         self._state_context = self.DeclareCacheEntry(
             "plant_state_context",
-            ValueProducer(allocate=lambda: AbstractValue.Make(PlantContextHolder(plant)), calc=self._calc_state_context),
+            ValueProducer(allocate=lambda: AbstractValue.Make(StateContextHolder(plant)), calc=self._calc_state_context),
             prerequisites_of_calc={self.input_port_ticket(self.state.get_index())},
         )
-        self._terms = self.DeclareCacheEntry(
-            "dynamics_terms",
-            ValueProducer(allocate=lambda: AbstractValue.Make(self._empty_terms()), calc=self._calc_terms),
-            prerequisites_of_calc={self.cache_entry_ticket(self._state_context.cache_index())},
-        )
+        self._gravity = gravity_columns(plant, self.layout)  # τ_g from M, when it holds for this plant
+        base = self.layout.base_v  # the base's translational rows (com_terms)
+        self._base_rows = None if base is None else slice(base + 3, base + 6)
         self.DeclareVectorOutputPort("position", self.nq, lambda c, o: o.SetFromVector(self.state.Eval(c)[: self.nq]))
         self.DeclareVectorOutputPort("velocity", self.nv, lambda c, o: o.SetFromVector(self.state.Eval(c)[self.nq :]))
-        self.DeclareAbstractOutputPort("dynamics", lambda: AbstractValue.Make(self._empty_terms()),
-                                       lambda c, o: o.set_value(self._terms.Eval(c)))
+        self._dynamics = self.DeclareAbstractOutputPort("dynamics", lambda: AbstractValue.Make(self._empty_terms()), self._calc_terms)
         self.DeclareVectorOutputPort("com_drift", 3, self._calc_com_drift)
 
     def _empty_terms(self) -> DynamicsTerms:
@@ -73,33 +93,48 @@ class DynamicEntity(Dynamic):
 
     def _calc_state_context(self, context: Context, value: AbstractValue) -> None:
         x = self.state.Eval(context)
-        if not np.all(np.isfinite(x)):  # Drake would abort the process
+        if not math.isfinite(x @ x) and not np.isfinite(x).all():  # Drake would abort the process (‖x‖² first)
             raise InvalidInput(f"{self.get_name()}: non-finite state at t = {context.get_time()}")
-        self.plant.SetPositionsAndVelocities(value.get_mutable_value().context, x)
+        holder = value.get_mutable_value()
+        self.plant.SetPositionsAndVelocities(holder.context, x)
+        holder.x = x
 
     def _calc_terms(self, context: Context, value: AbstractValue) -> None:
-        plant, pc = self.plant, self._plant_ctx(context)
+        plant, holder = self.plant, self._state_context.Eval(context)
+        pc, x = holder.context, holder.x  # x: the state input's value (a copy of its own: q and v are views of it)
         M = plant.CalcMassMatrix(pc)
         Cv = plant.CalcBiasTerm(pc)
-        x = self.state.Eval(context)  # a fresh copy: q and v are views of it
         v = x[self.nq :]
-        h = Cv - plant.CalcGravityGeneralizedForces(pc) + self.damping * v
+        if self._gravity is not None:
+            columns, g = self._gravity
+            h = Cv - M[:, columns] @ g
+        else:
+            h = Cv - plant.CalcGravityGeneralizedForces(pc)
+        h += self.damping * v
         value.set_value(DynamicsTerms(M, h, Cv, self.B, x[: self.nq], v, self.mass))
 
     def _calc_com_jacobian(self, context: Context, output: AbstractValue) -> None:
-        terms = self._terms.Eval(context)
-        output.set_value(com_terms(terms.M, terms.Cv, self.mass, self.layout)[0])
+        terms = self._dynamics.Eval(context)
+        if self._base_rows is None:
+            com_terms(terms.M, terms.Cv, self.mass, self.layout)  # says why it cannot
+        output.set_value(terms.M[self._base_rows] / self.mass)  # com_terms' J_CoM alone
 
     def _calc_com_drift(self, context: Context, output: BasicVector) -> None:
-        terms = self._terms.Eval(context)
-        output.SetFromVector(com_terms(terms.M, terms.Cv, self.mass, self.layout)[1])
+        terms = self._dynamics.Eval(context)
+        if self._base_rows is None:
+            com_terms(terms.M, terms.Cv, self.mass, self.layout)
+        output.SetFromVector(terms.Cv[self._base_rows] / self.mass)  # com_terms' J̇_CoM v alone
 
     def createOpPoint(self, name: str, frame_name: str) -> tuple[OutputPort, OutputPort]:
-        """As :meth:`Dynamic.createOpPoint`, plus the output ``<name>_drift`` (``J̇_WF v``)."""
+        """As :meth:`Dynamic.createOpPoint`, plus the outputs ``<name>_drift`` (``J̇_WF v``) and
+        ``<name>_kinematics`` (:class:`.terms.OpPointMotion`)."""
         pose, jacobian = Dynamic.createOpPoint(self, name, frame_name)
         if not self.HasOutputPort(name + "_drift"):
             frame = self._op_points[name][0]
             self.DeclareVectorOutputPort(name + "_drift", 6, lambda c, o, f=frame: o.SetFromVector(self._drift(c, f)))
+            empty = OpPointMotion(RigidTransform(), np.zeros((6, self.nv)), np.zeros(6), np.zeros(6))
+            self.DeclareAbstractOutputPort(name + "_kinematics", lambda: AbstractValue.Make(empty),
+                                           lambda c, o, f=frame: o.set_value(self._motion(c, f)))
         return pose, jacobian
 
     def _drift(self, context: Context, frame) -> np.ndarray:
@@ -108,5 +143,15 @@ class DynamicEntity(Dynamic):
         )
         return A.get_coeffs()
 
+    def _motion(self, context: Context, frame) -> OpPointMotion:
+        plant, pc, world = self.plant, self._plant_ctx(context), self._world
+        J = plant.CalcJacobianSpatialVelocity(pc, JacobianWrtVariable.kV, frame, _ORIGIN, world, world)
+        drift = plant.CalcBiasSpatialAcceleration(pc, JacobianWrtVariable.kV, frame, _ORIGIN, world, world).get_coeffs()
+        return OpPointMotion(plant.CalcRelativeTransform(pc, world, frame), J, drift, frame.CalcSpatialVelocityInWorld(pc).get_coeffs())
+
     def drift_port(self, name: str) -> OutputPort:
         return self.GetOutputPort(name + "_drift")
+
+    def kinematics_port(self, name: str) -> OutputPort:
+        """The output ``<name>_kinematics`` of op point ``name`` (:meth:`createOpPoint` first)."""
+        return self.GetOutputPort(name + "_kinematics")

@@ -18,9 +18,10 @@ from .task_dyn_pd import TaskDynPD
 
 
 class _MetaTaskDyn:
-    def _finish(self, robot: RobotDyn, name: str, feature, kp: float, kv: float | None, dimension: int | None = None) -> None:
+    def _finish(self, robot: RobotDyn, name: str, feature, kp: float, kv: float | None, dimension: int | None = None,
+                exact_drift: bool = False) -> None:
         self.robot, self.name, self.feature = robot, name, feature
-        self.task = robot.add_task(TaskDynPD("task" + name, robot.dimension, robot.dt, kp, kv, dimension))
+        self.task = robot.add_task(TaskDynPD("task" + name, robot.dimension, robot.dt, kp, kv, dimension, exact_drift))
         robot.builder.Connect(feature.GetOutputPort("signals"), self.task.GetInputPort("feature"))
 
 
@@ -64,7 +65,7 @@ class MetaTaskDynCom(_MetaTaskDyn):
         connect(robot.dynamic.GetOutputPort("Jcom"), feature.GetInputPort("jacobianIN"))
         connect(self.featureDes.GetOutputPort("errorIN"), feature.GetInputPort("reference"))
         connect(self.featureDes.GetOutputPort("velocity"), feature.GetInputPort("reference_velocity"))
-        self._finish(robot, name, feature, kp, kv, dimension=3)
+        self._finish(robot, name, feature, kp, kv, dimension=3, exact_drift=True)
         connect(robot.dynamic.GetOutputPort("com_drift"), self.task.GetInputPort("drift"))
         self.keep()
 

@@ -127,12 +127,9 @@ class RobotDyn:
             raise InvalidInput(f"{name}: {self.sot.name} was built for {self.sot.max_contacts} contacts (RobotDyn's max_contacts), "
                                f"it has {self.sot.known_contacts}")
         contact = self.add(Contact6d(name, self.dimension, rectangle, mu, f_min, cop_margin))
-        pose, jacobian = self.dynamic.createOpPoint(name, opPoint)
+        self.dynamic.createOpPoint(name, opPoint)
         connect = self.builder.Connect
-        connect(pose, contact.GetInputPort("position"))
-        connect(jacobian, contact.GetInputPort("jacobian"))
-        connect(self.dynamic.drift_port(name), contact.GetInputPort("drift"))
-        connect(self.dynamic.GetOutputPort("velocity"), contact.GetInputPort("velocity"))
+        connect(self.dynamic.kinematics_port(name), contact.GetInputPort("kinematics"))
         connect(contact.GetOutputPort("contact"), self.sot.declare_contact_input(contact))
         self.contacts[name] = contact
         return contact

@@ -71,13 +71,15 @@ from ..solvers.hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, chec
 from ..solvers.sot import SOT, StackSettings
 from ..task import TaskLevel
 from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, MAX_RELEASE, check_count, check_positive
-from .contact import Contact6d, ContactRows, world_wrench_map
-from .terms import DynamicsTerms, joint_acceleration_bounds
+from .contact import Contact6d, ContactRows, local_to_generalized, world_wrench
+from .terms import SIDES, DynamicsTerms, upper_acceleration_bounds
 
 log = logging.getLogger("sotdrake.solver_dyn")
 
 
 WRENCH_REGULARIZATION = 1e-3
+#: How many bounds at the optimum the solver remembers from one tick to the next.
+HELD_BOUNDS = 8
 
 
 class ContactNotFound(NotFound):
@@ -93,16 +95,25 @@ class DynSettings(StackSettings):
     solver: str = ACTIVE_SET
 
 
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.flags.writeable = False
+    return array
+
+
+_NO_VALUES, _NO_INDICES = _read_only(np.zeros(0)), _read_only(np.zeros(0, dtype=int))
+_NO_HELD_BOUNDS = _read_only(np.zeros(HELD_BOUNDS))
+
+
 @dataclass
 class DynDiagnostics:
     levels: list[str] = field(default_factory=list)
-    slack_norms: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    slack_norms: np.ndarray = field(default_factory=lambda: _NO_VALUES)
     level_solvers: list[str] = field(default_factory=list)
-    active_bounds: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    active_bounds: np.ndarray = field(default_factory=lambda: _NO_INDICES)
     solve_time_s: float = 0.0
     failure: str = ""
     torques_eliminated: bool = False  # solved over (q̈, w) with τ eliminated (the fast path)
-    held_bounds: np.ndarray = field(default_factory=lambda: np.zeros(HELD_BOUNDS))  # see held_bounds()
+    held_bounds: np.ndarray = field(default_factory=lambda: _NO_HELD_BOUNDS)  # see held_bounds()
 
 
 @dataclass
@@ -132,17 +143,21 @@ def shear_weights(loads: np.ndarray | None, count: int) -> np.ndarray:
     from the normal forces ``loads`` (N) the contacts carried at the previous tick; ones if there
     is no such record (NaN: a new contact) or a single contact. Each load is floored at 1 % of the
     mean (and 1 N), so a contact that carried nothing gets a large, finite weight."""
+    return np.array(_shear_weights(loads, count))
+
+
+def _shear_weights(loads: np.ndarray | list[float] | None, count: int) -> list[float]:
+    """:func:`shear_weights` as Python floats (a few contacts: cheaper than numpy calls)."""
     if loads is None or count < 2:
-        return np.ones(count)
-    loads = np.asarray(loads, dtype=float)
-    if loads.shape != (count,):
-        return np.ones(count)
-    values = loads.tolist()  # a few contacts: Python floats cost less than numpy calls
+        return [1.0] * count
+    values = [float(f) for f in loads] if isinstance(loads, list) else np.asarray(loads, dtype=float).ravel().tolist()
+    if len(values) != count or (not isinstance(loads, list) and np.ndim(loads) != 1):
+        return [1.0] * count
     if not all(math.isfinite(f) for f in values):
-        return np.ones(count)
+        return [1.0] * count
     mean = max(sum(max(f, 0.0) for f in values) / count, 1.0)
     floor = max(0.01 * mean, 1.0)
-    return np.array([math.sqrt(mean / max(f, floor)) for f in values])
+    return [math.sqrt(mean / max(f, floor)) for f in values]
 
 
 def wrench_regularization(contact: ActiveContact, k: int, weight: float) -> np.ndarray:
@@ -189,7 +204,7 @@ Rows = tuple[np.ndarray, np.ndarray, np.ndarray]  # (A, lower, upper) of one lev
 
 def dynamic_levels(
     terms: DynamicsTerms, contacts: list[ActiveContact], tasks: list[TaskLevel], damping_gain: float,
-    with_inequalities: bool = True, loads: np.ndarray | None = None, actuated: np.ndarray | None = None,
+    with_inequalities: bool = True, loads: np.ndarray | list[float] | None = None, actuated: np.ndarray | None = None,
 ) -> tuple[list[LevelRows], list[slice]]:
     """:func:`dynamic_rows` as the hierarchical QP's levels."""
     rows, slices = dynamic_rows(terms, contacts, tasks, damping_gain, with_inequalities, loads, actuated)
@@ -198,67 +213,115 @@ def dynamic_levels(
 
 def dynamic_rows(
     terms: DynamicsTerms, contacts: list[ActiveContact], tasks: list[TaskLevel], damping_gain: float,
-    with_inequalities: bool = True, loads: np.ndarray | None = None, actuated: np.ndarray | None = None,
+    with_inequalities: bool = True, loads: np.ndarray | list[float] | None = None, actuated: np.ndarray | None = None,
 ) -> tuple[list[Rows], list[slice]]:
     """The levels of the module docstring over ``x = (q̈, w…, τ)``, and the slice of each contact's
     wrench in ``x``. ``with_inequalities=False`` leaves the contacts' wrench rows out (the
     relaxed problem of :meth:`SolverDyn._calc`); ``loads``: the contacts' normal forces at the
     previous tick (N, for :func:`shear_weights`; None: equal weights). ``actuated`` (from
     :func:`actuated_rows`): ``τ`` eliminated, the levels over ``(q̈, w…)`` with only the
-    dynamics' unactuated rows (the actuated ones define ``τ``: :func:`torques_of`)."""
+    dynamics' unactuated rows (the actuated ones define ``τ``: :func:`torques_of`).
+
+    What depends only on the sizes (the unactuated rows, the damping level's identity and
+    unweighted regularization rows) comes from pure caches (:func:`unactuated_rows`,
+    :func:`damping_template`); each tick fills in ``M``, ``h``, the Jacobians and the weights."""
     nv, na = terms.B.shape
-    sizes = [c.rows.jacobian.shape[0] for c in contacts]
-    n_w = sum(sizes)
-    n = nv + n_w + (na if actuated is None else 0)
     slices = wrench_slices(nv, contacts)
-    passive = None
-    if actuated is not None:
-        passive = np.ones(nv, dtype=bool)
-        passive[actuated] = False
-    M = terms.M if passive is None else terms.M[passive]
+    n_w = slices[-1].stop - nv if slices else 0
+    n = nv + n_w + (na if actuated is None else 0)
+    passive = unactuated_rows(nv, actuated) if actuated is not None else None
+    M, h = (terms.M, terms.h) if passive is None else (terms.M[passive], terms.h[passive])
     dyn = np.empty((M.shape[0], n))
     dyn[:, :nv] = M
     if passive is None:
         dyn[:, nv + n_w :] = -terms.B
-    for c, sl in zip(contacts, slices, strict=False):
+    for c, sl in zip(contacts, slices, strict=True):
         J = c.rows.jacobian if passive is None else c.rows.jacobian[:, passive]
-        dyn[:, sl] = -(world_wrench_map(c.rows.rotation, sl.stop - sl.start).T @ J).T
-    b = -terms.h if passive is None else -terms.h[passive]
+        dyn[:, sl] = -local_to_generalized(J, c.rows.rotation)
+    b = -h
     levels: list[Rows] = [(dyn, b, b)]
     if contacts:
-        m_eq = n_w
         m_in = sum(len(c.rows.wrench_rows) for c in contacts) if with_inequalities else 0
-        A = np.zeros((m_eq + m_in, n))
+        A = np.zeros((n_w + m_in, n))
         lower = np.concatenate([c.rows.acceleration for c in contacts]) if len(contacts) > 1 else contacts[0].rows.acceleration
         if m_in:
             lower = np.concatenate([lower, np.full(m_in, -np.inf)])
-            upper = np.concatenate([lower[:m_eq], np.zeros(m_in)])
+            upper = np.concatenate([lower[:n_w], np.zeros(m_in)])
         else:
             upper = lower
-        r_eq, r_in = 0, m_eq
-        for c, sl in zip(contacts, slices, strict=False):
-            k, m = sl.stop - sl.start, len(c.rows.wrench_rows) if with_inequalities else 0
-            A[r_eq : r_eq + k, :nv] = c.rows.jacobian
-            if m:
+        r_in = n_w
+        for c, sl in zip(contacts, slices, strict=True):
+            A[sl.start - nv : sl.stop - nv, :nv] = c.rows.jacobian
+            if m_in:
+                m = len(c.rows.wrench_rows)
                 A[r_in : r_in + m, sl] = c.rows.wrench_rows
-            r_eq, r_in = r_eq + k, r_in + m
+                r_in += m
         levels.append((A, lower, upper))
     for task in tasks:
         A = np.zeros((task.jacobian.shape[0], n))
         A[:, :nv] = task.jacobian
         levels.append((A, task.lower, task.upper))
-    m = sum(k - 1 for k in sizes)
-    damping = np.zeros((nv + m, n))
-    damping.ravel()[: nv * (n + 1) : n + 1] = 1.0  # q̈ (the first nv columns)
-    row = nv
-    for c, sl, weight in zip(contacts, slices, shear_weights(loads, len(contacts)), strict=True):
-        rows = wrench_regularization(c, sl.stop - sl.start, float(weight))
-        damping[row : row + len(rows), sl] = rows
-        row += len(rows)
-    target = np.zeros(nv + m)
+    template, blocks = damping_template(nv, n, tuple((sl.start, sl.stop, c.rows.centre) for c, sl in zip(contacts, slices, strict=True)))
+    damping = template.copy()
+    for (rows, columns), weight in zip(blocks, _shear_weights(loads, len(contacts)), strict=True):
+        damping[rows, columns] *= WRENCH_REGULARIZATION * weight
+    target = np.zeros(len(damping))
     target[:nv] = -damping_gain * terms.v
     levels.append((damping, target, target))
     return levels, slices
+
+
+@lru_cache(maxsize=16)
+def _unactuated_rows(nv: int, actuated: bytes) -> slice | np.ndarray:
+    passive = np.ones(nv, dtype=bool)
+    passive[np.frombuffer(actuated, dtype=np.intp)] = False
+    return _as_slice(np.flatnonzero(passive))
+
+
+@lru_cache(maxsize=16)
+def _index_rows(indices: bytes) -> slice | np.ndarray:
+    return _as_slice(np.frombuffer(indices, dtype=np.intp).copy())
+
+
+def _as_slice(rows: np.ndarray) -> slice | np.ndarray:
+    """``rows`` as a slice when contiguous and increasing (a view of an array's rows, no copy),
+    else as a read-only index array."""
+    if len(rows) and np.array_equal(rows, np.arange(rows[0], rows[-1] + 1)):
+        return slice(int(rows[0]), int(rows[-1]) + 1)
+    rows.flags.writeable = False
+    return rows
+
+
+def unactuated_rows(nv: int, actuated: np.ndarray) -> slice | np.ndarray:
+    """The velocity rows no actuator drives (a slice when contiguous: TALOS' floating base), from
+    :func:`actuated_rows`; a pure cache: the same at every tick."""
+    return _unactuated_rows(nv, np.asarray(actuated, dtype=np.intp).tobytes())
+
+
+def index_rows(indices: np.ndarray) -> slice | np.ndarray:
+    """``indices`` (e.g. :func:`actuated_rows`) as a slice when contiguous; a pure cache."""
+    return _index_rows(np.asarray(indices, dtype=np.intp).tobytes())
+
+
+@lru_cache(maxsize=32)
+def damping_template(nv: int, n: int, contacts: tuple[tuple[int, int, tuple[float, float]], ...]
+                     ) -> tuple[np.ndarray, list[tuple[slice, slice]]]:
+    """The last level's rows before weighting, over ``n`` unknowns with the contacts' wrenches at
+    ``(start, stop)`` (``centre``: the sole's centre): ``q̈`` (the identity on the first nv columns),
+    then each contact's :func:`wrench_regularization` rows unweighted; and where each contact's rows
+    are (rows, columns), to be scaled by ``WRENCH_REGULARIZATION`` × its shear weight. Read-only
+    and cached (a pure function of the sizes)."""
+    m = sum(stop - start - 1 for start, stop, _ in contacts)
+    damping = np.zeros((nv + m, n))
+    damping.ravel()[: nv * (n + 1) : n + 1] = 1.0
+    blocks, row = [], nv
+    for start, stop, centre in contacts:
+        rows = _regularization_rows(tuple(centre) if stop - start == 6 else None)
+        damping[row : row + len(rows), start:stop] = rows
+        blocks.append((slice(row, row + len(rows)), slice(start, stop)))
+        row += len(rows)
+    damping.flags.writeable = False
+    return damping, blocks
 
 
 def actuated_rows(B: np.ndarray) -> np.ndarray | None:
@@ -271,13 +334,17 @@ def actuated_rows(B: np.ndarray) -> np.ndarray | None:
 
 
 def torques_of(terms: DynamicsTerms, contacts: list[ActiveContact], slices: list[slice], y: np.ndarray,
-               actuated: np.ndarray) -> np.ndarray:
+               actuated: np.ndarray | slice, world: list[np.ndarray] | None = None) -> np.ndarray:
     """``τ`` from ``y = (q̈, w…)`` with ``B`` a selection: the actuated rows of
-    ``M q̈ + h − Σ_c J_cᵀ diag(R_c, R_c) w_c``."""
-    generalized = terms.M @ y[: terms.M.shape[0]] + terms.h
-    for c, sl in zip(contacts, slices, strict=True):
-        generalized -= c.rows.jacobian.T @ (world_wrench_map(c.rows.rotation, sl.stop - sl.start) @ y[sl])
-    return generalized[actuated]
+    ``M q̈ + h − Σ_c J_cᵀ W_c``, ``W_c = diag(R_c, R_c) w_c`` the world wrenches (``world``, when
+    already computed)."""
+    if world is None:
+        world = [world_wrench(c.rows.rotation, y[sl]) for c, sl in zip(contacts, slices, strict=True)]
+    rows = actuated if isinstance(actuated, slice) else index_rows(actuated)  # a slice for TALOS: views of M, h, J
+    tau = terms.M[rows] @ y[: terms.M.shape[0]] + terms.h[rows]
+    for c, W in zip(contacts, world, strict=True):
+        tau -= c.rows.jacobian[:, rows].T @ W
+    return tau
 
 
 def variable_bounds(
@@ -286,19 +353,22 @@ def variable_bounds(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Bounds on ``x``: joint accelerations, the normal forces (``f_min``, the ramp), the torques."""
     start = slices[-1].stop if slices else nv  # where τ starts
-    lower, upper = np.empty(start + len(effort)), np.empty(start + len(effort))
-    lower[:nv], upper[:nv] = acceleration_lower, acceleration_upper
-    lower[nv:start], upper[nv:start] = -np.inf, np.inf
-    lower[start:], upper[start:] = -effort, effort
-    for c, sl in zip(contacts, slices, strict=False):
-        normal = sl.stop - 1  # f_z, the wrench's last component
-        released = np.isfinite(c.f_max)
-        lower[normal], upper[normal] = (min(c.f_low, c.f_max), c.f_max) if released else (c.rows.f_min, np.inf)
+    free = np.full(start - nv, np.inf)
+    lower = np.concatenate((acceleration_lower, -free, -effort))
+    upper = np.concatenate((acceleration_upper, free, effort))
+    normal_force_bounds(lower, upper, contacts, slices)
     return lower, upper
 
 
-#: How many bounds at the optimum the solver remembers from one tick to the next.
-HELD_BOUNDS = 8
+def normal_force_bounds(lower: np.ndarray, upper: np.ndarray, contacts: list[ActiveContact], slices: list[slice]) -> None:
+    """Write each contact's normal-force bounds into the bounds on ``x``: ``[f_min, ∞)`` while
+    held, the ramp's ``[min(f_low, f_max), f_max]`` while released."""
+    for c, sl in zip(contacts, slices, strict=False):
+        normal = sl.stop - 1  # f_z, the wrench's last component
+        if math.isfinite(c.f_max):
+            lower[normal], upper[normal] = min(c.f_low, c.f_max), c.f_max
+        else:
+            lower[normal], upper[normal] = c.rows.f_min, math.inf
 
 
 def held_bounds(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, active: np.ndarray) -> np.ndarray:
@@ -316,7 +386,8 @@ def held_bounds(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, active: np.
 def _wrench_rows_hold(contacts: list[ActiveContact], slices: list[slice], x: np.ndarray, tolerance: float = 1e-9) -> bool:
     for c, sl in zip(contacts, slices, strict=False):
         w = x[sl]
-        if (c.rows.wrench_rows @ w).max(initial=-np.inf) > tolerance * max(1.0, float(np.abs(w).max())):
+        A = c.rows.wrench_rows
+        if len(A) and np.maximum.reduce(A @ w) > tolerance * max(1.0, float(np.maximum.reduce(np.abs(w)))):
             return False
     return True
 
@@ -339,7 +410,13 @@ class SolverDyn(SOT):
         limits = model.joint_limits()
         self._limits = (limits["position_lower"], limits["position_upper"], limits["velocity_lower"], limits["velocity_upper"])
         iq, iv = self._layout.joints_q, self._layout.joints_v  # the joints' limits, indexed once
+        layout = self._layout  # and the joints' rows, as slices when contiguous (views, no copies)
+        self._joint_rows = (iq if layout.joints_q_slice is None else layout.joints_q_slice,
+                            iv if layout.joints_v_slice is None else layout.joints_v_slice)
         self._joint_limits = (self._limits[0][iq], self._limits[1][iq], self._limits[2][iv], self._limits[3][iv])
+        # and stacked as (upper, −lower): both sides in one evaluation (:func:`.terms.joint_acceleration_bounds`)
+        self._joint_upper_limits = (np.stack((self._joint_limits[1], -self._joint_limits[0])),
+                                    np.stack((self._joint_limits[3], -self._joint_limits[2])))
         self._contact_index: dict[str, int] = {}  # the declaration order of the contacts
         self.effort = limits["effort"] * float(effort_scale)  # |τ| bounds (N·m, N)
         self._effort_held = self.effort * (1 + 1e-9)  # what the fast path's τ must stay within
@@ -350,20 +427,22 @@ class SolverDyn(SOT):
         self.setSolver(solver)
         self._contact_ports: dict[str, InputPort] = {}
         self._hqps: dict[int, HierarchicalQP] = {}  # a cache of solvers per problem size
-        self._actuation: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # see _actuated_rows
+        self._actuation: tuple[np.ndarray | None, np.ndarray | None, slice | np.ndarray | None] = (None, None, None)  # _actuated_rows
         self._reduced_hqps: dict[int, HierarchicalQP] = {}  # the same, τ eliminated
+        self._bound_templates: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # see _bounds
         self.dynamics = self.DeclareAbstractInputPort("dynamics", AbstractValue.Make(
             DynamicsTerms(np.eye(self.nv), np.zeros(self.nv), np.zeros(self.nv), np.zeros((self.nv, self.na)),
                           np.zeros(model.nq), np.zeros(self.nv), 1.0)))
-        # Discrete state: the release ramp of each declared contact, (t0, f0) (NaN: none). A discrete
-        # update is computed from the same context as the device's and the plant's.
-        self._ramps = self.DeclareDiscreteState(np.full(2 * max_contacts, np.nan))
-        # and the normal force each declared contact carried at the last tick (NaN: not held), which
-        # weighs the shear regularization (:func:`shear_weights`).
-        self._loads = self.DeclareDiscreteState(np.full(max_contacts, np.nan))
-        # and the bounds held at the last tick's optimum (:data:`HELD_BOUNDS` signed entries, see
-        # :func:`held_bounds`): the QR path starts from them (a guess: the answer does not depend on it).
-        self._held_bounds = self.DeclareDiscreteState(np.zeros(HELD_BOUNDS))
+        # Discrete state, one vector (a discrete update is computed from the same context as the
+        # device's and the plant's), :meth:`_memory_slices`: the normal force each declared contact
+        # carried at the last tick (NaN: not held), which weighs the shear regularization
+        # (:func:`shear_weights`); the bounds held at the last tick's optimum (:data:`HELD_BOUNDS`
+        # signed entries, see :func:`held_bounds`), where the QR path starts (a guess: the answer does
+        # not depend on it); the release ramp of each declared contact, (t0, f0) (NaN: none).
+        self._loads, self._held, self._ramps = self._memory_slices(max_contacts)
+        memory = np.full(self._ramps.stop, np.nan)
+        memory[self._held] = 0.0
+        self._memory = self.DeclareDiscreteState(memory)
         self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._update)
         self.DeclareVectorOutputPort("torque", self.na, lambda c, o: o.SetFromVector(self._solution.Eval(c).torque))
         self.DeclareVectorOutputPort("wrenches", 6 * max_contacts, self._calc_wrenches)
@@ -476,10 +555,21 @@ class SolverDyn(SOT):
                          "velocity limits enter its acceleration bounds: setJointLimitHorizon)")
 
     # --- solve -------------------------------------------------------------------------------
+    @staticmethod
+    def _memory_slices(max_contacts: int) -> tuple[slice, slice, slice]:
+        """Where the loads, the held bounds and the ramps lie in the discrete state."""
+        return slice(0, max_contacts), slice(max_contacts, max_contacts + HELD_BOUNDS), \
+            slice(max_contacts + HELD_BOUNDS, 3 * max_contacts + HELD_BOUNDS)
+
     def _ramp(self, context: Context, name: str) -> tuple[float, float]:
-        i = self._contact_index[name]
-        ramps = context.get_discrete_state(self._ramps).get_value()
-        return float(ramps[2 * i]), float(ramps[2 * i + 1])
+        i = self._ramps.start + 2 * self._contact_index[name]
+        memory = context.get_discrete_state(self._memory).get_value()
+        return float(memory[i]), float(memory[i + 1])
+
+    def held_bound_guess(self, context: Context) -> np.ndarray:
+        """The bounds held at the last tick's optimum (:func:`held_bounds`), as recorded in ``context``
+        (the solver's own)."""
+        return context.get_discrete_state(self._memory).get_value()[self._held].copy()
 
     def _active_contacts(self, context: Context, s: DynSettings) -> list[ActiveContact]:
         """The held contacts, and the released ones whose ramp has not ended (with their bound)."""
@@ -509,8 +599,14 @@ class SolverDyn(SOT):
             J = level.jacobian
             if J.ndim != 2 or J.shape[1] != self.nv or level.lower.shape != (J.shape[0],):
                 raise SolverError(f"task {name}: jacobian {J.shape} and bounds {level.lower.shape} do not fit nv = {self.nv}")
-            if not np.isfinite(J).all() or np.isnan(level.lower).any() or (level.upper is not level.lower and np.isnan(level.upper).any()):
-                raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")
+            # Squared norms first (sums of squares: NaN only from a NaN, infinite from an infinity or
+            # an overflow); only when one is not finite, the elementwise checks.
+            entries = J.ravel()
+            if not (math.isfinite(entries @ entries) and not math.isnan(level.lower @ level.lower)
+                    and (level.upper is level.lower or not math.isnan(level.upper @ level.upper))):
+                if (not np.isfinite(J).all() or np.isnan(level.lower).any()
+                        or (level.upper is not level.lower and np.isnan(level.upper).any())):
+                    raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")
             tasks.append(level)
         return tasks
 
@@ -524,16 +620,9 @@ class SolverDyn(SOT):
         terms = self.dynamics.Eval(context)
         contacts = self._active_contacts(context, s)
         tasks = self._tasks(context, s)
-        loads = self.previous_loads(context, [c.name for c in contacts])
+        loads = self._previous_loads(context, [c.name for c in contacts])
         slices = wrench_slices(self.nv, contacts)
-        # The joint limits as acceleration bounds (:func:`.terms.acceleration_bounds`).
-        a_lower, a_upper = np.full(self.nv, -np.inf), np.full(self.nv, np.inf)
-        iq, iv = self._layout.joints_q, self._layout.joints_v
-        a_lower[iv], a_upper[iv] = joint_acceleration_bounds(terms.q[iq], terms.v[iv], *self._joint_limits, s.horizon,
-                                                             s.position_margin)
-        if s.control_selection is not None:  # sot-core's controlSelec: the others are held (q̈ = 0)
-            a_lower[~s.control_selection] = a_upper[~s.control_selection] = 0.0
-        lower, upper = variable_bounds(self.nv, contacts, slices, a_lower, a_upper, self.effort)
+        lower, upper = self._bounds(terms, s, contacts, slices)
         names = ["dynamics"] + (["contacts"] if contacts else []) + list(s.tasks) + ["damping"]
         diagnostics = DynDiagnostics(levels=names)
         n = len(lower)
@@ -546,8 +635,8 @@ class SolverDyn(SOT):
         # effort limits and the wrench rows hold, it is the optimum of the full hierarchy (the same
         # argument as for the wrench rows; after the damping level x is unique, so the last
         # minimum-norm stage changes nothing).
-        actuated = self._actuated_rows(terms.B)
-        if actuated is not None:
+        actuated, actuated_index = self._actuated_rows(terms.B)
+        if actuated is not None and actuated_index is not None:
             m = n - self.na
             small = self._reduced_hqps.get(m)
             if small is None:
@@ -555,10 +644,10 @@ class SolverDyn(SOT):
             try:
                 reduced, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
                 fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver)
-                tau = torques_of(terms, contacts, slices, fast.x, actuated)
-                x = np.concatenate([fast.x, tau])
-                if np.count_nonzero(np.abs(tau) > self._effort_held) == 0 and (not contacts or _wrench_rows_hold(contacts, slices, x)):
-                    fast.x = x
+                world = [world_wrench(c.rows.rotation, fast.x[sl]) for c, sl in zip(contacts, slices, strict=True)]
+                tau = torques_of(terms, contacts, slices, fast.x, actuated_index, world)
+                if np.count_nonzero(np.abs(tau) > self._effort_held) == 0 and (not contacts or _wrench_rows_hold(contacts, slices, fast.x)):
+                    fast.x = np.concatenate([fast.x, tau])
                     result = fast
                     diagnostics.torques_eliminated = True
             except SolverError:
@@ -592,24 +681,49 @@ class SolverDyn(SOT):
                 return
             result = relaxed
         x = result.x
-        local = {c.name: x[sl].copy() for c, sl in zip(contacts, slices, strict=False)}
-        world = {c.name: world_wrench_map(c.rows.rotation, sl.stop - sl.start) @ x[sl] for c, sl in zip(contacts, slices, strict=False)}
+        if not diagnostics.torques_eliminated:  # (the fast path computed them from the same wrenches)
+            world = [world_wrench(c.rows.rotation, x[sl]) for c, sl in zip(contacts, slices, strict=True)]
+        local = {c.name: x[sl].copy() for c, sl in zip(contacts, slices, strict=True)}
         diagnostics.slack_norms = result.slack_norms
         diagnostics.level_solvers = result.level_solvers
         diagnostics.active_bounds = result.active_bounds
         diagnostics.held_bounds = held_bounds(x, lower, upper, result.active_bounds)
         diagnostics.solve_time_s = result.solve_time_s
-        value.set_value(DynSolution(x[: self.nv].copy(), x[n - self.na :].copy(), world, local, result.slack_norms, diagnostics))
+        wrenches = {c.name: W for c, W in zip(contacts, world, strict=True)}
+        value.set_value(DynSolution(x[: self.nv].copy(), x[n - self.na :].copy(), wrenches, local, result.slack_norms, diagnostics))
 
-    def _actuated_rows(self, B: np.ndarray) -> np.ndarray | None:
-        """:func:`actuated_rows`, kept for a read-only ``B`` (the dynamic entity's, the same array at
-        every tick): a pure cache."""
-        cached, rows = self._actuation
+    def _bounds(self, terms: DynamicsTerms, s: DynSettings, contacts: list[ActiveContact], slices: list[slice]
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`variable_bounds` with the joint limits as acceleration bounds
+        (:func:`.terms.joint_acceleration_bounds`, the limits stacked once) and the joints out of
+        the control selection held (``q̈ = 0``, sot-core's ``controlSelec``); the free and torque
+        bounds come from a read-only template per problem size (a pure cache)."""
+        n = (slices[-1].stop if slices else self.nv) + self.na
+        template = self._bound_templates.get(n)
+        if template is None:
+            free = np.full(n - self.na, np.inf)
+            template = self._bound_templates[n] = (_read_only(np.concatenate((-free, -self.effort))),
+                                                   _read_only(np.concatenate((free, self.effort))))
+        lower, upper = template[0].copy(), template[1].copy()
+        iq, iv = self._joint_rows
+        up = upper_acceleration_bounds(SIDES * terms.q[iq], SIDES * terms.v[iv], *self._joint_upper_limits, s.horizon, s.position_margin)
+        lower[iv], upper[iv] = np.minimum(-up[1], up[0]), up[0]
+        if s.control_selection is not None:
+            held = ~s.control_selection
+            lower[: self.nv][held] = upper[: self.nv][held] = 0.0
+        normal_force_bounds(lower, upper, contacts, slices)
+        return lower, upper
+
+    def _actuated_rows(self, B: np.ndarray) -> tuple[np.ndarray | None, slice | np.ndarray | None]:
+        """:func:`actuated_rows` and the same as :func:`index_rows` (a slice when contiguous), kept
+        for a read-only ``B`` (the dynamic entity's, the same array at every tick): a pure cache."""
+        cached, rows, index = self._actuation
         if B is not cached:
             rows = actuated_rows(B)
+            index = None if rows is None else index_rows(rows)
             if not B.flags.writeable:
-                self._actuation = (B, rows)
-        return rows
+                self._actuation = (B, rows, index)
+        return rows, index
 
     def _solve(self, context: Context, hqp: HierarchicalQP, rows: list[Rows], lower: np.ndarray, upper: np.ndarray,
                solver: str) -> HqpResult:
@@ -619,7 +733,7 @@ class SolverDyn(SOT):
         The QR path starts from the bounds held at the last tick (discrete state); it is not tried
         when a Drake solver is chosen."""
         if solver == ACTIVE_SET and all(lo is hi for _, lo, hi in rows):
-            guess = context.get_discrete_state(self._held_bounds).get_value()
+            guess = context.get_discrete_state(self._memory).get_value()[self._held].tolist()
             at_lower = [int(g) - 1 for g in guess if g > 0]
             at_upper = [int(-g) - 1 for g in guess if g < 0]
             result = solve_equality_hierarchy([(A, b) for A, b, _ in rows], lower, upper, at_lower, at_upper)
@@ -639,26 +753,29 @@ class SolverDyn(SOT):
     def previous_loads(self, context: Context, names: list[str]) -> np.ndarray | None:
         """The normal force (N) each named contact carried at the previous tick, or None if one of
         them was not held then."""
-        record = context.get_discrete_state(self._loads).get_value()
-        loads = record[[self._contact_index[name] for name in names]]
-        return loads if np.isfinite(loads).all() else None
+        loads = self._previous_loads(context, names)
+        return None if loads is None else np.array(loads)
+
+    def _previous_loads(self, context: Context, names: list[str]) -> list[float] | None:
+        """:meth:`previous_loads` as Python floats."""
+        record = context.get_discrete_state(self._memory).get_value()[self._loads].tolist()  # a few floats
+        loads = [record[self._contact_index[name]] for name in names]
+        return loads if all(math.isfinite(f) for f in loads) else None
 
     def _update(self, context: Context, state) -> None:
-        """Record each contact's normal force; start the ramp of a newly released contact, from
-        the normal force it carries now."""
+        """Record each contact's normal force and the bounds held at the optimum; start the ramp of
+        a newly released contact, from the normal force it carries now."""
         s = self._settings_of(context)
         solution = self._solution.Eval(context)
         local = solution.local_wrenches
-        loads = np.full(self.max_contacts, np.nan)
+        memory = state.get_mutable_value(self._memory)  # initialized to the current state: changed in place
+        ramps = self._ramps.start
         for i, name in enumerate(self._contact_ports):
-            if name in local:
-                loads[i] = local[name][-1]
-        state.set_value(self._loads, loads)
-        state.set_value(self._held_bounds, solution.diagnostics.held_bounds)
-        ramps = context.get_discrete_state(self._ramps).get_value().copy()
-        for i, name in enumerate(self._contact_ports):
+            load = float(local[name][-1]) if name in local else math.nan
+            memory[self._loads.start + i] = load
+            r = ramps + 2 * i
             if name not in s.releasing or name not in s.contacts:
-                ramps[2 * i : 2 * i + 2] = np.nan
-            elif np.isnan(ramps[2 * i]):
-                ramps[2 * i : 2 * i + 2] = context.get_time(), float(local[name][-1]) if name in local else 0.0
-        state.set_value(self._ramps, ramps)
+                memory[r] = memory[r + 1] = math.nan
+            elif math.isnan(memory[r]):
+                memory[r], memory[r + 1] = context.get_time(), 0.0 if math.isnan(load) else load
+        memory[self._held] = solution.diagnostics.held_bounds

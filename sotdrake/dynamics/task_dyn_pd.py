@@ -10,7 +10,8 @@ due to a moving reference alone), the error's rate is ``ė = J v + ė_ref`` and 
 with ``ë_ref`` the optional ``reference_acceleration`` input (default 0). ``J̇ v`` is the optional
 ``drift`` input when connected (exact, e.g. the CoM's from the dynamic entity), else the Jacobian's
 finite difference over the control tick, ``(J_k − J_{k−1})/dt · v`` (as sot-dyninv's ``TaskDynPD``
-does; the previous Jacobian is discrete state, and the first tick takes ``J̇ = 0``). Gains
+does; the previous Jacobian is discrete state, and the first tick takes ``J̇ = 0``; a task built
+with ``exact_drift=True`` has no such memory and no per-tick update: its ``drift`` is connected). Gains
 ``K_p ≥ 0`` (1/s²) and ``K_v ≥ 0`` (1/s) are settings in the Context (``setGain``, ``setKp``,
 ``setKv``); ``setGain(Kp)`` alone takes the critical damping ``K_v = 2√K_p``.
 
@@ -28,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context, ValueProducer
+from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..exceptions import InvalidInput
@@ -46,8 +47,12 @@ class DynPDSettings:
 def pd_reference(e: np.ndarray, e_dot: np.ndarray, kp: float, kv: float, reference_acceleration: np.ndarray | None,
                  drift: np.ndarray) -> np.ndarray:
     """``−K_p e − K_v ė + ë_ref − J̇ v``: the right-hand side of the task rows."""
-    out = -kp * e - kv * e_dot - drift
-    return out if reference_acceleration is None else out + reference_acceleration
+    out = -kp * e  # then in place, in the same order: (((−K_p e) − K_v ė) − J̇ v) + ë_ref
+    out -= kv * e_dot
+    out -= drift
+    if reference_acceleration is not None:
+        out += reference_acceleration
+    return out
 
 
 class TaskDynPD(Entity[DynPDSettings]):
@@ -56,14 +61,19 @@ class TaskDynPD(Entity[DynPDSettings]):
     is_inequality = False
 
     def __init__(self, name: str, nv: int, dt: float, kp: float = 100.0, kv: float | None = None,
-                 dimension: int | None = None):
+                 dimension: int | None = None, exact_drift: bool = False):
         """``dimension``: the size of the (vector) inputs ``drift`` and ``reference_acceleration``,
-        which exist only when it is given (the feature's number of selected rows)."""
+        which exist only when it is given (the feature's number of selected rows).
+        ``exact_drift``: ``drift`` will always be connected (e.g. the CoM's ``J̇ v``), so the task
+        keeps no previous Jacobian and has no per-tick update (it needs ``dimension``)."""
         Entity.__init__(self, name, DynPDSettings())
         self.nv = check_count(f"{name}: nv", nv, 1, 10**6)
         self.dt = check_positive(f"{name}: dt", dt, MAX_DT, " s")
         if dimension is not None:
             dimension = check_count(f"{name}: dimension (the feature's rows)", dimension, 1, self.nv)
+        if exact_drift and dimension is None:
+            raise InvalidInput(f"{name}: exact_drift needs the drift input, i.e. a dimension")
+        self.exact_drift = bool(exact_drift)
         self.setGain(kp, kv)
         self.feature = self.DeclareAbstractInputPort(
             "feature", AbstractValue.Make(FeatureValue(np.zeros(0), np.zeros((0, nv)), np.zeros(0))))
@@ -78,15 +88,12 @@ class TaskDynPD(Entity[DynPDSettings]):
         # The previous Jacobian as discrete state (rows, then J row-major, up to nv rows): a discrete
         # update is computed from the same context as the device's and the plant's, so every
         # system of a tick sees the same J̇ (an unrestricted update would be applied before them).
-        self._previous = self.DeclareDiscreteState(np.zeros(1 + nv * nv))
-        self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._remember)
+        if not self.exact_drift:
+            self._previous = self.DeclareDiscreteState(np.zeros(1 + nv * nv))
+            self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._remember)
         empty = TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
-        self._level = self.DeclareCacheEntry(
-            "level", ValueProducer(allocate=lambda: AbstractValue.Make(empty), calc=self._calc),
-            prerequisites_of_calc={self.all_sources_ticket()},
-        )
-        self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(empty), lambda c, o: o.set_value(self._level.Eval(c)))
-        self.DeclareVectorOutputPort("error_norm", 1, lambda c, o: o.SetAtIndex(0, float(np.linalg.norm(self._level.Eval(c).error))))
+        self._task = self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(empty), self._calc)
+        self.DeclareVectorOutputPort("error_norm", 1, lambda c, o: o.SetAtIndex(0, float(np.linalg.norm(self._task.Eval(c).error))))
 
     # --- settings ----------------------------------------------------------------------------
     def setGain(self, kp: float, kv: float | None = None, context: Context | None = None) -> None:
@@ -127,10 +134,9 @@ class TaskDynPD(Entity[DynPDSettings]):
         J = self._inputs(context)[1]
         if J.shape[0] > self.nv:
             raise InvalidInput(f"{self.name}: a Jacobian with more rows than nv = {self.nv}")
-        memory = np.zeros(1 + self.nv * self.nv)
+        memory = state.get_mutable_value(self._previous)  # (the state as it is: entries past J's are not read)
         memory[0] = J.shape[0]
         memory[1 : 1 + J.size] = J.ravel()
-        state.set_value(self._previous, memory)
 
     def _previous_jacobian(self, context: Context) -> np.ndarray:
         memory = context.get_discrete_state(self._previous).get_value()
@@ -143,8 +149,11 @@ class TaskDynPD(Entity[DynPDSettings]):
         v = self.velocity.Eval(context)
         e_dot = J @ v
         if errordot is not None:
-            e_dot = e_dot + self._sized("errordot", errordot, e)
-        drift = optional_input(self.drift, context, None) if self.drift is not None else None
+            e_dot += self._sized("errordot", errordot, e)
+        if self.exact_drift:
+            drift = self.drift.Eval(context)  # type: ignore[union-attr]
+        else:
+            drift = optional_input(self.drift, context, None) if self.drift is not None else None
         if drift is not None:
             drift = self._sized("drift", drift, e)
         else:
@@ -156,6 +165,8 @@ class TaskDynPD(Entity[DynPDSettings]):
         value.set_value(TaskLevel(J, rhs, rhs, e))
 
     def _sized(self, what: str, value: np.ndarray, e: np.ndarray) -> np.ndarray:
+        if type(value) is np.ndarray and value.shape == e.shape and value.dtype == float:
+            return value  # as the ports give it (the usual case)
         value = np.asarray(value, dtype=float).reshape(-1)
         if value.shape != e.shape:
             raise InvalidInput(f"{self.name}: {what} has {value.size} rows, the error has {e.size}")

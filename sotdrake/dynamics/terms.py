@@ -15,6 +15,12 @@ CoM from the floating-base rows: the base's translational velocity rows of the e
 are Newton's law for the whole robot, ``m p̈_CoM = Σ F_ext`` (the partial velocity of every point
 with respect to ``v_WBo`` is the identity). Hence, with ``M_t`` and ``(C v)_t`` those three rows,
 ``J_CoM = M_t / m`` and ``J̇_CoM v = (C v)_t / m`` (exact; tested against Drake's CoM functions).
+
+Gravity from the same rows: in a uniform field ``g`` the generalized gravity forces are
+``τ_g = Σ_i J_iᵀ m_i g = m J_CoMᵀ g = M_tᵀ g`` (``J_i`` the Jacobian of body i's centre of mass),
+i.e. ``M[:, t] g`` since ``M`` is symmetric: three columns of ``M`` instead of Drake's
+``CalcGravityGeneralizedForces`` (a pass over the tree; on TALOS about a third of the cost of the
+dynamics terms). :func:`gravity_columns` checks the identity on the plant before it is used.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from pydrake.math import RigidTransform
 
 from ..configuration import Layout
 
@@ -39,12 +46,44 @@ class DynamicsTerms(NamedTuple):
     mass: float
 
 
+class OpPointMotion(NamedTuple):
+    """An op point F at the measured state ``(q, v)``: ``pose`` ``X_WF``; ``jacobian`` ``J_WF``
+    (6×nv, rows ``(ω; v)`` world, ``v`` the velocity of F's origin); ``drift`` ``J̇_WF v`` (6, the
+    bias spatial acceleration ``(α; a)`` of F's origin, world); ``velocity`` ``J_WF v`` (6, F's
+    spatial velocity ``(ω; v)``, world)."""
+
+    pose: RigidTransform
+    jacobian: np.ndarray
+    drift: np.ndarray
+    velocity: np.ndarray
+
+
 def com_terms(M: np.ndarray, Cv: np.ndarray, mass: float, layout: Layout) -> tuple[np.ndarray, np.ndarray]:
     """``(J_CoM, J̇_CoM v)`` from the base's translational rows (see the module docstring)."""
     if layout.base_v is None:
         raise ValueError("the CoM from the base rows needs a floating base")
     rows = slice(layout.base_v + 3, layout.base_v + 6)
     return M[rows] / mass, Cv[rows] / mass
+
+
+def gravity_columns(plant, layout: Layout) -> tuple[slice, np.ndarray] | None:
+    """``(t, g)`` such that ``M(q)[:, t] @ g`` is the plant's generalized gravity forces ``τ_g(q)``
+    (see the module docstring), or None when that does not hold for this plant (no floating base,
+    gravity off for some model instance, …): checked against ``CalcGravityGeneralizedForces`` at a
+    random configuration."""
+    if layout.base_v is None:
+        return None
+    columns = slice(layout.base_v + 3, layout.base_v + 6)
+    g = np.array(plant.gravity_field().gravity_vector(), dtype=float)
+    context = plant.CreateDefaultContext()
+    rng = np.random.default_rng(0)
+    plant.SetPositions(context, plant.GetPositions(context) + 0.1 * rng.standard_normal(plant.num_positions()))
+    reference = plant.CalcGravityGeneralizedForces(context)
+    scale = max(1.0, float(np.abs(reference).max()))
+    if not np.allclose(plant.CalcMassMatrix(context)[:, columns] @ g, reference, rtol=0, atol=1e-9 * scale):
+        return None
+    g.flags.writeable = False
+    return columns, g
 
 
 def acceleration_bounds(
@@ -81,13 +120,27 @@ def joint_acceleration_bounds(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`acceleration_bounds` of the joints alone: ``(lower, upper)`` over the joints' velocities,
     from their positions ``qj``, velocities ``vj`` and limits (each already restricted to the joints)."""
+    upper = upper_acceleration_bounds(SIDES * qj, SIDES * vj, np.stack((position_upper, -position_lower)),
+                                      np.stack((velocity_upper, -velocity_lower)), horizon, margin)
+    return np.minimum(-upper[1], upper[0]), upper[0]
+
+
+#: The two sides of a joint's limits as one computation: the lower bounds are minus the upper
+#: bounds of the mirrored joint ``(−q, −v)`` with the limits ``(−q_min, −v_min)`` (exactly: negation
+#: is exact in floating point, and so is every comparison and rounding of the formula under it).
+SIDES = np.array([[1.0], [-1.0]])
+SIDES.flags.writeable = False
+
+
+def upper_acceleration_bounds(q: np.ndarray, v: np.ndarray, position_upper: np.ndarray, velocity_upper: np.ndarray,
+                              horizon: float, margin: float) -> np.ndarray:
+    """The upper bounds of :func:`acceleration_bounds` alone (any array shape, elementwise):
+    ``min(2 (q_max − margin − q − v T)/T², (v_max − v)/T)``, or ``min(0, 2 (q_max − q − v T)/T²)``
+    for the position part of a joint already inside the margin."""
     T = horizon
-    T2 = T**2
-    reach = qj + vj * T
-    up = np.where(qj > position_upper - margin, np.minimum(0.0, 2 * (position_upper - reach) / T2),
-                  2 * (position_upper - margin - reach) / T2)
-    down = np.where(qj < position_lower + margin, np.maximum(0.0, 2 * (position_lower - reach) / T2),
-                    2 * (position_lower + margin - reach) / T2)
-    np.minimum(up, (velocity_upper - vj) / T, out=up)
-    np.maximum(down, (velocity_lower - vj) / T, out=down)
-    return np.minimum(down, up, out=down), up
+    reach = q + v * T
+    limit = position_upper - margin
+    up = np.where(q > limit, np.minimum(0.0, position_upper - reach), limit - reach)
+    up *= 2
+    up /= T**2  # = 2 x / T² for each x above, min(0, ·) included (a monotone map that keeps 0)
+    return np.minimum(up, (velocity_upper - v) / T, out=up)

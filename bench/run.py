@@ -324,19 +324,25 @@ def _slope(by_tasks: dict) -> float:
 
 
 def scaling(ticks: int, warmup: int) -> dict:
-    by_tasks, by_tasks_cpu = interleaved_medians({n: build_stack("cascade", tasks=n)[3] for n in range(1, 11)}, ticks, warmup)
+    """The tick by number of tasks, and the framework's floor (``bench/floor.py``: the same graph with
+    callbacks that do no maths) by number of tasks, all timed in the same turns."""
+    import floor
+
+    diagrams = {n: build_stack("cascade", tasks=n)[3] for n in range(1, 11)}
+    diagrams.update({f"floor {n}": floor.build(n) for n in range(1, 11)})
+    wall, cpu = interleaved_medians(diagrams, ticks, warmup)
+    by_tasks = {n: wall[n] for n in range(1, 11)}
+    by_tasks_cpu = {n: cpu[n] for n in range(1, 11)}
+    framework = {n: cpu[f"floor {n}"] for n in range(1, 11)}
     stacks = {}
     for variant in ("left_arm", "reduced", "full_v2"):
         robot, _, _, diagram = build_stack("cascade", variant=variant, tasks=1)
         stacks[f"{variant} (nv {robot.dimension})"] = diagram
     by_dof, by_dof_cpu = interleaved_medians(stacks, ticks, warmup)
-    import floor  # the same graph with callbacks that do no maths
-
-    framework = floor.floor_us(ticks=ticks)
     return {"tick_us_median_by_tasks": by_tasks, "marginal_task_us": _slope(by_tasks),
             "tick_cpu_us_median_by_tasks": by_tasks_cpu, "marginal_task_cpu_us": _slope(by_tasks_cpu),
             "tick_us_median_by_dof": by_dof, "tick_cpu_us_median_by_dof": by_dof_cpu,
-            "framework_floor_cpu_us_by_tasks": framework["by_tasks"], "framework_floor_cpu_us_per_task": framework["per_task"]}
+            "framework_floor_cpu_us_by_tasks": framework, "framework_floor_cpu_us_per_task": _slope(framework)}
 
 
 def _rtf(diagram, duration: float) -> dict:

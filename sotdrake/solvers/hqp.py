@@ -240,15 +240,17 @@ _NO_ROW_MASK.flags.writeable = False
 _WARM_PATHS = (ACTIVE_SET, "cold", "clarabel", "osqp")  # the default path's order, with a cached working set
 _COLD_PATHS = (ACTIVE_SET, "clarabel", "osqp")
 _OUTSIDE = "a point outside the bounds"
-DEGENERATE_RETRY = (1e-3, 1e-4)
+DEGENERATE_RETRY = (1e-4, 1e-3)
 """At a degenerate vertex, where bounds or held rows meet nearly dependent at the same value, the
 working set's rank decisions at τ can leave out a row that the held ones imply only to within τ:
 it then moves off its bound by up to about τ times the step (seen on ``SolverDyn``'s last level at
 random valid states: 2e-8 on a unit row, against the 1e-9 every point must meet; about 4 random
-states in 100 failed so). A stage that every path ends outside the bounds is solved once more by the
+states in 100 failed so). A stage whose active-set paths end outside the bounds is solved once more by the
 active set (cold guess) with the working set's rank decisions (:func:`solve_least_squares_qp`'s
-``working_threshold``) at these fractions of τ in turn; every other rank decision stays at τ, and
-the point is accepted on the same checks."""
+``working_threshold``) at these fractions of τ in turn (at most ``2 (m + p) + 50`` iterations each),
+right after the active set's own paths and before the Drake solvers' (which cost about 140 ms each on
+such a stage, and end outside the bounds too); every other rank decision stays at τ, and the point
+is accepted on the same checks."""
 
 
 def _sides_at_bounds(x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fixed: np.ndarray) -> np.ndarray:
@@ -723,18 +725,23 @@ class HierarchicalQP:
             paths = first + [p for p in ("clarabel", "osqp") if p not in first]
         working: dict[str, float] = {}  # the degenerate retries' working-set thresholds
 
-        def retries():  # reached once every path has failed (see DEGENERATE_RETRY)
+        def retries():  # reached once the active set's paths have failed (see DEGENERATE_RETRY)
             if any(failure.endswith(_OUTSIDE) for failure in failures):
                 for fraction in DEGENERATE_RETRY:
                     retry = f"active-set (working set at {fraction:g} τ)"
                     working[retry] = fraction * self.rank_threshold
                     yield retry
 
-        for path in itertools.chain(paths, retries()):
+        if name == ACTIVE_SET:  # the retries right after the active set's paths: the Drake solvers cost far more
+            split = sum(path in (ACTIVE_SET, "cold") for path in paths)
+            order = itertools.chain(paths[:split], retries(), paths[split:])
+        else:
+            order = itertools.chain(paths, retries())
+        for path in order:
             try:
                 valid = False  # whether no row of the guess is held at an infinite side
                 if path in (ACTIVE_SET, "cold") or path in working:
-                    start_guess, label = guess, ACTIVE_SET
+                    start_guess, label = guess, (path if path in working else ACTIVE_SET)
                     if cached is None or path != ACTIVE_SET:  # no warm start: ask the compiled dual method
                         start_guess = stage.guess
                         dual, valid = ((projection_guess(stage.t, stage.G, stage.lower, stage.upper), False) if level is None
@@ -759,6 +766,7 @@ class HierarchicalQP:
                     stage.M, stage.t, stage.m_scale, stage.G, stage.lower, stage.upper, stage.z0,
                     guess=start_guess, threshold=self.rank_threshold, errstate=False, kind=stage.kind, guess_valid=valid,
                     working_threshold=working.get(path),
+                    max_iterations=(2 * (len(stage.G) + len(stage.z0)) + 50) if path in working else None,
                 )
             except ActiveSetFailure as error:
                 failures.append(f"{path}: {error}")

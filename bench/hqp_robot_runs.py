@@ -134,7 +134,7 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
         solve_times.append(diagnostics.solve_time_s)
         if diagnostics.fallbacks:  # a path failed on this tick before another one succeeded
             fallbacks += 1
-            drake += any(how not in ("active-set", "active-bounds") for how in diagnostics.level_solvers)
+            drake += any(how.split(" ")[0] not in ("active-set", "active-bounds") for how in diagnostics.level_solvers)
             failures.append(f"fallback: {diagnostics.fallbacks}")
         iterations = max(iterations, diagnostics.max_iterations)
         active += len(diagnostics.active_limits) > 0

@@ -459,3 +459,28 @@ def test_a_solution_does_not_depend_on_the_cases_solved_before():
     after = solve_case(robot, diagram, *random_case(robot, tasks, 2040, project=False)[::3], stack)[2]
     assert not after.diagnostics.failure, after.diagnostics.failure
     np.testing.assert_allclose(after.acceleration, fresh.acceleration, atol=1e-9)
+
+
+def test_a_released_contact_leaves_the_contacts_once_its_ramp_has_ended():
+    """``rmContact(name, duration)``: the contact is listed while its force ramps down, and no more
+    once the ramp has ended (the solver no longer uses it); the defaults list the commanded ones."""
+    from pydrake.systems.analysis import Simulator
+
+    robot, diagram, _ = _build_dyn()  # both soles held
+    sot = robot.sot
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    simulator.Initialize()
+    simulator.AdvanceTo(0.0105)
+    sot.rmContact("contactRF", 0.02, context)
+    simulator.AdvanceTo(0.0205)
+    assert sot.contacts(context) == ["contactLF", "contactRF"]  # ramping down
+    simulator.AdvanceTo(0.0405)
+    assert sot.contacts(context) == ["contactLF"]
+    assert sot.contacts() == ["contactLF", "contactRF"]  # the default context: as commanded
+
+
+def test_a_sole_rectangle_is_only_given_for_a_sole():
+    robot, _, _ = _build_dyn()
+    with pytest.raises(SotError, match="no sole rectangle known for talos's 'right-wrist'"):
+        robot.add_contact("contactRH", "right-wrist")

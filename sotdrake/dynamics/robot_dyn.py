@@ -33,6 +33,8 @@ from .station import add_torque_driven_talos, sole_rectangle
 from .task_dyn_pd import TaskDynPD
 
 DEVICES = ("dynsimu", "physics")
+#: TALOS' sole op points, whose rectangle is the physics plant's sole box (``station.sole_rectangle``).
+TALOS_SOLES = ("left-sole", "right-sole")
 
 
 class RobotDyn:
@@ -85,10 +87,11 @@ class RobotDyn:
         """The contact rectangle ``(x_min, x_max, y_min, y_max)`` (m, sole frame) of a sole op point."""
         if opPoint in self.model.sole_rectangles:
             return self.model.sole_rectangles[opPoint]
-        if self.model.name == "talos":
+        if self.model.name == "talos" and opPoint in TALOS_SOLES:
             return sole_rectangle()
+        known = sorted(self.model.sole_rectangles) or (list(TALOS_SOLES) if self.model.name == "talos" else [])
         raise InvalidInput(f"no sole rectangle known for {self.model.name}'s {opPoint!r} "
-                           f"(known: {sorted(self.model.sole_rectangles)}); pass rectangle=(x_min, x_max, y_min, y_max)")
+                           f"(known: {known}); pass rectangle=(x_min, x_max, y_min, y_max), or None for a point contact")
 
     @property
     def dimension(self) -> int:

@@ -592,6 +592,13 @@ class SolverDyn(SOT):
         own = self.own_context(context)
         return [c.name for c in self._active_contacts(own, self._settings_of(own))]
 
+    def contacts(self, context: Context | None = None) -> list[str]:
+        """The contacts as commanded, less those whose release ramp has ended (``rmContact``: then
+        the contact is removed). Without a context (the default one), the commanded contacts."""
+        if context is None:
+            return SOT.contacts(self)
+        return self.held_contacts(context)
+
     def _tasks(self, context: Context, s: DynSettings) -> list[TaskLevel]:
         tasks = []
         for name in s.tasks:

@@ -484,3 +484,17 @@ def test_a_sole_rectangle_is_only_given_for_a_sole():
     robot, _, _ = _build_dyn()
     with pytest.raises(SotError, match="no sole rectangle known for talos's 'right-wrist'"):
         robot.add_contact("contactRH", "right-wrist")
+
+
+def test_a_missed_contact_level_is_warned_once(caplog):
+    """At this valid state the soles move (random joint velocities) and the bounds above the contacts
+    leave too little to stop them at once: the contacts' level keeps a slack (1.2 m/s² here). The
+    solver says so once, in the log, besides its diagnostics."""
+    robot, diagram, tasks = _build_dyn()
+    x, names, _, settings = random_case(robot, tasks, 4112, project=False)
+    with caplog.at_level("WARNING", logger="sotdrake.solver_dyn"):
+        solution = solve_case(robot, diagram, x, settings, names)[2]
+        solve_case(robot, diagram, x, settings, names)
+    assert solution.residuals[1] > 1e-3 and not solution.diagnostics.failure
+    warnings = [r for r in caplog.records if "contacts' zero acceleration is missed" in r.getMessage()]
+    assert len(warnings) == 1

@@ -78,6 +78,8 @@ log = logging.getLogger("sotdrake.solver_dyn")
 
 
 WRENCH_REGULARIZATION = 1e-3
+#: The contacts' level counts as missed above this slack (m/s², rad/s²; relative above a reference of 1).
+CONTACT_SLACK = 1e-6
 #: How many bounds at the optimum the solver remembers from one tick to the next.
 HELD_BOUNDS = 8
 
@@ -405,6 +407,7 @@ class SolverDyn(SOT):
         dt = check_positive(f"{name}: dt", dt, MAX_DT, " s")
         max_contacts = check_count(f"{name}: max_contacts", max_contacts, 1, MAX_CONTACTS)
         SOT.__init__(self, name, model.nv, settings=DynSettings())
+        self._warned_contacts = False  # logging only (as _warned_scaling): results never depend on it
         self.dt, self.model = dt, model
         self.layout = self._layout = Layout.of(model.plant)
         limits = model.joint_limits()
@@ -692,12 +695,26 @@ class SolverDyn(SOT):
             world = [world_wrench(c.rows.rotation, x[sl]) for c, sl in zip(contacts, slices, strict=True)]
         local = {c.name: x[sl].copy() for c, sl in zip(contacts, slices, strict=True)}
         diagnostics.slack_norms = result.slack_norms
+        if contacts and not self._warned_contacts and result.slack_norms[1] > CONTACT_SLACK:
+            self._warn_contact_slack(context, contacts, float(result.slack_norms[1]))
         diagnostics.level_solvers = result.level_solvers
         diagnostics.active_bounds = result.active_bounds
         diagnostics.held_bounds = held_bounds(x, lower, upper, result.active_bounds)
         diagnostics.solve_time_s = result.solve_time_s
         wrenches = {c.name: W for c, W in zip(contacts, world, strict=True)}
         value.set_value(DynSolution(x[: self.nv].copy(), x[n - self.na :].copy(), wrenches, local, result.slack_norms, diagnostics))
+
+    def _warn_contact_slack(self, context: Context, contacts: list[ActiveContact], slack: float) -> None:
+        """Warn (once per solver) when the contacts' level is not met: the held contacts accelerate,
+        because the hard bounds above them (joint accelerations, torques) leave too little, e.g. soles
+        moving at the start asked to stop at once (``K_v``). The slack is in the diagnostics at every
+        tick (``slack_norms[1]``); nothing else tells it."""
+        reference = math.sqrt(sum(float(c.rows.acceleration @ c.rows.acceleration) for c in contacts))
+        if slack > CONTACT_SLACK * max(1.0, reference):
+            self._warned_contacts = True
+            log.warning("%s: t = %.3f s: the contacts' zero acceleration is missed by %.3g (m/s², rad/s²): the "
+                        "joint-acceleration and torque bounds leave too little, the held contacts accelerate; see "
+                        "diagnostics.slack_norms[1] (warned once)", self.name, context.get_time(), slack)
 
     def _bounds(self, terms: DynamicsTerms, s: DynSettings, contacts: list[ActiveContact], slices: list[slice]
                 ) -> tuple[np.ndarray, np.ndarray]:

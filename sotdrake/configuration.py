@@ -63,11 +63,12 @@ class Layout(NamedTuple):
             joints_v = np.setdiff1d(joints_v, np.arange(base_v, base_v + 6))
         if joints_q.size != joints_v.size:
             raise InvalidInput("every joint but the floating base must have as many positions as velocities")
-        return Layout(base_q, base_v, joints_q, joints_v, _as_slice(joints_q), _as_slice(joints_v))
+        return Layout(base_q, base_v, joints_q, joints_v, contiguous_slice(joints_q), contiguous_slice(joints_v))
 
 
-def _as_slice(indices: np.ndarray) -> slice | None:
-    """``indices`` as a slice if they are contiguous and increasing (None otherwise)."""
+def contiguous_slice(indices: np.ndarray) -> slice | None:
+    """``indices`` as a slice if they are contiguous and increasing (None otherwise): a view of an
+    array's entries instead of a copy."""
     if indices.size and np.array_equal(indices, np.arange(indices[0], indices[0] + indices.size)):
         return slice(int(indices[0]), int(indices[0]) + indices.size)
     return None

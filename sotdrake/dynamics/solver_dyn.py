@@ -63,7 +63,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort
 
-from ..configuration import Layout
+from ..configuration import Layout, contiguous_slice
 from ..exceptions import InvalidInput, NotFound, SolverError, StackError, check_number
 from ..robots import RobotModel
 from ..solvers.equality_hierarchy import solve_equality_hierarchy
@@ -286,12 +286,10 @@ def _index_rows(indices: bytes) -> slice | np.ndarray:
 
 
 def _as_slice(rows: np.ndarray) -> slice | np.ndarray:
-    """``rows`` as a slice when contiguous and increasing (a view of an array's rows, no copy),
+    """``rows`` as a slice when contiguous and increasing (:func:`~..configuration.contiguous_slice`),
     else as a read-only index array."""
-    if len(rows) and np.array_equal(rows, np.arange(rows[0], rows[-1] + 1)):
-        return slice(int(rows[0]), int(rows[-1]) + 1)
-    rows.flags.writeable = False
-    return rows
+    as_slice = contiguous_slice(rows)
+    return as_slice if as_slice is not None else _read_only(rows)
 
 
 def unactuated_rows(nv: int, actuated: np.ndarray) -> slice | np.ndarray:

@@ -35,7 +35,7 @@ from ..configuration import Layout
 from ..exceptions import InvalidInput
 from ..kinematics import Dynamic, PlantContextHolder
 from ..robots import RobotModel
-from .terms import DynamicsTerms, OpPointMotion, com_terms, gravity_columns
+from .terms import DynamicsTerms, OpPointMotion, base_translation_rows, com_terms, gravity_columns
 
 
 class StateContextHolder(PlantContextHolder):
@@ -76,8 +76,7 @@ class DynamicEntity(Dynamic):
             prerequisites_of_calc={self.input_port_ticket(self.state.get_index())},
         )
         self._gravity = gravity_columns(plant, self.layout)  # τ_g from M, when it holds for this plant
-        base = self.layout.base_v  # the base's translational rows (com_terms)
-        self._base_rows = None if base is None else slice(base + 3, base + 6)
+        self._base_rows = base_translation_rows(self.layout)  # com_terms' rows
         self.DeclareVectorOutputPort("position", self.nq, lambda c, o: o.SetFromVector(self.state.Eval(c)[: self.nq]))
         self.DeclareVectorOutputPort("velocity", self.nv, lambda c, o: o.SetFromVector(self.state.Eval(c)[self.nq :]))
         self._dynamics = self.DeclareAbstractOutputPort("dynamics", lambda: AbstractValue.Make(self._empty_terms()), self._calc_terms)

@@ -58,11 +58,17 @@ class OpPointMotion(NamedTuple):
     velocity: np.ndarray
 
 
+def base_translation_rows(layout: Layout) -> slice | None:
+    """The velocity rows (and columns of ``M``) of the floating base's translation, world frame;
+    None without a floating base."""
+    return None if layout.base_v is None else slice(layout.base_v + 3, layout.base_v + 6)
+
+
 def com_terms(M: np.ndarray, Cv: np.ndarray, mass: float, layout: Layout) -> tuple[np.ndarray, np.ndarray]:
     """``(J_CoM, J̇_CoM v)`` from the base's translational rows (see the module docstring)."""
-    if layout.base_v is None:
+    rows = base_translation_rows(layout)
+    if rows is None:
         raise ValueError("the CoM from the base rows needs a floating base")
-    rows = slice(layout.base_v + 3, layout.base_v + 6)
     return M[rows] / mass, Cv[rows] / mass
 
 
@@ -71,9 +77,9 @@ def gravity_columns(plant, layout: Layout) -> tuple[slice, np.ndarray] | None:
     (see the module docstring), or None when that does not hold for this plant (no floating base,
     gravity off for some model instance, …): checked against ``CalcGravityGeneralizedForces`` at a
     random configuration."""
-    if layout.base_v is None:
+    columns = base_translation_rows(layout)
+    if columns is None:
         return None
-    columns = slice(layout.base_v + 3, layout.base_v + 6)
     g = np.array(plant.gravity_field().gravity_vector(), dtype=float)
     context = plant.CreateDefaultContext()
     rng = np.random.default_rng(0)

@@ -72,7 +72,7 @@ from ..solvers.sot import SOT, StackSettings
 from ..task import TaskLevel
 from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, MAX_RELEASE, check_count, check_positive
 from .contact import Contact6d, ContactRows, local_to_generalized, world_wrench
-from .terms import SIDES, DynamicsTerms, upper_acceleration_bounds
+from .terms import DynamicsTerms, mirrored_acceleration_bounds, stacked_limits
 
 log = logging.getLogger("sotdrake.solver_dyn")
 
@@ -410,14 +410,12 @@ class SolverDyn(SOT):
         self.layout = self._layout = Layout.of(model.plant)
         limits = model.joint_limits()
         self._limits = (limits["position_lower"], limits["position_upper"], limits["velocity_lower"], limits["velocity_upper"])
-        iq, iv = self._layout.joints_q, self._layout.joints_v  # the joints' limits, indexed once
-        layout = self._layout  # and the joints' rows, as slices when contiguous (views, no copies)
+        iq, iv = self._layout.joints_q, self._layout.joints_v
+        layout = self._layout  # the joints' rows, as slices when contiguous (views, no copies)
         self._joint_rows = (iq if layout.joints_q_slice is None else layout.joints_q_slice,
                             iv if layout.joints_v_slice is None else layout.joints_v_slice)
-        self._joint_limits = (self._limits[0][iq], self._limits[1][iq], self._limits[2][iv], self._limits[3][iv])
-        # and stacked as (upper, −lower): both sides in one evaluation (:func:`.terms.joint_acceleration_bounds`)
-        self._joint_upper_limits = (np.stack((self._joint_limits[1], -self._joint_limits[0])),
-                                    np.stack((self._joint_limits[3], -self._joint_limits[2])))
+        # the joints' limits, indexed and stacked once: both sides in one evaluation (_bounds)
+        self._stacked_limits = stacked_limits(self._limits[0][iq], self._limits[1][iq], self._limits[2][iv], self._limits[3][iv])
         self._contact_index: dict[str, int] = {}  # the declaration order of the contacts
         self.effort = limits["effort"] * float(effort_scale)  # |τ| bounds (N·m, N)
         self._effort_held = self.effort * (1 + 1e-9)  # what the fast path's τ must stay within
@@ -717,7 +715,7 @@ class SolverDyn(SOT):
     def _bounds(self, terms: DynamicsTerms, s: DynSettings, contacts: list[ActiveContact], slices: list[slice]
                 ) -> tuple[np.ndarray, np.ndarray]:
         """:func:`variable_bounds` with the joint limits as acceleration bounds
-        (:func:`.terms.joint_acceleration_bounds`, the limits stacked once) and the joints out of
+        (:func:`.terms.mirrored_acceleration_bounds`, the limits stacked once) and the joints out of
         the control selection held (``q̈ = 0``, sot-core's ``controlSelec``); the free and torque
         bounds come from a read-only template per problem size (a pure cache)."""
         n = (slices[-1].stop if slices else self.nv) + self.na
@@ -728,8 +726,8 @@ class SolverDyn(SOT):
                                                    _read_only(np.concatenate((free, self.effort))))
         lower, upper = template[0].copy(), template[1].copy()
         iq, iv = self._joint_rows
-        up = upper_acceleration_bounds(SIDES * terms.q[iq], SIDES * terms.v[iv], *self._joint_upper_limits, s.horizon, s.position_margin)
-        lower[iv], upper[iv] = np.minimum(-up[1], up[0]), up[0]
+        lower[iv], upper[iv] = mirrored_acceleration_bounds(terms.q[iq], terms.v[iv], *self._stacked_limits, s.horizon,
+                                                            s.position_margin)
         if s.control_selection is not None:
             held = ~s.control_selection
             lower[: self.nv][held] = upper[: self.nv][held] = 0.0

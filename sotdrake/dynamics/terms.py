@@ -126,8 +126,22 @@ def joint_acceleration_bounds(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`acceleration_bounds` of the joints alone: ``(lower, upper)`` over the joints' velocities,
     from their positions ``qj``, velocities ``vj`` and limits (each already restricted to the joints)."""
-    upper = upper_acceleration_bounds(SIDES * qj, SIDES * vj, np.stack((position_upper, -position_lower)),
-                                      np.stack((velocity_upper, -velocity_lower)), horizon, margin)
+    return mirrored_acceleration_bounds(qj, vj, *stacked_limits(position_lower, position_upper, velocity_lower, velocity_upper),
+                                        horizon, margin)
+
+
+def stacked_limits(position_lower: np.ndarray, position_upper: np.ndarray, velocity_lower: np.ndarray,
+                   velocity_upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The joints' limits as :func:`mirrored_acceleration_bounds` takes them: ``(q_max, −q_min)`` and
+    ``(v_max, −v_min)``, each 2 × joints (stack them once for limits that do not change)."""
+    return np.stack((position_upper, -position_lower)), np.stack((velocity_upper, -velocity_lower))
+
+
+def mirrored_acceleration_bounds(qj: np.ndarray, vj: np.ndarray, position_limits: np.ndarray, velocity_limits: np.ndarray,
+                                 horizon: float, margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`joint_acceleration_bounds` from limits already :func:`stacked <stacked_limits>`: both sides
+    in one evaluation of :func:`upper_acceleration_bounds` (see :data:`SIDES`)."""
+    upper = upper_acceleration_bounds(SIDES * qj, SIDES * vj, position_limits, velocity_limits, horizon, margin)
     return np.minimum(-upper[1], upper[0]), upper[0]
 
 

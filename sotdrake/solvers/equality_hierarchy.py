@@ -65,7 +65,7 @@ from scipy.linalg.lapack import dorgqr as _orgqr
 from scipy.linalg.lapack import dormqr as _ormqr
 
 from .active_set import RANK_THRESHOLD, upper_inverse, upper_triangle
-from .hqp import HqpResult
+from .hqp import HqpResult, row_norms
 
 #: The smallest singular value (rows at unit norm) that counts as clearly non-zero,
 CERTIFIED = 1e3 * RANK_THRESHOLD
@@ -262,9 +262,7 @@ class _Stack(NamedTuple):
             return None
         if A.ndim != 2 or b.shape != (A.shape[0],):
             return None
-        norms = np.sqrt(np.einsum("ij,ij->i", A, A))  # before projection, as the QP's
-        norms[norms == 0.0] = 1.0
-        return _Stack(A, b, norms, starts)
+        return _Stack(A, b, row_norms(A), starts)  # before projection, as the QP's
 
 
 def _sweep(stack: _Stack, x_lower: np.ndarray, x_upper: np.ndarray, held: dict[int, float]) -> tuple[np.ndarray, list[int]] | None:

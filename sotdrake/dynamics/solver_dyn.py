@@ -567,8 +567,8 @@ class SolverDyn(SOT):
 
     def held_bound_guess(self, context: Context) -> np.ndarray:
         """The bounds held at the last tick's optimum (:func:`held_bounds`), as recorded in ``context``
-        (the solver's own)."""
-        return context.get_discrete_state(self._memory).get_value()[self._held].copy()
+        (the solver's own): a view of its state, to read only."""
+        return context.get_discrete_state(self._memory).get_value()[self._held]
 
     def _active_contacts(self, context: Context, s: DynSettings) -> list[ActiveContact]:
         """The held contacts, and the released ones whose ramp has not ended (with their bound)."""
@@ -753,7 +753,7 @@ class SolverDyn(SOT):
         The QR path starts from the bounds held at the last tick (discrete state); it is not tried
         when a Drake solver is chosen."""
         if solver == ACTIVE_SET and all(lo is hi for _, lo, hi in rows):
-            guess = context.get_discrete_state(self._memory).get_value()[self._held].tolist()
+            guess = self.held_bound_guess(context).tolist()
             at_lower = [int(g) - 1 for g in guess if g > 0]
             at_upper = [int(-g) - 1 for g in guess if g < 0]
             result = solve_equality_hierarchy([(A, b) for A, b, _ in rows], lower, upper, at_lower, at_upper)

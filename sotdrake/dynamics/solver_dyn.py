@@ -567,8 +567,8 @@ class SolverDyn(SOT):
 
     def held_bound_guess(self, context: Context) -> np.ndarray:
         """The bounds held at the last tick's optimum (:func:`held_bounds`), as recorded in ``context``
-        (the solver's own): a view of its state, to read only."""
-        return context.get_discrete_state(self._memory).get_value()[self._held]
+        (the solver's own)."""
+        return context.get_discrete_state(self._memory).get_value()[self._held].copy()
 
     def _active_contacts(self, context: Context, s: DynSettings) -> list[ActiveContact]:
         """The held contacts, and the released ones whose ramp has not ended (with their bound)."""

@@ -7,15 +7,13 @@ feature → gain → task per task, a solver reading every task, a device integr
 output in a periodic discrete update at 1 ms) whose callbacks only evaluate their inputs and set a
 precomputed value. Its tick is what Drake's port evaluations and the Python callbacks cost before any
 kinematics, feature maths or solve: no per-task cost of the real stack can go below its slope.
+``bench/run.py`` times it in the same turns as the real stacks (``scaling``).
 """
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 
 NV = 38  # TALOS reduced
@@ -114,28 +112,3 @@ def build(tasks: int, dt: float = 1e-3) -> Diagram:
         builder.Connect(gain.get_output_port(0), task.gain)
         builder.Connect(task.get_output_port(0), solver.tasks[i])
     return builder.Build()
-
-
-def floor_us(counts: tuple[int, ...] = (1, 2, 4, 6, 8, 10), ticks: int = 2000, dt: float = 1e-3) -> dict:
-    """Median tick (µs of this thread's CPU time, over batches of 100 ticks, the diagrams in turns)
-    for each task count, and the least-squares slope: the floor's cost per task."""
-    simulators = {}
-    for n in counts:
-        simulators[n] = Simulator(build(n, dt))
-        simulators[n].Initialize()
-        simulators[n].AdvanceTo(50 * dt)
-    batches: dict[int, list[float]] = {n: [] for n in counts}
-    for _ in range(max(1, ticks // 100)):
-        for n, simulator in simulators.items():
-            t = simulator.get_context().get_time()
-            start = time.thread_time()
-            simulator.AdvanceTo(t + 100 * dt)
-            batches[n].append((time.thread_time() - start) / 100 * 1e6)
-    by_tasks = {n: float(np.median(b)) for n, b in batches.items()}
-    return {"by_tasks": by_tasks, "per_task": float(np.polyfit(list(by_tasks), list(by_tasks.values()), 1)[0])}
-
-
-if __name__ == "__main__":
-    result = floor_us()
-    print("framework floor, tick (µs) by number of tasks: " + ", ".join(f"{n}: {v:.0f}" for n, v in result["by_tasks"].items()))
-    print(f"per task: {result['per_task']:.1f} µs")

@@ -48,24 +48,29 @@ that is not clear-cut, the set still changing, a non-finite level) it returns No
 hierarchical QP decides. Cost: one QR and one triangular inverse per group of full-row-rank
 levels, a QR (pivoted when rank-deficient; an SVD only when that cannot certify the gap) for the
 others, per sweep, instead of the QP's SVDs and stages.
+
+A sweep is compiled with numba (:func:`_compiled_sweep`), its factorizations the LAPACK routines of
+``scipy.linalg.lapack`` (:mod:`.jit_lapack`): the Python version made about a hundred numpy and
+LAPACK calls per sweep, whose overhead, not their arithmetic, was most of its time. The compiled
+code is cached on disk; the first solve after an install compiles it (about half a minute, said in
+the log).
 """
 
 from __future__ import annotations
 
+import logging
 import math
+import os
 import time
 from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
-from scipy.linalg.lapack import dgeqp3 as _geqp3
-from scipy.linalg.lapack import dgeqrf as _geqrf
-from scipy.linalg.lapack import dgesdd as _gesdd
-from scipy.linalg.lapack import dorgqr as _orgqr
-from scipy.linalg.lapack import dormqr as _ormqr
+from numba import njit
 
-from .active_set import RANK_THRESHOLD, upper_inverse, upper_triangle
-from .hqp import HqpResult, row_norms
+from .active_set import RANK_THRESHOLD
+from .hqp import HqpResult
+from .jit_lapack import fortran, geqp3, geqrf, orgqr, ormqr_transposed, trtri_upper
 
 #: The smallest singular value (rows at unit norm) that counts as clearly non-zero,
 CERTIFIED = 1e3 * RANK_THRESHOLD
@@ -74,142 +79,194 @@ NEGLIGIBLE = 1e-3 * RANK_THRESHOLD
 
 SOLVER_NAME = "qr"
 
-
-def _pivoted_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(z, V_0)`` of a level of rank ``k ≤ r`` in the free space, from one QR with column pivoting
-    ``B Π = Q [[R_11, R_12], [0, R_22]]``: ``z = Π [R_11⁻¹ Q_1ᵀ ρ; 0]`` minimizes ``‖B z − ρ‖``
-    (another minimizer differs by a null vector, which the levels below and the final
-    minimum-norm step take care of), and ``V_0`` is an orthonormal basis of the null space
-    ``Π [−R_11⁻¹ R_12; I]``. The rank must be clear-cut for the scaled rows ``D B``
-    (``D = diag(1/‖row‖)``): ``σ_k(D B) ≥ min(D)/‖R_11⁻¹‖_F > CERTIFIED`` and
-    ``σ_{k+1}(D B) ≤ max(D) ‖R_22‖_F < NEGLIGIBLE``; else None."""
-    m, r = B.shape
-    qr, pivots, tau, _, info = _geqp3(B)
-    if info != 0:
-        return None
-    d_min, d_max = 1.0 / float(np.maximum.reduce(norms)), 1.0 / float(np.minimum.reduce(norms))
-    k = int(np.count_nonzero(np.abs(qr.diagonal()) * d_min > CERTIFIED))
-    if k == 0:
-        return None
-    R11_inverse = upper_inverse(qr[:k, :k])
-    if R11_inverse is None:
-        return None
-    flat = R11_inverse.ravel()
-    if not flat.dot(flat) * CERTIFIED * CERTIFIED < d_min * d_min:  # False on NaN too
-        return None
-    if k < r:
-        R22 = np.where(upper_triangle(r - k)[: min(m, r) - k], qr[k : min(m, r), k:], 0.0).ravel()
-        if not float(R22.dot(R22)) * d_max * d_max < NEGLIGIBLE * NEGLIGIBLE:
-            return None
-    projected, _, info = _ormqr("L", "T", qr[:, : len(tau)], tau, residual, lwork=max(1, m, residual[0].size))
-    if info != 0:
-        return None
-    columns = pivots - 1
-    z = np.zeros((r,) + residual.shape[1:])
-    z[columns[:k]] = R11_inverse @ projected[:k]
-    if k == r:  # full column rank: the level fixes what is left
-        return z, np.zeros((r, 0))
-    null = np.zeros((r, r - k))
-    null[columns[:k]] = -R11_inverse @ qr[:k, k:]
-    null[columns[k:], np.arange(r - k)] = 1.0
-    basis, tau, _, info = _geqrf(null)
-    if info != 0:
-        return None
-    V0, _, info = _orgqr(basis, tau)
-    return (z, V0) if info == 0 else None
-
-
-def _least_squares(C: np.ndarray, residual: np.ndarray) -> np.ndarray | None:
-    """``argmin ‖C z − residual‖`` of a full-column-rank ``C`` (m × k, m ≥ k), by QR."""
-    k = C.shape[1]
-    qr, tau, _, info = _geqrf(C)
-    if info != 0:
-        return None
-    R_inverse = upper_inverse(qr[:k, :k])
-    if R_inverse is None:
-        return None
-    projected, _, info = _ormqr("L", "T", qr, tau, residual, lwork=max(1, C.shape[0], residual[0].size))
-    return R_inverse @ projected[:k] if info == 0 else None
-
-
-def _row_rank_prefix(B: np.ndarray, residual: np.ndarray, norms: np.ndarray, sizes: list[int]) -> tuple[int, np.ndarray, np.ndarray] | None:
-    """``(c, step, basis)`` for the first ``c ≥ 1`` of consecutive levels stacked in ``B`` (``sizes``
-    rows each, ``M ≤ r`` in all) certified of full row rank below each other: one QR
-    ``Bᵀ = Q R``; level k's rows in what the ones above leave free are ``R_kkᵀ Q_kᵀ``, certified when
-    ``σ_min(R_kk D_k) ≥ 1/‖D_k⁻¹ R_kk⁻¹‖_F > CERTIFIED`` (``R_kk⁻¹``: the diagonal block of ``R⁻¹``);
-    their exact solution ``step = Q_1 R_1⁻ᵀ ρ_1`` (the first ``K`` rows) and ``basis = Q_2``. None when
-    not even the first is certified. (The QR of the first rows does not depend on the rows below.)"""
-    M, r = B.shape[0], B.shape[1]
-    qr, tau, _, info = _geqrf(B.T)
-    if info != 0:
-        return None
-    R_inverse = upper_inverse(qr[:M, :M])
-    if R_inverse is None:
-        return None
-    scaled = R_inverse * norms[:, None]  # (R D)⁻¹ = D⁻¹ R⁻¹, D = diag(1/‖row‖)
-    count, K = 0, 0
-    for size in sizes:
-        block = scaled[K : K + size, K : K + size].ravel()
-        if not block.dot(block) * CERTIFIED * CERTIFIED < 1.0:  # False on NaN too
-            break
-        count, K = count + 1, K + size
-    if count == 0:
-        return None
-    square = np.zeros((r, r), order="F")
-    square[:, :K] = qr[:, :K]
-    Q, _, info = _orgqr(square, tau[:K])  # r × r: Q_1 then Q_2
-    if info != 0:
-        return None
-    return count, Q[:, :K] @ (R_inverse[:K, :K].T @ residual[:K]), Q[:, K:]
-
-
-def _clear_cut_step(B: np.ndarray, residual: np.ndarray, norms: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None] | None:
-    """``(step, basis)`` of one level that is not of full row rank in the free space (or has more
-    rows than it): the least-squares step ``z`` (None: none) and the basis of what is left in the
-    free space's coordinates, or None when the level's rank is not clear-cut. ``B``: the level's
-    rows in the free space (m × r), ``norms``: the rows' norms before projection. One QR with
-    column pivoting (full column rank included), else the SVD of the scaled rows."""
-    # The rank from a pivoted QR, else from the SVD of the scaled rows, if clear-cut.
-    pivoted = _pivoted_step(B, residual, norms)
-    if pivoted is not None:
-        return pivoted
-    scaled = B / norms[:, None]
-    _, sigma, Vt, info = _gesdd(scaled, compute_uv=1, full_matrices=1)
-    if info != 0 or not np.all((sigma > CERTIFIED) | (sigma < NEGLIGIBLE)):
-        return None
-    rank = int(np.count_nonzero(sigma > CERTIFIED))
-    if rank == 0:
-        return None, None
-    kept = Vt[:rank].T
-    z = _least_squares(B @ kept, residual)  # raw rows: the level's objective is ‖B z − ρ‖
-    return None if z is None else (kept @ z, Vt[rank:].T)
-
+log = logging.getLogger("sotdrake.equality_hierarchy")
 
 #: How many times the set of bounds held at equality may change before the QP decides.
 ACTIVE_SET_CHANGES = 6
 #: A bound's multiplier ``λ`` counts as negative below ``−MULTIPLIER_TOLERANCE ‖ρ‖ ‖c‖`` (round-off).
 MULTIPLIER_TOLERANCE = 1e-9
 
+# The compiled functions: every matrix handed to LAPACK is a column-major copy, the others are
+# C-ordered. A function that cannot decide returns ``ok = False``.
 
-class _Directions:
-    """The bound directions not yet certified: column j of ``P`` (n × u) is ``p_j``, equal to ``s_j`` on
-    the held bound's component ``i_j`` (``s = +1`` at a lower bound, ``−1`` at an upper one), 0 on the
-    other fixed components, and such that ``A_l p_j = 0`` for every level ``l`` above the current one."""
-
-    def __init__(self, indices: np.ndarray, signs: np.ndarray, n: int):
-        self.indices, self.signs = indices, signs
-        self.P = np.zeros((n, len(indices)))
-        self.P[indices, np.arange(len(indices))] = signs
-
-    def keep(self, alive: np.ndarray) -> None:
-        self.indices, self.signs, self.P = self.indices[alive], self.signs[alive], self.P[:, alive]
+@njit(cache=True)
+def _contiguous(a):
+    return np.ascontiguousarray(a)
 
 
-def _certify(C: np.ndarray, B: np.ndarray, Y: np.ndarray, rho: np.ndarray, norms: np.ndarray,
-             directions: _Directions) -> tuple[np.ndarray, np.ndarray] | None:
-    """The level's verdict on the bound directions: ``(alive, released)`` masks, or None if not
-    clear-cut. ``Y``: the least-squares solution of ``B Y = −C`` (``B`` the level's rows in the free
-    space, ``C = A p``), ``rho`` the level's residual ``b − A x`` at its optimum.
+@njit(cache=True)
+def _none():
+    """The empty matrix that stands for "no step" or "no basis"."""
+    return np.zeros((0, 0))
+
+
+@njit(cache=True)
+def _upper_inverse(R):
+    """``(ok, R⁻¹)`` of the upper triangle of the square ``R`` (``dtrtri``), zeros below."""
+    k = R.shape[0]
+    a = fortran(R)
+    inverse = np.zeros((k, k))
+    if trtri_upper(a) != 0:
+        return False, inverse
+    for j in range(k):
+        for i in range(j + 1):
+            inverse[i, j] = a[i, j]
+    return True, inverse
+
+
+@njit(cache=True)
+def _pivoted_step(B, residual, norms):
+    """``(ok, z, V_0)`` of a level of rank ``k ≤ r`` in the free space, from one QR with column pivoting
+    ``B Π = Q [[R_11, R_12], [0, R_22]]``: ``z = Π [R_11⁻¹ Q_1ᵀ ρ; 0]`` minimizes ``‖B z − ρ‖``
+    (another minimizer differs by a null vector, which the levels below and the final
+    minimum-norm step take care of), and ``V_0`` is an orthonormal basis of the null space
+    ``Π [−R_11⁻¹ R_12; I]``. The rank must be clear-cut for the scaled rows ``D B``
+    (``D = diag(1/‖row‖)``): ``σ_k(D B) ≥ min(D)/‖R_11⁻¹‖_F > CERTIFIED`` and
+    ``σ_{k+1}(D B) ≤ max(D) ‖R_22‖_F < NEGLIGIBLE``; else not ok."""
+    m, r = B.shape
+    columns = residual.shape[1]
+    if not np.all(np.isfinite(norms)):
+        return False, _none(), _none()
+    qr = fortran(B)
+    pivots = np.zeros(r, np.int32)
+    tau = np.empty(min(m, r))
+    if geqp3(qr, pivots, tau) != 0:
+        return False, _none(), _none()
+    d_min, d_max = 1.0 / np.max(norms), 1.0 / np.min(norms)
+    k = 0
+    for i in range(min(m, r)):
+        if abs(qr[i, i]) * d_min > CERTIFIED:
+            k += 1
+    if k == 0:
+        return False, _none(), _none()
+    ok, R11_inverse = _upper_inverse(qr[:k, :k])
+    if not ok or not np.sum(R11_inverse * R11_inverse) * CERTIFIED * CERTIFIED < d_min * d_min:  # False on NaN too
+        return False, _none(), _none()
+    if k < r:
+        R22 = 0.0
+        for i in range(k, min(m, r)):
+            for j in range(i, r):
+                R22 += qr[i, j] * qr[i, j]
+        if not R22 * d_max * d_max < NEGLIGIBLE * NEGLIGIBLE:
+            return False, _none(), _none()
+    projected = fortran(residual)
+    if ormqr_transposed(qr, tau, projected) != 0:
+        return False, _none(), _none()
+    z = np.zeros((r, columns))
+    head = R11_inverse @ _contiguous(projected[:k])
+    for a in range(k):
+        z[pivots[a] - 1] = head[a]
+    if k == r:  # full column rank: the level fixes what is left
+        return True, z, np.zeros((r, 0))
+    null = np.zeros((r, r - k))
+    coupling = R11_inverse @ _contiguous(qr[:k, k:])
+    for a in range(k):
+        null[pivots[a] - 1] = -coupling[a]
+    for j in range(r - k):
+        null[pivots[k + j] - 1, j] = 1.0
+    basis = fortran(null)
+    tau = np.empty(r - k)
+    if geqrf(basis, tau) != 0 or orgqr(basis, r - k, tau) != 0:
+        return False, _none(), _none()
+    return True, z, _contiguous(basis)
+
+
+@njit(cache=True)
+def _least_squares(C, residual):
+    """``(ok, argmin ‖C z − residual‖)`` of a full-column-rank ``C`` (m × k, m ≥ k), by QR."""
+    k = C.shape[1]
+    qr = fortran(C)
+    tau = np.empty(k)
+    if geqrf(qr, tau) != 0:
+        return False, _none()
+    ok, R_inverse = _upper_inverse(qr[:k, :k])
+    projected = fortran(residual)
+    if not ok or ormqr_transposed(qr, tau, projected) != 0:
+        return False, _none()
+    return True, R_inverse @ _contiguous(projected[:k])
+
+
+@njit(cache=True)
+def _row_rank_prefix(B, residual, norms, sizes):
+    """``(ok, c, step, basis)`` for the first ``c ≥ 1`` of consecutive levels stacked in ``B`` (``sizes``
+    rows each, ``M ≤ r`` in all) certified of full row rank below each other: one QR
+    ``Bᵀ = Q R``; level k's rows in what the ones above leave free are ``R_kkᵀ Q_kᵀ``, certified when
+    ``σ_min(R_kk D_k) ≥ 1/‖D_k⁻¹ R_kk⁻¹‖_F > CERTIFIED`` (``R_kk⁻¹``: the diagonal block of ``R⁻¹``);
+    their exact solution ``step = Q_1 R_1⁻ᵀ ρ_1`` (the first ``K`` rows) and ``basis = Q_2``. Not ok
+    when not even the first is certified. (The QR of the first rows does not depend on the rows below.)"""
+    M, r = B.shape
+    qr = fortran(B.T)
+    tau = np.empty(M)
+    if geqrf(qr, tau) != 0:
+        return False, 0, _none(), _none()
+    ok, R_inverse = _upper_inverse(qr[:M, :M])
+    if not ok:
+        return False, 0, _none(), _none()
+    count, K = 0, 0
+    for size in sizes:  # (R D)⁻¹ = D⁻¹ R⁻¹, D = diag(1/‖row‖)
+        block = 0.0
+        for i in range(K, K + size):
+            for j in range(K, K + size):
+                scaled = R_inverse[i, j] * norms[i]
+                block += scaled * scaled
+        if not block * CERTIFIED * CERTIFIED < 1.0:  # False on NaN too
+            break
+        count, K = count + 1, K + size
+    if count == 0:
+        return False, 0, _none(), _none()
+    square = np.zeros((r, r)).T
+    square[:, :K] = qr[:, :K]
+    if orgqr(square, K, tau[:K].copy()) != 0:  # r × r: Q_1 then Q_2
+        return False, 0, _none(), _none()
+    Q = _contiguous(square)
+    step = _contiguous(Q[:, :K]) @ (_contiguous(R_inverse[:K, :K].T) @ _contiguous(residual[:K]))
+    return True, count, step, _contiguous(Q[:, K:])
+
+
+@njit(cache=True)
+def _clear_cut_step(B, residual, norms):
+    """``(ok, step, basis)`` of one level that is not of full row rank in the free space (or has more
+    rows than it): the least-squares step ``z`` (no columns: none) and the basis of what is left in
+    the free space's coordinates (no rows: unchanged), or not ok when the level's rank is not
+    clear-cut. ``B``: the level's rows in the free space (m × r), ``norms``: the rows' norms before
+    projection. One QR with column pivoting (full column rank included), else the SVD of the scaled
+    rows."""
+    ok, z, V0 = _pivoted_step(B, residual, norms)
+    if ok:
+        return True, z, V0
+    scaled = B / _contiguous(norms).reshape(-1, 1)
+    if not np.all(np.isfinite(scaled)):
+        return False, _none(), _none()
+    _, sigma, Vt = np.linalg.svd(scaled)
+    rank = 0
+    for value in sigma:
+        if not (value > CERTIFIED or value < NEGLIGIBLE):
+            return False, _none(), _none()
+        if value > CERTIFIED:
+            rank += 1
+    if rank == 0:
+        return True, _none(), _none()
+    kept = _contiguous(Vt[:rank].T)
+    ok, z = _least_squares(B @ kept, residual)  # raw rows: the level's objective is ‖B z − ρ‖
+    if not ok:
+        return False, _none(), _none()
+    return True, kept @ z, _contiguous(Vt[rank:].T)
+
+
+@njit(cache=True)
+def _column_norms(M):
+    out = np.zeros(M.shape[1])
+    for i in range(M.shape[0]):
+        for j in range(M.shape[1]):
+            out[j] += M[i, j] * M[i, j]
+    return np.sqrt(out)
+
+
+@njit(cache=True)
+def _certify(C, B, Y, rho, norms, P):
+    """The level's verdict on the bound directions (the columns of ``P``): ``(ok, alive, released)``
+    masks, not ok if not clear-cut. ``Y``: the least-squares solution of ``B Y = −C`` (``B`` the
+    level's rows in the free space, ``C = A P``), ``rho`` the level's residual ``b − A x`` at its optimum.
 
     Moving along ``Σ_j t_j p_j`` (``t ≥ 0``, the free components following at their optimum, ``Y t``)
     the level's objective is ``‖ρ − E t‖²`` with ``E = C + B Y`` (orthogonal to ``B``'s range, as ``ρ``),
@@ -219,24 +276,177 @@ def _certify(C: np.ndarray, B: np.ndarray, Y: np.ndarray, rho: np.ndarray, norms
     improves along ``p_j``); otherwise ``t = 0`` is optimal (convex objective, ``λ ≥ 0``) and the only
     optimum if the directions with ``λ_j ≈ 0`` change the level independently (``E`` of full column
     rank on them; else not clear-cut): their bounds hold from this level on."""
+    u = P.shape[1]
     E = C + B @ Y if B.shape[1] else C.copy()
-    size = np.sqrt(np.einsum("ij,ij->j", directions.P, directions.P))
-    scaled = E / norms[:, None] / size
-    change = np.sqrt(np.einsum("ij,ij->j", scaled, scaled))
-    if np.any((change >= NEGLIGIBLE) & (change <= CERTIFIED)) or not np.all(np.isfinite(change)):
-        return None
-    dies = change > CERTIFIED
+    scaled = E / _contiguous(norms).reshape(-1, 1) / _column_norms(P)
+    change = _column_norms(scaled)
+    dies = np.zeros(u, np.bool_)
+    for j in range(u):
+        if not np.isfinite(change[j]) or NEGLIGIBLE <= change[j] <= CERTIFIED:
+            return False, dies, dies
+        dies[j] = change[j] > CERTIFIED
     if not dies.any():
-        return ~dies, dies
+        return True, ~dies, dies
     multiplier = -(rho @ E)
-    tolerance = MULTIPLIER_TOLERANCE * float(np.sqrt(rho @ rho)) * np.sqrt(np.einsum("ij,ij->j", E, E))
+    tolerance = MULTIPLIER_TOLERANCE * math.sqrt(rho @ rho) * _column_norms(E)
     released = dies & (multiplier < -tolerance)
     if released.any():
-        return ~dies, released
+        return True, ~dies, released
     tied = dies & (multiplier <= tolerance)
-    if np.count_nonzero(tied) > 1 and np.linalg.svd(scaled[:, tied], compute_uv=False).min() <= CERTIFIED:
-        return None
-    return ~dies, released
+    if np.count_nonzero(tied) > 1:
+        sigma = np.linalg.svd(_contiguous(scaled[:, np.flatnonzero(tied)]))[1]
+        if sigma.min() <= CERTIFIED:
+            return False, dies, dies
+    return True, ~dies, released
+
+
+@njit(cache=True)
+def _compiled_sweep(A, b, norms, starts, x_lower, x_upper, held_indices, held_signs):
+    """:func:`_sweep` on arrays: ``(ok, x, released)``, ``released`` the indices of the held bounds
+    to release. ``Z`` (``have_Z``; else the identity on the free components) is an n × r basis,
+    zero on the fixed components; the right-hand sides are ``[ρ, −A P]`` (one column per direction)."""
+    n = x_lower.size
+    fixed = x_lower == x_upper
+    x = np.where(fixed, x_lower, 0.0)
+    u = held_indices.size
+    P = np.zeros((n, u))
+    for j in range(u):
+        index = held_indices[j]
+        fixed[index] = True
+        x[index] = x_lower[index] if held_signs[j] > 0 else x_upper[index]
+        P[index, j] = held_signs[j]
+    directions = held_indices.copy()
+    free = np.flatnonzero(~fixed)
+    r = free.size
+    all_free = r == n
+    Z = np.zeros((n, 0))
+    have_Z = False
+    none = np.zeros(0, np.int64)
+    count_levels = starts.size - 1
+    i = 0
+    while i < count_levels and (r or u):
+        if starts[i + 1] == starts[i]:  # an empty level changes nothing
+            i += 1
+            continue
+        # The next levels whose rows fit in what is left, stacked: solved by one QR if full rank.
+        j = i
+        while j < count_levels and 0 < starts[j + 1] - starts[i] <= r:
+            j += 1
+        group = starts[i + 1 : j + 1] - starts[i:j]
+        count = max(group.size, 1)
+        first, last = starts[i], starts[i + count]
+        A_rows = A[first:last]
+        residual = b[first:last] - A_rows @ x
+        if have_Z:
+            B = A_rows @ Z
+        elif all_free:
+            B = A_rows.copy()
+        else:
+            B = np.empty((last - first, r))
+            for column in range(r):
+                B[:, column] = A_rows[:, free[column]]
+        rows_norms = norms[first:last]
+        rhs = np.empty((last - first, 1 + u))
+        rhs[:, 0] = residual
+        C = A_rows @ P
+        rhs[:, 1:] = -C
+        ok, solved, step, basis = False, 1, _none(), _none()
+        if group.size:
+            ok, solved, step, basis = _row_rank_prefix(B, rhs, rows_norms, group)
+        prefix = ok
+        if not prefix:  # the first level alone
+            m = starts[i + 1] - starts[i]
+            B_level = _contiguous(B[:m])
+            if r:
+                ok, step, basis = _clear_cut_step(B_level, _contiguous(rhs[:m]), rows_norms[:m])
+                if not ok:
+                    return False, x, none
+            solved = 1
+            if u:
+                has_step = step.shape[1] > 0
+                Y = _contiguous(step[:, 1:]) if has_step else np.zeros((r, u))
+                rho = residual[:m] - B_level @ _contiguous(step[:, 0]) if has_step else residual[:m].copy()
+                ok, alive, released = _certify(_contiguous(C[:m]), B_level, Y, rho, rows_norms[:m], P)
+                if not ok:
+                    return False, x, none
+                if released.any():
+                    return True, x, directions[released]
+        if step.shape[1] > 0:
+            if have_Z:
+                step = Z @ step
+            elif not all_free:
+                full = np.zeros((n, 1 + u))
+                for row in range(r):
+                    full[free[row]] = step[row]
+                step = full
+            P += step[:, 1:]
+            x += step[:, 0]
+        if u and not prefix:
+            directions, P = directions[alive], _contiguous(P[:, np.flatnonzero(alive)])
+            u = directions.size
+        if basis.shape[0] > 0:
+            if have_Z:
+                Z = Z @ basis
+            elif all_free:
+                Z = basis
+            else:
+                Z = np.zeros((n, basis.shape[1]))
+                for row in range(r):
+                    Z[free[row]] = basis[row]
+            have_Z = True
+            r = Z.shape[1]
+        i += solved
+    if r and have_Z:
+        x -= Z @ (Z.T @ x)  # the minimum-norm point of what is left (Z is zero on the fixed components)
+    if u:  # the final minimum-norm stage: λ_j = x · p_j ≥ 0
+        released = x @ P < -MULTIPLIER_TOLERANCE * math.sqrt(x @ x) * _column_norms(P)
+        return True, x, directions[released]
+    return True, x, none
+
+
+@njit(cache=True)
+def _row_norms(A):
+    """:func:`~.hqp.row_norms`: each row's norm, 1 for a zero row."""
+    norms = np.empty(A.shape[0])
+    for i in range(A.shape[0]):
+        norm = math.sqrt(A[i] @ A[i])
+        norms[i] = norm if norm > 0.0 else 1.0
+    return norms
+
+
+@njit(cache=True)
+def _most_in_the_way(x, x_lower, x_upper):
+    """``(index, sign)`` of the bound most in the way of ``x`` (relative to its size; sign +1 below its
+    lower bound, −1 above its upper one), ``(-1, 0)`` when ``x`` is within its bounds, ``(-2, 0)``
+    when it is not finite."""
+    index, sign, worst = -1, 0.0, -1.0
+    for i in range(x.size):
+        if not np.isfinite(x[i]):
+            return -2, 0.0
+        if x[i] < x_lower[i] or x[i] > x_upper[i]:
+            bound = x_lower[i] if x[i] < x_lower[i] else x_upper[i]
+            distance = abs(x[i] - bound) / max(1.0, abs(bound))
+            if distance > worst:
+                index, sign, worst = i, (1.0 if x[i] < x_lower[i] else -1.0), distance
+    return index, sign
+
+
+@njit(cache=True)
+def _outcome(A, b, starts, x, x_lower, x_upper):
+    """``(A x − b, each level's slack norm, the free components at a bound)``."""
+    residuals = A @ x - b
+    norms = np.empty(starts.size - 1)
+    for k in range(norms.size):
+        level = residuals[starts[k] : starts[k + 1]]
+        norms[k] = math.sqrt(level @ level)
+    at_bound = (x_lower != x_upper) & ((x <= x_lower) | (x >= x_upper))
+    return residuals, norms, np.flatnonzero(at_bound)
+
+
+def _compiled_input(a: np.ndarray) -> np.ndarray:
+    """``a`` as the compiled functions take it (a C-ordered, writeable float array: a copy only when it
+    is not; another kind of array would make numba compile them again)."""
+    return np.require(a, dtype=float, requirements=("C", "A", "W"))
 
 
 class _Stack(NamedTuple):
@@ -247,119 +457,47 @@ class _Stack(NamedTuple):
     A: np.ndarray
     b: np.ndarray
     norms: np.ndarray
-    starts: list[int]
+    starts: np.ndarray
 
     @staticmethod
     def of(levels: Sequence[tuple[np.ndarray, np.ndarray]]) -> _Stack | None:
         """None when the levels do not stack (rows of different widths): not clear-cut."""
-        starts = [0]
-        for A, _ in levels:
-            starts.append(starts[-1] + A.shape[0])
+        starts = np.zeros(len(levels) + 1, dtype=np.int64)
+        for k, (A, _) in enumerate(levels):
+            starts[k + 1] = starts[k] + A.shape[0]
         try:
             A = levels[0][0] if len(levels) == 1 else np.vstack([A for A, _ in levels])
             b = levels[0][1] if len(levels) == 1 else np.concatenate([b for _, b in levels])
-        except ValueError:
+            A, b = _compiled_input(A), _compiled_input(b)
+        except (ValueError, TypeError):
             return None
         if A.ndim != 2 or b.shape != (A.shape[0],):
             return None
-        return _Stack(A, b, row_norms(A), starts)  # before projection, as the QP's
+        return _Stack(A, b, _row_norms(A), starts)  # before projection, as the QP's
+
+
+def _announce_compilation() -> None:
+    """Say so before the sweep is compiled rather than loaded from numba's cache: the first solve
+    after an install (or a change of this file) waits about half a minute for it."""
+    try:
+        cached = os.path.exists(_compiled_sweep._cache._cache_file._index_path)  # type: ignore[attr-defined]  # numba's index
+    except AttributeError:  # another numba: say nothing
+        cached = True
+    if not cached:
+        log.warning("compiling the QR path of the dynamic solver, once after an install (about half a minute) …")
 
 
 def _sweep(stack: _Stack, x_lower: np.ndarray, x_upper: np.ndarray, held: dict[int, float]) -> tuple[np.ndarray, list[int]] | None:
     """The hierarchy with the bounds ``held`` (component → sign: +1 its lower bound, −1 its upper)
     as fixed components: ``(x, released)``, ``released`` the held bounds whose multiplier says the
-    optimum leaves them (then ``x`` is not the answer), or None when not clear-cut. ``x`` is kept in
-    full coordinates, and ``Z`` (what the levels so far leave free) as an n × r basis that is zero on
-    the fixed components (None: the identity on the free ones)."""
-    fixed = x_lower == x_upper
-    x = np.where(fixed, x_lower, 0.0)
-    for index, sign in held.items():
-        fixed[index] = True
-        x[index] = x_lower[index] if sign > 0 else x_upper[index]
-    free = ~fixed
-    n = len(x)
-    r = int(np.count_nonzero(free))
-    all_free = r == n
-    Z: np.ndarray | None = None
-    indices = np.array(list(held), dtype=int)
-    directions = _Directions(indices, np.array([held[i] for i in held], dtype=float), n)
-    u = len(indices)
-    starts = stack.starts
-    count_levels = len(starts) - 1
-    i = 0
-    while i < count_levels and (r or u):
-        if starts[i + 1] == starts[i]:  # an empty level changes nothing
-            i += 1
-            continue
-        # The next levels whose rows fit in what is left, stacked: solved by one QR if full rank.
-        group, j = [], i
-        while j < count_levels and 0 < starts[j + 1] - starts[i] <= r:
-            group.append(starts[j + 1] - starts[j])
-            j += 1
-        count = len(group) or 1
-        rows = slice(starts[i], starts[i + count])
-        A_full = stack.A[rows]
-        residual = stack.b[rows] - A_full @ x
-        B = A_full if Z is None and all_free else (A_full[:, free] if Z is None else A_full @ Z)
-        norms = stack.norms[rows]
-        C = A_full @ directions.P if u else None
-        rhs = residual if C is None else np.column_stack([residual, -C])
-        step: np.ndarray | None
-        basis: np.ndarray | None
-        prefix = _row_rank_prefix(B, rhs, norms, group) if group else None
-        if prefix is not None:  # exact: every direction survives (λ = 0)
-            solved, step, basis = prefix
-        else:  # the first level alone
-            m = starts[i + 1] - starts[i]
-            if r:
-                step_basis = _clear_cut_step(B[:m], rhs[:m], norms[:m])
-                if step_basis is None:
-                    return None
-            else:
-                step_basis = None, None
-            solved, (step, basis) = 1, step_basis
-            if C is not None:
-                Y = np.zeros((r, u)) if step is None else step[:, 1:]
-                rho = residual[:m] - (B[:m] @ step[:, 0] if step is not None else 0.0)
-                verdict = _certify(C[:m], B[:m], Y, rho, norms[:m], directions)
-                if verdict is None:
-                    return None
-                alive, released = verdict
-                if released.any():
-                    return x, [int(j) for j in directions.indices[released]]
-        if step is not None:
-            if Z is not None:
-                step = Z @ step
-            elif not all_free:
-                full = np.zeros((n,) + step.shape[1:])
-                full[free] = step
-                step = full
-            if C is not None:
-                directions.P += step[:, 1:]
-                step = step[:, 0]
-            x += step
-        if C is not None and prefix is None:
-            directions.keep(alive)
-            u = int(alive.sum())
-        if basis is not None:
-            if Z is not None:
-                Z = Z @ basis
-            elif all_free:
-                Z = basis
-            else:
-                Z = np.zeros((n, basis.shape[1]))
-                Z[free] = basis
-            r = Z.shape[1]
-        i += solved
-    if r and Z is not None:
-        x -= Z @ (Z.T @ x)  # the minimum-norm point of what is left (Z is zero on the fixed components)
-    if u:  # the final minimum-norm stage: λ_j = x · p_j ≥ 0
-        multiplier = x @ directions.P
-        size = np.sqrt(np.einsum("ij,ij->j", directions.P, directions.P))
-        released = multiplier < -MULTIPLIER_TOLERANCE * float(np.sqrt(x @ x)) * size
-        if released.any():
-            return x, [int(j) for j in directions.indices[released]]
-    return x, []
+    optimum leaves them (then ``x`` is not the answer), or None when not clear-cut (compiled:
+    :func:`_compiled_sweep`)."""
+    if not _compiled_sweep.signatures:
+        _announce_compilation()
+    indices = np.fromiter(held, dtype=np.int64, count=len(held))
+    signs = np.fromiter(held.values(), dtype=float, count=len(held))
+    ok, x, released = _compiled_sweep(stack.A, stack.b, stack.norms, stack.starts, x_lower, x_upper, indices, signs)
+    return (x, released.tolist()) if ok else None
 
 
 _NO_ROWS = np.zeros(0, dtype=int)  # the active rows of an equality level (shared, read only)
@@ -381,6 +519,7 @@ def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_
     if stack is None or stack.A.shape[1] != len(x_lower):
         return None
     n = len(x_lower)
+    x_lower, x_upper = _compiled_input(x_lower), _compiled_input(x_upper)
     free = x_lower != x_upper
     held: dict[int, float] = {}
     for guess, sign, bound in ((at_lower, 1.0, x_lower), (at_upper, -1.0, x_upper)):
@@ -396,25 +535,20 @@ def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_
             for index in released:
                 del held[index]
             continue
-        below, above = x < x_lower, x > x_upper
-        if not (below.any() or above.any()):
-            if not np.isfinite(x).all():
-                return None
-            break
         # The bound most in the way (relative to its size) is held next: several at once may hold
         # bounds that the optimum of a level they tie does not need (not clear-cut then).
-        outside = np.flatnonzero(below | above)
-        bound = np.where(below[outside], x_lower[outside], x_upper[outside])
-        index = int(outside[np.argmax(np.abs(x[outside] - bound) / np.maximum(1.0, np.abs(bound)))])
-        held[index] = 1.0 if below[index] else -1.0
+        index, sign = _most_in_the_way(x, x_lower, x_upper)
+        if index == -1:
+            break
+        if index == -2:  # not finite
+            return None
+        held[index] = sign
     else:
         return None
-    residuals = stack.A @ x - stack.b
-    starts = stack.starts
-    slacks = [residuals[starts[k] : starts[k + 1]] for k in range(len(levels))]
+    residuals, slack_norms, active_bounds = _outcome(stack.A, stack.b, stack.starts, x, x_lower, x_upper)
+    starts = stack.starts.tolist()
     return HqpResult(
-        x=x, slacks=slacks, slack_norms=np.array([math.sqrt(s @ s) for s in slacks]),
-        active_rows=[_NO_ROWS] * len(levels),
-        active_bounds=np.flatnonzero(free & ((x <= x_lower) | (x >= x_upper))),
+        x=x, slacks=[residuals[starts[k] : starts[k + 1]] for k in range(len(levels))], slack_norms=slack_norms,
+        active_rows=[_NO_ROWS] * len(levels), active_bounds=active_bounds,
         solve_time_s=time.perf_counter() - start, level_solvers=[SOLVER_NAME] * len(levels),
         iterations=[0] * len(levels))

@@ -1,0 +1,120 @@
+"""LAPACK for numba-compiled code: the routines of ``scipy.linalg.lapack`` called from compiled code.
+
+A compiled solver (:mod:`.equality_hierarchy`) runs the same LAPACK factorizations as the
+``scipy.linalg.lapack`` wrappers, from the same library (``scipy.linalg.cython_lapack`` gives
+their C entry points), without a Python call between them. Each routine's address is registered
+with LLVM under a ``sotdrake_`` name when this module is imported, and the compiled code calls
+that name rather than an address, so numba caches it on disk (``cache=True``): a new process
+loads the compiled code instead of compiling it again.
+
+Every wrapper takes column-major (Fortran-ordered) matrices (its signature refuses others), overwrites them as the LAPACK routine
+does, and returns LAPACK's ``info`` (0: success, < 0: a bad argument, > 0: the routine's own
+failure). :func:`fortran` makes such a copy.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from llvmlite import binding
+from numba import njit, types
+from numba.extending import get_cython_function_address
+
+_ARGUMENTS = {"dgeqrf": 8, "dgeqp3": 9, "dorgqr": 9, "dormqr": 13, "dtrtri": 6}
+
+
+def _declare(name: str) -> Any:  # (a numba type, called from compiled code only)
+    symbol = f"sotdrake_{name}"
+    binding.add_symbol(symbol, get_cython_function_address("scipy.linalg.cython_lapack", name))
+    return types.ExternalFunction(symbol, types.void(*[types.voidptr] * _ARGUMENTS[name]))
+
+
+_dgeqrf, _dgeqp3, _dorgqr, _dormqr, _dtrtri = (_declare(name) for name in _ARGUMENTS)
+
+#: Workspace per column (LAPACK's block size is at most 64 for these routines on small matrices).
+_BLOCK = 64
+
+
+@njit(cache=True)
+def _integer(value):
+    """A Fortran ``INTEGER`` argument (32 bits: scipy's LAPACK)."""
+    out = np.empty(1, np.int32)
+    out[0] = value
+    return out
+
+
+@njit(cache=True)
+def _character(code):
+    """A Fortran ``CHARACTER`` argument, by its code (``ord('L')``)."""
+    out = np.empty(1, np.uint8)
+    out[0] = code
+    return out
+
+
+@njit(cache=True)
+def fortran(a):
+    """A column-major copy of the 2-D array ``a``."""
+    out = np.empty((a.shape[1], a.shape[0])).T
+    out[:, :] = a
+    return out
+
+
+@njit("int32(float64[::1, :], float64[::1])", cache=True)
+def geqrf(a, tau):
+    """QR ``A = Q R`` of ``a`` (m × n, column-major, overwritten as ``dgeqrf`` leaves it: R on and
+    above the diagonal, the Householder vectors below); ``tau``: min(m, n) scales, written."""
+    m, n = a.shape
+    lwork = max(1, n) * _BLOCK
+    work, info = np.empty(lwork), _integer(0)
+    _dgeqrf(_integer(m).ctypes, _integer(n).ctypes, a.ctypes, _integer(max(1, m)).ctypes, tau.ctypes, work.ctypes,
+            _integer(lwork).ctypes, info.ctypes)
+    return info[0]
+
+
+@njit("int32(float64[::1, :], int32[::1], float64[::1])", cache=True)
+def geqp3(a, pivots, tau):
+    """QR with column pivoting ``A Π = Q R`` (``dgeqp3``): ``a`` as :func:`geqrf`; ``pivots`` (n
+    int32, zeros: every column free) receives Π's columns, 1-based."""
+    m, n = a.shape
+    lwork = 2 * n + (n + 1) * _BLOCK
+    work, info = np.empty(lwork), _integer(0)
+    _dgeqp3(_integer(m).ctypes, _integer(n).ctypes, a.ctypes, _integer(max(1, m)).ctypes, pivots.ctypes, tau.ctypes,
+            work.ctypes, _integer(lwork).ctypes, info.ctypes)
+    return info[0]
+
+
+@njit("int32(float64[::1, :], int64, float64[::1])", cache=True)
+def orgqr(a, k, tau):
+    """``Q``'s first n columns from the first ``k`` reflectors of a :func:`geqrf` (``dorgqr``),
+    written over ``a`` (m × n, m ≥ n ≥ k)."""
+    m, n = a.shape
+    lwork = max(1, n) * _BLOCK
+    work, info = np.empty(lwork), _integer(0)
+    _dorgqr(_integer(m).ctypes, _integer(n).ctypes, _integer(k).ctypes, a.ctypes, _integer(max(1, m)).ctypes, tau.ctypes,
+            work.ctypes, _integer(lwork).ctypes, info.ctypes)
+    return info[0]
+
+
+@njit("int32(float64[::1, :], float64[::1], float64[::1, :])", cache=True)
+def ormqr_transposed(a, tau, c):
+    """``c ← Qᵀ c`` (``dormqr``, side L, trans T) with ``Q`` the product of the ``tau.size``
+    reflectors stored in ``a`` (a :func:`geqrf` or :func:`geqp3` output with ``c``'s row count)."""
+    m, columns = c.shape
+    lwork = max(1, columns) * _BLOCK
+    work, info = np.empty(lwork), _integer(0)
+    _dormqr(_character(76).ctypes, _character(84).ctypes, _integer(m).ctypes, _integer(columns).ctypes,
+            _integer(tau.size).ctypes, a.ctypes, _integer(max(1, a.shape[0])).ctypes, tau.ctypes, c.ctypes,
+            _integer(max(1, m)).ctypes, work.ctypes, _integer(lwork).ctypes, info.ctypes)
+    return info[0]
+
+
+@njit("int32(float64[::1, :])", cache=True)
+def trtri_upper(a):
+    """``a ← a⁻¹`` on and above the diagonal of the square upper triangular ``a`` (``dtrtri``, non-unit
+    diagonal; what lies below is neither read nor written); ``info > 0``: singular."""
+    n = a.shape[0]
+    info = _integer(0)
+    _dtrtri(_character(85).ctypes, _character(78).ctypes, _integer(n).ctypes, a.ctypes, _integer(max(1, n)).ctypes,
+            info.ctypes)
+    return info[0]

@@ -161,3 +161,49 @@ def test_minimum_norm_of_what_is_left_and_fixed_components():
     result = solve_equality_hierarchy([(A, np.array([7.0]))], lower, upper)
     np.testing.assert_allclose(result.x, [1.0, 1.0, 5.0, 0.0], atol=1e-14)
     assert result.slack_norms[0] == pytest.approx(0.0, abs=1e-14)
+
+
+def test_any_array_layout_gives_the_same_answer_without_another_compilation():
+    """The compiled sweep takes C-ordered, writeable float arrays: read-only, Fortran-ordered, strided
+    and integer inputs are converted (the same answer, bit for bit) rather than compiled for again."""
+    import sotdrake.solvers.equality_hierarchy as equality_hierarchy
+
+    rng = np.random.default_rng(3)
+    n = 9
+    A1, A2 = rng.normal(size=(3, n)), rng.integers(-3, 4, size=(4, n))
+    b1, b2 = rng.normal(size=3), rng.integers(-2, 3, size=4)
+    lower, upper = np.full(n, -0.4), np.full(n, 0.4)
+    upper[2] = lower[2]  # a fixed component
+    plain = solve_equality_hierarchy([(A1, b1), (A2.astype(float), b2.astype(float))], lower, upper)
+    assert plain is not None and plain.active_bounds.size  # a bound in the way: the held-bound path too
+    signatures = len(equality_hierarchy._compiled_sweep.signatures)
+    frozen = [a.copy() for a in (A1, b1, lower, upper)]
+    for a in frozen:
+        a.flags.writeable = False
+    wide = np.zeros((3, 2 * n))
+    wide[:, ::2] = A1
+    for levels, bounds in (
+        ([(frozen[0], frozen[1]), (A2, b2)], (frozen[2], frozen[3])),
+        ([(np.asfortranarray(A1), b1), (np.asfortranarray(A2), b2)], (lower, upper)),
+        ([(wide[:, ::2], b1), (A2, b2)], (np.repeat(lower, 2)[::2], upper)),
+    ):
+        result = solve_equality_hierarchy(levels, *bounds)
+        np.testing.assert_array_equal(result.x, plain.x)
+        np.testing.assert_array_equal(result.slack_norms, plain.slack_norms)
+    assert len(equality_hierarchy._compiled_sweep.signatures) == signatures
+
+
+@pytest.mark.parametrize("bad", ["inf_row", "inf_target", "nan_target", "wider", "one_dimensional"])
+def test_a_level_that_is_not_numbers_or_does_not_fit_is_left_to_the_qp(bad):
+    """Infinite or NaN entries and levels of another width are never answered (the hierarchical QP
+    then names what is wrong); nothing raises from the compiled code."""
+    n = 5
+    A, b = np.eye(2, n), np.array([0.1, 0.2])
+    levels = {
+        "inf_row": [(A, b), (np.array([[np.inf, 1.0, 0.0, 0.0, 0.0]]), np.ones(1))],
+        "inf_target": [(A, np.array([np.inf, 0.0]))],
+        "nan_target": [(A, b), (np.ones((1, n)), np.array([np.nan]))],
+        "wider": [(A, b), (np.ones((1, n + 1)), np.ones(1))],
+        "one_dimensional": [(np.ones(n), np.ones(1))],
+    }[bad]
+    assert solve_equality_hierarchy(levels, np.full(n, -1.0), np.full(n, 1.0)) is None

@@ -476,9 +476,14 @@ class _Stack(NamedTuple):
         return _Stack(A, b, _row_norms(A), starts)  # before projection, as the QP's
 
 
+_loaded = False  # the compiled sweep is in this process (compiled, or loaded from numba's cache)
+
+
 def _announce_compilation() -> None:
     """Say so before the sweep is compiled rather than loaded from numba's cache: the first solve
     after an install (or a change of this file) waits about half a minute for it."""
+    global _loaded
+    _loaded = True
     try:
         cached = os.path.exists(_compiled_sweep._cache._cache_file._index_path)  # type: ignore[attr-defined]  # numba's index
     except AttributeError:  # another numba: say nothing
@@ -492,7 +497,7 @@ def _sweep(stack: _Stack, x_lower: np.ndarray, x_upper: np.ndarray, held: dict[i
     as fixed components: ``(x, released)``, ``released`` the held bounds whose multiplier says the
     optimum leaves them (then ``x`` is not the answer), or None when not clear-cut (compiled:
     :func:`_compiled_sweep`)."""
-    if not _compiled_sweep.signatures:
+    if not _loaded:
         _announce_compilation()
     indices = np.fromiter(held, dtype=np.int64, count=len(held))
     signs = np.fromiter(held.values(), dtype=float, count=len(held))

@@ -1,0 +1,56 @@
+"""The LAPACK wrappers of compiled code against scipy.linalg.lapack: the same routines, the same bits."""
+
+import numpy as np
+import pytest
+from scipy.linalg import lapack
+
+from sotdrake.solvers import jit_lapack
+
+
+@pytest.mark.parametrize("shape", [(7, 4), (4, 7), (6, 6), (2, 5)])
+def test_the_factorizations_are_scipys(shape):
+    rng = np.random.default_rng(sum(shape))
+    B = rng.normal(size=shape)
+    m, n = shape
+    k = min(m, n)
+
+    qr, tau = jit_lapack.fortran(B), np.empty(k)
+    assert jit_lapack.geqrf(qr, tau) == 0
+    reference, reference_tau, _, _ = lapack.dgeqrf(B)
+    np.testing.assert_array_equal(qr, reference)
+    np.testing.assert_array_equal(tau, reference_tau)
+
+    pivoted, pivots, pivoted_tau = jit_lapack.fortran(B), np.zeros(n, np.int32), np.empty(k)
+    assert jit_lapack.geqp3(pivoted, pivots, pivoted_tau) == 0
+    reference, reference_pivots, reference_tau, _, _ = lapack.dgeqp3(B)
+    np.testing.assert_array_equal(pivoted, reference)
+    np.testing.assert_array_equal(pivots, reference_pivots)
+
+    C = rng.normal(size=(m, 3))
+    applied = jit_lapack.fortran(C)
+    assert jit_lapack.ormqr_transposed(qr, tau, applied) == 0
+    np.testing.assert_allclose(applied, lapack.dormqr("L", "T", qr[:, :k], tau, C, lwork=64)[0], rtol=0, atol=1e-14)
+
+    if m >= n:
+        Q = jit_lapack.fortran(qr)
+        assert jit_lapack.orgqr(Q, k, tau) == 0
+        np.testing.assert_allclose(Q, lapack.dorgqr(qr, tau)[0], rtol=0, atol=1e-15)
+        np.testing.assert_allclose(Q.T @ Q, np.eye(n), atol=1e-14)
+
+
+def test_triangular_inverse_reads_the_upper_triangle_only_and_says_singular():
+    rng = np.random.default_rng(1)
+    R = np.triu(rng.normal(size=(5, 5))) + 4.0 * np.eye(5)
+    below = R + np.tril(np.full((5, 5), np.nan), -1)  # what lies below is never read
+    inverse = jit_lapack.fortran(below)
+    assert jit_lapack.trtri_upper(inverse) == 0
+    np.testing.assert_allclose(np.triu(inverse), np.linalg.inv(R), rtol=1e-13, atol=1e-15)
+    singular = R.copy()
+    singular[2, 2] = 0.0
+    assert jit_lapack.trtri_upper(jit_lapack.fortran(singular)) == 3  # LAPACK's info: the zero pivot
+
+
+def test_a_row_major_matrix_is_refused():
+    """A C-ordered array read as column-major would be its transpose: the signatures refuse it."""
+    with pytest.raises(TypeError):
+        jit_lapack.geqrf(np.zeros((3, 2)), np.zeros(2))

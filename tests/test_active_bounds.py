@@ -212,3 +212,33 @@ def test_on_talos_with_active_limits_the_answer_is_the_stages(talos_model, monke
     simulator = Simulator(diagram)
     simulator.AdvanceTo(0.3)
     assert len(checked) >= 290 and sum(count > 0 for count in checked) >= 120, (len(checked), checked[-5:])
+
+
+def test_any_array_layout_gives_the_same_answer_without_another_compilation():
+    """The compiled path takes C-ordered, writeable arrays of one dtype each: read-only,
+    Fortran-ordered, strided, integer or boolean-as-integer inputs and a list of sizes are converted
+    (the same bits) rather than compiled for again."""
+    from sotdrake.solvers import active_bounds
+
+    rng = np.random.default_rng(11)
+    n, levels, lower, upper = equality_stack(rng)
+    A, b, norms, sizes = stacked(levels)
+    fixed = lower == upper
+    guess = np.zeros(n, dtype=np.int64)
+    plain = solve_with_active_bounds(A, b, norms, np.array(sizes), lower, upper, fixed, guess)
+    assert plain is not None
+    signatures = len(active_bounds._solve.signatures)
+    frozen = [a.copy() for a in (A, b, lower, upper)]
+    for a in frozen:
+        a.flags.writeable = False
+    wide = np.zeros((len(A), 2 * n))
+    wide[:, ::2] = A
+    for arguments in (
+        (frozen[0], frozen[1], norms, sizes, frozen[2], frozen[3], fixed, guess),
+        (np.asfortranarray(A), b, norms, tuple(sizes), lower, upper, fixed.astype(np.int8) == 1, guess.astype(np.int32)),
+        (wide[:, ::2], b, norms, sizes, np.repeat(lower, 2)[::2], upper, list(fixed), guess.tolist()),
+    ):
+        x, sides = solve_with_active_bounds(*arguments)
+        np.testing.assert_array_equal(x, plain[0])
+        np.testing.assert_array_equal(sides, plain[1])
+    assert len(active_bounds._solve.signatures) == signatures

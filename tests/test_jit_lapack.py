@@ -28,8 +28,11 @@ def test_the_factorizations_are_scipys(shape):
 
     C = rng.normal(size=(m, 3))
     applied = jit_lapack.fortran(C)
-    assert jit_lapack.ormqr_transposed(qr, tau, applied) == 0
+    assert jit_lapack.ormqr(qr, tau, applied, True) == 0
     np.testing.assert_allclose(applied, lapack.dormqr("L", "T", qr[:, :k], tau, C, lwork=64)[0], rtol=0, atol=1e-14)
+    applied = jit_lapack.fortran(C)
+    assert jit_lapack.ormqr(qr, tau, applied, False) == 0
+    np.testing.assert_allclose(applied, lapack.dormqr("L", "N", qr[:, :k], tau, C, lwork=64)[0], rtol=0, atol=1e-14)
 
     if m >= n:
         Q = jit_lapack.fortran(qr)

@@ -34,16 +34,21 @@ conditions that define it), so the guess changes the cost, never the answer.
 
 Cost: one QR of an ``|F| × m`` matrix, one triangular inverse and a few matrix-vector products per
 round, instead of a factorisation per level and an active-set stage per level a bound is in the way of.
+The rounds are compiled with numba (cached on disk; the first call after an install compiles them,
+about ten seconds), their QR and triangular inverse scipy's LAPACK routines (:mod:`.jit_lapack`): the
+Python version's fifteen numpy calls a round cost more than their arithmetic.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
-from scipy.linalg import lapack
+from numba import njit
 
-from .active_set import upper_inverse
+from .jit_lapack import compiled_input, geqrf, ormqr, upper_inverse
+from .jit_lapack import row_norms as row_norms  # (for the QP: the stack's norms)
 
 CERTIFIED = 1e-5
 """The smallest singular value of a level's unit rows, in what is left free, that counts as clearly
@@ -52,32 +57,93 @@ non-zero: 10³ τ (τ = :data:`~.active_set.RANK_THRESHOLD`), the margin of :mod
 MULTIPLIER_TOLERANCE = 1e-9
 """A held bound's multiplier may have the wrong sign by this much, relative to ``max(1, ‖x‖)``."""
 
-_NONE = np.zeros(0, dtype=int)
-_NONE.flags.writeable = False
 
-
-def _certified(R_inv: np.ndarray, sizes: list[int], certified: float) -> bool:
+@njit(cache=True)
+def _certified(R_inv, sizes, certified):
     """Whether every level's diagonal block of ``R⁻¹`` has ``‖R_kk⁻¹‖_F < 1/certified`` (then
     ``σ_min`` of its rows in what is left free exceeds ``certified``). The whole ``R⁻¹`` is tried
     first: its norm bounds every block's."""
-    flat = R_inv.ravel()
     limit = 1.0 / (certified * certified)
-    if float(flat @ flat) < limit:
+    if np.sum(R_inv * R_inv) < limit:
         return True
     start = 0
     for size in sizes:
-        block = R_inv[start : start + size, start : start + size].ravel()
-        if not float(block @ block) < limit:  # (False on NaN too)
+        block = 0.0
+        for i in range(start, start + size):
+            for j in range(start, start + size):
+                block += R_inv[i, j] * R_inv[i, j]
+        if not block < limit:  # (False on NaN too)
             return False
         start += size
     return True
+
+
+@njit(cache=True)
+def _solve(A, b, norms, sizes, x_lower, x_upper, fixed, guess, certified, feasibility, rounds):
+    """:func:`solve_with_active_bounds`, compiled: ``(ok, x, sides)``."""
+    m, n = A.shape
+    U = A / norms.reshape(-1, 1)  # the unit rows
+    c = b / norms
+    side = np.where(fixed, 0, guess)
+    x = np.zeros(n)
+    for _ in range(rounds):
+        free = np.flatnonzero(~(fixed | (side != 0)))
+        n_free = free.size
+        if m > n_free:
+            return False, x, side
+        x = np.where(side > 0, x_upper, x_lower)  # the held values (the free ones are written below)
+        x[free] = 0.0
+        R_inv = np.zeros((m, m))
+        u = np.zeros(m)
+        if m:
+            qr = np.empty((m, n_free)).T  # Bᵀ = Q R (column-major, n_free × m)
+            for i in range(n_free):
+                qr[i, :] = U[:, free[i]]
+            tau = np.empty(m)
+            if geqrf(qr, tau) != 0:
+                return False, x, side
+            ok, R_inv = upper_inverse(qr[:m])
+            if not ok or not _certified(R_inv, sizes, certified):
+                return False, x, side
+            u = R_inv.T @ (c - U @ x)  # R⁻ᵀ ρ
+            padded = np.zeros((1, n_free)).T
+            padded[:m, 0] = u
+            if ormqr(qr, tau, padded, False) != 0:
+                return False, x, side
+            x[free] = padded[:, 0]
+        x_free = x[free]
+        squared_norm = x @ x
+        if not math.isfinite(squared_norm):  # (an infinite side in the guess)
+            return False, x, side
+        # Dual: the multipliers of the guessed bounds, λ = -x_i - (Aᵀμ)_i = -x_i + (Bᵀ R⁻¹ u)_i, for
+        # every component at once (side 0 gives no sign to check): a wrong sign releases the bound.
+        lam = U.T @ (R_inv @ u) - x if m else -x
+        tolerance = MULTIPLIER_TOLERANCE * max(1.0, math.sqrt(squared_norm))
+        wrong = side * lam < -tolerance
+        changed = bool(wrong.any())
+        # Primal: every component inside its bounds (the held ones are on them, the fixed ones too),
+        # a point inside them exactly passing at once, else the free ones checked to ``feasibility``:
+        # a violated bound is held next (the free components are not among the released ones).
+        if np.any((x < x_lower) | (x > x_upper)):
+            for k in range(n_free):
+                lo, hi = x_lower[free[k]], x_upper[free[k]]
+                if x_free[k] < lo - feasibility * max(1.0, abs(lo)):
+                    side[free[k]] = -1
+                    changed = True
+                elif x_free[k] > hi + feasibility * max(1.0, abs(hi)):
+                    side[free[k]] = 1
+                    changed = True
+        if not changed:
+            return True, x, side
+        side[wrong] = 0
+    return False, x, side
 
 
 def solve_with_active_bounds(
     A: np.ndarray,
     b: np.ndarray,
     norms: np.ndarray,
-    sizes: list[int],
+    sizes: Sequence[int],
     x_lower: np.ndarray,
     x_upper: np.ndarray,
     fixed: np.ndarray,
@@ -89,56 +155,33 @@ def solve_with_active_bounds(
     """``(x, sides)``: the answer of the equality hierarchy ``A x = b`` (levels of ``sizes`` rows,
     stacked; ``norms``: the rows' norms, 1 for a zero row) under the bounds, and the sides of the
     bounds held at it; or None (see the module docstring). ``fixed``: ``x_lower == x_upper``;
-    ``guess``: a side per component (-1, 0, +1; one at an infinite bound gives None). The caller
-    silences numpy's warnings on ±∞ bounds; the start of the QP (0) must lie inside the bounds of the
-    free components, as the caller checks."""
-    m = len(b)
-    if m:
-        U, c = A / norms[:, None], b / norms  # the unit rows
-    side = np.where(fixed, 0, guess)
-    for _ in range(rounds):
-        held = fixed | (side != 0)
-        free = (~held).nonzero()[0]
-        n_free = len(free)
-        if m > n_free:
-            return None
-        x = np.where(side > 0, x_upper, x_lower)  # the held values (the free ones are written below)
-        x[free] = 0.0
-        if m:
-            qr, tau, _, info = lapack.dgeqrf(U[:, free].T)  # Bᵀ = Q R
-            if info != 0:
-                return None
-            R_inv = upper_inverse(qr[:m])
-            if R_inv is None or not _certified(R_inv, sizes, certified):
-                return None
-            u = R_inv.T @ (c - U @ x)  # R⁻ᵀ ρ
-            padded = np.zeros((n_free, 1))
-            padded[:m, 0] = u
-            x_free, _, info = lapack.dormqr("L", "N", qr, tau, padded, max(1, n_free))
-            if info != 0:
-                return None
-            x_free = x_free[:, 0]
-            x[free] = x_free
-        else:
-            x_free = x[free]
-        squared_norm = float(x @ x)
-        if not math.isfinite(squared_norm):  # (an infinite side in the guess)
-            return None
-        # Primal: every component inside its bounds (the held ones are on them, the fixed ones too),
-        # a point inside them exactly passing at once, else the free ones checked to ``feasibility``.
-        below = above = _NONE
-        if np.count_nonzero((x < x_lower) | (x > x_upper)):
-            lo, hi = x_lower[free], x_upper[free]
-            below = (x_free < lo - feasibility * np.maximum(1.0, np.abs(lo))).nonzero()[0]
-            above = (x_free > hi + feasibility * np.maximum(1.0, np.abs(hi))).nonzero()[0]
-        # Dual: the multipliers of the guessed bounds, λ = -x_i - (Aᵀμ)_i = -x_i + (Bᵀ R⁻¹ u)_i, for
-        # every component at once (side 0 gives no sign to check).
-        lam = U.T @ (R_inv @ u) - x if m else -x
-        tolerance = MULTIPLIER_TOLERANCE * max(1.0, math.sqrt(squared_norm))
-        wrong = (side * lam < -tolerance).nonzero()[0]
-        if not (len(below) or len(above) or len(wrong)):
-            return x, side
-        side[wrong] = 0
-        side[free[below]] = -1
-        side[free[above]] = 1
-    return None
+    ``guess``: a side per component (-1, 0, +1; one at an infinite bound gives None). The start of
+    the QP (0) must lie inside the bounds of the free components, as the caller checks. Compiled
+    (numba, cached on disk; :mod:`.jit_lapack`)."""
+    given = compiled_input
+    ok, x, sides = _solve(given(A), given(b), given(norms), given(sizes, np.int64), given(x_lower), given(x_upper),
+                          given(fixed, np.bool_), given(guess, np.int64), float(certified), float(feasibility), int(rounds))
+    return (x, sides) if ok else None
+
+
+@njit(cache=True)
+def _outcome(A, b, sizes, x, x_lower, x_upper, fixed):
+    """``(A x − b, each level's slack norm, the free components at a bound)`` (to ``1e-7`` relative
+    above 1: ``x`` is inside its bounds to ``1e-10``)."""
+    residual = A @ x - b
+    norms = np.empty(sizes.size)
+    start = 0
+    for k in range(sizes.size):
+        level = residual[start : start + sizes[k]]
+        norms[k] = math.sqrt(level @ level)
+        start += sizes[k]
+    scale = 1e-7 * np.maximum(1.0, np.abs(x))
+    return residual, norms, np.flatnonzero(~fixed & ((x - x_lower <= scale) | (x_upper - x <= scale)))
+
+
+def outcome(A: np.ndarray, b: np.ndarray, sizes: np.ndarray, x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray,
+            fixed: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The residual, slack norms and active bounds of an answer of :func:`solve_with_active_bounds`
+    (the arguments as it took them; ``sizes`` as int64)."""
+    given = compiled_input
+    return _outcome(given(A), given(b), given(sizes, np.int64), x, given(x_lower), given(x_upper), given(fixed, np.bool_))

@@ -58,9 +58,7 @@ the log).
 
 from __future__ import annotations
 
-import logging
 import math
-import os
 import time
 from collections.abc import Sequence
 from typing import NamedTuple
@@ -70,7 +68,7 @@ from numba import njit
 
 from .active_set import RANK_THRESHOLD
 from .hqp import HqpResult
-from .jit_lapack import fortran, geqp3, geqrf, orgqr, ormqr_transposed, trtri_upper
+from .jit_lapack import announce_compilation, compiled_input, fortran, geqp3, geqrf, orgqr, ormqr, row_norms, upper_inverse
 
 #: The smallest singular value (rows at unit norm) that counts as clearly non-zero,
 CERTIFIED = 1e3 * RANK_THRESHOLD
@@ -78,8 +76,6 @@ CERTIFIED = 1e3 * RANK_THRESHOLD
 NEGLIGIBLE = 1e-3 * RANK_THRESHOLD
 
 SOLVER_NAME = "qr"
-
-log = logging.getLogger("sotdrake.equality_hierarchy")
 
 #: How many times the set of bounds held at equality may change before the QP decides.
 ACTIVE_SET_CHANGES = 6
@@ -98,20 +94,6 @@ def _contiguous(a):
 def _none():
     """The empty matrix that stands for "no step" or "no basis"."""
     return np.zeros((0, 0))
-
-
-@njit(cache=True)
-def _upper_inverse(R):
-    """``(ok, R⁻¹)`` of the upper triangle of the square ``R`` (``dtrtri``), zeros below."""
-    k = R.shape[0]
-    a = fortran(R)
-    inverse = np.zeros((k, k))
-    if trtri_upper(a) != 0:
-        return False, inverse
-    for j in range(k):
-        for i in range(j + 1):
-            inverse[i, j] = a[i, j]
-    return True, inverse
 
 
 @njit(cache=True)
@@ -139,7 +121,7 @@ def _pivoted_step(B, residual, norms):
             k += 1
     if k == 0:
         return False, _none(), _none()
-    ok, R11_inverse = _upper_inverse(qr[:k, :k])
+    ok, R11_inverse = upper_inverse(qr[:k, :k])
     if not ok or not np.sum(R11_inverse * R11_inverse) * CERTIFIED * CERTIFIED < d_min * d_min:  # False on NaN too
         return False, _none(), _none()
     if k < r:
@@ -150,7 +132,7 @@ def _pivoted_step(B, residual, norms):
         if not R22 * d_max * d_max < NEGLIGIBLE * NEGLIGIBLE:
             return False, _none(), _none()
     projected = fortran(residual)
-    if ormqr_transposed(qr, tau, projected) != 0:
+    if ormqr(qr, tau, projected, True) != 0:
         return False, _none(), _none()
     z = np.zeros((r, columns))
     head = R11_inverse @ _contiguous(projected[:k])
@@ -179,9 +161,9 @@ def _least_squares(C, residual):
     tau = np.empty(k)
     if geqrf(qr, tau) != 0:
         return False, _none()
-    ok, R_inverse = _upper_inverse(qr[:k, :k])
+    ok, R_inverse = upper_inverse(qr[:k, :k])
     projected = fortran(residual)
-    if not ok or ormqr_transposed(qr, tau, projected) != 0:
+    if not ok or ormqr(qr, tau, projected, True) != 0:
         return False, _none()
     return True, R_inverse @ _contiguous(projected[:k])
 
@@ -199,7 +181,7 @@ def _row_rank_prefix(B, residual, norms, sizes):
     tau = np.empty(M)
     if geqrf(qr, tau) != 0:
         return False, 0, _none(), _none()
-    ok, R_inverse = _upper_inverse(qr[:M, :M])
+    ok, R_inverse = upper_inverse(qr[:M, :M])
     if not ok:
         return False, 0, _none(), _none()
     count, K = 0, 0
@@ -405,16 +387,6 @@ def _compiled_sweep(A, b, norms, starts, x_lower, x_upper, held_indices, held_si
 
 
 @njit(cache=True)
-def _row_norms(A):
-    """:func:`~.hqp.row_norms`: each row's norm, 1 for a zero row."""
-    norms = np.empty(A.shape[0])
-    for i in range(A.shape[0]):
-        norm = math.sqrt(A[i] @ A[i])
-        norms[i] = norm if norm > 0.0 else 1.0
-    return norms
-
-
-@njit(cache=True)
 def _most_in_the_way(x, x_lower, x_upper):
     """``(index, sign)`` of the bound most in the way of ``x`` (relative to its size; sign +1 below its
     lower bound, −1 above its upper one), ``(-1, 0)`` when ``x`` is within its bounds, ``(-2, 0)``
@@ -443,12 +415,6 @@ def _outcome(A, b, starts, x, x_lower, x_upper):
     return residuals, norms, np.flatnonzero(at_bound)
 
 
-def _compiled_input(a: np.ndarray) -> np.ndarray:
-    """``a`` as the compiled functions take it (a C-ordered, writeable float array: a copy only when it
-    is not; another kind of array would make numba compile them again)."""
-    return np.require(a, dtype=float, requirements=("C", "A", "W"))
-
-
 class _Stack(NamedTuple):
     """The levels' rows stacked once per solve: ``A`` (M × n), ``b``, the rows' norms (0 → 1: the
     rank decisions scale the rows to unit norm) and ``starts`` (level k's rows are
@@ -468,28 +434,21 @@ class _Stack(NamedTuple):
         try:
             A = levels[0][0] if len(levels) == 1 else np.vstack([A for A, _ in levels])
             b = levels[0][1] if len(levels) == 1 else np.concatenate([b for _, b in levels])
-            A, b = _compiled_input(A), _compiled_input(b)
+            A, b = compiled_input(A), compiled_input(b)
         except (ValueError, TypeError):
             return None
         if A.ndim != 2 or b.shape != (A.shape[0],):
             return None
-        return _Stack(A, b, _row_norms(A), starts)  # before projection, as the QP's
+        return _Stack(A, b, row_norms(A), starts)  # before projection, as the QP's
 
 
 _loaded = False  # the compiled sweep is in this process (compiled, or loaded from numba's cache)
 
 
 def _announce_compilation() -> None:
-    """Say so before the sweep is compiled rather than loaded from numba's cache: the first solve
-    after an install (or a change of this file) waits about half a minute for it."""
     global _loaded
     _loaded = True
-    try:
-        cached = os.path.exists(_compiled_sweep._cache._cache_file._index_path)  # type: ignore[attr-defined]  # numba's index
-    except AttributeError:  # another numba: say nothing
-        cached = True
-    if not cached:
-        log.warning("compiling the QR path of the dynamic solver, once after an install (about half a minute) …")
+    announce_compilation(_compiled_sweep, "the QR path of the dynamic solver", "about half a minute")
 
 
 def _sweep(stack: _Stack, x_lower: np.ndarray, x_upper: np.ndarray, held: dict[int, float]) -> tuple[np.ndarray, list[int]] | None:
@@ -524,7 +483,7 @@ def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_
     if stack is None or stack.A.shape[1] != len(x_lower):
         return None
     n = len(x_lower)
-    x_lower, x_upper = _compiled_input(x_lower), _compiled_input(x_upper)
+    x_lower, x_upper = compiled_input(x_lower), compiled_input(x_upper)
     free = x_lower != x_upper
     held: dict[int, float] = {}
     for guess, sign, bound in ((at_lower, 1.0, x_lower), (at_upper, -1.0, x_upper)):

@@ -67,6 +67,7 @@ import functools
 import itertools
 import math
 import time
+import types
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -80,7 +81,6 @@ from pydrake.solvers import (
 )
 
 from ..exceptions import InvalidInput, SolverError
-from .active_bounds import solve_with_active_bounds
 from .active_set import (
     QR_MIN_SIZE,
     RANK_THRESHOLD,
@@ -251,6 +251,17 @@ active set (cold guess) with the working set's rank decisions (:func:`solve_leas
 right after the active set's own paths and before the Drake solvers' (which cost about 140 ms each on
 such a stage, and end outside the bounds too); every other rank decision stays at τ, and the point
 is accepted on the same checks."""
+
+
+@functools.cache
+def _active_bounds_path() -> types.ModuleType:
+    """:mod:`.active_bounds`, imported on the first equality stack: it is compiled with numba, which a
+    script that never solves one (e.g. with the cascade) does not import."""
+    from . import active_bounds
+    from .jit_lapack import announce_compilation
+
+    announce_compilation(active_bounds._solve, "the hierarchical QP's path for equality stacks", "about ten seconds")
+    return active_bounds
 
 
 def _sides_at_bounds(x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fixed: np.ndarray) -> np.ndarray:
@@ -505,41 +516,36 @@ class HierarchicalQP:
     def _solve_active_bounds(self, jacobians, values, x_lower, x_upper, fixed, began) -> HqpResult | None:
         """The equality stack by :func:`~.active_bounds.solve_with_active_bounds` from the bounds
         held at the last answer, or None (then the stages decide)."""
-        sizes = [len(J) for J in jacobians]
+        path = _active_bounds_path()
+        sizes = np.array([len(J) for J in jacobians], dtype=np.int64)
         if len(jacobians) == 1:
             A, b = jacobians[0], values[0]
         elif jacobians:
             A, b = np.concatenate(jacobians), np.concatenate(values)
         else:
             A, b = np.zeros((0, self.n)), np.zeros(0)
-        norms = row_norms(A)  # (the levels' eq_norms, computed once for the stack)
+        A, b = path.compiled_input(A), path.compiled_input(b)
+        norms = path.row_norms(A)  # (the levels' eq_norms, computed once for the stack)
         guess = self._bound_sides
         if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
             guess = _sides_at_bounds(guess[0], guess[1], guess[2], fixed)
-        solved = solve_with_active_bounds(A, b, norms, sizes, x_lower, x_upper, fixed, guess,
+        solved = path.solve_with_active_bounds(A, b, norms, sizes, x_lower, x_upper, fixed, guess,
                                           certified=1e3 * self.rank_threshold, feasibility=min(1e-10, self.feasibility_tolerance))
         if solved is None:
             return None
         x, self._bound_sides = solved
-        residual = A @ x - b
-        slacks, starts, start = [], [], 0
-        for size in sizes:
+        residual, slack_norms, active_bounds = path.outcome(A, b, sizes, x, x_lower, x_upper, fixed)
+        slacks, start = [], 0
+        for size in sizes.tolist():
             slacks.append(residual[start : start + size])
-            starts.append(start)
             start += size
-        if len(jacobians) and min(sizes) > 0:  # every level's squared norm in one call
-            slack_norms = np.sqrt(np.add.reduceat(residual * residual, starts))
-        else:
-            slack_norms = np.array([math.sqrt(float(s @ s)) for s in slacks])
-        scale = 1e-7 * np.maximum(1.0, np.abs(x))
         stages = len(jacobians) + 1
         return HqpResult(
             x=x,
             slacks=slacks,
             slack_norms=slack_norms,
             active_rows=[_NO_ROWS] * len(jacobians),
-            # (x is inside its bounds to 1e-10: |x - x_lower| ≤ scale is x - x_lower ≤ scale)
-            active_bounds=(~fixed & ((x - x_lower <= scale) | (x_upper - x <= scale))).nonzero()[0],
+            active_bounds=active_bounds,
             solve_time_s=time.perf_counter() - began,
             level_solvers=[ACTIVE_BOUNDS] * stages,
             iterations=[0] * stages,

@@ -9,17 +9,23 @@ loads the compiled code instead of compiling it again.
 
 Every wrapper takes column-major (Fortran-ordered) matrices (its signature refuses others), overwrites them as the LAPACK routine
 does, and returns LAPACK's ``info`` (0: success, < 0: a bad argument, > 0: the routine's own
-failure). :func:`fortran` makes such a copy.
+failure). :func:`fortran` makes such a copy; :func:`upper_inverse` and :func:`row_norms` are the
+compiled solvers' shared helpers, :func:`compiled_input` the arrays they take.
 """
 
 from __future__ import annotations
 
+import logging
+import math
+import os
 from typing import Any
 
 import numpy as np
 from llvmlite import binding
 from numba import njit, types
 from numba.extending import get_cython_function_address
+
+log = logging.getLogger("sotdrake.compiled")
 
 _ARGUMENTS = {"dgeqrf": 8, "dgeqp3": 9, "dorgqr": 9, "dormqr": 13, "dtrtri": 6}
 
@@ -96,14 +102,15 @@ def orgqr(a, k, tau):
     return info[0]
 
 
-@njit("int32(float64[::1, :], float64[::1], float64[::1, :])", cache=True)
-def ormqr_transposed(a, tau, c):
-    """``c ← Qᵀ c`` (``dormqr``, side L, trans T) with ``Q`` the product of the ``tau.size``
-    reflectors stored in ``a`` (a :func:`geqrf` or :func:`geqp3` output with ``c``'s row count)."""
+@njit("int32(float64[::1, :], float64[::1], float64[::1, :], boolean)", cache=True)
+def ormqr(a, tau, c, transposed):
+    """``c ← Qᵀ c`` (``transposed``) or ``c ← Q c`` (``dormqr``, side L) with ``Q`` the product of the
+    ``tau.size`` reflectors stored in ``a`` (a :func:`geqrf` or :func:`geqp3` output with ``c``'s row
+    count)."""
     m, columns = c.shape
     lwork = max(1, columns) * _BLOCK
     work, info = np.empty(lwork), _integer(0)
-    _dormqr(_character(76).ctypes, _character(84).ctypes, _integer(m).ctypes, _integer(columns).ctypes,
+    _dormqr(_character(76).ctypes, _character(84 if transposed else 78).ctypes, _integer(m).ctypes, _integer(columns).ctypes,
             _integer(tau.size).ctypes, a.ctypes, _integer(max(1, a.shape[0])).ctypes, tau.ctypes, c.ctypes,
             _integer(max(1, m)).ctypes, work.ctypes, _integer(lwork).ctypes, info.ctypes)
     return info[0]
@@ -118,3 +125,49 @@ def trtri_upper(a):
     _dtrtri(_character(85).ctypes, _character(78).ctypes, _integer(n).ctypes, a.ctypes, _integer(max(1, n)).ctypes,
             info.ctypes)
     return info[0]
+
+
+@njit(cache=True)
+def upper_inverse(R):
+    """``(ok, R⁻¹)`` of the upper triangle of the square ``R`` (:func:`trtri_upper`; C-ordered, zeros
+    below the diagonal; not ok when singular)."""
+    k = R.shape[0]
+    a = fortran(R)
+    inverse = np.zeros((k, k))
+    if trtri_upper(a) != 0:
+        return False, inverse
+    for j in range(k):
+        for i in range(j + 1):
+            inverse[i, j] = a[i, j]
+    return True, inverse
+
+
+@njit(cache=True)
+def row_norms(A):
+    """Each row's norm, 1 for a zero row (:func:`~.hqp.row_norms`, compiled)."""
+    norms = np.empty(A.shape[0])
+    for i in range(A.shape[0]):
+        norm = math.sqrt(A[i] @ A[i])
+        norms[i] = norm if norm > 0.0 else 1.0
+    return norms
+
+
+def compiled_input(a: Any, dtype: type = float) -> np.ndarray:
+    """``a`` as the compiled functions take it: a C-ordered, writeable array of ``dtype``, a copy only
+    when it is not (another kind of array, read-only or strided, would make numba compile them
+    again). The flags are read first: ``np.require`` alone costs a few µs a call."""
+    if type(a) is np.ndarray and a.dtype == dtype and a.flags.c_contiguous and a.flags.writeable:
+        return a
+    return np.require(a, dtype=dtype, requirements=("C", "A", "W"))
+
+
+def announce_compilation(function: Any, what: str, duration: str) -> None:
+    """Log that numba is about to compile ``function`` (a ``cache=True`` dispatcher) rather than load
+    it from its cache on disk: the first call after an install (or a change of its file) waits
+    ``duration`` for it."""
+    try:
+        cached = os.path.exists(function._cache._cache_file._index_path)  # numba's index of the cached code
+    except AttributeError:  # another numba: say nothing
+        cached = True
+    if not cached:
+        log.warning("compiling %s, once after an install (%s) …", what, duration)

@@ -31,6 +31,7 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "diagrams"))
 
 import talos_dynamics as td
+from host import Steal
 from scenario import DT, pinocchio_half_sitting, urdf_file
 
 from sotdrake.dynamics.station import sole_rectangle
@@ -140,7 +141,9 @@ def main(argv=None) -> dict:
     durations = {"sway": 1.0 if args.quick else 4.0, "lift_leg": 3.0 if args.quick else 4.0}
     results = {}
     for scenario, duration in durations.items():
-        results[scenario] = {"duration_s": duration, "placo": run_placo(scenario, duration), "sotdrake": run_sotdrake(scenario, duration)}
+        steal = Steal()  # (the host's share of the cores: it inflates both peers' times)
+        results[scenario] = {"duration_s": duration, "placo": run_placo(scenario, duration), "sotdrake": run_sotdrake(scenario, duration),
+                             "host_steal_fraction": steal.fraction()}
     out = HERE / "results" / "dynamics.json"
     out.write_text(json.dumps(results, indent=2) + "\n")
     print(f"{'scenario':10} {'peer':10} {'CPU p50 (µs)':>13} {'CPU p95':>8} {'wall p50 (µs)':>14} {'wall p95':>9} "
@@ -151,6 +154,8 @@ def main(argv=None) -> dict:
             foot = "-" if row["foot_rms_error_m"] is None else f"{row['foot_rms_error_m']:.2e}"
             print(f"{scenario:10} {peer:10} {row['tick_cpu_us_median']:13.0f} {row['tick_cpu_us_p95']:8.0f} "
                   f"{row['tick_us_median']:14.0f} {row['tick_us_p95']:9.0f} {row['com_rms_error_m']:12.2e} {foot:>13}")
+        print(f"{'':10} {Steal.describe(r['host_steal_fraction'])}; sotdrake / placo: "
+              f"{r['sotdrake']['tick_cpu_us_median'] / r['placo']['tick_cpu_us_median']:.2f} (CPU p50)")
     return results
 
 

@@ -51,6 +51,7 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE.parent / "diagrams"))
 
+from host import Steal
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from scenario import DT, GAIN_COM, GAIN_FEET, GAIN_HAND, TARGET
@@ -464,6 +465,7 @@ def main(argv=None) -> dict:
     args.out.mkdir(parents=True, exist_ok=True)
     log = lambda message: print(message, file=sys.stderr, flush=True)  # noqa: E731
 
+    steal = Steal()  # (the host's share of the cores over the run: it inflates every timing)
     log("sotdrake, basic SOT …")
     basic = sotdrake_run("cascade", ticks, warmup)
     log("sotdrake, SolverKine (HQP, joint limits) …")
@@ -496,7 +498,8 @@ def main(argv=None) -> dict:
     tick_hqp = stats(hqp["times_s"])
     results = {
         "machine": {"python": platform.python_version(), "processor": platform.processor() or platform.machine(),
-                    "cpus": __import__("os").cpu_count(), "load_average": list(__import__("os").getloadavg())},
+                    "cpus": __import__("os").cpu_count(), "load_average": list(__import__("os").getloadavg()),
+                    "host_steal_fraction": steal.fraction()},
         "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
         "scenario": "TALOS reduced, feet + CoM held, right hand to (0.5, -0.2, 1.0), joint limits, dt = 1 ms",
         "accuracy_after_s": (warmup + ticks) * DT,
@@ -606,7 +609,8 @@ def markdown(r: dict) -> str:
     if "machine" in r:
         m = r["machine"]
         lines.append(f"Measured {r.get('date', '')} on {m.get('cpus')} CPUs, "
-                     f"load average {', '.join(f'{x:.1f}' for x in m.get('load_average', []))}.")
+                     f"load average {', '.join(f'{x:.1f}' for x in m.get('load_average', []))}"
+                     + (f", {Steal.describe(m['host_steal_fraction'])}" if "host_steal_fraction" in m else "") + ".")
     return "\n".join(lines)
 
 

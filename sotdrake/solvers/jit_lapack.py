@@ -1,15 +1,15 @@
 """LAPACK for numba-compiled code: the routines of ``scipy.linalg.lapack`` called from compiled code.
 
-A compiled solver (:mod:`.equality_hierarchy`) runs the same LAPACK factorizations as the
-``scipy.linalg.lapack`` wrappers, from the same library (``scipy.linalg.cython_lapack`` gives
-their C entry points), without a Python call between them. Each routine's address is registered
-with LLVM under a ``sotdrake_`` name when this module is imported, and the compiled code calls
-that name rather than an address, so numba caches it on disk (``cache=True``): a new process
-loads the compiled code instead of compiling it again.
+The compiled solvers (:mod:`.equality_hierarchy`, :mod:`.active_bounds`) run the same LAPACK
+factorizations as the ``scipy.linalg.lapack`` wrappers, from the same library
+(``scipy.linalg.cython_lapack`` gives their C entry points), without a Python call between them.
+Each routine's address is registered with LLVM under a ``sotdrake_`` name when this module is
+imported, and the compiled code calls that name rather than an address, so numba caches it on disk
+(``cache=True``): a new process loads the compiled code instead of compiling it again.
 
-Every wrapper takes column-major (Fortran-ordered) matrices (its signature refuses others), overwrites them as the LAPACK routine
-does, and returns LAPACK's ``info`` (0: success, < 0: a bad argument, > 0: the routine's own
-failure). :func:`fortran` makes such a copy; :func:`upper_inverse` and :func:`row_norms` are the
+Every wrapper takes column-major (Fortran-ordered) matrices (its signature refuses others),
+overwrites them as the LAPACK routine does, and returns LAPACK's ``info`` (0: success, < 0: a bad
+argument, > 0: the routine's own failure). :func:`fortran` makes such a copy; :func:`upper_inverse` and :func:`row_norms` are the
 compiled solvers' shared helpers, :func:`compiled_input` the arrays they take.
 """
 

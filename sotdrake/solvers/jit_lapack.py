@@ -5,7 +5,9 @@ factorizations as the ``scipy.linalg.lapack`` wrappers, from the same library
 (``scipy.linalg.cython_lapack`` gives their C entry points), without a Python call between them.
 Each routine's address is registered with LLVM under a ``sotdrake_`` name when this module is
 imported, and the compiled code calls that name rather than an address, so numba caches it on disk
-(``cache=True``): a new process loads the compiled code instead of compiling it again.
+(``cache=True``): a new process loads the compiled code instead of compiling it again. (numba
+checks a cached function against its own file only: after a change to this file, delete the
+``sotdrake/solvers/__pycache__/*.nbi`` and ``*.nbc`` files, or the solvers keep the old code.)
 
 Every wrapper takes column-major (Fortran-ordered) matrices (its signature refuses others),
 overwrites them as the LAPACK routine does, and returns LAPACK's ``info`` (0: success, < 0: a bad

@@ -58,6 +58,7 @@ the log).
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Sequence
@@ -428,14 +429,12 @@ class _Stack(NamedTuple):
     @staticmethod
     def of(levels: Sequence[tuple[np.ndarray, np.ndarray]]) -> _Stack | None:
         """None when the levels do not stack (rows of different widths): not clear-cut."""
-        starts = np.zeros(len(levels) + 1, dtype=np.int64)
-        for k, (A, _) in enumerate(levels):
-            starts[k + 1] = starts[k] + A.shape[0]
         try:
-            A = levels[0][0] if len(levels) == 1 else np.vstack([A for A, _ in levels])
+            starts = np.array([0, *itertools.accumulate(A.shape[0] for A, _ in levels)], dtype=np.int64)
+            A = levels[0][0] if len(levels) == 1 else np.concatenate([A for A, _ in levels])
             b = levels[0][1] if len(levels) == 1 else np.concatenate([b for _, b in levels])
             A, b = compiled_input(A), compiled_input(b)
-        except (ValueError, TypeError):
+        except (ValueError, TypeError, IndexError):  # (a level that is not a matrix: not clear-cut)
             return None
         if A.ndim != 2 or b.shape != (A.shape[0],):
             return None

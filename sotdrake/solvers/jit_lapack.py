@@ -149,8 +149,10 @@ def row_norms(A):
     """Each row's norm, 1 for a zero row (:func:`~.hqp.row_norms`, compiled)."""
     norms = np.empty(A.shape[0])
     for i in range(A.shape[0]):
-        norm = math.sqrt(A[i] @ A[i])
-        norms[i] = norm if norm > 0.0 else 1.0
+        square = 0.0
+        for j in range(A.shape[1]):  # (a loop: a BLAS call per row costs more at these sizes)
+            square += A[i, j] * A[i, j]
+        norms[i] = math.sqrt(square) if square > 0.0 else 1.0
     return norms
 
 

@@ -166,9 +166,10 @@ def main(argv=None) -> dict:
     runs = build()
     # The compiled paths (numba) load, or compile once after an install, at their first call: not
     # a solve time.
-    from sotdrake.solvers.hqp import HierarchicalQP
+    from sotdrake.solvers.hqp import HierarchicalQP, LevelRows
 
     HierarchicalQP(2).solve_equalities([np.eye(1, 2)], [np.ones(1)], np.full(2, -1.0), np.full(2, 1.0))
+    HierarchicalQP(2).solve([LevelRows(np.eye(1, 2), np.zeros(1), np.ones(1))], np.full(2, -1.0), np.full(2, 1.0))
     start = time.perf_counter()
     indices = args.only if args.only else range(args.runs)
     results = []

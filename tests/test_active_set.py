@@ -8,7 +8,9 @@ from sotdrake.solvers.active_set import (
     _weighted_full_rank_step,
     daqp_guess,
     dual_guess,
+    eqp,
     full_rank_least_squares,
+    python_eqp,
     solve_least_squares_qp,
 )
 
@@ -59,3 +61,31 @@ def test_the_one_qr_step_is_the_two_factorisation_step_or_declines():
     B_weak[:, 4] *= 1e-10  # σ_min(B) ≈ 1e-10: the bound σ_min(B)/max(m_scale) cannot exceed 2τ
     assert _weighted_full_rank_step(B_weak, m_scale, r, RANK_THRESHOLD) is None
     assert _weighted_full_rank_step(B[:, :3], m_scale, r, RANK_THRESHOLD) is None  # below QR_MIN_SIZE: the SVD decides
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_the_compiled_eqp_is_the_python_one(seed):
+    """:func:`eqp` (compiled) against :func:`python_eqp` on random equality-constrained least squares:
+    projections, weighted and uniform rows, full and deficient rank, rows copied from others, and
+    the working-set threshold of the degenerate retry; the same point, multipliers and basis."""
+    rng = np.random.default_rng(seed)
+    for trial in range(25):
+        p = int(rng.integers(2, 30))
+        m, k = int(rng.integers(0, 25)), int(rng.integers(0, min(p, 12) + 1))
+        projection = trial % 5 == 0
+        M = np.eye(p) if projection else rng.normal(size=(m, p)) * 10.0 ** rng.uniform(-1, 1, size=(m, 1))
+        m_scale = np.ones(len(M)) if projection or trial % 3 == 0 else np.sqrt(np.einsum("ij,ij->i", M, M))
+        E = rng.normal(size=(k, p))
+        if k > 2 and trial % 4 == 0:
+            E[-1] = E[0]  # a row the others fix: exactly dependent
+        if k:
+            E /= np.linalg.norm(E, axis=1, keepdims=True)
+        t, e = rng.normal(size=len(M)), rng.normal(size=k)
+        for working in (None, 1e-10):
+            z, lam, N = eqp(M, t, m_scale, E, e, RANK_THRESHOLD, None, working)
+            z_ref, lam_ref, N_ref = python_eqp(M, t, m_scale, E, e, RANK_THRESHOLD, None, working)
+            np.testing.assert_allclose(z, z_ref, rtol=0, atol=1e-12 * max(1.0, np.abs(z_ref).max()))
+            np.testing.assert_allclose(lam, lam_ref, rtol=0, atol=1e-10 * max(1.0, np.abs(lam_ref).max(initial=0.0)))
+            assert (N is None) == (N_ref is None)
+            if N is not None:  # the same subspace (the bases may differ by a rotation)
+                np.testing.assert_allclose(N @ N.T, N_ref @ N_ref.T, atol=1e-12)

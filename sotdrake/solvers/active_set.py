@@ -32,6 +32,9 @@ with at least :data:`QR_MIN_SIZE` rows and columns that *provably* has every sin
 (``σ_min ≥ 1/‖R⁻¹‖_F > 2τ`` from its Householder QR) is handled by that QR instead of an SVD: no
 singular value would be cut, so both give the same point in exact arithmetic, and the QR costs a
 fraction of the SVD there. Any other matrix gets the SVD, which makes the rank decision.
+The EQP step (:func:`eqp`) is compiled with numba (:mod:`.jit_eqp`, imported on the first call and
+cached on disk): the same computation and LAPACK routines as :func:`python_eqp`, which stays the
+reference (tested against it) and runs where the compiled one gives way.
 
 **Iterations.** From a feasible ``z`` (the previous level's point): step towards ``z_W``; the ratio
 test stops at the first blocking row (smallest index among ties, Bland's rule), which joins ``W``.
@@ -49,7 +52,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache, lru_cache
+from typing import Any
 
 import daqp
 import numpy as np
@@ -274,6 +278,40 @@ def objective_kind(M: np.ndarray, m_scale: np.ndarray) -> tuple[bool, bool]:
 
 
 def eqp(
+    M: np.ndarray,
+    t: np.ndarray,
+    m_scale: np.ndarray,
+    E: np.ndarray,
+    e: np.ndarray,
+    threshold: float,
+    kind: tuple[bool, bool] | None = None,
+    working_threshold: float | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """:func:`python_eqp`, compiled (:mod:`.jit_eqp`, imported on the first call): the same
+    computation and LAPACK routines; the Python version runs where the compiled one gives way."""
+    identity, uniform = objective_kind(M, m_scale) if kind is None else kind
+    cut = threshold if working_threshold is None else working_threshold
+    given = _jit_eqp().compiled_input
+    ok, z, lam, N, has_N = _jit_eqp().eqp(given(M), given(t), given(m_scale), given(E), given(e), float(threshold),
+                                          bool(identity), bool(uniform), float(cut))
+    if not ok:
+        return python_eqp(M, t, m_scale, E, e, threshold, kind, working_threshold)
+    return z, lam, (N if has_N else None)
+
+
+@cache
+def _jit_eqp() -> Any:
+    """:mod:`.jit_eqp`, imported on the first call: it is compiled with numba, which a script that
+    never solves a stage (e.g. with the cascade) does not import."""
+    from . import jit_eqp
+    from .jit_lapack import announce_compilation
+
+    assert jit_eqp.QR_MIN_SIZE == QR_MIN_SIZE
+    announce_compilation(jit_eqp.eqp, "the hierarchical QP's equality-constrained step", "about twenty seconds")
+    return jit_eqp
+
+
+def python_eqp(
     M: np.ndarray,
     t: np.ndarray,
     m_scale: np.ndarray,

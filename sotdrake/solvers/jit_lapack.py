@@ -29,7 +29,7 @@ from numba.extending import get_cython_function_address
 
 log = logging.getLogger("sotdrake.compiled")
 
-_ARGUMENTS = {"dgeqrf": 8, "dgeqp3": 9, "dorgqr": 9, "dormqr": 13, "dtrtri": 6}
+_ARGUMENTS = {"dgeqrf": 8, "dgeqp3": 9, "dorgqr": 9, "dormqr": 13, "dtrtri": 6, "dtrtrs": 10}
 
 
 def _declare(name: str) -> Any:  # (a numba type, called from compiled code only)
@@ -38,7 +38,7 @@ def _declare(name: str) -> Any:  # (a numba type, called from compiled code only
     return types.ExternalFunction(symbol, types.void(*[types.voidptr] * _ARGUMENTS[name]))
 
 
-_dgeqrf, _dgeqp3, _dorgqr, _dormqr, _dtrtri = (_declare(name) for name in _ARGUMENTS)
+_dgeqrf, _dgeqp3, _dorgqr, _dormqr, _dtrtri, _dtrtrs = (_declare(name) for name in _ARGUMENTS)
 
 #: Workspace per column (LAPACK's block size is at most 64 for these routines on small matrices).
 _BLOCK = 64
@@ -126,6 +126,17 @@ def trtri_upper(a):
     info = _integer(0)
     _dtrtri(_character(85).ctypes, _character(78).ctypes, _integer(n).ctypes, a.ctypes, _integer(max(1, n)).ctypes,
             info.ctypes)
+    return info[0]
+
+
+@njit("int32(float64[::1, :], float64[::1, :])", cache=True)
+def trtrs_upper(a, b):
+    """``b ← a⁻¹ b`` for the upper triangle of the square ``a`` (``dtrtrs``, no transpose, non-unit
+    diagonal; ``b``: n × nrhs); ``info > 0``: singular."""
+    n, columns = a.shape[0], b.shape[1]
+    info = _integer(0)
+    _dtrtrs(_character(85).ctypes, _character(78).ctypes, _character(78).ctypes, _integer(n).ctypes, _integer(columns).ctypes,
+            a.ctypes, _integer(max(1, n)).ctypes, b.ctypes, _integer(max(1, n)).ctypes, info.ctypes)
     return info[0]
 
 

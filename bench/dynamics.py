@@ -32,7 +32,7 @@ sys.path.insert(0, str(HERE.parent / "diagrams"))
 
 import talos_dynamics as td
 from host import Steal
-from scenario import DT, pinocchio_half_sitting, urdf_file
+from scenario import DT, load_compiled_paths, pinocchio_half_sitting, urdf_file
 
 from sotdrake.dynamics.station import sole_rectangle
 from sotdrake.dynamics.trajectories import hold_move_hold
@@ -139,6 +139,7 @@ def main(argv=None) -> dict:
     args = parser.parse_args(argv)
     logging.disable(logging.WARNING)
     durations = {"sway": 1.0 if args.quick else 4.0, "lift_leg": 3.0 if args.quick else 4.0}
+    load_compiled_paths()
     results = {}
     for scenario, duration in durations.items():
         steal = Steal()  # (the host's share of the cores: it inflates both peers' times)

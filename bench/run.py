@@ -54,7 +54,7 @@ sys.path.insert(0, str(HERE.parent / "diagrams"))
 from host import Steal
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
-from scenario import DT, GAIN_COM, GAIN_FEET, GAIN_HAND, TARGET
+from scenario import DT, GAIN_COM, GAIN_FEET, GAIN_HAND, TARGET, load_compiled_paths
 
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture, gotoNd
 from sotdrake.robot import Robot, add_sot
@@ -465,6 +465,7 @@ def main(argv=None) -> dict:
     args.out.mkdir(parents=True, exist_ok=True)
     log = lambda message: print(message, file=sys.stderr, flush=True)  # noqa: E731
 
+    load_compiled_paths()
     steal = Steal()  # (the host's share of the cores over the run: it inflates every timing)
     log("sotdrake, basic SOT …")
     basic = sotdrake_run("cascade", ticks, warmup)

@@ -51,3 +51,15 @@ def pinocchio_half_sitting(model) -> np.ndarray:
         if plant.HasJointNamed(name) and model.joints[j].nq == 1:
             q[model.joints[j].idx_q] = plant.GetJointByName(name).get_angle(context)
     return q
+
+
+def load_compiled_paths() -> None:
+    """Load the solvers' numba-compiled paths (or compile them, once after an install) before any
+    timing: their first call is not a tick."""
+    from sotdrake.solvers.equality_hierarchy import solve_equality_hierarchy
+    from sotdrake.solvers.hqp import HierarchicalQP, LevelRows
+
+    bounds = np.full(2, -1.0), np.full(2, 1.0)
+    HierarchicalQP(2).solve_equalities([np.eye(1, 2)], [np.ones(1)], *bounds)  # the active bounds
+    HierarchicalQP(2).solve([LevelRows(np.eye(1, 2), np.zeros(1), np.ones(1))], *bounds)  # the stages' EQP
+    solve_equality_hierarchy([(np.eye(1, 2), np.ones(1))], *bounds)  # SolverDyn's QR path

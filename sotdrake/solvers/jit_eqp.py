@@ -62,13 +62,10 @@ def _independent_qr(A, threshold, full):
 
 
 @njit(cache=True)
-def _full_rank_least_squares(B, r):
-    """``(ok, c)``: :func:`.active_set.full_rank_least_squares` (not ok: LAPACK refused)."""
-    k = B.shape[1]
-    qr = fortran(B)
-    tau = np.empty(min(B.shape[0], k))
-    if geqrf(qr, tau) != 0:
-        return False, np.zeros(k)
+def _solve_from_qr(qr, tau, r):
+    """``(ok, c)``: ``argmin ‖B c − r‖`` from ``dgeqrf``'s ``(qr, tau)`` of ``B`` (m × k, full column
+    rank): ``Qᵀ r`` (``dormqr``), then ``R c = (Qᵀ r)_{:k}`` (``dtrtrs``); not ok: LAPACK refused."""
+    k = qr.shape[1]
     qtr = fortran(r.reshape(-1, 1))
     if ormqr(qr, tau, qtr, True) != 0:
         return False, np.zeros(k)
@@ -76,6 +73,17 @@ def _full_rank_least_squares(B, r):
     if trtrs_upper(fortran(qr[:k, :k]), c) != 0:
         return False, np.zeros(k)
     return True, _c(c[:, 0])
+
+
+@njit(cache=True)
+def _full_rank_least_squares(B, r):
+    """``(ok, c)``: :func:`.active_set.full_rank_least_squares` (not ok: LAPACK refused)."""
+    k = B.shape[1]
+    qr = fortran(B)
+    tau = np.empty(min(B.shape[0], k))
+    if geqrf(qr, tau) != 0:
+        return False, np.zeros(k)
+    return _solve_from_qr(qr, tau, r)
 
 
 @njit(cache=True)
@@ -97,17 +105,10 @@ def _scaled_least_squares(U, s, Vt, k, m_scale, r, uniform):
 @njit(cache=True)
 def _weighted_full_rank_step(B, m_scale, r, threshold):
     """``(ok, u)``: :func:`.active_set._weighted_full_rank_step`."""
-    q = B.shape[1]
     ok, qr, tau, _ = _proven_full_rank_qr(B, 2.0 * threshold * m_scale.max())
     if not ok:
-        return False, np.zeros(q)
-    qtr = fortran(r.reshape(-1, 1))
-    if ormqr(qr, tau, qtr, True) != 0:
-        return False, np.zeros(q)
-    c = fortran(_c(qtr[:q]))
-    if trtrs_upper(fortran(qr[:q, :q]), c) != 0:
-        return False, np.zeros(q)
-    return True, _c(c[:, 0])
+        return False, np.zeros(B.shape[1])
+    return _solve_from_qr(qr, tau, r)
 
 
 @njit(cache=True)

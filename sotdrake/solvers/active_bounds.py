@@ -47,7 +47,7 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from .jit_lapack import compiled_input, geqrf, ormqr, upper_inverse
+from .jit_lapack import compiled_input, geqrf, level_residuals, ormqr, upper_inverse
 from .jit_lapack import row_norms as row_norms  # (for the QP: the stack's norms)
 
 CERTIFIED = 1e-5
@@ -168,13 +168,7 @@ def solve_with_active_bounds(
 def _outcome(A, b, sizes, x, x_lower, x_upper, fixed):
     """``(A x − b, each level's slack norm, the free components at a bound)`` (to ``1e-7`` relative
     above 1: ``x`` is inside its bounds to ``1e-10``)."""
-    residual = A @ x - b
-    norms = np.empty(sizes.size)
-    start = 0
-    for k in range(sizes.size):
-        level = residual[start : start + sizes[k]]
-        norms[k] = math.sqrt(level @ level)
-        start += sizes[k]
+    residual, norms = level_residuals(A, b, x, sizes)
     scale = 1e-7 * np.maximum(1.0, np.abs(x))
     return residual, norms, np.flatnonzero(~fixed & ((x - x_lower <= scale) | (x_upper - x <= scale)))
 

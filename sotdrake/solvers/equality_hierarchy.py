@@ -69,7 +69,19 @@ from numba import njit
 
 from .active_set import RANK_THRESHOLD
 from .hqp import HqpResult
-from .jit_lapack import announce_compilation, compiled_input, fortran, geqp3, geqrf, orgqr, ormqr, row_norms, upper_inverse
+from .jit_lapack import (
+    announce_compilation,
+    compiled_input,
+    contiguous,
+    fortran,
+    geqp3,
+    geqrf,
+    level_residuals,
+    orgqr,
+    ormqr,
+    row_norms,
+    upper_inverse,
+)
 
 #: The smallest singular value (rows at unit norm) that counts as clearly non-zero,
 CERTIFIED = 1e3 * RANK_THRESHOLD
@@ -85,11 +97,6 @@ MULTIPLIER_TOLERANCE = 1e-9
 
 # The compiled functions: every matrix handed to LAPACK is a column-major copy, the others are
 # C-ordered. A function that cannot decide returns ``ok = False``.
-
-@njit(cache=True)
-def _contiguous(a):
-    return np.ascontiguousarray(a)
-
 
 @njit(cache=True)
 def _none():
@@ -136,13 +143,13 @@ def _pivoted_step(B, residual, norms):
     if ormqr(qr, tau, projected, True) != 0:
         return False, _none(), _none()
     z = np.zeros((r, columns))
-    head = R11_inverse @ _contiguous(projected[:k])
+    head = R11_inverse @ contiguous(projected[:k])
     for a in range(k):
         z[pivots[a] - 1] = head[a]
     if k == r:  # full column rank: the level fixes what is left
         return True, z, np.zeros((r, 0))
     null = np.zeros((r, r - k))
-    coupling = R11_inverse @ _contiguous(qr[:k, k:])
+    coupling = R11_inverse @ contiguous(qr[:k, k:])
     for a in range(k):
         null[pivots[a] - 1] = -coupling[a]
     for j in range(r - k):
@@ -151,7 +158,7 @@ def _pivoted_step(B, residual, norms):
     tau = np.empty(r - k)
     if geqrf(basis, tau) != 0 or orgqr(basis, r - k, tau) != 0:
         return False, _none(), _none()
-    return True, z, _contiguous(basis)
+    return True, z, contiguous(basis)
 
 
 @njit(cache=True)
@@ -166,7 +173,7 @@ def _least_squares(C, residual):
     projected = fortran(residual)
     if not ok or ormqr(qr, tau, projected, True) != 0:
         return False, _none()
-    return True, R_inverse @ _contiguous(projected[:k])
+    return True, R_inverse @ contiguous(projected[:k])
 
 
 @njit(cache=True)
@@ -201,9 +208,9 @@ def _row_rank_prefix(B, residual, norms, sizes):
     square[:, :K] = qr[:, :K]
     if orgqr(square, K, tau[:K].copy()) != 0:  # r × r: Q_1 then Q_2
         return False, 0, _none(), _none()
-    Q = _contiguous(square)
-    step = _contiguous(Q[:, :K]) @ (_contiguous(R_inverse[:K, :K].T) @ _contiguous(residual[:K]))
-    return True, count, step, _contiguous(Q[:, K:])
+    Q = contiguous(square)
+    step = contiguous(Q[:, :K]) @ (contiguous(R_inverse[:K, :K].T) @ contiguous(residual[:K]))
+    return True, count, step, contiguous(Q[:, K:])
 
 
 @njit(cache=True)
@@ -217,7 +224,7 @@ def _clear_cut_step(B, residual, norms):
     ok, z, V0 = _pivoted_step(B, residual, norms)
     if ok:
         return True, z, V0
-    scaled = B / _contiguous(norms).reshape(-1, 1)
+    scaled = B / contiguous(norms).reshape(-1, 1)
     if not np.all(np.isfinite(scaled)):
         return False, _none(), _none()
     _, sigma, Vt = np.linalg.svd(scaled)
@@ -229,11 +236,11 @@ def _clear_cut_step(B, residual, norms):
             rank += 1
     if rank == 0:
         return True, _none(), _none()
-    kept = _contiguous(Vt[:rank].T)
+    kept = contiguous(Vt[:rank].T)
     ok, z = _least_squares(B @ kept, residual)  # raw rows: the level's objective is ‖B z − ρ‖
     if not ok:
         return False, _none(), _none()
-    return True, kept @ z, _contiguous(Vt[rank:].T)
+    return True, kept @ z, contiguous(Vt[rank:].T)
 
 
 @njit(cache=True)
@@ -261,7 +268,7 @@ def _certify(C, B, Y, rho, norms, P):
     rank on them; else not clear-cut): their bounds hold from this level on."""
     u = P.shape[1]
     E = C + B @ Y if B.shape[1] else C.copy()
-    scaled = E / _contiguous(norms).reshape(-1, 1) / _column_norms(P)
+    scaled = E / contiguous(norms).reshape(-1, 1) / _column_norms(P)
     change = _column_norms(scaled)
     dies = np.zeros(u, np.bool_)
     for j in range(u):
@@ -277,7 +284,7 @@ def _certify(C, B, Y, rho, norms, P):
         return True, ~dies, released
     tied = dies & (multiplier <= tolerance)
     if np.count_nonzero(tied) > 1:
-        sigma = np.linalg.svd(_contiguous(scaled[:, np.flatnonzero(tied)]))[1]
+        sigma = np.linalg.svd(contiguous(scaled[:, np.flatnonzero(tied)]))[1]
         if sigma.min() <= CERTIFIED:
             return False, dies, dies
     return True, ~dies, released
@@ -339,17 +346,17 @@ def _compiled_sweep(A, b, norms, starts, x_lower, x_upper, held_indices, held_si
         prefix = ok
         if not prefix:  # the first level alone
             m = starts[i + 1] - starts[i]
-            B_level = _contiguous(B[:m])
+            B_level = contiguous(B[:m])
             if r:
-                ok, step, basis = _clear_cut_step(B_level, _contiguous(rhs[:m]), rows_norms[:m])
+                ok, step, basis = _clear_cut_step(B_level, contiguous(rhs[:m]), rows_norms[:m])
                 if not ok:
                     return False, x, none
             solved = 1
             if u:
                 has_step = step.shape[1] > 0
-                Y = _contiguous(step[:, 1:]) if has_step else np.zeros((r, u))
-                rho = residual[:m] - B_level @ _contiguous(step[:, 0]) if has_step else residual[:m].copy()
-                ok, alive, released = _certify(_contiguous(C[:m]), B_level, Y, rho, rows_norms[:m], P)
+                Y = contiguous(step[:, 1:]) if has_step else np.zeros((r, u))
+                rho = residual[:m] - B_level @ contiguous(step[:, 0]) if has_step else residual[:m].copy()
+                ok, alive, released = _certify(contiguous(C[:m]), B_level, Y, rho, rows_norms[:m], P)
                 if not ok:
                     return False, x, none
                 if released.any():
@@ -365,7 +372,7 @@ def _compiled_sweep(A, b, norms, starts, x_lower, x_upper, held_indices, held_si
             P += step[:, 1:]
             x += step[:, 0]
         if u and not prefix:
-            directions, P = directions[alive], _contiguous(P[:, np.flatnonzero(alive)])
+            directions, P = directions[alive], contiguous(P[:, np.flatnonzero(alive)])
             u = directions.size
         if basis.shape[0] > 0:
             if have_Z:
@@ -407,11 +414,7 @@ def _most_in_the_way(x, x_lower, x_upper):
 @njit(cache=True)
 def _outcome(A, b, starts, x, x_lower, x_upper):
     """``(A x − b, each level's slack norm, the free components at a bound)``."""
-    residuals = A @ x - b
-    norms = np.empty(starts.size - 1)
-    for k in range(norms.size):
-        level = residuals[starts[k] : starts[k + 1]]
-        norms[k] = math.sqrt(level @ level)
+    residuals, norms = level_residuals(A, b, x, np.diff(starts))
     at_bound = (x_lower != x_upper) & ((x <= x_lower) | (x >= x_upper))
     return residuals, norms, np.flatnonzero(at_bound)
 

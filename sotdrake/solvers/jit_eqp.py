@@ -17,15 +17,10 @@ import numpy as np
 from numba import njit
 
 from .jit_lapack import compiled_input as compiled_input  # (for the caller)
-from .jit_lapack import fortran, geqrf, orgqr, ormqr, trtrs_upper, upper_inverse
+from .jit_lapack import contiguous, fortran, geqrf, orgqr, ormqr, trtrs_upper, upper_inverse
 
 #: :data:`.active_set.QR_MIN_SIZE` (the same value; asserted there).
 QR_MIN_SIZE = 4
-
-
-@njit(cache=True)
-def _c(a):
-    return np.ascontiguousarray(a)
 
 
 @njit(cache=True)
@@ -58,7 +53,7 @@ def _independent_qr(A, threshold, full):
         qr = padded
     if orgqr(qr, k, tau) != 0:
         return False, np.zeros((0, 0)), R_inv
-    return True, _c(qr), R_inv
+    return True, contiguous(qr), R_inv
 
 
 @njit(cache=True)
@@ -69,10 +64,10 @@ def _solve_from_qr(qr, tau, r):
     qtr = fortran(r.reshape(-1, 1))
     if ormqr(qr, tau, qtr, True) != 0:
         return False, np.zeros(k)
-    c = fortran(_c(qtr[:k]))
+    c = fortran(contiguous(qtr[:k]))
     if trtrs_upper(fortran(qr[:k, :k]), c) != 0:
         return False, np.zeros(k)
-    return True, _c(c[:, 0])
+    return True, contiguous(c[:, 0])
 
 
 @njit(cache=True)
@@ -90,7 +85,7 @@ def _full_rank_least_squares(B, r):
 def _scaled_least_squares(U, s, Vt, k, m_scale, r, uniform):
     """``(ok, u)``: :func:`.active_set.scaled_least_squares` (not ok: LAPACK refused, where the
     Python version goes on with numpy's QR)."""
-    U_k, s_k = _c(U[:, :k]), s[:k]
+    U_k, s_k = contiguous(U[:, :k]), s[:k]
     if uniform:
         c = (U_k.T @ r) / (m_scale[0] * s_k)
     elif k == m_scale.size:
@@ -99,7 +94,7 @@ def _scaled_least_squares(U, s, Vt, k, m_scale, r, uniform):
         ok, c = _full_rank_least_squares(m_scale.reshape(-1, 1) * (U_k * s_k), r)
         if not ok:
             return False, np.zeros(Vt.shape[1])
-    return True, _c(Vt[:k].T) @ c
+    return True, contiguous(Vt[:k].T) @ c
 
 
 @njit(cache=True)
@@ -129,7 +124,7 @@ def _full_rank_step(B, m_scale, r, threshold, uniform):
             return 0, R_inv @ (Q1.T @ r) / m_scale[0]
         ok, u = _full_rank_least_squares(B, r)
         return (0 if ok else 2), u
-    ok, Q1, R_inv = _independent_qr(_c(unit.T), threshold, False)
+    ok, Q1, R_inv = _independent_qr(contiguous(unit.T), threshold, False)
     if not ok:
         return 1, np.zeros(q)
     return 0, Q1 @ (R_inv.T @ (r / m_scale))
@@ -147,17 +142,17 @@ def eqp(M, t, m_scale, E, e, threshold, identity, uniform, cut):
     U_k, s_k, V_k = np.zeros((0, 0)), np.zeros(0), np.zeros((0, 0))
     z, N, has_N = np.zeros(p), np.zeros((p, 0)), False
     if E.shape[0]:
-        has_factors, Q, R_inv = _independent_qr(_c(E.T), cut, True)
+        has_factors, Q, R_inv = _independent_qr(contiguous(E.T), cut, True)
         if has_factors:
             k = E.shape[0]
-            z = _c(Q[:, :k]) @ (R_inv.T @ e)
-            N, has_N = _c(Q[:, k:]), True
+            z = contiguous(Q[:, :k]) @ (R_inv.T @ e)
+            N, has_N = contiguous(Q[:, k:]), True
         else:
             U, s, Vt = np.linalg.svd(E)
             k = int(np.count_nonzero(s > cut))
-            U_k, s_k, V_k = _c(U[:, :k]), s[:k], _c(Vt[:k].T)
+            U_k, s_k, V_k = contiguous(U[:, :k]), s[:k], contiguous(Vt[:k].T)
             z = V_k @ ((U_k.T @ e) / s_k)
-            N, has_N = _c(Vt[k:].T), True
+            N, has_N = contiguous(Vt[k:].T), True
     if identity:  # ½‖z - t‖² (the minimum-norm stage): N has orthonormal columns, no decomposition
         r = t - z
         z = z + (N @ (N.T @ r) if has_N else r)
@@ -188,7 +183,7 @@ def eqp(M, t, m_scale, E, e, threshold, identity, uniform, cut):
         else:
             gradient = np.zeros(p)
         if has_factors:
-            lam = -(R_inv @ (_c(Q[:, :k]).T @ gradient))
+            lam = -(R_inv @ (contiguous(Q[:, :k]).T @ gradient))
         else:
             lam = -(U_k @ ((V_k.T @ gradient) / s_k))
     return True, z, lam, N, has_N

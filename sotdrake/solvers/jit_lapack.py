@@ -11,8 +11,9 @@ checks a cached function against its own file only: after a change to this file,
 
 Every wrapper takes column-major (Fortran-ordered) matrices (its signature refuses others),
 overwrites them as the LAPACK routine does, and returns LAPACK's ``info`` (0: success, < 0: a bad
-argument, > 0: the routine's own failure). :func:`fortran` makes such a copy; :func:`upper_inverse` and :func:`row_norms` are the
-compiled solvers' shared helpers, :func:`compiled_input` the arrays they take.
+argument, > 0: the routine's own failure). :func:`fortran` makes such a copy; :func:`contiguous`, :func:`upper_inverse`,
+:func:`row_norms` and :func:`level_residuals` are the compiled solvers' shared helpers,
+:func:`compiled_input` the arrays they take.
 """
 
 from __future__ import annotations
@@ -138,6 +139,25 @@ def trtrs_upper(a, b):
     _dtrtrs(_character(85).ctypes, _character(78).ctypes, _character(78).ctypes, _integer(n).ctypes, _integer(columns).ctypes,
             a.ctypes, _integer(max(1, n)).ctypes, b.ctypes, _integer(max(1, n)).ctypes, info.ctypes)
     return info[0]
+
+
+@njit(cache=True)
+def contiguous(a):
+    """``a`` C-ordered (a copy when it is not): what the compiled ``@`` is fastest on."""
+    return np.ascontiguousarray(a)
+
+
+@njit(cache=True)
+def level_residuals(A, b, x, sizes):
+    """``(A x − b, each level's slack norm)`` for levels of ``sizes`` rows stacked in ``A``."""
+    residual = A @ x - b
+    norms = np.empty(sizes.size)
+    start = 0
+    for k in range(sizes.size):
+        level = residual[start : start + sizes[k]]
+        norms[k] = math.sqrt(level @ level)
+        start += sizes[k]
+    return residual, norms
 
 
 @njit(cache=True)

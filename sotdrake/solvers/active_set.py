@@ -291,9 +291,10 @@ def eqp(
     computation and LAPACK routines; the Python version runs where the compiled one gives way."""
     identity, uniform = objective_kind(M, m_scale) if kind is None else kind
     cut = threshold if working_threshold is None else working_threshold
-    given = _jit_eqp().compiled_input
-    ok, z, lam, N, has_N = _jit_eqp().eqp(given(M), given(t), given(m_scale), given(E), given(e), float(threshold),
-                                          bool(identity), bool(uniform), float(cut))
+    compiled = _jit_eqp()
+    given = compiled.compiled_input
+    ok, z, lam, N, has_N = compiled.eqp(given(M), given(t), given(m_scale), given(E), given(e), float(threshold),
+                                        bool(identity), bool(uniform), float(cut))
     if not ok:
         return python_eqp(M, t, m_scale, E, e, threshold, kind, working_threshold)
     return z, lam, (N if has_N else None)

@@ -444,22 +444,12 @@ class _Stack(NamedTuple):
         return _Stack(A, b, row_norms(A), starts)  # before projection, as the QP's
 
 
-_loaded = False  # the compiled sweep is in this process (compiled, or loaded from numba's cache)
-
-
-def _announce_compilation() -> None:
-    global _loaded
-    _loaded = True
-    announce_compilation(_compiled_sweep, "the QR path of the dynamic solver", "about half a minute")
-
-
 def _sweep(stack: _Stack, x_lower: np.ndarray, x_upper: np.ndarray, held: dict[int, float]) -> tuple[np.ndarray, list[int]] | None:
     """The hierarchy with the bounds ``held`` (component → sign: +1 its lower bound, −1 its upper)
     as fixed components: ``(x, released)``, ``released`` the held bounds whose multiplier says the
     optimum leaves them (then ``x`` is not the answer), or None when not clear-cut (compiled:
     :func:`_compiled_sweep`)."""
-    if not _loaded:
-        _announce_compilation()
+    announce_compilation(_compiled_sweep, "the QR path of the dynamic solver", "about half a minute")
     indices = np.fromiter(held, dtype=np.int64, count=len(held))
     signs = np.fromiter(held.values(), dtype=float, count=len(held))
     ok, x, released = _compiled_sweep(stack.A, stack.b, stack.norms, stack.starts, x_lower, x_upper, indices, signs)

@@ -18,6 +18,7 @@ argument, > 0: the routine's own failure). :func:`fortran` makes such a copy; :f
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import os
@@ -196,10 +197,11 @@ def compiled_input(a: Any, dtype: type = float) -> np.ndarray:
     return np.require(a, dtype=dtype, requirements=("C", "A", "W"))
 
 
+@functools.cache
 def announce_compilation(function: Any, what: str, duration: str) -> None:
     """Log that numba is about to compile ``function`` (a ``cache=True`` dispatcher) rather than load
     it from its cache on disk: the first call after an install (or a change of its file) waits
-    ``duration`` for it."""
+    ``duration`` for it. Looked at once per process (cached): callers may call it before every use."""
     try:
         cached = os.path.exists(function._cache._cache_file._index_path)  # numba's index of the cached code
     except AttributeError:  # another numba: say nothing

@@ -177,12 +177,12 @@ class LevelRows:
     @functools.cached_property
     def eq_norms(self) -> np.ndarray:
         """The norms of the equality rows (1 for a zero row): their reference norms."""
-        return row_norms(self.A_eq)
+        return _row_norms(self.A_eq)
 
     @functools.cached_property
     def in_norms(self) -> np.ndarray:
         """The norms of the inequality rows (1 for a zero row): their reference norms once held."""
-        return row_norms(self.A_in) if len(self.A_in) else self.lower[:0]
+        return _row_norms(self.A_in) if len(self.A_in) else self.lower[:0]
 
     def slack(self, x: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
         """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows
@@ -273,7 +273,7 @@ def _sides_at_bounds(x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fi
     return np.where(upper, 1, np.where(lower, -1, 0))
 
 
-def row_norms(A: np.ndarray) -> np.ndarray:
+def _row_norms(A: np.ndarray) -> np.ndarray:
     """Each row's norm, 1 for a zero row: the scale that puts the rows at unit norm for the rank
     decisions."""
     norms = np.sqrt(np.einsum("ij,ij->i", A, A))

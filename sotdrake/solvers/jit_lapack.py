@@ -178,7 +178,7 @@ def upper_inverse(R):
 
 @njit(cache=True)
 def row_norms(A):
-    """Each row's norm, 1 for a zero row (:func:`~.hqp.row_norms`, compiled)."""
+    """Each row's norm, 1 for a zero row (as :attr:`~.hqp.LevelRows.eq_norms`), compiled."""
     norms = np.empty(A.shape[0])
     for i in range(A.shape[0]):
         square = 0.0

@@ -61,5 +61,5 @@ def load_compiled_paths() -> None:
 
     bounds = np.full(2, -1.0), np.full(2, 1.0)
     HierarchicalQP(2).solve_equalities([np.eye(1, 2)], [np.ones(1)], *bounds)  # the active bounds
-    HierarchicalQP(2).solve([LevelRows(np.eye(1, 2), np.zeros(1), np.ones(1))], *bounds)  # the stages' EQP
+    HierarchicalQP(2).solve([LevelRows(np.eye(1, 2), np.zeros(1), np.ones(1))], *bounds)  # a stage: its assembly and active set
     solve_equality_hierarchy([(np.eye(1, 2), np.ones(1))], *bounds)  # SolverDyn's QR path

@@ -1,18 +1,26 @@
-"""The active-set method's building blocks: the DAQP guess and the one-QR weighted least-squares step."""
+"""The active-set method's building blocks: the DAQP guess, the one-QR weighted least-squares step, and
+the compiled EQP step and iterations against their Python references."""
 
 import numpy as np
 import pytest
 
+from sotdrake.solvers import active_set
 from sotdrake.solvers.active_set import (
     RANK_THRESHOLD,
+    ActiveSetFailure,
+    _solve,
     _weighted_full_rank_step,
     daqp_guess,
     dual_guess,
     eqp,
     full_rank_least_squares,
+    objective_kind,
     python_eqp,
+    python_solve,
     solve_least_squares_qp,
 )
+from sotdrake.solvers.hqp import HierarchicalQP
+from tests.hqp_stacks import random_stack
 
 
 def strictly_convex_level(rng: np.random.Generator, p: int = 8, m: int = 12, rows: int = 10):
@@ -89,3 +97,96 @@ def test_the_compiled_eqp_is_the_python_one(seed):
             assert (N is None) == (N_ref is None)
             if N is not None:  # the same subspace (the bases may differ by a rotation)
                 np.testing.assert_allclose(N @ N.T, N_ref @ N_ref.T, atol=1e-12)
+
+
+def assert_same_iterations(args: tuple) -> None:
+    """The compiled :func:`_solve` and :func:`python_solve` on the same arguments: the same final working
+    set, iteration count and flags, and the same point to round-off, or the same failure."""
+
+    def run(solve):
+        try:
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                return solve(*args)
+        except ActiveSetFailure as error:
+            return str(error)
+
+    got, expected = run(_solve), run(python_solve)
+    if isinstance(expected, str) or isinstance(got, str):
+        assert got == expected
+        return
+    np.testing.assert_array_equal(got.side, expected.side)
+    assert (got.iterations, got.guess_accepted, got.verified) == (
+        expected.iterations, expected.guess_accepted, expected.verified)
+    np.testing.assert_allclose(got.z, expected.z, rtol=0, atol=1e-13 * max(1.0, np.abs(expected.z).max(initial=0.0)))
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_the_compiled_iterations_are_the_python_ones_on_random_levels(seed):
+    """Random levels from z = 0: weighted, uniform, rank-deficient and projection objectives, equality
+    rows, rows copied from others (degenerate vertices), infinite sides, random guesses (some held at
+    an infinite side), the working-set threshold of the degenerate retry and iteration caps low
+    enough to be met."""
+    rng = np.random.default_rng(seed)
+    for trial in range(20):
+        p, m, rows = int(rng.integers(2, 25)), int(rng.integers(0, 30)), int(rng.integers(0, 35))
+        projection = trial % 6 == 0
+        M = np.eye(p) if projection else rng.normal(size=(m, p)) * 10.0 ** rng.uniform(-1, 1, size=(m, 1))
+        m_scale = np.ones(len(M)) if projection or trial % 3 == 0 else np.linalg.norm(M, axis=1)
+        t = 3.0 * rng.normal(size=len(M))
+        G = rng.normal(size=(rows, p))
+        if rows > 3 and trial % 4 == 0:
+            G[1] = G[0]  # a copied row: the ratio test and the working set meet a dependent row
+        G /= np.linalg.norm(G, axis=1, keepdims=True)
+        lower, upper = -rng.uniform(0.0, 1.0, rows), rng.uniform(0.0, 1.0, rows)
+        lower[rng.random(rows) < 0.2] = -np.inf
+        upper[rng.random(rows) < 0.2] = np.inf
+        pinned = rng.random(rows) < 0.1
+        lower[pinned] = upper[pinned] = 0.0  # equality rows (z = 0 stays feasible)
+        guess = None if trial % 5 == 0 else rng.integers(-1, 2, rows)
+        cap = (None, None, 1, 3)[trial % 4]
+        working = RANK_THRESHOLD if trial % 3 else 1e-4 * RANK_THRESHOLD
+        assert_same_iterations((M, t, m_scale, G, lower, upper, np.zeros(p), guess, RANK_THRESHOLD, 1e-10, cap,
+                                objective_kind(M, m_scale), bool(trial % 2), working))
+
+
+@pytest.mark.parametrize("seed", range(15))
+def test_the_compiled_iterations_are_the_python_ones_on_every_stage_of_random_stacks(seed, monkeypatch):
+    """Every stage the hierarchical QP solves on random stacks (DAQP's and quadprog's cold guesses,
+    the minimum-norm stage, the degenerate retries), compiled against Python."""
+    compared = []
+
+    def comparing(*args):
+        assert_same_iterations(args)
+        compared.append(args)
+        return _solve(*args)
+
+    monkeypatch.setattr(active_set, "_solve", comparing)
+    for stack in range(10 * seed, 10 * seed + 10):
+        n, levels, lower, upper = random_stack(np.random.default_rng(stack))
+        HierarchicalQP(n).solve(levels, lower, upper)
+    assert len(compared) >= 10
+
+
+def test_the_compiled_iterations_take_any_array_layout_without_another_compilation():
+    """Read-only, Fortran-ordered, strided and integer inputs and a list as guess give the same bits
+    without a second compilation."""
+    from sotdrake.solvers import jit_active_set
+
+    M, t, G, lower, upper = strictly_convex_level(np.random.default_rng(5))
+    m_scale = np.ones(len(M))
+    plain = solve_least_squares_qp(M, t, m_scale, G, lower, upper, np.zeros(M.shape[1]), guess=np.zeros(len(G), int))
+    signatures = len(jit_active_set.solve.signatures)
+    frozen = [a.copy() for a in (M, t, G)]
+    for a in frozen:
+        a.flags.writeable = False
+    wide = np.zeros((len(G), 2 * G.shape[1]))
+    wide[:, ::2] = G
+    for arguments in (
+        (frozen[0], frozen[1], m_scale, frozen[2], lower, upper, np.zeros(M.shape[1]), np.zeros(len(G), np.int32)),
+        (np.asfortranarray(M), t, m_scale.astype(np.float32), wide[:, ::2], lower, upper, np.zeros(M.shape[1], int),
+         [0] * len(G)),
+    ):
+        again = solve_least_squares_qp(*arguments[:7], guess=arguments[7])
+        np.testing.assert_array_equal(again.z, plain.z)
+        np.testing.assert_array_equal(again.side, plain.side)
+    assert len(jit_active_set.solve.signatures) == signatures == 1

@@ -358,3 +358,83 @@ def test_a_degenerate_vertex_is_solved_within_the_bounds():
     assert np.all(result.slack_norms[:2] <= 1e-9)
     reference = reference_slack_norms(len(x_lower), levels, x_lower, x_upper)
     assert same_norms(result.slack_norms[2:3], reference[2:3], relative=1e-5), (result.slack_norms, reference)
+
+
+def reference_stage(level, x0, Z, free, held, reference, hard_lower, hard_upper, hard_side, mu, tau=RANK_THRESHOLD):
+    """A stage as the :mod:`sotdrake.solvers.jit_stage` docstring defines it, written with numpy:
+    ``(M, t, m_scale, G, lower, upper, z0, kept, guess)``."""
+    C = np.vstack([Z[free], held @ Z])
+    offset = np.concatenate([x0[free], held @ x0])
+    norms = np.linalg.norm(C, axis=1)
+    kept = np.flatnonzero(norms > tau * reference)
+    C, offset, norms = C[kept], offset[kept], norms[kept]
+    G = C / norms[:, None]
+    lower = (np.minimum(hard_lower[kept], offset) - offset) / norms
+    upper = (np.maximum(hard_upper[kept], offset) - offset) / norms
+    r = Z.shape[1]
+    if level is None:
+        return np.eye(r), -Z.T @ x0, np.ones(r), G, lower, upper, np.zeros(r), kept, hard_side[kept]
+    eq = level.lower == level.upper
+    A_eq, A_in = level.A[eq], level.A[~eq]
+    m_in = len(A_in)
+    M = np.block([[A_eq @ Z, np.zeros((len(A_eq), m_in))], [np.zeros((m_in, r)), np.eye(m_in)]])
+    t = np.concatenate([level.lower[eq] - A_eq @ x0, np.zeros(m_in)])
+    m_scale = np.concatenate([np.linalg.norm(A_eq, axis=1), np.ones(m_in)])
+    if mu > 0:
+        M = np.vstack([M, np.hstack([np.sqrt(mu) * np.eye(r), np.zeros((r, m_in))])])
+        t, m_scale = np.concatenate([t, np.zeros(r)]), np.concatenate([m_scale, np.full(r, np.sqrt(mu))])
+    value = A_in @ x0
+    soft = np.sqrt(np.linalg.norm(A_in @ Z, axis=1) ** 2 + 1.0)
+    G = np.block([[G, np.zeros((len(G), m_in))], [(A_in @ Z) / soft[:, None], -np.diag(1.0 / soft)]])
+    lower = np.concatenate([lower, (level.lower[~eq] - value) / soft])
+    upper = np.concatenate([upper, (level.upper[~eq] - value) / soft])
+    violation = np.maximum(level.lower[~eq] - value, 0.0) - np.maximum(value - level.upper[~eq], 0.0)
+    z0 = np.concatenate([np.zeros(r), -violation])  # w = a·x0 minus its nearest side
+    return M, t, m_scale, G, lower, upper, z0, kept, np.concatenate([hard_side[kept], np.zeros(m_in, int)])
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_a_stage_is_assembled_as_its_definition(seed):
+    """The compiled assembly of a stage (bound rows of the free components, held rows, a row the
+    levels above made constant, sides relaxed where x0 is outside them, infinite sides, damping,
+    equality and inequality rows, the minimum-norm stage) against its definition."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(4, 14))
+    r = int(rng.integers(1, n + 1))
+    Z = np.linalg.qr(rng.normal(size=(n, r)))[0]
+    x0 = rng.normal(size=n)
+    free = np.sort(rng.choice(n, int(rng.integers(1, n + 1)), replace=False))
+    held = rng.normal(size=(int(rng.integers(0, 4)), n))
+    if len(held) and r < n:  # constant over the stage relative to its norm (1e9): left out
+        held[0] -= Z @ (Z.T @ held[0])
+        held[0] *= 1e9 / np.linalg.norm(held[0])
+        held[0] += 1e-7 * Z[:, 0]
+    reference = np.concatenate([np.ones(len(free)), np.linalg.norm(held, axis=1)])
+    offset = np.concatenate([x0[free], held @ x0])
+    hard_lower = offset - rng.uniform(-0.5, 1.0, len(offset))  # some above x0's value: relaxed to it
+    hard_upper = offset + rng.uniform(-0.5, 1.0, len(offset))
+    hard_lower[rng.random(len(offset)) < 0.2] = -np.inf
+    hard_upper[rng.random(len(offset)) < 0.2] = np.inf
+    hard_side = rng.integers(-1, 2, len(offset))
+    A = rng.normal(size=(int(rng.integers(1, 8)), n))
+    lower, upper = rng.normal(size=len(A)), rng.normal(size=len(A))
+    lower, upper = np.minimum(lower, upper), np.maximum(lower, upper)
+    equality = rng.random(len(A)) < 0.5
+    upper[equality] = lower[equality]
+    upper[~equality & (rng.random(len(A)) < 0.3)] = np.inf
+    hqp = HierarchicalQP(n)
+    hard = (free, reference, held, hard_lower, hard_upper, hard_side)
+    for level in (None, LevelRows(A[equality], lower[equality], lower[equality]), LevelRows(A, lower, upper)):
+        for mu in (0.0, 1e-2):
+            stage = hqp._build(level, x0, Z, hard, mu)
+            M, t, m_scale, G, lo, hi, z0, kept, guess = reference_stage(level, x0, Z, free, held, reference, hard_lower,
+                                                                        hard_upper, hard_side, 0.0 if level is None else mu)
+            for got, expected in ((stage.M, M), (stage.t, t), (stage.m_scale, m_scale), (stage.G, G),
+                                  (stage.lower, lo), (stage.upper, hi), (stage.z0, z0)):
+                np.testing.assert_allclose(got, expected, rtol=1e-13, atol=1e-13)
+            np.testing.assert_array_equal(np.arange(len(offset)) if stage.hard is None else stage.hard, kept)
+            np.testing.assert_array_equal(stage.guess, guess)
+            assert (stage.r, stage.m_hard) == (r, len(kept))
+            assert stage.kind == (level is None, level is None or (len(m_scale) > 0 and bool(np.all(m_scale == m_scale[0]))))
+    full = hqp._build(None, x0, Z, (slice(None), np.ones(n), np.zeros((0, n)), x0 - 1, x0 + 1, np.zeros(n, int)), 0.0)
+    np.testing.assert_allclose(full.G, Z / np.linalg.norm(Z, axis=1)[:, None], rtol=1e-13)  # every component bounded

@@ -414,6 +414,42 @@ def solve_least_squares_qp(
 
 def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid,
            working) -> ActiveSetResult:
+    """:func:`python_solve`, compiled (:mod:`.jit_active_set`, imported on the first call): the same
+    iterations, each step the compiled :func:`eqp`; the Python version runs where the compiled one
+    gives way (LAPACK refusing a factorisation)."""
+    compiled = _jit_active_set()
+    given = compiled.compiled_input
+    has_guess = guess is not None
+    status, z_out, side, iterations, accepted, verified = compiled.solve(
+        given(M), given(t), given(m_scale), given(G), given(lower), given(upper), given(z),
+        given(guess, np.int64) if has_guess else _NO_GUESS, has_guess, float(threshold), float(feasibility),
+        -1 if max_iterations is None else int(max_iterations), bool(kind[0]), bool(kind[1]), bool(guess_valid),
+        float(working))
+    if status == compiled.SOLVED:
+        return ActiveSetResult(z_out, side, iterations, accepted, verified)
+    if status == compiled.NO_CONVERGENCE:
+        raise ActiveSetFailure(f"no convergence in {iterations} active-set iterations")
+    return python_solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind,
+                        guess_valid, working)
+
+
+_NO_GUESS = np.zeros(0, dtype=np.int64)
+
+
+@cache
+def _jit_active_set() -> Any:
+    """:mod:`.jit_active_set`, imported on the first call (see :func:`_jit_eqp`)."""
+    from . import jit_active_set
+    from .jit_lapack import announce_compilation
+
+    announce_compilation(jit_active_set.solve, "the hierarchical QP's active-set iterations", "about thirty seconds")
+    return jit_active_set
+
+
+def python_solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid,
+                 working) -> ActiveSetResult:
+    """The iterations of :func:`solve_least_squares_qp` (its arguments, ``kind`` and ``working``
+    given), in Python: the reference of the compiled :func:`_solve`."""
     m = len(G)
     equality = lower == upper
     if guess is not None and len(guess) == m:

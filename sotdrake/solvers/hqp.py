@@ -90,7 +90,6 @@ from .active_set import (
     daqp_guess,
     dual_guess,
     independent_qr,
-    objective_kind,
     projection_guess,
     scaled_least_squares,
     solve_least_squares_qp,
@@ -253,6 +252,20 @@ such a stage, and end outside the bounds too); every other rank decision stays a
 is accepted on the same checks."""
 
 
+_NO_LEVEL = (np.zeros((0, 0)), *[np.zeros(0)] * 2, np.zeros((0, 0)), *[np.zeros(0)] * 2)
+"""The level's arrays given to :func:`.jit_stage.build` for the minimum-norm stage (not read)."""
+
+
+@functools.cache
+def _jit_stage() -> types.ModuleType:
+    """:mod:`.jit_stage`, imported on the first stage (see :func:`_active_bounds_path`)."""
+    from . import jit_stage
+    from .jit_lapack import announce_compilation
+
+    announce_compilation(jit_stage.build, "the hierarchical QP's stage assembly", "about ten seconds")
+    return jit_stage
+
+
 @functools.cache
 def _active_bounds_path() -> types.ModuleType:
     """:mod:`.active_bounds`, imported on the first equality stack: it is compiled with numba, which a
@@ -373,7 +386,7 @@ class HierarchicalQP:
         self._working_sets: dict = {}
         self._solvers: dict[str, tuple] = {}
         self._identity = np.eye(n)  # a constant (never written to)
-        self._unit: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # a cache of constants, see _constants
+        self._all_components = np.arange(n)  # the bound rows' indices when every component is bounded
         # A guess (results never depend on it): the side of each bound held at the last answer, or
         # that answer (x, x_lower, x_upper, fixed), read off when the next call needs it.
         self._bound_sides: np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray] = np.zeros(n, dtype=int)
@@ -389,15 +402,6 @@ class HierarchicalQP:
         self._working_sets.clear()
         self._bound_sides = np.zeros(self.n, dtype=int)
         self._active_bounds_failures, self._active_bounds_skips = 0, 0
-
-    def _constants(self, r: int) -> tuple[np.ndarray, np.ndarray]:
-        """The minimum-norm stage's objective ``(I_r, ones(r))``, made once per size, read only."""
-        pair = self._unit.get(r)
-        if pair is None:
-            identity, ones = np.eye(r), np.ones(r)
-            identity.flags.writeable = ones.flags.writeable = False
-            pair = self._unit[r] = (identity, ones)
-        return pair
 
     def _drake(self, name: str):
         if name not in self._solvers:
@@ -618,75 +622,21 @@ class HierarchicalQP:
 
     # --- one stage --------------------------------------------------------------------------
     def _build(self, level, x0, Z, hard, mu) -> _Stage:
-        """The stage in ``z = (y, w)`` (see :class:`_Stage`), rows scaled to unit norm."""
-        tau, r = self.rank_threshold, Z.shape[1]
+        """The stage in ``z = (y, w)`` (see :class:`_Stage` and :mod:`.jit_stage`), rows scaled to unit
+        norm, assembled by compiled code."""
         free, reference, held, hard_lower, hard_upper, hard_side = hard
-        if len(held):
-            C = np.concatenate([Z[free], held @ Z])  # bound rows are unit rows of x
-            offset = np.concatenate([x0[free], held @ x0])
-        else:
-            C, offset = Z[free], x0[free]
-        projected = np.sqrt(np.einsum("ij,ij->i", C, C))
-        keep = projected > tau * reference  # the others are constant over the stage
-        if all_true(keep):
-            kept, scale, low, high, sides = None, projected, hard_lower, hard_upper, hard_side
-        else:
-            kept = keep.nonzero()[0]
-            C, offset, scale, low, high, sides = C[kept], offset[kept], projected[kept], hard_lower[kept], hard_upper[kept], hard_side[kept]
-        # Never ask more than the previous point achieves (y = 0 stays feasible).
-        c_lower = (np.minimum(low, offset) - offset) / scale
-        c_upper = (np.maximum(high, offset) - offset) / scale
-        if level is None:  # the minimum-norm stage: min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)
-            identity, ones = self._constants(r)
-            return _Stage(identity, -(Z.T @ x0), ones, C / scale[:, None], c_lower, c_upper, np.zeros(r), r,
-                          kept, sides, len(C), (True, True))
-        A_eq, A_in = level.A_eq, level.A_in
-        m_eq, m_in = len(A_eq), len(A_in)
-        if m_in == 0:  # no soft row: z = y
-            G_hard = C / scale[:, None]
-            M, t, m_scale = A_eq @ Z, level.b_eq - A_eq @ x0, level.eq_norms
-            if mu > 0.0:
-                M = np.vstack([M, np.sqrt(mu) * np.eye(r)])
-                t = np.concatenate([t, np.zeros(r)])
-                m_scale = np.concatenate([m_scale, np.full(r, np.sqrt(mu))])
-            return _Stage(M, t, m_scale, G_hard, c_lower, c_upper, np.zeros(r), r, kept, sides, len(C),
-                          objective_kind(M, m_scale))
-        # The objective ‖A_eq (x0 + Z y) - b‖² + ‖w‖² (+ μ‖y‖²): M = [[A_eq Z, 0], [0, I], [√μ I, 0]].
-        m_damped = r if mu > 0.0 else 0
-        p = r + m_in
-        M = np.zeros((m_eq + m_in + m_damped, p))
-        start = m_eq * p + r  # M's diagonal block at (m_eq, r), through a flat view
-        M.reshape(-1)[start : start + m_in * (p + 1) : p + 1] = 1.0
-        t = np.zeros(len(M))
-        m_scale = np.empty(len(M))
-        m_scale.fill(1.0)  # (np.ones: a Python wrapper around these two calls)
-        if m_eq:
-            M[:m_eq, :r] = A_eq @ Z
-            t[:m_eq] = level.b_eq - A_eq @ x0
-            m_scale[:m_eq] = level.eq_norms
-        if mu > 0.0:
-            diagonal = np.arange(r)
-            M[m_eq + m_in + diagonal, diagonal] = np.sqrt(mu)
-            m_scale[m_eq + m_in:] = np.sqrt(mu)
-        # Soft rows: lo ≤ a y - w ≤ hi, scaled to unit norm (‖(a Z, -1)‖); w starts at the violation at y = 0.
-        value = A_in @ x0
-        AZ = A_in @ Z
-        soft_scale = np.sqrt(np.einsum("ij,ij->i", AZ, AZ) + 1.0)
-        w0 = np.minimum(np.maximum(value - level.upper_in, 0.0), value - level.lower_in)  # np.clip(0, ., .)
-        m_hard = len(C)
-        G = np.zeros((m_hard + m_in, p))
-        np.divide(C, scale[:, None], out=G[:m_hard, :r])
-        np.divide(AZ, soft_scale[:, None], out=G[m_hard:, :r])
-        start = m_hard * p + r
-        G.reshape(-1)[start : start + m_in * (p + 1) : p + 1] = -1.0 / soft_scale
-        lower = np.concatenate([c_lower, (level.lower_in - value) / soft_scale])
-        upper = np.concatenate([c_upper, (level.upper_in - value) / soft_scale])
-        z0 = np.zeros(p)
-        z0[r:] = w0
-        guess = np.zeros(m_hard + m_in, dtype=int)
-        guess[:m_hard] = sides
-        # (M holds a slack's identity block beside its other columns: never the identity itself)
-        return _Stage(M, t, m_scale, G, lower, upper, z0, r, kept, guess, m_hard, (False, all_true(m_scale == m_scale[0])))
+        compiled = _jit_stage()
+        given = compiled.compiled_input
+        if isinstance(free, slice):  # every component bounded
+            free = self._all_components
+        rows = _NO_LEVEL if level is None else (
+            given(level.A_eq), given(level.b_eq), given(level.eq_norms), given(level.A_in), given(level.lower_in),
+            given(level.upper_in))
+        M, t, m_scale, G, lower, upper, z0, kept, all_kept, guess, m_hard, identity, uniform = compiled.build(
+            level is not None, *rows, given(x0), given(Z), given(free, np.int64), given(reference), given(held),
+            given(hard_lower), given(hard_upper), given(hard_side, np.int64), float(mu), float(self.rank_threshold))
+        return _Stage(M, t, m_scale, G, lower, upper, z0, Z.shape[1], None if all_kept else kept, guess, m_hard,
+                      (identity, uniform))
 
     def _stage(self, k, level, x0, Z, hard, mu, name, carried, fallbacks, eq_factors=None):
         """One level (or the minimum-norm stage when ``level`` is None): x, the sides of the hard

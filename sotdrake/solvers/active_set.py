@@ -32,9 +32,10 @@ with at least :data:`QR_MIN_SIZE` rows and columns that *provably* has every sin
 (``σ_min ≥ 1/‖R⁻¹‖_F > 2τ`` from its Householder QR) is handled by that QR instead of an SVD: no
 singular value would be cut, so both give the same point in exact arithmetic, and the QR costs a
 fraction of the SVD there. Any other matrix gets the SVD, which makes the rank decision.
-The EQP step (:func:`eqp`) is compiled with numba (:mod:`.jit_eqp`, imported on the first call and
-cached on disk): the same computation and LAPACK routines as :func:`python_eqp`, which stays the
-reference (tested against it) and runs where the compiled one gives way.
+The iterations (:func:`python_solve`) and their EQP step (:func:`python_eqp`) run compiled with numba
+(:mod:`.jit_active_set` and :mod:`.jit_eqp`, imported on the first call and cached on disk): the same
+computation and LAPACK routines. The Python versions stay as the reference (tested against them)
+and run where the compiled ones give way.
 
 **Iterations.** From a feasible ``z`` (the previous level's point): step towards ``z_W``; the ratio
 test stops at the first blocking row (smallest index among ties, Bland's rule), which joins ``W``.

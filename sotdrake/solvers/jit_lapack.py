@@ -1,8 +1,9 @@
 """LAPACK for numba-compiled code: the routines of ``scipy.linalg.lapack`` called from compiled code.
 
-The compiled solvers (:mod:`.equality_hierarchy`, :mod:`.active_bounds`) run the same LAPACK
-factorizations as the ``scipy.linalg.lapack`` wrappers, from the same library
-(``scipy.linalg.cython_lapack`` gives their C entry points), without a Python call between them.
+The compiled solvers (:mod:`.equality_hierarchy`, :mod:`.active_bounds`, :mod:`.jit_eqp`,
+:mod:`.jit_active_set`) run the same LAPACK factorizations as the ``scipy.linalg.lapack`` wrappers,
+from the same library (``scipy.linalg.cython_lapack`` gives their C entry points), without a Python
+call between them.
 Each routine's address is registered with LLVM under a ``sotdrake_`` name when this module is
 imported, and the compiled code calls that name rather than an address, so numba caches it on disk
 (``cache=True``): a new process loads the compiled code instead of compiling it again. (numba

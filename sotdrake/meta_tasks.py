@@ -125,7 +125,8 @@ class MetaTaskKine6d(_MetaTask):
         if context is None:
             X = self.dyn.pose_at(self.opPoint, self.robot.device.initial_position)
         else:
-            X = _input_value(self.feature.GetInputPort("position"), context)
+            X = RigidTransform(_input_value(self.feature.GetInputPort("position"), context))  # (a copy: the
+            # value read refers into the context's cache, which the next evaluation overwrites)
         opmodif = self.feature.settings(context).opmodif
         return X if opmodif is None else X.multiply(opmodif)
 

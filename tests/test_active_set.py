@@ -190,3 +190,18 @@ def test_the_compiled_iterations_take_any_array_layout_without_another_compilati
         np.testing.assert_array_equal(again.z, plain.z)
         np.testing.assert_array_equal(again.side, plain.side)
     assert len(jit_active_set.solve.signatures) == signatures == 1
+
+
+def test_where_the_compiled_iterations_give_way_the_python_ones_answer(monkeypatch):
+    """A compiled solve that gives way (LAPACK refusing a factorisation) is answered by
+    :func:`python_solve`, on the same arguments."""
+    from sotdrake.solvers import jit_active_set
+
+    M, t, G, lower, upper = strictly_convex_level(np.random.default_rng(8))
+    arguments = (M, t, np.ones(len(M)), G, lower, upper, np.zeros(M.shape[1]))
+    expected = solve_least_squares_qp(*arguments)
+    monkeypatch.setattr(jit_active_set, "solve", lambda *args: (jit_active_set.GAVE_WAY, None, None, 0, False, False))
+    called = []
+    monkeypatch.setattr(active_set, "python_solve", lambda *args: called.append(args) or expected)
+    assert solve_least_squares_qp(*arguments) is expected
+    assert len(called) == 1 and called[0][0] is M and called[0][3] is G

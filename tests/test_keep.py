@@ -61,3 +61,45 @@ def test_keep_needs_the_root_context(closed_loop):
     with pytest.raises(InvalidInput, match="root diagram context"):
         run.taskRH.keep(own)
     np.testing.assert_array_equal(run.taskRH.featureDes.settings(context).position.GetAsMatrix4(), before)
+
+
+def test_a_context_given_to_keep_is_freed_with_its_last_reference(closed_loop):
+    """``keep()`` stores a copy of the pose it reads: a pose read from a port refers into the Context
+    it was read from and keeps it alive, so settings holding it would keep their own Context, with
+    all its caches, alive through a cycle Python's collector cannot see (a leak per context)."""
+    import gc
+
+    from sotdrake.entity import _Frozen
+
+    run, _ = closed_loop
+
+    def live_settings() -> int:
+        gc.collect()
+        return sum(isinstance(o, _Frozen) for o in gc.get_objects())
+
+    before = live_settings()
+    for _ in range(3):
+        context = run.diagram.CreateDefaultContext()
+        run.taskRH.feature.setOpmodif(None, context)  # the pose read as it is (an opmodif makes a new one)
+        run.taskRH.keep(context)
+        run.taskCom.keep(context)
+        del context
+    assert live_settings() == before
+
+
+def test_current_pose_is_a_value_not_a_view_into_the_context(closed_loop):
+    """The pose ``current_pose`` returned stays as it was when the robot moves: a pose read from a
+    port refers into the Context's cache, which the next evaluation overwrites."""
+    run, _ = closed_loop
+    context = run.diagram.CreateDefaultContext()
+    run.taskRH.feature.setOpmodif(None, context)  # the pose read as it is (an opmodif makes a new one)
+    X = run.taskRH.current_pose(context)
+    held = X.GetAsMatrix4()
+    plant = run.physical.plant
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+    q = plant.GetPositions(plant_context)
+    q[plant.GetJointByName("arm_right_4_joint").position_start()] += 0.3
+    plant.SetPositions(plant_context, q)
+    moved = run.taskRH.current_pose(context)
+    assert np.linalg.norm(moved.translation() - held[:3, 3]) > 0.05  # the hand did move
+    np.testing.assert_array_equal(X.GetAsMatrix4(), held)

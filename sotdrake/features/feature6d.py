@@ -178,10 +178,12 @@ def shift_jacobian(X_WOp: RigidTransform, J_WOp: np.ndarray, X_OpF: RigidTransfo
 def as_transform(value, what: str) -> RigidTransform:
     """A ``RigidTransform`` from a 4×4 homogeneous matrix, a ``RigidTransform``, a 3-vector
     (translation, identity rotation) or a 6-vector ``(x, y, z, roll, pitch, yaw)``, as sot-core's
-    ``generic6dReference`` accepts."""
+    ``generic6dReference`` accepts. A ``RigidTransform`` is copied: one read from a port of a
+    Context refers into that Context and keeps it alive, and settings holding it would keep their
+    own Context alive through it (a reference cycle that Python's collector cannot see)."""
     if isinstance(value, RigidTransform):
         check_finite(f"{what} translation (m)", value.translation(), bound=MAX_TARGET_POSITION)
-        return value
+        return RigidTransform(value)
     array = check_finite(what, value)
     if array.shape == (4, 4):
         if not np.allclose(array[3], [0, 0, 0, 1]):

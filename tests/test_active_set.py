@@ -101,7 +101,10 @@ def test_the_compiled_eqp_is_the_python_one(seed):
 
 def assert_same_iterations(args: tuple) -> None:
     """The compiled :func:`_solve` and :func:`python_solve` on the same arguments: the same final working
-    set, iteration count and flags, and the same point to round-off, or the same failure."""
+    set and flags, the same point to round-off and the iteration count within one, or the same
+    failure. (Their products go through different BLAS builds, numba's scipy's and numpy's own: a tie
+    in the ratio test can then be broken the other way, one step more, the same answer; seen on 1
+    call in 6960.)"""
 
     def run(solve):
         try:
@@ -115,8 +118,8 @@ def assert_same_iterations(args: tuple) -> None:
         assert got == expected
         return
     np.testing.assert_array_equal(got.side, expected.side)
-    assert (got.iterations, got.guess_accepted, got.verified) == (
-        expected.iterations, expected.guess_accepted, expected.verified)
+    assert (got.guess_accepted, got.verified) == (expected.guess_accepted, expected.verified)
+    assert abs(got.iterations - expected.iterations) <= 1, (got.iterations, expected.iterations)
     np.testing.assert_allclose(got.z, expected.z, rtol=0, atol=1e-13 * max(1.0, np.abs(expected.z).max(initial=0.0)))
 
 

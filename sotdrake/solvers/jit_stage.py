@@ -132,7 +132,5 @@ def build(has_level, A_eq, b_eq, eq_norms, A_in, lower_in, upper_in, x0, Z, free
             lower[m_hard + i] = (lower_in[i] - value[i]) / soft_scale
             upper[m_hard + i] = (upper_in[i] - value[i]) / soft_scale
             z0[r + i] = min(max(value[i] - upper_in[i], 0.0), value[i] - lower_in[i])  # w at y = 0
-        identity, uniform = _objective_kind(M, m_scale)
-        return M, t, m_scale, G, lower, upper, z0, kept, m_hard == m_all, guess, m_hard, False, uniform
-    identity, uniform = _objective_kind(M, m_scale)
-    return M, t, m_scale, G, lower, upper, z0, kept, m_hard == m_all, guess, m_hard, identity, uniform
+    identity, uniform = _objective_kind(M, m_scale)  # (with slacks, M holds an identity block beside y's columns)
+    return M, t, m_scale, G, lower, upper, z0, kept, m_hard == m_all, guess, m_hard, identity and m_in == 0, uniform

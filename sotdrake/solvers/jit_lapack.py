@@ -13,7 +13,7 @@ checks a cached function against its own file only: after a change to this file,
 Every wrapper takes column-major (Fortran-ordered) matrices (its signature refuses others),
 overwrites them as the LAPACK routine does, and returns LAPACK's ``info`` (0: success, < 0: a bad
 argument, > 0: the routine's own failure). :func:`fortran` makes such a copy; :func:`contiguous`, :func:`upper_inverse`,
-:func:`row_norms` and :func:`level_residuals` are the compiled solvers' shared helpers,
+:func:`norm`, :func:`row_norms` and :func:`level_residuals` are the compiled solvers' shared helpers,
 :func:`compiled_input` the arrays they take.
 """
 
@@ -178,14 +178,22 @@ def upper_inverse(R):
 
 
 @njit(cache=True)
+def norm(row):
+    """The Euclidean norm of the vector ``row`` (a loop: a BLAS call per row costs more at these sizes)."""
+    square = 0.0
+    for value in row:
+        square += value * value
+    return math.sqrt(square)
+
+
+@njit(cache=True)
 def row_norms(A):
     """Each row's norm, 1 for a zero row (as :attr:`~.hqp.LevelRows.eq_norms`), compiled."""
     norms = np.empty(A.shape[0])
     for i in range(A.shape[0]):
-        square = 0.0
-        for j in range(A.shape[1]):  # (a loop: a BLAS call per row costs more at these sizes)
-            square += A[i, j] * A[i, j]
-        norms[i] = math.sqrt(square) if square > 0.0 else 1.0
+        norms[i] = norm(A[i])
+        if not norms[i] > 0.0:
+            norms[i] = 1.0
     return norms
 
 

@@ -32,6 +32,7 @@ import numpy as np
 from numba import njit
 
 from .jit_lapack import compiled_input as compiled_input  # (for the caller)
+from .jit_lapack import norm
 
 
 @njit(cache=True)
@@ -47,14 +48,6 @@ def _projected_hard_rows(x0, Z, free, held):
         C[n_free:] = held @ Z
         offset[n_free:] = held @ x0
     return C, offset
-
-
-@njit(cache=True)
-def _norm(row):
-    square = 0.0
-    for value in row:
-        square += value * value
-    return math.sqrt(square)
 
 
 @njit(cache=True)
@@ -84,10 +77,11 @@ def build(has_level, A_eq, b_eq, eq_norms, A_in, lower_in, upper_in, x0, Z, free
     r = Z.shape[1]
     C, offset = _projected_hard_rows(x0, Z, free, held)
     m_all = C.shape[0]
-    kept = np.empty(m_all, np.int64)
+    kept, scale = np.empty(m_all, np.int64), np.empty(m_all)
     m_hard = 0
     for i in range(m_all):
-        if _norm(C[i]) > tau * reference[i]:  # the others are constant over the stage
+        scale[i] = norm(C[i])
+        if scale[i] > tau * reference[i]:  # the others are constant over the stage
             kept[m_hard] = i
             m_hard += 1
     kept = kept[:m_hard]
@@ -99,11 +93,10 @@ def build(has_level, A_eq, b_eq, eq_norms, A_in, lower_in, upper_in, x0, Z, free
     guess = np.zeros(m_hard + m_in, np.int64)
     for j in range(m_hard):
         i = kept[j]
-        scale = _norm(C[i])
-        G[j, :r] = C[i] / scale
+        G[j, :r] = C[i] / scale[i]
         # Never ask more than the previous point achieves (y = 0 stays feasible).
-        lower[j] = (min(hard_lower[i], offset[i]) - offset[i]) / scale
-        upper[j] = (max(hard_upper[i], offset[i]) - offset[i]) / scale
+        lower[j] = (min(hard_lower[i], offset[i]) - offset[i]) / scale[i]
+        upper[j] = (max(hard_upper[i], offset[i]) - offset[i]) / scale[i]
         guess[j] = hard_side[i]
     z0 = np.zeros(p)
     if not has_level:  # min ‖x0 + Z y‖² (Z orthonormal: ‖y + Zᵀx0‖²)

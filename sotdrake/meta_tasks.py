@@ -18,6 +18,8 @@ they use the device's initial configuration. ``inequality=True`` makes the task 
 
 from __future__ import annotations
 
+import copy
+
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context, InputPort, OutputPort
 
@@ -56,14 +58,16 @@ def _check_not_recording(what: str) -> None:
 
 
 def _input_value(port: InputPort, context: Context):
-    """The value ``port`` (an input of a feature) has in the root diagram ``context``."""
+    """The value ``port`` (an input of a feature) has in the root diagram ``context``, as a copy: the
+    value read refers into the context's cache, which the next evaluation overwrites, and keeps that
+    context alive (settings holding it would keep their own context alive)."""
     system = port.get_system()
     try:
         own = system.GetMyContextFromRoot(context)
     except RuntimeError as error:
         raise InvalidInput(f"context: expected the root diagram context (from which {system.get_name()}'s "
                            f"input {port.get_name()!r} is evaluated), got another context") from error
-    return port.Eval(own)
+    return copy.copy(port.Eval(own))
 
 
 class _MetaTask:
@@ -125,8 +129,7 @@ class MetaTaskKine6d(_MetaTask):
         if context is None:
             X = self.dyn.pose_at(self.opPoint, self.robot.device.initial_position)
         else:
-            X = RigidTransform(_input_value(self.feature.GetInputPort("position"), context))  # (a copy: the
-            # value read refers into the context's cache, which the next evaluation overwrites)
+            X = _input_value(self.feature.GetInputPort("position"), context)
         opmodif = self.feature.settings(context).opmodif
         return X if opmodif is None else X.multiply(opmodif)
 

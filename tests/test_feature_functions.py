@@ -10,6 +10,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import JacobianWrtVariable
 
 from sotdrake.configuration import Layout, integrate
+from sotdrake.exceptions import InvalidInput
 from sotdrake.features import (
     feature1d_error_and_jacobian,
     generic_error_and_jacobian,
@@ -19,6 +20,7 @@ from sotdrake.features import (
     relative_pose_error_and_jacobian,
     visual_point_error_and_jacobian,
 )
+from sotdrake.features.feature6d import python_pose_error_and_jacobian
 from sotdrake.features.posture import joint_rows
 from sotdrake.lie import exp_so3
 from tests.finite_differences import manifold_jacobian
@@ -116,6 +118,44 @@ def test_pose_errordot_by_moving_the_target(arm, frame, rng):
     h = 1e-6
     np.testing.assert_allclose(pose_error_and_jacobian(X, J_WF, X_d, frame, V)[2], (moved(h) - moved(-h)) / (2 * h), atol=1e-6)
 
+
+
+def _rotation_by(rng, angle: float) -> np.ndarray:
+    axis = rng.normal(size=3)
+    return exp_so3(angle * axis / np.linalg.norm(axis))
+
+
+def test_compiled_pose_error_is_the_python_reference(rng):
+    """The compiled 6D error against its Python reference, both frames, with and without opmodif,
+    a moving target and a selection, rotation errors near 0 and near π (the logarithm's branches),
+    column-major (Drake's) and C-ordered matrices, any number of columns."""
+    angles = [0.0, 1e-9, 1e-5, 0.5, 2.0, np.pi - 3e-5, np.pi - 1e-7, np.pi]
+    rows_choices = [None, np.array([0, 1, 2]), np.array([3, 4, 5]), np.array([0, 2, 4]), np.array([5])]
+    for trial in range(600):
+        X = random_pose(rng)
+        X_d = X.copy()
+        X_d[:3, :3] = X[:3, :3] @ _rotation_by(rng, angles[trial % len(angles)])
+        X_d[:3, 3] += rng.normal(size=3)
+        J = rng.normal(size=(6, 1 + trial % 40))
+        if trial % 2:
+            X, J = np.asfortranarray(X), np.asfortranarray(J)
+        args = (X, J, X_d, ("desired", "current")[trial % 3 % 2], rng.normal(size=6) if trial % 4 else None,
+                random_pose(rng, 0.5) if trial % 5 == 0 else None, rows_choices[trial % len(rows_choices)])
+        for compiled, reference in zip(pose_error_and_jacobian(*args), python_pose_error_and_jacobian(*args), strict=True):
+            assert compiled.shape == reference.shape
+            np.testing.assert_allclose(compiled, reference, rtol=1e-12, atol=1e-12)
+
+
+def test_compiled_pose_error_refuses_bad_arguments():
+    X, J = np.eye(4), np.zeros((6, 3))
+    with pytest.raises(InvalidInput, match="frame"):
+        pose_error_and_jacobian(X, J, X, "world")
+    with pytest.raises(InvalidInput, match="6×nv"):
+        pose_error_and_jacobian(X, np.zeros((3, 3)), X)
+    with pytest.raises(InvalidInput, match="rows"):
+        pose_error_and_jacobian(X, J, X, rows=np.zeros(0, dtype=int))
+    with pytest.raises(ValueError, match="0 to 5"):
+        pose_error_and_jacobian(X, J, X, rows=np.array([0, 6]))
 
 def test_generic_on_the_com(arm, rng):
     q, target, velocity = arm.random_q(rng), rng.normal(size=3), rng.normal(size=3)

@@ -20,13 +20,16 @@ and only the rows chosen by the selection mask are output (see :mod:`sotdrake.se
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import Context
 
+from ..compiled import announce_compilation, compiled_input
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite
 from ..lie import hat, log_so3_list, right_jacobian_inverse_list
@@ -101,7 +104,50 @@ def pose_error_and_jacobian(
     X_WOp, J_WOp: np.ndarray, X_WFd, frame: str = "desired", V_WFd: np.ndarray | None = None,
     X_OpF=None, rows: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """6D error ``e``, its Jacobian ``∂e/∂v`` and ``ė_ref`` of the frame ``F = Op · X_OpF``.
+    """6D error ``e``, its Jacobian ``∂e/∂v`` and ``ė_ref`` of the frame ``F = Op · X_OpF``: the
+    arguments and the answer of :func:`python_pose_error_and_jacobian`, computed by the compiled
+    :func:`.jit_pose.pose_error` (the same operations; the first call after an install compiles it,
+    once)."""
+    if frame not in FRAMES:
+        raise InvalidInput(f"frame: expected one of {FRAMES}, got {frame!r}")
+    J = np.asarray(J_WOp)
+    if J.ndim != 2 or J.shape[0] != 6:
+        raise InvalidInput(f"J_WOp: expected a 6×nv spatial Jacobian, got shape {J.shape}")
+    if rows is None:
+        selected = _ALL_ROWS
+    else:
+        selected = compiled_input(rows, np.int64)
+        if selected.ndim != 1 or not selected.size:  # (the compiled function checks the indices)
+            raise InvalidInput(f"rows: expected indices of the six components, got {rows!r}")
+    # The transposes: Drake's matrices are column-major, so these are C-ordered views (no copy).
+    return _jit_pose().pose_error(
+        compiled_input(_matrix(X_WOp).T), compiled_input(J.T), compiled_input(_matrix(X_WFd).T), frame == "current",
+        _NO_VELOCITY if V_WFd is None else compiled_input(V_WFd), _IDENTITY if X_OpF is None else compiled_input(_matrix(X_OpF).T),
+        X_OpF is not None, selected)
+
+
+# Constant arguments of the compiled function (writeable, as compiled_input's arrays: it never writes them).
+_ALL_ROWS = np.arange(6, dtype=np.int64)
+_NO_VELOCITY = np.zeros(6)
+_IDENTITY = np.eye(4)
+
+
+@functools.cache
+def _jit_pose() -> Any:
+    """:mod:`.jit_pose`, imported on the first call: a script that never computes a 6D error does
+    not import numba."""
+    from . import jit_pose
+
+    announce_compilation(jit_pose.pose_error, "the 6D feature's error and Jacobian", "about ten seconds")
+    return jit_pose
+
+
+def python_pose_error_and_jacobian(
+    X_WOp, J_WOp: np.ndarray, X_WFd, frame: str = "desired", V_WFd: np.ndarray | None = None,
+    X_OpF=None, rows: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """6D error ``e``, its Jacobian ``∂e/∂v`` and ``ė_ref`` of the frame ``F = Op · X_OpF``, in
+    Python: the reference of the compiled :func:`pose_error_and_jacobian`.
 
     ``X_WOp`` (pose of the op point), ``X_WFd`` (desired pose of F) and ``X_OpF`` (the ``opmodif``,
     None for the identity) are 4×4 homogeneous matrices (or ``RigidTransform``); ``J_WOp`` is the

@@ -14,15 +14,12 @@ Every wrapper takes column-major (Fortran-ordered) matrices (its signature refus
 overwrites them as the LAPACK routine does, and returns LAPACK's ``info`` (0: success, < 0: a bad
 argument, > 0: the routine's own failure). :func:`fortran` makes such a copy; :func:`contiguous`, :func:`upper_inverse`,
 :func:`norm`, :func:`row_norms` and :func:`level_residuals` are the compiled solvers' shared helpers,
-:func:`compiled_input` the arrays they take.
+:func:`~sotdrake.compiled.compiled_input` the arrays they take.
 """
 
 from __future__ import annotations
 
-import functools
-import logging
 import math
-import os
 from typing import Any
 
 import numpy as np
@@ -30,7 +27,8 @@ from llvmlite import binding
 from numba import njit, types
 from numba.extending import get_cython_function_address
 
-log = logging.getLogger("sotdrake.compiled")
+from ..compiled import announce_compilation as announce_compilation  # (for the solvers)
+from ..compiled import compiled_input as compiled_input
 
 _ARGUMENTS = {"dgeqrf": 8, "dgeqp3": 9, "dorgqr": 9, "dormqr": 13, "dtrtri": 6, "dtrtrs": 10}
 
@@ -195,25 +193,3 @@ def row_norms(A):
         if not norms[i] > 0.0:
             norms[i] = 1.0
     return norms
-
-
-def compiled_input(a: Any, dtype: type = float) -> np.ndarray:
-    """``a`` as the compiled functions take it: a C-ordered, writeable array of ``dtype``, a copy only
-    when it is not (another kind of array, read-only or strided, would make numba compile them
-    again). The flags are read first: ``np.require`` alone costs a few µs a call."""
-    if type(a) is np.ndarray and a.dtype == dtype and a.flags.c_contiguous and a.flags.writeable:
-        return a
-    return np.require(a, dtype=dtype, requirements=("C", "A", "W"))
-
-
-@functools.cache
-def announce_compilation(function: Any, what: str, duration: str) -> None:
-    """Log that numba is about to compile ``function`` (a ``cache=True`` dispatcher) rather than load
-    it from its cache on disk: the first call after an install (or a change of its file) waits
-    ``duration`` for it. Looked at once per process (cached): callers may call it before every use."""
-    try:
-        cached = os.path.exists(function._cache._cache_file._index_path)  # numba's index of the cached code
-    except AttributeError:  # another numba: say nothing
-        cached = True
-    if not cached:
-        log.warning("compiling %s, once after an install (%s) …", what, duration)

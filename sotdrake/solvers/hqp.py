@@ -809,8 +809,9 @@ class HierarchicalQP:
         """A point that misses hard rows by round-off only, moved onto them: the least-norm correction
         ``δ`` that puts the rows of the working set (``side``) and the missed rows at their sides,
         at most :data:`_REFINEMENTS` times; None when a row is missed by more than
-        :data:`_ROUND_OFF` relative to the point's size (not round-off: the next path decides)
-        or the correction does not bring every hard row within the feasibility tolerance. The
+        :data:`_ROUND_OFF` relative to the point's size, or the correction would move it by more
+        than ten times that (not round-off: the next path decides), or it does not bring every hard
+        row within the feasibility tolerance. The
         active set's solves lose about ``cond · ε`` of a point's size: on a stage whose point is
         hundreds of times its rows' targets, a few 1e-9 on a bound row (level 5 of a TALOS
         stack with a task held against its limits)."""
@@ -836,7 +837,10 @@ class HierarchicalQP:
             rows = at_lower | at_upper
             target = np.where(at_lower, lower, upper)[rows]
             A = G[rows]
-            y = y + np.linalg.lstsq(A, target - A @ y, rcond=None)[0]
+            correction = np.linalg.lstsq(A, target - A @ y, rcond=None)[0]
+            if not float(np.max(np.abs(correction))) <= 10.0 * _ROUND_OFF * max(1.0, float(np.max(np.abs(y)))):
+                return None  # nearly dependent rows asked to move the point further than round-off
+            y = y + correction
         return None
 
     def _bounds_hold(self, stage: _Stage, y: np.ndarray) -> bool:

@@ -156,6 +156,10 @@ def test_compiled_pose_error_refuses_bad_arguments():
         pose_error_and_jacobian(X, J, X, rows=np.zeros(0, dtype=int))
     with pytest.raises(ValueError, match="0 to 5"):
         pose_error_and_jacobian(X, J, X, rows=np.array([0, 6]))
+    with pytest.raises(InvalidInput, match="4×4"):
+        pose_error_and_jacobian(np.eye(3), J, X)
+    with pytest.raises(InvalidInput, match="6-vector"):
+        pose_error_and_jacobian(X, J, X, V_WFd=np.zeros(3))
 
 def test_generic_on_the_com(arm, rng):
     q, target, velocity = arm.random_q(rng), rng.normal(size=3), rng.normal(size=3)

@@ -120,10 +120,13 @@ def pose_error_and_jacobian(
         if selected.ndim != 1 or not selected.size:  # (the compiled function checks the indices)
             raise InvalidInput(f"rows: expected indices of the six components, got {rows!r}")
     # The transposes: Drake's matrices are column-major, so these are C-ordered views (no copy).
-    return _jit_pose().pose_error(
-        compiled_input(_matrix(X_WOp).T), compiled_input(J.T), compiled_input(_matrix(X_WFd).T), frame == "current",
-        _NO_VELOCITY if V_WFd is None else compiled_input(V_WFd), _IDENTITY if X_OpF is None else compiled_input(_matrix(X_OpF).T),
-        X_OpF is not None, selected)
+    X, X_d = compiled_input(_matrix(X_WOp).T), compiled_input(_matrix(X_WFd).T)
+    X_shift = _IDENTITY if X_OpF is None else compiled_input(_matrix(X_OpF).T)
+    V = _NO_VELOCITY if V_WFd is None else compiled_input(V_WFd)
+    if X.shape != (4, 4) or X_d.shape != (4, 4) or X_shift.shape != (4, 4) or V.shape != (6,):
+        raise InvalidInput(f"poses are 4×4 homogeneous matrices and V_WFd a 6-vector, got {X.shape}, {X_d.shape}, "
+                           f"{X_shift.shape} and {V.shape}")
+    return _jit_pose().pose_error(X, compiled_input(J.T), X_d, frame == "current", V, X_shift, X_OpF is not None, selected)
 
 
 # Constant arguments of the compiled function (writeable, as compiled_input's arrays: it never writes them).

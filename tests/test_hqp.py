@@ -121,15 +121,16 @@ BATCH = 100  # 10 batches of 100 stacks: 1000 random stacks
 @pytest.mark.parametrize("batch", range(10))
 def test_random_stacks_are_strict_bounded_and_never_fail(batch, solvers):
     """The default path on 1000 random stacks (see tests/hqp_stacks.py): every solve succeeds, x is
-    finite, the bounds hold to 1e-9, and the slack norms of levels 0..k for the whole stack equal
-    those of the first k+1 levels solved alone (a lower level never moves a higher one)."""
+    finite, the bounds hold exactly (a component past one by round-off is put on it), and the slack
+    norms of levels 0..k for the whole stack equal those of the first k+1 levels solved alone (a
+    lower level never moves a higher one)."""
     for seed in range(batch * BATCH, (batch + 1) * BATCH):
         n, levels, x_lower, x_upper = random_stack(np.random.default_rng(seed))
         hqp = solvers.setdefault(n, HierarchicalQP(n))
         prefix = solvers.setdefault(-n, HierarchicalQP(n, regularize=False))  # the same slacks, one stage less
         result = hqp.solve(levels, x_lower, x_upper)
         assert np.all(np.isfinite(result.x)), seed
-        assert bounds_hold(result.x, x_lower, x_upper), seed
+        assert np.all(result.x >= x_lower) and np.all(result.x <= x_upper), seed
         for k in range(len(levels) - 1):
             alone = prefix.solve(levels[: k + 1], x_lower, x_upper)
             floor = np.maximum(round_off(levels, result.x), round_off(levels, alone.x)[: len(levels)])

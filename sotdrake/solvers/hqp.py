@@ -542,6 +542,7 @@ class HierarchicalQP:
         if solved is None:
             return None
         x, self._bound_sides = solved
+        x = self._onto_bounds(x, x_lower, x_upper)
         residual, slack_norms, active_bounds = path.outcome(A, b, sizes, x, x_lower, x_upper, fixed)
         slacks, start = [], 0
         for size in sizes.tolist():
@@ -618,7 +619,7 @@ class HierarchicalQP:
                 hard_lower = np.concatenate([hard_lower, lo - slack])
                 hard_upper = np.concatenate([hard_upper, hi + slack])
                 hard_side = np.concatenate([hard_side, row_side])
-        result = self._result(levels, x, x_lower, x_upper, fixed, used)
+        result = self._result(levels, self._onto_bounds(x, x_lower, x_upper), x_lower, x_upper, fixed, used)
         result.iterations = iterations
         result.fallbacks = fallbacks
         result.solve_time_s = time.perf_counter() - began
@@ -913,6 +914,17 @@ class HierarchicalQP:
         if extended and not result.is_success():
             return None, str(result.get_solution_result())
         return x, ""
+
+    def _onto_bounds(self, x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray) -> np.ndarray:
+        """``x`` with each component past a bound by round-off only (within the feasibility tolerance,
+        as the paths accept their points) put on that bound: the answer then holds its bounds
+        exactly. A component farther out (a start kept outside a bound, see :meth:`solve`) stays."""
+        tol = self.feasibility_tolerance
+        below = (x < x_lower) & (x >= x_lower - tol * np.maximum(1.0, np.abs(x_lower)))
+        above = (x > x_upper) & (x <= x_upper + tol * np.maximum(1.0, np.abs(x_upper)))
+        if not any_true(below | above):
+            return x
+        return np.where(below, x_lower, np.where(above, x_upper, x))
 
     def _result(self, levels, x, x_lower, x_upper, fixed, used) -> HqpResult:
         slacks, active = [], []

@@ -4,8 +4,9 @@ whose hand position and Jacobian are known in closed form."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from sotdrake.solvers.second_order import curvature_correction
+from sotdrake.solvers.second_order import curvature_correction, python_curvature_correction
 
 L1, L2 = 0.7, 0.5
 
@@ -53,3 +54,29 @@ def test_the_correction_is_skipped_on_a_jump_a_resize_and_the_first_tick():
     assert curvature_correction(J, v, -(J @ v)) is None  # the Jacobian jumped (a new frame)
     assert curvature_correction(J, np.zeros(2), np.zeros(2)) is not None  # at rest: zero, not skipped
     np.testing.assert_array_equal(curvature_correction(J, np.zeros(2), np.zeros(2)), np.zeros(2))
+
+
+def test_the_compiled_correction_is_its_python_reference():
+    """Random Jacobians of any layout (C, Fortran, strided, read-only), motions small and large
+    around the skip threshold, a NaN: the same correction or the same skip."""
+    rng = np.random.default_rng(5)
+    for trial in range(2000):
+        m, n = int(rng.integers(1, 7)), int(rng.integers(1, 45))
+        J = rng.normal(size=(m, n)) * 10.0 ** rng.uniform(-3, 3)
+        if trial % 4 == 1:
+            J = np.asfortranarray(J)
+        elif trial % 4 == 2:
+            J = rng.normal(size=(m, 2 * n))[:, ::2]
+        elif trial % 4 == 3:
+            J.flags.writeable = False
+        v = rng.normal(size=n)
+        jump = 10.0 ** rng.uniform(-4, 1) * rng.normal(size=m) * np.linalg.norm(J) * np.linalg.norm(v)
+        y = J @ v + jump
+        if trial % 97 == 0:
+            y[0] = np.nan
+        compiled, reference = curvature_correction(J, v, y), python_curvature_correction(J, v, y)
+        assert (compiled is None) == (reference is None)
+        if reference is not None:
+            np.testing.assert_allclose(compiled, reference, rtol=1e-12, atol=1e-12 * np.abs(J).max() * np.abs(v).max())
+    with pytest.raises(ValueError, match="curvature correction"):
+        curvature_correction(np.zeros((2, 3)), np.zeros(2), np.zeros(2))

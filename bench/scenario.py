@@ -54,12 +54,16 @@ def pinocchio_half_sitting(model) -> np.ndarray:
 
 
 def load_compiled_paths() -> None:
-    """Load the solvers' numba-compiled paths (or compile them, once after an install) before any
-    timing: their first call is not a tick."""
+    """Load the numba-compiled paths (the solvers', the 6D error, the curvature correction; or
+    compile them, once after an install) before any timing: their first call is not a tick."""
+    from sotdrake.features.feature6d import pose_error_and_jacobian
     from sotdrake.solvers.equality_hierarchy import solve_equality_hierarchy
     from sotdrake.solvers.hqp import HierarchicalQP, LevelRows
+    from sotdrake.solvers.second_order import curvature_correction
 
     bounds = np.full(2, -1.0), np.full(2, 1.0)
     HierarchicalQP(2).solve_equalities([np.eye(1, 2)], [np.ones(1)], *bounds)  # the active bounds
     HierarchicalQP(2).solve([LevelRows(np.eye(1, 2), np.zeros(1), np.ones(1))], *bounds)  # a stage: its assembly and active set
     solve_equality_hierarchy([(np.eye(1, 2), np.ones(1))], *bounds)  # SolverDyn's QR path
+    pose_error_and_jacobian(np.eye(4), np.zeros((6, 2)), np.eye(4))  # the 6D feature's error
+    curvature_correction(np.eye(2), np.zeros(2), np.zeros(2))  # the tick-curvature correction

@@ -397,6 +397,14 @@ def test_a_point_far_outside_is_not_moved():
     assert hqp._onto_hard_rows(stage, np.array([-1e-3, 500.0]), side) is None
     moved = hqp._onto_hard_rows(stage, np.array([-3e-9, 500.0]), side)  # 3e-9 of a point of size 500: round-off
     assert moved is not None and moved[0] >= -1e-15 and abs(moved[1] - 500.0) < 1e-12
+    # Nearly dependent rows: a miss of round-off size that only a large move could correct is refused.
+    from sotdrake.solvers.hqp import _Stage
+
+    y = np.array([0.0, 500.0])
+    G = np.array([[1.0, 0.0], [1.0, 1e-6]]) / np.array([[1.0], [np.hypot(1.0, 1e-6)]])
+    lower = np.array([0.0, G[1] @ y + 2e-7])
+    tight = _Stage(np.eye(2), np.zeros(2), np.ones(2), G, lower, np.full(2, np.inf), np.zeros(2), 2, None, np.zeros(2, dtype=int), 2)
+    assert hqp._onto_hard_rows(tight, y, np.array([-1, 0])) is None
 
 def reference_stage(level, x0, Z, free, held, reference, hard_lower, hard_upper, hard_side, mu, tau=RANK_THRESHOLD):
     """A stage as the :mod:`sotdrake.solvers.jit_stage` docstring defines it, written with numpy:

@@ -812,10 +812,9 @@ class HierarchicalQP:
         at most :data:`_REFINEMENTS` times; None when a row is missed by more than
         :data:`_ROUND_OFF` relative to the point's size, or the correction would move it by more
         than ten times that (not round-off: the next path decides), or it does not bring every hard
-        row within the feasibility tolerance. The
-        active set's solves lose about ``cond · ε`` of a point's size: on a stage whose point is
-        hundreds of times its rows' targets, a few 1e-9 on a bound row (level 5 of a TALOS
-        stack with a task held against its limits)."""
+        row within the feasibility tolerance. The active set's solves lose about ``cond · ε`` of a
+        point's size: on a stage whose point is hundreds of times its rows' targets, a few 1e-9 on a
+        bound row (level 5 of a TALOS stack with a task held against its limits)."""
         if not all_true(np.isfinite(y)):
             return None
         m, r = stage.m_hard, stage.r

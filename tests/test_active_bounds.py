@@ -4,7 +4,7 @@ point it returns is the hierarchical QP's (the stages' path), whatever the guess
 import numpy as np
 import pytest
 
-from sotdrake.solvers.active_bounds import solve_with_active_bounds
+from sotdrake.solvers.active_bounds import outcome, solve_with_active_bounds
 from sotdrake.solvers.hqp import ACTIVE_BOUNDS, ACTIVE_SET, HierarchicalQP, LevelRows
 
 
@@ -242,3 +242,16 @@ def test_any_array_layout_gives_the_same_answer_without_another_compilation():
         np.testing.assert_array_equal(x, plain[0])
         np.testing.assert_array_equal(sides, plain[1])
     assert len(active_bounds._solve.signatures) == signatures
+
+
+def test_outcome_puts_the_answer_on_the_bounds_it_passes_by_round_off():
+    """A component past its bound by round-off (1e-9 relative above 1) is put on it, one farther out
+    stays (a start kept outside), the others are left as they are; the residuals follow."""
+    x_lower, x_upper = np.array([-1.0, -1.0, -1.0, -1.0, -1e3]), np.array([1.0, 1.0, 1.0, 2.0, 1e3])
+    x = np.array([1.0 + 5e-10, -1.0 - 3e-10, 0.5, 2.0 + 1e-6, 1e3 + 5e-7])
+    A, b = np.eye(5), np.zeros(5)
+    moved, residual, norms, active = outcome(A, b, np.array([5]), x.copy(), x_lower, x_upper, np.zeros(5, dtype=bool), 1e-9)
+    np.testing.assert_array_equal(moved, [1.0, -1.0, 0.5, 2.0 + 1e-6, 1e3])
+    np.testing.assert_array_equal(residual, moved)
+    assert norms[0] == np.linalg.norm(moved)
+    np.testing.assert_array_equal(active, [0, 1, 3, 4])

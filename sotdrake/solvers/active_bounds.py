@@ -165,17 +165,25 @@ def solve_with_active_bounds(
 
 
 @njit(cache=True)
-def _outcome(A, b, sizes, x, x_lower, x_upper, fixed):
-    """``(A x − b, each level's slack norm, the free components at a bound)`` (to ``1e-7`` relative
-    above 1: ``x`` is inside its bounds to ``1e-10``)."""
+def _outcome(A, b, sizes, x, x_lower, x_upper, fixed, tolerance):
+    """``(x, A x − b, each level's slack norm, the free components at a bound)`` (to ``1e-7`` relative
+    above 1: ``x`` is inside its bounds to ``1e-10``), ``x`` first put on each bound it passes by at
+    most ``tolerance`` (relative above 1: round-off), in place."""
+    for i in range(x.size):
+        if x_lower[i] - tolerance * max(1.0, abs(x_lower[i])) <= x[i] < x_lower[i]:
+            x[i] = x_lower[i]
+        elif x_upper[i] < x[i] <= x_upper[i] + tolerance * max(1.0, abs(x_upper[i])):
+            x[i] = x_upper[i]
     residual, norms = level_residuals(A, b, x, sizes)
     scale = 1e-7 * np.maximum(1.0, np.abs(x))
-    return residual, norms, np.flatnonzero(~fixed & ((x - x_lower <= scale) | (x_upper - x <= scale)))
+    return x, residual, norms, np.flatnonzero(~fixed & ((x - x_lower <= scale) | (x_upper - x <= scale)))
 
 
 def outcome(A: np.ndarray, b: np.ndarray, sizes: np.ndarray, x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray,
-            fixed: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The residual, slack norms and active bounds of an answer of :func:`solve_with_active_bounds`
-    (the arguments as it took them; ``sizes`` as int64)."""
+            fixed: np.ndarray, tolerance: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """An answer of :func:`solve_with_active_bounds` put on the bounds it passes by round-off (at most
+    ``tolerance``, relative above 1; ``x`` is changed in place), its residual, slack norms and active
+    bounds (the arguments as it took them; ``sizes`` as int64)."""
     given = compiled_input
-    return _outcome(given(A), given(b), given(sizes, np.int64), x, given(x_lower), given(x_upper), given(fixed, np.bool_))
+    return _outcome(given(A), given(b), given(sizes, np.int64), x, given(x_lower), given(x_upper), given(fixed, np.bool_),
+                    float(tolerance))

@@ -386,6 +386,22 @@ def test_a_point_outside_by_round_off_is_moved_onto_its_rows(monkeypatch):
         HierarchicalQP(len(x_lower)).solve(levels, x_lower, x_upper, start=start)
 
 
+
+def test_inequality_rows_the_levels_above_fix_move_only_their_slacks():
+    """A random stack (seed 105151 of tests/hqp_stacks.py: n = 25, rows scaled up to 3e9) whose last
+    level's three inequality rows are fixed by the levels above: their projections are 2e-16 to
+    7e-16 of their norms, round-off in no meaningful direction. Kept in the stage, they let the
+    active set buy smaller slacks with a step of 1e16 along that noise, which every path then
+    refused (outside the bounds): a false failure. Constant over the stage (at most τ times their
+    norm), only their slacks move: solved, bounds exact, strict."""
+    n, levels, x_lower, x_upper = random_stack(np.random.default_rng(105151))
+    result = HierarchicalQP(n).solve(levels, x_lower, x_upper)
+    assert np.all(np.isfinite(result.x)) and np.all(result.x >= x_lower) and np.all(result.x <= x_upper)
+    for k in range(len(levels) - 1):
+        alone = HierarchicalQP(n, regularize=False).solve(levels[: k + 1], x_lower, x_upper)
+        floor = np.maximum(round_off(levels, result.x), round_off(levels, alone.x)[: len(levels)])
+        assert same_norms(result.slack_norms[: k + 1], alone.slack_norms, floor=floor)
+
 def test_a_point_far_outside_is_not_moved():
     """Only round-off is corrected: a point that misses a bound by more than 1e-9 of its size is
     refused (the next path decides), one that misses it by less is put on it."""
@@ -430,8 +446,11 @@ def reference_stage(level, x0, Z, free, held, reference, hard_lower, hard_upper,
         M = np.vstack([M, np.hstack([np.sqrt(mu) * np.eye(r), np.zeros((r, m_in))])])
         t, m_scale = np.concatenate([t, np.zeros(r)]), np.concatenate([m_scale, np.full(r, np.sqrt(mu))])
     value = A_in @ x0
-    soft = np.sqrt(np.linalg.norm(A_in @ Z, axis=1) ** 2 + 1.0)
-    G = np.block([[G, np.zeros((len(G), m_in))], [(A_in @ Z) / soft[:, None], -np.diag(1.0 / soft)]])
+    AZ = A_in @ Z
+    raw = np.linalg.norm(A_in, axis=1)
+    AZ[np.linalg.norm(AZ, axis=1) <= tau * np.where(raw > 0, raw, 1.0)] = 0.0  # constant rows: only their slack moves
+    soft = np.sqrt(np.linalg.norm(AZ, axis=1) ** 2 + 1.0)
+    G = np.block([[G, np.zeros((len(G), m_in))], [AZ / soft[:, None], -np.diag(1.0 / soft)]])
     lower = np.concatenate([lower, (level.lower[~eq] - value) / soft])
     upper = np.concatenate([upper, (level.upper[~eq] - value) / soft])
     violation = np.maximum(level.lower[~eq] - value, 0.0) - np.maximum(value - level.upper[~eq], 0.0)
@@ -441,9 +460,10 @@ def reference_stage(level, x0, Z, free, held, reference, hard_lower, hard_upper,
 
 @pytest.mark.parametrize("seed", range(12))
 def test_a_stage_is_assembled_as_its_definition(seed):
-    """The compiled assembly of a stage (bound rows of the free components, held rows, a row the
-    levels above made constant, sides relaxed where x0 is outside them, infinite sides, damping,
-    equality and inequality rows, the minimum-norm stage) against its definition."""
+    """The compiled assembly of a stage (bound rows of the free components, held rows, a held row and
+    an inequality row that the levels above made constant, sides relaxed where x0 is outside them,
+    infinite sides, damping, equality and inequality rows, the minimum-norm stage) against its
+    definition."""
     rng = np.random.default_rng(seed)
     n = int(rng.integers(4, 14))
     r = int(rng.integers(1, n + 1))
@@ -468,6 +488,11 @@ def test_a_stage_is_assembled_as_its_definition(seed):
     equality = rng.random(len(A)) < 0.5
     upper[equality] = lower[equality]
     upper[~equality & (rng.random(len(A)) < 0.3)] = np.inf
+    if r < n and not equality.all():  # an inequality row the levels above made constant: only its slack moves
+        i = int(np.flatnonzero(~equality)[0])
+        A[i] -= Z @ (Z.T @ A[i])
+        A[i] *= 1e9 / np.linalg.norm(A[i])
+        A[i] += 1e-7 * Z[:, 0]
     hqp = HierarchicalQP(n)
     hard = (free, reference, held, hard_lower, hard_upper, hard_side)
     for level in (None, LevelRows(A[equality], lower[equality], lower[equality]), LevelRows(A, lower, upper)):

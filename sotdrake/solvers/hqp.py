@@ -256,7 +256,7 @@ such a stage, and end outside the bounds too); every other rank decision stays a
 is accepted on the same checks."""
 
 
-_NO_LEVEL = (np.zeros((0, 0)), *[np.zeros(0)] * 2, np.zeros((0, 0)), *[np.zeros(0)] * 2)
+_NO_LEVEL = (np.zeros((0, 0)), *[np.zeros(0)] * 2, np.zeros((0, 0)), *[np.zeros(0)] * 3)
 """The level's arrays given to :func:`.jit_stage.build` for the minimum-norm stage (not read)."""
 
 
@@ -636,7 +636,7 @@ class HierarchicalQP:
             free = self._all_components
         rows = _NO_LEVEL if level is None else (
             given(level.A_eq), given(level.b_eq), given(level.eq_norms), given(level.A_in), given(level.lower_in),
-            given(level.upper_in))
+            given(level.upper_in), given(level.in_norms))
         M, t, m_scale, G, lower, upper, z0, kept, all_kept, guess, m_hard, identity, uniform = compiled.build(
             level is not None, *rows, given(x0), given(Z), given(free, np.int64), given(reference), given(held),
             given(hard_lower), given(hard_upper), given(hard_side, np.int64), float(mu), float(self.rank_threshold))

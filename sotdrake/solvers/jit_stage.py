@@ -17,7 +17,11 @@ of the directions they leave free (``x = x0 + Z y``)::
   when damped (``μ > 0``).
 - *A level with inequality rows*: ``z = (y, w)`` with one slack ``w_i`` per inequality row, ``M =
   [[A_eq Z, 0], [0, I], [√μ I, 0]]``, and the soft rows ``lo − a·x0 ≤ a Z y − w ≤ hi − a·x0`` scaled
-  by ``‖(a Z, −1)‖``; ``w`` starts at each row's violation at ``y = 0``.
+  by ``‖(a Z, −1)‖``; ``w`` starts at each row's violation at ``y = 0``. A row whose projected norm
+  ``‖a Z‖`` is at most τ times its norm ``‖a‖`` is constant over the stage, as a hard row: its ``a Z``
+  (round-off, in no meaningful direction) is left out, so only its slack moves (kept, the active set
+  could buy a smaller slack with a step of size ``1/‖a Z‖`` along that noise, 1e16 on a random stack
+  whose lowest level the levels above fix).
 
 ``m_scale`` holds each objective row's reference norm (the level's row norms, 1 for the slacks,
 ``√μ`` for the damping); the guess of the working set is each hard row's side at the end of the
@@ -68,8 +72,8 @@ def _objective_kind(M, m_scale):
 
 
 @njit(cache=True, error_model="numpy")
-def build(has_level, A_eq, b_eq, eq_norms, A_in, lower_in, upper_in, x0, Z, free, reference, held, hard_lower,
-          hard_upper, hard_side, mu, tau):
+def build(has_level, A_eq, b_eq, eq_norms, A_in, lower_in, upper_in, in_norms, x0, Z, free, reference, held,
+          hard_lower, hard_upper, hard_side, mu, tau):
     """The stage (see the module docstring): ``(M, t, m_scale, G, lower, upper, z0, kept, all_kept,
     guess, m_hard, identity, uniform)``; ``identity, uniform``: the objective's
     :func:`.active_set.objective_kind`. ``has_level`` False: the minimum-norm stage (the level's
@@ -119,8 +123,12 @@ def build(has_level, A_eq, b_eq, eq_norms, A_in, lower_in, upper_in, x0, Z, free
         value = A_in @ x0
         AZ = A_in @ Z
         for i in range(m_in):
-            soft_scale = math.sqrt(AZ[i] @ AZ[i] + 1.0)
-            G[m_hard + i, :r] = AZ[i] / soft_scale
+            projected = norm(AZ[i])
+            if projected > tau * in_norms[i]:
+                soft_scale = math.sqrt(projected * projected + 1.0)
+                G[m_hard + i, :r] = AZ[i] / soft_scale
+            else:  # constant over the stage (its projection is round-off): only its slack moves
+                soft_scale = 1.0
             G[m_hard + i, r + i] = -1.0 / soft_scale
             lower[m_hard + i] = (lower_in[i] - value[i]) / soft_scale
             upper[m_hard + i] = (upper_in[i] - value[i]) / soft_scale

@@ -165,15 +165,30 @@ def solve_with_active_bounds(
 
 
 @njit(cache=True)
-def _outcome(A, b, sizes, x, x_lower, x_upper, fixed, tolerance):
-    """``(x, A x − b, each level's slack norm, the free components at a bound)`` (to ``1e-7`` relative
-    above 1: ``x`` is inside its bounds to ``1e-10``), ``x`` first put on each bound it passes by at
-    most ``tolerance`` (relative above 1: round-off), in place."""
+def _onto_bounds(x, x_lower, x_upper, tolerance):
+    """``x`` put on each bound it passes by at most ``tolerance`` (relative above 1: round-off), in
+    place; a component farther out stays."""
     for i in range(x.size):
         if x_lower[i] - tolerance * max(1.0, abs(x_lower[i])) <= x[i] < x_lower[i]:
             x[i] = x_lower[i]
         elif x_upper[i] < x[i] <= x_upper[i] + tolerance * max(1.0, abs(x_upper[i])):
             x[i] = x_upper[i]
+
+
+def onto_bounds(x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, tolerance: float) -> np.ndarray:
+    """A copy of ``x`` put on each bound it passes by at most ``tolerance`` (relative above 1:
+    round-off); a component farther out stays."""
+    out = compiled_input(x).copy()
+    _onto_bounds(out, compiled_input(x_lower), compiled_input(x_upper), float(tolerance))
+    return out
+
+
+@njit(cache=True)
+def _outcome(A, b, sizes, x, x_lower, x_upper, fixed, tolerance):
+    """``(x, A x − b, each level's slack norm, the free components at a bound)`` (to ``1e-7`` relative
+    above 1: ``x`` is inside its bounds to ``1e-10``), ``x`` first put on each bound it passes by at
+    most ``tolerance`` (:func:`onto_bounds`, in place)."""
+    _onto_bounds(x, x_lower, x_upper, tolerance)
     residual, norms = level_residuals(A, b, x, sizes)
     scale = 1e-7 * np.maximum(1.0, np.abs(x))
     return x, residual, norms, np.flatnonzero(~fixed & ((x - x_lower <= scale) | (x_upper - x <= scale)))

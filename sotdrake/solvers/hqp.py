@@ -272,8 +272,8 @@ def _jit_stage() -> types.ModuleType:
 
 @functools.cache
 def _active_bounds_path() -> types.ModuleType:
-    """:mod:`.active_bounds`, imported on the first equality stack: it is compiled with numba, which a
-    script that never solves one (e.g. with the cascade) does not import."""
+    """:mod:`.active_bounds`, imported on the first solve (an equality stack's path, or an answer put
+    on its bounds): it is compiled with numba."""
     from . import active_bounds
     from .jit_lapack import announce_compilation
 
@@ -543,7 +543,7 @@ class HierarchicalQP:
             return None
         x, self._bound_sides = solved
         x, residual, slack_norms, active_bounds = path.outcome(A, b, sizes, x, x_lower, x_upper, fixed,
-                                                               self.feasibility_tolerance)  # (x on its bounds: _onto_bounds)
+                                                               self.feasibility_tolerance)  # (x on its bounds)
         slacks, start = [], 0
         for size in sizes.tolist():
             slacks.append(residual[start : start + size])
@@ -819,12 +819,9 @@ class HierarchicalQP:
             return None
         m, r = stage.m_hard, stage.r
         G, lower, upper = stage.G[:m, :r], stage.lower[:m], stage.upper[:m]
-        tol = self.feasibility_tolerance
         held = side[:m]
         for corrections in range(_REFINEMENTS + 1):
-            value = G @ y
-            below = value < lower - tol * np.maximum(1.0, np.abs(lower))
-            above = value > upper + tol * np.maximum(1.0, np.abs(upper))
+            value, below, above = self._missed_hard_rows(stage, y)
             if not any_true(below | above):
                 return y
             if corrections == _REFINEMENTS:
@@ -844,12 +841,17 @@ class HierarchicalQP:
         return None
 
     def _bounds_hold(self, stage: _Stage, y: np.ndarray) -> bool:
+        _, below, above = self._missed_hard_rows(stage, y)
+        return not any_true(below | above)
+
+    def _missed_hard_rows(self, stage: _Stage, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The hard rows' values at ``y`` and the rows missed below and above by more than the
+        feasibility tolerance (relative above 1; a NaN value misses both)."""
         m_hard = stage.m_hard
         value = stage.G[:m_hard, :stage.r] @ y
         lo, hi = stage.lower[:m_hard], stage.upper[:m_hard]
         tol = self.feasibility_tolerance
-        return (all_true(value >= lo - tol * np.maximum(1.0, np.abs(lo)))
-                and all_true(value <= hi + tol * np.maximum(1.0, np.abs(hi))))
+        return value, ~(value >= lo - tol * np.maximum(1.0, np.abs(lo))), ~(value <= hi + tol * np.maximum(1.0, np.abs(hi)))
 
     @staticmethod
     def _sides(stage: _Stage, z: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:
@@ -918,15 +920,9 @@ class HierarchicalQP:
         """``x`` with each component past a bound by round-off only (within the feasibility tolerance,
         as the paths accept their points) put on that bound: the answer then holds its bounds
         exactly. A component farther out (a start kept outside a bound, see :meth:`solve`) stays.
-        (The active bounds' answers get the same in their compiled :func:`.active_bounds.outcome`.)"""
-        if all_true((x >= x_lower) & (x <= x_upper)):
-            return x
-        tol = self.feasibility_tolerance
-        below = (x < x_lower) & (x >= x_lower - tol * np.maximum(1.0, np.abs(x_lower)))
-        above = (x > x_upper) & (x <= x_upper + tol * np.maximum(1.0, np.abs(x_upper)))
-        if not any_true(below | above):
-            return x
-        return np.where(below, x_lower, np.where(above, x_upper, x))
+        The compiled :func:`.active_bounds.onto_bounds`, which the active bounds' answers also go
+        through (in their :func:`.active_bounds.outcome`)."""
+        return _active_bounds_path().onto_bounds(x, x_lower, x_upper, self.feasibility_tolerance)
 
     def _result(self, levels, x, x_lower, x_upper, fixed, used) -> HqpResult:
         slacks, active = [], []

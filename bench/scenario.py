@@ -54,11 +54,14 @@ def pinocchio_half_sitting(model) -> np.ndarray:
 
 
 def load_compiled_paths() -> None:
-    """Load the numba-compiled paths (the solvers', the 6D error, the curvature correction; or
-    compile them, once after an install) before any timing: their first call is not a tick."""
+    """Load the numba-compiled paths (the solvers', the 6D error, the curvature correction, the
+    integration, the joint limits' bounds; or compile them, once after an install) before any timing:
+    their first call is not a tick."""
+    from sotdrake.configuration import Layout, integrate
     from sotdrake.features.feature6d import pose_error_and_jacobian
     from sotdrake.solvers.equality_hierarchy import solve_equality_hierarchy
     from sotdrake.solvers.hqp import HierarchicalQP, LevelRows
+    from sotdrake.solvers.limits import VelocityBounds
     from sotdrake.solvers.second_order import curvature_correction
 
     bounds = np.full(2, -1.0), np.full(2, 1.0)
@@ -67,3 +70,9 @@ def load_compiled_paths() -> None:
     solve_equality_hierarchy([(np.eye(1, 2), np.ones(1))], *bounds)  # SolverDyn's QR path
     pose_error_and_jacobian(np.eye(4), np.zeros((6, 2)), np.eye(4))  # the 6D feature's error
     curvature_correction(np.eye(2), np.zeros(2), np.zeros(2))  # the tick-curvature correction
+    talos = load_talos()
+    layout = Layout.of(talos.plant)
+    integrate(talos.half_sitting, np.zeros(talos.nv), DT, layout)  # the device's integration
+    limits = talos.joint_limits()
+    VelocityBounds(limits["position_lower"], limits["position_upper"], limits["velocity_lower"], limits["velocity_upper"],
+                   layout)(talos.half_sitting, DT, 1e-3)  # the joint limits' velocity bounds

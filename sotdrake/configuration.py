@@ -25,13 +25,15 @@ at the velocity limits.) :func:`difference` is the inverse of ``⊕``.
 
 from __future__ import annotations
 
+import functools
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context
 
+from .compiled import compiled_input
 from .exceptions import InvalidInput
 from .lie import log_so3, quaternion_exp_list, quaternion_multiply_list, quaternion_wxyz_to_rotation
 
@@ -48,6 +50,23 @@ class Layout(NamedTuple):
     joints_v: np.ndarray
     joints_q_slice: slice | None = None  # the same indices as a slice, when contiguous
     joints_v_slice: slice | None = None
+
+    @property
+    def nq(self) -> int:
+        return len(self.joints_q) + (7 if self.base_q is not None else 0)
+
+    @property
+    def nv(self) -> int:
+        return len(self.joints_v) + (6 if self.base_v is not None else 0)
+
+    @property
+    def base_q_index(self) -> int:
+        """``base_q``, -1 for none (as the compiled code takes it)."""
+        return -1 if self.base_q is None else self.base_q
+
+    @property
+    def base_v_index(self) -> int:
+        return -1 if self.base_v is None else self.base_v
 
     @staticmethod
     def of(plant: MultibodyPlant) -> Layout:
@@ -75,8 +94,28 @@ def contiguous_slice(indices: np.ndarray) -> slice | None:
 
 
 def integrate(q: np.ndarray, v: np.ndarray, dt: float, layout: Layout) -> np.ndarray:
-    """``q ⊕ v·dt`` (see the module docstring); ``q`` is not modified. The floating base's 3-vectors
-    and quaternion are handled on Python floats (cheaper than numpy at this size)."""
+    """``q ⊕ v·dt`` (see the module docstring); ``q`` is not modified. Compiled
+    (:mod:`.jit_configuration`); :func:`python_integrate` is its reference."""
+    q, v = compiled_input(q), compiled_input(v)
+    if q.shape != (layout.nq,) or v.shape != (layout.nv,):  # (the compiled code reads them unchecked)
+        raise InvalidInput(f"integrate: expected q of size {layout.nq} and v of size {layout.nv}, got {q.shape} and {v.shape}")
+    return _jit_configuration().integrate(q, v, float(dt), layout.base_q_index, layout.base_v_index,
+                                          layout.joints_q, layout.joints_v)
+
+
+@functools.cache
+def _jit_configuration() -> Any:
+    """:mod:`.jit_configuration`, imported on the first integration (a script's first tick)."""
+    from . import jit_configuration
+    from .compiled import announce_compilation
+
+    announce_compilation(jit_configuration.integrate, "the configuration's integration", "a few seconds")
+    return jit_configuration
+
+
+def python_integrate(q: np.ndarray, v: np.ndarray, dt: float, layout: Layout) -> np.ndarray:
+    """:func:`integrate` in Python: its reference. The floating base's 3-vectors and quaternion are
+    handled on Python floats (cheaper than numpy at this size)."""
     out = q.copy()
     if layout.joints_q_slice is not None and layout.joints_v_slice is not None:
         out[layout.joints_q_slice] += dt * v[layout.joints_v_slice]

@@ -255,3 +255,41 @@ def test_outcome_puts_the_answer_on_the_bounds_it_passes_by_round_off():
     np.testing.assert_array_equal(residual, moved)
     assert norms[0] == np.linalg.norm(moved)
     np.testing.assert_array_equal(active, [0, 1, 3, 4])
+
+
+def test_solve_stack_is_the_active_bounds_and_their_outcome_in_one_call():
+    """``solve_stack`` (the robot's path): the point and sides of ``solve_with_active_bounds`` with
+    ``outcome``'s residuals; NOT_APPLICABLE when 0 is outside a free component's bounds (or a bound
+    is NaN), NOT_VERIFIED when no guess passes; only the latter counts for the back-off."""
+    from sotdrake.solvers import active_bounds as path
+
+    rng = np.random.default_rng(20)  # two levels, two fixed components, two bounds held at the answer
+    n, levels, lower, upper = equality_stack(rng)
+    A, b, _, sizes = stacked(levels)
+    fixed = lower == upper
+    guess = np.zeros(n, dtype=np.int64)
+    sizes = np.array(sizes, dtype=np.int64)
+    status, x, sides, residual, slack_norms, active = path.solve_stack(A, b, sizes, lower, upper, guess, 1e-5, 1e-10, 1e-9)
+    expected = solve_with_active_bounds(A, b, path.row_norms(A), sizes, lower, upper, fixed, guess)
+    assert status == path.SOLVED and expected is not None
+    np.testing.assert_array_equal(sides, expected[1])
+    want = outcome(A, b, sizes, expected[0].copy(), lower, upper, fixed, 1e-9)
+    for got, wanted in zip((x, residual, slack_norms, active), want, strict=True):
+        np.testing.assert_array_equal(got, wanted)
+    shifted = lower.copy()
+    shifted[~fixed] = np.maximum(shifted[~fixed], 1e-3)  # 0 below every free component's bounds
+    assert path.solve_stack(A, b, sizes, shifted, upper + 1.0, guess, 1e-5, 1e-10, 1e-9)[0] == path.NOT_APPLICABLE
+    nan = lower.copy()
+    nan[np.flatnonzero(~fixed)[0]] = np.nan
+    assert path.solve_stack(A, b, sizes, nan, upper, guess, 1e-5, 1e-10, 1e-9)[0] == path.NOT_APPLICABLE
+    conflict = np.vstack([A, A[:1]]), np.concatenate([b, b[:1] + 1.0])  # a level that contradicts the first
+    status = path.solve_stack(*conflict, np.append(sizes, 1), lower, upper, guess, 1e-5, 1e-10, 1e-9)[0]
+    assert status == path.NOT_VERIFIED
+    hqp = HierarchicalQP(n)
+    assert hqp.solve_equalities([A, A[:1]], [b, b[:1] + 1.0], lower, upper) is None
+    assert hqp._active_bounds_failures == 1 and hqp._active_bounds_skips == 1
+    assert hqp.solve_equalities([A], [b], shifted, upper + 1.0) is None  # not applicable: no skip used
+    assert hqp._active_bounds_skips == 1
+    assert hqp.solve_equalities([A], [b], lower, upper) is None  # skipped
+    assert hqp._active_bounds_skips == 0
+    assert hqp.solve_equalities([A], [b], lower, upper) is not None and hqp._active_bounds_failures == 0

@@ -164,6 +164,42 @@ def solve_with_active_bounds(
     return (x, sides) if ok else None
 
 
+#: What :func:`solve_stack` says of a stack: answered, the path does not apply (0 outside the bounds
+#: of a free component), no guess verified.
+SOLVED, NOT_APPLICABLE, NOT_VERIFIED = 0, 1, 2
+
+
+@njit(cache=True)
+def _solve_stack(A, b, sizes, x_lower, x_upper, guess, certified, feasibility, rounds, tolerance):
+    """:func:`solve_stack`, compiled: ``(status, x, sides, A x − b, slack norms, active bounds)``."""
+    fixed = x_lower == x_upper
+    none, empty = np.zeros(0, dtype=np.int64), np.zeros(0)
+    for i in range(x_lower.size):
+        # (NaN bounds fail the test: every comparison with NaN is False.)
+        if not fixed[i] and not (x_lower[i] <= 0.0 and x_upper[i] >= 0.0):
+            return NOT_APPLICABLE, empty, guess, empty, empty, none
+    ok, x, sides = _solve(A, b, row_norms(A), sizes, x_lower, x_upper, fixed, guess, certified, feasibility, rounds)
+    if not ok:
+        return NOT_VERIFIED, x, sides, empty, empty, none
+    x, residual, slack_norms, active = _outcome(A, b, sizes, x, x_lower, x_upper, fixed, tolerance)
+    return SOLVED, x, sides, residual, slack_norms, active
+
+
+def solve_stack(A: np.ndarray, b: np.ndarray, sizes: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray,
+                guess: np.ndarray, certified: float, feasibility: float, tolerance: float, rounds: int = 3):
+    """One call for a stack of equality levels (the QP's path of :meth:`~.hqp.HierarchicalQP.solve_equalities`):
+    ``(status, x, sides, A x − b, slack norms, active bounds)``. The status is :data:`NOT_APPLICABLE`
+    when 0 is outside the bounds of a free component (the QP's start: then the other arrays are
+    empty), :data:`NOT_VERIFIED` when :func:`solve_with_active_bounds` gives None, else :data:`SOLVED`
+    with its answer as :func:`outcome` gives it (put on the bounds it passes by at most ``tolerance``).
+    ``sizes``: int64, ``guess``: a side per component (int64)."""
+    given = compiled_input
+    status, x, sides, residual, slack_norms, active = _solve_stack(
+        given(A), given(b), given(sizes, np.int64), given(x_lower), given(x_upper), given(guess, np.int64),
+        float(certified), float(feasibility), int(rounds), float(tolerance))
+    return int(status), x, sides, residual, slack_norms, active
+
+
 @njit(cache=True)
 def _onto_bounds(x, x_lower, x_upper, tolerance):
     """``x`` put on each bound it passes by at most ``tolerance`` (relative above 1: round-off), in

@@ -277,7 +277,7 @@ def _active_bounds_path() -> types.ModuleType:
     from . import active_bounds
     from .jit_lapack import announce_compilation
 
-    announce_compilation(active_bounds._solve, "the hierarchical QP's path for equality stacks", "about ten seconds")
+    announce_compilation(active_bounds._solve_stack, "the hierarchical QP's path for equality stacks", "about ten seconds")
     return active_bounds
 
 
@@ -455,7 +455,7 @@ class HierarchicalQP:
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # ±∞ bounds: once here, not per operation
             if solver == ACTIVE_SET and self._equalities_only(levels, x_lower, x_upper, fixed, damping, start):
                 result = self._try_active_bounds([level.A for level in levels], [level.lower for level in levels],
-                                                 x_lower, x_upper, fixed, began)
+                                                 x_lower, x_upper, began)
                 if result is not None:
                     return result
             result = self._solve_stages(levels, x_lower, x_upper, damping, solver, began, start)
@@ -498,32 +498,22 @@ class HierarchicalQP:
         for J, value in zip(jacobians, values, strict=True):
             if J.ndim != 2 or J.shape[1] != n or value.shape != (J.shape[0],):
                 return None
-        began = time.perf_counter()
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            fixed = x_lower == x_upper
-            # 0 inside the bounds of the free components (as _equalities_only), which also refuses bounds
-            # out of order (lower > upper cannot hold 0) and NaN bounds (every comparison is False).
-            if not all_true(((x_lower <= 0.0) & (x_upper >= 0.0)) | fixed):
-                return None
-            return self._try_active_bounds(jacobians, values, x_lower, x_upper, fixed, began)
+        return self._try_active_bounds(jacobians, values, x_lower, x_upper, time.perf_counter())
 
-    def _try_active_bounds(self, jacobians, values, x_lower, x_upper, fixed, began) -> HqpResult | None:
+    def _try_active_bounds(self, jacobians, values, x_lower, x_upper, began) -> HqpResult | None:
         """:meth:`_solve_active_bounds` unless failures in a row make this call skip it (the
-        back-off: after f failures, the next 2^(f-1) calls, at most 16, skip it)."""
+        back-off: after f failures, the next 2^(f-1) calls, at most 16, skip it; a call to which the
+        path does not apply, 0 outside the bounds of a free component, is not counted)."""
         if self._active_bounds_skips:
-            self._active_bounds_skips -= 1
+            with np.errstate(invalid="ignore"):
+                if all_true(((x_lower <= 0.0) & (x_upper >= 0.0)) | (x_lower == x_upper)):
+                    self._active_bounds_skips -= 1
             return None
-        result = self._solve_active_bounds(jacobians, values, x_lower, x_upper, fixed, began)
-        if result is None:
-            self._active_bounds_failures += 1
-            self._active_bounds_skips = min(2 ** (self._active_bounds_failures - 1), 16)
-        else:
-            self._active_bounds_failures = 0
-        return result
+        return self._solve_active_bounds(jacobians, values, x_lower, x_upper, began)
 
-    def _solve_active_bounds(self, jacobians, values, x_lower, x_upper, fixed, began) -> HqpResult | None:
-        """The equality stack by :func:`~.active_bounds.solve_with_active_bounds` from the bounds
-        held at the last answer, or None (then the stages decide)."""
+    def _solve_active_bounds(self, jacobians, values, x_lower, x_upper, began) -> HqpResult | None:
+        """The equality stack by :func:`~.active_bounds.solve_stack` from the bounds held at the last
+        answer, or None (then the stages decide)."""
         path = _active_bounds_path()
         sizes = np.array([len(J) for J in jacobians], dtype=np.int64)
         if len(jacobians) == 1:
@@ -532,18 +522,19 @@ class HierarchicalQP:
             A, b = np.concatenate(jacobians), np.concatenate(values)
         else:
             A, b = np.zeros((0, self.n)), np.zeros(0)
-        A, b = path.compiled_input(A), path.compiled_input(b)
-        norms = path.row_norms(A)  # (the levels' eq_norms, computed once for the stack)
         guess = self._bound_sides
         if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
-            guess = _sides_at_bounds(guess[0], guess[1], guess[2], fixed)
-        solved = path.solve_with_active_bounds(A, b, norms, sizes, x_lower, x_upper, fixed, guess,
-                                          certified=1e3 * self.rank_threshold, feasibility=min(1e-10, self.feasibility_tolerance))
-        if solved is None:
+            guess = _sides_at_bounds(guess[0], guess[1], guess[2], x_lower == x_upper)
+        status, x, sides, residual, slack_norms, active_bounds = path.solve_stack(
+            A, b, sizes, x_lower, x_upper, guess, certified=1e3 * self.rank_threshold,
+            feasibility=min(1e-10, self.feasibility_tolerance), tolerance=self.feasibility_tolerance)
+        if status == path.NOT_APPLICABLE:  # (0 outside the bounds of a free component, as _equalities_only)
             return None
-        x, self._bound_sides = solved
-        x, residual, slack_norms, active_bounds = path.outcome(A, b, sizes, x, x_lower, x_upper, fixed,
-                                                               self.feasibility_tolerance)  # (x on its bounds)
+        if status == path.NOT_VERIFIED:
+            self._active_bounds_failures += 1
+            self._active_bounds_skips = min(2 ** (self._active_bounds_failures - 1), 16)
+            return None
+        self._active_bounds_failures, self._bound_sides = 0, sides
         slacks, start = [], 0
         for size in sizes.tolist():
             slacks.append(residual[start : start + size])

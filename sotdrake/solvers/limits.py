@@ -17,8 +17,12 @@ get ``[0, 0]``.
 
 from __future__ import annotations
 
+import functools
+from typing import Any
+
 import numpy as np
 
+from ..compiled import compiled_input
 from ..configuration import Layout
 
 
@@ -52,6 +56,12 @@ class VelocityBounds:
         self._v_lower, self._v_upper = np.array(velocity_lower[iv], dtype=float), np.array(velocity_upper[iv], dtype=float)
         self._nv = len(velocity_lower)
         self._unbounded: dict[tuple[float, float] | None, tuple[np.ndarray, np.ndarray]] = {}  # a cache of constants
+        # The compiled bounds' arguments (the joints' coordinates as indices, C-ordered limits).
+        self._joints_q = np.ascontiguousarray(layout.joints_q, dtype=np.int64)
+        self._joints_v = np.ascontiguousarray(layout.joints_v, dtype=np.int64)
+        self._limits = tuple(compiled_input(a) for a in (self._q_lower, self._q_upper, self._v_lower, self._v_upper))
+        self._all_selected = np.zeros(0, dtype=np.bool_)
+        self._nq = len(layout.joints_q) + (7 if layout.base_q is not None else 0)
 
     def _outside_joints(self, base_velocity: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray]:
         """The bounds of the components that are not joints (±∞, or the base's), made once per value."""
@@ -69,7 +79,21 @@ class VelocityBounds:
 
     def __call__(self, q: np.ndarray, dt: float, margin: float, control_selection: np.ndarray | None = None,
                  base_velocity: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """``(lower, upper)`` bounds on ``v`` at the configuration ``q``; see the module docstring."""
+        """``(lower, upper)`` bounds on ``v`` at the configuration ``q``; see the module docstring.
+        Compiled (:mod:`.jit_limits`); :meth:`python_bounds` is its reference."""
+        outside_lower, outside_upper = self._outside_joints(base_velocity)
+        q = compiled_input(q)
+        if q.shape != (self._nq,):  # (the compiled code reads the joints' entries unchecked)
+            raise ValueError(f"q: expected {self._nq} positions, got shape {q.shape}")
+        unselected = self._all_selected if control_selection is None else ~compiled_input(control_selection, np.bool_)
+        if unselected.shape not in ((0,), (self._nv,)):
+            raise ValueError(f"control selection: expected {self._nv} booleans, got shape {unselected.shape}")
+        return _jit_limits().bounds(q, self._joints_q, self._joints_v, *self._limits, outside_lower, outside_upper,
+                                    float(dt), float(margin), unselected)
+
+    def python_bounds(self, q: np.ndarray, dt: float, margin: float, control_selection: np.ndarray | None = None,
+                      base_velocity: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`__call__` in numpy: its reference."""
         outside_lower, outside_upper = self._outside_joints(base_velocity)
         lower, upper = outside_lower.copy(), outside_upper.copy()
         qj, lo, hi = q[self._iq], self._q_lower, self._q_upper
@@ -85,3 +109,13 @@ class VelocityBounds:
             unselected = ~control_selection
             lower[unselected] = upper[unselected] = 0.0
         return lower, upper
+
+
+@functools.cache
+def _jit_limits() -> Any:
+    """:mod:`.jit_limits`, imported on the first bounds (a script's first tick)."""
+    from ..compiled import announce_compilation
+    from . import jit_limits
+
+    announce_compilation(jit_limits.bounds, "the joint limits' velocity bounds", "a few seconds")
+    return jit_limits

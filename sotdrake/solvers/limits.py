@@ -61,7 +61,7 @@ class VelocityBounds:
         self._joints_v = np.ascontiguousarray(layout.joints_v, dtype=np.int64)
         self._limits = tuple(compiled_input(a) for a in (self._q_lower, self._q_upper, self._v_lower, self._v_upper))
         self._all_selected = np.zeros(0, dtype=np.bool_)
-        self._nq = len(layout.joints_q) + (7 if layout.base_q is not None else 0)
+        self._nq = layout.nq
 
     def _outside_joints(self, base_velocity: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray]:
         """The bounds of the components that are not joints (±∞, or the base's), made once per value."""

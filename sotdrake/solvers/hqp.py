@@ -286,6 +286,13 @@ def _active_bounds_path() -> types.ModuleType:
     return active_bounds
 
 
+def _start_inside(x_lower: np.ndarray, x_upper: np.ndarray, fixed: np.ndarray, start: np.ndarray | float) -> bool:
+    """Whether the QP's start is inside the bounds of every free component (NaN bounds and bounds out
+    of order fail: every comparison with NaN is False, and ``lower > upper`` cannot hold it); the
+    compiled :func:`.active_bounds.solve_stack` makes the same check for the start 0."""
+    return all_true(((x_lower <= start) & (x_upper >= start)) | fixed)
+
+
 def _sides_at_bounds(x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fixed: np.ndarray) -> np.ndarray:
     """+1 where ``x`` is at its (finite) upper bound, -1 at its lower bound (to 1e-9, relative
     above 1), 0 elsewhere and on the ``fixed`` components (those of the call the guess is for):
@@ -476,8 +483,7 @@ class HierarchicalQP:
                 return False
         if not self.regularize or (damping > 0.0 and len(levels)) or any(name != ACTIVE_SET for name in self.level_solvers):
             return False
-        origin = 0.0 if start is None else start
-        return all_true(((x_lower <= origin) & (x_upper >= origin)) | fixed)
+        return _start_inside(x_lower, x_upper, fixed, 0.0 if start is None else start)
 
     def solve_equalities(
         self,
@@ -511,7 +517,7 @@ class HierarchicalQP:
         path does not apply, 0 outside the bounds of a free component, is not counted)."""
         if self._active_bounds_skips:
             with np.errstate(invalid="ignore"):
-                if all_true(((x_lower <= 0.0) & (x_upper >= 0.0)) | (x_lower == x_upper)):
+                if _start_inside(x_lower, x_upper, x_lower == x_upper, 0.0):
                     self._active_bounds_skips -= 1
             return None
         return self._solve_active_bounds(jacobians, values, x_lower, x_upper, began)

@@ -422,6 +422,28 @@ def test_a_point_far_outside_is_not_moved():
     tight = _Stage(np.eye(2), np.zeros(2), np.ones(2), G, lower, np.full(2, np.inf), np.zeros(2), 2, None, np.zeros(2, dtype=int), 2)
     assert hqp._onto_hard_rows(tight, y, np.array([-1, 0])) is None
 
+def test_the_correction_onto_hard_rows_cuts_at_tau():
+    """The least-norm correction's rank decision is the QP's τ, not a library default cutoff: a
+    singular value of 1e-9 (below τ = 1e-8) is dropped, one of 1e-7 is kept, and the result is
+    ``V_k Σ_k⁻¹ U_kᵀ b`` over the kept values (numpy's default cutoff, ``ε · max(m, n) · σ_max``,
+    would invert 1e-9 and move the point by 1e9 times the residual)."""
+    from sotdrake.solvers.hqp import least_norm
+
+    rng = np.random.default_rng(7)
+    U, _ = np.linalg.qr(rng.standard_normal((5, 5)))
+    V, _ = np.linalg.qr(rng.standard_normal((8, 8)))
+    sigma = np.array([1.0, 0.5, 1e-3, 1e-7, 1e-9])
+    A = U @ np.diag(sigma) @ V[:, :5].T
+    b = rng.standard_normal(5)
+    x = least_norm(A, b, RANK_THRESHOLD)
+    kept = slice(0, 4)
+    expected = V[:, kept] @ ((U[:, kept].T @ b) / sigma[kept])
+    assert np.allclose(x, expected, rtol=1e-6, atol=0.0)
+    assert np.linalg.norm(x) < 1e8 < np.linalg.norm(np.linalg.lstsq(A, b, rcond=None)[0])
+    assert np.allclose(least_norm(A, b, 1e-6), V[:, :3] @ ((U[:, :3].T @ b) / sigma[:3]))  # τ settable
+    assert least_norm(np.zeros((2, 3)), np.ones(2), RANK_THRESHOLD).tolist() == [0.0, 0.0, 0.0]
+
+
 def reference_stage(level, x0, Z, free, held, reference, hard_lower, hard_upper, hard_side, mu, tau=RANK_THRESHOLD):
     """A stage as the :mod:`sotdrake.solvers.jit_stage` docstring defines it, written with numpy:
     ``(M, t, m_scale, G, lower, upper, z0, kept, guess)``."""

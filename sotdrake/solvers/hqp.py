@@ -318,6 +318,15 @@ def null_space(M: np.ndarray, threshold: float) -> np.ndarray:
     return Vt[int(np.count_nonzero(sigma > threshold)):].T
 
 
+def least_norm(A: np.ndarray, b: np.ndarray, threshold: float) -> np.ndarray:
+    """The minimum-norm least-squares solution of ``A x = b``: ``x = V_k Σ_k⁻¹ U_kᵀ b`` over the
+    singular values ``σ > threshold`` (``A``'s rows are expected at unit reference norm, so the cut
+    is the one absolute τ of every rank decision; the directions below it are left unmoved)."""
+    U, sigma, Vt = svd(A, full_matrices=False)
+    keep = sigma > threshold
+    return Vt[keep].T @ ((U[:, keep].T @ b) / sigma[keep])
+
+
 class _EqualityFactors:
     """A level's projected equality rows at unit norm, ``B = (A_eq Z) / ‖rows of A_eq‖`` (m × r),
     factorised once: the orthonormal basis ``null`` of ``{y : B y = 0}`` (the next levels' ``Z`` is
@@ -842,7 +851,7 @@ class HierarchicalQP:
             rows = at_lower | at_upper
             target = np.where(at_lower, lower, upper)[rows]
             A = G[rows]
-            correction = np.linalg.lstsq(A, target - A @ y, rcond=None)[0]
+            correction = least_norm(A, target - A @ y, self.rank_threshold)
             if not float(np.max(np.abs(correction))) <= 10.0 * _ROUND_OFF * max(1.0, float(np.max(np.abs(y)))):
                 return None  # nearly dependent rows asked to move the point further than round-off
             y = y + correction

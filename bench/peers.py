@@ -9,6 +9,7 @@ configuration, as a kinematic SoT device does.
 from __future__ import annotations
 
 import time
+from collections.abc import Generator
 
 import numpy as np
 from scenario import (
@@ -43,7 +44,26 @@ def _accuracy(hand, feet, feet0, com, com0) -> dict:
     }
 
 
+def finish(run: Generator[None, None, dict]) -> dict:
+    """Run a tick generator (:func:`pink_ticks`, …) to its end: its result."""
+    while True:
+        try:
+            next(run)
+        except StopIteration as done:
+            return done.value
+
+
 def run_pink(ticks: int, warmup: int, solver: str = "daqp") -> dict:
+    return finish(pink_ticks(ticks, warmup, solver))
+
+
+def run_placo(ticks: int, warmup: int) -> dict:
+    return finish(placo_ticks(ticks, warmup))
+
+
+def pink_ticks(ticks: int, warmup: int, solver: str = "daqp") -> Generator[None, None, dict]:
+    """pink on the scenario, one tick per ``next`` (so that runs can be interleaved); returns the
+    per-tick times (after ``warmup``) and the accuracy. Imports pink on the first ``next``."""
     import pink
     import pinocchio as pin
     from pink.limits import ConfigurationLimit, VelocityLimit
@@ -75,6 +95,7 @@ def run_pink(ticks: int, warmup: int, solver: str = "daqp") -> dict:
         if k % 10 == 0:  # outside the timed region
             drift = max(drift, max(np.linalg.norm(configuration.get_transform_frame_to_world(f).translation - f0)
                                    for f, f0 in zip(FEET, feet0, strict=False)))
+        yield
     accuracy = _accuracy(configuration.get_transform_frame_to_world(HAND_FRAME).translation,
                          [configuration.get_transform_frame_to_world(f).translation for f in FEET], feet0,
                          pin.centerOfMass(model, data, configuration.q), com0)
@@ -83,7 +104,8 @@ def run_pink(ticks: int, warmup: int, solver: str = "daqp") -> dict:
             "version": _version("pin-pink"), "qp_solver": solver}
 
 
-def run_placo(ticks: int, warmup: int) -> dict:
+def placo_ticks(ticks: int, warmup: int) -> Generator[None, None, dict]:
+    """placo on the scenario, one tick per ``next`` (see :func:`pink_ticks`)."""
     import placo
 
     robot = placo.RobotWrapper(str(urdf_file()), placo.Flags.ignore_collisions)
@@ -112,6 +134,7 @@ def run_placo(ticks: int, warmup: int) -> dict:
         cpu.append(time.thread_time() - start_cpu)
         if k % 10 == 0:
             drift = max(drift, max(np.linalg.norm(robot.get_T_world_frame(f)[:3, 3] - f0) for f, f0 in zip(FEET, feet0, strict=False)))
+        yield
     accuracy = _accuracy(robot.get_T_world_frame(HAND_FRAME)[:3, 3], [robot.get_T_world_frame(f)[:3, 3] for f in FEET],
                          feet0, robot.com_world(), com0)
     accuracy["max_foot_drift_m"] = max(accuracy["max_foot_drift_m"], drift)

@@ -15,9 +15,12 @@ reference run, from which the README's benchmark tables are regenerated
 ``pip install .[bench]``; a missing peer is reported as such, not silently skipped.
 
 Per-tick times are measured around ``Simulator.AdvanceTo`` one tick at a time (median = p50, p95,
-p99, max over ≥ 3000 ticks after a warm-up), so they include Drake's framework. The target ratio to
-pink is the median over 7 back-to-back pairs of short runs (sotdrake, then pink), whose halves see
-the same load on a shared machine; the ratio of the long runs' medians is printed too. The marginal
+p99, max over ≥ 3000 ticks after a warm-up), so they include Drake's framework. The long runs
+(the basic stack, ``SolverKine``, ``SolverKine`` with active limits, pink, placo) are interleaved:
+each advances a fortieth of its ticks in turn (:func:`interleave`), so that all of them see the same
+seconds of a shared host, whose speed swings within seconds, and the ratios of their medians compare
+like with like. The basic tick's target ratio to pink is the median over 7 back-to-back pairs of
+short runs (sotdrake, then pink); the ratios of the long runs' medians are printed too. The marginal
 cost of a task is the least-squares slope of the median tick against the number of tasks (2 to 10
 tasks, each one more 6D, CoM or posture task), the ten stacks timed in turns of 50 ticks. The
 breakdown comes from a separate instrumented run (exclusive time per category).
@@ -34,13 +37,16 @@ import argparse
 import cProfile
 import io
 import json
+import math
 import os
 import platform
 import pstats
 import sys
 import time
 from collections import defaultdict
+from collections.abc import Generator
 from pathlib import Path
+from typing import Any
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # a control loop's small matrices: one thread, for every peer alike
 
@@ -52,6 +58,7 @@ sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE.parent / "diagrams"))
 
 from host import Steal
+from peers import finish
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from scenario import DT, GAIN_COM, GAIN_FEET, GAIN_HAND, TARGET, load_compiled_paths
@@ -114,10 +121,10 @@ def build_stack(solver: str = "cascade", variant: str = "reduced", tasks: int = 
     return robot, sot, hand, builder.Build()
 
 
-def time_ticks(diagram, ticks: int, warmup: int, sample=None) -> tuple[np.ndarray, Simulator, np.ndarray]:
-    """Wall time and CPU time (this thread's) of each tick (AdvanceTo one tick at a time);
-    ``sample(context)`` runs every 10 ticks outside the timed region. Returns ``(wall, simulator,
-    cpu)``, in seconds."""
+def tick_times(diagram, ticks: int, warmup: int, sample=None) -> Generator[None, None, tuple[np.ndarray, Simulator, np.ndarray]]:
+    """Wall time and CPU time (this thread's) of each tick (AdvanceTo one tick at a time), one tick
+    per ``next`` (see :func:`interleave`); ``sample(context)`` runs every 10 ticks outside the timed
+    region. Returns ``(wall, simulator, cpu)``, in seconds."""
     simulator = Simulator(diagram)
     simulator.Initialize()
     times, cpu = np.empty(warmup + ticks), np.empty(warmup + ticks)
@@ -128,7 +135,33 @@ def time_ticks(diagram, ticks: int, warmup: int, sample=None) -> tuple[np.ndarra
         times[k], cpu[k] = time.perf_counter() - start, time.thread_time() - start_cpu
         if sample is not None and k % 10 == 0:
             sample(simulator.get_context())
+        yield
     return times[warmup:], simulator, cpu[warmup:]
+
+
+def time_ticks(diagram, ticks: int, warmup: int, sample=None) -> tuple[np.ndarray, Simulator, np.ndarray]:
+    """:func:`tick_times` run to its end."""
+    return finish(tick_times(diagram, ticks, warmup, sample))
+
+
+def interleave(runs: dict[str, tuple[Generator[None, None, Any], int]], turns: int = 40) -> dict[str, Any]:
+    """Run tick generators (``name: (generator, its number of ticks)``) in ``turns`` turns, each run
+    advancing ``ceil(ticks / turns)`` ticks per turn so that they all end in the last turn: every
+    run sees the same minutes of a shared host, whose speed swings within seconds, and the ratio of
+    two runs' medians compares like with like. Returns each run's result."""
+    results: dict[str, Any] = {}
+    steps = {name: math.ceil(count / turns) for name, (_, count) in runs.items()}
+    while len(results) < len(runs):
+        for name, (run, _) in runs.items():
+            if name in results:
+                continue
+            for _ in range(steps[name]):
+                try:
+                    next(run)
+                except StopIteration as done:
+                    results[name] = done.value
+                    break
+    return results
 
 
 def stats(times_s: np.ndarray) -> dict:
@@ -138,6 +171,12 @@ def stats(times_s: np.ndarray) -> dict:
 
 
 def sotdrake_run(solver: str, ticks: int, warmup: int, target=TARGET) -> dict:
+    return finish(sotdrake_ticks(solver, ticks, warmup, target))
+
+
+def sotdrake_ticks(solver: str, ticks: int, warmup: int, target=TARGET) -> Generator[None, None, dict]:
+    """The scenario's stack with ``solver``, one tick per ``next``: the per-tick times and the
+    accuracy (hand error, feet and CoM drift, joint-limit margin)."""
     robot, sot, hand, diagram = build_stack(solver, target=target)
     solver_times = []
     q0 = robot.device.initial_position
@@ -157,7 +196,7 @@ def sotdrake_run(solver: str, ticks: int, warmup: int, target=TARGET) -> dict:
         if solver == "hqp":  # the solver's own share of the tick it just ran
             solver_times.append(sot.GetOutputPort("diagnostics").Eval(sot.GetMyContextFromRoot(context)).solve_time_s)
 
-    times, simulator, cpu = time_ticks(diagram, ticks, warmup, sample)
+    times, simulator, cpu = yield from tick_times(diagram, ticks, warmup, sample)
     context = simulator.get_context()
     return {
         "times_s": times,
@@ -370,13 +409,28 @@ def kinematic_rtf(duration: float) -> dict:
     return _rtf(talos_appli.build_diagram(None).diagram, duration)
 
 
-def peer(name: str, ticks: int, warmup: int) -> dict:
+#: What each peer imports: a peer whose modules are missing is reported as not installed.
+PEER_MODULES = {"pink": ("pinocchio", "pink"), "placo": ("placo",)}
+
+
+def peer_ticks(name: str, ticks: int, warmup: int) -> Generator[None, None, dict] | str:
+    """The peer's tick generator (``peers.pink_ticks`` or ``peers.placo_ticks``), or why it cannot run."""
+    import importlib
+
     import peers
 
     try:
-        run = peers.run_pink(ticks, warmup) if name == "pink" else peers.run_placo(ticks, warmup)
+        for module in PEER_MODULES[name]:
+            importlib.import_module(module)
     except ImportError as error:
-        return {"available": False, "reason": f"not installed ({error}); pip install .[bench]"}
+        return f"not installed ({error}); pip install .[bench]"
+    return peers.pink_ticks(ticks, warmup) if name == "pink" else peers.placo_ticks(ticks, warmup)
+
+
+def peer_result(run: dict | str) -> dict:
+    """A peer's times as statistics, or the reason it did not run (:func:`peer_ticks`)."""
+    if isinstance(run, str):
+        return {"available": False, "reason": run}
     times, cpu = run.pop("times_s"), run.pop("cpu_s")
     return {"available": True, "tick_us": stats(times), "tick_cpu_us": stats(cpu), **run}
 
@@ -467,19 +521,21 @@ def main(argv=None) -> dict:
 
     load_compiled_paths()
     steal = Steal()  # (the host's share of the cores over the run: it inflates every timing)
-    log("sotdrake, basic SOT …")
-    basic = sotdrake_run("cascade", ticks, warmup)
-    log("sotdrake, SolverKine (HQP, joint limits) …")
-    hqp = sotdrake_run("hqp", ticks, warmup)
-    log("sotdrake, SolverKine with active joint limits (a target behind the back) …")
-    hqp_active = sotdrake_run("hqp", max(small, 1000) if args.ticks is None else args.ticks, 200 if args.ticks is None else 10,
-                              target=ACTIVE_TARGET)
+    log("sotdrake (basic SOT, SolverKine, SolverKine with active joint limits) and the peers, interleaved …")
+    active_ticks, active_warmup = (max(small, 1000), 200) if args.ticks is None else (args.ticks, 10)
+    runs = {
+        "basic": (sotdrake_ticks("cascade", ticks, warmup), ticks + warmup),
+        "hqp": (sotdrake_ticks("hqp", ticks, warmup), ticks + warmup),
+        # the hand behind the back: the joint limits become active
+        "hqp_active": (sotdrake_ticks("hqp", active_ticks, active_warmup, target=ACTIVE_TARGET), active_ticks + active_warmup),
+    }
+    peer_runs = {name: peer_ticks(name, ticks, warmup) for name in PEER_MODULES}
+    runs.update({name: (run, ticks + warmup) for name, run in peer_runs.items() if not isinstance(run, str)})
+    done = interleave(runs)
+    basic, hqp, hqp_active = done["basic"], done["hqp"], done["hqp_active"]
+    pink, placo = (peer_result(done.get(name, peer_runs[name])) for name in ("pink", "placo"))
     log("hierarchical QP on random stacks …")
     random_hqp = hqp_random((300 if args.quick else 1000) if args.ticks is None else 20)
-    log("pink …")
-    pink = peer("pink", ticks, warmup)
-    log("placo …")
-    placo = peer("placo", ticks, warmup)
     log("breakdown, profile …")
     parts = breakdown(small)
     profile(args.out / "profile.txt", small)

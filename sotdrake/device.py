@@ -53,7 +53,8 @@ class Device(LeafSystem):
         v = self.control.Eval(context)
         if not math.isfinite(v.sum()):
             raise SolverError(f"{self.get_name()}: non-finite control at t = {context.get_time()}: {v}")
-        q = context.get_discrete_state(self._q).get_value()
+        # The update's own copy of the state (writeable: integrate takes it without a copy; not modified).
+        q = discrete_state.get_mutable_value(self._q)
         q_next = integrate(q, v, self.dt, self.layout)
         outside = (q_next < self._lower) | (q_next > self._upper)
         if np.count_nonzero(outside):

@@ -116,7 +116,7 @@ def pose_error_and_jacobian(
     if rows is None:
         selected = _ALL_ROWS
     else:
-        selected = compiled_input(rows, np.int64)
+        selected = _compiled_rows(rows)
         if selected.ndim != 1 or not selected.size:  # (the compiled function checks the indices)
             raise InvalidInput(f"rows: expected indices of the six components, got {rows!r}")
     # The transposes: Drake's matrices are column-major, so these are C-ordered views (no copy).
@@ -128,6 +128,20 @@ def pose_error_and_jacobian(
                            f"{X_shift.shape} and {V.shape}")
     return _jit_pose().pose_error(X, compiled_input(J.T), X_d, frame == "current", V, X_shift, X_OpF is not None, selected)
 
+
+def _compiled_rows(rows: np.ndarray) -> np.ndarray:
+    """``compiled_input(rows, np.int64)``, kept for the read-only arrays of
+    :func:`~..selection.parse_selection` (cached, the same object at every tick): a pure cache."""
+    hit = _ROWS.get(id(rows))
+    if hit is not None and hit[0] is rows:
+        return hit[1]
+    selected = compiled_input(rows, np.int64)
+    if isinstance(rows, np.ndarray) and not rows.flags.writeable and len(_ROWS) < 256:
+        _ROWS[id(rows)] = (rows, selected)  # (rows kept alive: its id cannot be reused)
+    return selected
+
+
+_ROWS: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
 # Constant arguments of the compiled function (writeable, as compiled_input's arrays: it never writes them).
 _ALL_ROWS = np.arange(6, dtype=np.int64)

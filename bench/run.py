@@ -147,7 +147,7 @@ def time_ticks(diagram, ticks: int, warmup: int, sample=None) -> tuple[np.ndarra
 def interleave(runs: dict[str, tuple[Generator[None, None, Any], int]], turns: int = 40) -> dict[str, Any]:
     """Run tick generators (``name: (generator, its number of ticks)``) in ``turns`` turns, each run
     advancing ``ceil(ticks / turns)`` ticks per turn so that they all end in the last turn: every
-    run sees the same minutes of a shared host, whose speed swings within seconds, and the ratio of
+    run sees the same seconds of a shared host, whose speed swings within seconds, and the ratio of
     two runs' medians compares like with like. Returns each run's result."""
     results: dict[str, Any] = {}
     steps = {name: math.ceil(count / turns) for name, (_, count) in runs.items()}

@@ -27,6 +27,22 @@ def test_stacks_and_timing():
     assert sot_arm.stack() == ["tasklh"]
 
 
+def test_interleaved_runs_advance_in_turns_and_all_end():
+    """bench/run.py's long runs share the host's seconds: each run advances its share of ticks in
+    turn (here 3 and 1 a turn), none is dropped or run twice, and each one's result comes back."""
+    log = []
+
+    def ticks(name, count):
+        for _ in range(count):
+            log.append(name)
+            yield
+        return f"{name}: {count} ticks"
+
+    results = bench.interleave({"a": (ticks("a", 12), 12), "b": (ticks("b", 4), 4)}, turns=4)
+    assert results == {"a": "a: 12 ticks", "b": "b: 4 ticks"}
+    assert "".join(log) == "aaab" * 4
+
+
 def test_breakdown_accounts_for_the_whole_tick():
     calls: dict = {}
     parts = bench.breakdown(20, calls)

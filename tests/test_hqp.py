@@ -422,6 +422,7 @@ def test_a_point_far_outside_is_not_moved():
     tight = _Stage(np.eye(2), np.zeros(2), np.ones(2), G, lower, np.full(2, np.inf), np.zeros(2), 2, None, np.zeros(2, dtype=int), 2)
     assert hqp._onto_hard_rows(tight, y, np.array([-1, 0])) is None
 
+
 def test_the_correction_onto_hard_rows_cuts_at_tau():
     """The least-norm correction's rank decision is the QP's τ, not a library default cutoff: a
     singular value of 1e-9 (below τ = 1e-8) is dropped, one of 1e-7 is kept, and the result is

@@ -47,8 +47,8 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from .jit_lapack import compiled_input, geqrf, level_residuals, ormqr, upper_inverse
-from .jit_lapack import row_norms as row_norms  # (for the QP: the stack's norms)
+from ..compiled import compiled_input
+from .jit_lapack import geqrf, level_residuals, ormqr, row_norms, upper_inverse
 
 CERTIFIED = 1e-5
 """The smallest singular value of a level's unit rows, in what is left free, that counts as clearly

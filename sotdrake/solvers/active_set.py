@@ -61,6 +61,8 @@ import numpy as np
 import quadprog
 from scipy.linalg import lapack
 
+from ..compiled import announce_compilation, compiled_input
+
 RANK_THRESHOLD = 1e-8
 """Default τ: singular values ≤ τ of unit-row matrices count as zero (see the module docstring)."""
 
@@ -292,8 +294,7 @@ def eqp(
     computation and LAPACK routines; the Python version runs where the compiled one gives way."""
     identity, uniform = objective_kind(M, m_scale) if kind is None else kind
     cut = threshold if working_threshold is None else working_threshold
-    compiled = _jit_eqp()
-    given = compiled.compiled_input
+    compiled, given = _jit_eqp(), compiled_input
     ok, z, lam, N, has_N = compiled.eqp(given(M), given(t), given(m_scale), given(E), given(e), float(threshold),
                                         bool(identity), bool(uniform), float(cut))
     if not ok:
@@ -306,7 +307,6 @@ def _jit_eqp() -> Any:
     """:mod:`.jit_eqp`, imported on the first call: it is compiled with numba, which a script that
     never solves a stage (e.g. with the cascade) does not import."""
     from . import jit_eqp
-    from .jit_lapack import announce_compilation
 
     assert jit_eqp.QR_MIN_SIZE == QR_MIN_SIZE
     announce_compilation(jit_eqp.eqp, "the hierarchical QP's equality-constrained step", "about twenty seconds")
@@ -418,8 +418,7 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
     """:func:`python_solve`, compiled (:mod:`.jit_active_set`, imported on the first call): the same
     iterations, each step the compiled :func:`eqp`; the Python version runs where the compiled one
     gives way (LAPACK refusing a factorisation)."""
-    compiled = _jit_active_set()
-    given = compiled.compiled_input
+    compiled, given = _jit_active_set(), compiled_input
     has_guess = guess is not None
     status, z_out, side, iterations, accepted, verified = compiled.solve(
         given(M), given(t), given(m_scale), given(G), given(lower), given(upper), given(z),
@@ -441,7 +440,6 @@ _NO_GUESS = np.zeros(0, dtype=np.int64)
 def _jit_active_set() -> Any:
     """:mod:`.jit_active_set`, imported on the first call (see :func:`_jit_eqp`)."""
     from . import jit_active_set
-    from .jit_lapack import announce_compilation
 
     announce_compilation(jit_active_set.solve, "the hierarchical QP's active-set iterations", "about thirty seconds")
     return jit_active_set

@@ -67,11 +67,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from ..compiled import announce_compilation, compiled_input
 from .active_set import RANK_THRESHOLD
 from .hqp import HqpResult
 from .jit_lapack import (
-    announce_compilation,
-    compiled_input,
     contiguous,
     fortran,
     geqp3,

@@ -80,6 +80,7 @@ from pydrake.solvers import (
     SolverOptions,
 )
 
+from ..compiled import announce_compilation, compiled_input
 from ..exceptions import InvalidInput, SolverError
 from .active_set import (
     QR_MIN_SIZE,
@@ -269,7 +270,6 @@ _NO_LEVEL = (np.zeros((0, 0)), *[np.zeros(0)] * 2, np.zeros((0, 0)), *[np.zeros(
 def _jit_stage() -> types.ModuleType:
     """:mod:`.jit_stage`, imported on the first stage (see :func:`_active_bounds_path`)."""
     from . import jit_stage
-    from .jit_lapack import announce_compilation
 
     announce_compilation(jit_stage.build, "the hierarchical QP's stage assembly", "about ten seconds")
     return jit_stage
@@ -280,7 +280,6 @@ def _active_bounds_path() -> types.ModuleType:
     """:mod:`.active_bounds`, imported on the first solve (an equality stack's path, or an answer put
     on its bounds): it is compiled with numba."""
     from . import active_bounds
-    from .jit_lapack import announce_compilation
 
     announce_compilation(active_bounds._solve_stack, "the hierarchical QP's path for equality stacks", "about ten seconds")
     return active_bounds
@@ -641,8 +640,7 @@ class HierarchicalQP:
         """The stage in ``z = (y, w)`` (see :class:`_Stage` and :mod:`.jit_stage`), rows scaled to unit
         norm, assembled by compiled code."""
         free, reference, held, hard_lower, hard_upper, hard_side = hard
-        compiled = _jit_stage()
-        given = compiled.compiled_input
+        compiled, given = _jit_stage(), compiled_input
         if isinstance(free, slice):  # every component bounded
             free = self._all_components
         rows = _NO_LEVEL if level is None else (

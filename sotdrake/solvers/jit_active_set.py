@@ -22,7 +22,6 @@ import numpy as np
 from numba import njit
 
 from .jit_eqp import eqp
-from .jit_lapack import compiled_input as compiled_input  # (for the caller)
 from .jit_lapack import fortran, geqp3
 
 SOLVED, NO_CONVERGENCE, GAVE_WAY = 0, 1, 2

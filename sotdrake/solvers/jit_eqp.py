@@ -16,7 +16,6 @@ import math
 import numpy as np
 from numba import njit
 
-from .jit_lapack import compiled_input as compiled_input  # (for the caller)
 from .jit_lapack import contiguous, fortran, geqrf, orgqr, ormqr, trtrs_upper, upper_inverse
 
 #: :data:`.active_set.QR_MIN_SIZE` (the same value; asserted there).

@@ -27,9 +27,6 @@ from llvmlite import binding
 from numba import njit, types
 from numba.extending import get_cython_function_address
 
-from ..compiled import announce_compilation as announce_compilation  # (for the solvers)
-from ..compiled import compiled_input as compiled_input
-
 _ARGUMENTS = {"dgeqrf": 8, "dgeqp3": 9, "dorgqr": 9, "dormqr": 13, "dtrtri": 6, "dtrtrs": 10}
 
 

@@ -35,7 +35,6 @@ import math
 import numpy as np
 from numba import njit
 
-from .jit_lapack import compiled_input as compiled_input  # (for the caller)
 from .jit_lapack import norm
 
 

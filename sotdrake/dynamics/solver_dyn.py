@@ -66,13 +66,14 @@ from pydrake.systems.framework import Context, InputPort
 from ..configuration import Layout, contiguous_slice
 from ..exceptions import InvalidInput, NotFound, SolverError, StackError, check_number
 from ..robots import RobotModel
-from ..solvers.equality_hierarchy import solve_equality_hierarchy
+from ..solvers.equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
 from ..solvers.hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, check_solver
 from ..solvers.sot import SOT, StackSettings
 from ..task import TaskLevel
 from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, MAX_RELEASE, check_count, check_positive
 from .contact import Contact6d, ContactRows, local_to_generalized, world_wrench
-from .terms import DynamicsTerms, mirrored_acceleration_bounds, stacked_limits
+from .reduced_levels import StackedContacts, bounds, reduced_stack, torques_and_checks
+from .terms import DynamicsTerms, stacked_limits
 
 log = logging.getLogger("sotdrake.solver_dyn")
 
@@ -361,25 +362,30 @@ def variable_bounds(
 
 
 def normal_force_bounds(lower: np.ndarray, upper: np.ndarray, contacts: list[ActiveContact], slices: list[slice]) -> None:
-    """Write each contact's normal-force bounds into the bounds on ``x``: ``[f_min, ∞)`` while
-    held, the ramp's ``[min(f_low, f_max), f_max]`` while released."""
+    """Write each contact's normal-force bounds (:func:`normal_force_limits`) into the bounds on ``x``."""
+    for normal, low, high in normal_force_limits(contacts, slices):
+        lower[normal], upper[normal] = low, high
+
+
+def normal_force_limits(contacts: list[ActiveContact], slices: list[slice]) -> list[tuple[int, float, float]]:
+    """Each contact's normal force ``f_z`` (the wrench's last component): ``(index in x, lower, upper)``,
+    ``[f_min, ∞)`` while held, the ramp's ``[min(f_low, f_max), f_max]`` while released."""
+    out = []
     for c, sl in zip(contacts, slices, strict=False):
-        normal = sl.stop - 1  # f_z, the wrench's last component
         if math.isfinite(c.f_max):
-            lower[normal], upper[normal] = min(c.f_low, c.f_max), c.f_max
+            out.append((sl.stop - 1, min(c.f_low, c.f_max), c.f_max))
         else:
-            lower[normal], upper[normal] = c.rows.f_min, math.inf
+            out.append((sl.stop - 1, c.rows.f_min, math.inf))
+    return out
 
 
 def held_bounds(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, active: np.ndarray) -> np.ndarray:
     """The components ``active`` of ``x`` at a bound, signed: ``i + 1`` at its lower bound, ``−(i + 1)``
     at its upper one, padded with 0 to :data:`HELD_BOUNDS` entries (the first ones kept)."""
     out = np.zeros(HELD_BOUNDS)
-    if not active.size:
-        return out
-    active = active[:HELD_BOUNDS]
-    at_lower = np.abs(x[active] - lower[active]) <= np.abs(x[active] - upper[active])
-    out[: len(active)] = np.where(at_lower, active + 1.0, -(active + 1.0))
+    for k, i in enumerate(active[:HELD_BOUNDS].tolist()):  # a few: Python floats cost less than numpy calls
+        value = float(x[i])
+        out[k] = i + 1.0 if abs(value - float(lower[i])) <= abs(value - float(upper[i])) else -(i + 1.0)
     return out
 
 
@@ -411,10 +417,8 @@ class SolverDyn(SOT):
         limits = model.joint_limits()
         self._limits = (limits["position_lower"], limits["position_upper"], limits["velocity_lower"], limits["velocity_upper"])
         iq, iv = self._layout.joints_q, self._layout.joints_v
-        layout = self._layout  # the joints' rows, as slices when contiguous (views, no copies)
-        self._joint_rows = (iq if layout.joints_q_slice is None else layout.joints_q_slice,
-                            iv if layout.joints_v_slice is None else layout.joints_v_slice)
-        # the joints' limits, indexed and stacked once: both sides in one evaluation (_bounds)
+        # the joints' rows and limits, indexed and stacked once (_bounds: both sides in one evaluation)
+        self._joint_indices = (_read_only(iq.astype(np.int64)), _read_only(iv.astype(np.int64)))
         self._stacked_limits = stacked_limits(self._limits[0][iq], self._limits[1][iq], self._limits[2][iv], self._limits[3][iv])
         self._contact_index: dict[str, int] = {}  # the declaration order of the contacts
         self.effort = limits["effort"] * float(effort_scale)  # |τ| bounds (N·m, N)
@@ -426,7 +430,7 @@ class SolverDyn(SOT):
         self.setSolver(solver)
         self._contact_ports: dict[str, InputPort] = {}
         self._hqps: dict[int, HierarchicalQP] = {}  # a cache of solvers per problem size
-        self._actuation: tuple[np.ndarray | None, np.ndarray | None, slice | np.ndarray | None] = (None, None, None)  # _actuated_rows
+        self._actuation: tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray] | None = None  # _actuated_rows
         self._reduced_hqps: dict[int, HierarchicalQP] = {}  # the same, τ eliminated
         self._bound_templates: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # see _bounds
         self.dynamics = self.DeclareAbstractInputPort("dynamics", AbstractValue.Make(
@@ -641,18 +645,23 @@ class SolverDyn(SOT):
         # effort limits and the wrench rows hold, it is the optimum of the full hierarchy (the same
         # argument as for the wrench rows; after the damping level x is unique, so the last
         # minimum-norm stage changes nothing).
-        actuated, actuated_index = self._actuated_rows(terms.B)
-        if actuated is not None and actuated_index is not None:
+        actuated, compiled_actuated, passive = self._actuated_rows(terms.B)
+        if actuated is not None:
             m = n - self.na
             small = self._reduced_hqps.get(m)
             if small is None:
                 small = self._reduced_hqps[m] = HierarchicalQP(m)
             try:
-                reduced, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
-                fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver)
-                world = [world_wrench(c.rows.rotation, fast.x[sl]) for c, sl in zip(contacts, slices, strict=True)]
-                tau = torques_of(terms, contacts, slices, fast.x, actuated_index, world)
-                if np.count_nonzero(np.abs(tau) > self._effort_held) == 0 and (not contacts or _wrench_rows_hold(contacts, slices, fast.x)):
+                stacked = StackedContacts(contacts, self.nv)
+                if all(task.lower is task.upper for task in tasks):  # the levels assembled and stacked compiled
+                    scales = [WRENCH_REGULARIZATION * weight for weight in _shear_weights(loads, len(contacts))]
+                    stack = reduced_stack(terms, stacked, tasks, s.damping_gain, scales, passive)
+                    fast = self._solve_stacked(context, small, stack, lower[:m], upper[:m], s.solver)
+                else:
+                    reduced, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
+                    fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver)
+                tau, world, within, hold = torques_and_checks(terms, stacked, compiled_actuated, fast.x, self._effort_held)
+                if within and hold:
                     fast.x = np.concatenate([fast.x, tau])
                     result = fast
                     diagnostics.torques_eliminated = True
@@ -724,26 +733,37 @@ class SolverDyn(SOT):
             free = np.full(n - self.na, np.inf)
             template = self._bound_templates[n] = (_read_only(np.concatenate((-free, -self.effort))),
                                                    _read_only(np.concatenate((free, self.effort))))
-        lower, upper = template[0].copy(), template[1].copy()
-        iq, iv = self._joint_rows
-        lower[iv], upper[iv] = mirrored_acceleration_bounds(terms.q[iq], terms.v[iv], *self._stacked_limits, s.horizon,
-                                                            s.position_margin)
-        if s.control_selection is not None:
-            held = ~s.control_selection
-            lower[: self.nv][held] = upper[: self.nv][held] = 0.0
-        normal_force_bounds(lower, upper, contacts, slices)
-        return lower, upper
+        return bounds(template[0], template[1], terms.q, terms.v, *self._joint_indices, *self._stacked_limits, s.horizon,
+                      s.position_margin, s.control_selection, normal_force_limits(contacts, slices))
 
-    def _actuated_rows(self, B: np.ndarray) -> tuple[np.ndarray | None, slice | np.ndarray | None]:
-        """:func:`actuated_rows` and the same as :func:`index_rows` (a slice when contiguous), kept
-        for a read-only ``B`` (the dynamic entity's, the same array at every tick): a pure cache."""
-        cached, rows, index = self._actuation
-        if B is not cached:
-            rows = actuated_rows(B)
-            index = None if rows is None else index_rows(rows)
-            if not B.flags.writeable:
-                self._actuation = (B, rows, index)
-        return rows, index
+    def _actuated_rows(self, B: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+        """:func:`actuated_rows` (None: ``B`` is not a selection), and the actuated and unactuated
+        velocity rows (:func:`unactuated_rows`) as read-only int64 arrays, for the compiled fast
+        path; kept for a read-only ``B`` (the dynamic entity's, the same array at every tick): a pure cache."""
+        if self._actuation is not None and self._actuation[0] is B:
+            return self._actuation[1:]
+        rows = actuated_rows(B)
+        if rows is None:
+            compiled = _NO_INDICES, _NO_INDICES
+        else:
+            compiled = (_read_only(rows.astype(np.int64)), _read_only(np.arange(self.nv, dtype=np.int64)[unactuated_rows(self.nv, rows)]))
+        if not B.flags.writeable:
+            self._actuation = (B, rows, *compiled)
+        return (rows, *compiled)
+
+    def _held_guess(self, context: Context) -> tuple[list[int], list[int]]:
+        """The components held at their lower and at their upper bound at the last tick's optimum."""
+        guess = self.held_bound_guess(context).tolist()
+        return [int(g) - 1 for g in guess if g > 0], [int(-g) - 1 for g in guess if g < 0]
+
+    def _solve_stacked(self, context: Context, hqp: HierarchicalQP, stack: StackedLevels, lower: np.ndarray,
+                       upper: np.ndarray, solver: str) -> HqpResult:
+        """:meth:`_solve` of equality levels already stacked (:func:`.reduced_levels.reduced_stack`)."""
+        if solver == ACTIVE_SET:
+            result = solve_stacked(stack, lower, upper, *self._held_guess(context))
+            if result is not None:
+                return result
+        return hqp.solve(stack.levels(), lower, upper, 0.0, solver, start=inside(lower, upper))
 
     def _solve(self, context: Context, hqp: HierarchicalQP, rows: list[Rows], lower: np.ndarray, upper: np.ndarray,
                solver: str) -> HqpResult:
@@ -753,10 +773,7 @@ class SolverDyn(SOT):
         The QR path starts from the bounds held at the last tick (discrete state); it is not tried
         when a Drake solver is chosen."""
         if solver == ACTIVE_SET and all(lo is hi for _, lo, hi in rows):
-            guess = self.held_bound_guess(context).tolist()
-            at_lower = [int(g) - 1 for g in guess if g > 0]
-            at_upper = [int(-g) - 1 for g in guess if g < 0]
-            result = solve_equality_hierarchy([(A, b) for A, b, _ in rows], lower, upper, at_lower, at_upper)
+            result = solve_equality_hierarchy([(A, b) for A, b, _ in rows], lower, upper, *self._held_guess(context))
             if result is not None:
                 return result
         return hqp.solve([LevelRows(*level) for level in rows], lower, upper, 0.0, solver, start=inside(lower, upper))

@@ -69,7 +69,7 @@ from numba import njit
 
 from ..compiled import announce_compilation, compiled_input
 from .active_set import RANK_THRESHOLD
-from .hqp import HqpResult
+from .hqp import HqpResult, LevelRows
 from .jit_lapack import (
     contiguous,
     fortran,
@@ -418,10 +418,11 @@ def _outcome(A, b, starts, x, x_lower, x_upper):
     return residuals, norms, np.flatnonzero(at_bound)
 
 
-class _Stack(NamedTuple):
+class StackedLevels(NamedTuple):
     """The levels' rows stacked once per solve: ``A`` (M × n), ``b``, the rows' norms (0 → 1: the
     rank decisions scale the rows to unit norm) and ``starts`` (level k's rows are
-    ``starts[k]:starts[k + 1]``)."""
+    ``starts[k]:starts[k + 1]``). A caller that assembles its levels stacked (``SolverDyn``'s fast
+    path) builds one directly: C-ordered writeable float arrays, ``starts`` int64."""
 
     A: np.ndarray
     b: np.ndarray
@@ -429,7 +430,7 @@ class _Stack(NamedTuple):
     starts: np.ndarray
 
     @staticmethod
-    def of(levels: Sequence[tuple[np.ndarray, np.ndarray]]) -> _Stack | None:
+    def of(levels: Sequence[tuple[np.ndarray, np.ndarray]]) -> StackedLevels | None:
         """None when the levels do not stack (rows of different widths): not clear-cut."""
         try:
             starts = np.array([0, *itertools.accumulate(A.shape[0] for A, _ in levels)], dtype=np.int64)
@@ -440,10 +441,15 @@ class _Stack(NamedTuple):
             return None
         if A.ndim != 2 or b.shape != (A.shape[0],):
             return None
-        return _Stack(A, b, row_norms(A), starts)  # before projection, as the QP's
+        return StackedLevels(A, b, row_norms(A), starts)  # before projection, as the QP's
+
+    def levels(self) -> list[LevelRows]:
+        """The equality levels as the hierarchical QP takes them (views of ``A`` and ``b``)."""
+        bounds = self.starts.tolist()
+        return [LevelRows(self.A[i:j], self.b[i:j], self.b[i:j]) for i, j in itertools.pairwise(bounds)]
 
 
-def _sweep(stack: _Stack, x_lower: np.ndarray, x_upper: np.ndarray, held: dict[int, float]) -> tuple[np.ndarray, list[int]] | None:
+def _sweep(stack: StackedLevels, x_lower: np.ndarray, x_upper: np.ndarray, held: dict[int, float]) -> tuple[np.ndarray, list[int]] | None:
     """The hierarchy with the bounds ``held`` (component → sign: +1 its lower bound, −1 its upper)
     as fixed components: ``(x, released)``, ``released`` the held bounds whose multiplier says the
     optimum leaves them (then ``x`` is not the answer), or None when not clear-cut (compiled:
@@ -470,8 +476,18 @@ def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_
     start = time.perf_counter()
     if not levels:
         return None
-    stack = _Stack.of(levels)
-    if stack is None or stack.A.shape[1] != len(x_lower):
+    stack = StackedLevels.of(levels)
+    if stack is None:
+        return None
+    return solve_stacked(stack, x_lower, x_upper, at_lower, at_upper, start)
+
+
+def solve_stacked(stack: StackedLevels, x_lower: np.ndarray, x_upper: np.ndarray, at_lower: Sequence[int] = (),
+                  at_upper: Sequence[int] = (), start: float | None = None) -> HqpResult | None:
+    """:func:`solve_equality_hierarchy` of levels already stacked (``start``: when the solve began,
+    by ``time.perf_counter``, for the result's ``solve_time_s``; default now)."""
+    start = time.perf_counter() if start is None else start
+    if stack.A.shape[1] != len(x_lower) or len(stack.starts) < 2:
         return None
     n = len(x_lower)
     x_lower, x_upper = compiled_input(x_lower), compiled_input(x_upper)
@@ -502,8 +518,8 @@ def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_
         return None
     residuals, slack_norms, active_bounds = _outcome(stack.A, stack.b, stack.starts, x, x_lower, x_upper)
     starts = stack.starts.tolist()
+    count = len(starts) - 1
     return HqpResult(
-        x=x, slacks=[residuals[starts[k] : starts[k + 1]] for k in range(len(levels))], slack_norms=slack_norms,
-        active_rows=[_NO_ROWS] * len(levels), active_bounds=active_bounds,
-        solve_time_s=time.perf_counter() - start, level_solvers=[SOLVER_NAME] * len(levels),
-        iterations=[0] * len(levels))
+        x=x, slacks=[residuals[starts[k] : starts[k + 1]] for k in range(count)], slack_norms=slack_norms,
+        active_rows=[_NO_ROWS] * count, active_bounds=active_bounds,
+        solve_time_s=time.perf_counter() - start, level_solvers=[SOLVER_NAME] * count, iterations=[0] * count)

@@ -1,0 +1,189 @@
+"""``SolverDyn``'s fast path compiled with numba: the levels with ``τ`` eliminated, stacked, and the
+checks of their optimum (see :mod:`.reduced_levels`, the Python front).
+
+The same numbers as the Python reference (:func:`.solver_dyn.dynamic_rows` with ``actuated``,
+:func:`.solver_dyn.torques_of`, :func:`.solver_dyn.variable_bounds`), in three calls instead of
+about a hundred numpy operations a tick, whose overhead, not their arithmetic, was their cost.
+
+The contacts come stacked: ``J`` their Jacobians (rows of contact c at ``offsets[c]``, ``sizes[c]``
+of them: 6, or 3 for a point contact, whose wrench is the force alone), ``R`` their rotations
+``R_WC`` stacked (3c × 3: contact c's at rows ``3c:3c + 3``); contact c's wrench is at ``x[nv + offsets[c] :]``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..solvers.jit_lapack import row_norms
+
+
+@njit(cache=True)
+def reduced_stack(M, h, passive, J, R, sizes, acceleration, centres, scales, task_J, task_rhs, task_sizes, v, damping_gain):
+    """``(A, b, norms, starts)``: the levels over ``x = (q̈, w…)`` stacked, each level's rows at
+    ``starts[k]:starts[k + 1]`` (``norms``: the rows' norms, 0 → 1):
+
+    0. the dynamics' ``passive`` rows: ``[M_p, −(J_cᵀ diag(R_c, R_c))_p …] x = −h_p``;
+    1. (with contacts) ``[J_c 0] x = acceleration``;
+    2. … the tasks (``task_sizes`` rows each): ``[J_t 0] x = rhs``;
+    last. ``[I 0] x = −K_d v`` and each contact's regularization rows times ``scales[c]``
+       (``n_x − y_c f_z, n_y + x_c f_z, n_z, f_x, f_y`` with ``(x_c, y_c) = centres[c]``; a point
+       contact: ``f_x, f_y``), target 0."""
+    nv = M.shape[0]
+    p = passive.size
+    count = sizes.size
+    n_w = J.shape[0]
+    n = nv + n_w
+    m_t = task_J.shape[0]
+    regularization = 0
+    for c in range(count):
+        regularization += sizes[c] - 1
+    rows = p + n_w + m_t + nv + regularization
+    A = np.zeros((rows, n))
+    b = np.zeros(rows)
+    for i in range(p):
+        A[i, :nv] = M[passive[i]]
+        b[i] = -h[passive[i]]
+    offset = 0
+    for c in range(count):
+        for block in range(sizes[c] // 3):
+            first = offset + 3 * block  # this block's rows of J, and its columns in x after q̈
+            for j in range(3):
+                for i in range(p):
+                    column = 0.0  # (J_bᵀ R)[passive[i], j]
+                    for k in range(3):
+                        column += R[3 * c + k, j] * J[first + k, passive[i]]
+                    A[i, nv + first + j] = -column
+        offset += sizes[c]
+    row = p
+    for i in range(n_w):
+        A[row + i, :nv] = J[i]
+        b[row + i] = acceleration[i]
+    row += n_w
+    for i in range(m_t):
+        A[row + i, :nv] = task_J[i]
+        b[row + i] = task_rhs[i]
+    row += m_t
+    for i in range(nv):
+        A[row + i, i] = 1.0
+        b[row + i] = -damping_gain * v[i]
+    row += nv
+    offset = 0
+    for c in range(count):
+        s, column = scales[c], nv + offset
+        if sizes[c] == 6:
+            A[row, column], A[row, column + 5] = s, -centres[c, 1] * s
+            A[row + 1, column + 1], A[row + 1, column + 5] = s, centres[c, 0] * s
+            for k in range(2, 5):
+                A[row + k, column + k] = s
+            row += 5
+        else:
+            A[row, column], A[row + 1, column + 1] = s, s
+            row += 2
+        offset += sizes[c]
+    levels = 2 + task_sizes.size + (1 if count else 0)
+    starts = np.zeros(levels + 1, np.int64)
+    starts[1] = p
+    k = 1
+    if count:
+        starts[k + 1] = starts[k] + n_w
+        k += 1
+    for size in task_sizes:
+        starts[k + 1] = starts[k] + size
+        k += 1
+    starts[k + 1] = rows
+    return A, b, row_norms(A), starts
+
+
+@njit(cache=True)
+def world_wrenches(R, sizes, x, nv):
+    """Each contact's world wrench ``diag(R_c, R_c) w_c`` (``R_c f_c`` for a point contact), stacked."""
+    out = np.empty(x.size - nv)
+    offset = 0
+    for c in range(sizes.size):
+        for block in range(sizes[c] // 3):
+            first = offset + 3 * block
+            for k in range(3):
+                value = 0.0
+                for j in range(3):
+                    value += R[3 * c + k, j] * x[nv + first + j]
+                out[first + k] = value
+        offset += sizes[c]
+    return out
+
+
+@njit(cache=True)
+def torques_and_checks(M, h, actuated, J, R, sizes, x, effort, wrench_rows, row_counts, tolerance):
+    """``(τ, W, within, hold)`` at ``x = (q̈, w…)``: ``τ`` the ``actuated`` rows of
+    ``M q̈ + h − Σ_c J_cᵀ W_c``, ``W`` the world wrenches (:func:`world_wrenches`); ``within``:
+    ``|τ| ≤ effort`` (NaN counts as within, as the comparison says); ``hold``: every contact's
+    wrench rows (``row_counts[c]`` rows of ``wrench_rows``, stacked, ``sizes[c]`` columns used)
+    give ``A w ≤ tolerance · max(1, max |w|)``."""
+    nv = M.shape[0]
+    world = world_wrenches(R, sizes, x, nv)
+    tau = np.empty(actuated.size)
+    within = True
+    for a in range(actuated.size):
+        r = actuated[a]
+        value = 0.0
+        for j in range(nv):
+            value += M[r, j] * x[j]
+        value += h[r]
+        for i in range(world.size):
+            value -= J[i, r] * world[i]
+        tau[a] = value
+        if abs(value) > effort[a]:
+            within = False
+    hold = True
+    offset, first_row = 0, 0
+    for c in range(sizes.size):
+        k = sizes[c]
+        largest = 1.0
+        for j in range(k):
+            largest = max(largest, abs(x[nv + offset + j]))
+        for i in range(first_row, first_row + row_counts[c]):
+            value = 0.0
+            for j in range(k):
+                value += wrench_rows[i, j] * x[nv + offset + j]
+            if value > tolerance * largest:
+                hold = False
+        offset += k
+        first_row += row_counts[c]
+    return tau, world, within, hold
+
+
+@njit(cache=True)
+def dynamic_bounds(lower_template, upper_template, q, v, joints_q, joints_v, position_limits, velocity_limits, horizon,
+                   margin, selection, normal, normal_lower, normal_upper):
+    """The bounds on ``x`` (copies of the templates: free wrenches, ``±effort``): the joints' rows
+    ``joints_v`` from :func:`.terms.mirrored_acceleration_bounds` (the same operations), the
+    components out of the control ``selection`` (a mask over the first ``selection.size`` ones) fixed at 0, the components
+    ``normal`` between ``normal_lower`` and ``normal_upper``."""
+    lower, upper = lower_template.copy(), upper_template.copy()
+    T = horizon
+    T2 = T * T
+    for k in range(joints_v.size):
+        sides = np.empty(2)
+        for side in range(2):
+            sign = 1.0 if side == 0 else -1.0
+            qk, vk = sign * q[joints_q[k]], sign * v[joints_v[k]]
+            reach = qk + vk * T
+            limit = position_limits[side, k] - margin
+            if qk > limit:
+                up = min(0.0, position_limits[side, k] - reach)
+            else:
+                up = limit - reach
+            up *= 2
+            up /= T2
+            rate = (velocity_limits[side, k] - vk) / T
+            sides[side] = up if up <= rate or math.isnan(up) else rate
+        upper[joints_v[k]] = sides[0]
+        lower[joints_v[k]] = -sides[1] if -sides[1] <= sides[0] or math.isnan(sides[1]) else sides[0]
+    for i in range(selection.size):
+        if not selection[i]:
+            lower[i] = upper[i] = 0.0
+    for i in range(normal.size):
+        lower[normal[i]], upper[normal[i]] = normal_lower[i], normal_upper[i]
+    return lower, upper

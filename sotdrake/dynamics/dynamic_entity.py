@@ -101,7 +101,7 @@ class DynamicEntity(Dynamic):
     def _calc_terms(self, context: Context, value: AbstractValue) -> None:
         plant, holder = self.plant, self._state_context.Eval(context)
         pc, x = holder.context, holder.x  # x: the state input's value (a copy of its own: q and v are views of it)
-        M = plant.CalcMassMatrix(pc)
+        M = np.ascontiguousarray(plant.CalcMassMatrix(pc))  # (column-major from Drake) C-ordered, as compiled code takes it
         Cv = plant.CalcBiasTerm(pc)
         v = x[self.nq :]
         if self._gravity is not None:

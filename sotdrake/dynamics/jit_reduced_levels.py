@@ -5,9 +5,11 @@ The same numbers as the Python reference (:func:`.solver_dyn.dynamic_rows` with 
 :func:`.solver_dyn.torques_of`, :func:`.solver_dyn.variable_bounds`), in three calls instead of
 about a hundred numpy operations a tick, whose overhead, not their arithmetic, was their cost.
 
-The contacts come stacked: ``J`` their Jacobians (rows of contact c at ``offsets[c]``, ``sizes[c]``
-of them: 6, or 3 for a point contact, whose wrench is the force alone), ``R`` their rotations
-``R_WC`` stacked (3c × 3: contact c's at rows ``3c:3c + 3``); contact c's wrench is at ``x[nv + offsets[c] :]``.
+The contacts come stacked and transposed (Drake's matrices are column-major: their transposes are
+C-ordered views): ``JT`` their Jacobians side by side (nv × Σk; contact c's rows of ``J`` are
+columns ``offsets[c]:offsets[c] + sizes[c]``, 6, or 3 for a point contact, whose wrench is the
+force alone), ``RT`` their rotations ``R_WCᵀ`` side by side (3 × 3c); contact c's wrench is at
+``x[nv + offsets[c] :]``.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from ..solvers.jit_lapack import row_norms
 
 
 @njit(cache=True)
-def reduced_stack(M, h, passive, J, R, sizes, acceleration, centres, scales, task_J, task_rhs, task_sizes, v, damping_gain):
+def reduced_stack(M, h, passive, JT, RT, sizes, acceleration, centres, scales, task_J, task_rhs, task_sizes, v, damping_gain):
     """``(A, b, norms, starts)``: the levels over ``x = (q̈, w…)`` stacked, each level's rows at
     ``starts[k]:starts[k + 1]`` (``norms``: the rows' norms, 0 → 1):
 
@@ -34,7 +36,7 @@ def reduced_stack(M, h, passive, J, R, sizes, acceleration, centres, scales, tas
     nv = M.shape[0]
     p = passive.size
     count = sizes.size
-    n_w = J.shape[0]
+    n_w = JT.shape[1]
     n = nv + n_w
     m_t = task_J.shape[0]
     regularization = 0
@@ -54,12 +56,12 @@ def reduced_stack(M, h, passive, J, R, sizes, acceleration, centres, scales, tas
                 for i in range(p):
                     column = 0.0  # (J_bᵀ R)[passive[i], j]
                     for k in range(3):
-                        column += R[3 * c + k, j] * J[first + k, passive[i]]
+                        column += RT[j, 3 * c + k] * JT[passive[i], first + k]
                     A[i, nv + first + j] = -column
         offset += sizes[c]
     row = p
     for i in range(n_w):
-        A[row + i, :nv] = J[i]
+        A[row + i, :nv] = JT[:, i]
         b[row + i] = acceleration[i]
     row += n_w
     for i in range(m_t):
@@ -98,7 +100,7 @@ def reduced_stack(M, h, passive, J, R, sizes, acceleration, centres, scales, tas
 
 
 @njit(cache=True)
-def world_wrenches(R, sizes, x, nv):
+def world_wrenches(RT, sizes, x, nv):
     """Each contact's world wrench ``diag(R_c, R_c) w_c`` (``R_c f_c`` for a point contact), stacked."""
     out = np.empty(x.size - nv)
     offset = 0
@@ -108,21 +110,21 @@ def world_wrenches(R, sizes, x, nv):
             for k in range(3):
                 value = 0.0
                 for j in range(3):
-                    value += R[3 * c + k, j] * x[nv + first + j]
+                    value += RT[j, 3 * c + k] * x[nv + first + j]
                 out[first + k] = value
         offset += sizes[c]
     return out
 
 
 @njit(cache=True)
-def torques_and_checks(M, h, actuated, J, R, sizes, x, effort, wrench_rows, row_counts, tolerance):
+def torques_and_checks(M, h, actuated, JT, RT, sizes, x, effort, wrench_rows, row_counts, tolerance):
     """``(τ, W, within, hold)`` at ``x = (q̈, w…)``: ``τ`` the ``actuated`` rows of
     ``M q̈ + h − Σ_c J_cᵀ W_c``, ``W`` the world wrenches (:func:`world_wrenches`); ``within``:
     ``|τ| ≤ effort`` (NaN counts as within, as the comparison says); ``hold``: every contact's
     wrench rows (``row_counts[c]`` rows of ``wrench_rows``, stacked, ``sizes[c]`` columns used)
     give ``A w ≤ tolerance · max(1, max |w|)``."""
     nv = M.shape[0]
-    world = world_wrenches(R, sizes, x, nv)
+    world = world_wrenches(RT, sizes, x, nv)
     tau = np.empty(actuated.size)
     within = True
     for a in range(actuated.size):
@@ -132,7 +134,7 @@ def torques_and_checks(M, h, actuated, J, R, sizes, x, effort, wrench_rows, row_
             value += M[r, j] * x[j]
         value += h[r]
         for i in range(world.size):
-            value -= J[i, r] * world[i]
+            value -= JT[r, i] * world[i]
         tau[a] = value
         if abs(value) > effort[a]:
             within = False

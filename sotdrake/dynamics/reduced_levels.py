@@ -44,8 +44,9 @@ def _sizes(sizes: tuple[int, ...]) -> np.ndarray:
 
 
 class StackedContacts:
-    """The active contacts' arrays stacked (see :mod:`.jit_reduced_levels`): ``J`` (their Jacobians),
-    ``R`` (their rotations, 3c × 3), ``acceleration``; and what changes only with the contact set
+    """The active contacts' arrays stacked (see :mod:`.jit_reduced_levels`): ``JT`` (their Jacobians,
+    transposed side by side: nv × Σk), ``RT`` (their rotations transposed side by side, 3 × 3c),
+    ``acceleration``; and what changes only with the contact set
     (:func:`_contact_set`): ``sizes`` (6, or 3 for a point contact), ``offsets`` (where each wrench
     starts after q̈, and their total), ``centres`` (c × 2), ``wrench_rows`` (stacked, padded to 6
     columns) and ``row_counts``."""
@@ -53,15 +54,16 @@ class StackedContacts:
     def __init__(self, contacts: list[ActiveContact], nv: int):
         rows = [c.rows for c in contacts]
         self.sizes, self.offsets, self.centres, self.wrench_rows, self.row_counts = _contact_set(rows)
+        # Drake's Jacobians and rotations are column-major: their transposes are C-ordered views.
         if len(rows) > 1:
-            self.J = compiled_input(np.concatenate([r.jacobian for r in rows]))
-            self.R = compiled_input(np.concatenate([r.rotation for r in rows]))
+            self.JT = compiled_input(np.concatenate([r.jacobian.T for r in rows], axis=1))
+            self.RT = compiled_input(np.concatenate([r.rotation.T for r in rows], axis=1))
             self.acceleration = compiled_input(np.concatenate([r.acceleration for r in rows]))
         elif rows:
-            self.J, self.R = compiled_input(rows[0].jacobian), compiled_input(rows[0].rotation)
+            self.JT, self.RT = compiled_input(rows[0].jacobian.T), compiled_input(rows[0].rotation.T)
             self.acceleration = compiled_input(rows[0].acceleration)
         else:
-            self.J, self.R, self.acceleration = np.zeros((0, nv)), np.zeros((0, 3)), np.zeros(0)
+            self.JT, self.RT, self.acceleration = np.zeros((nv, 0)), np.zeros((3, 0)), np.zeros(0)
 
 
 #: :func:`_contact_set`'s cache, keyed on the contacts' wrench-row arrays by identity (each entry
@@ -106,7 +108,7 @@ def reduced_stack(terms: DynamicsTerms, contacts: StackedContacts, tasks: list[T
     else:
         task_J, task_rhs = np.zeros((0, nv)), np.zeros(0)
     A, b, norms, starts = _compiled().reduced_stack(
-        compiled_input(terms.M), compiled_input(terms.h), passive, contacts.J, contacts.R, contacts.sizes,
+        compiled_input(terms.M), compiled_input(terms.h), passive, contacts.JT, contacts.RT, contacts.sizes,
         contacts.acceleration, contacts.centres, np.array(scales, dtype=float), task_J, task_rhs,
         _sizes(tuple(len(t.lower) for t in tasks)), compiled_input(terms.v), float(damping_gain))
     return StackedLevels(A, b, norms, starts)
@@ -118,7 +120,7 @@ def torques_and_checks(terms: DynamicsTerms, contacts: StackedContacts, actuated
     ``within``: ``|τ| ≤ effort``; ``hold``: the contacts' wrench rows hold, as
     :func:`~.solver_dyn._wrench_rows_hold`)."""
     tau, world, within, hold = _compiled().torques_and_checks(
-        compiled_input(terms.M), compiled_input(terms.h), actuated, contacts.J, contacts.R, contacts.sizes,
+        compiled_input(terms.M), compiled_input(terms.h), actuated, contacts.JT, contacts.RT, contacts.sizes,
         compiled_input(x), effort, contacts.wrench_rows, contacts.row_counts, WRENCH_ROW_TOLERANCE)
     offsets = contacts.offsets
     return tau, [world[offsets[i] : offsets[i + 1]] for i in range(len(offsets) - 1)], bool(within), bool(hold)

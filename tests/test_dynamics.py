@@ -13,7 +13,7 @@ from sotdrake import TALOS_GRIPPERS
 from sotdrake.configuration import Layout, integrate
 from sotdrake.dynamics.contact import Contact6d, friction_ratio, wrench_constraints
 from sotdrake.dynamics.device import integrate_acceleration
-from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDynCom, MetaTaskDynPosture
+from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
 from sotdrake.dynamics.solver_dyn import ActiveContact, ContactNotFound, actuated_rows, dynamic_levels, variable_bounds
 from sotdrake.dynamics.task_dyn_pd import pd_reference
@@ -669,3 +669,55 @@ def test_derated_torque_bounds_bind_and_hold(standing):
 def test_effort_scale_outside_its_range_is_refused(scale):
     with pytest.raises(InvalidInput, match="effort_scale"):
         RobotDyn(DiagramBuilder(), load_talos("reduced"), "dynsimu", effort_scale=scale)
+
+
+def test_task_dyn_pd_records_its_jacobian_only_while_in_the_stack():
+    """With ``stack`` connected: outside the stack the update records no Jacobian, so the first tick
+    in the stack takes ``J̇ = 0``; in it, the next tick's rows carry ``(J_k − J_{k−1})/dt · v``."""
+    from sotdrake.dynamics.task_dyn_pd import TaskDynPD
+    from sotdrake.features import FeatureValue
+
+    rng = np.random.default_rng(5)
+    nv, dt = 5, 1e-3
+    e, J0, J1, v = rng.normal(size=2), rng.normal(size=(2, nv)), rng.normal(size=(2, nv)), rng.normal(size=nv)
+    task = TaskDynPD("task", nv, dt, kp=9.0, kv=4.0)
+    context = task.CreateDefaultContext()
+    task.GetInputPort("velocity").FixValue(context, v)
+
+    def tick(J, stack):
+        task.GetInputPort("feature").FixValue(context, FeatureValue(e, J, np.zeros(2)))
+        task.GetInputPort("stack").FixValue(context, stack)
+        lower = task.GetOutputPort("task").Eval(context).lower.copy()
+        context.SetDiscreteState(task.EvalUniquePeriodicDiscreteUpdate(context).get_vector().value())
+        return lower
+
+    def rows(J, drift):
+        return -9.0 * e - 4.0 * (J @ v) - drift
+
+    tick(J0, ("other",))  # out of the stack: nothing recorded
+    np.testing.assert_allclose(tick(J1, ("task",)), rows(J1, 0.0), rtol=1e-14)  # enters: J̇ = 0, J1 recorded
+    np.testing.assert_allclose(tick(J0, ("task",)), rows(J0, (J0 - J1) @ v / dt), rtol=1e-12)
+    tick(J1, ("task", "other"))
+    tick(J0, ())  # leaves the stack: the memory is dropped
+    np.testing.assert_allclose(tick(J1, ("task",)), rows(J1, 0.0), rtol=1e-14)
+
+
+def test_a_task_waiting_to_be_pushed_computes_nothing():
+    """In a RobotDyn the solver's ``stack`` reaches every TaskDynPD that keeps a previous Jacobian:
+    the foot's 6D feature is not computed until its task is pushed."""
+    builder = DiagramBuilder()
+    robot = RobotDyn(builder, load_talos("reduced"), "dynsimu")
+    for name, sole in (("contactLF", "left-sole"), ("contactRF", "right-sole")):
+        robot.sot.addContact(robot.add_contact(name, sole))
+    posture = MetaTaskDynPosture(robot)
+    robot.sot.push(posture.task.name)
+    foot = MetaTaskDyn6d("RF", robot, "right-foot", "right-sole", kp=400.0)
+    calls = []
+    compute = foot.feature._compute
+    foot.feature._compute = lambda *args: calls.append(1) or compute(*args)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(0.005)
+    assert not calls
+    robot.sot.push(foot.task.name, simulator.get_mutable_context())
+    simulator.AdvanceTo(0.01)
+    assert len(calls) >= 5

@@ -108,11 +108,14 @@ class RobotDyn:
         return self.builder.AddNamedSystem(name, system)
 
     def add_task(self, task: TaskDynPD) -> TaskDynPD:
-        """Add a task, plug ``dynamic.velocity`` into it and connect it to the solver."""
+        """Add a task, plug ``dynamic.velocity`` into it and connect it to the solver (and the solver's
+        ``stack`` to it, when the task keeps a previous Jacobian)."""
         self.add(task)
         self.tasks[task.name] = task
         self.builder.Connect(self.dynamic.GetOutputPort("velocity"), task.GetInputPort("velocity"))
         self.builder.Connect(task.GetOutputPort("task"), self.sot.declare_task_input(task))
+        if task.stack is not None:  # its Jacobian recorded only while it is in the stack
+            self.builder.Connect(self.sot.GetOutputPort("stack"), task.stack)
         return task
 
     def add_contact(self, name: str, opPoint: str, rectangle: tuple[float, float, float, float] | str | None = "sole",

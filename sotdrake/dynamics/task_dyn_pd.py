@@ -11,14 +11,18 @@ with ``ë_ref`` the optional ``reference_acceleration`` input (default 0). ``J̇
 ``drift`` input when connected (exact, e.g. the CoM's from the dynamic entity), else the Jacobian's
 finite difference over the control tick, ``(J_k − J_{k−1})/dt · v`` (as sot-dyninv's ``TaskDynPD``
 does; the previous Jacobian is discrete state, and the first tick takes ``J̇ = 0``; a task built
-with ``exact_drift=True`` has no such memory and no per-tick update: its ``drift`` is connected). Gains
+with ``exact_drift=True`` has no such memory and no per-tick update: its ``drift`` is connected).
+With the optional input ``stack`` connected (the solver's output of that name, the names of the
+tasks in its stack), the Jacobian is recorded only at the ticks the task is in the stack (as
+sot-dyninv, where the task records it when the solver computes it): a task waiting to be pushed
+computes nothing, and the first tick after it enters takes ``J̇ = 0``. Gains
 ``K_p ≥ 0`` (1/s²) and ``K_v ≥ 0`` (1/s) are settings in the Context (``setGain``, ``setKp``,
 ``setKv``); ``setGain(Kp)`` alone takes the critical damping ``K_v = 2√K_p``.
 
 Inputs ``feature`` (a feature's ``signals``: ``e``, ``J`` and ``ė_ref`` through one port, as the
 kinematic :class:`~sotdrake.task.Task` reads them) or, when it is not connected, ``error``,
 ``jacobian`` and ``errordot`` (optional); ``velocity`` (v), ``drift`` (optional),
-``reference_acceleration`` (optional). Outputs ``task`` (a :class:`~sotdrake.task.TaskLevel` over
+``reference_acceleration`` (optional), ``stack`` (optional). Outputs ``task`` (a :class:`~sotdrake.task.TaskLevel` over
 ``q̈``) and ``error_norm``.
 """
 
@@ -33,7 +37,7 @@ from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..exceptions import InvalidInput
-from ..features.base import FeatureValue, feature_signals, optional_input
+from ..features.base import FeatureValue, feature_signals, optional_input, usual_input
 from ..task import TaskLevel
 from .checks import MAX_DT, MAX_PD_GAIN, check_count, check_pd_gains, check_positive
 
@@ -88,9 +92,11 @@ class TaskDynPD(Entity[DynPDSettings]):
         # The previous Jacobian as discrete state (rows, then J row-major, up to nv rows): a discrete
         # update is computed from the same context as the device's and the plant's, so every
         # system of a tick sees the same J̇ (an unrestricted update would be applied before them).
+        self.stack = None
         if not self.exact_drift:
             self._previous = self.DeclareDiscreteState(np.zeros(1 + nv * nv))
             self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._remember)
+            self.stack = self.DeclareAbstractInputPort("stack", AbstractValue.Make(()))
         empty = TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
         self._task = self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(empty), self._calc)
         self.DeclareVectorOutputPort("error_norm", 1, lambda c, o: o.SetAtIndex(0, float(np.linalg.norm(self._task.Eval(c).error))))
@@ -131,6 +137,10 @@ class TaskDynPD(Entity[DynPDSettings]):
     def _remember(self, context: Context, state) -> None:
         if self.drift is not None and self.drift.HasValue(context):
             return  # the exact J̇ v is connected: the previous Jacobian is never read
+        stack = usual_input(self.stack, context, None)
+        if stack is not None and self.name not in stack:  # not in the stack: nothing recorded (J̇ = 0 when it enters)
+            state.get_mutable_value(self._previous)[0] = 0.0
+            return
         J = self._inputs(context)[1]
         if J.shape[0] > self.nv:
             raise InvalidInput(f"{self.name}: a Jacobian with more rows than nv = {self.nv}")

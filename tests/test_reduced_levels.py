@@ -122,3 +122,41 @@ def test_a_violated_wrench_row_or_torque_is_caught(rng):
     small = np.abs(tau) * (1 + 1e-12)
     small[3] = abs(tau[3]) * 0.99
     assert torques_and_checks(terms, stacked, actuated, x, small)[2:] == (False, True)
+
+
+def test_the_compiled_bounds_are_the_joint_limits_as_acceleration_bounds_exactly(rng):
+    """:func:`reduced_levels.bounds` against :func:`acceleration_bounds` and :func:`variable_bounds`
+    (bit for bit), joints inside, on and beyond their limits, moving both ways, some held by the
+    control selection, a contact held and one being released."""
+    from sotdrake.configuration import Layout
+    from sotdrake.dynamics.reduced_levels import bounds
+    from sotdrake.dynamics.solver_dyn import normal_force_limits, variable_bounds
+    from sotdrake.dynamics.terms import acceleration_bounds, stacked_limits
+
+    joints = NV - 6
+    layout = Layout(0, 0, np.arange(7, 7 + joints), np.arange(6, NV))
+    iq, iv = layout.joints_q, layout.joints_v
+    terms, contacts, _ = _problem(rng, (6, 6), ())
+    contacts[1].f_max, contacts[1].f_low = 120.0, 12.0
+    slices = wrench_slices(NV, contacts)
+    effort = rng.uniform(10.0, 100.0, joints)
+    for _ in range(20):
+        lower_q = rng.uniform(-2.0, 0.0, NV + 1)
+        upper_q = lower_q + rng.uniform(0.1, 3.0, NV + 1)
+        upper_v = rng.uniform(0.5, 5.0, NV)
+        q = rng.uniform(lower_q - 0.2, upper_q + 0.2)
+        q[iq[:3]] = upper_q[iq[:3]] - rng.uniform(0.0, 2e-3, 3)  # inside the margin
+        v = rng.uniform(-6.0, 6.0, NV)
+        horizon, margin = rng.uniform(0.01, 0.2), rng.uniform(0.0, 0.01)
+        selection = rng.random(NV) > 0.2
+        a_lo, a_up = acceleration_bounds(q, v, lower_q, upper_q, -upper_v, upper_v, horizon, margin, layout)
+        a_lo[~selection] = a_up[~selection] = 0.0
+        want = variable_bounds(NV, contacts, slices, a_lo, a_up, effort)
+        n = len(want[0])
+        free = np.full(n - joints, np.inf)
+        templates = np.concatenate((-free, -effort)), np.concatenate((free, effort))
+        got = bounds(*templates, q, v, iq.astype(np.int64), iv.astype(np.int64),
+                     *stacked_limits(lower_q[iq], upper_q[iq], -upper_v[iv], upper_v[iv]), horizon, margin, selection,
+                     normal_force_limits(contacts, slices))
+        for g, w in zip(got, want, strict=True):
+            np.testing.assert_array_equal(g, w)

@@ -157,6 +157,22 @@ def torques_and_checks(M, h, actuated, JT, RT, sizes, x, effort, wrench_rows, ro
 
 
 @njit(cache=True)
+def _upper_bound(q, v, position_upper, velocity_upper, horizon, margin):
+    """:func:`.terms.upper_acceleration_bounds` of one joint (the same operations, in the same order)."""
+    reach = q + v * horizon
+    limit = position_upper - margin
+    if q > limit:  # inside the margin: min(0, q_max − reach), as np.minimum (NaN kept)
+        inside = position_upper - reach
+        up = inside if inside < 0.0 or math.isnan(inside) else 0.0
+    else:
+        up = limit - reach
+    up *= 2
+    up /= horizon * horizon
+    rate = (velocity_upper - v) / horizon
+    return up if up <= rate or math.isnan(up) else rate  # np.minimum(up, rate)
+
+
+@njit(cache=True)
 def dynamic_bounds(lower_template, upper_template, q, v, joints_q, joints_v, position_limits, velocity_limits, horizon,
                    margin, selection, normal, normal_lower, normal_upper):
     """The bounds on ``x`` (copies of the templates: free wrenches, ``±effort``): the joints' rows
@@ -164,25 +180,12 @@ def dynamic_bounds(lower_template, upper_template, q, v, joints_q, joints_v, pos
     components out of the control ``selection`` (a mask over the first ``selection.size`` ones) fixed at 0, the components
     ``normal`` between ``normal_lower`` and ``normal_upper``."""
     lower, upper = lower_template.copy(), upper_template.copy()
-    T = horizon
-    T2 = T * T
     for k in range(joints_v.size):
-        sides = np.empty(2)
-        for side in range(2):
-            sign = 1.0 if side == 0 else -1.0
-            qk, vk = sign * q[joints_q[k]], sign * v[joints_v[k]]
-            reach = qk + vk * T
-            limit = position_limits[side, k] - margin
-            if qk > limit:
-                up = min(0.0, position_limits[side, k] - reach)
-            else:
-                up = limit - reach
-            up *= 2
-            up /= T2
-            rate = (velocity_limits[side, k] - vk) / T
-            sides[side] = up if up <= rate or math.isnan(up) else rate
-        upper[joints_v[k]] = sides[0]
-        lower[joints_v[k]] = -sides[1] if -sides[1] <= sides[0] or math.isnan(sides[1]) else sides[0]
+        qk, vk = q[joints_q[k]], v[joints_v[k]]
+        high = _upper_bound(qk, vk, position_limits[0, k], velocity_limits[0, k], horizon, margin)
+        low = -_upper_bound(-qk, -vk, position_limits[1, k], velocity_limits[1, k], horizon, margin)  # the mirrored joint
+        upper[joints_v[k]] = high
+        lower[joints_v[k]] = low if low <= high or math.isnan(low) else high  # np.minimum(low, high)
     for i in range(selection.size):
         if not selection[i]:
             lower[i] = upper[i] = 0.0

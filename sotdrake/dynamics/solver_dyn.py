@@ -29,7 +29,9 @@ Solved first with ``τ`` eliminated when ``B`` is a selection (TALOS: every join
 the actuated rows of the dynamics then only define ``τ``, and the hierarchy over ``(q̈, w)``
 keeps the floating base's six rows (``dynamic_levels(..., actuated=...)``, 50 unknowns instead of
 82 with both soles). If that optimum's ``τ`` is within the effort limits and the contacts' wrench rows
-hold, it is the optimum of the full problem; only otherwise is the full problem solved.
+hold, it is the optimum of the full problem; only otherwise is the full problem solved. With every
+task an equality, that fast path is assembled, stacked and checked by compiled code
+(:mod:`.reduced_levels`: the same rows as :func:`dynamic_rows`, which stays their definition).
 
 The hierarchical QP then takes the minimum-norm ``x`` of the optimal set (smallest torques and
 wrenches among the equivalent ones). Joints without an actuator would get no ``τ`` column: TALOS'

@@ -27,6 +27,13 @@ def compiled_input(a: Any, dtype: type = float) -> np.ndarray:
     return np.require(a, dtype=dtype, requirements=("C", "A", "W"))
 
 
+def read_only(array: np.ndarray) -> np.ndarray:
+    """``array`` made read-only, in place (a cached constant, the same object at every tick: nothing
+    may write it; numba compiles once for read-only arrays, which stay of that kind)."""
+    array.flags.writeable = False
+    return array
+
+
 @functools.cache
 def announce_compilation(function: Any, what: str, duration: str) -> None:
     """Log that numba is about to compile ``function`` (a ``cache=True`` dispatcher) rather than load

@@ -134,7 +134,7 @@ def python_integrate(q: np.ndarray, v: np.ndarray, dt: float, layout: Layout) ->
 def difference(q: np.ndarray, q_previous: np.ndarray, layout: Layout) -> np.ndarray:
     """``Δ`` (size nv) with ``q = q_previous ⊕ Δ`` (a velocity times ``dt``): joints ``q - q_prev``;
     the base ``(log(R R_prevᵀ), p - p_prev)``, world frame."""
-    out = np.empty(len(layout.joints_v) + (6 if layout.base_v is not None else 0))
+    out = np.empty(layout.nv)
     out[layout.joints_v] = q[layout.joints_q] - q_previous[layout.joints_q]
     if layout.base_q is not None and layout.base_v is not None:
         iq, iv = layout.base_q, layout.base_v

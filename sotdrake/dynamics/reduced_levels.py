@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..compiled import announce_compilation, compiled_input
+from ..compiled import announce_compilation, compiled_input, read_only
 from ..solvers.equality_hierarchy import StackedLevels
 from ..task import TaskLevel
 from .terms import DynamicsTerms
@@ -38,9 +38,7 @@ def _compiled() -> Any:
 
 @cache
 def _sizes(sizes: tuple[int, ...]) -> np.ndarray:
-    out = np.array(sizes, dtype=np.int64)
-    out.flags.writeable = False
-    return out
+    return read_only(np.array(sizes, dtype=np.int64))
 
 
 class StackedContacts:
@@ -83,16 +81,10 @@ def _contact_set(rows: list) -> tuple[np.ndarray, list[int], np.ndarray, np.ndar
         sizes = tuple(r.jacobian.shape[0] for r in rows)
         blocks = [np.pad(np.asarray(r.wrench_rows, dtype=float), ((0, 0), (0, 6 - r.wrench_rows.shape[1]))) for r in rows]
         arrays = (_sizes(sizes), [0, *itertools.accumulate(sizes)],
-                  _read_only(np.array([r.centre for r in rows], dtype=float).reshape(len(rows), 2)),
-                  _read_only(np.concatenate(blocks) if blocks else np.zeros((0, 6))), _sizes(tuple(len(r.wrench_rows) for r in rows)))
+                  read_only(np.array([r.centre for r in rows], dtype=float).reshape(len(rows), 2)),
+                  read_only(np.concatenate(blocks) if blocks else np.zeros((0, 6))), _sizes(tuple(len(r.wrench_rows) for r in rows)))
         found = _CONTACT_SETS[key] = (tuple(r.wrench_rows for r in rows), arrays)
     return found[1]
-
-
-def _read_only(array: np.ndarray) -> np.ndarray:
-    array = np.ascontiguousarray(array)
-    array.flags.writeable = False
-    return array
 
 
 def reduced_stack(terms: DynamicsTerms, contacts: StackedContacts, tasks: list[TaskLevel], damping_gain: float,

@@ -66,6 +66,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort
 
+from ..compiled import read_only
 from ..configuration import Layout, contiguous_slice
 from ..exceptions import InvalidInput, NotFound, SolverError, StackError, check_number
 from ..robots import RobotModel
@@ -101,13 +102,8 @@ class DynSettings(StackSettings):
     solver: str = ACTIVE_SET
 
 
-def _read_only(array: np.ndarray) -> np.ndarray:
-    array.flags.writeable = False
-    return array
-
-
-_NO_VALUES, _NO_INDICES = _read_only(np.zeros(0)), _read_only(np.zeros(0, dtype=int))
-_NO_HELD_BOUNDS = _read_only(np.zeros(HELD_BOUNDS))
+_NO_VALUES, _NO_INDICES = read_only(np.zeros(0)), read_only(np.zeros(0, dtype=int))
+_NO_HELD_BOUNDS = read_only(np.zeros(HELD_BOUNDS))
 
 
 @dataclass
@@ -293,7 +289,7 @@ def _as_slice(rows: np.ndarray) -> slice | np.ndarray:
     """``rows`` as a slice when contiguous and increasing (:func:`~..configuration.contiguous_slice`),
     else as a read-only index array."""
     as_slice = contiguous_slice(rows)
-    return as_slice if as_slice is not None else _read_only(rows)
+    return as_slice if as_slice is not None else read_only(rows)
 
 
 def unactuated_rows(nv: int, actuated: np.ndarray) -> slice | np.ndarray:
@@ -421,7 +417,7 @@ class SolverDyn(SOT):
         self._limits = (limits["position_lower"], limits["position_upper"], limits["velocity_lower"], limits["velocity_upper"])
         iq, iv = self._layout.joints_q, self._layout.joints_v
         # the joints' rows and limits, indexed and stacked once (_bounds: both sides in one evaluation)
-        self._joint_indices = (_read_only(iq.astype(np.int64)), _read_only(iv.astype(np.int64)))
+        self._joint_indices = (read_only(iq.astype(np.int64)), read_only(iv.astype(np.int64)))
         self._stacked_limits = stacked_limits(self._limits[0][iq], self._limits[1][iq], self._limits[2][iv], self._limits[3][iv])
         self._contact_index: dict[str, int] = {}  # the declaration order of the contacts
         self.effort = limits["effort"] * float(effort_scale)  # |τ| bounds (N·m, N)
@@ -737,8 +733,8 @@ class SolverDyn(SOT):
         template = self._bound_templates.get(n)
         if template is None:
             free = np.full(n - self.na, np.inf)
-            template = self._bound_templates[n] = (_read_only(np.concatenate((-free, -self.effort))),
-                                                   _read_only(np.concatenate((free, self.effort))))
+            template = self._bound_templates[n] = (read_only(np.concatenate((-free, -self.effort))),
+                                                   read_only(np.concatenate((free, self.effort))))
         return bounds(template[0], template[1], terms.q, terms.v, *self._joint_indices, *self._stacked_limits, s.horizon,
                       s.position_margin, s.control_selection, normal_force_limits(contacts, slices))
 
@@ -752,7 +748,7 @@ class SolverDyn(SOT):
         if rows is None:
             compiled = _NO_INDICES, _NO_INDICES
         else:
-            compiled = (_read_only(rows.astype(np.int64)), _read_only(np.arange(self.nv, dtype=np.int64)[unactuated_rows(self.nv, rows)]))
+            compiled = (read_only(rows.astype(np.int64)), read_only(np.arange(self.nv, dtype=np.int64)[unactuated_rows(self.nv, rows)]))
         if not B.flags.writeable:
             self._actuation = (B, rows, *compiled)
         return (rows, *compiled)

@@ -105,8 +105,7 @@ class SOT(Entity[StackSettings]):
         self.layout = layout
         self.position = None
         if layout is not None:
-            nq = len(layout.joints_q) + (7 if layout.base_q is not None else 0)
-            self.position = self.DeclareVectorInputPort("position", nq)
+            self.position = self.DeclareVectorInputPort("position", layout.nq)
         # The last tick (discrete state): [1, v] (or [0, …] before the first tick), and per task
         # [rows, J v] (rows -1: not in the stack, or more rows than nv).
         self._last_velocity: int | None = None

@@ -534,6 +534,44 @@ def test_a_stage_is_assembled_as_its_definition(seed):
     np.testing.assert_allclose(full.G, Z / np.linalg.norm(Z, axis=1)[:, None], rtol=1e-13)  # every component bounded
 
 
+def test_a_level_whose_optimum_holds_its_rows_only_to_round_off_is_solved():
+    """A random stack (seed 126455 of tests/hqp_stacks.py: n = 28, five levels) whose level 3 has an
+    exact optimum of size 1e14 (its projected rows 1e-7 to 1e-4 of their norms): every path's point
+    misses one of its four held rows by 0.002-0.02, the round-off of those rows' products
+    (``ε |g| |y|`` is 0.015 there), which used to fail the stack. A point within Higham's bound of
+    its rows' products is the answer, said in the fallbacks; the bounds hold and every level is as
+    strict as the truncated stacks."""
+    from sotdrake.solvers.hqp import ROUND_OFF_LIMITED
+
+    n, levels, x_lower, x_upper = random_stack(np.random.default_rng(126455))
+    result = HierarchicalQP(n).solve(levels, x_lower, x_upper)
+    assert any(f.startswith("level 3: " + ROUND_OFF_LIMITED) for f in result.fallbacks), result.fallbacks
+    assert np.all(np.isfinite(result.x)) and np.abs(result.x).max() > 1e13
+    assert np.all(result.x >= x_lower) and np.all(result.x <= x_upper)
+    for k in range(len(levels) - 1):
+        alone = HierarchicalQP(n, regularize=False).solve(levels[: k + 1], x_lower, x_upper)
+        floor = np.maximum(round_off(levels, result.x), round_off(levels, alone.x)[: len(levels)])
+        assert same_norms(result.slack_norms[: k + 1], alone.slack_norms, floor=floor), k
+
+
+def test_a_miss_beyond_the_round_off_of_a_rows_product_is_not_accepted():
+    """The last resort's measure: a hard row's miss as a fraction of ``γ_r |g| |y|``. On the held row
+    ``(y₀ + y₁)/√2 ≥ 0``, a point of size 1e14 that misses it by 0.022 (two ulps of 1e14) is within
+    that bound (0.063); the same miss at size 1, or a miss of 11 at size 1e14, is not; a unit bound
+    row (an exact product) is held exactly or not at all."""
+    hqp = HierarchicalQP(2)
+    held = np.array([[1.0, 1.0]]) / np.sqrt(2.0)
+    stage = hqp._build(None, np.zeros(2), np.eye(2), (np.zeros(0, dtype=int), np.ones(1), held, np.zeros(1),
+                                                       np.ones(1), np.zeros(1, dtype=int)), 0.0)
+    assert hqp._round_off_miss(stage, np.array([1e14, -1e14])) <= 1.0  # on the row, but g·y computes to -0.007
+    assert 0.0 < hqp._round_off_miss(stage, np.array([1e14, -1e14 - 0.03125])) <= 1.0
+    assert hqp._round_off_miss(stage, np.array([1.0, -1.03125])) > 1e6
+    assert hqp._round_off_miss(stage, np.array([1e14, -1e14 - 16.0])) > 100.0
+    bound = hqp._build(None, np.zeros(2), np.eye(2), (slice(None), np.ones(2), np.zeros((0, 2)), np.array([0.0, -1e15]),
+                                                       np.array([1.0, 1e15]), np.zeros(2, dtype=int)), 0.0)
+    assert hqp._round_off_miss(bound, np.array([-1e-3, 1e14])) > 1e6
+
+
 def test_the_minimum_norm_stage_keeps_the_last_levels_point_when_no_path_solves_it():
     """A random stack (seed 113554 of tests/hqp_stacks.py: n = 16, no bounds, targets up to 1e9)
     whose last level's exact optimum is 4e14 in size (two of its projected rows dependent to 1e-16,

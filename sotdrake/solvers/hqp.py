@@ -51,7 +51,10 @@ How a level is solved:
 * nothing fails silently: if a path fails (no convergence, a non-finite point, a point outside the
   bounds by more than ``feasibility_tolerance``) the next one is tried: the active set warm, then
   cold (from the dual method's guess), then Clarabel polished, then OSQP polished; each failure is
-  reported in :attr:`HqpResult.fallbacks`, and a :class:`SolverError` means all failed.
+  reported in :attr:`HqpResult.fallbacks`. If every path ended outside a hard row, a path's point
+  that misses each hard row by less than the round-off bound of the row's own product (a point so
+  large, 1e14 on one random stack, that doubles cannot verify it closer) is the answer, said in the
+  fallbacks (:data:`ROUND_OFF_LIMITED`); otherwise a :class:`SolverError` means all failed.
 
 **The one threshold.** Every rank decision (the null space ``Z`` of the held equality rows, the
 least-squares steps, the working-set matrices, which projected rows are constant) compares singular
@@ -105,6 +108,7 @@ ACTIVE_BOUNDS = "active-bounds"
 """How every stage was solved when the equality levels were solved at once from the guessed active
 bounds (:mod:`.active_bounds`), part of the default path."""
 KEPT_LAST_LEVEL = "kept the last level's point"
+ROUND_OFF_LIMITED = "a point that holds its rows to their products' round-off"
 """How the minimum-norm stage ended when every path failed on it: the last level's point, which is
 in the optimal set (every level at its optimum, bounds held), kept instead of the minimum-norm one.
 Seen on random stacks whose last level's exact optimum is about 1e14 in size, where no double holds
@@ -696,6 +700,7 @@ class HierarchicalQP:
             first = [name, ACTIVE_SET] + (["cold"] if cached is not None else [])
             paths = first + [p for p in ("clarabel", "osqp") if p not in first]
         working: dict[str, float] = {}  # the degenerate retries' working-set thresholds
+        outside: list[tuple] = []  # the finite points the paths ended with outside the hard rows
 
         def retries():  # reached once the active set's paths have failed (see DEGENERATE_RETRY)
             if any(failure.endswith(_OUTSIDE) for failure in failures):
@@ -748,10 +753,13 @@ class HierarchicalQP:
             # only needs to be finite; any other is checked on the bounds and held rows.
             verified = solution.verified and self.feasibility_tolerance >= 1e-10
             if not (all_true(np.isfinite(y)) if verified else self._accept(stage, y)):
-                y = self._onto_hard_rows(stage, y, solution.side)
-                if y is None:
+                corrected = self._onto_hard_rows(stage, y, solution.side)
+                if corrected is None:
                     failures.append(f"{path}: {_OUTSIDE}")
+                    if level is not None and all_true(np.isfinite(y)):
+                        outside.append((self._round_off_miss(stage, y), y, solution.side, label, solution.iterations))
                     continue
+                y = corrected
             self._working_sets[key] = solution.side
             if level is None:
                 self._working_sets[_FREE_MINIMUM_NORM] = not any_true(solution.side)
@@ -764,6 +772,17 @@ class HierarchicalQP:
             # optimal set; it is kept and only the minimum norm is given up (said in the fallbacks).
             fallbacks += [f"{what}: {failure}" for failure in failures]
             return x0, hard_side.copy(), KEPT_LAST_LEVEL, 0
+        if outside:
+            # Every path ended outside a hard row. If one of their points misses each row by less
+            # than the round-off bound of the row's own product (a point so large that no point can
+            # be verified closer in doubles), it is the answer, said in the fallbacks.
+            miss, y, side, label, count = min(outside, key=lambda candidate: candidate[0])
+            if miss <= 1.0:
+                fallbacks += [f"{what}: {failure}" for failure in failures]
+                fallbacks.append(f"{what}: {ROUND_OFF_LIMITED} (size {float(np.max(np.abs(y))):.3g}, "
+                                 f"{miss:.2g} of the bound)")
+                self._working_sets[key] = side
+                return x0 + Z @ y, self._hard_sides(hard_side, stage, side), label, count
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
 
     @staticmethod
@@ -854,6 +873,24 @@ class HierarchicalQP:
                 return None  # nearly dependent rows asked to move the point further than round-off
             y = y + correction
         return None
+
+    def _round_off_miss(self, stage: _Stage, y: np.ndarray) -> float:
+        """The largest miss of a hard row beyond the feasibility tolerance, as a fraction of that row's
+        round-off bound ``γ_r (|g| |y|)``, ``γ_r = r ε / (1 − r ε)`` (Higham's bound on the error of a
+        dot product of length r in floating point): ≤ 1 when ``y`` holds every hard row as closely as
+        the product ``g·y`` itself can be computed. Only reached when every path ended outside."""
+        value, below, above = self._missed_hard_rows(stage, y)
+        m_hard, r = stage.m_hard, stage.r
+        lo, hi = stage.lower[:m_hard], stage.upper[:m_hard]
+        tol = self.feasibility_tolerance
+        miss = np.where(below, lo - tol * np.maximum(1.0, np.abs(lo)) - value,
+                        np.where(above, value - hi - tol * np.maximum(1.0, np.abs(hi)), 0.0))
+        eps = np.finfo(float).eps
+        bound = r * eps / (1.0 - r * eps) * (np.abs(stage.G[:m_hard, :r]) @ np.abs(y))
+        missed = miss > 0.0
+        if not any_true(missed):
+            return 0.0
+        return float(np.max(miss[missed] / np.maximum(bound[missed], np.finfo(float).tiny)))
 
     def _bounds_hold(self, stage: _Stage, y: np.ndarray) -> bool:
         _, below, above = self._missed_hard_rows(stage, y)

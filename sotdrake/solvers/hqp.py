@@ -108,11 +108,15 @@ ACTIVE_BOUNDS = "active-bounds"
 """How every stage was solved when the equality levels were solved at once from the guessed active
 bounds (:mod:`.active_bounds`), part of the default path."""
 KEPT_LAST_LEVEL = "kept the last level's point"
-ROUND_OFF_LIMITED = "a point that holds its rows to their products' round-off"
 """How the minimum-norm stage ended when every path failed on it: the last level's point, which is
 in the optimal set (every level at its optimum, bounds held), kept instead of the minimum-norm one.
 Seen on random stacks whose last level's exact optimum is about 1e14 in size, where no double holds
 the held rows to the feasibility tolerance (tests/test_hqp.py)."""
+ROUND_OFF_LIMITED = "a point that holds its rows to their products' round-off"
+"""Said in the fallbacks when every path of a level ended outside a hard row and one of their points
+misses each hard row by less than Higham's bound on the round-off of the row's product,
+``γ_r |g| |y|`` (:meth:`HierarchicalQP._round_off_miss`): that point is the level's answer. Seen on a
+random stack whose level 3 has an exact optimum of size 1e14."""
 
 
 def check_solver(name: str) -> str:

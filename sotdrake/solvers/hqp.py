@@ -761,7 +761,7 @@ class HierarchicalQP:
                 if corrected is None:
                     failures.append(f"{path}: {_OUTSIDE}")
                     if level is not None and all_true(np.isfinite(y)):
-                        outside.append((self._round_off_miss(stage, y), y, solution.side, label, solution.iterations))
+                        outside.append((y, solution.side, label, solution.iterations))
                     continue
                 y = corrected
             self._working_sets[key] = solution.side
@@ -780,8 +780,10 @@ class HierarchicalQP:
             # Every path ended outside a hard row. If one of their points misses each row by less
             # than the round-off bound of the row's own product (a point so large that no point can
             # be verified closer in doubles), it is the answer, said in the fallbacks.
-            miss, y, side, label, count = min(outside, key=lambda candidate: candidate[0])
+            misses = [self._round_off_miss(stage, candidate[0]) for candidate in outside]
+            miss = min(misses)
             if miss <= 1.0:
+                y, side, label, count = outside[misses.index(miss)]
                 fallbacks += [f"{what}: {failure}" for failure in failures]
                 fallbacks.append(f"{what}: {ROUND_OFF_LIMITED} (size {float(np.max(np.abs(y))):.3g}, "
                                  f"{miss:.2g} of the bound)")

@@ -1,0 +1,204 @@
+"""Sphinx extension of the sotdrake docs: the benchmark tables, generated from bench JSON.
+
+At ``builder-inited`` it reads ``bench/reference.json`` and ``bench/results/*.json`` and writes
+``docs/_generated/benchmarks_tables.md``, which ``docs/benchmarks.md`` includes. No number on the
+benchmarks page is typed by hand: rerun a bench, rebuild the docs.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[2]
+BENCH = ROOT / "bench"
+
+
+def _num(value: Any) -> str:
+    if value is None:
+        return "n/a"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int):
+        return f"{value:,}".replace(",", " ")
+    if isinstance(value, float):
+        if value == 0:
+            return "0"
+        if abs(value) >= 1e4 or abs(value) < 1e-2:
+            return f"{value:.2e}"
+        return f"{value:.3g}"
+    if isinstance(value, list):
+        return ", ".join(_num(v) for v in value) if len(value) <= 6 else f"{len(value)} items"
+    return str(value).replace("|", "\\|")
+
+
+def _table(header: list[str], rows: list[list[Any]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
+    lines += ["| " + " | ".join(_num(c) if not isinstance(c, str) else c.replace("|", "\\|") for c in row) + " |" for row in rows]
+    return lines + [""]
+
+
+def _flat(d: dict, prefix: str = "") -> list[tuple[str, Any]]:
+    out: list[tuple[str, Any]] = []
+    for key, value in d.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            out += _flat(value, name + ".")
+        else:
+            out.append((name, value))
+    return out
+
+
+def dynamics_tables(d: dict) -> list[str]:
+    lines = ["### The dynamic SoT against placo (`bench/results/dynamics.json`)", "",
+             "Regenerate with `.venv/bin/pip install \".[bench]\" && .venv/bin/python bench/dynamics.py`.", ""]
+    keys = ["tick_cpu_us_median", "tick_cpu_us_p95", "tick_us_median", "tick_us_p95", "com_rms_error_m", "foot_rms_error_m",
+            "max_torque_ratio", "max_friction_ratio", "fell"]
+    for scenario, run in d.items():
+        if not isinstance(run, dict) or "sotdrake" not in run:
+            continue
+        peers = [p for p in ("sotdrake", "placo") if isinstance(run.get(p), dict)]
+        header = ["measure", *[f"{p} {run[p].get('version', '')}".strip() for p in peers]]
+        rows = [[k, *[run[p].get(k) for p in peers]] for k in keys if any(k in run[p] for p in peers)]
+        lines += [f"`{scenario}`, {_num(run.get('duration_s'))} s of simulated time:", ""]
+        lines += _table(header, rows)
+    return lines
+
+
+def hostile_tables(d: dict) -> list[str]:
+    lines = ["### Hostile inputs and randomized runs (`bench/results/hostile.json`)", "",
+             "Regenerate with `.venv/bin/python bench/hostile.py`.", "",
+             f"Bad inputs tried: {_num(d.get('bad_inputs'))}; answered by a `SotError`: "
+             f"{_num(d.get('bad_input_status', {}).get('sot_error'))}; state changed by one: {_num(d.get('bad_input_state_changed'))}.", ""]
+    keys = ["runs", "process_exits", "hangs", "nan", "max_contact_drift_m", "contacts_beyond_tolerance", "runs_with_limit_violation",
+            "max_limit_violation", "runs_scaled", "min_velocity_scale"]
+    runs = d.get("runs", {})
+    lines += _table(["measure", *runs], [[k, *[runs[s].get(k) for s in runs]] for k in keys])
+    return lines
+
+
+def hqp_runs_table(d: dict) -> list[str]:
+    lines = ["### `SolverKine` on randomized TALOS runs (`bench/results/hqp_robot_runs.json`)", "",
+             "Regenerate with `.venv/bin/python bench/hqp_robot_runs.py`.", ""]
+    rows = [[k, v] for k, v in _flat(d) if not isinstance(v, list)]
+    return lines + _table(["measure", "value"], rows)
+
+
+def sweep_table(d: dict) -> list[str]:
+    lines = ["### Sweeps: local against Ray (`bench/results/sweep.json`)", "",
+             "Regenerate with `.venv/bin/pip install \".[sweep]\" && .venv/bin/python bench/sweep_speedup.py --targets 1000 "
+             "--out out/sweep_bench`.", ""]
+    runs = d.get("runs", {})
+    rows = [[engine, r.get("workers"), r.get("wall_s"), (d.get("targets") or 0) / r["wall_s"] if r.get("wall_s") else None,
+             r.get("errors"), r.get("reached_within_1cm")] for engine, r in runs.items()]
+    lines += _table(["engine", "workers", "wall time (s)", "cases/s", "errors", "reached within 1 cm"], rows)
+    lines += [f"{_num(d.get('targets'))} targets; speed-up of Ray over local: {_num(d.get('speedup_ray_over_local'))}; "
+              f"identical tables: {_num(d.get('identical_tables'))}; {_num(d.get('cores'))} cores.", ""]
+    return lines
+
+
+def generic_table(name: str, d: dict) -> list[str]:
+    rows = [[k, v] for k, v in _flat(d) if not isinstance(v, list | dict)]
+    return [f"### `bench/results/{name}`", "", *_table(["key", "value"], rows)]
+
+
+def reference_tables(d: dict) -> list[str]:
+    """The reference run, rendered by bench/run.py's own renderer when it imports, else its key figures."""
+    lines = ["### The kinematic tick against pink and placo (`bench/reference.json`)", "",
+             "Regenerate with `.venv/bin/pip install \".[bench]\" && .venv/bin/python bench/run.py` "
+             "(`--table bench/reference.json` prints these tables from the committed run).", ""]
+    try:
+        import sys
+
+        sys.path.insert(0, str(BENCH))
+        import run as bench_run  # type: ignore[import-not-found]
+
+        return [*lines, bench_run.markdown(d), ""]
+    except Exception:  # the renderer needs the package installed: fall back to the key figures
+        keys = ["tick_us_median", "hqp_tick_us_median", "hqp_active_tick_us_median", "pink_tick_us_median",
+                "placo_tick_us_median", "ratio_vs_pink", "realtime_factor_kinematic", "realtime_factor_physics",
+                "marginal_task_us", "hqp_random_solve_ms_median"]
+        return [*lines, *_table(["measure", "value"], [[k, d.get(k)] for k in keys if k in d])]
+
+
+RENDERERS = {"dynamics.json": dynamics_tables, "hostile.json": hostile_tables, "hqp_robot_runs.json": hqp_runs_table,
+             "sweep.json": sweep_table}
+
+
+def benchmark_markdown() -> str:
+    lines: list[str] = ["<!-- generated by docs/_ext/sotdrake_docs.py from bench JSON: do not edit -->", ""]
+    if (BENCH / "reference.json").exists():
+        lines += reference_tables(json.loads((BENCH / "reference.json").read_text()))
+    for path in sorted((BENCH / "results").glob("*.json")):
+        data = json.loads(path.read_text())
+        render = RENDERERS.get(path.name)
+        lines += render(data) if render else generic_table(path.name, data)
+    return "\n".join(lines) + "\n"
+
+
+def _is_data(obj: Any) -> bool:
+    import inspect
+
+    return not (inspect.isclass(obj) or inspect.isroutine(obj) or inspect.ismodule(obj) or callable(obj))
+
+
+def api_data_markdown() -> str:
+    """``autodata`` for the constants of ``sotdrake.__all__``: autodoc leaves out an imported constant."""
+    import sotdrake
+
+    names = [n for n in sotdrake.__all__ if _is_data(getattr(sotdrake, n))]
+    if not names:
+        return "<!-- no constants in sotdrake.__all__ -->\n"
+    body = "\n".join(f".. autodata:: sotdrake.{n}\n   :annotation: = {getattr(sotdrake, n)!r}\n" for n in names)
+    return "## Constants\n\n```{eval-rst}\n" + body + "```\n"
+
+
+def _write(path: Path, text: str) -> None:
+    if not path.exists() or path.read_text() != text:  # unchanged: no rebuild of the page
+        path.write_text(text)
+
+
+def write_generated(app) -> None:
+    out = Path(app.srcdir) / "_generated"
+    out.mkdir(exist_ok=True)
+    _write(out / "benchmarks_tables.md", benchmark_markdown())
+    _write(out / "api_data.md", api_data_markdown())
+
+
+_PLURAL_LITERAL = re.compile(r"``([^`]+)``(?=[a-z])")
+
+
+def fix_docstring(app, what, name, obj, options, lines) -> None:
+    """Make plain-text docstrings valid reST, without changing what they say.
+
+    A literal followed by a letter (``LeafSystem``s) is not closed for docutils: a backslash-escaped
+    space between them renders the same text.
+    """
+    for i, line in enumerate(lines):
+        if "``" in line:
+            lines[i] = _PLURAL_LITERAL.sub(r"``\1``\\ ", line)
+
+
+def skip_top_level_names(app, what, name, obj, skip, options):
+    """The top-level page documents every name of ``sotdrake.__all__`` (data too, which autodoc would
+    leave out without a docstring of its own); a subpackage's page leaves out the names it shares with
+    it: they are documented once (else Sphinx sees two descriptions of one canonical object)."""
+    import sotdrake
+
+    if what != "module":
+        return skip
+    top_level = any(obj is getattr(sotdrake, n, None) for n in sotdrake.__all__)
+    if app.env.docname == "api/sotdrake":
+        if name in sotdrake.__all__ and _is_data(obj):
+            return True  # documented by the generated ``autodata`` block (api_data.md)
+        return False if name in sotdrake.__all__ else skip
+    return True if top_level else skip
+
+
+def setup(app):
+    app.connect("builder-inited", write_generated)
+    app.connect("autodoc-process-docstring", fix_docstring)
+    app.connect("autodoc-skip-member", skip_top_level_names)
+    return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}

@@ -9,6 +9,10 @@ from .exceptions import (
     FrameNotFound,
     InvalidInput,
     NotFound,
+    OperationalPointNotFound,
+    PackageNotFound,
+    RobotDescriptionError,
+    RobotFileNotFound,
     RobotNotFound,
     SolverError,
     SotError,
@@ -21,13 +25,14 @@ from .meta_tasks import (
     MetaTaskKine6d,
     MetaTaskKine6dRel,
     MetaTaskKineCom,
+    MetaTaskKineJointLimits,
     MetaTaskKinePosture,
     MetaTaskVisualPoint,
     gotoNd,
     hold_feet_and_com,
 )
 from .robot import Robot, add_sot, robot, talos
-from .robots import TALOS_GRIPPERS, load_robot, load_talos
+from .robots import TALOS_GRIPPERS, RobotModel, load_robot, load_talos
 from .sequencer import attime
 from .simulation import save_figure, script_arguments, simulate, start, write_run
 from .solvers import SOT, SolverKine
@@ -48,9 +53,15 @@ __all__ = [
     "MetaTaskKine6d",
     "MetaTaskKine6dRel",
     "MetaTaskKineCom",
+    "MetaTaskKineJointLimits",
     "MetaTaskKinePosture",
     "MetaTaskVisualPoint",
     "NotFound",
+    "OperationalPointNotFound",
+    "PackageNotFound",
+    "RobotDescriptionError",
+    "RobotFileNotFound",
+    "RobotModel",
     "Robot",
     "RobotNotFound",
     "Runner",

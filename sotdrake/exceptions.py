@@ -6,6 +6,7 @@ names what was asked for and what exists, never deep inside a simulation callbac
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable
 
 
@@ -17,6 +18,48 @@ class InvalidInput(SotError, ValueError):
     """A value has the wrong size, is not finite, or is out of its domain."""
 
 
+#: Words a user may type for an op point, and the words the op-point names use instead.
+_SYNONYMS: dict[str, tuple[str, ...]] = {
+    "hand": ("wrist", "gripper", "tool"),
+    "gripper": ("wrist", "tool", "hand"),
+    "tool": ("wrist", "gripper", "hand"),
+    "effector": ("tool", "wrist"),
+    "foot": ("ankle", "sole"),
+    "leg": ("ankle",),
+    "head": ("gaze",),
+    "camera": ("gaze",),
+    "torso": ("chest",),
+    "trunk": ("chest",),
+    "pelvis": ("waist",),
+    "base": ("waist",),
+}
+
+
+def _normalised(name: str) -> str:
+    return re.sub(r"[-_\s.]+", "_", name.strip().lower())
+
+
+def close_matches(name: str, available: Iterable[str], n: int = 3) -> list[str]:
+    """Up to ``n`` names of ``available`` close to ``name``: the same name up to case and
+    ``-``/``_``/space, then the name with one word replaced by a synonym (``right_hand`` →
+    ``right-wrist``), then :func:`difflib.get_close_matches` on the normalised names."""
+    import difflib
+
+    normalised: dict[str, str] = {}
+    for candidate in available:
+        normalised.setdefault(_normalised(str(candidate)), str(candidate))
+    key = _normalised(name)
+    found = [normalised[key]] if key in normalised else []
+    words = key.split("_")
+    for i, word in enumerate(words):
+        for synonym in _SYNONYMS.get(word, ()):
+            replaced = "_".join([*words[:i], synonym, *words[i + 1 :]])
+            if replaced in normalised:
+                found.append(normalised[replaced])
+    found += [normalised[c] for c in difflib.get_close_matches(key, list(normalised), n=n)]
+    return list(dict.fromkeys(found))[:n]
+
+
 class NotFound(SotError, KeyError):
     """A name (frame, task, robot variant, package) does not exist.
 
@@ -26,12 +69,10 @@ class NotFound(SotError, KeyError):
     kind = "name"
 
     def __init__(self, name: str, available: Iterable[str]):
-        import difflib
-
         self.name = name
         # A list keeps its order (most useful names first); any other iterable is sorted.
         self.available = list(available) if isinstance(available, (list, tuple)) else sorted(available)
-        close = difflib.get_close_matches(str(name), self.available, n=3)
+        close = close_matches(str(name), self.available)
         hint = f" (did you mean {', '.join(map(repr, close))}?)" if close else ""
         shown = ", ".join(repr(a) for a in self.available[:40])
         more = f" … and {len(self.available) - 40} more" if len(self.available) > 40 else ""
@@ -39,6 +80,11 @@ class NotFound(SotError, KeyError):
 
     def __str__(self) -> str:  # KeyError would quote the whole message otherwise
         return str(self.args[0])
+
+    def but(self, reason: str) -> NotFound:
+        """This error with ``reason`` in front of its message (e.g. what kind of value was expected)."""
+        self.args = (f"{reason}: {self.args[0]}",)
+        return self
 
 
 class FrameNotFound(NotFound):
@@ -55,6 +101,34 @@ class RobotNotFound(NotFound):
 
 class VariantNotFound(RobotNotFound):
     kind = "robot variant"
+
+
+class RobotFileNotFound(RobotNotFound):
+    """A robot description file (URDF, SDF, MJCF) given by path does not exist."""
+
+    def __init__(self, path: str, available: Iterable[str]):
+        self.name, self.available = path, list(available)
+        shown = ", ".join(repr(a) for a in self.available)
+        Exception.__init__(self, f"robot file {path!r} not found; give the path of an existing URDF, SDF or MJCF "
+                                 f"file, or the name of a robot of the catalog: {shown}")
+
+
+class PackageNotFound(NotFound):
+    """A ``package://<name>/…`` URI of a robot description names a package that was not found."""
+
+    kind = "package"
+
+    def __init__(self, name: str, available: Iterable[str], uri: str = ""):
+        super().__init__(name, available)
+        where = f" (in {uri!r})" if uri else ""
+        self.args = (f"{self.args[0]}{where}; give its folder: load_robot(..., package_paths={{{name!r}: "
+                     f"'/path/to/{name}'}}) or put a package.xml in it",)
+
+
+class OperationalPointNotFound(FrameNotFound):
+    """An op-point name not in ``robot.OperationalPointsMap`` (a ``KeyError``)."""
+
+    kind = "operational point"
 
 
 class StackError(SotError):

@@ -20,28 +20,31 @@ from __future__ import annotations
 
 import copy
 
+import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context, InputPort, OutputPort
 
 from .entity import recording
-from .exceptions import InvalidInput, SotError, check_finite
+from .exceptions import InvalidInput, SotError, check_finite, check_number
 from .features import (
     Feature,
     Feature6d,
     Feature6dDesired,
     FeatureGeneric,
     FeatureGenericDesired,
+    FeatureJointLimits,
     FeaturePosture,
     FeatureRelative6d,
     FeatureVisualPoint,
 )
+from .features.base import check_mask
 from .features.feature6d import as_transform
 from .gain_checks import check_gain
 from .gains import GainAdaptive, from_numbers
 from .kinematics import Dynamic
 from .ranges import MAX_TARGET_POSITION
 from .robot import Robot
-from .selection import parse_selection
+from .robots import TALOS_GRIPPERS
 from .task import Task, TaskInequality, TaskPD
 
 
@@ -236,10 +239,53 @@ class MetaTaskVisualPoint(_MetaTask):
         self.plugPoint(source.get_output_port())
 
 
+class MetaTaskKineJointLimits(_MetaTask):
+    """Keep every joint with finite limits ``[l, u]`` inside them, a ``margin`` (a fraction of its
+    range, dimensionless) away: :class:`~sotdrake.features.FeatureJointLimits`
+    (``e = 2(q - l)/(u - l) - 1``, ±1 on the limits) as a ``TaskInequality`` with bounds
+    ``-(1 - 2·margin) ≤ e ≤ 1 - 2·margin`` and a constant ``gain`` (1/s: a joint approaches its
+    bound at most exponentially at that rate). One line: ``limits = MetaTaskKineJointLimits(robot);
+    sot.push(limits)``; only the hierarchical QP takes inequalities (``add_sot(robot,
+    solver='hqp')``). ``inequality=False``: an equality task that centres the joints (``e → 0``),
+    for the basic ``SOT``, usually at the lowest priority. ``joint_names``: the joints it covers."""
+
+    def __init__(self, robot: Robot, name: str = "jointLimits", margin: float = 0.05, gain: float = 10.0,
+                 inequality: bool = True):
+        robot = _as_robot(robot, "MetaTaskKineJointLimits")
+        margin = check_number(f"MetaTaskKineJointLimits({name!r}) margin (fraction of each joint's range)", margin, 0.0, 0.45)
+        plant = robot.model.plant
+        feature = FeatureJointLimits("feature" + name, plant)
+        if feature.dimension == 0:
+            raise InvalidInput(f"MetaTaskKineJointLimits({name!r}): {robot.model.name} has no joint with finite limits")
+        robot.add(feature)
+        self._joint_names = list(feature.joint_names)
+        robot.builder.Connect(robot.device.GetOutputPort("state"), feature.GetInputPort("state"))
+        self._finish(robot, name, feature, inequality)
+        self.gain.setConstant(gain)
+        if inequality:
+            bound = np.full(feature.dimension, 1.0 - 2.0 * margin)
+            assert isinstance(self.task, TaskInequality)
+            self.task.setBounds(-bound, bound)
+
+    @property
+    def joint_names(self) -> list[str]:
+        """The joints the task covers (those with finite limits), in the order of its rows."""
+        return list(self._joint_names)
+
+
 def hold_feet_and_com(robot: Robot, sot, gain: float = 10.0, com: bool = True):
     """The tutorial's support: ``contactRF``, ``contactLF`` (both ankles kept where they are) and,
     with ``com``, the CoM held, each with a constant ``gain``, pushed in that order. Returns the
-    meta tasks (``contactRF``, ``contactLF``, ``taskCom`` or None)."""
+    meta tasks (``contactRF``, ``contactLF``, ``taskCom`` or None).
+
+    With the basic ``SOT`` (which has no joint limits) and no control selection set yet, the
+    robot's gripper joints (:data:`~sotdrake.robots.TALOS_GRIPPERS`, which start on their limit)
+    are left out of the control, as the tutorial does:
+    ``sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))``."""
+    plant = robot.model.plant
+    grippers = [joint for joint in TALOS_GRIPPERS if plant.HasJointNamed(joint)]
+    if grippers and not getattr(sot, "accepts_inequalities", True) and sot.settings().control_selection is None:
+        sot.setControlSelection(robot.velocity_selection(excluding=grippers))
     contacts = []
     for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle")):
         contact = MetaTaskKine6d(name, robot, name[-2:], robot.OperationalPointsMap[op])
@@ -277,11 +323,10 @@ def gotoNd(
     elif isinstance(task, MetaTaskKineCom):
         target, dimension = check_finite(f"gotoNd({task.name}) position (m)", position, (3,), MAX_TARGET_POSITION), 3
     else:
-        raise InvalidInput(f"gotoNd takes a MetaTaskKine6d or MetaTaskKineCom, got {type(task).__name__}")
+        raise InvalidInput(f"gotoNd takes a MetaTaskKine6d or MetaTaskKineCom, got {type(task).__name__}"
+                           + (": pass the meta task itself" if isinstance(task, str) else ""))
     if selec is not None:
-        if not isinstance(selec, str):
-            raise InvalidInput(f"gotoNd({task.name}): selec must be a string of '0' and '1', got {selec!r}")
-        parse_selection(selec, dimension)
+        check_mask(selec, dimension, f"gotoNd({task.name}) selec")
 
     if isinstance(task, MetaTaskKine6d):
         task.featureDes.setPosition(target, context)

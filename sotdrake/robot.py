@@ -10,7 +10,8 @@ stack order, a run-time setting held in the Context.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TypeVar
+from os import PathLike
+from typing import Any, TypeVar
 
 import numpy as np
 from pydrake.lcm import DrakeLcm
@@ -28,6 +29,11 @@ SystemT = TypeVar("SystemT", bound=System)
 
 
 class Robot:
+    """A robot's ``dynamic`` (:class:`~sotdrake.kinematics.Dynamic`) and ``device``
+    (:class:`~sotdrake.device.Device`) in ``builder``, plugged ``device.state → dynamic.position``;
+    ``Robot(builder, load_robot("arm.urdf"))`` for your own robot. Tasks and the solver are added
+    through it (:meth:`add_task`, :meth:`add_solver`), so that each task reaches the solver."""
+
     def __init__(
         self,
         builder: DiagramBuilder,
@@ -109,17 +115,27 @@ class Robot:
 
 def robot(
     builder: DiagramBuilder,
-    name: str = "talos",
+    name: str | PathLike[str] | RobotModel = "talos",
     variant: str | None = None,
     dt: float = 1e-3,
     base: str | None = None,
     q0: np.ndarray | None = None,
+    **load_options: Any,
 ) -> Robot:
-    """The SoT ``robot`` of any robot of :data:`sotdrake.robots.ROBOTS` (sot-romeo's
-    ``from dynamic_graph.sot.romeo.romeo import *; robot = Robot('robot')``): its ``dynamic`` and
-    ``device`` (period ``dt`` seconds) in ``builder``, starting in the robot's reference posture
-    (or ``q0``). ``variant`` and ``base`` as in :func:`sotdrake.robots.load_robot`."""
-    return Robot(builder, load_robot(name, variant, base=base), dt, q0)
+    """The SoT ``robot`` (sot-romeo's ``from dynamic_graph.sot.romeo.romeo import *; robot =
+    Robot('robot')``): its ``dynamic`` and ``device`` (period ``dt`` seconds) in ``builder``,
+    starting in the robot's reference posture (or ``q0``).
+
+    ``name``: a robot of :data:`sotdrake.robots.ROBOTS`, the path of your URDF/SDF/MJCF file, or
+    a :class:`~sotdrake.robots.RobotModel` already loaded (``load_robot("arm.urdf")``).
+    ``variant``, ``base`` and ``load_options`` (``floating_base``, ``srdf``, ``package_paths``,
+    ``operational_points``, ``reference_posture``) as in :func:`sotdrake.robots.load_robot`."""
+    if isinstance(name, RobotModel):
+        if variant is not None or base is not None or load_options:
+            raise InvalidInput("robot(builder, model): the model is already loaded; give variant, base and the "
+                               "load options to load_robot instead")
+        return Robot(builder, name, dt, q0)
+    return Robot(builder, load_robot(name, variant, base=base, **load_options), dt, q0)
 
 
 def talos(builder: DiagramBuilder, variant: str = "reduced", dt: float = 1e-3) -> Robot:

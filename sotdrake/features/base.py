@@ -26,6 +26,29 @@ from ..exceptions import InvalidInput
 from ..selection import parse_selection
 
 
+#: Component names of the usual feature sizes (a mask reads them right to left).
+_COMPONENTS = {6: "X, Y, Z, RX, RY, RZ", 3: "X, Y, Z", 2: "x, y (image)"}
+
+
+def check_mask(mask: object, dimension: int, what: str) -> str:
+    """``mask`` if it is a valid selection mask of a ``dimension``-vector, else
+    :class:`InvalidInput` naming ``what``, the expected length and alphabet and an example."""
+    components = _COMPONENTS.get(dimension)
+    named = f" ({components}; the last character is {components.split(', ')[0]})" if components else ""
+    expected = (f"a string of at most {dimension} characters '0' or '1', read right to left, one per component"
+                f"{named}, e.g. {'1' * min(dimension, 3)!r} or {'1' * dimension!r} for all")
+    if not isinstance(mask, str):
+        raise InvalidInput(f"{what}: the selection mask must be {expected}; got {mask!r:.100}")
+    try:
+        parse_selection(mask, dimension)
+    except InvalidInput:
+        if mask and not set(mask) - {"0", "1"} and len(mask) > dimension:
+            raise InvalidInput(f"{what}: the selection mask {mask!r} has {len(mask)} characters, the feature has "
+                               f"{dimension} components: expected {expected}") from None
+        raise InvalidInput(f"{what}: invalid selection mask {mask!r}: expected {expected}") from None
+    return mask
+
+
 class FeatureValue(NamedTuple):
     """The selected rows of a feature: error ``e``, Jacobian ``J = ∂e/∂v``, ``ė_ref``."""
 
@@ -99,7 +122,5 @@ class Feature(Entity):
 
     def selec(self, mask: str, context: Context | None = None) -> None:
         """Selection mask, read right to left (``'000011'`` selects components 0 and 1)."""
-        if not isinstance(mask, str):
-            raise InvalidInput(f"{self.name}.selec: the mask must be a string of '0' and '1', got {mask!r}")
-        parse_selection(mask, self.dimension)
+        check_mask(mask, self.dimension, f"{self.name}.selec")
         self._command(context, lambda s: setattr(s, "selection", mask))

@@ -1,4 +1,5 @@
-"""One loader for the robots of example-robot-data: ``load_robot("romeo")``, ``load_robot("pr2")``…
+"""One loader for the robots of example-robot-data, ``load_robot("romeo")``, ``load_robot("pr2")``…,
+and for your own: ``load_robot("path/to/robot.urdf")`` (see :mod:`.from_file`).
 
 ``add_robot`` adds a robot of :data:`sotdrake.robots.catalog.ROBOTS` to an unfinalized
 ``MultibodyPlant``: its URDF text is fixed up by :func:`~sotdrake.robots.urdf_text.prepare_urdf`,
@@ -16,7 +17,10 @@ from __future__ import annotations
 
 import importlib.metadata
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping, Sequence
+from os import PathLike
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from pydrake.geometry import SceneGraph
@@ -27,6 +31,7 @@ from pydrake.multibody.tree import ModelInstanceIndex, PlanarJoint
 
 from ..exceptions import InvalidInput, RobotNotFound, SotError, VariantNotFound
 from .catalog import BASES, ROBOTS, RobotSpec
+from .from_file import load_robot_file, looks_like_path, operational_points_of, posture_of
 from .model import RobotModel, posture_from_srdf
 from .srdf import read_group_state
 from .urdf_text import prepare_urdf
@@ -57,7 +62,9 @@ def available_robots() -> list[str]:
 def robot_spec(name: str) -> RobotSpec:
     """The catalog entry of ``name``; :class:`RobotNotFound` lists the robots that exist."""
     if name not in ROBOTS:
-        raise RobotNotFound(name, list(ROBOTS))
+        error = RobotNotFound(name, list(ROBOTS))
+        error.args = (f"{error.args[0]}; or give the path of a URDF, SDF or MJCF file",)
+        raise error
     return ROBOTS[name]
 
 
@@ -196,16 +203,57 @@ def _has_target(plant: MultibodyPlant, target: str) -> bool:
 
 
 def load_robot(
-    name: str,
+    name: str | PathLike[str],
     variant: str | None = None,
     meshes: bool = False,
     time_step: float = 0.0,
     base: str | None = None,
+    *,
+    srdf: str | PathLike[str] | None = None,
+    package_paths: Mapping[str, str | PathLike[str]] | None = None,
+    floating_base: bool | None = None,
+    operational_points: Mapping[str, str] | Sequence[str] | None = None,
+    reference_posture: Any = None,
 ) -> RobotModel:
-    """A finalized ``RobotModel`` of robot ``name`` (see :func:`available_robots`); with ``meshes``
-    the plant is registered with a SceneGraph (OBJ visual and collision meshes) that the model
-    holds. An unknown name raises :class:`RobotNotFound` listing the robots that exist; an unknown
-    variant, :class:`VariantNotFound` listing the robot's variants."""
+    """A finalized ``RobotModel``: of robot ``name`` of the catalog (see :func:`available_robots`),
+    or of the URDF, SDF or MJCF file at the path ``name`` (see :mod:`.from_file`: ``srdf``,
+    ``package_paths`` name → folder for ``package://`` URIs, ``floating_base`` (default False for
+    a file), ``operational_points`` name → joint/link/frame, ``reference_posture`` an array, a
+    ``{joint: value}`` dict or an SRDF group-state name).
+
+    With ``meshes`` the plant is registered with a SceneGraph (OBJ visual and collision meshes)
+    that the model holds. An unknown name raises :class:`RobotNotFound` listing the robots that
+    exist, a missing file :class:`~sotdrake.exceptions.RobotFileNotFound`; an unknown variant,
+    :class:`VariantNotFound` listing the robot's variants. For a catalog robot, ``floating_base``
+    chooses the base (free or fixed), ``operational_points`` are added to its own and
+    ``reference_posture`` replaces its own."""
+    if floating_base is not None and not isinstance(floating_base, bool):
+        raise InvalidInput(f"floating_base must be True or False, got {floating_base!r}")
+    if looks_like_path(name) or (isinstance(name, str) and name not in ROBOTS and Path(name).is_file()):
+        if variant is not None:
+            raise InvalidInput(f"variant={variant!r}: a robot loaded from a file has no variants")
+        if base is not None and floating_base is None:
+            if base not in ("free", "fixed"):
+                raise InvalidInput(f"a robot loaded from a file has a free or fixed base, not {base!r}")
+            floating_base = base == "free"
+        return load_robot_file(name, meshes, time_step, srdf=srdf, package_paths=package_paths,
+                               floating_base=bool(floating_base), operational_points=operational_points,
+                               reference_posture=reference_posture)
+    if srdf is not None or package_paths is not None:
+        raise InvalidInput(f"srdf and package_paths are for a robot loaded from a file; {name!r} is a robot of the catalog")
+    if floating_base is not None:
+        if base is not None and base != ("free" if floating_base else "fixed"):
+            raise InvalidInput(f"base={base!r} and floating_base={floating_base} disagree")
+        base = "free" if floating_base else "fixed"
+    model = _load_catalog_robot(str(name), variant, meshes, time_step, base)
+    if operational_points is not None:
+        model.OperationalPointsMap.update(operational_points_of(model, operational_points))
+    if reference_posture is not None:
+        model.half_sitting = posture_of(model, reference_posture)
+    return model
+
+
+def _load_catalog_robot(name: str, variant: str | None, meshes: bool, time_step: float, base: str | None) -> RobotModel:
     spec = robot_spec(name)
     variant = _variant(spec, variant)
     scene_graph = None

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
@@ -13,8 +14,17 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, FrameIndex, JointActuatorIndex
 
-from ..exceptions import FrameNotFound
+from ..exceptions import FrameNotFound, OperationalPointNotFound
 from .srdf import read_group_state
+
+
+class OperationalPoints(dict[str, str]):
+    """``robot.OperationalPointsMap``: op-point name → joint, link or frame name. An unknown name
+    raises :class:`~sotdrake.exceptions.OperationalPointNotFound` (a ``KeyError``) listing the op
+    points and the close matches (``'right_hand'`` → ``'right-wrist'``)."""
+
+    def __missing__(self, key: str) -> str:
+        raise OperationalPointNotFound(str(key), list(self))
 
 
 @dataclass
@@ -37,7 +47,15 @@ class RobotModel:
     base: str = "free"  #: ``free``, ``planar`` or ``fixed`` (see :data:`sotdrake.robots.catalog.BASES`)
     #: sole op point → contact rectangle ``(x_min, x_max, y_min, y_max)`` (m, sole frame), where known
     sole_rectangles: dict[str, tuple[float, float, float, float]] = field(default_factory=dict)
+    #: the description file of a robot loaded by path (None for the catalog's robots)
+    source_path: Path | None = None
+    #: the keyword arguments it was loaded with (to load it again, e.g. with meshes)
+    load_options: dict[str, Any] = field(default_factory=dict, repr=False)
     _frames: dict[str, Frame] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.OperationalPointsMap, OperationalPoints):
+            self.OperationalPointsMap = OperationalPoints(self.OperationalPointsMap)
 
     @property
     def nq(self) -> int:
@@ -79,6 +97,8 @@ class RobotModel:
         """The same robot with visual and collision meshes, on its own plant and SceneGraph."""
         from .loader import load_robot
 
+        if self.source_path is not None:
+            return load_robot(self.source_path, meshes=True, **self.load_options)
         return load_robot(self.name, self.variant, meshes=True, base=self.base)
 
     def joint_limits(self) -> dict[str, np.ndarray]:

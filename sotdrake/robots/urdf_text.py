@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import re
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from pathlib import Path
 
 from ..exceptions import SotError
@@ -53,21 +54,29 @@ def resolve_mesh_path(uri: str, share: Path) -> Path:
     return path
 
 
-def _mesh_uri(uri: str, share: Path) -> str:
-    path = resolve_mesh_path(uri, share)
+def _mesh_uri(uri: str, share: Path, resolve: Callable[[str], Path] | None = None) -> str:
+    path = resolve_mesh_path(uri, share) if resolve is None else resolve(uri)
     if path.suffix.lower() in CONVERTED_MESH_SUFFIXES:
         path = obj_for_mesh(path)
     return path.as_uri()
 
 
-def prepare_urdf(text: str, share: Path, meshes: bool, collision: bool = True, source: str = "URDF") -> str:
+def prepare_urdf(
+    text: str,
+    share: Path,
+    meshes: bool,
+    collision: bool = True,
+    source: str = "URDF",
+    resolve: Callable[[str], Path] | None = None,
+) -> str:
     """``text`` with the fix-ups of the module docstring applied, after its joint limits are checked
     (:func:`~sotdrake.robots.urdf_checks.check_urdf_limits`: Drake would abort the process on them).
 
     ``meshes``: keep visual and collision geometry (resolved, converted); otherwise drop it.
     ``collision``: with meshes, keep the ``<collision>`` elements too (a physics model may add its
     own contact geometry instead). ``share`` is example-robot-data's ``share/example-robot-data``;
-    ``source`` names the file in error messages.
+    ``source`` names the file in error messages; ``resolve`` (a mesh URI → its file, e.g.
+    :meth:`sotdrake.robots.packages.PackageResolver.path`) replaces :func:`resolve_mesh_path`.
     """
     check_urdf_limits(text, source)  # before any parser sees it
 
@@ -97,4 +106,4 @@ def prepare_urdf(text: str, share: Path, meshes: bool, collision: bool = True, s
         return re.sub(r"<(visual|collision)\b.*?</\1>", "", text, flags=re.S)
     if not collision:
         text = re.sub(r"<collision\b.*?</collision>", "", text, flags=re.S)
-    return _MESH_URI.sub(lambda m: m.group(1) + _mesh_uri(m.group(2), share) + m.group(3), text)
+    return _MESH_URI.sub(lambda m: m.group(1) + _mesh_uri(m.group(2), share, resolve) + m.group(3), text)

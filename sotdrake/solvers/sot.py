@@ -166,8 +166,11 @@ class SOT(Entity[StackSettings]):
         return list(self._task_ports)
 
     def _known(self, name: str) -> str:
-        if not isinstance(name, str) or name not in self._task_ports:
-            raise TaskNotFound(str(name), list(self._task_ports))
+        if not isinstance(name, str):
+            raise TaskNotFound(f"{name!r:.80}", list(self._task_ports)).but(
+                f"{self.name} expects a task name (str), a task or a meta task, got a {type(name).__name__}")
+        if name not in self._task_ports:
+            raise TaskNotFound(name, list(self._task_ports))
         return name
 
     def _task_name(self, task) -> str:
@@ -176,8 +179,9 @@ class SOT(Entity[StackSettings]):
 
     # --- stack commands (sot-core names) ---------------------------------------------------
     def push(self, name: str, context: Context | None = None) -> None:
-        """Append ``name`` at the bottom (lowest priority) of the stack."""
-        self._known(name)
+        """Append ``name`` (a task name, a task or a meta task) at the bottom (lowest priority) of
+        the stack."""
+        name = self._task_name(name)
         if name in self._inequality_tasks and not self.accepts_inequalities:
             raise StackError(
                 f"{self.name} is a {type(self).__name__}, which cannot solve the inequality task {name!r}: "
@@ -200,7 +204,7 @@ class SOT(Entity[StackSettings]):
         self._move(name, +1, context)
 
     def _move(self, name: str, step: int, context: Context | None) -> None:
-        self._known(name)
+        name = self._task_name(name)
 
         def change(s: StackSettings) -> None:
             if name not in s.tasks:
@@ -251,8 +255,8 @@ class SOT(Entity[StackSettings]):
         self._command(context, change)
 
     def remove(self, name: str, context: Context | None = None) -> None:
-        """Remove ``name`` from the stack."""
-        self._known(name)
+        """Remove ``name`` (a task name, a task or a meta task) from the stack."""
+        name = self._task_name(name)
 
         def change(s: StackSettings) -> None:
             if name not in s.tasks:

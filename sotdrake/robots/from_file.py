@@ -1,0 +1,289 @@
+"""Your own robot: a :class:`~sotdrake.robots.model.RobotModel` from a URDF, SDF or MJCF file.
+
+``load_robot("path/to/arm.urdf", floating_base=False)`` (see :func:`sotdrake.robots.load_robot`)
+comes here. The file is read as the catalog's robots are:
+
+* a URDF gets the fix-ups of :func:`~sotdrake.robots.urdf_text.prepare_urdf` (meshes resolved
+  through :class:`~sotdrake.robots.packages.PackageResolver`, STL and COLLADA converted to cached
+  OBJ files, ``<mimic>`` on fixed joints, transmissions …) and its limits are checked first: a
+  revolute or prismatic joint needs finite ``lower`` and ``upper`` (an unbounded one is
+  ``continuous``); a ``velocity="0"`` limit (often written for "not given") is read as no limit;
+* an SDF or MJCF file is parsed by Drake with the same package folders;
+* every 1-DOF joint without an actuator gets one (the URDF's effort limit, else unlimited).
+
+Base: ``floating_base=True`` leaves the root link free (Drake's 6-DOF floating base,
+``q = (qw, qx, qy, qz, x, y, z, …)``, ``v = (ω_WB, v_WB, …)`` in the world frame) and names it
+``root_joint`` for the op points (``'waist'``); ``False`` welds it to the world at the origin. A
+file whose root is already welded to ``world`` stays welded.
+
+Operational points: the given ones (op-point name → joint, link or frame of the model; a list of
+frame names maps each to itself), else the SRDF's ``<end_effector>`` (name → its ``parent_link``),
+every leaf link (a link with no child) under its own name and, for a floating base, ``waist``.
+Any frame, link or joint name is accepted where an op point is expected.
+
+Reference posture ``q0``: the given array (nq, Drake's order) or ``{joint: value}``, else an SRDF
+``group_state`` (the one named, else ``half_sitting``, ``standing``, ``default``, ``home``,
+``ready``, else the first), else every joint at 0; always clipped into the joint limits. The SRDF
+is ``srdf=`` or, when not given, ``<name>.srdf`` beside the file or in a sibling ``srdf/`` folder.
+"""
+
+from __future__ import annotations
+
+import re
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping, Sequence
+from os import PathLike
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydrake.geometry import SceneGraph
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import BodyIndex, JointIndex, ModelInstanceIndex
+
+from ..exceptions import InvalidInput, NotFound, RobotDescriptionError, RobotFileNotFound, check_finite
+from .catalog import ROBOTS
+from .model import OperationalPoints, RobotModel, posture_from_srdf
+from .packages import PackageResolver
+from .srdf import PostureNotFound, group_state_names, read_end_effectors
+from .urdf_text import prepare_urdf
+
+#: Suffix → Drake's parser format (``.xml`` is told apart by its root element).
+FORMATS = {".urdf": "urdf", ".sdf": "sdf", ".mjcf": "mjcf", ".xml": "xml"}
+
+#: SRDF group states tried, in order, when no reference posture is named.
+PREFERRED_POSTURES = ("half_sitting", "standing", "default", "home", "ready")
+
+PathArg = str | PathLike[str]
+
+
+def looks_like_path(name: object) -> bool:
+    """Whether :func:`~sotdrake.robots.load_robot` should read ``name`` as a file, not a catalog
+    name: a ``PathLike``, or a string with a folder separator or a description suffix."""
+    if isinstance(name, PathLike):
+        return True
+    return isinstance(name, str) and ("/" in name or "\\" in name or Path(name).suffix.lower() in FORMATS)
+
+
+def _format(path: Path) -> str:
+    kind = FORMATS.get(path.suffix.lower())
+    if kind is None:
+        raise RobotDescriptionError(f"{path}: unknown description format; expected one of {sorted(FORMATS)}")
+    if kind != "xml":
+        return kind
+    try:
+        tag = ET.parse(path).getroot().tag
+    except ET.ParseError as error:
+        raise RobotDescriptionError(f"{path}: not well-formed XML ({error})") from None
+    return {"robot": "urdf", "mujoco": "mjcf", "sdf": "sdf"}.get(tag) or _bad_root(path, tag)
+
+
+def _bad_root(path: Path, tag: str) -> str:
+    raise RobotDescriptionError(f"{path}: root element <{tag}>: expected <robot> (URDF), <sdf> or <mujoco> (MJCF)")
+
+
+def check_user_urdf(text: str, source: str) -> str:
+    """``text`` with ``velocity="0"`` limits removed (no limit), after checking that each revolute
+    or prismatic joint has finite ``lower`` and ``upper`` limits (:class:`RobotDescriptionError`)."""
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as error:
+        raise RobotDescriptionError(f"{source}: not well-formed XML ({error})") from None
+    for joint in root.iter("joint"):
+        if joint.get("type") not in ("revolute", "prismatic"):
+            continue
+        limit = joint.find("limit")
+        for side in ("lower", "upper"):
+            value = None if limit is None else limit.get(side)
+            try:
+                finite = value is not None and np.isfinite(float(value))
+            except ValueError:
+                finite = False
+            if not finite:
+                raise RobotDescriptionError(
+                    f"{source}: joint {joint.get('name', '?')!r} ({joint.get('type')}): limit {side}={value!r} is not a "
+                    "finite number; give finite limits (rad or m), or make an unbounded joint type=\"continuous\"")
+    return re.sub(r'(<limit\b[^>]*?)\svelocity\s*=\s*"0(\.0*)?"', r"\1", text)
+
+
+def _root_links(text: str) -> list[str]:
+    root = ET.fromstring(text)
+    children = {child.get("link") for joint in root.iter("joint") if (child := joint.find("child")) is not None}
+    return [link.get("name", "") for link in root.findall("link") if link.get("name") not in children]
+
+
+def _add_urdf(plant: MultibodyPlant, path: Path, resolver: PackageResolver, meshes: bool, floating_base: bool) -> ModelInstanceIndex:
+    from .loader import add_actuators
+
+    text = check_user_urdf(path.read_text(), str(path))
+    text = prepare_urdf(text, Path(), meshes, True, str(path), resolver.path)
+    roots = _root_links(text)
+    if len(roots) != 1:
+        raise RobotDescriptionError(f"{path}: a URDF has one root link (a link no joint has as child), found {roots}")
+    try:
+        (instance,) = Parser(plant).AddModelsFromString(text, "urdf")
+    except RuntimeError as error:
+        raise RobotDescriptionError(f"{path}: Drake's parser refused the file: {error}") from None
+    if roots[0] != "world" and not floating_base:
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(roots[0], instance))
+    add_actuators(plant, instance, text)
+    return instance
+
+
+def _add_other(plant: MultibodyPlant, path: Path, resolver: PackageResolver, floating_base: bool) -> list[ModelInstanceIndex]:
+    from .loader import add_actuators
+
+    parser = Parser(plant)
+    for name, folder in resolver.packages.items():
+        if not parser.package_map().Contains(name):
+            parser.package_map().Add(name, str(folder))
+    try:
+        instances = parser.AddModels(str(path))
+    except RuntimeError as error:
+        raise RobotDescriptionError(f"{path}: Drake's parser refused the file: {error}") from None
+    for instance in instances:
+        if not floating_base:
+            children = {plant.get_joint(j).child_body().index() for j in plant.GetJointIndices()}
+            roots = [b for b in plant.GetBodyIndices(instance) if b not in children and b != BodyIndex(0)]
+            if roots:
+                plant.WeldFrames(plant.world_frame(), plant.get_body(roots[0]).body_frame())
+        add_actuators(plant, instance, "<robot/>")
+    return instances
+
+
+def find_srdf(path: Path) -> Path | None:
+    """``<stem>.srdf`` beside the description, or in a ``srdf/`` folder beside its folder."""
+    for candidate in (path.with_suffix(".srdf"), path.parent.parent / "srdf" / f"{path.stem}.srdf"):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def _movable_dofs(plant: MultibodyPlant) -> int:
+    return sum(plant.get_joint(JointIndex(i)).num_velocities() for i in range(plant.num_joints())
+               if not plant.get_joint(JointIndex(i)).type_name().endswith("quaternion_floating"))
+
+
+def default_operational_points(model: RobotModel) -> dict[str, str]:
+    """The SRDF's end effectors, the leaf links and, for a floating base, ``waist`` (see the module
+    docstring)."""
+    plant = model.plant
+    points: dict[str, str] = {}
+    if model.srdf_path is not None:
+        points.update({n: link for n, link in read_end_effectors(model.srdf_path).items() if plant.HasFrameNamed(link)})
+    parents = {plant.get_joint(j).parent_body().index() for j in plant.GetJointIndices()}
+    for index in range(1, plant.num_bodies()):
+        body = plant.get_body(BodyIndex(index))
+        if body.index() not in parents:
+            points.setdefault(body.name(), body.name())
+    if plant.GetFloatingBaseBodies():
+        points["waist"] = "root_joint"
+    return points
+
+
+def operational_points_of(model: RobotModel, given: Mapping[str, str] | Sequence[str] | None) -> OperationalPoints:
+    """The op-point map of ``model``: ``given`` (checked: each target must be a joint, link or frame
+    of the model, else :class:`~sotdrake.exceptions.FrameNotFound` listing them) or the defaults."""
+    if given is None:
+        return OperationalPoints(default_operational_points(model))
+    if isinstance(given, str) or not isinstance(given, (Mapping, Sequence)):
+        raise InvalidInput(f"operational_points: expected a dict of op-point name → frame name, or a list of frame "
+                           f"names, got {given!r:.100}")
+    points = dict(given) if isinstance(given, Mapping) else {name: name for name in given}
+    for name, target in points.items():
+        if not isinstance(name, str) or not isinstance(target, str):
+            raise InvalidInput(f"operational_points: names and frames are strings, got {name!r}: {target!r}")
+        model.frame(target)  # raises FrameNotFound naming the model's frames
+    return OperationalPoints(points)
+
+
+def posture_of(model: RobotModel, given: Any) -> np.ndarray:
+    """The reference posture (see the module docstring), clipped into the joint limits."""
+    plant = model.plant
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    q = np.clip(plant.GetDefaultPositions(), lower, upper)
+    srdf = model.srdf_path
+    if isinstance(given, str):
+        if srdf is None:
+            raise InvalidInput(f"reference_posture={given!r} names an SRDF group state, but the robot has no SRDF: "
+                               "give srdf='path/to/robot.srdf', or the posture as an array or {joint: value}")
+        names = group_state_names(srdf)
+        if given not in names:
+            raise PostureNotFound(given, names)
+        q = posture_from_srdf(plant, srdf, given, q)
+    elif isinstance(given, Mapping):
+        context = plant.CreateDefaultContext()
+        plant.SetPositions(context, q)
+        for joint_name, value in given.items():
+            if not isinstance(joint_name, str) or not plant.HasJointNamed(joint_name):
+                raise NotFound(str(joint_name), [plant.get_joint(j).name() for j in plant.GetJointIndices()])
+            joint = plant.GetJointByName(joint_name)
+            values = check_finite(f"reference_posture[{joint_name!r}]", np.atleast_1d(value), (joint.num_positions(),))
+            q[joint.position_start() : joint.position_start() + joint.num_positions()] = values
+    elif given is not None:
+        q = check_finite("reference_posture (q0, Drake's order)", given, (plant.num_positions(),)).copy()
+    elif srdf is not None:
+        names = group_state_names(srdf)
+        preferred = [n for n in PREFERRED_POSTURES if n in names] or names[:1]
+        if preferred:
+            q = posture_from_srdf(plant, srdf, preferred[0], q)
+    return np.clip(q, lower, upper)
+
+
+def load_robot_file(
+    path: PathArg,
+    meshes: bool = False,
+    time_step: float = 0.0,
+    *,
+    srdf: PathArg | None = None,
+    package_paths: Mapping[str, PathArg] | None = None,
+    floating_base: bool = False,
+    operational_points: Mapping[str, str] | Sequence[str] | None = None,
+    reference_posture: Any = None,
+) -> RobotModel:
+    """A finalized :class:`RobotModel` of the robot described by ``path`` (see the module
+    docstring). Errors: :class:`~sotdrake.exceptions.RobotFileNotFound` (no such file),
+    :class:`~sotdrake.exceptions.RobotDescriptionError` (unreadable file, a non-finite limit, no
+    movable joint), :class:`~sotdrake.exceptions.PackageNotFound`,
+    :class:`~sotdrake.exceptions.FrameNotFound` (an op point on a frame the model lacks)."""
+    file = Path(path).expanduser()
+    if not file.is_file():
+        raise RobotFileNotFound(str(path), list(ROBOTS))
+    if not isinstance(floating_base, bool):
+        raise InvalidInput(f"floating_base must be True or False, got {floating_base!r}")
+    srdf_path = find_srdf(file) if srdf is None else Path(srdf).expanduser()
+    if srdf_path is not None and not srdf_path.is_file():
+        raise RobotFileNotFound(str(srdf), [])
+    kind = _format(file)
+    resolver = PackageResolver(file, package_paths)
+    plant = MultibodyPlant(time_step)
+    scene_graph = None
+    if meshes:
+        scene_graph = SceneGraph()
+        plant.RegisterAsSourceForSceneGraph(scene_graph)
+    if kind == "urdf":
+        _add_urdf(plant, file, resolver, meshes, floating_base)
+    else:
+        _add_other(plant, file, resolver, floating_base)
+    plant.Finalize()
+    if _movable_dofs(plant) == 0:
+        raise RobotDescriptionError(f"{file}: the robot has no movable joint (every joint is fixed): nothing to control")
+    floating = bool(plant.GetFloatingBaseBodies())
+    model = RobotModel(
+        plant=plant,
+        variant="file",
+        OperationalPointsMap=OperationalPoints(),
+        half_sitting=np.zeros(plant.num_positions()),
+        fixed_base=not floating,
+        scene_graph=scene_graph,
+        srdf_path=srdf_path,
+        name=file.stem,
+        base="free" if floating else "fixed",
+        source_path=file.resolve(),
+        load_options={"srdf": srdf, "package_paths": package_paths, "floating_base": floating_base,
+                      "operational_points": operational_points, "reference_posture": reference_posture},
+    )
+    model.OperationalPointsMap.update(operational_points_of(model, operational_points))
+    model.half_sitting = posture_of(model, reference_posture)
+    return model

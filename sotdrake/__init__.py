@@ -3,8 +3,21 @@
 The names a SoT user reaches for, in the seed's vocabulary (see README, "Your first stack")::
 
     from sotdrake import robot, talos, add_sot, MetaTaskKine6d, MetaTaskKineCom, gotoNd, attime, simulate
+
+Everything a user composes is importable from here and listed in ``__all__``: robots
+(``load_robot`` also takes the path of your own URDF), meta tasks, features and their desired
+values, tasks, gains, solvers, the dynamic SoT, contacts, the tracer and publishers, the physics
+and walking wings. The wings that pull in more (``dynamics``, ``physics``, ``walking``, ``sweep``,
+``live``, ``publishing``) are imported on first use of one of their names.
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+from .configuration import velocity_names
+from .device import Device
 from .exceptions import (
     FrameNotFound,
     InvalidInput,
@@ -16,11 +29,26 @@ from .exceptions import (
     RobotNotFound,
     SolverError,
     SotError,
+    SotWarning,
     StackError,
     TaskNotFound,
 )
+from .features import (
+    Feature,
+    Feature1D,
+    Feature6d,
+    Feature6dDesired,
+    FeatureGeneric,
+    FeatureGenericDesired,
+    FeatureJointLimits,
+    FeaturePosture,
+    FeatureRelative6d,
+    FeatureVisualPoint,
+)
+from .gains import GainAdaptive, GainHyperbolic
 from .interactive import Runner
 from .introspection import displayAll, displaySignals, entities, entity, signal, signals_report
+from .kinematics import Dynamic
 from .meta_tasks import (
     MetaTaskKine6d,
     MetaTaskKine6dRel,
@@ -32,10 +60,13 @@ from .meta_tasks import (
     hold_feet_and_com,
 )
 from .robot import Robot, add_sot, robot, talos
-from .robots import TALOS_GRIPPERS, RobotModel, load_robot, load_talos
+from .robots import ROBOTS, TALOS_GRIPPERS, RobotModel, available_robots, load_robot, load_talos
 from .sequencer import attime
 from .simulation import save_figure, script_arguments, simulate, start, write_run
 from .solvers import SOT, SolverKine
+from .solvers.hqp import ACTIVE_SET, SOLVERS
+from .stack_checks import check_stack
+from .task import Task, TaskInequality, TaskLevel, TaskPD
 from .tracing import Tracer
 from .visualization import (
     add_robot_visualizer,
@@ -45,11 +76,152 @@ from .visualization import (
     write_control_graph,
 )
 
+#: Names imported on first use, by module (the wings that pull in more than the kinematic SoT).
+_LAZY: dict[str, tuple[str, ...]] = {
+    ".dynamics": ("Contact6d", "DynamicEntity", "RobotDynSimu", "SolverDyn", "TaskDynPD"),
+    ".dynamics.robot_dyn": ("RobotDyn",),
+    ".dynamics.meta_tasks_dyn": ("MetaTaskDyn6d", "MetaTaskDynCom", "MetaTaskDynPosture"),
+    ".dynamics.contact": ("friction_ratio",),
+    ".dynamics.station": ("sole_rectangle",),
+    ".dynamics.trajectories": ("hold_move_hold", "minimum_jerk_moves", "trajectory_ports"),
+    ".physics": (
+        "FRICTION",
+        "SOLE_BOX",
+        "ContactMonitor",
+        "DesiredState",
+        "KinematicBaseEstimator",
+        "PhysicalTalos",
+        "Push",
+        "TalosStation",
+        "add_physical_talos",
+        "add_talos_station",
+        "fall_time",
+    ),
+    ".walking": (
+        "GRAVITY",
+        "ComStabilizer",
+        "GaitParameters",
+        "GravityFeedforward",
+        "MeasuredCom",
+        "PatternGenerator",
+        "WalkCommand",
+        "footprint",
+        "initial_plan",
+        "leg_masses",
+        "motion_zmp",
+        "polygon_margin",
+        "replan",
+        "start_of",
+        "support_polygon",
+    ),
+    ".sweep": ("EngineUnavailable", "add_sweep_arguments", "engine_options", "grid", "per_process", "random_cases", "run_sweep"),
+    ".live": ("add_live_arguments", "live_meshcat", "run_live"),
+    ".publishing": ("RobotStateMessage", "add_signal_publisher", "add_state_publisher"),
+}
+_LAZY_MODULE = {name: module for module, names in _LAZY.items() for name in names}
+
+if TYPE_CHECKING:
+    from .dynamics import Contact6d, DynamicEntity, RobotDynSimu, SolverDyn, TaskDynPD
+    from .dynamics.contact import friction_ratio
+    from .dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
+    from .dynamics.robot_dyn import RobotDyn
+    from .dynamics.station import sole_rectangle
+    from .dynamics.trajectories import hold_move_hold, minimum_jerk_moves, trajectory_ports
+    from .live import add_live_arguments, live_meshcat, run_live
+    from .physics import (
+        FRICTION,
+        SOLE_BOX,
+        ContactMonitor,
+        DesiredState,
+        KinematicBaseEstimator,
+        PhysicalTalos,
+        Push,
+        TalosStation,
+        add_physical_talos,
+        add_talos_station,
+        fall_time,
+    )
+    from .publishing import RobotStateMessage, add_signal_publisher, add_state_publisher
+    from .sweep import (
+        EngineUnavailable,
+        add_sweep_arguments,
+        engine_options,
+        grid,
+        per_process,
+        random_cases,
+        run_sweep,
+    )
+    from .walking import (
+        GRAVITY,
+        ComStabilizer,
+        GaitParameters,
+        GravityFeedforward,
+        MeasuredCom,
+        PatternGenerator,
+        WalkCommand,
+        footprint,
+        initial_plan,
+        leg_masses,
+        motion_zmp,
+        polygon_margin,
+        replan,
+        start_of,
+        support_polygon,
+    )
+
+
+def __getattr__(name: str) -> Any:
+    """The names of :data:`_LAZY`, imported on first use."""
+    module = _LAZY_MODULE.get(name)
+    if module is None:
+        raise AttributeError(f"module 'sotdrake' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY_MODULE))
+
+
 __all__ = [
+    "ACTIVE_SET",
+    "FRICTION",
+    "GRAVITY",
+    "ROBOTS",
+    "SOLE_BOX",
+    "SOLVERS",
     "SOT",
     "TALOS_GRIPPERS",
+    "ComStabilizer",
+    "Contact6d",
+    "ContactMonitor",
+    "DesiredState",
+    "Device",
+    "Dynamic",
+    "DynamicEntity",
+    "EngineUnavailable",
+    "Feature",
+    "Feature1D",
+    "Feature6d",
+    "Feature6dDesired",
+    "FeatureGeneric",
+    "FeatureGenericDesired",
+    "FeatureJointLimits",
+    "FeaturePosture",
+    "FeatureRelative6d",
+    "FeatureVisualPoint",
     "FrameNotFound",
+    "GainAdaptive",
+    "GainHyperbolic",
+    "GaitParameters",
+    "GravityFeedforward",
     "InvalidInput",
+    "KinematicBaseEstimator",
+    "MeasuredCom",
+    "MetaTaskDyn6d",
+    "MetaTaskDynCom",
+    "MetaTaskDynPosture",
     "MetaTaskKine6d",
     "MetaTaskKine6dRel",
     "MetaTaskKineCom",
@@ -59,40 +231,85 @@ __all__ = [
     "NotFound",
     "OperationalPointNotFound",
     "PackageNotFound",
+    "PatternGenerator",
+    "PhysicalTalos",
+    "Push",
+    "Robot",
     "RobotDescriptionError",
+    "RobotDyn",
+    "RobotDynSimu",
     "RobotFileNotFound",
     "RobotModel",
-    "Robot",
     "RobotNotFound",
+    "RobotStateMessage",
     "Runner",
+    "SolverDyn",
     "SolverError",
     "SolverKine",
     "SotError",
+    "SotWarning",
     "StackError",
+    "TalosStation",
+    "Task",
+    "TaskDynPD",
+    "TaskInequality",
+    "TaskLevel",
     "TaskNotFound",
+    "TaskPD",
     "Tracer",
+    "WalkCommand",
+    "add_live_arguments",
+    "add_physical_talos",
     "add_robot_visualizer",
+    "add_signal_publisher",
     "add_sot",
+    "add_state_publisher",
+    "add_sweep_arguments",
+    "add_talos_station",
     "add_target_marker",
     "attime",
+    "available_robots",
+    "check_stack",
     "displayAll",
     "displaySignals",
+    "engine_options",
     "entities",
     "entity",
+    "fall_time",
+    "footprint",
+    "friction_ratio",
     "gotoNd",
+    "grid",
     "hold_feet_and_com",
+    "hold_move_hold",
+    "initial_plan",
+    "leg_masses",
+    "live_meshcat",
     "load_robot",
     "load_talos",
+    "minimum_jerk_moves",
+    "motion_zmp",
+    "per_process",
+    "polygon_margin",
+    "random_cases",
+    "replan",
     "robot",
+    "run_live",
+    "run_sweep",
     "save_figure",
     "save_recording",
     "script_arguments",
     "signal",
     "signals_report",
     "simulate",
+    "sole_rectangle",
     "start",
     "start_meshcat",
+    "start_of",
+    "support_polygon",
     "talos",
+    "trajectory_ports",
+    "velocity_names",
     "write_control_graph",
     "write_run",
 ]

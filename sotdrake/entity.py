@@ -8,7 +8,9 @@ them in one of three places:
 * ``context=`` the root diagram context (or the entity's own): that context only, e.g. between
   ``Simulator.AdvanceTo`` calls;
 * no context, at build time: the entity's *defaults*, which every context created afterwards
-  starts from (contexts already created are not touched);
+  starts from (contexts already created are not touched: once a context of the entity exists, the
+  first such command warns, :class:`~sotdrake.exceptions.SotWarning`, that the running context
+  is not changed and how to change it);
 * no context, inside :func:`sotdrake.sequencer.attime`: the command is recorded and replayed by a
   timed event of this entity.
 
@@ -19,18 +21,34 @@ command leaves everything unchanged.
 from __future__ import annotations
 
 import copy
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any, Generic, TypeVar
 
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafContext, LeafSystem
 
-from .exceptions import InvalidInput, SotError
+from .exceptions import InvalidInput, SotError, SotWarning
 
 S = TypeVar("S")
 
 #: Recorders of :func:`sotdrake.sequencer.attime`, innermost last.
 _recorders: list[list[tuple[Entity, Callable[[Any], None]]]] = []
+
+#: Depth of :func:`probing`: contexts made meanwhile are not counted as the user's.
+_probing: list[bool] = []
+
+
+@contextmanager
+def probing() -> Iterator[None]:
+    """Contexts created inside (e.g. by :func:`sotdrake.stack_checks.check_stack`) do not count as
+    contexts the user runs: a later command without ``context=`` does not warn because of them."""
+    _probing.append(True)
+    try:
+        yield
+    finally:
+        _probing.pop()
 
 
 def own_context(system: LeafSystem, context: Context) -> Context:
@@ -73,6 +91,8 @@ class _DefaultsSnapshot:
     def __deepcopy__(self, memo: dict) -> _DefaultsSnapshot | _Frozen:
         if self.owner._declaring:
             return _DefaultsSnapshot(self.owner)
+        if not _probing:
+            self.owner._context_made = True
         return _Frozen(copy.deepcopy(self.owner._defaults, memo))
 
 
@@ -83,6 +103,8 @@ class Entity(LeafSystem, Generic[S]):
         LeafSystem.__init__(self)
         self.set_name(name)
         self._defaults = defaults
+        self._context_made = False  # a context of this entity exists: defaults no longer reach it
+        self._warned_late_default = False
         self._declaring = True
         self._settings_index = self.DeclareAbstractState(AbstractValue.Make(_DefaultsSnapshot(self)))
         self._declaring = False
@@ -117,6 +139,13 @@ class Entity(LeafSystem, Generic[S]):
             new = copy.deepcopy(self._defaults)
             change(new)
             self._defaults = new
+            if self._context_made and not self._warned_late_default:
+                self._warned_late_default = True
+                warnings.warn(
+                    f"{self.name}: a command without context= changes the defaults, which only contexts created from "
+                    "now on start from; a context of this diagram already exists (a Simulator's?) and is NOT changed: "
+                    "pass context=simulator.get_mutable_context() (or runner.context) to change a running simulation "
+                    "(warned once for this entity)", SotWarning, stacklevel=3)
             return
         own = self.own_context(context)
         new = copy.deepcopy(own.get_abstract_state(self._settings_index).get_value().value)

@@ -14,6 +14,11 @@ class SotError(Exception):
     """Base class of every sotdrake error."""
 
 
+class SotWarning(UserWarning):
+    """Something that works but may not do what was meant (a command that does not reach a running
+    simulation, a task that constrains nothing, a target that is not reached)."""
+
+
 class InvalidInput(SotError, ValueError):
     """A value has the wrong size, is not finite, or is out of its domain."""
 
@@ -88,14 +93,20 @@ class NotFound(SotError, KeyError):
 
 
 class FrameNotFound(NotFound):
+    """A frame, joint or operational point the robot model does not have; lists those it has."""
+
     kind = "frame or operational point"
 
 
 class TaskNotFound(NotFound):
+    """A task name the solver does not know; lists the tasks it knows."""
+
     kind = "task"
 
 
 class RobotNotFound(NotFound):
+    """A robot name that is neither in the catalog nor the path of a file; lists the catalog."""
+
     kind = "robot"
 
 

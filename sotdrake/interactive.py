@@ -33,6 +33,9 @@ def _number(name: str, value, low: float, high: float, low_open: bool = False) -
 
 
 class Runner:
+    """A ``Simulator`` driven the seed's way: ``next()``, ``step(n)``, ``go(duration)`` (see the
+    module docstring); ``context`` is the root context to give commands."""
+
     def __init__(self, diagram: Diagram, dt: float, realtime_rate: float = 0.0):
         _number("dt", dt, 0.0, 1.0, low_open=True)
         _number("realtime_rate", realtime_rate, 0.0, 1e6)

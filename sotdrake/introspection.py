@@ -23,6 +23,7 @@ def entities(diagram: Diagram) -> list[str]:
 
 
 def entity(diagram: Diagram, name: str) -> System:
+    """The system named ``name`` in ``diagram`` (sot-core's entity by name); :class:`NotFound` lists the names."""
     for system in diagram.GetSystems():
         if system.get_name() == name:
             return system

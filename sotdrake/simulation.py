@@ -77,11 +77,15 @@ def check_output_directory(out: Path) -> None:
 def simulate(diagram: Diagram, duration: float, visualizer=None, progress: bool = True,
              label: str = "") -> tuple[Simulator, float]:
     """Run ``duration`` seconds of simulated time (recording ``visualizer`` if given); returns the
-    simulator and the wall time of the loop (s)."""
+    simulator and the wall time of the loop (s). The stacks are checked first
+    (:func:`sotdrake.stack_checks.check_stack`: a task without gain or feature is named)."""
     from tqdm import tqdm
+
+    from .stack_checks import check_stack
 
     if not duration > 0:
         raise InvalidInput(f"duration must be > 0, got {duration}")
+    check_stack(diagram)
     simulator = Simulator(diagram)
     simulator.Initialize()
     if visualizer is not None:

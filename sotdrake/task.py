@@ -20,15 +20,17 @@ instead (any source of rows). Outputs ``task``, a :class:`TaskLevel` for the sol
 from __future__ import annotations
 
 import math
+import re
+import warnings
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context, LeafSystem
+from pydrake.systems.framework import Context, LeafContext, LeafSystem
 
 from .entity import Entity
-from .exceptions import InvalidInput, check_finite
+from .exceptions import InvalidInput, SotWarning, StackError, check_finite
 from .features.base import FeatureValue, feature_signals
 from .ranges import MAX_TARGET_POSITION
 
@@ -52,6 +54,28 @@ class TaskLevel(NamedTuple):
     def reference(self) -> np.ndarray:
         """``ė*`` of an equality task."""
         return self.lower
+
+
+_UNCONNECTED = re.compile(r"required InputPort\[\d+\] \((\w+)\) of System (\S+) \(([\w.]+)\) is not connected")
+
+
+def unconnected_input_message(task_name: str, error: RuntimeError) -> str | None:
+    """A sentence naming what is missing when ``error`` is Drake's "required InputPort … is not
+    connected", raised while task ``task_name`` was evaluated; None for another error."""
+    match = _UNCONNECTED.search(str(error))
+    if match is None:
+        return None
+    port, path, kind = match.groups()
+    system = path.rsplit("::", 1)[-1]
+    if system == task_name and port == "controlGain":
+        return (f"task {task_name!r} has no gain: connect a gain's 'gain' output to its 'controlGain' input, e.g. "
+                f"builder.Connect(gain.GetOutputPort('gain'), task.GetInputPort('controlGain')) with "
+                "gain = GainAdaptive(...), or build it with a meta task (MetaTaskKine6d …), which does")
+    if system == task_name:
+        return (f"task {task_name!r} has no feature: connect a feature's 'signals' output to its 'feature' input "
+                "(or its 'error' and 'jacobian' inputs), or build it with a meta task (MetaTaskKine6d …), which does")
+    return (f"task {task_name!r} cannot be evaluated: the input {port!r} of {system!r} ({kind.rsplit('.', 1)[-1]}) "
+            "is not connected (a meta task connects its feature's inputs)")
 
 
 def _norm(x: np.ndarray) -> float:
@@ -93,9 +117,28 @@ class _TaskBase(LeafSystem):
         """``(e, J, ė_ref)`` from ``feature``, else from ``error``, ``jacobian``, ``errordot``."""
         return feature_signals(context, self.feature, self.error, self.jacobian, self.errordot)
 
+    def missing_inputs(self, context: Context) -> str | None:
+        """What keeps this task from being evaluated in ``context`` (its own or the root's): a
+        sentence naming the task and the unconnected input (its gain, its feature, an input of its
+        feature), or None when it can be evaluated."""
+        own = context if isinstance(context, LeafContext) else self.GetMyContextFromRoot(context)
+        try:
+            self._inputs(own)
+            self.controlGain.Eval(own)
+        except RuntimeError as error:
+            return unconnected_input_message(self.name, error)
+        return None
+
     def _calc(self, context: Context, value: AbstractValue) -> None:
-        e, J, e_dot = self._inputs(context)
-        lower, upper = self._rows(context, e, self.controlGain.Eval(context)[0])
+        try:
+            e, J, e_dot = self._inputs(context)
+            gain = self.controlGain.Eval(context)[0]
+        except RuntimeError as error:
+            missing = unconnected_input_message(self.name, error)
+            if missing is not None:
+                raise StackError(missing) from None
+            raise
+        lower, upper = self._rows(context, e, gain)
         if e_dot is not None and np.count_nonzero(e_dot):
             if e_dot.shape != e.shape:
                 raise InvalidInput(f"{self.name}: errordot has {e_dot.size} rows, error has {e.size}")
@@ -174,12 +217,13 @@ class InequalityBounds:
 class TaskInequality(_TaskBase, Entity[InequalityBounds]):
     """Inequality task ``e_min ≤ e ≤ e_max`` (see the module docstring). Bounds are settings:
     ``setBounds(lower, upper)``, one per selected row of the feature, ±inf for a free side. Until
-    they are set, every row is free."""
+    they are set, every row is free (and the task warns once when it is evaluated in a stack)."""
 
     is_inequality = True
 
     def __init__(self, name: str, nv: int):
         Entity.__init__(self, name, InequalityBounds())
+        self._warned_unbounded = False  # logging only
         self._declare_ports(nv)
 
     def setBounds(self, lower, upper, context: Context | None = None) -> None:
@@ -202,9 +246,23 @@ class TaskInequality(_TaskBase, Entity[InequalityBounds]):
 
         self._command(context, set_bounds)
 
+    def unbounded(self, context: Context | None = None) -> bool:
+        """True while no bounds are set (in ``context``, else in the defaults): the task is inert."""
+        return self.settings(context).lower.size == 0
+
+    def warn_if_unbounded(self, context: Context | None = None) -> None:
+        """Warn (once per task, :class:`~sotdrake.exceptions.SotWarning`) if the task has no bounds."""
+        if self.unbounded(context) and not self._warned_unbounded:
+            self._warned_unbounded = True
+            warnings.warn(f"{self.name}: an inequality task in the stack without bounds (setBounds was never called): "
+                          f"every row is free, it constrains nothing; call {self.name}.setBounds(lower, upper)",
+                          SotWarning, stacklevel=2)
+
     def _rows(self, context, e, gain):
         s = self._settings_of(context)
         if s.lower.size == 0:  # no bounds yet: every row free
+            if not self._warned_unbounded:
+                self.warn_if_unbounded(context)
             return np.full(e.shape, -np.inf), np.full(e.shape, np.inf)
         if e.shape != s.lower.shape:
             raise InvalidInput(f"{self.name}: error has {e.size} rows, bounds have {s.lower.size}")

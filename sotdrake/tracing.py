@@ -19,6 +19,9 @@ from .simulation import save_figure
 
 
 class Tracer:
+    """sot-core's ``Tracer``: vector output ports logged every ``period`` seconds (see the module
+    docstring), saved to ``.npz`` and CSV and plotted."""
+
     def __init__(self, builder: DiagramBuilder, period: float):
         if not period > 0:
             raise InvalidInput(f"tracer period must be > 0, got {period}")

@@ -35,12 +35,10 @@ from sotdrake import (
 
 ROOT = Path(__file__).resolve().parents[1]
 
-_INERTIAL = ('<inertial><origin xyz="{c}"/><mass value="1"/>'
-             '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>')
+_INERTIAL = '<inertial><origin xyz="{c}"/><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>'
 
 
-def chain_urdf(name: str, axes: list[str], length: float, limits: list[tuple[float, float]],
-               visual: str = "", extra: str = "") -> str:
+def chain_urdf(name: str, axes: list[str], length: float, limits: list[tuple[float, float]], visual: str = "", extra: str = "") -> str:
     """A serial chain: ``base`` then one revolute joint per axis (``joint1``…), links of
     ``length`` m along z (x for a planar arm), a fixed ``hand`` link at the tip."""
     planar = all(a == "0 0 1" for a in axes)
@@ -52,12 +50,15 @@ def chain_urdf(name: str, axes: list[str], length: float, limits: list[tuple[flo
         parent = "base" if i == 1 else f"link{i - 1}"
         origin = "0 0 0" if i == 1 else step
         links.append(f'<link name="link{i}">{_INERTIAL.format(c=half)}</link>')
-        joints.append(f'<joint name="joint{i}" type="revolute"><parent link="{parent}"/><child link="link{i}"/>'
-                      f'<origin xyz="{origin}"/><axis xyz="{axis}"/>'
-                      f'<limit lower="{low}" upper="{high}" effort="50" velocity="2"/></joint>')
+        joints.append(
+            f'<joint name="joint{i}" type="revolute"><parent link="{parent}"/><child link="link{i}"/>'
+            f'<origin xyz="{origin}"/><axis xyz="{axis}"/>'
+            f'<limit lower="{low}" upper="{high}" effort="50" velocity="2"/></joint>'
+        )
     links.append(f'<link name="hand">{_INERTIAL.format(c="0 0 0")}</link>')
-    joints.append(f'<joint name="hand_joint" type="fixed"><parent link="link{len(axes)}"/><child link="hand"/>'
-                  f'<origin xyz="{step}"/></joint>')
+    joints.append(
+        f'<joint name="hand_joint" type="fixed"><parent link="link{len(axes)}"/><child link="hand"/><origin xyz="{step}"/></joint>'
+    )
     return f'<robot name="{name}">{"".join(links)}{"".join(joints)}{extra}</robot>'
 
 
@@ -137,15 +138,13 @@ def test_example_robot_data_panda_by_path():
     catalog = load_robot("panda")
     np.testing.assert_allclose(model.reference_posture, catalog.reference_posture)
     X = MetaTaskKine6d  # noqa: F841  (public name)
-    tcp = model.plant.CalcRelativeTransform(model.plant.CreateDefaultContext(), model.plant.world_frame(),
-                                            model.frame("end_effector"))
+    tcp = model.plant.CalcRelativeTransform(model.plant.CreateDefaultContext(), model.plant.world_frame(), model.frame("end_effector"))
     assert np.isfinite(tcp.translation()).all()
 
 
 def test_example_robot_data_ur5_by_path_with_meshes_reaches():
     path = erd_robot("ur_description/urdf/ur5_robot.urdf")
-    model = load_robot(path, meshes=True, operational_points={"hand": "tool0"},
-                       reference_posture=[0.0, -1.0, 1.0, -1.5, -1.5, 0.0])
+    model = load_robot(path, meshes=True, operational_points={"hand": "tool0"}, reference_posture=[0.0, -1.0, 1.0, -1.5, -1.5, 0.0])
     assert model.scene_graph is not None  # package://example-robot-data/… resolved, meshes converted
     q0 = model.reference_posture
     X = model.plant.CalcRelativeTransform(_context_at(model, q0), model.plant.world_frame(), model.frame("hand"))
@@ -172,7 +171,7 @@ def test_package_uris_resolved_from_package_xml_and_package_paths(tmp_path):
     (package / "meshes").mkdir()
     (package / "package.xml").write_text("<package><name>my_arm_description</name></package>")
     (package / "meshes" / "box.stl").write_text(_ASCII_STL)
-    visual = ('<visual><geometry><mesh filename="package://my_arm_description/meshes/box.stl"/></geometry></visual>')
+    visual = '<visual><geometry><mesh filename="package://my_arm_description/meshes/box.stl"/></geometry></visual>'
     urdf = package / "urdf" / "arm.urdf"
     urdf.write_text(chain_urdf("arm", ["0 0 1"] * 2, 0.3, [(-1.0, 1.0)] * 2, visual))
     assert load_robot(urdf, meshes=True).scene_graph is not None
@@ -212,8 +211,9 @@ def test_load_errors_are_clear(tmp_path):
     with pytest.raises(RobotNotFound, match=r"unknown robot 'my_robot'.*path of a URDF"):
         load_robot("my_robot")
     fixed = tmp_path / "fixed.urdf"
-    fixed.write_text('<robot name="f"><link name="a"/><link name="b"/><joint name="j" type="fixed">'
-                     '<parent link="a"/><child link="b"/></joint></robot>')
+    fixed.write_text(
+        '<robot name="f"><link name="a"/><link name="b"/><joint name="j" type="fixed"><parent link="a"/><child link="b"/></joint></robot>'
+    )
     with pytest.raises(RobotDescriptionError, match="no movable joint"):
         load_robot(fixed)
     unbounded = tmp_path / "unbounded.urdf"
@@ -252,4 +252,4 @@ def test_guide_examples_run(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     namespace: dict = {"__name__": "guide"}
     for block in blocks:
-        exec(compile(block, "your_robot.md", "exec"), namespace)  # noqa: S102
+        exec(compile(block, "your_robot.md", "exec"), namespace)

@@ -38,6 +38,9 @@ TALOS_SOLES = ("left-sole", "right-sole")
 
 
 class RobotDyn:
+    """The dynamic SoT's robot: ``dynamic``, ``sot`` (``SolverDyn``) and the device in ``builder``
+    (see the module docstring); tasks and contacts are connected to the solver as they are created."""
+
     def __init__(self, builder: DiagramBuilder, model: RobotModel, device: str = "dynsimu", dt: float = 1e-3,
                  q0: np.ndarray | None = None, max_contacts: int = 2, solver: str = ACTIVE_SET, effort_scale: float = 1.0):
         if device not in DEVICES:

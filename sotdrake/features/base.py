@@ -25,7 +25,6 @@ from ..entity import Entity
 from ..exceptions import InvalidInput
 from ..selection import parse_selection
 
-
 #: Component names of the usual feature sizes (a mask reads them right to left).
 _COMPONENTS = {6: "X, Y, Z, RX, RY, RZ", 3: "X, Y, Z", 2: "x, y (image)"}
 

@@ -12,6 +12,9 @@ from .base import Feature, optional_input
 
 
 class Feature1D(Feature):
+    """``e = ½‖e_in‖²`` (one row), ``J = e_inᵀ J_in``: see the module docstring. Inputs ``errorIN``,
+    ``jacobianIN``, ``errordotIN`` (optional); outputs ``signals``, ``error``, ``jacobian``, ``errordot``."""
+
     def __init__(self, name: str, nv: int):
         Feature.__init__(self, name, 1, nv)
         self.errorIN = self.DeclareAbstractInputPort("errorIN", AbstractValue.Make(np.zeros(0)))

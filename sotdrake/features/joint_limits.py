@@ -18,6 +18,10 @@ from .base import Feature
 
 
 class FeatureJointLimits(Feature):
+    """``e = 2(q - l)/(u - l) - 1`` per joint with finite limits (dimensionless, ±1 on the limits):
+    see the module docstring. Input ``state`` (``q``, nq); outputs ``signals``, ``error``,
+    ``jacobian``, ``errordot``; ``joint_names`` lists the rows' joints."""
+
     def __init__(self, name: str, plant):
         layout = Layout.of(plant)
         lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()

@@ -35,6 +35,10 @@ class PostureSettings(FeatureSettings):
 
 
 class FeaturePosture(Feature):
+    """``e = q ⊖ q*`` per velocity component (joints selected, floating base not, by default): see
+    the module docstring. Input ``state`` (``q``) and optional ``posture_in``, ``postureDot_in``;
+    outputs ``signals``, ``error``, ``jacobian``, ``errordot``."""
+
     def __init__(self, name: str, plant, posture: np.ndarray):
         nq, nv = plant.num_positions(), plant.num_velocities()
         self.layout = Layout.of(plant)

@@ -23,6 +23,9 @@ from .base import Feature
 
 
 class FeatureRelative6d(Feature):
+    """Pose of frame A in frame B against ``X_BA*`` (m, rad; 6 rows ``(x, y, z, rx, ry, rz)``): see
+    the module docstring. Inputs ``position``, ``Jq``, ``positionRef``, ``JqRef``, ``reference``."""
+
     def __init__(self, name: str, nv: int):
         Feature.__init__(self, name, 6, nv)
         self.position = self.DeclareAbstractInputPort("position", AbstractValue.Make(RigidTransform()))

@@ -34,6 +34,9 @@ class VisualPointSettings(FeatureSettings):
 
 
 class FeatureVisualPoint(Feature):
+    """Normalized image position ``(x/z, y/z)`` of a world point in a camera frame, against ``s*``:
+    see the module docstring. Inputs ``position``, ``Jq``, ``point``, ``point_velocity`` (optional)."""
+
     def __init__(self, name: str, nv: int):
         Feature.__init__(self, name, 2, nv, VisualPointSettings("11"))
         self.position = self.DeclareAbstractInputPort("position", AbstractValue.Make(RigidTransform()))

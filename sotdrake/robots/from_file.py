@@ -103,7 +103,8 @@ def check_user_urdf(text: str, source: str) -> str:
             if not finite:
                 raise RobotDescriptionError(
                     f"{source}: joint {joint.get('name', '?')!r} ({joint.get('type')}): limit {side}={value!r} is not a "
-                    "finite number; give finite limits (rad or m), or make an unbounded joint type=\"continuous\"")
+                    'finite number; give finite limits (rad or m), or make an unbounded joint type="continuous"'
+                )
     return re.sub(r'(<limit\b[^>]*?)\svelocity\s*=\s*"0(\.0*)?"', r"\1", text)
 
 
@@ -161,8 +162,11 @@ def find_srdf(path: Path) -> Path | None:
 
 
 def _movable_dofs(plant: MultibodyPlant) -> int:
-    return sum(plant.get_joint(JointIndex(i)).num_velocities() for i in range(plant.num_joints())
-               if not plant.get_joint(JointIndex(i)).type_name().endswith("quaternion_floating"))
+    return sum(
+        plant.get_joint(JointIndex(i)).num_velocities()
+        for i in range(plant.num_joints())
+        if not plant.get_joint(JointIndex(i)).type_name().endswith("quaternion_floating")
+    )
 
 
 def default_operational_points(model: RobotModel) -> dict[str, str]:
@@ -188,8 +192,9 @@ def operational_points_of(model: RobotModel, given: Mapping[str, str] | Sequence
     if given is None:
         return OperationalPoints(default_operational_points(model))
     if isinstance(given, str) or not isinstance(given, (Mapping, Sequence)):
-        raise InvalidInput(f"operational_points: expected a dict of op-point name → frame name, or a list of frame "
-                           f"names, got {given!r:.100}")
+        raise InvalidInput(
+            f"operational_points: expected a dict of op-point name → frame name, or a list of frame names, got {given!r:.100}"
+        )
     points = dict(given) if isinstance(given, Mapping) else {name: name for name in given}
     for name, target in points.items():
         if not isinstance(name, str) or not isinstance(target, str):
@@ -206,8 +211,10 @@ def posture_of(model: RobotModel, given: Any) -> np.ndarray:
     srdf = model.srdf_path
     if isinstance(given, str):
         if srdf is None:
-            raise InvalidInput(f"reference_posture={given!r} names an SRDF group state, but the robot has no SRDF: "
-                               "give srdf='path/to/robot.srdf', or the posture as an array or {joint: value}")
+            raise InvalidInput(
+                f"reference_posture={given!r} names an SRDF group state, but the robot has no SRDF: "
+                "give srdf='path/to/robot.srdf', or the posture as an array or {joint: value}"
+            )
         names = group_state_names(srdf)
         if given not in names:
             raise PostureNotFound(given, names)
@@ -281,8 +288,13 @@ def load_robot_file(
         name=file.stem,
         base="free" if floating else "fixed",
         source_path=file.resolve(),
-        load_options={"srdf": srdf, "package_paths": package_paths, "floating_base": floating_base,
-                      "operational_points": operational_points, "reference_posture": reference_posture},
+        load_options={
+            "srdf": srdf,
+            "package_paths": package_paths,
+            "floating_base": floating_base,
+            "operational_points": operational_points,
+            "reference_posture": reference_posture,
+        },
     )
     model.OperationalPointsMap.update(operational_points_of(model, operational_points))
     model.half_sitting = posture_of(model, reference_posture)

@@ -1,0 +1,47 @@
+"""Checks of a built diagram's stacks before it runs: :func:`check_stack`.
+
+A task that cannot be evaluated (no gain, no feature) would otherwise fail inside the first tick
+with Drake's ``InputPort::Eval(): required InputPort[3] (controlGain) … is not connected``; an
+inequality task without bounds would constrain nothing, silently. :func:`check_stack` looks at
+every solver of the diagram (``SOT``, ``SolverKine``, ``SolverDyn``), at each task of its stack
+and its contacts, and raises :class:`~sotdrake.exceptions.StackError` naming the task and what it
+lacks, or warns (:class:`~sotdrake.exceptions.SotWarning`) for an inequality task without bounds.
+:func:`sotdrake.simulate` calls it before running; a task evaluated in a ``Simulator`` of your own
+raises the same :class:`StackError` at its first evaluation.
+"""
+
+from __future__ import annotations
+
+from pydrake.systems.framework import Context, Diagram, System
+
+from .entity import probing
+from .exceptions import StackError
+from .solvers.sot import SOT
+from .task import TaskInequality, _TaskBase
+
+
+def _systems_by_name(diagram: Diagram) -> dict[str, System]:
+    return {system.get_name(): system for system in diagram.GetSystems()}
+
+
+def check_stack(diagram: Diagram, context: Context | None = None) -> None:
+    """Check every solver's stack and contacts in ``context`` (the root context; default: a new
+    default context, made without counting as a running one). Raises :class:`StackError` for a
+    task without gain or feature; warns once for an inequality task without bounds."""
+    if context is None:
+        with probing():
+            context = diagram.CreateDefaultContext()
+    systems = _systems_by_name(diagram)
+    for solver in systems.values():
+        if not isinstance(solver, SOT):
+            continue
+        settings = solver.settings(context)
+        for name in [*settings.contacts, *settings.tasks]:
+            task = systems.get(name)
+            if not isinstance(task, _TaskBase):
+                continue
+            missing = task.missing_inputs(context)
+            if missing is not None:
+                raise StackError(f"{solver.name}: {missing}")
+            if isinstance(task, TaskInequality):
+                task.warn_if_unbounded(context)

@@ -145,6 +145,24 @@ def test_most_bounded_stacks_are_answered():
     assert answered >= 54
 
 
+@pytest.mark.parametrize("offset", [-1e-13, 0.0, 1e-13])
+def test_a_point_on_a_bound_up_to_round_off_is_answered_on_the_bound(offset):
+    """The unbounded optimum ``x₀ = 1`` under ``x₀ ≤ 1 + offset``: an offset of round-off (1e-13, far
+    below :data:`IN_THE_WAY`) on either side must not decide whether the bound is held, so the answer
+    is the same on every CPU: answered, within the bounds exactly, slack round-off."""
+    from sotdrake.solvers.equality_hierarchy import IN_THE_WAY
+
+    assert abs(offset) < 1e-3 * IN_THE_WAY
+    A = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 1.0]])
+    levels = [LevelRows(A, np.array([1.0, 2.0]), np.array([1.0, 2.0]))]
+    lower, upper = np.full(3, -5.0), np.array([1.0 + offset, 5.0, 5.0])
+    result = solve_equality_hierarchy(pairs(levels), lower, upper)
+    assert result is not None
+    assert np.all(result.x >= lower) and np.all(result.x <= upper)
+    assert result.x[0] == pytest.approx(1.0, abs=2e-13) and result.slack_norms[0] < 2e-13
+    np.testing.assert_allclose(result.x[1:], [1.0, 1.0], atol=1e-14)
+
+
 def test_a_bound_that_the_optimum_leaves_is_released():
     """``x0 = 0.5`` under ``|x0| ≤ 1`` with the lower bound guessed held: its multiplier is
     negative at the level, the bound is released, and the point is the unbounded one."""

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import quadprog
 
-from sotdrake.exceptions import InvalidInput, SolverError
+from sotdrake.exceptions import InvalidInput
 from sotdrake.solvers.active_set import RANK_THRESHOLD
 from sotdrake.solvers.hqp import HierarchicalQP, LevelRows
 from tests.hqp_stacks import random_stack
@@ -38,7 +38,7 @@ def random_problem(rng, with_inequalities=True):
     return n, levels, x_lower, x_upper
 
 
-def reference_slack_norms(n, levels, x_lower, x_upper, epsilon=1e-12):
+def reference_slack_norms(n, levels, x_lower, x_upper, epsilon=1e-12, relaxation=1e-10):
     """Sequential QPs written independently of the solver under test, solved by Goldfarb-Idnani's
     dual active-set method (quadprog: exact at convergence, no interior point, no Drake). Each level
     lives in the null space of *all* equality rows held so far (and the fixed bounds), recomputed
@@ -79,8 +79,8 @@ def reference_slack_norms(n, levels, x_lower, x_upper, epsilon=1e-12):
             at_least(np.concatenate([np.zeros(r), unit[i], np.zeros(m)]), 0.0)
             at_least(np.concatenate([np.zeros(r), np.zeros(m), unit[i]]), 0.0)
         G = np.diag(np.concatenate([np.full(r, epsilon), np.full(2 * m, 2.0)]))
-        # Every row relaxed by 1e-10: nearly dependent rows must not look inconsistent to the solver.
-        z = quadprog.solve_qp(G, np.zeros(size), np.array(rows).T, np.array(rhs) - 1e-10, 0)[0]
+        # Every row relaxed (1e-10): nearly dependent rows must not look inconsistent to the solver.
+        z = quadprog.solve_qp(G, np.zeros(size), np.array(rows).T, np.array(rhs) - relaxation, 0)[0]
         x_previous = x_previous + N @ z[:r]
         value = level.A @ x_previous
         violation = np.maximum(np.maximum(level.lower - value, value - level.upper), 0)
@@ -341,13 +341,14 @@ def test_a_start_inside_the_bounds_enforces_a_bound_that_excludes_zero():
 def test_a_degenerate_vertex_is_solved_within_the_bounds():
     """A stack recorded from SolverDyn at a random valid TALOS state (tests/data: 82 unknowns
     (q̈, w, τ), levels dynamics, contacts, hand, CoM, damping): on the last level bounds meet nearly
-    dependent at the same value, and with the working set's rank decisions at τ every path ended
-    2e-8 beyond a bound, a false failure. Solved within the bounds to 1e-9 (by the correction onto
+    dependent at the same value, where with the working set's rank decisions at τ a path can end
+    2e-8 beyond a bound. Solved within the bounds to 1e-9 (by the correction onto
     the hard rows, round-off of a large point, or by the retry with a finer working set,
     :data:`~sotdrake.solvers.hqp.DEGENERATE_RETRY`), the dynamics and contacts exact, the hand
     level's slack the sequential quadprog reference's. (Below it the problem is too ill-conditioned
-    for the reference, whose rows are relaxed by 1e-10: its CoM and damping slacks are 1e-3 and 6e-3
-    above the solver's.)"""
+    for the reference, whose rows are relaxed by 1e-10, or 1e-8 where quadprog finds them
+    inconsistent on a CPU's round-off: its CoM and damping slacks are 1e-3 and 6e-3 above the
+    solver's.)"""
     from pathlib import Path
 
     data = np.load(Path(__file__).parent / "data" / "degenerate_vertex.npz")
@@ -356,21 +357,22 @@ def test_a_degenerate_vertex_is_solved_within_the_bounds():
     result = HierarchicalQP(len(x_lower)).solve(levels, x_lower, x_upper, start=data["start"])
     assert np.all(np.isfinite(result.x)) and bounds_hold(result.x, x_lower, x_upper)
     assert np.all(result.slack_norms[:2] <= 1e-9)
-    reference = reference_slack_norms(len(x_lower), levels, x_lower, x_upper)
+    try:
+        reference = reference_slack_norms(len(x_lower), levels, x_lower, x_upper)
+    except ValueError:  # quadprog: "constraints are inconsistent" at 1e-10 on some CPUs' round-off
+        reference = reference_slack_norms(len(x_lower), levels, x_lower, x_upper, relaxation=1e-8)
     assert same_norms(result.slack_norms[2:3], reference[2:3], relative=1e-5), (result.slack_norms, reference)
 
 
 
-def test_a_point_outside_by_round_off_is_moved_onto_its_rows(monkeypatch):
+def test_a_stage_whose_point_is_hundreds_of_times_its_targets_is_solved_strictly():
     """A stack recorded from SolverDyn at a random valid TALOS state (tests/data: 82 unknowns,
-    levels dynamics, contacts, left hand, CoM, right hand held against its limits, damping). On the
-    damping level the active set's point (size 449) missed a bound row by 2e-9 (its solves lose
-    cond·ε of the point's size) and every path failed alike: a false failure. Moved onto its
-    working set's rows and the missed one, it is kept: bounds to 1e-9, and levels 0–4 keep the
-    slacks of the stack without the damping level (strict priority)."""
+    levels dynamics, contacts, left hand, CoM, right hand held against its limits, damping). The
+    damping level's point is of size 449, so the active set's solves, which lose cond·ε of it, can
+    land a few 1e-9 off a bound row (on one CPU they did, on another they do not). Whichever path
+    answers: bounds to 1e-9, and levels 0–4 keep the slacks of the stack without the damping level
+    (strict priority). The correction onto the rows is tested on its own below."""
     from pathlib import Path
-
-    from sotdrake.solvers import hqp as hqp_module
 
     data = np.load(Path(__file__).parent / "data" / "hqp_round_off_stage.npz")
     levels = [LevelRows(data[f"A{k}"], data[f"b{k}"], data[f"b{k}"]) for k in range(6)]
@@ -381,9 +383,6 @@ def test_a_point_outside_by_round_off_is_moved_onto_its_rows(monkeypatch):
     alone = HierarchicalQP(len(x_lower)).solve(levels[:5], x_lower, x_upper, start=start)
     assert same_norms(result.slack_norms[:5], alone.slack_norms, relative=1e-6), (result.slack_norms, alone.slack_norms)
     assert alone.slack_norms[4] > 1.0  # the right hand is held against its limits
-    monkeypatch.setattr(hqp_module.HierarchicalQP, "_onto_hard_rows", lambda self, stage, y, side: None)
-    with pytest.raises(SolverError, match="outside the bounds"):
-        HierarchicalQP(len(x_lower)).solve(levels, x_lower, x_upper, start=start)
 
 
 
@@ -534,18 +533,14 @@ def test_a_stage_is_assembled_as_its_definition(seed):
     np.testing.assert_allclose(full.G, Z / np.linalg.norm(Z, axis=1)[:, None], rtol=1e-13)  # every component bounded
 
 
-def test_a_level_whose_optimum_holds_its_rows_only_to_round_off_is_solved():
+def test_a_level_whose_optimum_is_too_large_for_its_bounds_tolerance_meets_the_contract():
     """A random stack (seed 126455 of tests/hqp_stacks.py: n = 28, five levels) whose level 3 has an
-    exact optimum of size 1e14 (its projected rows 1e-7 to 1e-4 of their norms): every path's point
-    misses one of its four held rows by 0.002-0.02, the round-off of those rows' products
-    (``ε |g| |y|`` is 0.015 there), which used to fail the stack. A point within Higham's bound of
-    its rows' products is the answer, said in the fallbacks; the bounds hold and every level is as
-    strict as the truncated stacks."""
-    from sotdrake.solvers.hqp import ROUND_OFF_LIMITED
-
+    exact optimum of size 1e14 (its projected rows 1e-7 to 1e-4 of their norms): no double holds its
+    four held rows to 1e-9 of their bounds (the product ``g·y`` alone is off by ~0.01 there), and
+    which path's point lands closest depends on the CPU's round-off. Whatever path answers: no
+    failure, finite, within the bounds, every level as strict as the truncated stacks."""
     n, levels, x_lower, x_upper = random_stack(np.random.default_rng(126455))
     result = HierarchicalQP(n).solve(levels, x_lower, x_upper)
-    assert any(f.startswith("level 3: " + ROUND_OFF_LIMITED) for f in result.fallbacks), result.fallbacks
     assert np.all(np.isfinite(result.x)) and np.abs(result.x).max() > 1e13
     assert np.all(result.x >= x_lower) and np.all(result.x <= x_upper)
     for k in range(len(levels) - 1):
@@ -554,22 +549,25 @@ def test_a_level_whose_optimum_holds_its_rows_only_to_round_off_is_solved():
         assert same_norms(result.slack_norms[: k + 1], alone.slack_norms, floor=floor), k
 
 
-def test_a_miss_beyond_the_round_off_of_a_rows_product_is_not_accepted():
-    """The last resort's measure: a hard row's miss as a fraction of ``γ_r |g| |y|``. On the held row
-    ``(y₀ + y₁)/√2 ≥ 0``, a point of size 1e14 that misses it by 0.022 (two ulps of 1e14) is within
-    that bound (0.063); the same miss at size 1, or a miss of 11 at size 1e14, is not; a unit bound
-    row (an exact product) is held exactly or not at all."""
+def test_the_last_resort_holds_rows_to_the_tolerance_relative_to_their_terms():
+    """The last resort's measure: a hard row's miss as a fraction of ``tol · Σ|g_j||y_j|`` (tol = 1e-9).
+    On the held row ``(y₀ + y₁)/√2 ≥ 0``: at size 1e14 a miss of 0.022 (two ulps) or of 11 is far
+    inside (1e-4 of it), one of 1.4e6 is outside; the same 0.022 miss at size 1 is 1e7 times the
+    tolerance; a unit bound row (an exact product, its terms one component) is held to 1e-9 of that
+    component, whatever the size of the others. Each case is at least a factor 7 from the limit."""
     hqp = HierarchicalQP(2)
     held = np.array([[1.0, 1.0]]) / np.sqrt(2.0)
     stage = hqp._build(None, np.zeros(2), np.eye(2), (np.zeros(0, dtype=int), np.ones(1), held, np.zeros(1),
                                                        np.ones(1), np.zeros(1, dtype=int)), 0.0)
-    assert hqp._round_off_miss(stage, np.array([1e14, -1e14])) <= 1.0  # on the row, but g·y computes to -0.007
-    assert 0.0 < hqp._round_off_miss(stage, np.array([1e14, -1e14 - 0.03125])) <= 1.0
-    assert hqp._round_off_miss(stage, np.array([1.0, -1.03125])) > 1e6
-    assert hqp._round_off_miss(stage, np.array([1e14, -1e14 - 16.0])) > 100.0
+    assert hqp._relative_miss(stage, np.array([1e14, -1e14])) <= 1e-6  # on the row, but g·y computes to -0.007
+    assert 0.0 < hqp._relative_miss(stage, np.array([1e14, -1e14 - 0.03125])) <= 1e-6
+    assert hqp._relative_miss(stage, np.array([1e14, -1e14 - 16.0])) <= 1e-3
+    assert hqp._relative_miss(stage, np.array([1e14, -1e14 - 2e6])) > 7.0
+    assert hqp._relative_miss(stage, np.array([1.0, -1.03125])) > 1e6
     bound = hqp._build(None, np.zeros(2), np.eye(2), (slice(None), np.ones(2), np.zeros((0, 2)), np.array([0.0, -1e15]),
                                                        np.array([1.0, 1e15]), np.zeros(2, dtype=int)), 0.0)
-    assert hqp._round_off_miss(bound, np.array([-1e-3, 1e14])) > 1e6
+    assert hqp._relative_miss(bound, np.array([-1e-3, 1e14])) > 1e6
+    assert hqp._relative_miss(bound, np.array([-1e-9, 1e14])) == 0.0  # within the tolerance itself
 
 
 def test_the_minimum_norm_stage_keeps_the_last_levels_point_when_no_path_solves_it():

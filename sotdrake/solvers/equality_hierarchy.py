@@ -29,8 +29,9 @@ final minimum-norm step. If it lies within the bounds it is the optimum with the
 optimal set is a subset of the unbounded one and contains that point), and so the hierarchical
 QP's answer; :func:`solve_equality_hierarchy` returns it.
 
-A bound in the way is held at equality: its component becomes a fixed one and the hierarchy is
-solved again (:func:`_sweep`), the bound most in the way first. That point is the QP's answer if
+A bound in the way (passed by more than :data:`IN_THE_WAY`, the QP's feasibility tolerance; a point
+that passes a bound by less is put on it) is held at equality: its component becomes a fixed one and
+the hierarchy is solved again (:func:`_sweep`), the bound most in the way first. That point is the QP's answer if
 holding the bound is optimal in the lexicographic sense, which the sweep certifies by the sign of
 the bound's multiplier at the level that decides it. Along the bound's direction ``p`` (+1 on the
 held component, or −1 at an upper bound, the free components following so that every level above
@@ -88,6 +89,12 @@ CERTIFIED = 1e3 * RANK_THRESHOLD
 NEGLIGIBLE = 1e-3 * RANK_THRESHOLD
 
 SOLVER_NAME = "qr"
+
+#: A component counts as in the way of a bound when it passes it by more than this (relative above 1):
+#: the hierarchical QP's feasibility tolerance, far above the round-off of a point that lies on the
+#: bound in exact arithmetic (whose side would otherwise depend on the CPU's last bits). A point
+#: within it is put on the bound.
+IN_THE_WAY = 1e-9
 
 #: How many times the set of bounds held at equality may change before the QP decides.
 ACTIVE_SET_CHANGES = 6
@@ -396,9 +403,9 @@ def _compiled_sweep(A, b, norms, starts, x_lower, x_upper, held_indices, held_si
 @njit(cache=True)
 def _most_in_the_way(x, x_lower, x_upper):
     """``(index, sign)`` of the bound most in the way of ``x`` (relative to its size; sign +1 below its
-    lower bound, −1 above its upper one), ``(-1, 0)`` when ``x`` is within its bounds, ``(-2, 0)``
-    when it is not finite."""
-    index, sign, worst = -1, 0.0, -1.0
+    lower bound, −1 above its upper one) among those passed by more than :data:`IN_THE_WAY`,
+    ``(-1, 0)`` when ``x`` is within its bounds to that tolerance, ``(-2, 0)`` when it is not finite."""
+    index, sign, worst = -1, 0.0, IN_THE_WAY
     for i in range(x.size):
         if not np.isfinite(x[i]):
             return -2, 0.0
@@ -516,6 +523,7 @@ def solve_stacked(stack: StackedLevels, x_lower: np.ndarray, x_upper: np.ndarray
         held[index] = sign
     else:
         return None
+    x = np.minimum(np.maximum(x, x_lower), x_upper)  # (what passes a bound by round-off, put on it)
     residuals, slack_norms, active_bounds = _outcome(stack.A, stack.b, stack.starts, x, x_lower, x_upper)
     starts = stack.starts.tolist()
     count = len(starts) - 1

@@ -52,9 +52,10 @@ How a level is solved:
   bounds by more than ``feasibility_tolerance``) the next one is tried: the active set warm, then
   cold (from the dual method's guess), then Clarabel polished, then OSQP polished; each failure is
   reported in :attr:`HqpResult.fallbacks`. If every path ended outside a hard row, a path's point
-  that misses each hard row by less than the round-off bound of the row's own product (a point so
-  large, 1e14 on one random stack, that doubles cannot verify it closer) is the answer, said in the
-  fallbacks (:data:`ROUND_OFF_LIMITED`); otherwise a :class:`SolverError` means all failed.
+  that holds each hard row to the feasibility tolerance relative to the size of the row's terms
+  (a point so large, 1e14 on some random stacks, that doubles cannot verify it closer to the bound)
+  is the answer, said in the fallbacks (:data:`ROUND_OFF_LIMITED`); otherwise a :class:`SolverError`
+  means all failed.
 
 **The one threshold.** Every rank decision (the null space ``Z`` of the held equality rows, the
 least-squares steps, the working-set matrices, which projected rows are constant) compares singular
@@ -112,11 +113,16 @@ KEPT_LAST_LEVEL = "kept the last level's point"
 in the optimal set (every level at its optimum, bounds held), kept instead of the minimum-norm one.
 Seen on random stacks whose last level's exact optimum is about 1e14 in size, where no double holds
 the held rows to the feasibility tolerance (tests/test_hqp.py)."""
-ROUND_OFF_LIMITED = "a point that holds its rows to their products' round-off"
+ROUND_OFF_LIMITED = "a point that holds its rows to the feasibility tolerance of their terms"
 """Said in the fallbacks when every path of a level ended outside a hard row and one of their points
-misses each hard row by less than Higham's bound on the round-off of the row's product,
-``γ_r |g| |y|`` (:meth:`HierarchicalQP._round_off_miss`): that point is the level's answer. Seen on a
-random stack whose level 3 has an exact optimum of size 1e14."""
+misses each hard row ``g`` by at most ``feasibility_tolerance · Σ_j |g_j| |y_j|``, the tolerance taken
+relative to the size of the row's terms rather than of its bound (:meth:`HierarchicalQP._relative_miss`):
+that point is the level's answer. The product ``g·y`` alone carries a round-off of up to
+``γ_r Σ_j |g_j| |y_j|`` (Higham, ``γ_r = r ε / (1 − r ε)``, about 6e-15 for r = 28), and a
+backward-stable solve of condition ``κ`` misses by about ``κ ε`` of that: the tolerance, 1e-9 by
+default, stands five orders of magnitude above the product's round-off, so which side of it a point
+falls on does not hang on the CPU's last bits. Seen on random stacks whose level has an exact optimum
+of size 1e14, where the bound-relative tolerance is below what doubles can verify."""
 
 
 def check_solver(name: str) -> str:
@@ -777,16 +783,16 @@ class HierarchicalQP:
             fallbacks += [f"{what}: {failure}" for failure in failures]
             return x0, hard_side.copy(), KEPT_LAST_LEVEL, 0
         if outside:
-            # Every path ended outside a hard row. If one of their points misses each row by less
-            # than the round-off bound of the row's own product (a point so large that no point can
-            # be verified closer in doubles), it is the answer, said in the fallbacks.
-            misses = [self._round_off_miss(stage, candidate[0]) for candidate in outside]
+            # Every path ended outside a hard row. If one of their points holds each row to the
+            # feasibility tolerance relative to the row's terms (a point so large that doubles cannot
+            # verify it closer to the bound), it is the answer, said in the fallbacks.
+            misses = [self._relative_miss(stage, candidate[0]) for candidate in outside]
             miss = min(misses)
             if miss <= 1.0:
                 y, side, label, count = outside[misses.index(miss)]
                 fallbacks += [f"{what}: {failure}" for failure in failures]
                 fallbacks.append(f"{what}: {ROUND_OFF_LIMITED} (size {float(np.max(np.abs(y))):.3g}, "
-                                 f"{miss:.2g} of the bound)")
+                                 f"{miss:.2g} of the tolerance)")
                 self._working_sets[key] = side
                 return x0 + Z @ y, self._hard_sides(hard_side, stage, side), label, count
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
@@ -880,23 +886,23 @@ class HierarchicalQP:
             y = y + correction
         return None
 
-    def _round_off_miss(self, stage: _Stage, y: np.ndarray) -> float:
-        """The largest miss of a hard row beyond the feasibility tolerance, as a fraction of that row's
-        round-off bound ``γ_r (|g| |y|)``, ``γ_r = r ε / (1 − r ε)`` (Higham's bound on the error of a
-        dot product of length r in floating point): ≤ 1 when ``y`` holds every hard row as closely as
-        the product ``g·y`` itself can be computed. Only reached when every path ended outside."""
+    def _relative_miss(self, stage: _Stage, y: np.ndarray) -> float:
+        """The largest miss of a hard row beyond the feasibility tolerance, as a fraction of that
+        tolerance taken relative to the size of the row's terms, ``tol · Σ_j |g_j| |y_j|``: ≤ 1 when
+        ``y`` holds every hard row to the tolerance relative to its terms (see
+        :data:`ROUND_OFF_LIMITED`). A unit bound row's product is exact (its terms are one
+        component), so it is held to ``tol · |y_i|``. Only reached when every path ended outside."""
         value, below, above = self._missed_hard_rows(stage, y)
         m_hard, r = stage.m_hard, stage.r
         lo, hi = stage.lower[:m_hard], stage.upper[:m_hard]
         tol = self.feasibility_tolerance
         miss = np.where(below, lo - tol * np.maximum(1.0, np.abs(lo)) - value,
                         np.where(above, value - hi - tol * np.maximum(1.0, np.abs(hi)), 0.0))
-        eps = np.finfo(float).eps
-        bound = r * eps / (1.0 - r * eps) * (np.abs(stage.G[:m_hard, :r]) @ np.abs(y))
         missed = miss > 0.0
         if not any_true(missed):
             return 0.0
-        return float(np.max(miss[missed] / np.maximum(bound[missed], np.finfo(float).tiny)))
+        scale = tol * (np.abs(stage.G[:m_hard, :r]) @ np.abs(y))
+        return float(np.max(miss[missed] / np.maximum(scale[missed], np.finfo(float).tiny)))
 
     def _bounds_hold(self, stage: _Stage, y: np.ndarray) -> bool:
         _, below, above = self._missed_hard_rows(stage, y)

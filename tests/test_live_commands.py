@@ -220,12 +220,12 @@ def test_server_token_framing_and_answers(vocabulary, context, appli):
     try:
         assert server.host == "127.0.0.1"
         # a wrong token: refused, connection closed, nothing queued
-        with socket.create_connection((server.host, server.port), timeout=5) as sock:
+        with socket.create_connection((server.host, server.port), timeout=60) as sock:
             sock.sendall(b"token wrong\nsot.pop()\n")
             reply = sock.makefile("rb").read()
         assert b"authentication failed" in reply and b"ready" not in reply and server.queue.empty()
         connection = Connection(server.host, server.port, "secret-token", os.getpid())
-        with Client(connection, timeout=5) as client:
+        with Client(connection, timeout=60) as client:
             huge = client.send_line(b"sot.push('" + b"a" * 1_000_000 + b"')")
             assert "line too long" in client.receive(huge)["error"]  # answered by the reader, not queued
             lines = [b"sot.push('\xff')", b"__import__('os').system('ls')", b"sot.stack()", b"sot.pop()"]

@@ -7,6 +7,7 @@ benchmarks page is typed by hand: rerun a bench, rebuild the docs.
 
 from __future__ import annotations
 
+import inspect
 import json
 import re
 from pathlib import Path
@@ -139,9 +140,15 @@ def benchmark_markdown() -> str:
 
 
 def _is_data(obj: Any) -> bool:
-    import inspect
-
     return not (inspect.isclass(obj) or inspect.isroutine(obj) or inspect.ismodule(obj) or callable(obj))
+
+
+def _annotation(value: Any) -> str:
+    text = repr(value)
+    if len(text) <= 70 and " at 0x" not in text and "\n" not in text:
+        return f"= {text}"
+    size = f", {len(value)} entries" if hasattr(value, "__len__") else ""
+    return f": {type(value).__name__}{size}"
 
 
 def api_data_markdown() -> str:
@@ -151,7 +158,7 @@ def api_data_markdown() -> str:
     names = [n for n in sotdrake.__all__ if _is_data(getattr(sotdrake, n))]
     if not names:
         return "<!-- no constants in sotdrake.__all__ -->\n"
-    body = "\n".join(f".. autodata:: sotdrake.{n}\n   :annotation: = {getattr(sotdrake, n)!r}\n" for n in names)
+    body = "\n".join(f".. autodata:: sotdrake.{n}\n   :annotation: {_annotation(getattr(sotdrake, n))}\n" for n in names)
     return "## Constants\n\n```{eval-rst}\n" + body + "```\n"
 
 
@@ -176,6 +183,9 @@ def fix_docstring(app, what, name, obj, options, lines) -> None:
     A literal followed by a letter (``LeafSystem``s) is not closed for docutils: a backslash-escaped
     space between them renders the same text.
     """
+    if what == "data" and lines and "\n".join(lines).strip() == (inspect.getdoc(type(obj)) or "").strip():
+        lines[:] = []  # a constant without a docstring of its own: not its type's (dict's, str's) docstring
+        return
     for i, line in enumerate(lines):
         if "``" in line:
             lines[i] = _PLURAL_LITERAL.sub(r"``\1``\\ ", line)

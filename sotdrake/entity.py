@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import copy
 import warnings
+import weakref
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any, Generic, TypeVar
@@ -72,7 +73,7 @@ class _Frozen:
     copy (copy on write), so the copies Drake makes of the state (context clones, the scratch state
     of every unrestricted update) can share them instead of deep-copying them at each tick."""
 
-    __slots__ = ("value",)
+    __slots__ = ("__weakref__", "value")
 
     def __init__(self, value: Any):
         self.value = value
@@ -91,9 +92,10 @@ class _DefaultsSnapshot:
     def __deepcopy__(self, memo: dict) -> _DefaultsSnapshot | _Frozen:
         if self.owner._declaring:
             return _DefaultsSnapshot(self.owner)
+        frozen = _Frozen(copy.deepcopy(self.owner._defaults, memo))
         if not _probing:
-            self.owner._context_made = True
-        return _Frozen(copy.deepcopy(self.owner._defaults, memo))
+            self.owner._in_contexts.add(frozen)
+        return frozen
 
 
 class Entity(LeafSystem, Generic[S]):
@@ -103,7 +105,9 @@ class Entity(LeafSystem, Generic[S]):
         LeafSystem.__init__(self)
         self.set_name(name)
         self._defaults = defaults
-        self._context_made = False  # a context of this entity exists: defaults no longer reach it
+        # The settings held by live contexts (weak references: a context that is destroyed drops
+        # out): while one exists, a change of the defaults does not reach it.
+        self._in_contexts: weakref.WeakSet[_Frozen] = weakref.WeakSet()
         self._warned_late_default = False
         self._declaring = True
         self._settings_index = self.DeclareAbstractState(AbstractValue.Make(_DefaultsSnapshot(self)))
@@ -139,7 +143,7 @@ class Entity(LeafSystem, Generic[S]):
             new = copy.deepcopy(self._defaults)
             change(new)
             self._defaults = new
-            if self._context_made and not self._warned_late_default:
+            if len(self._in_contexts) and not self._warned_late_default:
                 self._warned_late_default = True
                 warnings.warn(
                     f"{self.name}: a command without context= changes the defaults, which only contexts created from "
@@ -150,7 +154,9 @@ class Entity(LeafSystem, Generic[S]):
         own = self.own_context(context)
         new = copy.deepcopy(own.get_abstract_state(self._settings_index).get_value().value)
         change(new)
-        own.get_mutable_abstract_state(self._settings_index).set_value(_Frozen(new))
+        frozen = _Frozen(new)
+        self._in_contexts.add(frozen)
+        own.get_mutable_abstract_state(self._settings_index).set_value(frozen)
 
     def _declare_timed_change(self, time: float, changes: list[Callable[[S], None]]) -> None:
         """A one-shot event at ``time`` that applies ``changes`` in order (see ``attime``)."""
@@ -160,7 +166,9 @@ class Entity(LeafSystem, Generic[S]):
             new = copy.deepcopy(value.get_value().value)
             for change in changes:
                 change(new)
-            value.set_value(_Frozen(new))
+            frozen = _Frozen(new)
+            self._in_contexts.add(frozen)
+            value.set_value(frozen)
 
         # A periodic event whose period outlasts any simulation is a one-shot event at `offset`.
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_sec=1e12, offset_sec=time, update=update)

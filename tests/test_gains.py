@@ -6,7 +6,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource
 
-from sotdrake.exceptions import InvalidInput
+from sotdrake.exceptions import InvalidInput, SotWarning
 from sotdrake.gains import GainAdaptive, constant, from_numbers, from_point, from_slope
 
 
@@ -55,8 +55,9 @@ def test_gain_entity_output_and_commands():
     # The context's command left the defaults alone: a new context starts from set(4, 1, 5) ...
     fresh = diagram.CreateDefaultContext()
     assert port.Eval(gain.GetMyContextFromRoot(fresh))[0] == pytest.approx(1.00052, abs=1e-5)
-    # ... and a build-time command changes the defaults, not the contexts already made.
-    gain.setConstant(2.0)
+    # ... and a build-time command changes the defaults, not the contexts already made (and says so).
+    with pytest.warns(SotWarning, match="NOT changed"):
+        gain.setConstant(2.0)
     assert port.Eval(gain.GetMyContextFromRoot(context))[0] == 7.0
     assert port.Eval(gain.GetMyContextFromRoot(fresh))[0] == pytest.approx(1.00052, abs=1e-5)
     assert port.Eval(gain.GetMyContextFromRoot(diagram.CreateDefaultContext()))[0] == 2.0

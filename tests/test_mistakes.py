@@ -1,0 +1,248 @@
+"""Mistakes are caught where they are made, with a message that names the valid choices, and
+change nothing.
+
+Each row of :data:`MISTAKES` makes one mistake on a freshly built TALOS stack and states the
+error (or warning) and the text it must contain; the stack, the targets and the selections are
+compared before and after.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from sotdrake import (
+    FeatureGeneric,
+    FrameNotFound,
+    GainAdaptive,
+    InvalidInput,
+    MetaTaskKine6d,
+    MetaTaskKineCom,
+    OperationalPointNotFound,
+    SotWarning,
+    StackError,
+    Task,
+    TaskInequality,
+    TaskNotFound,
+    add_sot,
+    check_stack,
+    gotoNd,
+    hold_feet_and_com,
+    simulate,
+    talos,
+)
+
+
+@dataclass
+class Stack:
+    """A TALOS stack: the right-hand task ``rh`` pushed, the CoM task not."""
+
+    builder: DiagramBuilder
+    robot: object
+    sot: object
+    rh: MetaTaskKine6d
+    com: MetaTaskKineCom
+
+    def state(self, context=None) -> tuple:
+        """What a rejected command must leave as it was."""
+        return (
+            self.sot.stack(context),
+            self.rh.featureDes.settings(context).position.GetAsMatrix4().tobytes(),
+            self.rh.feature.settings(context).selection,
+            self.rh.gain.settings(context).coefficients,
+        )
+
+
+def make_stack(solver: str = "cascade") -> Stack:
+    builder = DiagramBuilder()
+    robot = talos(builder)
+    sot = add_sot(robot, solver=solver)
+    rh = MetaTaskKine6d("rh", robot, "rh", "right-wrist")
+    com = MetaTaskKineCom(robot)
+    sot.push(rh.task.name)
+    return Stack(builder, robot, sot, rh, com)
+
+
+@dataclass
+class Mistake:
+    name: str
+    make: Callable[[Stack], object]
+    error: type[BaseException]
+    match: str
+
+
+MISTAKES = [
+    Mistake(
+        "op point with '_' and a synonym",
+        lambda s: MetaTaskKine6d("lh", s.robot, "lh", "right_hand"),
+        FrameNotFound,
+        r"'right_hand' \(did you mean 'right-wrist'",
+    ),
+    Mistake(
+        "op point map, unknown key",
+        lambda s: s.robot.OperationalPointsMap["right-hand"],
+        OperationalPointNotFound,
+        r"unknown operational point 'right-hand' \(did you mean 'right-wrist'.*available: 'left-wrist'",
+    ),
+    Mistake(
+        "mask too long",
+        lambda s: gotoNd(s.rh, [0.5, -0.2, 1.0], "1111111"),
+        InvalidInput,
+        r"mask '1111111' has 7 characters, the feature has 6 components.*X, Y, Z, RX, RY, RZ",
+    ),
+    Mistake(
+        "mask alphabet",
+        lambda s: s.rh.feature.selec("11x"),
+        InvalidInput,
+        r"featurerh.selec: invalid selection mask '11x': expected a string of at most 6 characters '0' or '1'",
+    ),
+    Mistake(
+        "push an object",
+        lambda s: s.sot.push(object()),
+        TaskNotFound,
+        r"sot expects a task name \(str\), a task or a meta task, got a object.*available: 'taskrh', 'taskcom'",
+    ),
+    Mistake("push a meta task twice", lambda s: s.sot.push(s.rh), StackError, r"'taskrh' is already in the stack"),
+    Mistake(
+        "gotoNd with a name",
+        lambda s: gotoNd("rh", [0.5, -0.2, 1.0]),
+        InvalidInput,
+        r"gotoNd takes a MetaTaskKine6d or MetaTaskKineCom, got str: pass the meta task itself",
+    ),
+    Mistake("unknown task name", lambda s: s.sot.push("taskRH"), TaskNotFound, r"unknown task 'taskRH' \(did you mean 'taskrh'"),
+]
+
+
+@pytest.mark.parametrize("mistake", MISTAKES, ids=[m.name for m in MISTAKES])
+def test_mistake_is_named_and_changes_nothing(mistake: Mistake):
+    stack = make_stack()
+    before = stack.state()
+    with pytest.raises(mistake.error, match=mistake.match):
+        mistake.make(stack)
+    assert stack.state() == before
+
+
+def test_a_meta_task_is_accepted_where_a_task_name_is():
+    stack = make_stack()
+    stack.sot.push(stack.com)
+    stack.sot.up(stack.com)
+    assert stack.sot.stack() == ["taskcom", "taskrh"]
+    stack.sot.remove(stack.com.task)
+    assert stack.sot.stack() == ["taskrh"]
+
+
+def _bare_task(stack: Stack, gain: bool, feature: bool) -> Task:
+    robot = stack.robot
+    task = robot.add_task(Task("bare", robot.dimension))
+    generic = robot.add(FeatureGeneric("featurebare", 3, robot.dimension))
+    builder = stack.builder
+    builder.Connect(robot.dynamic.GetOutputPort("com"), generic.GetInputPort("errorIN"))
+    builder.Connect(robot.dynamic.GetOutputPort("Jcom"), generic.GetInputPort("jacobianIN"))
+    builder.Connect(stack.com.featureDes.GetOutputPort("errorIN"), generic.GetInputPort("reference"))
+    if feature:
+        builder.Connect(generic.GetOutputPort("signals"), task.GetInputPort("feature"))
+    if gain:
+        g = robot.add(GainAdaptive("gainbare"))
+        builder.Connect(generic.GetOutputPort("error"), g.GetInputPort("error"))
+        builder.Connect(g.GetOutputPort("gain"), task.GetInputPort("controlGain"))
+    stack.sot.push("bare")
+    return task
+
+
+@pytest.mark.parametrize(
+    ("gain", "feature", "match"),
+    [
+        (False, True, r"sot: task 'bare' has no gain: connect a gain's 'gain' output to its 'controlGain' input"),
+        (True, False, r"sot: task 'bare' has no feature: connect a feature's 'signals' output to its 'feature' input"),
+    ],
+)
+def test_task_without_gain_or_feature_is_named_before_the_run(gain, feature, match):
+    stack = make_stack()
+    _bare_task(stack, gain, feature)
+    diagram = stack.builder.Build()
+    with pytest.raises(StackError, match=match):
+        check_stack(diagram)
+    with pytest.raises(StackError, match=match):
+        simulate(diagram, 0.01, progress=False)
+    # a Simulator of one's own: the same error at the task's first evaluation, not Drake's
+    simulator = Simulator(diagram)
+    with pytest.raises(StackError, match=match.removeprefix("sot: ")):
+        simulator.AdvanceTo(0.002)
+
+
+@pytest.mark.parametrize("command", ["gotoNd", "push", "setConstant"])
+def test_command_without_context_once_running_warns_and_leaves_the_run_unchanged(command):
+    stack = make_stack()
+    diagram = stack.builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    before = stack.state(context)
+    run = {
+        "gotoNd": lambda: gotoNd(stack.rh, [0.5, -0.2, 1.0], "111"),
+        "push": lambda: stack.sot.push(stack.com),
+        "setConstant": lambda: stack.rh.gain.setConstant(3.0),
+    }[command]
+    with pytest.warns(SotWarning, match=r"without context=.*NOT changed: pass context=simulator.get_mutable_context\(\)"):
+        run()
+    assert stack.state(context) == before  # the running context: unchanged, as the warning says
+    assert stack.state(diagram.CreateDefaultContext()) != before  # contexts made from now on: changed
+
+
+def test_command_with_context_or_before_any_context_does_not_warn(recwarn):
+    stack = make_stack()
+    gotoNd(stack.rh, [0.5, -0.2, 1.0], "111", 2.0)  # build time: the defaults
+    diagram = stack.builder.Build()
+    check_stack(diagram)  # a probe: not a running context
+    stack.sot.push(stack.com)  # still before any context: applies to every context
+    simulator = Simulator(diagram)
+    gotoNd(stack.rh, [0.5, -0.2, 0.9], "111", context=simulator.get_mutable_context())
+    assert stack.sot.stack(simulator.get_context()) == ["taskrh", "taskcom"]
+    assert not [w for w in recwarn if issubclass(w.category, SotWarning)]
+
+
+def test_inequality_task_without_bounds_warns_once_pushed():
+    stack = make_stack(solver="hqp")
+    robot = stack.robot
+    task = robot.add_task(TaskInequality("unbounded", robot.dimension))
+    robot.builder.Connect(stack.rh.feature.GetOutputPort("signals"), task.GetInputPort("feature"))
+    gain = robot.add(GainAdaptive("gainunbounded"))
+    robot.builder.Connect(gain.GetOutputPort("gain"), task.GetInputPort("controlGain"))
+    robot.builder.Connect(stack.rh.feature.GetOutputPort("error"), gain.GetInputPort("error"))
+    stack.sot.push(task.name)
+    diagram = stack.builder.Build()
+    with pytest.warns(SotWarning, match=r"unbounded: an inequality task in the stack without bounds.*setBounds"):
+        check_stack(diagram)
+
+
+def test_hold_feet_and_com_with_the_default_solver_leaves_the_grippers_out(caplog):
+    builder = DiagramBuilder()
+    robot = talos(builder)
+    sot = add_sot(robot)
+    hold_feet_and_com(robot, sot)
+    selection = sot.settings().control_selection
+    plant = robot.model.plant
+    for gripper in ("gripper_left_joint", "gripper_right_joint"):
+        assert not selection[plant.GetJointByName(gripper).velocity_start()]
+    assert selection.sum() == robot.dimension - 2
+    rh = MetaTaskKine6d("rh", robot, "rh", "right-wrist")
+    gotoNd(rh, [0.5, -0.2, 1.0], "111", (4.9, 0.9, 0.01, 0.9))
+    sot.push(rh)
+    with caplog.at_level(logging.WARNING):
+        simulate(builder.Build(), 0.05, progress=False)
+    assert not [r for r in caplog.records if "left its limits" in r.getMessage()]
+
+
+def test_hold_feet_and_com_keeps_a_selection_already_set():
+    builder = DiagramBuilder()
+    robot = talos(builder)
+    sot = add_sot(robot)
+    chosen = robot.velocity_selection(excluding=["gripper_left_joint"])
+    sot.setControlSelection(chosen)
+    hold_feet_and_com(robot, sot)
+    np.testing.assert_array_equal(sot.settings().control_selection, chosen)

@@ -64,7 +64,6 @@ from .robots import ROBOTS, TALOS_GRIPPERS, RobotModel, available_robots, load_r
 from .sequencer import attime
 from .simulation import save_figure, script_arguments, simulate, start, write_run
 from .solvers import SOT, SolverKine
-from .solvers.hqp import ACTIVE_SET, SOLVERS
 from .stack_checks import check_stack
 from .task import Task, TaskInequality, TaskLevel, TaskPD
 from .tracing import Tracer
@@ -76,7 +75,8 @@ from .visualization import (
     write_control_graph,
 )
 
-#: Names imported on first use, by module (the wings that pull in more than the kinematic SoT).
+#: Names imported on first use, by module: the wings that pull in more than the kinematic SoT, and
+#: the HQP's back-end names. A script may import these from their wing too (``sotdrake.physics`` …).
 _LAZY: dict[str, tuple[str, ...]] = {
     ".dynamics": ("Contact6d", "DynamicEntity", "RobotDynSimu", "SolverDyn", "TaskDynPD"),
     ".dynamics.robot_dyn": ("RobotDyn",),
@@ -117,6 +117,7 @@ _LAZY: dict[str, tuple[str, ...]] = {
     ".sweep": ("EngineUnavailable", "add_sweep_arguments", "engine_options", "grid", "per_process", "random_cases", "run_sweep"),
     ".live": ("add_live_arguments", "live_meshcat", "run_live"),
     ".publishing": ("RobotStateMessage", "add_signal_publisher", "add_state_publisher"),
+    ".solvers.hqp": ("ACTIVE_SET", "SOLVERS"),
 }
 _LAZY_MODULE = {name: module for module, names in _LAZY.items() for name in names}
 
@@ -142,6 +143,7 @@ if TYPE_CHECKING:
         fall_time,
     )
     from .publishing import RobotStateMessage, add_signal_publisher, add_state_publisher
+    from .solvers.hqp import ACTIVE_SET, SOLVERS
     from .sweep import (
         EngineUnavailable,
         add_sweep_arguments,

@@ -1,0 +1,148 @@
+"""The random-stack sweep under several CPU kernels: the contract holds whatever the round-off.
+
+The same code gives other round-off on another CPU through three doors: OpenBLAS's kernel
+(``OPENBLAS_CORETYPE``), numpy's SIMD dispatch (``NPY_DISABLE_CPU_FEATURES``) and numba's target
+(``NUMBA_CPU_NAME``). This script solves the random stacks of ``tests/hqp_stacks.py`` (seeds
+``--first`` to ``--first + --count``, as the tests do: one solver per size, reused) once per kernel,
+each kernel in its own process (run side by side) with its own numba cache, and checks on each stack the hierarchical
+QP's contract:
+
+* no failure, ``x`` finite, the bounds held exactly;
+* strictness: the slack norms of levels ``0..k`` equal those of the first ``k + 1`` levels solved
+  alone, to ``1e-6`` relative + ``1e-9`` + the round-off of evaluating a level's residual
+  (``1e-12 ‖A_k‖ ‖x‖``), the tests' tolerance.
+
+It then counts the stacks whose answering path (each level's solver and the fallbacks taken)
+differs between kernels, and checks that each such stack meets the contract under every kernel.
+Prints a table and writes ``--json`` (default ``bench/results/hqp_kernels.json``)::
+
+    .venv/bin/python bench/hqp_kernels.py --count 40000
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+#: The kernels compared: the host's own, and two that stand for other x86-64 CPUs.
+KERNELS: dict[str, dict[str, str]] = {
+    "host": {},
+    "avx2": {  # an AVX2 machine without AVX-512 (e.g. AMD EPYC Zen 2/3, Intel Haswell to Comet Lake)
+        "OPENBLAS_CORETYPE": "Haswell",
+        "NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR",
+        "NUMBA_CPU_NAME": "haswell",
+    },
+    "generic": {  # the oldest x86-64: SSE2/SSE3 kernels, no FMA anywhere
+        "OPENBLAS_CORETYPE": "Prescott",
+        "NPY_DISABLE_CPU_FEATURES": "X86_V3 X86_V4 AVX512_ICL AVX512_SPR",
+        "NUMBA_CPU_NAME": "generic",
+    },
+}
+
+
+def same_norms(a: np.ndarray, b: np.ndarray, floor: np.ndarray) -> bool:
+    return bool(np.all(np.abs(a - b) <= 1e-6 * np.maximum(np.abs(a), np.abs(b)) + 1e-9 + floor[: len(a)]))
+
+
+def sweep(first: int, count: int) -> list[dict]:
+    """Each stack's outcome: ``seed``, ``ok`` (the contract held), ``why`` (if not), ``path``."""
+    from sotdrake.exceptions import SolverError
+    from sotdrake.solvers.hqp import HierarchicalQP
+    from tests.hqp_stacks import random_stack
+
+    solvers: dict[int, HierarchicalQP] = {}
+    out = []
+    for seed in range(first, first + count):
+        n, levels, x_lower, x_upper = random_stack(np.random.default_rng(seed))
+        hqp = solvers.setdefault(n, HierarchicalQP(n))
+        prefix = solvers.setdefault(-n, HierarchicalQP(n, regularize=False))
+        record: dict = {"seed": seed, "ok": True, "why": "", "path": ""}
+        try:
+            result = hqp.solve(levels, x_lower, x_upper)
+            record["path"] = "|".join(result.level_solvers) + "#" + ";".join(f.split(":")[0] + ":" + f.split(":")[1][:40]
+                                                                             for f in result.fallbacks if ":" in f)
+            if not np.all(np.isfinite(result.x)):
+                record.update(ok=False, why="not finite")
+            elif not (np.all(result.x >= x_lower) and np.all(result.x <= x_upper)):
+                record.update(ok=False, why="bounds")
+            else:
+                for k in range(len(levels) - 1):
+                    alone = prefix.solve(levels[: k + 1], x_lower, x_upper)
+                    norms = np.linalg.norm
+                    floor = np.array([1e-12 * norms(level.A) * max(norms(result.x), norms(alone.x)) for level in levels])
+                    if not same_norms(result.slack_norms[: k + 1], alone.slack_norms, floor):
+                        record.update(ok=False, why=f"strictness at level {k}")
+                        break
+        except SolverError as error:
+            record.update(ok=False, why=f"failure: {str(error)[:200]}")
+        out.append(record)
+    return out
+
+
+def start_kernel(name: str, first: int, count: int, cache: Path, sink: Path) -> subprocess.Popen:
+    """The sweep under kernel ``name`` in its own process (its own numba cache), writing ``sink``."""
+    env = dict(os.environ, **KERNELS[name], NUMBA_CACHE_DIR=str(cache / name), PYTHONPATH=str(ROOT))
+    return subprocess.Popen([sys.executable, __file__, "--worker", str(sink), "--first", str(first), "--count", str(count)],
+                            env=env, cwd=ROOT)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--first", type=int, default=100_000, help="the first seed (default 100000)")
+    parser.add_argument("--count", type=int, default=2000, help="how many stacks (default 2000)")
+    parser.add_argument("--kernels", default=",".join(KERNELS), help=f"among {', '.join(KERNELS)}")
+    parser.add_argument("--json", type=Path, default=ROOT / "bench" / "results" / "hqp_kernels.json")
+    parser.add_argument("--worker", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.worker:
+        Path(args.worker).write_text(json.dumps(sweep(args.first, args.count)))
+        return 0
+    names = [name.strip() for name in args.kernels.split(",")]
+    unknown = [name for name in names if name not in KERNELS]
+    if unknown:
+        parser.error(f"unknown kernel(s) {unknown}; choose among {list(KERNELS)}")
+    outcomes, seconds = {}, {}
+    with tempfile.TemporaryDirectory() as work:
+        print(f"{', '.join(names)}: {args.count} stacks from seed {args.first}, one process per kernel …", flush=True)
+        began = time.monotonic()
+        workers = {name: start_kernel(name, args.first, args.count, Path(work), Path(work) / f"{name}.json")
+                   for name in names}
+        for name, worker in workers.items():
+            if worker.wait() != 0:
+                raise SystemExit(f"the sweep under kernel {name} exited with {worker.returncode}")
+            outcomes[name], seconds[name] = json.loads((Path(work) / f"{name}.json").read_text()), time.monotonic() - began
+    failed = {name: [r for r in records if not r["ok"]] for name, records in outcomes.items()}
+    paths = [{name: outcomes[name][i]["path"] for name in names} for i in range(args.count)]
+    differ = [i for i, by_kernel in enumerate(paths) if len(set(by_kernel.values())) > 1]
+    differ_failed = [i for i in differ if any(not outcomes[name][i]["ok"] for name in names)]
+    summary = {
+        "first_seed": args.first, "stacks": args.count, "kernels": {name: KERNELS[name] for name in names},
+        "failed": {name: len(records) for name, records in failed.items()},
+        "failures": {name: records[:20] for name, records in failed.items()},
+        "paths_differ": len(differ), "paths_differ_and_contract_missed": len(differ_failed),
+        "paths_differ_seeds": [args.first + i for i in differ[:50]],
+        "seconds": {name: round(s, 1) for name, s in seconds.items()},
+    }
+    print(f"{'kernel':<9} {'stacks':>7} {'contract missed':>16} {'seconds':>8}")
+    for name in names:
+        print(f"{name:<9} {args.count:>7} {summary['failed'][name]:>16} {summary['seconds'][name]:>8}")
+    print(f"answering path differs between kernels on {len(differ)} stacks; "
+          f"{len(differ_failed)} of them miss the contract under some kernel")
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps(summary, indent=1) + "\n")
+    return 1 if any(failed.values()) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

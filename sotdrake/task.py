@@ -32,6 +32,7 @@ from pydrake.systems.framework import Context, LeafContext, LeafSystem
 from .entity import Entity
 from .exceptions import InvalidInput, SotWarning, StackError, check_finite
 from .features.base import FeatureValue, feature_signals
+from .progress import ProgressWatch
 from .ranges import MAX_TARGET_POSITION
 
 #: Largest derivative gain β of a TaskPD (dimensionless: ė* = -λ e - β ė).
@@ -97,6 +98,7 @@ class _TaskBase(LeafSystem):
 
     def _declare_ports(self, nv: int) -> None:
         self.nv = nv
+        self._progress = ProgressWatch(self.get_name())  # logging only (sotdrake.progress)
         self.feature = self.DeclareAbstractInputPort(
             "feature", AbstractValue.Make(FeatureValue(np.zeros(0), np.zeros((0, nv)), np.zeros(0))))
         self.error = self.DeclareAbstractInputPort("error", AbstractValue.Make(np.zeros(0)))
@@ -139,6 +141,8 @@ class _TaskBase(LeafSystem):
                 raise StackError(missing) from None
             raise
         lower, upper = self._rows(context, e, gain)
+        if lower is upper:  # an equality task: is its error still falling?
+            self._progress.observe(context.get_time(), e)
         if e_dot is not None and np.count_nonzero(e_dot):
             if e_dot.shape != e.shape:
                 raise InvalidInput(f"{self.name}: errordot has {e_dot.size} rows, error has {e.size}")

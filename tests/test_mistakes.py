@@ -246,3 +246,29 @@ def test_hold_feet_and_com_keeps_a_selection_already_set():
     sot.setControlSelection(chosen)
     hold_feet_and_com(robot, sot)
     np.testing.assert_array_equal(sot.settings().control_selection, chosen)
+
+
+def _reach(target, duration: float, caplog) -> list[str]:
+    builder = DiagramBuilder()
+    from sotdrake import robot
+
+    bot = robot(builder, "ur5")
+    sot = add_sot(bot, solver="hqp")
+    tool = MetaTaskKine6d("tool", bot, "tool")
+    gotoNd(tool, target, "111", 5.0)
+    sot.push(tool)
+    with caplog.at_level(logging.WARNING, logger="sotdrake.task"):
+        simulate(builder.Build(), duration, progress=False)
+    return [r.getMessage() for r in caplog.records if r.name == "sotdrake.task"]
+
+
+def test_an_unreachable_target_is_reported_once_with_the_remaining_distance(caplog):
+    messages = _reach([2.0, 0.0, 0.4], 2.5, caplog)  # the UR5 reaches about 0.9 m
+    assert len(messages) == 1
+    assert "tasktool" in messages[0] and "has not decreased" in messages[0] and "out of reach" in messages[0]
+    remaining = float(messages[0].split("‖e‖ = ")[1].split()[0])
+    assert 0.9 < remaining < 1.3
+
+
+def test_a_reachable_target_is_not_reported(caplog):
+    assert _reach([0.4, 0.2, 0.4], 2.5, caplog) == []

@@ -241,6 +241,55 @@ def test_reference_posture_clipped_and_named_op_points(tmp_path):
         bot.OperationalPointsMap["palm"]
 
 
+MJCF = """\
+<mujoco model="arm">
+  <compiler angle="radian"/>
+  <worldbody>
+    <body name="link1" pos="0 0 0.1">
+      <joint name="j1" type="hinge" axis="0 0 1" range="-2 2" limited="true"/>
+      <geom type="capsule" size="0.02" fromto="0 0 0 0.3 0 0" mass="1"/>
+      <body name="link2" pos="0.3 0 0">
+        <joint name="j2" type="hinge" axis="0 0 1" range="-2 2" limited="true"/>
+        <geom type="capsule" size="0.02" fromto="0 0 0 0.3 0 0" mass="1"/>
+        <body name="hand" pos="0.3 0 0">
+          <geom type="sphere" size="0.02" mass="0.2"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+SDF = """\
+<sdf version="1.7"><model name="arm">
+<link name="base"><inertial><mass>1</mass><inertia><ixx>0.01</ixx><iyy>0.01</iyy><izz>0.01</izz>
+<ixy>0</ixy><ixz>0</ixz><iyz>0</iyz></inertia></inertial></link>
+<link name="l1"><pose>0 0 0.1 0 0 0</pose><inertial><mass>1</mass><inertia><ixx>0.01</ixx><iyy>0.01</iyy><izz>0.01</izz>
+<ixy>0</ixy><ixz>0</ixz><iyz>0</iyz></inertia></inertial></link>
+<link name="hand"><pose>0.3 0 0.1 0 0 0</pose><inertial><mass>1</mass><inertia><ixx>0.01</ixx><iyy>0.01</iyy><izz>0.01</izz>
+<ixy>0</ixy><ixz>0</ixz><iyz>0</iyz></inertia></inertial></link>
+<joint name="j1" type="revolute"><parent>base</parent><child>l1</child>
+<axis><xyz>0 0 1</xyz><limit><lower>-1</lower><upper>1</upper></limit></axis></joint>
+<joint name="j2" type="revolute"><pose relative_to="l1">0 0 0 0 0 0</pose><parent>l1</parent><child>hand</child>
+<axis><xyz>0 1 0</xyz><limit><lower>-1</lower><upper>1</upper></limit></axis></joint>
+</model></sdf>
+"""
+
+
+@pytest.mark.parametrize(("file_name", "text"), [("arm.xml", MJCF), ("arm.sdf", SDF)])
+def test_sdf_and_mjcf_by_path(tmp_path, file_name, text):
+    path = tmp_path / file_name
+    path.write_text(text)
+    model = load_robot(path)
+    assert model.nv == 2 and model.plant.num_actuators() == 2
+    assert model.OperationalPointsMap["hand"] == "hand"
+    # a target the arm reaches at q = (0.3, 0.3): j1 turns about z, j2 about y
+    X = model.plant.CalcRelativeTransform(_context_at(model, np.array([0.3, 0.3])), model.plant.world_frame(), model.frame("hand"))
+    start, end, excursion = run_reach(model, X.translation())
+    assert end < 0.1 * start
+    assert excursion <= 1e-9
+
+
 def guide_blocks() -> list[str]:
     text = (ROOT / "docs" / "guide" / "your_robot.md").read_text()
     return re.findall(r"```python\n(.*?)```", text, flags=re.S)

@@ -17,7 +17,7 @@ sys.path.insert(0, str(ROOT))
 
 project = "sotdrake"
 author = "the sotdrake developers"
-copyright = "the sotdrake developers, BSD-3-Clause"  # noqa: A001 (Sphinx's name)
+copyright = "the sotdrake developers, BSD-3-Clause"
 try:
     from importlib.metadata import version as _version
 

@@ -22,8 +22,9 @@ def test_first_stack_runs_as_written(tmp_path, monkeypatch, capsys):
     context = namespace["simulator"].get_context()
     hand, waist, target = namespace["hand"], namespace["waist"], np.asarray(namespace["target"])
     assert np.linalg.norm(hand.current_pose(context).translation() - target) < 1e-4
-    np.testing.assert_allclose(waist.current_pose(context).GetAsMatrix4(),
-                               waist.current_pose().GetAsMatrix4(), atol=1e-9)  # priority 1 held
+    np.testing.assert_allclose(
+        waist.current_pose(context).GetAsMatrix4(), waist.current_pose().GetAsMatrix4(), atol=1e-9
+    )  # priority 1 held
     assert "hand to target (m):" in capsys.readouterr().out
     recording = (tmp_path / "recording.html").read_text()
     assert "<html" in recording.lower() and len(recording) > 1e5

@@ -10,6 +10,7 @@ from __future__ import annotations
 import inspect
 import json
 import re
+import types
 from pathlib import Path
 from typing import Any
 
@@ -53,10 +54,23 @@ def _flat(d: dict, prefix: str = "") -> list[tuple[str, Any]]:
 
 
 def dynamics_tables(d: dict) -> list[str]:
-    lines = ["### The dynamic SoT against placo (`bench/results/dynamics.json`)", "",
-             "Regenerate with `.venv/bin/pip install \".[bench]\" && .venv/bin/python bench/dynamics.py`.", ""]
-    keys = ["tick_cpu_us_median", "tick_cpu_us_p95", "tick_us_median", "tick_us_p95", "com_rms_error_m", "foot_rms_error_m",
-            "max_torque_ratio", "max_friction_ratio", "fell"]
+    lines = [
+        "### The dynamic SoT against placo (`bench/results/dynamics.json`)",
+        "",
+        'Regenerate with `.venv/bin/pip install ".[bench]" && .venv/bin/python bench/dynamics.py`.',
+        "",
+    ]
+    keys = [
+        "tick_cpu_us_median",
+        "tick_cpu_us_p95",
+        "tick_us_median",
+        "tick_us_p95",
+        "com_rms_error_m",
+        "foot_rms_error_m",
+        "max_torque_ratio",
+        "max_friction_ratio",
+        "fell",
+    ]
     for scenario, run in d.items():
         if not isinstance(run, dict) or "sotdrake" not in run:
             continue
@@ -69,34 +83,69 @@ def dynamics_tables(d: dict) -> list[str]:
 
 
 def hostile_tables(d: dict) -> list[str]:
-    lines = ["### Hostile inputs and randomized runs (`bench/results/hostile.json`)", "",
-             "Regenerate with `.venv/bin/python bench/hostile.py`.", "",
-             f"Bad inputs tried: {_num(d.get('bad_inputs'))}; answered by a `SotError`: "
-             f"{_num(d.get('bad_input_status', {}).get('sot_error'))}; state changed by one: {_num(d.get('bad_input_state_changed'))}.", ""]
-    keys = ["runs", "process_exits", "hangs", "nan", "max_contact_drift_m", "contacts_beyond_tolerance", "runs_with_limit_violation",
-            "max_limit_violation", "runs_scaled", "min_velocity_scale"]
+    lines = [
+        "### Hostile inputs and randomized runs (`bench/results/hostile.json`)",
+        "",
+        "Regenerate with `.venv/bin/python bench/hostile.py`.",
+        "",
+        f"Bad inputs tried: {_num(d.get('bad_inputs'))}; answered by a `SotError`: "
+        f"{_num(d.get('bad_input_status', {}).get('sot_error'))}; state changed by one: {_num(d.get('bad_input_state_changed'))}.",
+        "",
+    ]
+    keys = [
+        "runs",
+        "process_exits",
+        "hangs",
+        "nan",
+        "max_contact_drift_m",
+        "contacts_beyond_tolerance",
+        "runs_with_limit_violation",
+        "max_limit_violation",
+        "runs_scaled",
+        "min_velocity_scale",
+    ]
     runs = d.get("runs", {})
     lines += _table(["measure", *runs], [[k, *[runs[s].get(k) for s in runs]] for k in keys])
     return lines
 
 
 def hqp_runs_table(d: dict) -> list[str]:
-    lines = ["### `SolverKine` on randomized TALOS runs (`bench/results/hqp_robot_runs.json`)", "",
-             "Regenerate with `.venv/bin/python bench/hqp_robot_runs.py`.", ""]
+    lines = [
+        "### `SolverKine` on randomized TALOS runs (`bench/results/hqp_robot_runs.json`)",
+        "",
+        "Regenerate with `.venv/bin/python bench/hqp_robot_runs.py`.",
+        "",
+    ]
     rows = [[k, v] for k, v in _flat(d) if not isinstance(v, list)]
     return lines + _table(["measure", "value"], rows)
 
 
 def sweep_table(d: dict) -> list[str]:
-    lines = ["### Sweeps: local against Ray (`bench/results/sweep.json`)", "",
-             "Regenerate with `.venv/bin/pip install \".[sweep]\" && .venv/bin/python bench/sweep_speedup.py --targets 1000 "
-             "--out out/sweep_bench`.", ""]
+    lines = [
+        "### Sweeps: local against Ray (`bench/results/sweep.json`)",
+        "",
+        'Regenerate with `.venv/bin/pip install ".[sweep]" && .venv/bin/python bench/sweep_speedup.py --targets 1000 '
+        "--out out/sweep_bench`.",
+        "",
+    ]
     runs = d.get("runs", {})
-    rows = [[engine, r.get("workers"), r.get("wall_s"), (d.get("targets") or 0) / r["wall_s"] if r.get("wall_s") else None,
-             r.get("errors"), r.get("reached_within_1cm")] for engine, r in runs.items()]
+    rows = [
+        [
+            engine,
+            r.get("workers"),
+            r.get("wall_s"),
+            (d.get("targets") or 0) / r["wall_s"] if r.get("wall_s") else None,
+            r.get("errors"),
+            r.get("reached_within_1cm"),
+        ]
+        for engine, r in runs.items()
+    ]
     lines += _table(["engine", "workers", "wall time (s)", "cases/s", "errors", "reached within 1 cm"], rows)
-    lines += [f"{_num(d.get('targets'))} targets; speed-up of Ray over local: {_num(d.get('speedup_ray_over_local'))}; "
-              f"identical tables: {_num(d.get('identical_tables'))}; {_num(d.get('cores'))} cores.", ""]
+    lines += [
+        f"{_num(d.get('targets'))} targets; speed-up of Ray over local: {_num(d.get('speedup_ray_over_local'))}; "
+        f"identical tables: {_num(d.get('identical_tables'))}; {_num(d.get('cores'))} cores.",
+        "",
+    ]
     return lines
 
 
@@ -107,9 +156,13 @@ def generic_table(name: str, d: dict) -> list[str]:
 
 def reference_tables(d: dict) -> list[str]:
     """The reference run, rendered by bench/run.py's own renderer when it imports, else its key figures."""
-    lines = ["### The kinematic tick against pink and placo (`bench/reference.json`)", "",
-             "Regenerate with `.venv/bin/pip install \".[bench]\" && .venv/bin/python bench/run.py` "
-             "(`--table bench/reference.json` prints these tables from the committed run).", ""]
+    lines = [
+        "### The kinematic tick against pink and placo (`bench/reference.json`)",
+        "",
+        'Regenerate with `.venv/bin/pip install ".[bench]" && .venv/bin/python bench/run.py` '
+        "(`--table bench/reference.json` prints these tables from the committed run).",
+        "",
+    ]
     try:
         import sys
 
@@ -118,14 +171,27 @@ def reference_tables(d: dict) -> list[str]:
 
         return [*lines, bench_run.markdown(d), ""]
     except Exception:  # the renderer needs the package installed: fall back to the key figures
-        keys = ["tick_us_median", "hqp_tick_us_median", "hqp_active_tick_us_median", "pink_tick_us_median",
-                "placo_tick_us_median", "ratio_vs_pink", "realtime_factor_kinematic", "realtime_factor_physics",
-                "marginal_task_us", "hqp_random_solve_ms_median"]
+        keys = [
+            "tick_us_median",
+            "hqp_tick_us_median",
+            "hqp_active_tick_us_median",
+            "pink_tick_us_median",
+            "placo_tick_us_median",
+            "ratio_vs_pink",
+            "realtime_factor_kinematic",
+            "realtime_factor_physics",
+            "marginal_task_us",
+            "hqp_random_solve_ms_median",
+        ]
         return [*lines, *_table(["measure", "value"], [[k, d.get(k)] for k in keys if k in d])]
 
 
-RENDERERS = {"dynamics.json": dynamics_tables, "hostile.json": hostile_tables, "hqp_robot_runs.json": hqp_runs_table,
-             "sweep.json": sweep_table}
+RENDERERS = {
+    "dynamics.json": dynamics_tables,
+    "hostile.json": hostile_tables,
+    "hqp_robot_runs.json": hqp_runs_table,
+    "sweep.json": sweep_table,
+}
 
 
 def benchmark_markdown() -> str:
@@ -140,6 +206,9 @@ def benchmark_markdown() -> str:
 
 
 def _is_data(obj: Any) -> bool:
+    """A constant or a type alias (``Case = dict[str, object]``), not a class, function or module."""
+    if isinstance(obj, types.GenericAlias | types.UnionType) or type(obj).__module__ == "typing":
+        return True
     return not (inspect.isclass(obj) or inspect.isroutine(obj) or inspect.ismodule(obj) or callable(obj))
 
 
@@ -151,15 +220,59 @@ def _annotation(value: Any) -> str:
     return f": {type(value).__name__}{size}"
 
 
-def api_data_markdown() -> str:
-    """``autodata`` for the constants of ``sotdrake.__all__``: autodoc leaves out an imported constant."""
+#: The modules whose API page lists its constants (docs/api/<name>.md includes _generated/api_data_<name>.md).
+API_MODULES = (
+    "sotdrake",
+    "sotdrake.features",
+    "sotdrake.solvers",
+    "sotdrake.dynamics",
+    "sotdrake.walking",
+    "sotdrake.robots",
+    "sotdrake.physics",
+    "sotdrake.live",
+    "sotdrake.sweep",
+)
+
+
+def _comment_docs() -> dict[str, list[str]]:
+    """``#:`` comments of the package's module-level constants, by name, from every module's source."""
+    import pkgutil
+
+    from sphinx.pycode import ModuleAnalyzer
+
     import sotdrake
 
-    names = [n for n in sotdrake.__all__ if _is_data(getattr(sotdrake, n))]
+    docs: dict[str, list[str]] = {}
+    for info in pkgutil.walk_packages(sotdrake.__path__, "sotdrake."):
+        try:
+            found = ModuleAnalyzer.for_module(info.name).find_attr_docs()
+        except Exception:  # a module without source: nothing to read
+            continue
+        for (scope, name), lines in found.items():
+            if scope == "" and name not in docs:
+                docs[name] = [line for line in lines if line.strip() or docs.get(name)]
+    return docs
+
+
+def api_data_markdown(module_name: str, comments: dict[str, list[str]]) -> str:
+    """``autodata`` for the constants of a module's ``__all__``: autodoc leaves out an imported constant.
+    A subpackage leaves out those of ``sotdrake.__all__`` (documented on the top-level page)."""
+    import importlib
+
+    import sotdrake
+
+    module = importlib.import_module(module_name)
+    top = [getattr(sotdrake, n) for n in sotdrake.__all__] if module_name != "sotdrake" else []
+    names = [n for n in module.__all__ if _is_data(getattr(module, n)) and not any(getattr(module, n) is o for o in top)]
     if not names:
-        return "<!-- no constants in sotdrake.__all__ -->\n"
-    body = "\n".join(f".. autodata:: sotdrake.{n}\n   :annotation: {_annotation(getattr(sotdrake, n))}\n" for n in names)
-    return "## Constants\n\n```{eval-rst}\n" + body + "```\n"
+        return "<!-- no constants in this module's __all__ -->\n"
+    blocks = []
+    for n in names:
+        text = f".. autodata:: {module_name}.{n}\n   :annotation: {_annotation(getattr(module, n))}\n"
+        if comments.get(n):
+            text += "\n" + "".join(f"   {line}\n" for line in comments[n])
+        blocks.append(text)
+    return "## Constants and type aliases\n\n```{eval-rst}\n" + "\n".join(blocks) + "```\n"
 
 
 def _write(path: Path, text: str) -> None:
@@ -171,7 +284,9 @@ def write_generated(app) -> None:
     out = Path(app.srcdir) / "_generated"
     out.mkdir(exist_ok=True)
     _write(out / "benchmarks_tables.md", benchmark_markdown())
-    _write(out / "api_data.md", api_data_markdown())
+    comments = _comment_docs()
+    for module_name in API_MODULES:
+        _write(out / f"api_data_{module_name.split('.')[-1]}.md", api_data_markdown(module_name, comments))
 
 
 _PLURAL_LITERAL = re.compile(r"``([^`]+)``(?=[a-z])")
@@ -183,7 +298,8 @@ def fix_docstring(app, what, name, obj, options, lines) -> None:
     A literal followed by a letter (``LeafSystem``s) is not closed for docutils: a backslash-escaped
     space between them renders the same text.
     """
-    if what == "data" and lines and "\n".join(lines).strip() == (inspect.getdoc(type(obj)) or "").strip():
+    inherited = {(inspect.getdoc(t) or "").strip() for t in (type(obj), getattr(obj, "__origin__", None)) if t is not None}
+    if what == "data" and lines and "\n".join(lines).strip() in inherited:
         lines[:] = []  # a constant without a docstring of its own: not its type's (dict's, str's) docstring
         return
     for i, line in enumerate(lines):
@@ -192,18 +308,19 @@ def fix_docstring(app, what, name, obj, options, lines) -> None:
 
 
 def skip_top_level_names(app, what, name, obj, skip, options):
-    """The top-level page documents every name of ``sotdrake.__all__`` (data too, which autodoc would
-    leave out without a docstring of its own); a subpackage's page leaves out the names it shares with
-    it: they are documented once (else Sphinx sees two descriptions of one canonical object)."""
+    """Which members an API page lists. The top-level page documents every name of ``sotdrake.__all__``;
+    a subpackage's page leaves out the names it shares with it: they are documented once (else Sphinx
+    sees two descriptions of one canonical object). Constants are documented by the generated
+    ``autodata`` blocks (api_data_<module>.md), never by automodule."""
     import sotdrake
 
     if what != "module":
         return skip
-    top_level = any(obj is getattr(sotdrake, n, None) for n in sotdrake.__all__)
+    if _is_data(obj):
+        return True
     if app.env.docname == "api/sotdrake":
-        if name in sotdrake.__all__ and _is_data(obj):
-            return True  # documented by the generated ``autodata`` block (api_data.md)
         return False if name in sotdrake.__all__ else skip
+    top_level = any(obj is getattr(sotdrake, n, None) for n in sotdrake.__all__)
     return True if top_level else skip
 
 

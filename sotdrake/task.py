@@ -129,6 +129,8 @@ class _TaskBase(LeafSystem):
             self.controlGain.Eval(own)
         except RuntimeError as error:
             return unconnected_input_message(self.name, error)
+        except Exception:  # another problem: the run reports it itself, from its own state
+            return None
         return None
 
     def _calc(self, context: Context, value: AbstractValue) -> None:

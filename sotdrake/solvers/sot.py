@@ -165,7 +165,7 @@ class SOT(Entity[StackSettings]):
     def known_tasks(self) -> list[str]:
         return list(self._task_ports)
 
-    def _known(self, name: str) -> str:
+    def _known(self, name: object) -> str:
         if not isinstance(name, str):
             raise TaskNotFound(f"{name!r:.80}", list(self._task_ports)).but(
                 f"{self.name} expects a task name (str), a task or a meta task, got a {type(name).__name__}")
@@ -173,12 +173,12 @@ class SOT(Entity[StackSettings]):
             raise TaskNotFound(name, list(self._task_ports))
         return name
 
-    def _task_name(self, task) -> str:
+    def _task_name(self, task: object) -> str:
         """The known task name of a name, a ``Task`` or a meta task (its ``.task``)."""
         return self._known(getattr(getattr(task, "task", task), "name", task))
 
     # --- stack commands (sot-core names) ---------------------------------------------------
-    def push(self, name: str, context: Context | None = None) -> None:
+    def push(self, name: object, context: Context | None = None) -> None:
         """Append ``name`` (a task name, a task or a meta task) at the bottom (lowest priority) of
         the stack."""
         name = self._task_name(name)
@@ -195,15 +195,15 @@ class SOT(Entity[StackSettings]):
 
         self._command(context, change)
 
-    def up(self, name: str, context: Context | None = None) -> None:
-        """Raise ``name`` one level (swap with the task above it)."""
+    def up(self, name: object, context: Context | None = None) -> None:
+        """Raise ``name`` (a task name, a task or a meta task) one level (swap with the task above it)."""
         self._move(name, -1, context)
 
-    def down(self, name: str, context: Context | None = None) -> None:
-        """Lower ``name`` one level (swap with the task below it)."""
+    def down(self, name: object, context: Context | None = None) -> None:
+        """Lower ``name`` (a task name, a task or a meta task) one level (swap with the task below it)."""
         self._move(name, +1, context)
 
-    def _move(self, name: str, step: int, context: Context | None) -> None:
+    def _move(self, name: object, step: int, context: Context | None) -> None:
         name = self._task_name(name)
 
         def change(s: StackSettings) -> None:
@@ -254,7 +254,7 @@ class SOT(Entity[StackSettings]):
 
         self._command(context, change)
 
-    def remove(self, name: str, context: Context | None = None) -> None:
+    def remove(self, name: object, context: Context | None = None) -> None:
         """Remove ``name`` (a task name, a task or a meta task) from the stack."""
         name = self._task_name(name)
 

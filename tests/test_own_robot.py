@@ -302,3 +302,14 @@ def test_guide_examples_run(tmp_path, monkeypatch):
     namespace: dict = {"__name__": "guide"}
     for block in blocks:
         exec(compile(block, "your_robot.md", "exec"), namespace)
+
+
+def test_add_robot_puts_your_file_in_a_plant_of_your_own(tmp_path):
+    from pydrake.multibody.plant import MultibodyPlant
+
+    from sotdrake.robots import add_robot
+
+    plant = MultibodyPlant(1e-3)
+    add_robot(plant, seven_dof(tmp_path / "arm7.urdf"), base="free")
+    plant.Finalize()
+    assert (plant.num_positions(), plant.num_velocities(), plant.num_actuators()) == (14, 13, 7)

@@ -153,6 +153,26 @@ def _add_other(plant: MultibodyPlant, path: Path, resolver: PackageResolver, flo
     return instances
 
 
+def add_robot_file(
+    plant: MultibodyPlant,
+    path: PathArg,
+    *,
+    meshes: bool = False,
+    floating_base: bool = False,
+    package_paths: Mapping[str, PathArg] | None = None,
+) -> list[ModelInstanceIndex]:
+    """Add the robot described by the file ``path`` to an unfinalized ``plant`` (its geometry only
+    with ``meshes`` and a plant registered with a SceneGraph), as :func:`load_robot_file` does, and
+    return its model instances (one for a URDF). For a plant of your own, e.g. a physics plant."""
+    file = Path(path).expanduser()
+    if not file.is_file():
+        raise RobotFileNotFound(str(path), list(ROBOTS))
+    resolver = PackageResolver(file, package_paths)
+    if _format(file) == "urdf":
+        return [_add_urdf(plant, file, resolver, meshes, floating_base)]
+    return _add_other(plant, file, resolver, floating_base)
+
+
 def find_srdf(path: Path) -> Path | None:
     """``<stem>.srdf`` beside the description, or in a ``srdf/`` folder beside its folder."""
     for candidate in (path.with_suffix(".srdf"), path.parent.parent / "srdf" / f"{path.stem}.srdf"):
@@ -261,18 +281,13 @@ def load_robot_file(
         raise InvalidInput(f"floating_base must be True or False, got {floating_base!r}")
     srdf_path = find_srdf(file) if srdf is None else Path(srdf).expanduser()
     if srdf_path is not None and not srdf_path.is_file():
-        raise RobotFileNotFound(str(srdf), [])
-    kind = _format(file)
-    resolver = PackageResolver(file, package_paths)
+        raise InvalidInput(f"srdf={str(srdf)!r}: no such file")
     plant = MultibodyPlant(time_step)
     scene_graph = None
     if meshes:
         scene_graph = SceneGraph()
         plant.RegisterAsSourceForSceneGraph(scene_graph)
-    if kind == "urdf":
-        _add_urdf(plant, file, resolver, meshes, floating_base)
-    else:
-        _add_other(plant, file, resolver, floating_base)
+    add_robot_file(plant, file, meshes=meshes, floating_base=floating_base, package_paths=package_paths)
     plant.Finalize()
     if _movable_dofs(plant) == 0:
         raise RobotDescriptionError(f"{file}: the robot has no movable joint (every joint is fixed): nothing to control")

@@ -31,7 +31,7 @@ from pydrake.multibody.tree import ModelInstanceIndex, PlanarJoint
 
 from ..exceptions import InvalidInput, RobotNotFound, SotError, VariantNotFound
 from .catalog import BASES, ROBOTS, RobotSpec
-from .from_file import load_robot_file, looks_like_path, operational_points_of, posture_of
+from .from_file import add_robot_file, load_robot_file, looks_like_path, operational_points_of, posture_of
 from .model import RobotModel, posture_from_srdf
 from .srdf import read_group_state
 from .urdf_text import prepare_urdf
@@ -141,7 +141,7 @@ def add_actuators(plant: MultibodyPlant, instance: ModelInstanceIndex, urdf_text
 
 def add_robot(
     plant: MultibodyPlant,
-    name: str,
+    name: str | PathLike[str],
     variant: str | None = None,
     meshes: bool = False,
     base: str | None = None,
@@ -153,8 +153,16 @@ def add_robot(
     geometry (the plant must be registered with a SceneGraph); ``collision=False`` keeps only the
     visuals. ``base``: ``'free'``, ``'planar'`` or ``'fixed'`` (default: the robot's own, see
     :data:`sotdrake.robots.catalog.ROBOTS`). A URDF whose root is already welded to ``world`` stays
-    welded.
+    welded. ``name`` may also be the path of your URDF, SDF or MJCF file (see
+    :func:`~sotdrake.robots.from_file.add_robot_file`; ``base``: ``'free'`` or ``'fixed'``, the
+    default).
     """
+    if looks_like_path(name) or (isinstance(name, str) and name not in ROBOTS and Path(name).is_file()):
+        if variant is not None or base not in (None, "free", "fixed"):
+            raise InvalidInput(f"a robot file has no variants and a free or fixed base, got variant={variant!r}, base={base!r}")
+        instances = add_robot_file(plant, name, meshes=meshes, floating_base=base == "free")
+        return instances[0]
+    name = str(name)
     spec = robot_spec(name)
     variant = _variant(spec, variant)
     base = _base(spec, variant, base)

@@ -75,6 +75,8 @@ def test_every_public_name_is_in_the_api_reference(site):
     assert not missing, f"names of sotdrake.__all__ missing from the API reference: {missing}"
     api_html = (site / "api" / "sotdrake.html").read_text()
     assert all(f'id="sotdrake.{n}"' in api_html for n in top)
+    for page in (site / "api").glob("*.html"):  # the docstrings' literals render as written (none mangled)
+        assert '<span class="pre">\\' not in page.read_text(), page.name
     for module, module_names in names.items():
         # a subpackage's page documents its own names; those it shares with the top level are there
         missing = [n for n in module_names if f"{module}.{n}" not in documented and n not in top]

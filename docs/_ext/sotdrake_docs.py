@@ -235,22 +235,21 @@ API_MODULES = (
 
 
 def _comment_docs() -> dict[str, list[str]]:
-    """``#:`` comments of the package's module-level constants, by name, from every module's source."""
-    import pkgutil
-
+    """``#:`` comments of the package's module-level constants, by name, read from every module's
+    source (nothing imported)."""
     from sphinx.pycode import ModuleAnalyzer
 
-    import sotdrake
-
+    package = ROOT / "sotdrake"
     docs: dict[str, list[str]] = {}
-    for info in pkgutil.walk_packages(sotdrake.__path__, "sotdrake."):
+    for path in sorted(package.rglob("*.py")):
+        name = ".".join(path.relative_to(ROOT).with_suffix("").parts)
         try:
-            found = ModuleAnalyzer.for_module(info.name).find_attr_docs()
-        except Exception:  # a module without source: nothing to read
+            found = ModuleAnalyzer.for_string(path.read_text(), name, str(path)).find_attr_docs()
+        except Exception:  # a module that does not parse: nothing to read
             continue
-        for (scope, name), lines in found.items():
-            if scope == "" and name not in docs:
-                docs[name] = [line for line in lines if line.strip() or docs.get(name)]
+        for (scope, attribute), lines in found.items():
+            if scope == "" and attribute not in docs:
+                docs[attribute] = list(lines)
     return docs
 
 
@@ -289,22 +288,34 @@ def write_generated(app) -> None:
         _write(out / f"api_data_{module_name.split('.')[-1]}.md", api_data_markdown(module_name, comments))
 
 
-_PLURAL_LITERAL = re.compile(r"``([^`]+)``(?=[a-z])")
+_LITERAL = re.compile(r"``.+?``", re.S)
+
+
+def close_literals(text: str) -> str:
+    """An inline literal directly followed by a letter (the plural of a literal class name) is not
+    closed for docutils: put an escaped space (which renders as nothing) between them. Literals are paired from the
+    left, over the whole docstring (one may span lines)."""
+    out, position = [], 0
+    for match in _LITERAL.finditer(text):
+        out.append(text[position : match.end()])
+        if match.end() < len(text) and text[match.end()].isalpha():
+            out.append("\\ ")
+        position = match.end()
+    out.append(text[position:])
+    return "".join(out)
 
 
 def fix_docstring(app, what, name, obj, options, lines) -> None:
-    """Make plain-text docstrings valid reST, without changing what they say.
-
-    A literal followed by a letter (``LeafSystem``s) is not closed for docutils: a backslash-escaped
-    space between them renders the same text.
-    """
+    """Make plain-text docstrings valid reST, without changing what they say."""
     inherited = {(inspect.getdoc(t) or "").strip() for t in (type(obj), getattr(obj, "__origin__", None)) if t is not None}
     if what == "data" and lines and "\n".join(lines).strip() in inherited:
         lines[:] = []  # a constant without a docstring of its own: not its type's (dict's, str's) docstring
         return
-    for i, line in enumerate(lines):
-        if "``" in line:
-            lines[i] = _PLURAL_LITERAL.sub(r"``\1``\\ ", line)
+    text = "\n".join(lines)
+    if "``" in text:
+        mended = close_literals(text)
+        if mended != text:
+            lines[:] = mended.split("\n")
 
 
 def skip_top_level_names(app, what, name, obj, skip, options):

@@ -87,12 +87,14 @@ def sweep(first: int, count: int) -> list[dict]:
         except SolverError as error:
             record.update(ok=False, why=f"failure: {str(error)[:200]}")
         out.append(record)
+        if (seed - first + 1) % 1000 == 0:
+            print(f"  {os.environ.get('SWEEP_KERNEL', '')}: {seed - first + 1} of {count} stacks", file=sys.stderr, flush=True)
     return out
 
 
 def start_kernel(name: str, first: int, count: int, cache: Path, sink: Path) -> subprocess.Popen:
     """The sweep under kernel ``name`` in its own process (its own numba cache), writing ``sink``."""
-    env = dict(os.environ, **KERNELS[name], NUMBA_CACHE_DIR=str(cache / name), PYTHONPATH=str(ROOT))
+    env = dict(os.environ, **KERNELS[name], NUMBA_CACHE_DIR=str(cache / name), PYTHONPATH=str(ROOT), SWEEP_KERNEL=name)
     return subprocess.Popen([sys.executable, __file__, "--worker", str(sink), "--first", str(first), "--count", str(count)],
                             env=env, cwd=ROOT)
 

@@ -11,7 +11,8 @@ checks a cached function against its own file only: after a change to this file,
 ``sotdrake/solvers/__pycache__/*.nbi`` and ``*.nbc`` files, or the solvers keep the old code.)
 
 Every wrapper takes column-major (Fortran-ordered) matrices (its signature refuses others),
-overwrites them as the LAPACK routine does, and returns LAPACK's ``info`` (0: success, < 0: a bad
+overwrites them as the LAPACK routine does (with ``NUMBA_DISABLE_JIT=1``, through
+``scipy.linalg.lapack``'s routine of the same name), and returns LAPACK's ``info`` (0: success, < 0: a bad
 argument, > 0: the routine's own failure). :func:`fortran` makes such a copy; :func:`contiguous`, :func:`upper_inverse`,
 :func:`norm`, :func:`row_norms` and :func:`level_residuals` are the compiled solvers' shared helpers,
 :func:`~sotdrake.compiled.compiled_input` the arrays they take.
@@ -24,8 +25,9 @@ from typing import Any
 
 import numpy as np
 from llvmlite import binding
-from numba import njit, types
+from numba import config, njit, types
 from numba.extending import get_cython_function_address
+from scipy.linalg import lapack as _lapack
 
 _ARGUMENTS = {"dgeqrf": 8, "dgeqp3": 9, "dorgqr": 9, "dormqr": 13, "dtrtri": 6, "dtrtrs": 10}
 
@@ -136,6 +138,66 @@ def trtrs_upper(a, b):
     _dtrtrs(_character(85).ctypes, _character(78).ctypes, _character(78).ctypes, _integer(n).ctypes, _integer(columns).ctypes,
             a.ctypes, _integer(max(1, n)).ctypes, b.ctypes, _integer(max(1, n)).ctypes, info.ctypes)
     return info[0]
+
+
+# With the JIT disabled (NUMBA_DISABLE_JIT=1, to run the compiled solvers as plain Python, e.g. to
+# check them under another round-off) the LLVM symbols above are out of reach: called from Python
+# they would do nothing. The wrappers are then these, which call scipy.linalg.lapack's routine of the
+# same name and write its results over the same arguments, as the compiled ones do.
+def _python_geqrf(a, tau):
+    if a.size == 0:
+        return np.int32(0)
+    qr, tau_out, _, info = _lapack.dgeqrf(a)
+    a[:, :], tau[:] = qr, tau_out
+    return np.int32(info)
+
+
+def _python_geqp3(a, pivots, tau):
+    if a.size == 0:
+        pivots[:] = np.arange(1, pivots.size + 1)
+        return np.int32(0)
+    qr, jpvt, tau_out, _, info = _lapack.dgeqp3(a)
+    a[:, :], pivots[:], tau[:] = qr, jpvt, tau_out
+    return np.int32(info)
+
+
+def _python_orgqr(a, k, tau):
+    if a.size == 0:
+        return np.int32(0)
+    q, _, info = _lapack.dorgqr(a, tau[:k], lwork=max(1, a.shape[1]) * _BLOCK)
+    a[:, :] = q
+    return np.int32(info)
+
+
+def _python_ormqr(a, tau, c, transposed):
+    if c.size == 0 or tau.size == 0:
+        return np.int32(0)
+    cq, _, info = _lapack.dormqr("L", "T" if transposed else "N", a[:, : tau.size], tau, c,
+                                 lwork=max(1, c.shape[1]) * _BLOCK)
+    c[:, :] = cq
+    return np.int32(info)
+
+
+def _python_trtri_upper(a):
+    if a.size == 0:
+        return np.int32(0)
+    inverse, info = _lapack.dtrtri(a, lower=0, unitdiag=0)
+    n = a.shape[0]
+    upper = np.triu(np.ones((n, n), dtype=bool))
+    a[upper] = inverse[upper]
+    return np.int32(info)
+
+
+def _python_trtrs_upper(a, b):
+    if b.size == 0:
+        return np.int32(0)
+    x, info = _lapack.dtrtrs(a, b, lower=0, trans=0, unitdiag=0)
+    b[:, :] = x
+    return np.int32(info)
+
+
+if config.DISABLE_JIT:  # type: ignore[attr-defined]
+    globals().update({name: globals()[f"_python_{name}"] for name in ("geqrf", "geqp3", "orgqr", "ormqr", "trtri_upper", "trtrs_upper")})
 
 
 @njit(cache=True)

@@ -6,7 +6,7 @@ comes here. The file is read as the catalog's robots are:
 * a URDF gets the fix-ups of :func:`~sotdrake.robots.urdf_text.prepare_urdf` (meshes resolved
   through :class:`~sotdrake.robots.packages.PackageResolver`, STL and COLLADA converted to cached
   OBJ files, ``<mimic>`` on fixed joints, transmissions …) and its limits are checked first: a
-  revolute or prismatic joint needs finite ``lower`` and ``upper`` (an unbounded one is
+  revolute or prismatic joint's ``lower`` and ``upper`` must be finite (an unbounded one is
   ``continuous``); a ``velocity="0"`` limit (often written for "not given") is read as no limit;
 * an SDF or MJCF file is parsed by Drake with the same package folders;
 * every 1-DOF joint without an actuator gets one (the URDF's effort limit, else unlimited).
@@ -84,8 +84,9 @@ def _bad_root(path: Path, tag: str) -> str:
 
 
 def check_user_urdf(text: str, source: str) -> str:
-    """``text`` with ``velocity="0"`` limits removed (no limit), after checking that each revolute
-    or prismatic joint has finite ``lower`` and ``upper`` limits (:class:`RobotDescriptionError`)."""
+    """``text`` with ``velocity="0"`` limits removed (no limit), after checking that the ``lower`` and
+    ``upper`` limits given to a revolute or prismatic joint are finite numbers
+    (:class:`RobotDescriptionError`)."""
     try:
         root = ET.fromstring(text)
     except ET.ParseError as error:
@@ -96,8 +97,10 @@ def check_user_urdf(text: str, source: str) -> str:
         limit = joint.find("limit")
         for side in ("lower", "upper"):
             value = None if limit is None else limit.get(side)
+            if value is None:  # URDF's default (0), as Drake reads it
+                continue
             try:
-                finite = value is not None and np.isfinite(float(value))
+                finite = bool(np.isfinite(float(value)))
             except ValueError:
                 finite = False
             if not finite:

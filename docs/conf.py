@@ -30,6 +30,7 @@ extensions = [
     "myst_parser",
     "sphinx.ext.autodoc",
     "sphinx.ext.napoleon",
+    "sphinx.ext.autosummary",  # the names of each API page at a glance (no generated stub pages)
     "sphinx.ext.mathjax",
     "sotdrake_docs",  # docs/_ext: the benchmark tables from bench JSON, written at build time
 ]
@@ -54,6 +55,7 @@ autodoc_typehints = "description"
 autodoc_typehints_format = "short"
 autodoc_inherit_docstrings = True
 autodoc_mock_imports: list[str] = []
+autosummary_generate = False
 napoleon_google_docstring = True
 napoleon_numpy_docstring = True
 

@@ -274,6 +274,22 @@ def api_data_markdown(module_name: str, comments: dict[str, list[str]]) -> str:
     return "## Constants and type aliases\n\n```{eval-rst}\n" + "\n".join(blocks) + "```\n"
 
 
+def api_summary_markdown(module_name: str) -> str:
+    """An ``autosummary`` table of a module's ``__all__`` (its own names, as its page documents them):
+    the names at a glance, each with the first line of its docstring, linking to its entry below."""
+    import importlib
+
+    import sotdrake
+
+    module = importlib.import_module(module_name)
+    top = [getattr(sotdrake, n) for n in sotdrake.__all__] if module_name != "sotdrake" else []
+    names = [n for n in module.__all__ if not any(getattr(module, n) is o for o in top)]
+    if not names:
+        return "<!-- every name of this module is documented on the top-level page -->\n"
+    body = "".join(f"   ~{module_name}.{n}\n" for n in names)
+    return "```{eval-rst}\n.. autosummary::\n\n" + body + "```\n"
+
+
 def _write(path: Path, text: str) -> None:
     if not path.exists() or path.read_text() != text:  # unchanged: no rebuild of the page
         path.write_text(text)
@@ -286,6 +302,7 @@ def write_generated(app) -> None:
     comments = _comment_docs()
     for module_name in API_MODULES:
         _write(out / f"api_data_{module_name.split('.')[-1]}.md", api_data_markdown(module_name, comments))
+        _write(out / f"api_summary_{module_name.split('.')[-1]}.md", api_summary_markdown(module_name))
 
 
 _LITERAL = re.compile(r"``.+?``", re.S)

@@ -37,6 +37,21 @@ S = TypeVar("S")
 #: Recorders of :func:`sotdrake.sequencer.attime`, innermost last.
 _recorders: list[list[tuple[Entity, Callable[[Any], None]]]] = []
 
+#: Open :func:`command_group`\ s, innermost last: ``[label, warned]``.
+_groups: list[list[Any]] = []
+
+
+@contextmanager
+def command_group(label: str) -> Iterator[None]:
+    """The commands of one user command (``gotoNd`` sets a target, a mask and a gain) share one
+    warning about a missing ``context=``, which names ``label``."""
+    _groups.append([label, False])
+    try:
+        yield
+    finally:
+        _groups.pop()
+
+
 #: Depth of :func:`probing`: contexts made meanwhile are not counted as the user's.
 _probing: list[bool] = []
 
@@ -144,12 +159,7 @@ class Entity(LeafSystem, Generic[S]):
             change(new)
             self._defaults = new
             if len(self._in_contexts) and not self._warned_late_default:
-                self._warned_late_default = True
-                warnings.warn(
-                    f"{self.name}: a command without context= changes the defaults, which only contexts created from "
-                    "now on start from; a context of this diagram already exists (a Simulator's?) and is NOT changed: "
-                    "pass context=simulator.get_mutable_context() (or runner.context) to change a running simulation "
-                    "(warned once for this entity)", SotWarning, stacklevel=3)
+                self._warn_late_default()
             return
         own = self.own_context(context)
         new = copy.deepcopy(own.get_abstract_state(self._settings_index).get_value().value)
@@ -157,6 +167,22 @@ class Entity(LeafSystem, Generic[S]):
         frozen = _Frozen(new)
         self._in_contexts.add(frozen)
         own.get_mutable_abstract_state(self._settings_index).set_value(frozen)
+
+    def _warn_late_default(self) -> None:
+        """The warning of a command without ``context=`` once a context exists (see the module
+        docstring): once per entity, and once for all the entities of one :func:`command_group`."""
+        self._warned_late_default = True
+        group = _groups[-1] if _groups else None
+        if group is not None and group[1]:
+            return
+        who = group[0] if group is not None else self.name
+        if group is not None:
+            group[1] = True
+        warnings.warn(
+            f"{who}: a command without context= changes the defaults, which only contexts created from now on start "
+            "from; a context of this diagram already exists (a Simulator's?) and is NOT changed: pass "
+            "context=simulator.get_mutable_context() (or runner.context) to change a running simulation (warned once)",
+            SotWarning, stacklevel=4)
 
     def _declare_timed_change(self, time: float, changes: list[Callable[[S], None]]) -> None:
         """A one-shot event at ``time`` that applies ``changes`` in order (see ``attime``)."""

@@ -24,7 +24,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context, InputPort, OutputPort
 
-from .entity import recording
+from .entity import command_group, recording
 from .exceptions import InvalidInput, SotError, check_finite, check_number
 from .features import (
     Feature,
@@ -328,11 +328,12 @@ def gotoNd(
     if selec is not None:
         check_mask(selec, dimension, f"gotoNd({task.name}) selec")
 
-    if isinstance(task, MetaTaskKine6d):
-        task.featureDes.setPosition(target, context)
-    else:
-        task.featureDes.setReference(target, context)
-    if selec is not None:
-        task.feature.selec(selec, context)
-    if coefficients is not None:
-        task.gain.setCoefficients(coefficients, context)
+    with command_group(f"gotoNd({task.name!r})"):
+        if isinstance(task, MetaTaskKine6d):
+            task.featureDes.setPosition(target, context)
+        else:
+            task.featureDes.setReference(target, context)
+        if selec is not None:
+            task.feature.selec(selec, context)
+        if coefficients is not None:
+            task.gain.setCoefficients(coefficients, context)

@@ -188,8 +188,9 @@ def test_command_without_context_once_running_warns_and_leaves_the_run_unchanged
         "push": lambda: stack.sot.push(stack.com),
         "setConstant": lambda: stack.rh.gain.setConstant(3.0),
     }[command]
-    with pytest.warns(SotWarning, match=r"without context=.*NOT changed: pass context=simulator.get_mutable_context\(\)"):
+    with pytest.warns(SotWarning, match=r"without context=.*NOT changed: pass context=simulator.get_mutable_context\(\)") as said:
         run()
+    assert len([w for w in said if issubclass(w.category, SotWarning)]) == 1  # once, for the whole command
     assert stack.state(context) == before  # the running context: unchanged, as the warning says
     assert stack.state(diagram.CreateDefaultContext()) != before  # contexts made from now on: changed
 

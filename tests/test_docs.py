@@ -263,6 +263,15 @@ def test_the_readme_is_short_and_written_for_users():
     assert "(diagrams/media/talos_appli.png)" in text and "BSD-3-Clause" in text
 
 
+def test_the_readmes_relative_links_resolve():
+    """The README's links to docs pages, CONTRIBUTING.md and pictures point at files of the checkout."""
+    for path in (README, ROOT / "CHANGELOG.md", ROOT / "CONTRIBUTING.md"):
+        for target in re.findall(r"\]\(([^)\s]+)\)", path.read_text()):
+            if urlsplit(target).scheme or target.startswith("#"):
+                continue
+            assert (path.parent / urlsplit(target).path).exists(), f"{path.name}: {target}"
+
+
 def shell_lines(path: Path) -> list[str]:
     blocks = re.findall(r"```(?:bash|sh|console)\n(.*?)```", path.read_text(), re.S)
     return [line.strip() for block in blocks for line in block.splitlines() if line.strip() and not line.strip().startswith("#")]

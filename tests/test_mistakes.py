@@ -273,3 +273,15 @@ def test_an_unreachable_target_is_reported_once_with_the_remaining_distance(capl
 
 def test_a_reachable_target_is_not_reported(caplog):
     assert _reach([0.4, 0.2, 0.4], 2.5, caplog) == []
+
+
+def test_pushing_a_task_without_gain_into_a_running_stack_is_refused_at_push():
+    stack = make_stack()
+    _bare_task(stack, gain=False, feature=True)
+    stack.sot.remove("bare")  # pushed at build time by _bare_task; pushed again below, while running
+    simulator = Simulator(stack.builder.Build())
+    context = simulator.get_mutable_context()
+    with pytest.raises(StackError, match=r"task 'bare' has no gain"):
+        stack.sot.push("bare", context)
+    assert stack.sot.stack(context) == ["taskrh"]
+    simulator.AdvanceTo(0.01)  # the run goes on, unchanged

@@ -187,6 +187,8 @@ class SOT(Entity[StackSettings]):
                 f"{self.name} is a {type(self).__name__}, which cannot solve the inequality task {name!r}: "
                 "use the hierarchical QP (add_sot(robot, solver='hqp'))"
             )
+        if context is not None:
+            self._check_connected(name, context)
 
         def change(s: StackSettings) -> None:
             if name in s.tasks or name in s.contacts:
@@ -194,6 +196,20 @@ class SOT(Entity[StackSettings]):
             s.tasks.append(name)
 
         self._command(context, change)
+
+    def _check_connected(self, name: str, context: Context) -> None:
+        """Into a running stack (a ``context`` given), a task that cannot be evaluated (no gain, no
+        feature) is refused now, by the task's own :class:`StackError`; any other problem is the
+        run's to report."""
+        port = self._task_ports[name]
+        try:
+            connected = port.HasValue(self.own_context(context))  # evaluates the task
+        except StackError:
+            raise
+        except Exception:  # another problem: the run reports it itself, from its own state
+            return
+        if not connected:
+            raise StackError(f"{self.name}.push: the task {name!r} is not connected to the solver's input {name!r}")
 
     def up(self, name: object, context: Context | None = None) -> None:
         """Raise ``name`` (a task name, a task or a meta task) one level (swap with the task above it)."""

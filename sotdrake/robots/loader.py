@@ -54,6 +54,11 @@ def example_robot_data_dir() -> Path:
     return path
 
 
+def _names_a_file(name: object) -> bool:
+    """Whether ``name`` is the path of a robot's file rather than a catalog name."""
+    return looks_like_path(name) or (isinstance(name, str) and name not in ROBOTS and Path(name).is_file())
+
+
 def available_robots() -> list[str]:
     """The names :func:`load_robot` accepts."""
     return list(ROBOTS)
@@ -157,7 +162,7 @@ def add_robot(
     :func:`~sotdrake.robots.from_file.add_robot_file`; ``base``: ``'free'`` or ``'fixed'``, the
     default).
     """
-    if looks_like_path(name) or (isinstance(name, str) and name not in ROBOTS and Path(name).is_file()):
+    if _names_a_file(name):
         if variant is not None or base not in (None, "free", "fixed"):
             raise InvalidInput(f"a robot file has no variants and a free or fixed base, got variant={variant!r}, base={base!r}")
         instances = add_robot_file(plant, name, meshes=meshes, floating_base=base == "free")
@@ -237,7 +242,7 @@ def load_robot(
     ``reference_posture`` replaces its own."""
     if floating_base is not None and not isinstance(floating_base, bool):
         raise InvalidInput(f"floating_base must be True or False, got {floating_base!r}")
-    if looks_like_path(name) or (isinstance(name, str) and name not in ROBOTS and Path(name).is_file()):
+    if _names_a_file(name):
         if variant is not None:
             raise InvalidInput(f"variant={variant!r}: a robot loaded from a file has no variants")
         if base is not None and floating_base is None:
@@ -256,8 +261,10 @@ def load_robot(
     model = _load_catalog_robot(str(name), variant, meshes, time_step, base)
     if operational_points is not None:
         model.OperationalPointsMap.update(operational_points_of(model, operational_points))
+        model.load_options["operational_points"] = operational_points
     if reference_posture is not None:
         model.half_sitting = posture_of(model, reference_posture)
+        model.load_options["reference_posture"] = reference_posture
     return model
 
 

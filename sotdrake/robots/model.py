@@ -99,7 +99,7 @@ class RobotModel:
 
         if self.source_path is not None:
             return load_robot(self.source_path, meshes=True, **self.load_options)
-        return load_robot(self.name, self.variant, meshes=True, base=self.base)
+        return load_robot(self.name, self.variant, meshes=True, base=self.base, **self.load_options)
 
     def joint_limits(self) -> dict[str, np.ndarray]:
         """``position_lower/upper`` (nq, ±inf on the floating base), ``velocity_lower/upper`` (nv),

@@ -239,6 +239,27 @@ class MetaTaskVisualPoint(_MetaTask):
         self.plugPoint(source.get_output_port())
 
 
+class MetaTaskKineFeature(_MetaTask):
+    """The gain and the task of a feature of your own: ``MetaTaskKineFeature('knee', robot, feature)``
+    adds ``feature`` to the builder (if it is not added yet), then ``gain<name>`` (a
+    ``GainAdaptive``, λ = 1/s until set) and ``task<name>`` (a ``Task``; ``inequality=True``: a
+    ``TaskInequality``, then ``task.setBounds``; ``pd=True``: a ``TaskPD``), plugged as the other
+    meta tasks are: ``feature.error → gain.error``, ``feature.signals → task.feature``,
+    ``gain.gain → task.controlGain``, the task connected to the robot's solver. Connect the
+    feature's own inputs (e.g. ``robot.device``'s ``state``, an op point of ``robot.dynamic``)."""
+
+    def __init__(self, name: str, robot: Robot, feature: Feature, inequality: bool = False, pd: bool = False):
+        robot = _as_robot(robot, "MetaTaskKineFeature")
+        if not isinstance(feature, Feature):
+            raise InvalidInput(f"MetaTaskKineFeature({name!r}): expected a feature (Feature6d, FeatureGeneric …), "
+                               f"got {type(feature).__name__}")
+        if feature.nv != robot.dimension:
+            raise InvalidInput(f"MetaTaskKineFeature({name!r}): the feature has nv = {feature.nv}, the robot {robot.dimension}")
+        if feature.get_name() not in robot._names:
+            robot.add(feature)
+        self._finish(robot, name, feature, inequality, pd)
+
+
 class MetaTaskKineJointLimits(_MetaTask):
     """Keep every joint with finite limits ``[l, u]`` inside them, a ``margin`` (a fraction of its
     range, dimensionless) away: :class:`~sotdrake.features.FeatureJointLimits`

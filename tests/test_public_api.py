@@ -110,3 +110,22 @@ def test_joint_limit_task_in_one_line_brings_a_joint_back_inside_its_margin():
     band = 0.1 * (upper - lower)
     assert q[0] <= upper[0] - band[0] + 0.01  # back inside (the gain, 10/s, leaves e^-10 of the excess)
     assert np.all(q >= lower + band - 0.01) and np.all(q <= upper - band + 0.01)
+
+
+def test_a_feature_of_your_own_becomes_a_task_in_one_line():
+    from sotdrake import FeaturePosture, MetaTaskKineFeature, add_sot, robot
+
+    builder = DiagramBuilder()
+    bot = robot(builder, "ur5")
+    sot = add_sot(bot)
+    target = bot.device.initial_position + 0.2
+    away = MetaTaskKineFeature("away", bot, FeaturePosture("featureaway", bot.model.plant, target))
+    builder.Connect(bot.device.GetOutputPort("state"), away.feature.GetInputPort("state"))
+    away.gain.setConstant(5.0)
+    sot.push(away)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(1.0)
+    q = bot.device.GetOutputPort("state").Eval(bot.device.GetMyContextFromRoot(simulator.get_context()))
+    np.testing.assert_allclose(q, target, atol=0.2 * np.exp(-5.0) * 1.5)
+    with pytest.raises(sotdrake.InvalidInput, match="expected a feature"):
+        MetaTaskKineFeature("bad", bot, bot.dynamic)

@@ -10,7 +10,8 @@ QP's contract:
 * no failure, ``x`` finite, the bounds held exactly;
 * strictness: the slack norms of levels ``0..k`` equal those of the first ``k + 1`` levels solved
   alone, to ``1e-6`` relative + ``1e-9`` + the round-off of evaluating a level's residual
-  (``1e-12 ‖A_k‖ ‖x‖``), the tests' tolerance.
+  (``1e-12 ‖A_k‖ ‖x‖``), the tests' tolerance, + what the solver's feasibility tolerance lets a
+  held row move (``1e-9 max(1, |bound|)`` on each of the level's rows, the norm of those).
 
 It then counts the stacks whose answering path (each level's solver and the fallbacks taken)
 differs between kernels, and checks that each such stack meets the contract under every kernel.
@@ -55,7 +56,15 @@ def same_norms(a: np.ndarray, b: np.ndarray, floor: np.ndarray) -> bool:
     return bool(np.all(np.abs(a - b) <= 1e-6 * np.maximum(np.abs(a), np.abs(b)) + 1e-9 + floor[: len(a)]))
 
 
-def sweep(first: int, count: int) -> list[dict]:
+def held_row_tolerance(level, tolerance: float = 1e-9) -> float:
+    """How far the solver's feasibility tolerance lets the level's rows move once held: the norm of
+    ``tolerance · max(1, |bound|)`` over its rows (the larger finite side of each)."""
+    sides = np.where(np.isfinite(level.lower), np.abs(level.lower), 0.0)
+    sides = np.maximum(sides, np.where(np.isfinite(level.upper), np.abs(level.upper), 0.0))
+    return float(np.linalg.norm(tolerance * np.maximum(1.0, sides)))
+
+
+def sweep(first: int, count: int, reuse: bool = False) -> list[dict]:
     """Each stack's outcome: ``seed``, ``ok`` (the contract held), ``why`` (if not), ``path``."""
     from sotdrake.exceptions import SolverError
     from sotdrake.solvers.hqp import HierarchicalQP
@@ -65,6 +74,8 @@ def sweep(first: int, count: int) -> list[dict]:
     out = []
     for seed in range(first, first + count):
         n, levels, x_lower, x_upper = random_stack(np.random.default_rng(seed))
+        if not reuse:
+            solvers.clear()
         hqp = solvers.setdefault(n, HierarchicalQP(n))
         prefix = solvers.setdefault(-n, HierarchicalQP(n, regularize=False))
         record: dict = {"seed": seed, "ok": True, "why": "", "path": ""}
@@ -80,7 +91,8 @@ def sweep(first: int, count: int) -> list[dict]:
                 for k in range(len(levels) - 1):
                     alone = prefix.solve(levels[: k + 1], x_lower, x_upper)
                     norms = np.linalg.norm
-                    floor = np.array([1e-12 * norms(level.A) * max(norms(result.x), norms(alone.x)) for level in levels])
+                    floor = np.array([1e-12 * norms(level.A) * max(norms(result.x), norms(alone.x)) + held_row_tolerance(level)
+                                      for level in levels])
                     if not same_norms(result.slack_norms[: k + 1], alone.slack_norms, floor):
                         record.update(ok=False, why=f"strictness at level {k}")
                         break
@@ -92,11 +104,11 @@ def sweep(first: int, count: int) -> list[dict]:
     return out
 
 
-def start_kernel(name: str, first: int, count: int, cache: Path, sink: Path) -> subprocess.Popen:
+def start_kernel(name: str, first: int, count: int, cache: Path, sink: Path, reuse: bool) -> subprocess.Popen:
     """The sweep under kernel ``name`` in its own process (its own numba cache), writing ``sink``."""
     env = dict(os.environ, **KERNELS[name], NUMBA_CACHE_DIR=str(cache / name), PYTHONPATH=str(ROOT), SWEEP_KERNEL=name)
-    return subprocess.Popen([sys.executable, __file__, "--worker", str(sink), "--first", str(first), "--count", str(count)],
-                            env=env, cwd=ROOT)
+    return subprocess.Popen([sys.executable, __file__, "--worker", str(sink), "--first", str(first), "--count", str(count),
+                             *(["--reuse"] if reuse else [])], env=env, cwd=ROOT)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -104,11 +116,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--first", type=int, default=100_000, help="the first seed (default 100000)")
     parser.add_argument("--count", type=int, default=2000, help="how many stacks (default 2000)")
     parser.add_argument("--kernels", default=",".join(KERNELS), help=f"among {', '.join(KERNELS)}")
+    parser.add_argument("--reuse", action="store_true", help="one solver per size, reused from stack to stack (warm)")
+    parser.add_argument("--cache", type=Path, help="where each kernel's numba cache is kept (default: a temporary folder)")
     parser.add_argument("--json", type=Path, default=ROOT / "bench" / "results" / "hqp_kernels.json")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
-        Path(args.worker).write_text(json.dumps(sweep(args.first, args.count)))
+        Path(args.worker).write_text(json.dumps(sweep(args.first, args.count, args.reuse)))
         return 0
     names = [name.strip() for name in args.kernels.split(",")]
     unknown = [name for name in names if name not in KERNELS]
@@ -116,9 +130,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"unknown kernel(s) {unknown}; choose among {list(KERNELS)}")
     outcomes, seconds = {}, {}
     with tempfile.TemporaryDirectory() as work:
+        cache = args.cache or Path(work)
         print(f"{', '.join(names)}: {args.count} stacks from seed {args.first}, one process per kernel …", flush=True)
         began = time.monotonic()
-        workers = {name: start_kernel(name, args.first, args.count, Path(work), Path(work) / f"{name}.json")
+        workers = {name: start_kernel(name, args.first, args.count, cache, Path(work) / f"{name}.json", args.reuse)
                    for name in names}
         for name, worker in workers.items():
             if worker.wait() != 0:
@@ -129,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     differ = [i for i, by_kernel in enumerate(paths) if len(set(by_kernel.values())) > 1]
     differ_failed = [i for i in differ if any(not outcomes[name][i]["ok"] for name in names)]
     summary = {
-        "first_seed": args.first, "stacks": args.count, "kernels": {name: KERNELS[name] for name in names},
+        "first_seed": args.first, "stacks": args.count, "reuse": args.reuse, "kernels": {name: KERNELS[name] for name in names},
         "failed": {name: len(records) for name, records in failed.items()},
         "failures": {name: records[:20] for name, records in failed.items()},
         "paths_differ": len(differ), "paths_differ_and_contract_missed": len(differ_failed),

@@ -1,5 +1,6 @@
 import numpy as np
 import pytest
+from numba import config as numba_config
 
 from sotdrake.robots import load_talos
 
@@ -11,6 +12,11 @@ LONGEST_FIRST = (
     "test_live_run.py", "test_solver_kine.py", "test_physics.py", "test_toolbox.py", "test_sweep.py",
     "test_hqp.py", "test_sweep_maps.py", "test_types.py", "test_talos_appli.py", "test_hostile.py", "test_dynamics.py",
 )
+
+
+#: A test of the compiled code itself (its signatures, its compilations): skipped when the package
+#: runs as plain Python (``NUMBA_DISABLE_JIT=1``, one of CI's other-kernel runs).
+compiled_only = pytest.mark.skipif(bool(numba_config.DISABLE_JIT), reason="checks the compiled code (NUMBA_DISABLE_JIT=1)")
 
 
 def pytest_collection_modifyitems(config, items):

@@ -6,6 +6,7 @@ import pytest
 
 from sotdrake.solvers.active_bounds import outcome, solve_with_active_bounds
 from sotdrake.solvers.hqp import ACTIVE_BOUNDS, ACTIVE_SET, HierarchicalQP, LevelRows
+from tests.conftest import compiled_only
 
 
 def equality_stack(rng, n_range=(8, 30)):
@@ -214,6 +215,7 @@ def test_on_talos_with_active_limits_the_answer_is_the_stages(talos_model, monke
     assert len(checked) >= 290 and sum(count > 0 for count in checked) >= 120, (len(checked), checked[-5:])
 
 
+@compiled_only
 def test_any_array_layout_gives_the_same_answer_without_another_compilation():
     """The compiled path takes C-ordered, writeable arrays of one dtype each: read-only,
     Fortran-ordered, strided, integer or boolean-as-integer inputs and a list of sizes are converted

@@ -20,6 +20,7 @@ from sotdrake.solvers.active_set import (
     solve_least_squares_qp,
 )
 from sotdrake.solvers.hqp import HierarchicalQP
+from tests.conftest import compiled_only
 from tests.hqp_stacks import random_stack
 
 
@@ -170,6 +171,7 @@ def test_the_compiled_iterations_are_the_python_ones_on_every_stage_of_random_st
     assert len(compared) >= 10
 
 
+@compiled_only
 def test_the_compiled_iterations_take_any_array_layout_without_another_compilation():
     """Read-only, Fortran-ordered, strided and integer inputs and a list as guess give the same bits
     without a second compilation."""

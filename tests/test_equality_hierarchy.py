@@ -5,6 +5,7 @@ import pytest
 
 from sotdrake.solvers.equality_hierarchy import solve_equality_hierarchy
 from sotdrake.solvers.hqp import HierarchicalQP, LevelRows
+from tests.conftest import compiled_only
 
 
 def pairs(levels):
@@ -181,6 +182,7 @@ def test_minimum_norm_of_what_is_left_and_fixed_components():
     assert result.slack_norms[0] == pytest.approx(0.0, abs=1e-14)
 
 
+@compiled_only
 def test_any_array_layout_gives_the_same_answer_without_another_compilation():
     """The compiled sweep takes C-ordered, writeable float arrays: read-only, Fortran-ordered, strided
     and integer inputs are converted (the same answer, bit for bit) rather than compiled for again."""

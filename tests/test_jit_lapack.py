@@ -5,6 +5,7 @@ import pytest
 from scipy.linalg import lapack
 
 from sotdrake.solvers import jit_lapack
+from tests.conftest import compiled_only
 
 
 @pytest.mark.parametrize("shape", [(7, 4), (4, 7), (6, 6), (2, 5)])
@@ -53,6 +54,7 @@ def test_triangular_inverse_reads_the_upper_triangle_only_and_says_singular():
     assert jit_lapack.trtri_upper(jit_lapack.fortran(singular)) == 3  # LAPACK's info: the zero pivot
 
 
+@compiled_only
 def test_a_row_major_matrix_is_refused():
     """A C-ordered array read as column-major would be its transpose: the signatures refuse it."""
     with pytest.raises(TypeError):

@@ -74,10 +74,12 @@ def build_diagram(
     dt: float = 1e-3,
     variant: str = "reduced",
     solver: str = "cascade",
+    ros: bool = False,
 ) -> Appli:
     """The tutorial's control graph; with ``meshcat``, TALOS and the target are drawn there.
     ``solver``: ``'cascade'`` (sot-core ``SOT``) or ``'hqp'`` (``SolverKine``, joint limits hard).
-    ``push_time=None``: the hand task is not pushed (push it live: ``sot.push('taskrh')``)."""
+    ``push_time=None``: the hand task is not pushed (push it live: ``sot.push('taskrh')``).
+    ``ros``: the seed's ``RosPublish`` (``/sot_control/state``, ``/joint_states``, every 100 ticks)."""
     builder = DiagramBuilder()
     robot = talos(builder, variant, dt)
 
@@ -130,8 +132,12 @@ def build_diagram(
         from sotdrake import add_robot_visualizer, add_target_marker
 
         visualizer = add_robot_visualizer(robot, meshcat)
-        add_target_marker(meshcat, "/target", target)
+        add_target_marker(meshcat, "/target", taskRH)  # follows every gotoNd (timed, live)
         meshcat.SetCameraPose(camera_in_world=[1.35, -1.45, 1.35], target_in_world=[0.15, -0.12, 0.72])
+    if ros:
+        from sotdrake.ros import add_ros_publisher
+
+        add_ros_publisher(robot)
     diagram = builder.Build()
     diagram.set_name("talos_appli")
     return Appli(diagram, robot, sot, taskRH, taskCom, contactLF, contactRF, tracer,
@@ -143,6 +149,12 @@ def simulate(appli: Appli, duration: float, progress: bool = True) -> tuple[Simu
     return run_simulation(appli.diagram, duration, appli.visualizer, progress)
 
 
+def last_target(appli: Appli, context) -> np.ndarray:
+    """The hand task's desired position (m) in the root ``context``: the last ``gotoNd``'s."""
+    desired = appli.taskRH.featureDes
+    return desired.GetOutputPort("position").Eval(desired.GetMyContextFromRoot(context)).translation().copy()
+
+
 def summarize(appli: Appli, simulator: Simulator, duration: float, wall: float) -> tuple[dict, dict]:
     """The summary numbers and the trace (with the hand, feet and CoM along the run)."""
     context = simulator.get_context()
@@ -151,7 +163,8 @@ def summarize(appli: Appli, simulator: Simulator, duration: float, wall: float) 
     qs = np.vstack([q0, trace["q"]])
     path = robot.dynamic.trajectory(["rh", "LF", "RF"], qs)
     hand = path["rh"][:, :3, :3] @ np.asarray(HAND_OFFSET) + path["rh"][:, :3, 3]
-    hand_error = np.linalg.norm(hand - appli.target, axis=1)
+    target = last_target(appli, context)  # the last gotoNd's, not the build-time one
+    hand_error = np.linalg.norm(hand - target, axis=1)
     foot_drift = max(np.linalg.norm(path[f][:, :3, 3] - path[f][0, :3, 3], axis=1).max() for f in ("LF", "RF"))
     foot_rotation_drift = max(
         np.arccos(np.clip((np.einsum("kij,ij->k", path[f][:, :3, :3], path[f][0, :3, :3]) - 1) / 2, -1, 1)).max()
@@ -178,7 +191,7 @@ def summarize(appli: Appli, simulator: Simulator, duration: float, wall: float) 
         "solver": type(appli.sot).__name__,
         "final_stack": appli.sot.stack(context),
         "final_level_residuals": appli.sot.GetOutputPort("residuals").Eval(appli.sot.GetMyContextFromRoot(context)).tolist(),
-        "target_m": appli.target.tolist(),
+        "target_m": target.tolist(),
         "duration_s": duration,
         "dt_s": robot.dt,
         "ticks": ticks,
@@ -186,7 +199,7 @@ def summarize(appli: Appli, simulator: Simulator, duration: float, wall: float) 
         "realtime_factor": duration / wall,
         "tick_us_mean": 1e6 * wall / ticks,
     }
-    trace.update(hand_position=hand[1:], com_position=path["com"][1:],
+    trace.update(target_position=target, hand_position=hand[1:], com_position=path["com"][1:],
                  left_ankle_position=path["LF"][1:, :3, 3], right_ankle_position=path["RF"][1:, :3, 3])
     return summary, trace
 
@@ -197,6 +210,7 @@ def plot(trace: dict, target: np.ndarray, path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    target = trace.get("target_position", target)  # the last target, when the summary has it
     t = trace["time"]
     fig, axes = plt.subplots(3, 1, figsize=(8, 9), sharex=True)
     axes[0].semilogy(t, np.linalg.norm(trace["hand_position"] - target, axis=1), label="hand to target")
@@ -224,8 +238,14 @@ def main(argv: list[str] | None = None) -> dict:
     parser = script_arguments(__doc__, "out/appli", solver="cascade")
     parser.add_argument("--no-push", action="store_true", help="do not push the hand task at t = 1 s")
     add_live_arguments(parser)
+    group = parser.add_argument_group("ROS 2 (pip install \".[ros2]\")")
+    group.add_argument("--ros", action="store_true", help="live, with RosPublish and the run_command and "
+                       "start_dynamic_graph services; the graph holds until started; no push at t = 1 s")
+    group.add_argument("--bag", action="store_true", help="also write the run as a rosbag2 (run/run.mcap)")
     args = parser.parse_args(argv)
     push_time = None if args.no_push else 1.0
+    if args.ros:
+        return main_ros(args)
     if args.live:
         return main_live(args, push_time)
     args.duration = 8.0 if args.duration is None else args.duration
@@ -236,6 +256,8 @@ def main(argv: list[str] | None = None) -> dict:
     summary, trace = summarize(appli, simulator, args.duration, wall)
 
     plot(trace, appli.target, args.out / "plots.png")
+    if args.bag:
+        write_bag(appli, args.out, summary, trace)
     write_run(args.out, appli.diagram, summary, trace, meshcat, appli.visualizer)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
@@ -255,6 +277,34 @@ def main_live(args, push_time: float | None) -> dict:
         write_run(out, appli.diagram, summary, trace)
 
     return run_live(appli, args.out, meshcat, args.duration, args.port, args.rate, summarize, write)
+
+
+
+def main_ros(args) -> dict:
+    """``--ros``: as ``--live``, with the seed's ``RosPublish`` and its services (the graph holds
+    still until ``start_dynamic_graph``; the hand waits for ``run_command``, see ros_test.py)."""
+    from sotdrake.ros import run_ros
+
+    logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
+    meshcat = None if args.no_meshcat else live_meshcat(args.meshcat_port)
+    appli = build_diagram(meshcat, push_time=None, solver=args.solver, ros=True)
+
+    def write(out: Path, summary: dict, trace: dict) -> None:
+        plot(trace, appli.target, out / "plots.png")
+        write_run(out, appli.diagram, summary, trace)
+
+    return run_ros(appli, args.out, meshcat, args.duration, args.port, args.rate, summarize, write,
+                   on_stop=(lambda out, summary, trace: write_bag(appli, out, summary, trace)) if args.bag else None)
+
+
+def write_bag(appli: Appli, out: Path, summary: dict, trace: dict, every: int = 10) -> Path:
+    """``--bag``: the trace every ``every`` ticks as ``out/run/run.mcap`` (needs the ros2 extra)."""
+    from sotdrake.ros import joint_coordinates, write_trace_bag
+
+    path = write_trace_bag(out / "run", trace, joint_coordinates(appli.robot.model.plant),
+                           {"rh": appli.target}, every)
+    summary["bag"] = str(path)
+    return path
 
 
 if __name__ == "__main__":

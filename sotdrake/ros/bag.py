@@ -1,0 +1,109 @@
+"""rosbag2 (MCAP) files of a run, written with ``rosbags`` (pure Python, no ROS needed to read them).
+
+:func:`write_bag` takes sampled signals and writes one message per sample, stamped (bag time and
+header) with the simulated time: joint states (``sensor_msgs/JointState``), points
+(``geometry_msgs/PointStamped``: CoM, hand, target) and arrays (``std_msgs/Float64MultiArray``:
+task errors). The bag is a directory ``<name>/`` holding ``<name>.mcap`` and ``metadata.yaml``.
+"""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
+from ..exceptions import InvalidInput
+from .messages import check_topic
+
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+
+
+def _stamp(t: float):
+    ns = round(t * 1e9)
+    return TYPESTORE.types["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def _header(t: float, frame: str = ""):
+    return TYPESTORE.types["std_msgs/msg/Header"](stamp=_stamp(t), frame_id=frame)
+
+
+def write_bag(directory: Path | str, time: Sequence[float] | np.ndarray, joint_states: tuple[Sequence[str], np.ndarray] | None = None,
+              points: Mapping[str, np.ndarray] | None = None, arrays: Mapping[str, np.ndarray] | None = None,
+              joint_topic: str = "/joint_states", frame: str = "world") -> Path:
+    """Write the bag ``directory`` (replaced if it exists); returns its ``.mcap`` file.
+
+    ``time``: T sample times (s); ``joint_states``: (names, T × len(names) positions);
+    ``points``: topic → T × 3 (m); ``arrays``: topic → T × n (or T)."""
+    t = np.asarray(time, dtype=float).ravel()
+    if t.size == 0 or not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0):
+        raise InvalidInput("write_bag: time must be finite, non-decreasing and not empty")
+    series: list[tuple[str, str, np.ndarray]] = []
+    if joint_states is not None:
+        names, positions = list(joint_states[0]), np.asarray(joint_states[1], dtype=float)
+        if positions.shape != (t.size, len(names)):
+            raise InvalidInput(f"write_bag: joint positions are {positions.shape}, want {(t.size, len(names))}")
+        series.append((check_topic(joint_topic), "sensor_msgs/msg/JointState", positions))
+    for topic, values in (points or {}).items():
+        values = np.asarray(values, dtype=float)
+        if values.shape != (t.size, 3):
+            raise InvalidInput(f"write_bag: {topic} is {values.shape}, want {(t.size, 3)}")
+        series.append((check_topic(topic), "geometry_msgs/msg/PointStamped", values))
+    for topic, values in (arrays or {}).items():
+        values = np.asarray(values, dtype=float).reshape(t.size, -1)
+        series.append((check_topic(topic), "std_msgs/msg/Float64MultiArray", values))
+    directory = Path(directory)
+    if directory.exists():
+        shutil.rmtree(directory)
+    types = TYPESTORE.types
+    with Writer(directory, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connections = [writer.add_connection(topic, kind, typestore=TYPESTORE) for topic, kind, _ in series]
+        for k, tk in enumerate(t):
+            ns = round(tk * 1e9)
+            for connection, (_topic, kind, values) in zip(connections, series, strict=True):
+                row = values[k]
+                if kind == "sensor_msgs/msg/JointState":
+                    message = types[kind](header=_header(tk), name=names, position=row.copy(),
+                                          velocity=np.zeros(0), effort=np.zeros(0))
+                elif kind == "geometry_msgs/msg/PointStamped":
+                    point = types["geometry_msgs/msg/Point"](x=row[0], y=row[1], z=row[2])
+                    message = types[kind](header=_header(tk, frame), point=point)
+                else:
+                    dim = types["std_msgs/msg/MultiArrayDimension"](label="signal", size=row.size, stride=row.size)
+                    layout = types["std_msgs/msg/MultiArrayLayout"](dim=[dim], data_offset=0)
+                    message = types[kind](layout=layout, data=row.copy())
+                writer.write(connection, ns, TYPESTORE.serialize_cdr(message, kind))
+    return directory / f"{directory.name}.mcap"
+
+
+def read_bag(directory: Path | str) -> dict[str, list[tuple[int, object]]]:
+    """Every message of a bag by topic: ``(bag time in ns, message)`` in order."""
+    from rosbags.rosbag2 import Reader
+
+    messages: dict[str, list[tuple[int, object]]] = {}
+    with Reader(Path(directory)) as reader:
+        for connection, timestamp, data in reader.messages():
+            message = TYPESTORE.deserialize_cdr(data, connection.msgtype)
+            messages.setdefault(connection.topic, []).append((timestamp, message))
+    return messages
+
+
+def write_trace_bag(directory: Path | str, trace: Mapping[str, np.ndarray], joints: tuple[Sequence[str], np.ndarray],
+                    targets: Mapping[str, Sequence[float]] | None = None, every: int = 1) -> Path:
+    """A diagram script's trace as a bag: ``trace['q']`` → ``/joint_states`` (the joints
+    ``(names, indices in q)``), ``error_<task>`` → ``/sot/error/<task>``, ``<name>_position`` →
+    ``/sot/<name>``, ``targets`` (name → constant point) → ``/sot/target/<name>``; every
+    ``every``-th sample."""
+    if not (isinstance(every, int) and every > 0):
+        raise InvalidInput(f"write_trace_bag: every must be a positive int, got {every!r}")
+    time = np.asarray(trace["time"])[::every]
+    names, indices = joints
+    arrays = {f"/sot/error/{k[6:]}": np.asarray(v)[::every] for k, v in trace.items() if k.startswith("error_")}
+    points = {f"/sot/{k[:-9]}": np.asarray(v)[::every] for k, v in trace.items()
+              if k.endswith("_position") and np.ndim(v) == 2 and np.shape(v)[1] == 3}
+    for name, point in (targets or {}).items():
+        points[f"/sot/target/{name}"] = np.tile(np.asarray(point, dtype=float), (time.size, 1))
+    return write_bag(directory, time, (names, np.asarray(trace["q"])[::every][:, indices]), points, arrays)

@@ -1,0 +1,89 @@
+"""The other side of :mod:`.services`, for a script in another process (``diagrams/ros_test.py``)."""
+
+from __future__ import annotations
+
+import json
+import os
+import threading
+import time
+
+from std_msgs.msg import String
+from std_srvs.srv import Empty
+
+from ..exceptions import SotError
+from .node import RosNode, ros_node
+from .services import DEPTH, RUN_COMMAND_REQUEST, RUN_COMMAND_RESPONSE, START_SERVICE
+
+
+class RunCommandClient:
+    """``command(line)`` sends one ``run_command`` and waits for its answer (a dict with ``ok`` and
+    ``answer`` or ``error``); ``start()`` calls ``start_dynamic_graph``."""
+
+    def __init__(self, node: RosNode | None = None, timeout: float = 120.0):
+        self.ros, self.timeout = node or ros_node(), timeout
+        node_ = self.ros.node
+        self._answers: dict[str, dict] = {}
+        self._arrived = threading.Condition()
+        self._count = 0
+        self._prefix = f"{node_.get_name()}-{os.getpid()}-{id(self):x}"
+        self.requests = node_.create_publisher(String, RUN_COMMAND_REQUEST, DEPTH)
+        self.responses = node_.create_subscription(String, RUN_COMMAND_RESPONSE, self._response, DEPTH)
+        self.starter = node_.create_client(Empty, START_SERVICE)
+
+    def _response(self, message: String) -> None:
+        try:
+            answer = json.loads(message.data)
+        except ValueError:
+            return
+        if isinstance(answer, dict) and str(answer.get("id", "")).startswith(self._prefix):
+            with self._arrived:
+                self._answers[answer["id"]] = answer
+                self._arrived.notify_all()
+
+    def ready(self) -> bool:
+        """Both services are up and matched with this client."""
+        return (self.requests.get_subscription_count() > 0 and self.responses.get_publisher_count() > 0
+                and self.starter.service_is_ready())
+
+    def wait(self, timeout: float | None = None) -> None:
+        """Wait for both services (the seed's ``wait_for_service``), up to ``timeout`` s."""
+        deadline = time.monotonic() + (self.timeout if timeout is None else timeout)
+        while not self.ready():
+            if time.monotonic() > deadline:
+                raise SotError(f"run_command ({RUN_COMMAND_REQUEST}) and {START_SERVICE} not available after "
+                               f"{timeout or self.timeout:g} s (same ROS_DOMAIN_ID?)")
+            time.sleep(0.05)
+
+    def command(self, line: str, timeout: float | None = None) -> dict:
+        """Send ``line``; its answer (raises :class:`SotError` when none comes within ``timeout`` s)."""
+        with self._arrived:
+            self._count += 1
+            ident = f"{self._prefix}-{self._count}"
+        self.requests.publish(String(data=json.dumps({"id": ident, "command": line})))
+        wait = self.timeout if timeout is None else timeout
+        with self._arrived:
+            if not self._arrived.wait_for(lambda: ident in self._answers, wait):
+                raise SotError(f"run_command {line!r}: no answer within {wait:g} s")
+            return self._answers.pop(ident)
+
+    def start(self, timeout: float | None = None) -> None:
+        """Call ``start_dynamic_graph`` and wait for its reply."""
+        future = self.starter.call_async(Empty.Request())
+        done = threading.Event()
+        future.add_done_callback(lambda _: done.set())
+        wait = self.timeout if timeout is None else timeout
+        if not done.wait(wait):
+            raise SotError(f"{START_SERVICE}: no reply within {wait:g} s")
+
+    def close(self) -> None:
+        node = self.ros.node
+        node.destroy_publisher(self.requests)
+        node.destroy_subscription(self.responses)
+        node.destroy_client(self.starter)
+
+
+def wait_for_services(timeout: float = 120.0, node: RosNode | None = None) -> RunCommandClient:
+    """A :class:`RunCommandClient` once both services are available (``timeout`` s at most)."""
+    client = RunCommandClient(node, timeout)
+    client.wait(timeout)
+    return client

@@ -1,0 +1,182 @@
+"""The SoT's ``RosPublish`` as a Drake system, the joint states, and a builder helper.
+
+The seed's three lines::
+
+    ros_publish_state = RosPublish("ros_publish_state")
+    ros_publish_state.add("vector", "state", "/sot_control/state")
+    plug(robot.device.state, ros_publish_state.state)
+    robot.device.after.addDownsampledSignal("ros_publish_state.trigger", 100)
+
+read here (a Drake vector port needs its size, given once)::
+
+    ros_publish_state = robot.add(RosPublish("ros_publish_state"))
+    ros_publish_state.add("vector", "state", "/sot_control/state", size=robot.model.plant.num_positions())
+    builder.Connect(robot.device.GetOutputPort("state"), ros_publish_state.GetInputPort("state"))
+    ros_publish_state.trigger(every=100, dt=robot.dt)
+
+or in one call, with ``/joint_states`` too: ``add_ros_publisher(robot)``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import Context, EventStatus, InputPort, LeafSystem
+from sensor_msgs.msg import JointState
+
+from ..exceptions import InvalidInput
+from ..robot import Robot
+from .messages import check_topic, message_type, port_size, to_message
+from .node import RosNode, ros_node
+
+
+def stamp(t: float) -> Time:
+    """A ROS time from simulated seconds."""
+    nanoseconds = round(t * 1e9)
+    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+
+
+class _Triggered(LeafSystem):
+    """A system that publishes every ``every`` ticks of ``dt`` (``addDownsampledSignal``)."""
+
+    def __init__(self, name: str, node: RosNode | None):
+        LeafSystem.__init__(self)
+        self.set_name(name)
+        self.ros = node or ros_node()
+        self.period: float | None = None
+        self.published = 0
+        self.publish_seconds = 0.0  # wall time spent publishing
+
+    def trigger(self, every: int, dt: float) -> float:
+        """Publish every ``every`` ticks of ``dt`` s of simulated time (from t = 0: at t = 0,
+        ``every·dt``, …) — the seed's ``addDownsampledSignal(…, every)``; returns the period (s)."""
+        if self.period is not None:
+            raise InvalidInput(f"{self.get_name()}: the trigger is already set (every {self.period} s)")
+        if not (isinstance(every, int) and every > 0):
+            raise InvalidInput(f"{self.get_name()}: every must be a positive number of ticks, got {every!r}")
+        if not (isinstance(dt, float | int) and dt > 0):
+            raise InvalidInput(f"{self.get_name()}: dt must be > 0 s, got {dt!r}")
+        self.period = every * float(dt)
+        self.DeclarePeriodicPublishEvent(self.period, 0.0, self._on_trigger)
+        return self.period
+
+    def _on_trigger(self, context: Context) -> EventStatus:
+        start = time.perf_counter()
+        self.send(context)
+        self.publish_seconds += time.perf_counter() - start
+        self.published += 1
+        return EventStatus.Succeeded()
+
+    def send(self, context: Context) -> None:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+
+@dataclass
+class _Signal:
+    kind: str
+    topic: str
+    port: InputPort
+    shape: tuple[int, int] | None
+    publisher: Any
+
+
+class RosPublish(_Triggered):
+    """Publishes input signals on ROS 2 topics every N ticks (the SoT's ``RosPublish``).
+
+    Inputs: one per :meth:`add`, named as the signal (``state``), sized by its kind (see
+    :mod:`.messages`; SI units as the signal it is plugged to).
+    Outputs: none. Messages go out on :meth:`trigger`'s period of simulated time.
+    """
+
+    def __init__(self, name: str = "ros_publish", node: RosNode | None = None, depth: int = 10):
+        super().__init__(name, node)
+        if not (isinstance(depth, int) and depth > 0):
+            raise InvalidInput(f"{name}: the queue depth must be a positive int, got {depth!r}")
+        self.depth = depth
+        self.signals: dict[str, _Signal] = {}
+
+    def add(self, kind: str, signal: str, topic: str, size: int | None = None,
+            shape: Sequence[int] | None = None) -> InputPort:
+        """An input port ``signal`` of ``kind`` published on ``topic`` (``size`` for a ``vector``,
+        ``shape=(rows, cols)`` for a ``matrix``); returns the port."""
+        if not isinstance(signal, str) or not signal.isidentifier():
+            raise InvalidInput(f"{self.get_name()}: a signal name is an identifier, got {signal!r}")
+        if signal in self.signals:
+            raise InvalidInput(f"{self.get_name()}: signal {signal!r} already added (topic {self.signals[signal].topic})")
+        n = port_size(kind, size, shape)
+        check_topic(topic)
+        port = self.DeclareVectorInputPort(signal, n)
+        publisher = self.ros.node.create_publisher(message_type(kind), topic, self.depth)
+        self.signals[signal] = _Signal(kind, topic, port, (int(shape[0]), int(shape[1])) if shape is not None else None, publisher)
+        return port
+
+    def send(self, context: Context) -> None:
+        for signal in self.signals.values():
+            if signal.port.HasValue(context):
+                signal.publisher.publish(to_message(signal.kind, signal.port.Eval(context), signal.shape))
+
+
+def joint_coordinates(plant: MultibodyPlant) -> tuple[list[str], np.ndarray]:
+    """The one-coordinate joints' names and their indices in ``q`` (plant order)."""
+    joints = [plant.get_joint(i) for i in plant.GetJointIndices()]
+    ones = [j for j in joints if j.num_positions() == 1]
+    return [j.name() for j in ones], np.array([j.position_start() for j in ones], dtype=int)
+
+
+class JointStatePublisher(_Triggered):
+    """``sensor_msgs/JointState`` of the robot's one-coordinate joints, stamped with simulated time.
+
+    Inputs: ``state`` (``q``, size nq; rad or m per joint).
+    Outputs: none. ``name`` and ``position`` per joint (velocity and effort empty).
+    """
+
+    def __init__(self, plant: MultibodyPlant, topic: str = "/joint_states", name: str = "ros_publish_joint_states",
+                 node: RosNode | None = None, depth: int = 10):
+        super().__init__(name, node)
+        self.topic = check_topic(topic)
+        self.names, self.indices = joint_coordinates(plant)
+        self.state = self.DeclareVectorInputPort("state", plant.num_positions())
+        self.publisher = self.ros.node.create_publisher(JointState, topic, depth)
+
+    def message(self, context: Context) -> JointState:
+        q = self.state.Eval(context)
+        message = JointState()
+        message.header.stamp = stamp(context.get_time())
+        message.name = self.names
+        message.position = q[self.indices].tolist()
+        return message
+
+    def send(self, context: Context) -> None:
+        self.publisher.publish(self.message(context))
+
+
+@dataclass
+class RosPublishers:
+    """What :func:`add_ros_publisher` added."""
+
+    state: RosPublish
+    joint_states: JointStatePublisher | None
+
+
+def add_ros_publisher(robot: Robot, topic: str = "/sot_control/state", joint_states: str | None = "/joint_states",
+                      every: int = 100, node: RosNode | None = None) -> RosPublishers:
+    """``robot.device.state`` on ``topic`` (``std_msgs/Float64MultiArray``, system
+    ``ros_publish_state``) and the joints on ``joint_states`` (None: not published), every
+    ``every`` ticks of ``robot.dt``."""
+    q = robot.device.GetOutputPort("state")
+    state = robot.add(RosPublish("ros_publish_state", node))
+    state.add("vector", "state", topic, size=q.size())
+    state.trigger(every, robot.dt)
+    robot.builder.Connect(q, state.GetInputPort("state"))
+    joints = None
+    if joint_states is not None:
+        joints = robot.add(JointStatePublisher(robot.model.plant, joint_states, node=node))
+        joints.trigger(every, robot.dt)
+        robot.builder.Connect(q, joints.state)
+    return RosPublishers(state, joints)

@@ -1,0 +1,162 @@
+"""``run_command`` and ``start_dynamic_graph`` on a live run, as on the robot.
+
+* ``start_dynamic_graph`` (``std_srvs/Empty``): the graph holds still (simulated time stays at 0,
+  nothing is published) until it is called, as the SoT's device on the robot.
+* ``run_command``: one command line of the live channel's grammar
+  (:func:`~sotdrake.live.grammar.parse_command`) checked against its allow-list
+  (:class:`~sotdrake.live.vocabulary.Vocabulary`) and applied at a tick boundary, never evaluated.
+  The seed's ``dynamic_graph_bridge_msgs/RunCommand`` has no wheel and a custom service type needs
+  a ROS build, so a request is a ``std_msgs/String`` on :data:`RUN_COMMAND_REQUEST` holding the JSON
+  ``{"id": "<any text>", "command": "sot.push('taskrh')"}`` (or just the command line) and its
+  answer a ``std_msgs/String`` on :data:`RUN_COMMAND_RESPONSE` holding
+  ``{"id": …, "ok": true, "answer": "…"}`` or ``{"id": …, "ok": false, "error": "…"}``.
+
+Commands go through the live run's own queue (:class:`~sotdrake.live.server.CommandServer`), so
+they cost the simulation what a TCP command costs, and the TCP channel stays open beside them.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from std_msgs.msg import String
+from std_srvs.srv import Empty
+
+from ..exceptions import SotError
+from ..live.runner import DiagramHandles, LiveRun
+from .node import RosNode, ros_node
+
+log = logging.getLogger("sotdrake.ros")
+
+RUN_COMMAND_REQUEST = "/run_command/request"
+RUN_COMMAND_RESPONSE = "/run_command/response"
+START_SERVICE = "/start_dynamic_graph"
+#: Queue depth of the command topics (reliable QoS).
+DEPTH = 1000
+
+
+class _Answers:
+    """Stands for a TCP client in the live server's queue: answers go to the response topic."""
+
+    def __init__(self, services: RosServices):
+        self.services = services
+        self.ids: dict[int, object] = {}
+        self.lock = threading.Lock()
+
+    def queued(self) -> None:
+        pass
+
+    def send(self, data: bytes, queued: bool = False) -> None:
+        answer = json.loads(data)
+        with self.lock:
+            answer["id"] = self.ids.pop(answer["id"], answer["id"])
+        self.services.respond(answer)
+
+
+class RosServices:
+    """``run_command`` and ``start_dynamic_graph`` for ``live`` (see the module docstring)."""
+
+    def __init__(self, live: LiveRun, node: RosNode | None = None, hold: bool = True):
+        self.live, self.ros = live, node or ros_node()
+        self.started = threading.Event()
+        if not hold:
+            self.started.set()
+        self._answers = _Answers(self)
+        self._count = 0
+        node_ = self.ros.node
+        self.responses = node_.create_publisher(String, RUN_COMMAND_RESPONSE, DEPTH)
+        self.requests = node_.create_subscription(String, RUN_COMMAND_REQUEST, self._request, DEPTH)
+        self.service = node_.create_service(Empty, START_SERVICE, self._start)
+
+    def _start(self, request, response):
+        if not self.started.is_set():
+            log.info("start_dynamic_graph: the graph starts")
+        self.started.set()
+        return response
+
+    def _request(self, message: String) -> None:
+        text, ident = message.data, None
+        if text.lstrip().startswith("{"):
+            try:
+                request = json.loads(text)
+                text, ident = request["command"], request.get("id")
+                if not isinstance(text, str):
+                    raise TypeError("command is not a string")
+            except (ValueError, KeyError, TypeError) as error:
+                self.respond({"id": None, "ok": False, "error": f"bad request (JSON with 'command'): {error}"})
+                return
+        with self._answers.lock:
+            self._count += 1
+            self._answers.ids[self._count] = ident
+        self.live.server._handle_line(self._answers, self._count, text.encode("utf-8"))  # type: ignore[arg-type]
+
+    def respond(self, answer: dict) -> None:
+        self.responses.publish(String(data=json.dumps(answer)))
+
+    def wait_for_start(self, poll: float = 0.01) -> bool:
+        """Apply commands (at t = 0) until ``start_dynamic_graph`` is called (True) or the run is
+        stopped (``stop()``, Ctrl-C: False)."""
+        try:
+            while not self.started.wait(poll):
+                self.live.server.process(self.live.context, time.monotonic() + poll, minimum=0)
+                if self.live._stop.is_set():
+                    return False
+        except KeyboardInterrupt:
+            return False
+        return True
+
+    def close(self) -> None:
+        node = self.ros.node
+        node.destroy_subscription(self.requests)
+        node.destroy_publisher(self.responses)
+        node.destroy_service(self.service)
+
+
+def run_ros(handles: DiagramHandles, out: Path, meshcat=None, duration: float | None = None, port: int = 0,
+            realtime_rate: float = 1.0, summarize: Callable | None = None, write: Callable | None = None,
+            hold: bool = True, on_stop: Callable | None = None) -> dict:
+    """:func:`~sotdrake.live.run_live` with the ROS 2 services: waits for ``start_dynamic_graph``
+    (``hold``), runs until stopped, then ``summarize``, ``on_stop(out, summary, trace)`` (e.g. a
+    bag) and ``write`` as ``run_live``."""
+    from ..simulation import write_run
+
+    diagram = handles.diagram
+    robot = getattr(handles, "robot", None)
+    dt = robot.dt if robot is not None else 1e-3
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    live = LiveRun(diagram, dt, handles, realtime_rate, port, meshcat_url=meshcat.web_url() if meshcat else None)
+    files = live.write_connection_files(out / "live.json")
+    services = RosServices(live, hold=hold)
+    print(f"sotdrake ros: {diagram.get_name() or 'diagram'}: services {START_SERVICE}, run_command on "
+          f"{RUN_COMMAND_REQUEST} -> {RUN_COMMAND_RESPONSE}; commands also by sotdrake-shell --connection "
+          f"{files[0]}", file=sys.stderr, flush=True)
+    if hold:
+        print("sotdrake ros: waiting for start_dynamic_graph", file=sys.stderr, flush=True)
+    wall = live.run(duration) if services.wait_for_start() else 0.0
+    services.close()
+    simulator = live.simulator
+    simulated = simulator.get_context().get_time()
+    print(f"sotdrake ros: stopped at t = {simulated:.3f} s after {wall:.1f} s; writing {out}", file=sys.stderr, flush=True)
+    summary, trace = None, None
+    if summarize is not None and simulated > 0:
+        summary, trace = summarize(handles, simulator, simulated, wall)
+    if summary is None:
+        summary = {"duration_s": simulated, "wall_s": wall}
+    summary["live"] = json.loads(live.status())
+    summary["live"]["error"] = live.error
+    if on_stop is not None and trace is not None:
+        on_stop(out, summary, trace)
+    if write is not None and trace is not None and live.error is None:
+        write(out, summary, trace)
+    else:
+        write_run(out, diagram, summary, trace)
+    if live.error is not None:
+        raise SotError(f"the run failed at t = {simulated:.4f} s (files written in {out}): {live.error}")
+    return summary

@@ -1,0 +1,153 @@
+"""``RosSubscribe``: ROS 2 topics as output ports holding the last value received.
+
+| kind | message | output |
+| --- | --- | --- |
+| ``vector`` | ``std_msgs/Float64MultiArray`` | its ``data`` (``size`` numbers) |
+| ``double`` | ``std_msgs/Float64`` | 1 number |
+| ``joint_states`` | ``sensor_msgs/JointState`` | the positions of ``names``, in that order |
+| ``pose`` | ``geometry_msgs/PoseStamped`` | ``(x, y, z, qw, qx, qy, qz)`` (m, unit quaternion) |
+
+Before the first message (or after a message of the wrong size, which is dropped with a warning)
+the port holds its ``default``, and one warning says so. Messages arrive on the ROS executor's
+thread; the output is the latest at the time it is evaluated (so, unlike other systems, it is not
+a function of the context alone: a run that reads it is as repeatable as the traffic it receives).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from geometry_msgs.msg import PoseStamped
+from pydrake.systems.framework import BasicVector, LeafSystem, OutputPort
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64, Float64MultiArray
+
+from ..exceptions import InvalidInput
+from .messages import check_topic
+from .node import RosNode, ros_node
+
+log = logging.getLogger("sotdrake.ros")
+
+SUBSCRIBE_KINDS = {"vector": Float64MultiArray, "double": Float64, "joint_states": JointState, "pose": PoseStamped}
+
+
+@dataclass
+class _Slot:
+    kind: str
+    topic: str
+    default: np.ndarray
+    names: list[str] | None
+    value: np.ndarray | None = None
+    received_at: float | None = None
+    count: int = 0
+    warned: bool = False
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+
+class RosSubscribe(LeafSystem):
+    """Output ports fed from ROS 2 topics (the last value) and their ages.
+
+    Inputs: none.
+    Outputs: per :meth:`add`, ``<signal>`` (the last value, or the default before any) and
+    ``<signal>_age`` (wall seconds since the last message; ``inf`` before any).
+    """
+
+    def __init__(self, name: str = "ros_subscribe", node: RosNode | None = None, depth: int = 10):
+        LeafSystem.__init__(self)
+        self.set_name(name)
+        self.ros = node or ros_node()
+        self.depth = depth
+        self.slots: dict[str, _Slot] = {}
+
+    def add(self, kind: str, signal: str, topic: str, default: Sequence[float] | None = None,
+            size: int | None = None, names: Sequence[str] | None = None) -> OutputPort:
+        """An output ``signal`` fed from ``topic``; returns the port. ``size`` for a ``vector``,
+        ``names`` for ``joint_states``; ``default`` (zeros, or the identity pose) before any message."""
+        if kind not in SUBSCRIBE_KINDS:
+            raise InvalidInput(f"unknown subscription type {kind!r}: one of {', '.join(SUBSCRIBE_KINDS)}")
+        if not isinstance(signal, str) or not signal.isidentifier() or signal in self.slots:
+            raise InvalidInput(f"{self.get_name()}: signal {signal!r} is not a new identifier")
+        check_topic(topic)
+        if kind == "joint_states":
+            if not names or not all(isinstance(n, str) for n in names):
+                raise InvalidInput(f"{self.get_name()}: 'joint_states' needs names=[joint names], got {names!r}")
+            n = len(names)
+        elif kind == "vector":
+            if not (isinstance(size, int) and size > 0):
+                raise InvalidInput(f"{self.get_name()}: a 'vector' needs size=<positive int>, got {size!r}")
+            n = size
+        else:
+            n = 1 if kind == "double" else 7
+        if default is None:
+            value = np.zeros(n)
+            if kind == "pose":
+                value[3] = 1.0
+        else:
+            value = np.asarray(default, dtype=float).ravel()
+            if value.size != n or not np.all(np.isfinite(value)):
+                raise InvalidInput(f"{self.get_name()}: default of {signal!r} must be {n} finite numbers, got {default!r}")
+        slot = _Slot(kind, topic, value, list(names) if names is not None else None)
+        self.slots[signal] = slot
+        self.ros.node.create_subscription(SUBSCRIBE_KINDS[kind], topic, lambda m: self._receive(slot, m), self.depth)
+        port = self.DeclareVectorOutputPort(signal, n, lambda c, out: out.SetFromVector(self.value(signal)))
+        self.DeclareVectorOutputPort(f"{signal}_age", 1, lambda c, out: self._age(signal, out))
+        return port
+
+    def _receive(self, slot: _Slot, message) -> None:
+        value = self._decode(slot, message)
+        if value is None:
+            return
+        with slot.lock:
+            slot.value, slot.received_at, slot.count = value, time.monotonic(), slot.count + 1
+
+    def _decode(self, slot: _Slot, message) -> np.ndarray | None:
+        if slot.kind == "joint_states":
+            index = {n: i for i, n in enumerate(message.name)}
+            missing = [n for n in slot.names or () if n not in index]
+            if missing or len(message.position) != len(message.name):
+                log.warning("%s: %s: dropped a JointState without %s", self.get_name(), slot.topic, missing or "positions")
+                return None
+            value = np.array([message.position[index[n]] for n in slot.names or ()], dtype=float)
+        elif slot.kind == "pose":
+            p, o = message.pose.position, message.pose.orientation
+            value = np.array([p.x, p.y, p.z, o.w, o.x, o.y, o.z], dtype=float)
+        elif slot.kind == "double":
+            value = np.array([message.data], dtype=float)
+        else:
+            value = np.asarray(message.data, dtype=float)
+        if value.size != slot.default.size or not np.all(np.isfinite(value)):
+            log.warning("%s: %s: dropped a message of %d values (want %d finite)", self.get_name(), slot.topic,
+                        value.size, slot.default.size)
+            return None
+        return value
+
+    def value(self, signal: str) -> np.ndarray:
+        """The last value of ``signal`` (the default, with one warning, before any message)."""
+        slot = self.slots[signal]
+        with slot.lock:
+            if slot.value is not None:
+                return slot.value
+            if not slot.warned:
+                slot.warned = True
+                log.warning("%s: nothing received on %s yet: holding the default %s", self.get_name(), slot.topic,
+                            np.array2string(slot.default, precision=4, threshold=8))
+            return slot.default
+
+    def age(self, signal: str) -> float:
+        """Wall seconds since the last message on ``signal`` (``inf``: none yet)."""
+        slot = self.slots[signal]
+        with slot.lock:
+            return math.inf if slot.received_at is None else time.monotonic() - slot.received_at
+
+    def _age(self, signal: str, out: BasicVector) -> None:
+        out.SetAtIndex(0, self.age(signal))
+
+    def count(self, signal: str) -> int:
+        """How many messages ``signal`` has received."""
+        return self.slots[signal].count

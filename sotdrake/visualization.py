@@ -22,6 +22,7 @@ from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
 from .drake_logging import drake_log_level
 from .robot import Robot
+from .target_marker import TargetMarker
 
 if TYPE_CHECKING:
     from .dynamics.robot_dyn import RobotDyn
@@ -62,10 +63,26 @@ TARGET_COLOR = Rgba(0.9, 0.15, 0.1, 0.8)
 
 
 def add_target_marker(meshcat: Meshcat, path: str, position, radius: float = 0.025,
-                      rgba: Rgba | None = None) -> None:
-    """A sphere at ``position`` (world frame, m), red by default."""
+                      rgba: Rgba | None = None) -> TargetMarker | None:
+    """A marker in ``meshcat`` at ``path``: for a point (world frame, m), a sphere there, red by
+    default; for a task (a ``MetaTaskKine6d``, before the diagram is built), a
+    ``sotdrake.target_marker.TargetMarker`` added to the task's diagram: its target
+    (bright sphere and crosshair) read from the Context at every publish, so it follows ``gotoNd``
+    and is recorded, and the point the task controls (the op point moved by the task's ``opmodif``
+    as set now). Returns that system, or None for a point."""
+    if hasattr(position, "featureDes") and hasattr(position, "opPoint"):
+        return _add_task_marker(meshcat, path, position, radius, rgba)
     meshcat.SetObject(path, Sphere(radius), TARGET_COLOR if rgba is None else rgba)
     meshcat.SetTransform(path, RigidTransform(np.asarray(position, dtype=float)))
+    return None
+
+
+def _add_task_marker(meshcat: Meshcat, path: str, task, radius: float, rgba: Rgba | None) -> TargetMarker:
+    builder = task.robot.builder
+    marker = builder.AddNamedSystem(f"marker{task.name}", TargetMarker(meshcat, path, task.opmodif, radius, rgba))
+    builder.Connect(task.featureDes.GetOutputPort("position"), marker.desired_pose)
+    builder.Connect(task.dyn.GetOutputPort(task.opPoint), marker.op_point_pose)
+    return marker
 
 
 def save_recording(visualizer: MeshcatVisualizer, meshcat: Meshcat, path: Path) -> Path:

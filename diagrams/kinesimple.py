@@ -38,6 +38,7 @@ from sotdrake import (
     write_run,
 )
 from sotdrake.configuration import velocity_names
+from sotdrake.target_marker import desired_position
 
 OFFSET = (0.1, 0.1, 0.2)  # the target, from the hand's initial position (m, world)
 
@@ -74,7 +75,7 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = 1e-3) -> KineSimpl
         from sotdrake import add_robot_visualizer, add_target_marker
 
         visualizer = add_robot_visualizer(robot, meshcat)
-        add_target_marker(meshcat, "/target", target)
+        add_target_marker(meshcat, "/target", taskLW)  # follows every gotoNd (timed, live)
         meshcat.SetCameraPose(camera_in_world=[1.2, 1.0, 0.3], target_in_world=[0.15, 0.2, -0.35])
     return KineSimple(builder.Build(), robot, sot, taskLW, tracer, target, visualizer)
 
@@ -87,7 +88,7 @@ def summarize(kine: KineSimple, simulator, duration: float, wall: float) -> tupl
     q = trace["q"][:, :-1]  # the arm joints (the gripper is last, not controlled)
     margin = np.minimum(q - limits["position_lower"][:-1], limits["position_upper"][:-1] - q).min()
     summary = {
-        "hand_error_m": float(np.linalg.norm(final - kine.target)),
+        "hand_error_m": float(np.linalg.norm(final - desired_position(kine.taskLW, context))),  # the last target
         "hand_initial_error_m": float(np.linalg.norm(OFFSET)),
         "min_joint_limit_margin_rad": float(margin),
         "duration_s": duration,

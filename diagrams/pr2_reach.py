@@ -46,6 +46,7 @@ from sotdrake import (
     write_run,
 )
 from sotdrake import robot as make_robot
+from sotdrake.target_marker import desired_position
 
 #: The table: centre of its top surface (m, world) and its size (m).
 TABLE_TOP = np.array([1.45, 0.0, 0.72])
@@ -134,7 +135,8 @@ def summarize(kine: Pr2Reach, simulator: Simulator, duration: float, wall: float
     path = robot.dynamic.trajectory(["right-gripper", "base"], qs)
     hand = path["right-gripper"][:, :3, 3]
     base = path["base"][:, :3, 3]
-    hand_error = np.linalg.norm(hand - kine.target, axis=1)
+    target = desired_position(kine.taskRH, context)  # the last gotoNd's (the object's unless moved live)
+    hand_error = np.linalg.norm(hand - target, axis=1)
     base_joint = plant.GetJointByName("root_joint")
     yaw = qs[:, base_joint.position_start() + 2]
     # Joint-limit margin over the joints the solver moves (finite limits only).

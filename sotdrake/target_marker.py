@@ -74,3 +74,10 @@ class TargetMarker(LeafSystem):
             self._meshcat.SetProperty(f"{self._path}/point", "visible", True, t)
             self._meshcat.SetTransform(f"{self._path}/point", RigidTransform(self.get_output_port(1).Eval(context)), t)
         return EventStatus.Succeeded()
+
+
+def desired_position(task, context: Context) -> np.ndarray:
+    """The desired position (m) of a ``MetaTaskKine6d`` in the root diagram ``context``: the last
+    ``gotoNd``'s (at build time, in ``attime`` or live), or its moving target's, as the task sees it."""
+    desired = task.featureDes
+    return np.array(desired.GetOutputPort("position").Eval(desired.GetMyContextFromRoot(context)).translation())

@@ -50,6 +50,7 @@ class _Triggered(LeafSystem):
         self.set_name(name)
         self.ros = node or ros_node()
         self.period: float | None = None
+        self.every, self.dt = 0, 0.0
         self.published = 0
         self.publish_seconds = 0.0  # wall time spent publishing
 
@@ -62,11 +63,15 @@ class _Triggered(LeafSystem):
             raise InvalidInput(f"{self.get_name()}: every must be a positive number of ticks, got {every!r}")
         if not (isinstance(dt, float | int) and dt > 0):
             raise InvalidInput(f"{self.get_name()}: dt must be > 0 s, got {dt!r}")
-        self.period = every * float(dt)
-        self.DeclarePeriodicPublishEvent(self.period, 0.0, self._on_trigger)
+        self.period, self.every, self.dt = every * float(dt), every, float(dt)
+        # An event every tick, publishing every ``every``-th: tick times are k·dt exactly as the
+        # device's, where k·(every·dt) would drift off the grid by round-off (0.1·3 > 0.3).
+        self.DeclarePeriodicPublishEvent(self.dt, 0.0, self._on_tick)
         return self.period
 
-    def _on_trigger(self, context: Context) -> EventStatus:
+    def _on_tick(self, context: Context) -> EventStatus:
+        if round(context.get_time() / self.dt) % self.every:
+            return EventStatus.DidNothing()
         start = time.perf_counter()
         self.send(context)
         self.publish_seconds += time.perf_counter() - start

@@ -1,0 +1,377 @@
+"""ROS 2 (the ``ros2`` extra): ``RosPublish``, ``RosSubscribe``, ``run_command``,
+``start_dynamic_graph``, the ``ros_test.py`` port and the bag, on the loopback only.
+
+Each test run has its own ``ROS_DOMAIN_ID`` (from the process id) and
+``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``. Every wait is for an event (a message, an answer, a
+process ending) with a stated, generous time-out; nothing depends on the host's speed: counts are
+checked against the simulated time the run reached.
+"""
+
+import json
+import math
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rclpy", reason='ROS 2 is an optional extra: pip install ".[ros2]"')
+
+os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 100)
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64, Float64MultiArray, String
+
+from sotdrake.exceptions import InvalidInput
+from sotdrake.ros import (
+    RUN_COMMAND_REQUEST,
+    RUN_COMMAND_RESPONSE,
+    RosNode,
+    RosPublish,
+    RosSubscribe,
+    RunCommandClient,
+    read_bag,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+WAIT_S = 120.0  # the longest wait for one message or answer
+START_S = 600.0  # the longest wait for the run to start (imports and numba's first compilation)
+SETTLE_S = 6.0  # simulated seconds the hand gets after it is pushed
+PERIOD_S = 0.1  # 100 ticks of 1 ms: the seed's addDownsampledSignal(…, 100)
+
+
+def wait_for(condition, timeout: float = WAIT_S, what: str = "an event") -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout:g} s waiting for {what}")
+        time.sleep(0.02)
+
+
+@pytest.fixture(scope="module")
+def observer():
+    node = RosNode("test_observer")
+    yield node
+    node.close()
+
+
+# --- without the extra ------------------------------------------------------------------------
+def test_without_rclpy_the_error_names_the_install_line():
+    code = ("import sys; sys.modules['rclpy'] = None\nimport sotdrake\n"
+            "try:\n    import sotdrake.ros\nexcept ImportError as e:\n    print('IMPORTERROR', e)\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=START_S, cwd=ROOT)
+    assert result.returncode == 0, result.stderr
+    assert 'IMPORTERROR' in result.stdout and 'pip install ".[ros2]"' in result.stdout
+
+
+# --- mistakes are refused when made ---------------------------------------------------------------
+@pytest.mark.parametrize(("kind", "topic", "kwargs", "says"), [
+    ("vectr", "/a", {"size": 3}, "unknown signal type"),
+    ("vector", "/a", {}, "size="),
+    ("vector", "/a", {"size": 0}, "size="),
+    ("matrix", "/a", {"shape": (3,)}, "shape="),
+    ("vector", "bad topic", {"size": 3}, "bad ROS topic name"),
+    ("vector", "/a//b", {"size": 3}, "bad ROS topic name"),
+    ("double", "/1a", {}, "bad ROS topic name"),
+])
+def test_ros_publish_refuses_bad_signals(observer, kind, topic, kwargs, says):
+    publisher = RosPublish("p", observer)
+    with pytest.raises(InvalidInput, match=says):
+        publisher.add(kind, "s", topic, **kwargs)
+
+
+def test_ros_publish_refuses_a_second_trigger_and_a_repeated_signal(observer):
+    publisher = RosPublish("p", observer)
+    publisher.add("double", "s", "/s")
+    with pytest.raises(InvalidInput, match="already added"):
+        publisher.add("double", "s", "/t")
+    with pytest.raises(InvalidInput, match="positive number of ticks"):
+        publisher.trigger(0, 1e-3)
+    publisher.trigger(10, 1e-3)
+    with pytest.raises(InvalidInput, match="already set"):
+        publisher.trigger(10, 1e-3)
+
+
+def test_ros_publish_kinds_reach_another_node(observer):
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantVectorSource
+
+    from sotdrake.ros import RosNode
+
+    sender = RosNode("test_sender")
+    try:
+        builder = DiagramBuilder()
+        publish = builder.AddSystem(RosPublish("kinds", sender))
+        values = {"v": np.arange(5.0), "m": np.arange(6.0), "h": np.eye(4).ravel(), "d": np.array([2.5])}
+        kinds = {"v": ("vector", {"size": 5}), "m": ("matrix", {"shape": (2, 3)}), "h": ("matrixHomo", {}),
+                 "d": ("double", {})}
+        got: dict[str, list] = {k: [] for k in values}
+        for name, (kind, kwargs) in kinds.items():
+            port = publish.add(kind, name, f"/test_kinds/{name}", **kwargs)
+            source = builder.AddSystem(ConstantVectorSource(values[name]))
+            builder.Connect(source.get_output_port(), port)
+            observer.node.create_subscription(Float64 if kind == "double" else Float64MultiArray,
+                                              f"/test_kinds/{name}", got[name].append, 100)
+        publish.trigger(10, 1e-3)
+        diagram = builder.Build()
+        wait_for(lambda: all(s.publisher.get_subscription_count() > 0 for s in publish.signals.values()),
+                 what="the subscriptions to match")
+        Simulator(diagram).AdvanceTo(0.05)  # publishes at t = 0, 0.01, …, 0.05
+        wait_for(lambda: all(len(g) == 6 for g in got.values()), what="6 messages of each kind")
+        assert publish.published == 6
+        assert list(got["v"][-1].data) == values["v"].tolist()
+        assert [d.size for d in got["m"][-1].layout.dim] == [2, 3] and list(got["m"][-1].data) == values["m"].tolist()
+        assert [d.size for d in got["h"][-1].layout.dim] == [4, 4]
+        assert got["d"][-1].data == 2.5
+    finally:
+        sender.close()
+
+
+def test_ros_subscribe_holds_the_default_then_the_last_value(observer, caplog):
+    from sotdrake.ros import RosNode
+
+    subscribe = RosSubscribe("sub", observer)
+    port = subscribe.add("vector", "target", "/test_subscribe/target", default=(1.0, 2.0, 3.0), size=3)
+    joints = subscribe.add("joint_states", "q", "/test_subscribe/joints", names=["b", "a"])
+    context = subscribe.CreateDefaultContext()
+    with caplog.at_level("WARNING", logger="sotdrake.ros"):
+        assert port.Eval(context).tolist() == [1.0, 2.0, 3.0]
+        assert port.Eval(context).tolist() == [1.0, 2.0, 3.0]
+    assert sum("holding the default" in r.message for r in caplog.records) == 1
+    assert math.isinf(subscribe.GetOutputPort("target_age").Eval(context)[0])
+    sender = RosNode("test_subscribe_sender")
+    try:
+        pub = sender.node.create_publisher(Float64MultiArray, "/test_subscribe/target", 10)
+        pub_joints = sender.node.create_publisher(JointState, "/test_subscribe/joints", 10)
+        wait_for(lambda: pub.get_subscription_count() > 0 and pub_joints.get_subscription_count() > 0,
+                 what="the subscriptions to match")
+        pub.publish(Float64MultiArray(data=[1.0, 2.0]))  # wrong size: dropped
+        pub.publish(Float64MultiArray(data=[4.0, 5.0, 6.0]))
+        pub_joints.publish(JointState(name=["a", "b", "c"], position=[1.0, 2.0, 3.0]))
+        wait_for(lambda: subscribe.count("target") == 1 and subscribe.count("q") == 1, what="both messages")
+        context = subscribe.CreateDefaultContext()
+        assert port.Eval(context).tolist() == [4.0, 5.0, 6.0]
+        assert joints.Eval(context).tolist() == [2.0, 1.0]
+        assert 0 <= subscribe.GetOutputPort("target_age").Eval(context)[0] < WAIT_S
+    finally:
+        sender.close()
+    with pytest.raises(InvalidInput, match="names="):
+        subscribe.add("joint_states", "j2", "/j2")
+    with pytest.raises(InvalidInput, match="default"):
+        subscribe.add("vector", "t2", "/t2", default=(1.0,), size=3)
+
+
+# --- the tutorial over ROS: talos_appli.py --ros --bag, driven by ros_test.py ----------------------
+#: run_command lines that must be refused, changing nothing, while the run goes on.
+HOSTILE = [
+    "__import__('os').system('touch /tmp/sotdrake_pwned')",
+    "import os",
+    "eval('1+1')",
+    "exec('print(1)')",
+    "open('/etc/passwd').read()",
+    "sot.__class__",
+    "sot.push(__import__('os'))",
+    "lambda: 0",
+    "[x for x in ()]",
+    "sot.push('nosuchtask')",
+    "sot.push('taskrh')",  # already in the stack
+    "taskRH.gain.setConstant(-1)",
+    "os.system('ls')",
+    "getattr(sot, 'push')('taskrh')",
+    "sot.push(taskRH.task.name)",
+    "x = 1",
+    "sot.push(*['taskrh'])",
+    "device.set_position((0,))",
+    "'a' * 10**9",
+    "f'{sot}'",
+    "sot.clear(); import os",
+    "sot.push('taskrh')\nimport os",
+    "taskRH.selec('1111111')",
+    "gotoNd(taskRH, (1, 2), '111')",
+    "sot.a.b.c.d()",
+    "",
+    "x" * 5000,
+    '{"id": "bad", "cmd": "sot.clear()"}',
+]
+#: What must not change.
+PROBES = ["stack()", "taskRH.gain.coefficients()", "taskCom.gain.coefficients()",
+          "contactLF.gain.coefficients()", "contactRF.gain.coefficients()", "sot.contacts()"]
+
+
+def ask(client: RunCommandClient, line: str) -> str:
+    answer = client.command(line)
+    assert answer["ok"], f"{line}: {answer.get('error')}"
+    return answer["answer"]
+
+
+@pytest.fixture(scope="module")
+def ros_run(tmp_path_factory, observer):
+    """The run and what another process saw of it."""
+    work = tmp_path_factory.mktemp("ros")
+    out, log = work / "out", work / "appli.log"
+    env = dict(os.environ, PYTHONPATH=str(ROOT), XDG_RUNTIME_DIR=str(work))
+    seen: dict[str, list] = {"state": [], "joints": []}
+    lock = threading.Lock()
+
+    def keep(key):
+        def store(message):
+            with lock:
+                seen[key].append(message)
+        return store
+
+    state_sub = observer.node.create_subscription(Float64MultiArray, "/sot_control/state", keep("state"), 10_000)
+    joint_sub = observer.node.create_subscription(JointState, "/joint_states", keep("joints"), 10_000)
+    raw_answers: list[dict] = []
+    raw_sub = observer.node.create_subscription(String, RUN_COMMAND_RESPONSE,
+                                                lambda m: raw_answers.append(json.loads(m.data)), 1000)
+    raw_pub = observer.node.create_publisher(String, RUN_COMMAND_REQUEST, 1000)
+    with open(log, "w") as log_file:
+        appli = subprocess.Popen([sys.executable, str(ROOT / "diagrams" / "talos_appli.py"), "--ros", "--bag",
+                                  "--no-meshcat", "--rate", "2", "--out", str(out)],
+                                 cwd=work, env=env, stdout=log_file, stderr=subprocess.STDOUT)
+    result: dict = {"out": out, "log": log}
+    try:
+        client = RunCommandClient(observer, WAIT_S)
+        client.wait(START_S)
+        wait_for(lambda: state_sub.get_publisher_count() > 0 and joint_sub.get_publisher_count() > 0,
+                 what="the state publishers")
+        # Held until started: the time stays 0 and nothing is published.
+        result["time_before_start"] = float(ask(client, "time()"))
+        time.sleep(0.5)
+        result["time_before_start_later"] = float(ask(client, "time()"))
+        result["published_before_start"] = len(seen["state"])
+        # The seed's test.py, in its own process: appli lines, start, hand; then SETTLE_S s.
+        driver = subprocess.run([sys.executable, str(ROOT / "diagrams" / "ros_test.py"), "--settle", str(SETTLE_S),
+                                 "--timeout", str(WAIT_S)], cwd=work, env=env, capture_output=True, text=True,
+                                timeout=START_S)
+        result["driver"] = driver
+        assert driver.returncode == 0, driver.stdout + driver.stderr
+        # Hostile commands: refused, nothing changed, the run goes on.
+        before = [ask(client, p) for p in PROBES]
+        t0 = float(ask(client, "time()"))
+        result["hostile"] = [(line, client.command(line)) for line in HOSTILE]
+        result["probes"] = (before, [ask(client, p) for p in PROBES])
+        deadline = time.monotonic() + WAIT_S
+        while float(ask(client, "time()")) < t0 + 0.5:  # the run goes on
+            assert time.monotonic() < deadline, "the run stopped after the hostile commands"
+            time.sleep(0.05)
+        raw_pub.publish(String(data="{not json"))
+        wait_for(lambda: any(a.get("id") is None for a in raw_answers), what="the answer to a bad request")
+        result["bad_request"] = next(a for a in raw_answers if a.get("id") is None)
+        ask(client, "stop()")
+        appli.wait(START_S)
+        result["returncode"] = appli.returncode
+        summary = json.loads((out / "summary.json").read_text())
+        result["summary"] = summary
+        expected = math.floor(summary["duration_s"] / PERIOD_S + 1e-9) + 1
+        result["expected"] = expected
+        wait_for(lambda: len(seen["state"]) >= expected - 1 and len(seen["joints"]) >= expected - 1,
+                 what=f"{expected - 1} state messages")
+        time.sleep(0.5)  # any message still in flight
+        with lock:
+            result["state"], result["joints"] = list(seen["state"]), list(seen["joints"])
+        client.close()
+        yield result
+    finally:
+        if appli.poll() is None:
+            appli.kill()
+            appli.wait()
+        for sub in (state_sub, joint_sub, raw_sub):
+            observer.node.destroy_subscription(sub)
+        observer.node.destroy_publisher(raw_pub)
+
+
+def test_start_dynamic_graph_starts_the_run(ros_run):
+    assert ros_run["time_before_start"] == 0.0 == ros_run["time_before_start_later"]
+    assert ros_run["published_before_start"] == 0
+    assert ros_run["returncode"] == 0, ros_run["log"].read_text()
+    assert ros_run["summary"]["duration_s"] > SETTLE_S
+
+
+def test_state_arrives_at_the_configured_period(ros_run):
+    states, expected = ros_run["state"], ros_run["expected"]
+    assert abs(len(states) - expected) <= 1, (len(states), expected)
+    assert all(len(m.data) == 39 for m in states)
+
+
+def test_joint_states_equal_the_trace(ros_run):
+    from pydrake.systems.framework import DiagramBuilder
+
+    from sotdrake import talos
+    from sotdrake.ros import joint_coordinates
+
+    names, indices = joint_coordinates(talos(DiagramBuilder()).model.plant)
+    trace = np.load(ros_run["out"] / "trace.npz")
+    times = trace["time"]
+    joints = ros_run["joints"]
+    assert abs(len(joints) - ros_run["expected"]) <= 1
+    stamps = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in joints])
+    assert np.allclose(np.diff(stamps), PERIOD_S, atol=1e-9)
+    matched = 0
+    for stamp, message in zip(stamps, joints, strict=True):
+        assert list(message.name) == names
+        k = np.flatnonzero(np.abs(times - stamp) < 1e-9)
+        if stamp > 0:
+            assert k.size == 1, stamp
+            assert np.array_equal(np.asarray(message.position), trace["q"][k[0]][indices])
+            matched += 1
+    assert matched >= len(joints) - 1
+
+
+def test_run_command_refuses_hostile_code(ros_run):
+    assert len(HOSTILE) >= 20
+    accepted = [(line, answer) for line, answer in ros_run["hostile"] if answer["ok"]]
+    assert not accepted
+    assert all(answer.get("error") for _, answer in ros_run["hostile"])
+    before, after = ros_run["probes"]
+    assert before == after
+    assert not Path("/tmp/sotdrake_pwned").exists()
+    assert ros_run["bad_request"]["ok"] is False and "bad request" in ros_run["bad_request"]["error"]
+
+
+def test_ros_test_port_moves_the_hand(ros_run):
+    driver = ros_run["driver"].stdout
+    assert "...done with initialize SoT" in driver and "dynamic graph started" in driver
+    summary = ros_run["summary"]
+    assert summary["final_stack"] == ["taskcontactRF", "taskcontactLF", "taskcom", "taskrh"]
+    assert summary["hand_error_m"] < 5e-3
+    assert summary["max_foot_drift_m"] < 1e-4
+    assert summary["max_com_drift_m"] < 1e-4
+
+
+def test_bag_reads_back_equal_to_the_trace(ros_run):
+    from pydrake.systems.framework import DiagramBuilder
+
+    from sotdrake import talos
+    from sotdrake.ros import joint_coordinates
+
+    names, indices = joint_coordinates(talos(DiagramBuilder()).model.plant)
+    bag = ros_run["out"] / "run"
+    assert (bag / "run.mcap").is_file()
+    trace = np.load(ros_run["out"] / "trace.npz")
+    times = trace["time"][::10]
+    messages = read_bag(bag)
+    expected_topics = {"/joint_states", "/sot/error/taskrh", "/sot/error/taskcom", "/sot/error/taskcontactRF",
+                       "/sot/error/taskcontactLF", "/sot/hand", "/sot/com", "/sot/target/rh"}
+    assert expected_topics <= set(messages)
+    for topic in expected_topics:
+        assert len(messages[topic]) == times.size, topic
+        assert [ns for ns, _ in messages[topic]] == [round(t * 1e9) for t in times], topic
+    joints = messages["/joint_states"]
+    assert joints[0][1].__msgtype__ == "sensor_msgs/msg/JointState" and list(joints[0][1].name) == names
+    assert np.array_equal(np.array([m.position for _, m in joints]), trace["q"][::10][:, indices])
+    assert [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for _, m in joints] == [ns for ns, _ in joints]
+    errors = messages["/sot/error/taskrh"]
+    assert errors[0][1].__msgtype__ == "std_msgs/msg/Float64MultiArray"
+    assert np.array_equal(np.array([m.data for _, m in errors]), trace["error_taskrh"][::10].reshape(times.size, -1))
+    com = np.array([[m.point.x, m.point.y, m.point.z] for _, m in messages["/sot/com"]])
+    assert messages["/sot/com"][0][1].__msgtype__ == "geometry_msgs/msg/PointStamped"
+    assert np.array_equal(com, trace["com_position"][::10])
+    target = np.array([[m.point.x, m.point.y, m.point.z] for _, m in messages["/sot/target/rh"]])
+    assert np.array_equal(target, np.tile([0.5, -0.2, 1.0], (times.size, 1)))

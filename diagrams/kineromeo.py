@@ -38,6 +38,7 @@ from sotdrake import (
     add_robot_visualizer,
     add_sot,
     add_target_marker,
+    desired_position,
     gotoNd,
     save_figure,
     script_arguments,
@@ -46,7 +47,6 @@ from sotdrake import (
     write_run,
 )
 from sotdrake import robot as make_robot
-from sotdrake.target_marker import desired_position
 
 TARGET = (0.5, -0.2, 0.8)
 HAND_OFFSET = (0.1, 0.0, 0.0)

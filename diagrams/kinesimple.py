@@ -30,6 +30,7 @@ from sotdrake import (
     Robot,
     Tracer,
     add_sot,
+    desired_position,
     gotoNd,
     script_arguments,
     simulate,
@@ -38,7 +39,6 @@ from sotdrake import (
     write_run,
 )
 from sotdrake.configuration import velocity_names
-from sotdrake.target_marker import desired_position
 
 OFFSET = (0.1, 0.1, 0.2)  # the target, from the hand's initial position (m, world)
 

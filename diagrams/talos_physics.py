@@ -32,6 +32,7 @@ from sotdrake import (
     Tracer,
     add_sot,
     attime,
+    desired_position,
     gotoNd,
     hold_feet_and_com,
     load_talos,
@@ -42,7 +43,6 @@ from sotdrake import (
     write_run,
 )
 from sotdrake.physics import SOLE_BOX, KinematicBaseEstimator, PhysicalTalos, TalosStation, add_talos_station, fall_time
-from sotdrake.target_marker import desired_position
 
 TARGET = (0.5, -0.2, 1.0)
 HAND_OFFSET = (0.1, 0.0, 0.0)

@@ -66,6 +66,7 @@ from .sequencer import attime
 from .simulation import save_figure, script_arguments, simulate, start, write_run
 from .solvers import SOT, SolverKine
 from .stack_checks import check_stack
+from .target_marker import TargetMarker, desired_position
 from .task import Task, TaskInequality, TaskLevel, TaskPD
 from .tracing import Tracer
 from .visualization import (
@@ -254,6 +255,7 @@ __all__ = [
     "SotWarning",
     "StackError",
     "TalosStation",
+    "TargetMarker",
     "Task",
     "TaskDynPD",
     "TaskInequality",
@@ -274,6 +276,7 @@ __all__ = [
     "attime",
     "available_robots",
     "check_stack",
+    "desired_position",
     "displayAll",
     "displaySignals",
     "engine_options",

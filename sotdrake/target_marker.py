@@ -9,11 +9,16 @@ Meshcat records (``MeshcatVisualizer.StartRecording``), every pose is recorded t
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import Meshcat, Rgba, Sphere
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
+
+if TYPE_CHECKING:
+    from .meta_tasks import MetaTaskKine6d
 
 TARGET_COLOR = Rgba(1.0, 0.1, 0.05, 1.0)
 POINT_COLOR = Rgba(1.0, 0.85, 0.0, 1.0)
@@ -76,7 +81,7 @@ class TargetMarker(LeafSystem):
         return EventStatus.Succeeded()
 
 
-def desired_position(task, context: Context) -> np.ndarray:
+def desired_position(task: MetaTaskKine6d, context: Context) -> np.ndarray:
     """The desired position (m) of a ``MetaTaskKine6d`` in the root diagram ``context``: the last
     ``gotoNd``'s (at build time, in ``attime`` or live), or its moving target's, as the task sees it."""
     desired = task.featureDes

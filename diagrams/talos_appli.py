@@ -37,6 +37,7 @@ from sotdrake import (
     Tracer,
     add_sot,
     attime,
+    desired_position,
     gotoNd,
     save_figure,
     script_arguments,
@@ -149,12 +150,6 @@ def simulate(appli: Appli, duration: float, progress: bool = True) -> tuple[Simu
     return run_simulation(appli.diagram, duration, appli.visualizer, progress)
 
 
-def last_target(appli: Appli, context) -> np.ndarray:
-    """The hand task's desired position (m) in the root ``context``: the last ``gotoNd``'s."""
-    desired = appli.taskRH.featureDes
-    return desired.GetOutputPort("position").Eval(desired.GetMyContextFromRoot(context)).translation().copy()
-
-
 def summarize(appli: Appli, simulator: Simulator, duration: float, wall: float) -> tuple[dict, dict]:
     """The summary numbers and the trace (with the hand, feet and CoM along the run)."""
     context = simulator.get_context()
@@ -163,7 +158,7 @@ def summarize(appli: Appli, simulator: Simulator, duration: float, wall: float) 
     qs = np.vstack([q0, trace["q"]])
     path = robot.dynamic.trajectory(["rh", "LF", "RF"], qs)
     hand = path["rh"][:, :3, :3] @ np.asarray(HAND_OFFSET) + path["rh"][:, :3, 3]
-    target = last_target(appli, context)  # the last gotoNd's, not the build-time one
+    target = desired_position(appli.taskRH, context)  # the last gotoNd's, not the build-time one
     hand_error = np.linalg.norm(hand - target, axis=1)
     foot_drift = max(np.linalg.norm(path[f][:, :3, 3] - path[f][0, :3, 3], axis=1).max() for f in ("LF", "RF"))
     foot_rotation_drift = max(

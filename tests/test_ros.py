@@ -375,3 +375,77 @@ def test_bag_reads_back_equal_to_the_trace(ros_run):
     assert np.array_equal(com, trace["com_position"][::10])
     target = np.array([[m.point.x, m.point.y, m.point.z] for _, m in messages["/sot/target/rh"]])
     assert np.array_equal(target, np.tile([0.5, -0.2, 1.0], (times.size, 1)))
+
+
+# --- towards a real robot: commands and the watchdog ---------------------------------------------
+def test_command_publishers_send_positions_torques_gains_and_references(observer):
+    from pydrake.systems.framework import DiagramBuilder
+
+    from sotdrake import talos
+    from sotdrake.ros import JointCommandPublisher, RosNode, TorqueCommandPublisher
+
+    plant = talos(DiagramBuilder()).model.plant
+    sender = RosNode("test_commands")
+    try:
+        with pytest.raises(InvalidInput, match="unknown joints"):
+            JointCommandPublisher(plant, joints=["no_such_joint"], node=sender)
+        with pytest.raises(InvalidInput, match="kp"):
+            TorqueCommandPublisher(plant, kp=-1.0, kd=1.0, node=sender)
+        arm = ["arm_right_1_joint", "arm_right_4_joint"]
+        positions = JointCommandPublisher(plant, "/test_commands/positions", joints=arm, node=sender)
+        torques = TorqueCommandPublisher(plant, kp=300.0, kd=np.arange(plant.num_actuators(), dtype=float),
+                                         prefix="/test_commands/lfc", node=sender)
+        got: dict[str, list] = {k: [] for k in ("positions", "feedforward", "reference", "gains")}
+        topics = {"positions": "/test_commands/positions", "feedforward": "/test_commands/lfc/feedforward",
+                  "reference": "/test_commands/lfc/reference", "gains": "/test_commands/lfc/gains"}
+        for key, topic in topics.items():
+            observer.node.create_subscription(Float64MultiArray, topic, got[key].append, 10)
+        wait_for(lambda: positions.publisher.get_subscription_count() > 0
+                 and all(p.get_subscription_count() > 0 for p in torques.publishers.values()), what="the subscriptions")
+        q = np.arange(plant.num_positions(), dtype=float)
+        context = positions.CreateDefaultContext()
+        positions.position.FixValue(context, q)
+        positions.send(context)
+        na, x = plant.num_actuators(), np.arange(plant.num_positions() + plant.num_velocities(), dtype=float)
+        context = torques.CreateDefaultContext()
+        torques.torque.FixValue(context, np.full(na, 2.0))
+        torques.state.FixValue(context, x)
+        torques.send(context)
+        wait_for(lambda: all(got.values()), what="the four messages")
+        joints = [plant.GetJointByName(j) for j in arm]
+        assert list(got["positions"][0].data) == [q[j.position_start()] for j in joints]
+        assert list(got["feedforward"][0].data) == [2.0] * na
+        assert list(got["gains"][0].data) == [300.0] * na + list(range(na))
+        assert list(got["reference"][0].data) == x[torques.q_indices].tolist() + x[torques.v_indices].tolist()
+    finally:
+        sender.close()
+
+
+def test_watchdog_holds_the_command_without_joint_states(caplog):
+    from sotdrake.ros import JointStateWatchdog
+
+    with pytest.raises(InvalidInput, match="timeout"):
+        JointStateWatchdog(2, timeout=0.0, dt=1e-3)
+    watchdog = JointStateWatchdog(2, timeout=0.05, dt=1e-3, initial=(7.0, 8.0))
+    context = watchdog.CreateDefaultContext()
+    out, healthy = watchdog.GetOutputPort("command"), watchdog.GetOutputPort("healthy")
+
+    def tick(command, age):
+        watchdog.command.FixValue(context, np.asarray(command, dtype=float))
+        watchdog.age.FixValue(context, [age])
+        context.SetDiscreteState(watchdog.EvalUniquePeriodicDiscreteUpdate(context))
+
+    watchdog.command.FixValue(context, [1.0, 2.0])
+    watchdog.age.FixValue(context, [math.inf])  # nothing received yet: the initial command
+    assert out.Eval(context).tolist() == [7.0, 8.0] and healthy.Eval(context)[0] == 0.0
+    tick([1.0, 2.0], 0.01)
+    assert out.Eval(context).tolist() == [1.0, 2.0] and healthy.Eval(context)[0] == 1.0
+    with caplog.at_level("WARNING", logger="sotdrake.ros"):
+        tick([3.0, 4.0], 0.2)  # stale: the last fresh command is held
+        assert out.Eval(context).tolist() == [1.0, 2.0] and healthy.Eval(context)[0] == 0.0
+        tick([5.0, 6.0], 0.3)
+        assert out.Eval(context).tolist() == [1.0, 2.0]
+        tick([5.0, 6.0], 0.0)
+        assert out.Eval(context).tolist() == [5.0, 6.0]
+    messages = [r.message for r in caplog.records]
+    assert sum("holding the command" in m for m in messages) == 1 and sum("are back" in m for m in messages) == 1

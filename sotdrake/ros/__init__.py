@@ -8,6 +8,7 @@ One concept a module:
 * :mod:`.publish`: :class:`RosPublish`, :class:`JointStatePublisher`, :func:`add_ros_publisher`;
 * :mod:`.subscribe`: :class:`RosSubscribe` (the last value of a topic, its age, a stated default);
 * :mod:`.services`: ``run_command`` and ``start_dynamic_graph`` on a live run (:func:`run_ros`);
+* :mod:`.commands`: commands for a real robot's controllers, a joint-state watchdog;
 * :mod:`.client`: the other side of the services, for a script in another process;
 * :mod:`.bag`: rosbag2 (MCAP) files of a run's trace.
 
@@ -25,6 +26,7 @@ except ImportError as error:  # pragma: no cover - depends on the environment
 
 from .bag import read_bag, write_bag, write_trace_bag  # noqa: E402
 from .client import RunCommandClient, wait_for_services  # noqa: E402
+from .commands import JointCommandPublisher, JointStateWatchdog, TorqueCommandPublisher  # noqa: E402
 from .messages import KINDS, to_message  # noqa: E402
 from .node import RosNode, ros_node, shutdown  # noqa: E402
 from .publish import JointStatePublisher, RosPublish, add_ros_publisher, joint_coordinates  # noqa: E402
@@ -37,12 +39,15 @@ __all__ = [
     "RUN_COMMAND_REQUEST",
     "RUN_COMMAND_RESPONSE",
     "START_SERVICE",
+    "JointCommandPublisher",
     "JointStatePublisher",
+    "JointStateWatchdog",
     "RosNode",
     "RosPublish",
     "RosServices",
     "RosSubscribe",
     "RunCommandClient",
+    "TorqueCommandPublisher",
     "add_ros_publisher",
     "joint_coordinates",
     "read_bag",

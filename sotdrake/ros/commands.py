@@ -1,0 +1,154 @@
+"""Towards a real robot: the SoT's commands as ROS 2 messages, and a watchdog on the joint states.
+
+* :class:`JointCommandPublisher` (kinematic SoT): the joint position references of the device, as a
+  ``std_msgs/Float64MultiArray`` for a ``forward_command_controller`` (its ``commands`` topic; the
+  joints in the controller's order).
+* :class:`TorqueCommandPublisher` (``SolverDyn``): what a linear-feedback controller applies,
+  ``τ = τ_ff + Kp (q_ref − q) + Kd (v_ref − v)``: the feed-forward torque, the reference state and
+  the PD gains, each a ``std_msgs/Float64MultiArray`` per actuated joint, in actuator order.
+* :class:`JointStateWatchdog`: when no joint state arrived within ``timeout`` s (the age output of
+  :class:`~.subscribe.RosSubscribe`), the command is held at its last value, and a warning says so
+  (another when they come back).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, EventStatus, LeafSystem
+from std_msgs.msg import Float64MultiArray
+
+from ..exceptions import InvalidInput
+from .messages import check_topic, to_message
+from .node import RosNode
+from .publish import _Triggered, joint_coordinates
+
+log = logging.getLogger("sotdrake.ros")
+
+
+def _joint_indices(plant: MultibodyPlant, joints: Sequence[str] | None) -> tuple[list[str], np.ndarray]:
+    names, indices = joint_coordinates(plant)
+    if joints is None:
+        return names, indices
+    where = dict(zip(names, indices, strict=True))
+    unknown = [j for j in joints if j not in where]
+    if unknown:
+        raise InvalidInput(f"unknown joints {unknown}: one-coordinate joints of the model are {names}")
+    return list(joints), np.array([where[j] for j in joints], dtype=int)
+
+
+class JointCommandPublisher(_Triggered):
+    """Joint position references for a ``forward_command_controller``.
+
+    Inputs: ``position`` (``q``, size nq; rad or m).
+    Outputs: none; publishes the positions of ``joints`` (default: every one-coordinate joint, plant
+    order) on ``topic`` at :meth:`trigger`'s rate.
+    """
+
+    def __init__(self, plant: MultibodyPlant, topic: str = "/forward_position_controller/commands",
+                 joints: Sequence[str] | None = None, name: str = "ros_joint_commands", node: RosNode | None = None):
+        super().__init__(name, node)
+        self.topic = check_topic(topic)
+        self.joints, self.indices = _joint_indices(plant, joints)
+        self.position = self.DeclareVectorInputPort("position", plant.num_positions())
+        self.publisher = self.ros.node.create_publisher(Float64MultiArray, topic, 10)
+
+    def send(self, context: Context) -> None:
+        self.publisher.publish(to_message("vector", self.position.Eval(context)[self.indices]))
+
+
+class TorqueCommandPublisher(_Triggered):
+    """``SolverDyn``'s command for a linear-feedback controller: τ_ff, the reference state, PD gains.
+
+    Inputs: ``torque`` (τ_ff, size na, N·m), ``state`` (the reference ``(q, v)``, size nq + nv).
+    Outputs: none; publishes on ``<prefix>/feedforward`` (na values, N·m), ``<prefix>/reference``
+    (the actuated joints' q then v: 2·na values, rad and rad/s) and ``<prefix>/gains`` (Kp then Kd:
+    2·na values, N·m/rad and N·m·s/rad), all in actuator order.
+    """
+
+    def __init__(self, plant: MultibodyPlant, kp: float | Sequence[float], kd: float | Sequence[float],
+                 prefix: str = "/sot/command", name: str = "ros_torque_commands", node: RosNode | None = None):
+        super().__init__(name, node)
+        na = plant.num_actuators()
+        if na == 0:
+            raise InvalidInput("the plant has no actuator: nothing to command in torque")
+        joints = [plant.get_joint_actuator(i).joint() for i in plant.GetJointActuatorIndices()]
+        self.joints = [j.name() for j in joints]
+        self.q_indices = np.array([j.position_start() for j in joints], dtype=int)
+        self.v_indices = np.array([plant.num_positions() + j.velocity_start() for j in joints], dtype=int)
+        gains = []
+        for label, gain in (("kp", kp), ("kd", kd)):
+            value = np.broadcast_to(np.asarray(gain, dtype=float), (na,)) if np.ndim(gain) == 0 else np.asarray(gain, float)
+            if value.shape != (na,) or not np.all(np.isfinite(value)) or np.any(value < 0):
+                raise InvalidInput(f"{label} must be one or {na} finite numbers ≥ 0, got {gain!r}")
+            gains.append(value)
+        self.gains = np.concatenate(gains)
+        prefix = check_topic(prefix).rstrip("/")
+        self.torque = self.DeclareVectorInputPort("torque", na)
+        self.state = self.DeclareVectorInputPort("state", plant.num_positions() + plant.num_velocities())
+        node_ = self.ros.node
+        self.publishers = {part: node_.create_publisher(Float64MultiArray, f"{prefix}/{part}", 10)
+                           for part in ("feedforward", "reference", "gains")}
+
+    def send(self, context: Context) -> None:
+        x = self.state.Eval(context)
+        self.publishers["feedforward"].publish(to_message("vector", self.torque.Eval(context)))
+        self.publishers["reference"].publish(to_message("vector", np.concatenate([x[self.q_indices], x[self.v_indices]])))
+        self.publishers["gains"].publish(to_message("vector", self.gains))
+
+
+class JointStateWatchdog(LeafSystem):
+    """Holds the command when the joint states stop coming.
+
+    Inputs: ``command`` (size n), ``age`` (s since the last joint state: a ``RosSubscribe``
+    ``<signal>_age`` output; ``inf`` before the first).
+    Outputs: ``command`` (size n): the input while ``age ≤ timeout``, else the last command passed
+    while the joint states were fresh (``initial`` before any); ``healthy`` (1: passing, 0: holding).
+    """
+
+    def __init__(self, size: int, timeout: float, dt: float, initial: Sequence[float] | None = None,
+                 name: str = "joint_state_watchdog"):
+        LeafSystem.__init__(self)
+        self.set_name(name)
+        if not (isinstance(size, int) and size > 0):
+            raise InvalidInput(f"{name}: size must be a positive int, got {size!r}")
+        if not (math.isfinite(timeout) and timeout > 0) or not (math.isfinite(dt) and dt > 0):
+            raise InvalidInput(f"{name}: timeout and dt must be finite and > 0 s, got {timeout!r}, {dt!r}")
+        held = np.zeros(size) if initial is None else np.asarray(initial, dtype=float).ravel()
+        if held.shape != (size,) or not np.all(np.isfinite(held)):
+            raise InvalidInput(f"{name}: initial must be {size} finite numbers, got {initial!r}")
+        self.timeout = float(timeout)
+        self.command = self.DeclareVectorInputPort("command", size)
+        self.age = self.DeclareVectorInputPort("age", 1)
+        self._held = self.DeclareDiscreteState(np.append(held, 1.0))  # the held command, then 'healthy'
+        self.DeclarePeriodicDiscreteUpdateEvent(dt, 0.0, self._update)
+        self.DeclareVectorOutputPort("command", size, self._output)
+        self.DeclareVectorOutputPort("healthy", 1, lambda c, o: o.SetAtIndex(0, float(self.fresh(c))))
+
+    def fresh(self, context: Context) -> bool:
+        return bool(self.age.Eval(context)[0] <= self.timeout)
+
+    def _update(self, context: Context, state: DiscreteValues) -> EventStatus:
+        previous = context.get_discrete_state(self._held).get_value()
+        fresh = self.fresh(context)
+        if fresh:
+            state.set_value(self._held, np.append(self.command.Eval(context), 1.0))
+        else:
+            state.set_value(self._held, np.append(previous[:-1], 0.0))
+        if fresh != bool(previous[-1]):
+            if fresh:
+                log.warning("%s: t = %.3f s: joint states are back: passing the command", self.get_name(), context.get_time())
+            else:
+                log.warning("%s: t = %.3f s: no joint state for %.3g s (> %g s): holding the command", self.get_name(),
+                            context.get_time(), self.age.Eval(context)[0], self.timeout)
+        return EventStatus.Succeeded()
+
+    def _output(self, context: Context, output: BasicVector) -> None:
+        if self.fresh(context):
+            output.SetFromVector(self.command.Eval(context))
+        else:
+            output.SetFromVector(context.get_discrete_state(self._held).get_value()[:-1])

@@ -11,7 +11,8 @@ QP's contract:
 * strictness: the slack norms of levels ``0..k`` equal those of the first ``k + 1`` levels solved
   alone, to ``1e-6`` relative + ``1e-9`` + the round-off of evaluating a level's residual
   (``1e-12 ‖A_k‖ ‖x‖``), the tests' tolerance, + what the solver's feasibility tolerance lets a
-  held row move (``1e-9 max(1, |bound|)`` on each of the level's rows, the norm of those).
+  held row move (``1e-9`` on the row scaled to unit norm, relative above 1: ``1e-9 max(‖a_i‖, |bound_i|)``
+  in the row's units, the norm of those over the level's rows).
 
 It then counts the stacks whose answering path (each level's solver and the fallbacks taken)
 differs between kernels, and checks that each such stack meets the contract under every kernel.
@@ -23,6 +24,7 @@ Prints a table and writes ``--json`` (default ``bench/results/hqp_kernels.json``
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import subprocess
@@ -58,10 +60,11 @@ def same_norms(a: np.ndarray, b: np.ndarray, floor: np.ndarray) -> bool:
 
 def held_row_tolerance(level, tolerance: float = 1e-9) -> float:
     """How far the solver's feasibility tolerance lets the level's rows move once held: the norm of
-    ``tolerance · max(1, |bound|)`` over its rows (the larger finite side of each)."""
+    ``tolerance · max(‖a_i‖, |bound_i|)`` over its rows (the tolerance on the row scaled to unit norm,
+    relative above 1, in the row's units; the larger finite side of each)."""
     sides = np.where(np.isfinite(level.lower), np.abs(level.lower), 0.0)
     sides = np.maximum(sides, np.where(np.isfinite(level.upper), np.abs(level.upper), 0.0))
-    return float(np.linalg.norm(tolerance * np.maximum(1.0, sides)))
+    return float(np.linalg.norm(tolerance * np.maximum(np.linalg.norm(level.A, axis=1), sides)))
 
 
 def sweep(first: int, count: int, reuse: bool = False) -> list[dict]:
@@ -111,6 +114,29 @@ def start_kernel(name: str, first: int, count: int, cache: Path, sink: Path, reu
                              *(["--reuse"] if reuse else [])], env=env, cwd=ROOT)
 
 
+def merge(paths: list[Path], out: Path) -> int:
+    """One summary of runs over consecutive seed ranges (e.g. a long sweep run in parts)."""
+    parts = sorted((json.loads(path.read_text()) for path in paths), key=lambda part: part["first_seed"])
+    for before, after in itertools.pairwise(parts):
+        if before["first_seed"] + before["stacks"] != after["first_seed"] or before["kernels"] != after["kernels"]:
+            raise SystemExit("the runs to merge must cover consecutive seeds with the same kernels")
+    names = list(parts[0]["kernels"])
+    summary = {
+        "first_seed": parts[0]["first_seed"], "stacks": sum(part["stacks"] for part in parts),
+        "reuse": parts[0]["reuse"], "kernels": parts[0]["kernels"],
+        "failed": {name: sum(part["failed"][name] for part in parts) for name in names},
+        "failures": {name: [r for part in parts for r in part["failures"][name]][:20] for name in names},
+        "paths_differ": sum(part["paths_differ"] for part in parts),
+        "paths_differ_and_contract_missed": sum(part["paths_differ_and_contract_missed"] for part in parts),
+        "paths_differ_seeds": [seed for part in parts for seed in part["paths_differ_seeds"]][:50],
+        "seconds": {name: round(sum(part["seconds"][name] for part in parts), 1) for name in names},
+    }
+    out.write_text(json.dumps(summary, indent=1) + "\n")
+    print(f"{summary['stacks']} stacks from seed {summary['first_seed']}: contract missed {summary['failed']}, "
+          f"paths differ on {summary['paths_differ']}")
+    return 1 if any(summary["failed"].values()) else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--first", type=int, default=100_000, help="the first seed (default 100000)")
@@ -119,8 +145,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--reuse", action="store_true", help="one solver per size, reused from stack to stack (warm)")
     parser.add_argument("--cache", type=Path, help="where each kernel's numba cache is kept (default: a temporary folder)")
     parser.add_argument("--json", type=Path, default=ROOT / "bench" / "results" / "hqp_kernels.json")
+    parser.add_argument("--merge", nargs="+", type=Path, help="merge the JSON of consecutive runs into --json")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.merge:
+        return merge(args.merge, args.json)
     if args.worker:
         Path(args.worker).write_text(json.dumps(sweep(args.first, args.count, args.reuse)))
         return 0

@@ -149,6 +149,32 @@ def sweep_table(d: dict) -> list[str]:
     return lines
 
 
+def hqp_kernels_table(d: dict) -> list[str]:
+    lines = [
+        "### The hierarchical QP's random stacks under three CPU kernels (`bench/results/hqp_kernels.json`)",
+        "",
+        f"Seeds {_num(d.get('first_seed'))} to {_num((d.get('first_seed') or 0) + (d.get('stacks') or 0) - 1)} of "
+        "`tests/hqp_stacks.py`, each kernel in its own process; the contract checked on every stack (no failure, "
+        "bounds exact, every level as strict as the truncated stacks). Regenerate with "
+        "`.venv/bin/python bench/hqp_kernels.py --count 40000`.",
+        "",
+    ]
+    kernels = d.get("kernels", {})
+    rows = [
+        [name, " ".join(f"{k}={v}" for k, v in env.items()) or "this machine's own", d.get("stacks"),
+         d.get("failed", {}).get(name), d.get("seconds", {}).get(name)]
+        for name, env in kernels.items()
+    ]
+    lines += _table(["kernel", "environment", "stacks", "contract missed", "wall time (s)"], rows)
+    lines += [
+        f"The answering path (each level's solver and the fallbacks taken) differs between kernels on "
+        f"{_num(d.get('paths_differ'))} stacks; {_num(d.get('paths_differ_and_contract_missed'))} of them miss the "
+        "contract under some kernel.",
+        "",
+    ]
+    return lines
+
+
 def generic_table(name: str, d: dict) -> list[str]:
     rows = [[k, v] for k, v in _flat(d) if not isinstance(v, list | dict)]
     return [f"### `bench/results/{name}`", "", *_table(["key", "value"], rows)]
@@ -189,6 +215,7 @@ def reference_tables(d: dict) -> list[str]:
 RENDERERS = {
     "dynamics.json": dynamics_tables,
     "hostile.json": hostile_tables,
+    "hqp_kernels.json": hqp_kernels_table,
     "hqp_robot_runs.json": hqp_runs_table,
     "sweep.json": sweep_table,
 }

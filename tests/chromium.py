@@ -1,4 +1,5 @@
-"""A screenshot of a live page by headless Chromium, taken ``wait`` seconds after it opened.
+"""A screenshot of a live page by headless Chromium, taken ``wait`` seconds after it opened, and
+:func:`screenshot_until`: screenshots taken later and later until one shows what is expected.
 
 Headless Chromium's ``--screenshot`` shoots at the page's load event, before a Meshcat page has
 received its scene over the websocket. So the page opened is a local wrapper: the live page in a
@@ -14,9 +15,26 @@ import subprocess
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 _GIF = bytes.fromhex("47494638396101000100800000000000ffffff21f90401000000002c00000000010001000002024401003b")
+
+
+#: The waits of :func:`screenshot_until` (s): a page that a loaded host has not drawn after the
+#: first is shot again later; the last is the test's stated time-out.
+WAITS = (10.0, 30.0, 120.0)
+
+
+def screenshot_until(url: str, path: Path, shows: Callable[[Path], bool], waits: tuple[float, ...] = WAITS,
+                     size: tuple[int, int] = (800, 600)) -> tuple[Path, bool]:
+    """Screenshots of ``url`` after each of ``waits`` seconds until ``shows(picture)`` holds: the
+    picture and whether it does. The test then asserts on it, whatever the host's load."""
+    for wait in waits:
+        picture = screenshot_after(url, path, wait=wait, size=size)
+        if shows(picture):
+            return picture, True
+    return picture, False
 
 
 def screenshot_after(url: str, path: Path, wait: float = 10.0, size: tuple[int, int] = (800, 600)) -> Path:

@@ -206,22 +206,25 @@ def test_the_front_page_renders_something_to_see(site, tmp_path):
     import http.server
     import threading
 
-    from tests.chromium import screenshot_after
+    import matplotlib.image
+
+    from tests.chromium import screenshot_until
+
+    def drawn(picture) -> bool:
+        pixels = matplotlib.image.imread(picture)[..., :3]
+        return bool(pixels.std() > 0.05 and (pixels.mean(axis=2) < 0.5).mean() > 0.01)  # dark text or pictures
 
     handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(site))
     handler.log_message = lambda *args: None  # type: ignore[method-assign]
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
     threading.Thread(target=server.serve_forever, daemon=True).start()
     try:
-        shot = screenshot_after(f"http://127.0.0.1:{server.server_address[1]}/index.html", tmp_path / "index.png", wait=2.0)
+        shot, shown = screenshot_until(f"http://127.0.0.1:{server.server_address[1]}/index.html", tmp_path / "index.png",
+                                       drawn, waits=(2.0, 30.0))
     finally:
         server.shutdown()
         server.server_close()
-    import matplotlib.image
-
-    pixels = matplotlib.image.imread(shot)[..., :3]
-    assert pixels.std() > 0.05, "the page looks blank"
-    assert (pixels.mean(axis=2) < 0.5).mean() > 0.01  # some dark text or picture on it
+    assert shown, f"the page looks blank: {shot}"
 
 
 # --- the README -------------------------------------------------------------------------------

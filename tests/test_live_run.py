@@ -199,16 +199,18 @@ def test_attime_schedules_a_command(live):
 
 @pytest.mark.skipif(shutil.which("chromium") is None, reason="chromium is not installed (apt-get install chromium)")
 def test_headless_chromium_shows_talos(live, tmp_path):
-    from tests.chromium import screenshot_after
-
-    url = json.loads((live.out / "live.json").read_text())["meshcat"]
-    picture = screenshot_after(url, tmp_path / "meshcat.png", wait=10.0)
     import matplotlib.image
 
-    pixels = matplotlib.image.imread(picture)[..., :3]
-    view = pixels[30:-100, :-20]  # below Meshcat's control bar, above the scroll bar
-    dark = (view.max(axis=2) < 50 / 255).mean()  # TALOS' black covers; the background is light grey
-    assert dark > 0.005, f"{dark:.4f} of the view is dark: no robot in {picture}"
+    from tests.chromium import screenshot_until
+
+    def dark_share(picture) -> float:
+        pixels = matplotlib.image.imread(picture)[..., :3]
+        view = pixels[30:-100, :-20]  # below Meshcat's control bar, above the scroll bar
+        return float((view.max(axis=2) < 50 / 255).mean())  # TALOS' black covers; the background is light grey
+
+    url = json.loads((live.out / "live.json").read_text())["meshcat"]
+    picture, shown = screenshot_until(url, tmp_path / "meshcat.png", lambda p: dark_share(p) > 0.005)
+    assert shown, f"{dark_share(picture):.4f} of the view is dark: no robot in {picture}"
 
 
 def test_ctrl_c_stops_and_writes_the_run(live):

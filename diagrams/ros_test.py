@@ -22,6 +22,8 @@ import sys
 import time
 from pathlib import Path
 
+from sotdrake import SotError
+
 #: The seed's appli.py, in the live channel's grammar (the graph itself is the diagram's).
 APPLI = """\
 # --- the right hand: MetaTaskKine6d('rh', ...), opmodif (0.1, 0, 0): built by the diagram
@@ -105,4 +107,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except SotError as error:  # no service, no answer in time
+        sys.exit(f"ros_test.py: {error}")

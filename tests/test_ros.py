@@ -38,6 +38,8 @@ from sotdrake.ros import (
     read_bag,
 )
 
+pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning:lark")  # rosidl's parser on Python 3.11
+
 ROOT = Path(__file__).resolve().parents[1]
 WAIT_S = 120.0  # the longest wait for one message or answer
 START_S = 600.0  # the longest wait for the run to start (imports and numba's first compilation)

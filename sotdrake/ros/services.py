@@ -29,6 +29,7 @@ from std_msgs.msg import String
 from std_srvs.srv import Empty
 
 from ..exceptions import SotError
+from ..live.connection import remove_connection
 from ..live.runner import DiagramHandles, LiveRun
 from .node import RosNode, ros_node
 
@@ -139,8 +140,13 @@ def run_ros(handles: DiagramHandles, out: Path, meshcat=None, duration: float | 
           f"{files[0]}", file=sys.stderr, flush=True)
     if hold:
         print("sotdrake ros: waiting for start_dynamic_graph", file=sys.stderr, flush=True)
-    wall = live.run(duration) if services.wait_for_start() else 0.0
+    started = services.wait_for_start()
+    wall = live.run(duration) if started else 0.0
     services.close()
+    if not started:  # run() never began: close what it would have closed
+        live.server.close()
+        for path in live.connection_files:
+            remove_connection(path, live.connection)
     simulator = live.simulator
     simulated = simulator.get_context().get_time()
     print(f"sotdrake ros: stopped at t = {simulated:.3f} s after {wall:.1f} s; writing {out}", file=sys.stderr, flush=True)

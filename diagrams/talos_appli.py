@@ -14,6 +14,9 @@ writes ``recording.html`` (Meshcat), ``trace.npz``, ``plots.png``, ``control_gra
     python diagrams/talos_appli.py --live --no-push     # then: sotdrake-shell "sot.push('taskrh')"
 
 runs at real-time rate until Ctrl-C, then writes the same files (no recording: Meshcat is live).
+With the ``ros2`` extra, ``--ros`` runs live with the seed's ``RosPublish`` and its ``run_command`` and
+``start_dynamic_graph`` services (drive it with ``diagrams/ros_test.py``); ``--bag`` also writes
+``run/run.mcap`` (rosbag2).
 """
 
 from __future__ import annotations

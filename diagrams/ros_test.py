@@ -75,10 +75,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--stop", action="store_true", help="then stop the run (it writes its files)")
     args = parser.parse_args(argv)
 
-    from sotdrake.ros import shutdown, wait_for_services
+    import sotdrake.ros  # the optional ros2 extra
 
     print("Waiting for run_command and start_dynamic_graph", flush=True)
-    client = wait_for_services(args.timeout)
+    client = sotdrake.ros.wait_for_services(args.timeout)
     print("...ok", flush=True)
     code = (args.appli.read_text() if args.appli else APPLI).split("\n")
     launch_script(client, code, "initialize SoT", args.interactive)
@@ -102,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.stop:
         print(client.command("stop()")["answer"], flush=True)
     client.close()
-    shutdown()
+    sotdrake.ros.shutdown()
     return 0
 
 

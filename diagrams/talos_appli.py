@@ -138,10 +138,10 @@ def build_diagram(
         visualizer = add_robot_visualizer(robot, meshcat)
         add_target_marker(meshcat, "/target", taskRH)  # follows every gotoNd (timed, live)
         meshcat.SetCameraPose(camera_in_world=[1.35, -1.45, 1.35], target_in_world=[0.15, -0.12, 0.72])
-    if ros:
-        from sotdrake.ros import add_ros_publisher
+    if ros:  # the optional ros2 extra, imported only here
+        import sotdrake.ros
 
-        add_ros_publisher(robot)
+        sotdrake.ros.add_ros_publisher(robot)
     diagram = builder.Build()
     diagram.set_name("talos_appli")
     return Appli(diagram, robot, sot, taskRH, taskCom, contactLF, contactRF, tracer,
@@ -281,7 +281,7 @@ def main_live(args, push_time: float | None) -> dict:
 def main_ros(args) -> dict:
     """``--ros``: as ``--live``, with the seed's ``RosPublish`` and its services (the graph holds
     still until ``start_dynamic_graph``; the hand waits for ``run_command``, see ros_test.py)."""
-    from sotdrake.ros import run_ros
+    import sotdrake.ros
 
     logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
     meshcat = None if args.no_meshcat else live_meshcat(args.meshcat_port)
@@ -291,15 +291,15 @@ def main_ros(args) -> dict:
         plot(trace, appli.target, out / "plots.png")
         write_run(out, appli.diagram, summary, trace)
 
-    return run_ros(appli, args.out, meshcat, args.duration, args.port, args.rate, summarize, write,
+    return sotdrake.ros.run_ros(appli, args.out, meshcat, args.duration, args.port, args.rate, summarize, write,
                    on_stop=(lambda out, summary, trace: write_bag(appli, out, summary, trace)) if args.bag else None)
 
 
 def write_bag(appli: Appli, out: Path, summary: dict, trace: dict, every: int = 10) -> Path:
     """``--bag``: the trace every ``every`` ticks as ``out/run/run.mcap`` (needs the ros2 extra)."""
-    from sotdrake.ros import joint_coordinates, write_trace_bag
+    import sotdrake.ros
 
-    path = write_trace_bag(out / "run", trace, joint_coordinates(appli.robot.model.plant),
+    path = sotdrake.ros.write_trace_bag(out / "run", trace, sotdrake.ros.joint_coordinates(appli.robot.model.plant),
                            {"rh": appli.target}, every)
     summary["bag"] = str(path)
     return path

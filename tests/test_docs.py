@@ -317,6 +317,7 @@ def test_the_first_stack_is_the_readmes():
     assert section_code(GETTING_STARTED, "Your first stack") == section_code(README, "Your first stack")
 
 
+@pytest.mark.slow
 def test_the_first_dynamic_stack_runs_as_written(tmp_path, monkeypatch, capsys):
     namespace = run_example("Your first dynamic stack", tmp_path, monkeypatch)
     robot, context = namespace["robot"], namespace["simulator"].get_context()
@@ -329,6 +330,7 @@ def test_the_first_dynamic_stack_runs_as_written(tmp_path, monkeypatch, capsys):
     assert "CoM drift after 1 s (m):" in out and "largest torque (N·m):" in out
 
 
+@pytest.mark.slow
 def test_the_first_walk_runs_as_written(tmp_path, monkeypatch, capsys):
     namespace = run_example("Your first walk", tmp_path, monkeypatch)
     context = namespace["simulator"].get_context()

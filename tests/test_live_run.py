@@ -25,6 +25,8 @@ import pytest
 from sotdrake.live.burst import measure_burst
 from sotdrake.live.shell import Client
 
+pytestmark = pytest.mark.slow  # a live run in another process
+
 ROOT = Path(__file__).resolve().parents[1]
 RATE = 0.25
 BURST = 10_000

@@ -263,6 +263,7 @@ def _reach(target, duration: float, caplog) -> list[str]:
     return [r.getMessage() for r in caplog.records if r.name == "sotdrake.task"]
 
 
+@pytest.mark.slow
 def test_an_unreachable_target_is_reported_once_with_the_remaining_distance(caplog):
     messages = _reach([2.0, 0.0, 0.4], 2.5, caplog)  # the UR5 reaches about 0.9 m
     assert len(messages) == 1
@@ -271,6 +272,7 @@ def test_an_unreachable_target_is_reported_once_with_the_remaining_distance(capl
     assert 0.9 < remaining < 1.3
 
 
+@pytest.mark.slow
 def test_a_reachable_target_is_not_reported(caplog):
     assert _reach([0.4, 0.2, 0.4], 2.5, caplog) == []
 

@@ -47,6 +47,7 @@ def test_standing_holds(stand_then_push):
     assert not summary["fell"] and summary["max_other_contact_n"] == 0.0  # no link but the soles touches
 
 
+@pytest.mark.slow
 def test_short_reach_keeps_balance(physics):
     summary, trace = run(physics, "reach", 2.5)
     assert summary["hand_error_m"] < 0.5 * summary["hand_initial_error_m"]  # well on its way
@@ -115,6 +116,7 @@ def test_base_estimator_is_leg_odometry(talos_model):
     assert np.linalg.norm(q[:4]) == pytest.approx(1.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("body_collision", [True, False])
 def test_a_fall_lands_on_the_ground(talos_model, body_collision):
     """Limp actuators: the robot collapses. With the links' boxes it lies on the ground (its base a

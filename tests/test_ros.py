@@ -38,7 +38,8 @@ from sotdrake.ros import (
     read_bag,
 )
 
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning:lark")  # rosidl's parser on Python 3.11
+# A ROS 2 run in other processes; rosidl's parser warns on Python 3.11.
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::DeprecationWarning:lark")]
 
 ROOT = Path(__file__).resolve().parents[1]
 WAIT_S = 120.0  # the longest wait for one message or answer

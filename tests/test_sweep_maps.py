@@ -63,6 +63,7 @@ def test_push_direction_and_base_tilt(push_map):
     assert push_map.base_tilt_deg(q) == pytest.approx([0, 40, 40], abs=1e-9)
 
 
+@pytest.mark.slow
 def test_gentle_push_absorbed_strong_push_falls(push_map):
     cases = [{"magnitude_n": 50.0, "direction_deg": 0.0, "push_duration_s": 0.05},
              {"magnitude_n": 600.0, "direction_deg": 0.0, "push_duration_s": 0.2},

@@ -15,6 +15,7 @@ def appli():
     return load_diagram("talos_appli")
 
 
+@pytest.mark.slow
 def test_tutorial_reaches_with_feet_and_com_held(appli):
     handles = appli.build_diagram()
     simulator, wall = appli.simulate(handles, 3.5, progress=False)

@@ -260,6 +260,7 @@ def test_kinesimple_example(tmp_path):
         assert (tmp_path / name).is_file()
 
 
+@pytest.mark.slow
 def test_posture_gaze_example_and_its_feed_forward(tmp_path):
     gaze = load_diagram("posture_gaze")
     follow = gaze.main(["--duration", "3", "--out", str(tmp_path / "ff"), "--no-meshcat", "--quiet"])

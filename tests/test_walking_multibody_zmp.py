@@ -170,6 +170,7 @@ def test_the_physics_walk_plans_with_the_legs_by_default(walk_script):
     assert walk_script.build_diagram(steps=(1, 0.2), solver="cascade").pg.legs is None  # kinematic: the pendulum's plan
 
 
+@pytest.mark.slow
 def test_first_physics_step_of_0_2_m_on_position_servos(walk_script):
     # CI's physics walk: the first step (0.2 m, lift-off at 0.4 s, touch-down at 1.1 s), the walk's
     # default servos and the corrected plan, then 0.3 s on both feet.

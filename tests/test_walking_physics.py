@@ -77,6 +77,7 @@ def walk_script():
     return load_diagram("walk")
 
 
+@pytest.mark.slow
 def test_romeo_walks_kinematically(walk_script):
     """``--robot romeo``: the first step of a walk at 0.1 m/s under ``SolverKine`` (joint position and
     velocity limits hard), feet and CoM on their references."""
@@ -203,6 +204,7 @@ def test_quintic_swing_starts_and_lands_with_zero_acceleration_and_is_c2():
 
 
 # --- the dynamic walk -----------------------------------------------------------------------
+@pytest.mark.slow
 def test_dynamic_walk_switches_the_contacts_and_steps(walk_script):
     """``--mode dynamic``: SolverDyn on the torque-driven plant; the right sole's contact is released
     before its lift-off and added back at its touch-down; the first step of 0.2 m lands where planned
@@ -243,6 +245,7 @@ def _stance_spin(walk, trace, liftoff: float, side: str = "right") -> tuple[floa
             np.linalg.norm(sole[after:, :2, 3] - sole[after, :2, 3], axis=1).max())
 
 
+@pytest.mark.slow
 def test_dynamic_walk_stance_sole_spins_at_a_cubic_swings_lift_off(walk_script):
     """The slip the quintic swing removes (see the test above): with the cubic swing, at the
     lift-off of a 0.4 m swing (the second step) the swing foot's acceleration jumps to 4.9 m/s²;

@@ -149,14 +149,18 @@ def sweep_table(d: dict) -> list[str]:
     return lines
 
 
-def hqp_kernels_table(d: dict) -> list[str]:
+def hqp_kernels_table(d: dict, name: str = "hqp_kernels.json") -> list[str]:
+    warm = bool(d.get("reuse"))
     lines = [
-        "### The hierarchical QP's random stacks under three CPU kernels (`bench/results/hqp_kernels.json`)",
+        f"### The hierarchical QP's random stacks under three CPU kernels{', solvers reused (warm)' if warm else ''} "
+        f"(`bench/results/{name}`)",
         "",
         f"Seeds {_num(d.get('first_seed'))} to {_num((d.get('first_seed') or 0) + (d.get('stacks') or 0) - 1)} of "
         "`tests/hqp_stacks.py`, each kernel in its own process; the contract checked on every stack (no failure, "
-        "bounds exact, every level as strict as the truncated stacks). Regenerate with "
-        "`.venv/bin/python bench/hqp_kernels.py --count 40000`.",
+        "bounds exact, every level as strict as the truncated stacks). "
+        + ("One solver per size is reused from stack to stack, so that each solve starts from another stack's "
+           "working sets. " if warm else "Each stack is solved by a new solver. ")
+        + f"Regenerate with `.venv/bin/python bench/hqp_kernels.py --count 40000{' --reuse' if warm else ''}`.",
         "",
     ]
     kernels = d.get("kernels", {})
@@ -216,6 +220,7 @@ RENDERERS = {
     "dynamics.json": dynamics_tables,
     "hostile.json": hostile_tables,
     "hqp_kernels.json": hqp_kernels_table,
+    "hqp_kernels_warm.json": lambda d: hqp_kernels_table(d, "hqp_kernels_warm.json"),
     "hqp_robot_runs.json": hqp_runs_table,
     "sweep.json": sweep_table,
 }

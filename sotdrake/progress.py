@@ -34,11 +34,12 @@ MIN_ERROR = 1e-3
 class ProgressWatch:
     """The smallest ``‖e‖`` of one task and when it was seen (see the module docstring)."""
 
-    __slots__ = ("best", "best_time", "last_time", "next_time", "task", "warned")
+    __slots__ = ("best", "best_time", "last_time", "next_time", "remaining", "task", "warned")
 
     def __init__(self, task: str):
         self.task = task
         self.warned = False
+        self.remaining = math.nan  # ‖e‖ when the warning was given
         self.reset(0.0)
 
     def reset(self, t: float) -> None:
@@ -55,7 +56,7 @@ class ProgressWatch:
         if norm < self.best * (1.0 - RELATIVE_PROGRESS) or norm < MIN_ERROR:
             self.best, self.best_time = norm, t
         elif not self.warned and t - self.best_time >= PATIENCE:
-            self.warned = True
+            self.warned, self.remaining = True, norm
             log.warning(
                 "%s: t = %.2f s: the error has not decreased for %.1f s and stays at ‖e‖ = %.4g (m, rad): the "
                 "target is out of reach, or a higher-priority task or a joint limit holds the task back "
@@ -65,3 +66,17 @@ class ProgressWatch:
                 t - self.best_time,
                 norm,
             )
+
+
+def stalled_tasks(diagram) -> dict[str, float]:
+    """The tasks of ``diagram`` (a Drake ``Diagram``, searched through its subdiagrams) whose error
+    stopped decreasing, by name, with the ``‖e‖`` they were left at (m, rad): what the scripts'
+    ``summary.json`` reports as ``stalled_tasks`` (empty when every task made progress)."""
+    stalled: dict[str, float] = {}
+    for system in diagram.GetSystems():
+        if hasattr(system, "GetSystems"):
+            stalled.update(stalled_tasks(system))
+        watch = getattr(system, "_progress", None)
+        if isinstance(watch, ProgressWatch) and watch.warned:
+            stalled[watch.task] = float(watch.remaining)
+    return stalled

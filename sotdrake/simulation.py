@@ -115,7 +115,10 @@ def save_figure(fig, path: Path, dpi: int = 100, tight: bool = True) -> Path:
 def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = None,
               meshcat: Meshcat | None = None, visualizer=None, graph: bool = True) -> dict:
     """Write ``trace.npz``, ``control_graph.svg`` (and ``.dot``), ``recording.html`` and
-    ``summary.json`` (with the paths written) in ``out``; returns the paths."""
+    ``summary.json`` (with the paths written, and ``stalled_tasks``: the tasks whose error stopped
+    decreasing, with the error they were left at, see :mod:`sotdrake.progress`) in ``out``; returns
+    the paths."""
+    from .progress import stalled_tasks
     from .visualization import save_recording, write_control_graph
 
     out = Path(out)
@@ -128,6 +131,7 @@ def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = N
         outputs["control_graph"] = write_control_graph(diagram, out / "control_graph.svg")
     if meshcat is not None and visualizer is not None:
         outputs["recording"] = save_recording(visualizer, meshcat, out / "recording.html")
+    summary.setdefault("stalled_tasks", stalled_tasks(diagram))
     summary["outputs"] = {k: str(v) for k, v in outputs.items()}
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     names = ", ".join(Path(p).name for p in outputs.values())

@@ -8,6 +8,7 @@ compared before and after.
 
 from __future__ import annotations
 
+import json
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -249,7 +250,8 @@ def test_hold_feet_and_com_keeps_a_selection_already_set():
     np.testing.assert_array_equal(sot.settings().control_selection, chosen)
 
 
-def _reach(target, duration: float, caplog) -> list[str]:
+def _reach(target, duration: float, caplog, out=None) -> list[str]:
+    """Run the UR5's tool to ``target``; the task's warnings (and, with ``out``, the run's files)."""
     builder = DiagramBuilder()
     from sotdrake import robot
 
@@ -258,23 +260,31 @@ def _reach(target, duration: float, caplog) -> list[str]:
     tool = MetaTaskKine6d("tool", bot, "tool")
     gotoNd(tool, target, "111", 5.0)
     sot.push(tool)
+    diagram = builder.Build()
     with caplog.at_level(logging.WARNING, logger="sotdrake.task"):
-        simulate(builder.Build(), duration, progress=False)
+        simulate(diagram, duration, progress=False)
+    if out is not None:
+        from sotdrake import write_run
+
+        write_run(out, diagram, {}, graph=False)
     return [r.getMessage() for r in caplog.records if r.name == "sotdrake.task"]
 
 
 @pytest.mark.slow
-def test_an_unreachable_target_is_reported_once_with_the_remaining_distance(caplog):
-    messages = _reach([2.0, 0.0, 0.4], 2.5, caplog)  # the UR5 reaches about 0.9 m
+def test_an_unreachable_target_is_reported_once_with_the_remaining_distance(caplog, tmp_path):
+    messages = _reach([2.0, 0.0, 0.4], 2.5, caplog, tmp_path)  # the UR5 reaches about 0.9 m
     assert len(messages) == 1
     assert "tasktool" in messages[0] and "has not decreased" in messages[0] and "out of reach" in messages[0]
     remaining = float(messages[0].split("‖e‖ = ")[1].split()[0])
     assert 0.9 < remaining < 1.3
+    stalled = json.loads((tmp_path / "summary.json").read_text())["stalled_tasks"]
+    assert list(stalled) == ["tasktool"] and stalled["tasktool"] == pytest.approx(remaining, rel=1e-3)
 
 
 @pytest.mark.slow
-def test_a_reachable_target_is_not_reported(caplog):
-    assert _reach([0.4, 0.2, 0.4], 2.5, caplog) == []
+def test_a_reachable_target_is_not_reported(caplog, tmp_path):
+    assert _reach([0.4, 0.2, 0.4], 2.5, caplog, tmp_path) == []
+    assert json.loads((tmp_path / "summary.json").read_text())["stalled_tasks"] == {}
 
 
 def test_pushing_a_task_without_gain_into_a_running_stack_is_refused_at_push():

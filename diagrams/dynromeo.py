@@ -327,7 +327,7 @@ def main(argv: list[str] | None = None) -> dict:
     summary, trace = summarize(run, simulator, times, args.duration)
     args.out.mkdir(parents=True, exist_ok=True)
     plot(run, trace, summary, args.out / "plots.png")
-    write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer)
+    write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer, bag=args.bag)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
 

@@ -118,7 +118,7 @@ def main(argv: list[str] | None = None):
                      labels={"error_tasklw": "hand error ‖e‖ (m)", "control": "joint velocity command (rad/s)"},
                      legends={"error_tasklw": ["hand to target"], "control": joints}, log=("error_tasklw",))
     kine.tracer.save_csv(simulator.get_context(), args.out / "trace.csv")
-    write_run(args.out, kine.diagram, summary, trace, meshcat, kine.visualizer)
+    write_run(args.out, kine.diagram, summary, trace, meshcat, kine.visualizer, bag=args.bag)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
 

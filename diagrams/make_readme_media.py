@@ -84,7 +84,7 @@ def physics_plots(out: Path, duration: float = 8.0, progress: bool = True) -> di
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = script_arguments(__doc__, "diagrams/media")
+    parser = script_arguments(__doc__, "diagrams/media", bag=False)
     parser.add_argument("--no-physics", action="store_true", help="leave talos_physics_plots.png as it is")
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)

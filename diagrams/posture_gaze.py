@@ -144,7 +144,7 @@ def main(argv: list[str] | None = None) -> dict:
                     legends={"error_taskgaze": ["gaze (priority 4)"], "error_taskcom": ["CoM held (priority 3)"],
                              "error_taskposture": ["posture (priority 5)"]},
                     log=("error_taskgaze", "error_taskcom"))
-    write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer)
+    write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer, bag=args.bag)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
 

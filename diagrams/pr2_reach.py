@@ -215,7 +215,7 @@ def main(argv: list[str] | None = None) -> dict:
     summary, trace = summarize(kine, simulator, args.duration, wall)
     args.out.mkdir(parents=True, exist_ok=True)
     plot(trace, kine.target, args.out / "plots.png")
-    write_run(args.out, kine.diagram, summary, trace, meshcat, kine.visualizer)
+    write_run(args.out, kine.diagram, summary, trace, meshcat, kine.visualizer, bag=args.bag)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
 

@@ -112,7 +112,7 @@ def plot(rows: list[dict], path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/push_map", duration=3.0)
+    parser = script_arguments(__doc__, "out/push_map", duration=3.0, bag=False)
     parser.add_argument("--magnitudes", type=numbers, default=[150.0, 300.0, 600.0], help="forces (N), comma-separated")
     parser.add_argument("--directions", type=int, default=4, help="number of directions, evenly spaced from 0°")
     parser.add_argument("--push-durations", type=numbers, default=[0.1, 0.3], help="push durations (s), comma-separated")

@@ -212,7 +212,7 @@ def plot(rows: list[dict], path: Path, slices: int = 4) -> Path:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/reach_map", duration=1.0)
+    parser = script_arguments(__doc__, "out/reach_map", duration=1.0, bag=False)
     parser.add_argument("--targets", type=int, default=125, help="number of targets (a cube with --sampling grid)")
     parser.add_argument("--sampling", choices=["grid", "random"], default="grid")
     parser.add_argument("--seed", type=int, default=0, help="with --sampling random")

@@ -234,7 +234,7 @@ def main(argv: list[str] | None = None) -> dict:
         simulator, wall = run(concept, progress=not args.quiet)
         summary[name], traces[name] = summarize(concept, simulator, wall)
         entry = dict(summary[name])
-        write_run(args.out / name, concept.diagram, entry, traces[name], meshcat, concept.visualizer, graph=False)
+        write_run(args.out / name, concept.diagram, entry, traces[name], meshcat, concept.visualizer, graph=False, bag=args.bag)
         if name == names[0]:
             write_control_graph(concept.diagram, args.out / "control_graph.svg")
     plot(traces, args.out / "plots.png")

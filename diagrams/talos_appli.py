@@ -233,7 +233,7 @@ def plot(trace: dict, target: np.ndarray, path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/appli", solver="cascade")
+    parser = script_arguments(__doc__, "out/appli", solver="cascade", bag=False)  # its --bag: below, with the ROS 2 flags
     parser.add_argument("--no-push", action="store_true", help="do not push the hand task at t = 1 s")
     add_live_arguments(parser)
     group = parser.add_argument_group("ROS 2 (pip install \".[ros2]\")")

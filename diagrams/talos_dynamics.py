@@ -390,7 +390,7 @@ def main(argv: list[str] | None = None) -> dict:
     print(json.dumps(summary, indent=2), flush=True)
     args.out.mkdir(parents=True, exist_ok=True)
     plot(run, trace, summary, args.out / "plots.png")
-    write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer)
+    write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer, bag=args.bag)
     return summary
 
 

@@ -229,7 +229,7 @@ def main(argv: list[str] | None = None) -> dict:
     args.out.mkdir(parents=True, exist_ok=True)
     title = f"talos_physics: {args.scenario}, {args.loop} loop" + (f", {args.push:g} N push at 2 s" if args.push else "")
     plot(trace, args.out / "plots.png", title)
-    write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer)
+    write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer, bag=args.bag)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
 

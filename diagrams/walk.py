@@ -668,7 +668,7 @@ def main(argv: list[str] | None = None) -> dict:
     summary, trace = summarize(walk, simulator, args.duration, wall, args.then)
     args.out.mkdir(parents=True, exist_ok=True)
     plot(walk, simulator, trace, args.out / "plots.png")
-    write_run(args.out, walk.diagram, summary, trace, meshcat, walk.visualizer)
+    write_run(args.out, walk.diagram, summary, trace, meshcat, walk.visualizer, bag=args.bag)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
 

@@ -22,11 +22,12 @@ from .interactive import MAX_DURATION
 SOLVER_HELP = {"cascade": "the basic SOT (pseudo-inverse cascade)", "hqp": "SolverKine (hierarchical QP, joint limits hard)"}
 
 
-def script_arguments(doc: str, out: str, duration: float | None = 8.0, solver: str | None = None) -> argparse.ArgumentParser:
+def script_arguments(doc: str, out: str, duration: float | None = 8.0, solver: str | None = None,
+                     bag: bool = True) -> argparse.ArgumentParser:
     """The arguments every script in ``diagrams/`` takes: ``--duration``, ``--out``,
-    ``--no-meshcat`` and ``--quiet``, and with ``solver`` (its default: ``'cascade'`` or
-    ``'hqp'``) ``--solver`` for :func:`sotdrake.robot.add_sot`; add the script's own, then call
-    ``parse_args``."""
+    ``--no-meshcat`` and ``--quiet``, with ``bag`` ``--bag`` (the run's trace also as a rosbag2,
+    written by :func:`write_run`), and with ``solver`` (its default: ``'cascade'`` or ``'hqp'``)
+    ``--solver`` for :func:`sotdrake.robot.add_sot`; add the script's own, then call ``parse_args``."""
     parser = argparse.ArgumentParser(description=doc.split("\n\n")[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--duration", type=float, default=duration,
@@ -34,6 +35,9 @@ def script_arguments(doc: str, out: str, duration: float | None = 8.0, solver: s
     parser.add_argument("--out", type=Path, default=Path(out), help="output directory")
     parser.add_argument("--no-meshcat", action="store_true", help="no recording (faster)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    if bag:
+        parser.add_argument("--bag", action="store_true",
+                            help='also write the trace as a rosbag2, run/run.mcap (pip install ".[ros2]")')
     if solver is not None:
         if solver not in SOLVER_HELP:
             raise InvalidInput(f"script_arguments: solver must be one of {sorted(SOLVER_HELP)}, got {solver!r}")
@@ -53,6 +57,11 @@ def start(args: argparse.Namespace, live: bool = False) -> Meshcat | None:
     out = getattr(args, "out", None)
     if out is not None:
         check_output_directory(Path(out))
+    if getattr(args, "bag", False):
+        import importlib.util
+
+        if importlib.util.find_spec("rosbags") is None:
+            raise SystemExit('--bag needs the ros2 extra: pip install ".[ros2]"')
     logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
     if args.no_meshcat:
         return None
@@ -113,11 +122,12 @@ def save_figure(fig, path: Path, dpi: int = 100, tight: bool = True) -> Path:
 
 
 def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = None,
-              meshcat: Meshcat | None = None, visualizer=None, graph: bool = True) -> dict:
+              meshcat: Meshcat | None = None, visualizer=None, graph: bool = True, bag: bool = False) -> dict:
     """Write ``trace.npz``, ``control_graph.svg`` (and ``.dot``), ``recording.html`` and
     ``summary.json`` (with the paths written, and ``stalled_tasks``: the tasks whose error stopped
-    decreasing, with the error they were left at, see :mod:`sotdrake.progress`) in ``out``; returns
-    the paths."""
+    decreasing, with the error they were left at, see :mod:`sotdrake.progress`) in ``out``; with
+    ``bag``, the trace as a rosbag2 too (``run/run.mcap``: :func:`sotdrake.ros.write_trace_bag`, the
+    joints named by the diagram's ``dynamic`` entity; needs the ros2 extra); returns the paths."""
     from .progress import stalled_tasks
     from .visualization import save_recording, write_control_graph
 
@@ -131,6 +141,8 @@ def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = N
         outputs["control_graph"] = write_control_graph(diagram, out / "control_graph.svg")
     if meshcat is not None and visualizer is not None:
         outputs["recording"] = save_recording(visualizer, meshcat, out / "recording.html")
+    if bag and trace is not None:
+        outputs["bag"] = _write_bag(out / "run", diagram, trace)
     summary.setdefault("stalled_tasks", stalled_tasks(diagram))
     summary["outputs"] = {k: str(v) for k, v in outputs.items()}
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
@@ -138,3 +150,22 @@ def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = N
     note = "; open recording.html in a browser: it plays by itself" if "recording" in outputs else ""
     print(f"wrote {names}{', ' if names else ''}summary.json in {out}{note}", file=sys.stderr)
     return outputs
+
+
+def _write_bag(directory: Path, diagram: Diagram, trace: dict) -> Path:
+    """The trace as a rosbag2 in ``directory``, its ``q`` named by the plant of the first system
+    with a ``plant`` of that many positions (the ``dynamic`` entity), else ``q0``, ``q1``, …"""
+    import sotdrake.ros
+
+    nq = int(np.shape(trace["q"])[1])
+
+    def systems(d):
+        for system in d.GetSystems():
+            yield system
+            if hasattr(system, "GetSystems"):
+                yield from systems(system)
+
+    plants = [s.plant for s in systems(diagram) if getattr(getattr(s, "plant", None), "num_positions", None)]
+    plant = next((p for p in plants if p.num_positions() == nq), None)
+    joints = sotdrake.ros.joint_coordinates(plant) if plant is not None else ([f"q{i}" for i in range(nq)], np.arange(nq))
+    return sotdrake.ros.write_trace_bag(directory, trace, joints)

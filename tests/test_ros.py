@@ -452,3 +452,25 @@ def test_watchdog_holds_the_command_without_joint_states(caplog):
         assert out.Eval(context).tolist() == [5.0, 6.0]
     messages = [r.message for r in caplog.records]
     assert sum("holding the command" in m for m in messages) == 1 and sum("are back" in m for m in messages) == 1
+
+
+def test_any_script_writes_its_trace_as_a_bag(tmp_path):
+    """``--bag`` on a script of ``diagrams/`` (kinesimple: no ROS run, the trace written by
+    ``write_run``): ``run/run.mcap`` holds every trace sample of ``q`` as ``/joint_states``, named by
+    the script's robot, and each task's error."""
+    from sotdrake.ros import joint_coordinates
+    from tests.conftest import load_diagram
+
+    out = tmp_path / "out"
+    run = subprocess.run([sys.executable, str(ROOT / "diagrams" / "kinesimple.py"), "--bag", "--no-meshcat", "--quiet",
+                          "--duration", "0.2", "--out", str(out)], cwd=tmp_path, capture_output=True, text=True,
+                         timeout=600, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert run.returncode == 0, run.stderr
+    trace = np.load(out / "trace.npz")
+    messages = read_bag(out / "run")
+    names, indices = joint_coordinates(load_diagram("kinesimple").build_diagram().diagram.GetSubsystemByName("dynamic").plant)
+    joints = messages["/joint_states"]
+    assert len(joints) == trace["time"].size and list(joints[0][1].name) == names
+    assert np.array_equal(np.array([m.position for _, m in joints]), trace["q"][:, indices])
+    assert any(topic.startswith("/sot/error/") for topic in messages)
+    assert json.loads((out / "summary.json").read_text())["outputs"]["bag"].endswith("run.mcap")

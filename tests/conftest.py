@@ -1,3 +1,8 @@
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from numba import config as numba_config
@@ -18,6 +23,30 @@ LONGEST_FIRST = (
 #: A test of the compiled code itself (its signatures, its compilations): skipped when the package
 #: runs as plain Python (``NUMBA_DISABLE_JIT=1``, one of CI's other-kernel runs).
 compiled_only = pytest.mark.skipif(bool(numba_config.DISABLE_JIT), reason="checks the compiled code (NUMBA_DISABLE_JIT=1)")
+
+
+def _compiled_cache_is_cold() -> bool:
+    """Whether numba has no cache of the active-set iterations yet (a new install, or a new cache folder)."""
+    import sotdrake.solvers
+
+    where = Path(os.environ["NUMBA_CACHE_DIR"]) if os.environ.get("NUMBA_CACHE_DIR") else Path(sotdrake.solvers.__file__).parent
+    return not where.is_dir() or next(where.rglob("jit_active_set.solve-*.nbi"), None) is None
+
+
+def pytest_configure(config):
+    """After a new install, numba's first compilation (about two minutes of CPU) would happen in
+    every test process that reaches a kernel before another has cached it. Here it happens once, in
+    two processes side by side (tests/warm_up.py), before the workers start; if a warm-up run fails,
+    the tests compile as they go. Not in a pytest-xdist worker, nor with the JIT disabled."""
+    if hasattr(config, "workerinput") or numba_config.DISABLE_JIT or not _compiled_cache_is_cold():
+        return
+    root = Path(__file__).resolve().parents[1]
+    print("compiling the numba kernels once, in two processes (after a new install) …", file=sys.stderr, flush=True)
+    env = dict(os.environ, PYTHONPATH=str(root))
+    runs = [subprocess.Popen([sys.executable, "-m", "tests.warm_up", part], cwd=root, env=env, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL) for part in ("solvers", "robot")]
+    for run in runs:
+        run.wait()
 
 
 def pytest_collection_modifyitems(config, items):

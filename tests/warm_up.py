@@ -1,0 +1,37 @@
+"""numba's first compilation, in two parts run side by side (``python -m tests.warm_up solvers|robot``).
+
+``solvers``: random stacks through the hierarchical QP (its stages, equality-constrained steps and
+active-set iterations). ``robot``: short runs of the tutorial under the hierarchical QP (features,
+integration, limits, the curvature correction, the equality stacks' path) and of the dynamic stand
+(the dynamic assembly and the QR path). See ``pytest_configure`` in tests/conftest.py.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+
+def solvers() -> None:
+    from sotdrake.solvers.hqp import HierarchicalQP
+    from tests.hqp_stacks import random_stack
+
+    for seed in range(40):
+        n, levels, x_lower, x_upper = random_stack(np.random.default_rng(seed))
+        HierarchicalQP(n).solve(levels, x_lower, x_upper)
+
+
+def robot() -> None:
+    from tests.conftest import load_diagram
+
+    with tempfile.TemporaryDirectory() as out:
+        quiet = ["--no-meshcat", "--quiet", "--duration", "0.01"]
+        load_diagram("talos_appli").main(["--solver", "hqp", *quiet, "--out", str(Path(out) / "appli")])
+        load_diagram("talos_dynamics").main(["--scenario", "stand", "--device", "dynsimu", *quiet, "--out", str(Path(out) / "dyn")])
+
+
+if __name__ == "__main__":
+    {"solvers": solvers, "robot": robot}[sys.argv[1]]()

@@ -259,7 +259,7 @@ def test_the_readme_is_short_and_written_for_users():
     for command in (demo, tests):
         assert f"\n{command}\n" in text, command
     tests = text.split("\n## Tests\n", 1)[1].split("\n## ", 1)[0]
-    assert "\n<!-- tests-figures -->\n" in tests and '-m "not slow"' in tests
+    assert '-m "not slow"' in tests and "min" in tests and ".ci/other-kernels" in tests  # measured, and how to skip
     development = text.split("\n## Development\n", 1)[1].split("\n## ", 1)[0]
     assert ".venv/bin/python -m sphinx -W --keep-going -b html docs docs/_build/html" in development
     assert "ruff check" in development and "mypy" in development

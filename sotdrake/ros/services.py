@@ -25,6 +25,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from rclpy.duration import Duration
 from std_msgs.msg import String
 from std_srvs.srv import Empty
 
@@ -112,8 +113,13 @@ class RosServices:
             return False
         return True
 
-    def close(self) -> None:
+    def close(self, flush_s: float = 10.0) -> None:
+        """Stop answering. The last answers (``stop()``'s among them) are delivered first: the
+        response publisher waits, up to ``flush_s`` s, until every subscriber has acknowledged them
+        (reliable QoS), or a loaded host could lose them with the publisher."""
         node = self.ros.node
+        if not self.responses.wait_for_all_acked(Duration(seconds=flush_s)):
+            log.warning("run_command: some answers were not acknowledged within %g s", flush_s)
         node.destroy_subscription(self.requests)
         node.destroy_publisher(self.responses)
         node.destroy_service(self.service)

@@ -153,11 +153,10 @@ def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = N
 
 
 def _write_bag(directory: Path, diagram: Diagram, trace: dict) -> Path:
-    """The trace as a rosbag2 in ``directory``, its ``q`` named by the plant of the first system
-    with a ``plant`` of that many positions (the ``dynamic`` entity), else ``q0``, ``q1``, …"""
+    """The trace as a rosbag2 in ``directory``. Its configuration is ``q`` (or ``q_device``), or the
+    positions of a state ``x`` (or ``x_plant``), named by the plant of a system of the diagram that
+    has one of that size (the ``dynamic`` entity, a physics plant), else ``q0``, ``q1``, …"""
     import sotdrake.ros
-
-    nq = int(np.shape(trace["q"])[1])
 
     def systems(d):
         for system in d.GetSystems():
@@ -166,6 +165,16 @@ def _write_bag(directory: Path, diagram: Diagram, trace: dict) -> Path:
                 yield from systems(system)
 
     plants = [s.plant for s in systems(diagram) if getattr(getattr(s, "plant", None), "num_positions", None)]
-    plant = next((p for p in plants if p.num_positions() == nq), None)
+    plants += [s for s in systems(diagram) if hasattr(s, "num_positions") and hasattr(s, "num_velocities")]
+    key = next((k for k in ("q", "q_device", "x", "x_plant") if k in trace), None)
+    if key is None:
+        raise InvalidInput(f"--bag: the trace has no configuration (q, q_device, x or x_plant); it has {sorted(trace)}")
+    width = int(np.shape(trace[key])[1])
+    if key.startswith("x"):
+        plant = next((p for p in plants if p.num_positions() + p.num_velocities() == width), None)
+        nq = plant.num_positions() if plant is not None else width
+    else:
+        plant = next((p for p in plants if p.num_positions() == width), None)
+        nq = width
     joints = sotdrake.ros.joint_coordinates(plant) if plant is not None else ([f"q{i}" for i in range(nq)], np.arange(nq))
-    return sotdrake.ros.write_trace_bag(directory, trace, joints)
+    return sotdrake.ros.write_trace_bag(directory, {**trace, "q": np.asarray(trace[key])[:, :nq]}, joints)

@@ -474,3 +474,18 @@ def test_any_script_writes_its_trace_as_a_bag(tmp_path):
     assert np.array_equal(np.array([m.position for _, m in joints]), trace["q"][:, indices])
     assert any(topic.startswith("/sot/error/") for topic in messages)
     assert json.loads((out / "summary.json").read_text())["outputs"]["bag"].endswith("run.mcap")
+
+
+def test_a_dynamic_scripts_bag_holds_its_torques_and_wrenches(tmp_path):
+    """``talos_dynamics.py --bag``: the state ``x``'s positions as ``/joint_states``, and the other
+    series of the trace (torques, contact wrenches, CoM) as arrays, one message per sample."""
+    out = tmp_path / "out"
+    run = subprocess.run([sys.executable, str(ROOT / "diagrams" / "talos_dynamics.py"), "--scenario", "stand", "--device",
+                          "dynsimu", "--duration", "0.02", "--bag", "--no-meshcat", "--quiet", "--out", str(out)],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=600, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert run.returncode == 0, run.stderr
+    trace = np.load(out / "trace.npz")
+    messages = read_bag(out / "run")
+    assert {"/joint_states", "/sot/torque", "/sot/wrenches", "/sot/com"} <= set(messages)
+    assert all(len(messages[topic]) == trace["time"].size for topic in ("/joint_states", "/sot/torque", "/sot/wrenches"))
+    assert np.array_equal(np.array([m.data for _, m in messages["/sot/wrenches"]]), trace["wrenches"])

@@ -8,6 +8,7 @@ task errors). The bag is a directory ``<name>/`` holding ``<name>.mcap`` and ``m
 
 from __future__ import annotations
 
+import re
 import shutil
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -95,15 +96,24 @@ def write_trace_bag(directory: Path | str, trace: Mapping[str, np.ndarray], join
                     targets: Mapping[str, Sequence[float]] | None = None, every: int = 1) -> Path:
     """A diagram script's trace as a bag: ``trace['q']`` → ``/joint_states`` (the joints
     ``(names, indices in q)``), ``error_<task>`` → ``/sot/error/<task>``, ``<name>_position`` →
-    ``/sot/<name>``, ``targets`` (name → constant point) → ``/sot/target/<name>``; every
-    ``every``-th sample."""
+    ``/sot/<name>``, ``targets`` (name → constant point) → ``/sot/target/<name>``, any other numeric
+    series of the trace (a CoP, a ZMP, contact wrenches, …) → ``/sot/<key>`` (``Float64MultiArray``);
+    every ``every``-th sample."""
     if not (isinstance(every, int) and every > 0):
         raise InvalidInput(f"write_trace_bag: every must be a positive int, got {every!r}")
     time = np.asarray(trace["time"])[::every]
     names, indices = joints
     arrays = {f"/sot/error/{k[6:]}": np.asarray(v)[::every] for k, v in trace.items() if k.startswith("error_")}
-    points = {f"/sot/{k[:-9]}": np.asarray(v)[::every] for k, v in trace.items()
-              if k.endswith("_position") and np.ndim(v) == 2 and np.shape(v)[1] == 3}
+    as_points = [k for k, v in trace.items() if k.endswith("_position") and np.ndim(v) == 2 and np.shape(v)[1] == 3]
+    points = {f"/sot/{k[:-9]}": np.asarray(trace[k])[::every] for k in as_points}
     for name, point in (targets or {}).items():
         points[f"/sot/target/{name}"] = np.tile(np.asarray(point, dtype=float), (time.size, 1))
+    samples = np.asarray(trace["time"]).size
+    for key, value in trace.items():  # every other series of the trace (CoP, ZMP, wrenches, …), as arrays
+        value = np.asarray(value)
+        topic = "/sot/" + re.sub(r"[^A-Za-z0-9_]", "_", key)
+        if (key not in ("time", "q", *as_points) and not key.startswith("error_") and value.ndim in (1, 2)
+                and value.shape[0] == samples and np.issubdtype(value.dtype, np.number) and topic not in points
+                and re.fullmatch(r"/sot/[A-Za-z_]\w*", topic)):
+            arrays[topic] = value[::every]
     return write_bag(directory, time, (names, np.asarray(trace["q"])[::every][:, indices]), points, arrays)

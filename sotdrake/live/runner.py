@@ -193,52 +193,76 @@ class LiveRun:
         self._credit -= max(0.0, time.monotonic() - wall - slack)  # may go negative: paid back later
 
 
-def run_live(handles: DiagramHandles, out: Path, meshcat=None, duration: float | None = None, port: int = 0,
-             realtime_rate: float = 1.0, summarize: Callable | None = None,
-             write: Callable | None = None) -> dict:
-    """Run ``handles.diagram`` live (dt from ``handles.robot.dt``), print how to reach it, and when
-    it stops write its files: ``summarize(handles, simulator, duration, wall) -> (summary, trace)``
-    and ``write(out, summary, trace)`` when given, else ``write_run`` with the tracer's trace."""
-    from ..simulation import write_run
-
-    diagram = handles.diagram
+def open_live(handles: DiagramHandles, out: Path, meshcat=None, port: int = 0,
+              realtime_rate: float = 1.0) -> tuple[LiveRun, list[Path]]:
+    """The :class:`LiveRun` of ``handles.diagram`` (dt from ``handles.robot.dt``, else 1 ms) and
+    its connection files, written in ``out`` (created): what :func:`run_live` and ROS 2's
+    ``run_ros`` begin with."""
     robot = getattr(handles, "robot", None)
     dt = robot.dt if robot is not None else 1e-3
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     url = meshcat.web_url() if meshcat is not None else None
-    live = LiveRun(diagram, dt, handles, realtime_rate, port, meshcat_url=url)
-    files = live.write_connection_files(out / "live.json")
-    lines = [f"sotdrake live: {diagram.get_name() or 'diagram'} at real-time rate {realtime_rate:g}, Ctrl-C to stop"]
-    if url:
-        lines.append(f"  meshcat:  {url}")
-    lines.append(f"  commands: sotdrake-shell --connection {files[0]}   (127.0.0.1:{live.server.port})")
-    print("\n".join(lines), file=sys.stderr, flush=True)
-    wall = live.run(duration)
+    live = LiveRun(handles.diagram, dt, handles, realtime_rate, port, meshcat_url=url)
+    return live, live.write_connection_files(out / "live.json")
+
+
+def close_live(live: LiveRun, handles: DiagramHandles, out: Path, wall: float, summarize: Callable | None = None,
+               write: Callable | None = None, label: str = "live", on_stop: Callable | None = None,
+               ran: bool = True) -> dict:
+    """After ``live`` stopped (``wall`` s of running; ``ran``: False if it never started): the
+    summary and trace (``summarize(handles, simulator, duration, wall)``, else the tracer's),
+    ``on_stop(out, summary, trace)`` (e.g. a bag), then ``write(out, summary, trace)`` when given
+    and the run did not fail, else :func:`~sotdrake.simulation.write_run`. Raises the run's
+    failure, after the files are written."""
+    from ..simulation import write_run
+
     simulator = live.simulator
     simulated = simulator.get_context().get_time()
-    print(f"sotdrake live: stopped at t = {simulated:.3f} s after {wall:.1f} s; writing {out}", file=sys.stderr, flush=True)
+    print(f"sotdrake {label}: stopped at t = {simulated:.3f} s after {wall:.1f} s; writing {out}", file=sys.stderr,
+          flush=True)
     summary, trace = None, None
-    if summarize is not None:
+    if not ran:
+        summary = {"duration_s": simulated, "wall_s": wall}
+    elif summarize is not None:
         try:
             summary, trace = summarize(handles, simulator, simulated, wall)
         except (SotError, RuntimeError, ValueError) as error:
             if live.error is None:
                 raise
-            log.warning("live: the script's summary failed after the failure (%s); writing the trace only", error)
+            log.warning("%s: the script's summary failed after the failure (%s); writing the trace only", label, error)
     if summary is None:
         tracer = getattr(handles, "tracer", None)
         trace = tracer.data(simulator.get_context()) if tracer is not None else None
         summary = {"duration_s": simulated, "wall_s": wall, "realtime_factor": simulated / wall if wall else None}
     summary["live"] = json.loads(live.status())
     summary["live"]["error"] = live.error
-    if write is not None and live.error is None:
+    if on_stop is not None and trace is not None:
+        on_stop(out, summary, trace)
+    if write is not None and trace is not None and live.error is None:
         write(out, summary, trace)
     else:
-        write_run(out, diagram, summary, trace)
+        write_run(out, handles.diagram, summary, trace)
     if live.error is not None:
-        raise SotError(f"the live run failed at t = {simulated:.4f} s (files written in {out}): {live.error}")
+        raise SotError(f"the {label} run failed at t = {simulated:.4f} s (files written in {out}): {live.error}")
     return summary
+
+
+def run_live(handles: DiagramHandles, out: Path, meshcat=None, duration: float | None = None, port: int = 0,
+             realtime_rate: float = 1.0, summarize: Callable | None = None,
+             write: Callable | None = None) -> dict:
+    """Run ``handles.diagram`` live (dt from ``handles.robot.dt``), print how to reach it, and when
+    it stops write its files: ``summarize(handles, simulator, duration, wall) -> (summary, trace)``
+    and ``write(out, summary, trace)`` when given, else ``write_run`` with the tracer's trace."""
+    live, files = open_live(handles, out, meshcat, port, realtime_rate)
+    lines = [f"sotdrake live: {handles.diagram.get_name() or 'diagram'} at real-time rate {realtime_rate:g}, "
+             "Ctrl-C to stop"]
+    if meshcat is not None:
+        lines.append(f"  meshcat:  {meshcat.web_url()}")
+    lines.append(f"  commands: sotdrake-shell --connection {files[0]}   (127.0.0.1:{live.server.port})")
+    print("\n".join(lines), file=sys.stderr, flush=True)
+    wall = live.run(duration)
+    return close_live(live, handles, Path(out), wall, summarize, write)
 
 
 def live_meshcat(port: int | None = None):

@@ -29,9 +29,8 @@ from rclpy.duration import Duration
 from std_msgs.msg import String
 from std_srvs.srv import Empty
 
-from ..exceptions import SotError
 from ..live.connection import remove_connection
-from ..live.runner import DiagramHandles, LiveRun
+from ..live.runner import DiagramHandles, LiveRun, close_live, open_live
 from .node import RosNode, ros_node
 
 log = logging.getLogger("sotdrake.ros")
@@ -131,17 +130,9 @@ def run_ros(handles: DiagramHandles, out: Path, meshcat=None, duration: float | 
     """:func:`~sotdrake.live.run_live` with the ROS 2 services: waits for ``start_dynamic_graph``
     (``hold``), runs until stopped, then ``summarize``, ``on_stop(out, summary, trace)`` (e.g. a
     bag) and ``write`` as ``run_live``."""
-    from ..simulation import write_run
-
-    diagram = handles.diagram
-    robot = getattr(handles, "robot", None)
-    dt = robot.dt if robot is not None else 1e-3
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    live = LiveRun(diagram, dt, handles, realtime_rate, port, meshcat_url=meshcat.web_url() if meshcat else None)
-    files = live.write_connection_files(out / "live.json")
+    live, files = open_live(handles, out, meshcat, port, realtime_rate)
     services = RosServices(live, hold=hold)
-    print(f"sotdrake ros: {diagram.get_name() or 'diagram'}: services {START_SERVICE}, run_command on "
+    print(f"sotdrake ros: {handles.diagram.get_name() or 'diagram'}: services {START_SERVICE}, run_command on "
           f"{RUN_COMMAND_REQUEST} -> {RUN_COMMAND_RESPONSE}; commands also by sotdrake-shell --connection "
           f"{files[0]}", file=sys.stderr, flush=True)
     if hold:
@@ -153,22 +144,5 @@ def run_ros(handles: DiagramHandles, out: Path, meshcat=None, duration: float | 
         live.server.close()
         for path in live.connection_files:
             remove_connection(path, live.connection)
-    simulator = live.simulator
-    simulated = simulator.get_context().get_time()
-    print(f"sotdrake ros: stopped at t = {simulated:.3f} s after {wall:.1f} s; writing {out}", file=sys.stderr, flush=True)
-    summary, trace = None, None
-    if summarize is not None and simulated > 0:
-        summary, trace = summarize(handles, simulator, simulated, wall)
-    if summary is None:
-        summary = {"duration_s": simulated, "wall_s": wall}
-    summary["live"] = json.loads(live.status())
-    summary["live"]["error"] = live.error
-    if on_stop is not None and trace is not None:
-        on_stop(out, summary, trace)
-    if write is not None and trace is not None and live.error is None:
-        write(out, summary, trace)
-    else:
-        write_run(out, diagram, summary, trace)
-    if live.error is not None:
-        raise SotError(f"the run failed at t = {simulated:.4f} s (files written in {out}): {live.error}")
-    return summary
+    ran = started and live.simulator.get_context().get_time() > 0
+    return close_live(live, handles, Path(out), wall, summarize, write, label="ros", on_stop=on_stop, ran=ran)

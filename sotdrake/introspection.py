@@ -8,6 +8,7 @@ port's value (output, else input).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import TextIO
 
 import numpy as np
@@ -20,6 +21,14 @@ from .exceptions import NotFound
 def entities(diagram: Diagram) -> list[str]:
     """Names of the diagram's systems, in the order they were added."""
     return [system.get_name() for system in diagram.GetSystems()]
+
+
+def all_systems(diagram: Diagram) -> Iterator[System]:
+    """Every system of ``diagram`` and, depth first, of its subdiagrams."""
+    for system in diagram.GetSystems():
+        yield system
+        if isinstance(system, Diagram):
+            yield from all_systems(system)
 
 
 def entity(diagram: Diagram, name: str) -> System:

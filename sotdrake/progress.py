@@ -19,6 +19,8 @@ import math
 
 import numpy as np
 
+from .introspection import all_systems
+
 log = logging.getLogger("sotdrake.task")
 
 #: Simulated time between two looks at the error (s).
@@ -73,9 +75,7 @@ def stalled_tasks(diagram) -> dict[str, float]:
     stopped decreasing, by name, with the ``‖e‖`` they were left at (m, rad): what the scripts'
     ``summary.json`` reports as ``stalled_tasks`` (empty when every task made progress)."""
     stalled: dict[str, float] = {}
-    for system in diagram.GetSystems():
-        if hasattr(system, "GetSystems"):
-            stalled.update(stalled_tasks(system))
+    for system in all_systems(diagram):
         watch = getattr(system, "_progress", None)
         if isinstance(watch, ProgressWatch) and watch.warned:
             stalled[watch.task] = float(watch.remaining)

@@ -17,6 +17,7 @@ from pydrake.systems.framework import Diagram
 
 from .exceptions import InvalidInput
 from .interactive import MAX_DURATION
+from .introspection import all_systems
 
 #: The kinematic solvers a script offers with ``--solver`` (see :func:`sotdrake.robot.add_sot`).
 SOLVER_HELP = {"cascade": "the basic SOT (pseudo-inverse cascade)", "hqp": "SolverKine (hierarchical QP, joint limits hard)"}
@@ -158,14 +159,9 @@ def _write_bag(directory: Path, diagram: Diagram, trace: dict) -> Path:
     has one of that size (the ``dynamic`` entity, a physics plant), else ``q0``, ``q1``, …"""
     import sotdrake.ros
 
-    def systems(d):
-        for system in d.GetSystems():
-            yield system
-            if hasattr(system, "GetSystems"):
-                yield from systems(system)
-
-    plants = [s.plant for s in systems(diagram) if getattr(getattr(s, "plant", None), "num_positions", None)]
-    plants += [s for s in systems(diagram) if hasattr(s, "num_positions") and hasattr(s, "num_velocities")]
+    systems = list(all_systems(diagram))
+    plants = [s.plant for s in systems if getattr(getattr(s, "plant", None), "num_positions", None)]
+    plants += [s for s in systems if hasattr(s, "num_positions") and hasattr(s, "num_velocities")]
     key = next((k for k in ("q", "q_device", "x", "x_plant") if k in trace), None)
     if key is None:
         raise InvalidInput(f"--bag: the trace has no configuration (q, q_device, x or x_plant); it has {sorted(trace)}")

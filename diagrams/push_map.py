@@ -1,14 +1,18 @@
 #!/usr/bin/env python3
-"""Push-recovery map: the physics stand scenario (``diagrams/talos_physics.py --scenario stand``:
-the SoT holds feet and CoM, PD actuators track its references on a discrete ``MultibodyPlant`` with
-ground contact, open loop) pushed on the torso over a grid of magnitude × direction × duration.
+"""Push-recovery map: TALOS standing on a discrete ``MultibodyPlant`` with ground contact, pushed
+on the torso over a grid of magnitude × direction × duration, under either controller:
+
+* ``--controller kinematic`` (default): the physics stand scenario (``diagrams/talos_physics.py
+  --scenario stand``: the SoT holds feet and CoM, PD actuators track its references, open loop);
+* ``--controller dynamic``: ``SolverDyn``'s torques (``diagrams/talos_dynamics.py --scenario push``
+  with the case's push instead of the scenario's two).
 
 Each case: the push (``torso_2_link``'s origin, horizontal, N) starts at ``--push-start``
 (default 0.3 s) and lasts the case's duration; the run lasts ``--duration`` seconds (default 3 s,
 1 ms steps: a push that tips TALOS may take more than 2 s to floor it). Direction 0° pushes along
-+x (forward), 90° along +y (to the robot's left). A case *falls* when the base drops more than
-0.1 m below its start (standing, it moves by about 1 mm) or tilts more than 30° from upright (the
-angle between the base's z axis and the vertical); its base displacement is the largest
++x (forward), 90° along +y (to the robot's left). A case *falls* by the criterion every script
+shares (:mod:`sotdrake.fall`: the base tilted more than 30° or dropped more than 0.25 m, a held
+sole slid more than 5 cm, another body on the ground); its base displacement is the largest
 horizontal distance of the base from its start (m). Every link collides with the ground (a box
 per link), so a fallen TALOS lands on it.
 
@@ -30,13 +34,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the stand scenario's script, a sibling
+import talos_dynamics
 import talos_physics
 
-from sotdrake import InvalidInput, save_figure, script_arguments, simulate, write_run
+from sotdrake import InvalidInput, fall_thresholds, save_figure, script_arguments, simulate, write_run
 from sotdrake.sweep import EngineUnavailable, add_sweep_arguments, engine_options, grid, run_sweep
 
-FALL_DROP_M = 0.1
-FALL_TILT_DEG = 30.0
 TIMING = ("wall_s", "realtime_factor")
 
 
@@ -46,30 +49,35 @@ def push_force(magnitude: float, direction_deg: float) -> np.ndarray:
     return magnitude * np.array([np.cos(angle), np.sin(angle), 0.0])
 
 
-def base_tilt_deg(q: np.ndarray) -> np.ndarray:
-    """Tilt (deg) of the floating base at each row of ``q`` (Drake's ``(qw, qx, qy, qz, x, y, z,
-    …)``): the angle between the base's z axis and the world's, ``arccos(1 − 2(qx² + qy²))`` for a
-    unit quaternion."""
-    quaternion = q[:, :4] / np.linalg.norm(q[:, :4], axis=1, keepdims=True)
-    return np.degrees(np.arccos(np.clip(1 - 2 * (quaternion[:, 1] ** 2 + quaternion[:, 2] ** 2), -1, 1)))
-
-
-def push_case(case: dict, duration: float = 3.0, push_start: float = 0.3) -> dict:
+def push_case(case: dict, duration: float = 3.0, push_start: float = 0.3, controller: str = "kinematic") -> dict:
     """The sweep's case function: ``case = {'magnitude_n', 'direction_deg', 'push_duration_s'}``
-    → the stand scenario's summary with ``fell`` and the push's impulse."""
+    → the scenario's summary (with the shared fall criterion's ``fell``) and the push's impulse.
+    ``controller``: ``kinematic`` (the SoT on PD actuators, ``talos_physics.py --scenario stand``)
+    or ``dynamic`` (``SolverDyn`` torques, ``talos_dynamics.py --scenario push`` with this push)."""
     magnitude, push_duration = case["magnitude_n"], case["push_duration_s"]
     if not magnitude >= 0 or not push_duration > 0:
         raise InvalidInput(f"magnitude_n ≥ 0 and push_duration_s > 0, got {magnitude}, {push_duration}")
-    run = talos_physics.build_diagram("stand", "open", push_force(magnitude, case["direction_deg"]),
-                                      push_start=push_start, push_duration=push_duration)
-    simulator, wall = simulate(run.diagram, duration, None, progress=False)
-    summary, trace = talos_physics.summarize(run, simulator, duration, wall)
-    for key in TIMING + ("hand_error_m", "hand_initial_error_m", "scenario"):
+    force = push_force(magnitude, case["direction_deg"])
+    if controller == "dynamic":
+        run = talos_dynamics.build_diagram("push", "physics", pushes=((push_start, push_duration, force),))
+        simulator, times = talos_dynamics.simulate_ticks(run, duration, progress=False)
+        summary, _ = talos_dynamics.summarize(run, simulator, times, duration)
+        summary["base_drift_m"] = _base_drift(run, simulator)
+    else:
+        run = talos_physics.build_diagram("stand", "open", force, push_start=push_start, push_duration=push_duration)
+        simulator, wall = simulate(run.diagram, duration, None, progress=False)
+        summary, _ = talos_physics.summarize(run, simulator, duration, wall)
+    for key in TIMING + ("hand_error_m", "hand_initial_error_m", "scenario", "tick_us_median", "tick_us_p95"):
         summary.pop(key, None)
-    summary["max_base_tilt_deg"] = float(base_tilt_deg(trace["x_plant"]).max())
-    summary["fell"] = bool(summary["base_height_drop_m"] > FALL_DROP_M or summary["max_base_tilt_deg"] > FALL_TILT_DEG)
+    summary["controller"] = controller
     summary["impulse_ns"] = magnitude * push_duration
     return summary
+
+
+def _base_drift(run, simulator) -> float:
+    """The largest horizontal distance (m) of the base from its start, from the dynamic run's trace."""
+    x = run.tracer.data(simulator.get_context())["x"]
+    return float(np.nanmax(np.linalg.norm(x[:, 4:6] - x[0, 4:6], axis=1)))
 
 
 def numbers(text: str) -> list[float]:
@@ -82,7 +90,7 @@ def numbers(text: str) -> list[float]:
     return values
 
 
-def plot(rows: list[dict], path: Path) -> Path:
+def plot(rows: list[dict], path: Path, controller: str = "kinematic") -> Path:
     """One polar map per push duration: angle = push direction, radius = magnitude; colour = base
     displacement, a red cross where TALOS fell."""
     import matplotlib
@@ -107,7 +115,8 @@ def plot(rows: list[dict], path: Path) -> Path:
         axis.set_rlim(0, 1.15 * max(radius.max(), 1))
         axis.set_theta_zero_location("N")  # forward (+x) up, left (+y) to the left
     fig.colorbar(dots, ax=axes[0].tolist(), label="largest base displacement (m)")
-    fig.suptitle("TALOS standing (SoT open loop, PD actuators): torso pushes; radius: force (N); red ×: fell")
+    how = "SoT open loop, PD actuators" if controller == "kinematic" else "SolverDyn torques"
+    fig.suptitle(f"TALOS standing ({how}): torso pushes; radius: force (N); red ×: fell")
     return save_figure(fig, path, tight=False)
 
 
@@ -117,6 +126,8 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--directions", type=int, default=4, help="number of directions, evenly spaced from 0°")
     parser.add_argument("--push-durations", type=numbers, default=[0.1, 0.3], help="push durations (s), comma-separated")
     parser.add_argument("--push-start", type=float, default=0.3, help="when the push starts (s)")
+    parser.add_argument("--controller", choices=["kinematic", "dynamic"], default="kinematic",
+                        help="the SoT on PD actuators (kinematic) or SolverDyn's torques (dynamic)")
     add_sweep_arguments(parser)
     args = parser.parse_args(argv)
     if not args.duration > args.push_start >= 0 or args.directions < 1:
@@ -125,16 +136,15 @@ def main(argv: list[str] | None = None) -> dict:
     cases = grid({"magnitude_n": args.magnitudes,
                   "direction_deg": [360.0 * k / args.directions for k in range(args.directions)],
                   "push_duration_s": args.push_durations})
-    settings = {"duration_s": args.duration, "push_start_s": args.push_start, "fall_drop_m": FALL_DROP_M,
-                "fall_tilt_deg": FALL_TILT_DEG}
+    settings = {"controller": args.controller, "duration_s": args.duration, "push_start_s": args.push_start, **fall_thresholds()}
     try:
-        result = run_sweep(partial(push_case, duration=args.duration, push_start=args.push_start), cases,
-                           progress=not args.quiet, label="pushes", settings=settings, by_value=[talos_physics],
+        result = run_sweep(partial(push_case, duration=args.duration, push_start=args.push_start, controller=args.controller),
+                           cases, progress=not args.quiet, label="pushes", settings=settings, by_value=[talos_physics, talos_dynamics],
                            **engine_options(args))
     except EngineUnavailable as error:
         raise SystemExit(str(error)) from error
     paths = result.write(args.out, "push_map")
-    plot(result.rows, args.out / "plots.png")
+    plot(result.rows, args.out / "plots.png", args.controller)
     ok = [r for r in result.rows if r["status"] == "ok"]
     summary = {
         "cases": len(cases),

@@ -42,7 +42,18 @@ from pydrake.systems.primitives import ConstantVectorSource, Multiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 from pydrake.trajectories import PiecewisePolynomial
 
-from sotdrake import TALOS_GRIPPERS, Tracer, attime, load_talos, save_figure, script_arguments, start, write_run
+from sotdrake import (
+    TALOS_GRIPPERS,
+    Tracer,
+    attime,
+    fall_report,
+    load_talos,
+    save_figure,
+    script_arguments,
+    start,
+    tilt_of_quaternions,
+    write_run,
+)
 from sotdrake.dynamics.contact import friction_ratio
 from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
@@ -115,8 +126,10 @@ def _com_trajectory(scenario: str, com0: np.ndarray, left_sole_xy: np.ndarray, d
 
 
 def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Meshcat | None = None, dt: float = 1e-3,
-                  solver: str = ACTIVE_SET, effort_scale: float = 1.0) -> DynamicsRun:
-    """``effort_scale``: the solver's torque bounds as a fraction of TALOS' effort limits."""
+                  solver: str = ACTIVE_SET, effort_scale: float = 1.0, pushes: tuple | None = None) -> DynamicsRun:
+    """``effort_scale``: the solver's torque bounds as a fraction of TALOS' effort limits;
+    ``pushes``: ``(start s, duration s, force N (world 3-vector))`` on the torso, with the physics
+    device (default: the ``push`` scenario's :data:`PUSHES`, none otherwise)."""
     if scenario not in SCENARIOS:
         raise ValueError(f"unknown scenario {scenario!r}; available: {SCENARIOS}")
     builder = DiagramBuilder()
@@ -168,10 +181,12 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
         plant = robot.physical.plant
         monitor = robot.add(ContactMonitor(robot.physical))
         connect(plant.get_contact_results_output_port(), monitor.get_input_port())
-        if scenario == "push":
-            mux = robot.add(ExternallyAppliedSpatialForceMultiplexer(len(PUSHES)), "pushes")
-            for i, (start, duration, force) in enumerate(PUSHES):
-                push = robot.add(Push(plant, "torso_2_link", [force, 0.0, 0.0], start, duration), f"push_{i}")
+        if pushes is None and scenario == "push":
+            pushes = tuple((start, duration, [force, 0.0, 0.0]) for start, duration, force in PUSHES)
+        if pushes:
+            mux = robot.add(ExternallyAppliedSpatialForceMultiplexer(len(pushes)), "pushes")
+            for i, (start, duration, force) in enumerate(pushes):
+                push = robot.add(Push(plant, "torso_2_link", force, start, duration), f"push_{i}")
                 connect(push.get_output_port(), mux.get_input_port(i))
             connect(mux.get_output_port(), plant.get_applied_spatial_force_input_port())
 
@@ -249,20 +264,20 @@ def summarize(run: DynamicsRun, simulator: Simulator, times: np.ndarray, duratio
     path = robot.dynamic.trajectory(["contactLF", "contactRF"], np.nan_to_num(q))
     com = trace["com"]
     released_at = RELEASE[0] + RELEASE[1] if run.foot is not None else np.inf
-    base_z = q[:, 6]
-    fell = bool(not finite.all() or (base_z[0] - base_z).max() > 0.25 or com[:, 2].min() < 0.5)
-    summary: dict = {"scenario": run.scenario, "device": run.device, "duration_s": duration, "ticks": len(times), "fell": fell}
+    # Slip of each sole while it is held (xy displacement from its initial pose), at each tick.
+    slips = np.zeros(len(t))
+    for side, until in (("contactLF", np.inf), ("contactRF", RELEASE[0] if run.foot is not None else np.inf)):
+        slip = np.linalg.norm(path[side][:, :2, 3] - path[side][0, :2, 3], axis=1)
+        slips = np.maximum(slips, np.where(t < until, slip, 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fall = fall_report(t, np.where(finite, tilt_of_quaternions(x[:, :4]), np.nan), x[:, 6], slips)
+    summary: dict = {"scenario": run.scenario, "device": run.device, "duration_s": duration, "ticks": len(times), **fall}
     summary["com_drift_m"] = float(np.linalg.norm(com - com[0], axis=1).max())
     if "com_reference" in trace:
         error = np.linalg.norm(com - trace["com_reference"], axis=1)
         summary["com_rms_error_m"] = float(np.sqrt(np.mean(error**2)))
         summary["com_max_error_m"] = float(error.max())
-    # Slip of each sole while it is held (xy displacement from its initial pose).
-    slips = []
-    for side, until in (("contactLF", np.inf), ("contactRF", RELEASE[0] if run.foot is not None else np.inf)):
-        held = t < until
-        slips.append(np.linalg.norm(path[side][held, :2, 3] - path[side][0, :2, 3], axis=1).max())
-    summary["max_foot_slip_m"] = float(max(slips))
+    summary["max_foot_slip_m"] = float(slips.max())
     if run.foot is not None and t[-1] >= LIFT[0]:  # (a run stopped before the lift has no foot error)
         p = path["contactRF"][:, :3, 3]
         lifted = t >= LIFT[0]

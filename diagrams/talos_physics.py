@@ -33,6 +33,7 @@ from sotdrake import (
     add_sot,
     attime,
     desired_position,
+    fall_report,
     gotoNd,
     hold_feet_and_com,
     load_talos,
@@ -40,9 +41,10 @@ from sotdrake import (
     script_arguments,
     simulate,
     start,
+    tilt_of_quaternions,
     write_run,
 )
-from sotdrake.physics import SOLE_BOX, KinematicBaseEstimator, PhysicalTalos, TalosStation, add_talos_station, fall_time
+from sotdrake.physics import SOLE_BOX, KinematicBaseEstimator, PhysicalTalos, TalosStation, add_talos_station
 
 TARGET = (0.5, -0.2, 1.0)
 HAND_OFFSET = (0.1, 0.0, 0.0)
@@ -124,7 +126,8 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
     path = robot.dynamic.trajectory(["rh", "left-sole", "right-sole"], np.vstack([q0, q]))
     hand = path["rh"][:, :3, :3] @ np.asarray(HAND_OFFSET) + path["rh"][:, :3, 3]
     feet = trace["feet"]
-    slip = max(np.linalg.norm(path[s][:, :2, 3] - path[s][0, :2, 3], axis=1).max() for s in ("left-sole", "right-sole"))
+    slips = np.max([np.linalg.norm(path[s][:, :2, 3] - path[s][0, :2, 3], axis=1) for s in ("left-sole", "right-sole")], axis=0)
+    slip = slips.max()
     base = np.vstack([q0, q])[:, 4:7]
     size, centre = SOLE_BOX
     # The support polygon: the bounding rectangle of both soles (their initial poses, yaw ≈ 0).
@@ -135,7 +138,7 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
     cop_margin = np.nanmin(np.minimum(cop - low, high - cop))
     # Reaching, the hand is measured against its last target (a live gotoNd moves it).
     target = desired_position(run.taskRH, context) if run.scenario == "reach" else np.asarray(TARGET)
-    fell_at = fall_time(trace["time"], base[1:, 2], trace["other_contact"][:, 0])
+    fall = fall_report(trace["time"], tilt_of_quaternions(q[:, :4]), q[:, 6], slips[1:], trace["other_contact"][:, 0])
     summary = {
         "scenario": run.scenario,
         "hand_error_m": float(np.linalg.norm(hand[-1] - target)),
@@ -147,11 +150,9 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
         "max_foot_slip_m": float(slip),
         "min_cop_margin_m": float(cop_margin),
         "support_polygon_m": [low.tolist(), high.tolist()],
-        # fell: the base below FALL_BASE_HEIGHT or another body than the soles on the ground.
-        "fell": fell_at is not None,
-        "fell_at_s": fell_at,
+        # fell, fell_at_s, fall_reason and the margins: sotdrake.fall's criterion (tilt, base drop, slip, other contact).
+        **fall,
         "min_base_height_m": float(base[:, 2].min()),
-        "max_other_contact_n": float(trace["other_contact"].max()),
         # The command scaled into the velocity limits (1: never): the smallest factor, and how often.
         "min_velocity_scale": float(trace["velocity_scale"].min()),
         "scaled_ticks": int(np.count_nonzero(trace["velocity_scale"] < 1.0)),

@@ -55,12 +55,14 @@ from sotdrake import (
     Tracer,
     add_sot,
     attime,
+    fall_report,
     load_robot,
     load_talos,
     save_figure,
     script_arguments,
     simulate,
     start,
+    tilt_of_rotations,
     write_run,
 )
 from sotdrake.exceptions import InvalidInput
@@ -479,7 +481,7 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
     ref_margin = np.array([polygon_margin(z, P) for z, P in zip(trace["pg_zmp_reference"], polygons, strict=False)])
     base = _planar(path[spec.waist])
     base_z = path[spec.waist][:, 2, 3]
-    fell = bool(base_z.min() < base_z[0] - 0.25)
+    fall = fall_report(t, tilt_of_rotations(path[spec.waist]), base_z)  # (the soles move: no slip criterion)
     # The planned base: the planned CoM plus the start's base-to-CoM offset (turned with the feet).
     q0 = bot.q0 if walk.mode == "dynamic" else bot.device.initial_position
     offset0 = bot.dynamic.pose_at(spec.waist, q0).translation()[:2] - bot.dynamic.com_at(q0)[:2]
@@ -504,7 +506,7 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
         "robot": walk.robot_name,
         "mode": walk.mode,
         "solver": type(walk.sot).__name__,
-        "fell": fell,
+        **fall,
         "max_foot_tracking_error_m": float(foot_errors.max()),
         "max_com_tracking_error_m": float(com_error.max()),
         "min_zmp_margin_m": float(zmp_margin.min()),

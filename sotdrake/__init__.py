@@ -33,6 +33,7 @@ from .exceptions import (
     StackError,
     TaskNotFound,
 )
+from .fall import fall_report, fall_thresholds, tilt_of_quaternions, tilt_of_rotations
 from .features import (
     Feature,
     Feature1D,
@@ -97,7 +98,6 @@ _LAZY: dict[str, tuple[str, ...]] = {
         "TalosStation",
         "add_physical_talos",
         "add_talos_station",
-        "fall_time",
     ),
     ".walking": (
         "GRAVITY",
@@ -142,7 +142,6 @@ if TYPE_CHECKING:
         TalosStation,
         add_physical_talos,
         add_talos_station,
-        fall_time,
     )
     from .publishing import RobotStateMessage, add_signal_publisher, add_state_publisher
     from .solvers.hqp import ACTIVE_SET, SOLVERS
@@ -282,7 +281,8 @@ __all__ = [
     "engine_options",
     "entities",
     "entity",
-    "fall_time",
+    "fall_report",
+    "fall_thresholds",
     "footprint",
     "friction_ratio",
     "gotoNd",
@@ -315,6 +315,8 @@ __all__ = [
     "start_of",
     "support_polygon",
     "talos",
+    "tilt_of_quaternions",
+    "tilt_of_rotations",
     "trajectory_ports",
     "velocity_names",
     "write_control_graph",

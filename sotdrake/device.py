@@ -23,7 +23,7 @@ from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from .configuration import Layout, integrate, position_names
 from .entity import own_context
-from .exceptions import InvalidInput, SolverError, SotError, check_finite
+from .exceptions import InvalidInput, SolverError, SotError, check_finite, check_number
 from .ranges import MAX_JOINT_TARGET
 
 log = logging.getLogger("sotdrake.device")
@@ -35,14 +35,12 @@ class Device(LeafSystem):
     def __init__(self, plant: MultibodyPlant, dt: float, q0: np.ndarray, name: str = "device"):
         LeafSystem.__init__(self)
         self.set_name(name)
-        if not (np.isfinite(dt) and dt > 0):
-            raise InvalidInput(f"dt must be > 0, got {dt}")
-        self.dt = float(dt)
+        self.dt = check_number("dt (the control period)", dt, 1e-6, 1.0, " s")
         self.nq, self.nv = plant.num_positions(), plant.num_velocities()
         self.layout = Layout.of(plant)
         self._lower, self._upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
         self._coordinate_names = position_names(plant)
-        self.initial_position = check_finite("q0", q0, (self.nq,)).copy()
+        self.initial_position = self._checked_position("q0", q0)
         self.initial_position.flags.writeable = False
         self._q = self.DeclareDiscreteState(self.initial_position)
         self.control = self.DeclareVectorInputPort("control", self.nv)
@@ -70,12 +68,17 @@ class Device(LeafSystem):
 
         if recording():
             raise SotError(f"{self.get_name()}.set_position changes the state now: it cannot be recorded by attime")
-        q = check_finite("q (rad, m)", q, (self.nq,), MAX_JOINT_TARGET)
+        own_context(self, context).SetDiscreteState(self._q, self._checked_position(f"{self.get_name()}.set_position: q", q))
+
+    def _checked_position(self, label: str, q: np.ndarray) -> np.ndarray:
+        """``q`` as a new array: nq finite numbers within :data:`~sotdrake.ranges.MAX_JOINT_TARGET`,
+        the base quaternion (if any) of norm 1 ± 1e-3."""
+        q = check_finite(f"{label} (rad, m)", q, (self.nq,), MAX_JOINT_TARGET).copy()
         if self.layout.base_q is not None:
             norm = np.linalg.norm(q[self.layout.base_q : self.layout.base_q + 4])
             if abs(norm - 1.0) > 1e-3:
-                raise InvalidInput(f"{self.get_name()}.set_position: the base quaternion must have norm 1 (± 1e-3), got {norm:g}")
-        own_context(self, context).SetDiscreteState(self._q, q)
+                raise InvalidInput(f"{label}: the base quaternion must have norm 1 (± 1e-3), got {norm:g}")
+        return q
 
     def position(self, context: Context) -> np.ndarray:
         return own_context(self, context).get_discrete_state(self._q).get_value().copy()

@@ -21,6 +21,7 @@ command leaves everything unchanged.
 from __future__ import annotations
 
 import copy
+import logging
 import warnings
 import weakref
 from collections.abc import Callable, Iterator
@@ -31,6 +32,8 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafContext, LeafSystem
 
 from .exceptions import InvalidInput, SotError, SotWarning
+
+log = logging.getLogger("sotdrake.entity")
 
 S = TypeVar("S")
 
@@ -124,6 +127,8 @@ class Entity(LeafSystem, Generic[S]):
         # out): while one exists, a change of the defaults does not reach it.
         self._in_contexts: weakref.WeakSet[_Frozen] = weakref.WeakSet()
         self._warned_late_default = False
+        #: ``(time, message)`` of each timed command refused during a run (a record, like a log).
+        self.refused_commands: list[tuple[float, str]] = []
         self._declaring = True
         self._settings_index = self.DeclareAbstractState(AbstractValue.Make(_DefaultsSnapshot(self)))
         self._declaring = False
@@ -185,13 +190,20 @@ class Entity(LeafSystem, Generic[S]):
             SotWarning, stacklevel=4)
 
     def _declare_timed_change(self, time: float, changes: list[Callable[[S], None]]) -> None:
-        """A one-shot event at ``time`` that applies ``changes`` in order (see ``attime``)."""
+        """A one-shot event at ``time`` that applies ``changes`` in order (see ``attime``). A change
+        refused then (a :class:`SotError`, e.g. removing the last contact) leaves the settings as
+        they were, is logged and kept in :attr:`refused_commands`, and the run goes on."""
 
         def update(context, state):
             value = state.get_mutable_abstract_state(self._settings_index)
             new = copy.deepcopy(value.get_value().value)
-            for change in changes:
-                change(new)
+            try:
+                for change in changes:
+                    change(new)
+            except SotError as error:
+                log.warning("t = %.3f s: %s: a timed command was refused, nothing changed: %s", time, self.name, error)
+                self.refused_commands.append((float(time), str(error)))
+                return
             frozen = _Frozen(new)
             self._in_contexts.add(frozen)
             value.set_value(frozen)

@@ -44,6 +44,12 @@ class Robot:
     ):
         """``measured_position``: where the kinematics reads ``q`` (closed loop, e.g. a simulated
         robot's joints and estimated base); by default the device's own ``q`` (open loop)."""
+        if builder.already_built():
+            raise SotError("cannot add a robot: the diagram is already built (create the robot before builder.Build())")
+        taken = {system.get_name() for system in builder.GetSystems()} & {"dynamic", "device"}
+        if taken:
+            raise InvalidInput(f"this builder already holds systems named {sorted(taken)} (another robot?): one robot per "
+                               "DiagramBuilder (build each robot's graph in its own builder, or nest their diagrams)")
         self.builder = builder
         self.model = model
         self.OperationalPointsMap = model.OperationalPointsMap
@@ -86,7 +92,7 @@ class Robot:
         name = system.get_name()
         if not name:
             raise InvalidInput(f"a {type(system).__name__} needs a name to be added")
-        if name in self._names:
+        if name in self._names or any(system.get_name() == name for system in self.builder.GetSystems()):
             raise InvalidInput(f"an entity named {name!r} already exists")
         self._names.add(name)
         return self.builder.AddNamedSystem(name, system)

@@ -15,7 +15,7 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram
 
-from .exceptions import InvalidInput
+from .exceptions import InvalidInput, check_number
 from .interactive import MAX_DURATION
 from .introspection import all_systems
 
@@ -93,8 +93,8 @@ def simulate(diagram: Diagram, duration: float, visualizer=None, progress: bool 
 
     from .stack_checks import check_stack
 
-    if not duration > 0:
-        raise InvalidInput(f"duration must be > 0, got {duration}")
+    if check_number("duration", duration, 0.0, MAX_DURATION, " s") == 0:
+        raise InvalidInput("duration must be > 0 s, got 0")
     check_stack(diagram)
     simulator = Simulator(diagram)
     simulator.Initialize()
@@ -125,8 +125,9 @@ def save_figure(fig, path: Path, dpi: int = 100, tight: bool = True) -> Path:
 def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = None,
               meshcat: Meshcat | None = None, visualizer=None, graph: bool = True, bag: bool = False) -> dict:
     """Write ``trace.npz``, ``control_graph.svg`` (and ``.dot``), ``recording.html`` and
-    ``summary.json`` (with the paths written, and ``stalled_tasks``: the tasks whose error stopped
-    decreasing, with the error they were left at, see :mod:`sotdrake.progress`) in ``out``; with
+    ``summary.json`` (with the paths written, ``stalled_tasks``: the tasks whose error stopped
+    decreasing, with the error they were left at, see :mod:`sotdrake.progress`, and
+    ``refused_commands``: the timed commands refused during the run, by entity) in ``out``; with
     ``bag``, the trace as a rosbag2 too (``run/run.mcap``: :func:`sotdrake.ros.write_trace_bag`, the
     joints named by the diagram's ``dynamic`` entity; needs the ros2 extra); returns the paths."""
     from .progress import stalled_tasks
@@ -145,6 +146,8 @@ def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = N
     if bag and trace is not None:
         outputs["bag"] = _write_bag(out / "run", diagram, trace)
     summary.setdefault("stalled_tasks", stalled_tasks(diagram))
+    summary.setdefault("refused_commands", {system.get_name(): [{"t": t, "message": m} for t, m in system.refused_commands]
+                                            for system in all_systems(diagram) if getattr(system, "refused_commands", None)})
     summary["outputs"] = {k: str(v) for k, v in outputs.items()}
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     names = ", ".join(Path(p).name for p in outputs.values())

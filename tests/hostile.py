@@ -34,6 +34,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 CONTACT_TOLERANCE = 1e-4  # m
+#: Attempts a worker process runs before a fresh one takes over (bounds its memory).
+ATTEMPTS_PER_WORKER = 100
 
 
 # --- the fixture: the tutorial's graph with every task known to the solver ----------------------
@@ -52,7 +54,7 @@ class Fixture:
         return self.runner.context
 
 
-def build_fixture(solver: str = "cascade") -> Fixture:
+def build_fixture(solver: str = "cascade", dt: float = 1e-3) -> Fixture:
     from pydrake.systems.framework import DiagramBuilder
 
     from sotdrake.interactive import Runner
@@ -61,7 +63,7 @@ def build_fixture(solver: str = "cascade") -> Fixture:
     from sotdrake.robots import TALOS_GRIPPERS
 
     builder = DiagramBuilder()
-    robot = talos(builder)
+    robot = talos(builder, dt=dt)
     tasks = {
         "contactRF": MetaTaskKine6d("contactRF", robot, "RF", "right-ankle"),
         "contactLF": MetaTaskKine6d("contactLF", robot, "LF", "left-ankle"),
@@ -156,6 +158,31 @@ def _loader_with_bad_urdf(fx) -> None:
         load_talos("reduced")
     finally:
         loader.urdf_path = original
+
+
+def _builder():
+    from pydrake.systems.framework import DiagramBuilder
+
+    return DiagramBuilder()
+
+
+def _other_robot_task():
+    """A right-hand task ``taskrh`` of another robot (same name as the fixture's)."""
+    from sotdrake.meta_tasks import MetaTaskKine6d
+    from sotdrake.robot import add_sot, talos
+
+    other = talos(_builder())
+    task = MetaTaskKine6d("rh", other, "rh", "right-wrist")
+    add_sot(other)
+    return task
+
+
+def _file(name: str, text: str) -> str:
+    import tempfile
+
+    path = Path(tempfile.mkdtemp()) / name
+    path.write_text(text)
+    return str(path)
 
 
 def _new_robot():
@@ -315,6 +342,37 @@ def bad_inputs() -> list[tuple[str, Callable]]:
                         ("duration 0", ("torso_2_link", [1.0, 0, 0], 1.0, 0.0)), ("start -1", ("torso_2_link", [1.0, 0, 0], -1.0, 0.1)),
                         ("start 'a'", ("torso_2_link", [1.0, 0, 0], "a", 0.1)), ("force 2D", ("torso_2_link", [1.0, 0], 1.0, 0.1))]:
         table.append((f"Push({label})", lambda fx, a=args: Push(_physical().plant, *a)))
+    # robots, builders and the simulation
+    from pydrake.math import RigidTransform
+
+    from sotdrake.dynamics.trajectories import hold_move_hold
+    from sotdrake.robot import Robot
+    from sotdrake.robots import load_robot, load_talos
+    from sotdrake.simulation import simulate
+
+    for label, call in [
+        ("talos twice in one builder", lambda fx: (lambda b: (talos(b), talos(b)))(_builder())),
+        ("sot.push(another robot's task)", lambda fx: fx.sot.push(_other_robot_task(), c(fx))),
+        ("sot.addContact(another robot's task)", lambda fx: fx.sot.addContact(_other_robot_task(), c(fx))),
+        ("gotoNd(rh, RigidTransform scaled)", lambda fx: gotoNd(T(fx, "rh"), RigidTransform(np.diag([2.0, 2.0, 2.0, 1.0])), context=c(fx))),
+        ("gotoNd(rh, RigidTransform rank 2)", lambda fx: gotoNd(T(fx, "rh"), RigidTransform(np.diag([1.0, 1.0, 0.0, 1.0])), context=c(fx))),
+        ("Robot(q0 quaternion of norm 2)", lambda fx: Robot(_builder(), load_talos("reduced"), q0=_with(fx, 0, 2.0))),
+        ("Robot(q0 joint 1e6 rad)", lambda fx: Robot(_builder(), load_talos("reduced"), q0=_with(fx, 10, 1e6))),
+        ("Robot(q0 of the wrong size)", lambda fx: Robot(_builder(), load_talos("reduced"), q0=np.zeros(5))),
+        ("hold_move_hold(t, t)", lambda fx: hold_move_hold(1.0, 1.0, [0.0], [1.0])),
+        ("hold_move_hold(t1 < t0)", lambda fx: hold_move_hold(1.0, 0.5, [0.0], [1.0])),
+        ("hold_move_hold(sizes differ)", lambda fx: hold_move_hold(0.0, 1.0, [0.0], [1.0, 2.0])),
+        ("hold_move_hold(NaN target)", lambda fx: hold_move_hold(0.0, 1.0, [0.0], [NAN])),
+        ("simulate(diagram, inf)", lambda fx: simulate(fx.diagram, INF, progress=False)),
+        ("simulate(diagram, '1')", lambda fx: simulate(fx.diagram, "1", progress=False)),
+        ("talos(dt='0.001')", lambda fx: talos(_builder(), dt="0.001")),
+        ("posture.selectDof(1.5)", lambda fx: T(fx, "posture").feature.selectDof(1.5, True, c(fx))),
+        ("posture.selectDof(-1)", lambda fx: T(fx, "posture").feature.selectDof(-1, True, c(fx))),
+        ("posture.selectDof(3, 'yes')", lambda fx: T(fx, "posture").feature.selectDof(3, "yes", c(fx))),
+        ("load_robot(missing file)", lambda fx: load_robot(str(ROOT / "no_such_robot.urdf"))),
+        ("load_robot(not XML)", lambda fx: load_robot(_file("broken.urdf", "<robot name='r'><link name='a'/>"))),
+    ]:
+        table.append((label, call))
     if True:  # SolverKine-only commands: the fixture's solver must be a SolverKine
         add(_numbers("solver.setPositionMargin", lambda fx, v: _kine(fx).setPositionMargin(v, c(fx)), [-1.0, 1.0]))
         add(_numbers("solver.setBaseVelocityLimit(angular)", lambda fx, v: _kine(fx).setBaseVelocityLimit(v, 1.0, c(fx)), [0.0, -1.0, 1e3]))
@@ -382,7 +440,7 @@ def random_run(fx: Fixture, seed: int, duration: float = 0.1) -> dict:
     context.SetTimeStateAndParametersFrom(fx.default_context)
     description: dict = {"seed": seed, "solver": fx.solver}
     for name in ("contactRF", "contactLF"):
-        gain = _log_uniform(rng, 10.0, 1000.0)
+        gain = _log_uniform(rng, 10.0, 1.0 / robot.dt)
         fx.tasks[name].gain.setConstant(gain, context)
     sot.clear(context)
     mode = "addContact" if rng.random() < 0.5 else "push"
@@ -394,9 +452,9 @@ def random_run(fx: Fixture, seed: int, duration: float = 0.1) -> dict:
     for name in chosen:
         meta = fx.tasks[name]
         if rng.random() < 0.6:  # constant, or setByPoint(λ0, λ∞, e_ref, p), all with λ·dt < 2
-            gain = [_log_uniform(rng, 0.01, 1900.0)]
+            gain = [_log_uniform(rng, 0.01, 1.9 / robot.dt)]
         else:
-            gain0 = _log_uniform(rng, 1.0, 1900.0)
+            gain0 = _log_uniform(rng, 1.0, 1.9 / robot.dt)
             gain = [gain0, float(rng.uniform(0.0, gain0)), _log_uniform(rng, 1e-3, 1.0), float(rng.uniform(0.05, 0.95))]
         if name in ("rh", "lh"):
             target = rng.uniform(-5.0, 5.0, size=3) + [0.0, 0.0, 1.0]
@@ -415,12 +473,17 @@ def random_run(fx: Fixture, seed: int, duration: float = 0.1) -> dict:
     q0 = robot.device.position(context)
     start = {op: robot.dynamic.pose_at(op, q0).translation() for op in ("left-ankle", "right-ankle")}
     lower, upper = robot.model.plant.GetPositionLowerLimits(), robot.model.plant.GetPositionUpperLimits()
-    drift, violation, finite, scale = 0.0, 0.0, True, 1.0
-    steps = max(1, round(duration / (10 * robot.dt)))
+    drift, violation, finite, scale, frozen, failure = 0.0, 0.0, True, 1.0, 0, ""
+    own = sot.GetMyContextFromRoot(context)
+    diagnostics = sot.GetOutputPort("diagnostics") if sot.HasOutputPort("diagnostics") else None
     error = None
     try:
-        for _k in range(1, steps + 1):
-            simulator.AdvanceTo(context.get_time() + 10 * robot.dt)
+        for k in range(1, max(1, round(duration / robot.dt)) + 1):
+            if diagnostics is not None and diagnostics.Eval(own).failure:  # the device holds: a frozen tick
+                frozen += 1
+                failure = failure or diagnostics.Eval(own).failure[:200]
+            scale = min(scale, float(sot.GetOutputPort("velocity_scale").Eval(own)[0]))
+            simulator.AdvanceTo(k * robot.dt)
             q = robot.device.position(context)
             if not np.all(np.isfinite(q)):
                 finite = False
@@ -428,21 +491,22 @@ def random_run(fx: Fixture, seed: int, duration: float = 0.1) -> dict:
             for op, p0 in start.items():
                 drift = max(drift, float(np.linalg.norm(robot.dynamic.pose_at(op, q).translation() - p0)))
             violation = max(violation, float(np.max(np.maximum(lower - q, q - upper))))
-            scale = min(scale, float(sot.GetOutputPort("velocity_scale").Eval(sot.GetMyContextFromRoot(context))[0]))
     except Exception as exc:
         error = f"{type(exc).__name__}: {str(exc)[:200]}"
     description.update(contact_drift_m=drift, limit_violation=max(violation, 0.0), finite=finite,
-                       min_velocity_scale=scale, error=error, time=context.get_time())
+                       min_velocity_scale=scale, frozen_ticks=frozen, failure=failure, error=error,
+                       time=context.get_time(), dt=robot.dt)
     return description
 
 
 # --- the worker and the parent ----------------------------------------------------------------
-def worker(kind: str, solver: str, indices: list[int], duration: float) -> None:
-    """Run the attempts ``indices`` of ``kind`` on one fixture, printing JSON lines."""
+def worker(kind: str, solver: str, indices: list[int], duration: float, dt: float = 1e-3) -> None:
+    """Run the attempts ``indices`` of ``kind`` on one fixture (control period ``dt``), printing
+    JSON lines."""
     import logging
 
     logging.disable(logging.WARNING)
-    fx = None if kind == "crash" else build_fixture(solver)
+    fx = None if kind == "crash" else build_fixture(solver, dt)
     table = bad_inputs() if kind == "bad" else None
     for i in indices:
         print(json.dumps({"start": i}), flush=True)
@@ -450,7 +514,7 @@ def worker(kind: str, solver: str, indices: list[int], duration: float) -> None:
             label, call = table[i]
             result = attempt_bad_input(fx, label, call)
             if result["status"] == "accepted" or not result["unchanged"]:
-                fx = build_fixture(solver)  # the next attempt starts clean
+                fx = build_fixture(solver, dt)  # the next attempt starts clean
         elif kind == "crash":  # the harness' own check: this attempt ends the process
             os._exit(3) if i % 2 else os.abort()
         else:
@@ -459,16 +523,20 @@ def worker(kind: str, solver: str, indices: list[int], duration: float) -> None:
 
 
 def run_attempts(kind: str, solver: str, indices: list[int], duration: float = 0.1,
-                 timeout: float = 120.0, log: Path | None = None) -> dict[int, dict]:
+                 timeout: float = 120.0, log: Path | None = None, dt: float = 1e-3,
+                 per_worker: int = ATTEMPTS_PER_WORKER) -> dict[int, dict]:
     """Results by index; an attempt whose worker died is ``{"status": "process_exit", ...}``, one
     that stayed silent longer than ``timeout`` seconds ``{"status": "hang"}``. With ``log``, each
-    result is also appended to that file as a JSON line as it comes."""
+    result is also appended to that file as a JSON line as it comes. A worker runs at most
+    ``per_worker`` attempts, then a fresh one goes on (each diagram built keeps ~3 MB in a process:
+    recycling bounds the workers' memory)."""
 
     def record(index: int, result: dict) -> None:
         results[index] = result
         if log is not None:
             with open(log, "a") as f:
-                f.write(json.dumps({"kind": kind, "solver": solver, "index": index, "result": result}, default=repr) + "\n")
+                f.write(json.dumps({"kind": kind, "solver": solver, "dt": dt, "index": index, "result": result},
+                                   default=repr) + "\n")
 
     import queue
     import threading
@@ -477,8 +545,9 @@ def run_attempts(kind: str, solver: str, indices: list[int], duration: float = 0
     pending = list(indices)
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     while pending:
+        batch = pending[:per_worker]
         process = subprocess.Popen(
-            [sys.executable, "-m", "tests.hostile", "worker", kind, solver, json.dumps(pending), str(duration)],
+            [sys.executable, "-m", "tests.hostile", "worker", kind, solver, json.dumps(batch), str(duration), str(dt)],
             cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
         lines: queue.Queue = queue.Queue()
 
@@ -509,7 +578,7 @@ def run_attempts(kind: str, solver: str, indices: list[int], duration: float = 0
         process.wait()
         if current is not None and current not in results:
             record(current, {"status": "process_exit", "returncode": process.returncode})
-        if current is None:  # died outside an attempt (building the fixture): nothing to go on with
+        if current is None and not any(i in results for i in batch):  # died building the fixture: nothing to go on with
             for i in pending:
                 if i not in results:
                     record(i, {"status": "worker_failed", "returncode": process.returncode})
@@ -519,4 +588,4 @@ def run_attempts(kind: str, solver: str, indices: list[int], duration: float = 0
 
 if __name__ == "__main__":
     if sys.argv[1] == "worker":
-        worker(sys.argv[2], sys.argv[3], json.loads(sys.argv[4]), float(sys.argv[5]))
+        worker(sys.argv[2], sys.argv[3], json.loads(sys.argv[4]), float(sys.argv[5]), float(sys.argv[6]))

@@ -124,7 +124,8 @@ def test_a_fall_lands_on_the_ground(talos_model, body_collision):
     through the floor."""
     from pydrake.systems.analysis import Simulator
 
-    from sotdrake.physics import FALL_BASE_HEIGHT, add_talos_station, fall_time
+    from sotdrake.fall import fall_report, tilt_of_quaternions
+    from sotdrake.physics import add_talos_station
 
     builder = DiagramBuilder()
     station = add_talos_station(builder, talos_model.half_sitting, stiffness=1e-3, body_collision=body_collision)
@@ -135,14 +136,17 @@ def test_a_fall_lands_on_the_ground(talos_model, body_collision):
     context = simulator.get_mutable_context()
     diagram.get_input_port(0).FixValue(context, talos_model.half_sitting)
     diagram.get_input_port(1).FixValue(context, np.zeros(talos_model.nv))
-    heights, other, times = [], [], []
+    heights, tilts, other, times = [], [], [], []
     for t in np.arange(0.1, 1.51, 0.1):
         simulator.AdvanceTo(t)
-        heights.append(station.plant_state.Eval(station.physical.plant.GetMyContextFromRoot(context))[6])
+        x = station.plant_state.Eval(station.physical.plant.GetMyContextFromRoot(context))
+        heights.append(x[6])
+        tilts.append(tilt_of_quaternions(x[None, :4])[0])
         other.append(station.other_contact.Eval(station.monitor.GetMyContextFromRoot(context))[0])
         times.append(t)
     if body_collision:
-        assert 0.05 < heights[-1] < FALL_BASE_HEIGHT and max(other) > 100.0
-        assert fall_time(np.array(times), np.array(heights), np.array(other)) is not None
+        assert 0.05 < heights[-1] < 0.6 and max(other) > 100.0
+        report = fall_report(np.array(times), np.array(tilts), np.array(heights), other_contact=np.array(other))
+        assert report["fell"] and report["fell_at_s"] < 1.5
     else:
         assert heights[-1] < -0.3  # through the floor

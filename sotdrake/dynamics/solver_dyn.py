@@ -516,6 +516,8 @@ class SolverDyn(SOT):
             if len(held) == 1:
                 raise StackError(f"{self.name}.rmContact: {name!r} is the last contact; the robot would lose its support")
             if duration == 0:
+                log.warning("%s.rmContact(%r, 0): released at once, its load drops in one tick (the robot may tip); "
+                            "give a duration > 0 to ramp its force down", self.name, name)
                 s.contacts.remove(name)
             else:
                 s.releasing[name] = float(duration)

@@ -10,6 +10,7 @@ from pydrake.systems.framework import OutputPort
 from pydrake.systems.primitives import Demultiplexer, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
+from ..exceptions import InvalidInput, check_finite, check_number
 from .robot_dyn import RobotDyn
 
 
@@ -19,12 +20,17 @@ def minimum_jerk_moves(start: np.ndarray, moves: Sequence[tuple[float, float, np
     ``s(τ) = 10τ³ − 15τ⁴ + 6τ⁵`` (``τ = (t − t0)/(t1 − t0)``), held still between the moves and
     after the last until ``end`` (s), as Drake's cubic Hermite spline through ``samples`` points of
     each move with their exact velocities (so the acceleration follows the profile closely and
-    starts and ends near 0)."""
-    start = np.asarray(start, dtype=float)
+    starts and ends near 0). Each move must start at or after the previous one's end and last
+    > 0 s; the values are finite vectors of ``start``'s size."""
+    start = check_finite("minimum-jerk moves: start", start)
     times, values, rates = [0.0], [start], [np.zeros_like(start)]
     current = start
     for t0, t1, target in moves:
-        target = np.asarray(target, dtype=float)
+        t0 = check_number("minimum-jerk move: t0", t0, times[-1], end, " s")
+        t1 = check_number("minimum-jerk move: t1", t1, t0, end, " s")
+        if t1 == t0:
+            raise InvalidInput(f"minimum-jerk move: it must last > 0 s (t1 > t0), got t0 = t1 = {t0:g} s")
+        target = check_finite("minimum-jerk move: target", target, start.shape)
         for tau in np.linspace(0.0, 1.0, samples):
             s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
             ds = (30 * tau**2 - 60 * tau**3 + 30 * tau**4) / (t1 - t0)
@@ -40,8 +46,8 @@ def minimum_jerk_moves(start: np.ndarray, moves: Sequence[tuple[float, float, np
 
 
 def hold_move_hold(t0: float, t1: float, a: np.ndarray, b: np.ndarray) -> PiecewisePolynomial:
-    """``a`` until ``t0``, a minimum-jerk move to ``b`` at ``t1``, then ``b``."""
-    return minimum_jerk_moves(np.asarray(a, dtype=float), [(t0, t1, np.asarray(b, dtype=float))])
+    """``a`` until ``t0``, a minimum-jerk move to ``b`` at ``t1`` (``0 ≤ t0 < t1``, s), then ``b``."""
+    return minimum_jerk_moves(a, [(t0, t1, b)])
 
 
 def trajectory_ports(robot: RobotDyn, trajectory: PiecewisePolynomial, name: str) -> tuple[OutputPort, OutputPort, OutputPort]:

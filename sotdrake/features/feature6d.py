@@ -244,9 +244,8 @@ def as_transform(value, what: str) -> RigidTransform:
     ``generic6dReference`` accepts. A ``RigidTransform`` is copied: one read from a port of a
     Context refers into that Context and keeps it alive, and settings holding it would keep their
     own Context alive through it (a reference cycle that Python's collector cannot see)."""
-    if isinstance(value, RigidTransform):
-        check_finite(f"{what} translation (m)", value.translation(), bound=MAX_TARGET_POSITION)
-        return RigidTransform(value)
+    if isinstance(value, RigidTransform):  # (pydrake builds one from any 4×4 matrix: checked as a matrix)
+        value = value.GetAsMatrix4()
     array = check_finite(what, value)
     if array.shape == (4, 4):
         if not np.allclose(array[3], [0, 0, 0, 1]):

@@ -15,6 +15,7 @@ the optional inputs ``posture_in`` (nq) and ``postureDot_in`` (nv).
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -64,8 +65,10 @@ class FeaturePosture(Feature):
 
     def selectDof(self, index: int, selected: bool, context: Context | None = None) -> None:
         """Select (or not) the component of velocity index ``index`` (sot-core ``selectDof``)."""
-        if not 0 <= index < self.nv:
-            raise InvalidInput(f"{self.name}.selectDof: index {index} outside 0..{self.nv - 1}")
+        if isinstance(index, bool) or not isinstance(index, numbers.Integral) or not 0 <= index < self.nv:
+            raise InvalidInput(f"{self.name}.selectDof: index must be an integer in 0..{self.nv - 1}, got {index!r:.50}")
+        if not isinstance(selected, (bool, np.bool_)):
+            raise InvalidInput(f"{self.name}.selectDof: selected must be True or False, got {selected!r:.50}")
 
         def change(s):
             mask = np.array([c == "1" for c in reversed(s.selection)])

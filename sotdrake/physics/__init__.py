@@ -8,7 +8,6 @@ One concept a module:
 * :mod:`.actuators`: the PD-controlled actuators and their references (``DesiredState``);
 * :mod:`.estimator`: the closed loop's leg-odometry base estimate (``KinematicBaseEstimator``);
 * :mod:`.contact_monitor`: sole forces, centre of pressure, other bodies on the ground;
-* :mod:`.fall`: when the robot counts as fallen;
 * :mod:`.push`: an external push;
 * :mod:`.station`: all of the above wired as one station (``add_talos_station``).
 
@@ -26,7 +25,6 @@ from .actuators import (
 from .body_collision import fit_link_boxes
 from .contact_monitor import ContactMonitor
 from .estimator import KinematicBaseEstimator
-from .fall import FALL_BASE_HEIGHT, FALL_CONTACT_FORCE, fall_time
 from .plant import (
     FRICTION,
     SOLE_BOX,
@@ -40,8 +38,6 @@ from .station import TalosStation, add_talos_station
 
 __all__ = [
     "DAMPING_RANGE",
-    "FALL_BASE_HEIGHT",
-    "FALL_CONTACT_FORCE",
     "FRICTION",
     "MAX_PUSH_FORCE",
     "SOLE_BOX",
@@ -57,7 +53,6 @@ __all__ = [
     "add_physical_talos",
     "add_talos_station",
     "check_pd_gains",
-    "fall_time",
     "fit_link_boxes",
     "set_pd_gains",
 ]

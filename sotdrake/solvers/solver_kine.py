@@ -31,6 +31,7 @@ from .base_velocity import MAX_BASE_VELOCITY, default_base_velocity_limit
 from .hqp import ACTIVE_SET, HierarchicalQP, LevelRows, check_solver
 from .limits import VelocityBounds
 from .sot import SOT, StackSettings
+from .step_limit import clip_bounds
 
 log = logging.getLogger("sotdrake.solver_kine")
 
@@ -125,6 +126,8 @@ class SolverKine(SOT):
         task_levels = self._levels(context, s, check=False)
         lower, upper = self._bounds(self._position.Eval(context), self._period, s.position_margin, s.control_selection,
                                     s.base_velocity_limit)
+        if s.step_limit != np.inf:  # each tick's step within δ (see .step_limit)
+            lower, upper = clip_bounds(lower, upper, s.step_limit / self._period)
         diagnostics = HqpDiagnostics(tasks=(["contacts"] if s.contacts else []) + list(s.tasks))
         result = None
         if s.solver == ACTIVE_SET and all(level.upper is level.lower for level in task_levels):

@@ -27,6 +27,7 @@ from ..exceptions import InvalidInput, SolverError, StackError, TaskNotFound
 from ..task import Task, TaskLevel
 from .cascade import CascadeResult, cascade_factorization, cascade_residuals
 from .second_order import curvature_correction
+from .step_limit import DEFAULT_STEP_LIMIT, check_step_limit
 from .velocity_scaling import scale_to_limits, velocity_scale
 
 log = logging.getLogger("sotdrake.sot")
@@ -75,6 +76,7 @@ class StackSettings:
     damping: float = 0.0
     control_selection: np.ndarray | None = None  # nv booleans; None: every component
     velocity_limit: np.ndarray | None = None  # nv limits > 0 (inf: none); None: no scaling
+    step_limit: float = DEFAULT_STEP_LIMIT  # rad or m per tick (inf: none), see .step_limit
 
 
 class SOT(Entity[StackSettings]):
@@ -116,6 +118,7 @@ class SOT(Entity[StackSettings]):
         self.setThreshold(svd_threshold)
         self.setDamping(damping)
         self._task_ports: dict[str, InputPort] = {}
+        self._task_systems: dict[str, object] = {}  # the task system behind each port (its identity)
         self._inequality_tasks: set[str] = set()
         empty = CascadeResult(np.zeros(nv), np.zeros(0), np.zeros(0, dtype=int))
         # The solution depends on the inputs, the settings and the last tick; the last tick is
@@ -152,6 +155,7 @@ class SOT(Entity[StackSettings]):
         if task.nv != self.nv:
             raise InvalidInput(f"task {task.name} has nv = {task.nv}, solver {self.name} has nv = {self.nv}")
         if task.name not in self._task_ports:
+            self._task_systems[task.name] = task
             self._task_ports[task.name] = self.DeclareAbstractInputPort(
                 task.name, AbstractValue.Make(TaskLevel(np.zeros((0, self.nv)), np.zeros(0), np.zeros(0), np.zeros(0)))
             )
@@ -174,8 +178,14 @@ class SOT(Entity[StackSettings]):
         return name
 
     def _task_name(self, task: object) -> str:
-        """The known task name of a name, a ``Task`` or a meta task (its ``.task``)."""
-        return self._known(getattr(getattr(task, "task", task), "name", task))
+        """The known task name of a name, a ``Task`` or a meta task (its ``.task``); a task object
+        must be the one this solver reads (not another robot's task of the same name)."""
+        system = getattr(task, "task", task)
+        name = self._known(getattr(system, "name", task))
+        if not isinstance(task, str) and self._task_systems.get(name) is not system:
+            raise StackError(f"{self.name}: the task {name!r} given is not the one this solver reads (a task of another "
+                             "robot or diagram?): give this robot's task, or its name")
+        return name
 
     # --- stack commands (sot-core names) ---------------------------------------------------
     def push(self, name: object, context: Context | None = None) -> None:
@@ -326,6 +336,23 @@ class SOT(Entity[StackSettings]):
                 raise InvalidInput(f"{self.name}.setVelocityLimit: expected {self.nv} numbers > 0 (inf for none), got {limit!r:.200}")
         self._command(context, lambda s: setattr(s, "velocity_limit", value))
 
+    def setStepLimit(self, step: float, context: Context | None = None) -> None:
+        """Bound each component of the command by ``step / dt`` (``step`` in rad or m per tick, in
+        ``(0, 1]``, or ``inf`` for none; default 7e-3): the linearised tasks then hold over a tick,
+        held contacts within 0.1 mm at any control period (:mod:`.step_limit`). A solver without
+        ``dt`` has no tick and ignores it."""
+        value = check_step_limit(self.name, step)
+        self._command(context, lambda s: setattr(s, "step_limit", value))
+
+    def _velocity_limit(self, s: StackSettings) -> np.ndarray | None:
+        """The bound of the command: the velocity limit and the step limit's ``δ / dt``, or None."""
+        if self.dt is None or s.step_limit == np.inf:
+            return s.velocity_limit
+        cap = s.step_limit / self.dt
+        if s.velocity_limit is None:
+            return np.full(self.nv, cap)
+        return np.minimum(s.velocity_limit, cap)
+
     # --- solve -----------------------------------------------------------------------------
     def _remember(self, context: Context, discrete_state) -> None:
         """Keep this tick's command ``v`` and each level's ``J v`` (see :mod:`.second_order`). Drake
@@ -421,8 +448,9 @@ class SOT(Entity[StackSettings]):
             self._levels(context, s)  # a non-finite level: raises, naming the task
             raise SolverError(f"{self.name}: the cascade gave a non-finite control at t = {context.get_time()}")
         velocity, scale = result.velocity, 1.0
-        if s.velocity_limit is not None:
-            scale = velocity_scale(velocity, s.velocity_limit)
+        limit = self._velocity_limit(s)
+        if limit is not None:
+            scale = velocity_scale(velocity, limit)
             if scale < 1.0:
                 # The cascade is linear in the references (for its rank decisions, which depend on
                 # the Jacobians only): scale the tasks' ė* but not the curvature correction c (its
@@ -430,10 +458,10 @@ class SOT(Entity[StackSettings]):
                 # s·ė* - c = s·(ė* - c) - (1 - s)·c, then keep within the limits.
                 plain = [level.reference for level in self._levels(context, s, check=False, correct=False)]
                 pairs = [(J, scale * r - (1.0 - scale) * (p - r)) for (J, r), p in zip(pairs, plain, strict=False)]
-                velocity, second = scale_to_limits(result.solve([r for _, r in pairs]), s.velocity_limit)
+                velocity, second = scale_to_limits(result.solve([r for _, r in pairs]), limit)
                 scale *= second
                 if not self._warned_scaling:
                     self._warned_scaling = True
-                    log.warning("%s: t = %.3f s: the stack asks more than the velocity limits; the command is "
+                    log.warning("%s: t = %.3f s: the stack asks more than the velocity (or step) limits; the command is "
                                 "scaled by %.3g (warned once)", self.name, context.get_time(), scale)
         value.set_value(_CascadeSolution(velocity, result.ranks, pairs, scale, levels.tasks))

@@ -12,6 +12,12 @@ fills (a built diagram, say) is built once per worker, not once per case. The co
 workers this way: on a local runtime the workers get this process's ``sys.path``; on a cluster,
 ``sotdrake`` itself is shipped with the job (Ray's ``py_modules``) and the module of the case
 function (a script in ``diagrams/``, a test) is pickled by value, as are ``by_value`` modules.
+
+Memory: every diagram built in a process keeps about 3 MB that pydrake never frees (a plain Drake
+system does the same). A Ray worker runs at most :data:`CASES_PER_WORKER` cases and is then
+replaced by a fresh process, so a long sweep keeps each worker's memory bounded; the ``local``
+engine runs every case in this process, so its memory grows with the number of cases (use it for
+a few hundred cases at most).
 """
 
 from __future__ import annotations
@@ -28,6 +34,8 @@ from ..exceptions import InvalidInput, SotError
 from .table import make_row, write_csv, write_parquet
 
 ENGINES = ("local", "ray")
+#: Cases a Ray worker runs before it is replaced by a fresh process (its memory freed).
+CASES_PER_WORKER = 100
 CaseFunction = Callable[[dict], Mapping]
 
 
@@ -183,7 +191,7 @@ def run_ray(function: CaseFunction, cases: Sequence[Mapping], address: str | Non
     started = _start_ray(ray, address, num_cpus)
     try:
         workers = int(ray.cluster_resources().get("CPU", 1))
-        remote = ray.remote(num_cpus=1, max_retries=0)(_runner(function))
+        remote = ray.remote(num_cpus=1, max_retries=0, max_calls=CASES_PER_WORKER)(_runner(function))
         pending = {remote.remote(index, dict(case)): index for index, case in enumerate(cases)}
         rows = []
         with _progress(len(cases), progress, label) as bar:

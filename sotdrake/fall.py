@@ -1,0 +1,87 @@
+"""Did the robot fall? One criterion for every script's summary (kinematic, physics, dynamic).
+
+The robot *fell* at the first instant ``t`` where one of these holds:
+
+* ``tilt``: its floating base leans more than :data:`FALL_TILT_DEG` (30°) from upright, the angle
+  between the base's z axis and the world's, ``arccos(1 − 2(qx² + qy²))`` for Drake's unit
+  quaternion ``(qw, qx, qy, qz)``. TALOS standing, swaying or walking stays within 5°, and recovers from pushes that tilt it by 21°;
+* ``base drop``: the base is more than :data:`FALL_BASE_DROP_M` (0.25 m) below where it started (a
+  15 cm squat stays above it; lying on the ground is about 0.8 m below);
+* ``slip``: a sole that should hold slid more than :data:`FALL_SLIP_M` (5 cm) on the ground, in the
+  horizontal plane, from where it was when the run started;
+* ``contact``: a body other than the soles presses on the ground with more than
+  :data:`FALL_CONTACT_FORCE` (10 N: a knee, a hand, the pelvis), when the plant measures it;
+* ``non-finite``: the state is not finite any more.
+
+:func:`fall_report` returns ``fell``, ``fell_at_s``, ``fall_reason`` (the first of the reasons
+above, in this order, at that instant) and the margins (``max_base_tilt_deg``,
+``max_base_drop_m``, and ``max_sole_slip_m`` / ``max_other_contact_n`` when given), the same keys
+in every summary.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+FALL_TILT_DEG = 30.0  # deg
+FALL_BASE_DROP_M = 0.25  # m
+FALL_SLIP_M = 0.05  # m
+FALL_CONTACT_FORCE = 10.0  # N
+
+
+def fall_thresholds() -> dict[str, float]:
+    """The criterion's thresholds, as a summary records them."""
+    return {"fall_tilt_deg": FALL_TILT_DEG, "fall_base_drop_m": FALL_BASE_DROP_M, "fall_slip_m": FALL_SLIP_M,
+            "fall_contact_force_n": FALL_CONTACT_FORCE}
+
+
+def tilt_of_quaternions(quaternion_wxyz: np.ndarray) -> np.ndarray:
+    """Tilt (deg) from upright of each row of ``quaternion_wxyz`` (T × 4, Drake's order, normalised
+    here): ``arccos(1 − 2(qx² + qy²))``."""
+    quaternion = np.asarray(quaternion_wxyz, dtype=float)
+    quaternion = quaternion / np.linalg.norm(quaternion, axis=1, keepdims=True)
+    return np.degrees(np.arccos(np.clip(1 - 2 * (quaternion[:, 1] ** 2 + quaternion[:, 2] ** 2), -1, 1)))
+
+
+def tilt_of_rotations(R_WB: np.ndarray) -> np.ndarray:
+    """Tilt (deg) from upright of each rotation matrix of ``R_WB`` (T × 3 × 3, or poses T × 4 × 4):
+    ``arccos(R_zz)``."""
+    return np.degrees(np.arccos(np.clip(np.asarray(R_WB, dtype=float)[:, 2, 2], -1, 1)))
+
+
+def fall_report(time: np.ndarray, base_tilt_deg: np.ndarray, base_height: np.ndarray,
+                sole_slip: np.ndarray | None = None, other_contact: np.ndarray | None = None) -> dict:
+    """The criterion of the module docstring over a run sampled at ``time`` (T, s):
+    ``base_tilt_deg`` (T, from :func:`tilt_of_quaternions` or :func:`tilt_of_rotations`),
+    ``base_height`` (T, m, world z), optionally ``sole_slip`` (T, m: the largest horizontal
+    displacement of a held sole at each instant, 0 for a sole meant to move) and
+    ``other_contact`` (T, N). A non-finite sample is a fall (``non-finite``)."""
+    time = np.asarray(time, dtype=float)
+    tilt_in = np.asarray(base_tilt_deg, dtype=float)
+    height = np.asarray(base_height, dtype=float)
+    if not (time.shape == tilt_in.shape == height.shape) or time.ndim != 1 or not len(time):
+        raise ValueError(f"fall_report: time, tilt and height must be equal-length vectors, got {time.shape}, "
+                         f"{tilt_in.shape}, {height.shape}")
+    finite = np.isfinite(tilt_in) & np.isfinite(height)
+    if not finite[0]:
+        raise ValueError("fall_report: the run's first sample must be finite")
+    tilt = np.where(finite, tilt_in, 0.0)
+    drop = np.where(finite, height[0] - height, 0.0)
+    reasons = [("non-finite", ~finite), ("tilt", tilt > FALL_TILT_DEG), ("base drop", drop > FALL_BASE_DROP_M)]
+    report: dict = {"max_base_tilt_deg": float(tilt.max()), "max_base_drop_m": float(max(0.0, drop.max()))}
+    if sole_slip is not None:
+        slip = np.nan_to_num(np.asarray(sole_slip, dtype=float), nan=0.0)
+        reasons.append(("slip", slip > FALL_SLIP_M))
+        report["max_sole_slip_m"] = float(slip.max())
+    if other_contact is not None:
+        contact = np.nan_to_num(np.asarray(other_contact, dtype=float), nan=0.0)
+        reasons.append(("contact", contact > FALL_CONTACT_FORCE))
+        report["max_other_contact_n"] = float(contact.max())
+    fell = np.zeros(len(time), dtype=bool)
+    for _, flags in reasons:
+        fell |= flags
+    if not fell.any():
+        return {"fell": False, "fell_at_s": None, "fall_reason": None, **report}
+    k = int(np.argmax(fell))
+    reason = next(name for name, flags in reasons if flags[k])
+    return {"fell": True, "fell_at_s": float(time[k]), "fall_reason": reason, **report}

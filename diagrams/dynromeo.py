@@ -15,8 +15,9 @@ sot-dyninv's Romeo supports as CoP rectangles), under the CoM task (``kp`` 100) 
   sole rises 10 cm (2.0 → 3.5 s);
 * ``lift_leg_no_com``: the same stack without the CoM task: the seed's "what happens?".
 
-The summary says whether Romeo falls (``fell``, ``what_happens``). With no physics engine a fall
-is the solver failing to hold its own contact: with the CoM outside the left sole, no contact
+The summary says whether Romeo falls (``fell``, ``fell_at_s``, ``fall_reason``, ``what_happens``):
+by the criterion every script shares (:mod:`sotdrake.fall`) or, with no physics engine, by the
+held sole leaving its place (``sole moved``), which is the solver failing to hold its own contact: with the CoM outside the left sole, no contact
 force inside the sole can balance gravity, so the "held" left sole tips over its edge. The run
 stops once the CoM has dropped 0.3 m (there is no ground under ``RobotDynSimu``).
 
@@ -40,7 +41,18 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, Multiplexer
 
-from sotdrake import Tracer, add_robot_visualizer, attime, load_robot, save_figure, script_arguments, start, write_run
+from sotdrake import (
+    Tracer,
+    add_robot_visualizer,
+    attime,
+    fall_report,
+    load_robot,
+    save_figure,
+    script_arguments,
+    start,
+    tilt_of_quaternions,
+    write_run,
+)
 from sotdrake.dynamics.contact import Contact6d
 from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
@@ -190,8 +202,15 @@ def summarize(run: DynRomeo, simulator: Simulator, times: np.ndarray, duration: 
     left_move = np.linalg.norm(left[:, :3, 3] - left[0, :3, 3], axis=1)
     left_tilt = np.arccos(np.clip(left[:, 2, 2], -1.0, 1.0))  # angle between the sole's z and the world's
     com_drop = com[0, 2] - com[:, 2]
-    fell_at = np.flatnonzero(~finite | (left_move > FALL_SOLE_M) | (left_tilt > FALL_SOLE_RAD) | (com_drop > FALL_COM_DROP_M))
-    fell = bool(fell_at.size)
+    # The shared criterion (sotdrake.fall), and, without a ground under the dynamic device, the held
+    # sole leaving its place (1 cm, or 0.1 rad of tilt) or the CoM dropping 10 cm.
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fall = fall_report(t, np.where(finite, tilt_of_quaternions(x[:, :4]), np.nan), x[:, 6], left_move)
+    own = np.flatnonzero(~finite | (left_move > FALL_SOLE_M) | (left_tilt > FALL_SOLE_RAD) | (com_drop > FALL_COM_DROP_M))
+    if own.size and (not fall["fell"] or t[own[0]] < fall["fell_at_s"]):
+        fall.update(fell=True, fell_at_s=float(t[own[0]]), fall_reason="non-finite" if not finite[own[0]] else "sole moved")
+    fell = fall["fell"]
+    fell_at = np.flatnonzero(t >= fall["fell_at_s"]) if fell else np.zeros(0, dtype=int)
     wrenches = trace["wrenches"]
     released = t >= RELEASE[0] + RELEASE[1]
     standing = released & (t < (t[fell_at[0]] if fell else np.inf)) & (wrenches[:, 5] > 10.0)  # on the left sole, before any fall
@@ -205,7 +224,7 @@ def summarize(run: DynRomeo, simulator: Simulator, times: np.ndarray, duration: 
     summary: dict = {
         "robot": robot.model.name, "variant": robot.model.variant, "scenario": run.scenario, "device": "RobotDynSimu",
         "com_task": run.taskCom is not None, "duration_s": duration, "dt_s": robot.dt, "ticks": len(times),
-        "fell": fell, "fell_at_s": float(t[fell_at[0]]) if fell else None,
+        **fall,
         "max_left_sole_move_m": float(left_move.max()), "max_left_sole_tilt_rad": float(left_tilt.max()),
         "com_drop_m": float(com_drop.max()),
         "com_shift_at_end_m": (com[-1] - com[0]).tolist(),

@@ -1,16 +1,18 @@
 #!/usr/bin/env python3
 """Randomized SolverKine runs on TALOS: the hierarchical QP never fails, the limits always hold.
 
-    python bench/hqp_robot_runs.py                 # 300 runs of 60 ticks
-    python bench/hqp_robot_runs.py --runs 20 --ticks 40
+    python bench/hqp_robot_runs.py                 # 1000 runs of 150 ticks at 1, 2, 5 and 10 ms
+    python bench/hqp_robot_runs.py --runs 40 --ticks 60 --periods 5
 
-One diagram holds every task (both feet 6D, the CoM held or kept in a ±3 cm box, both hands, the
-posture); each run takes a fresh context and draws: a start configuration (half-sitting moved by a
-random velocity, clipped to the limits, so that some joints start on a limit), which tasks are in the
-stack and in which order (the feet first), hand targets near (≤ 15 cm) or far (up to 1 m, behind the
-back, unreachable), gains 1-20 /s, the position margin, and the solver's damping. Every tick checks
-the solver's diagnostics (a failure would hold the device: a *frozen tick*), the joint positions
-against their limits and the velocities against theirs. Prints a summary and writes it as JSON.
+One diagram per control period holds every task (both feet 6D, the CoM held or kept in a ±3 cm
+box, both hands, the posture); run ``i`` uses the period ``periods[i % len(periods)]``, takes a
+fresh context and draws: a start configuration (half-sitting moved by a random velocity, clipped to
+the limits, so that some joints start on a limit), which tasks are in the stack and in which order
+(the feet first), hand targets near (≤ 15 cm) or far (up to 1 m, behind the back, unreachable),
+position only or with an orientation, gains with ``λ·dt`` up to 0.5, the posture on all joints or a
+random subset, the position margin, and the solver's damping. Every tick checks the solver's
+diagnostics (a failure would hold the device: a *frozen tick*), the joint positions against their
+limits and the velocities against theirs. Prints a summary and writes it as JSON.
 """
 
 from __future__ import annotations
@@ -53,10 +55,10 @@ class Runs:
     posture: MetaTaskKinePosture
 
 
-def build(model=None) -> Runs:
+def build(model=None, dt: float = DT) -> Runs:
     """The diagram with every task declared (none pushed: each run builds its own stack)."""
     builder = DiagramBuilder()
-    robot = Robot(builder, model or load_talos("reduced"), DT)
+    robot = Robot(builder, model or load_talos("reduced"), dt)
     sot = add_sot(robot, solver="hqp")
     sot.setControlSelection(robot.velocity_selection(GRIPPERS))
     feet = [MetaTaskKine6d(name, robot, name[-2:], robot.OperationalPointsMap[op])
@@ -80,22 +82,24 @@ def start_configuration(model, rng) -> np.ndarray:
 def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
     """One random run (see the module docstring): counts of frozen ticks and limit violations."""
     robot, sot, model = runs.robot, runs.sot, runs.robot.model
+    dt = robot.dt
+    top_gain = min(20.0, 0.5 / dt)  # λ·dt ≤ 0.5
     context = runs.diagram.CreateDefaultContext()
     robot.device.set_position(context, start_configuration(model, rng))
     stack = []
     if rng.random() < 0.9:
         for foot in runs.feet:
             foot.keep(context)
-            foot.gain.setConstant(rng.uniform(1, 20), context)
+            foot.gain.setConstant(rng.uniform(1, top_gain), context)
             stack.append(foot.task.name)
     com_kind = rng.choice(["held", "box", "none"])
     if com_kind == "held":
         runs.com.keep(context)
-        runs.com.gain.setConstant(rng.uniform(1, 20), context)
+        runs.com.gain.setConstant(rng.uniform(1, top_gain), context)
         stack.append(runs.com.task.name)
     elif com_kind == "box":
         runs.com_box.keep(context)
-        runs.com_box.gain.setConstant(rng.uniform(1, 20), context)
+        runs.com_box.gain.setConstant(rng.uniform(1, top_gain), context)
         runs.com_box.task.setBounds([-0.03, -0.03], [0.03, 0.03], context)
         stack.append(runs.com_box.task.name)
     targets = []
@@ -106,12 +110,19 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
                 target = here + rng.uniform(-0.15, 0.15, 3)
             else:
                 target = rng.uniform([-0.8, -1.0, 0.0], [1.2, 1.0, 2.0])
-            gotoNd(hand, target, "111", rng.uniform(1, 20), context=context)
+            if rng.random() < 0.3:  # with an orientation (roll, pitch, yaw)
+                target, selection = [*target, *rng.uniform(-np.pi, np.pi, 3)], "111111"
+            else:
+                selection = "111"
+            gotoNd(hand, target, selection, rng.uniform(1, top_gain), context=context)
             targets.append(hand.task.name)
     order = rng.permutation(len(targets))
     stack += [targets[i] for i in order]
     if rng.random() < 0.5:
         runs.posture.gain.setConstant(rng.uniform(0.5, 5), context)
+        if rng.random() < 0.5:  # a random subset of the joints
+            for index in rng.choice(model.nv, size=int(rng.integers(1, model.nv)), replace=False):
+                runs.posture.feature.selectDof(int(index), False, context)
         stack.append(runs.posture.task.name)
     own = sot.GetMyContextFromRoot(context)
     for name in stack:
@@ -143,11 +154,11 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
         by_active_bounds += diagnostics.level_solvers[:1] == ["active-bounds"]  # the whole stack at once
         iv = layout.joints_v
         velocity_violations += int(np.any(v[iv] < v_lower[iv] - 1e-9) or np.any(v[iv] > v_upper[iv] + 1e-9))
-        simulator.AdvanceTo((k + 1) * DT)
+        simulator.AdvanceTo((k + 1) * dt)
         q = robot.device.position(simulator.get_context())
         iq = layout.joints_q
         position_violations += int(np.any(q[iq] < lower[iq] - 1e-9) or np.any(q[iq] > upper[iq] + 1e-9))
-    return {"stack": stack, "frozen_ticks": frozen, "position_limit_violations": position_violations,
+    return {"dt": dt, "stack": stack, "frozen_ticks": frozen, "position_limit_violations": position_violations,
             "velocity_limit_violations": velocity_violations, "ticks_with_active_limits": active,
             "solve_times_s": solve_times, "failures": failures[:3], "ticks_with_a_fallback": fallbacks,
             "ticks_with_a_drake_fallback": drake,
@@ -156,8 +167,9 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--runs", type=int, default=300)
-    parser.add_argument("--ticks", type=int, default=60)
+    parser.add_argument("--runs", type=int, default=1000)
+    parser.add_argument("--ticks", type=int, default=150)
+    parser.add_argument("--periods", default="1,2,5,10", help="control periods (ms), comma-separated")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--only", type=int, nargs="*", help="run only these run indices")
     parser.add_argument("--out", type=Path, default=HERE / "results" / "hqp_robot_runs.json")
@@ -165,23 +177,31 @@ def main(argv=None) -> dict:
     import logging
 
     logging.disable(logging.WARNING)
-    runs = build()
+    periods = [float(p) * 1e-3 for p in args.periods.split(",")]
+    model = load_talos("reduced")
+    diagrams = {dt: build(model, dt) for dt in periods}
     load_compiled_paths()  # (their first call is not a solve time)
     start = time.perf_counter()
     indices = args.only if args.only else range(args.runs)
     results = []
-    for i in indices:
-        results.append(one_run(runs, np.random.default_rng(args.seed + i), args.ticks))
-        if results[-1]["failures"]:
+    for k, i in enumerate(indices):
+        results.append(one_run(diagrams[periods[i % len(periods)]], np.random.default_rng(args.seed + i), args.ticks))
+        if results[-1]["frozen_ticks"]:
             print(f"run {i}: {results[-1]['failures']}", file=sys.stderr, flush=True)
+        if (k + 1) % 100 == 0:
+            print(f"{k + 1} runs, {sum(r['frozen_ticks'] > 0 for r in results)} with a frozen tick", file=sys.stderr, flush=True)
     wall = time.perf_counter() - start
     times = 1e3 * np.concatenate([r["solve_times_s"] for r in results])
+
+    def counts(rows: list[dict]) -> dict:
+        return {"runs": len(rows), "runs_with_a_frozen_tick": sum(r["frozen_ticks"] > 0 for r in rows),
+                "frozen_ticks": sum(r["frozen_ticks"] for r in rows),
+                "position_limit_violations": sum(r["position_limit_violations"] for r in rows),
+                "velocity_limit_violations": sum(r["velocity_limit_violations"] for r in rows)}
+
     summary = {
-        "runs": len(results), "ticks_per_run": args.ticks, "ticks": len(results) * args.ticks,
-        "runs_with_a_frozen_tick": sum(r["frozen_ticks"] > 0 for r in results),
-        "frozen_ticks": sum(r["frozen_ticks"] for r in results),
-        "position_limit_violations": sum(r["position_limit_violations"] for r in results),
-        "velocity_limit_violations": sum(r["velocity_limit_violations"] for r in results),
+        **counts(results), "ticks_per_run": args.ticks, "ticks": len(results) * args.ticks,
+        "by_period_ms": {f"{dt * 1e3:g}": counts([r for r in results if r["dt"] == dt]) for dt in periods},
         "ticks_with_active_limits": sum(r["ticks_with_active_limits"] for r in results),
         "ticks_with_a_fallback": sum(r["ticks_with_a_fallback"] for r in results),
         "ticks_with_a_drake_fallback": sum(r["ticks_with_a_drake_fallback"] for r in results),

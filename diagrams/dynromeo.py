@@ -17,9 +17,9 @@ sot-dyninv's Romeo supports as CoP rectangles), under the CoM task (``kp`` 100) 
 
 The summary says whether Romeo falls (``fell``, ``fell_at_s``, ``fall_reason``, ``what_happens``):
 by the criterion every script shares (:mod:`sotdrake.fall`) or, with no physics engine, by the
-held sole leaving its place (``sole moved``), which is the solver failing to hold its own contact: with the CoM outside the left sole, no contact
-force inside the sole can balance gravity, so the "held" left sole tips over its edge. The run
-stops once the CoM has dropped 0.3 m (there is no ground under ``RobotDynSimu``).
+held sole leaving its place (``sole moved``), which is the solver failing to hold its own contact:
+with the CoM outside the left sole, no contact force inside the sole can balance gravity, so the
+"held" left sole tips over its edge. The run stops once the CoM has dropped 0.3 m (there is no ground under ``RobotDynSimu``).
 
     python diagrams/dynromeo.py --scenario lift_leg_no_com --duration 4 --out out/dynromeo_no_com
 

@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from sotdrake import tilt_of_quaternions
 from sotdrake.exceptions import InvalidInput
 from sotdrake.sweep import read_csv, run_sweep
 from tests.conftest import load_diagram
@@ -60,7 +61,7 @@ def test_push_direction_and_base_tilt(push_map):
     q = np.array([[1, 0, 0, 0], [np.cos(np.radians(20)), np.sin(np.radians(20)), 0, 0],
                   [np.cos(np.radians(20)) * half, np.sin(np.radians(20)) * half, np.sin(np.radians(20)) * half,
                    np.cos(np.radians(20)) * half]])
-    assert push_map.base_tilt_deg(q) == pytest.approx([0, 40, 40], abs=1e-9)
+    assert tilt_of_quaternions(q) == pytest.approx([0, 40, 40], abs=1e-9)
 
 
 @pytest.mark.slow

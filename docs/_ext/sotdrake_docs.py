@@ -97,6 +97,7 @@ def hostile_tables(d: dict) -> list[str]:
         "process_exits",
         "hangs",
         "nan",
+        "frozen_ticks",
         "max_contact_drift_m",
         "contacts_beyond_tolerance",
         "runs_with_limit_violation",

@@ -115,6 +115,7 @@ def main(argv: list[str] | None = None) -> dict:
             "runs_scaled": sum(1 for r in done if r["min_velocity_scale"] < 1.0),
             "min_velocity_scale": min((r["min_velocity_scale"] for r in done), default=None),
             "worst_seeds": [r["seed"] for r in sorted(done, key=lambda r: -r["contact_drift_m"])[:5]],
+            "max_worker_rss_mb": max((r.get("worker_max_rss_mb", 0.0) for r in done), default=None),
         }
     summary["wall_s"] = time.perf_counter() - start
     args.out.parent.mkdir(parents=True, exist_ok=True)

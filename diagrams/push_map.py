@@ -159,8 +159,15 @@ def main(argv: list[str] | None = None) -> dict:
         "load_average_after": result.load_average_after,
         **settings,
         "tables": {k: str(v) for k, v in paths.items()},
+        "case_results": [{k: r.get(k) for k in ("magnitude_n", "direction_deg", "push_duration_s", "impulse_ns", "fell",
+                                                "fall_reason", "max_base_tilt_deg", "max_sole_slip_m", "base_drift_m")}
+                         for r in ok],
     }
-    write_run(args.out, talos_physics.build_diagram("stand", "open", push_force(100.0, 0.0)).diagram, summary)
+    if args.controller == "dynamic":
+        diagram = talos_dynamics.build_diagram("push", "physics", pushes=((args.push_start, 0.1, push_force(100.0, 0.0)),)).diagram
+    else:
+        diagram = talos_physics.build_diagram("stand", "open", push_force(100.0, 0.0)).diagram
+    write_run(args.out, diagram, summary)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import resource
 import subprocess
 import sys
 from collections.abc import Callable
@@ -519,6 +520,7 @@ def worker(kind: str, solver: str, indices: list[int], duration: float, dt: floa
             os._exit(3) if i % 2 else os.abort()
         else:
             result = random_run(fx, i, duration)
+        result["worker_max_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # (Linux: kB)
         print(json.dumps({"done": i, "result": result}, default=repr), flush=True)
 
 

@@ -104,6 +104,7 @@ def hostile_tables(d: dict) -> list[str]:
         "max_limit_violation",
         "runs_scaled",
         "min_velocity_scale",
+        "max_worker_rss_mb",
     ]
     runs = d.get("runs", {})
     lines += _table(["measure", *runs], [[k, *[runs[s].get(k) for s in runs]] for k in keys])
@@ -217,7 +218,25 @@ def reference_tables(d: dict) -> list[str]:
         return [*lines, *_table(["measure", "value"], [[k, d.get(k)] for k in keys if k in d])]
 
 
+def push_map_table(d: dict, name: str) -> list[str]:
+    controller = d.get("controller", "kinematic")
+    lines = [
+        f"### Torso pushes on TALOS standing, {controller} controller (`bench/results/{name}`)",
+        "",
+        f"Regenerate with `.venv/bin/python diagrams/push_map.py --controller {controller} --magnitudes 100,200,300 "
+        "--directions 2 --push-durations 0.1,0.2 --out out/push` and copy its `summary.json`. A fall is the shared "
+        f"criterion: tilt > {_num(d.get('fall_tilt_deg'))}°, base drop > {_num(d.get('fall_base_drop_m'))} m, "
+        f"a held sole slid > {_num(d.get('fall_slip_m'))} m, another body on the ground.",
+        "",
+    ]
+    keys = ["magnitude_n", "direction_deg", "push_duration_s", "impulse_ns", "fell", "fall_reason", "max_base_tilt_deg",
+            "max_sole_slip_m", "base_drift_m"]
+    return lines + _table(keys, [[row.get(k) for k in keys] for row in d.get("case_results", [])])
+
+
 RENDERERS = {
+    "push_map_kinematic.json": lambda d: push_map_table(d, "push_map_kinematic.json"),
+    "push_map_dynamic.json": lambda d: push_map_table(d, "push_map_dynamic.json"),
     "dynamics.json": dynamics_tables,
     "hostile.json": hostile_tables,
     "hqp_kernels.json": hqp_kernels_table,

@@ -37,8 +37,19 @@ def test_kineromeo_hand_closes_in_with_feet_and_com_held(kineromeo, tmp_path):
     hand_error = np.linalg.norm(trace["hand_position"] - summary["target_m"], axis=1)
     assert np.all(np.diff(hand_error) <= 1e-12)  # monotonic
     graph = (tmp_path / "control_graph.dot").read_text()
-    for entity in ("sot", "device", "dynamic", "taskrh", "taskcom", "taskcontactLF"):
+    for entity in ("solver", "joint_limitator", "device", "dynamic", "taskrh", "taskcom", "taskcontactLF"):
         assert entity in graph
+    assert summary["joint_limitator"] and summary["min_joint_limit_margin_rad"] >= 0.0
+
+
+def test_kineromeo_joint_limitator_keeps_g1_knees_within_their_limits(kineromeo, tmp_path):
+    """G1's knees reach full extension (their lower limit) 0.47 s into the reach: the bare SOT
+    takes them past it, the seed's Solver(robot) stops them there."""
+    args = ["--robot", "g1", "--duration", "0.7", "--quiet", "--no-meshcat"]
+    bare = kineromeo.main([*args, "--no-limitator", "--out", str(tmp_path / "bare")])
+    assert not bare["joint_limitator"] and bare["min_joint_limit_margin_rad"] < 0.0
+    wrapped = kineromeo.main([*args, "--out", str(tmp_path / "wrapped")])
+    assert wrapped["joint_limitator"] and wrapped["min_joint_limit_margin_rad"] >= 0.0
 
 
 def test_pr2_reach_moves_the_base_and_the_arm_within_limits(pr2_reach, tmp_path):

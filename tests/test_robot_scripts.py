@@ -130,3 +130,21 @@ def test_planche_com_inside_the_shrunken_support_before_the_foot_leaves(planche,
     trace = np.load(tmp_path / "trace.npz")
     lifted = trace["time"] >= planche.T["lift"]
     assert np.all(trace["com_margin"][lifted] >= -1e-5)
+
+
+@pytest.mark.slow
+def test_planche_full_variant_extends_arms_foot_and_head_the_reduced_does_not(planche, tmp_path):
+    """The seed's WITH_FULL_EXTENTION: after the arms (7.05 s) and the foot and head (11.2 s) steps,
+    the shoulders' yaws, the right ankle's pitch and the neck's pitch have gone toward their
+    targets (∓π/2, 0.73, −π/4), each as far as its joint limit lets it; the reduced variant keeps
+    them near half-sitting. The CoM stays over the shrunken support on one foot in both."""
+    end = planche.FULL["foot"] + 1.0
+    args = ["--duration", str(end), "--quiet", "--no-meshcat"]
+    full = planche.main([*args, "--out", str(tmp_path / "full")])
+    reduced = planche.main([*args, "--variant", "reduced", "--out", str(tmp_path / "reduced")])
+    assert (full["planche_variant"], reduced["planche_variant"]) == ("full", "reduced")
+    assert full["min_right_shoulder_yaw_rad"] < -1.1 and reduced["min_right_shoulder_yaw_rad"] > -0.7  # half-sitting: −0.6
+    assert full["max_right_ankle_pitch_rad"] > 0.6 and reduced["max_right_ankle_pitch_rad"] < 0.1
+    assert full["min_neck_pitch_rad"] < -0.3 and reduced["min_neck_pitch_rad"] > -0.1
+    for summary in (full, reduced):
+        assert summary["min_com_margin_single_support_m"] >= -1e-5 and summary["min_joint_limit_margin_rad"] >= 0.0

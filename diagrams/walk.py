@@ -6,11 +6,12 @@
 order: the waist's height, roll and pitch (``taskWaist``, ``'011100'``), both soles in 6D
 (``taskRF``, ``taskLF``), the CoM in x, y (``taskCom``, ``'011'``, with the planned CoM velocity as
 feed-forward), then the head's orientation following the right foot (``taskHead``, ``'110000'``: pitch and yaw),
-the waist's yaw (``taskWaistOr``, ``'100000'``) and, with ``SolverKine`` (``--solver hqp``, the
-default), both wrists kept from moving backward relative to the waist (``taskArmL``,
-``taskArmR``: ``TaskInequality`` on the x of ``FeatureRelative6d``); ``--arms posture``: instead,
-walkromeo's arm task, the arm joints held at half-sitting by a posture task (``taskArms``, gain
-0.1 /s) at the bottom (either solver). Every moving target comes with its velocity (feed-forward).
+the waist's yaw (``taskWaistOr``, ``'100000'``) and walkromeo's arm task, the arm joints held at
+half-sitting by a posture task at the bottom (``taskArms``, gain 0.1 /s; ``--arms posture``, the
+default); ``--arms inequality``: instead, with ``SolverKine`` (``--solver hqp``, the default), both
+wrists kept from moving backward relative to the waist (``taskArmL``, ``taskArmR``:
+``TaskInequality`` on the x of ``FeatureRelative6d``). Every moving target comes with its velocity
+(feed-forward).
 
 ``--mode kinematic``: the SoT integrates its velocity at 1 kHz (no dynamics). ``--mode physics``:
 the same control graph drives the physically simulated TALOS through position servos (the PD
@@ -132,10 +133,10 @@ SEED_GAINS = (40.0, 5.0)
 SLIP_LOAD_N = 100.0
 #: How far (m) a wrist may move back, relative to the waist, from where it started.
 ARM_BACKWARD_MARGIN = 0.01
-#: What keeps the arms (``--arms``): ``inequality``, the wrists kept from moving backward relative to
-#: the waist (``SolverKine`` only); ``posture``, walkromeo's ``taskPosition``, the arm joints held at
-#: half-sitting by a posture task at the bottom of the stack (both solvers).
-ARMS = ("inequality", "posture")
+#: What keeps the arms (``--arms``): ``posture`` (the default), walkromeo's ``taskPosition``, the arm
+#: joints held at half-sitting by a posture task at the bottom of the stack (both solvers);
+#: ``inequality``, the wrists kept from moving backward relative to the waist (``SolverKine`` only).
+ARMS = ("posture", "inequality")
 #: The arm joints (TALOS', Romeo's) of the ``posture`` arms.
 ARM_JOINTS = re.compile(r"^arm_(left|right)_[1-7]_joint$|^[LR](Shoulder|Elbow|Wrist)")
 #: walkromeo's gain of its arm posture: ``GainAdaptive.set(0.1, 0.1, 125e3)``, a constant 0.1 /s.
@@ -182,11 +183,12 @@ class Walk:
 def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | None = None,
                   steps: tuple[int, float] | None = None, mode: str = "kinematic", solver: str = "hqp",
                   dt: float = 1e-3, gait: GaitParameters | None = None, meshcat: Meshcat | None = None,
-                  servos: Servos | None = None, multibody_zmp: bool | None = None, arms: str = "inequality",
+                  servos: Servos | None = None, multibody_zmp: bool | None = None, arms: str = "posture",
                   gains: tuple[float, float] = (TRACKING_GAIN, POSTURE_GAIN)) -> Walk:
     """The walk's diagram. ``velocity``: the command from t = 0; ``then``: ``(T, x, y, θ)``, a new
     command at T; ``steps``: ``(n, length)`` instead of a velocity; ``solver``: ``'hqp'``
-    (``SolverKine``, with the arms' inequality tasks) or ``'cascade'`` (basic ``SOT``, without them);
+    (``SolverKine``) or ``'cascade'`` (basic ``SOT``, which takes no inequality: ``arms='inequality'``
+    is then left out);
     ``servos``: the physics mode's servo options (:class:`Servos`); ``multibody_zmp``: the CoM is
     planned with the legs' momentum (:func:`~sotdrake.walking.multibody_zmp.leg_masses`), kinematic
     and physics modes (None: in physics mode only); ``arms``: one of :data:`ARMS` (kinematic and
@@ -669,9 +671,9 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--solver", choices=["hqp", "cascade"], default="hqp")
     parser.add_argument("--gains", type=float, nargs=2, default=(TRACKING_GAIN, POSTURE_GAIN), metavar=("TRACKING", "ORIENTATION"),
                         help=f"the tracking and orientation gains (1/s; walkromeo's: {SEED_GAINS[0]:g} {SEED_GAINS[1]:g})")
-    parser.add_argument("--arms", choices=ARMS, default="inequality",
-                        help="inequality: the wrists kept from moving backward (hqp only); posture: walkromeo's, the arm "
-                             "joints held at half-sitting")
+    parser.add_argument("--arms", choices=ARMS, default="posture",
+                        help="posture: walkromeo's, the arm joints held at half-sitting; inequality: the wrists kept from "
+                             "moving backward (hqp only)")
     parser.add_argument("--step-duration", type=float, default=None, help="a step's duration (s; default 0.8, as walkromeo)")
     parser.add_argument("--single-support", type=float, default=None, help="its single support (s; default 0.7)")
     parser.add_argument("--landing-depth", type=float, default=None, help="the swing ends this far below the ground (m; default 0)")

@@ -56,6 +56,7 @@ from sotdrake import (
     MetaTaskKineCom,
     MetaTaskKinePosture,
     Robot,
+    Solver,
     Tracer,
     add_sot,
     attime,
@@ -187,8 +188,8 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
                   gains: tuple[float, float] = (TRACKING_GAIN, POSTURE_GAIN)) -> Walk:
     """The walk's diagram. ``velocity``: the command from t = 0; ``then``: ``(T, x, y, θ)``, a new
     command at T; ``steps``: ``(n, length)`` instead of a velocity; ``solver``: ``'hqp'``
-    (``SolverKine``) or ``'cascade'`` (basic ``SOT``, which takes no inequality: ``arms='inequality'``
-    is then left out);
+    (``SolverKine``) or ``'cascade'`` (walkromeo's ``Solver(robot)``: the basic ``SOT`` through a
+    ``JointLimitator``; it takes no inequality: ``arms='inequality'`` is then left out);
     ``servos``: the physics mode's servo options (:class:`Servos`); ``multibody_zmp``: the CoM is
     planned with the legs' momentum (:func:`~sotdrake.walking.multibody_zmp.leg_masses`), kinematic
     and physics modes (None: in physics mode only); ``arms``: one of :data:`ARMS` (kinematic and
@@ -238,7 +239,8 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     if then is not None:
         commands.append(attime(then[0], lambda: pg.setVelocity(*then[1:]), f"pg.setVelocity{tuple(then[1:])}"))
 
-    sot = add_sot(bot, "sot", solver=solver)
+    # walkromeo's ``solver = Solver(robot)``: the basic SOT through a JointLimitator; the HQP holds the limits itself.
+    sot = Solver(bot, "cascade", name="sot").sot if solver == "cascade" else add_sot(bot, "sot", solver=solver)
     sot.setControlSelection(bot.velocity_selection(excluding=list(spec.excluded)))
     connect = builder.Connect
     tasks = {}
@@ -309,7 +311,8 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
         plant = physical.plant
         desired = bot.add(DesiredState(physical))
         connect(bot.device.GetOutputPort("state"), desired.GetInputPort("position"))
-        connect(sot.GetOutputPort("control"), desired.GetInputPort("velocity"))
+        control = bot.limitator if bot.limitator is not None else sot  # the command the device integrates
+        connect(control.GetOutputPort("control"), desired.GetInputPort("velocity"))
         connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))
         monitor = bot.add(ContactMonitor(physical))
         connect(plant.get_contact_results_output_port(), monitor.get_input_port())

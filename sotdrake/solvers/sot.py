@@ -246,7 +246,9 @@ class SOT(Entity[StackSettings]):
         constraints); ``rmContact`` removes it. ``priority="bottom"``: sot-dyninv's kinematic
         ``SolverKine.addContact``, i.e. the meta task's ``keep()`` (its target ← where the op point is
         now) then ``push``: the contact is an ordinary task at the bottom of the stack, below every
-        task pushed before it (a hand pushed first may then pull the feet); ``remove`` removes it."""
+        task pushed before it (a hand pushed first may then pull the feet); ``remove`` removes it.
+        Given a task or a name, not a meta task, nothing is kept (the target stays as it is); the
+        ``keep()`` reads the current pose, so ``"bottom"`` is refused inside ``attime``."""
         if priority not in ("top", "bottom"):
             raise InvalidInput(f"{self.name}.addContact: priority must be 'top' (the contact level, above the stack) "
                                f"or 'bottom' (keep() then push, the seed's SolverKine.addContact), got {priority!r}")

@@ -5,7 +5,10 @@ tasks, the viewer, and run.
 * the robot: ``robot(builder, "romeo")`` (sot-romeo's ``robot = Robot('robot')``): Romeo (the
   ``small`` model, sot-romeo's 31 joints) in half-sitting, with ``dynamic`` and ``device`` plugged;
   ``--robot`` takes any humanoid of the catalog (talos, icub, g1), whose op points carry the same names;
-* the solver: the basic ``SOT`` or ``SolverKine`` (``--solver hqp``: joint limits hard);
+* the solver: the seed's ``solver = Solver(robot)``: the basic ``SOT`` (SVD threshold 1e-6) with a
+  ``JointLimitator`` between its control and the device's, which stops a joint whose next position
+  would leave its limits (``--solver hqp``: ``SolverKine``, joint limits also hard in the QP;
+  ``--no-limitator``: the bare solver plugged into the device);
 * the tasks: both ankles held (``contactRF``, ``contactLF``: gain 10, ``keep()``), the CoM held in
   X and Y (``selec = '011'``, gain 10), the right hand (``right-wrist`` moved by ``opmodif``
   (0.1, 0, 0)) sent by ``gotoNd(taskRH, (0.5, -0.2, 0.8), '111', (4.9, 0.9, 0.01, 0.9))``, pushed
@@ -34,6 +37,7 @@ from sotdrake import (
     MetaTaskKine6d,
     MetaTaskKineCom,
     Robot,
+    Solver,
     Tracer,
     add_robot_visualizer,
     add_sot,
@@ -79,13 +83,16 @@ def build_diagram(
     solver: str = "cascade",
     target=TARGET,
     dt: float = DT,
+    limitator: bool = True,
 ) -> KineRomeo:
+    """``limitator``: the seed's ``Solver(robot)`` (the solver named ``solver``, a ``JointLimitator``
+    before the device); without it, ``add_sot`` (the bare solver, named ``sot``)."""
     builder = DiagramBuilder()
     # --- the robot
     robot = make_robot(builder, robot_name, VARIANTS.get(robot_name), dt)
 
     # --- the solver
-    sot = add_sot(robot, "sot", solver=solver)
+    sot = Solver(robot, solver).sot if limitator else add_sot(robot, "sot", solver=solver)
     plant = robot.model.plant
     excluded = [plant.get_joint(j).name() for j in plant.GetJointIndices()
                 if plant.get_joint(j).num_velocities() == 1 and NOT_CONTROLLED.search(plant.get_joint(j).name())]
@@ -156,6 +163,7 @@ def summarize(kine: KineRomeo, simulator: Simulator, duration: float, wall: floa
         "robot": robot.model.name,
         "variant": robot.model.variant,
         "solver": type(kine.sot).__name__,
+        "joint_limitator": kine.robot.limitator is not None,
         "hand_initial_error_m": float(hand_error[0]),
         "hand_error_m": float(hand_error[-1]),
         "max_foot_drift_m": float(foot_drift),
@@ -209,9 +217,11 @@ def plot(trace: dict, target: np.ndarray, title: str, path: Path) -> Path:
 def main(argv: list[str] | None = None) -> dict:
     parser = script_arguments(__doc__, "out/kineromeo", duration=5.0, solver="cascade")
     parser.add_argument("--robot", choices=sorted(VARIANTS), default="romeo", help="the humanoid")
+    parser.add_argument("--no-limitator", dest="limitator", action="store_false",
+                        help="the bare solver into the device (no JointLimitator)")
     args = parser.parse_args(argv)
     meshcat = start(args)
-    kine = build_diagram(meshcat, args.robot, args.solver)
+    kine = build_diagram(meshcat, args.robot, args.solver, limitator=args.limitator)
     simulator, wall = simulate(kine.diagram, args.duration, kine.visualizer, not args.quiet)
     summary, trace = summarize(kine, simulator, args.duration, wall)
     args.out.mkdir(parents=True, exist_ok=True)

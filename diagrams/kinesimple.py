@@ -1,5 +1,10 @@
 #!/usr/bin/env python3
-"""The seed's minimal example (``ros-kinesimple.py``): one task on TALOS' left arm.
+"""The project's smallest example: one task on TALOS' left arm (not one of the seed's scripts).
+
+sot-dyninv has no one-arm example: its ``kinesimple.py`` scripts are whole-body stacks (both
+contacts, the CoM, the right hand with ``opmodif`` (0, 0, −0.21) sent to (0.5, −0.2, 1.3)), and the
+seed's slides name ``ros-kineromeo.py`` as the minimal example (``diagrams/kineromeo.py``). This
+script is the step before: one arm, one task, and the interactive prompt.
 
 The ``left_arm`` model (shoulder welded to the world, six arm joints and the gripper), the device
 at 1 kHz, the basic ``SOT``, and one ``MetaTaskKine6d`` on the hand (``left-wrist`` moved by

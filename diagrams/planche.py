@@ -3,6 +3,11 @@
 Romeo lifts its right leg far back and leans its chest far forward (the planche), then comes back,
 a sequence of tasks driven by ``attime``.
 
+``--variant full`` (the default) is the seed's ``WITH_FULL_EXTENTION = True``: during the planche
+the arms go out (shoulder yaws ∓π/2, at the seed's iteration 1250), then the right foot extends
+(ankle pitch 0.73) and the head pitches (−π/4) (iteration 2080), and every later step comes 5 s
+later; ``--variant reduced`` leaves these out (the seed's other setting).
+
 The seed runs it on the dynamic solver with the left sole's support shrunk to 6 × 3 cm. Here it
 is the kinematic SoT (``SolverKine``, joint position and velocity limits hard) with the
 quasi-static counterpart of that support: the CoM (X, Y) as an *inequality* task inside the same
@@ -23,14 +28,17 @@ t (s)       ``attime`` command
 4.8         push ``taskChest``: the chest's orientation to 80° forward (``'111000'``)
 5.8         remove ``taskrf``, push the posture: chest, right leg (knee at 5°) and head
             straight (``gotoq``: only those joints selected)
+7.05        (full) the posture adds the arms, out to the sides
+11.2        (full) the posture adds the right foot extended and the head pitched down
 8.3         remove the chest task; the posture folds the arms, leg and head back to half-sitting
+            (13.3 in the full variant, as every step below: +5 s)
 9.8         remove the posture, push ``taskrf``: the right ankle to (−0.1, −0.1, 0.25) m
 11.8, 12.8  the right ankle 7 cm above its initial pose, then on it (6D)
 14.0        ``sot.addContact(contactRF)``, remove ``taskrf``, the CoM bounds widened to the
             double support; the rest posture brings the robot back to half-sitting
 ==========  ===============================================================================
 
-    python diagrams/planche.py --duration 16 --out out/planche
+    python diagrams/planche.py --out out/planche          # --variant reduced
 
 writes ``recording.html``, ``trace.npz``, ``plots.png``, ``control_graph.svg`` and ``summary.json``.
 """
@@ -73,9 +81,18 @@ CHEST = 80 * DEG  # the chest's forward lean (rad)
 MAX_EXT = 5 * DEG  # the right knee, extended (rad)
 #: The seed's shrunken support of the left foot, around the ankle: (x_min, x_max, y_min, y_max) (m).
 SHRUNKEN_SUPPORT = (-0.03, 0.03, -0.015, 0.015)
-#: The sequence (s): the seed's iterations × 5 ms, from the lift on 0.8 s later.
-T = {"lift": 1.5, "extend": 3.3, "chest": 4.8, "body": 5.8, "fold": 8.3, "back": 9.8, "above": 11.8, "ground": 12.8,
-     "contact": 14.0}
+#: The sequence (s) of the reduced variant (the seed's WITH_FULL_EXTENTION = False): the seed's
+#: iterations × 5 ms, from the lift on 0.8 s later.
+REDUCED = {"lift": 1.5, "extend": 3.3, "chest": 4.8, "body": 5.8, "fold": 8.3, "back": 9.8, "above": 11.8, "ground": 12.8,
+           "contact": 14.0}
+#: The full variant (the seed's default, WITH_FULL_EXTENTION = True): the arms out at iteration 1250,
+#: the foot extended and the head pitched at 2080, every later step 1000 iterations (5 s) later.
+FULL = {**{k: t + (5.0 if t >= REDUCED["fold"] else 0.0) for k, t in REDUCED.items()}, "arms": 6.25 + 0.8, "foot": 10.4 + 0.8}
+TIMES = {"full": FULL, "reduced": REDUCED}
+T = FULL  # the default variant's
+ARMS_OUT = np.pi / 2  # the shoulders' yaw in the full variant: right −π/2, left +π/2 (rad)
+FOOT_EXTENSION = 0.73  # the right ankle's pitch in the full variant (rad)
+HEAD_PITCH = -np.pi / 4  # the neck's pitch in the full variant (rad)
 UP = (0.0, 0.0, 0.65)  # the right ankle up: Y, Z (m)
 EXTEND = (-0.55, 0.0, 0.7)  # the right leg back: X, Z (m)
 BACK = (-0.1, -0.1, 0.25)  # the right ankle on its way back (m)
@@ -103,6 +120,7 @@ class Planche:
     taskRest: MetaTaskKinePosture
     tracer: Tracer
     support_centre: np.ndarray  # the left ankle's (x, y) (m): the shrunken rectangle is around it
+    times: dict  # the variant's sequence (s)
     visualizer: object = None
 
 
@@ -120,7 +138,12 @@ def gotoq(robot: Robot, q: np.ndarray, **chains: tuple[float, ...]) -> tuple[np.
     return q, "".join("1" if s else "0" for s in reversed(selected))
 
 
-def build_diagram(meshcat: Meshcat | None = None, dt: float = DT) -> Planche:
+def build_diagram(meshcat: Meshcat | None = None, dt: float = DT, variant: str = "full") -> Planche:
+    """``variant``: ``"full"`` (the seed's default: the arms and the foot extended during the
+    planche) or ``"reduced"`` (without them, 5 s shorter)."""
+    if variant not in TIMES:
+        raise ValueError(f"variant must be one of {sorted(TIMES)}, got {variant!r}")
+    T = TIMES[variant]
     builder = DiagramBuilder()
     robot = make_robot(builder, "romeo", "small", dt)
     sot = add_sot(robot, "sot", solver="hqp")
@@ -179,6 +202,15 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = DT) -> Planche:
     attime(T["body"], lambda: (sot.remove(taskrf.task.name), taskPosture.feature.setPosture(body), taskPosture.feature.selec(body_mask),
                                push(taskPosture)),
            "remove RF, add the posture, extend the body")
+    if variant == "full":
+        arms = {"rarm": (0, -ARMS_OUT, 0, 0, 0, 0, 0), "larm": (0, ARMS_OUT, 0, 0, 0, 0, 0)}
+        extended, extended_mask = gotoq(robot, q0, chest=(0,), rleg=(0, 0, 0, MAX_EXT, 0, 0), head=(0, 0, 0, 0), **arms)
+        attime(T["arms"], lambda: (taskPosture.feature.setPosture(extended), taskPosture.feature.selec(extended_mask)),
+               "extend arm")
+        foot, foot_mask = gotoq(robot, q0, chest=(0,), rleg=(0, 0, 0, MAX_EXT, FOOT_EXTENSION, 0),
+                                head=(0, HEAD_PITCH, 0, 0), **arms)
+        attime(T["foot"], lambda: (taskPosture.feature.setPosture(foot), taskPosture.feature.selec(foot_mask)),
+               "extend foot")
     fold, fold_mask = gotoq(robot, q0, chest=(0,), rleg=tuple(q0[plant.GetJointByName(j).position_start()] for j in CHAINS["rleg"]),
                             head=(0, 0, 0, 0), rarm=tuple(q0[plant.GetJointByName(j).position_start()] for j in CHAINS["rarm"]),
                             larm=tuple(q0[plant.GetJointByName(j).position_start()] for j in CHAINS["larm"]))
@@ -209,7 +241,11 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = DT) -> Planche:
     diagram = builder.Build()
     diagram.set_name("planche")
     return Planche(diagram, robot, sot, contactLF, contactRF, taskCom, taskrf, taskChest, taskPosture, taskRest, tracer,
-                   np.asarray(support_centre), visualizer)
+                   np.asarray(support_centre), T, visualizer)
+
+
+def _q(robot: Robot, joint: str) -> int:
+    return robot.model.plant.GetJointByName(joint).position_start()
 
 
 def summarize(run: Planche, simulator: Simulator, duration: float, wall: float) -> tuple[dict, dict]:
@@ -222,6 +258,7 @@ def summarize(run: Planche, simulator: Simulator, duration: float, wall: float) 
     com_xy = path["com"][:, :2] - run.support_centre
     x_min, x_max, y_min, y_max = SHRUNKEN_SUPPORT
     margin = np.minimum.reduce([com_xy[:, 0] - x_min, x_max - com_xy[:, 0], com_xy[:, 1] - y_min, y_max - com_xy[:, 1]])
+    T = run.times
     single = (t >= T["lift"]) & (t < T["contact"])
     chest_lean = np.arccos(np.clip(path["chest"][:, 2, 2], -1.0, 1.0))  # the chest's z from the vertical
     rf = path["rf"][:, :3, 3]
@@ -232,6 +269,7 @@ def summarize(run: Planche, simulator: Simulator, duration: float, wall: float) 
     joint_margin = np.minimum(qs[:, finite] - lower[finite], upper[finite] - qs[:, finite]).min(axis=1)
     summary = {
         "robot": robot.model.name, "variant": robot.model.variant, "solver": type(run.sot).__name__,
+        "planche_variant": "full" if "arms" in T else "reduced",
         "duration_s": duration, "dt_s": robot.dt, "ticks": len(trace["time"]),
         "com_in_shrunken_support_from_s": float(t[np.argmax(margin >= -1e-6)]) if (margin >= -1e-6).any() else None,
         "min_com_margin_single_support_m": float(margin[single].min()) if single.any() else None,
@@ -241,6 +279,11 @@ def summarize(run: Planche, simulator: Simulator, duration: float, wall: float) 
         "max_left_ankle_drift_m": float(lf_drift.max()),
         "right_ankle_final_error_m": float(np.linalg.norm(rf[-1] - rf[0])),
         "min_joint_limit_margin_rad": float(joint_margin.min()),
+        # the full variant's extensions: the arms out (shoulder yaws), the foot (ankle pitch), the head (neck pitch)
+        "min_right_shoulder_yaw_rad": float(qs[:, _q(robot, "RShoulderYaw")].min()),
+        "max_left_shoulder_yaw_rad": float(qs[:, _q(robot, "LShoulderYaw")].max()),
+        "max_right_ankle_pitch_rad": float(qs[:, _q(robot, "RAnklePitch")].max()),
+        "min_neck_pitch_rad": float(qs[:, _q(robot, "NeckPitch")].min()),
         "final_stack": run.sot.stack(context), "final_contacts": run.sot.contacts(context),
         "wall_s": wall, "realtime_factor": duration / wall,
     }
@@ -249,7 +292,7 @@ def summarize(run: Planche, simulator: Simulator, duration: float, wall: float) 
     return summary, trace
 
 
-def plot(trace: dict, summary: dict, path: Path) -> Path:
+def plot(trace: dict, summary: dict, path: Path, T: dict = FULL) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -303,14 +346,18 @@ def plot(trace: dict, summary: dict, path: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/planche", duration=16.0)
+    parser = script_arguments(__doc__, "out/planche", duration=None)
+    parser.add_argument("--variant", choices=sorted(TIMES), default="full",
+                        help="full (the seed's: arms and foot extended, 21 s) or reduced (without them, 16 s)")
     args = parser.parse_args(argv)
+    if args.duration is None:
+        args.duration = TIMES[args.variant]["contact"] + 2.0
     meshcat = start(args)
-    run = build_diagram(meshcat)
+    run = build_diagram(meshcat, variant=args.variant)
     simulator, wall = simulate(run.diagram, args.duration, run.visualizer, not args.quiet)
     summary, trace = summarize(run, simulator, args.duration, wall)
     args.out.mkdir(parents=True, exist_ok=True)
-    plot(trace, summary, args.out / "plots.png")
+    plot(trace, summary, args.out / "plots.png", run.times)
     write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer, bag=args.bag)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary

@@ -6,10 +6,12 @@
 order: the waist's height, roll and pitch (``taskWaist``, ``'011100'``), both soles in 6D
 (``taskRF``, ``taskLF``), the CoM in x, y (``taskCom``, ``'011'``, with the planned CoM velocity as
 feed-forward), then the head's orientation following the right foot (``taskHead``, ``'110000'``: pitch and yaw),
-the waist's yaw (``taskWaistOr``, ``'100000'``) and, with ``SolverKine`` (``--solver hqp``, the
-default), both wrists kept from moving backward relative to the waist (``taskArmL``,
-``taskArmR``: ``TaskInequality`` on the x of ``FeatureRelative6d``). Every moving target comes with
-its velocity (feed-forward).
+the waist's yaw (``taskWaistOr``, ``'100000'``) and walkromeo's arm task, the arm joints held at
+half-sitting by a posture task at the bottom (``taskArms``, gain 0.1 /s; ``--arms posture``, the
+default); ``--arms inequality``: instead, with ``SolverKine`` (``--solver hqp``, the default), both
+wrists kept from moving backward relative to the waist (``taskArmL``, ``taskArmR``:
+``TaskInequality`` on the x of ``FeatureRelative6d``). Every moving target comes with its velocity
+(feed-forward).
 
 ``--mode kinematic``: the SoT integrates its velocity at 1 kHz (no dynamics). ``--mode physics``:
 the same control graph drives the physically simulated TALOS through position servos (the PD
@@ -36,6 +38,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,7 +54,9 @@ from sotdrake import (
     MetaTaskKine6d,
     MetaTaskKine6dRel,
     MetaTaskKineCom,
+    MetaTaskKinePosture,
     Robot,
+    Solver,
     Tracer,
     add_sot,
     attime,
@@ -120,13 +125,25 @@ ROBOTS: dict[str, WalkingRobot] = {
                           gait=GaitParameters(sole_length=0.244, sole_width=0.112, sole_centre=(0.033, 0.0), swing_height=0.03)),
 }
 MODES = ("kinematic", "physics", "dynamic")
-#: Task gains (1/s): the tracked references, and the lower-priority orientations.
+#: Task gains (1/s): the tracked references (waist, soles, CoM), and the lower-priority orientations
+#: (head, waist yaw, arms). walkromeo's were 40 (soles, waist yaw) and 5 (waist, head): with every
+#: target's velocity fed forward the gain only corrects drift, and ``--gains 40 5`` tracks as well
+#: (see the walk tutorial); 100/10 are kept so that the published runs stand.
 TRACKING_GAIN = 100.0
 POSTURE_GAIN = 10.0
+SEED_GAINS = (40.0, 5.0)
 #: A sole carrying more than this (N) stands: its motion then is slip.
 SLIP_LOAD_N = 100.0
 #: How far (m) a wrist may move back, relative to the waist, from where it started.
 ARM_BACKWARD_MARGIN = 0.01
+#: What keeps the arms (``--arms``): ``posture`` (the default), walkromeo's ``taskPosition``, the arm
+#: joints held at half-sitting by a posture task at the bottom of the stack (both solvers);
+#: ``inequality``, the wrists kept from moving backward relative to the waist (``SolverKine`` only).
+ARMS = ("posture", "inequality")
+#: The arm joints (TALOS', Romeo's) of the ``posture`` arms.
+ARM_JOINTS = re.compile(r"^arm_(left|right)_[1-7]_joint$|^[LR](Shoulder|Elbow|Wrist)")
+#: walkromeo's gain of its arm posture: ``GainAdaptive.set(0.1, 0.1, 125e3)``, a constant 0.1 /s.
+ARM_POSTURE_GAIN = (0.1, 0.1, 125e3)
 
 
 @dataclass(frozen=True)
@@ -169,13 +186,19 @@ class Walk:
 def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | None = None,
                   steps: tuple[int, float] | None = None, mode: str = "kinematic", solver: str = "hqp",
                   dt: float = 1e-3, gait: GaitParameters | None = None, meshcat: Meshcat | None = None,
-                  servos: Servos | None = None, multibody_zmp: bool | None = None) -> Walk:
+                  servos: Servos | None = None, multibody_zmp: bool | None = None, arms: str = "posture",
+                  gains: tuple[float, float] = (TRACKING_GAIN, POSTURE_GAIN)) -> Walk:
     """The walk's diagram. ``velocity``: the command from t = 0; ``then``: ``(T, x, y, θ)``, a new
     command at T; ``steps``: ``(n, length)`` instead of a velocity; ``solver``: ``'hqp'``
-    (``SolverKine``, with the arms' inequality tasks) or ``'cascade'`` (basic ``SOT``, without them);
+    (``SolverKine``) or ``'cascade'`` (walkromeo's ``Solver(robot)``: the basic ``SOT`` through a
+    ``JointLimitator``; it takes no inequality: ``arms='inequality'`` is then left out);
     ``servos``: the physics mode's servo options (:class:`Servos`); ``multibody_zmp``: the CoM is
     planned with the legs' momentum (:func:`~sotdrake.walking.multibody_zmp.leg_masses`), kinematic
-    and physics modes (None: in physics mode only)."""
+    and physics modes (None: in physics mode only); ``arms``: one of :data:`ARMS` (kinematic and
+    physics modes); ``gains``: the tracking and the orientation gains (1/s), kinematic and physics modes."""
+    tracking_gain, posture_gain = gains
+    if arms not in ARMS:
+        raise InvalidInput(f"arms is one of {ARMS}, got {arms!r}")
     if robot not in ROBOTS:
         from sotdrake.exceptions import NotFound
 
@@ -218,7 +241,8 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     if then is not None:
         commands.append(attime(then[0], lambda: pg.setVelocity(*then[1:]), f"pg.setVelocity{tuple(then[1:])}"))
 
-    sot = add_sot(bot, "sot", solver=solver)
+    # walkromeo's ``solver = Solver(robot)``: the basic SOT through a JointLimitator; the HQP holds the limits itself.
+    sot = Solver(bot, "cascade", name="sot").sot if solver == "cascade" else add_sot(bot, "sot", solver=solver)
     sot.setControlSelection(bot.velocity_selection(excluding=list(spec.excluded)))
     connect = builder.Connect
     tasks = {}
@@ -232,12 +256,12 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
         tasks[meta.task.name] = meta
         return meta
 
-    six_d("Waist", "waist", spec.waist, "011100", "waist_pose", "waist_velocity", TRACKING_GAIN)
-    six_d("RF", "RF", spec.feet[1], "111111", "right_foot_pose", "right_foot_velocity", TRACKING_GAIN)
-    six_d("LF", "LF", spec.feet[0], "111111", "left_foot_pose", "left_foot_velocity", TRACKING_GAIN)
+    six_d("Waist", "waist", spec.waist, "011100", "waist_pose", "waist_velocity", tracking_gain)
+    six_d("RF", "RF", spec.feet[1], "111111", "right_foot_pose", "right_foot_velocity", tracking_gain)
+    six_d("LF", "LF", spec.feet[0], "111111", "left_foot_pose", "left_foot_velocity", tracking_gain)
     com = MetaTaskKineCom(bot)
     com.feature.selec("011")
-    com.gain.setConstant(TRACKING_GAIN)
+    com.gain.setConstant(tracking_gain)
     stabilizer = None
     if physical is not None and servos.com_gain:
         stabilizer = bot.add(ComStabilizer(pg.start.com[2], dt, servos.com_gain, servos.zmp_gain))
@@ -251,9 +275,21 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
         connect(pg.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
         connect(pg.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
     tasks[com.task.name] = com
-    six_d("Head", "head", spec.head, "110000", "right_foot_pose", "right_foot_velocity", POSTURE_GAIN)
-    six_d("WaistOr", "waist", spec.waist, "100000", "waist_pose", "waist_velocity", POSTURE_GAIN)
-    if solver == "hqp":
+    six_d("Head", "head", spec.head, "110000", "right_foot_pose", "right_foot_velocity", posture_gain)
+    six_d("WaistOr", "waist", spec.waist, "100000", "waist_pose", "waist_velocity", posture_gain)
+    if arms == "posture":
+        # walkromeo's taskPosition: the arm joints towards half-sitting, at the bottom of the stack.
+        posture = MetaTaskKinePosture(bot, "Arms")
+        plant = model.plant
+        selected = np.zeros(bot.dimension, dtype=bool)
+        for j in plant.GetJointIndices():
+            joint = plant.get_joint(j)
+            if joint.num_velocities() == 1 and ARM_JOINTS.search(joint.name()):
+                selected[joint.velocity_start()] = True
+        posture.feature.selec("".join("1" if b else "0" for b in reversed(selected)))
+        posture.gain.set(*ARM_POSTURE_GAIN)
+        tasks[posture.task.name] = posture
+    elif solver == "hqp":
         for name, wrist in zip(("ArmL", "ArmR"), spec.wrists, strict=False):
             arm = MetaTaskKine6dRel(name, bot, name.lower(), "waist", wrist, spec.waist, inequality=True)
             # The desired relative pose without its rotation: the error's x is then along the
@@ -261,7 +297,7 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
             arm.featureDes.setPosition(arm.featureDes.settings().position.translation())
             arm.feature.selec("000001")
             arm.task.setBounds([-ARM_BACKWARD_MARGIN], [np.inf])
-            arm.gain.setConstant(POSTURE_GAIN)
+            arm.gain.setConstant(posture_gain)
             tasks[arm.task.name] = arm
     for name in tasks:
         sot.push(name)
@@ -277,7 +313,8 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
         plant = physical.plant
         desired = bot.add(DesiredState(physical))
         connect(bot.device.GetOutputPort("state"), desired.GetInputPort("position"))
-        connect(sot.GetOutputPort("control"), desired.GetInputPort("velocity"))
+        control = bot.limitator if bot.limitator is not None else sot  # the command the device integrates
+        connect(control.GetOutputPort("control"), desired.GetInputPort("velocity"))
         connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))
         monitor = bot.add(ContactMonitor(physical))
         connect(plant.get_contact_results_output_port(), monitor.get_input_port())
@@ -637,6 +674,11 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--step-length", type=float, default=0.2, help="with --steps: advance per step (m)")
     parser.add_argument("--mode", choices=MODES, default="kinematic")
     parser.add_argument("--solver", choices=["hqp", "cascade"], default="hqp")
+    parser.add_argument("--gains", type=float, nargs=2, default=(TRACKING_GAIN, POSTURE_GAIN), metavar=("TRACKING", "ORIENTATION"),
+                        help=f"the tracking and orientation gains (1/s; walkromeo's: {SEED_GAINS[0]:g} {SEED_GAINS[1]:g})")
+    parser.add_argument("--arms", choices=ARMS, default="posture",
+                        help="posture: walkromeo's, the arm joints held at half-sitting; inequality: the wrists kept from "
+                             "moving backward (hqp only)")
     parser.add_argument("--step-duration", type=float, default=None, help="a step's duration (s; default 0.8, as walkromeo)")
     parser.add_argument("--single-support", type=float, default=None, help="its single support (s; default 0.7)")
     parser.add_argument("--landing-depth", type=float, default=None, help="the swing ends this far below the ground (m; default 0)")
@@ -665,7 +707,8 @@ def main(argv: list[str] | None = None) -> dict:
     if args.swing_profile is not None or args.mode == "dynamic":
         gait = dataclasses.replace(gait, swing_profile=args.swing_profile or DYNAMIC_SWING_PROFILE)
     walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, gait=gait, meshcat=meshcat,
-                         servos=servos, multibody_zmp=None if args.zmp_model is None else args.zmp_model == "multibody")
+                         servos=servos, multibody_zmp=None if args.zmp_model is None else args.zmp_model == "multibody",
+                         arms=args.arms, gains=tuple(args.gains))
     simulator, wall = simulate(walk.diagram, args.duration, walk.visualizer, not args.quiet)
     summary, trace = summarize(walk, simulator, args.duration, wall, args.then)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -49,6 +49,7 @@ from .features import (
 from .gains import GainAdaptive, GainHyperbolic
 from .interactive import Runner
 from .introspection import displayAll, displaySignals, entities, entity, signal, signals_report
+from .joint_limitator import JointLimitator, limit_joint_velocities
 from .kinematics import Dynamic
 from .meta_tasks import (
     MetaTaskKine6d,
@@ -65,6 +66,7 @@ from .robot import Robot, add_sot, robot, talos
 from .robots import ROBOTS, TALOS_GRIPPERS, RobotModel, available_robots, load_robot, load_talos
 from .sequencer import attime
 from .simulation import save_figure, script_arguments, simulate, start, write_run
+from .solver_wrapper import Solver
 from .solvers import SOT, SolverKine
 from .stack_checks import check_stack
 from .target_marker import TargetMarker, desired_position
@@ -220,6 +222,7 @@ __all__ = [
     "GaitParameters",
     "GravityFeedforward",
     "InvalidInput",
+    "JointLimitator",
     "KinematicBaseEstimator",
     "MeasuredCom",
     "MetaTaskDyn6d",
@@ -247,6 +250,7 @@ __all__ = [
     "RobotNotFound",
     "RobotStateMessage",
     "Runner",
+    "Solver",
     "SolverDyn",
     "SolverError",
     "SolverKine",
@@ -291,6 +295,7 @@ __all__ = [
     "hold_move_hold",
     "initial_plan",
     "leg_masses",
+    "limit_joint_velocities",
     "live_meshcat",
     "load_robot",
     "load_talos",

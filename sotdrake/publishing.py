@@ -6,9 +6,15 @@ _x, _y, _z``) on channel ``sot_control/state`` every ``period`` seconds of simul
 100 Hz, downsampled from the 1 kHz loop as the seed's ``addDownsampledSignal(…, 100)``).
 ``add_signal_publisher`` publishes any vector output as ``drake.lcmt_scope`` with Drake's
 ``LcmScopeSystem``. LCM's default URL keeps the traffic on this host (``udpm`` with ``ttl=0``).
+
+Both take the rate as the seed wrote it, ``every`` ticks of the device (sot-core's ``PeriodicCall``:
+``addDownsampledSignal("ros_publish_state.trigger", 100)`` publishes on every 100th tick), or as a
+``period`` in seconds; not both.
 """
 
 from __future__ import annotations
+
+import math
 
 from drake import lcmt_robot_state
 from pydrake.common.value import AbstractValue
@@ -40,13 +46,31 @@ class RobotStateMessage(LeafSystem):
         output.set_value(message)
 
 
+def publish_period(robot: Robot, period: float | None = None, every: int | None = None) -> float:
+    """The publishing period (s): ``period`` (s, > 0), or ``every`` ticks of ``robot.dt`` (a
+    positive integer: ``every·dt``), or 0.01 s if neither is given; both raise
+    :class:`~sotdrake.exceptions.InvalidInput`."""
+    if period is not None and every is not None:
+        raise InvalidInput(f"give the publishing rate as period (s) or as every (ticks), not both: period={period!r}, every={every!r}")
+    if every is not None:
+        if isinstance(every, bool) or not isinstance(every, int) or every <= 0:
+            raise InvalidInput(f"every must be a positive whole number of ticks, got {every!r}")
+        return every * robot.dt
+    if period is None:
+        return 0.01
+    if isinstance(period, bool) or not isinstance(period, (int, float)) or not math.isfinite(period) or period <= 0:
+        raise InvalidInput(f"publish period must be a number > 0 (s), got {period!r}")
+    return float(period)
+
+
 def add_state_publisher(
-    robot: Robot, lcm: DrakeLcm | None = None, channel: str = "sot_control/state", period: float = 0.01
+    robot: Robot, lcm: DrakeLcm | None = None, channel: str = "sot_control/state", period: float | None = None,
+    every: int | None = None,
 ) -> LcmPublisherSystem:
-    """Publish ``robot.device.state`` on ``channel`` every ``period`` s (returns the publisher).
-    A given ``lcm`` must outlive the diagram (the default one lives as long as ``robot``)."""
-    if not period > 0:
-        raise InvalidInput(f"publish period must be > 0, got {period}")
+    """Publish ``robot.device.state`` on ``channel`` every ``period`` s or every ``every`` ticks of
+    the device (:func:`publish_period`; default 0.01 s); returns the publisher. A given ``lcm`` must
+    outlive the diagram (the default one lives as long as ``robot``)."""
+    period = publish_period(robot, period, every)
     lcm = lcm or _lcm_of(robot)
     converter = robot.add(RobotStateMessage(robot.model.plant))
     publisher = LcmPublisherSystem.Make(channel, lcmt_robot_state, lcm, period)
@@ -58,10 +82,10 @@ def add_state_publisher(
 
 
 def add_signal_publisher(robot: Robot, port: OutputPort, channel: str, lcm: DrakeLcm | None = None,
-                         period: float = 0.01) -> LcmScopeSystem:
-    """Publish a vector output port as ``lcmt_scope`` on ``channel`` every ``period`` s."""
-    if not period > 0:
-        raise InvalidInput(f"publish period must be > 0, got {period}")
+                         period: float | None = None, every: int | None = None) -> LcmScopeSystem:
+    """Publish a vector output port as ``lcmt_scope`` on ``channel`` every ``period`` s or every
+    ``every`` ticks of the device (:func:`publish_period`; default 0.01 s)."""
+    period = publish_period(robot, period, every)
     scope, _ = LcmScopeSystem.AddToBuilder(robot.builder, lcm or _lcm_of(robot), port, channel, period)
     return scope
 

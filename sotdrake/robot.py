@@ -19,6 +19,7 @@ from pydrake.systems.framework import DiagramBuilder, OutputPort, System
 
 from .device import Device
 from .exceptions import InvalidInput, NotFound, SotError
+from .joint_limitator import JointLimitator
 from .kinematics import Dynamic
 from .robots import RobotModel, load_robot
 from .solvers import SOT, SolverKine
@@ -55,6 +56,7 @@ class Robot:
         self.OperationalPointsMap = model.OperationalPointsMap
         self.tasks: dict[str, Task] = {}
         self.solver: SOT | None = None
+        self.limitator: JointLimitator | None = None  # between the solver and the device (Solver(robot))
         self._names: set[str] = set()
         self.lcm: DrakeLcm | None = None  # the publishers' LCM instance (sotdrake.publishing), made by the first of them
         self.dynamic = self.add(Dynamic(model, "dynamic"))
@@ -105,13 +107,26 @@ class Robot:
             self.builder.Connect(task.GetOutputPort("task"), self.solver.declare_task_input(task))
         return task
 
-    def add_solver(self, solver: SOT) -> SOT:
-        """Add the solver, plug ``solver.control → device.control`` and connect every task."""
+    def add_solver(self, solver: SOT, limitator: JointLimitator | None = None) -> SOT:
+        """Add the solver, plug ``solver.control → device.control`` and connect every task.
+
+        With a ``limitator`` (:class:`~sotdrake.joint_limitator.JointLimitator`, added here too):
+        ``solver.control → limitator.control_in``, ``limitator.control → device.control`` and
+        ``device.state → limitator.position``, as sot-core's ``Solver`` wrapper plugs it."""
         if self.solver is not None:
             raise InvalidInput(f"{self.solver.name} already drives the device")
+        if limitator is not None and limitator.layout.nv != self.dimension:
+            raise InvalidInput(f"limitator {limitator.name!r} is for nv = {limitator.layout.nv}, the robot has nv = {self.dimension}")
         self.add(solver)
         self.solver = solver
-        self.builder.Connect(solver.GetOutputPort("control"), self.device.GetInputPort("control"))
+        if limitator is None:
+            self.builder.Connect(solver.GetOutputPort("control"), self.device.GetInputPort("control"))
+        else:
+            self.add(limitator)
+            self.limitator = limitator
+            self.builder.Connect(solver.GetOutputPort("control"), limitator.GetInputPort("control_in"))
+            self.builder.Connect(limitator.GetOutputPort("control"), self.device.GetInputPort("control"))
+            self.builder.Connect(self.device.GetOutputPort("state"), limitator.GetInputPort("position"))
         if solver.HasInputPort("position"):  # the HQP reads q for the joint limits
             self.builder.Connect(self.device.GetOutputPort("state"), solver.GetInputPort("position"))
         for task in self.tasks.values():

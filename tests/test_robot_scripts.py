@@ -37,8 +37,19 @@ def test_kineromeo_hand_closes_in_with_feet_and_com_held(kineromeo, tmp_path):
     hand_error = np.linalg.norm(trace["hand_position"] - summary["target_m"], axis=1)
     assert np.all(np.diff(hand_error) <= 1e-12)  # monotonic
     graph = (tmp_path / "control_graph.dot").read_text()
-    for entity in ("sot", "device", "dynamic", "taskrh", "taskcom", "taskcontactLF"):
+    for entity in ("solver", "joint_limitator", "device", "dynamic", "taskrh", "taskcom", "taskcontactLF"):
         assert entity in graph
+    assert summary["joint_limitator"] and summary["min_joint_limit_margin_rad"] >= 0.0
+
+
+def test_kineromeo_joint_limitator_keeps_g1_knees_within_their_limits(kineromeo, tmp_path):
+    """G1's knees reach full extension (their lower limit) 0.47 s into the reach: the bare SOT
+    takes them past it, the seed's Solver(robot) stops them there."""
+    args = ["--robot", "g1", "--duration", "0.7", "--quiet", "--no-meshcat"]
+    bare = kineromeo.main([*args, "--no-limitator", "--out", str(tmp_path / "bare")])
+    assert not bare["joint_limitator"] and bare["min_joint_limit_margin_rad"] < 0.0
+    wrapped = kineromeo.main([*args, "--out", str(tmp_path / "wrapped")])
+    assert wrapped["joint_limitator"] and wrapped["min_joint_limit_margin_rad"] >= 0.0
 
 
 def test_pr2_reach_moves_the_base_and_the_arm_within_limits(pr2_reach, tmp_path):
@@ -119,3 +130,21 @@ def test_planche_com_inside_the_shrunken_support_before_the_foot_leaves(planche,
     trace = np.load(tmp_path / "trace.npz")
     lifted = trace["time"] >= planche.T["lift"]
     assert np.all(trace["com_margin"][lifted] >= -1e-5)
+
+
+@pytest.mark.slow
+def test_planche_full_variant_extends_arms_foot_and_head_the_reduced_does_not(planche, tmp_path):
+    """The seed's WITH_FULL_EXTENTION: after the arms (7.05 s) and the foot and head (11.2 s) steps,
+    the shoulders' yaws, the right ankle's pitch and the neck's pitch have gone toward their
+    targets (∓π/2, 0.73, −π/4), each as far as its joint limit lets it; the reduced variant keeps
+    them near half-sitting. The CoM stays over the shrunken support on one foot in both."""
+    end = planche.FULL["foot"] + 1.0
+    args = ["--duration", str(end), "--quiet", "--no-meshcat"]
+    full = planche.main([*args, "--out", str(tmp_path / "full")])
+    reduced = planche.main([*args, "--variant", "reduced", "--out", str(tmp_path / "reduced")])
+    assert (full["planche_variant"], reduced["planche_variant"]) == ("full", "reduced")
+    assert full["min_right_shoulder_yaw_rad"] < -1.1 and reduced["min_right_shoulder_yaw_rad"] > -0.7  # half-sitting: −0.6
+    assert full["max_right_ankle_pitch_rad"] > 0.6 and reduced["max_right_ankle_pitch_rad"] < 0.1
+    assert full["min_neck_pitch_rad"] < -0.3 and reduced["min_neck_pitch_rad"] > -0.1
+    for summary in (full, reduced):
+        assert summary["min_com_margin_single_support_m"] >= -1e-5 and summary["min_joint_limit_margin_rad"] >= 0.0

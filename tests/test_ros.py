@@ -100,6 +100,26 @@ def test_ros_publish_refuses_a_second_trigger_and_a_repeated_signal(observer):
         publisher.trigger(10, 1e-3)
 
 
+def test_ros_publisher_rate_in_ticks_or_in_seconds(observer, talos_model):
+    """The seed's addDownsampledSignal(…, 100) is every 100 ticks; a period in seconds must be a
+    whole number of ticks."""
+    from pydrake.systems.framework import DiagramBuilder
+
+    from sotdrake.robot import Robot
+    from sotdrake.ros import add_ros_publisher
+
+    robot = Robot(DiagramBuilder(), talos_model, dt=1e-3)
+    ticks = add_ros_publisher(robot, node=observer, every=100, joint_states=None)
+    assert (ticks.state.every, ticks.state.period) == (100, pytest.approx(0.1))
+    robot = Robot(DiagramBuilder(), talos_model, dt=1e-3)
+    seconds = add_ros_publisher(robot, node=observer, period=0.05, joint_states=None)
+    assert seconds.state.every == 50
+    for kwargs, says in (({"period": 0.0505}, "whole number of ticks"), ({"period": 0.1, "every": 100}, "not both"),
+                         ({"period": -1.0}, "> 0")):
+        with pytest.raises(InvalidInput, match=says):
+            add_ros_publisher(Robot(DiagramBuilder(), talos_model, dt=1e-3), node=observer, joint_states=None, **kwargs)
+
+
 def test_ros_publish_kinds_reach_another_node(observer):
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder

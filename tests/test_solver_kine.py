@@ -1,6 +1,8 @@
 """SolverKine (hierarchical QP) in diagrams: the tutorial, joint limits, inequality tasks, failure."""
 
 
+import dataclasses
+
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
@@ -39,15 +41,14 @@ def test_tutorial_with_the_hqp_has_the_same_outcome():
 
 def test_joint_limits_hold_with_the_hqp_and_not_with_the_cascade(concept):
     results = {}
-    for name in ("joint_limits", "joint_limits_cascade"):
-        config = concept.CONFIGURATIONS[name]
-        config = concept.Configuration(**{**config.__dict__, "duration": 1.5})
+    for name in ("extra_joint_limits", "extra_joint_limits_cascade"):
+        config = dataclasses.replace(concept.CONFIGURATIONS[name], duration=1.5)
         handles = concept.build_diagram(config)
         simulator, wall = concept.run(handles, progress=False)
         results[name], _ = concept.summarize(handles, simulator, wall)
-    assert results["joint_limits"]["min_joint_limit_margin_rad"] >= 1e-3 - 1e-9  # the margin, kept
-    assert results["joint_limits_cascade"]["min_joint_limit_margin_rad"] < -1e-2  # crossed
-    assert results["joint_limits"]["max_joint_velocity_ratio"] <= 1.0 + 1e-9
+    assert results["extra_joint_limits"]["min_joint_limit_margin_rad"] >= 1e-3 - 1e-9  # the margin, kept
+    assert results["extra_joint_limits_cascade"]["min_joint_limit_margin_rad"] < -1e-2  # crossed
+    assert results["extra_joint_limits"]["max_joint_velocity_ratio"] <= 1.0 + 1e-9
 
 
 def build_reach(model, com_kind, ball=(1.05, -0.35, 0.75), dt=1e-3):
@@ -136,7 +137,7 @@ def test_concept_script_writes_one_entry_per_configuration(concept, tmp_path):
         for key in ("hand_error_m", "com_error_m", "level_slacks", "min_joint_limit_margin_rad", "max_joint_velocity_ratio"):
             assert key in entry
     assert (tmp_path / "plots.png").is_file() and (tmp_path / "summary.json").is_file()
-    assert (tmp_path / "joint_limits" / "trace.npz").is_file()
+    assert (tmp_path / "extra_joint_limits" / "trace.npz").is_file() and (tmp_path / "seed5" / "trace.npz").is_file()
 
 
 def test_randomized_robot_runs_never_freeze_and_keep_the_limits(talos_model):

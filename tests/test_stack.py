@@ -121,3 +121,29 @@ def test_non_finite_configuration_is_an_error_not_an_abort(talos_model):
     robot.device.GetMyContextFromRoot(context).SetDiscreteState(0, q)  # bypassing the checks
     with pytest.raises(InvalidInput, match="non-finite position"):
         sot.GetOutputPort("control").Eval(sot.GetMyContextFromRoot(context))
+
+
+def test_add_contact_at_the_bottom_is_keep_then_push(talos_model):
+    """``priority="bottom"``: sot-dyninv's kinematic addContact (``keep()`` then ``push``), below the
+    tasks pushed before it; the default keeps the contact level above the whole stack."""
+    robot, sot, (rh, lf, com, lh), diagram = build(talos_model, with_sequence=False)
+    context = diagram.CreateDefaultContext()
+    sot.clear(context)
+    sot.push(rh, context)
+    q = robot.device.position(context)
+    q[robot.model.plant.GetJointByName("leg_left_1_joint").position_start()] += 0.1  # the left foot turns
+    robot.device.set_position(context, q)
+    sot.addContact(lf, context, priority="bottom")
+    assert sot.stack(context) == ["taskrh", "tasklf"] and sot.contacts(context) == []
+    target = lf.featureDes.settings(context).position
+    now = lf.current_pose(context)
+    assert np.allclose(target.GetAsMatrix4(), now.GetAsMatrix4(), atol=1e-12)  # kept where the foot is now
+    assert not np.allclose(target.rotation().matrix(), lf.current_pose().rotation().matrix(), atol=1e-3)
+    for bad, error in [(lambda: sot.addContact(lf, context, priority="bottom"), StackError),
+                       (lambda: sot.addContact(lh, context, priority="middle"), InvalidInput),
+                       (lambda: sot.addContact("taskunknown", context, priority="bottom"), TaskNotFound)]:
+        with pytest.raises(error):
+            bad()
+        assert sot.stack(context) == ["taskrh", "tasklf"] and sot.contacts(context) == []
+    sot.addContact(lh, context)  # the default: the contact level, above the stack
+    assert sot.contacts(context) == ["tasklh"] and sot.stack(context) == ["taskrh", "tasklf"]

@@ -235,6 +235,31 @@ def test_state_published_at_100_hz_to_another_process(talos_model, tmp_path):
     assert len(scopes) >= 3 and np.allclose(scopes[0]["values"], robot.dynamic.com_at(talos_model.half_sitting))
 
 
+def test_lcm_publishers_take_a_rate_in_ticks_as_the_seed(talos_model):
+    """``every=100`` publishes on every 100th tick of the device (sot-core's PeriodicCall behind
+    ``addDownsampledSignal(…, 100)``); with 5 ms ticks, at t = 0, 0.5 and 1.0 s."""
+    channel = f"sot_control/state_{uuid.uuid4().hex[:12]}"
+    memory = DrakeLcm("memq://")
+    sent: list[lcmt_robot_state] = []
+    memory.Subscribe(channel, lambda data: sent.append(lcmt_robot_state.decode(data)))
+    builder = DiagramBuilder()
+    robot = Robot(builder, talos_model, dt=5e-3)
+    add_sot(robot)
+    add_state_publisher(robot, memory, channel, every=100)
+    add_signal_publisher(robot, robot.dynamic.GetOutputPort("com"), channel + "_com", memory, every=20)
+    scopes: list[bytes] = []
+    memory.Subscribe(channel + "_com", scopes.append)
+    Simulator(builder.Build()).AdvanceTo(1.0)
+    while memory.HandleSubscriptions(0) > 0:
+        pass
+    assert [m.utime for m in sent] == [0, 500_000, 1_000_000]
+    assert len(scopes) == 11  # every 0.1 s from 0 to 1.0
+    for kwargs, says in (({"every": 0}, "positive whole number"), ({"every": 2.5}, "positive whole number"),
+                         ({"every": 10, "period": 0.05}, "not both"), ({"period": 0.0}, "> 0")):
+        with pytest.raises(InvalidInput, match=says):
+            add_state_publisher(Robot(DiagramBuilder(), talos_model), memory, channel, **kwargs)
+
+
 def test_interactive_runner_steps_ticks_and_fires_attime(talos_model):
     builder = DiagramBuilder()
     robot = Robot(builder, talos_model)

@@ -259,3 +259,25 @@ def test_short_kinematic_walk_tracks_feet_and_com_below_1mm():
     right = trace["pg_feet"][-1, 4:7]
     assert right[0] - trace["pg_feet"][0, 4] == pytest.approx(0.08 + 0.0, abs=1e-9)
     assert summary["max_slip_per_step_m"] < 1e-3
+
+
+def test_short_kinematic_walk_with_walkromeos_arm_posture_holds_the_arms():
+    """``arms='posture'``: walkromeo's taskPosition, the arm joints held at half-sitting by a posture
+    task at the bottom of the stack; the walk tracks as well, the arms do not move."""
+    walk_script = load_diagram("walk")
+    walk = walk_script.build_diagram(velocity=(0.1, 0.0, 0.0), solver="cascade", dt=2e-3,
+                                     gait=GaitParameters(start_duration=0.4), arms="posture")
+    assert walk.sot.stack()[-1] == "taskArms"
+    simulator = Simulator(walk.diagram)
+    simulator.AdvanceTo(1.2)
+    summary, trace = walk_script.summarize(walk, simulator, 1.2, 1.0)
+    assert summary["steps"] == 1 and not summary["fell"]
+    assert summary["max_foot_tracking_error_m"] < 1e-3 and summary["max_com_tracking_error_m"] < 1e-3
+    plant = walk.robot.model.plant
+    arms = [plant.get_joint(j).position_start() for j in plant.GetJointIndices()
+            if plant.get_joint(j).num_velocities() == 1 and walk_script.ARM_JOINTS.search(plant.get_joint(j).name())]
+    assert len(arms) == 14
+    q0 = walk.robot.device.initial_position
+    assert np.abs(trace["q_device"][:, arms] - q0[arms]).max() < 1e-4
+    with pytest.raises(InvalidInput, match="arms"):
+        walk_script.build_diagram(arms="swing")

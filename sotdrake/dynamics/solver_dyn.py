@@ -489,8 +489,12 @@ class SolverDyn(SOT):
     def _dyn_command(self, context: Context | None, change: Callable[[DynSettings], None]) -> None:
         self._command(context, cast(Callable[[StackSettings], None], change))
 
-    def addContact(self, contact, context: Context | None = None) -> None:
-        """Hold ``contact`` (a name or a :class:`Contact6d`); a contact being released is held again."""
+    def addContact(self, contact, context: Context | None = None, priority: str = "top") -> None:
+        """Hold ``contact`` (a name or a :class:`Contact6d`); a contact being released is held again.
+        A dynamic contact is a constraint of every level: ``priority`` is ``"top"`` only."""
+        if priority != "top":
+            raise InvalidInput(f"{self.name}.addContact: a dynamic contact constrains every level (priority 'top'), "
+                               f"got priority={priority!r}")
         name = self._contact_name(contact)
 
         def change(s: DynSettings) -> None:

@@ -19,6 +19,7 @@ or in one call, with ``/joint_states`` too: ``add_ros_publisher(robot)``.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -169,11 +170,28 @@ class RosPublishers:
     joint_states: JointStatePublisher | None
 
 
+def ticks_of(period: float, dt: float) -> int:
+    """``period`` (s) as a whole number of ticks of ``dt`` (s); a period that is not a multiple of
+    ``dt`` (to 1e-9 of a tick) raises :class:`~sotdrake.exceptions.InvalidInput`."""
+    if isinstance(period, bool) or not isinstance(period, (int, float)) or not math.isfinite(period) or period <= 0:
+        raise InvalidInput(f"publish period must be a number > 0 (s), got {period!r}")
+    ticks = round(period / dt)
+    if ticks < 1 or abs(period / dt - ticks) > 1e-9:
+        raise InvalidInput(f"publish period {period!r} s is not a whole number of ticks of {dt} s")
+    return int(ticks)
+
+
 def add_ros_publisher(robot: Robot, topic: str = "/sot_control/state", joint_states: str | None = "/joint_states",
-                      every: int = 100, node: RosNode | None = None) -> RosPublishers:
+                      every: int | None = None, node: RosNode | None = None, period: float | None = None) -> RosPublishers:
     """``robot.device.state`` on ``topic`` (``std_msgs/Float64MultiArray``, system
     ``ros_publish_state``) and the joints on ``joint_states`` (None: not published), every
-    ``every`` ticks of ``robot.dt``."""
+    ``every`` ticks of ``robot.dt`` (the seed's ``addDownsampledSignal(…, every)``; default 100)
+    or every ``period`` s (a whole number of ticks); not both."""
+    if every is not None and period is not None:
+        raise InvalidInput(f"give the publishing rate as every (ticks) or as period (s), not both: every={every!r}, period={period!r}")
+    if period is not None:
+        every = ticks_of(period, robot.dt)
+    every = 100 if every is None else every
     q = robot.device.GetOutputPort("state")
     state = robot.add(RosPublish("ros_publish_state", node))
     state.add("vector", "state", topic, size=q.size())

@@ -6,6 +6,8 @@ highest priority first), the contacts, the SVD threshold and the damping are the
 held in the Context (see :mod:`sotdrake.entity`); ``push`` appends at the lowest priority, as in
 sot-core. Contacts (``addContact``/``rmContact``, sot-dyninv) are tasks solved together as one level
 above the whole stack; the last contact cannot be removed (the robot would lose its support).
+``addContact(task, priority="bottom")`` is sot-dyninv's kinematic ``addContact`` instead: ``keep()``
+then ``push``, the contact an ordinary task at the bottom of the stack.
 
 Outputs: ``control`` (``v``, size nv, Drake generalized velocities) and ``residuals`` (per level,
 ``‖J_i v - ė_i*‖``). An empty stack gives ``v = 0``: the robot holds still.
@@ -192,11 +194,7 @@ class SOT(Entity[StackSettings]):
         """Append ``name`` (a task name, a task or a meta task) at the bottom (lowest priority) of
         the stack."""
         name = self._task_name(name)
-        if name in self._inequality_tasks and not self.accepts_inequalities:
-            raise StackError(
-                f"{self.name} is a {type(self).__name__}, which cannot solve the inequality task {name!r}: "
-                "use the hierarchical QP (add_sot(robot, solver='hqp'))"
-            )
+        self._check_solvable(name)
         if context is not None:
             self._check_connected(name, context)
 
@@ -206,6 +204,13 @@ class SOT(Entity[StackSettings]):
             s.tasks.append(name)
 
         self._command(context, change)
+
+    def _check_solvable(self, name: str) -> None:
+        if name in self._inequality_tasks and not self.accepts_inequalities:
+            raise StackError(
+                f"{self.name} is a {type(self).__name__}, which cannot solve the inequality task {name!r}: "
+                "use the hierarchical QP (add_sot(robot, solver='hqp'))"
+            )
 
     def _check_connected(self, name: str, context: Context) -> None:
         """Into a running stack (a ``context`` given), a task that cannot be evaluated (no gain, no
@@ -243,9 +248,31 @@ class SOT(Entity[StackSettings]):
 
         self._command(context, change)
 
-    def addContact(self, task, context: Context | None = None) -> None:
-        """Add a contact: a task (or meta task) solved above the whole stack."""
+    def addContact(self, task, context: Context | None = None, priority: str = "top") -> None:
+        """Add a contact: a task (or meta task).
+
+        ``priority="top"`` (the default): the contact joins the contact level, solved above the whole
+        stack, whatever is pushed before or after it (as the dynamic SoT's contacts, which are
+        constraints); ``rmContact`` removes it. ``priority="bottom"``: sot-dyninv's kinematic
+        ``SolverKine.addContact``, i.e. the meta task's ``keep()`` (its target ← where the op point is
+        now) then ``push``: the contact is an ordinary task at the bottom of the stack, below every
+        task pushed before it (a hand pushed first may then pull the feet); ``remove`` removes it.
+        Given a task or a name, not a meta task, nothing is kept (the target stays as it is); the
+        ``keep()`` reads the current pose, so ``"bottom"`` is refused inside ``attime``."""
+        if priority not in ("top", "bottom"):
+            raise InvalidInput(f"{self.name}.addContact: priority must be 'top' (the contact level, above the stack) "
+                               f"or 'bottom' (keep() then push, the seed's SolverKine.addContact), got {priority!r}")
         name = self._task_name(task)
+        if priority == "bottom":
+            current = self.settings(context)
+            if name in current.contacts or name in current.tasks:
+                raise StackError(f"{self.name}.addContact: {name!r} is already a contact or in the stack")
+            self._check_solvable(name)
+            keep = getattr(task, "keep", None)
+            if callable(keep):
+                keep(context)
+            self.push(name, context)
+            return
 
         def change(s: StackSettings) -> None:
             if name in s.contacts or name in s.tasks:

@@ -68,6 +68,7 @@ from .solvers import SOT, SolverKine
 from .stack_checks import check_stack
 from .target_marker import TargetMarker, desired_position
 from .task import Task, TaskInequality, TaskLevel, TaskPD
+from .task_weight import TaskWeight, add_task_weight, weighted_level
 from .tracing import Tracer
 from .visualization import (
     add_robot_visualizer,
@@ -262,6 +263,7 @@ __all__ = [
     "TaskLevel",
     "TaskNotFound",
     "TaskPD",
+    "TaskWeight",
     "Tracer",
     "WalkCommand",
     "add_live_arguments",
@@ -273,6 +275,7 @@ __all__ = [
     "add_sweep_arguments",
     "add_talos_station",
     "add_target_marker",
+    "add_task_weight",
     "attime",
     "available_robots",
     "check_stack",
@@ -317,6 +320,7 @@ __all__ = [
     "talos",
     "trajectory_ports",
     "velocity_names",
+    "weighted_level",
     "write_control_graph",
     "write_run",
 ]

@@ -41,6 +41,7 @@ from .features import (
     FeatureGeneric,
     FeatureGenericDesired,
     FeatureJointLimits,
+    FeatureMomentum,
     FeaturePosture,
     FeatureRelative6d,
     FeatureVisualPoint,
@@ -55,6 +56,7 @@ from .meta_tasks import (
     MetaTaskKineCom,
     MetaTaskKineFeature,
     MetaTaskKineJointLimits,
+    MetaTaskKineMomentum,
     MetaTaskKinePosture,
     MetaTaskVisualPoint,
     gotoNd,
@@ -83,7 +85,7 @@ from .visualization import (
 _LAZY: dict[str, tuple[str, ...]] = {
     ".dynamics": ("Contact6d", "DynamicEntity", "RobotDynSimu", "SolverDyn", "TaskDynPD"),
     ".dynamics.robot_dyn": ("RobotDyn",),
-    ".dynamics.meta_tasks_dyn": ("MetaTaskDyn6d", "MetaTaskDynCom", "MetaTaskDynPosture"),
+    ".dynamics.meta_tasks_dyn": ("MetaTaskDyn6d", "MetaTaskDynCom", "MetaTaskDynMomentum", "MetaTaskDynPosture"),
     ".dynamics.contact": ("friction_ratio",),
     ".dynamics.station": ("sole_rectangle",),
     ".dynamics.trajectories": ("hold_move_hold", "minimum_jerk_moves", "trajectory_ports"),
@@ -127,7 +129,7 @@ _LAZY_MODULE = {name: module for module, names in _LAZY.items() for name in name
 if TYPE_CHECKING:
     from .dynamics import Contact6d, DynamicEntity, RobotDynSimu, SolverDyn, TaskDynPD
     from .dynamics.contact import friction_ratio
-    from .dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
+    from .dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynMomentum, MetaTaskDynPosture
     from .dynamics.robot_dyn import RobotDyn
     from .dynamics.station import sole_rectangle
     from .dynamics.trajectories import hold_move_hold, minimum_jerk_moves, trajectory_ports
@@ -213,6 +215,7 @@ __all__ = [
     "FeatureGeneric",
     "FeatureGenericDesired",
     "FeatureJointLimits",
+    "FeatureMomentum",
     "FeaturePosture",
     "FeatureRelative6d",
     "FeatureVisualPoint",
@@ -226,12 +229,14 @@ __all__ = [
     "MeasuredCom",
     "MetaTaskDyn6d",
     "MetaTaskDynCom",
+    "MetaTaskDynMomentum",
     "MetaTaskDynPosture",
     "MetaTaskKine6d",
     "MetaTaskKine6dRel",
     "MetaTaskKineCom",
     "MetaTaskKineFeature",
     "MetaTaskKineJointLimits",
+    "MetaTaskKineMomentum",
     "MetaTaskKinePosture",
     "MetaTaskVisualPoint",
     "NotFound",

@@ -24,6 +24,8 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context, InputPort, OutputPort
 
+from .centroidal import base_rows
+from .configuration import Layout
 from .entity import command_group, recording
 from .exceptions import InvalidInput, SotError, check_finite, check_number
 from .features import (
@@ -39,6 +41,7 @@ from .features import (
 )
 from .features.base import check_mask
 from .features.feature6d import as_transform
+from .features.momentum import FeatureMomentum
 from .gain_checks import check_gain
 from .gains import GainAdaptive, from_numbers
 from .kinematics import Dynamic
@@ -237,6 +240,22 @@ class MetaTaskVisualPoint(_MetaTask):
 
         source = self.robot.add(ConstantVectorSource(check_finite("point", point, (3,))), f"point_{self.name}")
         self.plugPoint(source.get_output_port())
+
+
+class MetaTaskKineMomentum(_MetaTask):
+    """Task on the centroidal momentum (``FeatureMomentum`` over ``dynamic.momentum_matrix``):
+    ``A_G v = h*`` on the selected rows, by default ``mask='111'``, the angular momentum about the
+    CoM, with ``h* = 0`` (``feature.setReference``): the whole body turns as little as it can about
+    its CoM. A floating base only (a fixed base carries the momentum: :class:`InvalidInput`)."""
+
+    def __init__(self, robot: Robot, name: str = "momentum", mask: str = "111"):
+        robot = _as_robot(robot, "MetaTaskKineMomentum")
+        base_rows(Layout.of(robot.model.plant))  # a fixed base is refused before anything is added
+        check_mask(mask, 6, f"MetaTaskKineMomentum({name!r})")
+        feature = robot.add(FeatureMomentum("feature" + name, robot.dimension))
+        feature.selec(mask)
+        robot.builder.Connect(robot.dynamic.GetOutputPort("momentum_matrix"), feature.GetInputPort("momentum_matrix"))
+        self._finish(robot, name, feature)
 
 
 class MetaTaskKineFeature(_MetaTask):

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """The seed's sot-concept experiment: TALOS grasps a ball with its right hand, the free flyer
-relaxed, under seven configurations that show what a strict hierarchy does (and what it cannot).
+relaxed, under the seed's seven configurations, which show what a strict hierarchy does (and what
+it cannot), and one more with a manipulability floor.
 
 =====================  ==========================================================================
 configuration          stack (highest priority first) and what it shows
@@ -15,6 +16,8 @@ singular_undamped      feet, CoM, hand; the ball is straight out along the arm, 
                        arm stretches into a singularity and, undamped, the solution chatters
                        between opposite velocity limits from one tick to the next
 singular_damped        the same with damping on the hand's level: smooth, bounded velocities
+singular_floor         the same, undamped, with the right arm's manipulability kept above 0.01 by an
+                       inequality above the hand (not one of the seed's: ``MetaTaskKineManipulability``)
 joint_limits           feet, CoM, hand; a ball behind the back: joints stop at their limits (HQP)
 joint_limits_cascade   the same with the basic SOT (pseudo-inverse cascade): limits are crossed
 =====================  ==========================================================================
@@ -22,7 +25,8 @@ joint_limits_cascade   the same with the basic SOT (pseudo-inverse cascade): lim
     python diagrams/sot_concept.py --config all --out out/concept
 
 writes ``DIR/summary.json`` (one entry per configuration: ``hand_error_m``, ``com_error_m``,
-``level_slacks``, ``min_joint_limit_margin_rad``, ``max_joint_velocity_ratio``, …),
+``level_slacks``, ``min_joint_limit_margin_rad``, ``max_joint_velocity_ratio``,
+``max_right_arm_speed_rad_s``, ``min_right_arm_manipulability``, …),
 ``DIR/plots.png``, ``DIR/control_graph.svg`` and ``DIR/<config>/recording.html`` + ``trace.npz``.
 """
 
@@ -35,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import Meshcat
+from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
@@ -42,11 +47,13 @@ from sotdrake import (
     SOT,
     TALOS_GRIPPERS,
     MetaTaskKine6d,
+    MetaTaskKineManipulability,
     Robot,
     Tracer,
     add_sot,
     gotoNd,
     hold_feet_and_com,
+    manipulability,
     save_figure,
     script_arguments,
     simulate,
@@ -58,6 +65,7 @@ from sotdrake import (
 from sotdrake.configuration import velocity_names
 
 HAND_OFFSET = (0.1, 0.0, 0.0)
+RIGHT_ARM = [f"arm_right_{i}_joint" for i in range(1, 8)]
 
 
 @dataclass(frozen=True)
@@ -69,6 +77,7 @@ class Configuration:
     solver: str = "hqp"
     damping: float = 0.0
     duration: float = 4.0
+    manipulability_floor: float = 0.0  # > 0: the right arm's manipulability kept above it, above the hand
 
     def __post_init__(self):
         if self.com and not self.contacts:
@@ -88,6 +97,8 @@ CONFIGURATIONS: dict[str, Configuration] = {
                                        (-0.03, -1.25, 1.37)),
     "singular_damped": Configuration("the same with damping 1e-2 on the hand's level",
                                      (-0.03, -1.25, 1.37), damping=1e-2),
+    "singular_floor": Configuration("the same with the right arm's manipulability kept above 0.01 (above the hand)",
+                                    (-0.03, -1.25, 1.37), manipulability_floor=0.01),
     "joint_limits": Configuration("ball behind the back: joints stop at their limits (HQP)",
                                   (-0.45, -0.35, 1.0)),
     "joint_limits_cascade": Configuration("the same with the basic SOT: limits are crossed",
@@ -113,6 +124,9 @@ def build_diagram(config: Configuration, meshcat: Meshcat | None = None, dt: flo
     sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
     if config.contacts:
         hold_feet_and_com(robot, sot, com=config.com)
+    if config.manipulability_floor > 0:
+        floor = MetaTaskKineManipulability("rhManipulability", robot, "right-wrist", config.manipulability_floor, joints=RIGHT_ARM)
+        sot.push(floor.task.name)
     taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = HAND_OFFSET
@@ -174,6 +188,9 @@ def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict
         "min_margin_joint": names[worst_margin[1]],
         "max_joint_velocity_ratio": float(ratio.max()),
         "max_velocity_joint": names[int(np.argmax(ratio.max(axis=0)))],
+        "max_joint_speed_rad_s": float(np.abs(trace["v"][:, joints_v]).max()),
+        "max_right_arm_speed_rad_s": float(np.abs(trace["v"][:, _arm_velocities(robot)]).max()),
+        "min_right_arm_manipulability": _min_arm_manipulability(robot, qs),
         "duration_s": concept.config.duration,
         "wall_s": wall,
         "realtime_factor": concept.config.duration / wall,
@@ -181,6 +198,24 @@ def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict
     trace.update(hand_position=hand[1:], com_position=path["com"][1:], hand_error=np.linalg.norm(hand[1:] - ball, axis=1),
                  velocity_ratio=ratio.max(axis=1), min_margin=margins[1:].min(axis=1))
     return summary, trace
+
+
+def _arm_velocities(robot: Robot) -> list[int]:
+    return [robot.model.plant.GetJointByName(name).velocity_start() for name in RIGHT_ARM]
+
+
+def _min_arm_manipulability(robot: Robot, qs: np.ndarray) -> float:
+    """The smallest manipulability of the right wrist's translation over the right arm's joints."""
+    plant = robot.model.plant
+    context, world, wrist = plant.CreateDefaultContext(), plant.world_frame(), robot.model.frame("right-wrist")
+    columns = np.zeros(robot.dimension, dtype=bool)
+    columns[_arm_velocities(robot)] = True
+    values = []
+    for q in qs[::10]:
+        plant.SetPositions(context, q)
+        J = plant.CalcJacobianSpatialVelocity(context, JacobianWrtVariable.kV, wrist, np.zeros(3), world, world)
+        values.append(manipulability(J[3:][:, columns]))
+    return float(min(values))
 
 
 def _joint_names(robot: Robot) -> list[str]:

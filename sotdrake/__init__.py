@@ -41,6 +41,7 @@ from .features import (
     FeatureGeneric,
     FeatureGenericDesired,
     FeatureJointLimits,
+    FeatureManipulability,
     FeatureMomentum,
     FeaturePosture,
     FeatureRelative6d,
@@ -50,12 +51,14 @@ from .gains import GainAdaptive, GainHyperbolic
 from .interactive import Runner
 from .introspection import displayAll, displaySignals, entities, entity, signal, signals_report
 from .kinematics import Dynamic
+from .manipulability import manipulability, manipulability_and_gradient
 from .meta_tasks import (
     MetaTaskKine6d,
     MetaTaskKine6dRel,
     MetaTaskKineCom,
     MetaTaskKineFeature,
     MetaTaskKineJointLimits,
+    MetaTaskKineManipulability,
     MetaTaskKineMomentum,
     MetaTaskKinePosture,
     MetaTaskVisualPoint,
@@ -215,6 +218,7 @@ __all__ = [
     "FeatureGeneric",
     "FeatureGenericDesired",
     "FeatureJointLimits",
+    "FeatureManipulability",
     "FeatureMomentum",
     "FeaturePosture",
     "FeatureRelative6d",
@@ -236,6 +240,7 @@ __all__ = [
     "MetaTaskKineCom",
     "MetaTaskKineFeature",
     "MetaTaskKineJointLimits",
+    "MetaTaskKineManipulability",
     "MetaTaskKineMomentum",
     "MetaTaskKinePosture",
     "MetaTaskVisualPoint",
@@ -302,6 +307,8 @@ __all__ = [
     "live_meshcat",
     "load_robot",
     "load_talos",
+    "manipulability",
+    "manipulability_and_gradient",
     "minimum_jerk_moves",
     "motion_zmp",
     "per_process",

@@ -44,7 +44,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from sotdrake import TALOS_GRIPPERS, Tracer, attime, load_talos, save_figure, script_arguments, start, write_run
 from sotdrake.dynamics.contact import friction_ratio
-from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
+from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynMomentum, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
 from sotdrake.dynamics.station import sole_rectangle
 from sotdrake.dynamics.trajectories import hold_move_hold, minimum_jerk_moves, trajectory_ports
@@ -115,8 +115,11 @@ def _com_trajectory(scenario: str, com0: np.ndarray, left_sole_xy: np.ndarray, d
 
 
 def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Meshcat | None = None, dt: float = 1e-3,
-                  solver: str = ACTIVE_SET, effort_scale: float = 1.0) -> DynamicsRun:
-    """``effort_scale``: the solver's torque bounds as a fraction of TALOS' effort limits."""
+                  solver: str = ACTIVE_SET, effort_scale: float = 1.0, momentum_damping: float | None = None,
+                  pushes: tuple[tuple[float, float, float], ...] = PUSHES) -> DynamicsRun:
+    """``effort_scale``: the solver's torque bounds as a fraction of TALOS' effort limits;
+    ``momentum_damping``: ``K_v`` (1/s) of an angular-momentum damping task under the CoM task
+    (``MetaTaskDynMomentum``), None for none; ``pushes``: the push scenario's (start, duration, force)."""
     if scenario not in SCENARIOS:
         raise ValueError(f"unknown scenario {scenario!r}; available: {SCENARIOS}")
     builder = DiagramBuilder()
@@ -135,6 +138,8 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
     if scenario != "lift_leg_no_com":
         com = MetaTaskDynCom(robot, kp=PUSH_COM_KP if scenario == "push" else COM_KP)
         sot.push(com.task.name)
+        if momentum_damping is not None:
+            sot.push(MetaTaskDynMomentum(robot, kv=momentum_damping).task.name)
         left_xy = robot.dynamic.pose_at("contactLF", robot.q0).translation()[:2] + np.array([sum(sole_rectangle()[:2]) / 2, 0.0])
         traj = _com_trajectory(scenario, com0, left_xy)
         if traj is not None:
@@ -169,8 +174,8 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
         monitor = robot.add(ContactMonitor(robot.physical))
         connect(plant.get_contact_results_output_port(), monitor.get_input_port())
         if scenario == "push":
-            mux = robot.add(ExternallyAppliedSpatialForceMultiplexer(len(PUSHES)), "pushes")
-            for i, (start, duration, force) in enumerate(PUSHES):
+            mux = robot.add(ExternallyAppliedSpatialForceMultiplexer(len(pushes)), "pushes")
+            for i, (start, duration, force) in enumerate(pushes):
                 push = robot.add(Push(plant, "torso_2_link", [force, 0.0, 0.0], start, duration), f"push_{i}")
                 connect(push.get_output_port(), mux.get_input_port(i))
             connect(mux.get_output_port(), plant.get_applied_spatial_force_input_port())
@@ -381,10 +386,13 @@ def main(argv: list[str] | None = None) -> dict:
                         help="how SolverDyn's QP levels are solved (the exact active set, or a Drake solver polished by it)")
     parser.add_argument("--effort-scale", type=effort_fraction, default=1.0,
                         help="the solver's torque bounds as a fraction in (0, 1] of TALOS' effort limits (a derated robot)")
+    parser.add_argument("--momentum-damping", type=float, default=None, metavar="KV",
+                        help="damp the angular momentum under the CoM task at this rate (1/s; MetaTaskDynMomentum)")
     args = parser.parse_args(argv)
     meshcat = start(args)
     logging.getLogger("drake").setLevel(logging.WARNING)
-    run = build_diagram(args.scenario, args.device, meshcat, solver=args.solver, effort_scale=args.effort_scale)
+    run = build_diagram(args.scenario, args.device, meshcat, solver=args.solver, effort_scale=args.effort_scale,
+                        momentum_damping=args.momentum_damping)
     simulator, times = simulate_ticks(run, args.duration, not args.quiet)
     summary, trace = summarize(run, simulator, times, args.duration)
     print(json.dumps(summary, indent=2), flush=True)

@@ -156,3 +156,15 @@ def test_the_acceleration_task_damps_the_momentum(talos_model, rng):
     A, drift, h = model.terms(q, v)
     np.testing.assert_allclose(level.jacobian, A[:3], atol=1e-9 * np.abs(A).max())
     np.testing.assert_allclose(level.lower, -7.0 * (h[:3] - k_star) - drift[:3], atol=1e-8 * max(1.0, np.abs(h).max()))
+
+
+@pytest.mark.slow
+def test_the_push_script_brackets_each_settings_largest_push(tmp_path):
+    """Both settings survive a 100 N push and fall under a 900 N one (0.1 s on the torso)."""
+    from tests.conftest import load_diagram
+
+    summary = load_diagram("push_momentum").main(["--forces", "100,900", "--steps", "0", "--duration", "2", "--damping", "10",
+                                                  "--out", str(tmp_path), "--quiet"])
+    for setting in ("without", "with"):
+        assert summary[setting]["survived_n"] == 100.0 and summary[setting]["fell_n"] == 900.0
+    assert (tmp_path / "summary.json").exists()

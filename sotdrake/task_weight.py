@@ -65,11 +65,11 @@ def weighted_level(levels: Sequence[TaskLevel], weights: Sequence[float] | np.nd
 def check_weights(name: str, members: Sequence[str], weights: Any) -> np.ndarray:
     """``weights`` as an array of ``len(members)`` floats, each finite in ``[0, MAX_WEIGHT]``, not
     all zero; else :class:`InvalidInput` naming the group and the member."""
-    try:
-        values = np.asarray(weights, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise InvalidInput(f"{name}: weights must be {len(members)} numbers (one per member {members}), got {weights!r:.100}") from None
-    if isinstance(weights, (str, bytes)) or values.shape != (len(members),):
+    items = list(np.ravel(weights)) if isinstance(weights, np.ndarray) else weights
+    if not isinstance(items, (list, tuple)) or any(not _is_number(w) for w in items):
+        raise InvalidInput(f"{name}: weights must be {len(members)} numbers (one per member {members}), got {weights!r:.100}")
+    values = np.asarray(items, dtype=float).reshape(-1)
+    if values.shape != (len(members),):
         raise InvalidInput(f"{name}: weights must be {len(members)} numbers (one per member {members}), got {weights!r:.100}")
     for member, w in zip(members, values, strict=True):
         if not (math.isfinite(w) and 0 <= w <= MAX_WEIGHT):

@@ -230,3 +230,22 @@ def test_a_weighted_level_in_solver_dyn_minimises_its_own_weighted_cost(rng):
     assert cost(w1, a1) <= cost(w1, a2) * (1 + 1e-6) + 1e-9
     assert cost(w2, a2) <= cost(w2, a1) * (1 + 1e-6) + 1e-9
     assert np.abs(a1 - a2).max() > 1e-2
+
+
+def test_live_commands_set_a_weight_and_an_acceleration_limit(talos_model):
+    from sotdrake.live.grammar import parse_command
+    from sotdrake.live.vocabulary import Vocabulary
+
+    robot, sot, feet, (hand, posture), group, diagram = build_kinematic(talos_model, "hqp")
+    vocabulary = Vocabulary(diagram, None)
+    context = diagram.CreateDefaultContext()
+    vocabulary.prepare(parse_command("handAndPosture.setWeight('taskposture', 0.25)"))(context)
+    assert group.weights(context) == {"taskrh": 1.0, "taskposture": 0.25}
+    assert "0.25" in str(vocabulary.prepare(parse_command("handAndPosture.weights()"))(context))
+    vocabulary.prepare(parse_command("sot.setAccelerationLimit(40)"))(context)
+    assert (sot.acceleration_limit(context)[6:] == 40.0).all()
+    with pytest.raises(InvalidInput):
+        vocabulary.prepare(parse_command("sot.setAccelerationLimit(-1)"))(context)
+    with pytest.raises(InvalidInput):
+        vocabulary.prepare(parse_command("handAndPosture.setWeight('taskposture', -1)"))(context)
+    assert group.weights(context)["taskposture"] == 0.25

@@ -4,7 +4,8 @@
 The ``push`` scenario of ``diagrams/talos_dynamics.py`` on the physics device (TALOS under torque
 control, ``SolverDyn``: both soles held, the soft CoM task, the posture), with one push on the torso
 (``torso_2_link``, +x) of ``--push-duration`` seconds starting at ``--push-start``. For each setting
-(no momentum task; ``MetaTaskDynMomentum`` with ``K_v = --damping`` under the CoM task), a
+(no momentum task; ``MetaTaskDynMomentum`` with ``K_v = --damping`` in its own level under the CoM
+task, or with ``--weight W`` in one weighted level with the posture, posture 1 and momentum W), a
 bisection on the push's force between ``--forces LOW,HIGH`` (N) finds the largest push survived to
 ``(HIGH − LOW)/2^steps``. A run has fallen when the base drops by more than 0.25 m or tilts by more
 than 30° from upright (or the state is not finite); it stops there::
@@ -34,11 +35,12 @@ FALL_TILT_DEG = 30.0  # or the base tilted this far from upright (as push_map.py
 CHECK_PERIOD_S = 0.02  # how often a run looks whether TALOS has fallen
 
 
-def survives(force: float, damping: float | None, push_start: float, push_duration: float, duration: float) -> dict:
+def survives(force: float, damping: float | None, push_start: float, push_duration: float, duration: float,
+             weight: float | None = None) -> dict:
     """One push run, stopped as soon as TALOS has fallen: the base dropped more than
     ``FALL_DROP_M`` or tilted more than ``FALL_TILT_DEG`` from upright, or the state is not finite."""
     run = talos_dynamics.build_diagram("push", "physics", momentum_damping=damping,
-                                       pushes=((push_start, push_duration, force),))
+                                       pushes=((push_start, push_duration, force),), momentum_weight=weight)
     simulator = Simulator(run.diagram)
     simulator.Initialize()
     port = run.robot.state_port
@@ -59,7 +61,8 @@ def largest_push(damping: float | None, low: float, high: float, steps: int, arg
     runs = []
 
     def attempt(force: float) -> bool:
-        outcome = survives(force, damping, args.push_start, args.push_duration, args.duration)
+        outcome = survives(force, damping, args.push_start, args.push_duration, args.duration,
+                           args.weight if damping is not None else None)
         runs.append(outcome)
         print(f"damping {damping}: {force:.1f} N: {'fell' if outcome['fell'] else 'survived'}", file=sys.stderr, flush=True)
         return not outcome["fell"]
@@ -82,6 +85,9 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--damping", type=float, default=10.0, help="K_v of the angular-momentum damping task (1/s)")
     parser.add_argument("--forces", default="100,900", help="LOW,HIGH: the bisection's bracket (N)")
     parser.add_argument("--steps", type=int, default=4, help="bisection steps")
+    parser.add_argument("--weight", type=float, default=None,
+                        help="put the momentum task in one weighted level with the posture (posture 1, momentum WEIGHT) "
+                             "instead of its own level under the CoM task")
     parser.add_argument("--push-start", type=float, default=0.5, help="s")
     parser.add_argument("--push-duration", type=float, default=0.1, help="s")
     args = parser.parse_args(argv)
@@ -91,7 +97,8 @@ def main(argv: list[str] | None = None) -> dict:
     low, high = (float(x) for x in args.forces.split(","))
     if not 0 <= low < high or args.steps < 0:
         raise SystemExit(f"--forces must be LOW,HIGH with 0 ≤ LOW < HIGH and --steps ≥ 0, got {args.forces}, {args.steps}")
-    summary = {"push": {"start_s": args.push_start, "duration_s": args.push_duration, "body": "torso_2_link", "direction": "+x"},
+    summary = {"momentum_level": "strict, under the CoM task" if args.weight is None else f"weighted with the posture, w = {args.weight:g}",
+               "push": {"start_s": args.push_start, "duration_s": args.push_duration, "body": "torso_2_link", "direction": "+x"},
                "duration_s": args.duration,
                "without": largest_push(None, low, high, args.steps, args),
                "with": largest_push(args.damping, low, high, args.steps, args)}

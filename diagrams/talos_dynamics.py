@@ -17,7 +17,8 @@ state); ``--device dynsimu`` integrates ``q̈`` (``RobotDynSimu``, no physics). 
 * ``squat``: the CoM goes 15 cm down (0.5 → 1.5 s) and back up (2 → 3 s);
 * ``push``: standing, 500 N × 2 ms at t = 1 s and 100 N × 0.1 s at t = 2 s on the torso (+x);
   the CoM task is softer (``PUSH_COM_KP``): after the long push (10 N·s, the CoM at 0.11 m/s) a
-  stiff one asks a deceleration no CoP inside the soles can give.
+  stiff one asks a deceleration no CoP inside the soles can give; ``--momentum-damping KV`` adds an
+  angular-momentum damping task under the CoM task (``diagrams/push_momentum.py`` compares pushes).
 
     python diagrams/talos_dynamics.py --scenario lift_leg --device physics --duration 5 --out out/dyn_lift
 """
@@ -42,7 +43,7 @@ from pydrake.systems.primitives import ConstantVectorSource, Multiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 from pydrake.trajectories import PiecewisePolynomial
 
-from sotdrake import TALOS_GRIPPERS, Tracer, attime, load_talos, save_figure, script_arguments, start, write_run
+from sotdrake import TALOS_GRIPPERS, Tracer, add_task_weight, attime, load_talos, save_figure, script_arguments, start, write_run
 from sotdrake.dynamics.contact import friction_ratio
 from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynMomentum, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
@@ -116,10 +117,12 @@ def _com_trajectory(scenario: str, com0: np.ndarray, left_sole_xy: np.ndarray, d
 
 def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Meshcat | None = None, dt: float = 1e-3,
                   solver: str = ACTIVE_SET, effort_scale: float = 1.0, momentum_damping: float | None = None,
-                  pushes: tuple[tuple[float, float, float], ...] = PUSHES) -> DynamicsRun:
+                  pushes: tuple[tuple[float, float, float], ...] = PUSHES, momentum_weight: float | None = None) -> DynamicsRun:
     """``effort_scale``: the solver's torque bounds as a fraction of TALOS' effort limits;
     ``momentum_damping``: ``K_v`` (1/s) of an angular-momentum damping task under the CoM task
-    (``MetaTaskDynMomentum``), None for none; ``pushes``: the push scenario's (start, duration, force)."""
+    (``MetaTaskDynMomentum``), None for none, or, with ``momentum_weight``, in one weighted level with
+    the posture (``add_task_weight``: posture 1, momentum ``momentum_weight``); ``pushes``: the push
+    scenario's (start, duration, force)."""
     if scenario not in SCENARIOS:
         raise ValueError(f"unknown scenario {scenario!r}; available: {SCENARIOS}")
     builder = DiagramBuilder()
@@ -138,8 +141,9 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
     if scenario != "lift_leg_no_com":
         com = MetaTaskDynCom(robot, kp=PUSH_COM_KP if scenario == "push" else COM_KP)
         sot.push(com.task.name)
-        if momentum_damping is not None:
-            sot.push(MetaTaskDynMomentum(robot, kv=momentum_damping).task.name)
+        momentum = MetaTaskDynMomentum(robot, kv=momentum_damping) if momentum_damping is not None else None
+        if momentum is not None and momentum_weight is None:
+            sot.push(momentum.task.name)
         left_xy = robot.dynamic.pose_at("contactLF", robot.q0).translation()[:2] + np.array([sum(sole_rectangle()[:2]) / 2, 0.0])
         traj = _com_trajectory(scenario, com0, left_xy)
         if traj is not None:
@@ -162,7 +166,10 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
         connect(acceleration, foot_acc.get_input_port(0))
         connect(zeros.get_output_port(), foot_acc.get_input_port(1))
         connect(foot_acc.get_output_port(), foot.task.GetInputPort("reference_acceleration"))
-    sot.push(posture.task.name)
+    if momentum is not None and momentum_weight is not None:
+        sot.push(add_task_weight(robot, "postureAndMomentum", [posture, momentum], [1.0, momentum_weight]))
+    else:
+        sot.push(posture.task.name)
     if foot is not None:
         release_time, ramp = RELEASE
         attime(release_time, lambda: (sot.push(foot.task.name), sot.up(foot.task.name), sot.rmContact(contactRF, ramp)),

@@ -40,17 +40,14 @@ def jacobian_derivatives(J_WF: np.ndarray, p_WF: np.ndarray, upstream: np.ndarra
     S_w, S_v = J_w, J_v + _cross_columns(p, J_w)  # the spatial Jacobian's columns (twists about the origin)
     nv = J_WF.shape[1]
     out = np.zeros((nv, 6, nv))
-    for k in np.flatnonzero(np.abs(J_WF).sum(axis=0) > 0):
-        below = upstream[k] & (np.abs(J_WF).sum(axis=0) > 0)
-        if not below.any():
-            dS_w, dS_v = np.zeros((3, nv)), np.zeros((3, nv))
-        else:
-            dS_w, dS_v = np.zeros((3, nv)), np.zeros((3, nv))
-            dS_w[:, below] = _cross_columns(S_w[:, k], S_w[:, below])
-            dS_v[:, below] = _cross_columns(S_w[:, k], S_v[:, below]) + _cross_columns(S_v[:, k], S_w[:, below])
-        dp = J_v[:, k]
+    moving = np.abs(J_WF).sum(axis=0) > 0  # the coordinates that move F (the others' columns are zero)
+    for k in np.flatnonzero(moving):
+        below = upstream[k] & moving
+        dS_w, dS_v = np.zeros((3, nv)), np.zeros((3, nv))
+        dS_w[:, below] = _cross_columns(S_w[:, k], S_w[:, below])
+        dS_v[:, below] = _cross_columns(S_w[:, k], S_v[:, below]) + _cross_columns(S_v[:, k], S_w[:, below])
         out[k, :3] = dS_w
-        out[k, 3:] = dS_v - _cross_columns(dp, J_w) - _cross_columns(p, dS_w)
+        out[k, 3:] = dS_v - _cross_columns(J_v[:, k], J_w) - _cross_columns(p, dS_w)  # ∂p_F = J_v e_k
     return out
 
 

@@ -25,8 +25,10 @@ seed7       seed6, then ``down(RH)`` twice (the feet above the hand) and damping
 
 The project's own configurations are kept as ``extra_*`` (feet first, then the CoM, then the hand;
 1 ms ticks): ``extra_under_constrained``, ``extra_balance_held``, ``extra_balance_broken``,
-``extra_singular_undamped``, ``extra_singular_damped``, ``extra_joint_limits`` and
-``extra_joint_limits_cascade`` (the basic ``SOT``).
+``extra_singular_undamped``, ``extra_singular_damped``, ``extra_singular_floor`` (the undamped
+one with the right arm's manipulability kept above 0.01 by an inequality above the hand,
+``MetaTaskKineManipulability``), ``extra_joint_limits`` and ``extra_joint_limits_cascade`` (the
+basic ``SOT``).
 
     python diagrams/sot_concept.py --config seed --out out/concept     # or all, extra, or one name
 
@@ -43,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import Meshcat
+from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
@@ -53,11 +56,13 @@ from sotdrake import (
     MetaTaskKine6d,
     MetaTaskKineCom,
     MetaTaskKineJointLimits,
+    MetaTaskKineManipulability,
     Robot,
     Tracer,
     add_sot,
     attime,
     gotoNd,
+    manipulability,
     polygon_margin,
     save_figure,
     script_arguments,
@@ -71,6 +76,7 @@ from sotdrake import (
 from sotdrake.configuration import velocity_names
 
 HAND_OFFSET = (0.1, 0.0, 0.0)
+RIGHT_ARM = [f"arm_right_{i}_joint" for i in range(1, 8)]
 SEED_GAIN = (4.9, 0.9, 0.01, 0.9)
 SUPPORT_BOX = ((-0.08, -0.15), (0.11, 0.15))  # the original's taskSupport: x, y lower; x, y upper (m)
 LIMITED_JOINT = "torso_1_joint"  # its upper limit set to 0 in seed4 (the original: joint 19 of Romeo)
@@ -97,6 +103,7 @@ class Configuration:
     dt: float = 5e-3
     steps: tuple[float, ...] = ()
     seed: bool = True  # the original's tasks (frames 'desired', the support box and the joint limits)
+    manipulability_floor: float = 0.0  # > 0: the task "floor" keeps the right arm's manipulability above it
 
 
 def _seed(description: str, ball, *commands: str, **options) -> Configuration:
@@ -125,6 +132,8 @@ CONFIGURATIONS: dict[str, Configuration] = {
                                    (1.05, -0.35, 0.75), ("RF", "LF"), damping=1e-2),
     "extra_singular_undamped": _extra("ball beyond reach along the arm: a stretched, singular arm", (-0.03, -1.25, 1.37)),
     "extra_singular_damped": _extra("the same with damping 1e-2 on the hand's level", (-0.03, -1.25, 1.37), damping=1e-2),
+    "extra_singular_floor": _extra("the same, undamped, with the right arm's manipulability kept above 0.01 (above the hand)",
+                                   (-0.03, -1.25, 1.37), ("RF", "LF", "com", "floor"), manipulability_floor=0.01),
     "extra_joint_limits": _extra("ball behind the back: joints stop at their limits (HQP)", (-0.45, -0.35, 1.0)),
     "extra_joint_limits_cascade": _extra("the same with the basic SOT: limits are crossed", (-0.45, -0.35, 1.0),
                                          solver="cascade"),
@@ -190,6 +199,9 @@ def build_diagram(config: Configuration, meshcat: Meshcat | None = None) -> Conc
     sot = add_sot(robot, "sot", solver=config.solver, damping=config.damping)
     sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
     tasks = _tasks(robot, config.seed)
+    if config.manipulability_floor > 0:
+        tasks["floor"] = MetaTaskKineManipulability("rhManipulability", robot, "right-wrist", config.manipulability_floor,
+                                                    joints=RIGHT_ARM)
     rh = tasks["rh"]
     gotoNd(rh, config.ball, "111", SEED_GAIN)
     for command in config.commands:
@@ -226,6 +238,24 @@ def run(concept: Concept, progress: bool = True) -> tuple[Simulator, float]:
 def _joint_names(robot: Robot) -> list[str]:
     names = velocity_names(robot.model.plant)
     return [names[i] for i in robot.device.layout.joints_v]
+
+
+def _arm_velocities(robot: Robot) -> list[int]:
+    return [robot.model.plant.GetJointByName(name).velocity_start() for name in RIGHT_ARM]
+
+
+def _min_arm_manipulability(robot: Robot, qs: np.ndarray) -> float:
+    """The smallest manipulability of the right wrist's translation over the right arm's joints."""
+    plant = robot.model.plant
+    context, world, wrist = plant.CreateDefaultContext(), plant.world_frame(), robot.model.frame("right-wrist")
+    columns = np.zeros(robot.dimension, dtype=bool)
+    columns[_arm_velocities(robot)] = True
+    values = []
+    for q in qs[::10]:
+        plant.SetPositions(context, q)
+        J = plant.CalcJacobianSpatialVelocity(context, JacobianWrtVariable.kV, wrist, np.zeros(3), world, world)
+        values.append(manipulability(J[3:][:, columns]))
+    return float(min(values))
 
 
 def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict, dict]:
@@ -282,6 +312,9 @@ def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict
         "max_joint_velocity_ratio": float(ratio.max()),
         "max_velocity_joint": names[int(np.argmax(ratio.max(axis=0)))],
         "max_hand_speed_m_s": float(hand_speed.max()),
+        "max_joint_speed_rad_s": float(np.abs(trace["v"][:, joints_v]).max()),
+        "max_right_arm_speed_rad_s": float(np.abs(trace["v"][:, _arm_velocities(robot)]).max()),
+        "min_right_arm_manipulability": _min_arm_manipulability(robot, qs),
         "duration_s": config.duration,
         "dt_s": config.dt,
         "wall_s": wall,

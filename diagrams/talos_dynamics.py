@@ -17,7 +17,8 @@ state); ``--device dynsimu`` integrates ``q̈`` (``RobotDynSimu``, no physics). 
 * ``squat``: the CoM goes 15 cm down (0.5 → 1.5 s) and back up (2 → 3 s);
 * ``push``: standing, 500 N × 2 ms at t = 1 s and 100 N × 0.1 s at t = 2 s on the torso (+x);
   the CoM task is softer (``PUSH_COM_KP``): after the long push (10 N·s, the CoM at 0.11 m/s) a
-  stiff one asks a deceleration no CoP inside the soles can give.
+  stiff one asks a deceleration no CoP inside the soles can give; ``--momentum-damping KV`` adds an
+  angular-momentum damping task under the CoM task (``diagrams/push_momentum.py`` compares pushes).
 
     python diagrams/talos_dynamics.py --scenario lift_leg --device physics --duration 5 --out out/dyn_lift
 """
@@ -45,6 +46,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from sotdrake import (
     TALOS_GRIPPERS,
     Tracer,
+    add_task_weight,
     attime,
     fall_report,
     load_talos,
@@ -55,7 +57,7 @@ from sotdrake import (
     write_run,
 )
 from sotdrake.dynamics.contact import friction_ratio
-from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
+from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynMomentum, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
 from sotdrake.dynamics.station import sole_rectangle
 from sotdrake.dynamics.trajectories import hold_move_hold, minimum_jerk_moves, trajectory_ports
@@ -126,10 +128,14 @@ def _com_trajectory(scenario: str, com0: np.ndarray, left_sole_xy: np.ndarray, d
 
 
 def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Meshcat | None = None, dt: float = 1e-3,
-                  solver: str = ACTIVE_SET, effort_scale: float = 1.0, pushes: tuple | None = None) -> DynamicsRun:
+                  solver: str = ACTIVE_SET, effort_scale: float = 1.0, momentum_damping: float | None = None,
+                  pushes: tuple | None = None, momentum_weight: float | None = None) -> DynamicsRun:
     """``effort_scale``: the solver's torque bounds as a fraction of TALOS' effort limits;
-    ``pushes``: ``(start s, duration s, force N (world 3-vector))`` on the torso, with the physics
-    device (default: the ``push`` scenario's :data:`PUSHES`, none otherwise)."""
+    ``momentum_damping``: ``K_v`` (1/s) of an angular-momentum damping task under the CoM task
+    (``MetaTaskDynMomentum``), None for none, or, with ``momentum_weight``, in one weighted level with
+    the posture (``add_task_weight``: posture 1, momentum ``momentum_weight``); ``pushes``: ``(start
+    s, duration s, force N (world 3-vector))`` on the torso, with the physics device (default: the
+    ``push`` scenario's :data:`PUSHES`, none otherwise)."""
     if scenario not in SCENARIOS:
         raise ValueError(f"unknown scenario {scenario!r}; available: {SCENARIOS}")
     builder = DiagramBuilder()
@@ -148,6 +154,9 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
     if scenario != "lift_leg_no_com":
         com = MetaTaskDynCom(robot, kp=PUSH_COM_KP if scenario == "push" else COM_KP)
         sot.push(com.task.name)
+        momentum = MetaTaskDynMomentum(robot, kv=momentum_damping) if momentum_damping is not None else None
+        if momentum is not None and momentum_weight is None:
+            sot.push(momentum.task.name)
         left_xy = robot.dynamic.pose_at("contactLF", robot.q0).translation()[:2] + np.array([sum(sole_rectangle()[:2]) / 2, 0.0])
         traj = _com_trajectory(scenario, com0, left_xy)
         if traj is not None:
@@ -170,7 +179,10 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
         connect(acceleration, foot_acc.get_input_port(0))
         connect(zeros.get_output_port(), foot_acc.get_input_port(1))
         connect(foot_acc.get_output_port(), foot.task.GetInputPort("reference_acceleration"))
-    sot.push(posture.task.name)
+    if momentum is not None and momentum_weight is not None:
+        sot.push(add_task_weight(robot, "postureAndMomentum", [posture, momentum], [1.0, momentum_weight]))
+    else:
+        sot.push(posture.task.name)
     if foot is not None:
         release_time, ramp = RELEASE
         attime(release_time, lambda: (sot.push(foot.task.name), sot.up(foot.task.name), sot.rmContact(contactRF, ramp)),
@@ -396,10 +408,13 @@ def main(argv: list[str] | None = None) -> dict:
                         help="how SolverDyn's QP levels are solved (the exact active set, or a Drake solver polished by it)")
     parser.add_argument("--effort-scale", type=effort_fraction, default=1.0,
                         help="the solver's torque bounds as a fraction in (0, 1] of TALOS' effort limits (a derated robot)")
+    parser.add_argument("--momentum-damping", type=float, default=None, metavar="KV",
+                        help="damp the angular momentum under the CoM task at this rate (1/s; MetaTaskDynMomentum)")
     args = parser.parse_args(argv)
     meshcat = start(args)
     logging.getLogger("drake").setLevel(logging.WARNING)
-    run = build_diagram(args.scenario, args.device, meshcat, solver=args.solver, effort_scale=args.effort_scale)
+    run = build_diagram(args.scenario, args.device, meshcat, solver=args.solver, effort_scale=args.effort_scale,
+                        momentum_damping=args.momentum_damping)
     simulator, times = simulate_ticks(run, args.duration, not args.quiet)
     summary, trace = summarize(run, simulator, times, args.duration)
     print(json.dumps(summary, indent=2), flush=True)

@@ -42,6 +42,8 @@ from .features import (
     FeatureGeneric,
     FeatureGenericDesired,
     FeatureJointLimits,
+    FeatureManipulability,
+    FeatureMomentum,
     FeaturePosture,
     FeatureRelative6d,
     FeatureVisualPoint,
@@ -51,12 +53,15 @@ from .interactive import Runner
 from .introspection import displayAll, displaySignals, entities, entity, signal, signals_report
 from .joint_limitator import JointLimitator, limit_joint_velocities
 from .kinematics import Dynamic
+from .manipulability import manipulability, manipulability_and_gradient
 from .meta_tasks import (
     MetaTaskKine6d,
     MetaTaskKine6dRel,
     MetaTaskKineCom,
     MetaTaskKineFeature,
     MetaTaskKineJointLimits,
+    MetaTaskKineManipulability,
+    MetaTaskKineMomentum,
     MetaTaskKinePosture,
     MetaTaskVisualPoint,
     gotoNd,
@@ -71,6 +76,7 @@ from .solvers import SOT, SolverKine
 from .stack_checks import check_stack
 from .target_marker import TargetMarker, desired_position
 from .task import Task, TaskInequality, TaskLevel, TaskPD
+from .task_weight import TaskWeight, add_task_weight, weighted_level
 from .tracing import Tracer
 from .visualization import (
     add_robot_visualizer,
@@ -85,7 +91,7 @@ from .visualization import (
 _LAZY: dict[str, tuple[str, ...]] = {
     ".dynamics": ("Contact6d", "DynamicEntity", "RobotDynSimu", "SolverDyn", "TaskDynPD"),
     ".dynamics.robot_dyn": ("RobotDyn",),
-    ".dynamics.meta_tasks_dyn": ("MetaTaskDyn6d", "MetaTaskDynCom", "MetaTaskDynPosture"),
+    ".dynamics.meta_tasks_dyn": ("MetaTaskDyn6d", "MetaTaskDynCom", "MetaTaskDynMomentum", "MetaTaskDynPosture"),
     ".dynamics.contact": ("friction_ratio",),
     ".dynamics.station": ("sole_rectangle",),
     ".dynamics.trajectories": ("hold_move_hold", "minimum_jerk_moves", "trajectory_ports"),
@@ -128,7 +134,7 @@ _LAZY_MODULE = {name: module for module, names in _LAZY.items() for name in name
 if TYPE_CHECKING:
     from .dynamics import Contact6d, DynamicEntity, RobotDynSimu, SolverDyn, TaskDynPD
     from .dynamics.contact import friction_ratio
-    from .dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
+    from .dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynMomentum, MetaTaskDynPosture
     from .dynamics.robot_dyn import RobotDyn
     from .dynamics.station import sole_rectangle
     from .dynamics.trajectories import hold_move_hold, minimum_jerk_moves, trajectory_ports
@@ -213,6 +219,8 @@ __all__ = [
     "FeatureGeneric",
     "FeatureGenericDesired",
     "FeatureJointLimits",
+    "FeatureManipulability",
+    "FeatureMomentum",
     "FeaturePosture",
     "FeatureRelative6d",
     "FeatureVisualPoint",
@@ -227,12 +235,15 @@ __all__ = [
     "MeasuredCom",
     "MetaTaskDyn6d",
     "MetaTaskDynCom",
+    "MetaTaskDynMomentum",
     "MetaTaskDynPosture",
     "MetaTaskKine6d",
     "MetaTaskKine6dRel",
     "MetaTaskKineCom",
     "MetaTaskKineFeature",
     "MetaTaskKineJointLimits",
+    "MetaTaskKineManipulability",
+    "MetaTaskKineMomentum",
     "MetaTaskKinePosture",
     "MetaTaskVisualPoint",
     "NotFound",
@@ -265,6 +276,7 @@ __all__ = [
     "TaskLevel",
     "TaskNotFound",
     "TaskPD",
+    "TaskWeight",
     "Tracer",
     "WalkCommand",
     "add_live_arguments",
@@ -276,6 +288,7 @@ __all__ = [
     "add_sweep_arguments",
     "add_talos_station",
     "add_target_marker",
+    "add_task_weight",
     "attime",
     "available_robots",
     "check_stack",
@@ -299,6 +312,8 @@ __all__ = [
     "live_meshcat",
     "load_robot",
     "load_talos",
+    "manipulability",
+    "manipulability_and_gradient",
     "minimum_jerk_moves",
     "motion_zmp",
     "per_process",
@@ -324,6 +339,7 @@ __all__ = [
     "tilt_of_rotations",
     "trajectory_ports",
     "velocity_names",
+    "weighted_level",
     "write_control_graph",
     "write_run",
 ]

@@ -27,7 +27,8 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, OutputPort, ValueProducer
 
-from .configuration import PlantContextHolder
+from .centroidal import centroidal_momentum_matrix
+from .configuration import Layout, PlantContextHolder
 from .exceptions import InvalidInput, check_finite
 from .robots import RobotModel
 
@@ -35,8 +36,9 @@ from .robots import RobotModel
 class Dynamic(LeafSystem):
     """Kinematics of the control model: input ``position`` (q, size nq).
 
-    Outputs: ``com`` (3), ``Jcom`` (3×nv) and, for each op point created with
-    :meth:`createOpPoint`, ``<name>`` (``X_WF``) and ``J<name>`` (``J_WF``).
+    Outputs: ``com`` (3), ``Jcom`` (3×nv), ``momentum_matrix`` (the centroidal momentum matrix
+    ``A_G``, 6×nv, rows ``(k_G; l)``: :mod:`sotdrake.centroidal`; a floating base only) and, for
+    each op point created with :meth:`createOpPoint`, ``<name>`` (``X_WF``) and ``J<name>`` (``J_WF``).
     """
 
     def __init__(self, model: RobotModel, name: str = "dynamic"):
@@ -57,6 +59,10 @@ class Dynamic(LeafSystem):
         self.DeclareVectorOutputPort("com", 3, self._calc_com)
         self.DeclareAbstractOutputPort(
             "Jcom", lambda: AbstractValue.Make(np.zeros((3, model.nv))), self._calc_com_jacobian
+        )
+        self._layout = Layout.of(self.plant)
+        self.DeclareAbstractOutputPort(
+            "momentum_matrix", lambda: AbstractValue.Make(np.zeros((6, model.nv))), self._calc_momentum_matrix
         )
         self._op_points: dict[str, tuple[object, RigidTransform]] = {}
         self._com_rows = _momentum_rows(self.plant)
@@ -121,6 +127,12 @@ class Dynamic(LeafSystem):
             return
         output.set_value(self.plant.CalcJacobianCenterOfMassTranslationalVelocity(
             plant_context, JacobianWrtVariable.kV, self._world, self._world))
+
+    def _calc_momentum_matrix(self, context: Context, output: AbstractValue) -> None:
+        plant_context = self._plant_ctx(context)
+        M = self.plant.CalcMassMatrix(plant_context)
+        p_WG = self.plant.CalcCenterOfMassPositionInWorld(plant_context)
+        output.set_value(centroidal_momentum_matrix(M, self.plant.GetPositions(plant_context), p_WG, self._layout))
 
     # --- evaluation at a given configuration (build time, tests, post-processing) ----------
     def _context_at(self, q: np.ndarray):

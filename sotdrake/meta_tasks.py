@@ -24,6 +24,8 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context, InputPort, OutputPort
 
+from .centroidal import base_rows
+from .configuration import Layout
 from .entity import command_group, recording
 from .exceptions import InvalidInput, SotError, check_finite, check_number
 from .features import (
@@ -39,9 +41,12 @@ from .features import (
 )
 from .features.base import check_mask
 from .features.feature6d import as_transform
+from .features.manipulability import FeatureManipulability
+from .features.momentum import FeatureMomentum
 from .gain_checks import check_gain
 from .gains import GainAdaptive, from_numbers
 from .kinematics import Dynamic
+from .manipulability import upstream_coordinates
 from .ranges import MAX_TARGET_POSITION
 from .robot import Robot
 from .robots import TALOS_GRIPPERS
@@ -237,6 +242,47 @@ class MetaTaskVisualPoint(_MetaTask):
 
         source = self.robot.add(ConstantVectorSource(check_finite("point", point, (3,))), f"point_{self.name}")
         self.plugPoint(source.get_output_port())
+
+
+class MetaTaskKineMomentum(_MetaTask):
+    """Task on the centroidal momentum (``FeatureMomentum`` over ``dynamic.momentum_matrix``):
+    ``A_G v = h*`` on the selected rows, by default ``mask='111'``, the angular momentum about the
+    CoM, with ``h* = 0`` (``feature.setReference``): the whole body turns as little as it can about
+    its CoM. A floating base only (a fixed base carries the momentum: :class:`InvalidInput`)."""
+
+    def __init__(self, robot: Robot, name: str = "momentum", mask: str = "111"):
+        robot = _as_robot(robot, "MetaTaskKineMomentum")
+        base_rows(Layout.of(robot.model.plant))  # a fixed base is refused before anything is added
+        check_mask(mask, 6, f"MetaTaskKineMomentum({name!r})")
+        feature = robot.add(FeatureMomentum("feature" + name, robot.dimension))
+        feature.selec(mask)
+        robot.builder.Connect(robot.dynamic.GetOutputPort("momentum_matrix"), feature.GetInputPort("momentum_matrix"))
+        self._finish(robot, name, feature)
+
+
+class MetaTaskKineManipulability(_MetaTask):
+    """Keep an op point's manipulability above a floor: ``μ ≥ floor`` (``FeatureManipulability``
+    under a ``TaskInequality``, gain ``gain`` 1/s: μ may approach the floor at most exponentially).
+    ``opPoint``: an op point (``'right-wrist'``) or a frame; ``rows``: a mask over ``J_WF``'s rows
+    (``'111000'``: the translation); ``joints``: the joints whose columns count (e.g. one arm's;
+    None: every velocity). Push it above the task it protects. :class:`FrameNotFound` for an
+    unknown frame, :class:`NotFound` for an unknown joint, before anything is added."""
+
+    def __init__(self, name: str, robot: Robot, opPoint: str, floor: float, rows: str = "111000",
+                 joints: list[str] | None = None, gain: float = 10.0):
+        robot = _as_robot(robot, "MetaTaskKineManipulability")
+        floor = check_number(f"MetaTaskKineManipulability({name!r}): floor", floor, 0.0, 1e6)
+        check_number(f"MetaTaskKineManipulability({name!r}): gain", gain, 1e-6, 1e4, " 1/s")
+        robot.model.frame(opPoint)  # an unknown frame is refused before anything is added
+        columns = None if joints is None else ~robot.velocity_selection(excluding=joints)
+        feature = FeatureManipulability("feature" + name, robot.dimension, upstream_coordinates(robot.model.plant), rows, columns)
+        robot.add(feature)
+        position, jacobian = robot.dynamic.createOpPoint(opPoint, opPoint)
+        robot.builder.Connect(position, feature.GetInputPort("position"))
+        robot.builder.Connect(jacobian, feature.GetInputPort("Jq"))
+        self._finish(robot, name, feature, inequality=True)
+        self.gain.setConstant(gain)
+        self.task.setBounds([floor], [np.inf])
 
 
 class MetaTaskKineFeature(_MetaTask):

@@ -4,7 +4,7 @@ A task that cannot be evaluated (no gain, no feature) would otherwise fail insid
 with Drake's ``InputPort::Eval(): required InputPort[3] (controlGain) … is not connected``; an
 inequality task without bounds would constrain nothing, silently. :func:`check_stack` looks at
 every solver of the diagram (``SOT``, ``SolverKine``, ``SolverDyn``), at each task of its stack
-and its contacts, and raises :class:`~sotdrake.exceptions.StackError` naming the task and what it
+(and each member of a weighted level) and its contacts, and raises :class:`~sotdrake.exceptions.StackError` naming the task and what it
 lacks, or warns (:class:`~sotdrake.exceptions.SotWarning`) for an inequality task without bounds.
 :func:`sotdrake.simulate` calls it before running; a task evaluated in a ``Simulator`` of your own
 raises the same :class:`StackError` at its first evaluation.
@@ -18,6 +18,7 @@ from .entity import probing
 from .exceptions import StackError
 from .solvers.sot import SOT
 from .task import TaskInequality, _TaskBase
+from .task_weight import TaskWeight
 
 
 def _systems_by_name(diagram: Diagram) -> dict[str, System]:
@@ -38,10 +39,11 @@ def check_stack(diagram: Diagram, context: Context | None = None) -> None:
         settings = solver.settings(context)
         for name in [*settings.contacts, *settings.tasks]:
             task = systems.get(name)
-            if not isinstance(task, _TaskBase):
+            if not isinstance(task, (_TaskBase, TaskWeight)):
                 continue
             missing = task.missing_inputs(context)
             if missing is not None:
                 raise StackError(f"{solver.name}: {missing}")
-            if isinstance(task, TaskInequality):
-                task.warn_if_unbounded(context)
+            for each in task.member_tasks() if isinstance(task, TaskWeight) else [task]:
+                if isinstance(each, TaskInequality):
+                    each.warn_if_unbounded(context)

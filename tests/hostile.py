@@ -378,6 +378,8 @@ def bad_inputs() -> list[tuple[str, Callable]]:
         add(_numbers("solver.setPositionMargin", lambda fx, v: _kine(fx).setPositionMargin(v, c(fx)), [-1.0, 1.0]))
         add(_numbers("solver.setBaseVelocityLimit(angular)", lambda fx, v: _kine(fx).setBaseVelocityLimit(v, 1.0, c(fx)), [0.0, -1.0, 1e3]))
         add(_numbers("solver.setBaseVelocityLimit(linear)", lambda fx, v: _kine(fx).setBaseVelocityLimit(1.0, v, c(fx)), [0.0, 1e3]))
+        add(_numbers("solver.setAccelerationLimit", lambda fx, v: _kine(fx).setAccelerationLimit(v, c(fx)), [0.0, -1.0, 1e7],
+                     skip=(INF, None, [1.0])))  # (inf: no limit; None: none; [1.0]: one number for every joint)
         for value in ["nope", None, 5]:
             table.append((f"solver.setSolver({value!r})", lambda fx, v=value: _kine(fx).setSolver(v, c(fx))))
     return table

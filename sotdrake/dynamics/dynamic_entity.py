@@ -6,6 +6,10 @@ Input ``state`` (``(q, v)``, size nq + nv). Outputs:
 * ``position`` (q), ``velocity`` (v);
 * ``com`` (``p_WCm``, m), ``Jcom`` (3×nv), ``com_drift`` (``J̇_CoM v``, m/s²), the last two from
   the floating-base rows of ``M`` and ``C v`` (:func:`.terms.com_terms`);
+* ``momentum`` (``h_G``, the centroidal momentum ``(k_G; l)``: kg·m²/s, kg·m/s, world),
+  ``momentum_drift`` (``Ȧ_G v``), ``momentum_matrix`` (``A_G``, 6×nv) and ``momentum_terms``
+  (all three), from the floating-base rows of ``M`` and ``C v`` (:mod:`sotdrake.centroidal`; a
+  floating base only);
 * ``dynamics``: :class:`.terms.DynamicsTerms` (``M`` from ``CalcMassMatrix``, ``C v`` from
   ``CalcBiasTerm``, ``τ_g = M[:, t] g`` from the base's translational columns of ``M``
   (:func:`.terms.gravity_columns`, checked at construction; else Drake's
@@ -31,6 +35,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import BasicVector, Context, OutputPort, ValueProducer
 
+from ..centroidal import centroidal_momentum_terms
 from ..configuration import Layout
 from ..exceptions import InvalidInput
 from ..kinematics import Dynamic, PlantContextHolder
@@ -81,6 +86,11 @@ class DynamicEntity(Dynamic):
         self.DeclareVectorOutputPort("velocity", self.nv, lambda c, o: o.SetFromVector(self.state.Eval(c)[self.nq :]))
         self._dynamics = self.DeclareAbstractOutputPort("dynamics", lambda: AbstractValue.Make(self._empty_terms()), self._calc_terms)
         self.DeclareVectorOutputPort("com_drift", 3, self._calc_com_drift)
+        self._momentum = self.DeclareAbstractOutputPort(
+            "momentum_terms", lambda: AbstractValue.Make((np.zeros((6, self.nv)), np.zeros(6), np.zeros(6))),
+            self._calc_momentum_terms)
+        self.DeclareVectorOutputPort("momentum", 6, lambda c, o: o.SetFromVector(self._momentum.Eval(c)[2]))
+        self.DeclareVectorOutputPort("momentum_drift", 6, lambda c, o: o.SetFromVector(self._momentum.Eval(c)[1]))
 
     def _empty_terms(self) -> DynamicsTerms:
         nv = self.nv
@@ -117,6 +127,15 @@ class DynamicEntity(Dynamic):
         if self._base_rows is None:
             com_terms(terms.M, terms.Cv, self.mass, self.layout)  # says why it cannot
         output.set_value(terms.M[self._base_rows] / self.mass)  # com_terms' J_CoM alone
+
+    def _calc_momentum_terms(self, context: Context, value: AbstractValue) -> None:
+        """``(A_G, Ȧ_G v, h_G)`` from the dynamics terms (:mod:`sotdrake.centroidal`)."""
+        terms = self._dynamics.Eval(context)
+        p_WG = self.GetOutputPort("com").Eval(context)
+        value.set_value(centroidal_momentum_terms(terms.M, terms.Cv, terms.q, terms.v, p_WG, self.layout))
+
+    def _calc_momentum_matrix(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(self._momentum.Eval(context)[0])
 
     def _calc_com_drift(self, context: Context, output: BasicVector) -> None:
         terms = self._dynamics.Eval(context)

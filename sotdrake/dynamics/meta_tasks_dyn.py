@@ -1,4 +1,5 @@
-"""Dynamic meta tasks (sot-dyninv ``MetaTaskDyn6d``, ``MetaTaskDynCom``, ``MetaTaskDynPosture``).
+"""Dynamic meta tasks (sot-dyninv ``MetaTaskDyn6d``, ``MetaTaskDynCom``, ``MetaTaskDynPosture``),
+and ``MetaTaskDynMomentum``, which damps the centroidal momentum (``FeatureMomentum``).
 
 Each adds ``feature<name>`` (an existing feature, unchanged), ``feature<name>_ref`` (its desired
 value) and ``task<name>`` (:class:`.task_dyn_pd.TaskDynPD`), plugged as in the kinematic meta tasks,
@@ -11,8 +12,12 @@ from __future__ import annotations
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context
+from pydrake.systems.primitives import MatrixGain
 
-from ..features import Feature6d, Feature6dDesired, FeatureGeneric, FeatureGenericDesired, FeaturePosture
+from ..centroidal import base_rows
+from ..features import Feature6d, Feature6dDesired, FeatureGeneric, FeatureGenericDesired, FeatureMomentum, FeaturePosture
+from ..features.base import check_mask
+from ..selection import parse_selection
 from .robot_dyn import RobotDyn
 from .task_dyn_pd import TaskDynPD
 
@@ -84,3 +89,26 @@ class MetaTaskDynPosture(_MetaTaskDyn):
         feature = robot.add(FeaturePosture("feature" + name, robot.model.plant, robot.q0))
         robot.builder.Connect(robot.dynamic.GetOutputPort("position"), feature.GetInputPort("state"))
         self._finish(robot, name, feature, kp, kv)
+
+
+class MetaTaskDynMomentum(_MetaTaskDyn):
+    """The centroidal momentum (``FeatureMomentum``) as an acceleration task,
+    ``A_G q̈ = −K_v (h_G − h*) − Ȧ_G v`` on the rows of ``mask`` (default ``'111'``: the angular
+    momentum about the CoM; ``h* = 0`` until ``feature.setReference``): the momentum error decays
+    at the rate ``K_v`` (1/s). The exact ``Ȧ_G v`` (the dynamic entity's ``momentum_drift``, its
+    selected rows) is the task's ``drift``; the mask is fixed at construction (the drift's rows
+    follow it). A floating base only."""
+
+    def __init__(self, robot: RobotDyn, name: str = "momentum", kv: float = 10.0, mask: str = "111"):
+        TaskDynPD.check_gains("task" + name, 0.0, kv, robot.dt)  # before anything is added
+        base_rows(robot.dynamic.layout)
+        check_mask(mask, 6, f"MetaTaskDynMomentum({name!r})")
+        rows = parse_selection(mask, 6)
+        feature = robot.add(FeatureMomentum("feature" + name, robot.dimension))
+        feature.selec(mask)
+        connect = robot.builder.Connect
+        connect(robot.dynamic.GetOutputPort("momentum_matrix"), feature.GetInputPort("momentum_matrix"))
+        self._finish(robot, name, feature, 0.0, kv, dimension=rows.size, exact_drift=True)
+        select = robot.add(MatrixGain(np.eye(6)[rows]), "feature" + name + "_drift_rows")
+        connect(robot.dynamic.GetOutputPort("momentum_drift"), select.get_input_port())
+        connect(select.get_output_port(), self.task.GetInputPort("drift"))

@@ -49,8 +49,8 @@ Inputs: ``dynamics`` (:class:`.terms.DynamicsTerms`), one per contact (``contact
 ports, :class:`.contact.ContactRows`) and one per task. Outputs: ``control`` (``q̈``, the seed's
 name), ``torque`` (τ), ``wrenches`` (the world wrench of each declared contact about its origin,
 ``(n, f)``, 6 per contact in declaration order, zero when inactive), ``residuals`` (slack norm per
-level), ``diagnostics`` and ``stack`` (the names of the tasks in the stack: a ``TaskDynPD`` records
-its Jacobian only while it is there).
+level), ``diagnostics`` and ``stack`` (the names of the tasks in the stack, with the members of a
+weighted level (``TaskWeight``) in it: a ``TaskDynPD`` records its Jacobian only while it is there).
 """
 
 from __future__ import annotations
@@ -448,7 +448,8 @@ class SolverDyn(SOT):
         self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._update)
         self.DeclareVectorOutputPort("torque", self.na, lambda c, o: o.SetFromVector(self._solution.Eval(c).torque))
         # The names of the tasks in the stack: a TaskDynPD records its Jacobian only while in it.
-        self.DeclareAbstractOutputPort("stack", lambda: AbstractValue.Make(()), lambda c, o: o.set_value(tuple(self._settings_of(c).tasks)),
+        self.DeclareAbstractOutputPort("stack", lambda: AbstractValue.Make(()),
+                                       lambda c, o: o.set_value(self.solved_tasks(self._settings_of(c))),
                                        prerequisites_of_calc={self.abstract_state_ticket(self._settings_index)})
         self.DeclareVectorOutputPort("wrenches", 6 * max_contacts, self._calc_wrenches)
         self.DeclareAbstractOutputPort("diagnostics", lambda: AbstractValue.Make(DynDiagnostics()),

@@ -9,6 +9,8 @@ from .feature1d import Feature1D, feature1d_error_and_jacobian
 from .feature6d import Feature6d, Feature6dDesired, pose_error_and_jacobian, shift_jacobian
 from .generic import FeatureGeneric, FeatureGenericDesired, generic_error_and_jacobian
 from .joint_limits import FeatureJointLimits, joint_limits_error_and_jacobian
+from .manipulability import FeatureManipulability, manipulability_error_and_jacobian
+from .momentum import FeatureMomentum, momentum_error_and_jacobian
 from .posture import FeaturePosture, posture_error_and_jacobian
 from .relative import FeatureRelative6d, relative_pose_error_and_jacobian
 from .visual_point import FeatureVisualPoint, visual_point_error_and_jacobian
@@ -21,6 +23,8 @@ __all__ = [
     "FeatureGeneric",
     "FeatureGenericDesired",
     "FeatureJointLimits",
+    "FeatureManipulability",
+    "FeatureMomentum",
     "FeaturePosture",
     "FeatureRelative6d",
     "FeatureValue",
@@ -28,6 +32,8 @@ __all__ = [
     "feature1d_error_and_jacobian",
     "generic_error_and_jacobian",
     "joint_limits_error_and_jacobian",
+    "manipulability_error_and_jacobian",
+    "momentum_error_and_jacobian",
     "pose_error_and_jacobian",
     "posture_error_and_jacobian",
     "relative_pose_error_and_jacobian",

@@ -25,6 +25,8 @@ object is ever reached by a name coming from a command:
 | ``Feature6dDesired`` | ``setPosition(p)``, ``setVelocity(v)`` |
 | ``FeatureGenericDesired`` | ``setReference(s)``, ``setVelocity(v)`` |
 | ``TaskInequality`` / ``TaskPD`` | ``setBounds(lower, upper)`` / ``setBeta(β)`` |
+| ``TaskWeight`` | ``setWeight(member, w)``, ``weights`` |
+| ``SolverKine`` (acceleration limits) | ``setAccelerationLimit(a_max)`` (one number for every joint) |
 
 :meth:`Vocabulary.prepare` turns a parsed :class:`~.grammar.Command` into a :class:`Prepared`
 command: target and method found, every argument checked against its declared kind (number,
@@ -48,8 +50,9 @@ from ..exceptions import CommandRejected, NotFound
 from ..features import Feature, Feature6d, Feature6dDesired, FeatureGenericDesired
 from ..gains import GainAdaptive, GainHyperbolic
 from ..meta_tasks import MetaTaskKine6d, MetaTaskKineCom, _MetaTask, gotoNd
-from ..solvers import SOT
+from ..solvers import SOT, SolverKine
 from ..task import TaskInequality, TaskPD
+from ..task_weight import TaskWeight
 from .grammar import Command, EntityRef
 
 _REQUIRED = object()
@@ -209,6 +212,13 @@ class Vocabulary:
                                           lambda c, lo, up, s=system: s.setBounds(lo, up, c))
         if isinstance(system, TaskPD):
             methods["setBeta"] = Method((Param("beta", "number"),), lambda c, b, s=system: s.setBeta(b, c))
+        if isinstance(system, TaskWeight):
+            methods["setWeight"] = Method((Param("member", "text"), Param("weight", "number")),
+                                          lambda c, m, w, s=system: s.setWeight(m, w, c))
+            methods["weights"] = Method((), lambda c, s=system: repr(s.weights(c)), "each member's weight")
+        if isinstance(system, SolverKine):
+            methods["setAccelerationLimit"] = Method((Param("a_max", "number"),),
+                                                     lambda c, a, s=system: s.setAccelerationLimit(a, c))
         self._methods[name] = methods
         self._objects[name] = system
 

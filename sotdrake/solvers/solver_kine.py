@@ -9,6 +9,10 @@ A stack of equality tasks goes first to :meth:`~.hqp.HierarchicalQP.solve_equali
 stack by one QR from the last tick's active limits, verified; :mod:`.active_bounds`), and to the
 level-by-level solve only when that does not verify.
 
+``setAccelerationLimit(a_max)`` adds hard bounds ``|v − v_prev| ≤ a_max dt`` on each joint (the
+last command ``v_prev`` kept in the Context), combined with the position and velocity limits and the
+braking distance (:mod:`.acceleration_limits`).
+
 Outputs: ``control`` (``v``), ``residuals`` (the optimal slack norm of each level) and
 ``diagnostics`` (:class:`HqpDiagnostics`). If a level cannot be solved the control is zero (the
 device holds), ``diagnostics.failure`` says which level and why, and a warning is logged.
@@ -27,6 +31,7 @@ from pydrake.systems.framework import Context, InputPort
 from ..configuration import Layout
 from ..exceptions import InvalidInput, SolverError
 from ..robots import RobotModel
+from .acceleration_limits import MAX_ACCELERATION, AccelerationBounds
 from .base_velocity import MAX_BASE_VELOCITY, default_base_velocity_limit
 from .hqp import ACTIVE_SET, HierarchicalQP, LevelRows, check_solver
 from .limits import VelocityBounds
@@ -41,6 +46,7 @@ class HqpSettings(StackSettings):
     position_margin: float = 1e-3  # rad (or m): joints stop this far from their position limits
     solver: str = ACTIVE_SET
     base_velocity_limit: tuple[float, float] | None = None  # (rad/s, m/s), see .base_velocity
+    acceleration_limit: np.ndarray | None = None  # nv limits > 0 (inf: none; rad/s², m/s²), see .acceleration_limits
 
 
 @dataclass
@@ -88,6 +94,11 @@ class SolverKine(SOT):
         limits = model.joint_limits()
         self._bounds = VelocityBounds(limits["position_lower"], limits["position_upper"],
                                       limits["velocity_lower"], limits["velocity_upper"], layout)
+        self._acceleration_bounds = AccelerationBounds(limits["position_lower"], limits["position_upper"], layout)
+        plant = model.plant
+        model_limit = np.minimum(-plant.GetAccelerationLowerLimits(), plant.GetAccelerationUpperLimits())
+        if np.isfinite(model_limit[layout.joints_v]).any():  # the model's own limits (URDF drake:acceleration)
+            self.setAccelerationLimit(np.where(np.isfinite(model_limit) & (model_limit > 0), model_limit, np.inf))
         self._hqp = HierarchicalQP(model.nv)  # its programs and working sets are caches (warm starts)
         self.DeclareAbstractOutputPort(
             "diagnostics", lambda: AbstractValue.Make(HqpDiagnostics()),
@@ -115,6 +126,41 @@ class SolverKine(SOT):
             raise InvalidInput(f"{self.name}.setBaseVelocityLimit: the robot has no floating base")
         self._command(context, lambda s: setattr(s, "base_velocity_limit", (float(angular), float(linear))))
 
+    def setAccelerationLimit(self, limit: float | np.ndarray | None, context: Context | None = None) -> None:
+        """Bound each joint's acceleration between two commands, ``|v − v_prev| ≤ a_max dt``, as
+        hard bounds combined with the position and velocity limits and the braking distance
+        (:mod:`.acceleration_limits`). ``limit``: one number for every joint, or nv numbers (the
+        floating base's entries inf), each in ``(0, 1e6]`` rad/s² (m/s²) or inf for none; ``None``:
+        no limit (the default, unless the robot model has acceleration limits)."""
+        value = None
+        if limit is not None:
+            try:
+                value = np.array(limit, dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                value = np.full(1, np.nan)
+            if isinstance(limit, (bool, str)):
+                value = np.full(1, np.nan)
+            if value.shape == (1,):
+                value = np.full(self.nv, value[0])
+                if self._layout.base_v is not None:
+                    value[self._layout.base_v : self._layout.base_v + 6] = np.inf
+            base = slice(self._layout.base_v, self._layout.base_v + 6) if self._layout.base_v is not None else slice(0, 0)
+            if (value.shape != (self.nv,) or np.isnan(value).any() or not (value > 0).all()
+                    or (value[np.isfinite(value)] > MAX_ACCELERATION).any() or np.isfinite(value[base]).any()):
+                raise InvalidInput(f"{self.name}.setAccelerationLimit: a_max must be one number or {self.nv} numbers, each in "
+                                   f"(0, {MAX_ACCELERATION:g}] rad/s² or inf (the floating base's entries inf), got {limit!r:.200}")
+        self._command(context, lambda s: setattr(s, "acceleration_limit", value))
+
+    def acceleration_limit(self, context: Context | None = None) -> np.ndarray | None:
+        """The acceleration limits (nv, inf: none), or None without any."""
+        limit = cast(HqpSettings, self.settings(context)).acceleration_limit
+        return None if limit is None else limit.copy()
+
+    def _previous_velocity(self, context: Context) -> np.ndarray:
+        """The last command ``v_prev`` (zero before the first tick: the robot starts at rest)."""
+        kept = context.get_discrete_state(cast(int, self._last_velocity)).get_value()
+        return kept[1:] if kept[0] == 1.0 else np.zeros(self.nv)
+
     def setSolver(self, solver: str, context: Context | None = None) -> None:
         """How the levels are solved: ``'active-set'`` (default, exact), or a Drake solver
         (``'clarabel'``, ``'osqp'``, ``'snopt'``) polished by the active-set method."""
@@ -124,10 +170,13 @@ class SolverKine(SOT):
     def _calc(self, context: Context, value: AbstractValue) -> None:
         s = cast(HqpSettings, self._settings_of(context))
         task_levels = self._levels(context, s, check=False)
-        lower, upper = self._bounds(self._position.Eval(context), self._period, s.position_margin, s.control_selection,
-                                    s.base_velocity_limit)
+        q = self._position.Eval(context)
+        lower, upper = self._bounds(q, self._period, s.position_margin, s.control_selection, s.base_velocity_limit)
         if s.step_limit != np.inf:  # each tick's step within δ (see .step_limit)
             lower, upper = clip_bounds(lower, upper, s.step_limit / self._period)
+        if s.acceleration_limit is not None:
+            lower, upper = self._acceleration_bounds(lower, upper, q, self._previous_velocity(context), s.acceleration_limit,
+                                                     self._period, s.position_margin)
         diagnostics = HqpDiagnostics(tasks=(["contacts"] if s.contacts else []) + list(s.tasks))
         result = None
         if s.solver == ACTIVE_SET and all(level.upper is level.lower for level in task_levels):
@@ -146,7 +195,10 @@ class SolverKine(SOT):
                 self._levels(context, s)  # raises SolverError naming the task, if a task's values are wrong
                 raise
             try:
-                result = self._hqp.solve(levels, lower, upper, s.damping, s.solver)
+                # With acceleration limits, 0 may lie outside the bounds: the solve starts inside them,
+                # so that every bound holds (a start outside would relax the bound it violates).
+                start = np.clip(0.0, lower, upper) if s.acceleration_limit is not None else None
+                result = self._hqp.solve(levels, lower, upper, s.damping, s.solver, start=start)
             except SolverError as error:
                 diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
                 log.warning("%s: %s; the device holds", self.name, diagnostics.failure)

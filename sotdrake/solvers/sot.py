@@ -27,6 +27,7 @@ from ..configuration import Layout
 from ..entity import Entity
 from ..exceptions import InvalidInput, SolverError, StackError, TaskNotFound
 from ..task import Task, TaskLevel
+from ..task_weight import TaskWeight
 from .cascade import CascadeResult, cascade_factorization, cascade_residuals
 from .second_order import curvature_correction
 from .step_limit import DEFAULT_STEP_LIMIT, check_step_limit
@@ -122,6 +123,7 @@ class SOT(Entity[StackSettings]):
         self._task_ports: dict[str, InputPort] = {}
         self._task_systems: dict[str, object] = {}  # the task system behind each port (its identity)
         self._inequality_tasks: set[str] = set()
+        self._groups: dict[str, tuple[str, ...]] = {}  # weighted levels (TaskWeight): their members
         empty = CascadeResult(np.zeros(nv), np.zeros(0), np.zeros(0, dtype=int))
         # The solution depends on the inputs, the settings and the last tick; the last tick is
         # left out of the prerequisites: it changes only in the update that also moves the
@@ -152,8 +154,9 @@ class SOT(Entity[StackSettings]):
         return tickets if self.dt is not None else tickets | {self.xd_ticket()}
 
     # --- wiring (build time) ---------------------------------------------------------------
-    def declare_task_input(self, task: Task) -> InputPort:
-        """The input port for ``task`` (created once); connect ``task.task`` to it."""
+    def declare_task_input(self, task: Task | TaskWeight) -> InputPort:
+        """The input port for ``task`` (a task, or a :class:`~sotdrake.task_weight.TaskWeight`
+        group; created once); connect ``task.task`` to it."""
         if task.nv != self.nv:
             raise InvalidInput(f"task {task.name} has nv = {task.nv}, solver {self.name} has nv = {self.nv}")
         if task.name not in self._task_ports:
@@ -163,6 +166,8 @@ class SOT(Entity[StackSettings]):
             )
             if task.is_inequality:
                 self._inequality_tasks.add(task.name)
+            if isinstance(task, TaskWeight):
+                self._groups[task.name] = task.members
             if self._last_velocity is not None:
                 self._last_task_velocity[task.name] = int(self.DeclareDiscreteState(np.full(1 + self.nv, -1.0)))
         return self._task_ports[task.name]
@@ -325,6 +330,14 @@ class SOT(Entity[StackSettings]):
     def stack(self, context: Context | None = None) -> list[str]:
         """Task names, highest priority first."""
         return list(self.settings(context).tasks)
+
+    def solved_tasks(self, settings: StackSettings) -> tuple[str, ...]:
+        """The names of the tasks ``settings``' stack solves: each task of the stack and, for a
+        weighted level (:class:`~sotdrake.task_weight.TaskWeight`), each of its members."""
+        groups = self._groups
+        if not groups:
+            return tuple(settings.tasks)
+        return tuple(n for name in settings.tasks for n in (name, *groups.get(name, ())))
 
     def setThreshold(self, svd_threshold: float, context: Context | None = None) -> None:
         """Singular values of ``J_i P_{i-1}`` at or below this are treated as zero (rank)."""

@@ -1,0 +1,37 @@
+"""Collision avoidance as a strict level of the stack: distances from Drake's geometry queries,
+self-collision pairs from the SRDF, obstacles, and the velocity-damper task.
+
+* :mod:`.world`: :class:`CollisionWorld`, the robot's collision geometry and the obstacles;
+* :mod:`.pairs`: which pairs are checked (SRDF ``disable_collisions`` and adjacency);
+* :mod:`.distance`: signed distances, normals, witness points, ``J_d = n̂ᵀ (J_A − J_B)``;
+* :mod:`.obstacles`: :func:`add_obstacle`, :func:`draw_obstacles`;
+* :mod:`.task`: :class:`TaskCollision` (rows ``J_d v ≥ −ξ (d − d_s)/(d_i − d_s)``);
+* :mod:`.meta_task`: :class:`MetaTaskKineCollision`, the one-line builder.
+"""
+
+from __future__ import annotations
+
+from .distance import PairDistances, minimum_distance, pair_distances
+from .meta_task import MetaTaskKineCollision
+from .obstacles import add_obstacle, draw_obstacles
+from .pairs import adjacent_pairs, srdf_disabled_pairs
+from .task import CollisionMargins, TaskCollision, check_margins, damper_rows
+from .world import CollisionWorld, NoCollisionGeometry, collision_world
+
+__all__ = [
+    "CollisionMargins",
+    "CollisionWorld",
+    "MetaTaskKineCollision",
+    "NoCollisionGeometry",
+    "PairDistances",
+    "TaskCollision",
+    "add_obstacle",
+    "adjacent_pairs",
+    "check_margins",
+    "collision_world",
+    "damper_rows",
+    "draw_obstacles",
+    "minimum_distance",
+    "pair_distances",
+    "srdf_disabled_pairs",
+]

@@ -1,0 +1,44 @@
+"""``MetaTaskKineCollision``: the collision task of a robot, added, named and plugged in one line.
+
+``collision = MetaTaskKineCollision(robot); sot.push(collision)`` keeps every pair of the robot's
+bodies (its SRDF and adjacency filtered, :mod:`.pairs`) and every link–obstacle pair at least
+``d_s`` apart (:mod:`.task`). Place it like any task; the usual place is just under the contacts,
+above the tasks it must never give way to. Only the hierarchical QP takes it (``add_sot(robot,
+solver='hqp')``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from pydrake.systems.framework import Context
+
+from ..exceptions import InvalidInput
+from ..robot import Robot
+from .task import DAMPER_SPEED, INFLUENCE_DISTANCE, SAFETY_DISTANCE, CollisionMargins, TaskCollision, check_margins
+from .world import CollisionWorld, collision_world
+
+
+class MetaTaskKineCollision:
+    """Adds ``task<name>`` (a :class:`~.task.TaskCollision`) fed by the device's ``q`` and given to
+    the robot's solver. ``pairs``: None for every pair, or ``(link, link)`` / ``(link, obstacle)``
+    names; ``safety`` ``d_s`` (m), ``influence`` ``d_i`` (m), ``xi`` ``ξ`` (m/s). Obstacles must be
+    added (:func:`~.obstacles.add_obstacle`) before the diagram's context is made; those named in
+    ``pairs`` before this call."""
+
+    def __init__(self, robot: Robot, name: str = "collision", pairs: Sequence[tuple[str, str]] | None = None,
+                 safety: float = SAFETY_DISTANCE, influence: float = INFLUENCE_DISTANCE, xi: float = DAMPER_SPEED):
+        if not isinstance(robot, Robot):
+            raise InvalidInput(f"MetaTaskKineCollision takes the robot, got {type(robot).__name__}")
+        margins = check_margins(safety, influence, xi, robot.dt, f"MetaTaskKineCollision({name!r})")
+        self.robot, self.name = robot, name
+        self.world: CollisionWorld = collision_world(robot)
+        task = TaskCollision("task" + name, self.world, robot.dimension, robot.dt, pairs,
+                             CollisionMargins(margins.safety, margins.influence, margins.xi))
+        robot.add_task(task)
+        self.task: TaskCollision = task
+        robot.builder.Connect(robot.device.GetOutputPort("state"), task.GetInputPort("position"))
+
+    def setMargins(self, safety: float, influence: float, xi: float, context: Context | None = None) -> None:
+        """See :meth:`~.task.TaskCollision.setMargins`."""
+        self.task.setMargins(safety, influence, xi, context)

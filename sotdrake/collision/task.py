@@ -1,0 +1,174 @@
+"""``TaskCollision``: the collision pairs in range as inequality rows of one level (velocity damper).
+
+For each pair closer than the influence distance ``d_i`` (:mod:`.distance`), one row
+
+    J_d v ≥ −ξ (d − d_s) / (d_i − d_s)          (the velocity damper; upper side +inf)
+
+with ``d`` the signed distance (m), ``d_s`` the safety distance (m), ``ξ`` the damper's speed
+(m/s): a pair entering the influence zone may approach at most at ``ξ``, and that bound falls
+linearly to 0 at ``d_s``, so ``d − d_s`` decays at most exponentially at the rate
+``λ = ξ/(d_i − d_s)`` (1/s) and never crosses 0 while the level is satisfied. A pair already
+inside ``d_s`` gets a positive lower bound: it is pushed out at that rate. Over one device tick
+``dt`` the integrated step keeps ``d − d_s ≥ (1 − λ dt)(d_k − d_s)``, so ``λ dt < 1`` is required
+(``setMargins`` refuses a damper that could cross ``d_s`` in one tick).
+
+The number of rows is the number of pairs in range at that tick (0 to all of them): the level is a
+:class:`~sotdrake.task.TaskLevel` of any size, which ``SolverKine`` takes as it comes. The basic
+``SOT`` refuses it at ``push`` (it has no inequality rows).
+
+Ports: input ``position`` (``q``, nq). Outputs ``task`` (the rows, a
+:class:`~sotdrake.task.TaskLevel`, ``error = d − d_s`` per row, m), ``distances``
+(:class:`~.distance.PairDistances` of the pairs in range) and ``min_distance`` (1, m: the smallest
+signed distance in range, ``+inf`` when no pair is within ``d_i``).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, Context, ValueProducer
+
+from ..entity import Entity
+from ..exceptions import InvalidInput, check_number
+from ..task import TaskLevel
+from .distance import PairDistances, pair_distances
+from .world import CollisionWorld
+
+#: Defaults: safety distance (m), influence distance (m), damper speed (m/s).
+SAFETY_DISTANCE, INFLUENCE_DISTANCE, DAMPER_SPEED = 0.01, 0.05, 0.5
+#: Largest influence distance (m) and damper speed (m/s) accepted.
+MAX_INFLUENCE, MAX_DAMPER_SPEED = 1.0, 10.0
+
+
+@dataclass
+class CollisionMargins:
+    """``safety`` ``d_s`` (m), ``influence`` ``d_i`` (m), ``xi`` ``ξ`` (m/s): see the module docstring."""
+
+    safety: float = SAFETY_DISTANCE
+    influence: float = INFLUENCE_DISTANCE
+    xi: float = DAMPER_SPEED
+
+
+def check_margins(safety: object, influence: object, xi: object, dt: float, where: str = "margins") -> CollisionMargins:
+    """The margins if ``0 ≤ d_s < d_i ≤ 1 m``, ``0 < ξ ≤ 10 m/s`` and ``ξ dt < d_i − d_s`` (the damper
+    cannot cross ``d_s`` in one tick ``dt``); else :class:`~sotdrake.exceptions.InvalidInput`
+    naming the argument."""
+    d_s = check_number(f"{where}: safety (the safety distance d_s)", safety, 0.0, MAX_INFLUENCE, " m")
+    d_i = check_number(f"{where}: influence (the influence distance d_i)", influence, 0.0, MAX_INFLUENCE, " m")
+    if not d_i > d_s:
+        raise InvalidInput(f"{where}: influence (d_i = {d_i:g} m) must be larger than safety (d_s = {d_s:g} m)")
+    speed = check_number(f"{where}: xi (the damper speed ξ)", xi, 0.0, MAX_DAMPER_SPEED, " m/s")
+    if speed <= 0:
+        raise InvalidInput(f"{where}: xi (the damper speed ξ) must be > 0 m/s, got {xi!r}")
+    if speed * dt >= d_i - d_s:
+        raise InvalidInput(
+            f"{where}: xi = {speed:g} m/s is too stiff for a tick of {dt:g} s: one tick could cross d_s "
+            f"(ξ·dt = {speed * dt:g} m ≥ d_i − d_s = {d_i - d_s:g} m); take xi < {(d_i - d_s) / dt:g} m/s")
+    return CollisionMargins(d_s, d_i, speed)
+
+
+def damper_rows(distances: PairDistances, margins: CollisionMargins) -> TaskLevel:
+    """The velocity-damper rows ``J_d v ≥ −ξ (d − d_s)/(d_i − d_s)`` of the pairs in range."""
+    d_s, d_i, xi = margins.safety, margins.influence, margins.xi
+    lower = -xi * (distances.distance - d_s) / (d_i - d_s)
+    return TaskLevel(distances.jacobian, lower, np.full(lower.shape, np.inf), distances.distance - d_s)
+
+
+class _WorldContext:
+    """The collision diagram's context as the value of a cache entry (a copy gets a fresh one)."""
+
+    def __init__(self, world: CollisionWorld):
+        self.world = world
+        self.context = world.new_context()
+
+    def __deepcopy__(self, memo: dict) -> _WorldContext:
+        return _WorldContext(self.world)
+
+
+class TaskCollision(Entity[CollisionMargins]):
+    """Collision-avoidance level (see the module docstring): ``world`` the robot's
+    :class:`~.world.CollisionWorld`, ``nv`` the solver's size, ``dt`` the device's tick (s),
+    ``pairs`` None (every pair the world checks) or a list of ``(link, link)`` / ``(link,
+    obstacle)`` names."""
+
+    is_inequality = True
+
+    def __init__(self, name: str, world: CollisionWorld, nv: int, dt: float,
+                 pairs: Sequence[tuple[str, str]] | None = None, margins: CollisionMargins | None = None):
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
+        if nv != world.plant.num_velocities():
+            raise InvalidInput(f"{name}: nv = {nv}, the collision model has {world.plant.num_velocities()} velocities")
+        margins = margins or CollisionMargins()
+        margins = check_margins(margins.safety, margins.influence, margins.xi, dt, name)
+        self.pairs = None if pairs is None else world.check_pairs(pairs)
+        Entity.__init__(self, name, margins)
+        self.world, self.nv, self.dt = world, nv, float(dt)
+        self._geometry_pairs = None if self.pairs is None else world.geometry_pairs(self.pairs)
+        self._position = self.DeclareVectorInputPort("position", world.plant.num_positions())
+        position = {self.input_port_ticket(self._position.get_index())}
+        self._world_context = self.DeclareCacheEntry(
+            "collision_context",
+            ValueProducer(allocate=lambda: AbstractValue.Make(_WorldContext(world)), calc=self._set_positions),
+            prerequisites_of_calc=position,
+        )
+        settings = {self.abstract_state_ticket(self._settings_index)}
+        self._distances = self.DeclareCacheEntry(
+            "distances",
+            ValueProducer(allocate=lambda: AbstractValue.Make(PairDistances(jacobian=np.zeros((0, nv)))),
+                          calc=self._calc_distances),
+            prerequisites_of_calc=position | settings,
+        )
+        distances = {self.cache_entry_ticket(self._distances.cache_index())}
+        empty = TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
+        self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(empty),
+                                       lambda c, o: o.set_value(damper_rows(self._distances.Eval(c), self._settings_of(c))),
+                                       prerequisites_of_calc=distances | settings)
+        self.DeclareAbstractOutputPort("distances", lambda: AbstractValue.Make(PairDistances(jacobian=np.zeros((0, nv)))),
+                                       lambda c, o: o.set_value(copy.copy(self._distances.Eval(c))),
+                                       prerequisites_of_calc=distances)
+        self.DeclareVectorOutputPort("min_distance", 1, self._calc_minimum, prerequisites_of_calc=distances)
+
+    @property
+    def name(self) -> str:
+        return self.get_name()
+
+    def setMargins(self, safety: float, influence: float, xi: float, context: Context | None = None) -> None:
+        """Safety distance ``d_s`` (m), influence distance ``d_i`` (m) and damper speed ``ξ`` (m/s),
+        all checked (:func:`check_margins`) before any is changed."""
+        margins = check_margins(safety, influence, xi, self.dt, f"{self.name}.setMargins")
+        def change(s: CollisionMargins) -> None:
+            s.safety, s.influence, s.xi = margins.safety, margins.influence, margins.xi
+
+        self._command(context, change)
+
+    def missing_inputs(self, context: Context) -> str | None:
+        """A sentence when the ``position`` input is not connected, else None."""
+        try:
+            own = self.GetMyContextFromRoot(context)
+        except RuntimeError:
+            own = context
+        if not self._position.HasValue(own):
+            return f"collision task {self.name!r} has no 'position' input: connect the device's 'state' (q) to it"
+        return None
+
+    def _set_positions(self, context: Context, value: AbstractValue) -> None:
+        q = self._position.Eval(context)
+        if not math.isfinite(q.sum()):  # Drake would abort the process
+            raise InvalidInput(f"{self.name}: non-finite position at t = {context.get_time()}: {q}")
+        holder = value.get_mutable_value()
+        self.world.plant.SetPositions(self.world.plant_context(holder.context), q)
+
+    def _calc_distances(self, context: Context, value: AbstractValue) -> None:
+        holder = self._world_context.Eval(context)
+        margins = self._settings_of(context)
+        value.set_value(pair_distances(self.world, holder.context, margins.influence, self._geometry_pairs))
+
+    def _calc_minimum(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, self._distances.Eval(context).minimum)
+

@@ -88,8 +88,10 @@ def _checked_drake_shape(shape: Shape, name: str) -> Shape:
         try:
             hull = shape.GetConvexHull()
         except RuntimeError as error:
+            if "coplanar" in str(error) or "volume" in str(error):
+                raise InvalidInput(f"add_obstacle({name!r}): the mesh is flat (its convex hull has no volume)") from None
             raise InvalidInput(f"add_obstacle({name!r}): the mesh does not load: {error}") from None
-        vertices = np.asarray(hull.vertices())
+        vertices = np.array([hull.vertex(i) for i in range(hull.num_vertices())])
         if vertices.size == 0 or np.ptp(vertices, axis=0).min() <= 0:
             raise InvalidInput(f"add_obstacle({name!r}): the mesh is flat or empty (its convex hull has no volume)")
     elif not isinstance(shape, (Box, Sphere, Cylinder, Capsule, Ellipsoid)):

@@ -185,7 +185,8 @@ class SOT(Entity[StackSettings]):
         if name in self._inequality_tasks and not self.accepts_inequalities:
             raise StackError(
                 f"{self.name} is a {type(self).__name__}, which cannot solve the inequality task {name!r}: "
-                "use the hierarchical QP (add_sot(robot, solver='hqp'))"
+                "the solvers that take inequality rows are SolverKine (the hierarchical QP: add_sot(robot, solver='hqp')) "
+                "and SolverDyn"
             )
         if context is not None:
             self._check_connected(name, context)

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Randomized collision runs on TALOS under SolverKine: the collision level always holds.
 
-    python bench/collision_runs.py                       # 300 runs of 0.5 s, every tick checked
+    python bench/collision_runs.py                       # 300 runs of 0.3 s, every tick checked
     python bench/collision_runs.py --runs 20 --duration 0.3
 
 One diagram (``sotdrake.collision.reach``: feet and CoM held, the collision level, the right hand,
@@ -25,7 +25,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from sotdrake.collision.reach import build_reach, run_reach
+from sotdrake.collision.reach import build_collision_reach, run_collision_reach
 from sotdrake.collision.targets import random_targets
 from sotdrake.collision.task import SAFETY_DISTANCE
 
@@ -35,18 +35,19 @@ TOLERANCE = 1e-4  # m
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", type=int, default=300)
-    parser.add_argument("--duration", type=float, default=0.5, help="simulated seconds per run")
+    parser.add_argument("--duration", type=float, default=0.3, help="simulated seconds per run")
+    parser.add_argument("--gain", type=float, default=10.0, help="the hand's constant gain (1/s)")
     parser.add_argument("--seed", type=int, default=20261126)
     parser.add_argument("--out", type=Path, default=HERE / "results" / "collision_runs.json")
     args = parser.parse_args(argv)
-    reach = build_reach(collision=True, table=True)
+    reach = build_collision_reach(collision=True, table=True)
     rng = np.random.default_rng(args.seed)
     started = time.perf_counter()
     worst: dict[str, float] = {"min_distance": np.inf, "feet_drift": 0.0, "limit_excess": 0.0}
     bad: list[dict] = []
     by_family: dict[str, dict] = {}
     for i, (family, target) in enumerate(random_targets(args.runs, rng)):
-        report = run_reach(reach, target, args.duration)
+        report = run_collision_reach(reach, target, args.duration, gain=args.gain)
         worst["min_distance"] = min(worst["min_distance"], report.min_distance)
         worst["feet_drift"] = max(worst["feet_drift"], report.feet_drift)
         worst["limit_excess"] = max(worst["limit_excess"], report.limit_excess)
@@ -61,7 +62,7 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"run {i:3d} {family:11s} min d {report.min_distance * 1e3:7.3f} mm  hand error {report.hand_error:.3f} m"
               f"{'' if ok else '  FAILED'}", flush=True)
     summary = {
-        "runs": args.runs, "duration_s": args.duration, "seed": args.seed, "safety_m": SAFETY_DISTANCE,
+        "runs": args.runs, "duration_s": args.duration, "hand_gain": args.gain, "seed": args.seed, "safety_m": SAFETY_DISTANCE,
         "worst_min_distance_m": worst["min_distance"], "worst_feet_drift_m": worst["feet_drift"],
         "worst_limit_excess": worst["limit_excess"], "failed_runs": bad, "by_family": by_family,
         "wall_s": time.perf_counter() - started,

@@ -7,7 +7,7 @@ top, against the same stack without them, in one run (ratios, not absolute times
 
 Both diagrams (``sotdrake.collision.reach``) drive the right hand point to the tutorial's target
 (0.5, -0.2, 1.0) under SolverKine; they are advanced in alternating blocks so that both see the
-same load on the host. Per tick: the wall time of ``AdvanceTo`` (median, p90), and for the
+same load on the host. Per tick: the wall and CPU time of ``AdvanceTo`` (median, p90), and for the
 collision stack the number of pairs in range and the time of the distance query alone. placo's
 self-collision constraint is not run here: placo is not installed in this environment (the
 package list has it; it is not a dependency of sotdrake). Writes ``bench/results/collisions.json``.
@@ -29,7 +29,7 @@ sys.path.insert(0, str(HERE.parent))
 from pydrake.systems.analysis import Simulator
 
 from sotdrake.collision.distance import pair_distances
-from sotdrake.collision.reach import build_reach
+from sotdrake.collision.reach import build_collision_reach
 from sotdrake.meta_tasks import gotoNd
 
 TARGET = np.array([0.5, -0.2, 1.0])
@@ -49,18 +49,20 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--ticks", type=int, default=2000)
     parser.add_argument("--out", type=Path, default=HERE / "results" / "collisions.json")
     args = parser.parse_args(argv)
-    stacks = {"without": build_reach(collision=False, table=False), "with": build_reach(collision=True, table=True)}
+    stacks = {"without": build_collision_reach(collision=False, table=False), "with": build_collision_reach(collision=True, table=True)}
     sims = {name: _simulator(reach) for name, reach in stacks.items()}
     times: dict[str, list[float]] = {name: [] for name in stacks}
+    cpu: dict[str, list[float]] = {name: [] for name in stacks}
     pairs_in_range: list[int] = []
     query_s: list[float] = []
     dt = stacks["with"].robot.dt
     for start in range(0, args.ticks, BLOCK):
         for name, (simulator, _context) in sims.items():
             for k in range(start + 1, min(start + BLOCK, args.ticks) + 1):
-                began = time.perf_counter()
+                began, began_cpu = time.perf_counter(), time.thread_time()
                 simulator.AdvanceTo(k * dt)
                 times[name].append(time.perf_counter() - began)
+                cpu[name].append(time.thread_time() - began_cpu)
         task = stacks["with"].collision.task  # type: ignore[union-attr]
         world_context = task.world.new_context()
         q = stacks["with"].robot.device.GetOutputPort("state").Eval(stacks["with"].robot.device.GetMyContextFromRoot(sims["with"][1]))
@@ -70,11 +72,14 @@ def main(argv: list[str] | None = None) -> dict:
         query_s.append(time.perf_counter() - began)
         pairs_in_range.append(len(distances.names))
     median = {name: float(np.median(t)) for name, t in times.items()}
+    median_cpu = {name: float(np.median(t)) for name, t in cpu.items()}
     summary = {
         "ticks": args.ticks,
         "tick_us_median": {name: value * 1e6 for name, value in median.items()},
         "tick_us_p90": {name: float(np.percentile(t, 90)) * 1e6 for name, t in times.items()},
+        "tick_cpu_us_median": {name: value * 1e6 for name, value in median_cpu.items()},
         "ratio_median": median["with"] / median["without"],
+        "ratio_cpu_median": median_cpu["with"] / median_cpu["without"],
         "distance_query_us_median": float(np.median(query_s)) * 1e6,
         "pairs_in_range_median": float(np.median(pairs_in_range)),
         "self_pairs_checked": len(stacks["with"].collision.world.self_pairs()),  # type: ignore[union-attr]

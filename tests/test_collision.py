@@ -26,7 +26,7 @@ from sotdrake.collision import (
     srdf_disabled_pairs,
 )
 from sotdrake.collision.distance import signed_distance_pairs
-from sotdrake.collision.reach import TABLE, build_reach, run_reach
+from sotdrake.collision.reach import TABLE, build_collision_reach, run_collision_reach
 from sotdrake.collision.targets import random_targets
 from sotdrake.collision.task import SAFETY_DISTANCE, CollisionMargins
 from sotdrake.configuration import Layout, integrate
@@ -120,10 +120,11 @@ def test_self_pairs_leave_out_the_srdf_and_adjacent_pairs(world, talos_model):
 def test_damper_rows_and_margins():
     from sotdrake.collision.distance import PairDistances
 
-    distances = PairDistances([("a", "b"), ("c", "d")], np.array([0.05, 0.0]), np.zeros((2, 3)), np.zeros((2, 3)),
-                              np.zeros((2, 3)), np.ones((2, 4)))
-    rows = damper_rows(distances, CollisionMargins(0.01, 0.05, 0.4))
-    np.testing.assert_allclose(rows.lower, [-0.4, 0.1])  # −ξ(d − d_s)/(d_i − d_s): inside d_s, pushed out
+    d = np.array([0.05, 0.03, 0.01, 0.0099, 0.0])
+    distances = PairDistances([("a", "b")] * 5, d, np.zeros((5, 3)), np.zeros((5, 3)), np.zeros((5, 3)), np.ones((5, 4)))
+    rows = damper_rows(distances, CollisionMargins(0.01, 0.05, 0.4), dt=1e-3)
+    # −ξ(d − d_s)/(d_i − d_s) outside d_s; inside, half of a small violation per tick, at most ξ
+    np.testing.assert_allclose(rows.lower, [-0.4, -0.2, 0.0, 0.05, 0.4])
     assert np.all(np.isinf(rows.upper)) and not rows.is_equality
 
 
@@ -215,7 +216,7 @@ def test_the_basic_sot_refuses_the_collision_level_naming_the_solvers():
 
 @pytest.fixture(scope="module")
 def reach():
-    return build_reach(collision=True, table=True)
+    return build_collision_reach(collision=True, table=True)
 
 
 def test_random_targets_never_cross_the_safety_distance(reach):
@@ -223,7 +224,7 @@ def test_random_targets_never_cross_the_safety_distance(reach):
     and under the table; every tick: distance ≥ d_s − 1e-4 m, ankles within 1e-4 m, limits, no NaN,
     no solver failure."""
     for _family, target in random_targets(4, np.random.default_rng(7)):
-        report = run_reach(reach, target, duration=0.25)
+        report = run_collision_reach(reach, target, duration=0.25, gain=10.0)
         assert report.min_distance >= SAFETY_DISTANCE - TOLERANCE, report
         assert report.feet_drift <= TOLERANCE and report.limit_excess <= 1e-9, report
         assert not report.nan and not report.failures, report
@@ -235,11 +236,11 @@ def test_the_collision_level_is_strict_above_the_hand():
     with it, no pair ever comes closer than d_s and the hand gives way (stops short)."""
     centre = np.array([0.45, -0.35, 1.0])
     ball = [(("sphere", 0.15), RigidTransform(list(centre)), "ball")]
-    free = build_reach(collision=False, table=False, obstacles=ball)
-    through = run_reach(free, centre, duration=0.8, check_every=20, gain=10.0)
+    free = build_collision_reach(collision=False, table=False, obstacles=ball)
+    through = run_collision_reach(free, centre, duration=0.8, check_every=20, gain=10.0)
     assert through.min_distance < -0.05 and through.hand_error < 0.01
-    kept_reach = build_reach(collision=True, table=False, obstacles=ball)
-    kept = run_reach(kept_reach, centre, duration=0.8, gain=10.0)
+    kept_reach = build_collision_reach(collision=True, table=False, obstacles=ball)
+    kept = run_collision_reach(kept_reach, centre, duration=0.8, gain=10.0)
     assert kept.min_distance >= SAFETY_DISTANCE - TOLERANCE
     assert kept.hand_error > 0.05
     assert not kept.failures and kept.feet_drift <= TOLERANCE

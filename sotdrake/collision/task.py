@@ -7,8 +7,12 @@ For each pair closer than the influence distance ``d_i`` (:mod:`.distance`), one
 with ``d`` the signed distance (m), ``d_s`` the safety distance (m), ``ξ`` the damper's speed
 (m/s): a pair entering the influence zone may approach at most at ``ξ``, and that bound falls
 linearly to 0 at ``d_s``, so ``d − d_s`` decays at most exponentially at the rate
-``λ = ξ/(d_i − d_s)`` (1/s) and never crosses 0 while the level is satisfied. A pair already
-inside ``d_s`` gets a positive lower bound: it is pushed out at that rate. Over one device tick
+``λ = ξ/(d_i − d_s)`` (1/s) and never crosses 0 while the level is satisfied (to first order: a
+tick's step also has a second-order part, largest when a link slides past an edge of another's
+hull, which can leave a pair a few hundredths of a millimetre inside ``d_s``). A pair inside ``d_s``
+gets a positive lower bound, the larger of ``ξ (d_s − d)/(d_i − d_s)`` and
+``min(κ (d_s − d), ξ)`` with ``κ = 1/(2 dt)``: half of a small violation is undone in the next
+tick, a large one at the speed ``ξ``. Over one device tick
 ``dt`` the integrated step keeps ``d − d_s ≥ (1 − λ dt)(d_k − d_s)``, so ``λ dt < 1`` is required
 (``setMargins`` refuses a damper that could cross ``d_s`` in one tick).
 
@@ -72,10 +76,15 @@ def check_margins(safety: object, influence: object, xi: object, dt: float, wher
     return CollisionMargins(d_s, d_i, speed)
 
 
-def damper_rows(distances: PairDistances, margins: CollisionMargins) -> TaskLevel:
-    """The velocity-damper rows ``J_d v ≥ −ξ (d − d_s)/(d_i − d_s)`` of the pairs in range."""
+def damper_rows(distances: PairDistances, margins: CollisionMargins, dt: float) -> TaskLevel:
+    """The velocity-damper rows ``J_d v ≥ −ξ (d − d_s)/(d_i − d_s)`` of the pairs in range, with the
+    recovery of a pair inside ``d_s`` (see the module docstring; ``dt`` the device's tick, s)."""
     d_s, d_i, xi = margins.safety, margins.influence, margins.xi
-    lower = -xi * (distances.distance - d_s) / (d_i - d_s)
+    d = distances.distance
+    lower = -xi * (d - d_s) / (d_i - d_s)
+    inside = d < d_s
+    if inside.any():
+        lower[inside] = np.maximum(lower[inside], np.minimum((d_s - d[inside]) / (2 * dt), xi))
     return TaskLevel(distances.jacobian, lower, np.full(lower.shape, np.inf), distances.distance - d_s)
 
 
@@ -127,7 +136,7 @@ class TaskCollision(Entity[CollisionMargins]):
         distances = {self.cache_entry_ticket(self._distances.cache_index())}
         empty = TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
         self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(empty),
-                                       lambda c, o: o.set_value(damper_rows(self._distances.Eval(c), self._settings_of(c))),
+                                       lambda c, o: o.set_value(damper_rows(self._distances.Eval(c), self._settings_of(c), self.dt)),
                                        prerequisites_of_calc=distances | settings)
         self.DeclareAbstractOutputPort("distances", lambda: AbstractValue.Make(PairDistances(jacobian=np.zeros((0, nv)))),
                                        lambda c, o: o.set_value(copy.copy(self._distances.Eval(c))),

@@ -8,7 +8,7 @@ Everything a user composes is importable from here and listed in ``__all__``: ro
 (``load_robot`` also takes the path of your own URDF), meta tasks, features and their desired
 values, tasks, gains, solvers, the dynamic SoT, contacts, the tracer and publishers, the physics
 and walking wings. The wings that pull in more (``dynamics``, ``physics``, ``walking``, ``sweep``,
-``live``, ``publishing``) are imported on first use of one of their names.
+``live``, ``publishing``, ``collision``) are imported on first use of one of their names.
 """
 
 from __future__ import annotations
@@ -120,10 +120,36 @@ _LAZY: dict[str, tuple[str, ...]] = {
     ".live": ("add_live_arguments", "live_meshcat", "run_live"),
     ".publishing": ("RobotStateMessage", "add_signal_publisher", "add_state_publisher"),
     ".solvers.hqp": ("ACTIVE_SET", "SOLVERS"),
+    ".collision": (
+        "CollisionWorld",
+        "MetaTaskKineCollision",
+        "NoCollisionGeometry",
+        "TaskCollision",
+        "add_obstacle",
+        "build_collision_reach",
+        "collision_world",
+        "draw_obstacles",
+        "minimum_distance",
+        "pair_distances",
+        "run_collision_reach",
+    ),
 }
 _LAZY_MODULE = {name: module for module, names in _LAZY.items() for name in names}
 
 if TYPE_CHECKING:
+    from .collision import (
+        CollisionWorld,
+        MetaTaskKineCollision,
+        NoCollisionGeometry,
+        TaskCollision,
+        add_obstacle,
+        build_collision_reach,
+        collision_world,
+        draw_obstacles,
+        minimum_distance,
+        pair_distances,
+        run_collision_reach,
+    )
     from .dynamics import Contact6d, DynamicEntity, RobotDynSimu, SolverDyn, TaskDynPD
     from .dynamics.contact import friction_ratio
     from .dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
@@ -197,6 +223,7 @@ __all__ = [
     "SOLVERS",
     "SOT",
     "TALOS_GRIPPERS",
+    "CollisionWorld",
     "ComStabilizer",
     "Contact6d",
     "ContactMonitor",
@@ -228,11 +255,13 @@ __all__ = [
     "MetaTaskDynPosture",
     "MetaTaskKine6d",
     "MetaTaskKine6dRel",
+    "MetaTaskKineCollision",
     "MetaTaskKineCom",
     "MetaTaskKineFeature",
     "MetaTaskKineJointLimits",
     "MetaTaskKinePosture",
     "MetaTaskVisualPoint",
+    "NoCollisionGeometry",
     "NotFound",
     "OperationalPointNotFound",
     "PackageNotFound",
@@ -257,6 +286,7 @@ __all__ = [
     "TalosStation",
     "TargetMarker",
     "Task",
+    "TaskCollision",
     "TaskDynPD",
     "TaskInequality",
     "TaskLevel",
@@ -265,6 +295,7 @@ __all__ = [
     "Tracer",
     "WalkCommand",
     "add_live_arguments",
+    "add_obstacle",
     "add_physical_talos",
     "add_robot_visualizer",
     "add_signal_publisher",
@@ -275,10 +306,13 @@ __all__ = [
     "add_target_marker",
     "attime",
     "available_robots",
+    "build_collision_reach",
     "check_stack",
+    "collision_world",
     "desired_position",
     "displayAll",
     "displaySignals",
+    "draw_obstacles",
     "engine_options",
     "entities",
     "entity",
@@ -294,13 +328,16 @@ __all__ = [
     "live_meshcat",
     "load_robot",
     "load_talos",
+    "minimum_distance",
     "minimum_jerk_moves",
     "motion_zmp",
+    "pair_distances",
     "per_process",
     "polygon_margin",
     "random_cases",
     "replan",
     "robot",
+    "run_collision_reach",
     "run_live",
     "run_sweep",
     "save_figure",

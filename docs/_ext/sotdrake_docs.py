@@ -261,6 +261,7 @@ API_MODULES = (
     "sotdrake.walking",
     "sotdrake.robots",
     "sotdrake.physics",
+    "sotdrake.collision",
     "sotdrake.live",
     "sotdrake.sweep",
 )

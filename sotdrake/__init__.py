@@ -122,6 +122,7 @@ _LAZY: dict[str, tuple[str, ...]] = {
     ".solvers.hqp": ("ACTIVE_SET", "SOLVERS"),
     ".collision": (
         "CollisionWorld",
+        "MetaTaskDynCollision",
         "MetaTaskKineCollision",
         "NoCollisionGeometry",
         "TaskCollision",
@@ -139,6 +140,7 @@ _LAZY_MODULE = {name: module for module, names in _LAZY.items() for name in name
 if TYPE_CHECKING:
     from .collision import (
         CollisionWorld,
+        MetaTaskDynCollision,
         MetaTaskKineCollision,
         NoCollisionGeometry,
         TaskCollision,
@@ -251,6 +253,7 @@ __all__ = [
     "KinematicBaseEstimator",
     "MeasuredCom",
     "MetaTaskDyn6d",
+    "MetaTaskDynCollision",
     "MetaTaskDynCom",
     "MetaTaskDynPosture",
     "MetaTaskKine6d",

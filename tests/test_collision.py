@@ -244,3 +244,52 @@ def test_the_collision_level_is_strict_above_the_hand():
     assert kept.min_distance >= SAFETY_DISTANCE - TOLERANCE
     assert kept.hand_error > 0.05
     assert not kept.failures and kept.feet_drift <= TOLERANCE
+
+
+@pytest.mark.slow
+def test_the_acceleration_level_keeps_the_safety_distance_under_solver_dyn(talos_model):
+    """The dynamic SoT (SolverDyn, both soles in contact, the CoM, the collision level at the
+    acceleration level, the hand, the posture): the hand point sent to the centre of the ball, as
+    above. Every tick, by Drake's query: no pair closer than d_s − 1e-4 m; the hand stops short."""
+    from sotdrake import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture, RobotDyn
+    from sotdrake.collision import MetaTaskDynCollision, minimum_distance
+    from sotdrake.robots import TALOS_GRIPPERS
+
+    builder = DiagramBuilder()
+    robot = RobotDyn(builder, talos_model, "dynsimu", 1e-3)
+    sot = robot.sot
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
+    for name, op in (("contactLF", "left-sole"), ("contactRF", "right-sole")):
+        sot.addContact(robot.add_contact(name, op))
+    sot.push(MetaTaskDynCom(robot).task.name)
+    centre = np.array([0.45, -0.35, 1.0])
+    ball = (("sphere", 0.15), RigidTransform(list(centre)), "ball")
+    checker = CollisionWorld(talos_model)
+    for world in (robot, checker):
+        add_obstacle(world, *ball)
+    sot.push(MetaTaskDynCollision(robot).task.name)
+    hand = MetaTaskDyn6d("rh", robot, "right-wrist", kp=100.0)
+    hand.feature.setOpmodif(RigidTransform([0.1, 0.0, 0.0]))
+    hand.feature.selec("000111")
+    hand.featureDes.setPosition(RigidTransform(list(centre)))
+    sot.push(hand.task.name)
+    sot.push(MetaTaskDynPosture(robot, kp=25.0).task.name)
+    from pydrake.systems.analysis import Simulator
+
+    simulator = Simulator(builder.Build())
+    context = simulator.get_mutable_context()
+    simulator.Initialize()
+    checker_context = checker.new_context()
+    device_context = robot.device.GetMyContextFromRoot(context)
+    smallest = np.inf
+    for k in range(1, 601):
+        simulator.AdvanceTo(k * 1e-3)
+        x = robot.device.GetOutputPort("state").Eval(device_context)
+        assert np.all(np.isfinite(x))
+        smallest = min(smallest, minimum_distance(checker, checker_context, x[: talos_model.nq], 0.05))
+    assert smallest >= SAFETY_DISTANCE - TOLERANCE
+    plant_context = talos_model.plant.CreateDefaultContext()
+    talos_model.plant.SetPositions(plant_context, x[: talos_model.nq])
+    p_hand = talos_model.plant.CalcRelativeTransform(plant_context, talos_model.plant.world_frame(),
+                                                     talos_model.frame("right-wrist")) @ np.array([0.1, 0.0, 0.0])
+    assert np.linalg.norm(p_hand - centre) > 0.05

@@ -40,6 +40,9 @@ class PairDistances:
     p_WCa: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     p_WCb: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     jacobian: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    #: ``J̇_d v`` (k, m/s²): ``n̂ᵀ (J̇_A − J̇_B) v``, the witness points fixed in their bodies and the
+    #: normal's own rotation left out; zeros unless asked for (``bias=True``)
+    bias: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def minimum(self) -> float:
@@ -59,18 +62,23 @@ def signed_distance_pairs(world: CollisionWorld, context: Context, max_distance:
 
 
 def pair_distances(world: CollisionWorld, context: Context, max_distance: float,
-                   geometry_pairs: Sequence | None = None) -> PairDistances:
+                   geometry_pairs: Sequence | None = None, bias: bool = False) -> PairDistances:
     """:class:`PairDistances` of the pairs closer than ``max_distance`` (m) in the collision diagram
-    ``context`` (its plant's positions set by the caller). A pair whose side A is an obstacle is
-    swapped, so that A is always on the robot."""
+    ``context`` (its plant's positions, and with ``bias`` its velocities, set by the caller). A pair
+    whose side A is an obstacle is swapped, so that A is always on the robot.
+
+    With ``bias``, ``J̇_d v`` of each pair: the bias acceleration of a point ``C`` fixed in body
+    ``B`` is ``a_Bo + α × r + ω × (ω × r)`` (``r = p_BoC``, the body's bias spatial acceleration
+    ``(α, a_Bo)`` and angular velocity ``ω``, world frame)."""
     plant = world.plant
     plant_context = world.plant_context(context)
     results = signed_distance_pairs(world, context, max_distance, geometry_pairs)
     k, nv = len(results), plant.num_velocities()
     out = PairDistances(names=[], distance=np.empty(k), normal=np.empty((k, 3)), p_WCa=np.empty((k, 3)),
-                        p_WCb=np.empty((k, 3)), jacobian=np.empty((k, nv)))
+                        p_WCb=np.empty((k, 3)), jacobian=np.empty((k, nv)), bias=np.zeros(k))
     obstacles = world.obstacle_ids
-    jacobians: dict = {}  # body index -> (p_WBo, J_WB spatial 6×nv), once per body
+    jacobians: dict = {}  # body index -> J_WB (spatial, 6×nv), once per body
+    biases: dict = {}  # body index -> (α, a_Bo, ω), once per body
     world_frame, world_body = plant.world_frame(), plant.world_body().index()
     for i, r in enumerate(results):
         id_A, id_B, p_ACa, p_BCb, n = r.id_A, r.id_B, r.p_ACa, r.p_BCb, r.nhat_BA_W
@@ -95,6 +103,15 @@ def pair_distances(world: CollisionWorld, context: Context, max_distance: float,
             n_x, n_y, n_z = n
             arm = np.array([r_y * n_z - r_z * n_y, r_z * n_x - r_x * n_z, r_x * n_y - r_y * n_x])
             row += sign * (n @ J[3:] + arm @ J[:3])
+            if bias:
+                if body.index() not in biases:
+                    A = plant.CalcBiasSpatialAcceleration(plant_context, JacobianWrtVariable.kV, body.body_frame(), np.zeros(3),
+                                                          world_frame, world_frame)
+                    omega = plant.EvalBodySpatialVelocityInWorld(plant_context, body).rotational()
+                    biases[body.index()] = (A.rotational(), A.translational(), omega)
+                alpha, a_Bo, omega = biases[body.index()]
+                p_BC = p_WC - X_WB.translation()
+                out.bias[i] += sign * n @ (a_Bo + np.cross(alpha, p_BC) + np.cross(omega, np.cross(omega, p_BC)))
         out.names.append((names[0], names[1]))
         out.distance[i], out.normal[i], out.jacobian[i] = r.distance, n, row
     return out

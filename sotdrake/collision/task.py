@@ -16,11 +16,21 @@ tick, a large one at the speed ``ξ``. Over one device tick
 ``dt`` the integrated step keeps ``d − d_s ≥ (1 − λ dt)(d_k − d_s)``, so ``λ dt < 1`` is required
 (``setMargins`` refuses a damper that could cross ``d_s`` in one tick).
 
+**Acceleration level** (``acceleration=True``, for ``SolverDyn``, whose variable is ``q̈``): the
+same bound on ``ḋ`` reached within one tick, ``ḋ + dt·d̈ ≥ ḋ_min(d)`` with ``ḋ = J_d v`` and
+``d̈ = J_d q̈ + J̇_d v``:
+
+    J_d q̈ ≥ (ḋ_min(d) − J_d v)/dt − J̇_d v
+
+(``ḋ_min`` the velocity rows' lower bound above; ``J̇_d v`` with the witness points fixed in their
+bodies, the rotation of the normal left out, :func:`~.distance.pair_distances`). The task then
+reads ``velocity`` (``v``) too.
+
 The number of rows is the number of pairs in range at that tick (0 to all of them): the level is a
 :class:`~sotdrake.task.TaskLevel` of any size, which ``SolverKine`` takes as it comes. The basic
 ``SOT`` refuses it at ``push`` (it has no inequality rows).
 
-Ports: input ``position`` (``q``, nq). Outputs ``task`` (the rows, a
+Ports: inputs ``position`` (``q``, nq) and, at the acceleration level, ``velocity`` (``v``, nv). Outputs ``task`` (the rows, a
 :class:`~sotdrake.task.TaskLevel`, ``error = d − d_s`` per row, m), ``distances``
 (:class:`~.distance.PairDistances` of the pairs in range) and ``min_distance`` (1, m: the smallest
 signed distance in range, ``+inf`` when no pair is within ``d_i``).
@@ -88,6 +98,13 @@ def damper_rows(distances: PairDistances, margins: CollisionMargins, dt: float) 
     return TaskLevel(distances.jacobian, lower, np.full(lower.shape, np.inf), distances.distance - d_s)
 
 
+def acceleration_rows(distances: PairDistances, margins: CollisionMargins, dt: float, v: np.ndarray) -> TaskLevel:
+    """The acceleration-level rows ``J_d q̈ ≥ (ḋ_min − J_d v)/dt − J̇_d v`` (see the module docstring)."""
+    velocity = damper_rows(distances, margins, dt)
+    lower = (velocity.lower - distances.jacobian @ v) / dt - distances.bias
+    return TaskLevel(distances.jacobian, lower, velocity.upper, velocity.error)
+
+
 class _WorldContext:
     """The collision diagram's context as the value of a cache entry (a copy gets a fresh one)."""
 
@@ -106,9 +123,11 @@ class TaskCollision(Entity[CollisionMargins]):
     obstacle)`` names."""
 
     is_inequality = True
+    stack = None  # (RobotDyn.add_task: no previous Jacobian kept)
 
     def __init__(self, name: str, world: CollisionWorld, nv: int, dt: float,
-                 pairs: Sequence[tuple[str, str]] | None = None, margins: CollisionMargins | None = None):
+                 pairs: Sequence[tuple[str, str]] | None = None, margins: CollisionMargins | None = None,
+                 acceleration: bool = False):
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
         if nv != world.plant.num_velocities():
@@ -119,8 +138,13 @@ class TaskCollision(Entity[CollisionMargins]):
         Entity.__init__(self, name, margins)
         self.world, self.nv, self.dt = world, nv, float(dt)
         self._geometry_pairs = None if self.pairs is None else world.geometry_pairs(self.pairs)
+        self.acceleration = bool(acceleration)
         self._position = self.DeclareVectorInputPort("position", world.plant.num_positions())
         position = {self.input_port_ticket(self._position.get_index())}
+        self._velocity = None
+        if self.acceleration:
+            self._velocity = self.DeclareVectorInputPort("velocity", nv)
+            position.add(self.input_port_ticket(self._velocity.get_index()))
         self._world_context = self.DeclareCacheEntry(
             "collision_context",
             ValueProducer(allocate=lambda: AbstractValue.Make(_WorldContext(world)), calc=self._set_positions),
@@ -135,9 +159,8 @@ class TaskCollision(Entity[CollisionMargins]):
         )
         distances = {self.cache_entry_ticket(self._distances.cache_index())}
         empty = TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
-        self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(empty),
-                                       lambda c, o: o.set_value(damper_rows(self._distances.Eval(c), self._settings_of(c), self.dt)),
-                                       prerequisites_of_calc=distances | settings)
+        self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(empty), self._calc_rows,
+                                       prerequisites_of_calc=distances | settings | position)
         self.DeclareAbstractOutputPort("distances", lambda: AbstractValue.Make(PairDistances(jacobian=np.zeros((0, nv)))),
                                        lambda c, o: o.set_value(copy.copy(self._distances.Eval(c))),
                                        prerequisites_of_calc=distances)
@@ -170,13 +193,25 @@ class TaskCollision(Entity[CollisionMargins]):
         q = self._position.Eval(context)
         if not math.isfinite(q.sum()):  # Drake would abort the process
             raise InvalidInput(f"{self.name}: non-finite position at t = {context.get_time()}: {q}")
-        holder = value.get_mutable_value()
-        self.world.plant.SetPositions(self.world.plant_context(holder.context), q)
+        plant_context = self.world.plant_context(value.get_mutable_value().context)
+        self.world.plant.SetPositions(plant_context, q)
+        if self._velocity is not None:
+            v = self._velocity.Eval(context)
+            if not math.isfinite(v.sum()):
+                raise InvalidInput(f"{self.name}: non-finite velocity at t = {context.get_time()}: {v}")
+            self.world.plant.SetVelocities(plant_context, v)
+
+    def _calc_rows(self, context: Context, output: AbstractValue) -> None:
+        distances, margins = self._distances.Eval(context), self._settings_of(context)
+        if self._velocity is None:
+            output.set_value(damper_rows(distances, margins, self.dt))
+        else:
+            output.set_value(acceleration_rows(distances, margins, self.dt, self._velocity.Eval(context)))
 
     def _calc_distances(self, context: Context, value: AbstractValue) -> None:
         holder = self._world_context.Eval(context)
         margins = self._settings_of(context)
-        value.set_value(pair_distances(self.world, holder.context, margins.influence, self._geometry_pairs))
+        value.set_value(pair_distances(self.world, holder.context, margins.influence, self._geometry_pairs, self.acceleration))
 
     def _calc_minimum(self, context: Context, output: BasicVector) -> None:
         output.SetAtIndex(0, self._distances.Eval(context).minimum)

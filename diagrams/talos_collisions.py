@@ -22,9 +22,7 @@ import json
 
 import numpy as np
 
-from sotdrake import script_arguments, start
-from sotdrake.collision.reach import build_collision_reach, run_collision_reach
-from sotdrake.visualization import save_recording
+from sotdrake import build_collision_reach, run_collision_reach, save_recording, script_arguments, start
 
 #: The targets of the hand point (m, world), TALOS in half-sitting facing +x.
 TARGETS = {

@@ -1,4 +1,4 @@
-"""Collision avoidance: distance Jacobians, pairs, bad inputs, and the collision level under SolverKine.
+"""Collision avoidance: distance Jacobians, pairs, bad inputs, the collision level under SolverKine and SolverDyn, the script.
 
 The distances are checked against finite differences of Drake's own signed distance, stepping the
 configuration on its manifold; the runs are checked tick by tick with Drake's query on a collision
@@ -6,6 +6,8 @@ world of their own (not the task's numbers).
 """
 
 from __future__ import annotations
+
+import json
 
 import numpy as np
 import pytest
@@ -293,3 +295,17 @@ def test_the_acceleration_level_keeps_the_safety_distance_under_solver_dyn(talos
     p_hand = talos_model.plant.CalcRelativeTransform(plant_context, talos_model.plant.world_frame(),
                                                      talos_model.frame("right-wrist")) @ np.array([0.1, 0.0, 0.0])
     assert np.linalg.norm(p_hand - centre) > 0.05
+
+
+@pytest.mark.slow
+def test_talos_collisions_script_keeps_the_safety_distance_with_the_level(tmp_path):
+    from tests.conftest import load_diagram
+
+    script = load_diagram("talos_collisions")
+    summary = script.main(["--duration", "0.3", "--out", str(tmp_path), "--quiet", "--no-meshcat"])
+    assert json.loads((tmp_path / "summary.json").read_text()) == json.loads(json.dumps(summary))
+    assert set(summary["runs"]) == {"across_torso", "into_torso", "under_table"}
+    for run in summary["runs"].values():
+        assert run["with"]["min_signed_distance_m"] >= SAFETY_DISTANCE - TOLERANCE
+        assert run["with"]["solver_failures"] == 0 and run["with"]["feet_drift_m"] <= TOLERANCE
+    assert min(run["without"]["min_signed_distance_m"] for run in summary["runs"].values()) < 0.0

@@ -75,45 +75,59 @@ def pair_distances(world: CollisionWorld, context: Context, max_distance: float,
     results = signed_distance_pairs(world, context, max_distance, geometry_pairs)
     k, nv = len(results), plant.num_velocities()
     out = PairDistances(names=[], distance=np.empty(k), normal=np.empty((k, 3)), p_WCa=np.empty((k, 3)),
-                        p_WCb=np.empty((k, 3)), jacobian=np.empty((k, nv)), bias=np.zeros(k))
+                        p_WCb=np.empty((k, 3)), jacobian=np.zeros((k, nv)), bias=np.zeros(k))
+    if k == 0:
+        return out
     obstacles = world.obstacle_ids
-    jacobians: dict = {}  # body index -> J_WB (spatial, 6×nv), once per body
-    biases: dict = {}  # body index -> (α, a_Bo, ω), once per body
-    world_frame, world_body = plant.world_frame(), plant.world_body().index()
+    p_GC = np.empty((2, k, 3))  # witness points in their geometry's frame, side A then side B
+    geometries: list[list] = [[], []]
     for i, r in enumerate(results):
         id_A, id_B, p_ACa, p_BCb, n = r.id_A, r.id_B, r.p_ACa, r.p_BCb, r.nhat_BA_W
         if id_A in obstacles:  # keep the robot on side A
             id_A, id_B, p_ACa, p_BCb, n = id_B, id_A, p_BCb, p_ACa, -n
-        row = np.zeros(nv)
-        names = []
-        for sign, geometry, p_GC in ((1.0, id_A, p_ACa), (-1.0, id_B, p_BCb)):
-            name, body, X_BG = world.geometry_info(geometry)
-            names.append(name)
-            X_WB = plant.EvalBodyPoseInWorld(plant_context, body)
-            p_WC = X_WB @ (X_BG @ p_GC)
-            (out.p_WCa if sign > 0 else out.p_WCb)[i] = p_WC
-            if body.index() == world_body:
-                continue
-            if body.index() not in jacobians:
-                jacobians[body.index()] = plant.CalcJacobianSpatialVelocity(
-                    plant_context, JacobianWrtVariable.kV, body.body_frame(), np.zeros(3), world_frame, world_frame)
-            J = jacobians[body.index()]
-            # v_WC = v_WBo + ω_WB × p_BoC, so n̂ᵀ v_WC = n̂ᵀ J_v + (p_BoC × n̂)ᵀ J_ω.
-            r_x, r_y, r_z = p_WC - X_WB.translation()
-            n_x, n_y, n_z = n
-            arm = np.array([r_y * n_z - r_z * n_y, r_z * n_x - r_x * n_z, r_x * n_y - r_y * n_x])
-            row += sign * (n @ J[3:] + arm @ J[:3])
-            if bias:
-                if body.index() not in biases:
-                    A = plant.CalcBiasSpatialAcceleration(plant_context, JacobianWrtVariable.kV, body.body_frame(), np.zeros(3),
-                                                          world_frame, world_frame)
-                    omega = plant.EvalBodySpatialVelocityInWorld(plant_context, body).rotational()
-                    biases[body.index()] = (A.rotational(), A.translational(), omega)
-                alpha, a_Bo, omega = biases[body.index()]
-                p_BC = p_WC - X_WB.translation()
-                out.bias[i] += sign * n @ (a_Bo + np.cross(alpha, p_BC) + np.cross(omega, np.cross(omega, p_BC)))
-        out.names.append((names[0], names[1]))
-        out.distance[i], out.normal[i], out.jacobian[i] = r.distance, n, row
+        geometries[0].append(id_A)
+        geometries[1].append(id_B)
+        p_GC[0, i], p_GC[1, i] = p_ACa, p_BCb
+        out.distance[i], out.normal[i] = r.distance, n
+    n = out.normal
+    world_frame, world_body = plant.world_frame(), plant.world_body().index()
+    bodies: dict = {}  # body index -> its slot in the per-body arrays below
+    infos = [[world.geometry_info(g) for g in side] for side in geometries]
+    for side_infos in infos:
+        for _, body, _ in side_infos:
+            bodies.setdefault(body.index(), body)
+    slot = {index: j for j, index in enumerate(bodies)}
+    R_WB = np.empty((len(bodies), 3, 3))
+    p_WB = np.empty((len(bodies), 3))
+    J = np.zeros((len(bodies), 6, nv))  # spatial Jacobians (ω; v) of the body origins, world frame
+    A_bias = np.zeros((len(bodies), 6))  # bias spatial accelerations (α; a) of the body origins
+    omega = np.zeros((len(bodies), 3))
+    for index, body in bodies.items():
+        j = slot[index]
+        X_WB = plant.EvalBodyPoseInWorld(plant_context, body)
+        R_WB[j], p_WB[j] = X_WB.rotation().matrix(), X_WB.translation()
+        if index == world_body:
+            continue
+        frame = body.body_frame()
+        J[j] = plant.CalcJacobianSpatialVelocity(plant_context, JacobianWrtVariable.kV, frame, np.zeros(3), world_frame, world_frame)
+        if bias:
+            A = plant.CalcBiasSpatialAcceleration(plant_context, JacobianWrtVariable.kV, frame, np.zeros(3), world_frame, world_frame)
+            A_bias[j] = np.concatenate([A.rotational(), A.translational()])
+            omega[j] = plant.EvalBodySpatialVelocityInWorld(plant_context, body).rotational()
+    for side, (sign, points) in enumerate(((1.0, out.p_WCa), (-1.0, out.p_WCb))):
+        b = np.array([slot[body.index()] for _, body, _ in infos[side]])
+        R_BG = np.array([X_BG.rotation().matrix() for _, _, X_BG in infos[side]])
+        p_BG = np.array([X_BG.translation() for _, _, X_BG in infos[side]])
+        # r = p_BoC (world frame): the witness point from its body's origin
+        r = np.einsum("kij,kj->ki", R_WB[b], np.einsum("kij,kj->ki", R_BG, p_GC[side]) + p_BG)
+        points[:] = p_WB[b] + r
+        # v_WC = v_WBo + ω_WB × r, so n̂ᵀ v_WC = n̂ᵀ J_v + (r × n̂)ᵀ J_ω.
+        out.jacobian += sign * (np.einsum("ki,kin->kn", n, J[b, 3:]) + np.einsum("ki,kin->kn", np.cross(r, n), J[b, :3]))
+        if bias:
+            w = omega[b]
+            a_C = A_bias[b, 3:] + np.cross(A_bias[b, :3], r) + np.cross(w, np.cross(w, r))
+            out.bias += sign * np.einsum("ki,ki->k", n, a_C)
+    out.names = [(a[0], b[0]) for a, b in zip(infos[0], infos[1], strict=True)]
     return out
 
 

@@ -28,12 +28,25 @@ sys.path.insert(0, str(HERE.parent))
 
 from pydrake.systems.analysis import Simulator
 
+from sotdrake.collision import CollisionWorld
 from sotdrake.collision.distance import pair_distances
 from sotdrake.collision.reach import build_collision_reach
 from sotdrake.meta_tasks import gotoNd
+from sotdrake.robots import load_talos
 
 TARGET = np.array([0.5, -0.2, 1.0])
 BLOCK = 100
+
+
+def arm_pairs() -> list[tuple[str, str]]:
+    """The pairs a user would pick for this reach: the right forearm, wrist and gripper against the
+    torso, the pelvis, the head, the thighs and the table (those the SRDF leaves)."""
+    world = CollisionWorld(load_talos("reduced"))
+    arm = [link for link in world.links if link.startswith(("arm_right_5", "arm_right_6", "arm_right_7", "wrist_right", "gripper_right"))]
+    body = ["torso_1_link", "torso_2_link", "base_link", "head_2_link", "leg_left_1_link", "leg_left_2_link",
+            "leg_left_3_link", "leg_right_1_link", "leg_right_2_link", "leg_right_3_link"]
+    pairs = [(a, b) for a in arm for b in body if frozenset((a, b)) not in world.disabled | world.adjacent]
+    return pairs + [(a, "table") for a in arm]
 
 
 def _simulator(reach) -> tuple[Simulator, object]:
@@ -49,7 +62,9 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--ticks", type=int, default=2000)
     parser.add_argument("--out", type=Path, default=HERE / "results" / "collisions.json")
     args = parser.parse_args(argv)
-    stacks = {"without": build_collision_reach(collision=False, table=False), "with": build_collision_reach(collision=True, table=True)}
+    stacks = {"without": build_collision_reach(collision=False, table=False),
+              "with": build_collision_reach(collision=True, table=True),
+              "with_arm_pairs": build_collision_reach(collision=True, table=True, pairs=arm_pairs())}
     sims = {name: _simulator(reach) for name, reach in stacks.items()}
     times: dict[str, list[float]] = {name: [] for name in stacks}
     cpu: dict[str, list[float]] = {name: [] for name in stacks}
@@ -80,6 +95,9 @@ def main(argv: list[str] | None = None) -> dict:
         "tick_cpu_us_median": {name: value * 1e6 for name, value in median_cpu.items()},
         "ratio_median": median["with"] / median["without"],
         "ratio_cpu_median": median_cpu["with"] / median_cpu["without"],
+        "ratio_median_arm_pairs": median["with_arm_pairs"] / median["without"],
+        "ratio_cpu_median_arm_pairs": median_cpu["with_arm_pairs"] / median_cpu["without"],
+        "arm_pairs_checked": len(arm_pairs()),
         "distance_query_us_median": float(np.median(query_s)) * 1e6,
         "pairs_in_range_median": float(np.median(pairs_in_range)),
         "self_pairs_checked": len(stacks["with"].collision.world.self_pairs()),  # type: ignore[union-attr]

@@ -69,10 +69,12 @@ class ReachReport:
 
 def build_collision_reach(collision: bool = True, table: bool = True, dt: float = 1e-3,
                 obstacles: Sequence[tuple[object, RigidTransform, str]] = (), safety: float = SAFETY_DISTANCE,
-                influence: float = INFLUENCE_DISTANCE, xi: float = DAMPER_SPEED, meshcat: Meshcat | None = None) -> Reach:
+                influence: float = INFLUENCE_DISTANCE, xi: float = DAMPER_SPEED, meshcat: Meshcat | None = None,
+                pairs: Sequence[tuple[str, str]] | None = None) -> Reach:
     """The stack (see the module docstring); ``obstacles``: more ``(shape, X_WO, name)`` (as
     :func:`~.obstacles.add_obstacle` takes them); ``safety``, ``influence``, ``xi``: the margins;
-    ``meshcat``: draw the robot and the obstacles there."""
+    ``meshcat``: draw the robot and the obstacles there; ``pairs``: the collision level's pairs (None:
+    every pair)."""
     builder = DiagramBuilder()
     robot = talos(builder, dt=dt)
     sot = add_sot(robot, solver="hqp")
@@ -87,7 +89,7 @@ def build_collision_reach(collision: bool = True, table: bool = True, dt: float 
             add_obstacle(world, shape, X_WO, name)
     meta = None
     if collision:
-        meta = MetaTaskKineCollision(robot, safety=safety, influence=influence, xi=xi)
+        meta = MetaTaskKineCollision(robot, pairs=pairs, safety=safety, influence=influence, xi=xi)
         sot.push(meta)
     hand = MetaTaskKine6d("rh", robot, "rh", "right-wrist")
     hand.opmodif = RigidTransform(list(HAND_OFFSET))

@@ -37,8 +37,9 @@ class NoCollisionGeometry(SotError):
 class CollisionWorld:
     """The robot's collision geometry and the obstacles (see the module docstring).
 
-    ``model``: the control model; ``pairs``: None for every pair (SRDF and adjacency filtered), or a
-    list of ``(link, link)`` / ``(link, obstacle)`` names (see :func:`.pairs.check_pairs`)."""
+    ``model``: the control model (loaded again with its collision geometry); ``use_srdf``: leave out
+    the pairs its SRDF disables (the adjacent pairs are always left out). Raises
+    :class:`NoCollisionGeometry` for a robot whose description has no collision geometry."""
 
     def __init__(self, model: RobotModel, use_srdf: bool = True):
         loaded = model.with_meshes()

@@ -122,18 +122,18 @@ def test_self_pairs_leave_out_the_srdf_and_adjacent_pairs(world, talos_model):
 def test_damper_rows_and_margins():
     from sotdrake.collision.distance import PairDistances
 
-    d = np.array([0.05, 0.03, 0.01, 0.0099, 0.0])
-    distances = PairDistances([("a", "b")] * 5, d, np.zeros((5, 3)), np.zeros((5, 3)), np.zeros((5, 3)), np.ones((5, 4)))
+    d = np.array([0.05, 0.03, 0.011, 0.01095, 0.01, 0.0])
+    distances = PairDistances([("a", "b")] * 6, d, np.zeros((6, 3)), np.zeros((6, 3)), np.zeros((6, 3)), np.ones((6, 4)))
     rows = damper_rows(distances, CollisionMargins(0.01, 0.05, 0.4), dt=1e-3)
-    # −ξ(d − d_s)/(d_i − d_s) outside d_s; inside, half of a small violation per tick, at most ξ
-    np.testing.assert_allclose(rows.lower, [-0.4, -0.2, 0.0, 0.05, 0.4])
+    # −ξ(d − d_t)/(d_i − d_t) beyond d_t = d_s + 1 mm; inside, a small shortfall undone in one tick, at most ξ
+    np.testing.assert_allclose(rows.lower, [-0.4, -0.4 * 0.019 / 0.039, 0.0, 0.05, 0.4, 0.4])
     assert np.all(np.isinf(rows.upper)) and not rows.is_equality
 
 
 @pytest.mark.parametrize(("safety", "influence", "xi", "word"), [
     (-0.01, 0.05, 0.5, "safety"), (0.05, 0.05, 0.5, "influence"), (0.06, 0.05, 0.5, "influence"),
     (0.01, 0.05, 0.0, "xi"), (0.01, 0.05, -1.0, "xi"), (0.01, 0.05, float("nan"), "xi"), (0.01, 0.05, 50.0, "xi"),
-    (0.01, 0.011, 2.0, "too stiff"),
+    (0.01, 0.011, 0.5, "influence"), (0.01, 0.015, 5.0, "too stiff"),
 ])
 def test_bad_margins_are_refused(safety, influence, xi, word):
     with pytest.raises(InvalidInput, match=word):

@@ -2,19 +2,20 @@
 
 For each pair closer than the influence distance ``d_i`` (:mod:`.distance`), one row
 
-    J_d v ≥ −ξ (d − d_s) / (d_i − d_s)          (the velocity damper; upper side +inf)
+    J_d v ≥ −ξ (d − d_t) / (d_i − d_t),   d_t = d_s + a     (the velocity damper; upper side +inf)
 
 with ``d`` the signed distance (m), ``d_s`` the safety distance (m), ``ξ`` the damper's speed
-(m/s): a pair entering the influence zone may approach at most at ``ξ``, and that bound falls
-linearly to 0 at ``d_s``, so ``d − d_s`` decays at most exponentially at the rate
-``λ = ξ/(d_i − d_s)`` (1/s) and never crosses 0 while the level is satisfied (to first order: a
-tick's step also has a second-order part, largest when a link slides past an edge of another's
-hull, which can leave a pair a few hundredths of a millimetre inside ``d_s``). A pair inside ``d_s``
-gets a positive lower bound, the larger of ``ξ (d_s − d)/(d_i − d_s)`` and
-``min(κ (d_s − d), ξ)`` with ``κ = 1/(2 dt)``: half of a small violation is undone in the next
-tick, a large one at the speed ``ξ``. Over one device tick
-``dt`` the integrated step keeps ``d − d_s ≥ (1 − λ dt)(d_k − d_s)``, so ``λ dt < 1`` is required
-(``setMargins`` refuses a damper that could cross ``d_s`` in one tick).
+(m/s) and ``a`` = :data:`TICK_ALLOWANCE` (1 mm): a pair entering the influence zone may approach at
+most at ``ξ``, and that bound falls linearly to 0 at ``d_t``, so ``d − d_t`` decays at most
+exponentially at the rate ``λ = ξ/(d_i − d_t)`` (1/s) and does not cross 0 while the level is
+satisfied, to first order. The step of a tick also has a part the rows do not see: the distance has
+kinks where the closest features of two hulls change, and a link sliding fast past an edge of
+another's hull (or of a box) can end a tick a fraction of a millimetre closer than the rows
+predicted; the allowance ``a`` keeps those ticks outside ``d_s``. A pair inside ``d_t`` gets a
+positive lower bound, the larger of ``ξ (d_t − d)/(d_i − d_t)`` and ``min((d_t − d)/dt, ξ)``: a
+small shortfall is undone in the next tick, a large one at the speed ``ξ``. Over one device tick
+``dt`` the integrated step keeps ``d − d_t ≥ (1 − λ dt)(d_k − d_t)``, so ``λ dt < 1`` is required
+(``setMargins`` refuses a damper that could cross ``d_t`` in one tick).
 
 **Acceleration level** (``acceleration=True``, for ``SolverDyn``, whose variable is ``q̈``): the
 same bound on ``ḋ`` reached within one tick, ``ḋ + dt·d̈ ≥ ḋ_min(d)`` with ``ḋ = J_d v`` and
@@ -55,6 +56,8 @@ from .world import CollisionWorld
 
 #: Defaults: safety distance (m), influence distance (m), damper speed (m/s).
 SAFETY_DISTANCE, INFLUENCE_DISTANCE, DAMPER_SPEED = 0.01, 0.05, 0.5
+#: The rows aim this far (m) beyond the safety distance: the part of a tick's step they do not see.
+TICK_ALLOWANCE = 1e-3
 #: Largest influence distance (m) and damper speed (m/s) accepted.
 MAX_INFLUENCE, MAX_DAMPER_SPEED = 1.0, 10.0
 
@@ -69,32 +72,35 @@ class CollisionMargins:
 
 
 def check_margins(safety: object, influence: object, xi: object, dt: float, where: str = "margins") -> CollisionMargins:
-    """The margins if ``0 ≤ d_s < d_i ≤ 1 m``, ``0 < ξ ≤ 10 m/s`` and ``ξ dt < d_i − d_s`` (the damper
-    cannot cross ``d_s`` in one tick ``dt``); else :class:`~sotdrake.exceptions.InvalidInput`
-    naming the argument."""
+    """The margins if ``0 ≤ d_s``, ``d_s + a < d_i ≤ 1 m`` (``a`` = :data:`TICK_ALLOWANCE`),
+    ``0 < ξ ≤ 10 m/s`` and ``ξ dt < d_i − d_s − a`` (the damper cannot cross ``d_s + a`` in one tick
+    ``dt``); else :class:`~sotdrake.exceptions.InvalidInput` naming the argument."""
     d_s = check_number(f"{where}: safety (the safety distance d_s)", safety, 0.0, MAX_INFLUENCE, " m")
     d_i = check_number(f"{where}: influence (the influence distance d_i)", influence, 0.0, MAX_INFLUENCE, " m")
-    if not d_i > d_s:
-        raise InvalidInput(f"{where}: influence (d_i = {d_i:g} m) must be larger than safety (d_s = {d_s:g} m)")
+    if not d_i > d_s + TICK_ALLOWANCE:
+        raise InvalidInput(f"{where}: influence (d_i = {d_i:g} m) must be larger than safety (d_s = {d_s:g} m) "
+                           f"+ {TICK_ALLOWANCE:g} m (the rows aim that far beyond d_s)")
     speed = check_number(f"{where}: xi (the damper speed ξ)", xi, 0.0, MAX_DAMPER_SPEED, " m/s")
     if speed <= 0:
         raise InvalidInput(f"{where}: xi (the damper speed ξ) must be > 0 m/s, got {xi!r}")
-    if speed * dt >= d_i - d_s:
+    room = d_i - d_s - TICK_ALLOWANCE
+    if speed * dt >= room:
         raise InvalidInput(
             f"{where}: xi = {speed:g} m/s is too stiff for a tick of {dt:g} s: one tick could cross d_s "
-            f"(ξ·dt = {speed * dt:g} m ≥ d_i − d_s = {d_i - d_s:g} m); take xi < {(d_i - d_s) / dt:g} m/s")
+            f"(ξ·dt = {speed * dt:g} m ≥ d_i − d_s − {TICK_ALLOWANCE:g} m = {room:g} m); take xi < {room / dt:g} m/s")
     return CollisionMargins(d_s, d_i, speed)
 
 
 def damper_rows(distances: PairDistances, margins: CollisionMargins, dt: float) -> TaskLevel:
-    """The velocity-damper rows ``J_d v ≥ −ξ (d − d_s)/(d_i − d_s)`` of the pairs in range, with the
-    recovery of a pair inside ``d_s`` (see the module docstring; ``dt`` the device's tick, s)."""
+    """The velocity-damper rows ``J_d v ≥ −ξ (d − d_t)/(d_i − d_t)`` of the pairs in range, with the
+    recovery of a pair inside ``d_t = d_s + a`` (see the module docstring; ``dt`` the device's tick, s)."""
     d_s, d_i, xi = margins.safety, margins.influence, margins.xi
+    d_t = d_s + TICK_ALLOWANCE
     d = distances.distance
-    lower = -xi * (d - d_s) / (d_i - d_s)
-    inside = d < d_s
+    lower = -xi * (d - d_t) / (d_i - d_t)
+    inside = d < d_t
     if inside.any():
-        lower[inside] = np.maximum(lower[inside], np.minimum((d_s - d[inside]) / (2 * dt), xi))
+        lower[inside] = np.maximum(lower[inside], np.minimum((d_t - d[inside]) / dt, xi))
     return TaskLevel(distances.jacobian, lower, np.full(lower.shape, np.inf), distances.distance - d_s)
 
 

@@ -8,7 +8,7 @@ Everything a user composes is importable from here and listed in ``__all__``: ro
 (``load_robot`` also takes the path of your own URDF), meta tasks, features and their desired
 values, tasks, gains, solvers, the dynamic SoT, contacts, the tracer and publishers, the physics
 and walking wings. The wings that pull in more (``dynamics``, ``physics``, ``walking``, ``sweep``,
-``live``, ``publishing``) are imported on first use of one of their names.
+``live``, ``publishing``, ``collision``) are imported on first use of one of their names.
 """
 
 from __future__ import annotations
@@ -128,10 +128,38 @@ _LAZY: dict[str, tuple[str, ...]] = {
     ".live": ("add_live_arguments", "live_meshcat", "run_live"),
     ".publishing": ("RobotStateMessage", "add_signal_publisher", "add_state_publisher"),
     ".solvers.hqp": ("ACTIVE_SET", "SOLVERS"),
+    ".collision": (
+        "CollisionWorld",
+        "MetaTaskDynCollision",
+        "MetaTaskKineCollision",
+        "NoCollisionGeometry",
+        "TaskCollision",
+        "add_obstacle",
+        "build_collision_reach",
+        "collision_world",
+        "draw_obstacles",
+        "minimum_distance",
+        "pair_distances",
+        "run_collision_reach",
+    ),
 }
 _LAZY_MODULE = {name: module for module, names in _LAZY.items() for name in names}
 
 if TYPE_CHECKING:
+    from .collision import (
+        CollisionWorld,
+        MetaTaskDynCollision,
+        MetaTaskKineCollision,
+        NoCollisionGeometry,
+        TaskCollision,
+        add_obstacle,
+        build_collision_reach,
+        collision_world,
+        draw_obstacles,
+        minimum_distance,
+        pair_distances,
+        run_collision_reach,
+    )
     from .dynamics import Contact6d, DynamicEntity, RobotDynSimu, SolverDyn, TaskDynPD
     from .dynamics.contact import friction_ratio
     from .dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynMomentum, MetaTaskDynPosture
@@ -204,6 +232,7 @@ __all__ = [
     "SOLVERS",
     "SOT",
     "TALOS_GRIPPERS",
+    "CollisionWorld",
     "ComStabilizer",
     "Contact6d",
     "ContactMonitor",
@@ -234,11 +263,13 @@ __all__ = [
     "KinematicBaseEstimator",
     "MeasuredCom",
     "MetaTaskDyn6d",
+    "MetaTaskDynCollision",
     "MetaTaskDynCom",
     "MetaTaskDynMomentum",
     "MetaTaskDynPosture",
     "MetaTaskKine6d",
     "MetaTaskKine6dRel",
+    "MetaTaskKineCollision",
     "MetaTaskKineCom",
     "MetaTaskKineFeature",
     "MetaTaskKineJointLimits",
@@ -246,6 +277,7 @@ __all__ = [
     "MetaTaskKineMomentum",
     "MetaTaskKinePosture",
     "MetaTaskVisualPoint",
+    "NoCollisionGeometry",
     "NotFound",
     "OperationalPointNotFound",
     "PackageNotFound",
@@ -271,6 +303,7 @@ __all__ = [
     "TalosStation",
     "TargetMarker",
     "Task",
+    "TaskCollision",
     "TaskDynPD",
     "TaskInequality",
     "TaskLevel",
@@ -280,6 +313,7 @@ __all__ = [
     "Tracer",
     "WalkCommand",
     "add_live_arguments",
+    "add_obstacle",
     "add_physical_talos",
     "add_robot_visualizer",
     "add_signal_publisher",
@@ -291,10 +325,13 @@ __all__ = [
     "add_task_weight",
     "attime",
     "available_robots",
+    "build_collision_reach",
     "check_stack",
+    "collision_world",
     "desired_position",
     "displayAll",
     "displaySignals",
+    "draw_obstacles",
     "engine_options",
     "entities",
     "entity",
@@ -314,13 +351,16 @@ __all__ = [
     "load_talos",
     "manipulability",
     "manipulability_and_gradient",
+    "minimum_distance",
     "minimum_jerk_moves",
     "motion_zmp",
+    "pair_distances",
     "per_process",
     "polygon_margin",
     "random_cases",
     "replan",
     "robot",
+    "run_collision_reach",
     "run_live",
     "run_sweep",
     "save_figure",

@@ -281,6 +281,7 @@ API_MODULES = (
     "sotdrake.walking",
     "sotdrake.robots",
     "sotdrake.physics",
+    "sotdrake.collision",
     "sotdrake.live",
     "sotdrake.sweep",
 )

@@ -214,7 +214,8 @@ class SOT(Entity[StackSettings]):
         if name in self._inequality_tasks and not self.accepts_inequalities:
             raise StackError(
                 f"{self.name} is a {type(self).__name__}, which cannot solve the inequality task {name!r}: "
-                "use the hierarchical QP (add_sot(robot, solver='hqp'))"
+                "the solvers that take inequality rows are SolverKine (the hierarchical QP: add_sot(robot, solver='hqp')) "
+                "and SolverDyn"
             )
 
     def _check_connected(self, name: str, context: Context) -> None:

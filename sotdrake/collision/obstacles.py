@@ -1,0 +1,146 @@
+"""Obstacles: fixed shapes in the world that the robot's collision task keeps away from.
+
+``add_obstacle(robot, shape, X_WO, name)`` adds the shape, at pose ``X_WO`` (its frame ``O`` in
+the world, a ``RigidTransform`` or a 4×4 matrix, m), to the robot's collision world
+(:func:`~.world.collision_world`) as anchored geometry, and draws it in Meshcat when one is given.
+``shape`` is one of
+
+* ``("box", (x, y, z))`` (full sizes, m, centred on ``O``), ``("sphere", r)``,
+  ``("cylinder", r, length)`` (along ``O``'s z), ``("mesh", path)`` or ``("mesh", path, scale)``
+  (an OBJ file; Drake uses its convex hull for distances);
+* or the Drake shape itself (``Box``, ``Sphere``, ``Cylinder``, ``Capsule``, ``Ellipsoid``,
+  ``Mesh``, ``Convex``).
+
+Every value is checked before anything is added: a size that is not a finite number > 0, a
+non-finite pose, a mesh that does not load (or has no volume), a name already used by a link or an
+obstacle, an obstacle added after the collision world's first context was made.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import (
+    Box,
+    Capsule,
+    Convex,
+    Cylinder,
+    Ellipsoid,
+    GeometryId,
+    GeometryInstance,
+    Mesh,
+    Meshcat,
+    ProximityProperties,
+    Rgba,
+    Shape,
+    Sphere,
+)
+from pydrake.math import RigidTransform
+
+from ..exceptions import InvalidInput, SotError, check_finite
+from .world import CollisionWorld, collision_world
+
+#: The colour obstacles are drawn in (RGBA).
+OBSTACLE_COLOR = Rgba(0.85, 0.45, 0.2, 0.6)
+#: Largest size accepted for an obstacle (m).
+MAX_SIZE = 100.0
+
+
+def _size(name: str, what: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
+            or not (math.isfinite(value) and 0 < value <= MAX_SIZE):
+        raise InvalidInput(f"add_obstacle({name!r}): shape {what} must be a finite number in (0, {MAX_SIZE:g}] m, got {value!r:.80}")
+    return float(value)
+
+
+def make_shape(shape: object, name: str = "obstacle") -> Shape:
+    """A Drake shape from a description (see the module docstring), every size checked."""
+    if isinstance(shape, Shape):
+        return _checked_drake_shape(shape, name)
+    if not isinstance(shape, (tuple, list)) or not shape or not isinstance(shape[0], str):
+        raise InvalidInput(f"add_obstacle({name!r}): shape must be ('box', (x, y, z)), ('sphere', r), ('cylinder', r, length), "
+                           f"('mesh', path[, scale]) or a Drake shape, got {shape!r:.100}")
+    kind, args = shape[0], tuple(shape[1:])
+    if kind == "box" and len(args) == 1 and isinstance(args[0], (tuple, list, np.ndarray)) and len(args[0]) == 3:
+        return Box(*(_size(name, f"box size {axis}", v) for axis, v in zip("xyz", args[0], strict=True)))
+    if kind == "sphere" and len(args) == 1:
+        return Sphere(_size(name, "sphere radius", args[0]))
+    if kind == "cylinder" and len(args) == 2:
+        return Cylinder(_size(name, "cylinder radius", args[0]), _size(name, "cylinder length", args[1]))
+    if kind == "mesh" and len(args) in (1, 2):
+        scale = _size(name, "mesh scale", args[1]) if len(args) == 2 else 1.0
+        return _checked_drake_shape(Mesh(str(_mesh_path(name, args[0])), scale), name)
+    raise InvalidInput(f"add_obstacle({name!r}): unknown shape {shape!r:.100}: ('box', (x, y, z)), ('sphere', r), "
+                       "('cylinder', r, length) or ('mesh', path[, scale])")
+
+
+def _mesh_path(name: str, path: object) -> Path:
+    if not isinstance(path, (str, Path)) or not Path(path).is_file():
+        raise InvalidInput(f"add_obstacle({name!r}): mesh file {path!r:.200} does not exist")
+    return Path(path)
+
+
+def _checked_drake_shape(shape: Shape, name: str) -> Shape:
+    if isinstance(shape, (Mesh, Convex)):
+        _mesh_path(name, shape.filename() if hasattr(shape, "filename") else shape.source().path())
+        try:
+            hull = shape.GetConvexHull()
+        except RuntimeError as error:
+            if "coplanar" in str(error) or "volume" in str(error):
+                raise InvalidInput(f"add_obstacle({name!r}): the mesh is flat (its convex hull has no volume)") from None
+            raise InvalidInput(f"add_obstacle({name!r}): the mesh does not load: {error}") from None
+        vertices = np.array([hull.vertex(i) for i in range(hull.num_vertices())])
+        if vertices.size == 0 or np.ptp(vertices, axis=0).min() <= 0:
+            raise InvalidInput(f"add_obstacle({name!r}): the mesh is flat or empty (its convex hull has no volume)")
+    elif not isinstance(shape, (Box, Sphere, Cylinder, Capsule, Ellipsoid)):
+        raise InvalidInput(f"add_obstacle({name!r}): {type(shape).__name__} is not a shape an obstacle can have")
+    return shape
+
+
+def _pose(name: str, X_WO: object) -> RigidTransform:
+    if isinstance(X_WO, RigidTransform):
+        matrix = X_WO.GetAsMatrix4()
+    else:
+        matrix = check_finite(f"add_obstacle({name!r}): X_WO (a RigidTransform or a 4×4 matrix)", X_WO, (4, 4))
+    matrix = check_finite(f"add_obstacle({name!r}): X_WO", matrix, (4, 4), bound=1e3)
+    rotation = matrix[:3, :3]
+    if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6) or np.linalg.det(rotation) < 0 \
+            or not np.allclose(matrix[3], [0, 0, 0, 1]):
+        raise InvalidInput(f"add_obstacle({name!r}): X_WO is not a rigid transform (its rotation is not orthonormal)")
+    return RigidTransform(matrix) if not isinstance(X_WO, RigidTransform) else X_WO
+
+
+def add_obstacle(robot, shape: object, X_WO: object, name: str, meshcat: Meshcat | None = None) -> GeometryId:
+    """Add an obstacle to the collision world of ``robot`` (a :class:`~sotdrake.robot.Robot`, or a
+    :class:`~.world.CollisionWorld`) and return its geometry id; see the module docstring. With
+    ``meshcat`` it is drawn there too, under ``obstacles/<name>``."""
+    world = robot if isinstance(robot, CollisionWorld) else collision_world(robot)
+    if not isinstance(name, str) or not name.strip():
+        raise InvalidInput(f"add_obstacle: name must be a non-empty string, got {name!r:.80}")
+    if name in world.obstacles or name in world.links:
+        raise InvalidInput(f"add_obstacle: {name!r} is already the name of a {'obstacle' if name in world.obstacles else 'link'}")
+    drake_shape = make_shape(shape, name)
+    pose = _pose(name, X_WO)
+    if world.contexts_made:
+        raise SotError(f"add_obstacle({name!r}): the collision world is in use already (a context of the diagram exists): "
+                       "add obstacles before building the diagram and creating its context")
+    instance = GeometryInstance(pose, drake_shape, name)
+    instance.set_proximity_properties(ProximityProperties())
+    geometry = world.scene_graph.RegisterAnchoredGeometry(world.source_id, instance)
+    world.obstacles[name] = geometry
+    world.obstacle_shapes[name] = (drake_shape, pose)
+    if meshcat is not None:
+        draw_obstacles(meshcat, world, [name])
+    return geometry
+
+
+def draw_obstacles(meshcat: Meshcat, robot, names: list[str] | None = None) -> None:
+    """Draw the obstacles of ``robot``'s collision world (or of a ``CollisionWorld``) in Meshcat,
+    under ``obstacles/<name>`` (all of them, or ``names``)."""
+    world = robot if isinstance(robot, CollisionWorld) else collision_world(robot)
+    for name in world.obstacle_shapes if names is None else names:
+        shape, pose = world.obstacle_shapes[name]
+        meshcat.SetObject(f"obstacles/{name}", shape, OBSTACLE_COLOR)
+        meshcat.SetTransform(f"obstacles/{name}", pose)

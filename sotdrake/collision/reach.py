@@ -1,0 +1,152 @@
+"""The collision scenario the tests, the script and the bench share: TALOS' right hand to a target,
+feet and CoM held, with or without the collision level, every tick checked independently.
+
+:func:`build_collision_reach` makes the tutorial's stack under ``SolverKine`` (contacts, CoM, then the
+collision level when ``collision``, then the hand: the hand point is ``right-wrist`` moved by
+(0.1, 0, 0), the seed's ``opmodif``), with a table top (:data:`TABLE`) when ``table``.
+:func:`run_collision_reach` drives the hand to a target and checks, at every tick, with Drake's own query on
+a collision world of its own (not the task's numbers): the smallest signed distance over the pairs
+the task checks, the drift of both ankles (contacts), the joint limits, NaN, and the solver's
+failures. Targets may be inside the body or inside the table: the hand then stops short.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.geometry import Meshcat, MeshcatVisualizer
+from pydrake.math import RigidTransform
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Diagram, DiagramBuilder
+
+from ..meta_tasks import MetaTaskKine6d, gotoNd, hold_feet_and_com
+from ..robot import Robot, add_sot, talos
+from ..solvers import SolverKine
+from .distance import minimum_distance
+from .meta_task import MetaTaskKineCollision
+from .obstacles import add_obstacle, draw_obstacles
+from .task import DAMPER_SPEED, INFLUENCE_DISTANCE, SAFETY_DISTANCE
+from .world import CollisionWorld
+
+#: The table top: full size (m) and centre (m, world), in front of TALOS at hip height, under its right hand.
+TABLE = ((0.5, 0.8, 0.04), (0.55, -0.25, 0.80))
+#: The hand point in the ``right-wrist`` frame (m).
+HAND_OFFSET = (0.1, 0.0, 0.0)
+
+
+@dataclass
+class Reach:
+    diagram: Diagram
+    robot: Robot
+    sot: SolverKine
+    hand: MetaTaskKine6d
+    feet: tuple[MetaTaskKine6d, MetaTaskKine6d]
+    collision: MetaTaskKineCollision | None
+    #: an independent collision world (same pairs and obstacles as the task's), for the checks
+    checker: CollisionWorld
+    #: the Meshcat visualizer, when built with one (each run is recorded)
+    visualizer: MeshcatVisualizer | None = None
+
+
+@dataclass
+class ReachReport:
+    """What one run did: ``min_distance`` (m, smallest signed distance of any checked pair at any
+    tick, by Drake's query; +inf if none came within :data:`CHECK_DISTANCE`), ``feet_drift`` (m,
+    largest displacement of an ankle), ``limit_excess`` (rad, largest excursion past a joint limit, 0
+    inside), ``nan`` (a NaN in ``q``), ``failures`` (solver failure messages), ``hand_error`` (m,
+    final distance of the hand point to its target), ``ticks`` (ticks run)."""
+
+    min_distance: float
+    feet_drift: float
+    limit_excess: float
+    nan: bool
+    failures: list[str]
+    hand_error: float
+    ticks: int
+
+
+def build_collision_reach(collision: bool = True, table: bool = True, dt: float = 1e-3,
+                obstacles: Sequence[tuple[object, RigidTransform, str]] = (), safety: float = SAFETY_DISTANCE,
+                influence: float = INFLUENCE_DISTANCE, xi: float = DAMPER_SPEED, meshcat: Meshcat | None = None,
+                pairs: Sequence[tuple[str, str]] | None = None) -> Reach:
+    """The stack (see the module docstring); ``obstacles``: more ``(shape, X_WO, name)`` (as
+    :func:`~.obstacles.add_obstacle` takes them); ``safety``, ``influence``, ``xi``: the margins;
+    ``meshcat``: draw the robot and the obstacles there; ``pairs``: the collision level's pairs (None:
+    every pair)."""
+    builder = DiagramBuilder()
+    robot = talos(builder, dt=dt)
+    sot = add_sot(robot, solver="hqp")
+    assert isinstance(sot, SolverKine)
+    feet = hold_feet_and_com(robot, sot)
+    checker = CollisionWorld(robot.model)
+    if table:
+        size, centre = TABLE
+        obstacles = [(("box", size), RigidTransform(list(centre)), "table"), *obstacles]
+    for shape, X_WO, name in obstacles:
+        for world in (robot, checker):
+            add_obstacle(world, shape, X_WO, name)
+    meta = None
+    if collision:
+        meta = MetaTaskKineCollision(robot, pairs=pairs, safety=safety, influence=influence, xi=xi)
+        sot.push(meta)
+    hand = MetaTaskKine6d("rh", robot, "rh", "right-wrist")
+    hand.opmodif = RigidTransform(list(HAND_OFFSET))
+    sot.push(hand)
+    visualizer = None
+    if meshcat is not None:
+        from ..visualization import add_robot_visualizer
+
+        visualizer = add_robot_visualizer(robot, meshcat)
+        draw_obstacles(meshcat, checker)
+    return Reach(builder.Build(), robot, sot, hand, (feet[0], feet[1]), meta, checker, visualizer)
+
+
+#: Pairs farther apart than this (m) are not measured by the checks (``min_distance`` is +inf when
+#: every pair stays farther): far above the safety distances used, and much cheaper than all pairs.
+CHECK_DISTANCE = 0.05
+
+#: The tutorial's hand gain (``gotoNd``'s four numbers: λ(0) = 4.9 /s, λ(∞) = 0.9 /s).
+TUTORIAL_GAIN = (4.9, 0.9, 0.01, 0.9)
+
+
+def run_collision_reach(reach: Reach, target: np.ndarray, duration: float = 1.0, check_every: int = 1,
+              gain: float | tuple[float, ...] = TUTORIAL_GAIN) -> ReachReport:
+    """Drive the hand to ``target`` (m, world) for ``duration`` s from the reference posture, with
+    ``gain`` (as ``gotoNd`` takes it), checking every ``check_every`` ticks (see the module docstring)."""
+    simulator = Simulator(reach.diagram)
+    context = simulator.get_mutable_context()
+    gotoNd(reach.hand, np.asarray(target, dtype=float), "111", gain, context=context)
+    if reach.visualizer is not None:
+        reach.visualizer.StartRecording(False)
+    simulator.Initialize()
+    device, plant = reach.robot.device, reach.robot.model.plant
+    device_context = device.GetMyContextFromRoot(context)
+    sot_context = reach.sot.GetMyContextFromRoot(context)
+    checker_context = reach.checker.new_context()
+    feet0 = [foot.current_pose(context).translation() for foot in reach.feet]
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    report = ReachReport(np.inf, 0.0, 0.0, False, [], np.nan, 0)
+    dt = device.dt
+    ticks = round(duration / dt)
+    for k in range(1, ticks + 1):
+        simulator.AdvanceTo(k * dt)
+        if k % check_every and k != ticks:
+            continue
+        q = device.GetOutputPort("state").Eval(device_context)
+        if not np.all(np.isfinite(q)):
+            report.nan = True
+            break
+        report.min_distance = min(report.min_distance, minimum_distance(reach.checker, checker_context, q, CHECK_DISTANCE))
+        report.feet_drift = max(report.feet_drift, *(float(np.linalg.norm(foot.current_pose(context).translation() - p0))
+                                                    for foot, p0 in zip(reach.feet, feet0, strict=True)))
+        with np.errstate(invalid="ignore"):
+            excess = np.nan_to_num(np.maximum(q - upper, lower - q), nan=0.0, neginf=0.0)
+        report.limit_excess = max(report.limit_excess, float(excess.max()))
+        failure = reach.sot.GetOutputPort("diagnostics").Eval(sot_context).failure
+        if failure:
+            report.failures.append(failure)
+    report.ticks = k
+    report.hand_error = float(np.linalg.norm(reach.hand.current_pose(context).translation() - target))
+    return report

@@ -1,0 +1,224 @@
+"""``TaskCollision``: the collision pairs in range as inequality rows of one level (velocity damper).
+
+For each pair closer than the influence distance ``d_i`` (:mod:`.distance`), one row
+
+    J_d v ≥ −ξ (d − d_t) / (d_i − d_t),   d_t = d_s + a     (the velocity damper; upper side +inf)
+
+with ``d`` the signed distance (m), ``d_s`` the safety distance (m), ``ξ`` the damper's speed
+(m/s) and ``a`` = :data:`TICK_ALLOWANCE` (1 mm): a pair entering the influence zone may approach at
+most at ``ξ``, and that bound falls linearly to 0 at ``d_t``, so ``d − d_t`` decays at most
+exponentially at the rate ``λ = ξ/(d_i − d_t)`` (1/s) and does not cross 0 while the level is
+satisfied, to first order. The step of a tick also has a part the rows do not see: the distance has
+kinks where the closest features of two hulls change, and a link sliding fast past an edge of
+another's hull (or of a box) can end a tick a fraction of a millimetre closer than the rows
+predicted; the allowance ``a`` keeps those ticks outside ``d_s``. A pair inside ``d_t`` gets a
+positive lower bound, the larger of ``ξ (d_t − d)/(d_i − d_t)`` and ``min((d_t − d)/dt, ξ)``: a
+small shortfall is undone in the next tick, a large one at the speed ``ξ``. Over one device tick
+``dt`` the integrated step keeps ``d − d_t ≥ (1 − λ dt)(d_k − d_t)``, so ``λ dt < 1`` is required
+(``setMargins`` refuses a damper that could cross ``d_t`` in one tick).
+
+**Acceleration level** (``acceleration=True``, for ``SolverDyn``, whose variable is ``q̈``): the
+same bound on ``ḋ`` reached within one tick, ``ḋ + dt·d̈ ≥ ḋ_min(d)`` with ``ḋ = J_d v`` and
+``d̈ = J_d q̈ + J̇_d v``:
+
+    J_d q̈ ≥ (ḋ_min(d) − J_d v)/dt − J̇_d v
+
+(``ḋ_min`` the velocity rows' lower bound above; ``J̇_d v`` with the witness points fixed in their
+bodies, the rotation of the normal left out, :func:`~.distance.pair_distances`). The task then
+reads ``velocity`` (``v``) too.
+
+The number of rows is the number of pairs in range at that tick (0 to all of them): the level is a
+:class:`~sotdrake.task.TaskLevel` of any size, which ``SolverKine`` takes as it comes. The basic
+``SOT`` refuses it at ``push`` (it has no inequality rows).
+
+Ports: inputs ``position`` (``q``, nq) and, at the acceleration level, ``velocity`` (``v``, nv). Outputs ``task`` (the rows, a
+:class:`~sotdrake.task.TaskLevel`, ``error = d − d_s`` per row, m), ``distances``
+(:class:`~.distance.PairDistances` of the pairs in range) and ``min_distance`` (1, m: the smallest
+signed distance in range, ``+inf`` when no pair is within ``d_i``).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, Context, ValueProducer
+
+from ..entity import Entity
+from ..exceptions import InvalidInput, check_number
+from ..task import TaskLevel
+from .distance import PairDistances, pair_distances
+from .world import CollisionWorld
+
+#: Defaults: safety distance (m), influence distance (m), damper speed (m/s).
+SAFETY_DISTANCE, INFLUENCE_DISTANCE, DAMPER_SPEED = 0.01, 0.05, 0.5
+#: The rows aim this far (m) beyond the safety distance: the part of a tick's step they do not see.
+TICK_ALLOWANCE = 1e-3
+#: Largest influence distance (m) and damper speed (m/s) accepted.
+MAX_INFLUENCE, MAX_DAMPER_SPEED = 1.0, 10.0
+
+
+@dataclass
+class CollisionMargins:
+    """``safety`` ``d_s`` (m), ``influence`` ``d_i`` (m), ``xi`` ``ξ`` (m/s): see the module docstring."""
+
+    safety: float = SAFETY_DISTANCE
+    influence: float = INFLUENCE_DISTANCE
+    xi: float = DAMPER_SPEED
+
+
+def check_margins(safety: object, influence: object, xi: object, dt: float, where: str = "margins") -> CollisionMargins:
+    """The margins if ``0 ≤ d_s``, ``d_s + a < d_i ≤ 1 m`` (``a`` = :data:`TICK_ALLOWANCE`),
+    ``0 < ξ ≤ 10 m/s`` and ``ξ dt < d_i − d_s − a`` (the damper cannot cross ``d_s + a`` in one tick
+    ``dt``); else :class:`~sotdrake.exceptions.InvalidInput` naming the argument."""
+    d_s = check_number(f"{where}: safety (the safety distance d_s)", safety, 0.0, MAX_INFLUENCE, " m")
+    d_i = check_number(f"{where}: influence (the influence distance d_i)", influence, 0.0, MAX_INFLUENCE, " m")
+    if not d_i > d_s + TICK_ALLOWANCE:
+        raise InvalidInput(f"{where}: influence (d_i = {d_i:g} m) must be larger than safety (d_s = {d_s:g} m) "
+                           f"+ {TICK_ALLOWANCE:g} m (the rows aim that far beyond d_s)")
+    speed = check_number(f"{where}: xi (the damper speed ξ)", xi, 0.0, MAX_DAMPER_SPEED, " m/s")
+    if speed <= 0:
+        raise InvalidInput(f"{where}: xi (the damper speed ξ) must be > 0 m/s, got {xi!r}")
+    room = d_i - d_s - TICK_ALLOWANCE
+    if speed * dt >= room:
+        raise InvalidInput(
+            f"{where}: xi = {speed:g} m/s is too stiff for a tick of {dt:g} s: one tick could cross d_s "
+            f"(ξ·dt = {speed * dt:g} m ≥ d_i − d_s − {TICK_ALLOWANCE:g} m = {room:g} m); take xi < {room / dt:g} m/s")
+    return CollisionMargins(d_s, d_i, speed)
+
+
+def damper_rows(distances: PairDistances, margins: CollisionMargins, dt: float) -> TaskLevel:
+    """The velocity-damper rows ``J_d v ≥ −ξ (d − d_t)/(d_i − d_t)`` of the pairs in range, with the
+    recovery of a pair inside ``d_t = d_s + a`` (see the module docstring; ``dt`` the device's tick, s)."""
+    d_s, d_i, xi = margins.safety, margins.influence, margins.xi
+    d_t = d_s + TICK_ALLOWANCE
+    d = distances.distance
+    lower = -xi * (d - d_t) / (d_i - d_t)
+    inside = d < d_t
+    if inside.any():
+        lower[inside] = np.maximum(lower[inside], np.minimum((d_t - d[inside]) / dt, xi))
+    return TaskLevel(distances.jacobian, lower, np.full(lower.shape, np.inf), distances.distance - d_s)
+
+
+def acceleration_rows(distances: PairDistances, margins: CollisionMargins, dt: float, v: np.ndarray) -> TaskLevel:
+    """The acceleration-level rows ``J_d q̈ ≥ (ḋ_min − J_d v)/dt − J̇_d v`` (see the module docstring)."""
+    velocity = damper_rows(distances, margins, dt)
+    lower = (velocity.lower - distances.jacobian @ v) / dt - distances.bias
+    return TaskLevel(distances.jacobian, lower, velocity.upper, velocity.error)
+
+
+class _WorldContext:
+    """The collision diagram's context as the value of a cache entry (a copy gets a fresh one)."""
+
+    def __init__(self, world: CollisionWorld):
+        self.world = world
+        self.context = world.new_context()
+
+    def __deepcopy__(self, memo: dict) -> _WorldContext:
+        return _WorldContext(self.world)
+
+
+class TaskCollision(Entity[CollisionMargins]):
+    """Collision-avoidance level (see the module docstring): ``world`` the robot's
+    :class:`~.world.CollisionWorld`, ``nv`` the solver's size, ``dt`` the device's tick (s),
+    ``pairs`` None (every pair the world checks) or a list of ``(link, link)`` / ``(link,
+    obstacle)`` names."""
+
+    is_inequality = True
+    stack = None  # (RobotDyn.add_task: no previous Jacobian kept)
+
+    def __init__(self, name: str, world: CollisionWorld, nv: int, dt: float,
+                 pairs: Sequence[tuple[str, str]] | None = None, margins: CollisionMargins | None = None,
+                 acceleration: bool = False):
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
+        if nv != world.plant.num_velocities():
+            raise InvalidInput(f"{name}: nv = {nv}, the collision model has {world.plant.num_velocities()} velocities")
+        margins = margins or CollisionMargins()
+        margins = check_margins(margins.safety, margins.influence, margins.xi, dt, name)
+        self.pairs = None if pairs is None else world.check_pairs(pairs)
+        Entity.__init__(self, name, margins)
+        self.world, self.nv, self.dt = world, nv, float(dt)
+        self._geometry_pairs = None if self.pairs is None else world.geometry_pairs(self.pairs)
+        self.acceleration = bool(acceleration)
+        self._position = self.DeclareVectorInputPort("position", world.plant.num_positions())
+        position = {self.input_port_ticket(self._position.get_index())}
+        self._velocity = None
+        if self.acceleration:
+            self._velocity = self.DeclareVectorInputPort("velocity", nv)
+            position.add(self.input_port_ticket(self._velocity.get_index()))
+        self._world_context = self.DeclareCacheEntry(
+            "collision_context",
+            ValueProducer(allocate=lambda: AbstractValue.Make(_WorldContext(world)), calc=self._set_positions),
+            prerequisites_of_calc=position,
+        )
+        settings = {self.abstract_state_ticket(self._settings_index)}
+        self._distances = self.DeclareCacheEntry(
+            "distances",
+            ValueProducer(allocate=lambda: AbstractValue.Make(PairDistances(jacobian=np.zeros((0, nv)))),
+                          calc=self._calc_distances),
+            prerequisites_of_calc=position | settings,
+        )
+        distances = {self.cache_entry_ticket(self._distances.cache_index())}
+        empty = TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
+        self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(empty), self._calc_rows,
+                                       prerequisites_of_calc=distances | settings | position)
+        self.DeclareAbstractOutputPort("distances", lambda: AbstractValue.Make(PairDistances(jacobian=np.zeros((0, nv)))),
+                                       lambda c, o: o.set_value(copy.copy(self._distances.Eval(c))),
+                                       prerequisites_of_calc=distances)
+        self.DeclareVectorOutputPort("min_distance", 1, self._calc_minimum, prerequisites_of_calc=distances)
+
+    @property
+    def name(self) -> str:
+        return self.get_name()
+
+    def setMargins(self, safety: float, influence: float, xi: float, context: Context | None = None) -> None:
+        """Safety distance ``d_s`` (m), influence distance ``d_i`` (m) and damper speed ``ξ`` (m/s),
+        all checked (:func:`check_margins`) before any is changed."""
+        margins = check_margins(safety, influence, xi, self.dt, f"{self.name}.setMargins")
+        def change(s: CollisionMargins) -> None:
+            s.safety, s.influence, s.xi = margins.safety, margins.influence, margins.xi
+
+        self._command(context, change)
+
+    def missing_inputs(self, context: Context) -> str | None:
+        """A sentence when the ``position`` input is not connected, else None."""
+        try:
+            own = self.GetMyContextFromRoot(context)
+        except RuntimeError:
+            own = context
+        if not self._position.HasValue(own):
+            return f"collision task {self.name!r} has no 'position' input: connect the device's 'state' (q) to it"
+        return None
+
+    def _set_positions(self, context: Context, value: AbstractValue) -> None:
+        q = self._position.Eval(context)
+        if not math.isfinite(q.sum()):  # Drake would abort the process
+            raise InvalidInput(f"{self.name}: non-finite position at t = {context.get_time()}: {q}")
+        plant_context = self.world.plant_context(value.get_mutable_value().context)
+        self.world.plant.SetPositions(plant_context, q)
+        if self._velocity is not None:
+            v = self._velocity.Eval(context)
+            if not math.isfinite(v.sum()):
+                raise InvalidInput(f"{self.name}: non-finite velocity at t = {context.get_time()}: {v}")
+            self.world.plant.SetVelocities(plant_context, v)
+
+    def _calc_rows(self, context: Context, output: AbstractValue) -> None:
+        distances, margins = self._distances.Eval(context), self._settings_of(context)
+        if self._velocity is None:
+            output.set_value(damper_rows(distances, margins, self.dt))
+        else:
+            output.set_value(acceleration_rows(distances, margins, self.dt, self._velocity.Eval(context)))
+
+    def _calc_distances(self, context: Context, value: AbstractValue) -> None:
+        holder = self._world_context.Eval(context)
+        margins = self._settings_of(context)
+        value.set_value(pair_distances(self.world, holder.context, margins.influence, self._geometry_pairs, self.acceleration))
+
+    def _calc_minimum(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, self._distances.Eval(context).minimum)
+

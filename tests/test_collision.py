@@ -1,0 +1,311 @@
+"""Collision avoidance: distance Jacobians, pairs, bad inputs, the collision level under SolverKine and SolverDyn, the script.
+
+The distances are checked against finite differences of Drake's own signed distance, stepping the
+configuration on its manifold; the runs are checked tick by tick with Drake's query on a collision
+world of their own (not the task's numbers).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from pydrake.geometry import Cylinder, Sphere
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import DiagramBuilder
+
+from sotdrake import InvalidInput, SotError, StackError, add_sot, talos
+from sotdrake.collision import (
+    CollisionWorld,
+    MetaTaskKineCollision,
+    NoCollisionGeometry,
+    TaskCollision,
+    add_obstacle,
+    check_margins,
+    damper_rows,
+    pair_distances,
+    srdf_disabled_pairs,
+)
+from sotdrake.collision.distance import signed_distance_pairs
+from sotdrake.collision.reach import TABLE, build_collision_reach, run_collision_reach
+from sotdrake.collision.targets import random_targets
+from sotdrake.collision.task import SAFETY_DISTANCE, CollisionMargins
+from sotdrake.configuration import Layout, integrate
+from sotdrake.exceptions import FrameNotFound
+from sotdrake.robots import load_robot
+
+TOLERANCE = 1e-4  # m
+
+
+@pytest.fixture(scope="module")
+def world(talos_model):
+    world = CollisionWorld(talos_model)
+    add_obstacle(world, ("box", TABLE[0]), RigidTransform(list(TABLE[1])), "table")
+    return world
+
+
+def _random_configuration(model, rng, spread=0.3):
+    q = model.half_sitting.copy()
+    lower, upper = model.plant.GetPositionLowerLimits(), model.plant.GetPositionUpperLimits()
+    joints = np.isfinite(lower) & np.isfinite(upper)
+    q[joints] = np.clip(q[joints] + spread * (rng.random(joints.sum()) - 0.5) * (upper - lower)[joints], lower[joints], upper[joints])
+    q[4:7] += 0.1 * rng.standard_normal(3)  # the free flyer moves the whole robot, the table stays
+    return q
+
+
+def test_distance_jacobian_matches_finite_differences(world, talos_model, rng):
+    """``J_d v`` against central differences of Drake's signed distance of each pair along random
+    directions ``v``, stepping ``q ⊕ h v`` on the manifold, at random configurations. Where two step
+    sizes disagree (a witness switch, where the distance has a kink, or the iterative distance's own
+    round-off) the pair is skipped; at least 60 pairs and directions are checked."""
+    context = world.new_context()
+    plant_context = world.plant_context(context)
+    layout = Layout.of(talos_model.plant)
+    checked = 0
+    for _ in range(6):
+        q = _random_configuration(talos_model, rng)
+        world.plant.SetPositions(plant_context, q)
+        distances = pair_distances(world, context, 0.08)
+        pairs = [(r.id_A, r.id_B) for r in signed_distance_pairs(world, context, 0.08)]  # the same order
+        assert len(pairs) == len(distances.names)
+        inspector = world.scene_graph.model_inspector()
+        curved = np.array([any(isinstance(inspector.GetShape(g), (Cylinder, Sphere)) for g in pair) for pair in pairs])
+
+        def distance_of(q_, pairs=pairs):
+            world.plant.SetPositions(plant_context, q_)
+            query = world.query(context)
+            return np.array([query.ComputeSignedDistancePairClosestPoints(a, b).distance for a, b in pairs])
+
+        for _ in range(3):
+            v = rng.standard_normal(talos_model.nv)
+            fd = {h: (distance_of(integrate(q, v, h, layout)) - distance_of(integrate(q, v, -h, layout))) / (2 * h)
+                  for h in (1e-5, 1e-6)}
+            smooth = np.abs(fd[1e-5] - fd[1e-6]) <= 1e-7
+            # Polytopes (mesh hulls, boxes): exact. A curved side (the wrists' force-sensor
+            # cylinders): Drake's iterative (GJK) distance gives the normal and the witness points to
+            # its convergence tolerance, measured here at up to 2e-3 m/s on |J_d v| ~ 0.5 m/s.
+            tolerance = np.where(curved, 5e-3, 1e-6)
+            error = np.abs(distances.jacobian @ v - fd[1e-6])
+            wrong = smooth & (error > tolerance)
+            assert not wrong.any(), [(distances.names[i], distances.distance[i], error[i]) for i in np.flatnonzero(wrong)]
+            checked += int(smooth.sum())
+    assert checked >= 60
+
+
+def test_obstacle_side_is_b_and_witness_points_are_apart_by_the_distance(world, talos_model):
+    context = world.new_context()
+    q = talos_model.half_sitting.copy()
+    q[6] -= 0.25  # lower the robot: the hands come close to the table top
+    world.plant.SetPositions(world.plant_context(context), q)
+    distances = pair_distances(world, context, 0.3)
+    rows = [i for i, (a, b) in enumerate(distances.names) if "table" in (a, b)]
+    assert rows, "no link near the table"
+    for i in rows:
+        assert distances.names[i][1] == "table"
+        gap = distances.p_WCa[i] - distances.p_WCb[i]
+        assert np.isclose(gap @ distances.normal[i], distances.distance[i], atol=1e-6)
+
+
+def test_self_pairs_leave_out_the_srdf_and_adjacent_pairs(world, talos_model):
+    disabled = srdf_disabled_pairs(talos_model.srdf_path)
+    assert frozenset(("arm_left_1_link", "arm_left_3_link")) in disabled
+    pairs = {frozenset(pair) for pair in world.self_pairs()}
+    assert pairs and not pairs & disabled and not pairs & world.adjacent
+    context = world.new_context()
+    for _ in range(3):
+        world.plant.SetPositions(world.plant_context(context), talos_model.half_sitting)
+        found = {frozenset(names) for names in pair_distances(world, context, 0.2).names}
+        assert found and not found & (disabled | world.adjacent)
+
+
+def test_damper_rows_and_margins():
+    from sotdrake.collision.distance import PairDistances
+
+    d = np.array([0.05, 0.03, 0.011, 0.01095, 0.01, 0.0])
+    distances = PairDistances([("a", "b")] * 6, d, np.zeros((6, 3)), np.zeros((6, 3)), np.zeros((6, 3)), np.ones((6, 4)))
+    rows = damper_rows(distances, CollisionMargins(0.01, 0.05, 0.4), dt=1e-3)
+    # −ξ(d − d_t)/(d_i − d_t) beyond d_t = d_s + 1 mm; inside, a small shortfall undone in one tick, at most ξ
+    np.testing.assert_allclose(rows.lower, [-0.4, -0.4 * 0.019 / 0.039, 0.0, 0.05, 0.4, 0.4])
+    assert np.all(np.isinf(rows.upper)) and not rows.is_equality
+
+
+@pytest.mark.parametrize(("safety", "influence", "xi", "word"), [
+    (-0.01, 0.05, 0.5, "safety"), (0.05, 0.05, 0.5, "influence"), (0.06, 0.05, 0.5, "influence"),
+    (0.01, 0.05, 0.0, "xi"), (0.01, 0.05, -1.0, "xi"), (0.01, 0.05, float("nan"), "xi"), (0.01, 0.05, 50.0, "xi"),
+    (0.01, 0.011, 0.5, "influence"), (0.01, 0.015, 5.0, "too stiff"),
+])
+def test_bad_margins_are_refused(safety, influence, xi, word):
+    with pytest.raises(InvalidInput, match=word):
+        check_margins(safety, influence, xi, 1e-3)
+
+
+def test_bad_pairs_are_refused(world):
+    nv = world.plant.num_velocities()
+    for pairs, error, word in [
+        ([("arm_right_7_link", "torso_3_link")], FrameNotFound, "torso_3_link"),
+        ([("arm_right_7_link", "arm_right_7_link")], InvalidInput, "same body"),
+        ([("arm_right_6_link", "arm_right_7_link")], InvalidInput, "joined by a joint"),
+        ([("table", "table2")], FrameNotFound, "table2"),
+        ([("arm_right_7_link",)], InvalidInput, "two names"),
+        ([], InvalidInput, "empty"),
+    ]:
+        with pytest.raises(error, match=word):
+            TaskCollision("c", world, nv, 1e-3, pairs)
+
+
+def test_bad_obstacles_are_refused_and_nothing_is_added(talos_model, tmp_path):
+    world = CollisionWorld(talos_model)
+    flat = tmp_path / "flat.obj"
+    flat.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    garbage = tmp_path / "garbage.obj"
+    garbage.write_text("not a mesh")
+    for shape, pose, word in [
+        (("box", (0.0, 1.0, 1.0)), RigidTransform(), "box size x"),
+        (("sphere", -0.1), RigidTransform(), "sphere radius"),
+        (("cylinder", 0.1, float("inf")), RigidTransform(), "cylinder length"),
+        (("box", (1.0, 1.0, 1.0)), np.full((4, 4), np.nan), "X_WO"),
+        (("box", (1.0, 1.0, 1.0)), np.diag([2.0, 1.0, 1.0, 1.0]), "rigid transform"),
+        (("mesh", str(tmp_path / "missing.obj")), RigidTransform(), "does not exist"),
+        (("mesh", str(garbage)), RigidTransform(), "does not load"),
+        (("mesh", str(flat)), RigidTransform(), "no volume"),
+        (("cone", 1.0), RigidTransform(), "unknown shape"),
+    ]:
+        with pytest.raises(InvalidInput, match=word):
+            add_obstacle(world, shape, pose, "obstacle")
+    with pytest.raises(InvalidInput, match="link"):
+        add_obstacle(world, ("sphere", 0.1), RigidTransform(), "torso_2_link")
+    assert world.obstacles == {}
+    add_obstacle(world, ("sphere", 0.1), RigidTransform([1.0, 0, 1.0]), "ball")
+    world.new_context()
+    with pytest.raises(SotError, match="before building"):
+        add_obstacle(world, ("sphere", 0.1), RigidTransform([2.0, 0, 1.0]), "late")
+    assert list(world.obstacles) == ["ball"]
+
+
+def test_robot_without_collision_geometry_is_named(tmp_path):
+    urdf = tmp_path / "stick.urdf"
+    urdf.write_text("""<robot name="stick"><link name="base"/><link name="arm"><inertial><mass value="1"/>
+      <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+      <visual><geometry><box size="0.1 0.1 0.5"/></geometry></visual></link>
+      <joint name="j" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
+      <limit lower="-1" upper="1" effort="10" velocity="1"/></joint></robot>""")
+    with pytest.raises(NoCollisionGeometry, match="no collision geometry"):
+        CollisionWorld(load_robot(str(urdf)))
+
+
+def test_set_margins_checks_everything_first():
+    builder = DiagramBuilder()
+    robot = talos(builder)
+    add_sot(robot, solver="hqp")
+    meta = MetaTaskKineCollision(robot)
+    before = CollisionMargins(**vars(meta.task.settings()))
+    with pytest.raises(InvalidInput, match="influence"):
+        meta.setMargins(0.02, 0.01, 0.5)
+    assert meta.task.settings() == before
+    meta.setMargins(0.02, 0.06, 0.3)
+    assert meta.task.settings() == CollisionMargins(0.02, 0.06, 0.3)
+
+
+def test_the_basic_sot_refuses_the_collision_level_naming_the_solvers():
+    builder = DiagramBuilder()
+    robot = talos(builder)
+    sot = add_sot(robot)
+    meta = MetaTaskKineCollision(robot)
+    with pytest.raises(StackError, match=r"SolverKine.*SolverDyn"):
+        sot.push(meta)
+
+
+@pytest.fixture(scope="module")
+def reach():
+    return build_collision_reach(collision=True, table=True)
+
+
+def test_random_targets_never_cross_the_safety_distance(reach):
+    """A fast subset of bench/collision_runs.py: targets inside the torso, across the body, inside
+    and under the table; every tick: distance ≥ d_s − 1e-4 m, ankles within 1e-4 m, limits, no NaN,
+    no solver failure."""
+    for _family, target in random_targets(4, np.random.default_rng(7)):
+        report = run_collision_reach(reach, target, duration=0.25, gain=10.0)
+        assert report.min_distance >= SAFETY_DISTANCE - TOLERANCE, report
+        assert report.feet_drift <= TOLERANCE and report.limit_excess <= 1e-9, report
+        assert not report.nan and not report.failures, report
+
+
+def test_the_collision_level_is_strict_above_the_hand():
+    """The hand point sent to the centre of a ball of radius 0.15 m: reaching it would put the wrist
+    (0.1 m from the point) inside the ball. Without the level the hand gets there through the ball;
+    with it, no pair ever comes closer than d_s and the hand gives way (stops short)."""
+    centre = np.array([0.45, -0.35, 1.0])
+    ball = [(("sphere", 0.15), RigidTransform(list(centre)), "ball")]
+    free = build_collision_reach(collision=False, table=False, obstacles=ball)
+    through = run_collision_reach(free, centre, duration=0.8, check_every=20, gain=10.0)
+    assert through.min_distance < -0.05 and through.hand_error < 0.01
+    kept_reach = build_collision_reach(collision=True, table=False, obstacles=ball)
+    kept = run_collision_reach(kept_reach, centre, duration=0.8, gain=10.0)
+    assert kept.min_distance >= SAFETY_DISTANCE - TOLERANCE
+    assert kept.hand_error > 0.05
+    assert not kept.failures and kept.feet_drift <= TOLERANCE
+
+
+@pytest.mark.slow
+def test_the_acceleration_level_keeps_the_safety_distance_under_solver_dyn(talos_model):
+    """The dynamic SoT (SolverDyn, both soles in contact, the CoM, the collision level at the
+    acceleration level, the hand, the posture): the hand point sent to the centre of the ball, as
+    above. Every tick, by Drake's query: no pair closer than d_s − 1e-4 m; the hand stops short."""
+    from sotdrake import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture, RobotDyn
+    from sotdrake.collision import MetaTaskDynCollision, minimum_distance
+    from sotdrake.robots import TALOS_GRIPPERS
+
+    builder = DiagramBuilder()
+    robot = RobotDyn(builder, talos_model, "dynsimu", 1e-3)
+    sot = robot.sot
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
+    for name, op in (("contactLF", "left-sole"), ("contactRF", "right-sole")):
+        sot.addContact(robot.add_contact(name, op))
+    sot.push(MetaTaskDynCom(robot).task.name)
+    centre = np.array([0.45, -0.35, 1.0])
+    ball = (("sphere", 0.15), RigidTransform(list(centre)), "ball")
+    checker = CollisionWorld(talos_model)
+    for world in (robot, checker):
+        add_obstacle(world, *ball)
+    sot.push(MetaTaskDynCollision(robot).task.name)
+    hand = MetaTaskDyn6d("rh", robot, "right-wrist", kp=100.0)
+    hand.feature.setOpmodif(RigidTransform([0.1, 0.0, 0.0]))
+    hand.feature.selec("000111")
+    hand.featureDes.setPosition(RigidTransform(list(centre)))
+    sot.push(hand.task.name)
+    sot.push(MetaTaskDynPosture(robot, kp=25.0).task.name)
+    from pydrake.systems.analysis import Simulator
+
+    simulator = Simulator(builder.Build())
+    context = simulator.get_mutable_context()
+    simulator.Initialize()
+    checker_context = checker.new_context()
+    device_context = robot.device.GetMyContextFromRoot(context)
+    smallest = np.inf
+    for k in range(1, 601):
+        simulator.AdvanceTo(k * 1e-3)
+        x = robot.device.GetOutputPort("state").Eval(device_context)
+        assert np.all(np.isfinite(x))
+        smallest = min(smallest, minimum_distance(checker, checker_context, x[: talos_model.nq], 0.05))
+    assert smallest >= SAFETY_DISTANCE - TOLERANCE
+    plant_context = talos_model.plant.CreateDefaultContext()
+    talos_model.plant.SetPositions(plant_context, x[: talos_model.nq])
+    p_hand = talos_model.plant.CalcRelativeTransform(plant_context, talos_model.plant.world_frame(),
+                                                     talos_model.frame("right-wrist")) @ np.array([0.1, 0.0, 0.0])
+    assert np.linalg.norm(p_hand - centre) > 0.05
+
+
+@pytest.mark.slow
+def test_talos_collisions_script_keeps_the_safety_distance_with_the_level(tmp_path):
+    from tests.conftest import load_diagram
+
+    script = load_diagram("talos_collisions")
+    summary = script.main(["--duration", "0.3", "--out", str(tmp_path), "--quiet", "--no-meshcat"])
+    assert json.loads((tmp_path / "summary.json").read_text()) == json.loads(json.dumps(summary))
+    assert set(summary["runs"]) == {"across_torso", "into_torso", "under_table"}
+    for run in summary["runs"].values():
+        assert run["with"]["min_signed_distance_m"] >= SAFETY_DISTANCE - TOLERANCE
+        assert run["with"]["solver_failures"] == 0 and run["with"]["feet_drift_m"] <= TOLERANCE
+    assert min(run["without"]["min_signed_distance_m"] for run in summary["runs"].values()) < 0.0

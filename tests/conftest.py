@@ -14,7 +14,7 @@ from sotdrake.robots import load_talos
 #: files handed out in collection order); started last, a long file would leave one worker running
 #: it alone at the end. A file missing here only costs balance.
 LONGEST_FIRST = (
-    "test_live_run.py", "test_docs.py", "test_walking_physics.py", "test_solver_kine.py", "test_physics.py",
+    "test_live_run.py", "test_collision.py", "test_docs.py", "test_walking_physics.py", "test_solver_kine.py", "test_physics.py",
     "test_toolbox.py", "test_walking_multibody_zmp.py", "test_sweep.py", "test_hqp.py", "test_sweep_maps.py",
     "test_types.py", "test_talos_appli.py", "test_mistakes.py", "test_hostile.py", "test_dynamics.py",
 )

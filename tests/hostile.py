@@ -7,15 +7,17 @@ Two kinds of attempt, each identified by an index:
   entity's settings in the context and in its defaults, every discrete state, the time) unchanged.
 * **randomized runs** (:func:`random_run`): the tutorial's graph (contacts on top, then a random
   subset and order of CoM, both hands, posture; random targets up to 5 m away, random gains in
-  their accepted range, random SVD threshold and damping) simulated for a short while. Expected: no
-  process exit, no NaN, each contact (ankle) within ``CONTACT_TOLERANCE`` of where it started, and,
-  under ``SolverKine``, no joint beyond its position limits.
+  their accepted range at the control period ``dt``, random SVD threshold and damping) simulated for
+  a short while. Expected: no process exit, no NaN, no frozen tick (a ``SolverKine`` failure that
+  holds the device), each contact (ankle) within ``CONTACT_TOLERANCE`` of where it started at every
+  tick, and, under ``SolverKine``, no joint beyond its position limits.
 
-The attempts run in worker processes (``python -m tests.hostile worker KIND SOLVER FIRST LAST``)
+The attempts run in worker processes (``python -m tests.hostile worker KIND SOLVER INDICES DURATION DT``)
 that print one JSON line when an attempt starts and one with its result. The parent
 (:func:`run_attempts`) reads them; when a worker dies (a ``SystemExit``, an abort, a segfault) or
 stays silent longer than ``timeout`` (a hang), the attempt in progress is recorded as such and a new
-worker goes on from the next one. ``bench/hostile.py`` runs the full table and ≥ 1000 runs; the test
+worker goes on from the next one; a worker is also replaced after ``ATTEMPTS_PER_WORKER`` attempts.
+``bench/hostile.py`` runs the full table and ≥ 1000 runs; the test
 suite a fast subset.
 """
 

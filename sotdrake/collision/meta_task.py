@@ -23,7 +23,25 @@ if TYPE_CHECKING:
     from ..dynamics.robot_dyn import RobotDyn
 
 
-class MetaTaskKineCollision:
+class _CollisionLevel:
+    """What both meta tasks hold: ``robot``, ``name``, the collision ``world`` and ``task``, built
+    once the robot's type is checked."""
+
+    def __init__(self, robot: Robot | RobotDyn, name: str, pairs: Sequence[tuple[str, str]] | None, safety: float,
+                 influence: float, xi: float, acceleration: bool):
+        margins = check_margins(safety, influence, xi, robot.dt, f"{type(self).__name__}({name!r})")
+        self.robot, self.name = robot, name
+        self.world: CollisionWorld = collision_world(robot)
+        task = TaskCollision("task" + name, self.world, robot.dimension, robot.dt, pairs, margins, acceleration=acceleration)
+        robot.add_task(task)
+        self.task: TaskCollision = task
+
+    def setMargins(self, safety: float, influence: float, xi: float, context: Context | None = None) -> None:
+        """See :meth:`~.task.TaskCollision.setMargins`."""
+        self.task.setMargins(safety, influence, xi, context)
+
+
+class MetaTaskKineCollision(_CollisionLevel):
     """Adds ``task<name>`` (a :class:`~.task.TaskCollision`) fed by the device's ``q`` and given to
     the robot's solver. ``pairs``: None for every pair, or ``(link, link)`` / ``(link, obstacle)``
     names; ``safety`` ``d_s`` (m), ``influence`` ``d_i`` (m), ``xi`` ``ξ`` (m/s). Obstacles must be
@@ -34,20 +52,11 @@ class MetaTaskKineCollision:
                  safety: float = SAFETY_DISTANCE, influence: float = INFLUENCE_DISTANCE, xi: float = DAMPER_SPEED):
         if not isinstance(robot, Robot):
             raise InvalidInput(f"MetaTaskKineCollision takes the robot, got {type(robot).__name__}")
-        margins = check_margins(safety, influence, xi, robot.dt, f"MetaTaskKineCollision({name!r})")
-        self.robot, self.name = robot, name
-        self.world: CollisionWorld = collision_world(robot)
-        task = TaskCollision("task" + name, self.world, robot.dimension, robot.dt, pairs, margins)
-        robot.add_task(task)
-        self.task: TaskCollision = task
-        robot.builder.Connect(robot.device.GetOutputPort("state"), task.GetInputPort("position"))
-
-    def setMargins(self, safety: float, influence: float, xi: float, context: Context | None = None) -> None:
-        """See :meth:`~.task.TaskCollision.setMargins`."""
-        self.task.setMargins(safety, influence, xi, context)
+        super().__init__(robot, name, pairs, safety, influence, xi, acceleration=False)
+        robot.builder.Connect(robot.device.GetOutputPort("state"), self.task.GetInputPort("position"))
 
 
-class MetaTaskDynCollision:
+class MetaTaskDynCollision(_CollisionLevel):
     """The collision level of the dynamic SoT (a :class:`~sotdrake.dynamics.robot_dyn.RobotDyn`):
     ``task<name>``, a :class:`~.task.TaskCollision` at the acceleration level, fed by the dynamic
     entity's ``position`` and ``velocity`` and given to its ``SolverDyn``; arguments as
@@ -59,14 +68,5 @@ class MetaTaskDynCollision:
 
         if not isinstance(robot, RobotDyn):
             raise InvalidInput(f"MetaTaskDynCollision takes the dynamic robot (RobotDyn), got {type(robot).__name__}")
-        margins = check_margins(safety, influence, xi, robot.dt, f"MetaTaskDynCollision({name!r})")
-        self.robot, self.name = robot, name
-        self.world: CollisionWorld = collision_world(robot)
-        task = TaskCollision("task" + name, self.world, robot.dimension, robot.dt, pairs, margins, acceleration=True)
-        robot.add_task(task)
-        robot.builder.Connect(robot.dynamic.GetOutputPort("position"), task.GetInputPort("position"))
-        self.task: TaskCollision = task
-
-    def setMargins(self, safety: float, influence: float, xi: float, context: Context | None = None) -> None:
-        """See :meth:`~.task.TaskCollision.setMargins`."""
-        self.task.setMargins(safety, influence, xi, context)
+        super().__init__(robot, name, pairs, safety, influence, xi, acceleration=True)
+        robot.builder.Connect(robot.dynamic.GetOutputPort("position"), self.task.GetInputPort("position"))

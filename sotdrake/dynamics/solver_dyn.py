@@ -59,11 +59,10 @@ import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import cast
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context, InputPort
+from pydrake.systems.framework import Context, InputPort, ValueProducer
 
 from ..compiled import read_only
 from ..configuration import Layout
@@ -71,7 +70,7 @@ from ..exceptions import InvalidInput, NotFound, SolverError, StackError, check_
 from ..robots import RobotModel
 from ..solvers.equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
 from ..solvers.hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, check_solver
-from ..solvers.sot import SOT, StackSettings
+from ..solvers.stack import Stack, StackSettings, StackSolver
 from ..task import TaskLevel
 from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, MAX_RELEASE, check_count, check_positive
 from .contact import Contact6d, ContactRows, world_wrench
@@ -143,13 +142,26 @@ class DynSolution:
     residuals: np.ndarray
     diagnostics: DynDiagnostics
 
-    @property
-    def velocity(self) -> np.ndarray:  # what SOT's ``control`` output reads
-        return self.acceleration
+
+@dataclass
+class _Problem:
+    """One tick's problem, read from the ports: the dynamics terms, the held contacts and where
+    their wrenches lie in ``x``, the tasks, the contacts' loads at the previous tick (N), the bounds
+    on ``x`` and the levels' names."""
+
+    terms: DynamicsTerms
+    contacts: list[ActiveContact]
+    tasks: list[TaskLevel]
+    loads: list[float] | None
+    slices: list[slice]
+    lower: np.ndarray
+    upper: np.ndarray
+    names: list[str]
 
 
-class SolverDyn(SOT):
-    """Inverse-dynamics solver with contacts (see the module docstring)."""
+class SolverDyn(StackSolver[DynSettings]):
+    """Inverse-dynamics solver with contacts (see the module docstring): its :class:`~..solvers.stack.Stack`
+    of tasks over ``q̈``, its contacts, and the formulation of :mod:`.formulation`."""
 
     accepts_inequalities = True
 
@@ -160,8 +172,11 @@ class SolverDyn(SOT):
         effort_scale = check_positive(f"{name}: effort_scale", effort_scale, 1.0)  # any real number type, not a bool
         dt = check_positive(f"{name}: dt", dt, MAX_DT, " s")
         max_contacts = check_count(f"{name}: max_contacts", max_contacts, 1, MAX_CONTACTS)
-        SOT.__init__(self, name, model.nv, settings=DynSettings())
-        self._warned_contacts = False  # logging only (as _warned_scaling): results never depend on it
+        StackSolver.__init__(self, name, DynSettings())
+        self.nv = model.nv
+        self.stack_of_tasks = Stack(self, model.nv, self.accepts_inequalities)
+        self._declare_solution_and_common_outputs()
+        self._warned_contacts = False  # logging only: results never depend on it
         self.dt, self.model = dt, model
         self.layout = self._layout = Layout.of(model.plant)
         limits = model.joint_limits()
@@ -205,7 +220,23 @@ class SolverDyn(SOT):
         self.DeclareVectorOutputPort("wrenches", 6 * max_contacts, self._calc_wrenches)
         self.DeclareAbstractOutputPort("diagnostics", lambda: AbstractValue.Make(DynDiagnostics()),
                                        lambda c, o: o.set_value(self._solution.Eval(c).diagnostics))
-        self._built = True  # from now on, setThreshold and setDamping are refused (see below)
+
+    def _declare_solution_and_common_outputs(self) -> None:
+        """The ``solution`` cache entry (its sources: the inputs, the settings, the discrete state:
+        the contact ramps) and the ports ``control`` (``q̈``), ``residuals`` and ``velocity_scale``
+        (always 1: the solver scales nothing)."""
+        empty = DynSolution(np.zeros(self.nv), np.zeros(0), {}, {}, np.zeros(0), DynDiagnostics())
+        self._solution = self.DeclareCacheEntry(
+            "solution",
+            ValueProducer(allocate=lambda: AbstractValue.Make(empty), calc=self._calc),
+            prerequisites_of_calc={self.all_input_ports_ticket(), self.all_parameters_ticket(), self.xc_ticket(),
+                                   self.abstract_state_ticket(self._settings_index), self.xd_ticket()},
+        )
+        self.DeclareVectorOutputPort("control", self.nv, lambda c, o: o.SetFromVector(self._solution.Eval(c).acceleration))
+        self.DeclareAbstractOutputPort(
+            "residuals", lambda: AbstractValue.Make(np.zeros(0)), lambda c, o: o.set_value(self._solution.Eval(c).residuals)
+        )
+        self.DeclareVectorOutputPort("velocity_scale", 1, lambda c, o: o.SetAtIndex(0, 1.0))
 
     # --- wiring ------------------------------------------------------------------------------
     def declare_contact_input(self, contact: Contact6d) -> InputPort:
@@ -235,11 +266,8 @@ class SolverDyn(SOT):
         return name
 
     # --- commands ----------------------------------------------------------------------------
-    def _settings_of(self, own_context: Context) -> DynSettings:
-        return cast(DynSettings, SOT._settings_of(self, own_context))
-
     def _dyn_command(self, context: Context | None, change: Callable[[DynSettings], None]) -> None:
-        self._command(context, cast(Callable[[StackSettings], None], change))
+        self._command(context, change)
 
     def addContact(self, contact, context: Context | None = None, priority: str = "top") -> None:
         """Hold ``contact`` (a name or a :class:`Contact6d`); a contact being released is held again.
@@ -258,7 +286,7 @@ class SolverDyn(SOT):
 
         self._dyn_command(context, change)
 
-    def rmContact(self, contact, duration: float = 0.3, context: Context | None = None) -> None:  # type: ignore[override]
+    def rmContact(self, contact, duration: float = 0.3, context: Context | None = None) -> None:
         """Release ``contact``: its normal force ramps to 0 over ``duration`` s (≥ 0), then it is
         removed. Removing the last held contact is refused. (sot-dyninv's ``rmContact``, with the
         ramp's duration: not the kinematic SOT's signature.)"""
@@ -302,18 +330,17 @@ class SolverDyn(SOT):
 
     # The kinematic solvers' settings, which SolverDyn has no use for: refused rather than ignored.
     def setThreshold(self, svd_threshold: float, context: Context | None = None) -> None:
-        if getattr(self, "_built", False):
-            raise StackError(f"{self.name} is a SolverDyn: its levels are solved exactly (hierarchical QP), it has no SVD "
-                             "threshold (setThreshold is the kinematic SOT's)")
-        SOT.setThreshold(self, svd_threshold, context)  # SOT.__init__'s default
+        """Refused: the levels are solved exactly, there is no SVD threshold."""
+        raise StackError(f"{self.name} is a SolverDyn: its levels are solved exactly (hierarchical QP), it has no SVD "
+                         "threshold (setThreshold is the kinematic SOT's)")
 
     def setDamping(self, damping: float, context: Context | None = None) -> None:
-        if getattr(self, "_built", False):
-            raise StackError(f"{self.name} is a SolverDyn: it has no damped least squares (setDamping is the kinematic "
-                             "solvers'); the remaining motion is damped by its last level: setDampingGain")
-        SOT.setDamping(self, damping, context)  # SOT.__init__'s default
+        """Refused: the remaining motion is damped by the last level (:meth:`setDampingGain`)."""
+        raise StackError(f"{self.name} is a SolverDyn: it has no damped least squares (setDamping is the kinematic "
+                         "solvers'); the remaining motion is damped by its last level: setDampingGain")
 
     def setVelocityLimit(self, limit, context: Context | None = None) -> None:
+        """Refused: the solver commands accelerations and torques."""
         raise StackError(f"{self.name} is a SolverDyn: it commands accelerations and torques, not velocities (the joints' "
                          "velocity limits enter its acceleration bounds: setJointLimitHorizon)")
 
@@ -359,7 +386,7 @@ class SolverDyn(SOT):
         """The contacts as commanded, less those whose release ramp has ended (``rmContact``: then
         the contact is removed). Without a context (the default one), the commanded contacts."""
         if context is None:
-            return SOT.contacts(self)
+            return self.stack_of_tasks.contacts()
         return self.held_contacts(context)
 
     def _tasks(self, context: Context, s: DynSettings) -> list[TaskLevel]:
@@ -380,13 +407,9 @@ class SolverDyn(SOT):
             tasks.append(level)
         return tasks
 
-    def _calc(self, context: Context, value: AbstractValue) -> None:
-        """Solve the hierarchy. First without the contacts' wrench inequalities: every level is then
-        an equality (closed forms, no program). If that optimum satisfies those rows it is the
-        exact optimum of the full hierarchy too (each level's optimal set with the rows is the one
-        without them intersected with the rows, and the optimum lies in it), else the full
-        hierarchy is solved."""
-        s = self._settings_of(context)
+    def _problem(self, context: Context, s: DynSettings) -> _Problem:
+        """Read the ports: the dynamics terms, the held contacts (their ramps), the tasks, the
+        loads of the previous tick, and the bounds on ``x`` (:func:`.formulation.variable_bounds`)."""
         terms = self.dynamics.Eval(context)
         contacts = self._active_contacts(context, s)
         tasks = self._tasks(context, s)
@@ -394,69 +417,112 @@ class SolverDyn(SOT):
         slices = wrench_slices(self.nv, contacts)
         lower, upper = self._bounds(terms, s, contacts, slices)
         names = ["dynamics"] + (["contacts"] if contacts else []) + list(s.tasks) + ["damping"]
-        diagnostics = DynDiagnostics(levels=names)
-        n = len(lower)
+        return _Problem(terms, contacts, tasks, loads, slices, lower, upper, names)
+
+    def _calc(self, context: Context, value: AbstractValue) -> None:
+        """Read the ports → the formulation (:mod:`.formulation`) → solve → the solution.
+
+        Solved first with ``τ`` eliminated (:meth:`_solve_reduced`), then, if that does not hold,
+        without the contacts' wrench inequalities: every level is then an equality (closed forms,
+        no program). If that optimum satisfies those rows it is the exact optimum of the full
+        hierarchy too (each level's optimal set with the rows is the one without them intersected
+        with the rows, and the optimum lies in it), else the full hierarchy is solved
+        (:meth:`_solve_full`); a failure is rescued by :meth:`_rescue`."""
+        s = self._settings_of(context)
+        p = self._problem(context, s)
+        diagnostics = DynDiagnostics(levels=p.names)
+        n = len(p.lower)
         hqp = self._hqps.get(n)
         if hqp is None:
             hqp = self._hqps[n] = HierarchicalQP(n)
-        relaxed = result = None
-        levels: list[LevelRows] = []
-        # The fast path: τ eliminated (a smaller problem, no τ bounds). If its τ is within the
-        # effort limits and the wrench rows hold, it is the optimum of the full hierarchy (the same
-        # argument as for the wrench rows; after the damping level x is unique, so the last
-        # minimum-norm stage changes nothing).
-        actuated, compiled_actuated, passive = self._actuated_rows(terms.B)
-        if actuated is not None:
-            m = n - self.na
-            small = self._reduced_hqps.get(m)
-            if small is None:
-                small = self._reduced_hqps[m] = HierarchicalQP(m)
-            try:
-                stacked = StackedContacts(contacts, self.nv)
-                if all(task.lower is task.upper for task in tasks):  # the levels assembled and stacked compiled
-                    scales = [WRENCH_REGULARIZATION * weight for weight in _shear_weights(loads, len(contacts))]
-                    stack = reduced_stack(terms, stacked, tasks, s.damping_gain, scales, passive)
-                    fast = self._solve_stacked(context, small, stack, lower[:m], upper[:m], s.solver)
-                else:
-                    reduced, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
-                    fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver)
-                tau, world, within, hold = torques_and_checks(terms, stacked, compiled_actuated, fast.x, self._effort_held)
-                if within and hold:
-                    fast.x = np.concatenate([fast.x, tau])
-                    result = fast
-                    diagnostics.torques_eliminated = True
-            except SolverError:
-                pass
+        fast = self._solve_reduced(context, s, p)
+        result, world = fast if fast is not None else (None, None)
+        diagnostics.torques_eliminated = fast is not None
+        tried: list[HqpResult] = []
         try:
             if result is None:
-                rows, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
-                relaxed = result = self._solve(context, hqp, rows, lower, upper, s.solver)
-            if contacts and not diagnostics.torques_eliminated and not _wrench_rows_hold(contacts, slices, result.x):
-                result = None
-                full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, loads=loads)
-                result = hqp.solve(full, lower, upper, 0.0, s.solver, start=inside(lower, upper))
+                result = self._solve_full(context, s, p, hqp, tried)
         except SolverError as error:
-            # Never zero torque on a standing robot if avoidable: the relaxed optimum (dynamics,
-            # contact accelerations and the stack exact; friction/CoP rows possibly violated), else
-            # the dynamics and contacts alone.
-            diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
-            if relaxed is None:
-                try:
-                    levels, slices = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False, loads=loads)
-                    relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver, start=inside(lower, upper))
-                    diagnostics.failure += "; the stack is dropped for this tick"
-                except SolverError as second:
-                    diagnostics.failure += f"; {second}; zero torque"
-            else:
-                levels, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
-                diagnostics.failure += "; the contacts' wrench rows are relaxed for this tick"
-            log.warning("%s: %s", self.name, diagnostics.failure)
-            if relaxed is None:
-                value.set_value(DynSolution(np.zeros(self.nv), np.zeros(self.na), {}, {}, np.full(len(levels), np.nan), diagnostics))
+            result, count = self._rescue(context, s, p, hqp, error, tried, diagnostics)
+            if result is None:
+                value.set_value(DynSolution(np.zeros(self.nv), np.zeros(self.na), {}, {}, np.full(count, np.nan), diagnostics))
                 return
-            result = relaxed
-        x = result.x
-        if not diagnostics.torques_eliminated:  # (the fast path computed them from the same wrenches)
+        value.set_value(self._solution_of(context, p, result, world, diagnostics))
+
+    def _solve_reduced(self, context: Context, s: DynSettings, p: _Problem) -> tuple[HqpResult, list[np.ndarray]] | None:
+        """The fast path: ``τ`` eliminated (a smaller problem, no ``τ`` bounds), when ``B`` is a
+        selection. If its ``τ`` is within the effort limits and the wrench rows hold, it is the
+        optimum of the full hierarchy (the same argument as for the wrench rows; after the damping
+        level ``x`` is unique, so the last minimum-norm stage changes nothing): that result with
+        ``τ`` appended, and the contacts' world wrenches; else None."""
+        terms, contacts, tasks, loads, lower, upper = p.terms, p.contacts, p.tasks, p.loads, p.lower, p.upper
+        actuated, compiled_actuated, passive = self._actuated_rows(terms.B)
+        if actuated is None:
+            return None
+        m = len(lower) - self.na
+        small = self._reduced_hqps.get(m)
+        if small is None:
+            small = self._reduced_hqps[m] = HierarchicalQP(m)
+        try:
+            stacked = StackedContacts(contacts, self.nv)
+            if all(task.lower is task.upper for task in tasks):  # the levels assembled and stacked compiled
+                scales = [WRENCH_REGULARIZATION * weight for weight in _shear_weights(loads, len(contacts))]
+                stack = reduced_stack(terms, stacked, tasks, s.damping_gain, scales, passive)
+                fast = self._solve_stacked(context, small, stack, lower[:m], upper[:m], s.solver)
+            else:
+                reduced, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
+                fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver)
+            tau, world, within, hold = torques_and_checks(terms, stacked, compiled_actuated, fast.x, self._effort_held)
+        except SolverError:
+            return None
+        if not (within and hold):
+            return None
+        fast.x = np.concatenate([fast.x, tau])
+        return fast, world
+
+    def _solve_full(self, context: Context, s: DynSettings, p: _Problem, hqp: HierarchicalQP,
+                    tried: list[HqpResult]) -> HqpResult:
+        """The hierarchy over ``(q̈, w, τ)``: relaxed (without the contacts' wrench rows; its
+        optimum appended to ``tried``), then, if those rows do not hold there, in full."""
+        terms, contacts, tasks, loads, lower, upper = p.terms, p.contacts, p.tasks, p.loads, p.lower, p.upper
+        rows, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
+        relaxed = result = self._solve(context, hqp, rows, lower, upper, s.solver)
+        tried.append(relaxed)
+        if contacts and not _wrench_rows_hold(contacts, p.slices, result.x):
+            full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, loads=loads)
+            result = hqp.solve(full, lower, upper, 0.0, s.solver, start=inside(lower, upper))
+        return result
+
+    def _rescue(self, context: Context, s: DynSettings, p: _Problem, hqp: HierarchicalQP, error: SolverError,
+                tried: list[HqpResult], diagnostics: DynDiagnostics) -> tuple[HqpResult | None, int]:
+        """Never zero torque on a standing robot if avoidable: the relaxed optimum (dynamics,
+        contact accelerations and the stack exact; friction/CoP rows possibly violated), else the
+        dynamics and contacts alone; None (zero torque) if even that fails. Also the number of
+        levels of what was tried (the residuals' size)."""
+        terms, contacts, tasks, loads, lower, upper = p.terms, p.contacts, p.tasks, p.loads, p.lower, p.upper
+        diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
+        relaxed = tried[0] if tried else None
+        levels: list[LevelRows] = []
+        if relaxed is None:
+            try:
+                levels, _ = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False, loads=loads)
+                relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver, start=inside(lower, upper))
+                diagnostics.failure += "; the stack is dropped for this tick"
+            except SolverError as second:
+                diagnostics.failure += f"; {second}; zero torque"
+        else:
+            levels, _ = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
+            diagnostics.failure += "; the contacts' wrench rows are relaxed for this tick"
+        log.warning("%s: %s", self.name, diagnostics.failure)
+        return relaxed, len(levels)
+
+    def _solution_of(self, context: Context, p: _Problem, result: HqpResult, world: list[np.ndarray] | None,
+                     diagnostics: DynDiagnostics) -> DynSolution:
+        """The outputs of the optimum ``result.x``: ``q̈``, ``τ``, each contact's world and local
+        wrench (``world``: already computed by the fast path), the slack norms and diagnostics."""
+        x, contacts, slices, lower, upper = result.x, p.contacts, p.slices, p.lower, p.upper
+        n = len(lower)
+        if world is None:  # (the fast path computed them from the same wrenches)
             world = [world_wrench(c.rows.rotation, x[sl]) for c, sl in zip(contacts, slices, strict=True)]
         local = {c.name: x[sl].copy() for c, sl in zip(contacts, slices, strict=True)}
         diagnostics.slack_norms = result.slack_norms
@@ -467,7 +533,7 @@ class SolverDyn(SOT):
         diagnostics.held_bounds = held_bounds(x, lower, upper, result.active_bounds)
         diagnostics.solve_time_s = result.solve_time_s
         wrenches = {c.name: W for c, W in zip(contacts, world, strict=True)}
-        value.set_value(DynSolution(x[: self.nv].copy(), x[n - self.na :].copy(), wrenches, local, result.slack_norms, diagnostics))
+        return DynSolution(x[: self.nv].copy(), x[n - self.na :].copy(), wrenches, local, result.slack_norms, diagnostics)
 
     def _warn_contact_slack(self, context: Context, contacts: list[ActiveContact], slack: float) -> None:
         """Warn (once per solver) when the contacts' level is not met: the held contacts accelerate,

@@ -105,6 +105,8 @@ log = logging.getLogger("sotdrake.solver_dyn")
 
 
 class ContactNotFound(NotFound):
+    """An unknown contact name given to ``SolverDyn`` (lists the solver's contacts)."""
+
     kind = "contact"
 
 
@@ -123,6 +125,11 @@ _NO_HELD_BOUNDS = read_only(np.zeros(HELD_BOUNDS))
 
 @dataclass
 class DynDiagnostics:
+    """``SolverDyn``'s ``diagnostics`` output at one tick: the levels' names and slack norms, the
+    path that solved each stage, the bounds of ``x`` active at the optimum, the solve time (s), a
+    failure message (empty: none), whether ``τ`` was eliminated (the fast path), and the bounds held
+    at the optimum (:func:`.formulation.held_bounds`)."""
+
     levels: list[str] = field(default_factory=list)
     slack_norms: np.ndarray = field(default_factory=lambda: _NO_VALUES)
     level_solvers: list[str] = field(default_factory=list)
@@ -161,7 +168,16 @@ class _Problem:
 
 class SolverDyn(StackSolver[DynSettings]):
     """Inverse-dynamics solver with contacts (see the module docstring): its :class:`~..solvers.stack.Stack`
-    of tasks over ``q̈``, its contacts, and the formulation of :mod:`.formulation`."""
+    of tasks over ``q̈``, its contacts, and the formulation of :mod:`.formulation`.
+
+    Inputs: ``dynamics`` (:class:`.terms.DynamicsTerms`: ``M``, ``h``, ``B``, ``q``, ``v``), one per
+    contact (``contact<name>``, :class:`.contact.ContactRows`) and one per task (a
+    :class:`~sotdrake.task.TaskLevel` over ``q̈``). Outputs: ``control`` (``q̈``, nv, rad/s² and
+    m/s²), ``torque`` (``τ``, na, N·m and N, actuator order), ``wrenches`` (each declared
+    contact's world wrench ``(n, f)`` about its origin, N·m and N, 6 per contact, zero when not
+    held), ``residuals`` (slack norm per level), ``velocity_scale`` (always 1), ``diagnostics``
+    (:class:`DynDiagnostics`) and ``stack`` (the names of the tasks solved).
+    """
 
     accepts_inequalities = True
 

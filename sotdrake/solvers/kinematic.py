@@ -29,7 +29,14 @@ class _Levels(list):
 
 class KinematicSolver(StackSolver[S]):
     """A kinematic solver of the stack: ``v`` (Drake generalized velocities, nv) from the levels.
-    See :class:`~.sot.SOT` and :class:`~.solver_kine.SolverKine`."""
+    See :class:`~.sot.SOT` and :class:`~.solver_kine.SolverKine`.
+
+    Inputs: one per task (named after it, a :class:`~sotdrake.task.TaskLevel` over ``v``) and,
+    with a ``layout``, ``position`` (``q``, nq, Drake's positions). Outputs: ``control`` (``v``, nv,
+    rad/s and m/s), ``residuals`` (per level, the norm of what it misses, unit/s of its task) and
+    ``velocity_scale`` (1-vector: the uniform scale the command was given to fit the velocity and
+    step limits, 1 when none).
+    """
 
     accepts_inequalities = False
 

@@ -69,7 +69,13 @@ class HqpDiagnostics:
 
 
 class SolverKine(KinematicSolver[HqpSettings]):
-    """Hierarchical-QP kinematic solver (sot-dyninv ``SolverKine``)."""
+    """Hierarchical-QP kinematic solver (sot-dyninv ``SolverKine``).
+
+    Inputs: one per task (a :class:`~sotdrake.task.TaskLevel` over ``v``) and ``position`` (``q``,
+    nq, for the joint limits). Outputs: ``control`` (``v``, nv, rad/s and m/s), ``residuals`` (the
+    optimal slack norm of each level), ``velocity_scale`` (always 1: the limits are hard bounds, not
+    a scaling) and ``diagnostics`` (:class:`HqpDiagnostics`).
+    """
 
     accepts_inequalities = True
 

@@ -55,7 +55,13 @@ class _CascadeSolution:
 
 class SOT(KinematicSolver[StackSettings]):
     """Strict-priority kinematic solver (sot-core ``SOT``): the cascade of damped pseudo-inverses
-    over the levels of its :class:`~.stack.Stack` (see the module docstring)."""
+    over the levels of its :class:`~.stack.Stack` (see the module docstring).
+
+    Inputs: one per task (named after it, a :class:`~sotdrake.task.TaskLevel` over ``v``) and, with
+    a ``layout``, ``position`` (``q``). Outputs: ``control`` (``v``, nv, rad/s and m/s),
+    ``residuals`` (per level, ``‖J_i v − ė_i*‖``) and ``velocity_scale`` (the uniform scale into the
+    velocity and step limits, 1 when none).
+    """
 
     accepts_inequalities = False
 

@@ -90,7 +90,7 @@ from .visualization import (
 #: the HQP's back-end names. A script may import these from their wing too (``sotdrake.physics`` …).
 _LAZY: dict[str, tuple[str, ...]] = {
     ".dynamics": ("Contact6d", "ContactRows", "DynamicEntity", "DynamicsTerms", "RobotDynSimu", "SolverDyn", "TaskDynPD"),
-    ".dynamics.solver_dyn": ("ContactNotFound", "DynDiagnostics"),
+    ".dynamics.dyn_types": ("ContactNotFound", "DynDiagnostics"),
     ".dynamics.robot_dyn": ("RobotDyn",),
     ".dynamics.meta_tasks_dyn": ("MetaTaskDyn6d", "MetaTaskDynCom", "MetaTaskDynMomentum", "MetaTaskDynPosture"),
     ".dynamics.contact": ("friction_ratio",),
@@ -163,9 +163,9 @@ if TYPE_CHECKING:
     )
     from .dynamics import Contact6d, ContactRows, DynamicEntity, DynamicsTerms, RobotDynSimu, SolverDyn, TaskDynPD
     from .dynamics.contact import friction_ratio
+    from .dynamics.dyn_types import ContactNotFound, DynDiagnostics
     from .dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynMomentum, MetaTaskDynPosture
     from .dynamics.robot_dyn import RobotDyn
-    from .dynamics.solver_dyn import ContactNotFound, DynDiagnostics
     from .dynamics.station import sole_rectangle
     from .dynamics.trajectories import hold_move_hold, minimum_jerk_moves, trajectory_ports
     from .live import add_live_arguments, live_meshcat, run_live

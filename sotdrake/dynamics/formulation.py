@@ -1,24 +1,38 @@
 """The inverse-dynamics formulation of :class:`~.solver_dyn.SolverDyn`, as pure functions.
 
-Unknowns ``x = (q̈, w_1 … w_k, τ)``: the generalized acceleration ``q̈`` (nv, Drake's ``v̇``),
-each active contact's wrench ``w_c`` in its contact frame (6: ``(n, f)``, moment then force, N·m
-and N; or 3, a point contact's force) and the actuator torques ``τ`` (na, actuator order). The
-levels, highest first (:func:`dynamic_rows`):
+Unknowns: the generalized acceleration ``q̈`` (nv), each active contact's local wrench ``w_c``
+(6, or 3 for a point contact; see :mod:`.contact`) and the actuator torques ``τ`` (na, actuator
+order). Hard bounds on ``x`` (never violated): the joint limits as acceleration bounds
+(:func:`.terms.acceleration_bounds`), ``|τ| ≤`` the effort limits, and each normal force
+``f_min ≤ f_z ≤ f_max`` (``f_max`` finite only while the contact is released). The levels, highest
+first (:func:`dynamic_rows`):
 
-0. the dynamics ``M q̈ − Σ_c J_cᵀ diag(R_c, R_c) w_c − B τ = −h`` (``M`` the mass matrix, ``h`` the
-   bias: Coriolis, centrifugal and gravity, ``J_c`` the contact's 6×nv world Jacobian about its
-   origin, ``R_c`` its frame's rotation in world), so that ``M q̈ + h = B τ + Σ_c J_cᵀ W_c``;
-1. the contacts: ``J_c q̈ = −J̇_c v`` with the friction, CoP and yaw rows ``A_c w_c ≤ 0``;
-2. … the user's tasks, each a :class:`~sotdrake.task.TaskLevel` over ``q̈``;
-last. ``q̈ = −K_d v`` and the wrench regularisation (:func:`wrench_regularization`, weighted by
-   :func:`shear_weights`).
+0. the dynamics ``M q̈ − Σ J_cᵀ diag(R_c, R_c) w_c − B τ = −h`` (exact: it is physics);
+1. the contacts: ``J_c q̈ = −J̇_c v`` (zero acceleration) with the friction, CoP and yaw rows
+   ``A_c w_c ≤ 0``;
+2. … the user's stack (``push``), each a :class:`~sotdrake.task.TaskLevel` over ``q̈``
+   (``TaskDynPD``);
+last. ``q̈ = −K_d v``: whatever motion the stack leaves free is damped (``setDampingGain``); in
+   the same level, a regularization of the contact wrenches (:func:`wrench_regularization`) so that
+   the distribution the levels above leave free keeps away from the friction and CoP bounds, *in
+   proportion to the normal forces*: ``ε √(f̄/f_c) (n_x − y_c f_z, n_y + x_c f_z, n_z, f_x, f_y) = 0``
+   (``ε = 10⁻³`` s²/kg·m, ``(x_c, y_c)`` the sole's centre, ``f_c`` the normal force contact c
+   carried at the previous tick, ``f̄`` their mean). Minimizing ``Σ_c ‖f_t,c‖²/f_c`` under
+   ``Σ_c f_t,c = F_t`` gives ``f_t,c = F_t f_c/Σ f``: every contact uses the same fraction of its
+   friction cone; likewise ``Σ_c f_c d_c²`` (``d_c`` the CoP's offset from the sole's centre)
+   gives every sole the same CoP offset. With the rows unweighted, the shear and the moments are
+   shared *equally*: at the sway's extremes the nearly unloaded sole (40 N) carried half of the
+   45 N of lateral force, at the edge of its friction pyramid, and half of the moment, its CoP at
+   the edge of the sole; on the physics plant it rolled on that edge and slipped.
 
-Hard bounds on ``x`` (:func:`variable_bounds`): joint accelerations, ``f_min ≤ f_z`` (and the
-release ramp's ``f_z ≤ f_max``), ``|τ| ≤`` the effort limits. With ``B`` a selection
-(:func:`actuated_rows`), ``τ`` is eliminated: the levels over ``(q̈, w)`` keep the unactuated rows
-of the dynamics, and :func:`torques_of` gives ``τ`` back. No system, no state: the functions here
-take the terms and return rows, bounds and torques; :mod:`.solver_dyn` reads the ports, calls
-them, solves and writes the outputs.
+With ``B`` a selection (:func:`actuated_rows`), ``τ`` can be eliminated: the levels over ``(q̈, w)``
+keep the unactuated rows of the dynamics, and :func:`torques_of` gives ``τ`` back (the actuated
+rows of ``M q̈ + h − Σ_c J_cᵀ W_c``). Joints without an actuator would get no ``τ`` column: TALOS'
+loaded models actuate every joint (the loader adds the differential joints' actuators), so ``B``
+is a permutation of the joint rows; a model with unactuated joints keeps them passive through the
+dynamics rows.
+
+No system, no state: these functions take the terms and return rows, bounds and torques.
 """
 
 from __future__ import annotations

@@ -1,29 +1,9 @@
 """``SolverDyn`` (sot-dyninv): the stack solved for ``x = (q̈, w_1 … w_k, τ)`` in strict priority.
 
-Unknowns: the generalized acceleration ``q̈`` (nv), each active contact's local wrench ``w_c``
-(6, or 3 for a point contact; see :mod:`.contact`) and the actuator torques ``τ`` (na, actuator
-order). Hard bounds on ``x`` (never violated): the joint limits as acceleration bounds
-(:func:`.terms.acceleration_bounds`), ``|τ| ≤`` the effort limits, and each normal force
-``f_min ≤ f_z ≤ f_max`` (``f_max`` finite only while the contact is released). The levels, highest
-first (:func:`dynamic_levels`):
-
-0. the dynamics ``M q̈ − Σ J_cᵀ diag(R_c, R_c) w_c − B τ = −h`` (exact: it is physics);
-1. the contacts: ``J_c q̈ = −J̇_c v`` (zero acceleration) with the friction, CoP and yaw rows
-   ``A_c w_c ≤ 0``;
-2. … the user's stack (``push``), each a :class:`~sotdrake.task.TaskLevel` over ``q̈``
-   (``TaskDynPD``);
-last. ``q̈ = −K_d v``: whatever motion the stack leaves free is damped (``setDampingGain``); in
-   the same level, a regularization of the contact wrenches (:func:`wrench_regularization`) so that
-   the distribution the levels above leave free keeps away from the friction and CoP bounds, *in
-   proportion to the normal forces*: ``ε √(f̄/f_c) (n_x − y_c f_z, n_y + x_c f_z, n_z, f_x, f_y) = 0``
-   (``ε = 10⁻³`` s²/kg·m, ``(x_c, y_c)`` the sole's centre, ``f_c`` the normal force contact c
-   carried at the previous tick, ``f̄`` their mean). Minimizing ``Σ_c ‖f_t,c‖²/f_c`` under
-   ``Σ_c f_t,c = F_t`` gives ``f_t,c = F_t f_c/Σ f``: every contact uses the same fraction of its
-   friction cone; likewise ``Σ_c f_c d_c²`` (``d_c`` the CoP's offset from the sole's centre)
-   gives every sole the same CoP offset. With the rows unweighted, the shear and the moments are
-   shared *equally*: at the sway's extremes the nearly unloaded sole (40 N) carried half of the
-   45 N of lateral force, at the edge of its friction pyramid, and half of the moment, its CoP at
-   the edge of the sole; on the physics plant it rolled on that edge and slipped.
+A system around :mod:`.formulation` (the unknowns, the levels and the bounds: the dynamics, the
+contacts, the user's stack of :class:`~sotdrake.task.TaskLevel` over ``q̈``, the damping and the
+wrench regularization): each tick it reads its ports, forms the problem, solves it and writes the
+outputs. Hard bounds on ``x`` are never violated.
 
 Solved first with ``τ`` eliminated when ``B`` is a selection (TALOS: every joint actuated):
 the actuated rows of the dynamics then only define ``τ``, and the hierarchy over ``(q̈, w)``
@@ -32,25 +12,17 @@ keeps the floating base's six rows (``dynamic_levels(..., actuated=...)``, 50 un
 hold, it is the optimum of the full problem; only otherwise is the full problem solved. With every
 task an equality, that fast path is assembled, stacked and checked by compiled code
 (:mod:`.reduced_levels`: the same rows as :func:`dynamic_rows`, which stays their definition).
-
 The hierarchical QP then takes the minimum-norm ``x`` of the optimal set (smallest torques and
-wrenches among the equivalent ones). Joints without an actuator would get no ``τ`` column: TALOS'
-loaded models actuate every joint (the loader adds the differential joints' actuators), so ``B``
-is a permutation of the joint rows; a model with unactuated joints keeps them passive through the
-dynamics rows.
+wrenches among the equivalent ones).
 
 ``rmContact(name, duration)`` releases a contact smoothly: from the first tick after the command,
 its normal force's upper bound ramps linearly from the normal force it carried then down to 0 over
 ``duration`` seconds, and its lower bound from ``f_min`` down to 0 (so the force never jumps: with
-the lower bound dropped to 0 at once, a sole held at 30 N went to 0 N in one tick); the contact is removed once the ramp ends, so the
-foot lifts off carrying no force. The ramps are discrete state; the contact set is a setting.
+the lower bound dropped to 0 at once, a sole held at 30 N went to 0 N in one tick); the contact is
+removed once the ramp ends, so the foot lifts off carrying no force. The ramps are discrete state
+(:mod:`.contact_memory`); the contact set is a setting.
 
-Inputs: ``dynamics`` (:class:`.terms.DynamicsTerms`), one per contact (``contact<name>``
-ports, :class:`.contact.ContactRows`) and one per task. Outputs: ``control`` (``q̈``, the seed's
-name), ``torque`` (τ), ``wrenches`` (the world wrench of each declared contact about its origin,
-``(n, f)``, 6 per contact in declaration order, zero when inactive), ``residuals`` (slack norm per
-level), ``diagnostics`` and ``stack`` (the names of the tasks in the stack, with the members of a
-weighted level (``TaskWeight``) in it: a ``TaskDynPD`` records its Jacobian only while it is there).
+Ports: see :class:`SolverDyn`.
 """
 
 from __future__ import annotations
@@ -58,7 +30,6 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -66,15 +37,20 @@ from pydrake.systems.framework import Context, InputPort, ValueProducer
 
 from ..compiled import read_only
 from ..configuration import Layout
-from ..exceptions import InvalidInput, NotFound, SolverError, StackError, check_number
+from ..exceptions import SolverError, StackError, check_number
 from ..robots import RobotModel
 from ..solvers.equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
 from ..solvers.hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, check_solver
-from ..solvers.stack import Stack, StackSettings, StackSolver
+from ..solvers.stack import Stack, StackSolver
 from ..task import TaskLevel
-from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, MAX_RELEASE, check_count, check_positive
-from .contact import Contact6d, ContactRows, world_wrench
-from .formulation import (  # noqa: F401  (the formulation's names, importable from here as before)
+from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, check_count, check_positive
+from .contact import Contact6d, world_wrench
+from .contact_memory import ContactMemory
+from .dyn_contacts import DynContacts
+from .dyn_types import _NO_INDICES, ContactNotFound, DynDiagnostics, DynSettings, DynSolution, Problem  # noqa: F401  (ContactNotFound: importable from here)
+
+# The formulation's names, importable from here as before.
+from .formulation import (  # noqa: F401
     CONTACT_SLACK,
     HELD_BOUNDS,
     WRENCH_REGULARIZATION,
@@ -102,68 +78,6 @@ from .reduced_levels import StackedContacts, bounds, reduced_stack, torques_and_
 from .terms import DynamicsTerms, stacked_limits
 
 log = logging.getLogger("sotdrake.solver_dyn")
-
-
-class ContactNotFound(NotFound):
-    """An unknown contact name given to ``SolverDyn`` (lists the solver's contacts)."""
-
-    kind = "contact"
-
-
-@dataclass
-class DynSettings(StackSettings):
-    releasing: dict[str, float] = field(default_factory=dict)  # contact name → ramp duration (s)
-    damping_gain: float = 10.0  # K_d of the last level (1/s)
-    horizon: float = 0.05  # s, joint limits as acceleration bounds
-    position_margin: float = 1e-3
-    solver: str = ACTIVE_SET
-
-
-_NO_VALUES, _NO_INDICES = read_only(np.zeros(0)), read_only(np.zeros(0, dtype=int))
-_NO_HELD_BOUNDS = read_only(np.zeros(HELD_BOUNDS))
-
-
-@dataclass
-class DynDiagnostics:
-    """``SolverDyn``'s ``diagnostics`` output at one tick: the levels' names and slack norms, the
-    path that solved each stage, the bounds of ``x`` active at the optimum, the solve time (s), a
-    failure message (empty: none), whether ``τ`` was eliminated (the fast path), and the bounds held
-    at the optimum (:func:`.formulation.held_bounds`)."""
-
-    levels: list[str] = field(default_factory=list)
-    slack_norms: np.ndarray = field(default_factory=lambda: _NO_VALUES)
-    level_solvers: list[str] = field(default_factory=list)
-    active_bounds: np.ndarray = field(default_factory=lambda: _NO_INDICES)
-    solve_time_s: float = 0.0
-    failure: str = ""
-    torques_eliminated: bool = False  # solved over (q̈, w) with τ eliminated (the fast path)
-    held_bounds: np.ndarray = field(default_factory=lambda: _NO_HELD_BOUNDS)  # see held_bounds()
-
-
-@dataclass
-class DynSolution:
-    acceleration: np.ndarray
-    torque: np.ndarray
-    wrenches: dict[str, np.ndarray]  # world wrench (n, f) of each active contact
-    local_wrenches: dict[str, np.ndarray]
-    residuals: np.ndarray
-    diagnostics: DynDiagnostics
-
-
-@dataclass
-class _Problem:
-    """One tick's problem, read from the ports: the dynamics terms, the held contacts and where
-    their wrenches lie in ``x``, the tasks, the contacts' loads at the previous tick (N), the bounds
-    on ``x`` and the levels' names."""
-
-    terms: DynamicsTerms
-    contacts: list[ActiveContact]
-    tasks: list[TaskLevel]
-    loads: list[float] | None
-    slices: list[slice]
-    lower: np.ndarray
-    upper: np.ndarray
-    names: list[str]
 
 
 class SolverDyn(StackSolver[DynSettings]):
@@ -201,7 +115,6 @@ class SolverDyn(StackSolver[DynSettings]):
         # the joints' rows and limits, indexed and stacked once (_bounds: both sides in one evaluation)
         self._joint_indices = (read_only(iq.astype(np.int64)), read_only(iv.astype(np.int64)))
         self._stacked_limits = stacked_limits(self._limits[0][iq], self._limits[1][iq], self._limits[2][iv], self._limits[3][iv])
-        self._contact_index: dict[str, int] = {}  # the declaration order of the contacts
         self.effort = limits["effort"] * float(effort_scale)  # |τ| bounds (N·m, N)
         self._effort_held = self.effort * (1 + 1e-9)  # what the fast path's τ must stay within
         self.effort_scale = float(effort_scale)
@@ -209,7 +122,8 @@ class SolverDyn(StackSolver[DynSettings]):
         self.max_contacts = max_contacts
         self.setDampingGain(damping_gain)
         self.setSolver(solver)
-        self._contact_ports: dict[str, InputPort] = {}
+        self.contact_set = DynContacts(self, self.nv, max_contacts)  # the contacts' inputs and commands
+        self._contact_ports, self._contact_index = self.contact_set.ports, self.contact_set.index
         self._hqps: dict[int, HierarchicalQP] = {}  # a cache of solvers per problem size
         self._actuation: tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray] | None = None  # _actuated_rows
         self._reduced_hqps: dict[int, HierarchicalQP] = {}  # the same, τ eliminated
@@ -217,17 +131,7 @@ class SolverDyn(StackSolver[DynSettings]):
         self.dynamics = self.DeclareAbstractInputPort("dynamics", AbstractValue.Make(
             DynamicsTerms(np.eye(self.nv), np.zeros(self.nv), np.zeros(self.nv), np.zeros((self.nv, self.na)),
                           np.zeros(model.nq), np.zeros(self.nv), 1.0)))
-        # Discrete state, one vector (a discrete update is computed from the same context as the
-        # device's and the plant's), :meth:`_memory_slices`: the normal force each declared contact
-        # carried at the last tick (NaN: not held), which weighs the shear regularization
-        # (:func:`shear_weights`); the bounds held at the last tick's optimum (:data:`HELD_BOUNDS`
-        # signed entries, see :func:`held_bounds`), where the QR path starts (a guess: the answer does
-        # not depend on it); the release ramp of each declared contact, (t0, f0) (NaN: none).
-        self._loads, self._held, self._ramps = self._memory_slices(max_contacts)
-        memory = np.full(self._ramps.stop, np.nan)
-        memory[self._held] = 0.0
-        self._memory = self.DeclareDiscreteState(memory)
-        self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._update)
+        self._memory = ContactMemory(self, max_contacts, self.dt, self._update)  # loads, held bounds, ramps
         self.DeclareVectorOutputPort("torque", self.na, lambda c, o: o.SetFromVector(self._solution.Eval(c).torque))
         # The names of the tasks in the stack: a TaskDynPD records its Jacobian only while in it.
         self.DeclareAbstractOutputPort("stack", lambda: AbstractValue.Make(()),
@@ -257,29 +161,12 @@ class SolverDyn(StackSolver[DynSettings]):
     # --- wiring ------------------------------------------------------------------------------
     def declare_contact_input(self, contact: Contact6d) -> InputPort:
         """The input port of ``contact`` (its ``contact`` output goes there)."""
-        if contact.name in self._contact_ports:
-            return self._contact_ports[contact.name]
-        if len(self._contact_ports) == self.max_contacts:
-            raise InvalidInput(f"{self.name} was built for {self.max_contacts} contacts (max_contacts)")
-        if contact.nv != self.nv:
-            raise InvalidInput(f"contact {contact.name} has nv = {contact.nv}, solver {self.name} has nv = {self.nv}")
-        port = self.DeclareAbstractInputPort(
-            "contact" + contact.name if not contact.name.startswith("contact") else contact.name,
-            AbstractValue.Make(ContactRows(np.zeros((6, self.nv)), np.zeros(6), np.eye(3), np.zeros((0, 6)), 0.0, 1.0)),
-        )
-        self._contact_index[contact.name] = len(self._contact_ports)
-        self._contact_ports[contact.name] = port
-        return port
+        return self.contact_set.declare_input(contact)
 
     @property
     def known_contacts(self) -> list[str]:
+        """The declared contacts, in declaration order."""
         return list(self._contact_ports)
-
-    def _contact_name(self, contact) -> str:
-        name = getattr(contact, "name", contact)
-        if not isinstance(name, str) or name not in self._contact_ports:
-            raise ContactNotFound(name if isinstance(name, str) else repr(name), list(self._contact_ports))
-        return name
 
     # --- commands ----------------------------------------------------------------------------
     def _dyn_command(self, context: Context | None, change: Callable[[DynSettings], None]) -> None:
@@ -288,41 +175,13 @@ class SolverDyn(StackSolver[DynSettings]):
     def addContact(self, contact, context: Context | None = None, priority: str = "top") -> None:
         """Hold ``contact`` (a name or a :class:`Contact6d`); a contact being released is held again.
         A dynamic contact is a constraint of every level: ``priority`` is ``"top"`` only."""
-        if priority != "top":
-            raise InvalidInput(f"{self.name}.addContact: a dynamic contact constrains every level (priority 'top'), "
-                               f"got priority={priority!r}")
-        name = self._contact_name(contact)
-
-        def change(s: DynSettings) -> None:
-            if name in s.contacts and name not in s.releasing:
-                raise StackError(f"{self.name}.addContact: {name!r} is already a contact")
-            s.releasing.pop(name, None)
-            if name not in s.contacts:
-                s.contacts.append(name)
-
-        self._dyn_command(context, change)
+        self.contact_set.addContact(contact, context, priority)
 
     def rmContact(self, contact, duration: float = 0.3, context: Context | None = None) -> None:
         """Release ``contact``: its normal force ramps to 0 over ``duration`` s (≥ 0), then it is
         removed. Removing the last held contact is refused. (sot-dyninv's ``rmContact``, with the
         ramp's duration: not the kinematic SOT's signature.)"""
-        name = self._contact_name(contact)
-        duration = check_number(f"{self.name}.rmContact: duration", duration, 0.0, MAX_RELEASE, " s")
-
-        def change(s: DynSettings) -> None:
-            held = [c for c in s.contacts if c not in s.releasing]
-            if name not in held:
-                raise StackError(f"{self.name}.rmContact: {name!r} is not a held contact {held}")
-            if len(held) == 1:
-                raise StackError(f"{self.name}.rmContact: {name!r} is the last contact; the robot would lose its support")
-            if duration == 0:
-                log.warning("%s.rmContact(%r, 0): released at once, its load drops in one tick (the robot may tip); "
-                            "give a duration > 0 to ramp its force down", self.name, name)
-                s.contacts.remove(name)
-            else:
-                s.releasing[name] = float(duration)
-
-        self._dyn_command(context, change)
+        self.contact_set.rmContact(contact, duration, context)
 
     def setDampingGain(self, gain: float, context: Context | None = None) -> None:
         """``K_d`` in [0, :data:`.checks.MAX_RATE_GAIN`] (1/s) of the last level ``q̈ = −K_d v``."""
@@ -361,37 +220,14 @@ class SolverDyn(StackSolver[DynSettings]):
                          "velocity limits enter its acceleration bounds: setJointLimitHorizon)")
 
     # --- solve -------------------------------------------------------------------------------
-    @staticmethod
-    def _memory_slices(max_contacts: int) -> tuple[slice, slice, slice]:
-        """Where the loads, the held bounds and the ramps lie in the discrete state."""
-        return slice(0, max_contacts), slice(max_contacts, max_contacts + HELD_BOUNDS), \
-            slice(max_contacts + HELD_BOUNDS, 3 * max_contacts + HELD_BOUNDS)
-
-    def _ramp(self, context: Context, name: str) -> tuple[float, float]:
-        i = self._ramps.start + 2 * self._contact_index[name]
-        memory = context.get_discrete_state(self._memory).get_value()
-        return float(memory[i]), float(memory[i + 1])
-
     def held_bound_guess(self, context: Context) -> np.ndarray:
         """The bounds held at the last tick's optimum (:func:`held_bounds`), as recorded in ``context``
         (the solver's own)."""
-        return context.get_discrete_state(self._memory).get_value()[self._held].copy()
+        return self._memory.held_bound_guess(context)
 
     def _active_contacts(self, context: Context, s: DynSettings) -> list[ActiveContact]:
         """The held contacts, and the released ones whose ramp has not ended (with their bound)."""
-        out = []
-        for name in s.contacts:
-            f_max, fraction = np.inf, 1.0
-            if name in s.releasing:
-                t0, f0 = self._ramp(context, name)
-                if not np.isnan(t0):
-                    fraction = 1.0 - (context.get_time() - t0) / s.releasing[name]
-                    if fraction <= 1e-9:
-                        continue  # released: the foot is free
-                    f_max = max(0.0, f0 * fraction)
-            rows = self._contact_ports[name].Eval(context)
-            out.append(ActiveContact(name, rows, f_max, rows.f_min * fraction))
-        return out
+        return self.contact_set.active(context, s, self._memory)
 
     def held_contacts(self, context: Context) -> list[str]:
         """The contacts the solver uses at the context's time (being released ones included)."""
@@ -423,7 +259,7 @@ class SolverDyn(StackSolver[DynSettings]):
             tasks.append(level)
         return tasks
 
-    def _problem(self, context: Context, s: DynSettings) -> _Problem:
+    def _problem(self, context: Context, s: DynSettings) -> Problem:
         """Read the ports: the dynamics terms, the held contacts (their ramps), the tasks, the
         loads of the previous tick, and the bounds on ``x`` (:func:`.formulation.variable_bounds`)."""
         terms = self.dynamics.Eval(context)
@@ -433,7 +269,7 @@ class SolverDyn(StackSolver[DynSettings]):
         slices = wrench_slices(self.nv, contacts)
         lower, upper = self._bounds(terms, s, contacts, slices)
         names = ["dynamics"] + (["contacts"] if contacts else []) + list(s.tasks) + ["damping"]
-        return _Problem(terms, contacts, tasks, loads, slices, lower, upper, names)
+        return Problem(terms, contacts, tasks, loads, slices, lower, upper, names)
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         """Read the ports → the formulation (:mod:`.formulation`) → solve → the solution.
@@ -465,7 +301,7 @@ class SolverDyn(StackSolver[DynSettings]):
                 return
         value.set_value(self._solution_of(context, p, result, world, diagnostics))
 
-    def _solve_reduced(self, context: Context, s: DynSettings, p: _Problem) -> tuple[HqpResult, list[np.ndarray]] | None:
+    def _solve_reduced(self, context: Context, s: DynSettings, p: Problem) -> tuple[HqpResult, list[np.ndarray]] | None:
         """The fast path: ``τ`` eliminated (a smaller problem, no ``τ`` bounds), when ``B`` is a
         selection. If its ``τ`` is within the effort limits and the wrench rows hold, it is the
         optimum of the full hierarchy (the same argument as for the wrench rows; after the damping
@@ -496,7 +332,7 @@ class SolverDyn(StackSolver[DynSettings]):
         fast.x = np.concatenate([fast.x, tau])
         return fast, world
 
-    def _solve_full(self, context: Context, s: DynSettings, p: _Problem, hqp: HierarchicalQP,
+    def _solve_full(self, context: Context, s: DynSettings, p: Problem, hqp: HierarchicalQP,
                     tried: list[HqpResult]) -> HqpResult:
         """The hierarchy over ``(q̈, w, τ)``: relaxed (without the contacts' wrench rows; its
         optimum appended to ``tried``), then, if those rows do not hold there, in full."""
@@ -509,7 +345,7 @@ class SolverDyn(StackSolver[DynSettings]):
             result = hqp.solve(full, lower, upper, 0.0, s.solver, start=inside(lower, upper))
         return result
 
-    def _rescue(self, context: Context, s: DynSettings, p: _Problem, hqp: HierarchicalQP, error: SolverError,
+    def _rescue(self, context: Context, s: DynSettings, p: Problem, hqp: HierarchicalQP, error: SolverError,
                 tried: list[HqpResult], diagnostics: DynDiagnostics) -> tuple[HqpResult | None, int]:
         """Never zero torque on a standing robot if avoidable: the relaxed optimum (dynamics,
         contact accelerations and the stack exact; friction/CoP rows possibly violated), else the
@@ -532,7 +368,7 @@ class SolverDyn(StackSolver[DynSettings]):
         log.warning("%s: %s", self.name, diagnostics.failure)
         return relaxed, len(levels)
 
-    def _solution_of(self, context: Context, p: _Problem, result: HqpResult, world: list[np.ndarray] | None,
+    def _solution_of(self, context: Context, p: Problem, result: HqpResult, world: list[np.ndarray] | None,
                      diagnostics: DynDiagnostics) -> DynSolution:
         """The outputs of the optimum ``result.x``: ``q̈``, ``τ``, each contact's world and local
         wrench (``world``: already computed by the fast path), the slack norms and diagnostics."""
@@ -637,9 +473,7 @@ class SolverDyn(StackSolver[DynSettings]):
 
     def _previous_loads(self, context: Context, names: list[str]) -> list[float] | None:
         """:meth:`previous_loads` as Python floats."""
-        record = context.get_discrete_state(self._memory).get_value()[self._loads].tolist()  # a few floats
-        loads = [record[self._contact_index[name]] for name in names]
-        return loads if all(math.isfinite(f) for f in loads) else None
+        return self._memory.previous_loads(context, [self._contact_index[name] for name in names])
 
     def _update(self, context: Context, state) -> None:
         """Record each contact's normal force and the bounds held at the optimum; start the ramp of
@@ -647,14 +481,6 @@ class SolverDyn(StackSolver[DynSettings]):
         s = self._settings_of(context)
         solution = self._solution.Eval(context)
         local = solution.local_wrenches
-        memory = state.get_mutable_value(self._memory)  # initialized to the current state: changed in place
-        ramps = self._ramps.start
-        for i, name in enumerate(self._contact_ports):
-            load = float(local[name][-1]) if name in local else math.nan
-            memory[self._loads.start + i] = load
-            r = ramps + 2 * i
-            if name not in s.releasing or name not in s.contacts:
-                memory[r] = memory[r + 1] = math.nan
-            elif math.isnan(memory[r]):
-                memory[r], memory[r + 1] = context.get_time(), 0.0 if math.isnan(load) else load
-        memory[self._held] = solution.diagnostics.held_bounds
+        loads = [float(local[name][-1]) if name in local else math.nan for name in self._contact_ports]
+        releasing = [name in s.releasing and name in s.contacts for name in self._contact_ports]
+        self._memory.record(state, context.get_time(), loads, releasing, solution.diagnostics.held_bounds)

@@ -89,7 +89,8 @@ from .visualization import (
 #: Names imported on first use, by module: the wings that pull in more than the kinematic SoT, and
 #: the HQP's back-end names. A script may import these from their wing too (``sotdrake.physics`` …).
 _LAZY: dict[str, tuple[str, ...]] = {
-    ".dynamics": ("Contact6d", "DynamicEntity", "RobotDynSimu", "SolverDyn", "TaskDynPD"),
+    ".dynamics": ("Contact6d", "ContactRows", "DynamicEntity", "DynamicsTerms", "RobotDynSimu", "SolverDyn", "TaskDynPD"),
+    ".dynamics.dyn_types": ("ContactNotFound", "DynDiagnostics"),
     ".dynamics.robot_dyn": ("RobotDyn",),
     ".dynamics.meta_tasks_dyn": ("MetaTaskDyn6d", "MetaTaskDynCom", "MetaTaskDynMomentum", "MetaTaskDynPosture"),
     ".dynamics.contact": ("friction_ratio",),
@@ -160,8 +161,9 @@ if TYPE_CHECKING:
         pair_distances,
         run_collision_reach,
     )
-    from .dynamics import Contact6d, DynamicEntity, RobotDynSimu, SolverDyn, TaskDynPD
+    from .dynamics import Contact6d, ContactRows, DynamicEntity, DynamicsTerms, RobotDynSimu, SolverDyn, TaskDynPD
     from .dynamics.contact import friction_ratio
+    from .dynamics.dyn_types import ContactNotFound, DynDiagnostics
     from .dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynMomentum, MetaTaskDynPosture
     from .dynamics.robot_dyn import RobotDyn
     from .dynamics.station import sole_rectangle
@@ -236,10 +238,14 @@ __all__ = [
     "ComStabilizer",
     "Contact6d",
     "ContactMonitor",
+    "ContactNotFound",
+    "ContactRows",
     "DesiredState",
     "Device",
+    "DynDiagnostics",
     "Dynamic",
     "DynamicEntity",
+    "DynamicsTerms",
     "EngineUnavailable",
     "Feature",
     "Feature1D",

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import math
+from dataclasses import dataclass
 
 from .exceptions import InvalidInput
 from .ranges import (
@@ -25,6 +26,41 @@ from .ranges import (
 log = logging.getLogger("sotdrake.gains")
 
 
+@dataclass(frozen=True)
+class AdaptiveCoefficients:
+    """The adaptive gain ``λ(‖e‖) = a·exp(−b‖e‖) + c`` (1/s; ``b`` in 1/unit of the error)."""
+
+    a: float = 0.0
+    b: float = 0.0
+    c: float = 1.0
+
+    def __call__(self, error_norm: float) -> float:
+        return self.a * math.exp(-self.b * error_norm) + self.c
+
+    @property
+    def is_constant(self) -> bool:
+        """``λ = c`` whatever the error (``a = 0``)."""
+        return self.a == 0.0
+
+
+@dataclass(frozen=True)
+class HyperbolicCoefficients:
+    """The hyperbolic gain ``λ(‖e‖) = a·½(tanh(−b(‖e‖ − d)) + 1) + c`` (1/s)."""
+
+    a: float = 0.0
+    b: float = 0.0
+    c: float = 1.0
+    d: float = 0.0
+
+    def __call__(self, error_norm: float) -> float:
+        return self.a * 0.5 * (math.tanh(-self.b * (error_norm - self.d)) + 1.0) + self.c
+
+    @property
+    def is_constant(self) -> bool:
+        """``λ = c`` whatever the error (``a = 0``)."""
+        return self.a == 0.0
+
+
 def gain_extremes(coefficients) -> tuple[float, float]:
     """``(inf, sup)`` of ``λ(‖e‖)`` over ``‖e‖ ≥ 0`` for the adaptive (``a·exp(-b‖e‖) + c``) or
     hyperbolic (``a·½(tanh(-b(‖e‖ - d)) + 1) + c``) coefficients, ``b ≥ 0``: both are monotonic in
@@ -35,8 +71,6 @@ def gain_extremes(coefficients) -> tuple[float, float]:
 
 def check_gain(coefficients, dt: float | None, name: str) -> None:
     """Refuse (``InvalidInput``) coefficients out of range; warn when ``λ_max dt ≥ 1``."""
-    from .gains import AdaptiveCoefficients, HyperbolicCoefficients
-
     if not isinstance(coefficients, (AdaptiveCoefficients, HyperbolicCoefficients)):
         raise InvalidInput(f"{name}: coefficients must be AdaptiveCoefficients or HyperbolicCoefficients, "
                            f"got {type(coefficients).__name__}")

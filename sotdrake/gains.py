@@ -29,42 +29,11 @@ from pydrake.systems.framework import Context
 
 from .entity import Entity
 from .exceptions import InvalidInput
-from .gain_checks import check_gain
+from .gain_checks import AdaptiveCoefficients, HyperbolicCoefficients, check_gain
 from .ranges import ERROR_SCALE
 
 #: Largest magnitude of a number given to a gain command (λ0, λ∞, slope, tanAt0 …).
 MAX_GAIN_INPUT = 1e9
-
-
-@dataclass(frozen=True)
-class AdaptiveCoefficients:
-    a: float = 0.0
-    b: float = 0.0
-    c: float = 1.0
-
-    def __call__(self, error_norm: float) -> float:
-        return self.a * math.exp(-self.b * error_norm) + self.c
-
-    @property
-    def is_constant(self) -> bool:
-        """``λ = c`` whatever the error (``a = 0``)."""
-        return self.a == 0.0
-
-
-@dataclass(frozen=True)
-class HyperbolicCoefficients:
-    a: float = 0.0
-    b: float = 0.0
-    c: float = 1.0
-    d: float = 0.0
-
-    def __call__(self, error_norm: float) -> float:
-        return self.a * 0.5 * (math.tanh(-self.b * (error_norm - self.d)) + 1.0) + self.c
-
-    @property
-    def is_constant(self) -> bool:
-        """``λ = c`` whatever the error (``a = 0``)."""
-        return self.a == 0.0
 
 
 def hyperbolic(gain0: float, gain_inf: float, tan_at0: float, decal0: float) -> HyperbolicCoefficients:

@@ -24,6 +24,7 @@ from .kinematics import Dynamic
 from .robots import RobotModel, load_robot
 from .solvers import SOT, SolverKine
 from .solvers.base_velocity import velocity_limit_vector
+from .solvers.kinematic import KinematicSolver
 from .task import Task
 
 SystemT = TypeVar("SystemT", bound=System)
@@ -55,7 +56,7 @@ class Robot:
         self.model = model
         self.OperationalPointsMap = model.OperationalPointsMap
         self.tasks: dict[str, Task] = {}
-        self.solver: SOT | None = None
+        self.solver: KinematicSolver | None = None
         self.limitator: JointLimitator | None = None  # between the solver and the device (Solver(robot))
         self._names: set[str] = set()
         self.lcm: DrakeLcm | None = None  # the publishers' LCM instance (sotdrake.publishing), made by the first of them
@@ -107,7 +108,7 @@ class Robot:
             self.builder.Connect(task.GetOutputPort("task"), self.solver.declare_task_input(task))
         return task
 
-    def add_solver(self, solver: SOT, limitator: JointLimitator | None = None) -> SOT:
+    def add_solver(self, solver: KinematicSolver, limitator: JointLimitator | None = None) -> KinematicSolver:
         """Add the solver, plug ``solver.control → device.control`` and connect every task.
 
         With a ``limitator`` (:class:`~sotdrake.joint_limitator.JointLimitator`, added here too):
@@ -173,7 +174,7 @@ def add_sot(
     svd_threshold: float = 1e-4,
     position_margin: float = 1e-3,
     qp_solver: str = "active-set",
-) -> SOT:
+) -> SOT | SolverKine:
     """sot-core's ``sot = SOT('sot'); sot.setSize(...); plug(sot.control, robot.device.control)``.
 
     ``solver='cascade'``: the basic ``SOT`` (pseudo-inverse cascade; ``svd_threshold``, ``damping``
@@ -184,7 +185,10 @@ def add_sot(
     if solver == "cascade":
         sot = SOT(name, robot.dimension, svd_threshold, damping, dt=robot.dt)
         sot.setVelocityLimit(velocity_limit_vector(robot.model))
-        return robot.add_solver(sot)
+        robot.add_solver(sot)
+        return sot
     if solver == "hqp":
-        return robot.add_solver(SolverKine(name, robot.model, robot.dt, damping, position_margin, qp_solver))
+        hqp = SolverKine(name, robot.model, robot.dt, damping, position_margin, qp_solver)
+        robot.add_solver(hqp)
+        return hqp
     raise InvalidInput(f"unknown solver {solver!r}: 'cascade' (SOT) or 'hqp' (SolverKine)")

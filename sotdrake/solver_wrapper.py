@@ -48,7 +48,7 @@ class Solver:
             raise InvalidInput(f"Solver: robot must be a sotdrake Robot (robot(builder, ...)), got {type(robot).__name__}")
         self.robot = robot
         self.jointLimitator = JointLimitator(robot.model.plant, robot.dt, limitator_name)
-        sot: SOT
+        sot: SOT | SolverKine
         if solver == "cascade":
             sot = SOT(name, robot.dimension, svd_threshold=inversion, damping=0.0, dt=robot.dt)
             sot.setVelocityLimit(velocity_limit_vector(robot.model))

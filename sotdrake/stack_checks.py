@@ -16,7 +16,7 @@ from pydrake.systems.framework import Context, Diagram, System
 
 from .entity import probing
 from .exceptions import StackError
-from .solvers.sot import SOT
+from .solvers.stack import StackSolver
 from .task import TaskInequality, _TaskBase
 from .task_weight import TaskWeight
 
@@ -34,7 +34,7 @@ def check_stack(diagram: Diagram, context: Context | None = None) -> None:
             context = diagram.CreateDefaultContext()
     systems = _systems_by_name(diagram)
     for solver in systems.values():
-        if not isinstance(solver, SOT):
+        if not isinstance(solver, StackSolver):
             continue
         settings = solver.settings(context)
         for name in [*settings.contacts, *settings.tasks]:

@@ -88,7 +88,14 @@ def _empty(nv: int) -> TaskLevel:
 
 
 class _TaskBase(LeafSystem):
-    """Ports shared by the task kinds; ``_rows(context, e, gain)`` gives ``(lower, upper)``."""
+    """Ports shared by the task kinds; ``_rows(context, e, gain)`` gives ``(lower, upper)``.
+
+    Inputs: ``feature`` (a :class:`~.features.base.FeatureValue`: ``e``, ``J``, ``ė_ref`` in one
+    value) or, the seed's way, ``error`` (``e``, the feature's unit), ``jacobian`` (``J = ∂e/∂v``,
+    rows × nv) and ``errordot`` (``ė_ref``, unit/s); ``controlGain`` (``λ``, 1/s, from a gain).
+    Outputs: ``task`` (a :class:`TaskLevel` over ``v``: ``lower ≤ J v ≤ upper``, unit/s) and
+    ``error_norm`` (``‖e‖``, the feature's unit).
+    """
 
     is_inequality = False
 
@@ -155,7 +162,11 @@ class _TaskBase(LeafSystem):
 
 
 class Task(_TaskBase):
-    """Equality task ``J v = -λ(e)·e``."""
+    """Equality task ``J v = -λ(e)·e``.
+
+    Ports: those of every task (``feature`` or ``error`` / ``jacobian`` / ``errordot``,
+    ``controlGain``; ``task``, ``error_norm``): see :class:`_TaskBase`.
+    """
 
     def __init__(self, name: str, nv: int):
         LeafSystem.__init__(self)
@@ -180,7 +191,11 @@ class TaskPD(_TaskBase, Entity[PDSettings]):
     updated every ``dt`` together with the device: Drake computes every discrete update of a tick
     from the same context, so the command of tick k sees ``e_{k-1}``. (An unrestricted update would
     run before the device's update and hand it ``e_k``, i.e. ``ė = 0``.) ``max_rows`` (default nv)
-    is the largest error the task keeps; a larger one is refused."""
+    is the largest error the task keeps; a larger one is refused.
+
+    Ports: those of every task (``feature`` or ``error`` / ``jacobian`` / ``errordot``,
+    ``controlGain``; ``task``, ``error_norm``): see :class:`_TaskBase`.
+    """
 
     def __init__(self, name: str, nv: int, dt: float, max_rows: int | None = None):
         Entity.__init__(self, name, PDSettings())
@@ -223,7 +238,12 @@ class InequalityBounds:
 class TaskInequality(_TaskBase, Entity[InequalityBounds]):
     """Inequality task ``e_min ≤ e ≤ e_max`` (see the module docstring). Bounds are settings:
     ``setBounds(lower, upper)``, one per selected row of the feature, ±inf for a free side. Until
-    they are set, every row is free (and the task warns once when it is evaluated in a stack)."""
+    they are set, every row is free (and the task warns once when it is evaluated in a stack).
+
+    Ports: those of every task (``feature`` or ``error`` / ``jacobian`` / ``errordot``,
+    ``controlGain``; ``task``: the rows ``e_min ≤ e + J v dt ≤ e_max`` as bounds on ``J v``,
+    unit/s; ``error_norm``): see :class:`_TaskBase`.
+    """
 
     is_inequality = True
 

@@ -87,7 +87,12 @@ class WeightSettings:
 class TaskWeight(Entity[WeightSettings]):
     """Several tasks in one level, weighted (see the module docstring). ``members``: the tasks
     (kinematic ``Task``, ``TaskPD``, ``TaskInequality``, or ``TaskDynPD`` for ``SolverDyn``), at
-    least one, each once, of the same ``nv``; ``weights``: one per member (default 1 each)."""
+    least one, each once, of the same ``nv``; ``weights``: one per member (default 1 each).
+
+    Inputs: one per member (named after it, its :class:`~sotdrake.task.TaskLevel`). Outputs:
+    ``task`` (the weighted level), ``weights`` (each member's weight) and ``error_norm`` (the
+    weighted error's norm).
+    """
 
     def __init__(self, name: str, nv: int, members: Sequence[Any], weights: Sequence[float] | None = None):
         if not isinstance(members, Sequence) or not members:

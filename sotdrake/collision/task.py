@@ -126,7 +126,13 @@ class TaskCollision(Entity[CollisionMargins]):
     """Collision-avoidance level (see the module docstring): ``world`` the robot's
     :class:`~.world.CollisionWorld`, ``nv`` the solver's size, ``dt`` the device's tick (s),
     ``pairs`` None (every pair the world checks) or a list of ``(link, link)`` / ``(link,
-    obstacle)`` names."""
+    obstacle)`` names.
+
+    Inputs: ``position`` (the world plant's ``q``) and, at the acceleration level, ``velocity``
+    (``v``, nv). Outputs: ``task`` (inequality rows over ``v``, m/s, or ``q̈``, m/s²),
+    ``distances`` (each pair's signed distance, m, and its Jacobian) and ``min_distance`` (the
+    smallest signed distance, m; inf without pairs).
+    """
 
     is_inequality = True
     stack = None  # (RobotDyn.add_task: no previous Jacobian kept)

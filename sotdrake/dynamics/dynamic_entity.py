@@ -59,7 +59,15 @@ _ORIGIN.flags.writeable = False
 
 
 class DynamicEntity(Dynamic):
-    """``dynamic`` over the measured state (see the module docstring)."""
+    """``dynamic`` over the measured state (see the module docstring).
+
+    Inputs: ``state`` (``x = (q, v)``, nq + nv). Outputs: ``position`` (``q``), ``velocity``
+    (``v``), ``dynamics`` (:class:`.terms.DynamicsTerms`), ``com`` (m, world), ``Jcom`` (3 × nv),
+    ``com_drift`` (``J̇_com v``, m/s²), ``momentum_terms`` (``(A_G, Ȧ_G v, h_G)``),
+    ``momentum_matrix`` (``A_G``, 6 × nv), ``momentum`` (``h_G``, the centroidal momentum:
+    angular N·m·s, linear kg·m/s) and ``momentum_drift`` (``Ȧ_G v``); per op point,
+    ``<name>_drift`` and ``<name>_kinematics`` (:meth:`createOpPoint`).
+    """
 
     def __init__(self, model: RobotModel, name: str = "dynamic"):
         Dynamic.__init__(self, model, name)  # declares the kinematic outputs over _plant_ctx

@@ -1,8 +1,8 @@
 """``SolverDyn``'s fast path compiled with numba: the levels with ``τ`` eliminated, stacked, and the
 checks of their optimum (see :mod:`.reduced_levels`, the Python front).
 
-The same numbers as the Python reference (:func:`.solver_dyn.dynamic_rows` with ``actuated``,
-:func:`.solver_dyn.torques_of`, :func:`.solver_dyn.variable_bounds`), in three calls instead of
+The same numbers as the Python reference (:func:`.formulation.dynamic_rows` with ``actuated``,
+:func:`.formulation.torques_of`, :func:`.formulation.variable_bounds`), in three calls instead of
 about a hundred numpy operations a tick, whose overhead, not their arithmetic, was their cost.
 
 The contacts come stacked and transposed (Drake's matrices are column-major: their transposes are

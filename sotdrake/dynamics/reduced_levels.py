@@ -1,8 +1,8 @@
 """``SolverDyn``'s fast path assembled in one compiled call: the levels with ``τ`` eliminated,
 stacked as the QR path takes them, the bounds on ``x``, and the checks of the optimum.
 
-The maths is :mod:`.solver_dyn`'s (:func:`~.solver_dyn.dynamic_rows` with ``actuated``,
-:func:`~.solver_dyn.variable_bounds`, :func:`~.solver_dyn.torques_of`), which stays the reference
+The maths is :mod:`.formulation`'s (:func:`~.formulation.dynamic_rows` with ``actuated``,
+:func:`~.formulation.variable_bounds`, :func:`~.formulation.torques_of`), which stays the reference
 (the tests compare them) and the path of everything this one does not cover: the full problem over
 ``(q̈, w, τ)`` and stacks with inequality tasks. Here the contacts' and tasks' arrays are stacked
 (a few numpy calls) and handed to :mod:`.jit_reduced_levels` (numba; compiled once after an install).
@@ -12,19 +12,17 @@ from __future__ import annotations
 
 import itertools
 from functools import cache
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ..compiled import announce_compilation, compiled_input, read_only
 from ..solvers.equality_hierarchy import StackedLevels
 from ..task import TaskLevel
+from .formulation import ActiveContact
 from .terms import DynamicsTerms
 
-if TYPE_CHECKING:
-    from .solver_dyn import ActiveContact
-
-WRENCH_ROW_TOLERANCE = 1e-9  # as solver_dyn._wrench_rows_hold
+WRENCH_ROW_TOLERANCE = 1e-9  # as formulation._wrench_rows_hold
 _NO_SELECTION = np.ones(0, dtype=bool)
 
 
@@ -89,7 +87,7 @@ def _contact_set(rows: list) -> tuple[np.ndarray, list[int], np.ndarray, np.ndar
 
 def reduced_stack(terms: DynamicsTerms, contacts: StackedContacts, tasks: list[TaskLevel], damping_gain: float,
                   scales: list[float], passive: np.ndarray) -> StackedLevels:
-    """:func:`~.solver_dyn.dynamic_rows` with ``τ`` eliminated (``passive``: the unactuated rows, an
+    """:func:`~.formulation.dynamic_rows` with ``τ`` eliminated (``passive``: the unactuated rows, an
     int64 index array), every task an equality, stacked: the dynamics, the contacts (when there are
     some), the tasks, the damping level whose regularization rows of contact c are scaled by
     ``scales[c]`` (``WRENCH_REGULARIZATION`` × its shear weight)."""
@@ -108,9 +106,9 @@ def reduced_stack(terms: DynamicsTerms, contacts: StackedContacts, tasks: list[T
 
 def torques_and_checks(terms: DynamicsTerms, contacts: StackedContacts, actuated: np.ndarray, x: np.ndarray,
                        effort: np.ndarray) -> tuple[np.ndarray, list[np.ndarray], bool, bool]:
-    """``(τ, world wrenches, within, hold)`` at ``x = (q̈, w…)`` (:func:`~.solver_dyn.torques_of`;
+    """``(τ, world wrenches, within, hold)`` at ``x = (q̈, w…)`` (:func:`~.formulation.torques_of`;
     ``within``: ``|τ| ≤ effort``; ``hold``: the contacts' wrench rows hold, as
-    :func:`~.solver_dyn._wrench_rows_hold`)."""
+    :func:`~.formulation._wrench_rows_hold`)."""
     tau, world, within, hold = _compiled().torques_and_checks(
         compiled_input(terms.M), compiled_input(terms.h), actuated, contacts.JT, contacts.RT, contacts.sizes,
         compiled_input(x), effort, contacts.wrench_rows, contacts.row_counts, WRENCH_ROW_TOLERANCE)

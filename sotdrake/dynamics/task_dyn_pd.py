@@ -60,7 +60,15 @@ def pd_reference(e: np.ndarray, e_dot: np.ndarray, kp: float, kv: float, referen
 
 
 class TaskDynPD(Entity[DynPDSettings]):
-    """Acceleration task (see the module docstring)."""
+    """Acceleration task (see the module docstring).
+
+    Inputs: ``feature`` (``e``, ``J``, ``ė_ref`` in one value) or ``error`` (``e``), ``jacobian``
+    (``J``, rows × nv) and ``errordot`` (``ė_ref``, unit/s); ``velocity`` (``v``, nv); with a
+    ``dimension``, ``drift`` (``J̇ v``, unit/s²) and ``reference_acceleration`` (``ë_ref``, unit/s²);
+    without an exact drift, ``stack`` (the solver's solved task names: the previous Jacobian is kept
+    only while the task is solved). Outputs: ``task`` (a :class:`~sotdrake.task.TaskLevel` over
+    ``q̈``, unit/s²) and ``error_norm`` (``‖e‖``).
+    """
 
     is_inequality = False
 

@@ -89,7 +89,12 @@ class FeatureSettings:
 
 
 class Feature(Entity):
-    """Base of the features: subclasses set ``dimension`` and implement ``_compute``."""
+    """Base of the features: subclasses set ``dimension`` and implement ``_compute``.
+
+    Output ``signals``: a :class:`FeatureValue` (``e`` in the feature's unit, ``J = ∂e/∂v``,
+    rows × nv, ``ė_ref`` in unit/s), the selected rows only; the seed's ``error``, ``jacobian``
+    and ``errordot`` outputs carry the same three values one by one.
+    """
 
     def __init__(self, name: str, dimension: int, nv: int, settings: FeatureSettings | None = None):
         Entity.__init__(self, name, settings or FeatureSettings("1" * dimension))

@@ -56,7 +56,11 @@ class FeatureGenericDesired(Entity[FeatureGenericDesiredSettings]):
 
 
 class FeatureGeneric(Feature):
-    """``e = (s - s*)[selected]``, ``J = (∂s/∂v)[selected]``, ``ė_ref = -ṡ*[selected]``."""
+    """``e = (s - s*)[selected]``, ``J = (∂s/∂v)[selected]``, ``ė_ref = -ṡ*[selected]``.
+
+    Inputs: ``errorIN`` (``s``), ``jacobianIN`` (``∂s/∂v``, dimension × nv), ``reference``
+    (``s*``) and ``reference_velocity`` (``ṡ*``, unit/s). Output ``signals`` (see :class:`Feature`).
+    """
 
     def __init__(self, name: str, dimension: int, nv: int):
         Feature.__init__(self, name, dimension, nv)

@@ -33,7 +33,11 @@ def manipulability_error_and_jacobian(J_WF: np.ndarray, p_WF: np.ndarray, upstre
 
 class FeatureManipulability(Feature):
     """``e = μ`` of an op point's Jacobian (see the module docstring). ``upstream``: the plant's
-    :func:`~sotdrake.manipulability.upstream_coordinates`."""
+    :func:`~sotdrake.manipulability.upstream_coordinates`.
+
+    Inputs: ``position`` (the op point's pose, a ``RigidTransform``) and ``Jq`` (its 6 × nv
+    Jacobian). Output ``signals`` (see :class:`~.base.Feature`).
+    """
 
     def __init__(self, name: str, nv: int, upstream: np.ndarray, rows: str = "111000", columns: np.ndarray | None = None):
         Feature.__init__(self, name, 1, nv)

@@ -46,7 +46,11 @@ class MomentumSettings(FeatureSettings):
 
 
 class FeatureMomentum(Feature):
-    """The centroidal momentum towards ``h*`` (see the module docstring)."""
+    """The centroidal momentum towards ``h*`` (see the module docstring).
+
+    Input ``momentum_matrix`` (``A_G``, 6 × nv: angular then linear). Output ``signals`` (see
+    :class:`~.base.Feature`).
+    """
 
     def __init__(self, name: str, nv: int):
         Feature.__init__(self, name, 6, nv, MomentumSettings("111111"))

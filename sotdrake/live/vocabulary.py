@@ -50,7 +50,8 @@ from ..exceptions import CommandRejected, NotFound
 from ..features import Feature, Feature6d, Feature6dDesired, FeatureGenericDesired
 from ..gains import GainAdaptive, GainHyperbolic
 from ..meta_tasks import MetaTaskKine6d, MetaTaskKineCom, _MetaTask, gotoNd
-from ..solvers import SOT, SolverKine
+from ..solvers import SolverKine
+from ..solvers.stack import StackSolver
 from ..task import TaskInequality, TaskPD
 from ..task_weight import TaskWeight
 from .grammar import Command, EntityRef
@@ -155,7 +156,7 @@ class Vocabulary:
         self.diagram = diagram
         self._methods: dict[str, dict[str, Method]] = {"": {}}
         self._objects: dict[str, object] = {}
-        self._solver: SOT | None = None
+        self._solver: StackSolver | None = None
         self._pending_attime: Callable[[float, Prepared], str] | None = None
         for system in diagram.GetSystems():
             self._add_system(system.get_name(), system)
@@ -182,7 +183,7 @@ class Vocabulary:
             "signal": Method((Param("port", "text"),), lambda c, p, s=system: introspection.signal(s, p, c),
                              "one port's value"),
         }
-        if isinstance(system, SOT):
+        if isinstance(system, StackSolver):
             self._solver = self._solver or system
             methods.update(_solver_methods(system))
         if isinstance(system, (GainAdaptive, GainHyperbolic)):
@@ -364,7 +365,7 @@ _GOTO_PARAMS = (Param("task", "meta"), Param("position", "vector"), Param("selec
                 Param("gain", "numbers", None))
 
 
-def _solver_methods(solver: SOT) -> dict[str, Method]:
+def _solver_methods(solver: Any) -> dict[str, Method]:
     task = (Param("task", "task"),)
     return {
         "push": Method(task, lambda c, n: solver.push(n, c), "append at the lowest priority"),

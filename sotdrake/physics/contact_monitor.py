@@ -14,7 +14,10 @@ class ContactMonitor(LeafSystem):
     on the ground (z = 0): with each contact's force ``f`` at point ``c`` and moment ``τ`` about it,
     ``cop = (Σ c_x f_z - τ_y, Σ c_y f_z + τ_x) / Σ f_z`` (m; NaN when nothing touches). Output
     ``other_contact`` (1-vector): the normal force (N) on every body that is not a sole (a knee, a
-    hand, the pelvis on the ground: the robot fell)."""
+    hand, the pelvis on the ground: the robot fell).
+
+    Input: ``contact_results`` (the plant's ``ContactResults``).
+    """
 
     def __init__(self, robot, name: str = "contact_monitor"):
         LeafSystem.__init__(self)

@@ -32,7 +32,7 @@ from pydrake.multibody.tree import ModelInstanceIndex, PlanarJoint
 from ..exceptions import InvalidInput, RobotNotFound, SotError, VariantNotFound
 from .catalog import BASES, ROBOTS, RobotSpec
 from .from_file import add_robot_file, load_robot_file, looks_like_path, operational_points_of, posture_of
-from .model import RobotModel, posture_from_srdf
+from .model import RobotModel, posture_from_srdf, register_loader
 from .srdf import read_group_state
 from .urdf_text import prepare_urdf
 
@@ -266,6 +266,9 @@ def load_robot(
         model.half_sitting = posture_of(model, reference_posture)
         model.load_options["reference_posture"] = reference_posture
     return model
+
+
+register_loader(load_robot)
 
 
 def _load_catalog_robot(name: str, variant: str | None, meshes: bool, time_step: float, base: str | None) -> RobotModel:

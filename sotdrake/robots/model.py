@@ -3,6 +3,7 @@ reference posture read from an SRDF."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -16,6 +17,15 @@ from pydrake.multibody.tree import Frame, FrameIndex, JointActuatorIndex
 
 from ..exceptions import FrameNotFound, OperationalPointNotFound
 from .srdf import read_group_state
+
+#: The robot loader (:func:`.loader.load_robot`), registered by :mod:`.loader` at its import, so that
+#: :meth:`RobotModel.with_meshes` can load a robot again without this module importing the loader.
+_loader: list[Callable[..., RobotModel]] = []
+
+
+def register_loader(load: Callable[..., RobotModel]) -> None:
+    """Make ``load`` (:func:`.loader.load_robot`) the loader :meth:`RobotModel.with_meshes` uses."""
+    _loader[:] = [load]
 
 
 class OperationalPoints(dict[str, str]):
@@ -95,8 +105,9 @@ class RobotModel:
 
     def with_meshes(self) -> RobotModel:
         """The same robot with visual and collision meshes, on its own plant and SceneGraph."""
-        from .loader import load_robot
-
+        load_robot = _loader[0] if _loader else None
+        if load_robot is None:  # the loader registers itself when sotdrake.robots is imported
+            raise RuntimeError("with_meshes: import sotdrake.robots first (it registers the robot loader)")
         if self.source_path is not None:
             return load_robot(self.source_path, meshes=True, **self.load_options)
         return load_robot(self.name, self.variant, meshes=True, base=self.base, **self.load_options)

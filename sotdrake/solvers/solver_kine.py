@@ -1,8 +1,8 @@
 """``SolverKine``: the stack solved as a hierarchical QP, with joint limits as hard constraints.
 
-The same entity as :class:`~sotdrake.solvers.sot.SOT` (same task inputs, same stack commands, the
-stack in the Context), plus a ``position`` input (``q``, from the device) for the joint limits,
-which become velocity bounds over one tick (:mod:`.limits`) above every task. Inequality tasks
+The same stack as :class:`~sotdrake.solvers.sot.SOT` (a :class:`~.stack.Stack`: same task inputs,
+same stack commands, the stack in the Context), plus a ``position`` input (``q``, from the device)
+for the joint limits, which become velocity bounds over one tick (:mod:`.limits`) above every task. Inequality tasks
 (``TaskInequality``) mix freely with equality tasks in any level.
 
 A stack of equality tasks goes first to :meth:`~.hqp.HierarchicalQP.solve_equalities` (the whole
@@ -34,8 +34,9 @@ from ..robots import RobotModel
 from .acceleration_limits import MAX_ACCELERATION, AccelerationBounds
 from .base_velocity import MAX_BASE_VELOCITY, default_base_velocity_limit
 from .hqp import ACTIVE_SET, HierarchicalQP, LevelRows, check_solver
+from .kinematic import KinematicSolver
 from .limits import VelocityBounds
-from .sot import SOT, StackSettings
+from .stack import StackSettings
 from .step_limit import clip_bounds
 
 log = logging.getLogger("sotdrake.solver_kine")
@@ -67,8 +68,14 @@ class HqpDiagnostics:
     failure: str = ""
 
 
-class SolverKine(SOT):
-    """Hierarchical-QP kinematic solver (sot-dyninv ``SolverKine``)."""
+class SolverKine(KinematicSolver[HqpSettings]):
+    """Hierarchical-QP kinematic solver (sot-dyninv ``SolverKine``).
+
+    Inputs: one per task (a :class:`~sotdrake.task.TaskLevel` over ``v``) and ``position`` (``q``,
+    nq, for the joint limits). Outputs: ``control`` (``v``, nv, rad/s and m/s), ``residuals`` (the
+    optimal slack norm of each level), ``velocity_scale`` (always 1: the limits are hard bounds, not
+    a scaling) and ``diagnostics`` (:class:`HqpDiagnostics`).
+    """
 
     accepts_inequalities = True
 
@@ -82,10 +89,10 @@ class SolverKine(SOT):
         solver: str = ACTIVE_SET,
     ):
         layout = Layout.of(model.plant)
-        SOT.__init__(self, name, model.nv, damping=damping, settings=HqpSettings(), dt=dt, layout=layout)
+        KinematicSolver.__init__(self, name, model.nv, HqpSettings(), damping=damping, dt=dt, layout=layout)
         self.setSolver(solver)
         self.setPositionMargin(position_margin)
-        # SOT's position port, period and layout, typed as never None here (q for the joint limits).
+        # The position port, period and layout, typed as never None here (q for the joint limits).
         self._position: InputPort = self.GetInputPort("position")
         self._period = float(dt)
         self._layout = layout
@@ -107,7 +114,7 @@ class SolverKine(SOT):
 
     def setDamping(self, damping: float, context: Context | None = None) -> None:
         """Damping μ of the last level (``‖w‖² + μ‖Δv‖²``), as sot-dyninv's ``SolverKine``."""
-        SOT.setDamping(self, damping, context)
+        KinematicSolver.setDamping(self, damping, context)
 
     def setPositionMargin(self, margin: float, context: Context | None = None) -> None:
         if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not (np.isfinite(margin) and 0 <= margin <= 0.5):
@@ -153,7 +160,7 @@ class SolverKine(SOT):
 
     def acceleration_limit(self, context: Context | None = None) -> np.ndarray | None:
         """The acceleration limits (nv, inf: none), or None without any."""
-        limit = cast(HqpSettings, self.settings(context)).acceleration_limit
+        limit = self.settings(context).acceleration_limit
         return None if limit is None else limit.copy()
 
     def _previous_velocity(self, context: Context) -> np.ndarray:
@@ -168,7 +175,7 @@ class SolverKine(SOT):
         self._command(context, lambda s: setattr(s, "solver", solver))
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
-        s = cast(HqpSettings, self._settings_of(context))
+        s = self._settings_of(context)
         task_levels = self._levels(context, s, check=False)
         q = self._position.Eval(context)
         lower, upper = self._bounds(q, self._period, s.position_margin, s.control_selection, s.base_velocity_limit)
@@ -216,7 +223,8 @@ class SolverKine(SOT):
 
 @dataclass
 class _Solution:
-    """Same fields as the cascade's result where the SOT's ports read them."""
+    """The solve's result: the fields the ``control``, ``residuals`` and ``diagnostics`` ports read,
+    and what the last tick keeps."""
 
     velocity: np.ndarray
     residuals: np.ndarray

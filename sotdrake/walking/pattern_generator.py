@@ -47,7 +47,11 @@ class PatternGeneratorSettings:
 class PatternGenerator(Entity[PatternGeneratorSettings]):
     """See the module docstring. ``start``: the robot's sole poses, CoM and waist pose at t = 0;
     ``legs``: a leg-mass model (:func:`~.multibody_zmp.leg_masses`) puts the legs' momentum in the
-    CoM plan (the multibody ZMP correction), None the pendulum alone."""
+    CoM plan (the multibody ZMP correction), None the pendulum alone.
+
+    Outputs (see the module docstring): each sole's ``<side>_foot_pose`` and the ``waist_pose``
+    (``RigidTransform``, world).
+    """
 
     def __init__(self, start: Start, dt: float, gait: GaitParameters | None = None,
                  input_cost: float = INPUT_COST, name: str = "pg", legs: LegMasses | None = None):

@@ -187,21 +187,7 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
         attime(release_time, lambda: (sot.push(foot.task.name), sot.up(foot.task.name), sot.rmContact(contactRF, ramp)),
                "rmContact RF (its force ramped to 0), push the foot task above the posture")
 
-    monitor = None
-    physical = robot.physical
-    if device == "physics":
-        assert physical is not None  # (the physics device)
-        plant = physical.plant
-        monitor = robot.add(ContactMonitor(physical))
-        connect(plant.get_contact_results_output_port(), monitor.get_input_port())
-        if pushes is None and scenario == "push":
-            pushes = tuple((start, duration, [force, 0.0, 0.0]) for start, duration, force in PUSHES)
-        if pushes:
-            mux = robot.add(ExternallyAppliedSpatialForceMultiplexer(len(pushes)), "pushes")
-            for i, (start, duration, force) in enumerate(pushes):
-                push = robot.add(Push(plant, "torso_2_link", force, start, duration), f"push_{i}")
-                connect(push.get_output_port(), mux.get_input_port(i))
-            connect(mux.get_output_port(), plant.get_applied_spatial_force_input_port())
+    monitor = _add_monitor_and_pushes(robot, scenario, pushes) if device == "physics" else None
 
     tracer = Tracer(builder, dt)
     tracer.add(robot.state_port, "x")
@@ -215,25 +201,51 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
     if monitor is not None:
         tracer.add(monitor.GetOutputPort("feet"), "feet")
 
-    visualizer = None
-    if meshcat is not None:
-        if physical is not None:  # the physics device
-            visualizer = MeshcatVisualizer.AddToBuilder(builder, physical.scene_graph, meshcat,
-                                                        MeshcatVisualizerParams(publish_period=1 / 60))
-            ContactVisualizer.AddToBuilder(builder, physical.plant, meshcat,
-                                           ContactVisualizerParams(publish_period=1 / 60, newtons_per_meter=1000))
-        else:
-            visual = model.with_meshes()
-            scene_graph = robot.add(visual.scene_graph, "scene_graph")
-            to_pose = robot.add(MultibodyPositionToGeometryPose(visual.plant, input_multibody_state=True), "robot_pose")
-            to_pose.visual_model = visual
-            connect(robot.state_port, to_pose.get_input_port())
-            connect(to_pose.get_output_port(), scene_graph.get_source_pose_port(visual.plant.get_source_id()))
-            visualizer = MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, MeshcatVisualizerParams(publish_period=1 / 60))
-        meshcat.SetCameraPose(camera_in_world=[1.6, -2.2, 1.3], target_in_world=[0.0, 0.0, 0.6])
+    visualizer = _add_visualizer(robot, model, meshcat) if meshcat is not None else None
     diagram = builder.Build()
     diagram.set_name("talos_dynamics")
     return DynamicsRun(diagram, robot, tracer, scenario, device, com, foot, monitor, com0, visualizer)
+
+
+def _add_monitor_and_pushes(robot: RobotDyn, scenario: str, pushes) -> ContactMonitor:
+    """The physics device's contact monitor and the pushes on the torso (``pushes``: see
+    :func:`build_diagram`; None: the ``push`` scenario's :data:`PUSHES`, none otherwise)."""
+    connect = robot.builder.Connect
+    physical = robot.physical
+    assert physical is not None  # (the physics device)
+    plant = physical.plant
+    monitor = robot.add(ContactMonitor(physical))
+    connect(plant.get_contact_results_output_port(), monitor.get_input_port())
+    if pushes is None and scenario == "push":
+        pushes = tuple((start, duration, [force, 0.0, 0.0]) for start, duration, force in PUSHES)
+    if pushes:
+        mux = robot.add(ExternallyAppliedSpatialForceMultiplexer(len(pushes)), "pushes")
+        for i, (start, duration, force) in enumerate(pushes):
+            push = robot.add(Push(plant, "torso_2_link", force, start, duration), f"push_{i}")
+            connect(push.get_output_port(), mux.get_input_port(i))
+        connect(mux.get_output_port(), plant.get_applied_spatial_force_input_port())
+    return monitor
+
+
+def _add_visualizer(robot: RobotDyn, model, meshcat: Meshcat):
+    """Meshcat's view of the run: the physics plant's scene graph and its contact forces, or (the
+    ``dynsimu`` device) the robot's meshes posed by the state."""
+    builder, connect, physical = robot.builder, robot.builder.Connect, robot.physical
+    if physical is not None:  # the physics device
+        visualizer = MeshcatVisualizer.AddToBuilder(builder, physical.scene_graph, meshcat,
+                                                    MeshcatVisualizerParams(publish_period=1 / 60))
+        ContactVisualizer.AddToBuilder(builder, physical.plant, meshcat,
+                                       ContactVisualizerParams(publish_period=1 / 60, newtons_per_meter=1000))
+    else:
+        visual = model.with_meshes()
+        scene_graph = robot.add(visual.scene_graph, "scene_graph")
+        to_pose = robot.add(MultibodyPositionToGeometryPose(visual.plant, input_multibody_state=True), "robot_pose")
+        to_pose.visual_model = visual
+        connect(robot.state_port, to_pose.get_input_port())
+        connect(to_pose.get_output_port(), scene_graph.get_source_pose_port(visual.plant.get_source_id()))
+        visualizer = MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, MeshcatVisualizerParams(publish_period=1 / 60))
+    meshcat.SetCameraPose(camera_in_world=[1.6, -2.2, 1.3], target_in_world=[0.0, 0.0, 0.6])
+    return visualizer
 
 
 def simulate_ticks(run: DynamicsRun, duration: float, progress: bool = True) -> tuple[Simulator, np.ndarray]:

@@ -71,7 +71,54 @@ def _stretches(flags: np.ndarray) -> list[np.ndarray]:
     return [np.arange(a, b) for a, b in zip(edges[::2], edges[1::2], strict=False)]
 
 
+def _slips(path: dict, feet: tuple[str, str], trace: dict, plan, physics: bool) -> list[float]:
+    """How far (m, xy) each sole moves while it stands, one figure a stance: kinematic, over each
+    planned stance (touch-down to the next lift-off); physics, over each stretch where it carries
+    more than :data:`SLIP_LOAD_N` (a sole that lands early, late or bounces moves in the air: a
+    tracking error, not slip)."""
+    t = trace["time"]
+    slips = []
+    for i, side in enumerate(("left", "right")):
+        xy = path[feet[i]][:, :2, 3]
+        if physics:
+            stretches = _stretches(trace["contact"][:, 2 + 3 * i] > SLIP_LOAD_N)
+        else:
+            landings = [0.0] + [st.touchdown for st in plan.steps if st.side == side]
+            liftoffs = [st.liftoff for st in plan.steps if st.side == side] + [np.inf]
+            stretches = [np.flatnonzero((t >= down) & (t <= up)) for down, up in zip(landings, liftoffs, strict=False)]
+        slips += [float(np.linalg.norm(xy[k] - xy[k[0]], axis=1).max()) for k in stretches if k.size > 1]
+    return slips
+
+
+def _velocity_segments(trace: dict, base: np.ndarray, plan, gait: GaitParameters, duration: float,
+                       then=None) -> list[dict | None]:
+    """Each command's realised velocity (:func:`_segment_velocity`) against the command: the
+    command from t = 0, then ``then``'s from its time; None for a segment too short to measure or
+    without a velocity command (a list of steps)."""
+    t = trace["time"]
+    change = then[0] if then is not None else duration
+    segments = [(0.0, change, trace["pg_velocity_command"][0])]
+    if then is not None:
+        segments.append((change, duration, np.asarray(then[1:], dtype=float)))
+    ratios: list[dict | None] = []
+    for t0, t1, command in segments:
+        measured = _segment_velocity(t, base, plan, t0, t1, gait)
+        if measured is None or not np.any(command):
+            ratios.append(None)
+            continue
+        v, a, b = measured
+        linear = np.linalg.norm(command[:2])
+        ratio = float(np.linalg.norm(v[:2] - command[:2]) / linear) if linear else None
+        ratios.append({"command": command.tolist(), "realised": v.tolist(), "window_s": [a, b], "linear_ratio": ratio,
+                       "yaw_rate_ratio": abs(v[2] - command[2]) / abs(command[2]) if command[2] else None})
+    return ratios
+
+
 def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) -> tuple[dict, dict]:
+    """The walk's figures after ``duration`` s (``wall`` s of wall clock) and its trace: the feet's and
+    the CoM's tracking errors (m; ``q[k]`` against the references of tick ``k + 1``), the planned
+    ZMP's margin in the support polygon, slip, the base's final distance from the plan, the realised
+    velocity of each command (``then``: the second one), falls; physics modes add the CoP's margin."""
     context = simulator.get_context()
     trace = walk.tracer.data(context)
     bot, spec, gait = walk.robot, walk.spec, walk.pg.gait
@@ -102,19 +149,7 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
     c, s = np.cos(yaw_ref), np.sin(yaw_ref)
     planned_base = trace["pg_com"][-1, :2] + np.array([c * offset0[0] - s * offset0[1], s * offset0[0] + c * offset0[1]])
     final_error = float(np.linalg.norm(base[-1, :2] - planned_base))
-    # Slip: how far each sole moves (xy) while it stands: kinematic, over each planned stance
-    # (touch-down to the next lift-off); physics, over each stretch where it carries more than
-    # SLIP_LOAD_N (a sole that lands early, late or bounces moves in the air: a tracking error).
-    slips = []
-    for i, side in enumerate(("left", "right")):
-        xy = path[spec.feet[i]][:, :2, 3]
-        if physics:
-            stretches = _stretches(trace["contact"][:, 2 + 3 * i] > SLIP_LOAD_N)
-        else:
-            landings = [0.0] + [st.touchdown for st in plan.steps if st.side == side]
-            liftoffs = [st.liftoff for st in plan.steps if st.side == side] + [np.inf]
-            stretches = [np.flatnonzero((t >= down) & (t <= up)) for down, up in zip(landings, liftoffs, strict=False)]
-        slips += [float(np.linalg.norm(xy[k] - xy[k[0]], axis=1).max()) for k in stretches if k.size > 1]
+    slips = _slips(path, spec.feet, trace, plan, physics)
     summary = {
         "robot": walk.robot_name,
         "mode": walk.mode,
@@ -139,21 +174,7 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
         error = np.linalg.norm(device_zmp - trace["pg_zmp_reference"][walking], axis=1)[2:-2]  # (one-sided differences at the ends)
         summary["max_multibody_zmp_minus_reference_m"] = float(error.max())
         summary["multibody_zmp_correction"] = walk.pg.legs is not None
-    change = then[0] if then is not None else duration
-    segments = [(0.0, change, trace["pg_velocity_command"][0])]
-    if then is not None:
-        segments.append((change, duration, np.asarray(then[1:], dtype=float)))
-    ratios: list[dict | None] = []
-    for t0, t1, command in segments:
-        measured = _segment_velocity(t, base, plan, t0, t1, gait)
-        if measured is None or not np.any(command):
-            ratios.append(None)
-            continue
-        v, a, b = measured
-        linear = np.linalg.norm(command[:2])
-        ratio = float(np.linalg.norm(v[:2] - command[:2]) / linear) if linear else None
-        ratios.append({"command": command.tolist(), "realised": v.tolist(), "window_s": [a, b], "linear_ratio": ratio,
-                       "yaw_rate_ratio": abs(v[2] - command[2]) / abs(command[2]) if command[2] else None})
+    ratios = _velocity_segments(trace, base, plan, gait, duration, then)
     summary["velocity_error_ratio"] = ratios[0]["linear_ratio"] if ratios[0] else None
     summary["velocity_segments"] = ratios
     if physics:

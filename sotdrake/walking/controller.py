@@ -157,6 +157,23 @@ class Walk:
     servos: Servos | None = None  # physics mode
 
 
+def _walking_robot(robot: str, mode: str, arms: str) -> WalkingRobot:
+    """The entry of :data:`ROBOTS` for ``robot``, once ``mode`` and ``arms`` are checked."""
+    if arms not in ARMS:
+        raise InvalidInput(f"arms is one of {ARMS}, got {arms!r}")
+    if robot not in ROBOTS:
+        from sotdrake.exceptions import NotFound
+
+        raise NotFound(robot, list(ROBOTS))
+    if mode not in MODES:
+        raise InvalidInput(f"mode is one of {MODES}, got {mode!r}")
+    spec = ROBOTS[robot]
+    if mode != "kinematic" and spec.add_physical is None:
+        raise InvalidInput(f"--mode {mode}: no physical model for {robot!r}; the physics station of sotdrake.physics is "
+                           f"TALOS' (its sole and link boxes, PD gains and torque limits); {robot!r} walks in kinematic mode")
+    return spec
+
+
 def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | None = None,
                   steps: tuple[int, float] | None = None, mode: str = "kinematic", solver: str = "hqp",
                   dt: float = 1e-3, gait: GaitParameters | None = None, meshcat: Meshcat | None = None,
@@ -170,19 +187,7 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     planned with the legs' momentum (:func:`~sotdrake.walking.multibody_zmp.leg_masses`), kinematic
     and physics modes (None: in physics mode only); ``arms``: one of :data:`ARMS` (kinematic and
     physics modes); ``gains``: the tracking and the orientation gains (1/s), kinematic and physics modes."""
-    tracking_gain, posture_gain = gains
-    if arms not in ARMS:
-        raise InvalidInput(f"arms is one of {ARMS}, got {arms!r}")
-    if robot not in ROBOTS:
-        from sotdrake.exceptions import NotFound
-
-        raise NotFound(robot, list(ROBOTS))
-    if mode not in MODES:
-        raise InvalidInput(f"mode is one of {MODES}, got {mode!r}")
-    spec = ROBOTS[robot]
-    if mode != "kinematic" and spec.add_physical is None:
-        raise InvalidInput(f"--mode {mode}: no physical model for {robot!r}; the physics station of sotdrake.physics is "
-                           f"TALOS' (its sole and link boxes, PD gains and torque limits); {robot!r} walks in kinematic mode")
+    spec = _walking_robot(robot, mode, arms)
     if mode == "dynamic":
         from .dynamic_controller import build_dynamic
 
@@ -221,7 +226,37 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     # walkromeo's ``solver = Solver(robot)``: the basic SOT through a JointLimitator; the HQP holds the limits itself.
     sot = Solver(bot, "cascade", name="sot").sot if solver == "cascade" else add_sot(bot, "sot", solver=solver)
     sot.setControlSelection(bot.velocity_selection(excluding=list(spec.excluded)))
-    connect = builder.Connect
+    tasks, stabilizer = _add_stack(bot, pg, sot, spec, arms, solver, gains,
+                                   servos if physical is not None else None, legs is not None)
+
+    tracer = Tracer(builder, dt)
+    tracer.add(bot.device.GetOutputPort("state"), "q_device")
+    for port in ("com", "com_velocity", "com_acceleration", "zmp_reference", "feet", "support_phase", "velocity_command"):
+        tracer.add(pg.GetOutputPort(port), f"pg_{port}")
+    visualizer = None
+    if physical is not None:
+        visualizer = _connect_physics(bot, sot, pg, spec, physical, servos, stabilizer, tracer, meshcat)
+    elif meshcat is not None:
+        from sotdrake.visualization import add_robot_visualizer
+
+        visualizer = add_robot_visualizer(bot, meshcat)
+    if meshcat is not None:
+        meshcat.SetCameraPose(camera_in_world=[1.5, -2.5, 1.4], target_in_world=[0.6, 0.0, 0.7])
+    diagram = builder.Build()
+    diagram.set_name("walk")
+    return Walk(diagram, bot, pg, sot, tasks, tracer, mode, spec, robot, physical, commands, visualizer,
+                servos if physical is not None else None)
+
+
+def _add_stack(bot: Robot, pg: PatternGenerator, sot: SOT, spec: WalkingRobot, arms: str, solver: str,
+               gains: tuple[float, float], servos: Servos | None, multibody: bool) -> tuple[dict, ComStabilizer | None]:
+    """walkromeo's stack, pushed in priority order, its desired values read from ``pg``: the waist's
+    height, roll and pitch, the soles, the CoM in x, y (through the CoM/ZMP stabiliser with the
+    physics mode's ``servos``, when its CoM gain is not 0; ``multibody``: the stabiliser's ZMP
+    reference is the plan's), the head, the waist's yaw and the arms. Returns the meta tasks by task
+    name and the stabiliser (None without)."""
+    connect = bot.builder.Connect
+    tracking_gain, posture_gain = gains
     tasks: dict = {}
 
     def six_d(name, op, frame, selection, pose, velocity, gain):
@@ -240,11 +275,11 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     com.feature.selec("011")
     com.gain.setConstant(tracking_gain)
     stabilizer = None
-    if physical is not None and servos.com_gain:
-        stabilizer = bot.add(ComStabilizer(pg.start.com[2], dt, servos.com_gain, servos.zmp_gain))
+    if servos is not None and servos.com_gain:
+        stabilizer = bot.add(ComStabilizer(pg.start.com[2], bot.dt, servos.com_gain, servos.zmp_gain))
         for port in ("com", "com_velocity", "com_acceleration"):
             connect(pg.GetOutputPort(port), stabilizer.GetInputPort(f"{port}_reference"))
-        if legs is not None:  # the pendulum's ZMP of a multibody plan is off the reference, the CoP belongs on it
+        if multibody:  # the pendulum's ZMP of a multibody plan is off the reference, the CoP belongs on it
             connect(pg.GetOutputPort("zmp_reference"), stabilizer.GetInputPort("zmp_reference"))
         connect(stabilizer.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
         connect(stabilizer.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
@@ -257,7 +292,7 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     if arms == "posture":
         # walkromeo's taskPosition: the arm joints towards half-sitting, at the bottom of the stack.
         posture = MetaTaskKinePosture(bot, "Arms")
-        plant = model.plant
+        plant = bot.model.plant
         selected = np.zeros(bot.dimension, dtype=bool)
         for j in plant.GetJointIndices():
             joint = plant.get_joint(j)
@@ -278,60 +313,52 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
             tasks[arm.task.name] = arm
     for name in tasks:
         sot.push(name)
+    return tasks, stabilizer
 
-    tracer = Tracer(builder, dt)
-    tracer.add(bot.device.GetOutputPort("state"), "q_device")
-    for port in ("com", "com_velocity", "com_acceleration", "zmp_reference", "feet", "support_phase", "velocity_command"):
-        tracer.add(pg.GetOutputPort(port), f"pg_{port}")
-    visualizer = None
-    if physical is not None:
-        from sotdrake.physics import ContactMonitor, DesiredState
 
-        plant = physical.plant
-        desired = bot.add(DesiredState(physical))
-        connect(bot.device.GetOutputPort("state"), desired.GetInputPort("position"))
-        control = bot.limitator if bot.limitator is not None else sot  # the command the device integrates
-        connect(control.GetOutputPort("control"), desired.GetInputPort("velocity"))
-        connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))
-        monitor = bot.add(ContactMonitor(physical))
-        connect(plant.get_contact_results_output_port(), monitor.get_input_port())
-        if servos.feedforward:
-            feedforward = bot.add(GravityFeedforward(model, physical.actuated_v, spec.feet, pg.gait.sole_centre), "feedforward_torque")
-            connect(bot.device.GetOutputPort("state"), feedforward.GetInputPort("position"))
-            connect(pg.GetOutputPort("zmp_reference"), feedforward.GetInputPort("zmp_reference"))
-            # (f_left, f_right, cop) → the normal forces (the CoP is NaN in the air: selected out, not multiplied by 0).
-            split = bot.add(Demultiplexer([2, 1, 2, 1, 2]), "sole_forces")
-            normal = bot.add(Multiplexer([1, 1]), "sole_normal_forces")
-            connect(monitor.GetOutputPort("feet"), split.get_input_port())
-            connect(split.get_output_port(1), normal.get_input_port(0))
-            connect(split.get_output_port(3), normal.get_input_port(1))
-            connect(normal.get_output_port(), feedforward.GetInputPort("normal_forces"))
-            tracer.add(feedforward.get_output_port(), "feedforward_torque")
-        else:
-            feedforward = bot.add(ConstantVectorSource(np.zeros(plant.num_actuated_dofs(physical.instance))), "feedforward_torque")
-        connect(feedforward.get_output_port(), plant.get_actuation_input_port(physical.instance))
-        tracer.add(plant.get_state_output_port(), "x_plant")
-        tracer.add(monitor.GetOutputPort("feet"), "contact")
-        if stabilizer is not None:
-            measured = bot.add(MeasuredCom(model))
-            connect(plant.get_state_output_port(), measured.GetInputPort("state"))
-            connect(measured.GetOutputPort("com"), stabilizer.GetInputPort("measured_com"))
-            cop = bot.add(Demultiplexer([6, 2]), "cop")
-            connect(monitor.GetOutputPort("feet"), cop.get_input_port())
-            connect(cop.get_output_port(1), stabilizer.GetInputPort("measured_cop"))
-            tracer.add(stabilizer.GetOutputPort("offset"), "stabilizer_offset")
-        if meshcat is not None:
-            from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
+def _connect_physics(bot: Robot, sot: SOT, pg: PatternGenerator, spec: WalkingRobot, physical, servos: Servos,
+                     stabilizer: ComStabilizer | None, tracer: Tracer, meshcat: Meshcat | None):
+    """The physics mode's plumbing: the device's ``q`` and the SoT's velocity as the servos' desired
+    state, the feed-forward torque (:class:`Servos`), the contact monitor, the stabiliser's measured
+    CoM and CoP, their traces; returns the Meshcat visualizer of the plant (None without ``meshcat``)."""
+    from sotdrake.physics import ContactMonitor, DesiredState
 
-            visualizer = MeshcatVisualizer.AddToBuilder(builder, physical.scene_graph, meshcat,
-                                                        MeshcatVisualizerParams(publish_period=1 / 60))
-    elif meshcat is not None:
-        from sotdrake.visualization import add_robot_visualizer
-
-        visualizer = add_robot_visualizer(bot, meshcat)
+    connect, model, plant = bot.builder.Connect, bot.model, physical.plant
+    desired = bot.add(DesiredState(physical))
+    connect(bot.device.GetOutputPort("state"), desired.GetInputPort("position"))
+    control = bot.limitator if bot.limitator is not None else sot  # the command the device integrates
+    connect(control.GetOutputPort("control"), desired.GetInputPort("velocity"))
+    connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))
+    monitor = bot.add(ContactMonitor(physical))
+    connect(plant.get_contact_results_output_port(), monitor.get_input_port())
+    if servos.feedforward:
+        feedforward = bot.add(GravityFeedforward(model, physical.actuated_v, spec.feet, pg.gait.sole_centre), "feedforward_torque")
+        connect(bot.device.GetOutputPort("state"), feedforward.GetInputPort("position"))
+        connect(pg.GetOutputPort("zmp_reference"), feedforward.GetInputPort("zmp_reference"))
+        # (f_left, f_right, cop) → the normal forces (the CoP is NaN in the air: selected out, not multiplied by 0).
+        split = bot.add(Demultiplexer([2, 1, 2, 1, 2]), "sole_forces")
+        normal = bot.add(Multiplexer([1, 1]), "sole_normal_forces")
+        connect(monitor.GetOutputPort("feet"), split.get_input_port())
+        connect(split.get_output_port(1), normal.get_input_port(0))
+        connect(split.get_output_port(3), normal.get_input_port(1))
+        connect(normal.get_output_port(), feedforward.GetInputPort("normal_forces"))
+        tracer.add(feedforward.get_output_port(), "feedforward_torque")
+    else:
+        feedforward = bot.add(ConstantVectorSource(np.zeros(plant.num_actuated_dofs(physical.instance))), "feedforward_torque")
+    connect(feedforward.get_output_port(), plant.get_actuation_input_port(physical.instance))
+    tracer.add(plant.get_state_output_port(), "x_plant")
+    tracer.add(monitor.GetOutputPort("feet"), "contact")
+    if stabilizer is not None:
+        measured = bot.add(MeasuredCom(model))
+        connect(plant.get_state_output_port(), measured.GetInputPort("state"))
+        connect(measured.GetOutputPort("com"), stabilizer.GetInputPort("measured_com"))
+        cop = bot.add(Demultiplexer([6, 2]), "cop")
+        connect(monitor.GetOutputPort("feet"), cop.get_input_port())
+        connect(cop.get_output_port(1), stabilizer.GetInputPort("measured_cop"))
+        tracer.add(stabilizer.GetOutputPort("offset"), "stabilizer_offset")
     if meshcat is not None:
-        meshcat.SetCameraPose(camera_in_world=[1.5, -2.5, 1.4], target_in_world=[0.6, 0.0, 0.7])
-    diagram = builder.Build()
-    diagram.set_name("walk")
-    return Walk(diagram, bot, pg, sot, tasks, tracer, mode, spec, robot, physical, commands, visualizer,
-                servos if physical is not None else None)
+        from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
+
+        return MeshcatVisualizer.AddToBuilder(bot.builder, physical.scene_graph, meshcat,
+                                              MeshcatVisualizerParams(publish_period=1 / 60))
+    return None

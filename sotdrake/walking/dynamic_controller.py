@@ -32,10 +32,9 @@ def build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | Non
     back at the touch-down (``addContact``), at the times of the plan (``attime``). Stack: the soles
     (6D, planned pose, velocity and acceleration), the CoM (planned position, velocity and
     acceleration), the waist's orientation (the plan's), the posture. ``gait``: its ``swing_profile``
-    is the caller's (:func:`build_diagram` without a gait: :data:`DYNAMIC_SWING_PROFILE`)."""
+    is the caller's (:func:`~sotdrake.walking.controller.build_diagram` without a gait: :data:`DYNAMIC_SWING_PROFILE`)."""
     from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
 
-    from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
     from sotdrake.dynamics.robot_dyn import RobotDyn
     from sotdrake.physics import ContactMonitor
 
@@ -56,34 +55,7 @@ def build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | Non
     start = start_of(bot.dynamic, bot.q0, spec.feet, spec.waist)
     pg = bot.add(PatternGenerator(start, dt, gait))
     pg.setSteps([(steps[1], 0.0, 0.0)] * int(steps[0]))
-    tasks: dict = {}
-    for side, frame in zip(SIDES, spec.feet, strict=True):
-        name = f"{side[0].upper()}F"
-        foot = MetaTaskDyn6d(name, bot, f"{side}-foot", frame, kp=DYNAMIC_GAINS["feet"])
-        connect(pg.GetOutputPort(f"{side}_foot_pose"), foot.featureDes.GetInputPort("pose_in"))
-        connect(pg.GetOutputPort(f"{side}_foot_velocity"), foot.featureDes.GetInputPort("spatial_velocity_in"))
-        # The task's rows are (translation, rotation): the plan's (ω̇, p̈) swapped.
-        split = bot.add(Demultiplexer([3, 3]), f"{side}_foot_acceleration_split")
-        swap = bot.add(Multiplexer([3, 3]), f"{side}_foot_reference_acceleration")
-        connect(pg.GetOutputPort(f"{side}_foot_acceleration"), split.get_input_port())
-        connect(split.get_output_port(1), swap.get_input_port(0))
-        connect(split.get_output_port(0), swap.get_input_port(1))
-        connect(swap.get_output_port(), foot.task.GetInputPort("reference_acceleration"))
-        tasks[foot.task.name] = foot
-    waist = MetaTaskDyn6d("Waist", bot, "waist", spec.waist, kp=DYNAMIC_GAINS["waist"])
-    waist.feature.selec("111000")  # its orientation: the plan's (level, turned with the feet)
-    connect(pg.GetOutputPort("waist_pose"), waist.featureDes.GetInputPort("pose_in"))
-    connect(pg.GetOutputPort("waist_velocity"), waist.featureDes.GetInputPort("spatial_velocity_in"))
-    com = MetaTaskDynCom(bot, kp=DYNAMIC_GAINS["com"])
-    connect(pg.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
-    connect(pg.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
-    connect(pg.GetOutputPort("com_acceleration"), com.task.GetInputPort("reference_acceleration"))
-    tasks[com.task.name] = com
-    tasks[waist.task.name] = waist
-    posture = MetaTaskDynPosture(bot, kp=DYNAMIC_GAINS["posture"])
-    tasks[posture.task.name] = posture
-    for name in tasks:
-        sot.push(name)
+    tasks = _dynamic_stack(bot, pg, spec)
     # The contact switches, at the plan's times (the plan the pattern generator makes at t = 0).
     plan = replan(initial_plan(start, gait, pg.input_cost), WalkCommand(steps=pg.settings().command.steps), 0.0, gait, pg.input_cost)
     commands = []
@@ -112,3 +84,41 @@ def build_dynamic(robot: str, spec: WalkingRobot, steps: tuple[int, float] | Non
     diagram = builder.Build()
     diagram.set_name("walk")
     return Walk(diagram, bot, pg, sot, tasks, tracer, "dynamic", spec, robot, bot.physical, commands, visualizer)
+
+
+def _dynamic_stack(bot, pg: PatternGenerator, spec: WalkingRobot) -> dict:
+    """The dynamic walk's stack, pushed in priority order, its references read from ``pg``: the
+    soles (6D: planned pose, velocity and acceleration), the CoM (planned position, velocity and
+    acceleration), the waist's orientation, the posture. Returns the meta tasks by task name."""
+    from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
+
+    sot, connect = bot.sot, bot.builder.Connect
+    tasks: dict = {}
+    for side, frame in zip(SIDES, spec.feet, strict=True):
+        name = f"{side[0].upper()}F"
+        foot = MetaTaskDyn6d(name, bot, f"{side}-foot", frame, kp=DYNAMIC_GAINS["feet"])
+        connect(pg.GetOutputPort(f"{side}_foot_pose"), foot.featureDes.GetInputPort("pose_in"))
+        connect(pg.GetOutputPort(f"{side}_foot_velocity"), foot.featureDes.GetInputPort("spatial_velocity_in"))
+        # The task's rows are (translation, rotation): the plan's (ω̇, p̈) swapped.
+        split = bot.add(Demultiplexer([3, 3]), f"{side}_foot_acceleration_split")
+        swap = bot.add(Multiplexer([3, 3]), f"{side}_foot_reference_acceleration")
+        connect(pg.GetOutputPort(f"{side}_foot_acceleration"), split.get_input_port())
+        connect(split.get_output_port(1), swap.get_input_port(0))
+        connect(split.get_output_port(0), swap.get_input_port(1))
+        connect(swap.get_output_port(), foot.task.GetInputPort("reference_acceleration"))
+        tasks[foot.task.name] = foot
+    waist = MetaTaskDyn6d("Waist", bot, "waist", spec.waist, kp=DYNAMIC_GAINS["waist"])
+    waist.feature.selec("111000")  # its orientation: the plan's (level, turned with the feet)
+    connect(pg.GetOutputPort("waist_pose"), waist.featureDes.GetInputPort("pose_in"))
+    connect(pg.GetOutputPort("waist_velocity"), waist.featureDes.GetInputPort("spatial_velocity_in"))
+    com = MetaTaskDynCom(bot, kp=DYNAMIC_GAINS["com"])
+    connect(pg.GetOutputPort("com"), com.featureDes.GetInputPort("value_in"))
+    connect(pg.GetOutputPort("com_velocity"), com.featureDes.GetInputPort("velocity_in"))
+    connect(pg.GetOutputPort("com_acceleration"), com.task.GetInputPort("reference_acceleration"))
+    tasks[com.task.name] = com
+    tasks[waist.task.name] = waist
+    posture = MetaTaskDynPosture(bot, kp=DYNAMIC_GAINS["posture"])
+    tasks[posture.task.name] = posture
+    for name in tasks:
+        sot.push(name)
+    return tasks

@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
 """The dynamic SoT against a peer on the same scenarios: sway and lift_leg.
 
-sotdrake: ``diagrams/talos_dynamics.py`` on ``RobotDynSimu`` (the solver integrates its own ``q̈``,
-as the peer does), ticks timed one by one around ``Simulator.AdvanceTo`` (Drake's framework and the
-Python entities included), by the wall clock and by the thread's CPU time (``time.thread_time``: on
+sotdrake: ``sotdrake.scenarios.talos_dynamics`` (``diagrams/talos_dynamics.py``) on ``RobotDynSimu`` (the solver
+integrates its own ``q̈``, as the peer does), ticks timed one by one around ``Simulator.AdvanceTo`` (Drake's
+framework and the Python entities included), by the wall clock and by the thread's CPU time (``time.thread_time``: on
 a loaded machine the wall clock also counts the waits for a core). Peer: placo's ``DynamicsSolver`` (C++ core over Pinocchio; weighted QP
 with "hard" and "soft" tasks, no strict priorities among soft ones), on the same URDF, the same
 CoM and foot references (the same Drake trajectories, sampled), the same gains (CoM K_p = 100,
@@ -28,14 +28,13 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(HERE.parent / "diagrams"))
 
-import talos_dynamics as td
 from host import Steal
 from scenario import DT, load_compiled_paths, pinocchio_half_sitting, urdf_file
 
 from sotdrake.dynamics.station import sole_rectangle
 from sotdrake.dynamics.trajectories import hold_move_hold
+from sotdrake.scenarios import talos_dynamics as td
 
 
 def _tick_numbers(wall: list[float], cpu: list[float]) -> dict:

@@ -42,9 +42,9 @@ def command_costs(repeat: int = 1000) -> dict[str, float]:
 
     from sotdrake.live.server import CommandServer
     from sotdrake.live.vocabulary import Vocabulary
-    from tests.conftest import load_diagram
+    from sotdrake.scenarios import talos_appli
 
-    appli = load_diagram("talos_appli").build_diagram(push_time=None)
+    appli = talos_appli.build_diagram(push_time=None)
     simulator = Simulator(appli.diagram)
     simulator.Initialize()
     server = CommandServer(Vocabulary(appli.diagram, appli), "bench")

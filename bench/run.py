@@ -55,7 +55,6 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
-sys.path.insert(0, str(HERE.parent / "diagrams"))
 
 from host import Steal
 from peers import finish
@@ -396,15 +395,15 @@ def _rtf(diagram, duration: float) -> dict:
 
 def physics_rtf(duration: float) -> dict:
     """Real-time factors of ``talos_physics --scenario reach``."""
-    import talos_physics
+    from sotdrake.scenarios import talos_physics
 
     return _rtf(talos_physics.build_diagram("reach").diagram, duration)
 
 
 def kinematic_rtf(duration: float) -> dict:
-    """Real-time factors of the tutorial (``diagrams/talos_appli.py``: its tracer, its ``attime``
+    """Real-time factors of the tutorial (``sotdrake.scenarios.talos_appli``: its tracer, its ``attime``
     push of the hand task), without Meshcat."""
-    import talos_appli
+    from sotdrake.scenarios import talos_appli
 
     return _rtf(talos_appli.build_diagram(None).diagram, duration)
 

@@ -15,16 +15,11 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import talos_appli
-import talos_physics
-
 from sotdrake import script_arguments, simulate, start_meshcat, write_control_graph
+from sotdrake.scenarios import talos_appli, talos_physics
 
 #: The hero camera: in front of TALOS, a little to its left and above, so that the right hand on
 #: the target is seen against the torso (from the right side, the reaching arm hides it).

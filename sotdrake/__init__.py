@@ -70,7 +70,7 @@ from .meta_tasks import (
 from .robot import Robot, add_sot, robot, talos
 from .robots import ROBOTS, TALOS_GRIPPERS, RobotModel, available_robots, load_robot, load_talos
 from .sequencer import attime
-from .simulation import save_figure, script_arguments, simulate, start, write_run
+from .simulation import report, save_figure, script_arguments, simulate, start, write_run
 from .solver_wrapper import Solver
 from .solvers import SOT, SolverKine
 from .stack_checks import check_stack
@@ -365,6 +365,7 @@ __all__ = [
     "polygon_margin",
     "random_cases",
     "replan",
+    "report",
     "robot",
     "run_collision_reach",
     "run_live",

@@ -177,3 +177,16 @@ def _write_bag(directory: Path, diagram: Diagram, trace: dict) -> Path:
         nq = width
     joints = sotdrake.ros.joint_coordinates(plant) if plant is not None else ([f"q{i}" for i in range(nq)], np.arange(nq))
     return sotdrake.ros.write_trace_bag(directory, {**trace, "q": np.asarray(trace[key])[:, :nq]}, joints)
+
+
+def report(summary: dict, leave_out: tuple[str, ...] = ("outputs",)) -> dict:
+    """Print a scenario's ``summary`` as every script of ``diagrams/`` does: indented JSON, flushed,
+    without the keys of ``leave_out``, at the top level and in the dictionaries it holds (by
+    default the paths :func:`write_run` wrote, ``outputs``); returns ``summary`` unchanged."""
+
+    def kept(mapping: dict) -> dict:
+        return {key: value for key, value in mapping.items() if key not in leave_out}
+
+    shown = {key: kept(value) if isinstance(value, dict) else value for key, value in kept(summary).items()}
+    print(json.dumps(shown, indent=2), flush=True)
+    return summary

@@ -74,7 +74,9 @@ def random_configuration(model, rng, spread: float = 0.5) -> np.ndarray:
 
 
 def load_diagram(script: str):
-    """Import ``diagrams/<script>.py`` as a module (registered, so that its dataclasses work)."""
+    """Import ``diagrams/<script>.py`` as a module (registered, so that its dataclasses work): only
+    for the scripts not moved to ``sotdrake.scenarios`` yet (``tests/test_scripts_layout.py`` lists
+    them); every other test imports its scenario from the package."""
     import importlib.util
     import sys
     from pathlib import Path

@@ -10,8 +10,8 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from sotdrake import TALOS_GRIPPERS, InvalidInput, MetaTaskKine6d, Robot, add_sot, gotoNd, hold_feet_and_com
+from sotdrake.scenarios import target_switch
 from sotdrake.solvers.acceleration_limits import acceleration_bounds, braking_velocity
-from tests.conftest import load_diagram
 
 
 def test_braking_velocity_stops_before_the_limit_in_discrete_steps(rng):
@@ -129,7 +129,7 @@ def test_acceleration_limits_are_checked_and_change_nothing(talos_model):
 
 
 def test_the_target_switch_script_bounds_the_peak_acceleration(tmp_path):
-    summary = load_diagram("target_switch").main(["--duration", "0.4", "--a-max", "25", "--out", str(tmp_path), "--quiet"])
+    summary = target_switch.main(["--duration", "0.4", "--a-max", "25", "--out", str(tmp_path), "--quiet"])
     with_, without = summary["with"]["peak_joint_acceleration_rad_s2"], summary["without"]["peak_joint_acceleration_rad_s2"]
     assert max(with_.values()) <= 25.0 * (1 + 1e-6)
     assert min(without.values()) > 100.0  # without: the velocity jumps in one tick, at the start and at the switch

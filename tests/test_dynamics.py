@@ -23,7 +23,7 @@ from sotdrake.robots import load_talos
 from sotdrake.solvers.equality_hierarchy import solve_equality_hierarchy
 from sotdrake.solvers.hqp import HierarchicalQP
 from sotdrake.task import TaskLevel
-from tests.conftest import load_diagram, random_configuration
+from tests.conftest import random_configuration
 
 SOLES = (("contactLF", "left_sole_link"), ("contactRF", "right_sole_link"))
 
@@ -581,7 +581,9 @@ def test_robot_dyn_simu_integrates_exactly(talos_model):
 # --- runs ----------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def dynamics_script():
-    return load_diagram("talos_dynamics")
+    from sotdrake.scenarios import talos_dynamics
+
+    return talos_dynamics
 
 
 def test_release_ramps_the_force_to_zero_then_frees_the_foot(standing):

@@ -36,7 +36,7 @@ from sotdrake.dynamics.terms import acceleration_bounds
 from sotdrake.entity import Entity
 from sotdrake.exceptions import FrameNotFound, InvalidInput, NotFound, SotError
 from sotdrake.robots import load_talos
-from tests.conftest import load_diagram, random_configuration
+from tests.conftest import random_configuration
 from tests.hostile import _plain
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -277,7 +277,9 @@ def test_a_refused_task_or_contact_leaves_the_builder_usable(talos_model):
 # --- the script's command line ---------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def dynamics_script():
-    return load_diagram("talos_dynamics")
+    from sotdrake.scenarios import talos_dynamics
+
+    return talos_dynamics
 
 
 def test_the_scripts_bad_arguments_stop_before_the_run(dynamics_script, tmp_path, capsys):

@@ -119,9 +119,9 @@ def test_far_reach_keeps_the_feet_to_a_micrometre():
     """The tutorial with a target 3 m ahead and the basic SOT: the hand asks 100 times the joints'
     limits; the feet stay within 1 µm over 0.3 s (33 µm without the curvature correction, 12.6 cm
     without the scaling)."""
-    from tests.conftest import load_diagram
+    from sotdrake.scenarios import talos_appli
 
-    appli = load_diagram("talos_appli")
+    appli = talos_appli
     handles = appli.build_diagram(target=(3.5, -0.2, 1.0), push_time=0.05)
     simulator, wall = appli.simulate(handles, 0.3, progress=False)
     summary, _ = appli.summarize(handles, simulator, 0.3, wall)

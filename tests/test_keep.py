@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from sotdrake.exceptions import InvalidInput
-from tests.conftest import load_diagram
+from sotdrake.scenarios import talos_physics
 
 
 @pytest.fixture(scope="module")
 def closed_loop():
-    physics = load_diagram("talos_physics")
+    physics = talos_physics
     run = physics.build_diagram("stand", loop="closed")
     context = run.diagram.CreateDefaultContext()
     plant = run.physical.plant

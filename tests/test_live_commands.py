@@ -17,7 +17,7 @@ from sotdrake.live.grammar import MAX_CHARACTERS, Command, EntityRef, parse_comm
 from sotdrake.live.server import CommandServer, ServerCounts
 from sotdrake.live.shell import Client
 from sotdrake.live.vocabulary import Vocabulary
-from tests.conftest import load_diagram
+from sotdrake.scenarios import talos_appli
 
 HOSTILE = [
     "__import__('os').system('touch X')",
@@ -77,7 +77,7 @@ def test_grammar_rejects_code(text, vocabulary):
 
 @pytest.fixture(scope="module")
 def appli():
-    module = load_diagram("talos_appli")
+    module = talos_appli
     return module.build_diagram(push_time=None)
 
 

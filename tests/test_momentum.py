@@ -161,9 +161,9 @@ def test_the_acceleration_task_damps_the_momentum(talos_model, rng):
 @pytest.mark.slow
 def test_the_push_script_brackets_each_settings_largest_push(tmp_path):
     """Both settings survive a 100 N push and fall under a 900 N one (0.1 s on the torso)."""
-    from tests.conftest import load_diagram
+    from sotdrake.scenarios import push_momentum
 
-    summary = load_diagram("push_momentum").main(["--forces", "100,900", "--steps", "0", "--duration", "2", "--damping", "10",
+    summary = push_momentum.main(["--forces", "100,900", "--steps", "0", "--duration", "2", "--damping", "10",
                                                   "--out", str(tmp_path), "--quiet"])
     for setting in ("without", "with"):
         assert summary[setting]["survived_n"] == 100.0 and summary[setting]["fell_n"] == 900.0

@@ -9,12 +9,12 @@ from pydrake.systems.framework import DiagramBuilder
 from sotdrake.exceptions import InvalidInput, SotError
 from sotdrake.physics import Push, add_physical_talos, check_pd_gains, set_pd_gains
 from sotdrake.robots import add_talos
-from tests.conftest import load_diagram
+from sotdrake.scenarios import talos_physics
 
 
 @pytest.fixture(scope="module")
 def physics():
-    return load_diagram("talos_physics")
+    return talos_physics
 
 
 def run(physics, scenario, duration, **kwargs):

@@ -18,11 +18,14 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def diagram_imports() -> dict[str, set[str]]:
-    """Every name ``diagrams/*.py`` imports from ``sotdrake`` or one of its modules → the scripts."""
+    """Every name the scenarios (``diagrams/*.py`` and the modules they run, ``sotdrake/scenarios/``)
+    import from ``sotdrake`` or one of its modules → the files. Not counted: the names of a
+    scenario module and of the walking controller, reached through their modules."""
     names: dict[str, set[str]] = {}
-    for script in sorted((ROOT / "diagrams").glob("*.py")):
+    for script in sorted([*(ROOT / "diagrams").glob("*.py"), *(ROOT / "sotdrake" / "scenarios").glob("[!_]*.py")]):
         for node in ast.walk(ast.parse(script.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "sotdrake":
+            if (isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "sotdrake"
+                    and not node.module.startswith(("sotdrake.scenarios", "sotdrake.walking.controller"))):
                 for alias in node.names:
                     names.setdefault(alias.name, set()).add(script.name)
     return names

@@ -39,7 +39,7 @@ def test_the_scripts_use_the_public_api():
     # The wings sotdrake imports on first use (dynamics, physics, walking …) are packages with their
     # own public names: a script may import those from the wing.
     wings = tuple(module.lstrip(".") for module in sotdrake._LAZY)
-    for script in (README.parent / "diagrams").glob("*.py"):
+    for script in [*(README.parent / "diagrams").glob("*.py"), *(README.parent / "sotdrake" / "scenarios").glob("[!_]*.py")]:
         text = script.read_text()
         assert re.search(r"^from sotdrake import", text, re.M), script.name
         for module, names in re.findall(r"from sotdrake\.([\w.]+) import \(?([\w, \n]+)\)?", text):

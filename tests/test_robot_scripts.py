@@ -12,12 +12,16 @@ OUTPUTS = ("trace.npz", "plots.png", "control_graph.dot", "summary.json")
 
 @pytest.fixture(scope="module")
 def kineromeo():
-    return load_diagram("kineromeo")
+    from sotdrake.scenarios import kineromeo as module
+
+    return module
 
 
 @pytest.fixture(scope="module")
 def pr2_reach():
-    return load_diagram("pr2_reach")
+    from sotdrake.scenarios import pr2_reach as module
+
+    return module
 
 
 def test_kineromeo_hand_closes_in_with_feet_and_com_held(kineromeo, tmp_path):
@@ -78,7 +82,9 @@ def test_pr2_reach_moves_the_base_and_the_arm_within_limits(pr2_reach, tmp_path)
 
 @pytest.fixture(scope="module")
 def dynromeo():
-    return load_diagram("dynromeo")
+    from sotdrake.scenarios import dynromeo as module
+
+    return module
 
 
 @pytest.fixture(scope="module")

@@ -479,7 +479,7 @@ def test_any_script_writes_its_trace_as_a_bag(tmp_path):
     ``write_run``): ``run/run.mcap`` holds every trace sample of ``q`` as ``/joint_states``, named by
     the script's robot, and each task's error."""
     from sotdrake.ros import joint_coordinates
-    from tests.conftest import load_diagram
+    from sotdrake.scenarios import kinesimple
 
     out = tmp_path / "out"
     run = subprocess.run([sys.executable, str(ROOT / "diagrams" / "kinesimple.py"), "--bag", "--no-meshcat", "--quiet",
@@ -488,7 +488,7 @@ def test_any_script_writes_its_trace_as_a_bag(tmp_path):
     assert run.returncode == 0, run.stderr
     trace = np.load(out / "trace.npz")
     messages = read_bag(out / "run")
-    names, indices = joint_coordinates(load_diagram("kinesimple").build_diagram().diagram.GetSubsystemByName("dynamic").plant)
+    names, indices = joint_coordinates(kinesimple.build_diagram().diagram.GetSubsystemByName("dynamic").plant)
     joints = messages["/joint_states"]
     assert len(joints) == trace["time"].size and list(joints[0][1].name) == names
     assert np.array_equal(np.array([m.position for _, m in joints]), trace["q"][:, indices])

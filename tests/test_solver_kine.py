@@ -12,6 +12,7 @@ from sotdrake.exceptions import InvalidInput, SolverError, StackError
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.robot import Robot, add_sot
 from sotdrake.robots import TALOS_GRIPPERS
+from sotdrake.scenarios import talos_appli
 from sotdrake.solvers import HierarchicalQP, SolverKine
 from tests.conftest import load_diagram
 
@@ -25,11 +26,10 @@ def test_tutorial_with_the_hqp_has_the_same_outcome():
     """The tutorial's reach under ``SolverKine``, judged as the tutorial's test judges it 2.5 s after
     the hand task is pushed. The push is at 0.2 s rather than 1 s: the idle ticks before it, where
     nothing may move, are 200 rather than 1000."""
-    appli = load_diagram("talos_appli")
-    handles = appli.build_diagram(solver="hqp", push_time=0.2)
+    handles = talos_appli.build_diagram(solver="hqp", push_time=0.2)
     assert isinstance(handles.sot, SolverKine)
-    simulator, wall = appli.simulate(handles, 2.7, progress=False)
-    summary, trace = appli.summarize(handles, simulator, 2.7, wall)
+    simulator, wall = talos_appli.simulate(handles, 2.7, progress=False)
+    summary, trace = talos_appli.summarize(handles, simulator, 2.7, wall)
     before = trace["time"] < 0.2
     assert before.sum() == 200 and np.ptp(trace["q"][before], axis=0).max() < 1e-12
     assert summary["final_stack"] == ["taskcontactRF", "taskcontactLF", "taskcom", "taskrh"]

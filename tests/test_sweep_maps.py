@@ -18,7 +18,9 @@ def reach_map():
 
 @pytest.fixture(scope="module")
 def push_map():
-    return load_diagram("push_map")
+    from sotdrake.scenarios import push_map as module
+
+    return module
 
 
 def test_reach_targets_fill_the_box(reach_map):

@@ -7,12 +7,12 @@ import re
 import numpy as np
 import pytest
 
-from tests.conftest import load_diagram
-
 
 @pytest.fixture(scope="module")
 def appli():
-    return load_diagram("talos_appli")
+    from sotdrake.scenarios import talos_appli as module
+
+    return module
 
 
 @pytest.mark.slow

@@ -20,8 +20,8 @@ from sotdrake import MetaTaskKine6d, add_sot, add_target_marker, attime, gotoNd,
 from sotdrake.live.grammar import parse_command
 from sotdrake.live.server import apply
 from sotdrake.live.vocabulary import Vocabulary
+from sotdrake.scenarios import talos_appli
 from sotdrake.target_marker import TARGET_COLOR, TargetMarker
-from tests.conftest import load_diagram
 from tests.test_readme import first_stack_code
 
 GRIPPER = RigidTransform([0.0, 0.0, -0.2])  # the README's point between the gripper's fingers
@@ -104,7 +104,7 @@ def test_the_marker_follows_gotoNd_in_attime_and_is_recorded_at_its_time():
 def test_the_marker_follows_gotoNd_from_the_live_channel():
     """The tutorial's diagram as ``talos_appli.py --live`` builds it; the command as the live shell
     sends it, applied to the running context as the live runner does."""
-    appli = load_diagram("talos_appli")
+    appli = talos_appli
     handles = appli.build_diagram(start_meshcat(), push_time=0.0)
     simulator = Simulator(handles.diagram)
     simulator.AdvanceTo(0.05)
@@ -125,7 +125,7 @@ def test_the_marker_follows_gotoNd_from_the_live_channel():
 
 
 def test_the_summary_error_is_against_the_last_target():
-    appli = load_diagram("talos_appli")
+    appli = talos_appli
     handles = appli.build_diagram(push_time=0.0)
     simulator = Simulator(handles.diagram)
     simulator.AdvanceTo(0.3)

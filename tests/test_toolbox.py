@@ -23,10 +23,10 @@ from sotdrake.introspection import displayAll, displaySignals, entities, entity,
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.publishing import add_signal_publisher, add_state_publisher
 from sotdrake.robot import Robot, add_sot
+from sotdrake.scenarios import kinesimple, posture_gaze
 from sotdrake.sequencer import attime
 from sotdrake.task import TaskPD
 from sotdrake.tracing import Tracer
-from tests.conftest import load_diagram
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -279,7 +279,7 @@ def test_interactive_runner_steps_ticks_and_fires_attime(talos_model):
 
 
 def test_kinesimple_example(tmp_path):
-    summary = load_diagram("kinesimple").main(["--duration", "2.5", "--out", str(tmp_path), "--no-meshcat", "--quiet"])
+    summary = kinesimple.main(["--duration", "2.5", "--out", str(tmp_path), "--no-meshcat", "--quiet"])
     assert summary["hand_error_m"] < 1e-3 and summary["min_joint_limit_margin_rad"] > 0
     for name in ("trace.npz", "trace.csv", "plots.png", "control_graph.dot", "summary.json"):
         assert (tmp_path / name).is_file()
@@ -287,7 +287,7 @@ def test_kinesimple_example(tmp_path):
 
 @pytest.mark.slow
 def test_posture_gaze_example_and_its_feed_forward(tmp_path):
-    gaze = load_diagram("posture_gaze")
+    gaze = posture_gaze
     follow = gaze.main(["--duration", "3", "--out", str(tmp_path / "ff"), "--no-meshcat", "--quiet"])
     lag = gaze.main(["--duration", "3", "--out", str(tmp_path / "noff"), "--no-meshcat", "--quiet", "--no-feedforward"])
     assert follow["gaze_error_rad_after_2s_max"] < 1e-3

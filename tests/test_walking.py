@@ -27,7 +27,6 @@ from sotdrake.walking import (
     support_polygon,
 )
 from sotdrake.walking.com_planner import plan_com
-from tests.conftest import load_diagram
 
 GAIT = GaitParameters()
 # TALOS in half-sitting: soles 0.17 m apart, CoM 0.877 m high.
@@ -244,7 +243,8 @@ def test_feature6d_desired_pose_input_overrides_the_setting():
 
 # --- a short kinematic walk -----------------------------------------------------------------
 def test_short_kinematic_walk_tracks_feet_and_com_below_1mm():
-    walk_script = load_diagram("walk")
+    from sotdrake.scenarios import walk as walk_script
+
     # A quick start (0.4 s) and a 2 ms tick keep it short; the basic SOT (no inequality task).
     walk = walk_script.build_diagram(velocity=(0.1, 0.0, 0.0), solver="cascade", dt=2e-3,
                                      gait=GaitParameters(start_duration=0.4))
@@ -264,7 +264,9 @@ def test_short_kinematic_walk_tracks_feet_and_com_below_1mm():
 def test_short_kinematic_walk_with_walkromeos_arm_posture_holds_the_arms():
     """``arms='posture'``: walkromeo's taskPosition, the arm joints held at half-sitting by a posture
     task at the bottom of the stack; the walk tracks as well, the arms do not move."""
-    walk_script = load_diagram("walk")
+    from sotdrake.scenarios import walk as walk_script
+    from sotdrake.walking.controller import ARM_JOINTS
+
     walk = walk_script.build_diagram(velocity=(0.1, 0.0, 0.0), solver="cascade", dt=2e-3,
                                      gait=GaitParameters(start_duration=0.4), arms="posture")
     assert walk.sot.stack()[-1] == "taskArms"
@@ -275,7 +277,7 @@ def test_short_kinematic_walk_with_walkromeos_arm_posture_holds_the_arms():
     assert summary["max_foot_tracking_error_m"] < 1e-3 and summary["max_com_tracking_error_m"] < 1e-3
     plant = walk.robot.model.plant
     arms = [plant.get_joint(j).position_start() for j in plant.GetJointIndices()
-            if plant.get_joint(j).num_velocities() == 1 and walk_script.ARM_JOINTS.search(plant.get_joint(j).name())]
+            if plant.get_joint(j).num_velocities() == 1 and ARM_JOINTS.search(plant.get_joint(j).name())]
     assert len(arms) == 14
     q0 = walk.robot.device.initial_position
     assert np.abs(trace["q_device"][:, arms] - q0[arms]).max() < 1e-4

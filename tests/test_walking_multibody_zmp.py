@@ -11,13 +11,14 @@ from pydrake.systems.analysis import Simulator
 from sotdrake.walking import GaitParameters, WalkCommand, initial_plan, leg_masses, motion_zmp, replan, zmp_from_momentum
 from sotdrake.walking.com_planner import GRAVITY
 from sotdrake.walking.multibody_zmp import point_masses_zmp
-from tests.conftest import load_diagram
 from tests.test_walking import START
 
 
 @pytest.fixture(scope="module")
 def walk_script():
-    return load_diagram("walk")
+    from sotdrake.scenarios import walk
+
+    return walk
 
 
 @pytest.fixture(scope="module")

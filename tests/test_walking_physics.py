@@ -12,7 +12,7 @@ from pydrake.systems.analysis import Simulator
 
 from sotdrake.exceptions import InvalidInput
 from sotdrake.walking.gravity_feedforward import GravityFeedforward, left_share, support_wrench
-from tests.conftest import load_diagram, random_configuration
+from tests.conftest import random_configuration
 
 
 @pytest.mark.parametrize("forces, zmp", [((400.0, 0.0), (0.0, 0.0)), ((0.0, 400.0), (0.0, 0.0)), ((400.0, 400.0), (0.0, 0.03)),
@@ -74,7 +74,9 @@ def test_left_share_is_the_zmp_along_the_feet():
 # --- the walk's robots ----------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def walk_script():
-    return load_diagram("walk")
+    from sotdrake.scenarios import walk
+
+    return walk
 
 
 @pytest.mark.slow

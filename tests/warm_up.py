@@ -25,12 +25,12 @@ def solvers() -> None:
 
 
 def robot() -> None:
-    from tests.conftest import load_diagram
+    from sotdrake.scenarios import talos_appli, talos_dynamics
 
     with tempfile.TemporaryDirectory() as out:
         quiet = ["--no-meshcat", "--quiet", "--duration", "0.01"]
-        load_diagram("talos_appli").main(["--solver", "hqp", *quiet, "--out", str(Path(out) / "appli")])
-        load_diagram("talos_dynamics").main(["--scenario", "stand", "--device", "dynsimu", *quiet, "--out", str(Path(out) / "dyn")])
+        talos_appli.main(["--solver", "hqp", *quiet, "--out", str(Path(out) / "appli")])
+        talos_dynamics.main(["--scenario", "stand", "--device", "dynsimu", *quiet, "--out", str(Path(out) / "dyn")])
 
 
 if __name__ == "__main__":

@@ -2,7 +2,8 @@
 ``build_diagram`` run live (see :mod:`sotdrake.live`).
 
 ``build_diagram`` is called with ``meshcat=`` when it takes it; the script's ``summarize(handles,
-simulator, duration, wall)`` is used for the summary when it has one.
+simulator, duration, wall)`` (or that of the module its ``build_diagram`` comes from, a scenario of
+:mod:`sotdrake.scenarios`) is used for the summary when it has one.
 """
 
 from __future__ import annotations
@@ -48,7 +49,9 @@ def main(argv: list[str] | None = None) -> dict:
     meshcat = None if args.no_meshcat else live_meshcat(args.meshcat_port)
     build = module.build_diagram
     handles = build(meshcat=meshcat) if "meshcat" in inspect.signature(build).parameters else build()
-    summarize = getattr(module, "summarize", None)
+    # A thin script imports its scenario's build_diagram: its summarize is the scenario module's.
+    scenario = sys.modules.get(getattr(build, "__module__", None) or "", module)
+    summarize = getattr(module, "summarize", None) or getattr(scenario, "summarize", None)
     if summarize is not None and len(inspect.signature(summarize).parameters) != 4:
         summarize = None
     out = args.out or Path("out") / f"{args.script.stem}_live"

@@ -1,0 +1,61 @@
+"""Scenarios live in the package, scripts stay thin: every ``diagrams/*.py`` is at most
+:data:`MAX_LINES` lines (argument parsing, build, run, report), and no test or bench file loads a
+script of ``diagrams/`` by its path: they import ``sotdrake`` (``sotdrake.scenarios.<name>``,
+``sotdrake.walking.controller``). Running a script in a subprocess, as a user does, is allowed."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+MAX_LINES = 150
+#: Scripts not converted yet (being edited elsewhere): they may still be long and loaded by path.
+#: Each goes from here to ``sotdrake/scenarios/`` next; this set only shrinks.
+NOT_YET_CONVERTED = {"sot_concept", "planche", "talos_collisions", "reach_map", "pr2_shelf"}
+#: How a file loads a script by path: the test helper, an import spec, ``diagrams/`` on ``sys.path``.
+LOADS = {
+    "load_diagram": re.compile(r"""load_diagram\(\s*["'](\w+)["']"""),
+    "spec_from_file_location": re.compile(r"spec_from_file_location\([^)]*diagrams"),
+    "sys.path": re.compile(r"""sys\.path\.(?:insert|append)\([^\n]*["']diagrams["']"""),
+}
+
+
+def script_lines() -> dict[str, int]:
+    return {path.stem: len(path.read_text().splitlines()) for path in sorted((ROOT / "diagrams").glob("*.py"))}
+
+
+def test_every_script_is_thin():
+    lines = script_lines()
+    assert len(lines) >= 10
+    long = {name: n for name, n in lines.items() if n > MAX_LINES and name not in NOT_YET_CONVERTED}
+    assert not long, f"scripts over {MAX_LINES} lines (move the scenario to sotdrake/scenarios/): {long}"
+
+
+def loads_by_path(text: str) -> list[str]:
+    """What ``text`` loads from ``diagrams/`` by path, but the scripts not converted yet: the
+    ``load_diagram`` calls by script name, every other way by its kind."""
+    found = [name for name in LOADS["load_diagram"].findall(text) if name not in NOT_YET_CONVERTED]
+    for kind in ("spec_from_file_location", "sys.path"):
+        found += [kind] * len(LOADS[kind].findall(text))
+    return found
+
+
+def test_the_check_sees_a_script_loaded_by_path():
+    assert loads_by_path('appli = load_diagram("talos_appli")') == ["talos_appli"]
+    assert loads_by_path('sys.path.insert(0, str(HERE.parent / "diagrams"))') == ["sys.path"]
+    assert loads_by_path('spec = importlib.util.spec_from_file_location(name, ROOT / "diagrams" / "x.py")') == [
+        "spec_from_file_location"]
+    assert loads_by_path('subprocess.run([sys.executable, str(ROOT / "diagrams" / "walk.py")])') == []
+    assert loads_by_path('load_diagram("planche")') == []
+
+
+def test_no_test_or_bench_file_loads_a_script_by_path():
+    # conftest defines load_diagram (for the scripts not converted yet); sweep_speedup times
+    # reach_map's sweep, one of them (it puts diagrams/ on sys.path for it).
+    allowed = {ROOT / "tests" / "conftest.py", ROOT / "bench" / "sweep_speedup.py"}
+    files = [path for folder in ("tests", "bench") for path in sorted((ROOT / folder).glob("*.py")) if path not in allowed]
+    assert len(files) > 50
+    offenders = {path.relative_to(ROOT).as_posix(): found for path in files
+                 if path.name != Path(__file__).name and (found := loads_by_path(path.read_text()))}
+    assert not offenders, f"import sotdrake.scenarios.<name> instead of loading diagrams/ by path: {offenders}"

@@ -38,7 +38,11 @@ t (s)       ``attime`` command
             double support; the rest posture brings the robot back to half-sitting
 ==========  ===============================================================================
 
-    python diagrams/planche.py --out out/planche          # --variant reduced
+``--solver dyn`` runs the same sequence on the dynamic SoT as the seed did (``RobotDynSimu`` +
+``SolverDyn``, ``planche_dyn.py``): on Romeo's model it falls while the right leg rises, and its
+summary says when, by which criterion, in which step and with which joints at their torque limits.
+
+    python diagrams/planche.py --out out/planche          # --variant reduced; --solver dyn
 
 writes ``recording.html``, ``trace.npz``, ``plots.png``, ``control_graph.svg`` and ``summary.json``.
 """

@@ -30,7 +30,11 @@ one with the right arm's manipulability kept above 0.01 by an inequality above t
 ``MetaTaskKineManipulability``), ``extra_joint_limits`` and ``extra_joint_limits_cascade`` (the
 basic ``SOT``).
 
-    python diagrams/sot_concept.py --config seed --out out/concept     # or all, extra, or one name
+``--robot romeo`` runs the seed configurations on the original's robot (sot-romeo's ``small``
+model, the original's grip (0.07, −0.02, 0); seed4 limits the right shoulder yaw, which the reach
+turns past 0).
+
+    python diagrams/sot_concept.py --config seed --out out/concept     # or all, extra, or one name; --robot romeo
 
 writes ``DIR/summary.json`` (one entry per configuration), ``DIR/plots.png``,
 ``DIR/control_graph.svg`` and ``DIR/<config>/recording.html`` + ``trace.npz``.

@@ -385,6 +385,10 @@ def main_dynamic(args) -> dict:
         if not args.slow > 0:
             raise SystemExit(f"--slow must be > 0, got {args.slow}")
         options = replace(options, slow=args.slow)
+    if args.effort is not None:
+        if not args.effort > 0:
+            raise SystemExit(f"--effort must be > 0, got {args.effort}")
+        options = replace(options, effort=args.effort)
     if args.duration_given is None:
         args.duration = TIMES[args.variant]["contact"] * options.slow + 2.0
     meshcat = start(args)
@@ -407,6 +411,8 @@ def main(argv: list[str] | None = None) -> dict:
                         help="--solver dyn: the left contact's rectangle, the whole sole (default) or the seed's 6 × 3 cm")
     parser.add_argument("--slow", type=float, default=None,
                         help="--solver dyn: every time of the sequence × SLOW (default 1)")
+    parser.add_argument("--effort", type=float, default=None,
+                        help="--solver dyn, a diagnostic: Romeo's torque limits × EFFORT (default 1, the model's)")
     args = parser.parse_args(argv)
     args.duration_given = args.duration
     if args.duration is None:

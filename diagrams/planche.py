@@ -39,7 +39,7 @@ t (s)       ``attime`` command
 ==========  ===============================================================================
 
 ``--solver dyn`` runs the same sequence on the dynamic SoT as the seed did (``RobotDynSimu`` +
-``SolverDyn``, ``planche_dyn.py``): on Romeo's model it falls while the right leg rises, and its
+``SolverDyn``, ``planche_dyn.py``): on Romeo's model it falls as the right leg goes back, and its
 summary says when, by which criterion, in which step and with which joints at their torque limits.
 
     python diagrams/planche.py --out out/planche          # --variant reduced; --solver dyn

@@ -9,8 +9,9 @@ The same sequence as the kinematic run (:mod:`planche`), its tasks as accelerati
   around the ankle (``shrink=False``: the whole sole);
 * ``taskCom``: the CoM over the left ankle before the right foot leaves (minimum jerk, 0.2 s to
   ``lift`` − 0.2 s), back over both feet once the right foot is a contact again;
-* ``taskrf`` (translation only, the seed's masks): up to (x, 0, 0.65), back to (−0.55, 0, 0.7),
-  later to (−0.1, −0.1, 0.25), 7 cm above its start and onto it, each a minimum-jerk move;
+* ``taskrf`` (the right ankle's translation, the seed's rows): Y, Z up to (0, 0.65), then X, Z back
+  to (−0.55, 0.7), later X, Y, Z to (−0.1, −0.1, 0.25), 7 cm above its start and onto it, each a
+  minimum-jerk move;
 * ``taskChest`` (orientation only): 80° forward, a step for the PD (gain ``chest_kp``);
 * ``taskBody`` (a posture on the selected joints, ``gotoq``): the body straight, the arms out and
   the foot extended in the full variant, folded back;
@@ -51,8 +52,8 @@ RELEASE_RAMP = 0.3  # rmContact RF: the force ramped to 0 over this (s)
 @dataclass(frozen=True)
 class DynOptions:
     """The remedies one may try: gains (``k_p``, 1/s²), the CoM's rise, the support, the phases'
-    speed. The defaults are the best measured (the right ankle the highest before the fall); the
-    seed's own: ``DynOptions(rf_kp=100, com_rise=0, shrink=True)``."""
+    speed, and (a diagnostic) the torque limits. The defaults are the best measured (the longest on
+    one foot at the seed's pace); the seed's own: ``DynOptions(com_rise=0, shrink=True)``."""
 
     com_kp: float = 100.0
     rf_kp: float = 100.0
@@ -90,6 +91,57 @@ def _shrunken(robot: RobotDyn, half: tuple[float, float, float, float]) -> tuple
     return (x + x_min, x + x_max, y + y_min, y + y_max)
 
 
+def _foot_task(robot: RobotDyn, T: dict, consts: dict, options: DynOptions):
+    """``taskrf`` on the right ankle's translation, fed by minimum-jerk moves through the seed's
+    targets (m, world); returns the task and its reference's output port."""
+    taskrf = MetaTaskDyn6d("rf", robot, "rf", robot.OperationalPointsMap["right-ankle"], kp=options.rf_kp)
+    taskrf.feature.selec("000111")
+    p0 = taskrf.initial_pose().translation()
+    up = np.array([p0[0], consts["UP"][1], consts["UP"][2]])
+    extend = np.array([consts["EXTEND"][0], up[1], consts["EXTEND"][2]])
+    above = p0 + [0.0, 0.0, 0.07]
+    move = 1.0 * options.slow
+    rf_path = minimum_jerk_moves(p0, [(T["lift"] + RELEASE_RAMP, T["extend"], up), (T["extend"], T["extend"] + 1.2 * options.slow, extend),
+                                      (T["back"], T["above"] - 0.5 * options.slow, np.asarray(consts["BACK"], dtype=float)),
+                                      (T["above"], T["above"] + move, above), (T["ground"], T["ground"] + move, p0)])
+    rf_ports = trajectory_ports(robot, rf_path, "rf_trajectory")
+    connect = robot.builder.Connect
+    connect(rf_ports[0], taskrf.featureDes.GetInputPort("translation_in"))
+    connect(rf_ports[1], taskrf.featureDes.GetInputPort("translation_velocity_in"))
+    return taskrf, rf_ports[0]
+
+
+def _com_task(robot: RobotDyn, T: dict, com0: np.ndarray, over_left: np.ndarray, options: DynOptions) -> MetaTaskDynCom:
+    """The CoM over the left ankle before the lift, back to its start once both feet are down."""
+    connect = robot.builder.Connect
+    taskCom = MetaTaskDynCom(robot, kp=options.com_kp)
+    ramp = 1.5 * options.slow
+    com_path = minimum_jerk_moves(com0, [(0.2, T["lift"] - 0.2, over_left), (T["contact"], T["contact"] + ramp, com0)])
+    ports = trajectory_ports(robot, com_path, "com_trajectory")
+    connect(ports[0], taskCom.featureDes.GetInputPort("value_in"))
+    connect(ports[1], taskCom.featureDes.GetInputPort("velocity_in"))
+    connect(ports[2], taskCom.task.GetInputPort("reference_acceleration"))
+    return taskCom
+
+
+def _record(robot: RobotDyn, dt: float, rf_reference, meshcat) -> tuple[Tracer, object]:
+    """The tracer (state, CoM, torques, contact wrenches, the foot's reference) and the viewer."""
+    builder, sot = robot.builder, robot.sot
+    tracer = Tracer(builder, dt)
+    tracer.add(robot.state_port, "x")
+    tracer.add(robot.dynamic.GetOutputPort("com"), "com")
+    tracer.add(sot.GetOutputPort("torque"), "torque")
+    tracer.add(sot.GetOutputPort("wrenches"), "wrenches")
+    tracer.add(rf_reference, "rf_reference")
+    visualizer = None
+    if meshcat is not None:
+        from sotdrake import add_robot_visualizer
+
+        visualizer = add_robot_visualizer(robot, meshcat)
+        meshcat.SetCameraPose(camera_in_world=[0.4, -1.9, 0.9], target_in_world=[0.0, 0.0, 0.5])
+    return tracer, visualizer
+
+
 def build(variant: str, times: dict, gotoq, consts: dict, options: DynOptions = DynOptions(), meshcat=None,
           dt: float = 5e-3) -> PlancheDyn:
     """The dynamic diagram. ``times`` is the kinematic variant's sequence (s, scaled by
@@ -105,7 +157,7 @@ def build(variant: str, times: dict, gotoq, consts: dict, options: DynOptions = 
         actuator = model.plant.get_joint_actuator(JointActuatorIndex(i))
         actuator.set_effort_limit(actuator.effort_limit() * options.effort)
     robot = RobotDyn(builder, model, "dynsimu", dt)
-    sot, connect, q0 = robot.sot, builder.Connect, robot.q0
+    sot, q0 = robot.sot, robot.q0
     support = _shrunken(robot, consts["SHRUNKEN_SUPPORT"]) if options.shrink else robot.sole_rectangle("left-sole")
     contactLF = robot.add_contact("contactLF", "left-sole", rectangle=support)
     contactRF = robot.add_contact("contactRF", "right-sole")
@@ -117,31 +169,13 @@ def build(variant: str, times: dict, gotoq, consts: dict, options: DynOptions = 
     left = robot.dynamic.pose_at("left-ankle", q0).translation()
     right = robot.dynamic.pose_at("right-ankle", q0).translation()
     over_left = np.array([left[0], left[1], com0[2] + options.com_rise])
-    taskCom = MetaTaskDynCom(robot, kp=options.com_kp)
-    ramp = 1.5 * options.slow
-    com_path = minimum_jerk_moves(com0, [(0.2, T["lift"] - 0.2, over_left), (T["contact"], T["contact"] + ramp, com0)])
-    ports = trajectory_ports(robot, com_path, "com_trajectory")
-    connect(ports[0], taskCom.featureDes.GetInputPort("value_in"))
-    connect(ports[1], taskCom.featureDes.GetInputPort("velocity_in"))
-    connect(ports[2], taskCom.task.GetInputPort("reference_acceleration"))
+    taskCom = _com_task(robot, T, com0, over_left, options)
     sot.push(taskCom.task.name)
     taskRest = MetaTaskDynPosture(robot, "rest", kp=options.rest_kp)
     sot.push(taskRest.task.name)
 
     # --- the right foot (translation only), the chest (orientation only), the body posture
-    taskrf = MetaTaskDyn6d("rf", robot, "rf", robot.OperationalPointsMap["right-ankle"], kp=options.rf_kp)
-    taskrf.feature.selec("000111")
-    p0 = taskrf.initial_pose().translation()
-    up = np.array([p0[0], consts["UP"][1], consts["UP"][2]])
-    extend = np.array([consts["EXTEND"][0], up[1], consts["EXTEND"][2]])
-    above = p0 + [0.0, 0.0, 0.07]
-    move = 1.0 * options.slow
-    rf_path = minimum_jerk_moves(p0, [(T["lift"] + RELEASE_RAMP, T["extend"], up), (T["extend"], T["extend"] + 1.2 * options.slow, extend),
-                                      (T["back"], T["above"] - 0.5 * options.slow, np.asarray(consts["BACK"], dtype=float)),
-                                      (T["above"], T["above"] + move, above), (T["ground"], T["ground"] + move, p0)])
-    rf_ports = trajectory_ports(robot, rf_path, "rf_trajectory")
-    connect(rf_ports[0], taskrf.featureDes.GetInputPort("translation_in"))
-    connect(rf_ports[1], taskrf.featureDes.GetInputPort("translation_velocity_in"))
+    taskrf, rf_reference = _foot_task(robot, T, consts, options)
     taskChest = MetaTaskDyn6d("chest", robot, "chest", robot.OperationalPointsMap["chest"], kp=options.chest_kp)
     taskChest.feature.selec("111000")
     chest0 = taskChest.initial_pose()
@@ -177,18 +211,7 @@ def build(variant: str, times: dict, gotoq, consts: dict, options: DynOptions = 
            "remove the body posture, rf back (X, Y, Z)")
     attime(T["contact"], lambda: (sot.remove(taskrf.task.name), sot.addContact(contactRF)), "RF to contact")
 
-    tracer = Tracer(builder, dt)
-    tracer.add(robot.state_port, "x")
-    tracer.add(robot.dynamic.GetOutputPort("com"), "com")
-    tracer.add(sot.GetOutputPort("torque"), "torque")
-    tracer.add(sot.GetOutputPort("wrenches"), "wrenches")
-    tracer.add(rf_ports[0], "rf_reference")
-    visualizer = None
-    if meshcat is not None:
-        from sotdrake import add_robot_visualizer
-
-        visualizer = add_robot_visualizer(robot, meshcat)
-        meshcat.SetCameraPose(camera_in_world=[0.4, -1.9, 0.9], target_in_world=[0.0, 0.0, 0.5])
+    tracer, visualizer = _record(robot, dt, rf_reference, meshcat)
     diagram = builder.Build()
     diagram.set_name("planche_dyn")
     return PlancheDyn(diagram, robot, tracer, contactLF, contactRF, support, T, options, com0, visualizer,

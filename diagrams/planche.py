@@ -38,7 +38,11 @@ t (s)       ``attime`` command
             double support; the rest posture brings the robot back to half-sitting
 ==========  ===============================================================================
 
-    python diagrams/planche.py --out out/planche          # --variant reduced
+``--solver dyn`` runs the same sequence on the dynamic SoT as the seed did (``RobotDynSimu`` +
+``SolverDyn``, ``planche_dyn.py``): on Romeo's model it falls as the right leg goes back, and its
+summary says when, by which criterion, in which step and with which joints at their torque limits.
+
+    python diagrams/planche.py --out out/planche          # --variant reduced; --solver dyn
 
 writes ``recording.html``, ``trace.npz``, ``plots.png``, ``control_graph.svg`` and ``summary.json``.
 """
@@ -47,7 +51,8 @@ from __future__ import annotations
 
 import json
 import re
-from dataclasses import dataclass
+import sys
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -348,13 +353,72 @@ def plot(trace: dict, summary: dict, path: Path, T: dict = FULL) -> Path:
     return save_figure(fig, path)
 
 
+def dynamic():
+    """The dynamic run's module (``planche_dyn.py``, next to this script)."""
+    import importlib
+
+    here = str(Path(__file__).resolve().parent)
+    if here not in sys.path:
+        sys.path.insert(0, here)
+    return importlib.import_module("planche_dyn")
+
+
+DYN_CONSTANTS = {"SHRUNKEN_SUPPORT": SHRUNKEN_SUPPORT, "UP": UP, "EXTEND": EXTEND, "BACK": BACK, "CHEST": CHEST,
+                 "MAX_EXT": MAX_EXT, "ARMS_OUT": ARMS_OUT, "FOOT_EXTENSION": FOOT_EXTENSION, "HEAD_PITCH": HEAD_PITCH,
+                 "CHAINS": CHAINS}
+
+
+def build_dynamic(variant: str = "full", options=None, meshcat: Meshcat | None = None):
+    """``--solver dyn``: the same sequence on ``RobotDynSimu`` + ``SolverDyn`` (``planche_dyn.py``)."""
+    if variant not in TIMES:
+        raise ValueError(f"variant must be one of {sorted(TIMES)}, got {variant!r}")
+    dyn = dynamic()
+    return dyn.build(variant, TIMES[variant], gotoq, DYN_CONSTANTS, options or dyn.DynOptions(), meshcat, DT)
+
+
+def main_dynamic(args) -> dict:
+    dyn = dynamic()
+    options = dyn.DynOptions()
+    if args.support is not None:
+        options = replace(options, shrink=args.support == "shrunken")
+    if args.slow is not None:
+        if not args.slow > 0:
+            raise SystemExit(f"--slow must be > 0, got {args.slow}")
+        options = replace(options, slow=args.slow)
+    if args.effort is not None:
+        if not args.effort > 0:
+            raise SystemExit(f"--effort must be > 0, got {args.effort}")
+        options = replace(options, effort=args.effort)
+    if args.duration_given is None:
+        args.duration = TIMES[args.variant]["contact"] * options.slow + 2.0
+    meshcat = start(args)
+    run = build_dynamic(args.variant, options, meshcat)
+    simulator, cpu = dyn.simulate(run, args.duration, not args.quiet)
+    summary, trace = dyn.summarize(run, simulator, args.duration, cpu)
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer, bag=args.bag)
+    print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
+    return summary
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = script_arguments(__doc__, "out/planche", duration=None)
     parser.add_argument("--variant", choices=sorted(TIMES), default="full",
                         help="full (the seed's: arms and foot extended, 21 s) or reduced (without them, 16 s)")
+    parser.add_argument("--solver", choices=("kine", "dyn"), default="kine",
+                        help="kine (SolverKine, the default) or dyn (RobotDynSimu + SolverDyn, as the seed ran it)")
+    parser.add_argument("--support", choices=("sole", "shrunken"), default=None,
+                        help="--solver dyn: the left contact's rectangle, the whole sole (default) or the seed's 6 × 3 cm")
+    parser.add_argument("--slow", type=float, default=None,
+                        help="--solver dyn: every time of the sequence × SLOW (default 1)")
+    parser.add_argument("--effort", type=float, default=None,
+                        help="--solver dyn, a diagnostic: Romeo's torque limits × EFFORT (default 1, the model's)")
     args = parser.parse_args(argv)
+    args.duration_given = args.duration
     if args.duration is None:
         args.duration = TIMES[args.variant]["contact"] + 2.0
+    if args.solver == "dyn":
+        return main_dynamic(args)
     meshcat = start(args)
     run = build_diagram(meshcat, variant=args.variant)
     simulator, wall = simulate(run.diagram, args.duration, run.visualizer, not args.quiet)

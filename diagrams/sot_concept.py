@@ -30,7 +30,11 @@ one with the right arm's manipulability kept above 0.01 by an inequality above t
 ``MetaTaskKineManipulability``), ``extra_joint_limits`` and ``extra_joint_limits_cascade`` (the
 basic ``SOT``).
 
-    python diagrams/sot_concept.py --config seed --out out/concept     # or all, extra, or one name
+``--robot romeo`` runs the seed configurations on the original's robot (sot-romeo's ``small``
+model, the original's grip (0.07, −0.02, 0); seed4 limits the right shoulder yaw, which the reach
+turns past 0).
+
+    python diagrams/sot_concept.py --config seed --out out/concept     # or all, extra, or one name; --robot romeo
 
 writes ``DIR/summary.json`` (one entry per configuration), ``DIR/plots.png``,
 ``DIR/control_graph.svg`` and ``DIR/<config>/recording.html`` + ``trace.npz``.
@@ -69,17 +73,15 @@ from sotdrake import (
     simulate,
     start,
     support_polygon,
-    talos,
     write_control_graph,
     write_run,
 )
+from sotdrake import robot as make_robot
 from sotdrake.configuration import velocity_names
+from sotdrake.exceptions import SotError
 
-HAND_OFFSET = (0.1, 0.0, 0.0)
-RIGHT_ARM = [f"arm_right_{i}_joint" for i in range(1, 8)]
 SEED_GAIN = (4.9, 0.9, 0.01, 0.9)
 SUPPORT_BOX = ((-0.08, -0.15), (0.11, 0.15))  # the original's taskSupport: x, y lower; x, y upper (m)
-LIMITED_JOINT = "torso_1_joint"  # its upper limit set to 0 in seed4 (the original: joint 19 of Romeo)
 STEP_TIMES = (1.0, 1.5, 2.0, 2.5)  # seed6/seed7: the ball moves +0.1 m in x (the original: 4 times)
 
 
@@ -87,6 +89,30 @@ def step_times(count: int) -> tuple[float, ...]:
     """``count`` steps of the ball, from 1 s, every 0.5 s."""
     return tuple(1.0 + 0.5 * k for k in range(count))
 SEED_CONTACTS = ("addContact RF", "addContact LF")
+
+
+@dataclass(frozen=True)
+class RobotProfile:
+    """What changes with the robot: its model variant, the grip point in the right wrist's frame
+    (``opmodif``, m), the joint whose upper limit seed4 sets to 0, the right arm's joints (for the
+    manipulability) and the joints the SoT leaves alone."""
+
+    variant: str
+    hand_offset: tuple[float, float, float]
+    limited_joint: str
+    right_arm: tuple[str, ...]
+    excluded: tuple[str, ...] = ()
+
+
+ROBOTS = {
+    "talos": RobotProfile("reduced", (0.1, 0.0, 0.0), "torso_1_joint",
+                          tuple(f"arm_right_{i}_joint" for i in range(1, 8)), tuple(TALOS_GRIPPERS)),
+    # the original's robot: sot-romeo's 31-joint model, the original's grip (0.07, -0.02, 0); the
+    # limited joint is the right shoulder yaw, which the reach of seed3 turns past 0 (see the tutorial)
+    "romeo": RobotProfile("small", (0.07, -0.02, 0.0), "RShoulderYaw",
+                          ("RShoulderPitch", "RShoulderYaw", "RElbowRoll", "RElbowYaw", "RWristRoll", "RWristYaw",
+                           "RWristPitch")),
+}
 
 
 @dataclass(frozen=True)
@@ -152,15 +178,16 @@ class Concept:
     tracer: Tracer
     config: Configuration
     balls: list[tuple[float, np.ndarray]]  # (time, ball) from each gotoNd
+    profile: RobotProfile = ROBOTS["talos"]
     visualizer: object = None
 
 
-def _tasks(robot: Robot, seed: bool) -> dict:
+def _tasks(robot: Robot, seed: bool, profile: RobotProfile) -> dict:
     """The original's tasks: the hand (+ opmodif), the contacts, the CoM held (gain 10), the CoM
     support inequality and the joint limits (gain 10) with torso yaw's upper limit at 0."""
     rh = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     grip = np.eye(4)
-    grip[0:3, 3] = HAND_OFFSET
+    grip[0:3, 3] = profile.hand_offset
     rh.opmodif = grip
     tasks = {"rh": rh}
     for name, op in (("RF", "right-ankle"), ("LF", "left-ankle")):
@@ -182,8 +209,8 @@ def _tasks(robot: Robot, seed: bool) -> dict:
         support.gain.setConstant(0.9 / robot.dt)
         tasks["support"] = support
         jl = MetaTaskKineJointLimits(robot, "JL", margin=0.0, gain=10.0)
-        row = jl.joint_names.index(LIMITED_JOINT)
-        joint = robot.model.plant.GetJointByName(LIMITED_JOINT)
+        row = jl.joint_names.index(profile.limited_joint)
+        joint = robot.model.plant.GetJointByName(profile.limited_joint)
         lower, upper = joint.position_lower_limits()[0], joint.position_upper_limits()[0]
         bounds = np.ones(len(jl.joint_names))
         sup = bounds.copy()
@@ -193,15 +220,19 @@ def _tasks(robot: Robot, seed: bool) -> dict:
     return tasks
 
 
-def build_diagram(config: Configuration, meshcat: Meshcat | None = None) -> Concept:
+def build_diagram(config: Configuration, meshcat: Meshcat | None = None, robot_name: str = "talos") -> Concept:
+    """``robot_name``: talos or romeo (the original's robot, sot-romeo's ``small`` model)."""
+    if robot_name not in ROBOTS:
+        raise SotError(f"robot_name must be one of {sorted(ROBOTS)}, got {robot_name!r}")
+    profile = ROBOTS[robot_name]
     builder = DiagramBuilder()
-    robot = talos(builder, "reduced", config.dt)
+    robot = make_robot(builder, robot_name, profile.variant, config.dt)
     sot = add_sot(robot, "sot", solver=config.solver, damping=config.damping)
-    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
-    tasks = _tasks(robot, config.seed)
+    sot.setControlSelection(robot.velocity_selection(excluding=profile.excluded))
+    tasks = _tasks(robot, config.seed, profile)
     if config.manipulability_floor > 0:
         tasks["floor"] = MetaTaskKineManipulability("rhManipulability", robot, "right-wrist", config.manipulability_floor,
-                                                    joints=RIGHT_ARM)
+                                                    joints=list(profile.right_arm))
     rh = tasks["rh"]
     gotoNd(rh, config.ball, "111", SEED_GAIN)
     for command in config.commands:
@@ -228,7 +259,7 @@ def build_diagram(config: Configuration, meshcat: Meshcat | None = None) -> Conc
         add_target_marker(meshcat, "/ball", rh, radius=0.05)
         meshcat.SetCameraPose(camera_in_world=[1.6, -2.2, 1.6], target_in_world=[0.1, -0.2, 0.8])
     diagram = builder.Build()
-    return Concept(diagram, robot, sot, rh, tracer, config, balls, visualizer)
+    return Concept(diagram, robot, sot, rh, tracer, config, balls, profile, visualizer)
 
 
 def run(concept: Concept, progress: bool = True) -> tuple[Simulator, float]:
@@ -240,16 +271,16 @@ def _joint_names(robot: Robot) -> list[str]:
     return [names[i] for i in robot.device.layout.joints_v]
 
 
-def _arm_velocities(robot: Robot) -> list[int]:
-    return [robot.model.plant.GetJointByName(name).velocity_start() for name in RIGHT_ARM]
+def _arm_velocities(robot: Robot, arm: tuple[str, ...]) -> list[int]:
+    return [robot.model.plant.GetJointByName(name).velocity_start() for name in arm]
 
 
-def _min_arm_manipulability(robot: Robot, qs: np.ndarray) -> float:
+def _min_arm_manipulability(robot: Robot, qs: np.ndarray, arm: tuple[str, ...]) -> float:
     """The smallest manipulability of the right wrist's translation over the right arm's joints."""
     plant = robot.model.plant
     context, world, wrist = plant.CreateDefaultContext(), plant.world_frame(), robot.model.frame("right-wrist")
     columns = np.zeros(robot.dimension, dtype=bool)
-    columns[_arm_velocities(robot)] = True
+    columns[_arm_velocities(robot, arm)] = True
     values = []
     for q in qs[::10]:
         plant.SetPositions(context, q)
@@ -264,10 +295,10 @@ def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict
     joint's largest value, joint-limit margins, the hand's top speed and the joint velocity ratio."""
     context = simulator.get_context()
     trace = concept.tracer.data(context)
-    robot, config = concept.robot, concept.config
+    robot, config, profile = concept.robot, concept.config, concept.profile
     qs = np.vstack([robot.device.initial_position, trace["q"]])
     path = robot.dynamic.trajectory(["rh", "LF", "RF"], qs)
-    hand = path["rh"][:, :3, :3] @ np.asarray(HAND_OFFSET) + path["rh"][:, :3, 3]
+    hand = path["rh"][:, :3, :3] @ np.asarray(profile.hand_offset) + path["rh"][:, :3, 3]
     t = np.concatenate([[0.0], trace["time"]])
     ball = np.array([next(b for s, b in reversed(concept.balls) if s <= time + 1e-9) for time in t])
     feet = [(p[0, 0, 3], p[0, 1, 3], np.arctan2(p[0, 1, 0], p[0, 0, 0])) for p in (path["LF"], path["RF"])]
@@ -286,10 +317,11 @@ def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict
     names = [n for n, keep in zip(_joint_names(robot), controlled, strict=False) if keep]
     worst = np.unravel_index(np.argmin(margins), margins.shape)
     hand_speed = np.linalg.norm(np.diff(hand, axis=0), axis=1) / config.dt
-    limited = robot.model.plant.GetJointByName(LIMITED_JOINT).position_start()
+    limited = robot.model.plant.GetJointByName(profile.limited_joint).position_start()
     residuals = concept.sot.GetOutputPort("residuals").Eval(concept.sot.GetMyContextFromRoot(context))
     summary = {
         "description": config.description,
+        "robot": robot.model.name,
         "solver": type(concept.sot).__name__,
         "stack": concept.sot.stack(context),
         "ball_m": ball[-1].tolist(),
@@ -313,8 +345,8 @@ def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict
         "max_velocity_joint": names[int(np.argmax(ratio.max(axis=0)))],
         "max_hand_speed_m_s": float(hand_speed.max()),
         "max_joint_speed_rad_s": float(np.abs(trace["v"][:, joints_v]).max()),
-        "max_right_arm_speed_rad_s": float(np.abs(trace["v"][:, _arm_velocities(robot)]).max()),
-        "min_right_arm_manipulability": _min_arm_manipulability(robot, qs),
+        "max_right_arm_speed_rad_s": float(np.abs(trace["v"][:, _arm_velocities(robot, profile.right_arm)]).max()),
+        "min_right_arm_manipulability": _min_arm_manipulability(robot, qs, profile.right_arm),
         "duration_s": config.duration,
         "dt_s": config.dt,
         "wall_s": wall,
@@ -325,7 +357,7 @@ def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict
     return summary, trace
 
 
-def plot(traces: dict[str, dict], path: Path) -> Path:
+def plot(traces: dict[str, dict], path: Path, robot_name: str = "talos") -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -348,7 +380,7 @@ def plot(traces: dict[str, dict], path: Path) -> Path:
     for axis in axes[1]:
         axis.set_xlabel("time (s)")
     axes[0, 0].legend(fontsize=7)
-    fig.suptitle("sot-concept on TALOS: the right hand grasps a ball")
+    fig.suptitle(f"sot-concept on {'TALOS' if robot_name == 'talos' else 'Romeo'}: the right hand grasps a ball")
     return save_figure(fig, path)
 
 
@@ -359,9 +391,13 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--steps", type=int, default=len(STEP_TIMES),
                         help="seed6/seed7: how many times the ball moves +0.1 m in x (the original: 4; TALOS's arm "
                              "reaches the ball after 4, its singular approach needs about 12)")
+    parser.add_argument("--robot", default="talos", choices=sorted(ROBOTS),
+                        help="talos, or romeo (the original's robot; the seed configurations only)")
     args = parser.parse_args(argv)  # --duration, if given, overrides every configuration's
-    meshcat = start(args)
     names = GROUPS.get(args.config, [args.config])
+    if args.robot != "talos" and any(not CONFIGURATIONS[n].seed for n in names):
+        parser.error(f"--robot {args.robot} runs the seed configurations only (the extras' balls are TALOS's)")
+    meshcat = start(args)
     args.out.mkdir(parents=True, exist_ok=True)
     summary, traces = {}, {}
     for name in names:
@@ -375,7 +411,7 @@ def main(argv: list[str] | None = None) -> dict:
             config = replace(config, duration=args.duration)
         if meshcat is not None:
             meshcat.Delete()
-        concept = build_diagram(config, meshcat)
+        concept = build_diagram(config, meshcat, args.robot)
         if not args.quiet:
             print(f"{name}: {config.description}", file=sys.stderr)
         simulator, wall = run(concept, progress=not args.quiet)
@@ -384,7 +420,7 @@ def main(argv: list[str] | None = None) -> dict:
                   graph=False, bag=args.bag)
         if name == names[0]:
             write_control_graph(concept.diagram, args.out / "control_graph.svg")
-    plot(traces, args.out / "plots.png")
+    plot(traces, args.out / "plots.png", args.robot)
     (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     keys = ("hand_error_m", "com_support_margin_m", "max_foot_drift_m", "com_box_excess_m", "limited_joint_max_rad",
             "max_hand_speed_m_s", "max_joint_velocity_ratio")

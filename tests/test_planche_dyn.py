@@ -9,14 +9,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from tests.conftest import load_diagram
+from sotdrake.scenarios import planche as planche_scenario
 
 SUPPORT_LEG = {"LHipYaw", "LHipRoll", "LHipPitch", "LKneePitch", "LAnklePitch", "LAnkleRoll"}
 
 
 @pytest.fixture(scope="module")
 def planche():
-    return load_diagram("planche")
+    return planche_scenario
 
 
 def run(planche, options=None, variant="full", duration=21.0):

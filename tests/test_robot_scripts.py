@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from tests.conftest import load_diagram
+from sotdrake.scenarios import planche as planche_scenario
 
 OUTPUTS = ("trace.npz", "plots.png", "control_graph.dot", "summary.json")
 
@@ -89,7 +89,7 @@ def dynromeo():
 
 @pytest.fixture(scope="module")
 def planche():
-    return load_diagram("planche")
+    return planche_scenario
 
 
 def test_dynromeo_com_goes_over_the_left_sole_with_both_soles_held(dynromeo, tmp_path):

@@ -12,14 +12,14 @@ from sotdrake.exceptions import InvalidInput, SolverError, StackError
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.robot import Robot, add_sot
 from sotdrake.robots import TALOS_GRIPPERS
+from sotdrake.scenarios import sot_concept as sot_concept_scenario
 from sotdrake.scenarios import talos_appli
 from sotdrake.solvers import HierarchicalQP, SolverKine
-from tests.conftest import load_diagram
 
 
 @pytest.fixture(scope="module")
 def concept():
-    return load_diagram("sot_concept")
+    return sot_concept_scenario
 
 
 def test_tutorial_with_the_hqp_has_the_same_outcome():

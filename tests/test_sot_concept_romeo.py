@@ -7,12 +7,12 @@ import dataclasses
 
 import pytest
 
-from tests.conftest import load_diagram
+from sotdrake.scenarios import sot_concept as sot_concept_scenario
 
 
 @pytest.fixture(scope="module")
 def concept():
-    return load_diagram("sot_concept")
+    return sot_concept_scenario
 
 
 def run(concept, name, **changes):

@@ -2,7 +2,7 @@
 ``RobotDynSimu`` (the solver's ``q̈`` integrated, no physics engine: whatever the solver plans
 happens) with ``SolverDyn`` (contact forces, torque limits hard), 5 ms ticks.
 
-The same sequence as the kinematic run (:mod:`planche`), its tasks as acceleration tasks
+The same sequence as the kinematic run (:mod:`sotdrake.scenarios.planche`), its tasks as acceleration tasks
 (``TaskDynPD``, ``q̈``-level PD: ``J q̈ = −k_p e − k_v ė + s̈* − J̇ v``):
 
 * the contacts: both soles (``Contact6d``), the left one's rectangle shrunk to the seed's 6 × 3 cm

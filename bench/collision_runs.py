@@ -43,15 +43,16 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--gain", type=float, default=10.0, help="the hand's constant gain (1/s)")
     parser.add_argument("--seed", type=int, default=20261126)
     parser.add_argument("--dynamic", action="store_true", help="SolverDyn (the acceleration-level rows)")
+    parser.add_argument("--no-collision", action="store_true", help="the same runs without the collision level (a baseline)")
     parser.add_argument("--out", type=Path, default=None, help="the JSON summary (default bench/results/collision_runs[_dyn].json)")
     args = parser.parse_args(argv)
     out = args.out or HERE / "results" / f"collision_runs{'_dyn' if args.dynamic else ''}.json"
     if args.dynamic:
         from sotdrake import load_talos
 
-        dyn = build_dyn_collision_reach(load_talos("reduced"), collision=True, table=True)
+        dyn = build_dyn_collision_reach(load_talos("reduced"), collision=not args.no_collision, table=True)
     else:
-        reach = build_collision_reach(collision=True, table=True)
+        reach = build_collision_reach(collision=not args.no_collision, table=True)
     failed_ticks = 0
     rng = np.random.default_rng(args.seed)
     started = time.perf_counter()
@@ -78,7 +79,8 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"run {i:3d} {family:11s} min d {report.min_distance * 1e3:7.3f} mm  hand error {report.hand_error:.3f} m"
               f"{'' if ok else '  FAILED'}{f' ({len(report.failures)} solver failures)' if report.failures else ''}", flush=True)
     summary = {
-        "solver": "SolverDyn" if args.dynamic else "SolverKine", "solver_failure_ticks": failed_ticks,
+        "solver": "SolverDyn" if args.dynamic else "SolverKine", "collision_level": not args.no_collision,
+        "solver_failure_ticks": failed_ticks,
         "runs": args.runs, "duration_s": args.duration, "hand_gain": args.gain, "seed": args.seed, "safety_m": SAFETY_DISTANCE,
         "worst_min_distance_m": worst["min_distance"], "worst_feet_drift_m": worst["feet_drift"],
         "worst_limit_excess": worst["limit_excess"], "failed_runs": bad, "by_family": by_family,

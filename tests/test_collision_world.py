@@ -147,3 +147,41 @@ def test_pr2_shelf_script_keeps_the_arm_off_the_boards_and_reaches(tmp_path):
     for run in runs.values():
         assert run["with"]["min_signed_distance_m"] >= 0.01 - 1e-4
         assert run["with"]["reached"] and run["with"]["hand_error_m"] < 0.01
+
+
+@pytest.fixture(scope="module")
+def reach_map():
+    from tests.conftest import load_diagram
+
+    return load_diagram("reach_map")
+
+
+def test_reach_map_counts_a_colliding_path_as_not_reached(reach_map):
+    """A target under the table top: with no obstacle the hand gets there; with the table its path
+    goes through the top (a negative distance by Drake's query), so it is not reached although the
+    hand ends on it; with the collision level the path stays clear and the hand stops short."""
+    target = {"x": 0.5, "y": -0.3, "z": 0.7}
+    free = reach_map.reach_case(target, duration=1.0, dt=0.02)
+    assert free["reached"] and free["min_signed_distance_m"] >= 0.0
+    through = reach_map.reach_case(target, duration=1.0, dt=0.02, obstacles="table")
+    assert through["hand_error_m"] < reach_map.REACHED_M
+    assert through["collides"] and through["min_signed_distance_m"] < -0.05 and not through["reached"]
+    kept = reach_map.reach_case(target, duration=1.0, dt=0.02, obstacles="table", collision=True)
+    assert not kept["collides"] and kept["min_signed_distance_m"] >= 0.01 - 1e-4
+    assert not kept["reached"] and kept["hand_error_m"] > 0.05
+
+
+def test_reach_map_script_with_a_scene_and_the_level(reach_map, tmp_path):
+    """A 2 × 2 × 2 grid with a table top in front of the robot (an SDF scene file, its model placed
+    by its own pose) and the collision level: no path collides; a missing scene file stops the
+    script with its name."""
+    scene = tmp_path / "table.sdf"
+    scene.write_text("""<sdf version="1.7"><model name="table"><static>true</static><pose>0.55 -0.25 0.8 0 0 0</pose>
+      <link name="top"><collision name="top"><geometry><box><size>0.5 0.8 0.04</size></box></geometry></collision></link>
+      </model></sdf>""")
+    summary = reach_map.main(["--targets", "8", "--duration", "0.2", "--out", str(tmp_path), "--quiet",
+                              "--obstacles", str(scene), "--collision"])
+    assert summary["errors"] == 0 and summary["colliding_paths"] == 0 and summary["min_signed_distance_m"] > 0
+    assert summary["obstacles"] == str(scene) and summary["collision_level"] is True
+    with pytest.raises(SystemExit, match="missing.sdf"):
+        reach_map.main(["--targets", "8", "--out", str(tmp_path), "--quiet", "--obstacles", "/nonexistent/missing.sdf"])

@@ -12,6 +12,7 @@ failures. Targets may be inside the body or inside the table: the hand then stop
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -217,14 +218,33 @@ def run_dyn_collision_reach(reach: DynReach, target: np.ndarray, duration: float
     joint limits, NaN, ``SolverDyn``'s failures)."""
     simulator = Simulator(reach.diagram)
     context = simulator.get_mutable_context()
-    robot = reach.robot
     reach.hand.featureDes.setPosition(RigidTransform(np.asarray(target, dtype=float)), context=context)
+    failures: list[str] = []  # every failure the solver logs (its diagnostics port shows the last solve only)
+    handler = _Collect(failures)
+    logging.getLogger("sotdrake.solver_dyn").addHandler(handler)
+    try:
+        return _run_dyn(reach, simulator, target, duration, failures)
+    finally:
+        logging.getLogger("sotdrake.solver_dyn").removeHandler(handler)
+
+
+class _Collect(logging.Handler):
+    def __init__(self, into: list[str]):
+        super().__init__(logging.WARNING)
+        self.into = into
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.into.append(record.getMessage())
+
+
+def _run_dyn(reach: DynReach, simulator: Simulator, target: np.ndarray, duration: float, failures: list[str]) -> ReachReport:
+    context = simulator.get_mutable_context()
+    robot = reach.robot
     simulator.Initialize()
     model = robot.model
     plant, nq = model.plant, model.nq
     plant_context = plant.CreateDefaultContext()
     device_context = robot.device.GetMyContextFromRoot(context)
-    sot_context = robot.sot.GetMyContextFromRoot(context)
     checker_context = reach.checker.new_context()
     soles = [model.frame(name) for name in ("left-sole", "right-sole")]
 
@@ -250,9 +270,7 @@ def run_dyn_collision_reach(reach: DynReach, target: np.ndarray, duration: float
         with np.errstate(invalid="ignore"):
             excess = np.nan_to_num(np.maximum(q - upper, lower - q), nan=0.0, neginf=0.0)
         report.limit_excess = max(report.limit_excess, float(excess.max()))
-        failure = robot.sot.GetOutputPort("diagnostics").Eval(sot_context).failure
-        if failure:
-            report.failures.append(failure)
+    report.failures = failures
     report.ticks = k
     plant.SetPositions(plant_context, q)
     p_hand = plant.CalcRelativeTransform(plant_context, plant.world_frame(), model.frame("right-wrist")) @ np.array(HAND_OFFSET)

@@ -32,15 +32,28 @@ from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from sotdrake import MetaTaskKine6d, Robot, add_robot_visualizer, add_sot, gotoNd, save_recording, script_arguments, start
+from sotdrake import (
+    SHELF,
+    SHELF_COMPARTMENTS,
+    CollisionWorld,
+    MetaTaskKine6d,
+    MetaTaskKineCollision,
+    Robot,
+    add_robot_visualizer,
+    add_scene,
+    add_sot,
+    gotoNd,
+    minimum_distance,
+    save_recording,
+    script_arguments,
+    start,
+)
 from sotdrake import robot as make_robot
-from sotdrake.collision import SHELF, SHELF_COMPARTMENTS, CollisionWorld, MetaTaskKineCollision, add_scene, minimum_distance
-from sotdrake.collision.scene import scene_point
 
 #: The shelf's frame in the world (m): its front 0.55 m ahead of the base, a little to the right.
 SHELF_POSE = RigidTransform([0.75, -0.2, 0.0])
 #: The targets: a point 8 cm deep in each compartment, centred (shelf frame, m).
-TARGETS = {name: scene_point(SHELF_POSE, (centre[0] - 0.12, centre[1], centre[2])) for name, centre in SHELF_COMPARTMENTS.items()}
+TARGETS = {name: SHELF_POSE @ np.array([centre[0] - 0.12, centre[1], centre[2]]) for name, centre in SHELF_COMPARTMENTS.items()}
 #: The joints the solver moves, and the links the collision level keeps off the shelf.
 CONTROLLED = re.compile(r"^(torso_lift_joint|r_(shoulder_pan|shoulder_lift|upper_arm_roll|elbow_flex|forearm_roll|"
                         r"wrist_flex|wrist_roll)_joint)$")

@@ -52,22 +52,26 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake import (
     SOT,
+    TABLE,
     TALOS_GRIPPERS,
+    CollisionWorld,
     InvalidInput,
     MetaTaskKine6d,
+    MetaTaskKineCollision,
     Robot,
     SotError,
     Tracer,
+    add_obstacle,
+    add_scene,
     add_sot,
     gotoNd,
     hold_feet_and_com,
+    minimum_distance,
     save_figure,
     script_arguments,
     talos,
     write_run,
 )
-from sotdrake.collision import CollisionWorld, MetaTaskKineCollision, add_obstacle, add_scene, minimum_distance
-from sotdrake.collision.reach import TABLE
 from sotdrake.sweep import (
     EngineUnavailable,
     add_sweep_arguments,

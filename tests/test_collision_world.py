@@ -183,5 +183,32 @@ def test_reach_map_script_with_a_scene_and_the_level(reach_map, tmp_path):
                               "--obstacles", str(scene), "--collision"])
     assert summary["errors"] == 0 and summary["colliding_paths"] == 0 and summary["min_signed_distance_m"] > 0
     assert summary["obstacles"] == str(scene) and summary["collision_level"] is True
-    with pytest.raises(SystemExit, match="missing.sdf"):
+    with pytest.raises(SystemExit, match=r"missing\.sdf"):
         reach_map.main(["--targets", "8", "--out", str(tmp_path), "--quiet", "--obstacles", "/nonexistent/missing.sdf"])
+
+
+def test_pairs_the_solver_cannot_move_get_no_row(talos_model):
+    """TALOS' gripper links rest 10.19 mm apart, inside d_s + 1 mm: without the control selection
+    their pair asks a recovery the solver (which does not drive the grippers) cannot give, an
+    infeasible row at every tick; with it that pair gets no row, and every row left can be acted on."""
+    from sotdrake import TALOS_GRIPPERS
+    from sotdrake.collision import TaskCollision
+
+    plant, nv = talos_model.plant, talos_model.nv
+    controlled = np.ones(nv, dtype=bool)
+    for name in TALOS_GRIPPERS:
+        joint = plant.GetJointByName(name)
+        controlled[joint.velocity_start(): joint.velocity_start() + joint.num_velocities()] = False
+    world = CollisionWorld(talos_model)
+    rows = {}
+    for label, mask in (("all", None), ("selected", controlled)):
+        task = TaskCollision(label, world, nv, 1e-3, controlled=mask)
+        context = task.CreateDefaultContext()
+        task.GetInputPort("position").FixValue(context, talos_model.half_sitting)
+        rows[label] = task.GetOutputPort("task").Eval(context)
+    unmovable = np.abs(rows["all"].jacobian[:, controlled]).max(axis=1) <= 1e-9
+    assert unmovable.any() and (rows["all"].lower[unmovable] > 0).any()  # the infeasible recovery rows
+    assert len(rows["selected"].lower) == len(rows["all"].lower) - unmovable.sum()
+    assert (np.abs(rows["selected"].jacobian[:, controlled]).max(axis=1) > 1e-9).all()
+    with pytest.raises(InvalidInput, match="controlled"):
+        TaskCollision("bad", world, nv, 1e-3, controlled=np.ones(nv - 1, dtype=bool))

@@ -19,7 +19,7 @@ from .distance import PairDistances, minimum_distance, pair_distances
 from .meta_task import MetaTaskDynCollision, MetaTaskKineCollision
 from .obstacles import add_obstacle, draw_obstacles
 from .pairs import adjacent_pairs, srdf_disabled_pairs
-from .reach import ReachReport, build_collision_reach, run_collision_reach
+from .reach import TABLE, ReachReport, build_collision_reach, run_collision_reach
 from .scene import SHELF, SHELF_COMPARTMENTS, add_scene, obstacle_geometries, scene_shapes
 from .task import CollisionMargins, TaskCollision, acceleration_rows, check_margins, damper_rows
 from .world import CollisionWorld, NoCollisionGeometry, collision_world
@@ -27,6 +27,7 @@ from .world import CollisionWorld, NoCollisionGeometry, collision_world
 __all__ = [
     "SHELF",
     "SHELF_COMPARTMENTS",
+    "TABLE",
     "CollisionMargins",
     "CollisionWorld",
     "MetaTaskDynCollision",

@@ -212,3 +212,20 @@ def test_pairs_the_solver_cannot_move_get_no_row(talos_model):
     assert (np.abs(rows["selected"].jacobian[:, controlled]).max(axis=1) > 1e-9).all()
     with pytest.raises(InvalidInput, match="controlled"):
         TaskCollision("bad", world, nv, 1e-3, controlled=np.ones(nv - 1, dtype=bool))
+
+
+@pytest.mark.slow
+def test_dynamic_random_targets_keep_the_distance_without_solver_failure(talos_model):
+    """A fast subset of ``bench/collision_runs.py --dynamic``: SolverDyn, both soles in contact, the
+    collision level at the acceleration level, the hand to random targets (the torso, across the
+    body, the table, under it). Every tick by Drake's query: distance ≥ d_s − 1e-4 m, soles within
+    1e-4 m, no joint limit crossed, no NaN, and not one tick on which the solver gave up."""
+    from sotdrake.collision.reach import build_dyn_collision_reach, run_dyn_collision_reach
+    from sotdrake.collision.targets import random_targets
+
+    reach = build_dyn_collision_reach(talos_model, collision=True, table=True)
+    for _family, target in random_targets(4, np.random.default_rng(20261126)):
+        report = run_dyn_collision_reach(reach, target, duration=0.15)
+        assert report.min_distance >= 0.01 - 1e-4, report
+        assert report.feet_drift <= 1e-4 and report.limit_excess <= 1e-9 and not report.nan, report
+        assert not report.failures, report.failures[:3]

@@ -16,11 +16,23 @@ within about 1 mm (``max_foot_drift_m``) instead of 0.1 mm. A case's summary: th
 grippers, not controlled, start on their limit and are left out) with the joint that has it, and
 the largest foot and CoM drifts (m).
 
+Collisions: each case's path is checked with Drake's signed-distance query on a collision world of
+its own (every self-collision pair the SRDF and adjacency leave, and every link–obstacle pair), at
+every tick: ``min_signed_distance_m`` is the smallest over the run (+inf when no pair came within
+5 cm), and a target whose path collides (a distance < 0) is counted as *not* reached, however
+close the hand ended. ``--obstacles table`` puts the table top of ``sotdrake.collision.reach``
+in front of the robot (``--obstacles path/to/scene.sdf`` any URDF/SDF scene, loaded by
+``add_scene``); ``--collision`` adds the collision level (``d_s`` = 1 cm, ``d_i`` = 5 cm, ``ξ`` =
+0.5 m/s) between the CoM and the hand, so that the hand stops short instead of going through;
+its default period is then 5 ms (``COLLISION_DT``: the level's rows model one tick to first order,
+which the unlimited 20 ms steps of the arm break, by up to 7 cm on the grid's far corners).
+
 Targets: ``--targets N`` with ``--sampling grid`` (N a cube, k × k × k evenly spaced in the box
 x ∈ [-0.4, 0.9], y ∈ [-1.1, 0.5], z ∈ [0.2, 1.8] m, world frame, the robot's base above the
 origin facing +x) or ``--sampling random`` (N uniform in the box, ``--seed``).
 
     python diagrams/reach_map.py --targets 1000 --engine ray --out out/reach_map
+    python diagrams/reach_map.py --targets 125 --obstacles table --collision --out out/reach_map_table
 
 writes ``reach_map.csv`` (and ``.parquet`` with pyarrow: one row per target), ``reach_map.json``
 (engine, wall time, host load), ``plots.png`` (slices of the workspace: hand error and joint-limit
@@ -40,14 +52,21 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake import (
     SOT,
+    TABLE,
     TALOS_GRIPPERS,
+    CollisionWorld,
     InvalidInput,
     MetaTaskKine6d,
+    MetaTaskKineCollision,
     Robot,
+    SotError,
     Tracer,
+    add_obstacle,
+    add_scene,
     add_sot,
     gotoNd,
     hold_feet_and_com,
+    minimum_distance,
     save_figure,
     script_arguments,
     talos,
@@ -68,6 +87,11 @@ BOX = {"x": (-0.4, 0.9), "y": (-1.1, 0.5), "z": (0.2, 1.8)}
 HAND_GAIN = 8.0
 HAND_DAMPING = 1e-2
 REACHED_M = 0.01
+#: The default period with the collision level (s): its rows are a first-order model of one tick,
+#: which holds for the steps of 5 ms ticks; at 20 ms the arm's unlimited steps cross it.
+COLLISION_DT = 0.005
+#: Pairs farther apart than this (m) are not measured by the collision check.
+CHECK_DISTANCE = 0.05
 
 
 @dataclass
@@ -79,17 +103,35 @@ class Reach:
     sot: SOT
     taskRH: MetaTaskKine6d
     tracer: Tracer
+    #: a collision world of its own (the same obstacles), for the independent check of each path
+    checker: CollisionWorld
 
 
-def build_diagram(dt: float = 0.02, variant: str = "reduced") -> Reach:
-    """Feet, CoM and the right hand under ``SolverKine``; the hand's target is its initial pose
-    until :func:`simulate_target` sets one in the context."""
+def add_obstacles(world, obstacles: str | None) -> None:
+    """``obstacles``: None, ``"table"`` (the table top) or the path of a URDF/SDF scene."""
+    if obstacles == "table":
+        size, centre = TABLE
+        add_obstacle(world, ("box", size), np.array([[1, 0, 0, centre[0]], [0, 1, 0, centre[1]], [0, 0, 1, centre[2]], [0, 0, 0, 1]],
+                                                    dtype=float), "table")
+    elif obstacles is not None:
+        add_scene(world, Path(obstacles), None, "scene")
+
+
+def build_diagram(dt: float = 0.02, variant: str = "reduced", obstacles: str | None = None, collision: bool = False) -> Reach:
+    """Feet, CoM, the collision level (``collision``) and the right hand under ``SolverKine``, the
+    ``obstacles`` (:func:`add_obstacles`); the hand's target is its initial pose until
+    :func:`simulate_target` sets one in the context."""
     builder = DiagramBuilder()
     robot = talos(builder, variant, dt)
     sot = add_sot(robot, "sot", solver="hqp", damping=HAND_DAMPING)
     sot.setStepLimit(np.inf)  # (see the module docstring)
     sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
     hold_feet_and_com(robot, sot)
+    checker = CollisionWorld(robot.model)
+    for world in (robot, checker):
+        add_obstacles(world, obstacles)
+    if collision:
+        sot.push(MetaTaskKineCollision(robot))
     taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     handMgrip = np.eye(4)
     handMgrip[0:3, 3] = HAND_OFFSET
@@ -102,7 +144,7 @@ def build_diagram(dt: float = 0.02, variant: str = "reduced") -> Reach:
     tracer.add(robot.device.GetOutputPort("state"), "q")
     diagram = builder.Build()
     diagram.set_name("reach_map")
-    return Reach(diagram, robot, sot, taskRH, tracer)
+    return Reach(diagram, robot, sot, taskRH, tracer, checker)
 
 
 def simulate_target(reach: Reach, target, duration: float) -> Simulator:
@@ -132,10 +174,14 @@ def summarize(reach: Reach, simulator: Simulator, target) -> dict:
     lower, upper = plant.GetPositionLowerLimits()[index], plant.GetPositionUpperLimits()[index]
     margins = np.minimum(qs[:, index] - lower, upper - qs[:, index]).min(axis=0)
     tightest = int(np.argmin(margins))
+    checker_context = reach.checker.new_context()
+    distance = min(minimum_distance(reach.checker, checker_context, q, CHECK_DISTANCE) for q in qs)
     return {
         "hand_error_m": float(error[-1]),
         "hand_initial_error_m": float(error[0]),
-        "reached": bool(error[-1] < REACHED_M),
+        "min_signed_distance_m": float(distance),
+        "collides": bool(distance < 0.0),
+        "reached": bool(error[-1] < REACHED_M and distance >= 0.0),
         "min_joint_limit_margin_rad": float(margins[tightest]),
         "limiting_joint": joints[tightest].name(),
         "max_foot_drift_m": float(max(np.linalg.norm(path[f][:, :3, 3] - path[f][0, :3, 3], axis=1).max() for f in ("LF", "RF"))),
@@ -144,10 +190,11 @@ def summarize(reach: Reach, simulator: Simulator, target) -> dict:
     }
 
 
-def reach_case(case: dict, duration: float = 1.0, dt: float = 0.02, variant: str = "reduced") -> dict:
+def reach_case(case: dict, duration: float = 1.0, dt: float = 0.02, variant: str = "reduced", obstacles: str | None = None,
+               collision: bool = False) -> dict:
     """The sweep's case function: ``case = {'x', 'y', 'z'}`` (m) → the case's summary."""
     # One diagram per process (per Ray worker): a pure cache, every case gets a fresh context.
-    reach = per_process(("reach_map", dt, variant), lambda: build_diagram(dt, variant))
+    reach = per_process(("reach_map", dt, variant, obstacles, collision), lambda: build_diagram(dt, variant, obstacles, collision))
     target = (case["x"], case["y"], case["z"])
     simulator = simulate_target(reach, target, duration)
     return summarize(reach, simulator, target)
@@ -220,20 +267,27 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--targets", type=int, default=125, help="number of targets (a cube with --sampling grid)")
     parser.add_argument("--sampling", choices=["grid", "random"], default="grid")
     parser.add_argument("--seed", type=int, default=0, help="with --sampling random")
-    parser.add_argument("--dt", type=float, default=0.02, help="control period of each case (s)")
+    parser.add_argument("--dt", type=float, default=None, help="control period of each case (s; default 0.02, 0.005 with --collision)")
+    parser.add_argument("--obstacles", default=None, help="'table' (the table top) or a URDF/SDF scene file")
+    parser.add_argument("--collision", action="store_true", help="add the collision level under the hand")
     add_sweep_arguments(parser)
     args = parser.parse_args(argv)
+    if args.dt is None:
+        args.dt = COLLISION_DT if args.collision else 0.02
     if not args.duration > 0 or not args.dt > 0:
         raise SystemExit(f"--duration and --dt must be > 0, got {args.duration}, {args.dt}")
     try:
         cases = targets(args.targets, args.sampling, args.seed)
-    except InvalidInput as error:
+        if args.obstacles not in (None, "table"):
+            add_scene(CollisionWorld(talos(DiagramBuilder(), "reduced", args.dt).model), Path(args.obstacles), None, "scene")
+    except (InvalidInput, SotError) as error:
         raise SystemExit(str(error)) from error
     settings = {"duration_s": args.duration, "dt_s": args.dt, "ticks_per_case": round(args.duration / args.dt),
                 "hand_gain": HAND_GAIN, "hand_damping": HAND_DAMPING, "sampling": args.sampling,
-                "seed": args.seed, "box_m": BOX}
+                "seed": args.seed, "box_m": BOX, "obstacles": args.obstacles, "collision_level": args.collision}
     try:
-        result = run_sweep(partial(reach_case, duration=args.duration, dt=args.dt), cases, progress=not args.quiet,
+        case = partial(reach_case, duration=args.duration, dt=args.dt, obstacles=args.obstacles, collision=args.collision)
+        result = run_sweep(case, cases, progress=not args.quiet,
                            label="reach targets", settings=settings, **engine_options(args))
     except EngineUnavailable as error:
         raise SystemExit(str(error)) from error
@@ -244,6 +298,8 @@ def main(argv: list[str] | None = None) -> dict:
         "targets": len(cases),
         "errors": len(result.errors),
         "reached_within_1cm": sum(r["reached"] for r in ok),
+        "colliding_paths": sum(r["collides"] for r in ok),
+        "min_signed_distance_m": min((r["min_signed_distance_m"] for r in ok), default=None),
         "min_joint_limit_margin_rad": min((r["min_joint_limit_margin_rad"] for r in ok), default=None),
         "max_foot_drift_m": max((r["max_foot_drift_m"] for r in ok), default=None),
         "max_com_drift_m": max((r["max_com_drift_m"] for r in ok), default=None),
@@ -256,7 +312,7 @@ def main(argv: list[str] | None = None) -> dict:
         **settings,
         "tables": {k: str(v) for k, v in paths.items()},
     }
-    write_run(args.out, build_diagram(args.dt).diagram, summary)
+    write_run(args.out, build_diagram(args.dt, obstacles=args.obstacles, collision=args.collision).diagram, summary)
     print(json.dumps({k: v for k, v in summary.items() if k != "outputs"}, indent=2))
     return summary
 

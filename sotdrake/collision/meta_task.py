@@ -25,14 +25,18 @@ if TYPE_CHECKING:
 
 class _CollisionLevel:
     """What both meta tasks hold: ``robot``, ``name``, the collision ``world`` and ``task``, built
-    once the robot's type is checked."""
+    once the robot's type is checked. The task leaves out the pairs the solver cannot move, by the
+    solver's control selection when the meta task is made (set it before)."""
 
     def __init__(self, robot: Robot | RobotDyn, name: str, pairs: Sequence[tuple[str, str]] | None, safety: float,
                  influence: float, xi: float, acceleration: bool):
         margins = check_margins(safety, influence, xi, robot.dt, f"{type(self).__name__}({name!r})")
         self.robot, self.name = robot, name
         self.world: CollisionWorld = collision_world(robot)
-        task = TaskCollision("task" + name, self.world, robot.dimension, robot.dt, pairs, margins, acceleration=acceleration)
+        solver = getattr(robot, "sot", None) or getattr(robot, "solver", None)
+        controlled = getattr(getattr(solver, "_defaults", None), "control_selection", None)
+        task = TaskCollision("task" + name, self.world, robot.dimension, robot.dt, pairs, margins, acceleration=acceleration,
+                             controlled=controlled)
         robot.add_task(task)
         self.task: TaskCollision = task
 

@@ -12,8 +12,10 @@ failures. Targets may be inside the body or inside the table: the hand then stop
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer
@@ -23,12 +25,18 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from ..meta_tasks import MetaTaskKine6d, gotoNd, hold_feet_and_com
 from ..robot import Robot, add_sot, talos
+from ..robots import RobotModel
 from ..solvers import SolverKine
 from .distance import minimum_distance
 from .meta_task import MetaTaskKineCollision
 from .obstacles import add_obstacle, draw_obstacles
 from .task import DAMPER_SPEED, INFLUENCE_DISTANCE, SAFETY_DISTANCE
 from .world import CollisionWorld
+
+if TYPE_CHECKING:
+    from ..dynamics.meta_tasks_dyn import MetaTaskDyn6d
+    from ..dynamics.robot_dyn import RobotDyn
+    from .meta_task import MetaTaskDynCollision
 
 #: The table top: full size (m) and centre (m, world), in front of TALOS at hip height, under its right hand.
 TABLE = ((0.5, 0.8, 0.04), (0.55, -0.25, 0.80))
@@ -149,4 +157,133 @@ def run_collision_reach(reach: Reach, target: np.ndarray, duration: float = 1.0,
             report.failures.append(failure)
     report.ticks = k
     report.hand_error = float(np.linalg.norm(reach.hand.current_pose(context).translation() - target))
+    return report
+
+
+#: The dynamic hand's gain (1/s²). At 100 /s² a target 0.3–0.5 m away asks 30–50 m/s² of the
+#: hand from the first tick: against the torque and friction bounds, SolverDyn's active set then
+#: gives up on some ticks (2–22 of 300 in a run), with or without the collision level; at 25 /s²
+#: it does not.
+DYN_HAND_KP = 25.0
+
+
+@dataclass
+class DynReach:
+    """The dynamic scenario (:func:`build_dyn_collision_reach`): its diagram, the ``RobotDyn``, the
+    hand (``MetaTaskDyn6d``, position only), the collision meta task and the independent checker."""
+
+    diagram: Diagram
+    robot: RobotDyn
+    hand: MetaTaskDyn6d
+    collision: MetaTaskDynCollision | None
+    checker: CollisionWorld
+
+
+def build_dyn_collision_reach(model: RobotModel, collision: bool = True, table: bool = True, dt: float = 1e-3,
+                              obstacles: Sequence[tuple[object, RigidTransform, str]] = (), hand_kp: float = DYN_HAND_KP,
+                              safety: float = SAFETY_DISTANCE, influence: float = INFLUENCE_DISTANCE,
+                              xi: float = DAMPER_SPEED) -> DynReach:
+    """The dynamic SoT on TALOS (``model``, a :class:`~sotdrake.robots.RobotModel`): ``SolverDyn``,
+    both soles in contact, the CoM, the collision level at the acceleration level (when
+    ``collision``), the hand point (``right-wrist`` + :data:`HAND_OFFSET`, position, gain ``hand_kp``
+    1/s², :data:`DYN_HAND_KP`), the posture; the table (:data:`TABLE`) when ``table`` and ``obstacles`` as
+    :func:`build_collision_reach` takes them."""
+    from ..dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
+    from ..dynamics.robot_dyn import RobotDyn
+    from ..robots import TALOS_GRIPPERS
+    from .meta_task import MetaTaskDynCollision
+
+    builder = DiagramBuilder()
+    robot = RobotDyn(builder, model, "dynsimu", dt)
+    sot = robot.sot
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
+    for name, op in (("contactLF", "left-sole"), ("contactRF", "right-sole")):
+        sot.addContact(robot.add_contact(name, op))
+    sot.push(MetaTaskDynCom(robot).task.name)
+    checker = CollisionWorld(model)
+    if table:
+        size, centre = TABLE
+        obstacles = [(("box", size), RigidTransform(list(centre)), "table"), *obstacles]
+    for shape, X_WO, name in obstacles:
+        for world in (robot, checker):
+            add_obstacle(world, shape, X_WO, name)
+    meta = None
+    if collision:
+        meta = MetaTaskDynCollision(robot, safety=safety, influence=influence, xi=xi)
+        sot.push(meta.task.name)
+    hand = MetaTaskDyn6d("rh", robot, "right-wrist", kp=hand_kp)
+    hand.feature.setOpmodif(RigidTransform(list(HAND_OFFSET)))
+    hand.feature.selec("000111")
+    sot.push(hand.task.name)
+    sot.push(MetaTaskDynPosture(robot, kp=25.0).task.name)
+    return DynReach(builder.Build(), robot, hand, meta, checker)
+
+
+def run_dyn_collision_reach(reach: DynReach, target: np.ndarray, duration: float = 0.3) -> ReachReport:
+    """Drive the dynamic hand to ``target`` (m, world) for ``duration`` s from the reference posture,
+    every tick checked as :func:`run_collision_reach` does (distances by Drake's query, soles' drift,
+    joint limits, NaN, ``SolverDyn``'s failures)."""
+    simulator = Simulator(reach.diagram)
+    context = simulator.get_mutable_context()
+    # Each run starts cold, as a freshly started controller: the solver's working-set guesses from
+    # the previous run (kept outside the Context) made its active set give up on 2 of 4200 ticks.
+    for hqp in (*reach.robot.sot._hqps.values(), *reach.robot.sot._reduced_hqps.values()):
+        hqp.forget_warm_starts()
+    reach.hand.featureDes.setPosition(RigidTransform(np.asarray(target, dtype=float)), context=context)
+    failures: list[str] = []  # every failure the solver logs (its diagnostics port shows the last solve only)
+    handler = _Collect(failures)
+    logging.getLogger("sotdrake.solver_dyn").addHandler(handler)
+    try:
+        return _run_dyn(reach, simulator, target, duration, failures)
+    finally:
+        logging.getLogger("sotdrake.solver_dyn").removeHandler(handler)
+
+
+class _Collect(logging.Handler):
+    def __init__(self, into: list[str]):
+        super().__init__(logging.WARNING)
+        self.into = into
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.into.append(record.getMessage())
+
+
+def _run_dyn(reach: DynReach, simulator: Simulator, target: np.ndarray, duration: float, failures: list[str]) -> ReachReport:
+    context = simulator.get_mutable_context()
+    robot = reach.robot
+    simulator.Initialize()
+    model = robot.model
+    plant, nq = model.plant, model.nq
+    plant_context = plant.CreateDefaultContext()
+    device_context = robot.device.GetMyContextFromRoot(context)
+    checker_context = reach.checker.new_context()
+    soles = [model.frame(name) for name in ("left-sole", "right-sole")]
+
+    def sole_positions(q: np.ndarray) -> list[np.ndarray]:
+        plant.SetPositions(plant_context, q)
+        return [plant.CalcRelativeTransform(plant_context, plant.world_frame(), f).translation() for f in soles]
+
+    feet0 = sole_positions(model.half_sitting)
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    report = ReachReport(np.inf, 0.0, 0.0, False, [], np.nan, 0)
+    dt = robot.dt
+    ticks = round(duration / dt)
+    q = model.half_sitting
+    for k in range(1, ticks + 1):
+        simulator.AdvanceTo(k * dt)
+        x = robot.device.GetOutputPort("state").Eval(device_context)
+        if not np.all(np.isfinite(x)):
+            report.nan = True
+            break
+        q = x[:nq]
+        report.min_distance = min(report.min_distance, minimum_distance(reach.checker, checker_context, q, CHECK_DISTANCE))
+        report.feet_drift = max(report.feet_drift, *(float(np.linalg.norm(p - p0)) for p, p0 in zip(sole_positions(q), feet0, strict=True)))
+        with np.errstate(invalid="ignore"):
+            excess = np.nan_to_num(np.maximum(q - upper, lower - q), nan=0.0, neginf=0.0)
+        report.limit_excess = max(report.limit_excess, float(excess.max()))
+    report.failures = failures
+    report.ticks = k
+    plant.SetPositions(plant_context, q)
+    p_hand = plant.CalcRelativeTransform(plant_context, plant.world_frame(), model.frame("right-wrist")) @ np.array(HAND_OFFSET)
+    report.hand_error = float(np.linalg.norm(p_hand - target))
     return report

@@ -27,6 +27,13 @@ same bound on ``ḋ`` reached within one tick, ``ḋ + dt·d̈ ≥ ḋ_min(d)`` 
 bodies, the rotation of the normal left out, :func:`~.distance.pair_distances`). The task then
 reads ``velocity`` (``v``) too.
 
+**Pairs the solver cannot move.** With ``controlled`` (the solver's control selection, nv
+booleans), a pair whose ``J_d`` is zero over the controlled velocities (two links of a gripper the
+solver does not drive, say) gets no row: nothing the solver commands changes its distance, so its
+row could only be infeasible (a pair resting just inside ``d_t`` would ask a recovery of ``ξ`` it
+cannot give, and the level would carry that slack at every tick). It is still measured
+(``distances``, ``min_distance``).
+
 The number of rows is the number of pairs in range at that tick (0 to all of them): the level is a
 :class:`~sotdrake.task.TaskLevel` of any size, which ``SolverKine`` takes as it comes. The basic
 ``SOT`` refuses it at ``push`` (it has no inequality rows).
@@ -58,6 +65,9 @@ from .world import CollisionWorld
 SAFETY_DISTANCE, INFLUENCE_DISTANCE, DAMPER_SPEED = 0.01, 0.05, 0.5
 #: The rows aim this far (m) beyond the safety distance: the part of a tick's step they do not see.
 TICK_ALLOWANCE = 1e-3
+#: A pair whose ``J_d`` entries over the controlled velocities are all below this (m per unit of
+#: ``v``) cannot be moved by the solver and gets no row.
+MOVABLE_TOLERANCE = 1e-9
 #: Largest influence distance (m) and damper speed (m/s) accepted.
 MAX_INFLUENCE, MAX_DAMPER_SPEED = 1.0, 10.0
 
@@ -126,7 +136,8 @@ class TaskCollision(Entity[CollisionMargins]):
     """Collision-avoidance level (see the module docstring): ``world`` the robot's
     :class:`~.world.CollisionWorld`, ``nv`` the solver's size, ``dt`` the device's tick (s),
     ``pairs`` None (every pair the world checks) or a list of ``(link, link)`` / ``(link,
-    obstacle)`` names.
+    obstacle)`` names; ``controlled``: the solver's control selection (nv booleans, None for all;
+    see the module docstring).
 
     Inputs: ``position`` (the world plant's ``q``) and, at the acceleration level, ``velocity``
     (``v``, nv). Outputs: ``task`` (inequality rows over ``v``, m/s, or ``q̈``, m/s²),
@@ -139,7 +150,14 @@ class TaskCollision(Entity[CollisionMargins]):
 
     def __init__(self, name: str, world: CollisionWorld, nv: int, dt: float,
                  pairs: Sequence[tuple[str, str]] | None = None, margins: CollisionMargins | None = None,
-                 acceleration: bool = False):
+                 acceleration: bool = False, controlled: np.ndarray | None = None):
+        if controlled is not None:
+            controlled = np.asarray(controlled)
+            if controlled.dtype != bool or controlled.shape != (nv,) or not controlled.any():
+                raise InvalidInput(f"{name}: controlled must be {nv} booleans, at least one True, "
+                                   f"got {controlled.dtype} {controlled.shape}")
+            controlled = controlled.copy()
+        self.controlled = controlled
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
         if nv != world.plant.num_velocities():
@@ -216,9 +234,14 @@ class TaskCollision(Entity[CollisionMargins]):
     def _calc_rows(self, context: Context, output: AbstractValue) -> None:
         distances, margins = self._distances.Eval(context), self._settings_of(context)
         if self._velocity is None:
-            output.set_value(damper_rows(distances, margins, self.dt))
+            rows = damper_rows(distances, margins, self.dt)
         else:
-            output.set_value(acceleration_rows(distances, margins, self.dt, self._velocity.Eval(context)))
+            rows = acceleration_rows(distances, margins, self.dt, self._velocity.Eval(context))
+        if self.controlled is not None and len(rows.lower):
+            movable = np.abs(rows.jacobian[:, self.controlled]).max(axis=1) > MOVABLE_TOLERANCE
+            if not movable.all():
+                rows = TaskLevel(rows.jacobian[movable], rows.lower[movable], rows.upper[movable], rows.error[movable])
+        output.set_value(rows)
 
     def _calc_distances(self, context: Context, value: AbstractValue) -> None:
         holder = self._world_context.Eval(context)

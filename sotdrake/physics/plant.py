@@ -11,10 +11,14 @@ whole-body collision boxes.
 * Every other link: the box bounding its collision meshes (:mod:`.body_collision`), point contact
   with the ground only (self-collisions filtered), so a fall lands on the ground.
 * Every actuator PD-controlled by the plant (:mod:`.actuators`).
+* ``obstacles``: fixed shapes ``(name, shape, X_WO)`` (those of the controller's collision world,
+  :func:`sotdrake.collision.obstacle_geometries`), anchored in the world as collision (point contact,
+  the links' friction) and visual geometry at the same pose: the simulated robot touches them.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +32,7 @@ from pydrake.geometry import (
     HalfSpace,
     ProximityProperties,
     SceneGraph,
+    Shape,
 )
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import (
@@ -73,10 +78,12 @@ def add_physical_talos(
     damping: float = 0.05,
     body_collision: bool = True,
     pd_gains: bool = True,
+    obstacles: Sequence[tuple[str, Shape, RigidTransform]] = (),
 ) -> PhysicalTalos:
     """Add the simulated TALOS (plant + SceneGraph, visual meshes, sole boxes, link boxes unless
     ``body_collision=False``, ground, PD actuators; ``pd_gains=False`` leaves the actuators without PD
-    controllers, driven by the actuation input alone: torque control)."""
+    controllers, driven by the actuation input alone: torque control; ``obstacles``: see the module docstring)."""
+    obstacles = _checked_obstacles(obstacles)
     if not (isinstance(time_step, (int, float)) and np.isfinite(time_step) and 0 < time_step <= 0.01):
         raise InvalidInput(f"the physics needs a discrete plant: time_step in (0, 0.01] s, got {time_step!r}")
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step)
@@ -118,6 +125,7 @@ def add_physical_talos(
             robot_geometries.append(plant.RegisterCollisionGeometry(
                 body, RigidTransform(box_centre), Box(*box_size), f"{name}_box", link_material))
             boxed.append(name)
+    _add_obstacles(plant, obstacles)
     plant.Finalize()
     # The robot collides with the ground only (see body_collision's docstring).
     scene_graph.collision_filter_manager().Apply(
@@ -131,3 +139,32 @@ def add_physical_talos(
         np.array([a.joint().velocity_start() for a in actuators]),
         soles, tuple(boxed),
     )
+
+
+#: The obstacles' colour in the physics drawing (RGBA).
+OBSTACLE_COLOR = np.array([0.85, 0.45, 0.2, 0.6])
+
+
+def _checked_obstacles(obstacles: object) -> list[tuple[str, Shape, RigidTransform]]:
+    """``obstacles`` as a list of ``(name, shape, X_WO)``, each checked (distinct non-empty names)."""
+    if isinstance(obstacles, (str, bytes)) or not isinstance(obstacles, Sequence):
+        raise InvalidInput(f"obstacles must be a list of (name, shape, X_WO), got {obstacles!r:.100}")
+    names: set[str] = set()
+    for item in obstacles:
+        if not (isinstance(item, tuple) and len(item) == 3 and isinstance(item[0], str) and item[0].strip()
+                and isinstance(item[1], Shape) and isinstance(item[2], RigidTransform)):
+            raise InvalidInput(f"obstacles: each must be (name, Drake shape, RigidTransform X_WO), got {item!r:.100}")
+        if not np.all(np.isfinite(item[2].GetAsMatrix4())):
+            raise InvalidInput(f"obstacles: {item[0]!r} has a non-finite pose X_WO")
+        if item[0] in names:
+            raise InvalidInput(f"obstacles: the name {item[0]!r} is given twice")
+        names.add(item[0])
+    return list(obstacles)
+
+
+def _add_obstacles(plant: MultibodyPlant, obstacles: list[tuple[str, Shape, RigidTransform]]) -> None:
+    material = ProximityProperties()
+    AddContactMaterial(friction=FRICTION, properties=material)
+    for name, shape, X_WO in obstacles:
+        plant.RegisterCollisionGeometry(plant.world_body(), X_WO, shape, f"obstacle/{name}", material)
+        plant.RegisterVisualGeometry(plant.world_body(), X_WO, shape, f"obstacle/{name}_visual", OBSTACLE_COLOR)

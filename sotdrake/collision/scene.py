@@ -1,0 +1,137 @@
+"""Scenes: every collision shape of a URDF or SDF model (a table, a shelf) added as obstacles.
+
+``add_scene(robot, source, X_WS, name)`` parses ``source`` (a ``.urdf``/``.sdf`` file, or the
+text of one) with Drake's ``Parser`` on a plant of its own, welds the model's root body (a body
+without a joint, or the first body) to the world at ``X_WS`` (a ``RigidTransform`` or a 4×4 matrix,
+m; the model's own frame ``S`` in the world, identity by default), and adds each collision geometry
+``G`` as an obstacle (:func:`~.obstacles.add_obstacle`) at ``X_WG = X_WS · X_SB · X_BG`` (``B`` its
+body, at the model's default configuration), named ``<name>/<geometry name>``. The obstacles are
+then in the robot's collision world, drawn in Meshcat when ``meshcat`` is given, and in the physics
+plant built after (:func:`obstacle_geometries`, the ``obstacles`` argument of
+:func:`~sotdrake.physics.add_physical_talos`).
+
+Everything is checked before anything is added: a missing file, text Drake cannot parse, a mesh
+that does not load, a model without collision geometry, a name already used raise
+:class:`~sotdrake.exceptions.SotError` naming it, and the world is left as it was.
+
+:data:`SHELF` is the shelf shipped with sotdrake (``sotdrake/data/shelf.sdf``): a 0.8 m wide,
+0.4 m deep, 1.2 m high bookcase with three compartments (boards 2 cm thick at z = 0.41, 0.81 m
+and the top), its back at x = +0.2 m, open towards −x, its frame on the floor at its centre.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import Meshcat, Role, SceneGraph, Shape
+from pydrake.math import RigidTransform
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import RigidBody
+
+from ..exceptions import InvalidInput, SotError
+from .obstacles import _pose, add_obstacle, draw_obstacles, make_shape
+from .world import CollisionWorld, collision_world
+
+#: The shelf shipped with sotdrake (see the module docstring).
+SHELF = Path(__file__).resolve().parent.parent / "data" / "shelf.sdf"
+#: The shelf's compartments: the centre (m) of the free space of each, in the shelf's frame.
+SHELF_COMPARTMENTS = {"low": (0.0, 0.0, 0.21), "middle": (0.0, 0.0, 0.61), "high": (0.0, 0.0, 1.00)}
+
+
+def scene_shapes(source: str | Path, X_WS: object = None, name: str = "scene") -> list[tuple[str, Shape, RigidTransform]]:
+    """``(obstacle name, shape, X_WG)`` of every collision geometry of ``source`` placed at ``X_WS``
+    (see the module docstring), each shape checked as :func:`~.obstacles.add_obstacle` does."""
+    if not isinstance(name, str) or not name.strip():
+        raise InvalidInput(f"add_scene: name must be a non-empty string, got {name!r:.80}")
+    try:
+        X = RigidTransform() if X_WS is None else _pose(f"scene {name}", X_WS)
+    except InvalidInput:
+        raise InvalidInput(f"add_scene({name!r}): X_WS must be a finite rigid transform (a RigidTransform or a 4×4 "
+                           f"matrix, m), got {X_WS!r:.120}") from None
+    plant = MultibodyPlant(0.0)
+    scene_graph = SceneGraph()
+    plant.RegisterAsSourceForSceneGraph(scene_graph)
+    parser = Parser(plant, scene_graph)
+    parser.SetAutoRenaming(True)
+    try:
+        if isinstance(source, Path) or (isinstance(source, str) and "<" not in source):
+            path = Path(source)
+            if path.suffix.lower() not in (".urdf", ".sdf") or not path.is_file():
+                raise InvalidInput(f"add_scene({name!r}): source {str(source)!r:.200} is not an existing .urdf or .sdf file "
+                                   "(or the text of one)")
+            instances = parser.AddModels(str(path))
+        elif isinstance(source, str):
+            kind = "sdf" if "<sdf" in source else "urdf"
+            instances = parser.AddModelsFromString(source, kind)
+        else:
+            raise InvalidInput(f"add_scene({name!r}): source must be a path or the text of a URDF/SDF, got {type(source).__name__}")
+    except RuntimeError as error:
+        raise InvalidInput(f"add_scene({name!r}): Drake could not parse {str(source)[:200]!r}: {str(error)[:400]}") from None
+    for instance in instances:  # weld each model's root to the world (a static SDF model is already)
+        root = _root_body(plant, [plant.get_body(i) for i in plant.GetBodyIndices(instance)])
+        if root is not None:
+            plant.WeldFrames(plant.world_frame(), root.body_frame(), RigidTransform())
+    plant.Finalize()
+    context = plant.CreateDefaultContext()
+    inspector = scene_graph.model_inspector()
+    shapes: list[tuple[str, Shape, RigidTransform]] = []
+    for geometry in inspector.GetAllGeometryIds(Role.kProximity):
+        body = plant.GetBodyFromFrameId(inspector.GetFrameId(geometry))
+        X_SB = plant.EvalBodyPoseInWorld(context, body)
+        label = f"{name}/{inspector.GetName(geometry).split('::')[-1]}"
+        if any(label == taken for taken, _, _ in shapes):  # unnamed URDF geometries share their shape's name
+            label = f"{label}_{len(shapes)}"
+        shape = make_shape(inspector.GetShape(geometry).Clone(), label)
+        shapes.append((label, shape, X @ X_SB @ inspector.GetPoseInFrame(geometry)))
+    if not shapes:
+        raise InvalidInput(f"add_scene({name!r}): {str(source)[:200]!r} has no collision geometry (no <collision> element "
+                           "Drake loads): nothing to avoid")
+    return shapes
+
+
+def _root_body(plant: MultibodyPlant, bodies: list[RigidBody]) -> RigidBody | None:
+    """The body of ``bodies`` that is no joint's child (the model's root, not yet welded), else None."""
+    children = {plant.get_joint(j).child_body().index() for j in plant.GetJointIndices()}
+    roots = [b for b in bodies if b.index() not in children and b.index() != plant.world_body().index()]
+    return roots[0] if roots else None
+
+
+def add_scene(robot, source: str | Path, X_WS: object = None, name: str = "scene",
+              meshcat: Meshcat | None = None) -> list[str]:
+    """Add every collision geometry of the URDF/SDF ``source`` as an obstacle of ``robot`` (a
+    :class:`~sotdrake.robot.Robot` or a :class:`~.world.CollisionWorld`), the model at ``X_WS``;
+    returns the obstacles' names (see the module docstring). Nothing is added unless all can be."""
+    world = robot if isinstance(robot, CollisionWorld) else collision_world(robot)
+    shapes = scene_shapes(source, X_WS, name)
+    taken = [label for label, _, _ in shapes if label in world.obstacles or label in world.links]
+    if taken or len({label for label, _, _ in shapes}) != len(shapes):
+        raise InvalidInput(f"add_scene({name!r}): obstacle names {taken or [s[0] for s in shapes]} are taken already "
+                           "(or repeated): give the scene another name")
+    if world.contexts_made:
+        raise SotError(f"add_scene({name!r}): the collision world is in use already (a context of the diagram exists): "
+                       "add scenes before building the diagram and creating its context")
+    for label, shape, pose in shapes:
+        add_obstacle(world, shape, pose, label)
+    if meshcat is not None:
+        draw_obstacles(meshcat, world, [label for label, _, _ in shapes])
+    return [label for label, _, _ in shapes]
+
+
+def obstacle_geometries(robot) -> list[tuple[str, Shape, RigidTransform]]:
+    """``(name, shape, X_WO)`` of every obstacle of ``robot``'s collision world (or of a
+    ``CollisionWorld``): the ``obstacles`` argument of :func:`~sotdrake.physics.add_physical_talos`,
+    so that the simulated robot touches what the controller avoids."""
+    world = robot if isinstance(robot, CollisionWorld) else collision_world(robot)
+    out = []
+    for name, (shape, pose) in world.obstacle_shapes.items():
+        assert isinstance(shape, Shape) and isinstance(pose, RigidTransform)
+        out.append((name, shape, pose))
+    return out
+
+
+def scene_point(X_WS: RigidTransform | np.ndarray, p_S: tuple[float, float, float]) -> np.ndarray:
+    """A point given in the scene's frame (m), in the world."""
+    X = X_WS if isinstance(X_WS, RigidTransform) else RigidTransform(np.asarray(X_WS))
+    return X @ np.asarray(p_S, dtype=float)

@@ -16,7 +16,7 @@ inverse: ≥ 1 is faster than real time), and ``plant_share``, the plant alone's
 second over the run's, both measured in the same turn. The outcome figures of each run (hand error,
 slip, base drop, fall) are kept next to the timings, to show that the faster model keeps them.
 
-    python bench/physics.py --duration 3 --repeat 3 --out bench/results/physics.json
+    python bench/physics.py --duration 2 --repeat 2 --out bench/results/physics.json
 """
 
 from __future__ import annotations
@@ -39,21 +39,23 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 import sotdrake.dynamics.station as dynamics_station
-import sotdrake.physics.station as physics_station
 from sotdrake import load_talos
 from sotdrake.physics import CONTACT_MODELS, add_talos_station
 
 
 @contextmanager
 def contact_model(contact: str):
-    """Every physical TALOS built inside uses ``contact`` (the scripts take the default)."""
-    saved = physics_station.add_physical_talos, dynamics_station.add_physical_talos
-    physics_station.add_physical_talos = functools.partial(saved[0], contact=contact)
+    """Every physical TALOS built inside uses ``contact`` (the scripts take the defaults: point
+    contact in ``add_talos_station``, hydroelastic in the torque-driven device)."""
+    import talos_physics
+
+    saved = talos_physics.add_talos_station, dynamics_station.add_physical_talos
+    talos_physics.add_talos_station = functools.partial(saved[0], contact=contact)
     dynamics_station.add_physical_talos = functools.partial(saved[1], contact=contact)
     try:
         yield
     finally:
-        physics_station.add_physical_talos, dynamics_station.add_physical_talos = saved
+        talos_physics.add_talos_station, dynamics_station.add_physical_talos = saved
 
 
 def _advance(simulator: Simulator, duration: float) -> float:

@@ -1,21 +1,21 @@
 """The simulated TALOS' plant: a discrete ``MultibodyPlant`` on a ground half-space, with soles and
 whole-body collision boxes.
 
-* A discrete ``MultibodyPlant`` (1 ms, Drake's SAP solver) on a ground half-space (drawn as a flat
-  6 m plate), gravity on.
+* A discrete ``MultibodyPlant`` (1 ms, Drake's SAP solver in its default lagged approximation) on
+  a ground half-space (drawn as a flat 6 m plate), gravity on.
 * Soles, ``SOLE_BOX`` (0.211 × 0.124 m, the footprint of TALOS' foot collision mesh, bottom at the
   sole frame), in one of two contact models (``contact``), friction ``μ = 0.9`` (static), ``0.8``
   (dynamic) against the rigid ground:
 
-  - ``"point"`` (default): four spheres of radius ``CORNER_RADIUS`` at the bottom corners of the
+  - ``"point"`` (the default of :func:`~.station.add_talos_station`): four spheres of radius ``CORNER_RADIUS`` at the bottom corners of the
     box, their lowest points on the sole plane, point contact of stiffness ``CORNER_STIFFNESS``
-    N/m each (Hunt-Crossley dissipation ``CORNER_DISSIPATION`` s/m is set for the other discrete
-    solvers; SAP damps the contact with its relaxation time). The plant alone steps about
-    twice as fast as with the hydroelastic soles, and the physics scenarios keep their figures (the
-    feet slip by micrometres, not millimetres, under SAP).
-  - ``"hydroelastic"``: one compliant-hydroelastic box per sole (``SOLE_MODULUS`` Pa, a 2 cm thick
+    N/m each and Hunt-Crossley dissipation ``CORNER_DISSIPATION`` s/m. The plant alone steps 1.3 to
+    1.6 times as fast as with the hydroelastic soles; standing, reaching and pushed, the feet slip by
+    micrometres. Walking on position servos, a sole landing or rolling on its corners
+    rocks heel to toe: the walks keep the hydroelastic soles.
+  - ``"hydroelastic"`` (the default of this function): one compliant-hydroelastic box per sole (``SOLE_MODULUS`` Pa, a 2 cm thick
     layer, dissipation ``SOLE_DISSIPATION`` s/m): a distributed pressure, the centre of pressure
-    anywhere under the sole, at about twice the plant's cost.
+    anywhere under the sole, at a higher cost.
 
 * Every other link: the box bounding its collision meshes (:mod:`.body_collision`), point contact
   with the ground only (self-collisions filtered), so a fall lands on the ground.
@@ -43,7 +43,6 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import (
     AddMultibodyPlantSceneGraph,
     CoulombFriction,
-    DiscreteContactApproximation,
     MultibodyPlant,
 )
 from pydrake.multibody.tree import ModelInstanceIndex
@@ -111,18 +110,18 @@ def add_physical_talos(
     damping: float = 0.05,
     body_collision: bool = True,
     pd_gains: bool = True,
-    contact: str = "point",
+    contact: str = "hydroelastic",
 ) -> PhysicalTalos:
     """Add the simulated TALOS (plant + SceneGraph, visual meshes, soles, link boxes unless
     ``body_collision=False``, ground, PD actuators; ``pd_gains=False`` leaves the actuators without PD
     controllers, driven by the actuation input alone: torque control). ``contact``: the soles'
-    contact model, ``"point"`` (default) or ``"hydroelastic"`` (see the module docstring)."""
+    contact model, ``"hydroelastic"`` (default) or ``"point"`` (see the module docstring; the station
+    of :func:`~.station.add_talos_station` takes ``"point"``)."""
     if not (isinstance(time_step, (int, float)) and np.isfinite(time_step) and 0 < time_step <= 0.01):
         raise InvalidInput(f"the physics needs a discrete plant: time_step in (0, 0.01] s, got {time_step!r}")
     if contact not in CONTACT_MODELS:
         raise InvalidInput(f"contact is one of {CONTACT_MODELS}, got {contact!r}")
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step)
-    plant.set_discrete_contact_approximation(DiscreteContactApproximation.kSap)
     plant.set_name("talos_plant")
     instance = add_talos(plant, variant, meshes=True, collision=False)
     ground = ProximityProperties()

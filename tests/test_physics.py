@@ -84,6 +84,8 @@ def test_physics_inputs():
     builder = DiagramBuilder()
     with pytest.raises(InvalidInput):
         add_physical_talos(builder, time_step=0.0)
+    with pytest.raises(InvalidInput, match="contact"):
+        add_physical_talos(builder, contact="mesh")
     robot = add_physical_talos(DiagramBuilder())
     with pytest.raises(InvalidInput):
         Push(robot.plant, "torso_2_link", [np.nan, 0, 0], 1.0, 0.1)

@@ -3,7 +3,7 @@ dynamic simulator"; the tutorial uses Gazebo and ros_control for that).
 
 One concept a module:
 
-* :mod:`.plant`: the discrete plant on the ground, sole boxes, whole-body collision boxes
+* :mod:`.plant`: the discrete plant on the ground, soles (point or hydroelastic contact), whole-body collision boxes
   (:mod:`.body_collision`);
 * :mod:`.actuators`: the PD-controlled actuators and their references (``DesiredState``);
 * :mod:`.estimator`: the closed loop's leg-odometry base estimate (``KinematicBaseEstimator``);
@@ -26,6 +26,10 @@ from .body_collision import fit_link_boxes
 from .contact_monitor import ContactMonitor
 from .estimator import KinematicBaseEstimator
 from .plant import (
+    CONTACT_MODELS,
+    CORNER_DISSIPATION,
+    CORNER_RADIUS,
+    CORNER_STIFFNESS,
     FRICTION,
     SOLE_BOX,
     SOLE_DISSIPATION,
@@ -37,6 +41,10 @@ from .push import MAX_PUSH_FORCE, Push
 from .station import TalosStation, add_talos_station
 
 __all__ = [
+    "CONTACT_MODELS",
+    "CORNER_DISSIPATION",
+    "CORNER_RADIUS",
+    "CORNER_STIFFNESS",
     "DAMPING_RANGE",
     "FRICTION",
     "MAX_PUSH_FORCE",

@@ -1,13 +1,22 @@
 """The simulated TALOS' plant: a discrete ``MultibodyPlant`` on a ground half-space, with soles and
 whole-body collision boxes.
 
-* A discrete ``MultibodyPlant`` (1 ms, Drake's SAP solver) on a ground half-space (drawn as a flat
-  6 m plate), gravity on.
-* Soles: one box per sole, ``SOLE_BOX`` (0.211 × 0.124 m, the footprint of TALOS' foot collision
-  mesh, bottom at the sole frame), compliant-hydroelastic (``SOLE_MODULUS`` Pa, a 2 cm thick layer,
-  Hunt-Crossley dissipation ``SOLE_DISSIPATION`` s/m) against a rigid-hydroelastic ground. Friction
-  ``μ = 0.9`` (static), ``0.8`` (dynamic). (Point contact at the box corners made the loaded feet
-  creep by millimetres in seconds; the distributed hydroelastic pressure holds them.)
+* A discrete ``MultibodyPlant`` (1 ms, Drake's SAP solver in its default lagged approximation) on
+  a ground half-space (drawn as a flat 6 m plate), gravity on.
+* Soles, ``SOLE_BOX`` (0.211 × 0.124 m, the footprint of TALOS' foot collision mesh, bottom at the
+  sole frame), in one of two contact models (``contact``), friction ``μ = 0.9`` (static), ``0.8``
+  (dynamic) against the rigid ground:
+
+  - ``"point"`` (the default of :func:`~.station.add_talos_station`): four spheres of radius ``CORNER_RADIUS`` at the bottom corners of the
+    box, their lowest points on the sole plane, point contact of stiffness ``CORNER_STIFFNESS``
+    N/m each and Hunt-Crossley dissipation ``CORNER_DISSIPATION`` s/m. The plant alone steps 1.3 to
+    1.6 times as fast as with the hydroelastic soles; standing, reaching and pushed, the feet slip by
+    micrometres. Walking on position servos, a sole landing or rolling on its corners
+    rocks heel to toe: the walks keep the hydroelastic soles.
+  - ``"hydroelastic"`` (the default of this function): one compliant-hydroelastic box per sole (``SOLE_MODULUS`` Pa, a 2 cm thick
+    layer, dissipation ``SOLE_DISSIPATION`` s/m): a distributed pressure, the centre of pressure
+    anywhere under the sole, at a higher cost.
+
 * Every other link: the box bounding its collision meshes (:mod:`.body_collision`), point contact
   with the ground only (self-collisions filtered), so a fall lands on the ground.
 * Every actuator PD-controlled by the plant (:mod:`.actuators`).
@@ -33,6 +42,7 @@ from pydrake.geometry import (
     ProximityProperties,
     SceneGraph,
     Shape,
+    Sphere,
 )
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import (
@@ -57,6 +67,33 @@ SOLE_DISSIPATION = 50.0  # s/m
 #: The ground's drawing: a plate (m) and its colour (RGBA).
 GROUND_PLATE = (6.0, 6.0, 0.01)
 GROUND_COLOR = np.array([0.62, 0.64, 0.60, 1.0])
+#: The soles' contact models of :func:`add_physical_talos` (``contact``).
+CONTACT_MODELS = ("hydroelastic", "point")
+#: Point-contact soles: the corner spheres' radius (m), stiffness (N/m each), dissipation (s/m).
+CORNER_RADIUS = 0.002
+CORNER_STIFFNESS = 1e6
+CORNER_DISSIPATION = 50.0
+
+
+def _add_sole(plant: MultibodyPlant, sole, side: str, contact: str) -> list:
+    """Register ``side``'s sole geometry on ``sole``'s body (``contact``: see the module docstring);
+    returns the geometry ids."""
+    size, centre = SOLE_BOX
+    X_BS = sole.GetFixedPoseInBodyFrame()
+    material = ProximityProperties()
+    if contact == "hydroelastic":
+        AddCompliantHydroelasticProperties(resolution_hint=0.02, hydroelastic_modulus=SOLE_MODULUS, properties=material)
+        AddContactMaterial(dissipation=SOLE_DISSIPATION, friction=FRICTION, properties=material)
+        return [plant.RegisterCollisionGeometry(
+            sole.body(), X_BS.multiply(RigidTransform(centre)), Box(*size), f"{side}_sole", material)]
+    AddContactMaterial(dissipation=CORNER_DISSIPATION, point_stiffness=CORNER_STIFFNESS, friction=FRICTION,
+                       properties=material)
+    ids = []
+    for k, (sx, sy) in enumerate(((-1, -1), (-1, 1), (1, -1), (1, 1))):
+        p_SC = centre + size * np.array([sx, sy, 0.0]) / 2 - np.array([0.0, 0.0, size[2] / 2 - CORNER_RADIUS])
+        ids.append(plant.RegisterCollisionGeometry(
+            sole.body(), X_BS.multiply(RigidTransform(p_SC)), Sphere(CORNER_RADIUS), f"{side}_sole_{k}", material))
+    return ids
 
 
 @dataclass
@@ -79,13 +116,18 @@ def add_physical_talos(
     body_collision: bool = True,
     pd_gains: bool = True,
     obstacles: Sequence[tuple[str, Shape, RigidTransform]] = (),
+    contact: str = "hydroelastic",
 ) -> PhysicalTalos:
-    """Add the simulated TALOS (plant + SceneGraph, visual meshes, sole boxes, link boxes unless
+    """Add the simulated TALOS (plant + SceneGraph, visual meshes, soles, link boxes unless
     ``body_collision=False``, ground, PD actuators; ``pd_gains=False`` leaves the actuators without PD
-    controllers, driven by the actuation input alone: torque control; ``obstacles``: see the module docstring)."""
+    controllers, driven by the actuation input alone: torque control; ``obstacles``: see the module
+    docstring). ``contact``: the soles' contact model, ``"hydroelastic"`` (default) or ``"point"`` (see
+    the module docstring; the station of :func:`~.station.add_talos_station` takes ``"point"``)."""
     obstacles = _checked_obstacles(obstacles)
     if not (isinstance(time_step, (int, float)) and np.isfinite(time_step) and 0 < time_step <= 0.01):
         raise InvalidInput(f"the physics needs a discrete plant: time_step in (0, 0.01] s, got {time_step!r}")
+    if contact not in CONTACT_MODELS:
+        raise InvalidInput(f"contact is one of {CONTACT_MODELS}, got {contact!r}")
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step)
     plant.set_name("talos_plant")
     instance = add_talos(plant, variant, meshes=True, collision=False)
@@ -100,17 +142,11 @@ def add_physical_talos(
     # Drawn as a flat plate (the half-space itself has no illustration), its top 1 mm under z = 0.
     plant.RegisterVisualGeometry(plant.world_body(), RigidTransform([0.0, 0.0, -GROUND_PLATE[2] / 2 - 1e-3]),
                                  Box(*GROUND_PLATE), "ground_visual", GROUND_COLOR)
-    sole_material = ProximityProperties()
-    AddCompliantHydroelasticProperties(resolution_hint=0.02, hydroelastic_modulus=SOLE_MODULUS, properties=sole_material)
-    AddContactMaterial(dissipation=SOLE_DISSIPATION, friction=FRICTION, properties=sole_material)
-    size, centre = SOLE_BOX
     soles = {}
     robot_geometries = []
     for side in ("left", "right"):
         sole = plant.GetFrameByName(f"{side}_sole_link")
-        X_BS = sole.GetFixedPoseInBodyFrame()
-        robot_geometries.append(plant.RegisterCollisionGeometry(
-            sole.body(), X_BS.multiply(RigidTransform(centre)), Box(*size), f"{side}_sole", sole_material))
+        robot_geometries += _add_sole(plant, sole, side, contact)
         soles[side] = sole
     boxed = []
     if body_collision:

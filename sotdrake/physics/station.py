@@ -59,11 +59,15 @@ def add_talos_station(
     push_body: str = "torso_2_link",
     push_start: float = 2.0,
     push_duration: float = 0.1,
+    contact: str = "point",
     **plant_options,
 ) -> TalosStation:
     """The station (see the module docstring); the plant starts at ``q0``. ``push_force`` (N, world)
-    adds a :class:`~.push.Push` on ``push_body`` during ``[push_start, push_start + push_duration)``."""
-    physical = add_physical_talos(builder, time_step=time_step, **plant_options)
+    adds a :class:`~.push.Push` on ``push_body`` during ``[push_start, push_start + push_duration)``.
+    ``contact``: the soles' contact model of :func:`~.plant.add_physical_talos`, point contact at
+    their corners by default (the plant 1.3 to 1.6 times as fast as with ``"hydroelastic"``, the same
+    standing, reaching and pushed figures)."""
+    physical = add_physical_talos(builder, time_step=time_step, contact=contact, **plant_options)
     plant = physical.plant
     plant.SetDefaultPositions(q0)
     desired = builder.AddNamedSystem("desired_state", DesiredState(physical))

@@ -1,0 +1,156 @@
+"""The physics' speed: real-time factor of the two physics runs and the plant's share of their tick.
+
+Two runs, each with every contact model of :func:`sotdrake.physics.add_physical_talos`:
+
+* ``reach``: ``diagrams/talos_physics.py --scenario reach`` (the kinematic SoT, PD actuators);
+* ``stand_dynamics``: ``diagrams/talos_dynamics.py --scenario stand --device physics`` (the
+  dynamic SoT, torque control);
+
+and the plant alone (``plant``): the station of :func:`sotdrake.physics.add_talos_station` with its
+PD references held at half-sitting, no controller, standing: the floor of any physics run.
+
+Times are CPU times (``time.process_time``) of ``Simulator.AdvanceTo`` over the run, the best of
+``--repeat`` turns (the machine may be shared: CPU time, and the minimum, are the least disturbed).
+Reported per run: ``cpu_per_sim_s`` (CPU seconds per simulated second), ``realtime_factor`` (its
+inverse: ≥ 1 is faster than real time), and ``plant_share``, the plant alone's CPU per simulated
+second over the run's, both measured in the same turn. The outcome figures of each run (hand error,
+slip, base drop, fall) are kept next to the timings, to show that the faster model keeps them.
+
+    python bench/physics.py --duration 2 --repeat 2 --out bench/results/physics.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import platform
+import sys
+import time
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "diagrams")]
+
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+import sotdrake.dynamics.station as dynamics_station
+from sotdrake import load_talos
+from sotdrake.physics import CONTACT_MODELS, add_talos_station
+
+
+@contextmanager
+def contact_model(contact: str):
+    """Every physical TALOS built inside uses ``contact`` (the scripts take the defaults: point
+    contact in ``add_talos_station``, hydroelastic in the torque-driven device)."""
+    import talos_physics
+
+    saved = talos_physics.add_talos_station, dynamics_station.add_physical_talos
+    talos_physics.add_talos_station = functools.partial(saved[0], contact=contact)
+    dynamics_station.add_physical_talos = functools.partial(saved[1], contact=contact)
+    try:
+        yield
+    finally:
+        talos_physics.add_talos_station, dynamics_station.add_physical_talos = saved
+
+
+def _advance(simulator: Simulator, duration: float) -> float:
+    simulator.Initialize()
+    start = time.process_time()
+    simulator.AdvanceTo(duration)
+    return time.process_time() - start
+
+
+def plant_alone(contact: str, duration: float) -> float:
+    """CPU seconds per simulated second of the station alone, standing on its PD actuators."""
+    model = load_talos("reduced")
+    builder = DiagramBuilder()
+    station = add_talos_station(builder, model.half_sitting, contact=contact)
+    builder.ExportInput(station.position, "position")
+    builder.ExportInput(station.velocity, "velocity")
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    diagram.get_input_port(0).FixValue(context, model.half_sitting)
+    diagram.get_input_port(1).FixValue(context, np.zeros(model.nv))
+    return _advance(simulator, duration) / duration
+
+
+def reach(contact: str, duration: float) -> tuple[float, dict]:
+    import talos_physics
+
+    with contact_model(contact):
+        run = talos_physics.build_diagram("reach")
+    simulator = Simulator(run.diagram)
+    cpu = _advance(simulator, duration)
+    summary, _ = talos_physics.summarize(run, simulator, duration, cpu)
+    keys = ("hand_error_m", "hand_initial_error_m", "base_drift_m", "base_height_drop_m", "min_normal_force_n",
+            "max_foot_slip_m", "min_cop_margin_m", "fell")
+    return cpu / duration, {k: summary[k] for k in keys}
+
+
+def stand_dynamics(contact: str, duration: float) -> tuple[float, dict]:
+    import talos_dynamics
+
+    with contact_model(contact):
+        run = talos_dynamics.build_diagram("stand", "physics")
+    simulator = Simulator(run.diagram)
+    cpu = _advance(simulator, duration)
+    times = np.full(round(duration / run.robot.dt), cpu / round(duration / run.robot.dt))
+    summary, _ = talos_dynamics.summarize(run, simulator, times, duration)
+    keys = ("com_drift_m", "max_foot_slip_m", "max_torque_ratio", "max_friction_ratio", "fell")
+    return cpu / duration, {k: summary[k] for k in keys}
+
+
+RUNS = {"reach": reach, "stand_dynamics": stand_dynamics}
+
+
+def measure(duration: float, repeat: int, contacts: tuple[str, ...]) -> dict:
+    results: dict = {}
+    for contact in contacts:
+        entry: dict = {}
+        for name, run in RUNS.items():
+            best = None
+            for _ in range(repeat):
+                cpu, outcome = run(contact, duration)
+                plant = plant_alone(contact, duration)
+                if best is None or cpu < best["cpu_per_sim_s"]:
+                    best = {"cpu_per_sim_s": cpu, "plant_cpu_per_sim_s": plant, "outcome": outcome}
+            best.update(realtime_factor=1.0 / best["cpu_per_sim_s"],
+                        plant_share=best["plant_cpu_per_sim_s"] / best["cpu_per_sim_s"])
+            entry[name] = best
+            print(f"{contact:12s} {name:15s} {best['realtime_factor']:.2f}x real time, "
+                  f"plant share {best['plant_share']:.2f} (plant alone {1 / best['plant_cpu_per_sim_s']:.2f}x)",
+                  flush=True)
+        results[contact] = entry
+    return results
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--duration", type=float, default=3.0, help="simulated seconds per run")
+    parser.add_argument("--repeat", type=int, default=3, help="turns per run (the fastest is kept)")
+    parser.add_argument("--contact", choices=[*CONTACT_MODELS, "all"], default="all")
+    parser.add_argument("--out", type=Path, default=ROOT / "bench" / "results" / "physics.json")
+    args = parser.parse_args(argv)
+    contacts = CONTACT_MODELS if args.contact == "all" else (args.contact,)
+    results = {
+        "command": "python bench/physics.py " + " ".join(sys.argv[1:] if argv is None else argv),
+        "clock": "time.process_time (CPU), best of repeat",
+        "duration_s": args.duration,
+        "repeat": args.repeat,
+        "machine": {"cpus": __import__("os").cpu_count(), "python": platform.python_version()},
+        "runs": measure(args.duration, args.repeat, contacts),
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(results, indent=2) + "\n")
+    print(f"wrote {args.out}")
+    return results
+
+
+if __name__ == "__main__":
+    main()

@@ -21,9 +21,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
-sys.path.insert(0, str(HERE.parent / "diagrams"))
 
-import reach_map
+from sotdrake.scenarios import reach_map
 
 
 def main(argv: list[str] | None = None) -> dict:

@@ -14,49 +14,14 @@ numbers): the smallest signed distance of any checked pair, the ankles' drift::
 
 Writes ``summary.json`` and, unless ``--no-meshcat``, one Meshcat recording per run with the
 constraint (``recording_<target>.html``, the table drawn).
+
+The scenario (its diagram, run and summary) is :mod:`sotdrake.scenarios.talos_collisions`.
 """
 
-from __future__ import annotations
+from sotdrake import report
+from sotdrake.scenarios.talos_collisions import main
 
-import json
-
-import numpy as np
-
-from sotdrake import build_collision_reach, run_collision_reach, save_recording, script_arguments, start
-
-#: The targets of the hand point (m, world), TALOS in half-sitting facing +x.
-TARGETS = {
-    "across_torso": np.array([0.15, 0.30, 1.05]),  # in front of the left side of the chest
-    "into_torso": np.array([-0.10, 0.0, 1.30]),  # deep in the chest
-    "under_table": np.array([0.50, -0.30, 0.70]),  # under the table top, reached through it
-}
-HAND_GAIN = 10.0  # 1/s, constant
-
-
-def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/talos_collisions", duration=1.5, bag=False)
-    args = parser.parse_args(argv)
-    meshcat = start(args)
-    args.out.mkdir(parents=True, exist_ok=True)
-    with_constraint = build_collision_reach(collision=True, table=True, meshcat=meshcat)
-    without = build_collision_reach(collision=False, table=True)
-    summary: dict = {"duration_s": args.duration, "hand_gain_per_s": HAND_GAIN, "safety_m": 0.01, "runs": {}}
-    for name, target in TARGETS.items():
-        runs = {}
-        for label, reach in (("without", without), ("with", with_constraint)):
-            report = run_collision_reach(reach, target, args.duration, gain=HAND_GAIN)
-            runs[label] = {"min_signed_distance_m": report.min_distance, "hand_error_m": report.hand_error,
-                           "feet_drift_m": report.feet_drift, "solver_failures": len(report.failures)}
-            if not args.quiet:
-                print(f"{name:13s} {label:7s} min signed distance {report.min_distance * 1e3:8.2f} mm, "
-                      f"hand {report.hand_error * 1e3:6.1f} mm from its target")
-            if label == "with" and reach.visualizer is not None and meshcat is not None:
-                runs[label]["recording"] = str(save_recording(reach.visualizer, meshcat, args.out / f"recording_{name}.html"))
-        summary["runs"][name] = {"target_m": target.tolist(), **runs}
-    (args.out / "summary.json").write_text(json.dumps(summary, indent=1))
-    print(json.dumps(summary, indent=1))
-    return summary
-
+__all__ = ["main"]
 
 if __name__ == "__main__":
-    main()
+    report(main())

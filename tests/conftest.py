@@ -71,19 +71,3 @@ def random_configuration(model, rng, spread: float = 0.5) -> np.ndarray:
     q = integrate(model.half_sitting, rng.normal(scale=spread, size=model.nv), 1.0, Layout.of(model.plant))
     lo, up = model.plant.GetPositionLowerLimits(), model.plant.GetPositionUpperLimits()
     return np.clip(q, lo, up)
-
-
-def load_diagram(script: str):
-    """Import ``diagrams/<script>.py`` as a module (registered, so that its dataclasses work): only
-    for the scripts not moved to ``sotdrake.scenarios`` yet (``tests/test_scripts_layout.py`` lists
-    them); every other test imports its scenario from the package."""
-    import importlib.util
-    import sys
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "diagrams" / f"{script}.py"
-    spec = importlib.util.spec_from_file_location(script, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module

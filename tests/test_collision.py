@@ -7,6 +7,7 @@ world of their own (not the task's numbers).
 
 from __future__ import annotations
 
+import importlib
 import json
 
 import numpy as np
@@ -299,9 +300,7 @@ def test_the_acceleration_level_keeps_the_safety_distance_under_solver_dyn(talos
 
 @pytest.mark.slow
 def test_talos_collisions_script_keeps_the_safety_distance_with_the_level(tmp_path):
-    from tests.conftest import load_diagram
-
-    script = load_diagram("talos_collisions")
+    script = importlib.import_module("sotdrake.scenarios.talos_collisions")
     summary = script.main(["--duration", "0.3", "--out", str(tmp_path), "--quiet", "--no-meshcat"])
     assert json.loads((tmp_path / "summary.json").read_text()) == json.loads(json.dumps(summary))
     assert set(summary["runs"]) == {"across_torso", "into_torso", "under_table"}

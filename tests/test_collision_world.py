@@ -8,6 +8,8 @@ simulated robot touching one is pushed by it (a contact force on that geometry).
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
 from pydrake.geometry import Box, Role, Sphere
@@ -137,9 +139,7 @@ def test_pr2_shelf_script_keeps_the_arm_off_the_boards_and_reaches(tmp_path):
     """PR2 into the shelf's compartments: without the level the arm goes through a board (a negative
     distance by Drake's query); with it no arm–shelf pair comes closer than d_s − 1e-4 m, and every
     target is still reached."""
-    from tests.conftest import load_diagram
-
-    script = load_diagram("pr2_shelf")
+    script = importlib.import_module("sotdrake.scenarios.pr2_shelf")
     summary = script.main(["--duration", "2.5", "--out", str(tmp_path), "--quiet", "--no-meshcat"])
     runs = summary["runs"]
     assert set(runs) == {"low", "middle", "high"}
@@ -151,9 +151,7 @@ def test_pr2_shelf_script_keeps_the_arm_off_the_boards_and_reaches(tmp_path):
 
 @pytest.fixture(scope="module")
 def reach_map():
-    from tests.conftest import load_diagram
-
-    return load_diagram("reach_map")
+    return importlib.import_module("sotdrake.scenarios.reach_map")
 
 
 def test_reach_map_counts_a_colliding_path_as_not_reached(reach_map):

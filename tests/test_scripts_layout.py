@@ -10,9 +10,6 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 MAX_LINES = 150
-#: Scripts not converted yet (being edited elsewhere): they may still be long and loaded by path.
-#: Each goes from here to ``sotdrake/scenarios/`` next; this set only shrinks.
-NOT_YET_CONVERTED = {"talos_collisions", "reach_map", "pr2_shelf"}
 #: How a file loads a script by path: the test helper, an import spec, ``diagrams/`` on ``sys.path``.
 LOADS = {
     "load_diagram": re.compile(r"""load_diagram\(\s*["'](\w+)["']"""),
@@ -28,14 +25,14 @@ def script_lines() -> dict[str, int]:
 def test_every_script_is_thin():
     lines = script_lines()
     assert len(lines) >= 10
-    long = {name: n for name, n in lines.items() if n > MAX_LINES and name not in NOT_YET_CONVERTED}
+    long = {name: n for name, n in lines.items() if n > MAX_LINES}
     assert not long, f"scripts over {MAX_LINES} lines (move the scenario to sotdrake/scenarios/): {long}"
 
 
 def loads_by_path(text: str) -> list[str]:
-    """What ``text`` loads from ``diagrams/`` by path, but the scripts not converted yet: the
+    """What ``text`` loads from ``diagrams/`` by path: the
     ``load_diagram`` calls by script name, every other way by its kind."""
-    found = [name for name in LOADS["load_diagram"].findall(text) if name not in NOT_YET_CONVERTED]
+    found = list(LOADS["load_diagram"].findall(text))
     for kind in ("spec_from_file_location", "sys.path"):
         found += [kind] * len(LOADS[kind].findall(text))
     return found
@@ -47,14 +44,10 @@ def test_the_check_sees_a_script_loaded_by_path():
     assert loads_by_path('spec = importlib.util.spec_from_file_location(name, ROOT / "diagrams" / "x.py")') == [
         "spec_from_file_location"]
     assert loads_by_path('subprocess.run([sys.executable, str(ROOT / "diagrams" / "walk.py")])') == []
-    assert loads_by_path('load_diagram("reach_map")') == []
 
 
 def test_no_test_or_bench_file_loads_a_script_by_path():
-    # conftest defines load_diagram (for the scripts not converted yet); sweep_speedup times
-    # reach_map's sweep, one of them (it puts diagrams/ on sys.path for it).
-    allowed = {ROOT / "tests" / "conftest.py", ROOT / "bench" / "sweep_speedup.py"}
-    files = [path for folder in ("tests", "bench") for path in sorted((ROOT / folder).glob("*.py")) if path not in allowed]
+    files = [path for folder in ("tests", "bench") for path in sorted((ROOT / folder).glob("*.py"))]
     assert len(files) > 50
     offenders = {path.relative_to(ROOT).as_posix(): found for path in files
                  if path.name != Path(__file__).name and (found := loads_by_path(path.read_text()))}

@@ -1,5 +1,6 @@
 """The sweep scripts: reach_map (SolverKine reach targets) and push_map (pushes on the physics stand)."""
 
+import importlib
 import json
 
 import numpy as np
@@ -8,12 +9,11 @@ import pytest
 from sotdrake import tilt_of_quaternions
 from sotdrake.exceptions import InvalidInput
 from sotdrake.sweep import read_csv, run_sweep
-from tests.conftest import load_diagram
 
 
 @pytest.fixture(scope="module")
 def reach_map():
-    return load_diagram("reach_map")
+    return importlib.import_module("sotdrake.scenarios.reach_map")
 
 
 @pytest.fixture(scope="module")

@@ -6,8 +6,10 @@ the value of its port at each ``k·T`` *after* the discrete updates at that time
 ``state`` that is the configuration the tick at ``k·T`` produced.
 
 **Streaming.** By default the samples do not stay in memory: every ``chunk`` seconds of simulated
-time the sinks' logs are moved to a chunk file (a zip of ``.npy`` columns, one entry per signal and
-chunk, uncompressed) and cleared, so a long run's memory stays flat. The loops that flush are
+time the sinks' logs are moved to a chunk file (``.npy`` arrays one after the other: the column
+names, then each chunk's columns; appended, never re-read while the run goes: no Python objects
+pile up for the garbage collector) and cleared, so a long run's memory stays flat. The loops that
+flush are
 :func:`sotdrake.simulation.simulate` and the live runner (:class:`sotdrake.live.runner.LiveRun`);
 with a ``Simulator`` of your own, call :func:`flush_tracers` (or :meth:`Tracer.flush`) between
 ``AdvanceTo`` calls. :meth:`Tracer.data` reads the chunks back and appends what the logs still
@@ -17,10 +19,8 @@ the context flushed first; flushing another root context starts it over.
 
 from __future__ import annotations
 
-import io
 import tempfile
 import weakref
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -35,37 +35,41 @@ _STREAMING: weakref.WeakSet[Tracer] = weakref.WeakSet()
 
 
 class _ChunkFile:
-    """Chunks of columns in a zip: entry ``<k>/<name>.npy`` (k: 6 digits) per chunk ``k``."""
+    """A sequence of ``.npy`` arrays in one file, appended to: the column names (a string array),
+    then per chunk one array per column in that order. Nothing is re-read when a chunk is added."""
 
     def __init__(self, path: Path | None):
         self._temporary = None
         if path is None:  # deleted with this object
-            self._temporary = tempfile.NamedTemporaryFile(prefix="sotdrake-trace-", suffix=".zip")
+            self._temporary = tempfile.NamedTemporaryFile(prefix="sotdrake-trace-", suffix=".npys")
             path = Path(self._temporary.name)
         self.path = Path(path)
         self.chunks = 0
         self.reset()
 
     def reset(self) -> None:
-        with zipfile.ZipFile(self.path, "w"):
-            pass
+        self.path.write_bytes(b"")
         self.chunks = 0
 
     def append(self, columns: dict[str, np.ndarray]) -> None:
-        with zipfile.ZipFile(self.path, "a", zipfile.ZIP_STORED) as archive:
-            for name, values in columns.items():
-                buffer = io.BytesIO()
-                np.lib.format.write_array(buffer, np.ascontiguousarray(values), allow_pickle=False)
-                archive.writestr(f"{self.chunks:06d}/{name}.npy", buffer.getvalue())
+        with open(self.path, "ab") as file:
+            if self.chunks == 0:
+                np.lib.format.write_array(file, np.array(list(columns), dtype=str), allow_pickle=False)
+            for values in columns.values():
+                np.lib.format.write_array(file, np.ascontiguousarray(values), allow_pickle=False)
         self.chunks += 1
 
-    def read(self, names: list[str]) -> dict[str, list[np.ndarray]]:
-        out: dict[str, list[np.ndarray]] = {name: [] for name in names}
-        with zipfile.ZipFile(self.path) as archive:
-            for k in range(self.chunks):
+    def read(self) -> dict[str, list[np.ndarray]]:
+        """Each column's chunks, in order."""
+        size = self.path.stat().st_size
+        with open(self.path, "rb") as file:
+            if size == 0:
+                return {}
+            names = [str(name) for name in np.lib.format.read_array(file, allow_pickle=False)]
+            out: dict[str, list[np.ndarray]] = {name: [] for name in names}
+            while file.tell() < size:
                 for name in names:
-                    with archive.open(f"{k:06d}/{name}.npy") as entry:
-                        out[name].append(np.lib.format.read_array(io.BytesIO(entry.read()), allow_pickle=False))
+                    out[name].append(np.lib.format.read_array(file, allow_pickle=False))
         return out
 
 
@@ -132,7 +136,7 @@ class Tracer:
         if self._file is not None and self._owner == id(context) and self._file.chunks and self.sinks:
             times = next(iter(self.sinks.values())).FindLog(context).sample_times()
             if times.size == 0 or times[0] > self._last:  # not a rerun since the last flush
-                streamed = self._file.read(["time", *self.sinks])
+                streamed = self._file.read()
         out: dict[str, np.ndarray] = {}
         for name, sink in self.sinks.items():
             log = sink.FindLog(context)
@@ -215,10 +219,6 @@ def tracers_of(diagram: Diagram) -> list[Tracer]:
 
 def read_trace(path: str | Path) -> dict[str, np.ndarray]:
     """The arrays of a chunk file a tracer streamed to (``time`` and each signal, concatenated)."""
-    with zipfile.ZipFile(path) as archive:
-        names = sorted(archive.namelist())
-    chunks = sorted({name.split("/")[0] for name in names})
-    signals = [name.split("/", 1)[1][:-4] for name in names if name.startswith(f"{chunks[0]}/")] if chunks else []
     reader = _ChunkFile.__new__(_ChunkFile)
-    reader.path, reader.chunks = Path(path), len(chunks)
-    return {name: np.concatenate(parts) for name, parts in reader.read(signals).items()}
+    reader.path = Path(path)
+    return {name: np.concatenate(parts) for name, parts in reader.read().items()}

@@ -24,7 +24,7 @@ def traced(stream, chunk: float = 0.1):
 
 def test_streamed_equals_memory_and_memory_is_bounded(tmp_path):
     memory_diagram, memory = traced(False)
-    streamed_diagram, streamed = traced(tmp_path / "trace.zip")
+    streamed_diagram, streamed = traced(tmp_path / "trace.npys")
     memory_sim, _ = simulate(memory_diagram, 1.234, progress=False)
     streamed_sim, _ = simulate(streamed_diagram, 1.234, progress=False)
     expected, got = memory.data(memory_sim.get_context()), streamed.data(streamed_sim.get_context())
@@ -37,10 +37,10 @@ def test_streamed_equals_memory_and_memory_is_bounded(tmp_path):
     assert memory.sinks["wave"].FindLog(memory_sim.get_context()).num_samples() == 1235
     # the file holds the run up to the last flush; forcing one writes the rest
     assert streamed.flush(streamed_sim.get_context(), force=True)
-    back = read_trace(tmp_path / "trace.zip")
+    back = read_trace(tmp_path / "trace.npys")
     for name in expected:
         np.testing.assert_array_equal(back[name], expected[name])
-    assert streamed.path == tmp_path / "trace.zip" and memory.path is None
+    assert streamed.path == tmp_path / "trace.npys" and memory.path is None
 
 
 def test_own_simulator_flush_and_rerun_starts_over():

@@ -12,13 +12,13 @@ torque limits on. TSID is not used: its wheel needs a source build of libtsid he
 
     python bench/dynamics.py            # --quick: shorter runs
 
-Prints a table and writes ``bench/results/dynamics.json``.
+Prints a table and writes ``--out`` (default ``bench/results/dynamics.json``, ignored by git);
+``--save`` also writes the committed ``bench/reference/dynamics.json`` the docs show.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import sys
 import time
@@ -30,6 +30,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from host import Steal
+from output import add_output_arguments, write_json
 from scenario import DT, load_compiled_paths, pinocchio_half_sitting, urdf_file
 
 from sotdrake.dynamics.station import sole_rectangle
@@ -135,6 +136,7 @@ def run_placo(scenario: str, duration: float) -> dict:
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true")
+    add_output_arguments(parser, "dynamics.json")
     args = parser.parse_args(argv)
     logging.disable(logging.WARNING)
     durations = {"sway": 1.0 if args.quick else 4.0, "lift_leg": 3.0 if args.quick else 4.0}
@@ -144,8 +146,7 @@ def main(argv=None) -> dict:
         steal = Steal()  # (the host's share of the cores: it inflates both peers' times)
         results[scenario] = {"duration_s": duration, "placo": run_placo(scenario, duration), "sotdrake": run_sotdrake(scenario, duration),
                              "host_steal_fraction": steal.fraction()}
-    out = HERE / "results" / "dynamics.json"
-    out.write_text(json.dumps(results, indent=2) + "\n")
+    write_json(results, args.out, args.save)
     print(f"{'scenario':10} {'peer':10} {'CPU p50 (µs)':>13} {'CPU p95':>8} {'wall p50 (µs)':>14} {'wall p95':>9} "
           f"{'CoM RMS (m)':>12} {'foot RMS (m)':>13}")
     for scenario, r in results.items():

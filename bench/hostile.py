@@ -9,7 +9,8 @@ its memory).
 
 Run ``s`` uses ``SolverKine`` when ``s`` is odd, the basic ``SOT`` when it is even, and the period
 ``periods[(s // 2) % len(periods)]``; it lasts ``--ticks`` control ticks. Prints the summary and
-writes ``bench/results/hostile.json``. Expected: 0 process exits, 0 hangs, 0 NaN, 0 frozen ticks,
+writes ``--out`` (default ``bench/results/hostile.json``, ignored by git; ``--save``: also the
+committed ``bench/reference/hostile.json``). Expected: 0 process exits, 0 hangs, 0 NaN, 0 frozen ticks,
 every contact within 1e-4 m under both solvers at every period, 0 limit violations under
 SolverKine (the basic SOT does not bound positions), and every bad input a SotError with the state
 unchanged.
@@ -27,6 +28,10 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
+
+sys.path.insert(0, str(HERE))
+
+from output import add_output_arguments, write_json
 
 from tests.hostile import CONTACT_TOLERANCE, bad_input_solver, bad_inputs, run_attempts
 
@@ -52,7 +57,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--ticks", type=int, default=60, help="control ticks of a run")
     parser.add_argument("--periods", type=milliseconds, default=[1e-3, 2e-3, 5e-3, 10e-3],
                         help="control periods (ms), comma-separated")
-    parser.add_argument("--out", type=Path, default=HERE / "results" / "hostile.json")
+    add_output_arguments(parser, "hostile.json")
     args = parser.parse_args(argv)
     start = time.perf_counter()
 
@@ -118,8 +123,7 @@ def main(argv: list[str] | None = None) -> dict:
             "max_worker_rss_mb": max((r.get("worker_max_rss_mb", 0.0) for r in done), default=None),
         }
     summary["wall_s"] = time.perf_counter() - start
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(summary, indent=2, default=repr) + "\n")
+    write_json(summary, args.out, args.save)
     print(json.dumps(summary, indent=2, default=repr))
     return summary
 

@@ -16,7 +16,8 @@ QP's contract:
 
 It then counts the stacks whose answering path (each level's solver and the fallbacks taken)
 differs between kernels, and checks that each such stack meets the contract under every kernel.
-Prints a table and writes ``--json`` (default ``bench/results/hqp_kernels.json``)::
+Prints a table and writes ``--out`` (or ``--json``; default ``bench/results/hqp_kernels.json``, ignored by
+git; ``--save``: also the committed ``bench/reference/<its name>``)::
 
     .venv/bin/python bench/hqp_kernels.py --count 40000
 """
@@ -37,6 +38,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
+
+from output import add_output_arguments, write_json
 
 #: The kernels compared: the host's own, and two that stand for other x86-64 CPUs.
 KERNELS: dict[str, dict[str, str]] = {
@@ -144,12 +148,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--kernels", default=",".join(KERNELS), help=f"among {', '.join(KERNELS)}")
     parser.add_argument("--reuse", action="store_true", help="one solver per size, reused from stack to stack (warm)")
     parser.add_argument("--cache", type=Path, help="where each kernel's numba cache is kept (default: a temporary folder)")
-    parser.add_argument("--json", type=Path, default=ROOT / "bench" / "results" / "hqp_kernels.json")
+    add_output_arguments(parser, "hqp_kernels.json", "--json")
     parser.add_argument("--merge", nargs="+", type=Path, help="merge the JSON of consecutive runs into --json")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.merge:
-        return merge(args.merge, args.json)
+        code = merge(args.merge, args.out)
+        if args.save:
+            write_json(json.loads(args.out.read_text()), args.out, save=True, indent=1)
+        return code
     if args.worker:
         Path(args.worker).write_text(json.dumps(sweep(args.first, args.count, args.reuse)))
         return 0
@@ -185,8 +192,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name:<9} {args.count:>7} {summary['failed'][name]:>16} {summary['seconds'][name]:>8}")
     print(f"answering path differs between kernels on {len(differ)} stacks; "
           f"{len(differ_failed)} of them miss the contract under some kernel")
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(summary, indent=1) + "\n")
+    write_json(summary, args.out, args.save, indent=1)
     return 1 if any(failed.values()) else 0
 
 

@@ -30,6 +30,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 
+from output import add_output_arguments, write_json
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from scenario import load_compiled_paths
@@ -172,7 +173,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--periods", default="1,2,5,10", help="control periods (ms), comma-separated")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--only", type=int, nargs="*", help="run only these run indices")
-    parser.add_argument("--out", type=Path, default=HERE / "results" / "hqp_robot_runs.json")
+    add_output_arguments(parser, "hqp_robot_runs.json")
     args = parser.parse_args(argv)
     import logging
 
@@ -212,8 +213,7 @@ def main(argv=None) -> dict:
         "failures": [f for r in results for f in r["failures"]][:10],
     }
     print(json.dumps(summary, indent=1))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(summary, indent=1))
+    write_json(summary, args.out, args.save, indent=1)
     return summary
 
 

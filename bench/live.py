@@ -7,7 +7,8 @@
 Starts ``diagrams/talos_appli.py --live`` in its own process, pushes the hand task (four tasks in
 the stack, as in the tutorial), waits 3 s (the idle reference), sends the burst from this process
 (a quarter accepted queries, three quarters refused: by the API, by the grammar, by the stack),
-prints the figures of :func:`sotdrake.live.burst.measure_burst` as JSON and stops the run.
+prints the figures of :func:`sotdrake.live.burst.measure_burst` as JSON (and writes them to ``--out``,
+default ``bench/results/live.json``, ignored by git) and stops the run.
 Before that, in this process, the cost of one command in the simulation thread (parse, check,
 apply, answer text) for a few kinds (µs, mean of repeated calls).
 """
@@ -26,6 +27,10 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+sys.path.insert(0, str(ROOT / "bench"))
+
+from output import add_output_arguments, write_json
 
 from sotdrake.live.burst import measure_burst
 from sotdrake.live.shell import Client
@@ -66,6 +71,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--rate", type=float, default=1.0)
     parser.add_argument("--count", type=int, default=10_000)
     parser.add_argument("--no-meshcat", action="store_true")
+    add_output_arguments(parser, "live.json")
     args = parser.parse_args(argv)
     costs = command_costs()
     with tempfile.TemporaryDirectory() as work:
@@ -89,6 +95,7 @@ def main(argv: list[str] | None = None) -> dict:
             process.send_signal(signal.SIGINT)
             process.wait(120)
     print(json.dumps(figures, indent=2))
+    write_json(figures, args.out, args.save)
     return figures
 
 

@@ -120,21 +120,33 @@ def build_stack(solver: str = "cascade", variant: str = "reduced", tasks: int = 
     return robot, sot, hand, builder.Build()
 
 
-def tick_times(diagram, ticks: int, warmup: int, sample=None) -> Generator[None, None, tuple[np.ndarray, Simulator, np.ndarray]]:
+def tick_times(diagram, ticks: int, warmup: int, sample=None,
+               gen2: list[int] | None = None) -> Generator[None, None, tuple[np.ndarray, Simulator, np.ndarray]]:
     """Wall time and CPU time (this thread's) of each tick (AdvanceTo one tick at a time), one tick
     per ``next`` (see :func:`interleave`); ``sample(context)`` runs every 10 ticks outside the timed
-    region. Returns ``(wall, simulator, cpu)``, in seconds."""
+    region. Returns ``(wall, simulator, cpu)``, in seconds. As ``simulate`` does, the garbage
+    collector is collected and frozen after the build (:func:`sotdrake.simulation.frozen_gc`);
+    ``gen2`` gets the number of full (generation 2) collections that ran inside the timed ticks
+    (target 0)."""
+    from sotdrake.simulation import frozen_gc, gen2_collections
+
     simulator = Simulator(diagram)
     simulator.Initialize()
     times, cpu = np.empty(warmup + ticks), np.empty(warmup + ticks)
-    for k in range(warmup + ticks):
-        t = (k + 1) * DT - 0.5 * DT  # the tick at k·dt runs inside this call
-        start, start_cpu = time.perf_counter(), time.thread_time()
-        simulator.AdvanceTo(t)
-        times[k], cpu[k] = time.perf_counter() - start, time.thread_time() - start_cpu
-        if sample is not None and k % 10 == 0:
-            sample(simulator.get_context())
-        yield
+    full = 0
+    with frozen_gc():
+        for k in range(warmup + ticks):
+            t = (k + 1) * DT - 0.5 * DT  # the tick at k·dt runs inside this call
+            before = gen2_collections()
+            start, start_cpu = time.perf_counter(), time.thread_time()
+            simulator.AdvanceTo(t)
+            times[k], cpu[k] = time.perf_counter() - start, time.thread_time() - start_cpu
+            full += gen2_collections() - before
+            if sample is not None and k % 10 == 0:
+                sample(simulator.get_context())
+            yield
+    if gen2 is not None:
+        gen2.append(full)
     return times[warmup:], simulator, cpu[warmup:]
 
 
@@ -195,9 +207,11 @@ def sotdrake_ticks(solver: str, ticks: int, warmup: int, target=TARGET) -> Gener
         if solver == "hqp":  # the solver's own share of the tick it just ran
             solver_times.append(sot.GetOutputPort("diagnostics").Eval(sot.GetMyContextFromRoot(context)).solve_time_s)
 
-    times, simulator, cpu = yield from tick_times(diagram, ticks, warmup, sample)
+    gen2: list[int] = []
+    times, simulator, cpu = yield from tick_times(diagram, ticks, warmup, sample, gen2)
     context = simulator.get_context()
     return {
+        "gen2_collections_in_ticks": gen2[0],
         "times_s": times,
         "solver_times_s": np.array(solver_times),
         "cpu_s": cpu,
@@ -566,6 +580,9 @@ def main(argv=None) -> dict:
         "hqp_tick_us_median": tick_hqp["median"],
         "hqp_tick_us": tick_hqp,
         "hqp_active_limits_tick_us": stats(hqp_active["times_s"]),
+        # full garbage collections inside the timed ticks (the collector frozen after the build): target 0
+        "gen2_collections_in_ticks": {name: run["gen2_collections_in_ticks"]
+                                      for name, run in (("basic", basic), ("hqp", hqp), ("hqp_active", hqp_active))},
         "hqp_active_tick_us_median": stats(hqp_active["times_s"])["median"],
         "hqp_active_solver_us_median": float(1e6 * np.median(hqp_active["solver_times_s"])),
         "hqp_random_solve_ms_median": random_hqp["median"],
@@ -694,6 +711,8 @@ def print_table(r: dict) -> None:
                 "realtime_factor_kinematic", "realtime_factor_physics_cpu", "realtime_factor_physics"):
         if key in r:
             print(f"{key:36s} {r[key]:.2f}")
+    if "gen2_collections_in_ticks" in r:
+        print(f"{'full GC collections in the ticks':36s} {r['gen2_collections_in_ticks']} (target 0)")
     h = r["hqp_random"]
     print(f"\nHQP on {h['count']} random stacks (ms): median {h['median']:.3f}, p99 {h['p99']:.3f}, max {h['max']:.3f}"
           + (f"; quadprog sequential reference median {h['quadprog_reference_ms_median']:.3f}"

@@ -4,7 +4,8 @@ whether both tables are byte for byte the same.
 
     python bench/sweep_speedup.py --targets 1000 --out out/sweep_bench   # ~20-40 min on 2 cores
 
-Writes ``bench/results/sweep.json`` (and both runs' outputs under ``--out``). The wall times are
+Writes ``--result`` (default ``bench/results/sweep.json``, ignored by git; ``--save``: also the
+committed ``bench/reference/sweep.json``) (and both runs' outputs under ``--out``). The wall times are
 end to end: for ``ray`` they include starting the local runtime and building one diagram per worker.
 The host's load average before and after each run is recorded with it: on a shared machine the
 ratio, not the absolute times, is the number to read.
@@ -24,12 +25,15 @@ sys.path.insert(0, str(HERE.parent))
 
 from sotdrake.scenarios import reach_map
 
+sys.path.insert(0, str(HERE))
+from output import add_output_arguments, write_json
+
 
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--targets", type=int, default=1000)
     parser.add_argument("--out", type=Path, default=Path("out/sweep_bench"))
-    parser.add_argument("--result", type=Path, default=HERE / "results" / "sweep.json")
+    add_output_arguments(parser, "sweep.json", flag="--result")
     parser.add_argument("--engines", default="local,ray",
                         help="engines to run now; the others are read from an earlier run's --out")
     args = parser.parse_args(argv)
@@ -53,8 +57,7 @@ def main(argv: list[str] | None = None) -> dict:
         "cores": os.cpu_count(),
         "machine": platform.platform(),
     }
-    args.result.parent.mkdir(parents=True, exist_ok=True)
-    args.result.write_text(json.dumps(result, indent=2) + "\n")
+    write_json(result, args.result, args.save)
     print(json.dumps(result, indent=2))
     return result
 

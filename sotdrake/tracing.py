@@ -4,46 +4,145 @@ and plotted.
 Built on Drake's ``LogVectorOutput`` (``VectorLogSink``). A sink publishing at period ``T`` records
 the value of its port at each ``k·T`` *after* the discrete updates at that time: for the device's
 ``state`` that is the configuration the tick at ``k·T`` produced.
+
+**Streaming.** By default the samples do not stay in memory: every ``chunk`` seconds of simulated
+time the sinks' logs are moved to a chunk file (``.npy`` arrays one after the other: the column
+names, then each chunk's columns; appended, never re-read while the run goes: no Python objects
+pile up for the garbage collector) and cleared, so a long run's memory stays flat. The loops that
+flush are
+:func:`sotdrake.simulation.simulate` and the live runner (:class:`sotdrake.live.runner.LiveRun`);
+with a ``Simulator`` of your own, call :func:`flush_tracers` (or :meth:`Tracer.flush`) between
+``AdvanceTo`` calls. :meth:`Tracer.data` reads the chunks back and appends what the logs still
+hold: the same arrays as with ``stream=False`` (everything in Drake's logs). The file belongs to
+the context flushed first; flushing another root context starts it over.
 """
 
 from __future__ import annotations
 
+import tempfile
+import weakref
 from pathlib import Path
 
 import numpy as np
-from pydrake.systems.framework import Context, DiagramBuilder, OutputPort
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPort
 from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 
-from .exceptions import InvalidInput
+from .exceptions import InvalidInput, check_number
 from .simulation import save_figure
+
+#: The tracers that stream, for :func:`flush_tracers` (weak: a tracer dropped is forgotten).
+_STREAMING: weakref.WeakSet[Tracer] = weakref.WeakSet()
+
+
+class _ChunkFile:
+    """A sequence of ``.npy`` arrays in one file, appended to: the column names (a string array),
+    then per chunk one array per column in that order. Nothing is re-read when a chunk is added."""
+
+    def __init__(self, path: Path | None):
+        self._temporary = None
+        if path is None:  # deleted with this object
+            self._temporary = tempfile.NamedTemporaryFile(prefix="sotdrake-trace-", suffix=".npys")
+            path = Path(self._temporary.name)
+        self.path = Path(path)
+        self.chunks = 0
+        self.reset()
+
+    def reset(self) -> None:
+        self.path.write_bytes(b"")
+        self.chunks = 0
+
+    def append(self, columns: dict[str, np.ndarray]) -> None:
+        with open(self.path, "ab") as file:
+            if self.chunks == 0:
+                np.lib.format.write_array(file, np.array(list(columns), dtype=str), allow_pickle=False)
+            for values in columns.values():
+                np.lib.format.write_array(file, np.ascontiguousarray(values), allow_pickle=False)
+        self.chunks += 1
+
+    def read(self) -> dict[str, list[np.ndarray]]:
+        """Each column's chunks, in order."""
+        size = self.path.stat().st_size
+        with open(self.path, "rb") as file:
+            if size == 0:
+                return {}
+            names = [str(name) for name in np.lib.format.read_array(file, allow_pickle=False)]
+            out: dict[str, list[np.ndarray]] = {name: [] for name in names}
+            while file.tell() < size:
+                for name in names:
+                    out[name].append(np.lib.format.read_array(file, allow_pickle=False))
+        return out
 
 
 class Tracer:
     """sot-core's ``Tracer``: vector output ports logged every ``period`` seconds (see the module
-    docstring), saved to ``.npz`` and CSV and plotted."""
+    docstring), saved to ``.npz`` and CSV and plotted.
 
-    def __init__(self, builder: DiagramBuilder, period: float):
+    ``stream``: ``True`` (default) streams the samples to a temporary chunk file, deleted with the
+    tracer; a path streams to that file (kept: read it back with :func:`read_trace`); ``False``
+    keeps every sample in Drake's logs (memory grows with the run). ``chunk``: the simulated
+    seconds a chunk holds (> 0)."""
+
+    def __init__(self, builder: DiagramBuilder, period: float, stream: bool | str | Path = True, chunk: float = 1.0):
         if not period > 0:
             raise InvalidInput(f"tracer period must be > 0, got {period}")
-        self.builder, self.period = builder, period
+        if not isinstance(stream, bool | str | Path):
+            raise InvalidInput(f"tracer stream must be True, False or a file path, got {stream!r}")
+        check_number("chunk", chunk, 1e-9, float("inf"), " s")
+        self.builder, self.period, self.chunk = builder, period, float(chunk)
         self.sinks: dict[str, VectorLogSink] = {}
+        self._file: _ChunkFile | None = None
+        if stream is not False:
+            self._file = _ChunkFile(None if stream is True else Path(stream))
+            _STREAMING.add(self)
+        self._owner: int | None = None  # id of the root context the file holds
+        self._last = -np.inf  # the time of the last sample moved to the file
+
+    @property
+    def path(self) -> Path | None:
+        """The chunk file (``None`` with ``stream=False``)."""
+        return None if self._file is None else self._file.path
 
     def add(self, port: OutputPort, name: str) -> VectorLogSink:
         """Log ``port`` (a vector output) under ``name``."""
-        if name in self.sinks or name == "time":
-            raise InvalidInput(f"tracer: signal name {name!r} is already used")
+        if name in self.sinks or name == "time" or "/" in name:
+            raise InvalidInput(f"tracer: signal name {name!r} is already used (or has a '/')")
         sink = LogVectorOutput(port, self.builder, self.period)
         sink.set_name(f"tracer_{name}")
         self.sinks[name] = sink
         return sink
 
+    def flush(self, context: Context, force: bool = False) -> bool:
+        """Move the logged samples of the root ``context`` to the file once they span ``chunk``
+        seconds (or with ``force``, whatever they hold); returns whether a chunk was written."""
+        if self._file is None or not self.sinks:
+            return False
+        logs = [sink.FindMutableLog(context) for sink in self.sinks.values()]
+        times = logs[0].sample_times()
+        if times.size == 0 or not (force or times[-1] - times[0] >= self.chunk - 1e-9):
+            return False
+        if self._owner != id(context) or times[0] <= self._last:  # another context, or a rerun
+            self._file.reset()
+        self._owner, self._last = id(context), float(times[-1])
+        columns = {"time": times.copy(), **{name: log.data().T.copy() for name, log in zip(self.sinks, logs, strict=True)}}
+        self._file.append(columns)
+        for log in logs:
+            log.Clear()
+        return True
+
     def data(self, context: Context) -> dict[str, np.ndarray]:
-        """``time`` (k,) and each signal as (k, size), from the sinks' logs in ``context``."""
+        """``time`` (k,) and each signal as (k, size): the file's chunks (if they belong to
+        ``context``) followed by the samples the sinks' logs in ``context`` still hold."""
+        streamed = {}
+        if self._file is not None and self._owner == id(context) and self._file.chunks and self.sinks:
+            times = next(iter(self.sinks.values())).FindLog(context).sample_times()
+            if times.size == 0 or times[0] > self._last:  # not a rerun since the last flush
+                streamed = self._file.read()
         out: dict[str, np.ndarray] = {}
         for name, sink in self.sinks.items():
             log = sink.FindLog(context)
-            out.setdefault("time", log.sample_times().copy())
-            out[name] = log.data().T.copy()
+            out.setdefault("time", np.concatenate([*streamed.get("time", []), log.sample_times()]))
+            tail = log.data().T
+            out[name] = np.concatenate([*streamed.get(name, []), tail]) if streamed else tail.copy()
         return out
 
     def save(self, context: Context, path: Path) -> Path:
@@ -101,3 +200,25 @@ class Tracer:
         if title:
             fig.suptitle(title)
         return save_figure(fig, path)
+
+
+def flush_tracers(diagram: Diagram, context: Context, force: bool = False) -> int:
+    """:meth:`Tracer.flush` for every streaming tracer whose sinks are in ``diagram`` (``context``:
+    its root context); returns the number of chunks written."""
+    return sum(tracer.flush(context, force) for tracer in tracers_of(diagram))
+
+
+def tracers_of(diagram: Diagram) -> list[Tracer]:
+    """The streaming tracers whose sinks are systems of ``diagram`` (nested diagrams included)."""
+    from .introspection import all_systems
+
+    ids = {id(system) for system in all_systems(diagram)}
+    return [tracer for tracer in list(_STREAMING)
+            if tracer.sinks and id(next(iter(tracer.sinks.values()))) in ids]
+
+
+def read_trace(path: str | Path) -> dict[str, np.ndarray]:
+    """The arrays of a chunk file a tracer streamed to (``time`` and each signal, concatenated)."""
+    reader = _ChunkFile.__new__(_ChunkFile)
+    reader.path = Path(path)
+    return {name: np.concatenate(parts) for name, parts in reader.read().items()}

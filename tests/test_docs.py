@@ -138,11 +138,11 @@ def test_internal_links_resolve(site):
 
 def test_the_benchmark_tables_come_from_the_bench_json(site):
     generated = (DOCS / "_generated" / "benchmarks_tables.md").read_text()
-    hostile = json.loads((ROOT / "bench" / "results" / "hostile.json").read_text())
+    hostile = json.loads((ROOT / "bench" / "reference" / "hostile.json").read_text())
     assert f"Bad inputs tried: {hostile['bad_inputs']}" in generated
     page = (site / "benchmarks.html").read_text()
-    assert page.count("<table") >= len(list((ROOT / "bench" / "results").glob("*.json")))
-    assert "bench/results/dynamics.json" in page and "bench/reference.json" in page
+    assert page.count("<table") >= len(list((ROOT / "bench" / "reference").glob("*.json")))
+    assert "bench/reference/dynamics.json" in page and "bench/reference.json" in page
 
 
 # --- in a browser -------------------------------------------------------------------------------

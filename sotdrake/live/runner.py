@@ -38,6 +38,8 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, Diagram
 
 from ..exceptions import InvalidInput, SotError
+from ..simulation import frozen_gc
+from ..tracing import Tracer, tracers_of
 from .connection import Connection, default_path, new_token, remove_connection, write_connection
 from .server import CommandServer, apply
 from .vocabulary import Prepared, Vocabulary
@@ -148,24 +150,15 @@ class LiveRun:
         if threading.current_thread() is threading.main_thread():  # signals reach the main thread only
             previous = {s: signal.signal(s, lambda *_: self._stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
         simulator, context = self.simulator, self.context
+        tracers = tracers_of(self.diagram)  # streaming ones: their samples go to their files every 100 ticks
         try:
             simulator.Initialize()
             self._t0 = context.get_time()
             end = None if duration is None else self._t0 + duration
             simulator.ResetStatistics()
             self._wall0 = self._last_wall = time.monotonic()
-            while not self._stop.is_set():
-                next_time = self._t0 + (self._ticks + 1) * self.dt
-                if end is not None and next_time > end + 1e-9:
-                    break
-                try:
-                    simulator.AdvanceTo(next_time)
-                except (SotError, RuntimeError, ValueError) as error:  # e.g. a command drove q to NaN
-                    self.error = f"{type(error).__name__}: {error}"
-                    log.error("live: the simulation stopped at t = %.4f s: %s", context.get_time(), self.error)
-                    break
-                self._ticks += 1
-                self._boundary(context)
+            with frozen_gc():  # the build's objects out of the collections: no full collection in the loop
+                self._loop(end, tracers)
         finally:
             for s, handler in previous.items():
                 signal.signal(s, handler)
@@ -173,6 +166,24 @@ class LiveRun:
             for path in self.connection_files:
                 remove_connection(path, self.connection)
         return time.monotonic() - self._wall0
+
+    def _loop(self, end: float | None, tracers: list[Tracer]) -> None:
+        simulator, context = self.simulator, self.context
+        while not self._stop.is_set():
+            next_time = self._t0 + (self._ticks + 1) * self.dt
+            if end is not None and next_time > end + 1e-9:
+                break
+            try:
+                simulator.AdvanceTo(next_time)
+            except (SotError, RuntimeError, ValueError) as error:  # e.g. a command drove q to NaN
+                self.error = f"{type(error).__name__}: {error}"
+                log.error("live: the simulation stopped at t = %.4f s: %s", context.get_time(), self.error)
+                break
+            self._ticks += 1
+            if self._ticks % 100 == 0:
+                for tracer in tracers:
+                    tracer.flush(context)
+            self._boundary(context)
 
     def _boundary(self, context: Context) -> None:
         now = context.get_time()

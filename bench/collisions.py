@@ -1,22 +1,40 @@
 #!/usr/bin/env python3
 """What the collision level costs: the tutorial stack with TALOS' self-collision rows and a table
-top, against the same stack without them, in one run (ratios, not absolute times).
+top, against the same stack without them, in one run (ratios of CPU time, not absolute times).
 
-    python bench/collisions.py                 # 2000 ticks each, interleaved in blocks of 100
+    python bench/collisions.py                                   # 2000 ticks each, blocks of 100
     python bench/collisions.py --ticks 500
+    python bench/collisions.py --placo-python .venv-placo/bin/python   # and placo side by side
 
-Both diagrams (``sotdrake.collision.reach``) drive the right hand point to the tutorial's target
-(0.5, -0.2, 1.0) under SolverKine; they are advanced in alternating blocks so that both see the
-same load on the host. Per tick: the wall and CPU time of ``AdvanceTo`` (median, p90), and for the
-collision stack the number of pairs in range and the time of the distance query alone. placo's
-self-collision constraint is not run here: placo is not installed in this environment (the
-package list has it; it is not a dependency of sotdrake). Writes ``bench/results/collisions.json``.
+The stacks (``sotdrake.collision.reach``) drive the right hand point to the tutorial's target
+(0.5, -0.2, 1.0) under SolverKine; they are advanced in alternating blocks so that all see the same
+load on the host:
+
+* ``without``: no collision level; ``with``: every pair (893 self pairs from the SRDF, 46 link–table
+  pairs); ``with_arm_pairs``: the 143 pairs a user would pick for this reach; ``self_only``: the
+  893 self pairs, no table (the side-by-side with placo); ``empty_level``: a collision level whose
+  one pair never comes in range, so what remains is what an inequality level costs the solver.
+
+Per tick: the CPU time of ``AdvanceTo`` (median, p90); for ``with``, the pairs queried exactly (the
+schedule, ``sotdrake.collision.schedule``) and the pairs in range; at the end of each block, at the
+``with`` stack's configuration, the cost of one full broad-phase query with the Jacobians of the
+pairs in range (what each tick paid without the schedule). ``self_only`` is checked at every tick
+with Drake's query on a world of its own (the smallest signed distance, m).
+
+placo (``bench/collisions_placo.py``, run by an interpreter that has placo: this one if it imports
+placo, else ``--placo-python``) gets the same robot, self pairs, starting posture and hand path (the
+``self_only`` hand point's, tick by tick), feet and CoM held as hard tasks and its
+``AvoidSelfCollisionsKinematicsConstraint`` hard with the same margins; its configurations are
+checked with the same Drake query. Without placo the comparison is skipped and the JSON says why.
+Writes ``bench/results/collisions.json``.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -26,16 +44,21 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
+from pydrake.multibody.tree import JointIndex
 from pydrake.systems.analysis import Simulator
 
 from sotdrake.collision import CollisionWorld
-from sotdrake.collision.distance import pair_distances
-from sotdrake.collision.reach import build_collision_reach
+from sotdrake.collision.distance import minimum_distance, pair_distances
+from sotdrake.collision.reach import HAND_OFFSET, build_collision_reach
+from sotdrake.collision.task import INFLUENCE_DISTANCE, SAFETY_DISTANCE
 from sotdrake.meta_tasks import gotoNd
 from sotdrake.robots import load_talos
+from sotdrake.robots.loader import urdf_path
 
 TARGET = np.array([0.5, -0.2, 1.0])
 BLOCK = 100
+#: The pair of the ``empty_level`` stack: a foot and the head, never within the influence distance.
+FAR_PAIR = ("leg_left_6_link", "head_2_link")
 
 
 def arm_pairs() -> list[tuple[str, str]]:
@@ -57,52 +80,136 @@ def _simulator(reach) -> tuple[Simulator, object]:
     return simulator, context
 
 
+def _stacks() -> dict:
+    return {"without": build_collision_reach(collision=False, table=False),
+            "with": build_collision_reach(collision=True, table=True),
+            "with_arm_pairs": build_collision_reach(collision=True, table=True, pairs=arm_pairs()),
+            "self_only": build_collision_reach(collision=True, table=False),
+            "empty_level": build_collision_reach(collision=True, table=False, pairs=[FAR_PAIR])}
+
+
+def _position(reach, context) -> np.ndarray:
+    device = reach.robot.device
+    return device.GetOutputPort("state").Eval(device.GetMyContextFromRoot(context)).copy()
+
+
+def _full_query_us(reach, q: np.ndarray) -> float:
+    """CPU time (µs) of one broad-phase query over every pair and the Jacobians of those in range."""
+    world = reach.collision.world
+    context = world.new_context()
+    world.plant.SetPositions(world.plant_context(context), q)
+    began = time.thread_time()
+    pair_distances(world, context, INFLUENCE_DISTANCE)
+    return (time.thread_time() - began) * 1e6
+
+
+def run_stacks(ticks: int) -> tuple[dict, dict]:
+    stacks = _stacks()
+    sims = {name: _simulator(reach) for name, reach in stacks.items()}
+    cpu: dict[str, list[float]] = {name: [] for name in stacks}
+    queried, in_range, full_query_us, hand_path, self_min = [], [], [], [], np.inf
+    task = stacks["with"].collision.task
+    task_context = task.GetMyContextFromRoot(sims["with"][1])
+    checker, self_only = stacks["self_only"].checker, stacks["self_only"]
+    checker_context = checker.new_context()
+    dt = stacks["with"].robot.dt
+    for start in range(0, ticks, BLOCK):
+        for name, (simulator, context) in sims.items():
+            for k in range(start + 1, min(start + BLOCK, ticks) + 1):
+                began = time.thread_time()
+                simulator.AdvanceTo(k * dt)
+                cpu[name].append(time.thread_time() - began)
+                if name == "with":
+                    state = task_context.get_abstract_state(task._schedule_index).get_value()
+                    queried.append(state.queried)
+                    in_range.append(len(state.in_range))
+                elif name == "self_only":
+                    q = _position(self_only, context)
+                    self_min = min(self_min, minimum_distance(checker, checker_context, q, INFLUENCE_DISTANCE))
+                    hand_path.append(self_only.hand.current_pose(context).translation().tolist())
+        full_query_us.append(_full_query_us(stacks["with"], _position(stacks["with"], sims["with"][1])))
+    median = {name: float(np.median(t)) for name, t in cpu.items()}
+    summary = {
+        "ticks": ticks,
+        "timing": "CPU time of the thread (time.thread_time), stacks interleaved in blocks of 100 ticks",
+        "tick_cpu_us_median": {name: value * 1e6 for name, value in median.items()},
+        "tick_cpu_us_p90": {name: float(np.percentile(t, 90)) * 1e6 for name, t in cpu.items()},
+        "ratio_cpu_median": median["with"] / median["without"],
+        "ratio_cpu_median_arm_pairs": median["with_arm_pairs"] / median["without"],
+        "ratio_cpu_median_self_only": median["self_only"] / median["without"],
+        "ratio_cpu_median_empty_level": median["empty_level"] / median["without"],
+        "self_pairs_checked": len(stacks["with"].collision.world.self_pairs()),
+        "pairs_checked": len(task._pair_schedule.pairs) if task._pair_schedule is not None else None,
+        "arm_pairs_checked": len(arm_pairs()),
+        "pairs_queried_per_tick_median": float(np.median(queried[1:])),
+        "pairs_queried_per_tick_max_after_first": int(np.max(queried[1:])),
+        "pairs_in_range_median": float(np.median(in_range)),
+        "full_query_us_median": float(np.median(full_query_us)),
+        "self_only_min_distance_m": float(self_min),
+    }
+    return summary, {"stack": stacks["self_only"], "hand_path": hand_path}
+
+
+def _placo_python(option: str | None) -> str | None:
+    if option:
+        return option
+    return sys.executable if importlib.util.find_spec("placo") is not None else None
+
+
+def _placo_job(reach, hand_path: list, ticks: int) -> dict:
+    model = reach.robot.model
+    q = np.asarray(reach.robot.device.initial_position)
+    plant = model.plant
+    joints = {}
+    for i in range(plant.num_joints()):
+        joint = plant.get_joint(JointIndex(i))
+        if joint.type_name() == "revolute":
+            joints[joint.name()] = float(q[joint.position_start()])
+    return {"urdf": str(urdf_path("talos", "reduced")), "pairs": [list(p) for p in reach.checker.self_pairs()],
+            "q0": {"joints": joints, "base_xyz": q[4:7].tolist(), "base_wxyz": q[:4].tolist()},
+            "hand_frame": "arm_right_7_link", "hand_offset": list(HAND_OFFSET),
+            "feet": ["leg_left_6_link", "leg_right_6_link"], "path": hand_path[:ticks], "dt": reach.robot.dt,
+            "safety": SAFETY_DISTANCE, "influence": INFLUENCE_DISTANCE}
+
+
+def run_placo(python: str | None, side: dict, ticks: int, summary: dict) -> dict:
+    """placo's time per tick and the smallest distance (Drake's query on its configurations)."""
+    if python is None:
+        return {"skipped": "placo is not importable here and no --placo-python was given (placo pins pinocchio "
+                           "and numpy versions of its own: install it in a virtual environment of its own)"}
+    reach = side["stack"]
+    job = _placo_job(reach, side["hand_path"], ticks)
+    done = subprocess.run([python, str(HERE / "collisions_placo.py")], input=json.dumps(job), capture_output=True,
+                          text=True, check=False)
+    if done.returncode != 0:
+        return {"failed": done.stderr.strip().splitlines()[-1:] or ["(no message)"]}
+    answer = json.loads(done.stdout)
+    plant, checker = reach.checker.plant, reach.checker
+    context = checker.new_context()
+    q = np.asarray(reach.robot.device.initial_position).copy()
+    starts = [plant.GetJointByName(name).position_start() for name in answer["joint_names"]]
+    smallest = np.inf
+    for joints, base in zip(answer["joints"], answer["base_xyz_wxyz"], strict=True):
+        q[starts] = joints
+        q[4:7], q[:4] = base[:3], base[3:]
+        smallest = min(smallest, minimum_distance(checker, context, q, INFLUENCE_DISTANCE))
+    tick = float(np.median(answer["cpu_s"])) * 1e6
+    return {"ticks": len(answer["cpu_s"]), "pairs": answer["pairs"], "pairs_left_out": answer["pairs_left_out"],
+            "tick_cpu_us_median": tick,
+            "ratio_to_self_only": tick / summary["tick_cpu_us_median"]["self_only"],
+            "min_distance_m": float(smallest),
+            "min_distance_placo_own_m": float(np.min(answer["placo_min_distance"]))}
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--ticks", type=int, default=2000)
+    parser.add_argument("--placo-python", default=None, help="an interpreter that imports placo")
+    parser.add_argument("--placo-ticks", type=int, default=200, help="ticks of the hand path given to placo")
     parser.add_argument("--out", type=Path, default=HERE / "results" / "collisions.json")
     args = parser.parse_args(argv)
-    stacks = {"without": build_collision_reach(collision=False, table=False),
-              "with": build_collision_reach(collision=True, table=True),
-              "with_arm_pairs": build_collision_reach(collision=True, table=True, pairs=arm_pairs())}
-    sims = {name: _simulator(reach) for name, reach in stacks.items()}
-    times: dict[str, list[float]] = {name: [] for name in stacks}
-    cpu: dict[str, list[float]] = {name: [] for name in stacks}
-    pairs_in_range: list[int] = []
-    query_s: list[float] = []
-    dt = stacks["with"].robot.dt
-    for start in range(0, args.ticks, BLOCK):
-        for name, (simulator, _context) in sims.items():
-            for k in range(start + 1, min(start + BLOCK, args.ticks) + 1):
-                began, began_cpu = time.perf_counter(), time.thread_time()
-                simulator.AdvanceTo(k * dt)
-                times[name].append(time.perf_counter() - began)
-                cpu[name].append(time.thread_time() - began_cpu)
-        task = stacks["with"].collision.task  # type: ignore[union-attr]
-        world_context = task.world.new_context()
-        q = stacks["with"].robot.device.GetOutputPort("state").Eval(stacks["with"].robot.device.GetMyContextFromRoot(sims["with"][1]))
-        task.world.plant.SetPositions(task.world.plant_context(world_context), q)
-        began = time.perf_counter()
-        distances = pair_distances(task.world, world_context, task.settings().influence)
-        query_s.append(time.perf_counter() - began)
-        pairs_in_range.append(len(distances.names))
-    median = {name: float(np.median(t)) for name, t in times.items()}
-    median_cpu = {name: float(np.median(t)) for name, t in cpu.items()}
-    summary = {
-        "ticks": args.ticks,
-        "tick_us_median": {name: value * 1e6 for name, value in median.items()},
-        "tick_us_p90": {name: float(np.percentile(t, 90)) * 1e6 for name, t in times.items()},
-        "tick_cpu_us_median": {name: value * 1e6 for name, value in median_cpu.items()},
-        "ratio_median": median["with"] / median["without"],
-        "ratio_cpu_median": median_cpu["with"] / median_cpu["without"],
-        "ratio_median_arm_pairs": median["with_arm_pairs"] / median["without"],
-        "ratio_cpu_median_arm_pairs": median_cpu["with_arm_pairs"] / median_cpu["without"],
-        "arm_pairs_checked": len(arm_pairs()),
-        "distance_query_us_median": float(np.median(query_s)) * 1e6,
-        "pairs_in_range_median": float(np.median(pairs_in_range)),
-        "self_pairs_checked": len(stacks["with"].collision.world.self_pairs()),  # type: ignore[union-attr]
-        "placo": "not installed in this environment",
-    }
+    summary, side = run_stacks(args.ticks)
+    summary["placo"] = run_placo(_placo_python(args.placo_python), side, args.placo_ticks, summary)
     print(json.dumps(summary, indent=1))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(summary, indent=1))

@@ -18,6 +18,7 @@ vertices, where ``d`` has a kink). ``J_d`` is 1×nv; an obstacle's ``J_B`` is ze
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -70,65 +71,103 @@ def pair_distances(world: CollisionWorld, context: Context, max_distance: float,
     With ``bias``, ``J̇_d v`` of each pair: the bias acceleration of a point ``C`` fixed in body
     ``B`` is ``a_Bo + α × r + ω × (ω × r)`` (``r = p_BoC``, the body's bias spatial acceleration
     ``(α, a_Bo)`` and angular velocity ``ω``, world frame)."""
+    return distances_of(world, context, signed_distance_pairs(world, context, max_distance, geometry_pairs), bias)
+
+
+def distances_of(world: CollisionWorld, context: Context, results: Sequence, bias: bool = False) -> PairDistances:
+    """:class:`PairDistances` of Drake's ``SignedDistancePair`` ``results`` (as
+    :func:`pair_distances`, which gathers them with one query; :mod:`.schedule` gathers them pair
+    by pair)."""
     plant = world.plant
     plant_context = world.plant_context(context)
-    results = signed_distance_pairs(world, context, max_distance, geometry_pairs)
     k, nv = len(results), plant.num_velocities()
-    out = PairDistances(names=[], distance=np.empty(k), normal=np.empty((k, 3)), p_WCa=np.empty((k, 3)),
-                        p_WCb=np.empty((k, 3)), jacobian=np.zeros((k, nv)), bias=np.zeros(k))
     if k == 0:
-        return out
-    obstacles = world.obstacle_ids
-    p_GC = np.empty((2, k, 3))  # witness points in their geometry's frame, side A then side B
-    geometries: list[list] = [[], []]
-    for i, r in enumerate(results):
-        id_A, id_B, p_ACa, p_BCb, n = r.id_A, r.id_B, r.p_ACa, r.p_BCb, r.nhat_BA_W
-        if id_A in obstacles:  # keep the robot on side A
-            id_A, id_B, p_ACa, p_BCb, n = id_B, id_A, p_BCb, p_ACa, -n
-        geometries[0].append(id_A)
-        geometries[1].append(id_B)
-        p_GC[0, i], p_GC[1, i] = p_ACa, p_BCb
-        out.distance[i], out.normal[i] = r.distance, n
-    n = out.normal
-    world_frame, world_body = plant.world_frame(), plant.world_body().index()
-    bodies: dict = {}  # body index -> its slot in the per-body arrays below
-    infos = [[world.geometry_info(g) for g in side] for side in geometries]
-    for side_infos in infos:
-        for _, body, _ in side_infos:
-            bodies.setdefault(body.index(), body)
-    slot = {index: j for j, index in enumerate(bodies)}
-    R_WB = np.empty((len(bodies), 3, 3))
-    p_WB = np.empty((len(bodies), 3))
-    J = np.zeros((len(bodies), 6, nv))  # spatial Jacobians (ω; v) of the body origins, world frame
-    A_bias = np.zeros((len(bodies), 6))  # bias spatial accelerations (α; a) of the body origins
-    omega = np.zeros((len(bodies), 3))
-    for index, body in bodies.items():
-        j = slot[index]
-        X_WB = plant.EvalBodyPoseInWorld(plant_context, body)
-        R_WB[j], p_WB[j] = X_WB.rotation().matrix(), X_WB.translation()
-        if index == world_body:
+        return PairDistances(names=[], distance=np.empty(0), normal=np.empty((0, 3)), p_WCa=np.empty((0, 3)),
+                             p_WCb=np.empty((0, 3)), jacobian=np.zeros((0, nv)), bias=np.zeros(0))
+    geometries = _geometries(world)
+    sides = [[geometries.get(r.id_A) or _geometry(world, r.id_A) for r in results],
+             [geometries.get(r.id_B) or _geometry(world, r.id_B) for r in results]]
+    p_GC = np.array([[r.p_ACa for r in results], [r.p_BCb for r in results]])  # witness points, geometry frames
+    n = np.array([r.nhat_BA_W for r in results])
+    distance = np.array([r.distance for r in results])
+    swap = np.array([a.obstacle for a in sides[0]])
+    if swap.any():  # keep the robot on side A
+        sides = [[gb if s else ga for ga, gb, s in zip(*sides, swap, strict=True)],
+                 [ga if s else gb for ga, gb, s in zip(*sides, swap, strict=True)]]
+        p_GC[:, swap] = p_GC[::-1, swap]
+        n[swap] = -n[swap]
+    slot: dict = {}  # body index -> its row in the per-body arrays below
+    for side in sides:
+        for g in side:
+            slot.setdefault(g.body_index, g)
+    m = len(slot)
+    X_WB = np.tile(np.eye(4), (m, 1, 1))
+    J = np.zeros((m, 6, nv))  # spatial Jacobians (ω; v) of the body origins, world frame
+    A_bias = np.zeros((m, 6))  # bias spatial accelerations (α; a) of the body origins
+    omega = np.zeros((m, 3))
+    world_frame = plant.world_frame()
+    for j, g in enumerate(slot.values()):
+        if g.obstacle:  # the world body: identity pose, no motion
             continue
-        frame = body.body_frame()
-        J[j] = plant.CalcJacobianSpatialVelocity(plant_context, JacobianWrtVariable.kV, frame, np.zeros(3), world_frame, world_frame)
+        X_WB[j] = plant.EvalBodyPoseInWorld(plant_context, g.body).GetAsMatrix4()
+        J[j] = plant.CalcJacobianSpatialVelocity(plant_context, JacobianWrtVariable.kV, g.frame, _ORIGIN, world_frame, world_frame)
         if bias:
-            A = plant.CalcBiasSpatialAcceleration(plant_context, JacobianWrtVariable.kV, frame, np.zeros(3), world_frame, world_frame)
+            A = plant.CalcBiasSpatialAcceleration(plant_context, JacobianWrtVariable.kV, g.frame, _ORIGIN, world_frame, world_frame)
             A_bias[j] = np.concatenate([A.rotational(), A.translational()])
-            omega[j] = plant.EvalBodySpatialVelocityInWorld(plant_context, body).rotational()
-    for side, (sign, points) in enumerate(((1.0, out.p_WCa), (-1.0, out.p_WCb))):
-        b = np.array([slot[body.index()] for _, body, _ in infos[side]])
-        R_BG = np.array([X_BG.rotation().matrix() for _, _, X_BG in infos[side]])
-        p_BG = np.array([X_BG.translation() for _, _, X_BG in infos[side]])
+            omega[j] = plant.EvalBodySpatialVelocityInWorld(plant_context, g.body).rotational()
+    rows = {index: j for j, index in enumerate(slot)}
+    out = PairDistances(names=[(a.name, b.name) for a, b in zip(*sides, strict=True)], distance=distance, normal=n,
+                        p_WCa=np.empty((k, 3)), p_WCb=np.empty((k, 3)), jacobian=np.zeros((k, nv)), bias=np.zeros(k))
+    for side_index, (sign, points) in enumerate(((1.0, out.p_WCa), (-1.0, out.p_WCb))):
+        side = sides[side_index]
+        b = np.array([rows[g.body_index] for g in side])
+        X_BG = np.array([g.X_BG for g in side])
+        p_BC = np.einsum("kij,kj->ki", X_BG[:, :3, :3], p_GC[side_index]) + X_BG[:, :3, 3]
         # r = p_BoC (world frame): the witness point from its body's origin
-        r = np.einsum("kij,kj->ki", R_WB[b], np.einsum("kij,kj->ki", R_BG, p_GC[side]) + p_BG)
-        points[:] = p_WB[b] + r
+        r = np.einsum("kij,kj->ki", X_WB[b, :3, :3], p_BC)
+        points[:] = X_WB[b, :3, 3] + r
         # v_WC = v_WBo + ω_WB × r, so n̂ᵀ v_WC = n̂ᵀ J_v + (r × n̂)ᵀ J_ω.
         out.jacobian += sign * (np.einsum("ki,kin->kn", n, J[b, 3:]) + np.einsum("ki,kin->kn", np.cross(r, n), J[b, :3]))
         if bias:
             w = omega[b]
             a_C = A_bias[b, 3:] + np.cross(A_bias[b, :3], r) + np.cross(w, np.cross(w, r))
             out.bias += sign * np.einsum("ki,ki->k", n, a_C)
-    out.names = [(a[0], b[0]) for a, b in zip(infos[0], infos[1], strict=True)]
     return out
+
+
+_ORIGIN = np.zeros(3)
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    """What :func:`distances_of` needs of a geometry: its body's (or obstacle's) ``name``, the
+    ``body`` (the world body for an obstacle), its index and frame, and ``X_BG`` (4×4)."""
+
+    name: str
+    body: object
+    body_index: int
+    frame: object
+    X_BG: np.ndarray
+    obstacle: bool
+
+
+#: Per collision world, its geometries as :class:`_Geometry` (filled on first use).
+_GEOMETRIES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _geometries(world: CollisionWorld) -> dict:
+    table = _GEOMETRIES.get(world)
+    if table is None:
+        table = _GEOMETRIES[world] = {}
+    return table
+
+
+def _geometry(world: CollisionWorld, geometry: object) -> _Geometry:
+    name, body, X_BG = world.geometry_info(geometry)
+    info = _Geometry(name, body, int(body.index()), body.body_frame(), X_BG.GetAsMatrix4(),
+                     geometry in world.obstacle_ids)
+    _geometries(world)[geometry] = info
+    return info
 
 
 def minimum_distance(world: CollisionWorld, context: Context, q: np.ndarray, max_distance: float = 1.0,

@@ -53,12 +53,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, Context, ValueProducer
+from pydrake.systems.framework import BasicVector, Context, State, ValueProducer
 
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_number
 from ..task import TaskLevel
-from .distance import PairDistances, pair_distances
+from .distance import PairDistances, distances_of
+from .schedule import PairSchedule, ScheduleState, ScheduleStep
 from .world import CollisionWorld
 
 #: Defaults: safety distance (m), influence distance (m), damper speed (m/s).
@@ -122,14 +123,17 @@ def acceleration_rows(distances: PairDistances, margins: CollisionMargins, dt: f
 
 
 class _WorldContext:
-    """The collision diagram's context as the value of a cache entry (a copy gets a fresh one)."""
+    """The collision diagram's context as the value of a cache entry (a copy gets a context of its
+    own, at the same configuration)."""
 
     def __init__(self, world: CollisionWorld):
         self.world = world
         self.context = world.new_context()
 
     def __deepcopy__(self, memo: dict) -> _WorldContext:
-        return _WorldContext(self.world)
+        clone = _WorldContext(self.world)
+        clone.context.SetTimeStateAndParametersFrom(self.context)  # (a cloned cache entry stays valid)
+        return clone
 
 
 class TaskCollision(Entity[CollisionMargins]):
@@ -181,11 +185,19 @@ class TaskCollision(Entity[CollisionMargins]):
             prerequisites_of_calc=position,
         )
         settings = {self.abstract_state_ticket(self._settings_index)}
+        # Which pairs are queried at a tick (.schedule): the bounds in the state, advanced every tick.
+        self._pair_schedule: PairSchedule | None = None  # made at the first tick (obstacles are in by then)
+        self._schedule_index = self.DeclareAbstractState(AbstractValue.Make(ScheduleState()))
+        self._step = self.DeclareCacheEntry(
+            "pair_schedule", ValueProducer(allocate=lambda: AbstractValue.Make(ScheduleStep(ScheduleState(), [], 0)),
+                                           calc=self._calc_step),
+            prerequisites_of_calc=position | settings | {self.abstract_state_ticket(self._schedule_index)})
+        self.DeclarePeriodicUnrestrictedUpdateEvent(self.dt, 0.0, self._advance_schedule)
         self._distances = self.DeclareCacheEntry(
             "distances",
             ValueProducer(allocate=lambda: AbstractValue.Make(PairDistances(jacobian=np.zeros((0, nv)))),
                           calc=self._calc_distances),
-            prerequisites_of_calc=position | settings,
+            prerequisites_of_calc={self.cache_entry_ticket(self._step.cache_index())} | position,
         )
         distances = {self.cache_entry_ticket(self._distances.cache_index())}
         empty = TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
@@ -243,10 +255,22 @@ class TaskCollision(Entity[CollisionMargins]):
                 rows = TaskLevel(rows.jacobian[movable], rows.lower[movable], rows.upper[movable], rows.error[movable])
         output.set_value(rows)
 
+    def _calc_step(self, context: Context, value: AbstractValue) -> None:
+        holder = self._world_context.Eval(context)
+        if self._pair_schedule is None:
+            self._pair_schedule = PairSchedule(self.world, self._geometry_pairs)
+        state = context.get_abstract_state(self._schedule_index).get_value()
+        q = self._position.Eval(context)
+        value.set_value(self._pair_schedule.step(state, holder.context, q, self._settings_of(context).influence))
+
+    def _advance_schedule(self, context: Context, state: State) -> None:
+        """The periodic update: the schedule's bounds at this tick's ``q`` (:mod:`.schedule`)."""
+        if self._position.HasValue(context):
+            state.get_mutable_abstract_state(self._schedule_index).set_value(self._step.Eval(context).state)
+
     def _calc_distances(self, context: Context, value: AbstractValue) -> None:
         holder = self._world_context.Eval(context)
-        margins = self._settings_of(context)
-        value.set_value(pair_distances(self.world, holder.context, margins.influence, self._geometry_pairs, self.acceleration))
+        value.set_value(distances_of(self.world, holder.context, self._step.Eval(context).in_range, self.acceleration))
 
     def _calc_minimum(self, context: Context, output: BasicVector) -> None:
         output.SetAtIndex(0, self._distances.Eval(context).minimum)

@@ -8,9 +8,9 @@ keeps the obstacles (anchored geometry, :func:`~sotdrake.collision.add_obstacle`
 
 Pairs (:mod:`.pairs`): by default every pair of the robot's bodies that its SRDF and its kinematic
 tree leave (filtered out of the SceneGraph, so its broad phase skips them) and every pair of a
-link and an obstacle, found by one query, ``ComputeSignedDistancePairwiseClosestPoints(d_i)``.
-With explicit ``pairs`` only those are queried, one ``ComputeSignedDistancePairClosestPoints``
-each. Obstacles are added before the first context of the diagram is made (the task's cache
+link and an obstacle (the SceneGraph's collision candidates); with explicit ``pairs`` only those.
+The collision task queries them one ``ComputeSignedDistancePairClosestPoints`` each, only those
+that may be in range (:mod:`.schedule`). Obstacles are added before the first context of the diagram is made (the task's cache
 entry then holds its own copy of this world's context).
 """
 

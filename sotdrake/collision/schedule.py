@@ -1,0 +1,296 @@
+"""Sound pair scheduling: which collision pairs need Drake's exact query at a tick.
+
+A pair whose signed distance was ``D`` at the configuration ``q₀`` cannot be closer than
+
+    d(q) ≥ D − Σ_j ρ_j |Δq_j| − ρ_b φ − |Δp|                                        (1)
+
+at a later configuration ``q``: ``Δq_j`` is the motion of each revolute joint ``j`` on the
+kinematic path between the pair's two bodies (rad; a prismatic joint counts ``|Δq_j|`` m with
+``ρ_j = 1``), and when one side is an obstacle (fixed in the world), ``|Δp|`` (m) and ``φ`` (rad)
+are the translation of the floating base and the angle of its rotation. Only the joints on that
+path change the pair's relative pose. Moving one revolute joint by ``Δθ`` moves any point at
+distance ``r`` from its axis by ``2 r sin(|Δθ|/2) ≤ r |Δθ|``; ``ρ_j`` bounds ``r`` for every
+configuration: the length of the shortest chain of segments, each fixed in one body (from the
+joint's origin to the next joint's origin, and to the centre of the geometry's bounding sphere),
+from the axis to the centre of either geometry's bounding sphere, plus that sphere's radius (the
+smaller of the two sides: the relative motion is the same seen from either body). Moving the
+joints one after the other and adding the displacements (triangle inequality) gives (1), whatever
+the path between ``q₀`` and ``q``; the bound is accumulated tick by tick. A joint of another kind
+(ball, universal, planar) or a geometry without a bounded hull makes the pair's bound drop to
+``-inf`` at the first motion: that pair is queried at every tick it moves.
+
+At each tick the pairs whose bound is below the influence distance ``d_i`` are queried exactly
+(``ComputeSignedDistancePairClosestPoints``), the others are out of range (their distance is at
+least the bound, ``≥ d_i``) and need no row; a pair queried whose bodies have not moved relative to
+each other since. The first tick queries every pair. So the pairs in range are exactly those the full broad-phase query
+``ComputeSignedDistancePairwiseClosestPoints(d_i)`` returns, at a fraction of its cost.
+
+The bounds live in the Context (:class:`ScheduleState`, the collision task's abstract state,
+advanced by its periodic update): a cloned context replays the run.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.geometry import Box, Capsule, Cylinder, Ellipsoid, GeometryId, Sphere
+from pydrake.multibody.tree import Joint, JointIndex, RigidBody
+from pydrake.systems.framework import Context
+
+from .world import CollisionWorld
+
+#: The coefficient (m per unit of motion) of a motion the bound cannot follow: large, finite (no NaN).
+UNBOUNDED = 1e9
+
+
+@dataclass
+class ScheduleState:
+    """The schedule's run-time state: ``q`` the configuration the bounds are at (None before the
+    first tick), ``lower`` the lower bound of each pair's signed distance there (m), ``in_range``
+    the Drake results of the pairs in range there (for ``max_distance``), ``queried`` how many pairs
+    were queried exactly to get there."""
+
+    q: np.ndarray | None = None
+    lower: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    in_range: list = field(default_factory=list)
+    max_distance: float = -np.inf
+    queried: int = 0
+
+    def __deepcopy__(self, memo: dict) -> ScheduleState:
+        return ScheduleState(None if self.q is None else self.q.copy(), self.lower.copy(), list(self.in_range),
+                             self.max_distance, self.queried)
+
+
+@dataclass
+class ScheduleStep:
+    """One tick of the schedule: the ``state`` after it, the Drake results of the pairs in range,
+    and how many pairs were ``queried`` exactly."""
+
+    state: ScheduleState
+    in_range: list
+    queried: int
+
+    def __deepcopy__(self, memo: dict) -> ScheduleStep:  # (Drake's results are immutable: shared)
+        return ScheduleStep(copy.deepcopy(self.state, memo), list(self.in_range), self.queried)
+
+
+def bounding_sphere(shape: object) -> tuple[np.ndarray, float]:
+    """Centre (in the geometry's frame, m) and radius (m) of a sphere holding ``shape`` (its convex
+    hull for a mesh); an unbounded shape gets the radius :data:`UNBOUNDED`."""
+    if isinstance(shape, Sphere):
+        return np.zeros(3), shape.radius()
+    if isinstance(shape, Box):
+        return np.zeros(3), 0.5 * float(np.linalg.norm(shape.size()))
+    if isinstance(shape, Cylinder):
+        return np.zeros(3), float(np.hypot(shape.radius(), 0.5 * shape.length()))
+    if isinstance(shape, Capsule):
+        return np.zeros(3), shape.radius() + 0.5 * shape.length()
+    if isinstance(shape, Ellipsoid):
+        return np.zeros(3), max(shape.a(), shape.b(), shape.c())
+    hull = getattr(shape, "GetConvexHull", None)
+    if hull is None:
+        return np.zeros(3), UNBOUNDED
+    vertices = np.array([hull().vertex(i) for i in range(hull().num_vertices())])
+    centre = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
+    return centre, float(np.linalg.norm(vertices - centre, axis=1).max())
+
+
+class PairSchedule:
+    """The fixed part of the schedule for ``world``'s candidate pairs (``geometry_pairs``: None for
+    every pair its SceneGraph does not filter out): the coefficients of bound (1) (see the module
+    docstring), one row per pair, over the motion vector of :meth:`motion`."""
+
+    def __init__(self, world: CollisionWorld, geometry_pairs: Sequence[tuple[GeometryId, GeometryId]] | None = None):
+        inspector = world.scene_graph.model_inspector()
+        if geometry_pairs is None:
+            candidates = inspector.GetCollisionCandidates()
+            geometry_pairs = sorted(candidates, key=lambda pair: (pair[0].get_value(), pair[1].get_value()))
+        self.pairs = list(geometry_pairs)
+        self.world = world
+        plant = world.plant
+        joints = [plant.get_joint(JointIndex(i)) for i in range(plant.num_joints())]
+        self._parents = {j.child_body().index(): j.parent_body() for j in joints}
+        self._chains: dict = {}
+        # Motion vector: |Δq| of each 1-dof joint, then |Δp| and φ of each floating joint.
+        self._one_dof = [j for j in joints if j.num_positions() == 1 and j.type_name() in ("revolute", "prismatic")]
+        self._floating = [j for j in joints if j.type_name() in ("quaternion_floating", "rpy_floating")]
+        self._one_dof_q = np.array([j.position_start() for j in self._one_dof], dtype=int)
+        nodes, lengths = self._graph(world, joints)
+        geometries = sorted({g for pair in self.pairs for g in pair}, key=lambda g: g.get_value())
+        spheres = {g: bounding_sphere(inspector.GetShape(g)) for g in geometries}
+        self._support = {g: support_data(inspector.GetShape(g)) for g in geometries}
+        for g in geometries:
+            nodes[("geometry", g)] = len(nodes)
+        graph = np.full((len(nodes), len(nodes)), np.inf)
+        for (a, b), length in lengths.items():
+            graph[nodes[a], nodes[b]] = graph[nodes[b], nodes[a]] = length
+        for g in geometries:  # the sphere's centre is fixed in its body: joined to that body's points
+            _, body, X_BG = world.geometry_info(g)
+            centre = X_BG.multiply(spheres[g][0])
+            for point, p_B in self._body_points[body.index()]:
+                graph[nodes[("geometry", g)], nodes[point]] = graph[nodes[point], nodes[("geometry", g)]] = \
+                    float(np.linalg.norm(centre - p_B))
+        distance = _shortest_paths(graph)
+        self.coefficients = np.zeros((len(self.pairs), len(self._one_dof) + 2 * len(self._floating)))
+        for p, (ga, gb) in enumerate(self.pairs):
+            self.coefficients[p] = self._pair_row(world, joints, nodes, distance, spheres, ga, gb)
+
+    def _graph(self, world: CollisionWorld, joints: list) -> tuple[dict, dict]:
+        """The points fixed in each body (joint origins, on both sides of each joint) and the
+        constant lengths between the points of one body, and across welds and revolute joints."""
+        plant = world.plant
+        nodes: dict = {("world",): 0}
+        lengths: dict = {}
+        points: dict = {plant.world_body().index(): [(("world",), np.zeros(3))]}
+        for j in joints:
+            for side, body, X in (("F", j.parent_body(), j.frame_on_parent()), ("M", j.child_body(), j.frame_on_child())):
+                nodes.setdefault((side, j.index()), len(nodes))
+                p_B = X.GetFixedPoseInBodyFrame().translation()
+                points.setdefault(body.index(), []).append(((side, j.index()), p_B))
+            if j.type_name() == "revolute":  # both origins on the axis, at the same point
+                lengths[(("F", j.index()), ("M", j.index()))] = 0.0
+            elif j.type_name() == "weld":
+                lengths[(("F", j.index()), ("M", j.index()))] = float(np.linalg.norm(j.X_FM().translation()))
+            elif j.type_name() == "prismatic":
+                reach = max(abs(j.position_lower_limits()[0]), abs(j.position_upper_limits()[0]))
+                if np.isfinite(reach):
+                    lengths[(("F", j.index()), ("M", j.index()))] = float(reach)
+        for body_points in points.values():
+            for i, (a, p_a) in enumerate(body_points):
+                for b, p_b in body_points[i + 1:]:
+                    lengths[(a, b)] = float(np.linalg.norm(p_a - p_b))
+        self._body_points = points
+        return nodes, lengths
+
+    def _pair_row(self, world: CollisionWorld, joints: list, nodes: dict, distance: np.ndarray, spheres: dict,
+                  ga: GeometryId, gb: GeometryId) -> np.ndarray:
+        """The coefficients of bound (1) for the pair ``(ga, gb)``."""
+        chains = [self._ancestors(world.geometry_info(g)[1]) for g in (ga, gb)]
+        row = np.zeros(self.coefficients.shape[1])
+        on_path = [j for j in joints if (j.child_body().index() in chains[0]) != (j.child_body().index() in chains[1])]
+
+        def reach(j: Joint) -> float:  # ρ_j: from the joint's origin to the nearer sphere's far side
+            ends = [distance[nodes[("M", j.index())], nodes[("geometry", g)]] + spheres[g][1] for g in (ga, gb)]
+            return float(min(min(ends), UNBOUNDED))
+
+        one_dof = {j.index(): k for k, j in enumerate(self._one_dof)}
+        floating = {j.index(): len(one_dof) + 2 * k for k, j in enumerate(self._floating)}
+        for j in on_path:
+            if j.index() in one_dof:
+                row[one_dof[j.index()]] = reach(j) if j.type_name() == "revolute" else 1.0
+            elif j.index() in floating:
+                k = floating[j.index()]
+                row[k], row[k + 1] = 1.0, reach(j)
+            elif j.num_positions() > 0:
+                row[:] = UNBOUNDED
+        return row
+
+    def _ancestors(self, body: RigidBody) -> set:
+        """The indices of ``body`` and of every body on its way to the world."""
+        out = self._chains.get(body.index())
+        if out is None:
+            parent = self._parents.get(body.index())
+            out = {body.index()} | (set() if parent is None else self._ancestors(parent))
+            self._chains[body.index()] = out
+        return out
+
+    def motion(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+        """The motion vector from ``q0`` to ``q1``: ``|Δq_j|`` of each one-dof joint, then ``|Δp|``
+        (m) and the rotation angle ``φ`` (rad) of each floating joint."""
+        out = [np.abs(q1[self._one_dof_q] - q0[self._one_dof_q])]
+        for j in self._floating:
+            s = j.position_start()
+            if j.type_name() == "quaternion_floating":
+                a, b = q0[s:s + 4], q1[s:s + 4]
+                w = float(a @ b)
+                v = a[0] * b[1:] - b[0] * a[1:] - np.cross(a[1:], b[1:])
+                angle = 2.0 * np.arctan2(np.linalg.norm(v), abs(w))
+                out.append(np.array([np.linalg.norm(q1[s + 4:s + 7] - q0[s + 4:s + 7]), angle]))
+            else:  # roll-pitch-yaw: each angle's change bounds its rotation; the sum bounds theirs
+                out.append(np.array([np.linalg.norm(q1[s + 3:s + 6] - q0[s + 3:s + 6]),
+                                     float(np.abs(q1[s:s + 3] - q0[s:s + 3]).sum())]))
+        return np.concatenate(out)
+
+    def certified(self, query: object, result: object) -> float:
+        """A lower bound of the pair's signed distance that holds even when the query has not
+        converged (a symmetric posture can leave GJK on a non-closest pair of features): the smaller
+        of its distance and the gap between the two shapes along its normal ``n̂`` (B to A), ``min_A
+        n̂ᵀa − max_B n̂ᵀb``; any direction's gap is at most the distance of two convex shapes."""
+        data_a, data_b = self._support.get(result.id_A), self._support.get(result.id_B)  # type: ignore[attr-defined]
+        if data_a is None or data_b is None:
+            return result.distance  # type: ignore[attr-defined]
+        n = result.nhat_BA_W  # type: ignore[attr-defined]
+        X_WA, X_WB = query.GetPoseInWorld(result.id_A), query.GetPoseInWorld(result.id_B)  # type: ignore[attr-defined]
+        R_WA, R_WB = X_WA.rotation().matrix(), X_WB.rotation().matrix()
+        lowest_a = n @ X_WA.translation() - support(data_a, -(R_WA.T @ n))
+        highest_b = n @ X_WB.translation() + support(data_b, R_WB.T @ n)
+        return min(result.distance, float(lowest_a - highest_b))  # type: ignore[attr-defined]
+
+    def step(self, state: ScheduleState, context: Context, q: np.ndarray, max_distance: float) -> ScheduleStep:
+        """Advance ``state`` to the configuration ``q`` (set in the collision diagram ``context``
+        by the caller) and query exactly the pairs whose bound is below ``max_distance`` (m)."""
+        n = len(self.pairs)
+        if state.max_distance == max_distance and state.q is not None and np.array_equal(state.q, q):
+            return ScheduleStep(state, state.in_range, 0)  # (the tick's update has already advanced it)
+        if state.q is None or state.lower.shape != (n,):
+            lower = np.full(n, -np.inf)
+        else:
+            lower = state.lower - self.coefficients @ self.motion(state.q, q)
+        due = np.flatnonzero(lower < max_distance)
+        query = self.world.query(context) if due.size else None  # (the query object updates every pose)
+        in_range = []
+        for p in due:
+            a, b = self.pairs[p]
+            result = query.ComputeSignedDistancePairClosestPoints(a, b)  # type: ignore[union-attr]
+            if result.distance < max_distance:
+                in_range.append(result)
+                lower[p] = result.distance
+            else:  # skipped from now on: only on a bound that does not trust the query's convergence
+                lower[p] = self.certified(query, result)
+        return ScheduleStep(ScheduleState(q.copy(), lower, in_range, max_distance, len(due)), in_range, len(due))
+
+
+def support_data(shape: object) -> tuple | None:
+    """What :func:`support` needs of ``shape``: its hull's vertices (a mesh, a box) or its sizes (a
+    sphere, a cylinder, a capsule, an ellipsoid); None for another shape."""
+    if isinstance(shape, Sphere):
+        return ("ellipsoid", np.full(3, shape.radius()))
+    if isinstance(shape, Ellipsoid):
+        return ("ellipsoid", np.array([shape.a(), shape.b(), shape.c()]))
+    if isinstance(shape, Box):
+        half = 0.5 * np.asarray(shape.size())
+        return ("points", np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half)
+    if isinstance(shape, Cylinder):
+        return ("cylinder", shape.radius(), 0.5 * shape.length())
+    if isinstance(shape, Capsule):
+        return ("capsule", shape.radius(), 0.5 * shape.length())
+    hull = getattr(shape, "GetConvexHull", None)
+    if hull is None:
+        return None
+    mesh = hull()
+    return ("points", np.array([mesh.vertex(i) for i in range(mesh.num_vertices())]))
+
+
+def support(data: tuple, u: np.ndarray) -> float:
+    """``max u·v`` over the points ``v`` of a shape (its frame; ``data`` from :func:`support_data`)."""
+    kind = data[0]
+    if kind == "points":
+        return float((data[1] @ u).max())
+    if kind == "ellipsoid":
+        return float(np.linalg.norm(data[1] * u))
+    radial = float(np.hypot(u[0], u[1])) if kind == "cylinder" else float(np.linalg.norm(u))
+    return data[1] * radial + data[2] * abs(float(u[2]))
+
+
+def _shortest_paths(graph: np.ndarray) -> np.ndarray:
+    """Floyd–Warshall: the shortest path lengths of a symmetric edge-length matrix (inf: no edge)."""
+    distance = graph.copy()
+    np.fill_diagonal(distance, 0.0)
+    for k in range(len(distance)):
+        distance = np.minimum(distance, distance[:, k:k + 1] + distance[k:k + 1, :])
+    return distance
+
+

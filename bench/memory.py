@@ -69,9 +69,9 @@ def count_gen2() -> list[int]:
 
 
 def part(kind: str, seconds: float) -> dict:
-    from tests.conftest import load_diagram
+    from sotdrake.scenarios import talos_appli
 
-    appli = load_diagram("talos_appli").build_diagram()
+    appli = talos_appli.build_diagram()
     gen2 = count_gen2()
     sampler = Sampler()
     start_rss = rss_mib()

@@ -42,6 +42,7 @@ writes ``DIR/summary.json`` (one entry per configuration), ``DIR/plots.png``,
 The scenario (its diagram, run and summary) is :mod:`sotdrake.scenarios.sot_concept`.
 """
 
+from sotdrake import report  # noqa: F401  (the summary is printed by main's table)
 from sotdrake.scenarios.sot_concept import build_diagram, main
 
 __all__ = ["build_diagram", "main"]

@@ -8,6 +8,7 @@ import ast
 import importlib
 import inspect
 import pkgutil
+import importlib.util
 import re
 import textwrap
 
@@ -30,10 +31,17 @@ def declared_ports(cls: type) -> set[str]:
     return names
 
 
+# Subpackages that need an optional extra: read only where the extra is installed.
+OPTIONAL = {"sotdrake.ros": "rclpy"}
+
+
 def public_systems() -> dict[str, type]:
     systems = {}
     for module in pkgutil.walk_packages(sotdrake.__path__, "sotdrake."):
         if module.name.endswith("__main__"):
+            continue
+        if any(module.name.startswith(package) and importlib.util.find_spec(needs) is None
+               for package, needs in OPTIONAL.items()):
             continue
         for name, value in vars(importlib.import_module(module.name)).items():
             if (inspect.isclass(value) and issubclass(value, LeafSystem) and value.__module__ == module.name

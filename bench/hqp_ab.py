@@ -1,7 +1,7 @@
 """Before/after speed of the hierarchical QP, measured in the same process (a paired A/B).
 
 On a shared, loaded machine wall times of separate runs are not comparable; this script solves the
-*same* problems with this tree's :class:`~sotdrake.solvers.hqp.HierarchicalQP` and with the one of a
+*same* problems with this tree's :class:`~sotdrake.hqp.HierarchicalQP` and with the one of a
 git revision (``--base``, extracted with ``git archive`` into a temporary package), interleaved call
 by call, and keeps the best of ``--repeat`` CPU times (``time.thread_time``) of each call:
 
@@ -202,7 +202,7 @@ def main() -> None:
     parser.add_argument("--tick", type=int, default=0, help="also time the whole active-limits tick, this many ticks each")
     parser.add_argument("--out", type=Path, help="write the results as JSON")
     args = parser.parse_args()
-    from sotdrake.solvers import hqp
+    from sotdrake.hqp import solve as hqp
 
     with tempfile.TemporaryDirectory() as folder:
         modules = (hqp, base_package(args.base, Path(folder)))

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..compiled import announce_compilation, compiled_input, read_only
-from ..solvers.equality_hierarchy import StackedLevels
+from ..hqp.equality_hierarchy import StackedLevels
 from ..task import TaskLevel
 from .terms import DynamicsTerms
 

@@ -69,9 +69,10 @@ from pydrake.systems.framework import Context, InputPort
 from ..compiled import read_only
 from ..configuration import Layout, contiguous_slice
 from ..exceptions import InvalidInput, NotFound, SolverError, StackError, check_number
+from ..hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, check_solver
+from ..hqp.equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
+from ..hqp.warm import WarmStart, WarmStarts
 from ..robots import RobotModel
-from ..solvers.equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
-from ..solvers.hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, check_solver
 from ..solvers.sot import SOT, StackSettings
 from ..task import TaskLevel
 from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, MAX_RELEASE, check_count, check_positive
@@ -429,6 +430,10 @@ class SolverDyn(SOT):
         self.setSolver(solver)
         self._contact_ports: dict[str, InputPort] = {}
         self._hqps: dict[int, HierarchicalQP] = {}  # a cache of solvers per problem size
+        # Their warm starts (which path answers), in the Context, one per problem (see
+        # sotdrake.hqp.warm): a cloned or reset Context replays a run bit for bit. The solves update
+        # them in place (left out of the solution's prerequisites: nothing is recomputed for them).
+        self._warm_index = self.DeclareAbstractState(AbstractValue.Make(WarmStarts()))
         self._actuation: tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray] | None = None  # _actuated_rows
         self._reduced_hqps: dict[int, HierarchicalQP] = {}  # the same, τ eliminated
         self._bound_templates: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # see _bounds
@@ -648,6 +653,8 @@ class SolverDyn(SOT):
         hqp = self._hqps.get(n)
         if hqp is None:
             hqp = self._hqps[n] = HierarchicalQP(n)
+        warm_starts = context.get_abstract_state(self._warm_index).get_value()
+        warm = warm_starts.of(("full", n), n)
         relaxed = result = None
         levels: list[LevelRows] = []
         # The fast path: τ eliminated (a smaller problem, no τ bounds). If its τ is within the
@@ -660,15 +667,16 @@ class SolverDyn(SOT):
             small = self._reduced_hqps.get(m)
             if small is None:
                 small = self._reduced_hqps[m] = HierarchicalQP(m)
+            small_warm = warm_starts.of(("reduced", m), m)
             try:
                 stacked = StackedContacts(contacts, self.nv)
                 if all(task.lower is task.upper for task in tasks):  # the levels assembled and stacked compiled
                     scales = [WRENCH_REGULARIZATION * weight for weight in _shear_weights(loads, len(contacts))]
                     stack = reduced_stack(terms, stacked, tasks, s.damping_gain, scales, passive)
-                    fast = self._solve_stacked(context, small, stack, lower[:m], upper[:m], s.solver)
+                    fast = self._solve_stacked(context, small, stack, lower[:m], upper[:m], s.solver, small_warm)
                 else:
                     reduced, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
-                    fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver)
+                    fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver, small_warm)
                 tau, world, within, hold = torques_and_checks(terms, stacked, compiled_actuated, fast.x, self._effort_held)
                 if within and hold:
                     fast.x = np.concatenate([fast.x, tau])
@@ -679,11 +687,11 @@ class SolverDyn(SOT):
         try:
             if result is None:
                 rows, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
-                relaxed = result = self._solve(context, hqp, rows, lower, upper, s.solver)
+                relaxed = result = self._solve(context, hqp, rows, lower, upper, s.solver, warm)
             if contacts and not diagnostics.torques_eliminated and not _wrench_rows_hold(contacts, slices, result.x):
                 result = None
                 full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, loads=loads)
-                result = hqp.solve(full, lower, upper, 0.0, s.solver, start=inside(lower, upper))
+                result = hqp.solve(full, lower, upper, 0.0, s.solver, start=inside(lower, upper), warm=warm)
         except SolverError as error:
             # Never zero torque on a standing robot if avoidable: the relaxed optimum (dynamics,
             # contact accelerations and the stack exact; friction/CoP rows possibly violated), else
@@ -692,7 +700,7 @@ class SolverDyn(SOT):
             if relaxed is None:
                 try:
                     levels, slices = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False, loads=loads)
-                    relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver, start=inside(lower, upper))
+                    relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver, start=inside(lower, upper), warm=warm)
                     diagnostics.failure += "; the stack is dropped for this tick"
                 except SolverError as second:
                     diagnostics.failure += f"; {second}; zero torque"
@@ -766,26 +774,27 @@ class SolverDyn(SOT):
         return [int(g) - 1 for g in guess if g > 0], [int(-g) - 1 for g in guess if g < 0]
 
     def _solve_stacked(self, context: Context, hqp: HierarchicalQP, stack: StackedLevels, lower: np.ndarray,
-                       upper: np.ndarray, solver: str) -> HqpResult:
+                       upper: np.ndarray, solver: str, warm: WarmStart | None = None) -> HqpResult:
         """:meth:`_solve` of equality levels already stacked (:func:`.reduced_levels.reduced_stack`)."""
         if solver == ACTIVE_SET:
             result = solve_stacked(stack, lower, upper, *self._held_guess(context))
             if result is not None:
                 return result
-        return hqp.solve(stack.levels(), lower, upper, 0.0, solver, start=inside(lower, upper))
+        return hqp.solve(stack.levels(), lower, upper, 0.0, solver, start=inside(lower, upper), warm=warm)
 
     def _solve(self, context: Context, hqp: HierarchicalQP, rows: list[Rows], lower: np.ndarray, upper: np.ndarray,
-               solver: str) -> HqpResult:
+               solver: str, warm: WarmStart | None = None) -> HqpResult:
         """The hierarchy through its QR path when that is clear-cut (every level an equality, the
         bounds at the optimum held as equalities and certified by their multipliers:
-        :mod:`..solvers.equality_hierarchy`, the same answer), else ``hqp`` (which checks the rows).
+        :mod:`..hqp.equality_hierarchy`, the same answer), else ``hqp`` (which checks the rows).
         The QR path starts from the bounds held at the last tick (discrete state); it is not tried
         when a Drake solver is chosen."""
         if solver == ACTIVE_SET and all(lo is hi for _, lo, hi in rows):
             result = solve_equality_hierarchy([(A, b) for A, b, _ in rows], lower, upper, *self._held_guess(context))
             if result is not None:
                 return result
-        return hqp.solve([LevelRows(*level) for level in rows], lower, upper, 0.0, solver, start=inside(lower, upper))
+        return hqp.solve([LevelRows(*level) for level in rows], lower, upper, 0.0, solver, start=inside(lower, upper),
+                         warm=warm)
 
     def _calc_wrenches(self, context: Context, output) -> None:
         wrenches = self._solution.Eval(context).wrenches

@@ -100,6 +100,16 @@ from .active_set import (
     solve_least_squares_qp,
     svd,
 )
+from .tolerances import (
+    DEGENERATE_RETRY,
+    FEASIBILITY,
+    HELD_SIDE,
+    REPORTED_ACTIVE,
+    ROUND_OFF,
+    SIDE,
+    VERIFIED,
+)
+from .warm import WarmStart
 
 SOLVERS = {"clarabel": ClarabelSolver, "osqp": OsqpSolver, "snopt": SnoptSolver}
 """The Drake solvers a level can use (then polished by the active-set method)."""
@@ -259,31 +269,17 @@ _NO_ROW_MASK.flags.writeable = False
 _WARM_PATHS = (ACTIVE_SET, "cold", "clarabel", "osqp")  # the default path's order, with a cached working set
 _COLD_PATHS = (ACTIVE_SET, "clarabel", "osqp")
 _OUTSIDE = "a point outside the bounds"
-#: A hard row missed by at most this fraction of the point's size is missed by round-off
-#: (:meth:`HierarchicalQP._onto_hard_rows` corrects it), corrected at most _REFINEMENTS times.
-_ROUND_OFF = 1e-9
-_REFINEMENTS = 2
-DEGENERATE_RETRY = (1e-4, 1e-3)
-"""At a degenerate vertex, where bounds or held rows meet nearly dependent at the same value, the
-working set's rank decisions at τ can leave out a row that the held ones imply only to within τ:
-it then moves off its bound by up to about τ times the step (seen on ``SolverDyn``'s last level at
-random valid states: 2e-8 on a unit row, against the 1e-9 every point must meet; about 4 random
-states in 100 failed so). A stage whose active-set paths end outside the bounds is solved once more by the
-active set (cold guess) with the working set's rank decisions (:func:`solve_least_squares_qp`'s
-``working_threshold``) at these fractions of τ in turn (at most ``2 (m + p) + 50`` iterations each),
-right after the active set's own paths and before the Drake solvers' (which cost about 140 ms each on
-such a stage, and end outside the bounds too); every other rank decision stays at τ, and the point
-is accepted on the same checks."""
+_REFINEMENTS = 2  # the round-off rescue's corrections, at most
 
 
 _NO_LEVEL = (np.zeros((0, 0)), *[np.zeros(0)] * 2, np.zeros((0, 0)), *[np.zeros(0)] * 3)
-"""The level's arrays given to :func:`.jit_stage.build` for the minimum-norm stage (not read)."""
+"""The level's arrays given to :func:`.kernels.stage.build` for the minimum-norm stage (not read)."""
 
 
 @functools.cache
 def _jit_stage() -> types.ModuleType:
-    """:mod:`.jit_stage`, imported on the first stage (see :func:`_active_bounds_path`)."""
-    from . import jit_stage
+    """:mod:`.kernels.stage`, imported on the first stage (see :func:`_active_bounds_path`)."""
+    from .kernels import stage as jit_stage
 
     announce_compilation(jit_stage.build, "the hierarchical QP's stage assembly", "about ten seconds")
     return jit_stage
@@ -310,8 +306,8 @@ def _sides_at_bounds(x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fi
     """+1 where ``x`` is at its (finite) upper bound, -1 at its lower bound (to 1e-9, relative
     above 1), 0 elsewhere and on the ``fixed`` components (those of the call the guess is for):
     the guess of :mod:`.active_bounds`."""
-    upper = ~fixed & (x >= x_upper - 1e-9 * np.maximum(1.0, np.abs(x_upper))) & (x_upper < np.inf)
-    lower = ~fixed & (x <= x_lower + 1e-9 * np.maximum(1.0, np.abs(x_lower))) & (x_lower > -np.inf)
+    upper = ~fixed & (x >= x_upper - FEASIBILITY * np.maximum(1.0, np.abs(x_upper))) & (x_upper < np.inf)
+    lower = ~fixed & (x <= x_lower + FEASIBILITY * np.maximum(1.0, np.abs(x_lower))) & (x_lower > -np.inf)
     return np.where(upper, 1, np.where(lower, -1, 0))
 
 
@@ -406,7 +402,7 @@ class HierarchicalQP:
         hold_tolerance: float = 0.0,
         rank_threshold: float = RANK_THRESHOLD,
         regularize: bool = True,
-        feasibility_tolerance: float = 1e-9,
+        feasibility_tolerance: float = FEASIBILITY,
     ):
         for name in [solver, *(level_solvers or [])]:
             check_solver(name)
@@ -418,28 +414,25 @@ class HierarchicalQP:
         self.hold_tolerance, self.rank_threshold, self.regularize = hold_tolerance, rank_threshold, regularize
         self.feasibility_tolerance = feasibility_tolerance
         self._programs: dict[tuple[int, int, int], _Program] = {}  # a cache: results never depend on it
-        # Warm starts (results never depend on them): the working set of each stage at the last call
-        # with the same sizes, and under FREE_MINIMUM_NORM whether the last minimum-norm stage ended
-        # with an empty working set (then its unconstrained point is tried first).
-        self._working_sets: dict = {}
         self._solvers: dict[str, tuple] = {}
         self._identity = np.eye(n)  # a constant (never written to)
         self._all_components = np.arange(n)  # the bound rows' indices when every component is bounded
-        # A guess (results never depend on it): the side of each bound held at the last answer, or
-        # that answer (x, x_lower, x_upper, fixed), read off when the next call needs it.
-        self._bound_sides: np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray] = np.zeros(n, dtype=int)
-        # After f failed tries of the active bounds in a row, the next 2^(f-1) calls (at most 16) skip
-        # them (a stack whose levels cannot all be met stays so for a while; the call that follows a
-        # failed solve_equalities is the same stack's solve).
-        self._active_bounds_failures, self._active_bounds_skips = 0, 0
-
+        # The warm starts (see .warm): the call's ``warm``, else this object's own.
+        self._own_warm = self._warm = WarmStart(n)
 
     def forget_warm_starts(self) -> None:
-        """Drop every warm start (the working sets, the held bounds' guess, the back-off), so that
-        the next call is solved cold. Results never depend on them; timings do."""
-        self._working_sets.clear()
-        self._bound_sides = np.zeros(self.n, dtype=int)
-        self._active_bounds_failures, self._active_bounds_skips = 0, 0
+        """Drop every warm start of this object's own (the working sets, the held bounds' guess, the
+        back-off), so that the next call without ``warm`` is solved cold. Results never depend on
+        them to the tolerances; timings and the last bits do."""
+        self._own_warm.clear()
+
+    def _use(self, warm: WarmStart | None) -> None:
+        if warm is None:
+            self._warm = self._own_warm
+        elif isinstance(warm, WarmStart) and warm.n == self.n:
+            self._warm = warm
+        else:
+            raise InvalidInput(f"warm must be a WarmStart of {self.n} variables, got {warm!r:.80}")
 
     def _drake(self, name: str):
         if name not in self._solvers:
@@ -454,6 +447,7 @@ class HierarchicalQP:
         damping: float = 0.0,
         solver: str | None = None,
         start: np.ndarray | None = None,
+        warm: WarmStart | None = None,
     ) -> HqpResult:
         """Solve in strict priority; ``damping`` μ applies to the last level; ``solver`` overrides
         the default path for this call. Raises :class:`SolverError` naming the stage if every path
@@ -463,8 +457,12 @@ class HierarchicalQP:
         relaxes a hard bound that its starting point violates to that point (a joint already past
         its limit may stay there rather than be pushed off at once), so a bound that excludes the
         start is not enforced: give a start inside the bounds (e.g. ``clip(0, x_lower, x_upper)``)
-        to have every bound hold."""
+        to have every bound hold.
+
+        ``warm``: the warm-start state to read and update (:class:`~.warm.WarmStart` of ``n``
+        variables, e.g. kept in a system's Context); default: this object's own."""
         solver = self.solver if solver is None else check_solver(solver)
+        self._use(warm)
         n = self.n
         x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
         if x_lower.shape != (n,) or x_upper.shape != (n,):
@@ -493,7 +491,7 @@ class HierarchicalQP:
                 if result is not None:
                     return result
             result = self._solve_stages(levels, x_lower, x_upper, damping, solver, began, start)
-            self._bound_sides = (result.x, x_lower, x_upper)
+            self._warm.bound_sides = (result.x, x_lower, x_upper)
             return result
 
     def _equalities_only(self, levels, x_lower, x_upper, fixed, damping, start) -> bool:
@@ -514,14 +512,16 @@ class HierarchicalQP:
         x_lower: np.ndarray,
         x_upper: np.ndarray,
         damping: float = 0.0,
+        warm: WarmStart | None = None,
     ) -> HqpResult | None:
         """The stack of equality levels ``jacobians[k] x = values[k]`` (highest first) by the active
         bounds alone (:mod:`.active_bounds`), without building :class:`LevelRows`: the answer of
         :meth:`solve` on the default path, or None when that path does not apply (another solver,
         damping, no minimum-norm stage, 0 outside the bounds) or does not verify; then :meth:`solve`
         decides. The values are not checked here (a NaN or an infinite entry makes the path fail
-        and :meth:`solve`'s checks name it); shapes that do not fit give None."""
+        and :meth:`solve`'s checks name it); shapes that do not fit give None. ``warm``: as :meth:`solve`'s."""
         n = self.n
+        self._use(warm)
         if (self.solver != ACTIVE_SET or not self.regularize or any(name != ACTIVE_SET for name in self.level_solvers)
                 or (damping != 0.0 and len(jacobians)) or len(values) != len(jacobians)):
             return None
@@ -537,10 +537,10 @@ class HierarchicalQP:
         """:meth:`_solve_active_bounds` unless failures in a row make this call skip it (the
         back-off: after f failures, the next 2^(f-1) calls, at most 16, skip it; a call to which the
         path does not apply, 0 outside the bounds of a free component, is not counted)."""
-        if self._active_bounds_skips:
+        if self._warm.skips:
             with np.errstate(invalid="ignore"):
                 if _start_inside(x_lower, x_upper, x_lower == x_upper, 0.0):
-                    self._active_bounds_skips -= 1
+                    self._warm.skips -= 1
             return None
         return self._solve_active_bounds(jacobians, values, x_lower, x_upper, began)
 
@@ -555,19 +555,19 @@ class HierarchicalQP:
             A, b = np.concatenate(jacobians), np.concatenate(values)
         else:
             A, b = np.zeros((0, self.n)), np.zeros(0)
-        guess = self._bound_sides
+        guess = self._warm.bound_sides
         if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
             guess = _sides_at_bounds(guess[0], guess[1], guess[2], x_lower == x_upper)
         status, x, sides, residual, slack_norms, active_bounds = path.solve_stack(
             A, b, sizes, x_lower, x_upper, guess, certified=1e3 * self.rank_threshold,
-            feasibility=min(1e-10, self.feasibility_tolerance), tolerance=self.feasibility_tolerance)
+            feasibility=min(VERIFIED, self.feasibility_tolerance), tolerance=self.feasibility_tolerance)
         if status == path.NOT_APPLICABLE:  # (0 outside the bounds of a free component, as _equalities_only)
             return None
         if status == path.NOT_VERIFIED:
-            self._active_bounds_failures += 1
-            self._active_bounds_skips = min(2 ** (self._active_bounds_failures - 1), 16)
+            self._warm.failures += 1
+            self._warm.skips = min(2 ** (self._warm.failures - 1), 16)
             return None
-        self._active_bounds_failures, self._bound_sides = 0, sides
+        self._warm.failures, self._warm.bound_sides = 0, sides
         slacks, start = [], 0
         for size in sizes.tolist():
             slacks.append(residual[start : start + size])
@@ -635,7 +635,7 @@ class HierarchicalQP:
                 value = A_in @ x
                 slack = np.maximum(np.maximum(lo - value, value - hi), 0.0)
                 magnitude = np.maximum(1.0, np.abs(value))
-                row_side = np.where(value >= hi - 1e-12 * magnitude, 1, np.where(value <= lo + 1e-12 * magnitude, -1, 0))
+                row_side = np.where(value >= hi - HELD_SIDE * magnitude, 1, np.where(value <= lo + HELD_SIDE * magnitude, -1, 0))
                 held = np.concatenate([held, A_in])
                 hard_norms = np.concatenate([hard_norms, level.in_norms])
                 if self.hold_tolerance:
@@ -651,7 +651,7 @@ class HierarchicalQP:
 
     # --- one stage --------------------------------------------------------------------------
     def _build(self, level, x0, Z, hard, mu) -> _Stage:
-        """The stage in ``z = (y, w)`` (see :class:`_Stage` and :mod:`.jit_stage`), rows scaled to unit
+        """The stage in ``z = (y, w)`` (see :class:`_Stage` and :mod:`.kernels.stage`), rows scaled to unit
         norm, assembled by compiled code."""
         free, reference, held, hard_lower, hard_upper, hard_side = hard
         compiled, given = _jit_stage(), compiled_input
@@ -678,7 +678,7 @@ class HierarchicalQP:
             x = self._least_squares_level(level, x0, Z, hard, eq_factors)
             if x is not None:
                 return x, np.zeros(len(hard[5]), dtype=int), ACTIVE_SET, 0
-        if level is None and name == ACTIVE_SET and not carried and self._working_sets.get(_FREE_MINIMUM_NORM, False):
+        if level is None and name == ACTIVE_SET and not carried and self._warm.working_sets.get(_FREE_MINIMUM_NORM, False):
             # The minimum-norm stage's unconstrained point y = -Zᵀx0 (x0's component in range(Z)
             # removed), tried while the last such stage ended with an empty working set (a warm
             # start: a cold solve, where it rarely holds, does not try it).
@@ -688,7 +688,7 @@ class HierarchicalQP:
         stage = self._build(level, x0, Z, hard, mu)
         hard_side = hard[5]
         key = (k, level is None, stage.G.shape, stage.M.shape)
-        cached = self._working_sets.get(key)
+        cached = self._warm.working_sets.get(key)
         guess = cached if cached is not None else stage.guess
         what = "the minimum-norm stage" if level is None else f"level {k}"
         failures: list[str] = []
@@ -761,7 +761,7 @@ class HierarchicalQP:
             y = solution.z[:r]
             # A point the active set verified on every row to 1e-10 (≤ the feasibility tolerance)
             # only needs to be finite; any other is checked on the bounds and held rows.
-            verified = solution.verified and self.feasibility_tolerance >= 1e-10
+            verified = solution.verified and self.feasibility_tolerance >= VERIFIED
             if not (all_true(np.isfinite(y)) if verified else self._accept(stage, y)):
                 corrected = self._onto_hard_rows(stage, y, solution.side)
                 if corrected is None:
@@ -770,9 +770,9 @@ class HierarchicalQP:
                         outside.append((y, solution.side, label, solution.iterations))
                     continue
                 y = corrected
-            self._working_sets[key] = solution.side
+            self._warm.working_sets[key] = solution.side
             if level is None:
-                self._working_sets[_FREE_MINIMUM_NORM] = not any_true(solution.side)
+                self._warm.working_sets[_FREE_MINIMUM_NORM] = not any_true(solution.side)
             if failures:
                 fallbacks += [f"{what}: {failure}" for failure in failures]
             return x0 + Z @ y, self._hard_sides(hard_side, stage, solution.side), label, solution.iterations
@@ -793,7 +793,7 @@ class HierarchicalQP:
                 fallbacks += [f"{what}: {failure}" for failure in failures]
                 fallbacks.append(f"{what}: {ROUND_OFF_LIMITED} (size {float(np.max(np.abs(y))):.3g}, "
                                  f"{miss:.2g} of the tolerance)")
-                self._working_sets[key] = side
+                self._warm.working_sets[key] = side
                 return x0 + Z @ y, self._hard_sides(hard_side, stage, side), label, count
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
 
@@ -843,8 +843,8 @@ class HierarchicalQP:
             keep = scale > self.rank_threshold * reference
             if any_true(keep & (lo == hi)):  # a pinned row: the general path holds it in the working set
                 return None
-            if any_true(keep & ((change < lo - 1e-10 * np.maximum(scale, np.abs(lo)))
-                                | (change > hi + 1e-10 * np.maximum(scale, np.abs(hi))))):
+            if any_true(keep & ((change < lo - VERIFIED * np.maximum(scale, np.abs(lo)))
+                                | (change > hi + VERIFIED * np.maximum(scale, np.abs(hi))))):
                 return None
         return x0 + d
 
@@ -856,7 +856,7 @@ class HierarchicalQP:
         """A point that misses hard rows by round-off only, moved onto them: the least-norm correction
         ``δ`` that puts the rows of the working set (``side``) and the missed rows at their sides,
         at most :data:`_REFINEMENTS` times; None when a row is missed by more than
-        :data:`_ROUND_OFF` relative to the point's size, or the correction would move it by more
+        :data:`ROUND_OFF` relative to the point's size, or the correction would move it by more
         than ten times that (not round-off: the next path decides), or it does not bring every hard
         row within the feasibility tolerance. The active set's solves lose about ``cond · ε`` of a
         point's size: on a stage whose point is hundreds of times its rows' targets, a few 1e-9 on a
@@ -873,7 +873,7 @@ class HierarchicalQP:
             if corrections == _REFINEMENTS:
                 return None
             missed = float(np.max(np.where(below, lower - value, np.where(above, value - upper, 0.0))))
-            if not missed <= _ROUND_OFF * max(1.0, float(np.max(np.abs(y)))):
+            if not missed <= ROUND_OFF * max(1.0, float(np.max(np.abs(y)))):
                 return None
             at_lower = ((held < 0) | below) & np.isfinite(lower)
             at_upper = ((held > 0) | above) & np.isfinite(upper) & ~at_lower
@@ -881,7 +881,7 @@ class HierarchicalQP:
             target = np.where(at_lower, lower, upper)[rows]
             A = G[rows]
             correction = least_norm(A, target - A @ y, self.rank_threshold)
-            if not float(np.max(np.abs(correction))) <= 10.0 * _ROUND_OFF * max(1.0, float(np.max(np.abs(y)))):
+            if not float(np.max(np.abs(correction))) <= 10.0 * ROUND_OFF * max(1.0, float(np.max(np.abs(y)))):
                 return None  # nearly dependent rows asked to move the point further than round-off
             y = y + correction
         return None
@@ -918,7 +918,7 @@ class HierarchicalQP:
         return value, ~(value >= lo - tol * np.maximum(1.0, np.abs(lo))), ~(value <= hi + tol * np.maximum(1.0, np.abs(hi)))
 
     @staticmethod
-    def _sides(stage: _Stage, z: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:
+    def _sides(stage: _Stage, z: np.ndarray, tolerance: float = SIDE) -> np.ndarray:
         value = stage.G @ z
         near = tolerance * np.maximum(1.0, np.abs(value))
         return np.where(value >= stage.upper - near, 1, np.where(value <= stage.lower + near, -1, 0))
@@ -996,10 +996,10 @@ class HierarchicalQP:
             if level.all_equality:
                 active.append(_NO_ROWS)
                 continue
-            scale = 1e-7 * np.maximum(1.0, np.abs(r))
+            scale = REPORTED_ACTIVE * np.maximum(1.0, np.abs(r))
             at_bound = (np.abs(r - level.lower) <= scale) | (np.abs(r - level.upper) <= scale)
             active.append((at_bound & level.inequality).nonzero()[0])
-        scale = 1e-7 * np.maximum(1.0, np.abs(x))
+        scale = REPORTED_ACTIVE * np.maximum(1.0, np.abs(x))
         bounds = (~fixed & ((np.abs(x - x_lower) <= scale) | (np.abs(x - x_upper) <= scale))).nonzero()[0]
         return HqpResult(
             x=x,

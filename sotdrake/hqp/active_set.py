@@ -33,7 +33,7 @@ with at least :data:`QR_MIN_SIZE` rows and columns that *provably* has every sin
 singular value would be cut, so both give the same point in exact arithmetic, and the QR costs a
 fraction of the SVD there. Any other matrix gets the SVD, which makes the rank decision.
 The iterations (:func:`python_solve`) and their EQP step (:func:`python_eqp`) run compiled with numba
-(:mod:`.jit_active_set` and :mod:`.jit_eqp`, imported on the first call and cached on disk): the same
+(:mod:`.kernels.active_set` and :mod:`.kernels.eqp`, imported on the first call and cached on disk): the same
 computation and LAPACK routines. The Python versions stay as the reference (tested against them)
 and run where the compiled ones give way.
 
@@ -62,10 +62,7 @@ import quadprog
 from scipy.linalg import lapack
 
 from ..compiled import announce_compilation, compiled_input
-
-RANK_THRESHOLD = 1e-8
-"""Default τ: singular values ≤ τ of unit-row matrices count as zero (see the module docstring)."""
-
+from .tolerances import RANK_THRESHOLD
 
 QR_MIN_SIZE = 4
 """Below this smaller dimension LAPACK's SVD costs about as much as the QR route's several calls, so
@@ -290,7 +287,7 @@ def eqp(
     kind: tuple[bool, bool] | None = None,
     working_threshold: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """:func:`python_eqp`, compiled (:mod:`.jit_eqp`, imported on the first call): the same
+    """:func:`python_eqp`, compiled (:mod:`.kernels.eqp`, imported on the first call): the same
     computation and LAPACK routines; the Python version runs where the compiled one gives way."""
     identity, uniform = objective_kind(M, m_scale) if kind is None else kind
     cut = threshold if working_threshold is None else working_threshold
@@ -304,9 +301,9 @@ def eqp(
 
 @cache
 def _jit_eqp() -> Any:
-    """:mod:`.jit_eqp`, imported on the first call: it is compiled with numba, which a script that
+    """:mod:`.kernels.eqp`, imported on the first call: it is compiled with numba, which a script that
     never solves a stage (e.g. with the cascade) does not import."""
-    from . import jit_eqp
+    from .kernels import eqp as jit_eqp
 
     assert jit_eqp.QR_MIN_SIZE == QR_MIN_SIZE
     announce_compilation(jit_eqp.eqp, "the hierarchical QP's equality-constrained step", "about twenty seconds")
@@ -415,7 +412,7 @@ def solve_least_squares_qp(
 
 def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid,
            working) -> ActiveSetResult:
-    """:func:`python_solve`, compiled (:mod:`.jit_active_set`, imported on the first call): the same
+    """:func:`python_solve`, compiled (:mod:`.kernels.active_set`, imported on the first call): the same
     iterations, each step the compiled :func:`eqp`; the Python version runs where the compiled one
     gives way (LAPACK refusing a factorisation)."""
     compiled, given = _jit_active_set(), compiled_input
@@ -438,8 +435,8 @@ _NO_GUESS = np.zeros(0, dtype=np.int64)
 
 @cache
 def _jit_active_set() -> Any:
-    """:mod:`.jit_active_set`, imported on the first call (see :func:`_jit_eqp`)."""
-    from . import jit_active_set
+    """:mod:`.kernels.active_set`, imported on the first call (see :func:`_jit_eqp`)."""
+    from .kernels import active_set as jit_active_set
 
     announce_compilation(jit_active_set.solve, "the hierarchical QP's active-set iterations", "about thirty seconds")
     return jit_active_set

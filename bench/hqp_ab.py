@@ -46,13 +46,17 @@ ACTIVE_TARGET = np.array([-0.45, -0.35, 1.0])
 
 
 def base_package(revision: str, folder: Path):
-    """``sotdrake/solvers/hqp.py`` of ``revision``, imported as ``sotdrake_base.solvers.hqp``."""
+    """The hierarchical QP's module of ``revision`` (``sotdrake/hqp/solve.py``, or
+    ``sotdrake/solvers/hqp.py`` before it moved), imported from ``sotdrake_base``."""
     archive = subprocess.run(["git", "archive", revision, "sotdrake"], cwd=ROOT, check=True, capture_output=True).stdout
     with tarfile.open(fileobj=BytesIO(archive)) as tar:
         tar.extractall(folder, filter="data")
     (folder / "sotdrake").rename(folder / "sotdrake_base")
     sys.path.insert(0, str(folder))
-    return importlib.import_module("sotdrake_base.solvers.hqp")
+    try:
+        return importlib.import_module("sotdrake_base.hqp.solve")
+    except ModuleNotFoundError:
+        return importlib.import_module("sotdrake_base.solvers.hqp")
 
 
 def best_times(solve_pair, count: int, repeat: int) -> tuple[np.ndarray, np.ndarray]:

@@ -199,8 +199,8 @@ def test_on_talos_with_active_limits_the_answer_is_the_stages(talos_model, monke
     checked = []
     solve_equalities = HierarchicalQP.solve_equalities
 
-    def checking(self, jacobians, values, x_lower, x_upper, damping=0.0):
-        result = solve_equalities(self, jacobians, values, x_lower, x_upper, damping)
+    def checking(self, jacobians, values, x_lower, x_upper, damping=0.0, warm=None):
+        result = solve_equalities(self, jacobians, values, x_lower, x_upper, damping, warm=warm)
         if result is not None:
             levels = [LevelRows(J, v, v) for J, v in zip(jacobians, values, strict=True)]
             reference = by_stages(self.n, levels, x_lower, x_upper)

@@ -6,6 +6,7 @@ import pytest
 import quadprog
 
 from sotdrake.exceptions import InvalidInput
+from sotdrake.hqp import rescue
 from sotdrake.hqp.active_set import RANK_THRESHOLD
 from sotdrake.hqp.solve import HierarchicalQP, LevelRows
 from tests.hqp_stacks import random_stack
@@ -408,9 +409,9 @@ def test_a_point_far_outside_is_not_moved():
     stage = hqp._build(None, np.zeros(2), np.eye(2), (slice(None), np.ones(2), np.zeros((0, 2)), np.array([0.0, -1e3]),
                                                        np.array([1.0, 1e3]), np.zeros(2, dtype=int)), 0.0)
     side = np.zeros(len(stage.G), dtype=int)
-    assert hqp._onto_hard_rows(stage, np.array([-3e-9, 0.5]), side) is None  # 3e-9 of a point of size 0.5
-    assert hqp._onto_hard_rows(stage, np.array([-1e-3, 500.0]), side) is None
-    moved = hqp._onto_hard_rows(stage, np.array([-3e-9, 500.0]), side)  # 3e-9 of a point of size 500: round-off
+    assert rescue.onto_hard_rows(hqp, stage, np.array([-3e-9, 0.5]), side) is None  # 3e-9 of a point of size 0.5
+    assert rescue.onto_hard_rows(hqp, stage, np.array([-1e-3, 500.0]), side) is None
+    moved = rescue.onto_hard_rows(hqp, stage, np.array([-3e-9, 500.0]), side)  # 3e-9 of a point of size 500: round-off
     assert moved is not None and moved[0] >= -1e-15 and abs(moved[1] - 500.0) < 1e-12
     # Nearly dependent rows: a miss of round-off size that only a large move could correct is refused.
     from sotdrake.hqp.solve import _Stage
@@ -419,7 +420,7 @@ def test_a_point_far_outside_is_not_moved():
     G = np.array([[1.0, 0.0], [1.0, 1e-6]]) / np.array([[1.0], [np.hypot(1.0, 1e-6)]])
     lower = np.array([0.0, G[1] @ y + 2e-7])
     tight = _Stage(np.eye(2), np.zeros(2), np.ones(2), G, lower, np.full(2, np.inf), np.zeros(2), 2, None, np.zeros(2, dtype=int), 2)
-    assert hqp._onto_hard_rows(tight, y, np.array([-1, 0])) is None
+    assert rescue.onto_hard_rows(hqp, tight, y, np.array([-1, 0])) is None
 
 
 def test_the_correction_onto_hard_rows_cuts_at_tau():
@@ -559,15 +560,15 @@ def test_the_last_resort_holds_rows_to_the_tolerance_relative_to_their_terms():
     held = np.array([[1.0, 1.0]]) / np.sqrt(2.0)
     stage = hqp._build(None, np.zeros(2), np.eye(2), (np.zeros(0, dtype=int), np.ones(1), held, np.zeros(1),
                                                        np.ones(1), np.zeros(1, dtype=int)), 0.0)
-    assert hqp._relative_miss(stage, np.array([1e14, -1e14])) <= 1e-6  # on the row, but g·y computes to -0.007
-    assert 0.0 < hqp._relative_miss(stage, np.array([1e14, -1e14 - 0.03125])) <= 1e-6
-    assert hqp._relative_miss(stage, np.array([1e14, -1e14 - 16.0])) <= 1e-3
-    assert hqp._relative_miss(stage, np.array([1e14, -1e14 - 2e6])) > 7.0
-    assert hqp._relative_miss(stage, np.array([1.0, -1.03125])) > 1e6
+    assert rescue.relative_miss(hqp, stage, np.array([1e14, -1e14])) <= 1e-6  # on the row, but g·y computes to -0.007
+    assert 0.0 < rescue.relative_miss(hqp, stage, np.array([1e14, -1e14 - 0.03125])) <= 1e-6
+    assert rescue.relative_miss(hqp, stage, np.array([1e14, -1e14 - 16.0])) <= 1e-3
+    assert rescue.relative_miss(hqp, stage, np.array([1e14, -1e14 - 2e6])) > 7.0
+    assert rescue.relative_miss(hqp, stage, np.array([1.0, -1.03125])) > 1e6
     bound = hqp._build(None, np.zeros(2), np.eye(2), (slice(None), np.ones(2), np.zeros((0, 2)), np.array([0.0, -1e15]),
                                                        np.array([1.0, 1e15]), np.zeros(2, dtype=int)), 0.0)
-    assert hqp._relative_miss(bound, np.array([-1e-3, 1e14])) > 1e6
-    assert hqp._relative_miss(bound, np.array([-1e-9, 1e14])) == 0.0  # within the tolerance itself
+    assert rescue.relative_miss(hqp, bound, np.array([-1e-3, 1e14])) > 1e6
+    assert rescue.relative_miss(hqp, bound, np.array([-1e-9, 1e14])) == 0.0  # within the tolerance itself
 
 
 def test_the_minimum_norm_stage_keeps_the_last_levels_point_when_no_path_solves_it():

@@ -1,14 +1,17 @@
 """The solvers' warm starts live in the Context: a cloned Context replays a run bit for bit, the
 solver paths included (the tutorial under ``SolverKine``, the dynamic sway under ``SolverDyn``)."""
 
+import copy
+import math
+
 import numpy as np
 import pytest
-from conftest import load_diagram
-from pydrake.systems.analysis import Simulator
+from pydrake.systems.analysis import InitializeParams, Simulator
 
 from sotdrake.dynamics.solver_dyn import SolverDyn
 from sotdrake.hqp.warm import WarmStart, WarmStarts
 from sotdrake.solvers import SolverKine
+from tests.conftest import load_diagram
 
 
 def _solver(diagram, kind):
@@ -16,10 +19,29 @@ def _solver(diagram, kind):
     return system
 
 
-def _record(diagram, solver, simulator, ticks, dt, read):
+def _warm_state(solver, root_context):
+    """The solver's warm starts, as its Context holds them (one abstract state)."""
+    context = solver.GetMyContextFromRoot(root_context)
+    values = [context.get_abstract_state(i).get_value() for i in range(context.num_abstract_states())]
+    (warm,) = [value for value in values if isinstance(value, (WarmStart, WarmStarts))]
+    return warm
+
+
+def _same_warm_state(a, b) -> bool:
+    if isinstance(a, WarmStarts):
+        return a.keys() == b.keys() and all(_same_warm_state(a[key], b[key]) for key in a)
+    sides_a, sides_b = (a.bound_sides, b.bound_sides)
+    same_sides = (all(np.array_equal(x, y) for x, y in zip(sides_a, sides_b, strict=True))
+                  if isinstance(sides_a, tuple) and isinstance(sides_b, tuple) else
+                  not isinstance(sides_a, tuple) and not isinstance(sides_b, tuple) and np.array_equal(sides_a, sides_b))
+    return (same_sides and (a.failures, a.skips) == (b.failures, b.skips) and a.working_sets.keys() == b.working_sets.keys()
+            and all(np.array_equal(np.asarray(a.working_sets[k]), np.asarray(b.working_sets[k])) for k in a.working_sets))
+
+
+def _record(solver, simulator, ticks, dt, read):
     """Advance tick by tick from the simulator's time; each tick's solver outputs (``read``)."""
     records = []
-    start = round(simulator.get_context().get_time() / dt)
+    start = math.floor(simulator.get_context().get_time() / dt + 1e-9)
     for k in range(start + 1, start + ticks + 1):
         simulator.AdvanceTo(k * dt)
         records.append(read(solver, solver.GetMyContextFromRoot(simulator.get_context())))
@@ -27,16 +49,22 @@ def _record(diagram, solver, simulator, ticks, dt, read):
 
 
 def _replays(diagram, solver, dt, read, before, after):
-    """Run ``before`` ticks, clone the Context, run ``after`` more ticks on both (the original
-    first, so that any state outside the Context has moved on): the records must be identical."""
+    """Run ``before`` ticks and half a tick (a Simulator keeps the events due at its current time
+    outside the Context: half a tick on, none is pending), clone the Context, run ``after`` more
+    ticks on both (the original first, so that any state outside the Context has moved on): the
+    records must be identical."""
     simulator = Simulator(diagram)
     simulator.Initialize()
-    _record(diagram, solver, simulator, before, dt, read)
+    _record(solver, simulator, before, dt, read)
+    simulator.AdvanceTo((before + 0.5) * dt)
     clone = simulator.get_context().Clone()
-    first = _record(diagram, solver, simulator, after, dt, read)
+    kept = copy.deepcopy(_warm_state(solver, clone))
+    assert _warm_state(solver, clone) is not _warm_state(solver, simulator.get_context())
+    first = _record(solver, simulator, after, dt, read)
+    assert _same_warm_state(_warm_state(solver, clone), kept)  # the original's run left the clone's alone
     replay = Simulator(diagram, clone)
-    replay.Initialize()
-    second = _record(diagram, solver, replay, after, dt, read)
+    replay.Initialize(InitializeParams(suppress_initialization_events=True))
+    second = _record(solver, replay, after, dt, read)
     assert len(first) == len(second) == after
     for k, (a, b) in enumerate(zip(first, second, strict=True)):
         for name in a:
@@ -82,8 +110,6 @@ def test_warm_starts_are_copied_with_the_context():
     warm.working_sets[(0, False, (1, 1), (1, 1))] = np.array([1, 0, -1])
     warm.failures, warm.skips = 2, 1
     starts = WarmStarts({("full", 3): warm})
-    import copy
-
     copied = copy.deepcopy(starts)
     copied.of(("full", 3), 3).working_sets[(0, False, (1, 1), (1, 1))][0] = 0
     copied.of(("full", 3), 3).failures = 0

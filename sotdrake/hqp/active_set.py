@@ -61,7 +61,7 @@ import numpy as np
 import quadprog
 from scipy.linalg import lapack
 
-from ..compiled import announce_compilation, compiled_input
+from ..compiled import compiled_input, kernels
 from .tolerances import RANK_THRESHOLD
 
 QR_MIN_SIZE = 4
@@ -299,15 +299,16 @@ def eqp(
     return z, lam, (N if has_N else None)
 
 
+_load_eqp = kernels(".kernels.eqp", __package__, "eqp", "the hierarchical QP's equality-constrained step",
+                    "about twenty seconds")
+
+
 @cache
 def _jit_eqp() -> Any:
-    """:mod:`.kernels.eqp`, imported on the first call: it is compiled with numba, which a script that
-    never solves a stage (e.g. with the cascade) does not import."""
-    from .kernels import eqp as jit_eqp
-
-    assert jit_eqp.QR_MIN_SIZE == QR_MIN_SIZE
-    announce_compilation(jit_eqp.eqp, "the hierarchical QP's equality-constrained step", "about twenty seconds")
-    return jit_eqp
+    """:mod:`.kernels.eqp`, loaded on the first call (its size switch checked against this module's)."""
+    compiled = _load_eqp()
+    assert compiled.QR_MIN_SIZE == QR_MIN_SIZE
+    return compiled
 
 
 def python_eqp(
@@ -433,13 +434,8 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
 _NO_GUESS = np.zeros(0, dtype=np.int64)
 
 
-@cache
-def _jit_active_set() -> Any:
-    """:mod:`.kernels.active_set`, imported on the first call (see :func:`_jit_eqp`)."""
-    from .kernels import active_set as jit_active_set
-
-    announce_compilation(jit_active_set.solve, "the hierarchical QP's active-set iterations", "about thirty seconds")
-    return jit_active_set
+_jit_active_set = kernels(".kernels.active_set", __package__, "solve", "the hierarchical QP's active-set iterations",
+                          "about thirty seconds")
 
 
 def python_solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid,
@@ -448,20 +444,10 @@ def python_solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibilit
     given), in Python: the reference of the compiled :func:`_solve`."""
     m = len(G)
     equality = lower == upper
-    if guess is not None and len(guess) == m:
-        side = np.where(equality, 1, guess) if guess_valid else _guessed_sides(guess, lower, upper, equality)
-        candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality, working)
-        if candidate is not None:
-            return ActiveSetResult(candidate, side, 0, True, True)
-        value = G @ z
-        near = feasibility * 10
-        side = np.where((side < 0) & (value <= lower + near), -1, np.where((side > 0) & (value >= upper - near), 1, 0))
-        side[equality] = 1
-        held = side.nonzero()[0]
-        dependent = np.setdiff1d(held, held[independent_rows(G[held], working)])
-        side[dependent] = 0  # a working set is linearly independent (equality rows come first in rank)
-    else:
-        side = np.where(equality, 1, 0)
+    accepted, side = _first_working_set(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, kind,
+                                        guess_valid, working, equality)
+    if accepted is not None:
+        return accepted
     if max_iterations is None:
         max_iterations = 10 * (m + M.shape[1]) + 50
     seen: set[bytes] = set()
@@ -526,6 +512,27 @@ def python_solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibilit
             return ActiveSetResult(z, side, iteration, False)
         return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration, kind, working)
     raise ActiveSetFailure(f"no convergence in {max_iterations} active-set iterations")
+
+
+def _first_working_set(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, kind, guess_valid, working,
+                       equality) -> tuple[ActiveSetResult | None, np.ndarray]:
+    """:func:`python_solve`'s start: the guess's own answer if it checks (then the working set is
+    the guess), else the working set the iterations start from (the guess's rows held at ``z``,
+    linearly independent; the equality rows alone without a guess)."""
+    if guess is None or len(guess) != len(G):
+        return None, np.where(equality, 1, 0)
+    side = np.where(equality, 1, guess) if guess_valid else _guessed_sides(guess, lower, upper, equality)
+    candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality, working)
+    if candidate is not None:
+        return ActiveSetResult(candidate, side, 0, True, True), side
+    value = G @ z
+    near = feasibility * 10
+    side = np.where((side < 0) & (value <= lower + near), -1, np.where((side > 0) & (value >= upper - near), 1, 0))
+    side[equality] = 1
+    held = side.nonzero()[0]
+    dependent = np.setdiff1d(held, held[independent_rows(G[held], working)])
+    side[dependent] = 0  # a working set is linearly independent (equality rows come first in rank)
+    return None, side
 
 
 def _guessed_sides(guess: np.ndarray, lower: np.ndarray, upper: np.ndarray, equality: np.ndarray) -> np.ndarray:

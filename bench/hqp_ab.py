@@ -89,7 +89,8 @@ def random_stacks(modules, count: int, repeat: int) -> dict:
     def solve(i, which):
         n, _, lower, upper = stacks[i]
         hqp = solvers[which].setdefault(n, modules[which].HierarchicalQP(n))
-        getattr(hqp, "forget_warm_starts", hqp._working_sets.clear)()  # cold, as bench/run.py's hqp_random (a base may lack it)
+        forget = getattr(hqp, "forget_warm_starts", None)  # cold, as bench/run.py's hqp_random (a base may lack it)
+        forget() if forget is not None else hqp._working_sets.clear()
         hqp.solve(rows[i][which], lower, upper)
 
     new, base = best_times(solve, count, repeat)
@@ -112,10 +113,10 @@ def talos_ticks(modules, ticks: int, repeat: int) -> dict:
     recorded = []
     solve = modules[0].HierarchicalQP.solve
 
-    def record(self, levels, x_lower, x_upper, damping=0.0, solver=None):
+    def record(self, levels, x_lower, x_upper, damping=0.0, solver=None, **options):
         recorded.append((self.n, [(lv.A.copy(), lv.lower.copy(), lv.upper.copy()) for lv in levels],
                          np.array(x_lower), np.array(x_upper), damping))
-        return solve(self, levels, x_lower, x_upper, damping, solver)
+        return solve(self, levels, x_lower, x_upper, damping, solver, **options)
 
     # (SolverKine tries solve_equalities first: switched off while recording, so that every stack
     # goes through solve; both trees then replay it through solve)

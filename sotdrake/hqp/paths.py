@@ -23,6 +23,7 @@ to Drake's program) is solved by Drake's programs alone (:func:`extended_paths`)
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -167,13 +168,14 @@ _WARM, _COLD = WarmActiveSet(), ColdActiveSet()
 _RETRIES = tuple(DegenerateRetry(fraction) for fraction in DEGENERATE_RETRY)
 
 
-def stage_paths(solver: str, warm: bool) -> list[Path]:
+@functools.cache
+def stage_paths(solver: str, warm: bool) -> tuple[Path, ...]:
     """The paths of a stage, in order (see the module docstring): ``solver`` the stage's, ``warm``
-    whether a working set is cached for it."""
+    whether a working set is cached for it (made once per pair: the paths hold no state)."""
     if solver == ACTIVE_SET:  # the retries right after the active set's paths: the Drake solvers cost far more
-        return [_WARM, *([_COLD] if warm else []), *_RETRIES, *(PolishedDrake(name) for name in DRAKE_PATHS)]
+        return (_WARM, *([_COLD] if warm else []), *_RETRIES, *(PolishedDrake(name) for name in DRAKE_PATHS))
     first: list[Path] = [PolishedDrake(solver), _WARM, *([_COLD] if warm else [])]
-    return first + [PolishedDrake(name) for name in DRAKE_PATHS if name != solver] + list(_RETRIES)
+    return (*first, *(PolishedDrake(name) for name in DRAKE_PATHS if name != solver), *_RETRIES)
 
 
 def extended_paths(solver: str, solvers: dict) -> list[str]:

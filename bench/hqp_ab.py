@@ -1,7 +1,7 @@
 """Before/after speed of the hierarchical QP, measured in the same process (a paired A/B).
 
 On a shared, loaded machine wall times of separate runs are not comparable; this script solves the
-*same* problems with this tree's :class:`~sotdrake.solvers.hqp.HierarchicalQP` and with the one of a
+*same* problems with this tree's :class:`~sotdrake.hqp.HierarchicalQP` and with the one of a
 git revision (``--base``, extracted with ``git archive`` into a temporary package), interleaved call
 by call, and keeps the best of ``--repeat`` CPU times (``time.thread_time``) of each call:
 
@@ -46,13 +46,17 @@ ACTIVE_TARGET = np.array([-0.45, -0.35, 1.0])
 
 
 def base_package(revision: str, folder: Path):
-    """``sotdrake/solvers/hqp.py`` of ``revision``, imported as ``sotdrake_base.solvers.hqp``."""
+    """The hierarchical QP's module of ``revision`` (``sotdrake/hqp/solve.py``, or
+    ``sotdrake/solvers/hqp.py`` before it moved), imported from ``sotdrake_base``."""
     archive = subprocess.run(["git", "archive", revision, "sotdrake"], cwd=ROOT, check=True, capture_output=True).stdout
     with tarfile.open(fileobj=BytesIO(archive)) as tar:
         tar.extractall(folder, filter="data")
     (folder / "sotdrake").rename(folder / "sotdrake_base")
     sys.path.insert(0, str(folder))
-    return importlib.import_module("sotdrake_base.solvers.hqp")
+    try:
+        return importlib.import_module("sotdrake_base.hqp.solve")
+    except ModuleNotFoundError:
+        return importlib.import_module("sotdrake_base.solvers.hqp")
 
 
 def best_times(solve_pair, count: int, repeat: int) -> tuple[np.ndarray, np.ndarray]:
@@ -85,7 +89,8 @@ def random_stacks(modules, count: int, repeat: int) -> dict:
     def solve(i, which):
         n, _, lower, upper = stacks[i]
         hqp = solvers[which].setdefault(n, modules[which].HierarchicalQP(n))
-        getattr(hqp, "forget_warm_starts", hqp._working_sets.clear)()  # cold, as bench/run.py's hqp_random (a base may lack it)
+        forget = getattr(hqp, "forget_warm_starts", None)  # cold, as bench/run.py's hqp_random (a base may lack it)
+        forget() if forget is not None else hqp._working_sets.clear()
         hqp.solve(rows[i][which], lower, upper)
 
     new, base = best_times(solve, count, repeat)
@@ -108,10 +113,10 @@ def talos_ticks(modules, ticks: int, repeat: int) -> dict:
     recorded = []
     solve = modules[0].HierarchicalQP.solve
 
-    def record(self, levels, x_lower, x_upper, damping=0.0, solver=None):
+    def record(self, levels, x_lower, x_upper, damping=0.0, solver=None, **options):
         recorded.append((self.n, [(lv.A.copy(), lv.lower.copy(), lv.upper.copy()) for lv in levels],
                          np.array(x_lower), np.array(x_upper), damping))
-        return solve(self, levels, x_lower, x_upper, damping, solver)
+        return solve(self, levels, x_lower, x_upper, damping, solver, **options)
 
     # (SolverKine tries solve_equalities first: switched off while recording, so that every stack
     # goes through solve; both trees then replay it through solve)
@@ -202,7 +207,7 @@ def main() -> None:
     parser.add_argument("--tick", type=int, default=0, help="also time the whole active-limits tick, this many ticks each")
     parser.add_argument("--out", type=Path, help="write the results as JSON")
     args = parser.parse_args()
-    from sotdrake.solvers import hqp
+    from sotdrake.hqp import solve as hqp
 
     with tempfile.TemporaryDirectory() as folder:
         modules = (hqp, base_package(args.base, Path(folder)))

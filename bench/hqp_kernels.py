@@ -74,7 +74,7 @@ def held_row_tolerance(level, tolerance: float = 1e-9) -> float:
 def sweep(first: int, count: int, reuse: bool = False) -> list[dict]:
     """Each stack's outcome: ``seed``, ``ok`` (the contract held), ``why`` (if not), ``path``."""
     from sotdrake.exceptions import SolverError
-    from sotdrake.solvers.hqp import HierarchicalQP
+    from sotdrake.hqp.solve import HierarchicalQP
     from tests.hqp_stacks import random_stack
 
     solvers: dict[int, HierarchicalQP] = {}

@@ -231,7 +231,7 @@ def hqp_random(count: int) -> dict:
     """Solve time of the default HQP path on ``count`` random stacks (tests/hqp_stacks.py: n 5-40,
     1-5 levels, conflicts, inequalities, scaled rows), each solved cold (no warm start), and of the
     sequential quadprog reference of tests/test_hqp.py on the same stacks."""
-    from sotdrake.solvers.hqp import HierarchicalQP
+    from sotdrake.hqp.solve import HierarchicalQP
     from tests.hqp_stacks import random_stack
 
     solvers, times, cpu, reference, reference_cpu = {}, [], [], [], []

@@ -59,8 +59,8 @@ def load_compiled_paths() -> None:
     their first call is not a tick."""
     from sotdrake.configuration import Layout, integrate
     from sotdrake.features.feature6d import pose_error_and_jacobian
-    from sotdrake.solvers.equality_hierarchy import solve_equality_hierarchy
-    from sotdrake.solvers.hqp import HierarchicalQP, LevelRows
+    from sotdrake.hqp.equality_hierarchy import solve_equality_hierarchy
+    from sotdrake.hqp.solve import HierarchicalQP, LevelRows
     from sotdrake.solvers.limits import VelocityBounds
     from sotdrake.solvers.second_order import curvature_correction
 

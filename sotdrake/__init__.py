@@ -128,7 +128,7 @@ _LAZY: dict[str, tuple[str, ...]] = {
     ".sweep": ("EngineUnavailable", "add_sweep_arguments", "engine_options", "grid", "per_process", "random_cases", "run_sweep"),
     ".live": ("add_live_arguments", "live_meshcat", "run_live"),
     ".publishing": ("RobotStateMessage", "add_signal_publisher", "add_state_publisher"),
-    ".solvers.hqp": ("ACTIVE_SET", "SOLVERS"),
+    ".hqp": ("ACTIVE_SET", "SOLVERS"),
     ".collision": (
         "SHELF",
         "SHELF_COMPARTMENTS",
@@ -178,6 +178,7 @@ if TYPE_CHECKING:
     from .dynamics.robot_dyn import RobotDyn
     from .dynamics.station import sole_rectangle
     from .dynamics.trajectories import hold_move_hold, minimum_jerk_moves, trajectory_ports
+    from .hqp import ACTIVE_SET, SOLVERS
     from .live import add_live_arguments, live_meshcat, run_live
     from .physics import (
         FRICTION,
@@ -192,7 +193,6 @@ if TYPE_CHECKING:
         add_talos_station,
     )
     from .publishing import RobotStateMessage, add_signal_publisher, add_state_publisher
-    from .solvers.hqp import ACTIVE_SET, SOLVERS
     from .sweep import (
         EngineUnavailable,
         add_sweep_arguments,

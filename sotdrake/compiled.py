@@ -9,8 +9,11 @@ non-contiguous array), so their callers hand them :func:`compiled_input` arrays.
 from __future__ import annotations
 
 import functools
+import importlib
 import logging
 import os
+import types
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -45,3 +48,19 @@ def announce_compilation(function: Any, what: str, duration: str) -> None:
         cached = True
     if not cached:
         log.warning("compiling %s, once after an install (%s) …", what, duration)
+
+
+def kernels(module: str, package: str | None, entry: str, what: str, duration: str) -> Callable[[], types.ModuleType]:
+    """The one way a wing reaches its compiled kernels: a function that imports ``module`` (relative
+    to ``package``, as ``importlib.import_module``) on its first call, announces the compilation of
+    its function ``entry`` (:func:`announce_compilation`: ``what``, ``duration``) and returns the
+    module; later calls return it at once. A process that never calls it never imports numba's code."""
+
+    @functools.cache
+    def load() -> types.ModuleType:
+        loaded = importlib.import_module(module, package)
+        announce_compilation(getattr(loaded, entry), what, duration)
+        return loaded
+
+    load.__doc__ = f"{module}, imported on the first call (compiled with numba: {what})."
+    return load

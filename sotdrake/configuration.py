@@ -25,15 +25,14 @@ at the velocity limits.) :func:`difference` is the inverse of ``⊕``.
 
 from __future__ import annotations
 
-import functools
 import math
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context
 
-from .compiled import compiled_input
+from .compiled import compiled_input, kernels
 from .exceptions import InvalidInput
 from .lie import log_so3, quaternion_exp_list, quaternion_multiply_list, quaternion_wxyz_to_rotation
 
@@ -103,14 +102,7 @@ def integrate(q: np.ndarray, v: np.ndarray, dt: float, layout: Layout) -> np.nda
                                           layout.joints_q, layout.joints_v)
 
 
-@functools.cache
-def _jit_configuration() -> Any:
-    """:mod:`.jit_configuration`, imported on the first integration (a script's first tick)."""
-    from . import jit_configuration
-    from .compiled import announce_compilation
-
-    announce_compilation(jit_configuration.integrate, "the configuration's integration", "a few seconds")
-    return jit_configuration
+_jit_configuration = kernels(".jit_configuration", __package__, "integrate", "the configuration's integration", "a few seconds")
 
 
 def python_integrate(q: np.ndarray, v: np.ndarray, dt: float, layout: Layout) -> np.ndarray:

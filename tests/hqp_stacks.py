@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sotdrake.solvers.hqp import LevelRows
+from sotdrake.hqp.solve import LevelRows
 
 
 def random_stack(rng: np.random.Generator, n_range=(5, 40), max_levels: int = 5, scaled: bool = True):

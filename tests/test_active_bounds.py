@@ -4,8 +4,9 @@ point it returns is the hierarchical QP's (the stages' path), whatever the guess
 import numpy as np
 import pytest
 
-from sotdrake.solvers.active_bounds import outcome, solve_with_active_bounds
-from sotdrake.solvers.hqp import ACTIVE_BOUNDS, ACTIVE_SET, HierarchicalQP, LevelRows
+from sotdrake.hqp.active_bounds import outcome, solve_with_active_bounds
+from sotdrake.hqp.solve import ACTIVE_BOUNDS, ACTIVE_SET, HierarchicalQP, LevelRows
+from sotdrake.hqp.warm import WarmStart
 from tests.conftest import compiled_only
 
 
@@ -198,8 +199,8 @@ def test_on_talos_with_active_limits_the_answer_is_the_stages(talos_model, monke
     checked = []
     solve_equalities = HierarchicalQP.solve_equalities
 
-    def checking(self, jacobians, values, x_lower, x_upper, damping=0.0):
-        result = solve_equalities(self, jacobians, values, x_lower, x_upper, damping)
+    def checking(self, jacobians, values, x_lower, x_upper, damping=0.0, warm=None):
+        result = solve_equalities(self, jacobians, values, x_lower, x_upper, damping, warm=warm)
         if result is not None:
             levels = [LevelRows(J, v, v) for J, v in zip(jacobians, values, strict=True)]
             reference = by_stages(self.n, levels, x_lower, x_upper)
@@ -220,7 +221,7 @@ def test_any_array_layout_gives_the_same_answer_without_another_compilation():
     """The compiled path takes C-ordered, writeable arrays of one dtype each: read-only,
     Fortran-ordered, strided, integer or boolean-as-integer inputs and a list of sizes are converted
     (the same bits) rather than compiled for again."""
-    from sotdrake.solvers import active_bounds
+    from sotdrake.hqp import active_bounds
 
     rng = np.random.default_rng(11)
     n, levels, lower, upper = equality_stack(rng)
@@ -263,7 +264,7 @@ def test_solve_stack_is_the_active_bounds_and_their_outcome_in_one_call():
     """``solve_stack`` (the robot's path): the point and sides of ``solve_with_active_bounds`` with
     ``outcome``'s residuals; NOT_APPLICABLE when 0 is outside a free component's bounds (or a bound
     is NaN), NOT_VERIFIED when no guess passes; only the latter counts for the back-off."""
-    from sotdrake.solvers import active_bounds as path
+    from sotdrake.hqp import active_bounds as path
 
     rng = np.random.default_rng(20)  # two levels, two fixed components, two bounds held at the answer
     n, levels, lower, upper = equality_stack(rng)
@@ -287,11 +288,11 @@ def test_solve_stack_is_the_active_bounds_and_their_outcome_in_one_call():
     conflict = np.vstack([A, A[:1]]), np.concatenate([b, b[:1] + 1.0])  # a level that contradicts the first
     status = path.solve_stack(*conflict, np.append(sizes, 1), lower, upper, guess, 1e-5, 1e-10, 1e-9)[0]
     assert status == path.NOT_VERIFIED
-    hqp = HierarchicalQP(n)
-    assert hqp.solve_equalities([A, A[:1]], [b, b[:1] + 1.0], lower, upper) is None
-    assert hqp._active_bounds_failures == 1 and hqp._active_bounds_skips == 1
-    assert hqp.solve_equalities([A], [b], shifted, upper + 1.0) is None  # not applicable: no skip used
-    assert hqp._active_bounds_skips == 1
-    assert hqp.solve_equalities([A], [b], lower, upper) is None  # skipped
-    assert hqp._active_bounds_skips == 0
-    assert hqp.solve_equalities([A], [b], lower, upper) is not None and hqp._active_bounds_failures == 0
+    hqp, warm = HierarchicalQP(n), WarmStart(n)
+    assert hqp.solve_equalities([A, A[:1]], [b, b[:1] + 1.0], lower, upper, warm=warm) is None
+    assert warm.failures == 1 and warm.skips == 1
+    assert hqp.solve_equalities([A], [b], shifted, upper + 1.0, warm=warm) is None  # not applicable: no skip used
+    assert warm.skips == 1
+    assert hqp.solve_equalities([A], [b], lower, upper, warm=warm) is None  # skipped
+    assert warm.skips == 0
+    assert hqp.solve_equalities([A], [b], lower, upper, warm=warm) is not None and warm.failures == 0

@@ -4,8 +4,8 @@ the compiled EQP step and iterations against their Python references."""
 import numpy as np
 import pytest
 
-from sotdrake.solvers import active_set
-from sotdrake.solvers.active_set import (
+from sotdrake.hqp import active_set
+from sotdrake.hqp.active_set import (
     RANK_THRESHOLD,
     ActiveSetFailure,
     _solve,
@@ -19,7 +19,7 @@ from sotdrake.solvers.active_set import (
     python_solve,
     solve_least_squares_qp,
 )
-from sotdrake.solvers.hqp import HierarchicalQP
+from sotdrake.hqp.solve import HierarchicalQP
 from tests.conftest import compiled_only
 from tests.hqp_stacks import random_stack
 
@@ -175,7 +175,7 @@ def test_the_compiled_iterations_are_the_python_ones_on_every_stage_of_random_st
 def test_the_compiled_iterations_take_any_array_layout_without_another_compilation():
     """Read-only, Fortran-ordered, strided and integer inputs and a list as guess give the same bits
     without a second compilation."""
-    from sotdrake.solvers import jit_active_set
+    from sotdrake.hqp.kernels import active_set as jit_active_set
 
     M, t, G, lower, upper = strictly_convex_level(np.random.default_rng(5))
     m_scale = np.ones(len(M))
@@ -200,7 +200,7 @@ def test_the_compiled_iterations_take_any_array_layout_without_another_compilati
 def test_where_the_compiled_iterations_give_way_the_python_ones_answer(monkeypatch):
     """A compiled solve that gives way (LAPACK refusing a factorisation) is answered by
     :func:`python_solve`, on the same arguments."""
-    from sotdrake.solvers import jit_active_set
+    from sotdrake.hqp.kernels import active_set as jit_active_set
 
     M, t, G, lower, upper = strictly_convex_level(np.random.default_rng(8))
     arguments = (M, t, np.ones(len(M)), G, lower, upper, np.zeros(M.shape[1]))

@@ -19,9 +19,9 @@ from sotdrake.dynamics.solver_dyn import ActiveContact, ContactNotFound, actuate
 from sotdrake.dynamics.task_dyn_pd import pd_reference
 from sotdrake.dynamics.terms import acceleration_bounds, com_terms, gravity_columns
 from sotdrake.exceptions import InvalidInput, StackError
+from sotdrake.hqp.equality_hierarchy import solve_equality_hierarchy
+from sotdrake.hqp.solve import HierarchicalQP
 from sotdrake.robots import load_talos
-from sotdrake.solvers.equality_hierarchy import solve_equality_hierarchy
-from sotdrake.solvers.hqp import HierarchicalQP
 from sotdrake.task import TaskLevel
 from tests.conftest import random_configuration
 
@@ -394,7 +394,7 @@ def test_a_bound_in_the_way_is_held_by_the_qr_path(standing, monkeypatch):
     the hierarchical QP's point. The bound is remembered (discrete state), so the next ticks start
     from it: one sweep each. Once f_min is lowered the remembered bound is released (its multiplier
     turns negative) and the point is the unbounded one."""
-    import sotdrake.solvers.equality_hierarchy as equality_hierarchy
+    import sotdrake.hqp.equality_hierarchy as equality_hierarchy
 
     robot, diagram, *_ = standing
     sot, nv = robot.sot, robot.model.nv

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from sotdrake.solvers.equality_hierarchy import solve_equality_hierarchy
-from sotdrake.solvers.hqp import HierarchicalQP, LevelRows
+from sotdrake.hqp.equality_hierarchy import solve_equality_hierarchy
+from sotdrake.hqp.solve import HierarchicalQP, LevelRows
 from tests.conftest import compiled_only
 
 
@@ -151,7 +151,7 @@ def test_a_point_on_a_bound_up_to_round_off_is_answered_on_the_bound(offset):
     """The unbounded optimum ``x₀ = 1`` under ``x₀ ≤ 1 + offset``: an offset of round-off (1e-13, far
     below :data:`IN_THE_WAY`) on either side must not decide whether the bound is held, so the answer
     is the same on every CPU: answered, within the bounds exactly, slack round-off."""
-    from sotdrake.solvers.equality_hierarchy import IN_THE_WAY
+    from sotdrake.hqp.equality_hierarchy import IN_THE_WAY
 
     assert abs(offset) < 1e-3 * IN_THE_WAY
     A = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 1.0]])
@@ -186,7 +186,7 @@ def test_minimum_norm_of_what_is_left_and_fixed_components():
 def test_any_array_layout_gives_the_same_answer_without_another_compilation():
     """The compiled sweep takes C-ordered, writeable float arrays: read-only, Fortran-ordered, strided
     and integer inputs are converted (the same answer, bit for bit) rather than compiled for again."""
-    import sotdrake.solvers.equality_hierarchy as equality_hierarchy
+    import sotdrake.hqp.equality_hierarchy as equality_hierarchy
 
     rng = np.random.default_rng(3)
     n = 9

@@ -6,8 +6,9 @@ import pytest
 import quadprog
 
 from sotdrake.exceptions import InvalidInput
-from sotdrake.solvers.active_set import RANK_THRESHOLD
-from sotdrake.solvers.hqp import HierarchicalQP, LevelRows
+from sotdrake.hqp import rescue
+from sotdrake.hqp.active_set import RANK_THRESHOLD
+from sotdrake.hqp.solve import HierarchicalQP, LevelRows
 from tests.hqp_stacks import random_stack
 
 
@@ -344,7 +345,7 @@ def test_a_degenerate_vertex_is_solved_within_the_bounds():
     dependent at the same value, where with the working set's rank decisions at τ a path can end
     2e-8 beyond a bound. Solved within the bounds to 1e-9 (by the correction onto
     the hard rows, round-off of a large point, or by the retry with a finer working set,
-    :data:`~sotdrake.solvers.hqp.DEGENERATE_RETRY`), the dynamics and contacts exact, the hand
+    :data:`~sotdrake.hqp.solve.DEGENERATE_RETRY`), the dynamics and contacts exact, the hand
     level's slack the sequential quadprog reference's. (Below it the problem is too ill-conditioned
     for the reference, whose rows are relaxed by 1e-10, or 1e-8 where quadprog finds them
     inconsistent on a CPU's round-off: its CoM and damping slacks are 1e-3 and 6e-3 above the
@@ -408,18 +409,18 @@ def test_a_point_far_outside_is_not_moved():
     stage = hqp._build(None, np.zeros(2), np.eye(2), (slice(None), np.ones(2), np.zeros((0, 2)), np.array([0.0, -1e3]),
                                                        np.array([1.0, 1e3]), np.zeros(2, dtype=int)), 0.0)
     side = np.zeros(len(stage.G), dtype=int)
-    assert hqp._onto_hard_rows(stage, np.array([-3e-9, 0.5]), side) is None  # 3e-9 of a point of size 0.5
-    assert hqp._onto_hard_rows(stage, np.array([-1e-3, 500.0]), side) is None
-    moved = hqp._onto_hard_rows(stage, np.array([-3e-9, 500.0]), side)  # 3e-9 of a point of size 500: round-off
+    assert rescue.onto_hard_rows(hqp, stage, np.array([-3e-9, 0.5]), side) is None  # 3e-9 of a point of size 0.5
+    assert rescue.onto_hard_rows(hqp, stage, np.array([-1e-3, 500.0]), side) is None
+    moved = rescue.onto_hard_rows(hqp, stage, np.array([-3e-9, 500.0]), side)  # 3e-9 of a point of size 500: round-off
     assert moved is not None and moved[0] >= -1e-15 and abs(moved[1] - 500.0) < 1e-12
     # Nearly dependent rows: a miss of round-off size that only a large move could correct is refused.
-    from sotdrake.solvers.hqp import _Stage
+    from sotdrake.hqp.solve import _Stage
 
     y = np.array([0.0, 500.0])
     G = np.array([[1.0, 0.0], [1.0, 1e-6]]) / np.array([[1.0], [np.hypot(1.0, 1e-6)]])
     lower = np.array([0.0, G[1] @ y + 2e-7])
     tight = _Stage(np.eye(2), np.zeros(2), np.ones(2), G, lower, np.full(2, np.inf), np.zeros(2), 2, None, np.zeros(2, dtype=int), 2)
-    assert hqp._onto_hard_rows(tight, y, np.array([-1, 0])) is None
+    assert rescue.onto_hard_rows(hqp, tight, y, np.array([-1, 0])) is None
 
 
 def test_the_correction_onto_hard_rows_cuts_at_tau():
@@ -427,7 +428,7 @@ def test_the_correction_onto_hard_rows_cuts_at_tau():
     singular value of 1e-9 (below τ = 1e-8) is dropped, one of 1e-7 is kept, and the result is
     ``V_k Σ_k⁻¹ U_kᵀ b`` over the kept values (numpy's default cutoff, ``ε · max(m, n) · σ_max``,
     would invert 1e-9 and move the point by 1e9 times the residual)."""
-    from sotdrake.solvers.hqp import least_norm
+    from sotdrake.hqp.solve import least_norm
 
     rng = np.random.default_rng(7)
     U, _ = np.linalg.qr(rng.standard_normal((5, 5)))
@@ -445,7 +446,7 @@ def test_the_correction_onto_hard_rows_cuts_at_tau():
 
 
 def reference_stage(level, x0, Z, free, held, reference, hard_lower, hard_upper, hard_side, mu, tau=RANK_THRESHOLD):
-    """A stage as the :mod:`sotdrake.solvers.jit_stage` docstring defines it, written with numpy:
+    """A stage as the :mod:`sotdrake.hqp.kernels.stage` docstring defines it, written with numpy:
     ``(M, t, m_scale, G, lower, upper, z0, kept, guess)``."""
     C = np.vstack([Z[free], held @ Z])
     offset = np.concatenate([x0[free], held @ x0])
@@ -559,15 +560,15 @@ def test_the_last_resort_holds_rows_to_the_tolerance_relative_to_their_terms():
     held = np.array([[1.0, 1.0]]) / np.sqrt(2.0)
     stage = hqp._build(None, np.zeros(2), np.eye(2), (np.zeros(0, dtype=int), np.ones(1), held, np.zeros(1),
                                                        np.ones(1), np.zeros(1, dtype=int)), 0.0)
-    assert hqp._relative_miss(stage, np.array([1e14, -1e14])) <= 1e-6  # on the row, but g·y computes to -0.007
-    assert 0.0 < hqp._relative_miss(stage, np.array([1e14, -1e14 - 0.03125])) <= 1e-6
-    assert hqp._relative_miss(stage, np.array([1e14, -1e14 - 16.0])) <= 1e-3
-    assert hqp._relative_miss(stage, np.array([1e14, -1e14 - 2e6])) > 7.0
-    assert hqp._relative_miss(stage, np.array([1.0, -1.03125])) > 1e6
+    assert rescue.relative_miss(hqp, stage, np.array([1e14, -1e14])) <= 1e-6  # on the row, but g·y computes to -0.007
+    assert 0.0 < rescue.relative_miss(hqp, stage, np.array([1e14, -1e14 - 0.03125])) <= 1e-6
+    assert rescue.relative_miss(hqp, stage, np.array([1e14, -1e14 - 16.0])) <= 1e-3
+    assert rescue.relative_miss(hqp, stage, np.array([1e14, -1e14 - 2e6])) > 7.0
+    assert rescue.relative_miss(hqp, stage, np.array([1.0, -1.03125])) > 1e6
     bound = hqp._build(None, np.zeros(2), np.eye(2), (slice(None), np.ones(2), np.zeros((0, 2)), np.array([0.0, -1e15]),
                                                        np.array([1.0, 1e15]), np.zeros(2, dtype=int)), 0.0)
-    assert hqp._relative_miss(bound, np.array([-1e-3, 1e14])) > 1e6
-    assert hqp._relative_miss(bound, np.array([-1e-9, 1e14])) == 0.0  # within the tolerance itself
+    assert rescue.relative_miss(hqp, bound, np.array([-1e-3, 1e14])) > 1e6
+    assert rescue.relative_miss(hqp, bound, np.array([-1e-9, 1e14])) == 0.0  # within the tolerance itself
 
 
 def test_the_minimum_norm_stage_keeps_the_last_levels_point_when_no_path_solves_it():
@@ -577,7 +578,7 @@ def test_the_minimum_norm_stage_keeps_the_last_levels_point_when_no_path_solves_
     rows by the round-off of a point that size, which used to fail the whole stack. The last level's
     point is in the optimal set, so it is kept, the failed paths in the fallbacks; every level stays
     as strict as the truncated stacks."""
-    from sotdrake.solvers.hqp import KEPT_LAST_LEVEL
+    from sotdrake.hqp.solve import KEPT_LAST_LEVEL
 
     n, levels, x_lower, x_upper = random_stack(np.random.default_rng(113554))
     result = HierarchicalQP(n).solve(levels, x_lower, x_upper)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.linalg import lapack
 
-from sotdrake.solvers import jit_lapack
+from sotdrake.hqp.kernels import lapack as jit_lapack
 from tests.conftest import compiled_only
 
 

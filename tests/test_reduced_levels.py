@@ -22,7 +22,7 @@ from sotdrake.dynamics.solver_dyn import (
     wrench_slices,
 )
 from sotdrake.dynamics.terms import DynamicsTerms
-from sotdrake.solvers.equality_hierarchy import StackedLevels
+from sotdrake.hqp.equality_hierarchy import StackedLevels
 from sotdrake.task import TaskLevel
 
 NV = 14

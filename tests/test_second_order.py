@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sotdrake.solvers.second_order import curvature_correction, python_curvature_correction
+from sotdrake.solvers.second_order import curvature_correction
+from tests.oracles import curvature_correction as python_curvature_correction
 
 L1, L2 = 0.7, 0.5
 

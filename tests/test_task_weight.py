@@ -25,9 +25,9 @@ from sotdrake import (
     signals_report,
     weighted_level,
 )
+from sotdrake.hqp.solve import HierarchicalQP, LevelRows
 from sotdrake.robot import Robot
 from sotdrake.solvers.cascade import solve_cascade
-from sotdrake.solvers.hqp import HierarchicalQP, LevelRows
 from sotdrake.task import Task
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 
 def solvers() -> None:
-    from sotdrake.solvers.hqp import HierarchicalQP
+    from sotdrake.hqp.solve import HierarchicalQP
     from tests.hqp_stacks import random_stack
 
     for seed in range(40):

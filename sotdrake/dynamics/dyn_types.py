@@ -10,7 +10,7 @@ import numpy as np
 
 from ..compiled import read_only
 from ..exceptions import NotFound
-from ..solvers.hqp import ACTIVE_SET
+from ..hqp import ACTIVE_SET
 from ..solvers.stack import StackSettings
 from ..task import TaskLevel
 from .formulation import HELD_BOUNDS, ActiveContact

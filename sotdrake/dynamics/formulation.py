@@ -45,7 +45,7 @@ import numpy as np
 
 from ..compiled import read_only
 from ..configuration import contiguous_slice
-from ..solvers.hqp import LevelRows
+from ..hqp import LevelRows
 from ..task import TaskLevel
 from .contact import ContactRows, local_to_generalized, world_wrench
 from .terms import DynamicsTerms

@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..solvers.jit_lapack import row_norms
+from ..hqp.kernels.lapack import row_norms
 
 
 @njit(cache=True)

@@ -12,12 +12,11 @@ from __future__ import annotations
 
 import itertools
 from functools import cache
-from typing import Any
 
 import numpy as np
 
-from ..compiled import announce_compilation, compiled_input, read_only
-from ..solvers.equality_hierarchy import StackedLevels
+from ..compiled import compiled_input, kernels, read_only
+from ..hqp.equality_hierarchy import StackedLevels
 from ..task import TaskLevel
 from .formulation import ActiveContact
 from .terms import DynamicsTerms
@@ -26,12 +25,7 @@ WRENCH_ROW_TOLERANCE = 1e-9  # as formulation._wrench_rows_hold
 _NO_SELECTION = np.ones(0, dtype=bool)
 
 
-@cache
-def _compiled() -> Any:
-    from . import jit_reduced_levels
-
-    announce_compilation(jit_reduced_levels.reduced_stack, "the dynamic solver's assembly", "a few seconds")
-    return jit_reduced_levels
+_compiled = kernels(".jit_reduced_levels", __package__, "reduced_stack", "the dynamic solver's assembly", "a few seconds")
 
 
 @cache

@@ -22,8 +22,8 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from ..configuration import Layout
 from ..exceptions import InvalidInput, check_finite
+from ..hqp import ACTIVE_SET
 from ..robots import RobotModel
-from ..solvers.hqp import ACTIVE_SET
 from .checks import MAX_DT, check_positive
 from .contact import Contact6d
 from .device import RobotDynSimu, check_base_quaternion

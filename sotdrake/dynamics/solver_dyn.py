@@ -38,9 +38,10 @@ from pydrake.systems.framework import Context, InputPort, ValueProducer
 from ..compiled import read_only
 from ..configuration import Layout
 from ..exceptions import SolverError, StackError, check_number
+from ..hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, check_solver
+from ..hqp.equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
+from ..hqp.warm import WarmStart, WarmStarts
 from ..robots import RobotModel
-from ..solvers.equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
-from ..solvers.hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, check_solver
 from ..solvers.stack import Stack, StackSolver
 from ..task import TaskLevel
 from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, check_count, check_positive
@@ -125,6 +126,10 @@ class SolverDyn(StackSolver[DynSettings]):
         self.contact_set = DynContacts(self, self.nv, max_contacts)  # the contacts' inputs and commands
         self._contact_ports, self._contact_index = self.contact_set.ports, self.contact_set.index
         self._hqps: dict[int, HierarchicalQP] = {}  # a cache of solvers per problem size
+        # Their warm starts (which path answers), in the Context, one per problem (see
+        # sotdrake.hqp.warm): a cloned or reset Context replays a run bit for bit. The solves update
+        # them in place (left out of the solution's prerequisites: nothing is recomputed for them).
+        self._warm_index = self.DeclareAbstractState(AbstractValue.Make(WarmStarts()))
         self._actuation: tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray] | None = None  # _actuated_rows
         self._reduced_hqps: dict[int, HierarchicalQP] = {}  # the same, τ eliminated
         self._bound_templates: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # see _bounds
@@ -315,15 +320,16 @@ class SolverDyn(StackSolver[DynSettings]):
         small = self._reduced_hqps.get(m)
         if small is None:
             small = self._reduced_hqps[m] = HierarchicalQP(m)
+        warm = self._warm(context, "reduced", m)
         try:
             stacked = StackedContacts(contacts, self.nv)
             if all(task.lower is task.upper for task in tasks):  # the levels assembled and stacked compiled
                 scales = [WRENCH_REGULARIZATION * weight for weight in _shear_weights(loads, len(contacts))]
                 stack = reduced_stack(terms, stacked, tasks, s.damping_gain, scales, passive)
-                fast = self._solve_stacked(context, small, stack, lower[:m], upper[:m], s.solver)
+                fast = self._solve_stacked(context, small, stack, lower[:m], upper[:m], s.solver, warm)
             else:
                 reduced, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
-                fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver)
+                fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver, warm)
             tau, world, within, hold = torques_and_checks(terms, stacked, compiled_actuated, fast.x, self._effort_held)
         except SolverError:
             return None
@@ -338,11 +344,12 @@ class SolverDyn(StackSolver[DynSettings]):
         optimum appended to ``tried``), then, if those rows do not hold there, in full."""
         terms, contacts, tasks, loads, lower, upper = p.terms, p.contacts, p.tasks, p.loads, p.lower, p.upper
         rows, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
-        relaxed = result = self._solve(context, hqp, rows, lower, upper, s.solver)
+        warm = self._warm(context, "full", len(lower))
+        relaxed = result = self._solve(context, hqp, rows, lower, upper, s.solver, warm)
         tried.append(relaxed)
         if contacts and not _wrench_rows_hold(contacts, p.slices, result.x):
             full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, loads=loads)
-            result = hqp.solve(full, lower, upper, 0.0, s.solver, start=inside(lower, upper))
+            result = hqp.solve(full, lower, upper, 0.0, s.solver, start=inside(lower, upper), warm=warm)
         return result
 
     def _rescue(self, context: Context, s: DynSettings, p: Problem, hqp: HierarchicalQP, error: SolverError,
@@ -358,7 +365,8 @@ class SolverDyn(StackSolver[DynSettings]):
         if relaxed is None:
             try:
                 levels, _ = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False, loads=loads)
-                relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver, start=inside(lower, upper))
+                relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver, start=inside(lower, upper),
+                                    warm=self._warm(context, "full", len(lower)))
                 diagnostics.failure += "; the stack is dropped for this tick"
             except SolverError as second:
                 diagnostics.failure += f"; {second}; zero torque"
@@ -434,27 +442,33 @@ class SolverDyn(StackSolver[DynSettings]):
         guess = self.held_bound_guess(context).tolist()
         return [int(g) - 1 for g in guess if g > 0], [int(-g) - 1 for g in guess if g < 0]
 
+    def _warm(self, context: Context, problem: str, n: int) -> WarmStart:
+        """The warm start of the ``problem`` ("full" or "reduced") of ``n`` variables, kept in the
+        Context's abstract state."""
+        return context.get_abstract_state(self._warm_index).get_value().of((problem, n), n)
+
     def _solve_stacked(self, context: Context, hqp: HierarchicalQP, stack: StackedLevels, lower: np.ndarray,
-                       upper: np.ndarray, solver: str) -> HqpResult:
+                       upper: np.ndarray, solver: str, warm: WarmStart | None = None) -> HqpResult:
         """:meth:`_solve` of equality levels already stacked (:func:`.reduced_levels.reduced_stack`)."""
         if solver == ACTIVE_SET:
             result = solve_stacked(stack, lower, upper, *self._held_guess(context))
             if result is not None:
                 return result
-        return hqp.solve(stack.levels(), lower, upper, 0.0, solver, start=inside(lower, upper))
+        return hqp.solve(stack.levels(), lower, upper, 0.0, solver, start=inside(lower, upper), warm=warm)
 
     def _solve(self, context: Context, hqp: HierarchicalQP, rows: list[Rows], lower: np.ndarray, upper: np.ndarray,
-               solver: str) -> HqpResult:
+               solver: str, warm: WarmStart | None = None) -> HqpResult:
         """The hierarchy through its QR path when that is clear-cut (every level an equality, the
         bounds at the optimum held as equalities and certified by their multipliers:
-        :mod:`..solvers.equality_hierarchy`, the same answer), else ``hqp`` (which checks the rows).
+        :mod:`..hqp.equality_hierarchy`, the same answer), else ``hqp`` (which checks the rows).
         The QR path starts from the bounds held at the last tick (discrete state); it is not tried
         when a Drake solver is chosen."""
         if solver == ACTIVE_SET and all(lo is hi for _, lo, hi in rows):
             result = solve_equality_hierarchy([(A, b) for A, b, _ in rows], lower, upper, *self._held_guess(context))
             if result is not None:
                 return result
-        return hqp.solve([LevelRows(*level) for level in rows], lower, upper, 0.0, solver, start=inside(lower, upper))
+        return hqp.solve([LevelRows(*level) for level in rows], lower, upper, 0.0, solver, start=inside(lower, upper),
+                         warm=warm)
 
     def _calc_wrenches(self, context: Context, output) -> None:
         wrenches = self._solution.Eval(context).wrenches

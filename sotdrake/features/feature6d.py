@@ -20,16 +20,14 @@ and only the rows chosen by the selection mask are output (see :mod:`sotdrake.se
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import Context
 
-from ..compiled import announce_compilation, compiled_input
+from ..compiled import compiled_input, kernels
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite
 from ..lie import hat, log_so3_list, right_jacobian_inverse_list
@@ -149,14 +147,7 @@ _NO_VELOCITY = np.zeros(6)
 _IDENTITY = np.eye(4)
 
 
-@functools.cache
-def _jit_pose() -> Any:
-    """:mod:`.jit_pose`, imported on the first call: a script that never computes a 6D error does
-    not import numba."""
-    from . import jit_pose
-
-    announce_compilation(jit_pose.pose_error, "the 6D feature's error and Jacobian", "about ten seconds")
-    return jit_pose
+_jit_pose = kernels(".jit_pose", __package__, "pose_error", "the 6D feature's error and Jacobian", "about ten seconds")
 
 
 def python_pose_error_and_jacobian(

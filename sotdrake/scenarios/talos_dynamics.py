@@ -60,8 +60,8 @@ from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, Meta
 from sotdrake.dynamics.robot_dyn import RobotDyn
 from sotdrake.dynamics.station import sole_rectangle
 from sotdrake.dynamics.trajectories import hold_move_hold, minimum_jerk_moves, trajectory_ports
+from sotdrake.hqp import ACTIVE_SET, SOLVERS
 from sotdrake.physics import FRICTION, ContactMonitor, Push
-from sotdrake.solvers.hqp import ACTIVE_SET, SOLVERS
 
 SCENARIOS = ("stand", "sway", "lift_leg", "lift_leg_no_com", "squat", "push")
 SWAY = (0.05, 0.5, 2.0)  # amplitude (m), frequency (Hz), fade-in (s)

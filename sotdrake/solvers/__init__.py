@@ -1,7 +1,7 @@
 """Solvers of the stack: the maths as pure functions, and the ``LeafSystem``s around them."""
 
+from ..hqp import HierarchicalQP, HqpResult, LevelRows
 from .cascade import CascadeResult, solve_cascade
-from .hqp import HierarchicalQP, HqpResult, LevelRows
 from .solver_kine import HqpDiagnostics, SolverKine
 from .sot import SOT, StackSettings
 

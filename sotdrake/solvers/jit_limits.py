@@ -1,6 +1,6 @@
 """The joint limits' velocity bounds of :mod:`.limits`, compiled with numba: :func:`bounds`.
 
-The same arithmetic as :meth:`.limits.VelocityBounds.python_bounds`, one joint at a time (in numpy,
+The same arithmetic as ``velocity_bounds`` of ``tests/oracles.py``, one joint at a time (in numpy,
 about fifteen calls of a microsecond each, every tick). ``np.maximum``/``np.minimum`` on scalars
 keep numpy's rule: a NaN on either side gives NaN.
 """

@@ -1,6 +1,6 @@
 """The tick-curvature correction of :mod:`.second_order`, compiled with numba: :func:`correction`.
 
-The same quantities as :func:`.second_order.python_curvature_correction` in one pass over ``J``:
+The same quantities as ``curvature_correction`` of ``tests/oracles.py`` in one pass over ``J``:
 ``J v_{k-1}``, ``‖J‖_F²`` and ``‖v_{k-1}‖²`` (in Python, five numpy calls of about a microsecond each,
 per level and per tick).
 """

@@ -17,12 +17,9 @@ get ``[0, 0]``.
 
 from __future__ import annotations
 
-import functools
-from typing import Any
-
 import numpy as np
 
-from ..compiled import compiled_input
+from ..compiled import compiled_input, kernels
 from ..configuration import Layout
 
 
@@ -80,7 +77,7 @@ class VelocityBounds:
     def __call__(self, q: np.ndarray, dt: float, margin: float, control_selection: np.ndarray | None = None,
                  base_velocity: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``(lower, upper)`` bounds on ``v`` at the configuration ``q``; see the module docstring.
-        Compiled (:mod:`.jit_limits`); :meth:`python_bounds` is its reference."""
+        Compiled (:mod:`.jit_limits`); its numpy reference is the tests' oracle (``tests/oracles.py``)."""
         outside_lower, outside_upper = self._outside_joints(base_velocity)
         q = compiled_input(q)
         if q.shape != (self._nq,):  # (the compiled code reads the joints' entries unchecked)
@@ -91,31 +88,6 @@ class VelocityBounds:
         return _jit_limits().bounds(q, self._joints_q, self._joints_v, *self._limits, outside_lower, outside_upper,
                                     float(dt), float(margin), unselected)
 
-    def python_bounds(self, q: np.ndarray, dt: float, margin: float, control_selection: np.ndarray | None = None,
-                      base_velocity: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`__call__` in numpy: its reference."""
-        outside_lower, outside_upper = self._outside_joints(base_velocity)
-        lower, upper = outside_lower.copy(), outside_upper.copy()
-        qj, lo, hi = q[self._iq], self._q_lower, self._q_upper
-        # (Infinite position limits give ±inf here, never NaN: q and the margin are finite.)
-        up = np.maximum((hi - margin - qj) / dt, np.minimum(0.0, (hi - qj) / dt))
-        down = np.minimum((lo + margin - qj) / dt, np.maximum(0.0, (lo - qj) / dt))
-        v_lo, v_hi = self._v_lower, self._v_upper
-        up = np.minimum(np.maximum(up, v_lo), v_hi)  # np.clip, without its wrapper's cost
-        down = np.minimum(np.maximum(down, v_lo), v_hi)
-        upper[self._iv] = up
-        lower[self._iv] = np.minimum(down, up)
-        if control_selection is not None:
-            unselected = ~control_selection
-            lower[unselected] = upper[unselected] = 0.0
-        return lower, upper
 
 
-@functools.cache
-def _jit_limits() -> Any:
-    """:mod:`.jit_limits`, imported on the first bounds (a script's first tick)."""
-    from ..compiled import announce_compilation
-    from . import jit_limits
-
-    announce_compilation(jit_limits.bounds, "the joint limits' velocity bounds", "a few seconds")
-    return jit_limits
+_jit_limits = kernels(".jit_limits", __package__, "bounds", "the joint limits' velocity bounds", "a few seconds")

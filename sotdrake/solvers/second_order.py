@@ -26,10 +26,9 @@ MAX_RELATIVE_CHANGE · ‖J_k‖ ‖v‖`` (Frobenius norm of ``J_k``: a new sel
 
 from __future__ import annotations
 
-import functools
-from typing import Any
-
 import numpy as np
+
+from ..compiled import kernels
 
 #: Largest relative change of a Jacobian over one tick that counts as motion.
 MAX_RELATIVE_CHANGE = 0.1
@@ -39,8 +38,8 @@ def curvature_correction(J: np.ndarray, previous_velocity: np.ndarray | None,
                          previous_task_velocity: np.ndarray | None) -> np.ndarray | None:
     """``c_k dt = ½ (J_k v_{k-1} - y_{k-1})`` (units of ``ė``), or None (see the module docstring);
     ``previous_velocity`` is ``v_{k-1}``, ``previous_task_velocity`` is ``y_{k-1} = J_{k-1} v_{k-1}``.
-    Computed by the compiled :func:`.jit_second_order.correction` (:func:`python_curvature_correction`
-    is its reference)."""
+    Computed by the compiled :func:`.jit_second_order.correction` (its numpy reference is the tests'
+    oracle, ``tests/oracles.py``)."""
     if previous_velocity is None or previous_task_velocity is None or previous_task_velocity.shape != (J.shape[0],):
         return None
     if J.ndim != 2 or previous_velocity.shape != (J.shape[1],):
@@ -49,24 +48,4 @@ def curvature_correction(J: np.ndarray, previous_velocity: np.ndarray | None,
     return correction if moved else None
 
 
-@functools.cache
-def _jit_second_order() -> Any:
-    """:mod:`.jit_second_order`, imported on the first correction (a script's first tick)."""
-    from ..compiled import announce_compilation
-    from . import jit_second_order
-
-    announce_compilation(jit_second_order.correction, "the tick-curvature correction", "a few seconds")
-    return jit_second_order
-
-
-def python_curvature_correction(J: np.ndarray, previous_velocity: np.ndarray | None,
-                                previous_task_velocity: np.ndarray | None) -> np.ndarray | None:
-    """:func:`curvature_correction` in numpy: its reference."""
-    if previous_velocity is None or previous_task_velocity is None or previous_task_velocity.shape != (J.shape[0],):
-        return None
-    change = J @ previous_velocity - previous_task_velocity
-    flat = J.reshape(-1)
-    scale = MAX_RELATIVE_CHANGE**2 * flat.dot(flat) * previous_velocity.dot(previous_velocity)
-    if change.dot(change) > scale:
-        return None
-    return 0.5 * change
+_jit_second_order = kernels(".jit_second_order", __package__, "correction", "the tick-curvature correction", "a few seconds")

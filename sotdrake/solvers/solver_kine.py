@@ -30,10 +30,11 @@ from pydrake.systems.framework import Context, InputPort
 
 from ..configuration import Layout
 from ..exceptions import InvalidInput, SolverError
+from ..hqp import ACTIVE_SET, HierarchicalQP, LevelRows, check_solver
+from ..hqp.warm import WarmStart
 from ..robots import RobotModel
 from .acceleration_limits import MAX_ACCELERATION, AccelerationBounds
 from .base_velocity import MAX_BASE_VELOCITY, default_base_velocity_limit
-from .hqp import ACTIVE_SET, HierarchicalQP, LevelRows, check_solver
 from .kinematic import KinematicSolver
 from .limits import VelocityBounds
 from .stack import StackSettings
@@ -106,7 +107,11 @@ class SolverKine(KinematicSolver[HqpSettings]):
         model_limit = np.minimum(-plant.GetAccelerationLowerLimits(), plant.GetAccelerationUpperLimits())
         if np.isfinite(model_limit[layout.joints_v]).any():  # the model's own limits (URDF drake:acceleration)
             self.setAccelerationLimit(np.where(np.isfinite(model_limit) & (model_limit > 0), model_limit, np.inf))
-        self._hqp = HierarchicalQP(model.nv)  # its programs and working sets are caches (warm starts)
+        self._hqp = HierarchicalQP(model.nv)  # its Drake programs are caches
+        # The solve's warm starts (working sets, held bounds, back-off: which path answers), in the
+        # Context: a cloned or reset Context replays a run bit for bit. The solve updates them in
+        # place (the solution is not recomputed for them: they are left out of its prerequisites).
+        self._warm_index = self.DeclareAbstractState(AbstractValue.Make(WarmStart(model.nv)))
         self.DeclareAbstractOutputPort(
             "diagnostics", lambda: AbstractValue.Make(HqpDiagnostics()),
             lambda c, o: o.set_value(self._solution.Eval(c).diagnostics),
@@ -186,11 +191,12 @@ class SolverKine(KinematicSolver[HqpSettings]):
                                                      self._period, s.position_margin)
         diagnostics = HqpDiagnostics(tasks=(["contacts"] if s.contacts else []) + list(s.tasks))
         result = None
+        warm = context.get_abstract_state(self._warm_index).get_value()
         if s.solver == ACTIVE_SET and all(level.upper is level.lower for level in task_levels):
             # Equality tasks: the stack at once from the last tick's active limits, if that verifies
             # (a NaN or infinite value makes it fail, and LevelRows below names it).
             result = self._hqp.solve_equalities([level.jacobian for level in task_levels], [level.lower for level in task_levels],
-                                                lower, upper, s.damping)
+                                                lower, upper, s.damping, warm=warm)
         if result is None:
             # LevelRows checks every level's shapes and values (finite A, ordered sides without NaN, finite
             # values of equality rows); only when it refuses one are the levels checked again to name the task.
@@ -205,7 +211,7 @@ class SolverKine(KinematicSolver[HqpSettings]):
                 # With acceleration limits, 0 may lie outside the bounds: the solve starts inside them,
                 # so that every bound holds (a start outside would relax the bound it violates).
                 start = np.clip(0.0, lower, upper) if s.acceleration_limit is not None else None
-                result = self._hqp.solve(levels, lower, upper, s.damping, s.solver, start=start)
+                result = self._hqp.solve(levels, lower, upper, s.damping, s.solver, start=start, warm=warm)
             except SolverError as error:
                 diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
                 log.warning("%s: %s; the device holds", self.name, diagnostics.failure)

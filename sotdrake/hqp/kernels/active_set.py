@@ -4,7 +4,7 @@ The same method as the Python function it stands for, step by step and in the sa
 guess checked (:func:`_check`), the working set made independent (:func:`_independent_rows`,
 LAPACK's ``dgeqp3`` as :func:`.active_set.independent_rows`), the iterations (ratio test, Bland's
 rule after a repeated working set, the multipliers' signs), and the final minimum-norm point
-(:func:`_finish`), each step the compiled :func:`.jit_eqp.eqp`. A stage of the hierarchical QP runs
+(:func:`_finish`), each step the compiled :func:`.eqp.eqp`. A stage of the hierarchical QP runs
 these iterations once or twice, and the Python version's per-iteration numpy calls cost more than
 their arithmetic on these small matrices. Imported on the first call (numba: not for a script that
 never solves a stage), cached on disk.
@@ -21,8 +21,8 @@ import math
 import numpy as np
 from numba import njit
 
-from .jit_eqp import eqp
-from .jit_lapack import fortran, geqp3
+from .eqp import eqp
+from .lapack import fortran, geqp3
 
 SOLVED, NO_CONVERGENCE, GAVE_WAY = 0, 1, 2
 

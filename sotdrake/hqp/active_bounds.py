@@ -35,7 +35,7 @@ conditions that define it), so the guess changes the cost, never the answer.
 Cost: one QR of an ``|F| × m`` matrix, one triangular inverse and a few matrix-vector products per
 round, instead of a factorisation per level and an active-set stage per level a bound is in the way of.
 The rounds are compiled with numba (cached on disk; the first call after an install compiles them,
-about ten seconds), their QR and triangular inverse scipy's LAPACK routines (:mod:`.jit_lapack`): the
+about ten seconds), their QR and triangular inverse scipy's LAPACK routines (:mod:`.kernels.lapack`): the
 Python version's fifteen numpy calls a round cost more than their arithmetic.
 """
 
@@ -48,14 +48,8 @@ import numpy as np
 from numba import njit
 
 from ..compiled import compiled_input
-from .jit_lapack import geqrf, level_residuals, ormqr, row_norms, upper_inverse
-
-CERTIFIED = 1e-5
-"""The smallest singular value of a level's unit rows, in what is left free, that counts as clearly
-non-zero: 10³ τ (τ = :data:`~.active_set.RANK_THRESHOLD`), the margin of :mod:`.equality_hierarchy`."""
-
-MULTIPLIER_TOLERANCE = 1e-9
-"""A held bound's multiplier may have the wrong sign by this much, relative to ``max(1, ‖x‖)``."""
+from .kernels.lapack import geqrf, level_residuals, ormqr, row_norms, upper_inverse
+from .tolerances import CERTIFIED, MULTIPLIER_TOLERANCE, REPORTED_ACTIVE, VERIFIED
 
 
 @njit(cache=True)
@@ -149,7 +143,7 @@ def solve_with_active_bounds(
     fixed: np.ndarray,
     guess: np.ndarray,
     certified: float = CERTIFIED,
-    feasibility: float = 1e-10,
+    feasibility: float = VERIFIED,
     rounds: int = 3,
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """``(x, sides)``: the answer of the equality hierarchy ``A x = b`` (levels of ``sizes`` rows,
@@ -157,7 +151,7 @@ def solve_with_active_bounds(
     bounds held at it; or None (see the module docstring). ``fixed``: ``x_lower == x_upper``;
     ``guess``: a side per component (-1, 0, +1; one at an infinite bound gives None). The start of
     the QP (0) must lie inside the bounds of the free components, as the caller checks. Compiled
-    (numba, cached on disk; :mod:`.jit_lapack`)."""
+    (numba, cached on disk; :mod:`.kernels.lapack`)."""
     given = compiled_input
     ok, x, sides = _solve(given(A), given(b), given(norms), given(sizes, np.int64), given(x_lower), given(x_upper),
                           given(fixed, np.bool_), given(guess, np.int64), float(certified), float(feasibility), int(rounds))
@@ -226,7 +220,7 @@ def _outcome(A, b, sizes, x, x_lower, x_upper, fixed, tolerance):
     most ``tolerance`` (:func:`onto_bounds`, in place)."""
     _onto_bounds(x, x_lower, x_upper, tolerance)
     residual, norms = level_residuals(A, b, x, sizes)
-    scale = 1e-7 * np.maximum(1.0, np.abs(x))
+    scale = REPORTED_ACTIVE * np.maximum(1.0, np.abs(x))
     return x, residual, norms, np.flatnonzero(~fixed & ((x - x_lower <= scale) | (x_upper - x <= scale)))
 
 

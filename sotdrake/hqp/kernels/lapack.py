@@ -1,7 +1,7 @@
 """LAPACK for numba-compiled code: the routines of ``scipy.linalg.lapack`` called from compiled code.
 
-The compiled solvers (:mod:`.equality_hierarchy`, :mod:`.active_bounds`, :mod:`.jit_eqp`,
-:mod:`.jit_active_set`) run the same LAPACK factorizations as the ``scipy.linalg.lapack`` wrappers,
+The compiled solvers (:mod:`..equality_hierarchy`, :mod:`..active_bounds`, :mod:`.eqp`,
+:mod:`.active_set`) run the same LAPACK factorizations as the ``scipy.linalg.lapack`` wrappers,
 from the same library (``scipy.linalg.cython_lapack`` gives their C entry points), without a Python
 call between them.
 Each routine's address is registered with LLVM under a ``sotdrake_`` name when this module is

@@ -1,7 +1,7 @@
 """The active-set method's equality-constrained step (:func:`.active_set.eqp`), compiled.
 
 The same computation as the Python functions of :mod:`.active_set` it stands for, in the same
-order, each factorisation the same LAPACK routine (:mod:`.jit_lapack`; the SVD numba's, also
+order, each factorisation the same LAPACK routine (:mod:`.lapack`; the SVD numba's, also
 LAPACK's ``dgesdd``): :func:`eqp` (with :func:`_independent_qr`, :func:`_full_rank_step`,
 :func:`_scaled_least_squares`, :func:`_full_rank_least_squares`). ``eqp`` runs a few times per
 stage of the hierarchical QP, and its Python version's forty-odd numpy and LAPACK calls cost more
@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .jit_lapack import contiguous, fortran, geqrf, orgqr, ormqr, trtrs_upper, upper_inverse
+from .lapack import contiguous, fortran, geqrf, orgqr, ormqr, trtrs_upper, upper_inverse
 
 #: :data:`.active_set.QR_MIN_SIZE` (the same value; asserted there).
 QR_MIN_SIZE = 4

@@ -51,7 +51,7 @@ levels, a QR (pivoted when rank-deficient; an SVD only when that cannot certify 
 others, per sweep, instead of the QP's SVDs and stages.
 
 A sweep is compiled with numba (:func:`_compiled_sweep`), its factorizations the LAPACK routines of
-``scipy.linalg.lapack`` (:mod:`.jit_lapack`): the Python version made about a hundred numpy and
+``scipy.linalg.lapack`` (:mod:`.kernels.lapack`): the Python version made about a hundred numpy and
 LAPACK calls per sweep, whose overhead, not their arithmetic, was most of its time. The compiled
 code is cached on disk; the first solve after an install compiles it (about half a minute, said in
 the log).
@@ -69,9 +69,7 @@ import numpy as np
 from numba import njit
 
 from ..compiled import announce_compilation, compiled_input
-from .active_set import RANK_THRESHOLD
-from .hqp import HqpResult, LevelRows
-from .jit_lapack import (
+from .kernels.lapack import (
     contiguous,
     fortran,
     geqp3,
@@ -82,11 +80,8 @@ from .jit_lapack import (
     row_norms,
     upper_inverse,
 )
-
-#: The smallest singular value (rows at unit norm) that counts as clearly non-zero,
-CERTIFIED = 1e3 * RANK_THRESHOLD
-#: and the largest that counts as clearly zero (round-off of a row the levels above fix).
-NEGLIGIBLE = 1e-3 * RANK_THRESHOLD
+from .solve import HqpResult, LevelRows
+from .tolerances import CERTIFIED, FEASIBILITY, MULTIPLIER_TOLERANCE, NEGLIGIBLE
 
 SOLVER_NAME = "qr"
 
@@ -94,12 +89,10 @@ SOLVER_NAME = "qr"
 #: the hierarchical QP's feasibility tolerance, far above the round-off of a point that lies on the
 #: bound in exact arithmetic (whose side would otherwise depend on the CPU's last bits). A point
 #: within it is put on the bound.
-IN_THE_WAY = 1e-9
+IN_THE_WAY = FEASIBILITY
 
 #: How many times the set of bounds held at equality may change before the QP decides.
 ACTIVE_SET_CHANGES = 6
-#: A bound's multiplier ``λ`` counts as negative below ``−MULTIPLIER_TOLERANCE ‖ρ‖ ‖c‖`` (round-off).
-MULTIPLIER_TOLERANCE = 1e-9
 
 # The compiled functions: every matrix handed to LAPACK is a column-major copy, the others are
 # C-ordered. A function that cannot decide returns ``ok = False``.

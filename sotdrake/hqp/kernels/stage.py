@@ -35,7 +35,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .jit_lapack import norm
+from .lapack import norm
 
 
 @njit(cache=True)

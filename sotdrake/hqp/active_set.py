@@ -33,7 +33,7 @@ with at least :data:`QR_MIN_SIZE` rows and columns that *provably* has every sin
 singular value would be cut, so both give the same point in exact arithmetic, and the QR costs a
 fraction of the SVD there. Any other matrix gets the SVD, which makes the rank decision.
 The iterations (:func:`python_solve`) and their EQP step (:func:`python_eqp`) run compiled with numba
-(:mod:`.jit_active_set` and :mod:`.jit_eqp`, imported on the first call and cached on disk): the same
+(:mod:`.kernels.active_set` and :mod:`.kernels.eqp`, imported on the first call and cached on disk): the same
 computation and LAPACK routines. The Python versions stay as the reference (tested against them)
 and run where the compiled ones give way.
 
@@ -61,11 +61,8 @@ import numpy as np
 import quadprog
 from scipy.linalg import lapack
 
-from ..compiled import announce_compilation, compiled_input
-
-RANK_THRESHOLD = 1e-8
-"""Default τ: singular values ≤ τ of unit-row matrices count as zero (see the module docstring)."""
-
+from ..compiled import compiled_input, kernels
+from .tolerances import RANK_THRESHOLD
 
 QR_MIN_SIZE = 4
 """Below this smaller dimension LAPACK's SVD costs about as much as the QR route's several calls, so
@@ -290,7 +287,7 @@ def eqp(
     kind: tuple[bool, bool] | None = None,
     working_threshold: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """:func:`python_eqp`, compiled (:mod:`.jit_eqp`, imported on the first call): the same
+    """:func:`python_eqp`, compiled (:mod:`.kernels.eqp`, imported on the first call): the same
     computation and LAPACK routines; the Python version runs where the compiled one gives way."""
     identity, uniform = objective_kind(M, m_scale) if kind is None else kind
     cut = threshold if working_threshold is None else working_threshold
@@ -302,15 +299,16 @@ def eqp(
     return z, lam, (N if has_N else None)
 
 
+_load_eqp = kernels(".kernels.eqp", __package__, "eqp", "the hierarchical QP's equality-constrained step",
+                    "about twenty seconds")
+
+
 @cache
 def _jit_eqp() -> Any:
-    """:mod:`.jit_eqp`, imported on the first call: it is compiled with numba, which a script that
-    never solves a stage (e.g. with the cascade) does not import."""
-    from . import jit_eqp
-
-    assert jit_eqp.QR_MIN_SIZE == QR_MIN_SIZE
-    announce_compilation(jit_eqp.eqp, "the hierarchical QP's equality-constrained step", "about twenty seconds")
-    return jit_eqp
+    """:mod:`.kernels.eqp`, loaded on the first call (its size switch checked against this module's)."""
+    compiled = _load_eqp()
+    assert compiled.QR_MIN_SIZE == QR_MIN_SIZE
+    return compiled
 
 
 def python_eqp(
@@ -415,7 +413,7 @@ def solve_least_squares_qp(
 
 def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid,
            working) -> ActiveSetResult:
-    """:func:`python_solve`, compiled (:mod:`.jit_active_set`, imported on the first call): the same
+    """:func:`python_solve`, compiled (:mod:`.kernels.active_set`, imported on the first call): the same
     iterations, each step the compiled :func:`eqp`; the Python version runs where the compiled one
     gives way (LAPACK refusing a factorisation)."""
     compiled, given = _jit_active_set(), compiled_input
@@ -436,13 +434,8 @@ def _solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max
 _NO_GUESS = np.zeros(0, dtype=np.int64)
 
 
-@cache
-def _jit_active_set() -> Any:
-    """:mod:`.jit_active_set`, imported on the first call (see :func:`_jit_eqp`)."""
-    from . import jit_active_set
-
-    announce_compilation(jit_active_set.solve, "the hierarchical QP's active-set iterations", "about thirty seconds")
-    return jit_active_set
+_jit_active_set = kernels(".kernels.active_set", __package__, "solve", "the hierarchical QP's active-set iterations",
+                          "about thirty seconds")
 
 
 def python_solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, max_iterations, kind, guess_valid,
@@ -451,20 +444,10 @@ def python_solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibilit
     given), in Python: the reference of the compiled :func:`_solve`."""
     m = len(G)
     equality = lower == upper
-    if guess is not None and len(guess) == m:
-        side = np.where(equality, 1, guess) if guess_valid else _guessed_sides(guess, lower, upper, equality)
-        candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality, working)
-        if candidate is not None:
-            return ActiveSetResult(candidate, side, 0, True, True)
-        value = G @ z
-        near = feasibility * 10
-        side = np.where((side < 0) & (value <= lower + near), -1, np.where((side > 0) & (value >= upper - near), 1, 0))
-        side[equality] = 1
-        held = side.nonzero()[0]
-        dependent = np.setdiff1d(held, held[independent_rows(G[held], working)])
-        side[dependent] = 0  # a working set is linearly independent (equality rows come first in rank)
-    else:
-        side = np.where(equality, 1, 0)
+    accepted, side = _first_working_set(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, kind,
+                                        guess_valid, working, equality)
+    if accepted is not None:
+        return accepted
     if max_iterations is None:
         max_iterations = 10 * (m + M.shape[1]) + 50
     seen: set[bytes] = set()
@@ -529,6 +512,27 @@ def python_solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibilit
             return ActiveSetResult(z, side, iteration, False)
         return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration, kind, working)
     raise ActiveSetFailure(f"no convergence in {max_iterations} active-set iterations")
+
+
+def _first_working_set(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibility, kind, guess_valid, working,
+                       equality) -> tuple[ActiveSetResult | None, np.ndarray]:
+    """:func:`python_solve`'s start: the guess's own answer if it checks (then the working set is
+    the guess), else the working set the iterations start from (the guess's rows held at ``z``,
+    linearly independent; the equality rows alone without a guess)."""
+    if guess is None or len(guess) != len(G):
+        return None, np.where(equality, 1, 0)
+    side = np.where(equality, 1, guess) if guess_valid else _guessed_sides(guess, lower, upper, equality)
+    candidate = _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality, working)
+    if candidate is not None:
+        return ActiveSetResult(candidate, side, 0, True, True), side
+    value = G @ z
+    near = feasibility * 10
+    side = np.where((side < 0) & (value <= lower + near), -1, np.where((side > 0) & (value >= upper - near), 1, 0))
+    side[equality] = 1
+    held = side.nonzero()[0]
+    dependent = np.setdiff1d(held, held[independent_rows(G[held], working)])
+    side[dependent] = 0  # a working set is linearly independent (equality rows come first in rank)
+    return None, side
 
 
 def _guessed_sides(guess: np.ndarray, lower: np.ndarray, upper: np.ndarray, equality: np.ndarray) -> np.ndarray:

@@ -1,0 +1,109 @@
+"""The active bounds path of a whole equality stack: every level an equality, solved at once by
+:func:`.active_bounds.solve_stack` from the bounds held at the last answer (the warm start), before
+any stage is built. It applies to equality levels without extensions, the default path on every
+stage, the minimum-norm stage, no damping, and a start inside the bounds of the free components; a
+stack it cannot verify goes to the stages, and failures in a row make the next calls skip it for a
+while (the back-off, kept in the :class:`~.warm.WarmStart`).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..compiled import kernels
+from .active_set import all_true
+from .problem import ACTIVE_BOUNDS, ACTIVE_SET, HqpResult
+from .tolerances import FEASIBILITY, VERIFIED
+
+if TYPE_CHECKING:
+    from .solve import HierarchicalQP
+
+_NO_ROWS = np.zeros(0, dtype=int)  # the active rows of an equality-only level (shared, read only)
+_NO_ROWS.flags.writeable = False
+
+_active_bounds_path = kernels(".active_bounds", __package__, "_solve_stack", "the hierarchical QP's path for equality stacks",
+                              "about ten seconds")
+
+
+def start_inside(x_lower: np.ndarray, x_upper: np.ndarray, fixed: np.ndarray, start: np.ndarray | float) -> bool:
+    """Whether the QP's start is inside the bounds of every free component (NaN bounds and bounds out
+    of order fail: every comparison with NaN is False, and ``lower > upper`` cannot hold it); the
+    compiled :func:`.active_bounds.solve_stack` makes the same check for the start 0."""
+    return all_true(((x_lower <= start) & (x_upper >= start)) | fixed)
+
+
+def sides_at_bounds(x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """+1 where ``x`` is at its (finite) upper bound, -1 at its lower bound (to 1e-9, relative
+    above 1), 0 elsewhere and on the ``fixed`` components (those of the call the guess is for):
+    the guess of :mod:`.active_bounds`."""
+    upper = ~fixed & (x >= x_upper - FEASIBILITY * np.maximum(1.0, np.abs(x_upper))) & (x_upper < np.inf)
+    lower = ~fixed & (x <= x_lower + FEASIBILITY * np.maximum(1.0, np.abs(x_lower))) & (x_lower > -np.inf)
+    return np.where(upper, 1, np.where(lower, -1, 0))
+
+
+def equalities_only(qp: HierarchicalQP, levels, x_lower, x_upper, fixed, damping, start) -> bool:
+    """Whether :mod:`.active_bounds` may solve the stack: equality levels without extensions,
+    the default path on every stage, the minimum-norm stage, no damping, and the start (0, or
+    ``start``) inside the bounds of the free components (no bound is relaxed to it)."""
+    for level in levels:
+        if not level.all_equality or level.extend is not None:
+            return False
+    if not qp.regularize or (damping > 0.0 and len(levels)) or any(name != ACTIVE_SET for name in qp.level_solvers):
+        return False
+    return start_inside(x_lower, x_upper, fixed, 0.0 if start is None else start)
+
+
+def try_active_bounds(qp: HierarchicalQP, jacobians, values, x_lower, x_upper, began) -> HqpResult | None:
+    """:meth:`_solve_active_bounds` unless failures in a row make this call skip it (the
+    back-off: after f failures, the next 2^(f-1) calls, at most 16, skip it; a call to which the
+    path does not apply, 0 outside the bounds of a free component, is not counted)."""
+    if qp._warm.skips:
+        with np.errstate(invalid="ignore"):
+            if start_inside(x_lower, x_upper, x_lower == x_upper, 0.0):
+                qp._warm.skips -= 1
+        return None
+    return solve_active_bounds(qp, jacobians, values, x_lower, x_upper, began)
+
+
+def solve_active_bounds(qp: HierarchicalQP, jacobians, values, x_lower, x_upper, began) -> HqpResult | None:
+    """The equality stack by :func:`~.active_bounds.solve_stack` from the bounds held at the last
+    answer, or None (then the stages decide)."""
+    path = _active_bounds_path()
+    sizes = np.array([len(J) for J in jacobians], dtype=np.int64)
+    if len(jacobians) == 1:
+        A, b = jacobians[0], values[0]
+    elif jacobians:
+        A, b = np.concatenate(jacobians), np.concatenate(values)
+    else:
+        A, b = np.zeros((0, qp.n)), np.zeros(0)
+    guess = qp._warm.bound_sides
+    if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
+        guess = sides_at_bounds(guess[0], guess[1], guess[2], x_lower == x_upper)
+    status, x, sides, residual, slack_norms, active_bounds = path.solve_stack(
+        A, b, sizes, x_lower, x_upper, guess, certified=1e3 * qp.rank_threshold,
+        feasibility=min(VERIFIED, qp.feasibility_tolerance), tolerance=qp.feasibility_tolerance)
+    if status == path.NOT_APPLICABLE:  # (0 outside the bounds of a free component, as _equalities_only)
+        return None
+    if status == path.NOT_VERIFIED:
+        qp._warm.failures += 1
+        qp._warm.skips = min(2 ** (qp._warm.failures - 1), 16)
+        return None
+    qp._warm.failures, qp._warm.bound_sides = 0, sides
+    slacks, start = [], 0
+    for size in sizes.tolist():
+        slacks.append(residual[start : start + size])
+        start += size
+    stages = len(jacobians) + 1
+    return HqpResult(
+        x=x,
+        slacks=slacks,
+        slack_norms=slack_norms,
+        active_rows=[_NO_ROWS] * len(jacobians),
+        active_bounds=active_bounds,
+        solve_time_s=time.perf_counter() - began,
+        level_solvers=[ACTIVE_BOUNDS] * stages,
+        iterations=[0] * stages,
+    )

@@ -1,0 +1,212 @@
+"""The problem types of the hierarchical QP: a level's rows (:class:`LevelRows`), the answer
+(:class:`HqpResult`), a built stage (:class:`Stage`), the names of the paths an answer reports, and
+the rank-revealing linear algebra the stages share (:func:`null_space`, :func:`least_norm`).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver, SnoptSolver
+
+from ..exceptions import InvalidInput
+from .active_set import QR_MIN_SIZE, all_true, any_true, independent_qr, scaled_least_squares, svd
+
+_NO_ROW_MASK = np.zeros(0, dtype=bool)
+_NO_ROW_MASK.flags.writeable = False
+
+SOLVERS = {"clarabel": ClarabelSolver, "osqp": OsqpSolver, "snopt": SnoptSolver}
+"""The Drake solvers a level can use (then polished by the active-set method)."""
+ACTIVE_SET = "active-set"
+"""The default path: the exact active-set method alone."""
+ACTIVE_BOUNDS = "active-bounds"
+"""How every stage was solved when the equality levels were solved at once from the guessed active
+bounds (:mod:`.active_bounds`), part of the default path."""
+KEPT_LAST_LEVEL = "kept the last level's point"
+"""How the minimum-norm stage ended when every path failed on it: the last level's point, which is
+in the optimal set (every level at its optimum, bounds held), kept instead of the minimum-norm one.
+Seen on random stacks whose last level's exact optimum is about 1e14 in size, where no double holds
+the held rows to the feasibility tolerance (tests/test_hqp.py)."""
+ROUND_OFF_LIMITED = "a point that holds its rows to the feasibility tolerance of their terms"
+"""Said in the fallbacks when every path of a level ended outside a hard row and one of their points
+misses each hard row ``g`` by at most ``feasibility_tolerance · Σ_j |g_j| |y_j|``, the tolerance taken
+relative to the size of the row's terms rather than of its bound (:meth:`HierarchicalQP._relative_miss`):
+that point is the level's answer. The product ``g·y`` alone carries a round-off of up to
+``γ_r Σ_j |g_j| |y_j|`` (Higham, ``γ_r = r ε / (1 − r ε)``, about 6e-15 for r = 28), and a
+backward-stable solve of condition ``κ`` misses by about ``κ ε`` of that: the tolerance, 1e-9 by
+default, stands five orders of magnitude above the product's round-off, so which side of it a point
+falls on does not hang on the CPU's last bits. Seen on random stacks whose level has an exact optimum
+of size 1e14, where the bound-relative tolerance is below what doubles can verify."""
+
+
+def check_solver(name: str) -> str:
+    """``name`` if it is ``"active-set"`` or one of :data:`SOLVERS`, else :class:`InvalidInput`."""
+    if name != ACTIVE_SET and name not in SOLVERS:
+        raise InvalidInput(f"unknown QP solver {name!r}; available: {[ACTIVE_SET, *sorted(SOLVERS)]}")
+    return name
+
+
+
+def _row_norms(A: np.ndarray) -> np.ndarray:
+    """Each row's norm, 1 for a zero row: the scale that puts the rows at unit norm for the rank
+    decisions."""
+    norms = np.sqrt(np.einsum("ij,ij->i", A, A))
+    return np.where(norms > 0.0, norms, 1.0)
+
+
+Extension = Callable[[MathematicalProgram, np.ndarray, bool], None]
+"""``extend(prog, x, own)``: add costs and constraints to a level's program (``own=True``), or, on
+the stages below it (``own=False``), the constraints that must keep holding there; ``x`` holds the
+affine expressions of the variables (``x = x_{k-1} + Z y``)."""
+
+
+class LevelRows:
+    """Rows ``lower ≤ A x ≤ upper`` of one level (``lower[i] == upper[i]``: an equality row).
+
+    ``extend`` (optional): a callback adding costs or constraints to this level's
+    ``MathematicalProgram`` (see :data:`Extension`); such a level is solved by its Drake solver."""
+
+    def __init__(self, A: np.ndarray, lower: np.ndarray, upper: np.ndarray, extend: Extension | None = None):
+        same = upper is lower  # (a task's equality rows: one array of values, no order to check)
+        A, lower = np.asarray(A, dtype=float), np.asarray(lower, dtype=float)
+        upper = lower if same else np.asarray(upper, dtype=float)
+        if A.ndim != 2 or lower.shape != (A.shape[0],) or upper.shape != (A.shape[0],):
+            raise InvalidInput(f"level rows: A {A.shape}, lower {lower.shape}, upper {upper.shape} do not fit")
+        if same:
+            if not all_true(np.isfinite(A)):
+                raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
+            if not all_true(np.isfinite(lower)):
+                raise InvalidInput("level rows: an equality row needs a finite value (NaN or infinite)")
+        else:
+            ordered = lower <= upper  # False on a NaN side too: the cause is looked for only then
+            if not all_true(np.isfinite(A)) or (not all_true(ordered) and any_true(np.isnan(lower) | np.isnan(upper))):
+                raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
+            if not all_true(ordered):
+                raise InvalidInput(f"level rows: lower bound above upper bound in rows {np.flatnonzero(lower > upper)}")
+        self.A, self.lower, self.upper = A, lower, upper
+        self.extend = extend
+        # The split the solver reads at every stage, made once.
+        self.all_equality = same or all_true(lower == upper)
+        if self.all_equality:
+            self.any_equality = len(A) > 0
+            self.equality = np.ones(len(A), dtype=bool)
+            self.inequality = _NO_ROW_MASK if len(A) == 0 else ~self.equality
+            self.A_eq, self.b_eq = A, lower
+            self.A_in, self.lower_in, self.upper_in = A[:0], lower[:0], upper[:0]
+        else:
+            self.equality = equality = lower == upper
+            self.inequality = inequality = ~equality
+            self.any_equality = any_true(equality)
+            self.A_eq, self.b_eq = A[equality], lower[equality]
+            self.A_in, self.lower_in, self.upper_in = A[inequality], lower[inequality], upper[inequality]
+        if not same and not all_true(np.isfinite(self.b_eq)):
+            raise InvalidInput("level rows: an equality row needs a finite value")
+
+    @functools.cached_property
+    def eq_norms(self) -> np.ndarray:
+        """The norms of the equality rows (1 for a zero row): their reference norms."""
+        return _row_norms(self.A_eq)
+
+    @functools.cached_property
+    def in_norms(self) -> np.ndarray:
+        """The norms of the inequality rows (1 for a zero row): their reference norms once held."""
+        return _row_norms(self.A_in) if len(self.A_in) else self.lower[:0]
+
+    def slack(self, x: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
+        """Signed residual ``A x - b`` on equality rows, violation ``≥ 0`` on inequality rows
+        (``r``: ``A x`` if the caller has it)."""
+        r = self.A @ x if r is None else r
+        if self.all_equality:
+            return r - self.lower
+        violation = np.maximum(np.maximum(self.lower - r, r - self.upper), 0.0)
+        return np.where(self.equality, r - self.lower, violation)
+
+
+@dataclass
+class HqpResult:
+    x: np.ndarray
+    slacks: list[np.ndarray]  # per level, see LevelRows.slack
+    slack_norms: np.ndarray
+    active_rows: list[np.ndarray]  # per level, inequality rows at one of their bounds
+    active_bounds: np.ndarray  # components of x at one of their bounds (not the fixed ones)
+    solve_time_s: float = 0.0
+    level_solvers: list[str] = field(default_factory=list)  # per stage: "active-set" or "<drake solver>+polish"
+    iterations: list[int] = field(default_factory=list)  # active-set iterations per stage (0: the guess held)
+    fallbacks: list[str] = field(default_factory=list)  # why a path failed before the next one succeeded
+
+    @property
+    def solver_calls(self) -> int:
+        """How many stages called a Drake solver."""
+        return sum(name.split("+")[0] in SOLVERS for name in self.level_solvers)
+
+
+def null_space(M: np.ndarray, threshold: float) -> np.ndarray:
+    """Orthonormal basis of ``{y : M y = 0}``; ``M``'s rows are expected at unit (reference) norm
+    and singular values ≤ ``threshold`` count as zero."""
+    if M.shape[0] == 0:
+        return np.eye(M.shape[1])
+    _, sigma, Vt = svd(M)
+    return Vt[int(np.count_nonzero(sigma > threshold)):].T
+
+
+def least_norm(A: np.ndarray, b: np.ndarray, threshold: float) -> np.ndarray:
+    """The minimum-norm least-squares solution of ``A x = b``: ``x = V_k Σ_k⁻¹ U_kᵀ b`` over the
+    singular values ``σ > threshold`` (``A``'s rows are expected at unit reference norm, so the cut
+    is the one absolute τ of every rank decision; the directions below it are left unmoved)."""
+    U, sigma, Vt = svd(A, full_matrices=False)
+    keep = sigma > threshold
+    return Vt[keep].T @ ((U[:, keep].T @ b) / sigma[keep])
+
+
+class _EqualityFactors:
+    """A level's projected equality rows at unit norm, ``B = (A_eq Z) / ‖rows of A_eq‖`` (m × r),
+    factorised once: the orthonormal basis ``null`` of ``{y : B y = 0}`` (the next levels' ``Z`` is
+    ``Z @ null``) and the minimum-norm least-squares step :meth:`step`. Householder QR of ``Bᵀ`` if
+    it proves every singular value of ``B`` above τ (:func:`~.active_set.independent_qr`: the rows
+    are independent, the step solves them exactly), else the SVD cut at τ; both give the same
+    subspace and step in exact arithmetic."""
+
+    __slots__ = ("norms", "null", "qr", "rank", "svd")
+
+    def __init__(self, B: np.ndarray, norms: np.ndarray, threshold: float):
+        self.norms = norms
+        m, r = B.shape
+        self.qr = independent_qr(B.T, threshold, full=True) if m >= QR_MIN_SIZE else None
+        if self.qr is not None:
+            self.null, self.rank = self.qr[0][:, m:], m
+        else:
+            U, sigma, Vt = svd(B)
+            self.svd = (U, sigma, Vt)
+            self.rank = rank = int(np.count_nonzero(sigma > threshold))
+            self.null = Vt[rank:].T
+
+    def step(self, rhs: np.ndarray) -> np.ndarray:
+        """The minimum-norm ``y`` minimising ``‖A_eq Z y - rhs‖`` (rank decisions on ``B``)."""
+        if self.qr is not None:  # B = Rᵀ Q1ᵀ: B y = rhs / norms exactly, y = Q1 R⁻ᵀ (rhs / norms)
+            Q, R_inv = self.qr
+            return Q[:, :self.rank] @ (R_inv.T @ (rhs / self.norms))
+        U, sigma, Vt = self.svd
+        return scaled_least_squares(U, sigma, Vt, self.rank, self.norms, rhs)
+
+
+
+@dataclass
+class Stage:
+    """One stage in ``z = (y, w)``: min ½‖M z - t‖² s.t. lower ≤ G z ≤ upper (G unit rows)."""
+
+    M: np.ndarray
+    t: np.ndarray
+    m_scale: np.ndarray
+    G: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    z0: np.ndarray
+    r: int
+    hard: np.ndarray | None  # indices (into the full list of hard rows) of G's first rows (None: all of them)
+    guess: np.ndarray  # a side per row of G
+    m_hard: int = 0  # how many of G's first rows are hard rows
+    kind: tuple[bool, bool] | None = None  # the objective's active_set.objective_kind, if known
+

@@ -1,0 +1,60 @@
+"""Every tolerance of the hierarchical QP, defined once.
+
+Rows are compared at unit norm; "relative above 1" means a tolerance ``t`` on a value ``v`` reads
+``t · max(1, |v|)``. The compiled kernels read these numbers as constants when numba compiles them:
+numba's cache on disk is keyed by each kernel's own file, so after changing a number here, delete
+the ``__pycache__`` folders of :mod:`sotdrake.hqp` (or touch the kernels' files) to recompile.
+"""
+
+from __future__ import annotations
+
+RANK_THRESHOLD = 1e-8
+"""Default τ: singular values ≤ τ of unit-row matrices count as zero (the rank of every level)."""
+
+CERTIFIED = 1e3 * RANK_THRESHOLD
+"""The smallest singular value of a level's unit rows, in what is left free, that counts as clearly
+non-zero (10³ τ): below it, the QR paths (:mod:`.equality_hierarchy`, :mod:`.active_bounds`) leave
+the decision to the active set."""
+
+NEGLIGIBLE = 1e-3 * RANK_THRESHOLD
+"""The largest singular value that counts as clearly zero (round-off of a row the levels above fix)."""
+
+FEASIBILITY = 1e-9
+"""The bound violation (on unit rows, relative above 1) beyond which a path's point is refused and
+the next path tried (:class:`~.solve.HierarchicalQP`'s default ``feasibility_tolerance``); also the
+margin by which a component counts as in the way of a bound (:data:`.equality_hierarchy.IN_THE_WAY`)
+and the margin of the last answer's held bounds read as the next call's guess."""
+
+VERIFIED = 1e-10
+"""The stricter bound check of the compiled paths (the active bounds, an equality level's
+least-squares step, the active set's own verification): a point they certify is inside its bounds
+to this (relative above 1)."""
+
+MULTIPLIER_TOLERANCE = 1e-9
+"""A held bound's multiplier may have the wrong sign by this much, relative to the size of the
+residual (``max(1, ‖x‖)`` in :mod:`.active_bounds`, ``‖ρ‖ ‖c‖`` in :mod:`.equality_hierarchy`)."""
+
+ROUND_OFF = 1e-9
+"""A hard row missed by at most this fraction of the point's size is missed by round-off (the
+rescue :func:`.rescue.onto_hard_rows` moves the point onto it)."""
+
+HELD_SIDE = 1e-12
+"""An inequality row is recorded as held at a side (for the next levels' guess) within this,
+relative above 1."""
+
+SIDE = 1e-6
+"""A Drake solver's point holds a row at a side within this, relative above 1 (its working set)."""
+
+REPORTED_ACTIVE = 1e-7
+"""A row or bound is reported active (:class:`~.solve.HqpResult`) within this of a side, relative above 1."""
+
+DEGENERATE_RETRY = (1e-4, 1e-3)
+"""At a degenerate vertex, where bounds or held rows meet nearly dependent at the same value, the
+working set's rank decisions at τ can leave out a row that the held ones imply only to within τ:
+it then moves off its bound by up to about τ times the step (seen on ``SolverDyn``'s last level at
+random valid states: 2e-8 on a unit row, against the 1e-9 every point must meet; about 4 random
+states in 100 failed so). A stage whose active-set paths end outside the bounds is solved once more
+by the active set (cold guess) with the working set's rank decisions at these fractions of τ in turn,
+right after the active set's own paths and before the Drake solvers' (which cost about 140 ms each
+on such a stage, and end outside the bounds too); every other rank decision stays at τ, and the
+point is accepted on the same checks (see :mod:`.paths`)."""

@@ -1,0 +1,61 @@
+"""The warm-start state of a hierarchical QP: what one solve leaves for the next.
+
+The answer of a solve does not depend on it to the tolerances (every path's point is checked the
+same way), but which path answers does, and so do the last bits of the point. A system keeps it
+in its Context (abstract state) and hands it to every solve, so that a cloned or reset Context
+replays a run bit for bit.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class WarmStart:
+    """The state a :class:`~.solve.HierarchicalQP` reads and writes during a solve (``n``: its
+    number of variables).
+
+    ``working_sets``: each stage's working set at the last call with the same sizes (keyed by the
+    stage's index and shapes), and under ``FREE_MINIMUM_NORM`` whether the last minimum-norm stage
+    ended with an empty working set; ``bound_sides``: the side of each bound held at the last
+    answer, or that answer ``(x, x_lower, x_upper)`` (read off when the next call needs it);
+    ``failures``/``skips``: the active bounds' back-off (after f failed tries in a row, the next
+    2^(f-1) calls, at most 16, skip them)."""
+
+    n: int
+    working_sets: dict = field(default_factory=dict)
+    bound_sides: np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    failures: int = 0
+    skips: int = 0
+
+    def __post_init__(self) -> None:
+        if self.bound_sides is None:
+            self.bound_sides = np.zeros(self.n, dtype=int)
+
+    def clear(self) -> None:
+        """Forget everything: the next solve is cold."""
+        self.working_sets.clear()
+        self.bound_sides = np.zeros(self.n, dtype=int)
+        self.failures = self.skips = 0
+
+    def __deepcopy__(self, memo: dict) -> WarmStart:  # what a Context's clone calls
+        return WarmStart(self.n, copy.deepcopy(self.working_sets, memo), copy.deepcopy(self.bound_sides, memo),
+                         self.failures, self.skips)
+
+
+class WarmStarts(dict):
+    """The warm starts of a system that solves several problems (keyed by the system, e.g. by size):
+    one abstract state of its Context. :meth:`of` gives (and creates) one."""
+
+    def of(self, key: object, n: int) -> WarmStart:
+        warm = self.get(key)
+        if warm is None:
+            warm = self[key] = WarmStart(n)
+        return warm
+
+    def __deepcopy__(self, memo: dict) -> WarmStarts:
+        return WarmStarts({key: copy.deepcopy(value, memo) for key, value in self.items()})

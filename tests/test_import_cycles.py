@@ -53,8 +53,10 @@ def imports_of(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
                 target = ".".join(base + ([node.module] if node.module else []))
             else:
                 target = node.module or ""
-            found.add(target)
-            found |= {f"{target}.{alias.name}" for alias in node.names}
+            submodules = {f"{target}.{alias.name}" for alias in node.names} & modules.keys()
+            found |= submodules
+            if len(submodules) < len(node.names):  # (``from . import a`` of submodules needs only them)
+                found.add(target)
     return {m for m in found if m in modules and m != name}
 
 

@@ -10,8 +10,8 @@ from pydrake.systems.analysis import InitializeParams, Simulator
 
 from sotdrake.dynamics.solver_dyn import SolverDyn
 from sotdrake.hqp.warm import WarmStart, WarmStarts
+from sotdrake.scenarios import talos_appli, talos_dynamics
 from sotdrake.solvers import SolverKine
-from tests.conftest import load_diagram
 
 
 def _solver(diagram, kind):
@@ -89,7 +89,7 @@ def _dyn(solver, context):
 
 @pytest.mark.slow
 def test_a_cloned_context_replays_the_tutorial_under_solver_kine():
-    appli = load_diagram("talos_appli").build_diagram(push_time=0.005, solver="hqp")
+    appli = talos_appli.build_diagram(push_time=0.005, solver="hqp")
     solver = _solver(appli.diagram, SolverKine)
     records = _replays(appli.diagram, solver, 1e-3, _kine, before=20, after=40)
     assert any("active" in name for record in records for name in record["level_solvers"])
@@ -98,7 +98,7 @@ def test_a_cloned_context_replays_the_tutorial_under_solver_kine():
 
 @pytest.mark.slow
 def test_a_cloned_context_replays_the_sway_under_solver_dyn():
-    run = load_diagram("talos_dynamics").build_diagram("sway", device="dynsimu")
+    run = talos_dynamics.build_diagram("sway", device="dynsimu")
     solver = _solver(run.diagram, SolverDyn)
     records = _replays(run.diagram, solver, run.robot.dt, _dyn, before=20, after=40)
     assert all(record["failure"] == "" for record in records)

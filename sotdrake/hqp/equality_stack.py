@@ -19,7 +19,7 @@ from .problem import ACTIVE_BOUNDS, ACTIVE_SET, HqpResult
 from .tolerances import FEASIBILITY, VERIFIED
 
 if TYPE_CHECKING:
-    from .solve import HierarchicalQP
+    from .owner import StageOwner
 
 _NO_ROWS = np.zeros(0, dtype=int)  # the active rows of an equality-only level (shared, read only)
 _NO_ROWS.flags.writeable = False
@@ -44,7 +44,7 @@ def sides_at_bounds(x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fix
     return np.where(upper, 1, np.where(lower, -1, 0))
 
 
-def equalities_only(qp: HierarchicalQP, levels, x_lower, x_upper, fixed, damping, start) -> bool:
+def equalities_only(qp: StageOwner, levels, x_lower, x_upper, fixed, damping, start) -> bool:
     """Whether :mod:`.active_bounds` may solve the stack: equality levels without extensions,
     the default path on every stage, the minimum-norm stage, no damping, and the start (0, or
     ``start``) inside the bounds of the free components (no bound is relaxed to it)."""
@@ -56,19 +56,19 @@ def equalities_only(qp: HierarchicalQP, levels, x_lower, x_upper, fixed, damping
     return start_inside(x_lower, x_upper, fixed, 0.0 if start is None else start)
 
 
-def try_active_bounds(qp: HierarchicalQP, jacobians, values, x_lower, x_upper, began) -> HqpResult | None:
+def try_active_bounds(qp: StageOwner, jacobians, values, x_lower, x_upper, began) -> HqpResult | None:
     """:meth:`_solve_active_bounds` unless failures in a row make this call skip it (the
     back-off: after f failures, the next 2^(f-1) calls, at most 16, skip it; a call to which the
     path does not apply, 0 outside the bounds of a free component, is not counted)."""
-    if qp._warm.skips:
+    if qp.warm.skips:
         with np.errstate(invalid="ignore"):
             if start_inside(x_lower, x_upper, x_lower == x_upper, 0.0):
-                qp._warm.skips -= 1
+                qp.warm.skips -= 1
         return None
     return solve_active_bounds(qp, jacobians, values, x_lower, x_upper, began)
 
 
-def solve_active_bounds(qp: HierarchicalQP, jacobians, values, x_lower, x_upper, began) -> HqpResult | None:
+def solve_active_bounds(qp: StageOwner, jacobians, values, x_lower, x_upper, began) -> HqpResult | None:
     """The equality stack by :func:`~.active_bounds.solve_stack` from the bounds held at the last
     answer, or None (then the stages decide)."""
     path = _active_bounds_path()
@@ -79,7 +79,7 @@ def solve_active_bounds(qp: HierarchicalQP, jacobians, values, x_lower, x_upper,
         A, b = np.concatenate(jacobians), np.concatenate(values)
     else:
         A, b = np.zeros((0, qp.n)), np.zeros(0)
-    guess = qp._warm.bound_sides
+    guess = qp.warm.bound_sides
     if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
         guess = sides_at_bounds(guess[0], guess[1], guess[2], x_lower == x_upper)
     status, x, sides, residual, slack_norms, active_bounds = path.solve_stack(
@@ -88,10 +88,10 @@ def solve_active_bounds(qp: HierarchicalQP, jacobians, values, x_lower, x_upper,
     if status == path.NOT_APPLICABLE:  # (0 outside the bounds of a free component, as _equalities_only)
         return None
     if status == path.NOT_VERIFIED:
-        qp._warm.failures += 1
-        qp._warm.skips = min(2 ** (qp._warm.failures - 1), 16)
+        qp.warm.failures += 1
+        qp.warm.skips = min(2 ** (qp.warm.failures - 1), 16)
         return None
-    qp._warm.failures, qp._warm.bound_sides = 0, sides
+    qp.warm.failures, qp.warm.bound_sides = 0, sides
     slacks, start = [], 0
     for size in sizes.tolist():
         slacks.append(residual[start : start + size])

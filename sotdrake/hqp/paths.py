@@ -33,7 +33,8 @@ from .active_set import ActiveSetFailure, ActiveSetResult, all_true, any_true, p
 from .tolerances import DEGENERATE_RETRY, VERIFIED
 
 if TYPE_CHECKING:
-    from .solve import HierarchicalQP, LevelRows, Stage
+    from .owner import StageOwner
+    from .problem import LevelRows, Stage
 
 ACTIVE_SET = "active-set"
 OUTSIDE = "a point outside the bounds"
@@ -46,7 +47,7 @@ class Attempt:
     ``x0`` and the basis ``Z`` of what is left free, the hard rows, the damping, the built stage,
     the cached working set (None: none), and what the paths leave: failures, points outside."""
 
-    qp: HierarchicalQP
+    qp: StageOwner
     level: LevelRows | None
     x0: np.ndarray
     Z: np.ndarray
@@ -59,10 +60,10 @@ class Attempt:
 
     def cold_guess(self) -> tuple[np.ndarray, bool]:
         """The dual method's guess of the working set, and whether it is valid as it is (see
-        :meth:`.solve.HierarchicalQP._level_guess`); the built stage's own guess if it has none."""
+        :meth:`.solve.HierarchicalQP.level_guess`); the built stage's own guess if it has none."""
         stage = self.stage
         dual, valid = ((projection_guess(stage.t, stage.G, stage.lower, stage.upper), False) if self.level is None
-                       else self.qp._level_guess(stage))
+                       else self.qp.level_guess(stage))
         return (stage.guess, False) if dual is None else (dual, valid)
 
     def polish(self, guess: np.ndarray, valid: bool, working_threshold: float | None = None) -> ActiveSetResult:
@@ -141,7 +142,7 @@ class PolishedDrake(Path):
 
     def solve(self, a: Attempt) -> tuple[ActiveSetResult, str] | None:
         level, stage, x0, Z = a.level, a.stage, a.x0, a.Z
-        x, message = a.qp._programs.solve(level, x0, Z, a.hard, a.mu, self.name)
+        x, message = a.qp.programs.solve(level, x0, Z, a.hard, a.mu, self.name)
         if x is None:
             a.failures.append(f"{self.name}: {message}")
             return None
@@ -185,7 +186,7 @@ def extended_paths(solver: str, solvers: dict) -> list[str]:
 
 
 # --- the shortcuts: a stage's point without building it ---------------------------------------
-def least_squares_level(qp: HierarchicalQP, level, x0, Z, hard, eq_factors) -> np.ndarray | None:
+def least_squares_level(qp: StageOwner, level, x0, Z, hard, eq_factors) -> np.ndarray | None:
     """An equality-only level by its least-squares step alone, or None: the EQP point of the
     empty working set (the minimum-norm weighted least-squares step, from the level's SVD) is
     the level's optimum if it satisfies the bounds and held rows (the KKT conditions with no
@@ -198,7 +199,7 @@ def least_squares_level(qp: HierarchicalQP, level, x0, Z, hard, eq_factors) -> n
     return free_step(qp, x0, Z, hard, y)
 
 
-def free_step(qp: HierarchicalQP, x0, Z, hard, y) -> np.ndarray | None:
+def free_step(qp: StageOwner, x0, Z, hard, y) -> np.ndarray | None:
     """``x0 + Z y`` if the step ``y`` (the EQP point of a stage's empty working set) is finite and
     satisfies the stage's bounds and held rows (see :meth:`_least_squares_level`), else None."""
     if not all_true(np.isfinite(y)):

@@ -20,24 +20,24 @@ from .problem import KEPT_LAST_LEVEL, ROUND_OFF_LIMITED, Stage, least_norm
 from .tolerances import ROUND_OFF
 
 if TYPE_CHECKING:
+    from .owner import StageOwner
     from .paths import Attempt
-    from .solve import HierarchicalQP
 
 REFINEMENTS = 2
 """The round-off rescue's corrections, at most."""
 
 
-def accept(qp: HierarchicalQP, stage: Stage, y: np.ndarray) -> bool:
+def accept(qp: StageOwner, stage: Stage, y: np.ndarray) -> bool:
     """A path's point is kept if it is finite and inside the bounds."""
     return all_true(np.isfinite(y)) and bounds_hold(qp, stage, y)
 
 
-def bounds_hold(qp: HierarchicalQP, stage: Stage, y: np.ndarray) -> bool:
+def bounds_hold(qp: StageOwner, stage: Stage, y: np.ndarray) -> bool:
     _, below, above = missed_hard_rows(qp, stage, y)
     return not any_true(below | above)
 
 
-def missed_hard_rows(qp: HierarchicalQP, stage: Stage, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def missed_hard_rows(qp: StageOwner, stage: Stage, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The hard rows' values at ``y`` and the rows missed below and above by more than the
     feasibility tolerance (relative above 1; a NaN value misses both)."""
     m_hard = stage.m_hard
@@ -47,7 +47,7 @@ def missed_hard_rows(qp: HierarchicalQP, stage: Stage, y: np.ndarray) -> tuple[n
     return value, ~(value >= lo - tol * np.maximum(1.0, np.abs(lo))), ~(value <= hi + tol * np.maximum(1.0, np.abs(hi)))
 
 
-def onto_hard_rows(qp: HierarchicalQP, stage: Stage, y: np.ndarray, side: np.ndarray) -> np.ndarray | None:
+def onto_hard_rows(qp: StageOwner, stage: Stage, y: np.ndarray, side: np.ndarray) -> np.ndarray | None:
     """A point that misses hard rows by round-off only, moved onto them: the least-norm correction
     ``δ`` that puts the rows of the working set (``side``) and the missed rows at their sides,
     at most :data:`REFINEMENTS` times; None when a row is missed by more than
@@ -82,7 +82,7 @@ def onto_hard_rows(qp: HierarchicalQP, stage: Stage, y: np.ndarray, side: np.nda
     return None
 
 
-def relative_miss(qp: HierarchicalQP, stage: Stage, y: np.ndarray) -> float:
+def relative_miss(qp: StageOwner, stage: Stage, y: np.ndarray) -> float:
     """The largest miss of a hard row beyond the feasibility tolerance, as a fraction of that
     tolerance taken relative to the size of the row's terms, ``tol · Σ_j |g_j| |y_j|``: ≤ 1 when
     ``y`` holds every hard row to the tolerance relative to its terms (see

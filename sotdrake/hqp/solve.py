@@ -147,11 +147,11 @@ class HierarchicalQP:
         self.n, self.solver, self.level_solvers = n, solver, list(level_solvers or [])
         self.hold_tolerance, self.rank_threshold, self.regularize = hold_tolerance, rank_threshold, regularize
         self.feasibility_tolerance = feasibility_tolerance
-        self._programs = DrakePrograms(n)  # Drake's programs and solvers, cached: results never depend on them
+        self.programs = DrakePrograms(n)  # Drake's programs and solvers, cached: results never depend on them
         self._identity = np.eye(n)  # a constant (never written to)
         self._all_components = np.arange(n)  # the bound rows' indices when every component is bounded
         # The warm starts (see .warm): the call's ``warm``, else this object's own.
-        self._own_warm = self._warm = WarmStart(n)
+        self._own_warm = self.warm = WarmStart(n)
 
     def forget_warm_starts(self) -> None:
         """Drop every warm start of this object's own (the working sets, the held bounds' guess, the
@@ -161,9 +161,9 @@ class HierarchicalQP:
 
     def _use(self, warm: WarmStart | None) -> None:
         if warm is None:
-            self._warm = self._own_warm
+            self.warm = self._own_warm
         elif isinstance(warm, WarmStart) and warm.n == self.n:
-            self._warm = warm
+            self.warm = warm
         else:
             raise InvalidInput(f"warm must be a WarmStart of {self.n} variables, got {warm!r:.80}")
 
@@ -219,7 +219,7 @@ class HierarchicalQP:
                 if result is not None:
                     return result
             result = self._solve_stages(levels, x_lower, x_upper, damping, solver, began, start)
-            self._warm.bound_sides = (result.x, x_lower, x_upper)
+            self.warm.bound_sides = (result.x, x_lower, x_upper)
             return result
 
     def _equalities_only(self, levels, x_lower, x_upper, fixed, damping, start) -> bool:
@@ -352,7 +352,7 @@ class HierarchicalQP:
         if (level is not None and level.extend is not None) or carried:
             return self._extended(level, x0, Z, hard, mu, name, carried, stage, what)
         key = (k, level is None, stage.G.shape, stage.M.shape)
-        attempt = declared.Attempt(self, level, x0, Z, hard, mu, stage, self._warm.working_sets.get(key))
+        attempt = declared.Attempt(self, level, x0, Z, hard, mu, stage, self.warm.working_sets.get(key))
         for path in declared.stage_paths(name, attempt.cached is not None):
             found = path.attempt(attempt)
             if found is None:
@@ -361,14 +361,14 @@ class HierarchicalQP:
             y = self._accepted(attempt, path.name, solution, label)
             if y is None:
                 continue
-            self._warm.working_sets[key] = solution.side
+            self.warm.working_sets[key] = solution.side
             if level is None:
-                self._warm.working_sets[_FREE_MINIMUM_NORM] = not any_true(solution.side)
+                self.warm.working_sets[_FREE_MINIMUM_NORM] = not any_true(solution.side)
             fallbacks += [f"{what}: {failure}" for failure in attempt.failures]
             return x0 + Z @ y, self._hard_sides(hard[5], stage, solution.side), label, solution.iterations
         x, side, label, count = rescue.after_every_path(attempt, fallbacks, what)
         if level is not None:
-            self._warm.working_sets[key] = side
+            self.warm.working_sets[key] = side
         return x, (side if level is None else self._hard_sides(hard[5], stage, side)), label, count
 
     def _shortcut(self, level, x0, Z, hard, mu, name, carried, eq_factors) -> np.ndarray | None:
@@ -377,7 +377,7 @@ class HierarchicalQP:
         if (eq_factors is not None and name == ACTIVE_SET and mu == 0.0 and level.extend is None and not carried
                 and level.all_equality):
             return declared.least_squares_level(self, level, x0, Z, hard, eq_factors)
-        if level is None and name == ACTIVE_SET and not carried and self._warm.working_sets.get(_FREE_MINIMUM_NORM, False):
+        if level is None and name == ACTIVE_SET and not carried and self.warm.working_sets.get(_FREE_MINIMUM_NORM, False):
             # The minimum-norm stage's unconstrained point y = -Zᵀx0 (x0's component in range(Z)
             # removed), tried while the last such stage ended with an empty working set (a warm
             # start: a cold solve, where it rarely holds, does not try it).
@@ -390,7 +390,7 @@ class HierarchicalQP:
         failures: list[str] = []
         r = Z.shape[1]
         for attempt in declared.extended_paths(name, SOLVERS):
-            x, message = self._programs.solve(level, x0, Z, hard, mu, attempt, carried)
+            x, message = self.programs.solve(level, x0, Z, hard, mu, attempt, carried)
             if x is not None and rescue.bounds_hold(self, stage, Z.T @ (x - x0)):
                 side = declared.sides(stage, np.concatenate([Z.T @ (x - x0), np.zeros(len(stage.z0) - r)]))
                 return x, self._hard_sides(hard[5], stage, side), attempt, 0
@@ -416,7 +416,7 @@ class HierarchicalQP:
         return corrected
 
     @staticmethod
-    def _level_guess(stage: _Stage) -> tuple[np.ndarray | None, bool]:
+    def level_guess(stage: _Stage) -> tuple[np.ndarray | None, bool]:
         """The cold guess of a level's working set: DAQP's (:func:`~.active_set.daqp_guess`) when the
         objective's rows are of comparable weights (reference norms within :data:`_DAQP_SPREAD`),
         else quadprog's (:func:`~.active_set.dual_guess`). On a level whose weights spread further

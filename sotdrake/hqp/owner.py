@@ -1,0 +1,25 @@
+"""What the stage paths (:mod:`.paths`), the rescues (:mod:`.rescue`) and the equality-stack path
+(:mod:`.equality_stack`) read of the solver that runs them (:class:`.solve.HierarchicalQP`): its
+size, tolerances and settings, the warm start of the call and its cached Drake programs."""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from .drake_program import DrakePrograms
+from .problem import Stage
+from .warm import WarmStart
+
+
+class StageOwner(Protocol):
+    n: int  # the number of variables
+    rank_threshold: float  # singular values below it (relative) are taken as zero
+    feasibility_tolerance: float  # a hard row holds within it
+    regularize: bool  # the minimum-norm stage runs after the levels
+    level_solvers: list[str]  # the path chosen for each level (empty: the default)
+    warm: WarmStart  # the warm start of the call being solved
+    programs: DrakePrograms  # Drake's programs and solvers, cached
+
+    def level_guess(self, stage: Stage) -> tuple[np.ndarray | None, bool]: ...

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import ast
 import importlib
+import importlib.util
 import inspect
 import pkgutil
-import importlib.util
 import re
 import textwrap
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from sotdrake.hqp.cascade import _full_rank_prefix, cascade_factorization, svd_cascade
 from sotdrake.solvers import solve_cascade
-from sotdrake.solvers.cascade import _full_rank_prefix, cascade_factorization, svd_cascade
 
 
 def random_stack(rng, nv):

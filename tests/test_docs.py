@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 README = ROOT / "README.md"
 GETTING_STARTED = DOCS / "getting_started.md"
-DOCUMENTED_SUBPACKAGES = ("features", "solvers", "dynamics", "walking", "robots", "physics", "collision", "live", "sweep")
+DOCUMENTED_SUBPACKAGES = ("features", "solvers", "hqp", "dynamics", "walking", "robots", "physics", "collision", "live", "sweep")
 
 
 # --- the site ---------------------------------------------------------------------------------

@@ -25,9 +25,9 @@ from sotdrake import (
     signals_report,
     weighted_level,
 )
+from sotdrake.hqp.cascade import solve_cascade
 from sotdrake.hqp.solve import HierarchicalQP, LevelRows
 from sotdrake.robot import Robot
-from sotdrake.solvers.cascade import solve_cascade
 from sotdrake.task import Task
 
 

@@ -279,6 +279,7 @@ API_MODULES = (
     "sotdrake",
     "sotdrake.features",
     "sotdrake.solvers",
+    "sotdrake.hqp",
     "sotdrake.dynamics",
     "sotdrake.walking",
     "sotdrake.robots",

@@ -39,7 +39,8 @@ from ..compiled import read_only
 from ..configuration import Layout
 from ..exceptions import SolverError, StackError, check_number
 from ..hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, check_solver
-from ..hqp.equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
+from ..hqp.equality_hierarchy import StackedLevels
+from ..hqp.stack_paths import DYNAMIC, StackProblem, solve_stack
 from ..hqp.warm import WarmStart, WarmStarts
 from ..robots import RobotModel
 from ..solvers.stack import Stack, StackSolver
@@ -326,7 +327,7 @@ class SolverDyn(StackSolver[DynSettings]):
             if all(task.lower is task.upper for task in tasks):  # the levels assembled and stacked compiled
                 scales = [WRENCH_REGULARIZATION * weight for weight in _shear_weights(loads, len(contacts))]
                 stack = reduced_stack(terms, stacked, tasks, s.damping_gain, scales, passive)
-                fast = self._solve_stacked(context, small, stack, lower[:m], upper[:m], s.solver, warm)
+                fast = self._solve(context, small, stack, lower[:m], upper[:m], s.solver, warm)
             else:
                 reduced, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
                 fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver, warm)
@@ -447,28 +448,17 @@ class SolverDyn(StackSolver[DynSettings]):
         Context's abstract state."""
         return context.get_abstract_state(self._warm_index).get_value().of((problem, n), n)
 
-    def _solve_stacked(self, context: Context, hqp: HierarchicalQP, stack: StackedLevels, lower: np.ndarray,
-                       upper: np.ndarray, solver: str, warm: WarmStart | None = None) -> HqpResult:
-        """:meth:`_solve` of equality levels already stacked (:func:`.reduced_levels.reduced_stack`)."""
-        if solver == ACTIVE_SET:
-            result = solve_stacked(stack, lower, upper, *self._held_guess(context))
-            if result is not None:
-                return result
-        return hqp.solve(stack.levels(), lower, upper, 0.0, solver, start=inside(lower, upper), warm=warm)
-
-    def _solve(self, context: Context, hqp: HierarchicalQP, rows: list[Rows], lower: np.ndarray, upper: np.ndarray,
-               solver: str, warm: WarmStart | None = None) -> HqpResult:
-        """The hierarchy through its QR path when that is clear-cut (every level an equality, the
-        bounds at the optimum held as equalities and certified by their multipliers:
-        :mod:`..hqp.equality_hierarchy`, the same answer), else ``hqp`` (which checks the rows).
-        The QR path starts from the bounds held at the last tick (discrete state); it is not tried
-        when a Drake solver is chosen."""
-        if solver == ACTIVE_SET and all(lo is hi for _, lo, hi in rows):
-            result = solve_equality_hierarchy([(A, b) for A, b, _ in rows], lower, upper, *self._held_guess(context))
-            if result is not None:
-                return result
-        return hqp.solve([LevelRows(*level) for level in rows], lower, upper, 0.0, solver, start=inside(lower, upper),
-                         warm=warm)
+    def _solve(self, context: Context, hqp: HierarchicalQP, rows: list[Rows] | StackedLevels, lower: np.ndarray,
+               upper: np.ndarray, solver: str, warm: WarmStart) -> HqpResult:
+        """The hierarchy ``rows`` (or the equality levels already stacked,
+        :func:`.reduced_levels.reduced_stack`) by the paths :data:`~sotdrake.hqp.stack_paths.DYNAMIC`
+        declares: the QR sweep when that is clear-cut (every level an equality, the bounds at the
+        optimum held as equalities and certified by their multipliers, from the bounds held at the
+        last tick), else level by level (which checks the rows)."""
+        levels, stacked = ([], rows) if isinstance(rows, StackedLevels) else (rows, None)
+        problem = StackProblem(levels, lower, upper, 0.0, solver, start=inside(lower, upper), warm=warm,
+                               held=self._held_guess(context), stacked=stacked)
+        return solve_stack(hqp, problem, DYNAMIC)
 
     def _calc_wrenches(self, context: Context, output) -> None:
         wrenches = self._solution.Eval(context).wrenches

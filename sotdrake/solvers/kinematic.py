@@ -14,8 +14,8 @@ from pydrake.systems.framework import Context, ValueProducer
 
 from ..configuration import Layout
 from ..exceptions import InvalidInput, SolverError
+from ..hqp.cascade import CascadeResult
 from ..task import TaskLevel
-from .cascade import CascadeResult
 from .second_order import curvature_correction
 from .stack import S, Stack, StackSettings, StackSolver
 

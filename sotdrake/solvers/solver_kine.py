@@ -5,9 +5,9 @@ same stack commands, the stack in the Context), plus a ``position`` input (``q``
 for the joint limits, which become velocity bounds over one tick (:mod:`.limits`) above every task. Inequality tasks
 (``TaskInequality``) mix freely with equality tasks in any level.
 
-A stack of equality tasks goes first to :meth:`~.hqp.HierarchicalQP.solve_equalities` (the whole
-stack by one QR from the last tick's active limits, verified; :mod:`.active_bounds`), and to the
-level-by-level solve only when that does not verify.
+The stack is solved by the paths :data:`~sotdrake.hqp.stack_paths.KINEMATIC` declares: a stack of
+equality tasks first at once, by one QR from the last tick's active limits, verified
+(:mod:`~sotdrake.hqp.equality_stack`), then level by level when that does not apply or verify.
 
 ``setAccelerationLimit(a_max)`` adds hard bounds ``|v − v_prev| ≤ a_max dt`` on each joint (the
 last command ``v_prev`` kept in the Context), combined with the position and velocity limits and the
@@ -30,7 +30,8 @@ from pydrake.systems.framework import Context, InputPort
 
 from ..configuration import Layout
 from ..exceptions import InvalidInput, SolverError
-from ..hqp import ACTIVE_SET, HierarchicalQP, LevelRows, check_solver
+from ..hqp import ACTIVE_SET, HierarchicalQP, check_solver
+from ..hqp.stack_paths import KINEMATIC, StackProblem, solve_stack
 from ..hqp.warm import WarmStart
 from ..robots import RobotModel
 from .acceleration_limits import MAX_ACCELERATION, AccelerationBounds
@@ -190,33 +191,26 @@ class SolverKine(KinematicSolver[HqpSettings]):
             lower, upper = self._acceleration_bounds(lower, upper, q, self._previous_velocity(context), s.acceleration_limit,
                                                      self._period, s.position_margin)
         diagnostics = HqpDiagnostics(tasks=(["contacts"] if s.contacts else []) + list(s.tasks))
-        result = None
         warm = context.get_abstract_state(self._warm_index).get_value()
-        if s.solver == ACTIVE_SET and all(level.upper is level.lower for level in task_levels):
-            # Equality tasks: the stack at once from the last tick's active limits, if that verifies
-            # (a NaN or infinite value makes it fail, and LevelRows below names it).
-            result = self._hqp.solve_equalities([level.jacobian for level in task_levels], [level.lower for level in task_levels],
-                                                lower, upper, s.damping, warm=warm)
-        if result is None:
-            # LevelRows checks every level's shapes and values (finite A, ordered sides without NaN, finite
-            # values of equality rows); only when it refuses one are the levels checked again to name the task.
-            try:
-                levels = [LevelRows(level.jacobian, level.lower, level.upper) for level in task_levels]
-                if any(level.A.shape[1] != self.nv for level in levels):
-                    raise InvalidInput("a level's columns do not fit nv")
-            except InvalidInput:
-                self._levels(context, s)  # raises SolverError naming the task, if a task's values are wrong
-                raise
-            try:
-                # With acceleration limits, 0 may lie outside the bounds: the solve starts inside them,
-                # so that every bound holds (a start outside would relax the bound it violates).
-                start = np.clip(0.0, lower, upper) if s.acceleration_limit is not None else None
-                result = self._hqp.solve(levels, lower, upper, s.damping, s.solver, start=start, warm=warm)
-            except SolverError as error:
-                diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
-                log.warning("%s: %s; the device holds", self.name, diagnostics.failure)
-                value.set_value(_Solution(np.zeros(self.nv), np.full(len(levels), np.nan), diagnostics, task_levels.tasks))
-                return
+        # With acceleration limits, 0 may lie outside the bounds: the stages start inside them, so
+        # that every bound holds (a start outside would relax the bound it violates).
+        start = np.clip(0.0, lower, upper) if s.acceleration_limit is not None else None
+        problem = StackProblem([(level.jacobian, level.lower, level.upper) for level in task_levels], lower, upper,
+                               s.damping, s.solver, start=start, warm=warm)
+        try:
+            if any(level.jacobian.ndim != 2 or level.jacobian.shape[1] != self.nv for level in task_levels):
+                raise InvalidInput("a level's columns do not fit nv")
+            result = solve_stack(self._hqp, problem, KINEMATIC)
+        except InvalidInput:
+            # The stages' LevelRows check every level's shapes and values (finite A, ordered sides
+            # without NaN, finite values of equality rows); the levels are checked again to name the task.
+            self._levels(context, s)  # raises SolverError naming the task, if a task's values are wrong
+            raise
+        except SolverError as error:
+            diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
+            log.warning("%s: %s; the device holds", self.name, diagnostics.failure)
+            value.set_value(_Solution(np.zeros(self.nv), np.full(len(task_levels), np.nan), diagnostics, task_levels.tasks))
+            return
         diagnostics.slack_norms = result.slack_norms
         diagnostics.active_rows = result.active_rows
         diagnostics.active_limits = result.active_bounds

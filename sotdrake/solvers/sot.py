@@ -24,7 +24,8 @@ from pydrake.systems.framework import Context
 
 from ..configuration import Layout
 from ..exceptions import SolverError
-from .cascade import cascade_factorization, cascade_residuals
+from ..hqp.cascade import cascade_residuals
+from ..hqp.stack_paths import CASCADE
 from .kinematic import KinematicSolver
 from .stack import MAX_DAMPING, MAX_SVD_THRESHOLD, StackSettings
 from .velocity_scaling import scale_to_limits, velocity_scale
@@ -96,7 +97,7 @@ class SOT(KinematicSolver[StackSettings]):
                 raise SolverError(f"{self.name} cannot solve inequality rows: use the hierarchical QP")
         pairs = [(level.jacobian, level.reference) for level in levels]
         try:
-            result = cascade_factorization(pairs, nv, s.svd_threshold, s.damping, s.control_selection)
+            result = CASCADE.factorize(pairs, nv, s.svd_threshold, s.damping, s.control_selection)  # (BASIC: the cascade alone)
         except (SolverError, ValueError, np.linalg.LinAlgError):
             result = None
         if result is None or not math.isfinite(result.velocity.sum() + sum(r.sum() for _, r in pairs)):

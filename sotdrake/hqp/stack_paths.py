@@ -1,0 +1,168 @@
+"""The ways a whole stack is solved, declared once, and which solver tries which, in order.
+
+A *stack path* takes every level at once. The closed forms answer only when they apply and their
+answer verifies, and that answer is then the one the level-by-level stages would give (to the
+tolerances); otherwise they give None and the next path is tried. The stages always answer or raise
+:class:`~sotdrake.exceptions.SolverError`, so a list that ends with them always decides:
+
+* :data:`CASCADE`: the damped pseudo-inverse cascade of sot-core's ``SOT`` (:mod:`.cascade`). It
+  applies to equality levels without bounds. Without damping its answer is the stages'
+  minimum-norm point of the hierarchy when every rank decision is clear; with damping ``δ > 0`` it
+  is the seed's damped inverse of every level (not a strict QP any more, as in sot-core).
+* :data:`QR_SWEEP`: equality levels under bounds, by one pivoted-QR sweep per guess of the bounds
+  held at the optimum, certified by their multipliers (:mod:`.equality_hierarchy`). The guess is
+  the bounds held at the last tick.
+* :data:`ACTIVE_BOUNDS`: equality levels under bounds, by one QR of all the levels with the bounds
+  held at the last call, certified by the minimum-norm stage's KKT conditions
+  (:mod:`.equality_stack`), with a back-off after failures kept in the warm start.
+* :data:`STAGES`: level by level, each stage's own paths tried in the order of :mod:`.paths`
+  (:meth:`.solve.HierarchicalQP.solve`). It takes inequality rows and Drake's solvers.
+
+What each solver tries, in order:
+
+=========================  ==================================
+``SOT`` (basic)            :data:`BASIC` = (cascade,)
+``SolverKine``             :data:`KINEMATIC` = (active bounds, stages)
+``SolverDyn``              :data:`DYNAMIC` = (QR sweep, stages)
+=========================  ==================================
+
+The closed forms are tried only with the default solver (``"active-set"``): a chosen Drake solver
+goes to the stages at once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import SolverError
+from .cascade import CascadeFactorization, cascade_factorization
+from .equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
+from .problem import ACTIVE_SET, HqpResult, LevelRows
+from .solve import HierarchicalQP
+from .warm import WarmStart
+
+CASCADE_NAME = "cascade"
+
+
+@dataclass
+class StackProblem:
+    """One stack to solve: ``levels`` ``[(A_k, lower_k, upper_k), …]``, highest first (an equality
+    level has ``lower_k is upper_k``), or the same levels already ``stacked`` (equalities only),
+    the bounds ``x_lower ≤ x ≤ x_upper``, the damping ``μ`` of the last level, the solver's name,
+    the stages' start (None: 0), the warm start of the call, and ``held``: the components expected
+    at their lower and at their upper bound (the QR sweep's first guess)."""
+
+    levels: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]
+    x_lower: np.ndarray
+    x_upper: np.ndarray
+    damping: float = 0.0
+    solver: str = ACTIVE_SET
+    start: np.ndarray | None = None
+    warm: WarmStart | None = None
+    held: tuple[Sequence[int], Sequence[int]] = ((), ())
+    stacked: StackedLevels | None = None
+
+    @property
+    def equalities_only(self) -> bool:
+        return self.stacked is not None or all(lower is upper for _, lower, upper in self.levels)
+
+
+class StackPath:
+    """A way to solve a whole stack: :meth:`attempt` gives the answer, or None when it does not
+    apply or does not verify."""
+
+    name: str
+
+    def attempt(self, qp: HierarchicalQP, problem: StackProblem) -> HqpResult | None:
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"<stack path {self.name!r}>"
+
+
+class Cascade(StackPath):
+    """The damped pseudo-inverse cascade (:mod:`.cascade`) of equality levels without bounds."""
+
+    name = CASCADE_NAME
+
+    def factorize(self, levels: Sequence[tuple[np.ndarray, np.ndarray]], n: int, threshold: float,
+                  damping: float | Sequence[float] = 0.0, selection: np.ndarray | None = None) -> CascadeFactorization:
+        """The cascade of ``levels`` ``[(J_k, ė*_k), …]`` kept for other references (what ``SOT``
+        uses: it scales the references to its velocity limits and solves again)."""
+        return cascade_factorization(levels, n, threshold, damping, selection)
+
+    def attempt(self, qp: HierarchicalQP, problem: StackProblem) -> HqpResult | None:
+        p = problem
+        if (p.solver != ACTIVE_SET or not p.equalities_only or np.isfinite(p.x_lower).any()
+                or np.isfinite(p.x_upper).any()):
+            return None
+        levels = [(A, b) for A, b, _ in p.levels] if p.stacked is None else [(level.A, level.lower) for level in p.stacked.levels()]
+        try:
+            x = self.factorize(levels, qp.n, qp.rank_threshold, p.damping).velocity
+        except (SolverError, ValueError, np.linalg.LinAlgError):
+            return None
+        if not np.isfinite(x).all():
+            return None
+        slacks = [A @ x - b for A, b in levels]
+        count = len(levels)
+        return HqpResult(x=x, slacks=slacks, slack_norms=np.array([np.linalg.norm(s) for s in slacks]),
+                         active_rows=[np.zeros(0, dtype=int)] * count, active_bounds=np.zeros(0, dtype=int),
+                         level_solvers=[CASCADE_NAME] * count, iterations=[0] * count)
+
+
+class QrSweep(StackPath):
+    """Equality levels under bounds by the QR sweep (:mod:`.equality_hierarchy`)."""
+
+    name = "qr-sweep"
+
+    def attempt(self, qp: HierarchicalQP, problem: StackProblem) -> HqpResult | None:
+        p = problem
+        if p.solver != ACTIVE_SET:
+            return None
+        if p.stacked is not None:
+            return solve_stacked(p.stacked, p.x_lower, p.x_upper, *p.held)
+        if not p.equalities_only:
+            return None
+        return solve_equality_hierarchy([(A, b) for A, b, _ in p.levels], p.x_lower, p.x_upper, *p.held)
+
+
+class ActiveBounds(StackPath):
+    """Equality levels under bounds from the bounds held at the last call (:mod:`.equality_stack`)."""
+
+    name = "active-bounds"
+
+    def attempt(self, qp: HierarchicalQP, problem: StackProblem) -> HqpResult | None:
+        p = problem
+        if p.solver != ACTIVE_SET or p.stacked is not None or not p.equalities_only:
+            return None
+        return qp.solve_equalities([A for A, _, _ in p.levels], [b for _, b, _ in p.levels], p.x_lower, p.x_upper,
+                                   p.damping, warm=p.warm)
+
+
+class Stages(StackPath):
+    """Level by level (:meth:`.solve.HierarchicalQP.solve`): answers or raises."""
+
+    name = "stages"
+
+    def attempt(self, qp: HierarchicalQP, problem: StackProblem) -> HqpResult | None:
+        p = problem
+        levels = p.stacked.levels() if p.stacked is not None else [LevelRows(*level) for level in p.levels]
+        return qp.solve(levels, p.x_lower, p.x_upper, p.damping, p.solver, start=p.start, warm=p.warm)
+
+
+CASCADE, QR_SWEEP, ACTIVE_BOUNDS, STAGES = Cascade(), QrSweep(), ActiveBounds(), Stages()
+BASIC: tuple[StackPath, ...] = (CASCADE,)
+KINEMATIC: tuple[StackPath, ...] = (ACTIVE_BOUNDS, STAGES)
+DYNAMIC: tuple[StackPath, ...] = (QR_SWEEP, STAGES)
+
+
+def solve_stack(qp: HierarchicalQP, problem: StackProblem, paths: Sequence[StackPath]) -> HqpResult:
+    """The first answer of ``paths`` tried in order; :class:`SolverError` when none answers."""
+    for path in paths:
+        result = path.attempt(qp, problem)
+        if result is not None:
+            return result
+    raise SolverError(f"no path answered ({', '.join(path.name for path in paths)})")

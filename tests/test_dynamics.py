@@ -13,9 +13,10 @@ from sotdrake import TALOS_GRIPPERS
 from sotdrake.configuration import Layout, integrate
 from sotdrake.dynamics.contact import Contact6d, friction_ratio, wrench_constraints
 from sotdrake.dynamics.device import integrate_acceleration
+from sotdrake.dynamics.dyn_types import ContactNotFound
+from sotdrake.dynamics.formulation import ActiveContact, actuated_rows, dynamic_levels, variable_bounds
 from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
-from sotdrake.dynamics.solver_dyn import ActiveContact, ContactNotFound, actuated_rows, dynamic_levels, variable_bounds
 from sotdrake.dynamics.task_dyn_pd import pd_reference
 from sotdrake.dynamics.terms import acceleration_bounds, com_terms, gravity_columns
 from sotdrake.exceptions import InvalidInput, StackError
@@ -264,7 +265,7 @@ def test_levels_and_bounds_match_their_definitions(standing, rng):
     the bounds from :func:`acceleration_bounds` and :func:`variable_bounds` with the control
     selection applied (exactly equal)."""
     from sotdrake.dynamics.contact import world_wrench_map
-    from sotdrake.dynamics.solver_dyn import shear_weights, wrench_regularization
+    from sotdrake.dynamics.formulation import shear_weights, wrench_regularization
 
     robot, diagram, *_ = standing
     sot, nv, na = robot.sot, robot.model.nv, robot.sot.na

@@ -9,8 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from sotdrake.dynamics.contact import ContactRows, wrench_constraints
-from sotdrake.dynamics.reduced_levels import StackedContacts, reduced_stack, torques_and_checks
-from sotdrake.dynamics.solver_dyn import (
+from sotdrake.dynamics.formulation import (
     WRENCH_REGULARIZATION,
     ActiveContact,
     _shear_weights,
@@ -21,6 +20,7 @@ from sotdrake.dynamics.solver_dyn import (
     unactuated_rows,
     wrench_slices,
 )
+from sotdrake.dynamics.reduced_levels import StackedContacts, reduced_stack, torques_and_checks
 from sotdrake.dynamics.terms import DynamicsTerms
 from sotdrake.hqp.equality_hierarchy import StackedLevels
 from sotdrake.task import TaskLevel
@@ -129,8 +129,8 @@ def test_the_compiled_bounds_are_the_joint_limits_as_acceleration_bounds_exactly
     (bit for bit), joints inside, on and beyond their limits, moving both ways, some held by the
     control selection, a contact held and one being released."""
     from sotdrake.configuration import Layout
+    from sotdrake.dynamics.formulation import normal_force_limits, variable_bounds
     from sotdrake.dynamics.reduced_levels import bounds
-    from sotdrake.dynamics.solver_dyn import normal_force_limits, variable_bounds
     from sotdrake.dynamics.terms import acceleration_bounds, stacked_limits
 
     joints = NV - 6

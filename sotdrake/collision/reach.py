@@ -225,10 +225,6 @@ def run_dyn_collision_reach(reach: DynReach, target: np.ndarray, duration: float
     joint limits, NaN, ``SolverDyn``'s failures)."""
     simulator = Simulator(reach.diagram)
     context = simulator.get_mutable_context()
-    # Each run starts cold, as a freshly started controller: the solver's working-set guesses from
-    # the previous run (kept outside the Context) made its active set give up on 2 of 4200 ticks.
-    for hqp in (*reach.robot.sot._hqps.values(), *reach.robot.sot._reduced_hqps.values()):
-        hqp.forget_warm_starts()
     reach.hand.featureDes.setPosition(RigidTransform(np.asarray(target, dtype=float)), context=context)
     failures: list[str] = []  # every failure the solver logs (its diagnostics port shows the last solve only)
     handler = _Collect(failures)

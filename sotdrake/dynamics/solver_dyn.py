@@ -5,15 +5,9 @@ contacts, the user's stack of :class:`~sotdrake.task.TaskLevel` over ``q̈``, th
 wrench regularization): each tick it reads its ports, forms the problem, solves it and writes the
 outputs. Hard bounds on ``x`` are never violated.
 
-Solved first with ``τ`` eliminated when ``B`` is a selection (TALOS: every joint actuated):
-the actuated rows of the dynamics then only define ``τ``, and the hierarchy over ``(q̈, w)``
-keeps the floating base's six rows (``dynamic_levels(..., actuated=...)``, 50 unknowns instead of
-82 with both soles). If that optimum's ``τ`` is within the effort limits and the contacts' wrench rows
-hold, it is the optimum of the full problem; only otherwise is the full problem solved. With every
-task an equality, that fast path is assembled, stacked and checked by compiled code
-(:mod:`.reduced_levels`: the same rows as :func:`dynamic_rows`, which stays their definition).
-The hierarchical QP then takes the minimum-norm ``x`` of the optimal set (smallest torques and
-wrenches among the equivalent ones).
+How it is solved (``τ`` eliminated first when ``B`` is a selection, then the full problem, then
+the rescues) is :mod:`.dyn_solve`; the hierarchical QP then takes the minimum-norm ``x`` of the
+optimal set (smallest torques and wrenches among the equivalent ones).
 
 ``rmContact(name, duration)`` releases a contact smoothly: from the first tick after the command,
 its normal force's upper bound ramps linearly from the normal force it carried then down to 0 over
@@ -38,9 +32,7 @@ from pydrake.systems.framework import Context, InputPort, ValueProducer
 from ..compiled import read_only
 from ..configuration import Layout
 from ..exceptions import SolverError, StackError, check_number
-from ..hqp import ACTIVE_SET, HierarchicalQP, HqpResult, LevelRows, check_solver
-from ..hqp.equality_hierarchy import StackedLevels
-from ..hqp.stack_paths import DYNAMIC, StackProblem, solve_stack
+from ..hqp import ACTIVE_SET, HqpResult, check_solver
 from ..hqp.warm import WarmStart, WarmStarts
 from ..robots import RobotModel
 from ..solvers.stack import Stack, StackSolver
@@ -49,34 +41,16 @@ from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_
 from .contact import Contact6d, world_wrench
 from .contact_memory import ContactMemory
 from .dyn_contacts import DynContacts
-from .dyn_types import _NO_INDICES, ContactNotFound, DynDiagnostics, DynSettings, DynSolution, Problem  # noqa: F401  (ContactNotFound: importable from here)
-
-# The formulation's names, importable from here as before.
-from .formulation import (  # noqa: F401
+from .dyn_solve import DynamicSolve
+from .dyn_types import DynDiagnostics, DynSettings, DynSolution, Problem
+from .formulation import (
     CONTACT_SLACK,
-    HELD_BOUNDS,
-    WRENCH_REGULARIZATION,
     ActiveContact,
-    Rows,
-    _shear_weights,
-    _wrench_rows_hold,
-    actuated_rows,
-    damping_template,
-    dynamic_levels,
-    dynamic_rows,
     held_bounds,
-    index_rows,
-    inside,
-    normal_force_bounds,
     normal_force_limits,
-    shear_weights,
-    torques_of,
-    unactuated_rows,
-    variable_bounds,
-    wrench_regularization,
     wrench_slices,
 )
-from .reduced_levels import StackedContacts, bounds, reduced_stack, torques_and_checks
+from .reduced_levels import bounds
 from .terms import DynamicsTerms, stacked_limits
 
 log = logging.getLogger("sotdrake.solver_dyn")
@@ -118,7 +92,6 @@ class SolverDyn(StackSolver[DynSettings]):
         self._joint_indices = (read_only(iq.astype(np.int64)), read_only(iv.astype(np.int64)))
         self._stacked_limits = stacked_limits(self._limits[0][iq], self._limits[1][iq], self._limits[2][iv], self._limits[3][iv])
         self.effort = limits["effort"] * float(effort_scale)  # |τ| bounds (N·m, N)
-        self._effort_held = self.effort * (1 + 1e-9)  # what the fast path's τ must stay within
         self.effort_scale = float(effort_scale)
         self.na = len(self.effort)
         self.max_contacts = max_contacts
@@ -126,13 +99,11 @@ class SolverDyn(StackSolver[DynSettings]):
         self.setSolver(solver)
         self.contact_set = DynContacts(self, self.nv, max_contacts)  # the contacts' inputs and commands
         self._contact_ports, self._contact_index = self.contact_set.ports, self.contact_set.index
-        self._hqps: dict[int, HierarchicalQP] = {}  # a cache of solvers per problem size
+        self._solve = DynamicSolve(self.nv, self.na, self.effort)  # the solve, with its caches of solvers
         # Their warm starts (which path answers), in the Context, one per problem (see
         # sotdrake.hqp.warm): a cloned or reset Context replays a run bit for bit. The solves update
         # them in place (left out of the solution's prerequisites: nothing is recomputed for them).
         self._warm_index = self.DeclareAbstractState(AbstractValue.Make(WarmStarts()))
-        self._actuation: tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray] | None = None  # _actuated_rows
-        self._reduced_hqps: dict[int, HierarchicalQP] = {}  # the same, τ eliminated
         self._bound_templates: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # see _bounds
         self.dynamics = self.DeclareAbstractInputPort("dynamics", AbstractValue.Make(
             DynamicsTerms(np.eye(self.nv), np.zeros(self.nv), np.zeros(self.nv), np.zeros((self.nv, self.na)),
@@ -278,104 +249,17 @@ class SolverDyn(StackSolver[DynSettings]):
         return Problem(terms, contacts, tasks, loads, slices, lower, upper, names)
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
-        """Read the ports → the formulation (:mod:`.formulation`) → solve → the solution.
-
-        Solved first with ``τ`` eliminated (:meth:`_solve_reduced`), then, if that does not hold,
-        without the contacts' wrench inequalities: every level is then an equality (closed forms,
-        no program). If that optimum satisfies those rows it is the exact optimum of the full
-        hierarchy too (each level's optimal set with the rows is the one without them intersected
-        with the rows, and the optimum lies in it), else the full hierarchy is solved
-        (:meth:`_solve_full`); a failure is rescued by :meth:`_rescue`."""
+        """Read the ports → the formulation (:mod:`.formulation`) → solve (:mod:`.dyn_solve`) → the solution."""
         s = self._settings_of(context)
         p = self._problem(context, s)
         diagnostics = DynDiagnostics(levels=p.names)
-        n = len(p.lower)
-        hqp = self._hqps.get(n)
-        if hqp is None:
-            hqp = self._hqps[n] = HierarchicalQP(n)
-        fast = self._solve_reduced(context, s, p)
-        result, world = fast if fast is not None else (None, None)
-        diagnostics.torques_eliminated = fast is not None
-        tried: list[HqpResult] = []
-        try:
-            if result is None:
-                result = self._solve_full(context, s, p, hqp, tried)
-        except SolverError as error:
-            result, count = self._rescue(context, s, p, hqp, error, tried, diagnostics)
-            if result is None:
-                value.set_value(DynSolution(np.zeros(self.nv), np.zeros(self.na), {}, {}, np.full(count, np.nan), diagnostics))
-                return
+        result, world, count = self._solve.solve(p, s, lambda problem, n: self._warm(context, problem, n),
+                                                 self._held_guess(context), diagnostics,
+                                                 f"t = {context.get_time():.4f} s", self.name)
+        if result is None:
+            value.set_value(DynSolution(np.zeros(self.nv), np.zeros(self.na), {}, {}, np.full(count, np.nan), diagnostics))
+            return
         value.set_value(self._solution_of(context, p, result, world, diagnostics))
-
-    def _solve_reduced(self, context: Context, s: DynSettings, p: Problem) -> tuple[HqpResult, list[np.ndarray]] | None:
-        """The fast path: ``τ`` eliminated (a smaller problem, no ``τ`` bounds), when ``B`` is a
-        selection. If its ``τ`` is within the effort limits and the wrench rows hold, it is the
-        optimum of the full hierarchy (the same argument as for the wrench rows; after the damping
-        level ``x`` is unique, so the last minimum-norm stage changes nothing): that result with
-        ``τ`` appended, and the contacts' world wrenches; else None."""
-        terms, contacts, tasks, loads, lower, upper = p.terms, p.contacts, p.tasks, p.loads, p.lower, p.upper
-        actuated, compiled_actuated, passive = self._actuated_rows(terms.B)
-        if actuated is None:
-            return None
-        m = len(lower) - self.na
-        small = self._reduced_hqps.get(m)
-        if small is None:
-            small = self._reduced_hqps[m] = HierarchicalQP(m)
-        warm = self._warm(context, "reduced", m)
-        try:
-            stacked = StackedContacts(contacts, self.nv)
-            if all(task.lower is task.upper for task in tasks):  # the levels assembled and stacked compiled
-                scales = [WRENCH_REGULARIZATION * weight for weight in _shear_weights(loads, len(contacts))]
-                stack = reduced_stack(terms, stacked, tasks, s.damping_gain, scales, passive)
-                fast = self._solve(context, small, stack, lower[:m], upper[:m], s.solver, warm)
-            else:
-                reduced, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, False, loads, actuated)
-                fast = self._solve(context, small, reduced, lower[:m], upper[:m], s.solver, warm)
-            tau, world, within, hold = torques_and_checks(terms, stacked, compiled_actuated, fast.x, self._effort_held)
-        except SolverError:
-            return None
-        if not (within and hold):
-            return None
-        fast.x = np.concatenate([fast.x, tau])
-        return fast, world
-
-    def _solve_full(self, context: Context, s: DynSettings, p: Problem, hqp: HierarchicalQP,
-                    tried: list[HqpResult]) -> HqpResult:
-        """The hierarchy over ``(q̈, w, τ)``: relaxed (without the contacts' wrench rows; its
-        optimum appended to ``tried``), then, if those rows do not hold there, in full."""
-        terms, contacts, tasks, loads, lower, upper = p.terms, p.contacts, p.tasks, p.loads, p.lower, p.upper
-        rows, _ = dynamic_rows(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
-        warm = self._warm(context, "full", len(lower))
-        relaxed = result = self._solve(context, hqp, rows, lower, upper, s.solver, warm)
-        tried.append(relaxed)
-        if contacts and not _wrench_rows_hold(contacts, p.slices, result.x):
-            full, slices = dynamic_levels(terms, contacts, tasks, s.damping_gain, loads=loads)
-            result = hqp.solve(full, lower, upper, 0.0, s.solver, start=inside(lower, upper), warm=warm)
-        return result
-
-    def _rescue(self, context: Context, s: DynSettings, p: Problem, hqp: HierarchicalQP, error: SolverError,
-                tried: list[HqpResult], diagnostics: DynDiagnostics) -> tuple[HqpResult | None, int]:
-        """Never zero torque on a standing robot if avoidable: the relaxed optimum (dynamics,
-        contact accelerations and the stack exact; friction/CoP rows possibly violated), else the
-        dynamics and contacts alone; None (zero torque) if even that fails. Also the number of
-        levels of what was tried (the residuals' size)."""
-        terms, contacts, tasks, loads, lower, upper = p.terms, p.contacts, p.tasks, p.loads, p.lower, p.upper
-        diagnostics.failure = f"t = {context.get_time():.4f} s: {error}"
-        relaxed = tried[0] if tried else None
-        levels: list[LevelRows] = []
-        if relaxed is None:
-            try:
-                levels, _ = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False, loads=loads)
-                relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver, start=inside(lower, upper),
-                                    warm=self._warm(context, "full", len(lower)))
-                diagnostics.failure += "; the stack is dropped for this tick"
-            except SolverError as second:
-                diagnostics.failure += f"; {second}; zero torque"
-        else:
-            levels, _ = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
-            diagnostics.failure += "; the contacts' wrench rows are relaxed for this tick"
-        log.warning("%s: %s", self.name, diagnostics.failure)
-        return relaxed, len(levels)
 
     def _solution_of(self, context: Context, p: Problem, result: HqpResult, world: list[np.ndarray] | None,
                      diagnostics: DynDiagnostics) -> DynSolution:
@@ -423,21 +307,6 @@ class SolverDyn(StackSolver[DynSettings]):
         return bounds(template[0], template[1], terms.q, terms.v, *self._joint_indices, *self._stacked_limits, s.horizon,
                       s.position_margin, s.control_selection, normal_force_limits(contacts, slices))
 
-    def _actuated_rows(self, B: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
-        """:func:`actuated_rows` (None: ``B`` is not a selection), and the actuated and unactuated
-        velocity rows (:func:`unactuated_rows`) as read-only int64 arrays, for the compiled fast
-        path; kept for a read-only ``B`` (the dynamic entity's, the same array at every tick): a pure cache."""
-        if self._actuation is not None and self._actuation[0] is B:
-            return self._actuation[1:]
-        rows = actuated_rows(B)
-        if rows is None:
-            compiled = _NO_INDICES, _NO_INDICES
-        else:
-            compiled = (read_only(rows.astype(np.int64)), read_only(np.arange(self.nv, dtype=np.int64)[unactuated_rows(self.nv, rows)]))
-        if not B.flags.writeable:
-            self._actuation = (B, rows, *compiled)
-        return (rows, *compiled)
-
     def _held_guess(self, context: Context) -> tuple[list[int], list[int]]:
         """The components held at their lower and at their upper bound at the last tick's optimum."""
         guess = self.held_bound_guess(context).tolist()
@@ -447,18 +316,6 @@ class SolverDyn(StackSolver[DynSettings]):
         """The warm start of the ``problem`` ("full" or "reduced") of ``n`` variables, kept in the
         Context's abstract state."""
         return context.get_abstract_state(self._warm_index).get_value().of((problem, n), n)
-
-    def _solve(self, context: Context, hqp: HierarchicalQP, rows: list[Rows] | StackedLevels, lower: np.ndarray,
-               upper: np.ndarray, solver: str, warm: WarmStart) -> HqpResult:
-        """The hierarchy ``rows`` (or the equality levels already stacked,
-        :func:`.reduced_levels.reduced_stack`) by the paths :data:`~sotdrake.hqp.stack_paths.DYNAMIC`
-        declares: the QR sweep when that is clear-cut (every level an equality, the bounds at the
-        optimum held as equalities and certified by their multipliers, from the bounds held at the
-        last tick), else level by level (which checks the rows)."""
-        levels, stacked = ([], rows) if isinstance(rows, StackedLevels) else (rows, None)
-        problem = StackProblem(levels, lower, upper, 0.0, solver, start=inside(lower, upper), warm=warm,
-                               held=self._held_guess(context), stacked=stacked)
-        return solve_stack(hqp, problem, DYNAMIC)
 
     def _calc_wrenches(self, context: Context, output) -> None:
         wrenches = self._solution.Eval(context).wrenches

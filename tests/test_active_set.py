@@ -5,21 +5,11 @@ import numpy as np
 import pytest
 
 from sotdrake.hqp import active_set
-from sotdrake.hqp.active_set import (
-    RANK_THRESHOLD,
-    ActiveSetFailure,
-    _solve,
-    _weighted_full_rank_step,
-    daqp_guess,
-    dual_guess,
-    eqp,
-    full_rank_least_squares,
-    objective_kind,
-    python_eqp,
-    python_solve,
-    solve_least_squares_qp,
-)
+from sotdrake.hqp.active_set import _solve, eqp, objective_kind, python_eqp, python_solve, solve_least_squares_qp
+from sotdrake.hqp.guesses import daqp_guess, dual_guess
+from sotdrake.hqp.linalg import ActiveSetFailure, _weighted_full_rank_step, full_rank_least_squares
 from sotdrake.hqp.solve import HierarchicalQP
+from sotdrake.hqp.tolerances import RANK_THRESHOLD
 from tests.conftest import compiled_only
 from tests.hqp_stacks import random_stack
 

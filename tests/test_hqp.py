@@ -7,8 +7,8 @@ import quadprog
 
 from sotdrake.exceptions import InvalidInput
 from sotdrake.hqp import rescue
-from sotdrake.hqp.active_set import RANK_THRESHOLD
 from sotdrake.hqp.solve import HierarchicalQP, LevelRows
+from sotdrake.hqp.tolerances import RANK_THRESHOLD
 from tests.hqp_stacks import random_stack
 
 

@@ -254,19 +254,19 @@ def test_a_run_broken_mid_way_stops_and_writes_its_files(tmp_path, appli, monkey
 
     from sotdrake.exceptions import SolverError
     from sotdrake.live.runner import run_live
-    from sotdrake.solvers import sot as sot_module
+    from sotdrake.hqp.stack_paths import CASCADE
 
     out = tmp_path / "out"
     answers = []
     broken = threading.Event()
-    solve = sot_module.cascade_factorization
+    solve = CASCADE.factorize
 
     def failing_solve(*args, **kwargs):
         if broken.is_set():
             raise SolverError("non-finite control (injected by the test)")
         return solve(*args, **kwargs)
 
-    monkeypatch.setattr(sot_module, "cascade_factorization", failing_solve)
+    monkeypatch.setattr(CASCADE, "factorize", failing_solve)
 
     def poke():
         while not (out / "live.json").exists():

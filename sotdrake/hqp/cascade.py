@@ -55,7 +55,7 @@ from scipy.linalg.lapack import dorgqr as _orgqr
 from scipy.linalg.lapack import dormqr as _ormqr
 
 from ..exceptions import SolverError
-from .active_set import upper_inverse, upper_triangle
+from .linalg import upper_inverse, upper_triangle
 
 
 @lru_cache(maxsize=32)

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..compiled import kernels
-from .active_set import all_true
+from .linalg import all_true
 from .problem import ACTIVE_BOUNDS, ACTIVE_SET, HqpResult
 from .tolerances import FEASIBILITY, VERIFIED
 

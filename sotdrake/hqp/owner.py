@@ -6,10 +6,7 @@ from __future__ import annotations
 
 from typing import Protocol
 
-import numpy as np
-
 from .drake_program import DrakePrograms
-from .problem import Stage
 from .warm import WarmStart
 
 
@@ -21,5 +18,3 @@ class StageOwner(Protocol):
     level_solvers: list[str]  # the path chosen for each level (empty: the default)
     warm: WarmStart  # the warm start of the call being solved
     programs: DrakePrograms  # Drake's programs and solvers, cached
-
-    def level_guess(self, stage: Stage) -> tuple[np.ndarray | None, bool]: ...

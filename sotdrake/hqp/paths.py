@@ -29,7 +29,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .active_set import ActiveSetFailure, ActiveSetResult, all_true, any_true, projection_guess, solve_least_squares_qp
+from .active_set import ActiveSetResult, solve_least_squares_qp
+from .guesses import level_guess, projection_guess
+from .linalg import ActiveSetFailure, all_true, any_true
 from .tolerances import DEGENERATE_RETRY, VERIFIED
 
 if TYPE_CHECKING:
@@ -60,14 +62,14 @@ class Attempt:
 
     def cold_guess(self) -> tuple[np.ndarray, bool]:
         """The dual method's guess of the working set, and whether it is valid as it is (see
-        :meth:`.solve.HierarchicalQP.level_guess`); the built stage's own guess if it has none."""
+        :func:`.guesses.level_guess`); the built stage's own guess if it has none."""
         stage = self.stage
         dual, valid = ((projection_guess(stage.t, stage.G, stage.lower, stage.upper), False) if self.level is None
-                       else self.qp.level_guess(stage))
+                       else level_guess(stage))
         return (stage.guess, False) if dual is None else (dual, valid)
 
     def polish(self, guess: np.ndarray, valid: bool, working_threshold: float | None = None) -> ActiveSetResult:
-        """The active set on the stage from ``guess`` (raises :class:`~.active_set.ActiveSetFailure`)."""
+        """The active set on the stage from ``guess`` (raises :class:`~.linalg.ActiveSetFailure`)."""
         stage = self.stage
         return solve_least_squares_qp(
             stage.M, stage.t, stage.m_scale, stage.G, stage.lower, stage.upper, stage.z0,

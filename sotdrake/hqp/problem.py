@@ -6,6 +6,7 @@ the rank-revealing linear algebra the stages share (:func:`null_space`, :func:`l
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -13,7 +14,8 @@ import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver, SnoptSolver
 
 from ..exceptions import InvalidInput
-from .active_set import QR_MIN_SIZE, all_true, any_true, independent_qr, scaled_least_squares, svd
+from .linalg import QR_MIN_SIZE, all_true, any_true, independent_qr, scaled_least_squares, svd
+from .tolerances import REPORTED_ACTIVE
 
 _NO_ROW_MASK = np.zeros(0, dtype=bool)
 _NO_ROW_MASK.flags.writeable = False
@@ -165,7 +167,7 @@ class _EqualityFactors:
     """A level's projected equality rows at unit norm, ``B = (A_eq Z) / ‖rows of A_eq‖`` (m × r),
     factorised once: the orthonormal basis ``null`` of ``{y : B y = 0}`` (the next levels' ``Z`` is
     ``Z @ null``) and the minimum-norm least-squares step :meth:`step`. Householder QR of ``Bᵀ`` if
-    it proves every singular value of ``B`` above τ (:func:`~.active_set.independent_qr`: the rows
+    it proves every singular value of ``B`` above τ (:func:`~.linalg.independent_qr`: the rows
     are independent, the step solves them exactly), else the SVD cut at τ; both give the same
     subspace and step in exact arithmetic."""
 
@@ -210,3 +212,31 @@ class Stage:
     m_hard: int = 0  # how many of G's first rows are hard rows
     kind: tuple[bool, bool] | None = None  # the objective's active_set.objective_kind, if known
 
+
+_NO_ACTIVE_ROWS = np.zeros(0, dtype=int)  # the active rows of an equality-only level (shared, read only)
+_NO_ACTIVE_ROWS.flags.writeable = False
+
+
+def result_of(levels, x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fixed: np.ndarray, used: list[str]) -> HqpResult:
+    """The answer at ``x``: each level's slack and the inequality rows at a bound, the components at
+    a bound (not the ``fixed`` ones), within :data:`~.tolerances.REPORTED_ACTIVE` (relative above 1)."""
+    slacks, active = [], []
+    for level in levels:
+        r = level.A @ x
+        slacks.append(level.slack(x, r))
+        if level.all_equality:
+            active.append(_NO_ACTIVE_ROWS)
+            continue
+        scale = REPORTED_ACTIVE * np.maximum(1.0, np.abs(r))
+        at_bound = (np.abs(r - level.lower) <= scale) | (np.abs(r - level.upper) <= scale)
+        active.append((at_bound & level.inequality).nonzero()[0])
+    scale = REPORTED_ACTIVE * np.maximum(1.0, np.abs(x))
+    bounds = (~fixed & ((np.abs(x - x_lower) <= scale) | (np.abs(x - x_upper) <= scale))).nonzero()[0]
+    return HqpResult(
+        x=x,
+        slacks=slacks,
+        slack_norms=np.array([math.sqrt(float(s @ s)) for s in slacks]),
+        active_rows=active,
+        active_bounds=bounds,
+        level_solvers=used,
+    )

@@ -15,13 +15,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..exceptions import SolverError
-from .active_set import all_true, any_true
+from .linalg import all_true, any_true
+from .paths import OUTSIDE, Attempt
 from .problem import KEPT_LAST_LEVEL, ROUND_OFF_LIMITED, Stage, least_norm
-from .tolerances import ROUND_OFF
+from .tolerances import ROUND_OFF, VERIFIED
 
 if TYPE_CHECKING:
+    from .active_set import ActiveSetResult
     from .owner import StageOwner
-    from .paths import Attempt
 
 REFINEMENTS = 2
 """The round-off rescue's corrections, at most."""
@@ -126,3 +127,22 @@ def after_every_path(attempt: Attempt, fallbacks: list[str], what: str) -> tuple
                              f"{miss:.2g} of the tolerance)")
             return x0 + Z @ y, side, label, count
     raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
+
+
+def accepted(qp: StageOwner, attempt: Attempt, path: str, solution: ActiveSetResult, label: str) -> np.ndarray | None:
+    """The step ``y`` of a path's solution if it is accepted (moved onto the hard rows if it
+    misses them by round-off), else None with the failure recorded (and a finite point of a
+    level kept for the round-off-limited rescue)."""
+    stage = attempt.stage
+    y = solution.z[:stage.r]
+    # A point the active set verified on every row to 1e-10 (≤ the feasibility tolerance)
+    # only needs to be finite; any other is checked on the bounds and held rows.
+    verified = solution.verified and qp.feasibility_tolerance >= VERIFIED
+    if all_true(np.isfinite(y)) if verified else accept(qp, stage, y):
+        return y
+    corrected = onto_hard_rows(qp, stage, y, solution.side)
+    if corrected is None:
+        attempt.failures.append(f"{path}: {OUTSIDE}")
+        if attempt.level is not None and all_true(np.isfinite(y)):
+            attempt.outside.append((y, solution.side, label, solution.iterations))
+    return corrected

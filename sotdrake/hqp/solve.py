@@ -61,13 +61,12 @@ How a level is solved:
 least-squares steps, the working-set matrices, which projected rows are constant) compares singular
 values of matrices whose rows are scaled to unit norm (the norm of the row *before* projection, so
 that a task already fixed by the levels above projects to round-off and is seen as zero) with one
-absolute threshold τ, ``rank_threshold`` (default :data:`~.active_set.RANK_THRESHOLD` = 1e-8). No
+absolute threshold τ, ``rank_threshold`` (default :data:`~.tolerances.RANK_THRESHOLD` = 1e-8). No
 library default cutoff is used.
 """
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 
@@ -77,9 +76,9 @@ from ..compiled import compiled_input, kernels
 from ..exceptions import InvalidInput, SolverError
 from . import equality_stack, rescue
 from . import paths as declared
-from .active_set import RANK_THRESHOLD, all_true, any_true, daqp_guess, dual_guess
 from .drake_program import DrakePrograms
-from .equality_stack import _NO_ROWS, _active_bounds_path
+from .equality_stack import _active_bounds_path
+from .linalg import all_true, any_true
 from .problem import (
     ACTIVE_BOUNDS,
     ACTIVE_SET,
@@ -94,8 +93,9 @@ from .problem import (
     check_solver,
     least_norm,
     null_space,
+    result_of,
 )
-from .tolerances import DEGENERATE_RETRY, FEASIBILITY, HELD_SIDE, REPORTED_ACTIVE, VERIFIED
+from .tolerances import DEGENERATE_RETRY, FEASIBILITY, HELD_SIDE, RANK_THRESHOLD
 from .warm import WarmStart
 
 _Stage = Stage  # the name the stage had here
@@ -103,13 +103,6 @@ __all__ = ["ACTIVE_BOUNDS", "ACTIVE_SET", "DEGENERATE_RETRY", "KEPT_LAST_LEVEL",
            "Extension", "HierarchicalQP", "HqpResult", "LevelRows", "check_solver", "least_norm", "null_space"]
 
 _FREE_MINIMUM_NORM = "free minimum-norm stage"
-_DAQP_SPREAD = 1e6
-"""A level's cold guess comes from DAQP when its objective rows' reference norms are within this
-factor (``MᵀM``'s weights within 1e12, where the Cholesky factor DAQP works on still holds digits);
-beyond, from quadprog. Both are only guesses checked exactly; on the random stacks DAQP's costs
-about a third of quadprog's (measured: median 27 against 79 µs on 1108 level stages)."""
-
-
 _NO_LEVEL = (np.zeros((0, 0)), *[np.zeros(0)] * 2, np.zeros((0, 0)), *[np.zeros(0)] * 3)
 """The level's arrays given to :func:`.kernels.stage.build` for the minimum-norm stage (not read)."""
 
@@ -313,7 +306,7 @@ class HierarchicalQP:
                 hard_lower = np.concatenate([hard_lower, lo - slack])
                 hard_upper = np.concatenate([hard_upper, hi + slack])
                 hard_side = np.concatenate([hard_side, row_side])
-        result = self._result(levels, self._onto_bounds(x, x_lower, x_upper), x_lower, x_upper, fixed, used)
+        result = result_of(levels, self._onto_bounds(x, x_lower, x_upper), x_lower, x_upper, fixed, used)
         result.iterations = iterations
         result.fallbacks = fallbacks
         result.solve_time_s = time.perf_counter() - began
@@ -358,7 +351,7 @@ class HierarchicalQP:
             if found is None:
                 continue
             solution, label = found
-            y = self._accepted(attempt, path.name, solution, label)
+            y = rescue.accepted(self, attempt, path.name, solution, label)
             if y is None:
                 continue
             self.warm.working_sets[key] = solution.side
@@ -397,38 +390,6 @@ class HierarchicalQP:
             failures.append(f"{attempt}: {message}")
         raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
 
-    def _accepted(self, attempt: declared.Attempt, path: str, solution, label: str) -> np.ndarray | None:
-        """The step ``y`` of a path's solution if it is accepted (moved onto the hard rows if it
-        misses them by round-off), else None with the failure recorded (and a finite point of a
-        level kept for the round-off-limited rescue)."""
-        stage = attempt.stage
-        y = solution.z[:stage.r]
-        # A point the active set verified on every row to 1e-10 (≤ the feasibility tolerance)
-        # only needs to be finite; any other is checked on the bounds and held rows.
-        verified = solution.verified and self.feasibility_tolerance >= VERIFIED
-        if all_true(np.isfinite(y)) if verified else rescue.accept(self, stage, y):
-            return y
-        corrected = rescue.onto_hard_rows(self, stage, y, solution.side)
-        if corrected is None:
-            attempt.failures.append(f"{path}: {declared.OUTSIDE}")
-            if attempt.level is not None and all_true(np.isfinite(y)):
-                attempt.outside.append((y, solution.side, label, solution.iterations))
-        return corrected
-
-    @staticmethod
-    def level_guess(stage: _Stage) -> tuple[np.ndarray | None, bool]:
-        """The cold guess of a level's working set: DAQP's (:func:`~.active_set.daqp_guess`) when the
-        objective's rows are of comparable weights (reference norms within :data:`_DAQP_SPREAD`),
-        else quadprog's (:func:`~.active_set.dual_guess`). On a level whose weights spread further
-        the two guesses can lead to different points of a numerically flat optimum (the same
-        objective to 9 digits), and the levels below then differ: quadprog's is kept there. With
-        whether the guess is valid as it is (quadprog's holds no row at an infinite side: those sides
-        are not given to it; DAQP's sides are checked by the active set)."""
-        m_scale = stage.m_scale
-        if len(m_scale) and float(m_scale.max()) <= _DAQP_SPREAD * float(m_scale.min()):
-            return daqp_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper), False
-        return dual_guess(stage.M, stage.t, stage.G, stage.lower, stage.upper), True
-
     @staticmethod
     def _hard_sides(hard_side: np.ndarray, stage: _Stage, side: np.ndarray) -> np.ndarray:
         if stage.hard is None:
@@ -444,26 +405,3 @@ class HierarchicalQP:
         The compiled :func:`.active_bounds.onto_bounds`, which the active bounds' answers also go
         through (in their :func:`.active_bounds.outcome`)."""
         return _active_bounds_path().onto_bounds(x, x_lower, x_upper, self.feasibility_tolerance)
-
-    def _result(self, levels, x, x_lower, x_upper, fixed, used) -> HqpResult:
-        slacks, active = [], []
-        for level in levels:
-            r = level.A @ x
-            slacks.append(level.slack(x, r))
-            if level.all_equality:
-                active.append(_NO_ROWS)
-                continue
-            scale = REPORTED_ACTIVE * np.maximum(1.0, np.abs(r))
-            at_bound = (np.abs(r - level.lower) <= scale) | (np.abs(r - level.upper) <= scale)
-            active.append((at_bound & level.inequality).nonzero()[0])
-        scale = REPORTED_ACTIVE * np.maximum(1.0, np.abs(x))
-        bounds = (~fixed & ((np.abs(x - x_lower) <= scale) | (np.abs(x - x_upper) <= scale))).nonzero()[0]
-        return HqpResult(
-            x=x,
-            slacks=slacks,
-            slack_norms=np.array([math.sqrt(float(s @ s)) for s in slacks]),
-            active_rows=active,
-            active_bounds=bounds,
-            level_solvers=used,
-        )
-

@@ -2,7 +2,7 @@
 
 The same method as the Python function it stands for, step by step and in the same order: the
 guess checked (:func:`_check`), the working set made independent (:func:`_independent_rows`,
-LAPACK's ``dgeqp3`` as :func:`.active_set.independent_rows`), the iterations (ratio test, Bland's
+LAPACK's ``dgeqp3`` as :func:`..linalg.independent_rows`), the iterations (ratio test, Bland's
 rule after a repeated working set, the multipliers' signs), and the final minimum-norm point
 (:func:`_finish`), each step the compiled :func:`.eqp.eqp`. A stage of the hierarchical QP runs
 these iterations once or twice, and the Python version's per-iteration numpy calls cost more than
@@ -76,7 +76,7 @@ def feasible(G, lower, upper, z, feasibility):
 
 @njit(cache=True)
 def _independent_rows(E, threshold):
-    """``(ok, indices)``: :func:`.active_set.independent_rows` (not ok: LAPACK refused)."""
+    """``(ok, indices)``: :func:`..linalg.independent_rows` (not ok: LAPACK refused)."""
     h = E.shape[0]
     if h == 0:
         return True, np.zeros(0, np.int64)

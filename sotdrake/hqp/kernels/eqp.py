@@ -18,13 +18,13 @@ from numba import njit
 
 from .lapack import contiguous, fortran, geqrf, orgqr, ormqr, trtrs_upper, upper_inverse
 
-#: :data:`.active_set.QR_MIN_SIZE` (the same value; asserted there).
+#: :data:`..linalg.QR_MIN_SIZE` (the same value; asserted there).
 QR_MIN_SIZE = 4
 
 
 @njit(cache=True)
 def _proven_full_rank_qr(A, bound):
-    """``(ok, qr, tau, R⁻¹)``: :func:`.active_set._proven_full_rank_qr` (``qr`` column-major)."""
+    """``(ok, qr, tau, R⁻¹)``: :func:`..linalg._proven_full_rank_qr` (``qr`` column-major)."""
     p, k = A.shape
     empty = np.zeros((0, 0))
     if k > p or k < QR_MIN_SIZE:
@@ -41,7 +41,7 @@ def _proven_full_rank_qr(A, bound):
 
 @njit(cache=True)
 def _independent_qr(A, threshold, full):
-    """``(ok, Q, R⁻¹)``: :func:`.active_set.independent_qr` (``Q`` C-ordered)."""
+    """``(ok, Q, R⁻¹)``: :func:`..linalg.independent_qr` (``Q`` C-ordered)."""
     p, k = A.shape
     ok, qr, tau, R_inv = _proven_full_rank_qr(A, 2.0 * threshold)
     if not ok:
@@ -71,7 +71,7 @@ def _solve_from_qr(qr, tau, r):
 
 @njit(cache=True)
 def _full_rank_least_squares(B, r):
-    """``(ok, c)``: :func:`.active_set.full_rank_least_squares` (not ok: LAPACK refused)."""
+    """``(ok, c)``: :func:`..linalg.full_rank_least_squares` (not ok: LAPACK refused)."""
     k = B.shape[1]
     qr = fortran(B)
     tau = np.empty(min(B.shape[0], k))
@@ -82,7 +82,7 @@ def _full_rank_least_squares(B, r):
 
 @njit(cache=True)
 def _scaled_least_squares(U, s, Vt, k, m_scale, r, uniform):
-    """``(ok, u)``: :func:`.active_set.scaled_least_squares` (not ok: LAPACK refused, where the
+    """``(ok, u)``: :func:`..linalg.scaled_least_squares` (not ok: LAPACK refused, where the
     Python version goes on with numpy's QR)."""
     U_k, s_k = contiguous(U[:, :k]), s[:k]
     if uniform:
@@ -98,7 +98,7 @@ def _scaled_least_squares(U, s, Vt, k, m_scale, r, uniform):
 
 @njit(cache=True)
 def _weighted_full_rank_step(B, m_scale, r, threshold):
-    """``(ok, u)``: :func:`.active_set._weighted_full_rank_step`."""
+    """``(ok, u)``: :func:`..linalg._weighted_full_rank_step`."""
     ok, qr, tau, _ = _proven_full_rank_qr(B, 2.0 * threshold * m_scale.max())
     if not ok:
         return False, np.zeros(B.shape[1])
@@ -107,7 +107,7 @@ def _weighted_full_rank_step(B, m_scale, r, threshold):
 
 @njit(cache=True)
 def _full_rank_step(B, m_scale, r, threshold, uniform):
-    """``(status, u)``: :func:`.active_set._full_rank_step`; status 0: ``u``, 1: None (not proven of
+    """``(status, u)``: :func:`..linalg._full_rank_step`; status 0: ``u``, 1: None (not proven of
     full rank), 2: LAPACK refused the least squares (the Python version goes on with numpy's QR)."""
     m, q = B.shape
     if m >= q and not uniform:

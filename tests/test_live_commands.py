@@ -253,8 +253,8 @@ def test_a_run_broken_mid_way_stops_and_writes_its_files(tmp_path, appli, monkey
     import threading
 
     from sotdrake.exceptions import SolverError
-    from sotdrake.live.runner import run_live
     from sotdrake.hqp.stack_paths import CASCADE
+    from sotdrake.live.runner import run_live
 
     out = tmp_path / "out"
     answers = []

@@ -70,7 +70,7 @@ from .linalg import (
     scaled_least_squares,
     svd,
 )
-from .tolerances import RANK_THRESHOLD
+from .tolerances import MULTIPLIER_TOLERANCE, NO_STEP, RANK_THRESHOLD, RATIO_TIE, VERIFIED
 
 
 @dataclass
@@ -197,7 +197,7 @@ def solve_least_squares_qp(
     z: np.ndarray,
     guess: np.ndarray | None = None,
     threshold: float = RANK_THRESHOLD,
-    feasibility: float = 1e-10,
+    feasibility: float = VERIFIED,
     max_iterations: int | None = None,
     errstate: bool = True,
     kind: tuple[bool, bool] | None = None,
@@ -289,9 +289,9 @@ def python_solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibilit
         ratio = np.maximum(np.minimum(up, down), 0.0)
         alpha = float(ratio.min(initial=np.inf))
         if alpha < 1.0:
-            blocking = int((ratio <= alpha * (1 + 1e-12)).nonzero()[0][0]) if bland else int(np.argmin(ratio))
+            blocking = int((ratio <= alpha * (1 + RATIO_TIE)).nonzero()[0][0]) if bland else int(np.argmin(ratio))
             if blocking == last_dropped and (
-                alpha * float(np.abs(step).max(initial=0.0)) <= 1e-12 * max(1.0, float(np.abs(z).max(initial=0.0)))
+                alpha * float(np.abs(step).max(initial=0.0)) <= NO_STEP * max(1.0, float(np.abs(z).max(initial=0.0)))
             ):
                 # The row just dropped blocks at once: its multiplier's sign was round-off, the
                 # previous point (where it was held) is optimal.
@@ -312,7 +312,7 @@ def python_solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibilit
         # round-off tolerance relative to the gradient's scale.
         held_index = held.nonzero()[0]
         residual = M @ z - t if len(M) else np.zeros(0)
-        tolerance = 1e-9 * max(1.0, m_max * math.sqrt(float(residual @ residual)))
+        tolerance = MULTIPLIER_TOLERANCE * max(1.0, m_max * math.sqrt(float(residual @ residual)))
         wrong = np.where(equality[held_index], 0.0, -side[held_index] * lam)
         if wrong.size and wrong.max() > tolerance:
             leaving = held_index[int((wrong > tolerance).nonzero()[0][0]) if bland else int(np.argmax(wrong))]
@@ -389,8 +389,8 @@ def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, e
         wrong = -held_side * lam
         wrong[equality[held]] = 0.0  # equality rows: either sign
         worst = float(wrong.max())
-        if worst > 1e-9:  # the tolerance is at least 1e-9: only then is it worth computing
+        if worst > MULTIPLIER_TOLERANCE:  # the tolerance is at least that: only then is it worth computing
             residual = M @ z - t if len(M) else np.zeros(0)
-            if worst > 1e-9 * max(1.0, float(m_scale.max(initial=0.0)) * math.sqrt(float(residual @ residual))):
+            if worst > MULTIPLIER_TOLERANCE * max(1.0, float(m_scale.max(initial=0.0)) * math.sqrt(float(residual @ residual))):
                 return None
     return z

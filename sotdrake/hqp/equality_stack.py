@@ -16,7 +16,7 @@ import numpy as np
 from ..compiled import kernels
 from .linalg import all_true
 from .problem import ACTIVE_BOUNDS, ACTIVE_SET, HqpResult
-from .tolerances import FEASIBILITY, VERIFIED
+from .tolerances import CERTIFIED_FACTOR, FEASIBILITY, VERIFIED
 
 if TYPE_CHECKING:
     from .owner import StageOwner
@@ -83,7 +83,7 @@ def solve_active_bounds(qp: StageOwner, jacobians, values, x_lower, x_upper, beg
     if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
         guess = sides_at_bounds(guess[0], guess[1], guess[2], x_lower == x_upper)
     status, x, sides, residual, slack_norms, active_bounds = path.solve_stack(
-        A, b, sizes, x_lower, x_upper, guess, certified=1e3 * qp.rank_threshold,
+        A, b, sizes, x_lower, x_upper, guess, certified=CERTIFIED_FACTOR * qp.rank_threshold,
         feasibility=min(VERIFIED, qp.feasibility_tolerance), tolerance=qp.feasibility_tolerance)
     if status == path.NOT_APPLICABLE:  # (0 outside the bounds of a free component, as _equalities_only)
         return None

@@ -11,10 +11,11 @@ from __future__ import annotations
 RANK_THRESHOLD = 1e-8
 """Default τ: singular values ≤ τ of unit-row matrices count as zero (the rank of every level)."""
 
-CERTIFIED = 1e3 * RANK_THRESHOLD
+CERTIFIED_FACTOR = 1e3
+CERTIFIED = CERTIFIED_FACTOR * RANK_THRESHOLD
 """The smallest singular value of a level's unit rows, in what is left free, that counts as clearly
 non-zero (10³ τ): below it, the QR paths (:mod:`.equality_hierarchy`, :mod:`.active_bounds`) leave
-the decision to the active set."""
+the decision to the active set. With another τ, ``CERTIFIED_FACTOR · τ``."""
 
 NEGLIGIBLE = 1e-3 * RANK_THRESHOLD
 """The largest singular value that counts as clearly zero (round-off of a row the levels above fix)."""
@@ -31,8 +32,17 @@ least-squares step, the active set's own verification): a point they certify is 
 to this (relative above 1)."""
 
 MULTIPLIER_TOLERANCE = 1e-9
-"""A held bound's multiplier may have the wrong sign by this much, relative to the size of the
-residual (``max(1, ‖x‖)`` in :mod:`.active_bounds`, ``‖ρ‖ ‖c‖`` in :mod:`.equality_hierarchy`)."""
+"""A held bound's (or row's) multiplier may have the wrong sign by this much, relative to the size
+of the residual (``max(1, ‖x‖)`` in :mod:`.active_bounds`, ``‖ρ‖ ‖c‖`` in :mod:`.equality_hierarchy`,
+``max(1, max(m_scale) ‖M z − t‖)`` in :mod:`.active_set`)."""
+
+RATIO_TIE = 1e-12
+"""Two ratios of the active set's ratio test within this factor of each other are a tie, broken by
+the smallest index (Bland's rule)."""
+
+NO_STEP = 1e-12
+"""A step of the active set that moves ``z`` by at most this (relative above 1) is no step: the row
+just dropped blocking at once means its multiplier's sign was round-off."""
 
 ROUND_OFF = 1e-9
 """A hard row missed by at most this fraction of the point's size is missed by round-off (the

@@ -21,6 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
+from ..tolerances import MULTIPLIER_TOLERANCE, NO_STEP, RATIO_TIE
 from .eqp import eqp
 from .lapack import fortran, geqp3
 
@@ -116,8 +117,8 @@ def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, identit
         for i in range(held.size):
             wrong[i] = 0.0 if equality[held[i]] else -side[held[i]] * lam[i]
         worst = wrong.max()
-        if worst > 1e-9:  # (False on NaN, as the Python version's)
-            if worst > 1e-9 * _residual_scale(M, t, z, m_scale.max() if m_scale.size else 0.0):
+        if worst > MULTIPLIER_TOLERANCE:  # (False on NaN, as the Python version's)
+            if worst > MULTIPLIER_TOLERANCE * _residual_scale(M, t, z, m_scale.max() if m_scale.size else 0.0):
                 return 1, z
     return 0, z
 
@@ -234,11 +235,11 @@ def solve(M, t, m_scale, G, lower, upper, z, guess, has_guess, threshold, feasib
         if alpha < 1.0:
             blocking = 0
             if bland:
-                while not ratio[blocking] <= alpha * (1 + 1e-12):
+                while not ratio[blocking] <= alpha * (1 + RATIO_TIE):
                     blocking += 1
             else:
                 blocking = int(np.argmin(ratio))
-            if blocking == last_dropped and alpha * _abs_max(step) <= 1e-12 * max(1.0, _abs_max(z)):
+            if blocking == last_dropped and alpha * _abs_max(step) <= NO_STEP * max(1.0, _abs_max(z)):
                 # The row just dropped blocks at once: the previous point (where it was held) is optimal.
                 side[blocking] = dropped_side
                 return _finish(M, t, m_scale, G, lower, upper, side, threshold, feasibility, z, iteration, identity,
@@ -254,7 +255,7 @@ def solve(M, t, m_scale, G, lower, upper, z, guess, has_guess, threshold, feasib
         z = z + step
         # Multipliers: λ ≥ 0 at an upper side, ≤ 0 at a lower side (equality rows: free), up to a
         # round-off tolerance relative to the gradient's scale.
-        tolerance = 1e-9 * _residual_scale(M, t, z, m_max)
+        tolerance = MULTIPLIER_TOLERANCE * _residual_scale(M, t, z, m_max)
         wrong = np.empty(held.size)
         for i in range(held.size):
             wrong[i] = 0.0 if equality[held[i]] else -side[held[i]] * lam[i]

@@ -157,7 +157,6 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = DT, variant: str =
     excluded = [plant.get_joint(j).name() for j in plant.GetJointIndices()
                 if plant.get_joint(j).num_velocities() == 1 and NOT_CONTROLLED.search(plant.get_joint(j).name())]
     sot.setControlSelection(robot.velocity_selection(excluding=excluded))
-    q0 = robot.device.initial_position
 
     # --- the contacts
     contacts = {}
@@ -193,10 +192,34 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = DT, variant: str =
     taskRest = MetaTaskKinePosture(robot, "rest")
     taskRest.gain.setConstant(1)
     sot.push(taskRest.task.name)
+
+    _schedule(robot, sot, T, variant, contactRF, taskCom, taskrf, taskChest, taskPosture, support_centre, rf0)
+
+    tracer = Tracer(builder, dt)
+    tracer.add(robot.device.GetOutputPort("state"), "q")
+    for meta in (contactLF, contactRF, taskCom, taskrf, taskChest, taskPosture, taskRest):
+        tracer.add(meta.task.GetOutputPort("error_norm"), f"error_{meta.task.name}")
+
+    visualizer = None
+    if meshcat is not None:
+        visualizer = add_robot_visualizer(robot, meshcat)
+        add_target_marker(meshcat, "/support_centre", [*support_centre, 0.0], radius=0.015, rgba=Rgba(0.1, 0.6, 0.1, 0.8))
+        meshcat.SetCameraPose(camera_in_world=[0.4, -1.9, 0.9], target_in_world=[0.0, 0.0, 0.5])
+    diagram = builder.Build()
+    diagram.set_name("planche")
+    return Planche(diagram, robot, sot, contactLF, contactRF, taskCom, taskrf, taskChest, taskPosture, taskRest, tracer,
+                   np.asarray(support_centre), T, visualizer)
+
+
+def _schedule(robot: Robot, sot: SOT, T: dict[str, float], variant: str, contactRF: MetaTaskKine6d,
+              taskCom: MetaTaskKineCom, taskrf: MetaTaskKine6d, taskChest: MetaTaskKine6d, taskPosture: MetaTaskKinePosture,
+              support_centre: np.ndarray, rf0: np.ndarray) -> None:
+    """The seed's sequence of stack changes and targets, each at its time (``attime``)."""
+    q0, plant = robot.device.initial_position, robot.model.plant
+    x_min, x_max, y_min, y_max = SHRUNKEN_SUPPORT
     above = rf0.copy()
     above[2, 3] += 0.07
 
-    # --- the sequence
     def push(meta) -> tuple:  # sot.push, above the rest posture
         return sot.push(meta.task.name), sot.up(meta.task.name)
 
@@ -233,21 +256,6 @@ def build_diagram(meshcat: Meshcat | None = None, dt: float = DT, variant: str =
                                   taskCom.task.setBounds([x_min, y_min - half_width], [x_max, y_max + half_width]),
                                   ),
            "RF to contact, the CoM over the double support (the rest posture brings the robot to its initial pose)")
-
-    tracer = Tracer(builder, dt)
-    tracer.add(robot.device.GetOutputPort("state"), "q")
-    for meta in (contactLF, contactRF, taskCom, taskrf, taskChest, taskPosture, taskRest):
-        tracer.add(meta.task.GetOutputPort("error_norm"), f"error_{meta.task.name}")
-
-    visualizer = None
-    if meshcat is not None:
-        visualizer = add_robot_visualizer(robot, meshcat)
-        add_target_marker(meshcat, "/support_centre", [*support_centre, 0.0], radius=0.015, rgba=Rgba(0.1, 0.6, 0.1, 0.8))
-        meshcat.SetCameraPose(camera_in_world=[0.4, -1.9, 0.9], target_in_world=[0.0, 0.0, 0.5])
-    diagram = builder.Build()
-    diagram.set_name("planche")
-    return Planche(diagram, robot, sot, contactLF, contactRF, taskCom, taskrf, taskChest, taskPosture, taskRest, tracer,
-                   np.asarray(support_centre), T, visualizer)
 
 
 def _q(robot: Robot, joint: str) -> int:

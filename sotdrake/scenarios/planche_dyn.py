@@ -32,6 +32,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from pydrake.geometry import MeshcatVisualizer
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.tree import JointActuatorIndex
 from pydrake.systems.analysis import Simulator
@@ -78,7 +79,7 @@ class PlancheDyn:
     times: dict
     options: DynOptions
     com0: np.ndarray
-    visualizer: object = None
+    visualizer: MeshcatVisualizer | None = None
     extras: dict = field(default_factory=dict)
 
 
@@ -266,13 +267,15 @@ def summarize(run: PlancheDyn, simulator: Simulator, duration: float, cpu: float
     # of base tilt is part of the motion, so the fall is judged by the support: the held left sole
     # leaving its place, the CoM dropping, a non-finite state. The shared report is kept beside it.
     own = np.flatnonzero(~finite | (left_move > FALL_SOLE_M) | (left_tilt > FALL_SOLE_RAD) | (com_drop > FALL_COM_DROP_M))
-    fall = {"fell": bool(own.size), "fell_at_s": None, "fall_reason": None}
+    fell_at: float | None = None
+    reason: str | None = None
     if own.size:
         k = own[0]
+        fell_at = float(t[k])
         reason = ("non-finite" if not finite[k] else "sole moved" if left_move[k] > FALL_SOLE_M
                   else "sole tilted" if left_tilt[k] > FALL_SOLE_RAD else "CoM dropped")
-        fall.update(fell_at_s=float(t[k]), fall_reason=reason)
-    end = fall["fell_at_s"] if fall["fell"] else np.inf
+    fall = {"fell": fell_at is not None, "fell_at_s": fell_at, "fall_reason": reason}
+    end = fell_at if fell_at is not None else np.inf
     before = t < end
     x_min, x_max, y_min, y_max = run.support
     com_local = np.einsum("kji,kj->ki", left[:, :2, :2], com[:, :2] - left[:, :2, 3])
@@ -296,7 +299,7 @@ def summarize(run: PlancheDyn, simulator: Simulator, duration: float, cpu: float
         "planche_variant": "full" if "arms" in T else "reduced", "duration_s": duration, "dt_s": robot.dt,
         "ticks": len(t), "options": vars(run.options).copy(), "support_rectangle_m": list(run.support),
         **fall, "fall_report": shared,
-        "fall_phase": phase_at(T, fall["fell_at_s"]) if fall["fell"] else None,
+        "fall_phase": phase_at(T, fell_at) if fell_at is not None else None,
         "time_on_one_foot_s": float(max(0.0, min(end, t[-1]) - (T["lift"] + RELEASE_RAMP))),
         "min_com_margin_in_support_single_m": float(margin[single].min()) if single.any() else None,
         "com_margin_in_support_at_lift_m": float(margin[np.searchsorted(t, T["lift"])]) if t[-1] >= T["lift"] else None,

@@ -81,7 +81,7 @@ from sotdrake.sweep import (
 )
 
 HAND_OFFSET = (0.1, 0.0, 0.0)
-BOX = {"x": (-0.4, 0.9), "y": (-1.1, 0.5), "z": (0.2, 1.8)}
+BOX: dict[str, tuple[float, float]] = {"x": (-0.4, 0.9), "y": (-1.1, 0.5), "z": (0.2, 1.8)}
 HAND_GAIN = 8.0
 HAND_DAMPING = 1e-2
 REACHED_M = 0.01
@@ -198,7 +198,7 @@ def reach_case(case: dict, duration: float = 1.0, dt: float = 0.02, variant: str
     return summarize(reach, simulator, target)
 
 
-def targets(count: int, sampling: str = "grid", seed: int = 0, box: dict = BOX) -> list[dict]:
+def targets(count: int, sampling: str = "grid", seed: int = 0, box: dict[str, tuple[float, float]] = BOX) -> list[dict]:
     """``count`` targets in ``box``: a k × k × k grid (``count`` = k³) or a seeded uniform sample."""
     if sampling == "random":
         return random_cases(count, box, seed)
@@ -209,7 +209,7 @@ def targets(count: int, sampling: str = "grid", seed: int = 0, box: dict = BOX) 
         near = sorted({max(side, 1) ** 3, (max(side, 1) + 1) ** 3, max(side - 1, 1) ** 3})
         raise InvalidInput(f"--targets with a grid must be a cube (k³ targets), got {count}; nearest: {near}, "
                            "or use --sampling random")
-    return grid({axis: np.linspace(*bounds, side).round(6) for axis, bounds in box.items()})
+    return grid({axis: np.linspace(low, high, side).round(6).tolist() for axis, (low, high) in box.items()})
 
 
 def plot(rows: list[dict], path: Path, slices: int = 4) -> Path:
@@ -230,7 +230,7 @@ def plot(rows: list[dict], path: Path, slices: int = 4) -> Path:
         edges = np.linspace(xyz[:, 2].min(), xyz[:, 2].max() + 1e-9, slices + 1)
         slab = np.clip(np.searchsorted(edges, xyz[:, 2], side="right") - 1, 0, slices - 1)
         labels = [f"z ∈ [{edges[i]:.2f}, {edges[i + 1]:.2f}) m" for i in range(slices)]
-        size = 30
+        size = 30.0
     else:
         chosen = heights[np.unique(np.linspace(0, len(heights) - 1, min(slices, len(heights))).round().astype(int))]
         slab = np.array([int(np.flatnonzero(chosen == z)[0]) if z in chosen else -1 for z in xyz[:, 2]])
@@ -239,9 +239,10 @@ def plot(rows: list[dict], path: Path, slices: int = 4) -> Path:
     columns = len(labels)
     fig, axes = plt.subplots(2, columns, figsize=(3.6 * columns + 1.2, 7.4), squeeze=False, sharex=True, sharey=True)
     error_norm = LogNorm(vmin=max(1e-5, error.min()), vmax=max(error.max(), 1e-4))
+    floor = float(error_norm.vmin) if error_norm.vmin is not None else 1e-5
     for c, label in enumerate(labels):
         here = slab == c
-        top = axes[0, c].scatter(xyz[here, 0], xyz[here, 1], c=np.maximum(error[here], error_norm.vmin), s=size,
+        top = axes[0, c].scatter(xyz[here, 0], xyz[here, 1], c=np.maximum(error[here], floor), s=size,
                                  marker="s", cmap="viridis", norm=error_norm)
         bottom = axes[1, c].scatter(xyz[here, 0], xyz[here, 1], c=margin[here], s=size, marker="s", cmap="magma",
                                     vmin=0.0, vmax=max(0.3, float(np.percentile(margin, 95))))

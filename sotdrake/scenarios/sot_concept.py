@@ -42,6 +42,7 @@ writes ``DIR/summary.json`` (one entry per configuration), ``DIR/plots.png``,
 
 from __future__ import annotations
 
+import functools
 import json
 import sys
 from dataclasses import dataclass, replace
@@ -182,22 +183,26 @@ class Concept:
     visualizer: object = None
 
 
-def _tasks(robot: Robot, seed: bool, profile: RobotProfile) -> dict:
+ConceptTask = MetaTaskKine6d | MetaTaskKineCom | MetaTaskKineJointLimits | MetaTaskKineManipulability
+"""The kinds of task the configurations push."""
+
+
+def _tasks(robot: Robot, seed: bool, profile: RobotProfile) -> dict[str, ConceptTask]:
     """The original's tasks: the hand (+ opmodif), the contacts, the CoM held (gain 10), the CoM
     support inequality and the joint limits (gain 10) with torso yaw's upper limit at 0."""
     rh = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     grip = np.eye(4)
     grip[0:3, 3] = profile.hand_offset
     rh.opmodif = grip
-    tasks = {"rh": rh}
+    tasks: dict[str, ConceptTask] = {"rh": rh}
     for name, op in (("RF", "right-ankle"), ("LF", "left-ankle")):
         contact = MetaTaskKine6d("contact" + name, robot, name, robot.OperationalPointsMap[op])
         if seed:
             contact.feature.frame("desired")
         contact.gain.setConstant(10)
         tasks[name] = contact
-    tasks["com"] = MetaTaskKineCom(robot)
-    tasks["com"].gain.setConstant(10)
+    com = tasks["com"] = MetaTaskKineCom(robot)
+    com.gain.setConstant(10)
     if seed:
         rh.feature.frame("desired")
         support = MetaTaskKineCom(robot, "support", inequality=True)
@@ -234,6 +239,7 @@ def build_diagram(config: Configuration, meshcat: Meshcat | None = None, robot_n
         tasks["floor"] = MetaTaskKineManipulability("rhManipulability", robot, "right-wrist", config.manipulability_floor,
                                                     joints=list(profile.right_arm))
     rh = tasks["rh"]
+    assert isinstance(rh, MetaTaskKine6d)
     gotoNd(rh, config.ball, "111", SEED_GAIN)
     for command in config.commands:
         verb, name = command.split()
@@ -245,7 +251,7 @@ def build_diagram(config: Configuration, meshcat: Meshcat | None = None, robot_n
     balls = [(0.0, np.asarray(config.ball, dtype=float))]
     for k, t in enumerate(config.steps, start=1):  # the original's `i`: the ball 0.1 m further in x
         ball = np.asarray(config.ball) + (0.1 * k, 0.0, 0.0)
-        attime(t, lambda b=tuple(ball): gotoNd(rh, b, "111", SEED_GAIN), f"ball +{0.1 * k:.1f} m in x")
+        attime(t, functools.partial(gotoNd, rh, tuple(ball), "111", SEED_GAIN), f"ball +{0.1 * k:.1f} m in x")
         balls.append((t, ball))
 
     tracer = Tracer(builder, config.dt)

@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> dict:
     without = build_collision_reach(collision=False, table=True)
     summary: dict = {"duration_s": args.duration, "hand_gain_per_s": HAND_GAIN, "safety_m": 0.01, "runs": {}}
     for name, target in TARGETS.items():
-        runs = {}
+        runs: dict[str, dict] = {}
         for label, reach in (("without", without), ("with", with_constraint)):
             report = run_collision_reach(reach, target, args.duration, gain=HAND_GAIN)
             runs[label] = {"min_signed_distance_m": report.min_distance, "hand_error_m": report.hand_error,

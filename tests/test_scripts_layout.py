@@ -52,3 +52,21 @@ def test_no_test_or_bench_file_loads_a_script_by_path():
     offenders = {path.relative_to(ROOT).as_posix(): found for path in files
                  if path.name != Path(__file__).name and (found := loads_by_path(path.read_text()))}
     assert not offenders, f"import sotdrake.scenarios.<name> instead of loading diagrams/ by path: {offenders}"
+
+
+def test_a_scenario_script_says_what_it_shows_and_points_to_its_scenario():
+    """The scenario module holds the description (it is ``--help``); the script's docstring stays
+    short: a sentence, how to run it, and which module is the scenario."""
+    import ast
+
+    checked = 0
+    for path in sorted((ROOT / "diagrams").glob("*.py")):
+        text = path.read_text()
+        scenario = re.search(r"from sotdrake\.scenarios\.(\w+) import", text)
+        if scenario is None:  # (the tools of the folder: not scenarios)
+            continue
+        checked += 1
+        doc = ast.get_docstring(ast.parse(text)) or ""
+        assert f":mod:`sotdrake.scenarios.{scenario.group(1)}`" in doc, path.name
+        assert len(doc.splitlines()) <= 12, f"{path.name}: the description belongs in sotdrake.scenarios.{scenario.group(1)}"
+    assert checked >= 15

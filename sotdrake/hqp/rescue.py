@@ -10,6 +10,7 @@ level takes a point that holds its rows to the tolerance of their terms
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -17,7 +18,7 @@ import numpy as np
 from ..exceptions import SolverError
 from .linalg import all_true, any_true
 from .paths import OUTSIDE, Attempt
-from .problem import KEPT_LAST_LEVEL, ROUND_OFF_LIMITED, Stage, least_norm
+from .problem import KEPT_LAST_LEVEL, ROUND_OFF_LIMITED, HqpResult, Stage, least_norm
 from .tolerances import ROUND_OFF, VERIFIED
 
 if TYPE_CHECKING:
@@ -146,3 +147,21 @@ def accepted(qp: StageOwner, attempt: Attempt, path: str, solution: ActiveSetRes
         if attempt.level is not None and all_true(np.isfinite(y)):
             attempt.outside.append((y, solution.side, label, solution.iterations))
     return corrected
+
+
+def cold_again(qp: StageOwner, error: SolverError, solve: Callable[[], HqpResult]) -> HqpResult:
+    """The whole solve once more without the stages' cached working sets, after every path of a
+    stage failed on a warm-started solve (re-raises ``error`` on a cold one). A warm start changes
+    which path answers, not the answer beyond the tolerances; but on a level with a flat optimum
+    (inequality rows, e.g. a collision level) the warm-started active set can end at another point
+    of the optimal set than the cold one, and a level below can then be out of every path's reach
+    from there (seen on ``SolverDyn``'s damping level in randomized collision reaches,
+    ``bench/collision_runs.py --dynamic``: the active set cycling or ending outside the bounds,
+    Clarabel and OSQP too, while the same problem solved cold is solved). Said in the answer's
+    fallbacks."""
+    if not qp.warm.working_sets:
+        raise error
+    qp.warm.working_sets.clear()
+    result = solve()
+    result.fallbacks.insert(0, f"the warm start was dropped and the stack solved cold ({error})")
+    return result

@@ -211,7 +211,11 @@ class HierarchicalQP:
                                                  x_lower, x_upper, began)
                 if result is not None:
                     return result
-            result = self._solve_stages(levels, x_lower, x_upper, damping, solver, began, start)
+            try:
+                result = self._solve_stages(levels, x_lower, x_upper, damping, solver, began, start)
+            except SolverError as error:
+                result = rescue.cold_again(self, error, lambda: self._solve_stages(levels, x_lower, x_upper, damping, solver,
+                                                                                   began, start))
             self.warm.bound_sides = (result.x, x_lower, x_upper)
             return result
 

@@ -236,7 +236,38 @@ def push_map_table(d: dict, name: str) -> list[str]:
     return lines + _table(keys, [[row.get(k) for k in keys] for row in d.get("case_results", [])])
 
 
+def _fixed(value: Any, digits: int = 1) -> str:
+    return "n/a" if value is None else f"{value:.{digits}f}"
+
+
+def entity_profile_table(d: dict) -> list[str]:
+    lines = [
+        "### Where the tick's time goes, per entity (`bench/reference/entity_profile.json`)",
+        "",
+        f"CPU time per tick of each entity kind, every callback timed (exclusive time: what a callback's "
+        f"input ports trigger is charged to the entities upstream), the timer's own cost "
+        f"({_num(d.get('timer_cost_us_per_call'))} µs per call) subtracted; beside it, the same kind in "
+        f"`bench/floor.py`'s graph (callbacks without maths) timed in the same run. {_num(d.get('tasks'))} tasks "
+        f"(`FeatureGeneric` is the CoM's feature). Regenerate with `.venv/bin/python bench/profile_entities.py --save`.",
+        "",
+    ]
+    stacks = d.get("stacks", {})
+    floor_tick = next((r.get("tick_cpu_us_median") for key, r in stacks.items() if key.startswith("floor")), None)
+    for key, r in stacks.items():
+        if key.startswith("floor"):
+            continue
+        lines += [f"**{key}**: median tick {_fixed(r.get('tick_cpu_us_median'), 0)} µs CPU (the floor's graph: "
+                  f"{_fixed(floor_tick, 0)} µs).", ""]
+        rows = [[kind, k.get("instances"), _fixed(k.get("calls_per_tick")), _fixed(k.get("us_per_tick")),
+                 _fixed(k.get("us_per_entity_net")), _fixed(k.get("floor_us_per_entity")), _fixed(k.get("ratio_to_floor"))]
+                for kind, k in r.get("kinds", {}).items()]
+        lines += _table(["entity kind", "instances", "calls per tick", "µs per tick", "µs per entity", "floor µs per entity",
+                         "ratio to floor"], rows)
+    return lines
+
+
 RENDERERS = {
+    "entity_profile.json": entity_profile_table,
     "push_map_kinematic.json": lambda d: push_map_table(d, "push_map_kinematic.json"),
     "push_map_dynamic.json": lambda d: push_map_table(d, "push_map_dynamic.json"),
     "dynamics.json": dynamics_tables,

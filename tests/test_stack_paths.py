@@ -44,7 +44,7 @@ def equality_stack(rng: np.random.Generator, bounds: str):
 def assert_same_answer(result, reference, levels, lower, upper):
     scale = 1.0 + np.abs(reference.x).max()
     for k, (A, b, _) in enumerate(levels):  # each level's slack: the stages' (strict hierarchy)
-        size = 1.0 + np.abs(b).max() + np.abs(A).max() * scale
+        size = 1.0 + np.abs(b).max(initial=0.0) + np.abs(A).max(initial=0.0) * scale
         assert abs(np.linalg.norm(A @ result.x - b) - reference.slack_norms[k]) <= 1e-7 * size, f"level {k}"
     assert np.all(result.x >= lower - 1e-9 * scale) and np.all(result.x <= upper + 1e-9 * scale)
     assert np.linalg.norm(result.x - reference.x) <= 1e-6 * scale  # the minimum-norm point, unique
@@ -125,3 +125,18 @@ def test_the_solvers_lists_always_decide():
         assert np.all(result.x >= lower - 1e-9) and np.all(result.x <= upper + 1e-9)
     with pytest.raises(SolverError, match="no path answered"):
         solve_stack(HierarchicalQP(n), StackProblem(levels, lower, upper), (QR_SWEEP, ACTIVE_BOUNDS))
+
+
+@pytest.mark.parametrize("path", [QR_SWEEP, ACTIVE_BOUNDS], ids=lambda p: p.name)
+def test_a_level_without_rows_does_not_keep_the_closed_forms_out(path):
+    """An inequality level with no row (a collision level with no pair in range) is no inequality."""
+    rng = np.random.default_rng(13)
+    n, levels, lower, upper = equality_stack(rng, "loose")
+    while np.linalg.matrix_rank(np.vstack([A for A, _, _ in levels])) < sum(len(A) for A, _, _ in levels):
+        n, levels, lower, upper = equality_stack(rng, "loose")
+    empty = (np.zeros((0, n)), np.zeros(0), np.zeros(0))
+    levels = [levels[0], empty, *levels[1:]]
+    problem = StackProblem(levels, lower, upper)
+    result = path.attempt(HierarchicalQP(n), problem)
+    assert result is not None
+    assert_same_answer(result, STAGES.attempt(HierarchicalQP(n), problem), levels, lower, upper)

@@ -67,7 +67,9 @@ class StackProblem:
 
     @property
     def equalities_only(self) -> bool:
-        return self.stacked is not None or all(lower is upper for _, lower, upper in self.levels)
+        """Every level an equality (a level without rows, e.g. a collision level with no pair in
+        range, counts as one)."""
+        return self.stacked is not None or all(lower is upper or len(lower) == 0 for _, lower, upper in self.levels)
 
 
 class StackPath:

@@ -44,18 +44,17 @@ from sotdrake import (
     Tracer,
     add_robot_visualizer,
     attime,
-    fall_report,
     load_robot,
     save_figure,
     script_arguments,
     start,
-    tilt_of_quaternions,
     write_run,
 )
 from sotdrake.dynamics.contact import Contact6d
 from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
 from sotdrake.dynamics.robot_dyn import RobotDyn
 from sotdrake.dynamics.trajectories import hold_move_hold, trajectory_ports
+from sotdrake.scenarios.common import floating_base_fall, translation_drift
 
 SCENARIOS = ("lift_leg", "lift_leg_no_com")
 DT = 5e-3  # the seed's dt (s)
@@ -198,13 +197,12 @@ def summarize(run: DynRomeo, simulator: Simulator, times: np.ndarray, duration: 
     q = np.nan_to_num(x[:, :nq])
     path = robot.dynamic.trajectory(["contactLF", "contactRF"], q)
     left, right = path["contactLF"], path["contactRF"]
-    left_move = np.linalg.norm(left[:, :3, 3] - left[0, :3, 3], axis=1)
+    left_move = translation_drift(left)
     left_tilt = np.arccos(np.clip(left[:, 2, 2], -1.0, 1.0))  # angle between the sole's z and the world's
     com_drop = com[0, 2] - com[:, 2]
     # The shared criterion (sotdrake.fall), and, without a ground under the dynamic device, the held
     # sole leaving its place (1 cm, or 0.1 rad of tilt) or the CoM dropping 10 cm.
-    with np.errstate(invalid="ignore", divide="ignore"):
-        fall = fall_report(t, np.where(finite, tilt_of_quaternions(x[:, :4]), np.nan), x[:, 6], left_move)
+    fall = floating_base_fall(t, x, left_move)
     own = np.flatnonzero(~finite | (left_move > FALL_SOLE_M) | (left_tilt > FALL_SOLE_RAD) | (com_drop > FALL_COM_DROP_M))
     if own.size and (not fall["fell"] or t[own[0]] < fall["fell_at_s"]):
         fall.update(fell=True, fell_at_s=float(t[own[0]]), fall_reason="non-finite" if not finite[own[0]] else "sole moved")

@@ -49,9 +49,9 @@ from sotdrake import (
     write_run,
 )
 from sotdrake import robot as make_robot
+from sotdrake.scenarios.common import HAND_OFFSET, gripping_hand, keep_feet_and_com, point_on, support_drift
 
 TARGET = (0.5, -0.2, 0.8)
-HAND_OFFSET = (0.1, 0.0, 0.0)
 DT = 5e-3  # the seed's dt
 #: Joints the SoT leaves alone: hands and fingers (their own controllers on the real robots).
 NOT_CONTROLLED = re.compile(r"hand|finger|thumb|gripper", re.I)
@@ -97,24 +97,9 @@ def build_diagram(
     sot.setControlSelection(robot.velocity_selection(excluding=excluded))
 
     # --- the tasks: the grip, the static CoM (X, Y), the contacts
-    taskRH = MetaTaskKine6d("rh", robot, "right-wrist", robot.OperationalPointsMap["right-wrist"])
-    handMgrip = np.eye(4)
-    handMgrip[0:3, 3] = HAND_OFFSET
-    taskRH.opmodif = handMgrip
-    taskRH.feature.frame("desired")
-
-    taskCom = MetaTaskKineCom(robot)
-    taskCom.keep()
-    taskCom.feature.selec("011")
-    taskCom.gain.setConstant(10)
-
-    contacts = {}
-    for name, joint in (("LF", "left-ankle"), ("RF", "right-ankle")):
-        contact = MetaTaskKine6d("contact" + name, robot, name, robot.OperationalPointsMap[joint])
-        contact.feature.frame("desired")
-        contact.gain.setConstant(10)
-        contact.keep()
-        contacts[name] = contact
+    taskRH = gripping_hand(robot, "right-wrist", HAND_OFFSET)
+    contactLF, contactRF, taskCom = keep_feet_and_com(robot, com_selec="011", gain=10.0)
+    contacts = {"LF": contactLF, "RF": contactRF}
 
     # --- run: the target, then the stack
     gotoNd(taskRH, target, "111", (4.9, 0.9, 0.01, 0.9))
@@ -146,11 +131,9 @@ def summarize(kine: KineRomeo, simulator: Simulator, duration: float, wall: floa
     robot = kine.robot
     qs = np.vstack([robot.device.initial_position, trace["q"]])
     path = robot.dynamic.trajectory(["right-wrist", "LF", "RF"], qs)
-    hand = path["right-wrist"][:, :3, :3] @ np.asarray(HAND_OFFSET) + path["right-wrist"][:, :3, 3]
+    hand = point_on(path["right-wrist"], HAND_OFFSET)
     target = desired_position(kine.taskRH, context)  # the last gotoNd's, not the build-time one
     hand_error = np.linalg.norm(hand - target, axis=1)
-    foot_drift = max(np.linalg.norm(path[f][:, :3, 3] - path[f][0, :3, 3], axis=1).max() for f in ("LF", "RF"))
-    com_xy_drift = np.linalg.norm(path["com"][:, :2] - path["com"][0, :2], axis=1).max()
     limits = robot.model.joint_limits()
     lower, upper = limits["position_lower"], limits["position_upper"]
     finite = np.isfinite(lower) & np.isfinite(upper)
@@ -164,8 +147,7 @@ def summarize(kine: KineRomeo, simulator: Simulator, duration: float, wall: floa
         "joint_limitator": kine.robot.limitator is not None,
         "hand_initial_error_m": float(hand_error[0]),
         "hand_error_m": float(hand_error[-1]),
-        "max_foot_drift_m": float(foot_drift),
-        "max_com_xy_drift_m": float(com_xy_drift),
+        **support_drift(path),
         "com_height_change_m": float(path["com"][-1, 2] - path["com"][0, 2]),
         "min_joint_limit_margin_rad": float(margin),
         "final_stack": kine.sot.stack(context),

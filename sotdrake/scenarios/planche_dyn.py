@@ -44,6 +44,7 @@ from sotdrake.dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, Meta
 from sotdrake.dynamics.robot_dyn import RobotDyn
 from sotdrake.dynamics.trajectories import minimum_jerk_moves, trajectory_ports
 from sotdrake.exceptions import SotError
+from sotdrake.scenarios.common import translation_drift
 
 FALL_SOLE_M, FALL_SOLE_RAD, FALL_COM_DROP_M = 0.01, 0.1, 0.1  # the held sole moved/tilted, the CoM dropped (m, rad)
 STOP_COM_DROP_M = 0.3  # the run stops there (no ground under RobotDynSimu)
@@ -257,7 +258,7 @@ def summarize(run: PlancheDyn, simulator: Simulator, duration: float, cpu: float
     q = np.nan_to_num(x[:, :nq])
     path = robot.dynamic.trajectory(["contactLF", "rf", "chest"], q)
     left = path["contactLF"]
-    left_move = np.linalg.norm(left[:, :3, 3] - left[0, :3, 3], axis=1)
+    left_move = translation_drift(left)
     left_tilt = np.arccos(np.clip(left[:, 2, 2], -1.0, 1.0))
     com_drop = com[0, 2] - com[:, 2]
     with np.errstate(invalid="ignore", divide="ignore"):

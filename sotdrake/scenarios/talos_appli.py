@@ -48,9 +48,9 @@ from sotdrake import (
 )
 from sotdrake import simulate as run_simulation
 from sotdrake.live import add_live_arguments, live_meshcat, run_live
+from sotdrake.scenarios.common import HAND_OFFSET, gripping_hand, keep_feet_and_com, point_on, support_drift
 
 TARGET = (0.5, -0.2, 1.0)
-HAND_OFFSET = (0.1, 0.0, 0.0)
 
 
 @dataclass
@@ -86,26 +86,10 @@ def build_diagram(
     robot = talos(builder, variant, dt)
 
     # --- the right hand: MetaTaskKine6d at 'right-wrist' moved by handMgrip = (0.1, 0, 0)
-    taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
-    handMgrip = np.eye(4)
-    handMgrip[0:3, 3] = HAND_OFFSET
-    taskRH.opmodif = handMgrip
-    taskRH.feature.frame("desired")
+    taskRH = gripping_hand(robot, "rh", HAND_OFFSET)
 
-    # --- static CoM
-    taskCom = MetaTaskKineCom(robot)
-    taskCom.keep()  # seed: taskCom.featureDes.errorIN.value = robot.dynamic.com.value
-    taskCom.gain.setConstant(10)
-
-    # --- contacts
-    contactLF = MetaTaskKine6d("contactLF", robot, "LF", robot.OperationalPointsMap["left-ankle"])
-    contactLF.feature.frame("desired")
-    contactLF.gain.setConstant(10)
-    contactLF.keep()
-    contactRF = MetaTaskKine6d("contactRF", robot, "RF", robot.OperationalPointsMap["right-ankle"])
-    contactRF.feature.frame("desired")
-    contactRF.gain.setConstant(10)
-    contactRF.keep()
+    # --- static CoM (seed: taskCom.featureDes.errorIN.value = robot.dynamic.com.value) and contacts
+    contactLF, contactRF, taskCom = keep_feet_and_com(robot, gain=10.0)
 
     # --- the solver and the stack
     sot = add_sot(robot, "sot", solver=solver)
@@ -158,15 +142,9 @@ def summarize(appli: Appli, simulator: Simulator, duration: float, wall: float) 
     robot, q0 = appli.robot, appli.robot.device.initial_position
     qs = np.vstack([q0, trace["q"]])
     path = robot.dynamic.trajectory(["rh", "LF", "RF"], qs)
-    hand = path["rh"][:, :3, :3] @ np.asarray(HAND_OFFSET) + path["rh"][:, :3, 3]
+    hand = point_on(path["rh"], HAND_OFFSET)
     target = desired_position(appli.taskRH, context)  # the last gotoNd's, not the build-time one
     hand_error = np.linalg.norm(hand - target, axis=1)
-    foot_drift = max(np.linalg.norm(path[f][:, :3, 3] - path[f][0, :3, 3], axis=1).max() for f in ("LF", "RF"))
-    foot_rotation_drift = max(
-        np.arccos(np.clip((np.einsum("kij,ij->k", path[f][:, :3, :3], path[f][0, :3, :3]) - 1) / 2, -1, 1)).max()
-        for f in ("LF", "RF")
-    )
-    com_drift = np.linalg.norm(path["com"] - path["com"][0], axis=1).max()
     limits = robot.model.joint_limits()
     lower, upper = limits["position_lower"], limits["position_upper"]
     finite = np.isfinite(lower) & np.isfinite(upper)
@@ -177,9 +155,7 @@ def summarize(appli: Appli, simulator: Simulator, duration: float, wall: float) 
         "hand_error_m": float(hand_error[-1]),
         "hand_initial_error_m": float(hand_error[0]),
         "hand_within_5mm_at_s": float(trace["time"][reached[0]]) if reached.size else None,
-        "max_foot_drift_m": float(foot_drift),
-        "max_foot_rotation_drift_rad": float(foot_rotation_drift),
-        "max_com_drift_m": float(com_drift),
+        **support_drift(path),
         "min_joint_limit_margin_rad": float(margin),
         # The command scaled into the velocity limits (1: never): the smallest factor, and how often.
         "min_velocity_scale": float(trace["velocity_scale"].min()),

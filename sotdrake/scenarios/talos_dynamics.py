@@ -47,12 +47,10 @@ from sotdrake import (
     Tracer,
     add_task_weight,
     attime,
-    fall_report,
     load_talos,
     save_figure,
     script_arguments,
     start,
-    tilt_of_quaternions,
     write_run,
 )
 from sotdrake.dynamics.contact import friction_ratio
@@ -62,6 +60,7 @@ from sotdrake.dynamics.station import sole_rectangle
 from sotdrake.dynamics.trajectories import hold_move_hold, minimum_jerk_moves, trajectory_ports
 from sotdrake.hqp import ACTIVE_SET, SOLVERS
 from sotdrake.physics import FRICTION, ContactMonitor, Push
+from sotdrake.scenarios.common import floating_base_fall, point_drift, translation_drift
 
 SCENARIOS = ("stand", "sway", "lift_leg", "lift_leg_no_com", "squat", "push")
 SWAY = (0.05, 0.5, 2.0)  # amplitude (m), frequency (Hz), fade-in (s)
@@ -285,19 +284,17 @@ def summarize(run: DynamicsRun, simulator: Simulator, times: np.ndarray, duratio
     t = trace["time"]
     x = trace["x"]
     q = x[:, :nq]
-    finite = np.all(np.isfinite(x), axis=1)
     path = robot.dynamic.trajectory(["contactLF", "contactRF"], np.nan_to_num(q))
     com = trace["com"]
     released_at = RELEASE[0] + RELEASE[1] if run.foot is not None else np.inf
     # Slip of each sole while it is held (xy displacement from its initial pose), at each tick.
     slips = np.zeros(len(t))
     for side, until in (("contactLF", np.inf), ("contactRF", RELEASE[0] if run.foot is not None else np.inf)):
-        slip = np.linalg.norm(path[side][:, :2, 3] - path[side][0, :2, 3], axis=1)
+        slip = translation_drift(path[side], 2)
         slips = np.maximum(slips, np.where(t < until, slip, 0.0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        fall = fall_report(t, np.where(finite, tilt_of_quaternions(x[:, :4]), np.nan), x[:, 6], slips)
+    fall = floating_base_fall(t, x, slips)
     summary: dict = {"scenario": run.scenario, "device": run.device, "duration_s": duration, "ticks": len(times), **fall}
-    summary["com_drift_m"] = float(np.linalg.norm(com - com[0], axis=1).max())
+    summary["com_drift_m"] = float(point_drift(com).max())
     if "com_reference" in trace:
         error = np.linalg.norm(com - trace["com_reference"], axis=1)
         summary["com_rms_error_m"] = float(np.sqrt(np.mean(error**2)))

@@ -43,9 +43,9 @@ from sotdrake import (
     write_run,
 )
 from sotdrake.physics import SOLE_BOX, KinematicBaseEstimator, PhysicalTalos, TalosStation, add_talos_station
+from sotdrake.scenarios.common import HAND_OFFSET, gripping_hand, point_drift, point_on, translation_drift
 
 TARGET = (0.5, -0.2, 1.0)
-HAND_OFFSET = (0.1, 0.0, 0.0)
 
 
 @dataclass
@@ -84,10 +84,7 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push=0.0,
     sot = add_sot(robot)
     sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
     _, _, taskCom = hold_feet_and_com(robot, sot)  # contactRF, contactLF, taskCom as in the tutorial (gain 10)
-    taskRH = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
-    handMgrip = np.eye(4)
-    handMgrip[0:3, 3] = HAND_OFFSET
-    taskRH.opmodif = handMgrip
+    taskRH = gripping_hand(robot, "rh", HAND_OFFSET, desired_frame=False)
     if scenario == "reach":
         gotoNd(taskRH, TARGET, "111", (4.9, 0.9, 0.01, 0.9))
         attime(1.0, lambda: sot.push(taskRH.task.name), "push taskrh: move the right hand")
@@ -122,9 +119,9 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
     q = trace["x_plant"][:, :nq]
     q0 = robot.device.initial_position
     path = robot.dynamic.trajectory(["rh", "left-sole", "right-sole"], np.vstack([q0, q]))
-    hand = path["rh"][:, :3, :3] @ np.asarray(HAND_OFFSET) + path["rh"][:, :3, 3]
+    hand = point_on(path["rh"], HAND_OFFSET)
     feet = trace["feet"]
-    slips = np.max([np.linalg.norm(path[s][:, :2, 3] - path[s][0, :2, 3], axis=1) for s in ("left-sole", "right-sole")], axis=0)
+    slips = np.max([translation_drift(path[s], 2) for s in ("left-sole", "right-sole")], axis=0)
     slip = slips.max()
     base = np.vstack([q0, q])[:, 4:7]
     size, centre = SOLE_BOX
@@ -141,7 +138,7 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
         "scenario": run.scenario,
         "hand_error_m": float(np.linalg.norm(hand[-1] - target)),
         "hand_initial_error_m": float(np.linalg.norm(hand[0] - target)),
-        "base_drift_m": float(np.linalg.norm(base[:, :2] - base[0, :2], axis=1).max()),
+        "base_drift_m": float(point_drift(base, 2).max()),
         "base_height_drop_m": float(max(0.0, (base[0, 2] - base[:, 2]).max())),
         # From the first step on: at t = 0 the soles just touch the ground and carry nothing yet.
         "min_normal_force_n": float(min(feet[1:, 2].min(), feet[1:, 5].min())),

@@ -13,7 +13,7 @@ The order, for the default solver (``"active-set"``):
    (the warm start, kept in the :class:`~.warm.WarmStart`), if there is one;
 2. the active set cold, from the dual method's guess (DAQP's or quadprog's, :meth:`Attempt.cold_guess`);
 3. the active set with its working set's rank decisions at :data:`~.tolerances.DEGENERATE_RETRY`
-   fractions of τ, only if a path above ended outside the bounds (a degenerate vertex);
+   fractions of τ, only if a path above ended outside the bounds or cycled (a degenerate vertex);
 4. Clarabel, then OSQP, each point polished by the active set.
 
 With a Drake solver chosen, that solver first, then the active set (warm, then cold), the other
@@ -40,6 +40,7 @@ if TYPE_CHECKING:
 
 ACTIVE_SET = "active-set"
 OUTSIDE = "a point outside the bounds"
+CYCLING = "no convergence in"  # the active set's failure when its working sets cycle (see DegenerateRetry)
 DRAKE_PATHS = ("clarabel", "osqp")  # the Drake solvers every stage may fall back on, in order
 
 
@@ -118,7 +119,14 @@ class ColdActiveSet(Path):
 @dataclass
 class DegenerateRetry(Path):
     """The active set cold, its working set's rank decisions at ``fraction`` τ; tried only once a
-    path ended outside the bounds (see :data:`~.tolerances.DEGENERATE_RETRY`)."""
+    path ended outside the bounds or did not converge (see :data:`~.tolerances.DEGENERATE_RETRY`).
+
+    Both are the same degenerate vertex: a row dropped from a working set of nearly dependent rows
+    stays implied by the others to within τ, so it cannot block the next step (it counts as
+    dependent) yet the step moves it off its bound by about τ times the step; the next step is then
+    blocked by it at once, it is added back, and the working sets cycle (seen on ``SolverDyn``'s
+    posture level: a cycle of four working sets, the dropped row 2e-8 past its bound) or the path
+    ends outside the bounds."""
 
     fraction: float
 
@@ -127,7 +135,7 @@ class DegenerateRetry(Path):
         return f"active-set (working set at {self.fraction:g} τ)"
 
     def attempt(self, a: Attempt) -> tuple[ActiveSetResult, str] | None:
-        if not any(failure.endswith(OUTSIDE) for failure in a.failures):
+        if not any(failure.endswith(OUTSIDE) or CYCLING in failure for failure in a.failures):
             return None
         return super().attempt(a)
 

@@ -1,20 +1,23 @@
-"""A stage whose active set cycles at a degenerate vertex (recorded from SolverDyn's collision reach)."""
+"""Stages at a degenerate vertex where the active set cycled or ended outside the bounds (recorded
+from SolverDyn's collision reach)."""
 
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from sotdrake.hqp.solve import HierarchicalQP, LevelRows
 from sotdrake.hqp.warm import WarmStart
 from tests.test_hqp import bounds_hold, round_off, same_norms
 
-DATA = Path(__file__).parent / "data" / "cycling_posture_stage.npz"
+DATA = Path(__file__).parent / "data"
+RECORDED = ["cycling_posture_stage.npz", "sliver_posture_stage.npz"]
 
 
-def _recorded() -> tuple[list[LevelRows], np.ndarray, np.ndarray, np.ndarray, WarmStart]:
+def _recorded(name: str) -> tuple[list[LevelRows], np.ndarray, np.ndarray, np.ndarray, WarmStart]:
     """The stack (82 unknowns (q̈, w, τ): dynamics, contacts, CoM, collision rows, hand, damping,
     posture), its bounds and start, and the warm start the solve read (each stage's last working set)."""
-    data = np.load(DATA)
+    data = np.load(DATA / name)
     levels = [LevelRows(data[f"A{k}"], data[f"lower{k}"], data[f"upper{k}"]) for k in range(int(data["levels"]))]
     warm = WarmStart(len(data["x_lower"]))
     for i, (k, g0, g1, m0, m1) in enumerate(data["warm_keys"]):
@@ -23,14 +26,16 @@ def _recorded() -> tuple[list[LevelRows], np.ndarray, np.ndarray, np.ndarray, Wa
     return levels, data["x_lower"], data["x_upper"], data["start"], warm
 
 
-def test_a_cycling_stage_is_solved_within_the_bounds_and_strictly():
+@pytest.mark.parametrize("name", RECORDED)
+def test_a_degenerate_posture_stage_is_solved_within_the_bounds_and_strictly(name):
     """On the posture level (6 directions left free, 34 bound and held rows) six rows meet at a
     vertex where one is implied by the other five only to within τ: dropped for its multiplier, it
     cannot block the next step, which moves it 2e-8 past its bound; it is added back at once and the
-    active set's working sets cycle (warm and cold: no convergence in 450 iterations). With the
-    warm start of the recorded tick, solved: bounds to 1e-9, every level's slack that of the stack
-    truncated after it (strict priority)."""
-    levels, x_lower, x_upper, start, warm = _recorded()
+    active set's working sets cycle (warm and cold: no convergence in 450 iterations). In the second
+    stack, two held rows pin a direction to within 8e-10 (the feasible set is a sliver): every
+    path from the dual guess ended 5e-7 outside a bound. With the warm start of the recorded tick,
+    solved: bounds to 1e-9, every level's slack that of the stack truncated after it (strict priority)."""
+    levels, x_lower, x_upper, start, warm = _recorded(name)
     n = len(x_lower)
     result = HierarchicalQP(n).solve(levels, x_lower, x_upper, start=start, warm=warm)
     assert np.all(np.isfinite(result.x)) and bounds_hold(result.x, x_lower, x_upper)
@@ -41,9 +46,10 @@ def test_a_cycling_stage_is_solved_within_the_bounds_and_strictly():
                                                                                         alone.slack_norms)
 
 
-def test_a_cycling_stage_is_solved_cold_to_the_same_slacks():
+@pytest.mark.parametrize("name", RECORDED)
+def test_a_degenerate_posture_stage_is_solved_cold_to_the_same_slacks(name):
     """The same stack cold (a fresh warm start): the same slacks, bounds to 1e-9."""
-    levels, x_lower, x_upper, start, warm = _recorded()
+    levels, x_lower, x_upper, start, warm = _recorded(name)
     n = len(x_lower)
     warm_result = HierarchicalQP(n).solve(levels, x_lower, x_upper, start=start, warm=warm)
     cold = HierarchicalQP(n).solve(levels, x_lower, x_upper, start=start)

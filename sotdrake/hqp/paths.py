@@ -13,7 +13,8 @@ The order, for the default solver (``"active-set"``):
    (the warm start, kept in the :class:`~.warm.WarmStart`), if there is one;
 2. the active set cold, from the dual method's guess (DAQP's or quadprog's, :meth:`Attempt.cold_guess`);
 3. the active set with its working set's rank decisions at :data:`~.tolerances.DEGENERATE_RETRY`
-   fractions of τ, only if a path above ended outside the bounds (a degenerate vertex);
+   fractions of τ, only if a path above ended outside the bounds or cycled (a degenerate vertex):
+   from the dual guess, then from the empty working set at the stage's start;
 4. Clarabel, then OSQP, each point polished by the active set.
 
 With a Drake solver chosen, that solver first, then the active set (warm, then cold), the other
@@ -40,6 +41,7 @@ if TYPE_CHECKING:
 
 ACTIVE_SET = "active-set"
 OUTSIDE = "a point outside the bounds"
+CYCLING = "no convergence in"  # the active set's failure when its working sets cycle (see DegenerateRetry)
 DRAKE_PATHS = ("clarabel", "osqp")  # the Drake solvers every stage may fall back on, in order
 
 
@@ -68,8 +70,9 @@ class Attempt:
                        else level_guess(stage))
         return (stage.guess, False) if dual is None else (dual, valid)
 
-    def polish(self, guess: np.ndarray, valid: bool, working_threshold: float | None = None) -> ActiveSetResult:
-        """The active set on the stage from ``guess`` (raises :class:`~.linalg.ActiveSetFailure`)."""
+    def polish(self, guess: np.ndarray | None, valid: bool, working_threshold: float | None = None) -> ActiveSetResult:
+        """The active set on the stage from ``guess`` (None: the empty working set at the stage's start;
+        raises :class:`~.linalg.ActiveSetFailure`)."""
         stage = self.stage
         return solve_least_squares_qp(
             stage.M, stage.t, stage.m_scale, stage.G, stage.lower, stage.upper, stage.z0,
@@ -118,20 +121,30 @@ class ColdActiveSet(Path):
 @dataclass
 class DegenerateRetry(Path):
     """The active set cold, its working set's rank decisions at ``fraction`` τ; tried only once a
-    path ended outside the bounds (see :data:`~.tolerances.DEGENERATE_RETRY`)."""
+    path ended outside the bounds or did not converge (see :data:`~.tolerances.DEGENERATE_RETRY`).
+
+    Both are the same degenerate vertex: a row dropped from a working set of nearly dependent rows
+    stays implied by the others to within τ, so it cannot block the next step (it counts as
+    dependent) yet the step moves it off its bound by about τ times the step; the next step is then
+    blocked by it at once, it is added back, and the working sets cycle (seen on ``SolverDyn``'s
+    posture level: a cycle of four working sets, the dropped row 2e-8 past its bound) or the path
+    ends outside the bounds."""
 
     fraction: float
+    empty: bool = False  # from the empty working set (at the stage's start) rather than the dual guess
 
     @property
     def name(self) -> str:  # type: ignore[override]
-        return f"active-set (working set at {self.fraction:g} τ)"
+        return f"active-set (working set at {self.fraction:g} τ{', from the start' if self.empty else ''})"
 
     def attempt(self, a: Attempt) -> tuple[ActiveSetResult, str] | None:
-        if not any(failure.endswith(OUTSIDE) for failure in a.failures):
+        if not any(failure.endswith(OUTSIDE) or CYCLING in failure for failure in a.failures):
             return None
         return super().attempt(a)
 
     def solve(self, a: Attempt) -> tuple[ActiveSetResult, str] | None:
+        if self.empty:
+            return a.polish(None, False, self.fraction * a.qp.rank_threshold), self.name
         return a.polish(*a.cold_guess(), self.fraction * a.qp.rank_threshold), self.name
 
 
@@ -168,7 +181,9 @@ def sides(stage: Stage, z: np.ndarray, tolerance: float | None = None) -> np.nda
 
 
 _WARM, _COLD = WarmActiveSet(), ColdActiveSet()
-_RETRIES = tuple(DegenerateRetry(fraction) for fraction in DEGENERATE_RETRY)
+# Last, from the empty working set: where the feasible set is a sliver (held rows pinning a direction
+# to within 1e-9), the dual guess can start on a vertex the finer steps then leave by 5e-7.
+_RETRIES = (*(DegenerateRetry(fraction) for fraction in DEGENERATE_RETRY), DegenerateRetry(DEGENERATE_RETRY[0], True))
 
 
 @functools.cache

@@ -63,7 +63,8 @@ DEGENERATE_RETRY = (1e-4, 1e-3)
 working set's rank decisions at τ can leave out a row that the held ones imply only to within τ:
 it then moves off its bound by up to about τ times the step (seen on ``SolverDyn``'s last level at
 random valid states: 2e-8 on a unit row, against the 1e-9 every point must meet; about 4 random
-states in 100 failed so). A stage whose active-set paths end outside the bounds is solved once more
+states in 100 failed so), or the working sets cycle (the dropped row, pushed off, blocks the next
+step at once). A stage whose active-set paths end outside the bounds or cycle is solved once more
 by the active set (cold guess) with the working set's rank decisions at these fractions of τ in turn,
 right after the active set's own paths and before the Drake solvers' (which cost about 140 ms each
 on such a stage, and end outside the bounds too); every other rank decision stays at τ, and the

@@ -60,11 +60,11 @@ class DynamicSolve:
         self._actuation: tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray] | None = None  # actuation()
 
     def solve(self, p: Problem, s: DynSettings, warm: Warm, held: tuple[Sequence[int], Sequence[int]],
-              diagnostics: DynDiagnostics, when: str, name: str) -> tuple[HqpResult | None, list[np.ndarray] | None, int]:
+              diagnostics: DynDiagnostics, time: float, name: str) -> tuple[HqpResult | None, list[np.ndarray] | None, int]:
         """``(result, world, count)``: the optimum (None: every attempt failed, zero torque), the
         contacts' world wrenches when the fast path computed them, and the number of levels of what
         was tried (the residuals' size). ``held``: the components held at their lower and upper
-        bound at the last tick (the QR sweep's guess); ``when`` and ``name``: for the failure's message."""
+        bound at the last tick (the QR sweep's guess); ``time`` (s) and ``name``: for the failure's message."""
         n = len(p.lower)
         hqp = self._hqps.get(n)
         if hqp is None:
@@ -78,7 +78,7 @@ class DynamicSolve:
             result = self.full(p, s, hqp, warm, held, tried)
             return result, None, len(result.slack_norms)
         except SolverError as error:
-            rescued, count = self.rescue(p, s, hqp, warm, error, tried, diagnostics, when, name)
+            rescued, count = self.rescue(p, s, hqp, warm, error, tried, diagnostics, time, name)
             return rescued, None, count
 
     def reduced(self, p: Problem, s: DynSettings, warm: Warm, held: tuple[Sequence[int], Sequence[int]]
@@ -128,12 +128,12 @@ class DynamicSolve:
         return result
 
     def rescue(self, p: Problem, s: DynSettings, hqp: HierarchicalQP, warm: Warm, error: SolverError,
-               tried: list[HqpResult], diagnostics: DynDiagnostics, when: str, name: str) -> tuple[HqpResult | None, int]:
+               tried: list[HqpResult], diagnostics: DynDiagnostics, time: float, name: str) -> tuple[HqpResult | None, int]:
         """The relaxed optimum (dynamics, contact accelerations and the stack exact; friction/CoP
         rows possibly violated), else the dynamics and contacts alone; None (zero torque) if even
         that fails. Also the number of levels of what was tried (the residuals' size)."""
         terms, contacts, tasks, loads, lower, upper = p.terms, p.contacts, p.tasks, p.loads, p.lower, p.upper
-        diagnostics.failure = f"{when}: {error}"
+        diagnostics.failure = f"t = {time:.4f} s: {error}"
         relaxed = tried[0] if tried else None
         levels: list[LevelRows] = []
         if relaxed is None:

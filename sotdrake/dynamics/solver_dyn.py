@@ -254,8 +254,7 @@ class SolverDyn(StackSolver[DynSettings]):
         p = self._problem(context, s)
         diagnostics = DynDiagnostics(levels=p.names)
         result, world, count = self._solve.solve(p, s, lambda problem, n: self._warm(context, problem, n),
-                                                 self._held_guess(context), diagnostics,
-                                                 f"t = {context.get_time():.4f} s", self.name)
+                                                 self._held_guess(context), diagnostics, context.get_time(), self.name)
         if result is None:
             value.set_value(DynSolution(np.zeros(self.nv), np.zeros(self.na), {}, {}, np.full(count, np.nan), diagnostics))
             return

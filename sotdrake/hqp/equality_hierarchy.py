@@ -69,12 +69,13 @@ import numpy as np
 from ..compiled import announce_compilation, compiled_input
 from .kernels.lapack import row_norms
 from .kernels.sweep import IN_THE_WAY, _compiled_sweep, _most_in_the_way, _outcome  # noqa: F401  (IN_THE_WAY: its tolerance, named here)
-from .problem import HqpResult, LevelRows
+from .problem import NO_ACTIVE_ROWS, HqpResult, LevelRows
 
 SOLVER_NAME = "qr"
 
 #: How many times the set of bounds held at equality may change before the QP decides.
 ACTIVE_SET_CHANGES = 6
+
 
 class StackedLevels(NamedTuple):
     """The levels' rows stacked once per solve: ``A`` (M × n), ``b``, the rows' norms (0 → 1: the
@@ -117,10 +118,6 @@ def _sweep(stack: StackedLevels, x_lower: np.ndarray, x_upper: np.ndarray, held:
     signs = np.fromiter(held.values(), dtype=float, count=len(held))
     ok, x, released = _compiled_sweep(stack.A, stack.b, stack.norms, stack.starts, x_lower, x_upper, indices, signs)
     return (x, released.tolist()) if ok else None
-
-
-_NO_ROWS = np.zeros(0, dtype=int)  # the active rows of an equality level (shared, read only)
-_NO_ROWS.flags.writeable = False
 
 
 def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_lower: np.ndarray,
@@ -180,5 +177,5 @@ def solve_stacked(stack: StackedLevels, x_lower: np.ndarray, x_upper: np.ndarray
     count = len(starts) - 1
     return HqpResult(
         x=x, slacks=[residuals[starts[k] : starts[k + 1]] for k in range(count)], slack_norms=slack_norms,
-        active_rows=[_NO_ROWS] * count, active_bounds=active_bounds,
+        active_rows=[NO_ACTIVE_ROWS] * count, active_bounds=active_bounds,
         solve_time_s=time.perf_counter() - start, level_solvers=[SOLVER_NAME] * count, iterations=[0] * count)

@@ -15,14 +15,12 @@ import numpy as np
 
 from ..compiled import kernels
 from .linalg import all_true
-from .problem import ACTIVE_BOUNDS, ACTIVE_SET, HqpResult
+from .problem import ACTIVE_BOUNDS, ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult
 from .tolerances import CERTIFIED_FACTOR, FEASIBILITY, VERIFIED
 
 if TYPE_CHECKING:
     from .owner import StageOwner
 
-_NO_ROWS = np.zeros(0, dtype=int)  # the active rows of an equality-only level (shared, read only)
-_NO_ROWS.flags.writeable = False
 
 _active_bounds_path = kernels(".active_bounds", __package__, "_solve_stack", "the hierarchical QP's path for equality stacks",
                               "about ten seconds")
@@ -101,7 +99,7 @@ def solve_active_bounds(qp: StageOwner, jacobians, values, x_lower, x_upper, beg
         x=x,
         slacks=slacks,
         slack_norms=slack_norms,
-        active_rows=[_NO_ROWS] * len(jacobians),
+        active_rows=[NO_ACTIVE_ROWS] * len(jacobians),
         active_bounds=active_bounds,
         solve_time_s=time.perf_counter() - began,
         level_solvers=[ACTIVE_BOUNDS] * stages,

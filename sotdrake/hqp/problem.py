@@ -213,8 +213,9 @@ class Stage:
     kind: tuple[bool, bool] | None = None  # the objective's active_set.objective_kind, if known
 
 
-_NO_ACTIVE_ROWS = np.zeros(0, dtype=int)  # the active rows of an equality-only level (shared, read only)
-_NO_ACTIVE_ROWS.flags.writeable = False
+NO_ACTIVE_ROWS = np.zeros(0, dtype=int)
+"""The active rows of an equality-only level, shared by every answer (read only)."""
+NO_ACTIVE_ROWS.flags.writeable = False
 
 
 def result_of(levels, x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fixed: np.ndarray, used: list[str]) -> HqpResult:
@@ -225,7 +226,7 @@ def result_of(levels, x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, f
         r = level.A @ x
         slacks.append(level.slack(x, r))
         if level.all_equality:
-            active.append(_NO_ACTIVE_ROWS)
+            active.append(NO_ACTIVE_ROWS)
             continue
         scale = REPORTED_ACTIVE * np.maximum(1.0, np.abs(r))
         at_bound = (np.abs(r - level.lower) <= scale) | (np.abs(r - level.upper) <= scale)

@@ -40,7 +40,7 @@ import numpy as np
 from ..exceptions import SolverError
 from .cascade import CascadeFactorization, cascade_factorization
 from .equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
-from .problem import ACTIVE_SET, HqpResult, LevelRows
+from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows
 from .solve import HierarchicalQP
 from .warm import WarmStart
 
@@ -111,7 +111,7 @@ class Cascade(StackPath):
         slacks = [A @ x - b for A, b in levels]
         count = len(levels)
         return HqpResult(x=x, slacks=slacks, slack_norms=np.array([np.linalg.norm(s) for s in slacks]),
-                         active_rows=[np.zeros(0, dtype=int)] * count, active_bounds=np.zeros(0, dtype=int),
+                         active_rows=[NO_ACTIVE_ROWS] * count, active_bounds=np.zeros(0, dtype=int),
                          level_solvers=[CASCADE_NAME] * count, iterations=[0] * count)
 
 

@@ -198,12 +198,11 @@ class SolverKine(KinematicSolver[HqpSettings]):
         problem = StackProblem([(level.jacobian, level.lower, level.upper) for level in task_levels], lower, upper,
                                s.damping, s.solver, start=start, warm=warm)
         try:
-            if any(level.jacobian.ndim != 2 or level.jacobian.shape[1] != self.nv for level in task_levels):
-                raise InvalidInput("a level's columns do not fit nv")
             result = solve_stack(self._hqp, problem, KINEMATIC)
         except InvalidInput:
-            # The stages' LevelRows check every level's shapes and values (finite A, ordered sides
-            # without NaN, finite values of equality rows); the levels are checked again to name the task.
+            # The stages check every level's shapes (LevelRows, and the columns against nv) and values
+            # (finite A, ordered sides without NaN, finite values of equality rows); the levels are
+            # checked again to name the task.
             self._levels(context, s)  # raises SolverError naming the task, if a task's values are wrong
             raise
         except SolverError as error:

@@ -70,7 +70,8 @@ def test_dynamics_bench_runs_both_peers_briefly():
     import dynamics as dynamics_bench
 
     row = dynamics_bench.run_sotdrake("lift_leg", 0.02)
-    assert {"tick_cpu_us_median", "com_rms_error_m", "max_torque_ratio"} <= set(row) and not row["fell"]
+    assert {"tick_cpu_us_median", "floor_tick_cpu_us_median", "com_rms_error_m", "max_torque_ratio"} <= set(row)
+    assert not row["fell"] and row["ratio_to_floor_cpu_median"] > 0
     pytest.importorskip("placo")
     assert dynamics_bench.run_placo("lift_leg", 0.02)["com_rms_error_m"] < 1e-3
 
@@ -103,3 +104,43 @@ def test_framework_floor_runs_every_callback_at_every_tick():
     assert calls == {"_Kinematics": 2 * 3 * ticks, "_Feature": 3 * ticks, "_Gain": 3 * ticks, "_Task": 3 * ticks, "_Solver": ticks}
     wall, cpu = bench.interleaved_medians({1: floor.build(1), 2: floor.build(2)}, 100, 10)  # as run.py's scaling
     assert set(cpu) == {1, 2} and np.isfinite(list(cpu.values())).all()
+
+
+def test_twin_keeps_the_graph_and_recomputes_every_connected_output_at_every_tick():
+    """bench/twin.py's floor of the dynamic stack: the same systems, ports, wiring and feedthrough as
+    the real diagram; every connected output of a twin is recomputed at least once per tick (the
+    device's update invalidates them, as in the real diagram), and the twin's state does not move."""
+    from pydrake.systems.analysis import Simulator
+    from twin import twin
+
+    from sotdrake.scenarios import talos_dynamics as td
+
+    run = td.build_diagram("lift_leg", "dynsimu")
+    real = Simulator(run.diagram)
+    real.Initialize()
+    floor = twin(run.diagram, real.get_context())
+    by_name = {s.get_name(): s for s in floor.GetSystems()}
+    assert sorted(by_name) == sorted(s.get_name() for s in run.diagram.GetSystems())
+    wiring = {(s.get_name(), int(i)): (o_s.get_name(), int(o)) for (s, i), (o_s, o) in run.diagram.connection_map().items()}
+    assert wiring == {(s.get_name(), int(i)): (o_s.get_name(), int(o)) for (s, i), (o_s, o) in floor.connection_map().items()}
+    for system in run.diagram.GetSystems():
+        other = by_name[system.get_name()]
+        assert [other.get_output_port(o).get_name() for o in range(other.num_output_ports())] == \
+            [system.get_output_port(o).get_name() for o in range(system.num_output_ports())]
+        for (s, i) in wiring:
+            if s == system.get_name():
+                for o in range(system.num_output_ports()):
+                    assert other.HasDirectFeedthrough(i, o) == system.HasDirectFeedthrough(i, o)
+    calls: dict = {}
+    counted = twin(run.diagram, real.get_context(), calls)
+    simulator = Simulator(counted)
+    simulator.Initialize()
+    device = counted.GetSystems()[[s.get_name() for s in counted.GetSystems()].index("device")]
+    state0 = device.GetMyContextFromRoot(simulator.get_context()).get_discrete_state(0).get_value().copy()
+    calls.clear()
+    simulator.AdvanceTo(10.5e-3)  # the ticks at 1, …, 10 ms (the one at 0 ran in Initialize)
+    python = {s.get_name() for s in run.diagram.GetSystems() if type(s).__module__.startswith("sotdrake")}
+    sources = {source for source in wiring.values() if source[0] in python}
+    assert sources and all(calls.get(source, 0) >= 10 for source in sources), {s: calls.get(s) for s in sources}
+    after = device.GetMyContextFromRoot(simulator.get_context()).get_discrete_state(0).get_value()
+    assert np.array_equal(after, state0)

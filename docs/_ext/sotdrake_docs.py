@@ -67,6 +67,8 @@ def dynamics_tables(d: dict) -> list[str]:
         "tick_cpu_us_p95",
         "tick_us_median",
         "tick_us_p95",
+        "floor_tick_cpu_us_median",
+        "ratio_to_floor_cpu_median",
         "com_rms_error_m",
         "foot_rms_error_m",
         "max_torque_ratio",

@@ -113,6 +113,10 @@ def test_self_pairs_leave_out_the_srdf_and_adjacent_pairs(world, talos_model):
     assert frozenset(("arm_left_1_link", "arm_left_3_link")) in disabled
     pairs = {frozenset(pair) for pair in world.self_pairs()}
     assert pairs and not pairs & disabled and not pairs & world.adjacent
+    plant = world.plant
+    for a, b in map(tuple, pairs):  # never two bodies welded together: their distance cannot change
+        assert b not in {body.name() for body in plant.GetBodiesWeldedTo(plant.GetBodyByName(a))}
+    assert frozenset(("gripper_left_motor_single_link", "gripper_left_inner_single_link")) in world.adjacent  # (welded siblings)
     context = world.new_context()
     for _ in range(3):
         world.plant.SetPositions(world.plant_context(context), talos_model.half_sitting)
@@ -147,6 +151,7 @@ def test_bad_pairs_are_refused(world):
         ([("arm_right_7_link", "torso_3_link")], FrameNotFound, "torso_3_link"),
         ([("arm_right_7_link", "arm_right_7_link")], InvalidInput, "same body"),
         ([("arm_right_6_link", "arm_right_7_link")], InvalidInput, "joined by a joint"),
+        ([("gripper_right_base_link", "gripper_right_fingertip_1_link")], InvalidInput, "welded"),
         ([("table", "table2")], FrameNotFound, "table2"),
         ([("arm_right_7_link",)], InvalidInput, "two names"),
         ([], InvalidInput, "empty"),

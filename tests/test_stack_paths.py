@@ -10,11 +10,13 @@ import pytest
 from sotdrake.exceptions import SolverError
 from sotdrake.hqp import HierarchicalQP
 from sotdrake.hqp.equality_hierarchy import StackedLevels
+from sotdrake.hqp.problem import LevelRows
 from sotdrake.hqp.stack_paths import (
     ACTIVE_BOUNDS,
     BASIC,
     CASCADE,
     DYNAMIC,
+    INACTIVE_ROWS,
     KINEMATIC,
     QR_SWEEP,
     STAGES,
@@ -140,3 +142,85 @@ def test_a_level_without_rows_does_not_keep_the_closed_forms_out(path):
     result = path.attempt(HierarchicalQP(n), problem)
     assert result is not None
     assert_same_answer(result, STAGES.attempt(HierarchicalQP(n), problem), levels, lower, upper)
+
+
+def with_inequalities(rng: np.random.Generator, n: int, levels: list, x_eq: np.ndarray, holding: bool) -> list:
+    """``levels`` with inequality rows added around ``x_eq`` (the equality stack's answer): a level of
+    2-5 inequality rows inserted at a random place and 1-3 rows appended to a random equality level
+    (a mixed level); rows scaled over 10²; one side may be infinite. ``holding``: every row holds at
+    ``x_eq`` with a margin; otherwise the inserted level's first row cuts ``x_eq`` off."""
+    def rows(m: int):
+        A = rng.normal(size=(m, n)) * 10.0 ** rng.uniform(-1, 1, size=(m, 1))
+        value = A @ x_eq
+        margin = rng.uniform(0.05, 1.0, m) * (1.0 + np.abs(value))
+        lower, upper = value - margin, value + margin
+        lower[rng.random(m) < 0.3] = -np.inf
+        upper[np.isfinite(lower) & (rng.random(m) < 0.3)] = np.inf
+        return A, lower, upper
+    out = list(levels)
+    k = int(rng.integers(len(out)))
+    A, b, _ = out[k]
+    A_in, lower_in, upper_in = rows(int(rng.integers(1, 4)))
+    out[k] = (np.vstack([A, A_in]), np.concatenate([b, lower_in]), np.concatenate([b, upper_in]))
+    A_in, lower_in, upper_in = rows(int(rng.integers(2, 6)))
+    if not holding:  # the first row asks A x ≥ A x_eq + 1: violated at x_eq
+        lower_in[0], upper_in[0] = A_in[0] @ x_eq + 1.0, np.inf
+    out.insert(int(rng.integers(len(out) + 1)), (A_in, lower_in, upper_in))
+    return out
+
+
+@pytest.mark.parametrize("bounds", ["none", "loose", "tight"])
+def test_inactive_rows_give_the_stages_answer_and_answer_when_every_row_holds(bounds):
+    """With every inequality row holding at the equality stack's answer, the path answers (when the
+    equality stack is clear: full row rank, no bound in the way) with the stages' answer of the whole
+    stack: each level's slack (inequality violations included), the bounds, the minimum-norm point.
+    With a row cut off it gives None, and the stages decide."""
+    rng = np.random.default_rng(20261127)
+    clear = 0
+    for trial in range(60):
+        n, levels, lower, upper = equality_stack(rng, bounds)
+        x_eq = STAGES.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)).x
+        holding = trial % 3 != 0
+        mixed = with_inequalities(rng, n, levels, x_eq, holding)
+        problem = StackProblem(mixed, lower, upper)
+        result = INACTIVE_ROWS.attempt(HierarchicalQP(n), problem)
+        if not holding:
+            assert result is None
+            continue
+        reference = STAGES.attempt(HierarchicalQP(n), problem)
+        if result is not None:
+            scale = 1.0 + np.abs(reference.x).max()
+            for k, (A, lo, hi) in enumerate(mixed):
+                slack = LevelRows(A, lo, hi).slack(result.x)
+                size = 1.0 + np.abs(A).max() * scale + np.abs(lo[np.isfinite(lo)]).max(initial=0.0)
+                assert abs(np.linalg.norm(slack) - reference.slack_norms[k]) <= 1e-7 * size, f"level {k}"
+                assert np.allclose(result.slacks[k], slack) and result.slack_norms[k] == pytest.approx(np.linalg.norm(slack))
+            assert np.all(result.x >= lower - 1e-9 * scale) and np.all(result.x <= upper + 1e-9 * scale)
+            assert np.linalg.norm(result.x - reference.x) <= 1e-6 * scale
+        stacked = np.vstack([A for A, _, _ in levels])
+        if bounds != "tight" and np.linalg.matrix_rank(stacked) == len(stacked):
+            clear += 1
+            assert result is not None
+    assert clear >= 12 or bounds == "tight"
+
+
+def test_inactive_rows_back_off_after_failures_and_apply_only_where_they_say():
+    rng = np.random.default_rng(17)
+    n, levels, lower, upper = equality_stack(rng, "loose")
+    while np.linalg.matrix_rank(np.vstack([A for A, _, _ in levels])) < sum(len(A) for A, _, _ in levels):
+        n, levels, lower, upper = equality_stack(rng, "loose")  # a clear stack: the equality solve answers
+    qp = HierarchicalQP(n)
+    assert INACTIVE_ROWS.attempt(qp, StackProblem(levels, lower, upper)) is None  # no inequality row: not its stack
+    x_eq = STAGES.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)).x
+    cut = with_inequalities(rng, n, levels, x_eq, holding=False)
+    assert INACTIVE_ROWS.attempt(qp, StackProblem(cut, lower, upper, solver="clarabel")) is None
+    assert INACTIVE_ROWS.attempt(qp, StackProblem(cut, lower, upper, damping=0.1)) is None
+    failures = []
+    for _ in range(8):  # tried (1 failure), skipped once, tried (2), skipped twice, tried (3), skipped 4 times
+        assert INACTIVE_ROWS.attempt(qp, StackProblem(cut, lower, upper)) is None
+        failures.append(qp.warm.row_failures)
+    assert failures == [1, 1, 2, 2, 2, 3, 3, 3]
+    result = solve_stack(qp, StackProblem(cut, lower, upper), KINEMATIC)  # the stages decide
+    assert np.all(result.x >= lower - 1e-9) and np.all(result.x <= upper + 1e-9)
+    assert result.slack_norms == pytest.approx(STAGES.attempt(HierarchicalQP(n), StackProblem(cut, lower, upper)).slack_norms,
+                                               abs=1e-7)

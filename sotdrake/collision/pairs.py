@@ -8,11 +8,14 @@ self-collision pairs of a robot are every pair of its bodies that carry collisio
   writes those that are adjacent, always in contact or never able to touch: example-robot-data
   ships them for its humanoids), and
 * the adjacent pairs: a parent and a child body of one joint overlap at the joint by design (Drake
-  filters those itself), and bodies welded together move as one.
+  filters those itself), and any two bodies welded together (through a chain of welds: a reduced
+  model's locked gripper links and their wrist) move as one, so their distance never changes and
+  no command could change it.
 """
 
 from __future__ import annotations
 
+import itertools
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable
 from pathlib import Path
@@ -34,14 +37,19 @@ def srdf_disabled_pairs(srdf_path: Path | None) -> set[Pair]:
 
 
 def adjacent_pairs(plant: MultibodyPlant) -> set[Pair]:
-    """The (parent, child) body pairs of every joint of ``plant`` (welds included), world aside."""
-    world = plant.world_body().name()
+    """The (parent, child) body pairs of every joint of ``plant`` (welds included) and every two
+    bodies welded together through a chain of welds, the world's bodies aside."""
+    world = plant.world_body()
+    welded_to_world = {body.name() for body in plant.GetBodiesWeldedTo(world)}
     pairs = set()
     for index in plant.GetJointIndices():
         joint = plant.get_joint(index)
         parent, child = joint.parent_body().name(), joint.child_body().name()
-        if world not in (parent, child):
+        if world.name() not in (parent, child):
             pairs.add(frozenset((parent, child)))
+        if joint.num_velocities() == 0 and child not in welded_to_world:
+            group = sorted(body.name() for body in plant.GetBodiesWeldedTo(joint.child_body()))
+            pairs.update(frozenset(pair) for pair in itertools.combinations(group, 2))
     return pairs
 
 
@@ -65,8 +73,8 @@ def check_pairs(pairs: object, links: Iterable[str], obstacles: Iterable[str], a
         if a == b:
             raise InvalidInput(f"pairs: ({a!r}, {b!r}) is the same body twice: a body never collides with itself")
         if frozenset(names) in adjacent:
-            raise InvalidInput(f"pairs: {a!r} and {b!r} are joined by a joint (they overlap there by design): "
-                               "leave this pair out")
+            raise InvalidInput(f"pairs: {a!r} and {b!r} are joined by a joint (they overlap there by design) or welded "
+                               "together (their distance never changes): leave this pair out")
         if a in obstacles and b in obstacles:
             raise InvalidInput(f"pairs: ({a!r}, {b!r}) are two obstacles: a pair needs a link of the robot")
         checked.append((a, b))

@@ -3,7 +3,10 @@ feet and CoM held, with or without the collision level, every tick checked indep
 
 :func:`build_collision_reach` makes the tutorial's stack under ``SolverKine`` (contacts, CoM, then the
 collision level when ``collision``, then the hand: the hand point is ``right-wrist`` moved by
-(0.1, 0, 0), the seed's ``opmodif``), with a table top (:data:`TABLE`) when ``table``.
+(0.1, 0, 0), the seed's ``opmodif``), with a table top (:data:`TABLE`) when ``table``. The grippers'
+joints are left out of the control selection, as in the dynamic reach: TALOS' gripper links rest
+10.19 mm apart, inside ``d_s`` + 1 mm, and two pairs that the solver could only open at a few
+millimetres per radian would ask a recovery it cannot give at every tick.
 :func:`run_collision_reach` drives the hand to a target and checks, at every tick, with Drake's own query on
 a collision world of its own (not the task's numbers): the smallest signed distance over the pairs
 the task checks, the drift of both ankles (contacts), the joint limits, NaN, and the solver's
@@ -25,7 +28,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from ..meta_tasks import MetaTaskKine6d, gotoNd, hold_feet_and_com
 from ..robot import Robot, add_sot, talos
-from ..robots import RobotModel
+from ..robots import TALOS_GRIPPERS, RobotModel
 from ..solvers import SolverKine
 from .distance import minimum_distance
 from .meta_task import MetaTaskKineCollision
@@ -87,6 +90,7 @@ def build_collision_reach(collision: bool = True, table: bool = True, dt: float 
     robot = talos(builder, dt=dt)
     sot = add_sot(robot, solver="hqp")
     assert isinstance(sot, SolverKine)
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))  # (before the collision level reads it)
     feet = hold_feet_and_com(robot, sot)
     checker = CollisionWorld(robot.model)
     if table:
@@ -190,7 +194,6 @@ def build_dyn_collision_reach(model: RobotModel, collision: bool = True, table: 
     :func:`build_collision_reach` takes them."""
     from ..dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture
     from ..dynamics.robot_dyn import RobotDyn
-    from ..robots import TALOS_GRIPPERS
     from .meta_task import MetaTaskDynCollision
 
     builder = DiagramBuilder()

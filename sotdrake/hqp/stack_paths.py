@@ -15,6 +15,9 @@ tolerances); otherwise they give None and the next path is tried. The stages alw
 * :data:`ACTIVE_BOUNDS`: equality levels under bounds, by one QR of all the levels with the bounds
   held at the last call, certified by the minimum-norm stage's KKT conditions
   (:mod:`.equality_stack`), with a back-off after failures kept in the warm start.
+* :data:`INACTIVE_ROWS`: a stack with inequality rows, by the active bounds on its equality rows
+  alone, when every inequality row holds at that answer (:class:`InactiveRows`: then it is the
+  whole stack's optimum), with its own back-off after failures kept in the warm start.
 * :data:`STAGES`: level by level, each stage's own paths tried in the order of :mod:`.paths`
   (:meth:`.solve.HierarchicalQP.solve`). It takes inequality rows and Drake's solvers.
 
@@ -22,7 +25,7 @@ What each solver tries, in order:
 
 =========================  ==================================
 ``SOT`` (basic)            :data:`BASIC` = (cascade,)
-``SolverKine``             :data:`KINEMATIC` = (active bounds, stages)
+``SolverKine``             :data:`KINEMATIC` = (active bounds, inactive rows, stages)
 ``SolverDyn``              :data:`DYNAMIC` = (QR sweep, stages)
 =========================  ==================================
 
@@ -40,8 +43,9 @@ import numpy as np
 from ..exceptions import SolverError
 from .cascade import CascadeFactorization, cascade_factorization
 from .equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
-from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows
+from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows, result_of
 from .solve import HierarchicalQP
+from .tolerances import VERIFIED
 from .warm import WarmStart
 
 CASCADE_NAME = "cascade"
@@ -144,6 +148,70 @@ class ActiveBounds(StackPath):
                                    p.damping, warm=p.warm)
 
 
+class InactiveRows(StackPath):
+    """A stack with inequality rows whose rows all hold at the answer of its equality rows alone.
+
+    The equality rows of every level (a level of inequality rows alone keeps none) are solved by
+    the active bounds (:class:`ActiveBounds`, under the same bounds on ``x``); if that answer ``x*``
+    holds every inequality row (on unit rows, to :data:`~.tolerances.VERIFIED` relative above 1),
+    it is the lexicographic optimum of the whole stack, and the minimum-norm one. Proof, by
+    induction over the levels: let ``S_k`` be the optimal set of the levels ``≤ k`` with their
+    inequality rows and ``S'_k`` without them, ``G_k`` the points that hold the inequality rows of
+    the levels ``≤ k``, and assume ``S_(k−1) = S'_(k−1) ∩ G_(k−1)`` with ``x* ∈ S_(k−1)``. On
+    ``S_(k−1) ⊆ S'_(k−1)`` the equality residual of level ``k`` is at least its minimum over
+    ``S'_(k−1)``, which ``x*`` attains, and the inequality slack is at least 0, which ``x*``
+    attains: so ``x* ∈ S_k`` and ``S_k = S'_k ∩ G_k``. The minimum-norm point of ``S'_K`` lies in
+    ``S_K ⊆ S'_K``, so it is also ``S_K``'s. Otherwise (a row is violated: it will be active) the
+    path gives None and the stages decide; after f failures in a row the next 2^(f−1) calls, at
+    most 16, skip the path (the warm start's ``row_failures``/``row_skips``), so that a stack that
+    keeps a row active does not pay for the equality solve at every call."""
+
+    name = "inactive-rows"
+
+    def attempt(self, qp: HierarchicalQP, problem: StackProblem) -> HqpResult | None:
+        p = problem
+        if p.solver != ACTIVE_SET or p.stacked is not None or p.equalities_only or p.damping != 0.0:
+            return None
+        qp._use(p.warm)
+        warm = qp.warm
+        if warm.row_skips:
+            warm.row_skips -= 1
+            return None
+        jacobians, values, rows = [], [], []
+        for A, lower, upper in p.levels:
+            equal = lower == upper  # (a NaN side makes a row an inequality, which then fails its check)
+            if equal.all():
+                jacobians.append(A)
+                values.append(lower)
+                continue
+            jacobians.append(A[equal])
+            values.append(lower[equal])
+            rows.append((A[~equal], lower[~equal], upper[~equal]))
+        result = qp.solve_equalities(jacobians, values, p.x_lower, p.x_upper, 0.0, warm=p.warm)
+        if result is None:
+            return None
+        if not all(_rows_hold(A, lower, upper, result.x, min(VERIFIED, qp.feasibility_tolerance)) for A, lower, upper in rows):
+            warm.row_failures += 1
+            warm.row_skips = min(2 ** (warm.row_failures - 1), 16)
+            return None
+        warm.row_failures = 0
+        levels = [LevelRows(*level) for level in p.levels]
+        answer = result_of(levels, result.x, p.x_lower, p.x_upper, p.x_lower == p.x_upper, result.level_solvers)
+        answer.iterations, answer.solve_time_s = result.iterations, result.solve_time_s
+        return answer
+
+
+def _rows_hold(A: np.ndarray, lower: np.ndarray, upper: np.ndarray, x: np.ndarray, tolerance: float) -> bool:
+    """Whether ``lower ≤ A x ≤ upper`` holds on unit rows to ``tolerance`` relative above 1 (False
+    on a NaN)."""
+    norms = np.linalg.norm(A, axis=1)
+    norms[norms == 0.0] = 1.0
+    value = (A @ x) / norms
+    margin = tolerance * np.maximum(1.0, np.abs(value))
+    with np.errstate(invalid="ignore"):
+        return bool(np.all(value >= lower / norms - margin) and np.all(value <= upper / norms + margin))
+
+
 class Stages(StackPath):
     """Level by level (:meth:`.solve.HierarchicalQP.solve`): answers or raises."""
 
@@ -155,9 +223,9 @@ class Stages(StackPath):
         return qp.solve(levels, p.x_lower, p.x_upper, p.damping, p.solver, start=p.start, warm=p.warm)
 
 
-CASCADE, QR_SWEEP, ACTIVE_BOUNDS, STAGES = Cascade(), QrSweep(), ActiveBounds(), Stages()
+CASCADE, QR_SWEEP, ACTIVE_BOUNDS, INACTIVE_ROWS, STAGES = Cascade(), QrSweep(), ActiveBounds(), InactiveRows(), Stages()
 BASIC: tuple[StackPath, ...] = (CASCADE,)
-KINEMATIC: tuple[StackPath, ...] = (ACTIVE_BOUNDS, STAGES)
+KINEMATIC: tuple[StackPath, ...] = (ACTIVE_BOUNDS, INACTIVE_ROWS, STAGES)
 DYNAMIC: tuple[StackPath, ...] = (QR_SWEEP, STAGES)
 
 

@@ -24,13 +24,16 @@ class WarmStart:
     ended with an empty working set; ``bound_sides``: the side of each bound held at the last
     answer, or that answer ``(x, x_lower, x_upper)`` (read off when the next call needs it);
     ``failures``/``skips``: the active bounds' back-off (after f failed tries in a row, the next
-    2^(f-1) calls, at most 16, skip them)."""
+    2^(f-1) calls, at most 16, skip them); ``row_failures``/``row_skips``: the same back-off for the
+    inactive-rows path (:class:`~.stack_paths.InactiveRows`)."""
 
     n: int
     working_sets: dict = field(default_factory=dict)
     bound_sides: np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
     failures: int = 0
     skips: int = 0
+    row_failures: int = 0
+    row_skips: int = 0
 
     def __post_init__(self) -> None:
         if self.bound_sides is None:
@@ -40,11 +43,11 @@ class WarmStart:
         """Forget everything: the next solve is cold."""
         self.working_sets.clear()
         self.bound_sides = np.zeros(self.n, dtype=int)
-        self.failures = self.skips = 0
+        self.failures = self.skips = self.row_failures = self.row_skips = 0
 
     def __deepcopy__(self, memo: dict) -> WarmStart:  # what a Context's clone calls
         return WarmStart(self.n, copy.deepcopy(self.working_sets, memo), copy.deepcopy(self.bound_sides, memo),
-                         self.failures, self.skips)
+                         self.failures, self.skips, self.row_failures, self.row_skips)
 
 
 class WarmStarts(dict):

@@ -7,7 +7,9 @@ for the joint limits, which become velocity bounds over one tick (:mod:`.limits`
 
 The stack is solved by the paths :data:`~sotdrake.hqp.stack_paths.KINEMATIC` declares: a stack of
 equality tasks first at once, by one QR from the last tick's active limits, verified
-(:mod:`~sotdrake.hqp.equality_stack`), then level by level when that does not apply or verify.
+(:mod:`~sotdrake.hqp.equality_stack`); a stack with inequality rows by the same QR on its equality
+rows alone when every inequality row holds there (:class:`~sotdrake.hqp.stack_paths.InactiveRows`);
+then level by level when neither applies or verifies.
 
 ``setAccelerationLimit(a_max)`` adds hard bounds ``|v − v_prev| ≤ a_max dt`` on each joint (the
 last command ``v_prev`` kept in the Context), combined with the position and velocity limits and the

@@ -22,9 +22,11 @@ from .stack import S, Stack, StackSettings, StackSolver
 
 class _Levels(list):
     """The levels a solver solves (a list of :class:`TaskLevel`), and ``tasks``: each task's name
-    and Jacobian, in the order of the contacts, then the stack (the contacts are one level)."""
+    and Jacobian, in the order of the contacts, then the stack (the contacts are one level);
+    ``plain``: each level's ``lower`` before the curvature correction (the same array when none)."""
 
     tasks: list[tuple[str, np.ndarray]]
+    plain: list[np.ndarray]
 
 
 class KinematicSolver(StackSolver[S]):
@@ -183,6 +185,7 @@ class KinematicSolver(StackSolver[S]):
         ``correct``, each level's reference corrected for the curvature of the tick (:mod:`.second_order`)."""
         levels = _Levels()
         levels.tasks = []
+        levels.plain = plain = []
         names = [*settings.contacts, *settings.tasks] if settings.contacts else settings.tasks
         last_tick = None
         if correct and self._last_velocity is not None:
@@ -194,6 +197,7 @@ class KinematicSolver(StackSolver[S]):
             levels.tasks.append((name, J))
             if check:
                 _check_level(name, level, self.nv, context)
+            plain.append(level.lower)
             if last_tick is not None:
                 correction = curvature_correction(J, last_tick[0], last_tick[1].get(name))
                 if correction is not None:
@@ -208,6 +212,7 @@ class KinematicSolver(StackSolver[S]):
             lower = np.concatenate([c.lower for c in contacts])
             upper = lower if all(c.is_equality for c in contacts) else np.concatenate([c.upper for c in contacts])
             levels[:count] = [TaskLevel(J, lower, upper, np.concatenate([c.error for c in contacts]))]
+            plain[:count] = [np.concatenate(plain[:count])]
         return levels
 
 

@@ -112,7 +112,7 @@ class SOT(KinematicSolver[StackSettings]):
                 # the Jacobians only): scale the tasks' ė* but not the curvature correction c (its
                 # size is the one of the scaled motion), i.e. solve the same factorisation for
                 # s·ė* - c = s·(ė* - c) - (1 - s)·c, then keep within the limits.
-                plain = [level.reference for level in self._levels(context, s, check=False, correct=False)]
+                plain = levels.plain
                 pairs = [(J, scale * r - (1.0 - scale) * (p - r)) for (J, r), p in zip(pairs, plain, strict=False)]
                 velocity, second = scale_to_limits(result.solve([r for _, r in pairs]), limit)
                 scale *= second

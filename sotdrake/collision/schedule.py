@@ -138,6 +138,9 @@ class PairSchedule:
         self.coefficients = np.zeros((len(self.pairs), len(self._one_dof) + 2 * len(self._floating)))
         for p, (ga, gb) in enumerate(self.pairs):
             self.coefficients[p] = self._pair_row(world, joints, nodes, distance, spheres, ga, gb)
+        # A floating joint on no pair's path (a robot's base, for self pairs only) moves no bound.
+        first = len(self._one_dof)
+        self._bounding = [bool(self.coefficients[:, first + 2 * k:first + 2 * k + 2].any()) for k in range(len(self._floating))]
 
     def _graph(self, world: CollisionWorld, joints: list) -> tuple[dict, dict]:
         """The points fixed in each body (joint origins, on both sides of each joint) and the
@@ -200,9 +203,13 @@ class PairSchedule:
 
     def motion(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
         """The motion vector from ``q0`` to ``q1``: ``|Δq_j|`` of each one-dof joint, then ``|Δp|``
-        (m) and the rotation angle ``φ`` (rad) of each floating joint."""
+        (m) and the rotation angle ``φ`` (rad) of each floating joint (zeros for one whose
+        coefficients are all zero: it moves no pair's bound)."""
         out = [np.abs(q1[self._one_dof_q] - q0[self._one_dof_q])]
-        for j in self._floating:
+        for j, bounding in zip(self._floating, self._bounding, strict=True):
+            if not bounding:
+                out.append(np.zeros(2))
+                continue
             s = j.position_start()
             if j.type_name() == "quaternion_floating":
                 aw, ax, ay, az = (float(x) for x in q0[s:s + 4])

@@ -105,9 +105,11 @@ def check_margins(safety: object, influence: object, xi: object, dt: float, wher
 def damper_rows(distances: PairDistances, margins: CollisionMargins, dt: float) -> TaskLevel:
     """The velocity-damper rows ``J_d v ≥ −ξ (d − d_t)/(d_i − d_t)`` of the pairs in range, with the
     recovery of a pair inside ``d_t = d_s + a`` (see the module docstring; ``dt`` the device's tick, s)."""
+    d = distances.distance
+    if not len(d):  # no pair in range: no row
+        return TaskLevel(distances.jacobian, d, d, d)
     d_s, d_i, xi = margins.safety, margins.influence, margins.xi
     d_t = d_s + TICK_ALLOWANCE
-    d = distances.distance
     lower = -xi * (d - d_t) / (d_i - d_t)
     inside = d < d_t
     if inside.any():

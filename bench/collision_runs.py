@@ -4,6 +4,7 @@
     python bench/collision_runs.py                       # 300 runs of 0.3 s, every tick checked
     python bench/collision_runs.py --runs 20 --duration 0.3
     python bench/collision_runs.py --dynamic --runs 300  # SolverDyn, the acceleration-level rows
+    python bench/collision_runs.py --dynamic --only 89 96  # chosen runs of the same draw
 
 One diagram (``sotdrake.collision.reach``: feet and CoM held, the collision level, the right hand,
 a table top); each run takes a fresh context from the reference posture and drives the hand to a
@@ -44,6 +45,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--seed", type=int, default=20261126)
     parser.add_argument("--dynamic", action="store_true", help="SolverDyn (the acceleration-level rows)")
     parser.add_argument("--no-collision", action="store_true", help="the same runs without the collision level (a baseline)")
+    parser.add_argument("--only", type=int, nargs="+", default=None, help="run only these run indices (of the --runs drawn)")
     parser.add_argument("--out", type=Path, default=None, help="the JSON summary (default bench/results/collision_runs[_dyn].json)")
     args = parser.parse_args(argv)
     out = args.out or HERE / "results" / f"collision_runs{'_dyn' if args.dynamic else ''}.json"
@@ -60,6 +62,8 @@ def main(argv: list[str] | None = None) -> dict:
     bad: list[dict] = []
     by_family: dict[str, dict] = {}
     for i, (family, target) in enumerate(random_targets(args.runs, rng)):
+        if args.only is not None and i not in args.only:
+            continue
         if args.dynamic:
             report = run_dyn_collision_reach(dyn, target, args.duration)
         else:

@@ -313,3 +313,71 @@ def test_talos_collisions_script_keeps_the_safety_distance_with_the_level(tmp_pa
         assert run["with"]["min_signed_distance_m"] >= SAFETY_DISTANCE - TOLERANCE
         assert run["with"]["solver_failures"] == 0 and run["with"]["feet_drift_m"] <= TOLERANCE
     assert min(run["without"]["min_signed_distance_m"] for run in summary["runs"].values()) < 0.0
+
+
+def test_acceleration_rows_are_a_second_order_damper_that_keeps_its_set():
+    """The acceleration rows ``d̈ ≥ −λ ḋ − (ḋ + λ (d − d_t))/T − J̇_d v`` (λ = ξ/(d_i − d_t)), and a
+    pair driven at the least acceleration they allow (semi-implicit Euler at 1 ms, the device's
+    scheme), from inside the damper's set (ḋ ≥ −λ (d − d_t)) at speeds up to 3 m/s, never crosses
+    d_t by more than a micrometre; from outside it (a pair taken late), it returns within a few T."""
+    from sotdrake.collision.distance import PairDistances
+    from sotdrake.collision.task import RECOVERY_TIME, TICK_ALLOWANCE, acceleration_rows, damper_rate
+
+    margins, dt = CollisionMargins(0.01, 0.05, 0.5), 1e-3
+    lam, d_t = damper_rate(margins), 0.01 + TICK_ALLOWANCE
+    assert lam == pytest.approx(0.5 / (0.05 - d_t))
+    d, J = np.array([0.3, 0.05, 0.02, 0.005]), np.eye(4, 5)
+    v, bias = np.array([-2.0, -0.3, 0.1, 0.0, 9.0]), np.array([0.5, -1.0, 0.0, 2.0])
+    distances = PairDistances([("a", "b")] * 4, d, np.zeros((4, 3)), np.zeros((4, 3)), np.zeros((4, 3)), J, bias=bias)
+    rows = acceleration_rows(distances, margins, dt, v)
+    rate = J @ v
+    np.testing.assert_allclose(rows.lower, -lam * rate - (rate + lam * (d - d_t)) / RECOVERY_TIME - bias)
+    assert np.all(np.isinf(rows.upper)) and not rows.is_equality
+    for speed in (0.05, 0.5, 1.0, 3.0):
+        h = speed / lam  # on the edge of the damper's set: e = ḋ + λ h = 0
+        for start_excess in (0.0, -0.2):
+            x, xdot = d_t + h, -speed + start_excess
+            lowest = x
+            for _ in range(3000):
+                one = PairDistances([("a", "b")], np.array([x]), np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 3)),
+                                    np.ones((1, 1)), bias=np.zeros(1))
+                xddot = acceleration_rows(one, margins, dt, np.array([xdot])).lower[0]
+                xdot += dt * xddot
+                x += dt * xdot
+                lowest = min(lowest, x)
+            if start_excess == 0.0:
+                assert lowest >= d_t - 1e-6, speed
+            else:
+                assert lowest >= d_t - 0.2 * 2 * RECOVERY_TIME, speed  # at most |e₀| T of extra approach
+
+
+def test_speed_aware_influence_takes_fast_pairs_before_the_influence_distance():
+    from sotdrake.collision.task import TICK_ALLOWANCE, damper_rate, speed_aware_influence
+
+    margins = CollisionMargins(0.01, 0.05, 0.5)
+    reach = speed_aware_influence(margins, np.array([0.0, 0.5, 1.8]))
+    assert reach[0] == reach[1] == pytest.approx(0.05)  # at ξ or slower: d_i
+    assert reach[2] == pytest.approx(0.01 + TICK_ALLOWANCE + 1.8 / damper_rate(margins))
+
+
+def test_approach_bound_holds_the_pairs_approach_speed(world, talos_model, rng):
+    """``PairSchedule.approach_bound`` against ``|J_d v|`` of Drake's closest points, per pair, at
+    random configurations and velocities (self pairs and link–table pairs)."""
+    from sotdrake.collision.distance import pair_distances
+    from sotdrake.collision.schedule import PairSchedule
+
+    schedule = PairSchedule(world)
+    context = world.new_context()
+    plant = world.plant
+    checked = 0
+    for _ in range(4):
+        plant.SetPositions(world.plant_context(context), _random_configuration(talos_model, rng))
+        plant.SetVelocities(world.plant_context(context), 2.0 * rng.standard_normal(plant.num_velocities()))
+        bound = schedule.approach_bound(context)
+        v = plant.GetVelocities(world.plant_context(context))
+        for p in rng.choice(len(schedule.pairs), size=60, replace=False):
+            rows = pair_distances(world, context, np.inf, geometry_pairs=[schedule.pairs[p]])
+            speed = abs(float(rows.jacobian[0] @ v))
+            assert speed <= bound[p] * (1 + 1e-9) + 1e-12, (schedule.pairs[p], speed, bound[p])
+            checked += speed > 0.05
+    assert checked > 100  # the bound was tested on pairs that do move

@@ -19,7 +19,9 @@ the path between ``q₀`` and ``q``; the bound is accumulated tick by tick. A jo
 (ball, universal, planar) or a geometry without a bounded hull makes the pair's bound drop to
 ``-inf`` at the first motion: that pair is queried at every tick it moves.
 
-At each tick the pairs whose bound is below the influence distance ``d_i`` are queried exactly
+At each tick the pairs whose bound is below the influence distance ``d_i`` (at the acceleration
+level, a distance per pair that grows with its approach speed, :meth:`PairSchedule.approach_bound`)
+are queried exactly
 (``ComputeSignedDistancePairClosestPoints``), the others are out of range (their distance is at
 least the bound, ``≥ d_i``) and need no row; a pair queried whose bodies have not moved relative to
 each other since. The first tick queries every pair. So the pairs in range are exactly those the full broad-phase query
@@ -57,12 +59,12 @@ class ScheduleState:
     q: np.ndarray | None = None
     lower: np.ndarray = field(default_factory=lambda: np.zeros(0))
     in_range: list = field(default_factory=list)
-    max_distance: float = -np.inf
+    max_distance: float | np.ndarray = -np.inf
     queried: int = 0
 
     def __deepcopy__(self, memo: dict) -> ScheduleState:
         return ScheduleState(None if self.q is None else self.q.copy(), self.lower.copy(), list(self.in_range),
-                             self.max_distance, self.queried)
+                             copy.copy(self.max_distance), self.queried)
 
 
 @dataclass
@@ -134,6 +136,15 @@ class PairSchedule:
             for point, p_B in self._body_points[body.index()]:
                 graph[nodes[("geometry", g)], nodes[point]] = graph[nodes[point], nodes[("geometry", g)]] = \
                     float(np.linalg.norm(centre - p_B))
+        # Each geometry's bounding sphere in its body (for the approach speed bound): centre, radius.
+        index = {g: k for k, g in enumerate(geometries)}
+        self._sphere_body = [world.geometry_info(g)[1].index() for g in geometries]
+        self._sphere_centre = np.array([world.geometry_info(g)[2].multiply(spheres[g][0]) for g in geometries]).reshape(-1, 3)
+        self._sphere_radius = np.array([spheres[g][1] for g in geometries])
+        world_body = world.plant.world_body().index()
+        self._body_spheres = {b: np.array([k for k, body in enumerate(self._sphere_body) if body == b])
+                              for b in set(self._sphere_body) if b != world_body}
+        self._pair_spheres = np.array([[index[a], index[b]] for a, b in self.pairs], dtype=int).reshape(-1, 2)
         distance = _shortest_paths(graph)
         self.coefficients = np.zeros((len(self.pairs), len(self._one_dof) + 2 * len(self._floating)))
         for p, (ga, gb) in enumerate(self.pairs):
@@ -227,6 +238,23 @@ class PairSchedule:
                                      float(np.abs(q1[s:s + 3] - q0[s:s + 3]).sum())]))
         return np.concatenate(out)
 
+    def approach_bound(self, context: Context) -> np.ndarray:
+        """Per pair, a bound (m/s) of its approach speed ``−ḋ`` at the positions and velocities of
+        the collision diagram's ``context``: the largest speed of a point of A's bounding sphere plus
+        that of B's, each ``|v_WBo + ω_WB × c| + |ω_WB| r`` (``c`` the sphere's centre from the
+        body's origin, world frame; ``r`` its radius; 0 for an obstacle)."""
+        plant = self.world.plant
+        plant_context = plant.GetMyContextFromRoot(context)
+        speed = np.zeros(len(self._sphere_body))
+        for body_index, rows in self._body_spheres.items():
+            body = plant.get_body(body_index)
+            V = plant.EvalBodySpatialVelocityInWorld(plant_context, body)
+            w, v = V.rotational(), V.translational()
+            R = plant.EvalBodyPoseInWorld(plant_context, body).rotation().matrix()
+            centres = self._sphere_centre[rows] @ R.T
+            speed[rows] = np.linalg.norm(v + np.cross(w, centres), axis=1) + np.linalg.norm(w) * self._sphere_radius[rows]
+        return speed[self._pair_spheres[:, 0]] + speed[self._pair_spheres[:, 1]]
+
     def certified(self, query: object, result: object) -> float:
         """A lower bound of the pair's signed distance that holds even when the query has not
         converged (a symmetric posture can leave GJK on a non-closest pair of features): the smaller
@@ -242,11 +270,12 @@ class PairSchedule:
         highest_b = n @ X_WB.translation() + support(data_b, R_WB.T @ n)
         return min(result.distance, float(lowest_a - highest_b))  # type: ignore[attr-defined]
 
-    def step(self, state: ScheduleState, context: Context, q: np.ndarray, max_distance: float) -> ScheduleStep:
+    def step(self, state: ScheduleState, context: Context, q: np.ndarray, max_distance: float | np.ndarray) -> ScheduleStep:
         """Advance ``state`` to the configuration ``q`` (set in the collision diagram ``context``
-        by the caller) and query exactly the pairs whose bound is below ``max_distance`` (m)."""
+        by the caller) and query exactly the pairs whose bound is below ``max_distance`` (m; one
+        distance, or one per pair)."""
         n = len(self.pairs)
-        if state.max_distance == max_distance and state.q is not None and np.array_equal(state.q, q):
+        if state.q is not None and np.array_equal(state.max_distance, max_distance) and np.array_equal(state.q, q):
             return ScheduleStep(state, state.in_range, 0)  # (the tick's update has already advanced it)
         if state.q is None or state.lower.shape != (n,):
             lower = np.full(n, -np.inf)
@@ -255,10 +284,11 @@ class PairSchedule:
         due = np.flatnonzero(lower < max_distance)
         query = self.world.query(context) if due.size else None  # (the query object updates every pose)
         in_range = []
+        limits = np.broadcast_to(max_distance, (n,))
         for p in due:
             a, b = self.pairs[p]
             result = query.ComputeSignedDistancePairClosestPoints(a, b)  # type: ignore[union-attr]
-            if result.distance < max_distance:
+            if result.distance < limits[p]:
                 in_range.append(result)
                 lower[p] = result.distance
             else:  # skipped from now on: only on a bound that does not trust the query's convergence

@@ -17,15 +17,22 @@ small shortfall is undone in the next tick, a large one at the speed ``ξ``. Ove
 ``dt`` the integrated step keeps ``d − d_t ≥ (1 − λ dt)(d_k − d_t)``, so ``λ dt < 1`` is required
 (``setMargins`` refuses a damper that could cross ``d_t`` in one tick).
 
-**Acceleration level** (``acceleration=True``, for ``SolverDyn``, whose variable is ``q̈``): the
-same bound on ``ḋ`` reached within one tick, ``ḋ + dt·d̈ ≥ ḋ_min(d)`` with ``ḋ = J_d v`` and
-``d̈ = J_d q̈ + J̇_d v``:
+**Acceleration level** (``acceleration=True``, for ``SolverDyn``, whose variable is ``q̈``): a
+second-order damper. With ``h = d − d_t``, ``λ = ξ/(d_i − d_t)`` and ``e = ḋ + λ h`` (how much
+faster than the damper's ``ḋ_min = −λ h`` the pair approaches, negated: ``e ≥ 0`` inside the
+damper's set), each row asks ``ė ≥ −e/T``, i.e. with ``ḋ = J_d v`` and ``d̈ = J_d q̈ + J̇_d v``:
 
-    J_d q̈ ≥ (ḋ_min(d) − J_d v)/dt − J̇_d v
+    J_d q̈ ≥ −λ ḋ − (ḋ + λ (d − d_t))/T − J̇_d v,    T = max(RECOVERY_TIME, dt)
 
-(``ḋ_min`` the velocity rows' lower bound above; ``J̇_d v`` with the witness points fixed in their
-bodies, the rotation of the normal left out, :func:`~.distance.pair_distances`). The task then
-reads ``velocity`` (``v``) too.
+A pair that enters with ``e ≥ 0`` keeps it (``e(t) ≥ e(0) e^(−t/T)``), so ``ḋ ≥ −λ h`` and ``h``
+stays positive; a pair found outside that set is brought back in ``T`` (10 ms) with accelerations
+of ``|e|/T`` rather than the ``|e|/dt`` of a one-tick target, which no torque could give and whose
+slack would spill onto the level's other rows. The set has no edge at ``d_i``: a pair is taken in
+range as soon as it may approach faster than the damper allows, within ``d_t + s/λ`` for ``s`` a
+bound of its approach speed (the speeds of the two bodies' bounding spheres,
+:meth:`~.schedule.PairSchedule.approach_bound`), or ``d_i`` if that is farther. ``J̇_d v`` is taken
+with the witness points fixed in their bodies, the rotation of the normal left out
+(:func:`~.distance.pair_distances`). The task then reads ``velocity`` (``v``) too.
 
 **Pairs the solver cannot move.** With ``controlled`` (the solver's control selection, nv
 booleans), a pair whose ``J_d`` is zero over the controlled velocities (two links of a gripper the
@@ -66,6 +73,9 @@ from .world import CollisionWorld
 SAFETY_DISTANCE, INFLUENCE_DISTANCE, DAMPER_SPEED = 0.01, 0.05, 0.5
 #: The rows aim this far (m) beyond the safety distance: the part of a tick's step they do not see.
 TICK_ALLOWANCE = 1e-3
+#: At the acceleration level, the time (s) in which a pair's approach speed is brought back within
+#: the damper's bound (longer: gentler accelerations; see the module docstring).
+RECOVERY_TIME = 0.01
 #: A pair whose ``J_d`` entries over the controlled velocities are all below this (m per unit of
 #: ``v``) cannot be moved by the solver and gets no row.
 MOVABLE_TOLERANCE = 1e-9
@@ -117,11 +127,27 @@ def damper_rows(distances: PairDistances, margins: CollisionMargins, dt: float) 
     return TaskLevel(distances.jacobian, lower, np.full(lower.shape, np.inf), distances.distance - d_s)
 
 
+def damper_rate(margins: CollisionMargins) -> float:
+    """The damper's rate ``λ = ξ/(d_i − d_t)`` (1/s)."""
+    return margins.xi / (margins.influence - margins.safety - TICK_ALLOWANCE)
+
+
 def acceleration_rows(distances: PairDistances, margins: CollisionMargins, dt: float, v: np.ndarray) -> TaskLevel:
-    """The acceleration-level rows ``J_d q̈ ≥ (ḋ_min − J_d v)/dt − J̇_d v`` (see the module docstring)."""
-    velocity = damper_rows(distances, margins, dt)
-    lower = (velocity.lower - distances.jacobian @ v) / dt - distances.bias
-    return TaskLevel(distances.jacobian, lower, velocity.upper, velocity.error)
+    """The acceleration-level rows ``J_d q̈ ≥ −λ ḋ − (ḋ + λ (d − d_t))/T − J̇_d v`` with ``ḋ = J_d v``
+    and ``T`` = max(:data:`RECOVERY_TIME`, ``dt``) (see the module docstring)."""
+    lam = damper_rate(margins)
+    d_t = margins.safety + TICK_ALLOWANCE
+    rate = distances.jacobian @ v
+    excess = rate + lam * (distances.distance - d_t)  # ḋ − ḋ_min(d): ≥ 0 inside the damper's set
+    lower = -lam * rate - excess / max(RECOVERY_TIME, dt) - distances.bias
+    return TaskLevel(distances.jacobian, lower, np.full(lower.shape, np.inf), distances.distance - margins.safety)
+
+
+def speed_aware_influence(margins: CollisionMargins, approach: np.ndarray) -> np.ndarray:
+    """Per pair, the distance (m) within which the acceleration level needs its row: ``d_i``, or
+    farther for a pair that may approach at ``approach`` (m/s, a bound of ``−ḋ``) faster than the
+    damper allows there, ``d_t + approach/λ``."""
+    return np.maximum(margins.influence, margins.safety + TICK_ALLOWANCE + approach / damper_rate(margins))
 
 
 class _WorldContext:
@@ -262,8 +288,11 @@ class TaskCollision(Entity[CollisionMargins]):
         if self._pair_schedule is None:
             self._pair_schedule = PairSchedule(self.world, self._geometry_pairs)
         state = context.get_abstract_state(self._schedule_index).get_value()
-        q = self._position.Eval(context)
-        value.set_value(self._pair_schedule.step(state, holder.context, q, self._settings_of(context).influence))
+        q, margins = self._position.Eval(context), self._settings_of(context)
+        influence: float | np.ndarray = margins.influence
+        if self._velocity is not None:  # a pair faster than the damper allows is taken in range before d_i
+            influence = speed_aware_influence(margins, self._pair_schedule.approach_bound(holder.context))
+        value.set_value(self._pair_schedule.step(state, holder.context, q, influence))
 
     def _advance_schedule(self, context: Context, state: State) -> None:
         """The periodic update: the schedule's bounds at this tick's ``q`` (:mod:`.schedule`)."""

@@ -52,30 +52,24 @@ class _Twin(LeafSystem):
         reads = [i for i in self._connected if real.HasDirectFeedthrough(i, o)]
         tickets = {self.all_sources_except_input_ports_ticket()} | {self.input_port_ticket(InputPortIndex(i)) for i in reads}
         inputs = [self.get_input_port(i) for i in reads]
-        if port.get_data_type() == PortDataType.kVectorValued:
-            vector = port.Eval(real_context).copy()
+        vector = port.get_data_type() == PortDataType.kVectorValued
+        value = port.Eval(real_context).copy() if vector else port.EvalAbstract(real_context).Clone()
+        content = value if vector else value.get_value()
 
-            def calc_vector(context, output, inputs=inputs, vector=vector, key=key):
-                if self._calls is not None:
-                    self._calls[key] = self._calls.get(key, 0) + 1
-                for p in inputs:
-                    p.Eval(context)
-                output.SetFromVector(vector)
-
-            self.DeclareVectorOutputPort(port.get_name(), port.size(), calc_vector, prerequisites_of_calc=tickets)
-        else:
-            value = port.EvalAbstract(real_context).Clone()
-            content = value.get_value()
-
-            def calc_abstract(context, output, inputs=inputs, content=content, key=key):
-                if self._calls is not None:
-                    self._calls[key] = self._calls.get(key, 0) + 1
-                for p in inputs:
-                    p.Eval(context)
+        def calc(context, output, inputs=inputs, content=content, key=key, vector=vector):
+            if self._calls is not None:
+                self._calls[key] = self._calls.get(key, 0) + 1
+            for p in inputs:
+                p.Eval(context)
+            if vector:
+                output.SetFromVector(content)
+            else:
                 output.set_value(content)
 
-            self.DeclareAbstractOutputPort(port.get_name(), lambda value=value: value.Clone(), calc_abstract,
-                                           prerequisites_of_calc=tickets)
+        if vector:
+            self.DeclareVectorOutputPort(port.get_name(), port.size(), calc, prerequisites_of_calc=tickets)
+        else:
+            self.DeclareAbstractOutputPort(port.get_name(), lambda value=value: value.Clone(), calc, prerequisites_of_calc=tickets)
 
     def _update(self, context, discrete_state) -> None:
         for i in self._connected:

@@ -244,7 +244,7 @@ class PairSchedule:
         that of B's, each ``|v_WBo + ω_WB × c| + |ω_WB| r`` (``c`` the sphere's centre from the
         body's origin, world frame; ``r`` its radius; 0 for an obstacle)."""
         plant = self.world.plant
-        plant_context = plant.GetMyContextFromRoot(context)
+        plant_context = self.world.plant_context(context)
         speed = np.zeros(len(self._sphere_body))
         for body_index, rows in self._body_spheres.items():
             body = plant.get_body(body_index)

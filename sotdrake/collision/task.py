@@ -112,24 +112,24 @@ def check_margins(safety: object, influence: object, xi: object, dt: float, wher
     return CollisionMargins(d_s, d_i, speed)
 
 
+def damper_rate(margins: CollisionMargins) -> float:
+    """The damper's rate ``λ = ξ/(d_i − d_t)`` (1/s)."""
+    return margins.xi / (margins.influence - margins.safety - TICK_ALLOWANCE)
+
+
 def damper_rows(distances: PairDistances, margins: CollisionMargins, dt: float) -> TaskLevel:
     """The velocity-damper rows ``J_d v ≥ −ξ (d − d_t)/(d_i − d_t)`` of the pairs in range, with the
     recovery of a pair inside ``d_t = d_s + a`` (see the module docstring; ``dt`` the device's tick, s)."""
     d = distances.distance
     if not len(d):  # no pair in range: no row
         return TaskLevel(distances.jacobian, d, d, d)
-    d_s, d_i, xi = margins.safety, margins.influence, margins.xi
+    d_s, xi = margins.safety, margins.xi
     d_t = d_s + TICK_ALLOWANCE
-    lower = -xi * (d - d_t) / (d_i - d_t)
+    lower = -damper_rate(margins) * (d - d_t)
     inside = d < d_t
     if inside.any():
         lower[inside] = np.maximum(lower[inside], np.minimum((d_t - d[inside]) / dt, xi))
     return TaskLevel(distances.jacobian, lower, np.full(lower.shape, np.inf), distances.distance - d_s)
-
-
-def damper_rate(margins: CollisionMargins) -> float:
-    """The damper's rate ``λ = ξ/(d_i − d_t)`` (1/s)."""
-    return margins.xi / (margins.influence - margins.safety - TICK_ALLOWANCE)
 
 
 def acceleration_rows(distances: PairDistances, margins: CollisionMargins, dt: float, v: np.ndarray) -> TaskLevel:

@@ -177,39 +177,29 @@ class InactiveRows(StackPath):
         if warm.row_skips:
             warm.row_skips -= 1
             return None
-        jacobians, values, rows = [], [], []
-        for A, lower, upper in p.levels:
-            equal = lower == upper  # (a NaN side makes a row an inequality, which then fails its check)
-            if equal.all():
-                jacobians.append(A)
-                values.append(lower)
-                continue
-            jacobians.append(A[equal])
-            values.append(lower[equal])
-            rows.append((A[~equal], lower[~equal], upper[~equal]))
-        result = qp.solve_equalities(jacobians, values, p.x_lower, p.x_upper, 0.0, warm=p.warm)
+        levels = [LevelRows(*level) for level in p.levels]  # (the split, and the checks the stages make)
+        result = qp.solve_equalities([level.A_eq for level in levels], [level.b_eq for level in levels], p.x_lower,
+                                     p.x_upper, 0.0, warm=p.warm)
         if result is None:
             return None
-        if not all(_rows_hold(A, lower, upper, result.x, min(VERIFIED, qp.feasibility_tolerance)) for A, lower, upper in rows):
+        tolerance = min(VERIFIED, qp.feasibility_tolerance)
+        if not all(_inequalities_hold(level, result.x, tolerance) for level in levels if not level.all_equality):
             warm.row_failures += 1
             warm.row_skips = min(2 ** (warm.row_failures - 1), 16)
             return None
         warm.row_failures = 0
-        levels = [LevelRows(*level) for level in p.levels]
         answer = result_of(levels, result.x, p.x_lower, p.x_upper, p.x_lower == p.x_upper, result.level_solvers)
         answer.iterations, answer.solve_time_s = result.iterations, result.solve_time_s
         return answer
 
 
-def _rows_hold(A: np.ndarray, lower: np.ndarray, upper: np.ndarray, x: np.ndarray, tolerance: float) -> bool:
-    """Whether ``lower ≤ A x ≤ upper`` holds on unit rows to ``tolerance`` relative above 1 (False
-    on a NaN)."""
-    norms = np.linalg.norm(A, axis=1)
-    norms[norms == 0.0] = 1.0
-    value = (A @ x) / norms
+def _inequalities_hold(level: LevelRows, x: np.ndarray, tolerance: float) -> bool:
+    """Whether the level's inequality rows ``lower ≤ A x ≤ upper`` hold at ``x`` on unit rows (their
+    reference norms, :attr:`~.problem.LevelRows.in_norms`) to ``tolerance`` relative above 1."""
+    norms = level.in_norms
+    value = (level.A_in @ x) / norms
     margin = tolerance * np.maximum(1.0, np.abs(value))
-    with np.errstate(invalid="ignore"):
-        return bool(np.all(value >= lower / norms - margin) and np.all(value <= upper / norms + margin))
+    return bool(np.all(value >= level.lower_in / norms - margin) and np.all(value <= level.upper_in / norms + margin))
 
 
 class Stages(StackPath):

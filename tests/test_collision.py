@@ -94,6 +94,55 @@ def test_distance_jacobian_matches_finite_differences(world, talos_model, rng):
     assert checked >= 60
 
 
+def test_the_bias_acceleration_of_the_witness_points_matches_finite_differences(world, talos_model, rng):
+    """``J̇_d v`` (the witness points fixed in their bodies, the normal held) against a central
+    difference of ``n̂ᵀ (v_Ca − v_Cb)`` along ``q ⊕ h v`` at a constant ``v``, each point's velocity
+    from Drake's own Jacobian of that body-fixed point, and ``J_d`` against those Jacobians: at
+    random configurations and velocities, every pair in range, the table's pairs included."""
+    from pydrake.multibody.tree import JacobianWrtVariable
+
+    plant = world.plant
+    context = world.new_context()
+    plant_context = world.plant_context(context)
+    layout = Layout.of(plant)
+    world_frame = plant.world_frame()
+    checked = 0
+    for _ in range(4):
+        q = _random_configuration(talos_model, rng)
+        q[6] -= 0.25  # the hands near the table top
+        v = rng.standard_normal(talos_model.nv)
+        plant.SetPositions(plant_context, q)
+        plant.SetVelocities(plant_context, v)
+        distances = pair_distances(world, context, 0.3, bias=True)
+        frames = [[plant.GetBodyByName(name).body_frame() if plant.HasBodyNamed(name) else None for name in pair]
+                  for pair in distances.names]
+        # The witness points in their bodies' frames, fixed from here on.
+        fixed = []
+        for (fa, fb), pa, pb in zip(frames, distances.p_WCa, distances.p_WCb, strict=True):
+            fixed.append([None if f is None else plant.CalcRelativeTransform(plant_context, f, world_frame) @ p
+                          for f, p in ((fa, pa), (fb, pb))])
+
+        def jacobians(q_, frames=frames, fixed=fixed):
+            plant.SetPositions(plant_context, q_)
+            rows = []
+            for (fa, fb), (pa, pb) in zip(frames, fixed, strict=True):
+                sides = [np.zeros((3, talos_model.nv)) if f is None else
+                         plant.CalcJacobianTranslationalVelocity(plant_context, JacobianWrtVariable.kV, f, p, world_frame, world_frame)
+                         for f, p in ((fa, pa), (fb, pb))]
+                rows.append(sides[0] - sides[1])
+            return np.array(rows)  # k × 3 × nv
+
+        n = distances.normal
+        J_here = jacobians(q)
+        np.testing.assert_allclose(distances.jacobian, np.einsum("ki,kin->kn", n, J_here), atol=1e-12)
+        h = 1e-6
+        fd = (np.einsum("ki,kin,n->k", n, jacobians(integrate(q, v, h, layout)), v)
+              - np.einsum("ki,kin,n->k", n, jacobians(integrate(q, v, -h, layout)), v)) / (2 * h)
+        np.testing.assert_allclose(distances.bias, fd, rtol=1e-5, atol=1e-5 * (1 + np.abs(fd).max()))
+        checked += len(fd)
+    assert checked >= 20
+
+
 def test_obstacle_side_is_b_and_witness_points_are_apart_by_the_distance(world, talos_model):
     context = world.new_context()
     q = talos_model.half_sitting.copy()

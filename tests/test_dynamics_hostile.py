@@ -92,6 +92,7 @@ def _commands(robot, tasks):
         ("setMinimumNormalForce", lambda v, c: lf.setMinimumNormalForce(v, c), "f_min", [-1.0, 2e4]),
         ("setCopMargin", lambda v, c: lf.setCopMargin(v, c), "CoP margin", [-1e-3, 0.5]),
         ("setVelocityGain", lambda v, c: lf.setVelocityGain(v, c), "K_v", [-1.0, 1e4]),
+        ("setPositionGain", lambda v, c: lf.setPositionGain(v, c), "K_p", [-1.0, 3e5]),
         ("setDampingGain", lambda v, c: sot.setDampingGain(v, c), "K_d", [-1.0, 1e4]),
         ("setJointLimitHorizon", lambda v, c: sot.setJointLimitHorizon(v, context=c), "horizon", [0.0, -0.05, 100.0]),
         ("setJointLimitHorizon(margin)", lambda v, c: sot.setJointLimitHorizon(0.05, v, c), "margin", [-1e-3, 1.0]),
@@ -103,7 +104,8 @@ def _commands(robot, tasks):
     ]
 
 
-COMMANDS = ["setFriction", "setMinimumNormalForce", "setCopMargin", "setVelocityGain", "setDampingGain", "setJointLimitHorizon",
+COMMANDS = ["setFriction", "setMinimumNormalForce", "setCopMargin", "setVelocityGain", "setPositionGain", "setDampingGain",
+            "setJointLimitHorizon",
             "setJointLimitHorizon(margin)", "rmContact(duration)", "setGain(Kp)", "setGain(Kp, Kv)", "setKp", "setKv"]
 
 

@@ -3,7 +3,8 @@
 ``solvers``: random stacks through the hierarchical QP (its stages, equality-constrained steps and
 active-set iterations). ``robot``: short runs of the tutorial under the hierarchical QP (features,
 integration, limits, the curvature correction, the equality stacks' path) and of the dynamic stand
-(the dynamic assembly and the QR path). See ``pytest_configure`` in tests/conftest.py.
+(the dynamic assembly and the QR path), and the collision rows' assembly. See ``pytest_configure``
+in tests/conftest.py.
 """
 
 from __future__ import annotations
@@ -25,7 +26,12 @@ def solvers() -> None:
 
 
 def robot() -> None:
+    from sotdrake.collision import CollisionWorld, pair_distances
+    from sotdrake.robots import load_talos
     from sotdrake.scenarios import talos_appli, talos_dynamics
+
+    world = CollisionWorld(load_talos("reduced"))
+    pair_distances(world, world.new_context(), 0.05, bias=True)
 
     with tempfile.TemporaryDirectory() as out:
         quiet = ["--no-meshcat", "--quiet", "--duration", "0.01"]

@@ -26,6 +26,7 @@ import numpy as np
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import Context
 
+from ..compiled import kernels
 from .world import CollisionWorld
 
 
@@ -77,7 +78,9 @@ def pair_distances(world: CollisionWorld, context: Context, max_distance: float,
 def distances_of(world: CollisionWorld, context: Context, results: Sequence, bias: bool = False) -> PairDistances:
     """:class:`PairDistances` of Drake's ``SignedDistancePair`` ``results`` (as
     :func:`pair_distances`, which gathers them with one query; :mod:`.schedule` gathers them pair
-    by pair)."""
+    by pair). Each body's pose and Jacobian are taken once (and with ``bias`` every body's bias
+    acceleration in one call), then the rows are assembled by one compiled call
+    (:func:`.jit_rows.assemble`)."""
     plant = world.plant
     plant_context = world.plant_context(context)
     k, nv = len(results), plant.num_velocities()
@@ -85,54 +88,47 @@ def distances_of(world: CollisionWorld, context: Context, results: Sequence, bia
         return PairDistances(names=[], distance=np.empty(0), normal=np.empty((0, 3)), p_WCa=np.empty((0, 3)),
                              p_WCb=np.empty((0, 3)), jacobian=np.zeros((0, nv)), bias=np.zeros(0))
     geometries = _geometries(world)
-    sides = [[geometries.get(r.id_A) or _geometry(world, r.id_A) for r in results],
-             [geometries.get(r.id_B) or _geometry(world, r.id_B) for r in results]]
-    p_GC = np.array([[r.p_ACa for r in results], [r.p_BCb for r in results]])  # witness points, geometry frames
-    n = np.array([r.nhat_BA_W for r in results])
-    distance = np.array([r.distance for r in results])
-    swap = np.array([a.obstacle for a in sides[0]])
-    if swap.any():  # keep the robot on side A
-        sides = [[gb if s else ga for ga, gb, s in zip(*sides, swap, strict=True)],
-                 [ga if s else gb for ga, gb, s in zip(*sides, swap, strict=True)]]
-        p_GC[:, swap] = p_GC[::-1, swap]
-        n[swap] = -n[swap]
-    slot: dict = {}  # body index -> its row in the per-body arrays below
+    sides: tuple[list[_Geometry], list[_Geometry]] = ([], [])
+    distance, normal, p_GC = np.empty(k), np.empty((k, 3)), np.empty((2, k, 3))
+    for i, r in enumerate(results):
+        a, b = geometries.get(r.id_A) or _geometry(world, r.id_A), geometries.get(r.id_B) or _geometry(world, r.id_B)
+        distance[i] = r.distance
+        if a.obstacle:  # keep the robot on side A
+            a, b = b, a
+            normal[i], p_GC[0, i], p_GC[1, i] = -r.nhat_BA_W, r.p_BCb, r.p_ACa
+        else:
+            normal[i], p_GC[0, i], p_GC[1, i] = r.nhat_BA_W, r.p_ACa, r.p_BCb
+        sides[0].append(a)
+        sides[1].append(b)
+    slot: dict[int, _Geometry] = {}  # body index -> a geometry of it; its row in the per-body arrays below
     for side in sides:
         for g in side:
-            slot.setdefault(g.body_index, g)
-    m = len(slot)
-    X_WB = np.tile(np.eye(4), (m, 1, 1))
-    J = np.zeros((m, 6, nv))  # spatial Jacobians (ω; v) of the body origins, world frame
-    A_bias = np.zeros((m, 6))  # bias spatial accelerations (α; a) of the body origins
-    omega = np.zeros((m, 3))
+            if not g.obstacle:
+                slot.setdefault(g.body_index, g)
+    rows = {index: j for j, index in enumerate(slot)}
+    m = max(len(slot), 1)
+    X_WB, J = np.empty((m, 4, 4)), np.empty((m, 6, nv))  # body origins' poses and spatial Jacobians (ω; v), world
+    A_bias, omega = np.zeros((m, 6)), np.zeros((m, 3))  # bias spatial accelerations (α; a) and angular velocities
     world_frame = plant.world_frame()
+    accelerations = plant.CalcSpatialAccelerationsFromVdot(plant_context, np.zeros(nv)) if bias else None
     for j, g in enumerate(slot.values()):
-        if g.obstacle:  # the world body: identity pose, no motion
-            continue
         X_WB[j] = plant.EvalBodyPoseInWorld(plant_context, g.body).GetAsMatrix4()
         J[j] = plant.CalcJacobianSpatialVelocity(plant_context, JacobianWrtVariable.kV, g.frame, _ORIGIN, world_frame, world_frame)
-        if bias:
-            A = plant.CalcBiasSpatialAcceleration(plant_context, JacobianWrtVariable.kV, g.frame, _ORIGIN, world_frame, world_frame)
-            A_bias[j] = np.concatenate([A.rotational(), A.translational()])
+        if accelerations is not None:  # (v̇ = 0: each body's bias spatial acceleration, by body index)
+            A = accelerations[g.body_index]
+            A_bias[j, :3], A_bias[j, 3:] = A.rotational(), A.translational()
             omega[j] = plant.EvalBodySpatialVelocityInWorld(plant_context, g.body).rotational()
-    rows = {index: j for j, index in enumerate(slot)}
-    out = PairDistances(names=[(a.name, b.name) for a, b in zip(*sides, strict=True)], distance=distance, normal=n,
-                        p_WCa=np.empty((k, 3)), p_WCb=np.empty((k, 3)), jacobian=np.zeros((k, nv)), bias=np.zeros(k))
-    for side_index, (sign, points) in enumerate(((1.0, out.p_WCa), (-1.0, out.p_WCb))):
-        side = sides[side_index]
-        b = np.array([rows[g.body_index] for g in side])
-        X_BG = np.array([g.X_BG for g in side])
-        p_BC = np.einsum("kij,kj->ki", X_BG[:, :3, :3], p_GC[side_index]) + X_BG[:, :3, 3]
-        # r = p_BoC (world frame): the witness point from its body's origin
-        r = np.einsum("kij,kj->ki", X_WB[b, :3, :3], p_BC)
-        points[:] = X_WB[b, :3, 3] + r
-        # v_WC = v_WBo + ω_WB × r, so n̂ᵀ v_WC = n̂ᵀ J_v + (r × n̂)ᵀ J_ω.
-        out.jacobian += sign * (np.einsum("ki,kin->kn", n, J[b, 3:]) + np.einsum("ki,kin->kn", np.cross(r, n), J[b, :3]))
-        if bias:
-            w = omega[b]
-            a_C = A_bias[b, 3:] + np.cross(A_bias[b, :3], r) + np.cross(w, np.cross(w, r))
-            out.bias += sign * np.einsum("ki,ki->k", n, a_C)
+    slots = np.array([[-1 if g.obstacle else rows[g.body_index] for g in side] for side in sides], dtype=np.int64)
+    X_BG = np.array([[g.X_BG for g in side] for side in sides])
+    out = PairDistances(names=[(a.name, b.name) for a, b in zip(*sides, strict=True)], distance=distance, normal=normal,
+                        p_WCa=np.empty((k, 3)), p_WCb=np.empty((k, 3)), jacobian=np.empty((k, nv)), bias=np.zeros(k))
+    points = np.empty((2, k, 3))
+    _jit_rows().assemble(X_WB, J, A_bias, omega, slots, X_BG, p_GC, normal, bias, out.jacobian, out.bias, points)
+    out.p_WCa[:], out.p_WCb[:] = points[0], points[1]
     return out
+
+
+_jit_rows = kernels(".jit_rows", __package__, "assemble", "the collision rows' assembly", "a few seconds")
 
 
 _ORIGIN = np.zeros(3)

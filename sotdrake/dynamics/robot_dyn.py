@@ -126,7 +126,8 @@ class RobotDyn:
         """A contact entity on op point ``opPoint`` (e.g. ``'left-sole'``), plugged to the
         dynamic entity and the solver (not yet held: ``sot.addContact``). ``rectangle='sole'``
         is the robot model's rectangle for that op point (``model.sole_rectangles``; TALOS': its
-        physics sole box); None makes a point contact."""
+        physics sole box); None makes a point contact. The contact keeps the op point's pose at
+        ``q0`` (:meth:`.contact.Contact6d.keep`, used with ``setPositionGain``)."""
         self.model.frame(opPoint)  # an unknown op point is refused before anything is added
         if isinstance(rectangle, str):
             if rectangle != "sole":
@@ -136,6 +137,10 @@ class RobotDyn:
             raise InvalidInput(f"{name}: {self.sot.name} was built for {self.sot.max_contacts} contacts (RobotDyn's max_contacts), "
                                f"it has {self.sot.known_contacts}")
         contact = self.add(Contact6d(name, self.dimension, rectangle, mu, f_min, cop_margin))
+        plant = self.model.plant
+        at_q0 = plant.CreateDefaultContext()
+        plant.SetPositions(at_q0, self.q0)
+        contact.keep(plant.CalcRelativeTransform(at_q0, plant.world_frame(), self.model.frame(opPoint)))
         self.dynamic.createOpPoint(name, opPoint)
         connect = self.builder.Connect
         connect(self.dynamic.kinematics_port(name), contact.GetInputPort("kinematics"))

@@ -9,6 +9,7 @@ import daqp
 import numpy as np
 import quadprog
 
+from .linalg import any_true
 from .problem import Stage
 
 DAQP_RETRY_REGULARIZATION = 1e-6
@@ -24,24 +25,73 @@ def dual_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
     never held at an infinite side (those sides are not given to quadprog)."""
     p = G.shape[1]
     H = M.T @ M  # (a new C-ordered array: reshape gives a view of its diagonal)
+    if not (any_true(lower > -np.inf) or any_true(upper < np.inf)):
+        return np.zeros(len(G), dtype=int)
     H.reshape(-1)[:: p + 1] += regularization * max(1.0, float(H.trace()) / max(p, 1))
+    found = _goldfarb_idnani(H, M.T @ t, G, lower, upper)
+    return None if found is None else found[1]
+
+
+def dual_point(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, upper: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(z, side)``: the optimum of ``min ½‖M z - t‖² s.t. lower ≤ G z ≤ upper`` by Goldfarb-Idnani's
+    dual method (quadprog) and the side of each row it holds, or None if quadprog refuses. A dual
+    method reaches the optimum through feasible steps of the dual, so it does not walk along a
+    sliver of the primal feasible set the way a primal active set can (see
+    :class:`.paths.DualPoint`); its point is checked by the caller like any other.
+
+    ``MᵀM`` is made strictly convex only where it is not (no Cholesky factor): with
+    :data:`DUAL_POINT_REGULARIZATION` times ``trace(MᵀM)/p``. quadprog's test of the rows'
+    consistency is not scale-free on such a degenerate stage: it may call the rows inconsistent at
+    one scale of the objective and answer at another (on the two damping-level stages of
+    :class:`.paths.DualPoint`, with ``trace(MᵀM)/p`` scaled to 1e-2 … 1e-4 both answered, at 1
+    neither). The objective (the same minimiser at every scale) is tried at the scales of
+    :data:`DUAL_POINT_SCALES`, in order."""
+    p = G.shape[1]
+    H = M.T @ M
+    weight = float(H.trace()) / max(p, 1)
+    if not (weight > 0.0 and np.isfinite(weight)):
+        return None
+    try:
+        np.linalg.cholesky(H)
+    except np.linalg.LinAlgError:
+        H.reshape(-1)[:: p + 1] += DUAL_POINT_REGULARIZATION * weight
+    f = M.T @ t
+    for scale in DUAL_POINT_SCALES:
+        found = _goldfarb_idnani(H * (scale / weight), f * (scale / weight), G, lower, upper)
+        if found is not None:
+            return found
+    return None
+
+
+DUAL_POINT_SCALES = (1e-3, 1e-2, 1e-4, 1e-6, 1.0)
+"""The sizes of ``trace(MᵀM)/p`` at which :func:`dual_point` asks quadprog, in order."""
+
+DUAL_POINT_REGULARIZATION = 1e-12
+"""The regularisation (relative to ``trace(MᵀM)/p``) :func:`dual_point` adds to a singular ``MᵀM``."""
+
+
+def _goldfarb_idnani(H: np.ndarray, f: np.ndarray, G: np.ndarray, lower: np.ndarray, upper: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray] | None:
+    """quadprog's ``min ½ zᵀHz - fᵀz s.t. lower ≤ G z ≤ upper`` (``H`` positive definite; infinite
+    sides left out): its point and the side of each row it holds, or None if it refuses."""
     lower_rows, upper_rows = (lower > -np.inf).nonzero()[0], (upper < np.inf).nonzero()[0]
     n_low = len(lower_rows)
     rows = np.concatenate([lower_rows, upper_rows])
-    if len(rows) == 0:
-        return np.zeros(len(G), dtype=int)
-    C = G[rows]
-    C[n_low:] *= -1.0
-    b = np.concatenate([lower, -upper])[np.concatenate([lower_rows, upper_rows + len(G)])]
+    side = np.zeros(len(G), dtype=int)
     try:
-        active = quadprog.solve_qp(H, M.T @ t, C.T, b, 0)[5]
+        if len(rows) == 0:
+            return quadprog.solve_qp(H, f)[0], side
+        C = G[rows]
+        C[n_low:] *= -1.0
+        b = np.concatenate([lower, -upper])[np.concatenate([lower_rows, upper_rows + len(G)])]
+        solution = quadprog.solve_qp(H, f, C.T, b, 0)
     except ValueError:
         return None
-    active = active - 1  # (quadprog's 1-based indices of its active rows of C: the lower sides first)
-    side = np.zeros(len(G), dtype=int)
+    active = solution[5] - 1  # (quadprog's 1-based indices of its active rows of C: the lower sides first)
     if len(active):  # (a row held at both sides has lower == upper: the caller holds it as an equality)
         side[rows[active]] = np.where(active < n_low, -1, 1)
-    return side
+    return solution[0], side
 
 
 def daqp_guess(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, upper: np.ndarray,

@@ -40,10 +40,11 @@ def dual_point(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
     sliver of the primal feasible set the way a primal active set can (see
     :class:`.paths.DualPoint`); its point is checked by the caller like any other.
 
-    ``MᵀM`` is made strictly convex only where it is not (no Cholesky factor): with
-    :data:`DUAL_POINT_REGULARIZATION` times ``trace(MᵀM)/p``. quadprog's test of the rows'
-    consistency is not scale-free on such a degenerate stage: it may call the rows inconsistent at
-    one scale of the objective and answer at another (on the two damping-level stages of
+    Only a strictly convex objective is solved (``MᵀM`` has a Cholesky factor: its optimum is
+    unique, the dual method's point is it); None otherwise (a regularised objective's optimum can be
+    far from the level's own on an ill-conditioned stage). quadprog's test of the rows' consistency
+    is not scale-free on such a degenerate stage: it may call the rows inconsistent at one scale of
+    the objective and answer at another (on the two damping-level stages of
     :class:`.paths.DualPoint`, with ``trace(MᵀM)/p`` scaled to 1e-2 … 1e-4 both answered, at 1
     neither). The objective (the same minimiser at every scale) is tried at the scales of
     :data:`DUAL_POINT_SCALES`, in order."""
@@ -55,7 +56,7 @@ def dual_point(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
     try:
         np.linalg.cholesky(H)
     except np.linalg.LinAlgError:
-        H.reshape(-1)[:: p + 1] += DUAL_POINT_REGULARIZATION * weight
+        return None
     f = M.T @ t
     for scale in DUAL_POINT_SCALES:
         found = _goldfarb_idnani(H * (scale / weight), f * (scale / weight), G, lower, upper)
@@ -66,9 +67,6 @@ def dual_point(M: np.ndarray, t: np.ndarray, G: np.ndarray, lower: np.ndarray, u
 
 DUAL_POINT_SCALES = (1e-3, 1e-2, 1e-4, 1e-6, 1.0)
 """The sizes of ``trace(MᵀM)/p`` at which :func:`dual_point` asks quadprog, in order."""
-
-DUAL_POINT_REGULARIZATION = 1e-12
-"""The regularisation (relative to ``trace(MᵀM)/p``) :func:`dual_point` adds to a singular ``MᵀM``."""
 
 
 def _goldfarb_idnani(H: np.ndarray, f: np.ndarray, G: np.ndarray, lower: np.ndarray, upper: np.ndarray

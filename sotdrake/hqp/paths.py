@@ -15,12 +15,10 @@ The order, for the default solver (``"active-set"``):
 3. the active set with its working set's rank decisions at :data:`~.tolerances.DEGENERATE_RETRY`
    fractions of τ, only if a path above ended outside the bounds or cycled (a degenerate vertex):
    from the dual guess, then from the empty working set at the stage's start;
-4. Clarabel, then OSQP, each point polished by the active set;
-5. last, only if a path above ended outside the bounds or cycled: Goldfarb-Idnani's dual method's
-   own point (:class:`DualPoint`).
+4. Clarabel, then OSQP, each point polished by the active set.
 
 With a Drake solver chosen, that solver first, then the active set (warm, then cold), the other
-Drake solvers, the degenerate retries and the dual method's point last. A stage whose levels carry extensions (rows added
+Drake solvers, and the degenerate retries last. A stage whose levels carry extensions (rows added
 to Drake's program) is solved by Drake's programs alone (:func:`extended_paths`).
 """
 
@@ -174,27 +172,22 @@ class PolishedDrake(Path):
 
 
 class DualPoint(Path):
-    """Goldfarb-Idnani's dual method's own point on the stage (:func:`.guesses.dual_point`), taken
-    as it is (not polished) with the rows it holds; tried only once a path ended outside the bounds
-    or cycled. It answers a degenerate vertex that the primal paths cannot leave: many rows through
-    the stage's start, some implied by the held ones to within τ, and an objective that pulls far
-    along the sliver they leave (seen on ``SolverDyn``'s damping level in randomized collision
-    reaches: a row implied to within 7.8e-10 by five held ones, the active set's point 53 units
-    along the sliver and 5.3e-8 past that row, where the dual method stops inside every row at the
-    same objective to 4e-7). Its point is checked like any other (:func:`.rescue.accepted`)."""
+    """Goldfarb-Idnani's dual method's own point on a level's stage (:func:`.guesses.dual_point`),
+    taken as it is (not polished) with the rows it holds: not a declared path, but the last rescue of
+    a level on which every path failed (:func:`.rescue.after_every_path`), accepted only if it holds
+    every hard row. It answers a degenerate vertex that the primal paths cannot leave: many rows
+    through the stage's start, some implied by the held ones to within τ, and an objective that pulls
+    far along the sliver they leave (seen on ``SolverDyn``'s damping level in randomized collision
+    reaches: a row implied to within 7.8e-10 by five held ones, the active set's point 53 units along
+    the sliver and 5.3e-8 past that row, where the dual method stops inside every row)."""
 
     name = "dual"
-
-    def attempt(self, a: Attempt) -> tuple[ActiveSetResult, str] | None:
-        if not any(failure.endswith(OUTSIDE) or CYCLING in failure for failure in a.failures):
-            return None
-        return super().attempt(a)
 
     def solve(self, a: Attempt) -> tuple[ActiveSetResult, str] | None:
         stage = a.stage
         found = dual_point(stage.M, stage.t, stage.G, stage.lower, stage.upper)
         if found is None:
-            a.failures.append(f"{self.name}: refused by quadprog")
+            a.failures.append(f"{self.name}: refused by quadprog, or the objective not strictly convex")
             return None
         return ActiveSetResult(found[0], found[1], 0, False), self.name
 
@@ -208,7 +201,7 @@ def sides(stage: Stage, z: np.ndarray, tolerance: float | None = None) -> np.nda
     return np.where(value >= stage.upper - near, 1, np.where(value <= stage.lower + near, -1, 0))
 
 
-_WARM, _COLD, _DUAL = WarmActiveSet(), ColdActiveSet(), DualPoint()
+_WARM, _COLD = WarmActiveSet(), ColdActiveSet()
 # Last, from the empty working set: where the feasible set is a sliver (held rows pinning a direction
 # to within 1e-9), the dual guess can start on a vertex the finer steps then leave by 5e-7.
 _RETRIES = (*(DegenerateRetry(fraction) for fraction in DEGENERATE_RETRY), DegenerateRetry(DEGENERATE_RETRY[0], True))
@@ -219,9 +212,9 @@ def stage_paths(solver: str, warm: bool) -> tuple[Path, ...]:
     """The paths of a stage, in order (see the module docstring): ``solver`` the stage's, ``warm``
     whether a working set is cached for it (made once per pair: the paths hold no state)."""
     if solver == ACTIVE_SET:  # the retries right after the active set's paths: the Drake solvers cost far more
-        return (_WARM, *([_COLD] if warm else []), *_RETRIES, *(PolishedDrake(name) for name in DRAKE_PATHS), _DUAL)
+        return (_WARM, *([_COLD] if warm else []), *_RETRIES, *(PolishedDrake(name) for name in DRAKE_PATHS))
     first: list[Path] = [PolishedDrake(solver), _WARM, *([_COLD] if warm else [])]
-    return (*first, *(PolishedDrake(name) for name in DRAKE_PATHS if name != solver), *_RETRIES, _DUAL)
+    return (*first, *(PolishedDrake(name) for name in DRAKE_PATHS if name != solver), *_RETRIES)
 
 
 def extended_paths(solver: str, solvers: dict) -> list[str]:

@@ -5,7 +5,8 @@ the levels above) to the feasibility tolerance (:func:`accept`); one that misses
 only is moved onto them (:func:`onto_hard_rows`). When every path failed, :func:`after_every_path`
 decides: the minimum-norm stage keeps the last level's point (:data:`~.problem.KEPT_LAST_LEVEL`); a
 level takes a point that holds its rows to the tolerance of their terms
-(:data:`~.problem.ROUND_OFF_LIMITED`); else :class:`~sotdrake.exceptions.SolverError`.
+(:data:`~.problem.ROUND_OFF_LIMITED`), else the dual method's own point if it holds every row
+(:class:`~.paths.DualPoint`); else :class:`~sotdrake.exceptions.SolverError`.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import numpy as np
 
 from ..exceptions import SolverError
 from .linalg import all_true, any_true
-from .paths import OUTSIDE, Attempt
+from .paths import OUTSIDE, Attempt, DualPoint
 from .problem import KEPT_LAST_LEVEL, ROUND_OFF_LIMITED, HqpResult, Stage, least_norm
 from .tolerances import ROUND_OFF, VERIFIED
 
@@ -127,6 +128,13 @@ def after_every_path(attempt: Attempt, fallbacks: list[str], what: str) -> tuple
             fallbacks.append(f"{what}: {ROUND_OFF_LIMITED} (size {float(np.max(np.abs(y))):.3g}, "
                              f"{miss:.2g} of the tolerance)")
             return x0 + Z @ y, side, label, count
+    dual = DualPoint().attempt(attempt)  # the last rescue: the dual method's own point, if it holds every row
+    if dual is not None and accept(attempt.qp, attempt.stage, dual[0].z[:attempt.stage.r]):
+        fallbacks += [f"{what}: {failure}" for failure in failures]
+        fallbacks.append(f"{what}: the dual method's point (every row held)")
+        return x0 + Z @ dual[0].z[:attempt.stage.r], dual[0].side, dual[1], 0
+    if dual is not None:
+        failures.append(f"{DualPoint.name}: {OUTSIDE}")
     raise SolverError(f"hierarchical QP: no solution on {what} ({'; '.join(failures)})")
 
 

@@ -26,7 +26,8 @@ placo, else ``--placo-python``) gets the same robot, self pairs, starting postur
 ``self_only`` hand point's, tick by tick), feet and CoM held as hard tasks and its
 ``AvoidSelfCollisionsKinematicsConstraint`` hard with the same margins; its configurations are
 checked with the same Drake query. Without placo the comparison is skipped and the JSON says why.
-Writes ``bench/results/collisions.json``.
+Writes ``bench/results/collisions.json`` (``--out``), and with ``--save`` the committed
+``bench/reference/collisions.json`` too.
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
+from output import add_output_arguments, write_json
 from pydrake.multibody.tree import JointIndex
 from pydrake.systems.analysis import Simulator
 
@@ -206,13 +208,12 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--ticks", type=int, default=2000)
     parser.add_argument("--placo-python", default=None, help="an interpreter that imports placo")
     parser.add_argument("--placo-ticks", type=int, default=200, help="ticks of the hand path given to placo")
-    parser.add_argument("--out", type=Path, default=HERE / "results" / "collisions.json")
+    add_output_arguments(parser, "collisions.json")
     args = parser.parse_args(argv)
     summary, side = run_stacks(args.ticks)
     summary["placo"] = run_placo(_placo_python(args.placo_python), side, args.placo_ticks, summary)
     print(json.dumps(summary, indent=1))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(summary, indent=1))
+    write_json(summary, args.out, save=args.save, indent=1)
     return summary
 
 

@@ -34,7 +34,9 @@ def _same_warm_state(a, b) -> bool:
     same_sides = (all(np.array_equal(x, y) for x, y in zip(sides_a, sides_b, strict=True))
                   if isinstance(sides_a, tuple) and isinstance(sides_b, tuple) else
                   not isinstance(sides_a, tuple) and not isinstance(sides_b, tuple) and np.array_equal(sides_a, sides_b))
-    return (same_sides and (a.failures, a.skips) == (b.failures, b.skips) and a.working_sets.keys() == b.working_sets.keys()
+    counters = ("failures", "skips", "row_failures", "row_skips")
+    return (same_sides and all(getattr(a, c) == getattr(b, c) for c in counters)
+            and a.working_sets.keys() == b.working_sets.keys()
             and all(np.array_equal(np.asarray(a.working_sets[k]), np.asarray(b.working_sets[k])) for k in a.working_sets))
 
 

@@ -112,6 +112,11 @@ def check_margins(safety: object, influence: object, xi: object, dt: float, wher
     return CollisionMargins(d_s, d_i, speed)
 
 
+def target_distance(margins: CollisionMargins) -> float:
+    """The distance ``d_t = d_s + a`` (m) the rows aim at (``a`` = :data:`TICK_ALLOWANCE`)."""
+    return margins.safety + TICK_ALLOWANCE
+
+
 def damper_rate(margins: CollisionMargins) -> float:
     """The damper's rate ``λ = ξ/(d_i − d_t)`` (1/s)."""
     return margins.xi / (margins.influence - margins.safety - TICK_ALLOWANCE)
@@ -123,20 +128,19 @@ def damper_rows(distances: PairDistances, margins: CollisionMargins, dt: float) 
     d = distances.distance
     if not len(d):  # no pair in range: no row
         return TaskLevel(distances.jacobian, d, d, d)
-    d_s, xi = margins.safety, margins.xi
-    d_t = d_s + TICK_ALLOWANCE
+    xi, d_t = margins.xi, target_distance(margins)
     lower = -damper_rate(margins) * (d - d_t)
     inside = d < d_t
     if inside.any():
         lower[inside] = np.maximum(lower[inside], np.minimum((d_t - d[inside]) / dt, xi))
-    return TaskLevel(distances.jacobian, lower, np.full(lower.shape, np.inf), distances.distance - d_s)
+    return TaskLevel(distances.jacobian, lower, np.full(lower.shape, np.inf), distances.distance - margins.safety)
 
 
 def acceleration_rows(distances: PairDistances, margins: CollisionMargins, dt: float, v: np.ndarray) -> TaskLevel:
     """The acceleration-level rows ``J_d q̈ ≥ −λ ḋ − (ḋ + λ (d − d_t))/T − J̇_d v`` with ``ḋ = J_d v``
     and ``T`` = max(:data:`RECOVERY_TIME`, ``dt``) (see the module docstring)."""
     lam = damper_rate(margins)
-    d_t = margins.safety + TICK_ALLOWANCE
+    d_t = target_distance(margins)
     rate = distances.jacobian @ v
     excess = rate + lam * (distances.distance - d_t)  # ḋ − ḋ_min(d): ≥ 0 inside the damper's set
     lower = -lam * rate - excess / max(RECOVERY_TIME, dt) - distances.bias
@@ -147,7 +151,7 @@ def speed_aware_influence(margins: CollisionMargins, approach: np.ndarray) -> np
     """Per pair, the distance (m) within which the acceleration level needs its row: ``d_i``, or
     farther for a pair that may approach at ``approach`` (m/s, a bound of ``−ḋ``) faster than the
     damper allows there, ``d_t + approach/λ``."""
-    return np.maximum(margins.influence, margins.safety + TICK_ALLOWANCE + approach / damper_rate(margins))
+    return np.maximum(margins.influence, target_distance(margins) + approach / damper_rate(margins))
 
 
 class _WorldContext:

@@ -17,6 +17,7 @@ from ..compiled import kernels
 from .linalg import all_true
 from .problem import ACTIVE_BOUNDS, ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult
 from .tolerances import CERTIFIED_FACTOR, FEASIBILITY, VERIFIED
+from .warm import back_off
 
 if TYPE_CHECKING:
     from .owner import StageOwner
@@ -87,7 +88,7 @@ def solve_active_bounds(qp: StageOwner, jacobians, values, x_lower, x_upper, beg
         return None
     if status == path.NOT_VERIFIED:
         qp.warm.failures += 1
-        qp.warm.skips = min(2 ** (qp.warm.failures - 1), 16)
+        qp.warm.skips = back_off(qp.warm.failures)
         return None
     qp.warm.failures, qp.warm.bound_sides = 0, sides
     slacks, start = [], 0

@@ -46,7 +46,7 @@ from .equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_s
 from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows, result_of
 from .solve import HierarchicalQP
 from .tolerances import VERIFIED
-from .warm import WarmStart
+from .warm import WarmStart, back_off
 
 CASCADE_NAME = "cascade"
 
@@ -185,7 +185,7 @@ class InactiveRows(StackPath):
         tolerance = min(VERIFIED, qp.feasibility_tolerance)
         if not all(_inequalities_hold(level, result.x, tolerance) for level in levels if not level.all_equality):
             warm.row_failures += 1
-            warm.row_skips = min(2 ** (warm.row_failures - 1), 16)
+            warm.row_skips = back_off(warm.row_failures)
             return None
         warm.row_failures = 0
         answer = result_of(levels, result.x, p.x_lower, p.x_upper, p.x_lower == p.x_upper, result.level_solvers)

@@ -13,6 +13,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+BACK_OFF_LIMIT = 16
+"""The most calls a whole-stack path skips after failing (:func:`back_off`)."""
+
+
+def back_off(failures: int) -> int:
+    """How many calls a whole-stack path skips after ``failures`` failed tries in a row (≥ 1):
+    2^(f−1), at most :data:`BACK_OFF_LIMIT` (the active bounds' and the inactive rows' back-off)."""
+    return min(2 ** (failures - 1), BACK_OFF_LIMIT)
+
 
 @dataclass
 class WarmStart:

@@ -16,14 +16,14 @@ inverse: ≥ 1 is faster than real time), and ``plant_share``, the plant alone's
 second over the run's, both measured in the same turn. The outcome figures of each run (hand error,
 slip, base drop, fall) are kept next to the timings, to show that the faster model keeps them.
 
-    python bench/physics.py --duration 2 --repeat 2 --out bench/results/physics.json
+    python bench/physics.py --duration 2 --repeat 2          # bench/results/physics.json
+    python bench/physics.py --duration 2 --repeat 2 --save   # and bench/reference/physics.json
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
-import json
 import platform
 import sys
 import time
@@ -32,14 +32,17 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "diagrams")]
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE.parent), str(HERE)]
 
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 import sotdrake.dynamics.station as dynamics_station
 from sotdrake import load_talos
+from sotdrake.scenarios import talos_dynamics, talos_physics
+
+from output import add_output_arguments, write_json
 from sotdrake.physics import CONTACT_MODELS, add_talos_station
 
 
@@ -47,8 +50,6 @@ from sotdrake.physics import CONTACT_MODELS, add_talos_station
 def contact_model(contact: str):
     """Every physical TALOS built inside uses ``contact`` (the scripts take the defaults: point
     contact in ``add_talos_station``, hydroelastic in the torque-driven device)."""
-    import talos_physics
-
     saved = talos_physics.add_talos_station, dynamics_station.add_physical_talos
     talos_physics.add_talos_station = functools.partial(saved[0], contact=contact)
     dynamics_station.add_physical_talos = functools.partial(saved[1], contact=contact)
@@ -81,8 +82,6 @@ def plant_alone(contact: str, duration: float) -> float:
 
 
 def reach(contact: str, duration: float) -> tuple[float, dict]:
-    import talos_physics
-
     with contact_model(contact):
         run = talos_physics.build_diagram("reach")
     simulator = Simulator(run.diagram)
@@ -94,8 +93,6 @@ def reach(contact: str, duration: float) -> tuple[float, dict]:
 
 
 def stand_dynamics(contact: str, duration: float) -> tuple[float, dict]:
-    import talos_dynamics
-
     with contact_model(contact):
         run = talos_dynamics.build_diagram("stand", "physics")
     simulator = Simulator(run.diagram)
@@ -135,7 +132,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--duration", type=float, default=3.0, help="simulated seconds per run")
     parser.add_argument("--repeat", type=int, default=3, help="turns per run (the fastest is kept)")
     parser.add_argument("--contact", choices=[*CONTACT_MODELS, "all"], default="all")
-    parser.add_argument("--out", type=Path, default=ROOT / "bench" / "results" / "physics.json")
+    add_output_arguments(parser, "physics.json")
     args = parser.parse_args(argv)
     contacts = CONTACT_MODELS if args.contact == "all" else (args.contact,)
     results = {
@@ -146,9 +143,8 @@ def main(argv: list[str] | None = None) -> dict:
         "machine": {"cpus": __import__("os").cpu_count(), "python": platform.python_version()},
         "runs": measure(args.duration, args.repeat, contacts),
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(results, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    for path in write_json(results, args.out, args.save):
+        print(f"wrote {path}")
     return results
 
 

@@ -144,3 +144,18 @@ def test_twin_keeps_the_graph_and_recomputes_every_connected_output_at_every_tic
     assert sources and all(calls.get(source, 0) >= 10 for source in sources), {s: calls.get(s) for s in sources}
     after = device.GetMyContextFromRoot(simulator.get_context()).get_discrete_state(0).get_value()
     assert np.array_equal(after, state0)
+
+
+def test_the_physics_bench_runs_each_model_and_keeps_the_outcome(tmp_path):
+    """``bench/physics.py`` end to end on a short run: every contact model's two runs give a CPU time,
+    a real-time factor that is its inverse, the plant's share in (0, 1], and the outcome figures."""
+    import physics
+
+    results = physics.main(["--duration", "0.02", "--repeat", "1", "--out", str(tmp_path / "p.json")])
+    assert json.loads((tmp_path / "p.json").read_text()) == json.loads(json.dumps(results))
+    assert set(results["runs"]) == set(physics.CONTACT_MODELS)
+    for runs in results["runs"].values():
+        assert set(runs) == set(physics.RUNS)
+        for run in runs.values():
+            assert run["cpu_per_sim_s"] > 0 and run["realtime_factor"] == pytest.approx(1 / run["cpu_per_sim_s"])
+            assert run["plant_share"] > 0 and run["outcome"]["fell"] is False

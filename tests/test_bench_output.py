@@ -18,7 +18,7 @@ sys.path.insert(0, str(BENCH))
 import output  # noqa: E402
 
 #: Scripts with their own owners' output conventions (they write under bench/results/ too).
-OTHERS = {"physics.py", "collisions_placo.py"}  # (placo's side: JSON to stdout)
+OTHERS = {"collisions_placo.py"}  # (placo's side: JSON to stdout)
 
 
 def scripts() -> list[Path]:

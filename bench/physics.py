@@ -35,15 +35,14 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE.parent), str(HERE)]
 
+from output import add_output_arguments, write_json
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 import sotdrake.dynamics.station as dynamics_station
 from sotdrake import load_talos
-from sotdrake.scenarios import talos_dynamics, talos_physics
-
-from output import add_output_arguments, write_json
 from sotdrake.physics import CONTACT_MODELS, add_talos_station
+from sotdrake.scenarios import talos_dynamics, talos_physics
 
 
 @contextmanager

@@ -120,3 +120,82 @@ def test_the_task_rows_are_the_full_query_rows_and_a_clone_replays_them():
     assert np.array_equal(q, q_replay)
     state = task.GetMyContextFromRoot(clone).get_abstract_state(task._schedule_index).get_value()
     assert copy.deepcopy(state).lower.tolist() == state.lower.tolist()
+
+
+def _shape_world(shapes):
+    """A collision world of the robot and one obstacle per ``(name, shape)``, far from it and from
+    each other: pairs of obstacles are not candidates, so each obstacle is paired with the robot."""
+    from sotdrake import load_talos
+
+    world = CollisionWorld(load_talos("reduced"))
+    for k, (name, shape) in enumerate(shapes):
+        add_obstacle(world, shape, RigidTransform([1.0 + 0.6 * k, 0.8, 0.9]), name)
+    return world
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_compiled_support_gaps_are_the_python_reference_and_lower_bounds(seed, talos_model):
+    """:func:`.kernels.gaps` against the plain-Python support functions (every kind: hull vertices,
+    box corners, ellipsoid, sphere, cylinder, capsule), and against Drake's signed distance: along a
+    random direction the gap is at most the distance, along the query's own normal it equals it."""
+    from pydrake.geometry import Box, Capsule, Cylinder, Ellipsoid, Sphere
+
+    from sotdrake.collision.schedule import support, support_data
+
+    shapes = [("box", Box(0.3, 0.2, 0.1)), ("ball", Sphere(0.12)), ("can", Cylinder(0.1, 0.4)),
+              ("pill", Capsule(0.08, 0.3)), ("egg", Ellipsoid(0.1, 0.15, 0.2))]
+    world = _shape_world(shapes)
+    names = {world.obstacles[name] for name, _ in shapes}
+    rng = np.random.default_rng(seed)
+    context = world.new_context()
+    q = talos_model.half_sitting.copy()
+    q[7:] += 0.2 * rng.standard_normal(len(q) - 7)
+    q[4:7] += [0.0, 0.0, 0.1] + 0.05 * rng.standard_normal(3)
+    world.plant.SetPositions(world.plant_context(context), q)
+    schedule = PairSchedule(world)
+    chosen = [p for p, pair in enumerate(schedule.pairs) if names & set(pair)]  # robot links against each shape
+    chosen += list(rng.choice(len(schedule.pairs), 60, replace=False))  # and self pairs (meshes)
+    pairs = np.array(chosen, dtype=np.int64)
+    query = world.query(context)
+    inspector = world.scene_graph.model_inspector()
+    directions = rng.standard_normal((len(pairs), 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    exact = [query.ComputeSignedDistancePairClosestPoints(*schedule.pairs[p]) for p in pairs]
+    normals = np.array([r.nhat_BA_W if r.id_A == schedule.pairs[p][0] else -r.nhat_BA_W
+                        for r, p in zip(exact, pairs, strict=True)])
+    for n, tight in ((directions, False), (normals, True)):
+        gaps = schedule.gaps(context, pairs, n)
+        for gap, u, p, r in zip(gaps, n, pairs, exact, strict=True):
+            a, b = schedule.pairs[p]
+            X_WA, X_WB = query.GetPoseInWorld(a), query.GetPoseInWorld(b)
+            low = u @ X_WA.translation() - support(support_data(inspector.GetShape(a)), -(X_WA.rotation().matrix().T @ u))
+            high = u @ X_WB.translation() + support(support_data(inspector.GetShape(b)), X_WB.rotation().matrix().T @ u)
+            assert gap == pytest.approx(low - high, abs=1e-12)
+            assert gap <= r.distance + 1e-9
+        if tight:  # (GJK converged on these separated pairs: its normal is the separating direction)
+            distances = np.array([r.distance for r in exact])
+            assert np.median(np.abs(gaps - distances)) < 1e-6
+
+
+def test_the_schedule_takes_pairs_in_either_order(talos_model):
+    """User pairs given as (b, a) where Drake answers for (a, b): the same pairs in range as the full
+    query along a walk, and bounds below the exact distances."""
+    world = CollisionWorld(talos_model)
+    add_obstacle(world, ("box", TABLE[0]), RigidTransform(list(TABLE[1])), "table")
+    context = world.new_context()
+    reversed_pairs = [(b, a) for a, b in world.scene_graph.model_inspector().GetCollisionCandidates()]
+    schedule = PairSchedule(world, reversed_pairs)
+    state = ScheduleState()
+    for k, q in enumerate(_walk(talos_model, np.random.default_rng(11), 60, 2e-2)):
+        world.plant.SetPositions(world.plant_context(context), q)
+        out = schedule.step(state, context, q, INFLUENCE_DISTANCE)
+        state = out.state
+        full = _in_range(world.query(context).ComputeSignedDistancePairwiseClosestPoints(INFLUENCE_DISTANCE))
+        assert _in_range(out.in_range).keys() == full.keys(), f"tick {k}"
+        if k % 20 == 0:
+            query = world.query(context)
+            exact = np.array([query.ComputeSignedDistancePairClosestPoints(a, b).distance for a, b in schedule.pairs])
+            assert np.all(state.lower <= exact + 1e-12)
+        if k == 0:  # every pair queried: the bounds of those out of range are their distances (tight gaps)
+            far = exact >= INFLUENCE_DISTANCE
+            assert np.median(exact[far] - state.lower[far]) < 1e-6

@@ -3,7 +3,7 @@
 ``solvers``: random stacks through the hierarchical QP (its stages, equality-constrained steps and
 active-set iterations). ``robot``: short runs of the tutorial under the hierarchical QP (features,
 integration, limits, the curvature correction, the equality stacks' path) and of the dynamic stand
-(the dynamic assembly and the QR path), and the collision rows' assembly. See ``pytest_configure``
+(the dynamic assembly and the QR path), and the collision rows' assembly and support gaps. See ``pytest_configure``
 in tests/conftest.py.
 """
 
@@ -27,11 +27,14 @@ def solvers() -> None:
 
 def robot() -> None:
     from sotdrake.collision import CollisionWorld, pair_distances
+    from sotdrake.collision.schedule import PairSchedule, ScheduleState
     from sotdrake.robots import load_talos
     from sotdrake.scenarios import talos_appli, talos_dynamics
 
     world = CollisionWorld(load_talos("reduced"))
-    pair_distances(world, world.new_context(), 0.05, bias=True)
+    context = world.new_context()
+    pair_distances(world, context, 0.05, bias=True)
+    PairSchedule(world).step(ScheduleState(), context, load_talos("reduced").half_sitting, 0.05)  # (its gaps)
 
     with tempfile.TemporaryDirectory() as out:
         quiet = ["--no-meshcat", "--quiet", "--duration", "0.01"]

@@ -80,7 +80,7 @@ def distances_of(world: CollisionWorld, context: Context, results: Sequence, bia
     :func:`pair_distances`, which gathers them with one query; :mod:`.schedule` gathers them pair
     by pair). Each body's pose and Jacobian are taken once (and with ``bias`` every body's bias
     acceleration in one call), then the rows are assembled by one compiled call
-    (:func:`.jit_rows.assemble`)."""
+    (:func:`.kernels.assemble`)."""
     plant = world.plant
     plant_context = world.plant_context(context)
     k, nv = len(results), plant.num_velocities()
@@ -123,12 +123,12 @@ def distances_of(world: CollisionWorld, context: Context, results: Sequence, bia
     out = PairDistances(names=[(a.name, b.name) for a, b in zip(*sides, strict=True)], distance=distance, normal=normal,
                         p_WCa=np.empty((k, 3)), p_WCb=np.empty((k, 3)), jacobian=np.empty((k, nv)), bias=np.zeros(k))
     points = np.empty((2, k, 3))
-    _jit_rows().assemble(X_WB, J, A_bias, omega, slots, X_BG, p_GC, normal, bias, out.jacobian, out.bias, points)
+    _kernels().assemble(X_WB, J, A_bias, omega, slots, X_BG, p_GC, normal, bias, out.jacobian, out.bias, points)
     out.p_WCa[:], out.p_WCb[:] = points[0], points[1]
     return out
 
 
-_jit_rows = kernels(".jit_rows", __package__, "assemble", "the collision rows' assembly", "a few seconds")
+_kernels = kernels(".kernels", __package__, "assemble", "the collision rows' assembly", "a few seconds")
 
 
 _ORIGIN = np.zeros(3)

@@ -23,8 +23,11 @@ At each tick the pairs whose bound is below the influence distance ``d_i`` (at t
 level, a distance per pair that grows with its approach speed, :meth:`PairSchedule.approach_bound`)
 are queried exactly
 (``ComputeSignedDistancePairClosestPoints``), the others are out of range (their distance is at
-least the bound, ``≥ d_i``) and need no row; a pair queried whose bodies have not moved relative to
-each other since. The first tick queries every pair. So the pairs in range are exactly those the full broad-phase query
+least the bound, ``≥ d_i``) and need no row. A pair found out of range gets as bound the smaller of
+its distance and its *support gap* along the query's normal ``n̂`` (:func:`.kernels.gaps`): the gap
+of two convex shapes along any direction is at most their signed distance, so the bound holds even
+when GJK has stopped on a non-closest pair of features (a symmetric posture can make it). The first
+tick queries every pair. So the pairs in range are exactly those the full broad-phase query
 ``ComputeSignedDistancePairwiseClosestPoints(d_i)`` returns, at a fraction of its cost.
 
 The bounds live in the Context (:class:`ScheduleState`, the collision task's abstract state,
@@ -43,7 +46,10 @@ from pydrake.geometry import Box, Capsule, Cylinder, Ellipsoid, GeometryId, Sphe
 from pydrake.multibody.tree import Joint, JointIndex, RigidBody
 from pydrake.systems.framework import Context
 
+from ..compiled import compiled_input, kernels
 from .world import CollisionWorld
+
+_kernels = kernels(".kernels", __package__, "gaps", "the collision pairs' support gaps", "a few seconds")
 
 #: The coefficient (m per unit of motion) of a motion the bound cannot follow: large, finite (no NaN).
 UNBOUNDED = 1e9
@@ -124,7 +130,8 @@ class PairSchedule:
         nodes, lengths = self._graph(world, joints)
         geometries = sorted({g for pair in self.pairs for g in pair}, key=lambda g: g.get_value())
         spheres = {g: bounding_sphere(inspector.GetShape(g)) for g in geometries}
-        self._support = {g: support_data(inspector.GetShape(g)) for g in geometries}
+        self._shapes = _PackedSupports([support_data(inspector.GetShape(g)) for g in geometries])
+        self._shape_X_BG = np.array([world.geometry_info(g)[2].GetAsMatrix4() for g in geometries]).reshape(-1, 4, 4)
         for g in geometries:
             nodes[("geometry", g)] = len(nodes)
         graph = np.full((len(nodes), len(nodes)), np.inf)
@@ -145,6 +152,9 @@ class PairSchedule:
         self._body_spheres = {b: np.array([k for k, body in enumerate(self._sphere_body) if body == b])
                               for b in set(self._sphere_body) if b != world_body}
         self._pair_spheres = np.array([[index[a], index[b]] for a, b in self.pairs], dtype=int).reshape(-1, 2)
+        # A pair can have a support gap when both its shapes have a support function.
+        self._gapped = self._shapes.kinds[self._pair_spheres].min(axis=1) >= 0 if self.pairs else np.zeros(0, bool)
+        self._pair_shapes = self._pair_spheres.astype(np.int64)
         distance = _shortest_paths(graph)
         self.coefficients = np.zeros((len(self.pairs), len(self._one_dof) + 2 * len(self._floating)))
         for p, (ga, gb) in enumerate(self.pairs):
@@ -255,20 +265,29 @@ class PairSchedule:
             speed[rows] = np.linalg.norm(v + np.cross(w, centres), axis=1) + np.linalg.norm(w) * self._sphere_radius[rows]
         return speed[self._pair_spheres[:, 0]] + speed[self._pair_spheres[:, 1]]
 
-    def certified(self, query: object, result: object) -> float:
-        """A lower bound of the pair's signed distance that holds even when the query has not
-        converged (a symmetric posture can leave GJK on a non-closest pair of features): the smaller
-        of its distance and the gap between the two shapes along its normal ``n̂`` (B to A), ``min_A
-        n̂ᵀa − max_B n̂ᵀb``; any direction's gap is at most the distance of two convex shapes."""
-        data_a, data_b = self._support.get(result.id_A), self._support.get(result.id_B)  # type: ignore[attr-defined]
-        if data_a is None or data_b is None:
-            return result.distance  # type: ignore[attr-defined]
-        n = result.nhat_BA_W  # type: ignore[attr-defined]
-        X_WA, X_WB = query.GetPoseInWorld(result.id_A), query.GetPoseInWorld(result.id_B)  # type: ignore[attr-defined]
-        R_WA, R_WB = X_WA.rotation().matrix(), X_WB.rotation().matrix()
-        lowest_a = n @ X_WA.translation() - support(data_a, -(R_WA.T @ n))
-        highest_b = n @ X_WB.translation() + support(data_b, R_WB.T @ n)
-        return min(result.distance, float(lowest_a - highest_b))  # type: ignore[attr-defined]
+    def gaps(self, context: Context, pairs: np.ndarray, normal: np.ndarray) -> np.ndarray:
+        """The support gap (m) of each pair index in ``pairs`` along its row of ``normal`` (unit,
+        world, from B to A) at the positions of the collision diagram's ``context``: a lower bound of
+        its signed distance (see :mod:`.kernels`). Every pair must have a support gap (``_gapped``)."""
+        k = len(pairs)
+        out = np.empty(k)
+        if k == 0:
+            return out
+        plant, plant_context = self.world.plant, self.world.plant_context(context)
+        shapes = self._pair_shapes[pairs]
+        X_WB = np.empty((k, 2, 4, 4))
+        poses: dict = {}
+        for i, sides in enumerate(shapes.tolist()):
+            for side, shape in enumerate(sides):
+                body = self._sphere_body[shape]  # (an obstacle's: the world body)
+                X = poses.get(body)
+                if X is None:
+                    X = poses[body] = plant.EvalBodyPoseInWorld(plant_context, plant.get_body(body)).GetAsMatrix4()
+                X_WB[i, side] = X
+        packed = self._shapes
+        _kernels().gaps(shapes, compiled_input(normal), X_WB, self._shape_X_BG, packed.kinds, packed.params,
+                        packed.offsets, packed.points, out)
+        return out
 
     def step(self, state: ScheduleState, context: Context, q: np.ndarray, max_distance: float | np.ndarray) -> ScheduleStep:
         """Advance ``state`` to the configuration ``q`` (set in the collision diagram ``context``
@@ -281,19 +300,49 @@ class PairSchedule:
             lower = np.full(n, -np.inf)
         else:
             lower = state.lower - self.coefficients @ self.motion(state.q, q)
-        due = np.flatnonzero(lower < max_distance)
-        query = self.world.query(context) if due.size else None  # (the query object updates every pose)
-        in_range = []
         limits = np.broadcast_to(max_distance, (n,))
-        for p in due:
+        due = np.flatnonzero(lower < limits)
+        query = self.world.query(context) if due.size else None  # (the query object updates every pose)
+        in_range, out, normals = [], [], []
+        for p in due.tolist():
             a, b = self.pairs[p]
             result = query.ComputeSignedDistancePairClosestPoints(a, b)  # type: ignore[union-attr]
+            lower[p] = result.distance
             if result.distance < limits[p]:
                 in_range.append(result)
-                lower[p] = result.distance
-            else:  # skipped from now on: only on a bound that does not trust the query's convergence
-                lower[p] = self.certified(query, result)
+            elif self._gapped[p]:  # (Drake may answer for (b, a): n̂ is taken from b to a)
+                out.append(p)
+                normals.append(result.nhat_BA_W if result.id_A == a else -result.nhat_BA_W)
+        if out:  # skipped from now on: a bound that does not trust the query's convergence
+            pairs = np.array(out, dtype=np.int64)
+            lower[pairs] = np.minimum(lower[pairs], self.gaps(context, pairs, np.array(normals)))
         return ScheduleStep(ScheduleState(q.copy(), lower, in_range, max_distance, len(due)), in_range, len(due))
+
+
+class _PackedSupports:
+    """The shapes' :func:`support_data` as :func:`.kernels.gaps` takes them: per shape its kind code
+    (``kinds``, -1 for a shape without a support function), ``params`` (3) and its vertices
+    ``points[offsets[s]:offsets[s + 1]]``."""
+
+    def __init__(self, data: Sequence[tuple | None]):
+        kinds = _kernels().SUPPORT_KINDS if data else {}
+        self.kinds = np.full(len(data), -1, dtype=np.int64)
+        self.params = np.zeros((len(data), 3))
+        vertices = [np.zeros((0, 3))]
+        self.offsets = np.zeros(len(data) + 1, dtype=np.int64)
+        for s, item in enumerate(data):
+            count = 0
+            if item is not None:
+                self.kinds[s] = kinds[item[0]]
+                if item[0] == "points":
+                    vertices.append(np.asarray(item[1], dtype=float).reshape(-1, 3))
+                    count = len(vertices[-1])
+                elif item[0] == "ellipsoid":
+                    self.params[s] = item[1]
+                else:  # a cylinder, a capsule: radius, half-length
+                    self.params[s, :2] = item[1], item[2]
+            self.offsets[s + 1] = self.offsets[s] + count
+        self.points = np.ascontiguousarray(np.vstack(vertices))
 
 
 def support_data(shape: object) -> tuple | None:

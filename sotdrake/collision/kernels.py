@@ -1,0 +1,127 @@
+"""The collision wing's compiled kernels (numba): the pairs' rows from their bodies' kinematics
+(:func:`assemble`) and the support gaps of pairs along given directions (:func:`gaps`).
+
+**The rows.** For pair ``i``, with side A's body (slot ``a``: its pose ``X_WB``, spatial Jacobian ``J = (J_ω; J_v)``
+of its origin, bias spatial acceleration ``(α; a_Bo)`` and angular velocity ``ω``, world frame) and
+the witness point ``p_GC`` in A's geometry frame G (pose ``X_BG`` in the body), ``r = R_WB p_BC``
+(``p_BC = X_BG p_GC``) is the point from the body's origin and ``p_WC = p_WBo + r``. Its velocity
+is ``v_WBo + ω × r``, so ``n̂ᵀ v_WC = (n̂ᵀ J_v + (r × n̂)ᵀ J_ω) v``, and its bias acceleration,
+fixed in the body, ``a_Bo + α × r + ω × (ω × r)``. ``J_d`` adds A's row and subtracts B's (the
+module docstring of :mod:`.distance`); a side of slot -1 is an obstacle (the world body: ``X_BG``
+is then the geometry's pose in the world; no velocity).
+
+One compiled call per tick instead of a few dozen numpy calls on ``k × 3`` arrays (about 0.3 ms
+for 36 pairs).
+
+**The gaps.** For two convex shapes A and B and a unit direction ``n̂`` (world frame, from B to A),
+the gap ``min_{a∈A} n̂ᵀa − max_{b∈B} n̂ᵀb`` is at most their signed distance: a plane normal to
+``n̂`` lies between them when it is positive, and their overlap along ``n̂`` is at least their
+penetration depth when it is not. Each side's extreme point comes from its support function in its
+own frame (``X_WG = (R, p)``: ``max_{g∈G} uᵀg = uᵀp + h_G(Rᵀu)``), by kind
+(:data:`SUPPORT_KINDS`): the largest ``uᵀv`` over a hull's vertices (a mesh's convex hull, a box's
+corners), ``‖(a u_x, b u_y, c u_z)‖`` for an ellipsoid (a sphere), ``r ‖(u_x, u_y)‖ + h |u_z|``
+for a cylinder (radius ``r``, half-length ``h``) and ``r ‖u‖ + h |u_z|`` for a capsule.
+:func:`sotdrake.collision.schedule.support` is the same function in plain Python, the reference
+the tests hold the kernel to.
+
+Arguments: :func:`~sotdrake.compiled.compiled_input` arrays.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+#: The kind codes of :func:`gaps`' shapes, by :func:`~sotdrake.collision.schedule.support_data`'s name.
+SUPPORT_KINDS = {"points": 0, "ellipsoid": 1, "cylinder": 2, "capsule": 3}
+
+
+@njit(cache=True)
+def assemble(X_WB, J, A_bias, omega, slots, X_BG, p_GC, normal, with_bias, jacobian, bias, points):
+    """Fill ``jacobian`` (k×nv, zeroed here), ``bias`` (k) and ``points`` (2×k×3: ``p_WCa``, ``p_WCb``)
+    for ``slots`` (2×k int64: each side's body slot, -1 for an obstacle), ``X_BG`` (2×k×4×4), ``p_GC``
+    (2×k×3) and ``normal`` (k×3, ``n̂_BA_W``); the per-slot ``X_WB`` (m×4×4), ``J`` (m×6×nv),
+    ``A_bias`` (m×6, ``(α; a)``) and ``omega`` (m×3); ``bias`` only when ``with_bias``."""
+    k, nv = normal.shape[0], J.shape[2]
+    for i in range(k):
+        bias[i] = 0.0
+        for c in range(nv):
+            jacobian[i, c] = 0.0
+    for side in range(2):
+        sign = 1.0 if side == 0 else -1.0
+        for i in range(k):
+            G = X_BG[side, i]
+            px, py, pz = p_GC[side, i, 0], p_GC[side, i, 1], p_GC[side, i, 2]
+            bx = G[0, 0] * px + G[0, 1] * py + G[0, 2] * pz + G[0, 3]
+            by = G[1, 0] * px + G[1, 1] * py + G[1, 2] * pz + G[1, 3]
+            bz = G[2, 0] * px + G[2, 1] * py + G[2, 2] * pz + G[2, 3]
+            s = slots[side, i]
+            if s < 0:  # an obstacle: the world body
+                points[side, i, 0], points[side, i, 1], points[side, i, 2] = bx, by, bz
+                continue
+            X = X_WB[s]
+            rx = X[0, 0] * bx + X[0, 1] * by + X[0, 2] * bz
+            ry = X[1, 0] * bx + X[1, 1] * by + X[1, 2] * bz
+            rz = X[2, 0] * bx + X[2, 1] * by + X[2, 2] * bz
+            points[side, i, 0], points[side, i, 1], points[side, i, 2] = X[0, 3] + rx, X[1, 3] + ry, X[2, 3] + rz
+            nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+            cx, cy, cz = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx  # r × n̂
+            Js = J[s]
+            for c in range(nv):
+                jacobian[i, c] += sign * (nx * Js[3, c] + ny * Js[4, c] + nz * Js[5, c]
+                                          + cx * Js[0, c] + cy * Js[1, c] + cz * Js[2, c])
+            if with_bias:
+                A, w = A_bias[s], omega[s]
+                ax = A[3] + (A[1] * rz - A[2] * ry)  # a_Bo + α × r
+                ay = A[4] + (A[2] * rx - A[0] * rz)
+                az = A[5] + (A[0] * ry - A[1] * rx)
+                ux, uy, uz = w[1] * rz - w[2] * ry, w[2] * rx - w[0] * rz, w[0] * ry - w[1] * rx  # ω × r
+                ax += w[1] * uz - w[2] * uy  # + ω × (ω × r)
+                ay += w[2] * ux - w[0] * uz
+                az += w[0] * uy - w[1] * ux
+                bias[i] += sign * (nx * ax + ny * ay + nz * az)
+
+
+@njit(cache=True)
+def _support(kind, points, params, ux, uy, uz):
+    """``max uᵀg`` over the shape (its frame): ``points`` its hull's vertices (kind 0) or
+    ``params`` its sizes (1: semi-axes; 2, 3: radius, half-length)."""
+    if kind == 0:
+        best = -math.inf
+        for i in range(points.shape[0]):
+            value = ux * points[i, 0] + uy * points[i, 1] + uz * points[i, 2]
+            if value > best:
+                best = value
+        return best
+    if kind == 1:
+        return math.sqrt((params[0] * ux) ** 2 + (params[1] * uy) ** 2 + (params[2] * uz) ** 2)
+    radial = math.sqrt(ux * ux + uy * uy) if kind == 2 else math.sqrt(ux * ux + uy * uy + uz * uz)
+    return params[0] * radial + params[1] * abs(uz)
+
+
+@njit(cache=True)
+def gaps(pairs, normal, X_WB, X_BG, kinds, params, offsets, points, out):
+    """Fill ``out`` (k) with the gap of each pair ``(pairs[i, 0], pairs[i, 1])`` (k×2 int64: A's and
+    B's shape index) along ``normal[i]`` (k×3, unit, world, from B to A): ``X_WB`` (k×2×4×4) the
+    poses of the two shapes' bodies (the identity for an obstacle's world body); per shape index
+    ``s``, its pose in its body ``X_BG[s]`` (4×4), ``kinds[s]`` (:data:`SUPPORT_KINDS`), ``params[s]``
+    (3) and its vertices ``points[offsets[s]:offsets[s + 1]]``."""
+    for i in range(pairs.shape[0]):
+        nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+        value = 0.0
+        for side in range(2):
+            s = pairs[i, side]
+            B, G = X_WB[i, side], X_BG[s]
+            # n̂ in the body frame (R_WBᵀ n̂), then in the shape's (R_BGᵀ ·), and n̂ᵀ p_WGo
+            bx = B[0, 0] * nx + B[1, 0] * ny + B[2, 0] * nz
+            by = B[0, 1] * nx + B[1, 1] * ny + B[2, 1] * nz
+            bz = B[0, 2] * nx + B[1, 2] * ny + B[2, 2] * nz
+            centre = nx * B[0, 3] + ny * B[1, 3] + nz * B[2, 3] + bx * G[0, 3] + by * G[1, 3] + bz * G[2, 3]
+            sign = -1.0 if side == 0 else 1.0  # A: min n̂ᵀa = −max (−n̂)ᵀa; B: max n̂ᵀb
+            ux = sign * (G[0, 0] * bx + G[1, 0] * by + G[2, 0] * bz)
+            uy = sign * (G[0, 1] * bx + G[1, 1] * by + G[2, 1] * bz)
+            uz = sign * (G[0, 2] * bx + G[1, 2] * by + G[2, 2] * bz)
+            extreme = _support(kinds[s], points[offsets[s]:offsets[s + 1]], params[s], ux, uy, uz)
+            value += centre - extreme if side == 0 else -(centre + extreme)
+        out[i] = value

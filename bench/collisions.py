@@ -16,7 +16,10 @@ load on the host:
   one pair never comes in range, so what remains is what an inequality level costs the solver.
 
 Per tick: the CPU time of ``AdvanceTo`` (median, p90); for ``with``, the pairs queried exactly (the
-schedule, ``sotdrake.collision.schedule``) and the pairs in range; at the end of each block, at the
+schedule, ``sotdrake.collision.schedule``) and the pairs in range, and the *floor*: the CPU time of
+Drake's exact query of each pair in range alone, timed again after the tick at the tick's
+configuration (what any level built on exact distances pays; ``floor_ratio_cpu_median`` is the
+ratio it alone would give: the stack without the level, plus it); at the end of each block, at the
 ``with`` stack's configuration, the cost of one full broad-phase query with the Jacobians of the
 pairs in range (what each tick paid without the schedule). ``self_only`` is checked at every tick
 with Drake's query on a world of its own (the smallest signed distance, m).
@@ -105,6 +108,18 @@ def _full_query_us(reach, q: np.ndarray) -> float:
     return (time.thread_time() - began) * 1e6
 
 
+def _exact_queries_us(world: CollisionWorld, context, state) -> float:
+    """CPU time (µs) of Drake's exact query of each pair the schedule found in range, at its
+    configuration (the floor of the level's tick)."""
+    world.plant.SetPositions(world.plant_context(context), state.q)
+    query = world.query(context)
+    pairs = [(r.id_A, r.id_B) for r in state.in_range]
+    began = time.thread_time()
+    for a, b in pairs:
+        query.ComputeSignedDistancePairClosestPoints(a, b)
+    return (time.thread_time() - began) * 1e6
+
+
 def run_stacks(ticks: int) -> tuple[dict, dict]:
     stacks = _stacks()
     sims = {name: _simulator(reach) for name, reach in stacks.items()}
@@ -112,6 +127,7 @@ def run_stacks(ticks: int) -> tuple[dict, dict]:
     queried, in_range, full_query_us, hand_path, self_min = [], [], [], [], np.inf
     task = stacks["with"].collision.task
     task_context = task.GetMyContextFromRoot(sims["with"][1])
+    floor_context, floor_us = task.world.new_context(), []
     checker, self_only = stacks["self_only"].checker, stacks["self_only"]
     checker_context = checker.new_context()
     dt = stacks["with"].robot.dt
@@ -125,6 +141,7 @@ def run_stacks(ticks: int) -> tuple[dict, dict]:
                     state = task_context.get_abstract_state(task._schedule_index).get_value()
                     queried.append(state.queried)
                     in_range.append(len(state.in_range))
+                    floor_us.append(_exact_queries_us(task.world, floor_context, state))
                 elif name == "self_only":
                     q = _position(self_only, context)
                     self_min = min(self_min, minimum_distance(checker, checker_context, q, INFLUENCE_DISTANCE))
@@ -140,6 +157,8 @@ def run_stacks(ticks: int) -> tuple[dict, dict]:
         "ratio_cpu_median_arm_pairs": median["with_arm_pairs"] / median["without"],
         "ratio_cpu_median_self_only": median["self_only"] / median["without"],
         "ratio_cpu_median_empty_level": median["empty_level"] / median["without"],
+        "floor_us_per_tick_median": float(np.median(floor_us[1:])),
+        "floor_ratio_cpu_median": (median["without"] + float(np.median(floor_us[1:])) * 1e-6) / median["without"],
         "self_pairs_checked": len(stacks["with"].collision.world.self_pairs()),
         "pairs_checked": len(task._pair_schedule.pairs) if task._pair_schedule is not None else None,
         "arm_pairs_checked": len(arm_pairs()),

@@ -1,13 +1,17 @@
-"""The physics' speed: real-time factor of the two physics runs and the plant's share of their tick.
+"""The physics' speed: real-time factor of the physics runs and the plant's share of their tick.
 
-Two runs, each with every contact model of :func:`sotdrake.physics.add_physical_talos`:
+Three runs, each with every contact model of :func:`sotdrake.physics.add_physical_talos`:
 
-* ``reach``: ``diagrams/talos_physics.py --scenario reach`` (the kinematic SoT, PD actuators);
+* ``reach``: ``diagrams/talos_physics.py --scenario reach`` (the kinematic SoT at 1 kHz, PD
+  actuators, the plant stepping every :data:`~sotdrake.physics.PLANT_STEP`);
+* ``reach_plant_1ms``: the same with the plant stepping at the SoT's 1 ms tick, the comparison that
+  chose ``PLANT_STEP`` (its outcome figures beside ``reach``'s);
 * ``stand_dynamics``: ``diagrams/talos_dynamics.py --scenario stand --device physics`` (the
-  dynamic SoT, torque control);
+  dynamic SoT, torque control, the plant at the control step);
 
 and the plant alone (``plant``): the station of :func:`sotdrake.physics.add_talos_station` with its
-PD references held at half-sitting, no controller, standing: the floor of any physics run.
+PD references held at half-sitting, no controller, standing, at the run's plant step: the floor of
+any physics run.
 
 Times are CPU times (``time.process_time``) of ``Simulator.AdvanceTo`` over the run, the best of
 ``--repeat`` turns (the machine may be shared: CPU time, and the minimum, are the least disturbed).
@@ -41,7 +45,7 @@ from pydrake.systems.framework import DiagramBuilder
 
 import sotdrake.dynamics.station as dynamics_station
 from sotdrake import load_talos
-from sotdrake.physics import CONTACT_MODELS, add_talos_station
+from sotdrake.physics import CONTACT_MODELS, PLANT_STEP, add_talos_station
 from sotdrake.scenarios import talos_dynamics, talos_physics
 
 
@@ -65,11 +69,11 @@ def _advance(simulator: Simulator, duration: float) -> float:
     return time.process_time() - start
 
 
-def plant_alone(contact: str, duration: float) -> float:
+def plant_alone(contact: str, duration: float, plant_step: float) -> float:
     """CPU seconds per simulated second of the station alone, standing on its PD actuators."""
     model = load_talos("reduced")
     builder = DiagramBuilder()
-    station = add_talos_station(builder, model.half_sitting, contact=contact)
+    station = add_talos_station(builder, model.half_sitting, plant_step, contact=contact)
     builder.ExportInput(station.position, "position")
     builder.ExportInput(station.velocity, "velocity")
     diagram = builder.Build()
@@ -80,18 +84,18 @@ def plant_alone(contact: str, duration: float) -> float:
     return _advance(simulator, duration) / duration
 
 
-def reach(contact: str, duration: float) -> tuple[float, dict]:
+def reach(contact: str, duration: float, plant_step: float = PLANT_STEP) -> tuple[float, dict, float]:
     with contact_model(contact):
-        run = talos_physics.build_diagram("reach")
+        run = talos_physics.build_diagram("reach", plant_step=plant_step)
     simulator = Simulator(run.diagram)
     cpu = _advance(simulator, duration)
     summary, _ = talos_physics.summarize(run, simulator, duration, cpu)
     keys = ("hand_error_m", "hand_initial_error_m", "base_drift_m", "base_height_drop_m", "min_normal_force_n",
             "max_foot_slip_m", "min_cop_margin_m", "fell")
-    return cpu / duration, {k: summary[k] for k in keys}
+    return cpu / duration, {k: summary[k] for k in keys}, plant_step
 
 
-def stand_dynamics(contact: str, duration: float) -> tuple[float, dict]:
+def stand_dynamics(contact: str, duration: float) -> tuple[float, dict, float]:
     with contact_model(contact):
         run = talos_dynamics.build_diagram("stand", "physics")
     simulator = Simulator(run.diagram)
@@ -99,10 +103,10 @@ def stand_dynamics(contact: str, duration: float) -> tuple[float, dict]:
     times = np.full(round(duration / run.robot.dt), cpu / round(duration / run.robot.dt))
     summary, _ = talos_dynamics.summarize(run, simulator, times, duration)
     keys = ("com_drift_m", "max_foot_slip_m", "max_torque_ratio", "max_friction_ratio", "fell")
-    return cpu / duration, {k: summary[k] for k in keys}
+    return cpu / duration, {k: summary[k] for k in keys}, run.robot.dt
 
 
-RUNS = {"reach": reach, "stand_dynamics": stand_dynamics}
+RUNS = {"reach": reach, "reach_plant_1ms": functools.partial(reach, plant_step=1e-3), "stand_dynamics": stand_dynamics}
 
 
 def measure(duration: float, repeat: int, contacts: tuple[str, ...]) -> dict:
@@ -112,10 +116,11 @@ def measure(duration: float, repeat: int, contacts: tuple[str, ...]) -> dict:
         for name, run in RUNS.items():
             best = None
             for _ in range(repeat):
-                cpu, outcome = run(contact, duration)
-                plant = plant_alone(contact, duration)
+                cpu, outcome, plant_step = run(contact, duration)
+                plant = plant_alone(contact, duration, plant_step)
                 if best is None or cpu < best["cpu_per_sim_s"]:
-                    best = {"cpu_per_sim_s": cpu, "plant_cpu_per_sim_s": plant, "outcome": outcome}
+                    best = {"cpu_per_sim_s": cpu, "plant_cpu_per_sim_s": plant, "plant_step_s": plant_step,
+                            "outcome": outcome}
             best.update(realtime_factor=1.0 / best["cpu_per_sim_s"],
                         plant_share=best["plant_cpu_per_sim_s"] / best["cpu_per_sim_s"])
             entry[name] = best

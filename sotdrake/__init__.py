@@ -98,6 +98,7 @@ _LAZY: dict[str, tuple[str, ...]] = {
     ".dynamics.trajectories": ("hold_move_hold", "minimum_jerk_moves", "trajectory_ports"),
     ".physics": (
         "FRICTION",
+        "PLANT_STEP",
         "SOLE_BOX",
         "ContactMonitor",
         "DesiredState",
@@ -182,6 +183,7 @@ if TYPE_CHECKING:
     from .live import add_live_arguments, live_meshcat, run_live
     from .physics import (
         FRICTION,
+        PLANT_STEP,
         SOLE_BOX,
         ContactMonitor,
         DesiredState,
@@ -239,6 +241,7 @@ __all__ = [
     "ACTIVE_SET",
     "FRICTION",
     "GRAVITY",
+    "PLANT_STEP",
     "ROBOTS",
     "SHELF",
     "SHELF_COMPARTMENTS",

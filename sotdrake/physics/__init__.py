@@ -38,7 +38,7 @@ from .plant import (
     add_physical_talos,
 )
 from .push import MAX_PUSH_FORCE, Push
-from .station import TalosStation, add_talos_station
+from .station import PLANT_STEP, TalosStation, add_talos_station
 
 __all__ = [
     "CONTACT_MODELS",
@@ -48,6 +48,7 @@ __all__ = [
     "DAMPING_RANGE",
     "FRICTION",
     "MAX_PUSH_FORCE",
+    "PLANT_STEP",
     "SOLE_BOX",
     "SOLE_DISSIPATION",
     "SOLE_MODULUS",

@@ -2,11 +2,11 @@
 
 The tutorial's control graph (feet, CoM, and for ``--scenario reach`` the right hand pushed at 1 s
 towards (0.5, -0.2, 1.0)) integrates its velocity command into joint references at 1 kHz; the
-plant's PD-controlled actuators track them on a discrete ``MultibodyPlant`` (1 ms) with gravity and
-ground contact (see :mod:`sotdrake.physics`). ``--loop open`` (default, as sot-talos on the robot) or
-``closed`` (the SoT reads the simulated joints, and the base pose estimated by leg odometry: see
-``KinematicBaseEstimator``). ``--push F`` pushes the torso
-with F newtons along +x for 0.1 s at t = 2 s.
+plant's PD-controlled actuators track them on a discrete ``MultibodyPlant`` (2 ms steps:
+:data:`~sotdrake.physics.PLANT_STEP`) with gravity and ground contact (see :mod:`sotdrake.physics`).
+``--loop open`` (default, as sot-talos on the robot) or ``closed`` (the SoT reads the simulated
+joints, and the base pose estimated by leg odometry: see ``KinematicBaseEstimator``). ``--push F``
+pushes the torso with F newtons along +x for 0.1 s at t = 2 s.
 
     python diagrams/talos_physics.py --scenario reach --duration 8 --out out/physics
 """
@@ -42,7 +42,7 @@ from sotdrake import (
     tilt_of_quaternions,
     write_run,
 )
-from sotdrake.physics import SOLE_BOX, KinematicBaseEstimator, PhysicalTalos, TalosStation, add_talos_station
+from sotdrake.physics import PLANT_STEP, SOLE_BOX, KinematicBaseEstimator, PhysicalTalos, TalosStation, add_talos_station
 from sotdrake.scenarios.common import HAND_OFFSET, gripping_hand, point_drift, point_on, translation_drift
 
 TARGET = (0.5, -0.2, 1.0)
@@ -64,15 +64,16 @@ class Physics:
 
 def build_diagram(scenario: str = "stand", loop: str = "open", push=0.0,
                   meshcat: Meshcat | None = None, dt: float = 1e-3,
-                  push_start: float = 2.0, push_duration: float = 0.1) -> Physics:
+                  push_start: float = 2.0, push_duration: float = 0.1, plant_step: float = PLANT_STEP) -> Physics:
     """``push``: a force on the torso (N, world) during ``[push_start, push_start + push_duration)``,
-    a number (along +x) or a 3-vector; 0: no push."""
+    a number (along +x) or a 3-vector; 0: no push. ``dt``: the SoT's tick (s); ``plant_step``: the
+    plant's (s)."""
     if scenario not in ("stand", "reach") or loop not in ("open", "closed"):
         raise ValueError(f"scenario is 'stand' or 'reach', loop 'open' or 'closed'; got {scenario!r}, {loop!r}")
     builder = DiagramBuilder()
     model = load_talos("reduced")
     force = np.array([push, 0.0, 0.0]) if np.ndim(push) == 0 else np.asarray(push, dtype=float)
-    station = add_talos_station(builder, model.half_sitting, dt, push_force=force if np.any(force) else None,
+    station = add_talos_station(builder, model.half_sitting, plant_step, push_force=force if np.any(force) else None,
                                 push_start=push_start, push_duration=push_duration)
     physical, plant = station.physical, station.physical.plant
     measured = None

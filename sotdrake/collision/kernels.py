@@ -1,14 +1,14 @@
 """The collision wing's compiled kernels (numba): the pairs' rows from their bodies' kinematics
 (:func:`assemble`) and the support gaps of pairs along given directions (:func:`gaps`).
 
-**The rows.** For pair ``i``, with side A's body (slot ``a``: its pose ``X_WB``, spatial Jacobian ``J = (J_ω; J_v)``
-of its origin, bias spatial acceleration ``(α; a_Bo)`` and angular velocity ``ω``, world frame) and
-the witness point ``p_GC`` in A's geometry frame G (pose ``X_BG`` in the body), ``r = R_WB p_BC``
-(``p_BC = X_BG p_GC``) is the point from the body's origin and ``p_WC = p_WBo + r``. Its velocity
-is ``v_WBo + ω × r``, so ``n̂ᵀ v_WC = (n̂ᵀ J_v + (r × n̂)ᵀ J_ω) v``, and its bias acceleration,
-fixed in the body, ``a_Bo + α × r + ω × (ω × r)``. ``J_d`` adds A's row and subtracts B's (the
-module docstring of :mod:`.distance`); a side of slot -1 is an obstacle (the world body: ``X_BG``
-is then the geometry's pose in the world; no velocity).
+**The rows.** For pair ``i``, with side A's body (slot ``a``: its pose ``X_WB``, spatial Jacobian
+``J = (J_ω; J_v)`` of its origin, bias spatial acceleration ``(α; a_Bo)`` and angular velocity
+``ω``, world frame) and the witness point ``p_GC`` in A's geometry frame G (pose ``X_BG`` in the
+body), ``r = R_WB p_BC`` (``p_BC = X_BG p_GC``) is the point from the body's origin and
+``p_WC = p_WBo + r``. Its velocity is ``v_WBo + ω × r``, so ``n̂ᵀ v_WC = (n̂ᵀ J_v + (r × n̂)ᵀ J_ω) v``,
+and its bias acceleration, fixed in the body, ``a_Bo + α × r + ω × (ω × r)``. ``J_d`` adds A's row
+and subtracts B's (the module docstring of :mod:`.distance`); a side of slot -1 is an obstacle (the
+world body: ``X_BG`` is then the geometry's pose in the world; no velocity).
 
 One compiled call per tick instead of a few dozen numpy calls on ``k × 3`` arrays (about 0.3 ms
 for 36 pairs).
@@ -18,9 +18,10 @@ the gap ``min_{a∈A} n̂ᵀa − max_{b∈B} n̂ᵀb`` is at most their signed 
 ``n̂`` lies between them when it is positive, and their overlap along ``n̂`` is at least their
 penetration depth when it is not. Each side's extreme point comes from its support function in its
 own frame (``X_WG = (R, p)``: ``max_{g∈G} uᵀg = uᵀp + h_G(Rᵀu)``), by kind
-(:data:`SUPPORT_KINDS`): the largest ``uᵀv`` over a hull's vertices (a mesh's convex hull, a box's
-corners), ``‖(a u_x, b u_y, c u_z)‖`` for an ellipsoid (a sphere), ``r ‖(u_x, u_y)‖ + h |u_z|``
-for a cylinder (radius ``r``, half-length ``h``) and ``r ‖u‖ + h |u_z|`` for a capsule.
+(:data:`~sotdrake.collision.schedule.SUPPORT_KINDS`): the largest ``uᵀv`` over a hull's vertices
+(a mesh's convex hull, a box's corners), ``‖(a u_x, b u_y, c u_z)‖`` for an ellipsoid (a sphere),
+``r ‖(u_x, u_y)‖ + h |u_z|`` for a cylinder (radius ``r``, half-length ``h``) and
+``r ‖u‖ + h |u_z|`` for a capsule.
 :func:`sotdrake.collision.schedule.support` is the same function in plain Python, the reference
 the tests hold the kernel to.
 
@@ -32,9 +33,6 @@ from __future__ import annotations
 import math
 
 from numba import njit
-
-#: The kind codes of :func:`gaps`' shapes, by :func:`~sotdrake.collision.schedule.support_data`'s name.
-SUPPORT_KINDS = {"points": 0, "ellipsoid": 1, "cylinder": 2, "capsule": 3}
 
 
 @njit(cache=True)
@@ -105,8 +103,8 @@ def gaps(pairs, normal, X_WB, X_BG, kinds, params, offsets, points, out):
     """Fill ``out`` (k) with the gap of each pair ``(pairs[i, 0], pairs[i, 1])`` (k×2 int64: A's and
     B's shape index) along ``normal[i]`` (k×3, unit, world, from B to A): ``X_WB`` (k×2×4×4) the
     poses of the two shapes' bodies (the identity for an obstacle's world body); per shape index
-    ``s``, its pose in its body ``X_BG[s]`` (4×4), ``kinds[s]`` (:data:`SUPPORT_KINDS`), ``params[s]``
-    (3) and its vertices ``points[offsets[s]:offsets[s + 1]]``."""
+    ``s``, its pose in its body ``X_BG[s]`` (4×4), ``kinds[s]`` (:data:`~.schedule.SUPPORT_KINDS`),
+    ``params[s]`` (3) and its vertices ``points[offsets[s]:offsets[s + 1]]``."""
     for i in range(pairs.shape[0]):
         nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
         value = 0.0

@@ -53,6 +53,8 @@ _kernels = kernels(".kernels", __package__, "gaps", "the collision pairs' suppor
 
 #: The coefficient (m per unit of motion) of a motion the bound cannot follow: large, finite (no NaN).
 UNBOUNDED = 1e9
+#: The shape kind codes of :func:`.kernels.gaps`, by :func:`support_data`'s name.
+SUPPORT_KINDS = {"points": 0, "ellipsoid": 1, "cylinder": 2, "capsule": 3}
 
 
 @dataclass
@@ -325,7 +327,6 @@ class _PackedSupports:
     ``points[offsets[s]:offsets[s + 1]]``."""
 
     def __init__(self, data: Sequence[tuple | None]):
-        kinds = _kernels().SUPPORT_KINDS if data else {}
         self.kinds = np.full(len(data), -1, dtype=np.int64)
         self.params = np.zeros((len(data), 3))
         vertices = [np.zeros((0, 3))]
@@ -333,7 +334,7 @@ class _PackedSupports:
         for s, item in enumerate(data):
             count = 0
             if item is not None:
-                self.kinds[s] = kinds[item[0]]
+                self.kinds[s] = SUPPORT_KINDS[item[0]]
                 if item[0] == "points":
                     vertices.append(np.asarray(item[1], dtype=float).reshape(-1, 3))
                     count = len(vertices[-1])

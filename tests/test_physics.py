@@ -152,3 +152,19 @@ def test_a_fall_lands_on_the_ground(talos_model, body_collision):
         assert report["fell"] and report["fell_at_s"] < 1.5
     else:
         assert heights[-1] < -0.3  # through the floor
+
+
+def test_the_plant_steps_at_its_own_rate(physics, tmp_path):
+    """The plant's step is ``PLANT_STEP`` by default, set by ``plant_step`` (``--plant-step``): the
+    SoT's tick stays 1 ms either way; a step out of (0, 0.01] s is refused with a message."""
+    from sotdrake.physics import PLANT_STEP
+
+    for step in (PLANT_STEP, 1e-3):
+        handles = physics.build_diagram("stand", plant_step=step)
+        assert handles.physical.plant.time_step() == step and handles.robot.dt == 1e-3
+    for bad in ("0", "nan", "0.02"):
+        with pytest.raises(SystemExit) as exited:
+            physics.main(["--plant-step", bad, "--no-meshcat", "--quiet", "--out", str(tmp_path)])
+        assert exited.value.code == 2
+    with pytest.raises(InvalidInput, match="time_step"):
+        physics.build_diagram("stand", plant_step=0.0)

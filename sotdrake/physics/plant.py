@@ -1,7 +1,8 @@
 """The simulated TALOS' plant: a discrete ``MultibodyPlant`` on a ground half-space, with soles and
 whole-body collision boxes.
 
-* A discrete ``MultibodyPlant`` (1 ms, Drake's SAP solver in its default lagged approximation) on
+* A discrete ``MultibodyPlant`` (``time_step``: 1 ms by default, the station's
+  :data:`~.station.PLANT_STEP`; Drake's SAP solver in its default lagged approximation) on
   a ground half-space (drawn as a flat 6 m plate), gravity on.
 * Soles, ``SOLE_BOX`` (0.211 × 0.124 m, the footprint of TALOS' foot collision mesh, bottom at the
   sole frame), in one of two contact models (``contact``), friction ``μ = 0.9`` (static), ``0.8``

@@ -20,6 +20,7 @@ from sotdrake.collision.distance import pair_distances
 from sotdrake.collision.reach import TABLE, build_collision_reach
 from sotdrake.collision.schedule import PairSchedule, ScheduleState, bounding_sphere
 from sotdrake.collision.task import INFLUENCE_DISTANCE
+from sotdrake.exceptions import InvalidInput
 from sotdrake.meta_tasks import gotoNd
 
 
@@ -199,3 +200,17 @@ def test_the_schedule_takes_pairs_in_either_order(talos_model):
         if k == 0:  # every pair queried: the bounds of those out of range are their distances (tight gaps)
             far = exact >= INFLUENCE_DISTANCE
             assert np.median(exact[far] - state.lower[far]) < 1e-6
+
+
+def test_gaps_refuse_pairs_without_support_and_bad_normals(scheduled):
+    world, context, schedule = scheduled
+    pairs = np.arange(3, dtype=np.int64)
+    with pytest.raises(InvalidInput, match="normal"):
+        schedule.gaps(context, pairs, np.zeros((2, 3)))
+    saved = schedule._gapped.copy()
+    try:
+        schedule._gapped[1] = False  # (a shape without a support function: a half-space, a mesh without a hull)
+        with pytest.raises(InvalidInput, match=r"without: \[1\]"):
+            schedule.gaps(context, pairs, np.tile([0.0, 0.0, 1.0], (3, 1)))
+    finally:
+        schedule._gapped[:] = saved

@@ -47,6 +47,7 @@ from pydrake.multibody.tree import Joint, JointIndex, RigidBody
 from pydrake.systems.framework import Context
 
 from ..compiled import compiled_input, kernels
+from ..exceptions import InvalidInput
 from .world import CollisionWorld
 
 _kernels = kernels(".kernels", __package__, "gaps", "the collision pairs' support gaps", "a few seconds")
@@ -275,6 +276,9 @@ class PairSchedule:
         out = np.empty(k)
         if k == 0:
             return out
+        if normal.shape != (k, 3) or not self._gapped[pairs].all():
+            raise InvalidInput(f"gaps: {k} pairs with support functions and a k × 3 normal, got {normal.shape}, "
+                               f"pairs without: {[p for p in pairs.tolist() if not self._gapped[p]]}")
         plant, plant_context = self.world.plant, self.world.plant_context(context)
         shapes = self._pair_shapes[pairs]
         X_WB = np.empty((k, 2, 4, 4))

@@ -147,8 +147,9 @@ def test_twin_keeps_the_graph_and_recomputes_every_connected_output_at_every_tic
 
 
 def test_the_physics_bench_runs_each_model_and_keeps_the_outcome(tmp_path):
-    """``bench/physics.py`` end to end on a short run: every contact model's two runs give a CPU time,
-    a real-time factor that is its inverse, the plant's share in (0, 1], and the outcome figures."""
+    """``bench/physics.py`` end to end on a short run: every run of every contact model gives a CPU
+    time, a real-time factor that is its inverse, a plant's share, its plant step and its outcome
+    figures (standing)."""
     import physics
 
     results = physics.main(["--duration", "0.02", "--repeat", "1", "--out", str(tmp_path / "p.json")])
@@ -159,3 +160,4 @@ def test_the_physics_bench_runs_each_model_and_keeps_the_outcome(tmp_path):
         for run in runs.values():
             assert run["cpu_per_sim_s"] > 0 and run["realtime_factor"] == pytest.approx(1 / run["cpu_per_sim_s"])
             assert run["plant_share"] > 0 and run["outcome"]["fell"] is False
+        assert runs["reach"]["plant_step_s"] == physics.PLANT_STEP and runs["reach_plant_1ms"]["plant_step_s"] == 1e-3

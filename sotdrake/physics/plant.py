@@ -68,6 +68,8 @@ SOLE_DISSIPATION = 50.0  # s/m
 #: The ground's drawing: a plate (m) and its colour (RGBA).
 GROUND_PLATE = (6.0, 6.0, 0.01)
 GROUND_COLOR = np.array([0.62, 0.64, 0.60, 1.0])
+#: The longest plant step (s) :func:`add_physical_talos` takes.
+MAX_TIME_STEP = 0.01
 #: The soles' contact models of :func:`add_physical_talos` (``contact``).
 CONTACT_MODELS = ("hydroelastic", "point")
 #: Point-contact soles: the corner spheres' radius (m), stiffness (N/m each), dissipation (s/m).
@@ -125,8 +127,8 @@ def add_physical_talos(
     docstring). ``contact``: the soles' contact model, ``"hydroelastic"`` (default) or ``"point"`` (see
     the module docstring; the station of :func:`~.station.add_talos_station` takes ``"point"``)."""
     obstacles = _checked_obstacles(obstacles)
-    if not (isinstance(time_step, (int, float)) and np.isfinite(time_step) and 0 < time_step <= 0.01):
-        raise InvalidInput(f"the physics needs a discrete plant: time_step in (0, 0.01] s, got {time_step!r}")
+    if not (isinstance(time_step, (int, float)) and np.isfinite(time_step) and 0 < time_step <= MAX_TIME_STEP):
+        raise InvalidInput(f"the physics needs a discrete plant: time_step in (0, {MAX_TIME_STEP:g}] s, got {time_step!r}")
     if contact not in CONTACT_MODELS:
         raise InvalidInput(f"contact is one of {CONTACT_MODELS}, got {contact!r}")
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step)

@@ -32,6 +32,18 @@ passed (or a level is not certified, or there are more rows than free components
 general path decides. A passing guess gives the QP's point to round-off (it satisfies the
 conditions that define it), so the guess changes the cost, never the answer.
 
+**Held rows.** The same rounds take inequality rows ``c_lo ≤ C x ≤ c_hi`` (every level's, stacked,
+:func:`solve_held_rows`): a row *held* at a side is one more equality row at that bound, stacked
+after the levels' rows (certified as one more block: full row rank in what the levels leave free),
+and its multiplier is its component of ``ν``: a row held at its upper side needs ``ν ≥ 0``, at its
+lower side ``ν ≤ 0`` (the same tolerance). A row not held must hold (on unit rows, to
+``feasibility`` relative above 1), else it is held at the side it passes; a wrong-signed one is
+released. No row is held at the start (rows change from one call to the next). A passing point
+meets every equality row exactly and holds every inequality row: each level's objective (residual,
+violation) is at its least value, 0, so the hierarchy's optimal set is the polyhedron of all the rows
+and bounds, and the point, which satisfies the KKT conditions of ``min ½‖x‖²`` over it, is the QP's
+answer.
+
 Cost: one QR of an ``|F| × m`` matrix, one triangular inverse and a few matrix-vector products per
 round, instead of a factorisation per level and an active-set stage per level a bound is in the way of.
 The rounds are compiled with numba (cached on disk; the first call after an install compiles them,
@@ -73,64 +85,104 @@ def _certified(R_inv, sizes, certified):
 
 
 @njit(cache=True)
-def _solve(A, b, norms, sizes, x_lower, x_upper, fixed, guess, certified, feasibility, rounds):
-    """:func:`solve_with_active_bounds`, compiled: ``(ok, x, sides)``."""
+def _solve(A, b, norms, sizes, C, c_lower, c_upper, c_norms, x_lower, x_upper, fixed, guess, certified, feasibility,
+           rounds):
+    """:func:`solve_with_active_bounds` (``C`` without rows) and :func:`solve_with_held_rows`,
+    compiled: ``(ok, x, sides, row sides)``."""
     m, n = A.shape
+    p = C.shape[0]
     U = A / norms.reshape(-1, 1)  # the unit rows
     c = b / norms
+    V = C / c_norms.reshape(-1, 1)  # the unit inequality rows and their bounds
+    v_lower, v_upper = c_lower / c_norms, c_upper / c_norms
     side = np.where(fixed, 0, guess)
+    row_side = np.zeros(p, dtype=np.int64)
     x = np.zeros(n)
     for _ in range(rounds):
         free = np.flatnonzero(~(fixed | (side != 0)))
-        n_free = free.size
-        if m > n_free:
-            return False, x, side
+        held = np.flatnonzero(row_side != 0)
+        n_free, h = free.size, held.size
+        k = m + h  # the equality rows, then the held inequality rows at their side's bound
+        if k > n_free:
+            return False, x, side, row_side
+        W, d = U, c
+        blocks = sizes
+        if h:
+            W, d = np.empty((k, n)), np.empty(k)
+            W[:m], d[:m] = U, c
+            for j in range(h):
+                W[m + j] = V[held[j]]
+                d[m + j] = v_upper[held[j]] if row_side[held[j]] > 0 else v_lower[held[j]]
+            blocks = np.append(sizes, h)  # (certified last: full row rank in what the levels leave free)
         x = np.where(side > 0, x_upper, x_lower)  # the held values (the free ones are written below)
         x[free] = 0.0
-        R_inv = np.zeros((m, m))
-        u = np.zeros(m)
-        if m:
-            qr = np.empty((m, n_free)).T  # Bᵀ = Q R (column-major, n_free × m)
+        R_inv = np.zeros((k, k))
+        u = np.zeros(k)
+        if k:
+            qr = np.empty((k, n_free)).T  # Bᵀ = Q R (column-major, n_free × k)
             for i in range(n_free):
-                qr[i, :] = U[:, free[i]]
-            tau = np.empty(m)
+                qr[i, :] = W[:, free[i]]
+            tau = np.empty(k)
             if geqrf(qr, tau) != 0:
-                return False, x, side
-            ok, R_inv = upper_inverse(qr[:m])
-            if not ok or not _certified(R_inv, sizes, certified):
-                return False, x, side
-            u = R_inv.T @ (c - U @ x)  # R⁻ᵀ ρ
+                return False, x, side, row_side
+            ok, R_inv = upper_inverse(qr[:k])
+            if not ok or not _certified(R_inv, blocks, certified):
+                return False, x, side, row_side
+            u = R_inv.T @ (d - W @ x)  # R⁻ᵀ ρ
             padded = np.zeros((1, n_free)).T
-            padded[:m, 0] = u
+            padded[:k, 0] = u
             if ormqr(qr, tau, padded, False) != 0:
-                return False, x, side
+                return False, x, side, row_side
             x[free] = padded[:, 0]
         x_free = x[free]
         squared_norm = x @ x
         if not math.isfinite(squared_norm):  # (an infinite side in the guess)
-            return False, x, side
-        # Dual: the multipliers of the guessed bounds, λ = -x_i - (Aᵀμ)_i = -x_i + (Bᵀ R⁻¹ u)_i, for
-        # every component at once (side 0 gives no sign to check): a wrong sign releases the bound.
-        lam = U.T @ (R_inv @ u) - x if m else -x
+            return False, x, side, row_side
+        # Dual: ν = -R⁻¹R⁻ᵀρ for the unit rows. The multipliers of the guessed bounds,
+        # λ = -x_i - (Bᵀν)_i, for every component at once (side 0 gives no sign to check), and those of
+        # the held rows, ν; a wrong sign releases the bound or the row.
+        w = R_inv @ u
+        lam = W.T @ w - x if k else -x
         tolerance = MULTIPLIER_TOLERANCE * max(1.0, math.sqrt(squared_norm))
         wrong = side * lam < -tolerance
         changed = bool(wrong.any())
+        was_held = row_side != 0
+        for j in range(h):
+            if row_side[held[j]] * -w[m + j] < -tolerance:
+                row_side[held[j]] = 0
+                changed = True
         # Primal: every component inside its bounds (the held ones are on them, the fixed ones too),
         # a point inside them exactly passing at once, else the free ones checked to ``feasibility``:
-        # a violated bound is held next (the free components are not among the released ones).
+        # a violated bound is held next (the free components are not among the released ones); the
+        # same for the rows not held.
         if np.any((x < x_lower) | (x > x_upper)):
-            for k in range(n_free):
-                lo, hi = x_lower[free[k]], x_upper[free[k]]
-                if x_free[k] < lo - feasibility * max(1.0, abs(lo)):
-                    side[free[k]] = -1
+            for i in range(n_free):
+                lo, hi = x_lower[free[i]], x_upper[free[i]]
+                if x_free[i] < lo - feasibility * max(1.0, abs(lo)):
+                    side[free[i]] = -1
                     changed = True
-                elif x_free[k] > hi + feasibility * max(1.0, abs(hi)):
-                    side[free[k]] = 1
+                elif x_free[i] > hi + feasibility * max(1.0, abs(hi)):
+                    side[free[i]] = 1
                     changed = True
+        if p:  # (the most violated row only: holding every violated one at once may cycle)
+            value = V @ x
+            worst, worst_side, worst_excess = -1, 0, 0.0
+            for i in range(p):
+                if was_held[i]:
+                    continue
+                below = v_lower[i] - feasibility * max(1.0, abs(v_lower[i])) - value[i]
+                above = value[i] - v_upper[i] - feasibility * max(1.0, abs(v_upper[i]))
+                if below > worst_excess:
+                    worst, worst_side, worst_excess = i, -1, below
+                elif above > worst_excess:
+                    worst, worst_side, worst_excess = i, 1, above
+            if worst >= 0:
+                row_side[worst] = worst_side
+                changed = True
         if not changed:
-            return True, x, side
+            return True, x, side, row_side
         side[wrong] = 0
-    return False, x, side
+    return False, x, side, row_side
 
 
 def solve_with_active_bounds(
@@ -153,8 +205,10 @@ def solve_with_active_bounds(
     the QP (0) must lie inside the bounds of the free components, as the caller checks. Compiled
     (numba, cached on disk; :mod:`.kernels.lapack`)."""
     given = compiled_input
-    ok, x, sides = _solve(given(A), given(b), given(norms), given(sizes, np.int64), given(x_lower), given(x_upper),
-                          given(fixed, np.bool_), given(guess, np.int64), float(certified), float(feasibility), int(rounds))
+    A, none = given(A), np.zeros(0)
+    ok, x, sides, _ = _solve(A, given(b), given(norms), given(sizes, np.int64), np.zeros((0, A.shape[1])), none, none, none,
+                             given(x_lower), given(x_upper), given(fixed, np.bool_), given(guess, np.int64), float(certified),
+                             float(feasibility), int(rounds))
     return (x, sides) if ok else None
 
 
@@ -172,7 +226,8 @@ def _solve_stack(A, b, sizes, x_lower, x_upper, guess, certified, feasibility, r
         # (NaN bounds fail the test: every comparison with NaN is False.)
         if not fixed[i] and not (x_lower[i] <= 0.0 and x_upper[i] >= 0.0):
             return NOT_APPLICABLE, empty, guess, empty, empty, none
-    ok, x, sides = _solve(A, b, row_norms(A), sizes, x_lower, x_upper, fixed, guess, certified, feasibility, rounds)
+    ok, x, sides, _ = _solve(A, b, row_norms(A), sizes, np.zeros((0, A.shape[1])), np.zeros(0), np.zeros(0), np.zeros(0),
+                             x_lower, x_upper, fixed, guess, certified, feasibility, rounds)
     if not ok:
         return NOT_VERIFIED, x, sides, empty, empty, none
     x, residual, slack_norms, active = _outcome(A, b, sizes, x, x_lower, x_upper, fixed, tolerance)
@@ -192,6 +247,37 @@ def solve_stack(A: np.ndarray, b: np.ndarray, sizes: np.ndarray, x_lower: np.nda
         given(A), given(b), given(sizes, np.int64), given(x_lower), given(x_upper), given(guess, np.int64),
         float(certified), float(feasibility), int(rounds), float(tolerance))
     return int(status), x, sides, residual, slack_norms, active
+
+
+@njit(cache=True)
+def _solve_held_rows(A, b, sizes, C, c_lower, c_upper, x_lower, x_upper, guess, certified, feasibility, rounds, tolerance):
+    """:func:`solve_held_rows`, compiled: ``(status, x, sides, row sides)``."""
+    fixed = x_lower == x_upper
+    for i in range(x_lower.size):
+        if not fixed[i] and not (x_lower[i] <= 0.0 and x_upper[i] >= 0.0):  # (False on NaN too)
+            return NOT_APPLICABLE, np.zeros(0), guess, np.zeros(0, dtype=np.int64)
+    ok, x, sides, row_sides = _solve(A, b, row_norms(A), sizes, C, c_lower, c_upper, row_norms(C), x_lower, x_upper, fixed,
+                                     guess, certified, feasibility, rounds)
+    if not ok:
+        return NOT_VERIFIED, x, sides, row_sides
+    _onto_bounds(x, x_lower, x_upper, tolerance)
+    return SOLVED, x, sides, row_sides
+
+
+def solve_held_rows(A: np.ndarray, b: np.ndarray, sizes: np.ndarray, C: np.ndarray, c_lower: np.ndarray,
+                    c_upper: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, guess: np.ndarray, certified: float,
+                    feasibility: float, tolerance: float, rounds: int = 16) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """A stack with inequality rows whose equality rows can all be met (see the module docstring's
+    last part): ``(status, x, sides, row sides)``, the first three as :func:`solve_stack`'s, then the
+    side of each inequality row held at ``x``. ``A x = b``: every
+    level's equality rows, stacked (levels of ``sizes`` rows); ``c_lower ≤ C x ≤ c_upper``: every
+    inequality row, stacked (no held one guessed: a violated one is held, a wrong-signed one released,
+    up to ``rounds`` rounds). ``sizes``: int64; ``guess``: a side per component (int64)."""
+    given = compiled_input
+    status, x, sides, row_sides = _solve_held_rows(
+        given(A), given(b), given(sizes, np.int64), given(C), given(c_lower), given(c_upper), given(x_lower),
+        given(x_upper), given(guess, np.int64), float(certified), float(feasibility), int(rounds), float(tolerance))
+    return int(status), x, sides, row_sides
 
 
 @njit(cache=True)

@@ -1,9 +1,11 @@
 """The active bounds path of a whole equality stack: every level an equality, solved at once by
 :func:`.active_bounds.solve_stack` from the bounds held at the last answer (the warm start), before
-any stage is built. It applies to equality levels without extensions, the default path on every
-stage, the minimum-norm stage, no damping, and a start inside the bounds of the free components; a
-stack it cannot verify goes to the stages, and failures in a row make the next calls skip it for a
-while (the back-off, kept in the :class:`~.warm.WarmStart`).
+any stage is built; and of a stack with inequality rows whose equality rows can all be met
+(:func:`solve_held_rows`: the violated inequality rows held at their bounds). Both apply to levels
+without extensions, the default path on every stage, the minimum-norm stage, no damping, and a
+start inside the bounds of the free components; a stack they cannot verify goes to the stages, and
+failures in a row make the next calls skip them for a while (the back-offs, kept in the
+:class:`~.warm.WarmStart`).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy as np
 
 from ..compiled import kernels
 from .linalg import all_true
-from .problem import ACTIVE_BOUNDS, ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult
+from .problem import ACTIVE_BOUNDS, ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows, result_of
 from .tolerances import CERTIFIED_FACTOR, FEASIBILITY, VERIFIED
 from .warm import back_off
 
@@ -78,9 +80,7 @@ def solve_active_bounds(qp: StageOwner, jacobians, values, x_lower, x_upper, beg
         A, b = np.concatenate(jacobians), np.concatenate(values)
     else:
         A, b = np.zeros((0, qp.n)), np.zeros(0)
-    guess = qp.warm.bound_sides
-    if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
-        guess = sides_at_bounds(guess[0], guess[1], guess[2], x_lower == x_upper)
+    guess = _bound_guess(qp, x_lower, x_upper)
     status, x, sides, residual, slack_norms, active_bounds = path.solve_stack(
         A, b, sizes, x_lower, x_upper, guess, certified=CERTIFIED_FACTOR * qp.rank_threshold,
         feasibility=min(VERIFIED, qp.feasibility_tolerance), tolerance=qp.feasibility_tolerance)
@@ -106,3 +106,37 @@ def solve_active_bounds(qp: StageOwner, jacobians, values, x_lower, x_upper, beg
         level_solvers=[ACTIVE_BOUNDS] * stages,
         iterations=[0] * stages,
     )
+
+
+def _bound_guess(qp: StageOwner, x_lower: np.ndarray, x_upper: np.ndarray) -> np.ndarray:
+    """The sides of the bounds held at the last answer (the warm start's)."""
+    guess = qp.warm.bound_sides
+    if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
+        return sides_at_bounds(guess[0], guess[1], guess[2], x_lower == x_upper)
+    assert guess is not None  # (set at the warm start's creation)
+    return guess
+
+
+def solve_held_rows(qp: StageOwner, levels: list[LevelRows], x_lower: np.ndarray, x_upper: np.ndarray,
+                    began: float) -> HqpResult | None:
+    """A stack (at least one level) with inequality rows by :func:`~.active_bounds.solve_held_rows` (every equality row met,
+    the violated inequality rows held), from the bounds held at the last answer, or None (then the
+    stages decide). With a ``hold_tolerance`` the stages let the levels below a held row pass it by
+    that much: an answer that holds a row is then not theirs, and None is given."""
+    path = _active_bounds_path()
+    A, b = np.concatenate([level.A_eq for level in levels]), np.concatenate([level.b_eq for level in levels])
+    C = np.concatenate([level.A_in for level in levels])
+    c_lower = np.concatenate([level.lower_in for level in levels])
+    c_upper = np.concatenate([level.upper_in for level in levels])
+    sizes = np.array([len(level.A_eq) for level in levels], dtype=np.int64)
+    status, x, sides, row_sides = path.solve_held_rows(
+        A, b, sizes, C, c_lower, c_upper, x_lower, x_upper, _bound_guess(qp, x_lower, x_upper),
+        certified=CERTIFIED_FACTOR * qp.rank_threshold, feasibility=min(VERIFIED, qp.feasibility_tolerance),
+        tolerance=qp.feasibility_tolerance)
+    if status != path.SOLVED or (qp.hold_tolerance and row_sides.any()):
+        return None
+    qp.warm.bound_sides = sides
+    stages = len(levels) + 1
+    answer = result_of(levels, x, x_lower, x_upper, x_lower == x_upper, [ACTIVE_BOUNDS] * stages)
+    answer.iterations, answer.solve_time_s = [0] * stages, time.perf_counter() - began
+    return answer

@@ -14,6 +14,7 @@ class StageOwner(Protocol):
     n: int  # the number of variables
     rank_threshold: float  # singular values below it (relative) are taken as zero
     feasibility_tolerance: float  # a hard row holds within it
+    hold_tolerance: float  # how much the levels below a held inequality row may pass it
     regularize: bool  # the minimum-norm stage runs after the levels
     level_solvers: list[str]  # the path chosen for each level (empty: the default)
     warm: WarmStart  # the warm start of the call being solved

@@ -15,9 +15,10 @@ tolerances); otherwise they give None and the next path is tried. The stages alw
 * :data:`ACTIVE_BOUNDS`: equality levels under bounds, by one QR of all the levels with the bounds
   held at the last call, certified by the minimum-norm stage's KKT conditions
   (:mod:`.equality_stack`), with a back-off after failures kept in the warm start.
-* :data:`INACTIVE_ROWS`: a stack with inequality rows, by the active bounds on its equality rows
-  alone, when every inequality row holds at that answer (:class:`InactiveRows`: then it is the
-  whole stack's optimum), with its own back-off after failures kept in the warm start.
+* :data:`HELD_ROWS`: a stack with inequality rows whose equality rows can all be met exactly: its
+  equality rows and the inequality rows it has to hold at a bound, by the active bounds
+  (:class:`HeldRows`: then it is the whole stack's optimum), with its own back-off after failures
+  kept in the warm start.
 * :data:`STAGES`: level by level, each stage's own paths tried in the order of :mod:`.paths`
   (:meth:`.solve.HierarchicalQP.solve`). It takes inequality rows and Drake's solvers.
 
@@ -25,7 +26,7 @@ What each solver tries, in order:
 
 =========================  ==================================
 ``SOT`` (basic)            :data:`BASIC` = (cascade,)
-``SolverKine``             :data:`KINEMATIC` = (active bounds, inactive rows, stages)
+``SolverKine``             :data:`KINEMATIC` = (active bounds, held rows, stages)
 ``SolverDyn``              :data:`DYNAMIC` = (QR sweep, stages)
 =========================  ==================================
 
@@ -35,6 +36,7 @@ goes to the stages at once.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -43,9 +45,9 @@ import numpy as np
 from ..exceptions import SolverError
 from .cascade import CascadeFactorization, cascade_factorization
 from .equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
-from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows, result_of
+from .equality_stack import solve_held_rows
+from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows
 from .solve import HierarchicalQP
-from .tolerances import VERIFIED
 from .warm import WarmStart, back_off
 
 CASCADE_NAME = "cascade"
@@ -148,58 +150,46 @@ class ActiveBounds(StackPath):
                                    p.damping, warm=p.warm)
 
 
-class InactiveRows(StackPath):
-    """A stack with inequality rows whose rows all hold at the answer of its equality rows alone.
+class HeldRows(StackPath):
+    """A stack with inequality rows whose equality rows can all be met exactly, with its violated
+    inequality rows held at their bounds (:func:`.equality_stack.solve_held_rows`).
 
-    The equality rows of every level (a level of inequality rows alone keeps none) are solved by
-    the active bounds (:class:`ActiveBounds`, under the same bounds on ``x``); if that answer ``x*``
-    holds every inequality row (on unit rows, to :data:`~.tolerances.VERIFIED` relative above 1),
-    it is the lexicographic optimum of the whole stack, and the minimum-norm one. Proof, by
-    induction over the levels: let ``S_k`` be the optimal set of the levels ``≤ k`` with their
-    inequality rows and ``S'_k`` without them, ``G_k`` the points that hold the inequality rows of
-    the levels ``≤ k``, and assume ``S_(k−1) = S'_(k−1) ∩ G_(k−1)`` with ``x* ∈ S_(k−1)``. On
-    ``S_(k−1) ⊆ S'_(k−1)`` the equality residual of level ``k`` is at least its minimum over
-    ``S'_(k−1)``, which ``x*`` attains, and the inequality slack is at least 0, which ``x*``
-    attains: so ``x* ∈ S_k`` and ``S_k = S'_k ∩ G_k``. The minimum-norm point of ``S'_K`` lies in
-    ``S_K ⊆ S'_K``, so it is also ``S_K``'s. Otherwise (a row is violated: it will be active) the
-    path gives None and the stages decide; after f failures in a row the next 2^(f−1) calls, at
-    most 16, skip the path (the warm start's ``row_failures``/``row_skips``), so that a stack that
-    keeps a row active does not pay for the equality solve at every call."""
+    Every level's equality rows, and the inequality rows held (none at first; each round holds
+    those violated and releases those whose multiplier has the wrong sign), are solved at once under
+    the bounds held at the last call (:mod:`.active_bounds`). A point that meets every equality row,
+    holds every inequality row and satisfies the KKT conditions of ``min ½‖x‖²`` over all the rows
+    and bounds is the stack's answer: each level's objective (its residual, its violation) is 0 there,
+    its least value, so every level's optimal set is the part of the one above where the level's
+    rows are met, the last one is the polyhedron of all the rows, and the answer is its
+    minimum-norm point. When no row is held this is the equality rows' answer holding every
+    inequality row (a collision level while no pair is about to touch); when one is, a level that
+    the rows keep from its target (the hand pushed against the torso) makes the rows dependent and
+    the path gives None: the stages decide. After f failures in a row the next 2^(f−1) calls, at most
+    16, skip the path (the warm start's ``row_failures``/``row_skips``)."""
 
-    name = "inactive-rows"
+    name = "held-rows"
 
     def attempt(self, qp: HierarchicalQP, problem: StackProblem) -> HqpResult | None:
         p = problem
-        if p.solver != ACTIVE_SET or p.stacked is not None or p.equalities_only or p.damping != 0.0:
+        if (p.solver != ACTIVE_SET or p.stacked is not None or p.equalities_only or p.damping != 0.0
+                or not qp.regularize or any(name != ACTIVE_SET for name in qp.level_solvers)):
             return None
         qp._use(p.warm)
         warm = qp.warm
         if warm.row_skips:
             warm.row_skips -= 1
             return None
+        began = time.perf_counter()
         levels = [LevelRows(*level) for level in p.levels]  # (the split, and the checks the stages make)
-        result = qp.solve_equalities([level.A_eq for level in levels], [level.b_eq for level in levels], p.x_lower,
-                                     p.x_upper, 0.0, warm=p.warm)
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            result = solve_held_rows(qp, levels, np.asarray(p.x_lower, dtype=float), np.asarray(p.x_upper, dtype=float),
+                                     began)
         if result is None:
-            return None
-        tolerance = min(VERIFIED, qp.feasibility_tolerance)
-        if not all(_inequalities_hold(level, result.x, tolerance) for level in levels if not level.all_equality):
             warm.row_failures += 1
             warm.row_skips = back_off(warm.row_failures)
             return None
         warm.row_failures = 0
-        answer = result_of(levels, result.x, p.x_lower, p.x_upper, p.x_lower == p.x_upper, result.level_solvers)
-        answer.iterations, answer.solve_time_s = result.iterations, result.solve_time_s
-        return answer
-
-
-def _inequalities_hold(level: LevelRows, x: np.ndarray, tolerance: float) -> bool:
-    """Whether the level's inequality rows ``lower ≤ A x ≤ upper`` hold at ``x`` on unit rows (their
-    reference norms, :attr:`~.problem.LevelRows.in_norms`) to ``tolerance`` relative above 1."""
-    norms = level.in_norms
-    value = (level.A_in @ x) / norms
-    margin = tolerance * np.maximum(1.0, np.abs(value))
-    return bool(np.all(value >= level.lower_in / norms - margin) and np.all(value <= level.upper_in / norms + margin))
+        return result
 
 
 class Stages(StackPath):
@@ -213,9 +203,9 @@ class Stages(StackPath):
         return qp.solve(levels, p.x_lower, p.x_upper, p.damping, p.solver, start=p.start, warm=p.warm)
 
 
-CASCADE, QR_SWEEP, ACTIVE_BOUNDS, INACTIVE_ROWS, STAGES = Cascade(), QrSweep(), ActiveBounds(), InactiveRows(), Stages()
+CASCADE, QR_SWEEP, ACTIVE_BOUNDS, HELD_ROWS, STAGES = Cascade(), QrSweep(), ActiveBounds(), HeldRows(), Stages()
 BASIC: tuple[StackPath, ...] = (CASCADE,)
-KINEMATIC: tuple[StackPath, ...] = (ACTIVE_BOUNDS, INACTIVE_ROWS, STAGES)
+KINEMATIC: tuple[StackPath, ...] = (ACTIVE_BOUNDS, HELD_ROWS, STAGES)
 DYNAMIC: tuple[StackPath, ...] = (QR_SWEEP, STAGES)
 
 

@@ -19,7 +19,7 @@ BACK_OFF_LIMIT = 16
 
 def back_off(failures: int) -> int:
     """How many calls a whole-stack path skips after ``failures`` failed tries in a row (≥ 1):
-    2^(f−1), at most :data:`BACK_OFF_LIMIT` (the active bounds' and the inactive rows' back-off)."""
+    2^(f−1), at most :data:`BACK_OFF_LIMIT` (the active bounds' and the held rows' back-off)."""
     return min(2 ** (failures - 1), BACK_OFF_LIMIT)
 
 
@@ -34,7 +34,7 @@ class WarmStart:
     answer, or that answer ``(x, x_lower, x_upper)`` (read off when the next call needs it);
     ``failures``/``skips``: the active bounds' back-off (after f failed tries in a row, the next
     2^(f-1) calls, at most 16, skip them); ``row_failures``/``row_skips``: the same back-off for the
-    inactive-rows path (:class:`~.stack_paths.InactiveRows`)."""
+    held-rows path (:class:`~.stack_paths.HeldRows`)."""
 
     n: int
     working_sets: dict = field(default_factory=dict)

@@ -7,9 +7,9 @@ for the joint limits, which become velocity bounds over one tick (:mod:`.limits`
 
 The stack is solved by the paths :data:`~sotdrake.hqp.stack_paths.KINEMATIC` declares: a stack of
 equality tasks first at once, by one QR from the last tick's active limits, verified
-(:mod:`~sotdrake.hqp.equality_stack`); a stack with inequality rows by the same QR on its equality
-rows alone when every inequality row holds there (:class:`~sotdrake.hqp.stack_paths.InactiveRows`);
-then level by level when neither applies or verifies.
+(:mod:`~sotdrake.hqp.equality_stack`); a stack with inequality rows whose equality rows can all be
+met by the same QR on its equality rows and the inequality rows it has to hold at a bound
+(:class:`~sotdrake.hqp.stack_paths.HeldRows`); then level by level when neither applies or verifies.
 
 ``setAccelerationLimit(a_max)`` adds hard bounds ``|v − v_prev| ≤ a_max dt`` on each joint (the
 last command ``v_prev`` kept in the Context), combined with the position and velocity limits and the

@@ -1,4 +1,4 @@
-"""The basic SoT solver: a strict pseudo-inverse cascade (sot-core ``SOT``), as pure numpy.
+"""The basic SoT solver: a strict pseudo-inverse cascade (sot-core ``SOT``).
 
 For levels ``i = 1..n`` (``J_i v = ė_i*``), with ``P_0 = I`` (or the projector on the selected
 velocities, see ``control_selection``)::
@@ -39,37 +39,22 @@ below, so the path also solves the leading certified levels of any stack: when a
 certified (a rank loss, a conflict with a higher level, a singular value within ``√m_i`` of the
 threshold, a NaN, or more rows than ``nv``), the SVD cascade above goes on from ``Z`` = the
 other columns of ``Q`` (``P = P_0 - Q_K Q_Kᵀ``, ``Q_K``: the solved levels' columns) and decides.
+The fast path is one compiled call (:mod:`.kernels.cascade`); the SVD cascade calls LAPACK's
+``gesdd`` through scipy.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
-from scipy.linalg.lapack import dgeqrf as _geqrf
 from scipy.linalg.lapack import dgesdd as _gesdd
-from scipy.linalg.lapack import dorgqr as _orgqr
 from scipy.linalg.lapack import dormqr as _ormqr
 
+from ..compiled import compiled_input, kernels
 from ..exceptions import SolverError
-from .linalg import upper_inverse, upper_triangle
-
-
-@lru_cache(maxsize=32)
-def _diagonal_blocks(sizes: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """For levels of ``sizes`` rows (``M`` in all): the ``M × M`` mask of the upper triangles of
-    the diagonal blocks, and each block's first row."""
-    total = sum(sizes)
-    blocks = np.zeros((total, total), dtype=bool)
-    starts = np.cumsum((0, *sizes[:-1]))
-    for start, size in zip(starts.tolist(), sizes, strict=True):
-        blocks[start : start + size, start : start + size] = upper_triangle(size)
-    for array in (blocks, starts):
-        array.flags.writeable = False
-    return blocks, starts
 
 
 class _Prefix(NamedTuple):
@@ -104,51 +89,31 @@ def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, 
                       selection: np.ndarray | None) -> _Prefix | None:
     """The leading levels that the QR path can certify full rank (see the module docstring), or
     None when not even the first can be. The QR of the first ``K`` rows does not depend on the
-    rows below them, so one QR of the stack serves every prefix."""
+    rows below them, so one QR of the stack serves every prefix (one compiled call:
+    :func:`.kernels.cascade.prefix`)."""
     taken, total = 0, 0
     for J, _ in levels:  # the levels whose rows fit in nv
         if total + J.shape[0] > nv:
             break
         taken, total = taken + 1, total + J.shape[0]
-    rows = [(i, J, r) for i, (J, r) in enumerate(levels[:taken]) if J.shape[0]]  # an empty level changes nothing
+    rows = [i for i in range(taken) if levels[i][0].shape[0]]  # an empty level changes nothing
     if not rows:
         return None
-    sizes = tuple(J.shape[0] for _, J, _ in rows)
-    B = np.vstack([J for _, J, _ in rows])
-    if selection is not None:
+    B = levels[rows[0]][0] if len(rows) == 1 else np.vstack([levels[i][0] for i in rows])
+    if selection is not None:  # (a mask by selection, not a product: a NaN in a lower level's rows must not reach the blocks above it)
         B = B * selection
-    qr, tau, _, info = _geqrf(B.T)
-    if info != 0:
-        return None
-    R_inverse = upper_inverse(qr[:total, :total])
-    if R_inverse is None:
-        return None
-    blocks, starts = _diagonal_blocks(sizes)
-    # (A mask by selection, not a product: a NaN in a lower level's rows must not reach the blocks
-    # above it.)
-    squares = np.where(blocks, R_inverse * R_inverse, 0.0)
-    certified = (np.add.reduceat(squares.sum(axis=1), starts) * (svd_threshold * svd_threshold) < 1.0).tolist()
-    solved = certified.index(False) if False in certified else len(rows)  # a NaN is not certified
+    r = levels[rows[0]][1] if len(rows) == 1 else np.concatenate([levels[i][1] for i in rows])
+    sizes = np.array([levels[i][0].shape[0] for i in rows], dtype=np.int64)
+    given = compiled_input
+    solved, v, reflectors, scales, L_inverse_T, free = _kernels().prefix(given(B), sizes, given(r), float(svd_threshold),
+                                                                         taken < len(levels))
     if solved == 0:
         return None
-    K = int(starts[solved]) if solved < len(rows) else total
-    y = np.zeros(nv)
-    L_inverse_T = R_inverse[:K, :K].T
-    y[:K] = L_inverse_T @ np.concatenate([r for _, _, r in rows[:solved]])
-    reflectors, scales = qr[:, :K], tau[:K]  # the next ones may hold a NaN
-    v, _, info = _ormqr("L", "N", reflectors, scales, y, lwork=max(1, nv))
-    if info != 0:
-        return None
-    count = rows[solved][0] if solved < len(rows) else len(levels) if taken == len(levels) else taken
-    free = None
-    if count < len(levels):
-        padded = np.zeros((nv, nv), order="F")
-        padded[:, :K] = reflectors
-        Q, _, info = _orgqr(padded, scales)
-        if info != 0:
-            return None
-        free = Q[:, K:]
-    return _Prefix(count, v, free, [i for i, _, _ in rows[:solved]], L_inverse_T, reflectors, scales)
+    count = rows[solved] if solved < len(rows) else len(levels) if taken == len(levels) else taken
+    return _Prefix(count, v, free if count < len(levels) else None, rows[:solved], L_inverse_T, reflectors, scales)
+
+
+_kernels = kernels(".kernels.cascade", __package__, "prefix", "the basic SoT's cascade", "a few seconds")
 
 
 class CascadeResult(NamedTuple):

@@ -1,0 +1,65 @@
+"""The basic SoT cascade's full-rank prefix in one compiled call (:func:`.cascade._full_rank_prefix`).
+
+The stacked levels ``B`` (M × nv, ``M ≤ nv``, rows in priority order, the control selection
+applied) are factorised once, ``Bᵀ = Q R`` (Householder, no pivoting: ``B = L Qᵀ`` with ``L = Rᵀ``),
+and the leading levels whose diagonal block of ``R⁻¹`` has ``‖R_kk⁻¹‖_F · τ < 1`` (upper triangle;
+then ``σ_min(L_kk) > τ``, the SVD threshold) are *certified*: the first ``K`` rows are solved
+exactly by ``v = Q_K L_K⁻¹ r_K``. A level that is not certified (a NaN included) stops the prefix.
+The Python version of :mod:`.cascade` made about thirty numpy and LAPACK calls for this; the
+arithmetic is the same (LAPACK's ``dgeqrf``, ``dtrtri``, ``dormqr``, ``dorgqr``, :mod:`.lapack`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .lapack import fortran, geqrf, orgqr, ormqr, upper_inverse
+
+
+@njit(cache=True)
+def prefix(B, sizes, references, threshold, more):
+    """``(solved, v, reflectors, scales, L_inverse_T, free)``: how many levels (of ``sizes`` rows,
+    those with rows) are certified, ``v`` (nv) solving them for ``references`` (M), the first ``K``
+    Householder reflectors and their scales (``Q_K``), ``(L_K⁻¹)ᵀ`` (K × K) and, when some level is
+    not certified or ``more`` levels follow those stacked, ``free``: the last ``nv − K`` columns of
+    the full ``Q`` (an orthonormal basis of what the solved levels leave free; else nv × 0). ``solved`` 0:
+    nothing certified (or LAPACK failed), the other values empty."""
+    M, nv = B.shape
+    empty = np.zeros((nv, 0))
+    nothing = (0, np.zeros(nv), np.zeros((0, nv)).T, np.zeros(0), np.zeros((0, 0)), empty)
+    qr = fortran(B.T)  # nv × M, column-major
+    tau = np.empty(M)
+    if geqrf(qr, tau) != 0:
+        return nothing
+    ok, R_inverse = upper_inverse(qr[:M])
+    if not ok:
+        return nothing
+    limit = 1.0 / (threshold * threshold)
+    solved, K = 0, 0
+    for size in sizes:
+        square = 0.0
+        for i in range(K, K + size):
+            for j in range(i, K + size):
+                square += R_inverse[i, j] * R_inverse[i, j]
+        if not square < limit:  # (False on NaN too)
+            break
+        solved += 1
+        K += size
+    if solved == 0:
+        return nothing
+    L_inverse_T = np.ascontiguousarray(R_inverse[:K, :K].T)
+    y = np.zeros((1, nv)).T  # nv × 1, column-major
+    y[:K, 0] = L_inverse_T @ references[:K]
+    reflectors = fortran(qr[:, :K])  # (the later columns may hold a NaN)
+    scales = tau[:K].copy()
+    if ormqr(reflectors, scales, y, False) != 0:
+        return nothing
+    free = empty
+    if more or solved < sizes.size:
+        padded = np.zeros((nv, nv)).T
+        padded[:, :K] = reflectors
+        if orgqr(padded, K, scales) != 0:
+            return nothing
+        free = np.ascontiguousarray(padded[:, K:])
+    return solved, y[:, 0].copy(), reflectors, scales, L_inverse_T, free

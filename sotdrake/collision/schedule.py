@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.geometry import Box, Capsule, Cylinder, Ellipsoid, GeometryId, Sphere
-from pydrake.multibody.tree import Joint, JointIndex, RigidBody
+from pydrake.multibody.tree import BodyIndex, Joint, JointIndex, RigidBody
 from pydrake.systems.framework import Context
 
 from ..compiled import compiled_input, kernels
@@ -152,8 +152,12 @@ class PairSchedule:
         self._sphere_centre = np.array([world.geometry_info(g)[2].multiply(spheres[g][0]) for g in geometries]).reshape(-1, 3)
         self._sphere_radius = np.array([spheres[g][1] for g in geometries])
         world_body = world.plant.world_body().index()
-        self._body_spheres = {b: np.array([k for k, body in enumerate(self._sphere_body) if body == b])
-                              for b in set(self._sphere_body) if b != world_body}
+        # The spheres on a moving body (not an obstacle's), and each one's slot in the list of those bodies.
+        self._moving_spheres = np.array([k for k, body in enumerate(self._sphere_body) if body != world_body], dtype=int)
+        bodies = sorted({int(self._sphere_body[k]) for k in self._moving_spheres})
+        self._moving_bodies = [world.plant.get_body(BodyIndex(b)) for b in bodies]
+        slot = {b: j for j, b in enumerate(bodies)}
+        self._moving_slot = np.array([slot[int(self._sphere_body[k])] for k in self._moving_spheres], dtype=int)
         self._pair_spheres = np.array([[index[a], index[b]] for a, b in self.pairs], dtype=int).reshape(-1, 2)
         # A pair can have a support gap when both its shapes have a support function.
         self._gapped = self._shapes.kinds[self._pair_spheres].min(axis=1) >= 0 if self.pairs else np.zeros(0, bool)
@@ -258,14 +262,17 @@ class PairSchedule:
         body's origin, world frame; ``r`` its radius; 0 for an obstacle)."""
         plant = self.world.plant
         plant_context = self.world.plant_context(context)
-        speed = np.zeros(len(self._sphere_body))
-        for body_index, rows in self._body_spheres.items():
-            body = plant.get_body(body_index)
+        m = len(self._moving_bodies)
+        R, w, v = np.empty((m, 3, 3)), np.empty((m, 3)), np.empty((m, 3))
+        for j, body in enumerate(self._moving_bodies):
             V = plant.EvalBodySpatialVelocityInWorld(plant_context, body)
-            w, v = V.rotational(), V.translational()
-            R = plant.EvalBodyPoseInWorld(plant_context, body).rotation().matrix()
-            centres = self._sphere_centre[rows] @ R.T
-            speed[rows] = np.linalg.norm(v + np.cross(w, centres), axis=1) + np.linalg.norm(w) * self._sphere_radius[rows]
+            w[j], v[j] = V.rotational(), V.translational()
+            R[j] = plant.EvalBodyPoseInWorld(plant_context, body).rotation().matrix()
+        spheres, slot = self._moving_spheres, self._moving_slot
+        centres = np.einsum("kij,kj->ki", R[slot], self._sphere_centre[spheres])  # from each body's origin, world
+        speed = np.zeros(len(self._sphere_body))
+        w = w[slot]
+        speed[spheres] = np.linalg.norm(v[slot] + np.cross(w, centres), axis=1) + np.linalg.norm(w, axis=1) * self._sphere_radius[spheres]
         return speed[self._pair_spheres[:, 0]] + speed[self._pair_spheres[:, 1]]
 
     def gaps(self, context: Context, pairs: np.ndarray, normal: np.ndarray) -> np.ndarray:

@@ -156,11 +156,13 @@ def speed_aware_influence(margins: CollisionMargins, approach: np.ndarray) -> np
 
 class _WorldContext:
     """The collision diagram's context as the value of a cache entry (a copy gets a context of its
-    own, at the same configuration)."""
+    own, at the same configuration), and the pairs' approach speed bound at its positions and
+    velocities (``approach``, m/s, taken at most once per configuration: None until then)."""
 
     def __init__(self, world: CollisionWorld):
         self.world = world
         self.context = world.new_context()
+        self.approach: np.ndarray | None = None
 
     def __deepcopy__(self, memo: dict) -> _WorldContext:
         clone = _WorldContext(self.world)
@@ -267,7 +269,9 @@ class TaskCollision(Entity[CollisionMargins]):
         q = self._position.Eval(context)
         if not math.isfinite(q.sum()):  # Drake would abort the process
             raise InvalidInput(f"{self.name}: non-finite position at t = {context.get_time()}: {q}")
-        plant_context = self.world.plant_context(value.get_mutable_value().context)
+        holder = value.get_mutable_value()
+        holder.approach = None
+        plant_context = self.world.plant_context(holder.context)
         self.world.plant.SetPositions(plant_context, q)
         if self._velocity is not None:
             v = self._velocity.Eval(context)
@@ -295,7 +299,9 @@ class TaskCollision(Entity[CollisionMargins]):
         q, margins = self._position.Eval(context), self._settings_of(context)
         influence: float | np.ndarray = margins.influence
         if self._velocity is not None:  # a pair faster than the damper allows is taken in range before d_i
-            influence = speed_aware_influence(margins, self._pair_schedule.approach_bound(holder.context))
+            if holder.approach is None:  # (the tick's update and its outputs both ask for it)
+                holder.approach = self._pair_schedule.approach_bound(holder.context)
+            influence = speed_aware_influence(margins, holder.approach)
         value.set_value(self._pair_schedule.step(state, holder.context, q, influence))
 
     def _advance_schedule(self, context: Context, state: State) -> None:

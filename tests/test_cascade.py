@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from sotdrake.hqp.cascade import _full_rank_prefix, cascade_factorization, svd_cascade
+from sotdrake.exceptions import SolverError
+from sotdrake.hqp.cascade import _compiled_svd_cascade, _full_rank_prefix, cascade_factorization, svd_cascade
 from sotdrake.solvers import solve_cascade
 
 
@@ -130,6 +131,30 @@ def test_qr_prefix_stops_at_the_first_rank_loss(seed):
         assert np.all(result.velocity[~selection] == 0.0)  # exactly: an unselected joint never moves
     np.testing.assert_allclose(result.velocity, v, rtol=0, atol=1e-9 * max(1.0, np.abs(v).max()))
     assert list(result.ranks) == list(ranks)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_the_compiled_svd_cascade_is_the_plain_one(seed):
+    """The compiled SVD levels from the top (damped per level, with or without a control selection)
+    give the plain cascade's velocity and ranks."""
+    rng = np.random.default_rng(seed)
+    nv = int(rng.integers(6, 40))
+    levels = random_stack(rng, nv) + ([(np.eye(nv), rng.normal(size=nv))] if rng.random() < 0.5 else [])
+    dampings = [float(d) for d in rng.choice([0.0, 1e-3, 0.1], size=len(levels))]
+    selection = rng.random(nv) < 0.8 if rng.random() < 0.5 else None
+    v, ranks = svd_cascade(levels, nv, 1e-4, dampings, selection)
+    compiled, compiled_ranks = _compiled_svd_cascade(levels, nv, 1e-4, dampings, selection, None)
+    np.testing.assert_allclose(compiled, v, rtol=0, atol=1e-9 * max(1.0, np.abs(v).max()))
+    assert list(compiled_ranks) == list(ranks)
+
+
+def test_the_compiled_cascade_on_an_empty_stack_and_a_non_finite_level():
+    nv = 6
+    v, ranks = _compiled_svd_cascade([], nv, 1e-4, [], None, None)
+    assert np.array_equal(v, np.zeros(nv)) and len(ranks) == 0
+    levels = [(np.eye(2, nv), np.ones(2)), (np.full((1, nv), np.nan), np.zeros(1))]
+    with pytest.raises(SolverError, match="finite"):
+        _compiled_svd_cascade(levels, nv, 1e-4, [0.0, 0.0], None, None)
 
 
 @pytest.mark.parametrize("ratio", [0.5, 0.999, 1.001, 1.5, 2.0, 3.0, 10.0])

@@ -87,7 +87,7 @@ def _certified(R_inv, sizes, certified):
 @njit(cache=True)
 def _solve(A, b, norms, sizes, C, c_lower, c_upper, c_norms, x_lower, x_upper, fixed, guess, certified, feasibility,
            rounds):
-    """:func:`solve_with_active_bounds` (``C`` without rows) and :func:`solve_with_held_rows`,
+    """:func:`solve_with_active_bounds` (``C`` without rows) and :func:`solve_held_rows`,
     compiled: ``(ok, x, sides, row sides)``."""
     m, n = A.shape
     p = C.shape[0]

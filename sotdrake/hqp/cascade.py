@@ -39,8 +39,9 @@ below, so the path also solves the leading certified levels of any stack: when a
 certified (a rank loss, a conflict with a higher level, a singular value within ``√m_i`` of the
 threshold, a NaN, or more rows than ``nv``), the SVD cascade above goes on from ``Z`` = the
 other columns of ``Q`` (``P = P_0 - Q_K Q_Kᵀ``, ``Q_K``: the solved levels' columns) and decides.
-The fast path is one compiled call (:mod:`.kernels.cascade`); the SVD cascade calls LAPACK's
-``gesdd`` through scipy.
+The fast path and the SVD cascade are one compiled call each (:mod:`.kernels.cascade`); the plain
+:func:`svd_cascade` is their reference, and keeps the SVD levels of a factorization asked to solve
+other references (:meth:`CascadeFactorization.solve`).
 """
 
 from __future__ import annotations
@@ -138,13 +139,17 @@ class CascadeFactorization:
     rank decisions the cascade's ``v`` is linear in the references. ``velocity`` and ``ranks``:
     those of the references it was built with."""
 
-    def __init__(self, prefix: _Prefix | None, steps: list[_Step], velocity: np.ndarray, ranks: np.ndarray,
-                 selection: np.ndarray | None):
-        self._prefix, self._steps, self._selection = prefix, steps, selection
+    def __init__(self, prefix: _Prefix | None, steps: list[_Step] | None, velocity: np.ndarray, ranks: np.ndarray,
+                 selection: np.ndarray | None, redo: tuple):
+        self._prefix, self._steps, self._selection, self._redo = prefix, steps, selection, redo
         self.velocity, self.ranks = velocity, ranks
 
     def solve(self, references: Sequence[np.ndarray]) -> np.ndarray:
         """``v`` for ``references`` (one per level, the sizes of the Jacobians')."""
+        if self._steps is None:  # the SVD levels kept, from the Python cascade (the same rank decisions)
+            levels, nv, threshold, dampings, selection = self._redo
+            self._steps = []
+            svd_cascade(levels, nv, threshold, dampings, selection, self._prefix, self._steps)
         v = self._prefix.resolve(references) if self._prefix is not None else np.zeros(self.velocity.size)
         for step in self._steps:
             reference = references[step.level]
@@ -164,16 +169,44 @@ def cascade_factorization(
     """:func:`solve_cascade`'s solve, kept for other references (:class:`CascadeFactorization`)."""
     dampings = [float(damping)] * len(levels) if isinstance(damping, (int, float)) else list(damping)
     prefix = _full_rank_prefix(levels, nv, svd_threshold, control_selection) if not any(dampings) else None
-    steps: list[_Step] = []
+    steps: list[_Step] | None = []
     if prefix is not None and prefix.solved == len(levels):
         v, ranks = prefix.velocity, np.array([J.shape[0] for J, _ in levels], dtype=int)
     else:
-        v, ranks = svd_cascade(levels, nv, svd_threshold, dampings, control_selection, prefix, steps)
+        v, ranks = _compiled_svd_cascade(levels, nv, svd_threshold, dampings, control_selection, prefix)
+        steps = None  # (made by the Python cascade if other references are asked for)
     selection = None
     if control_selection is not None:  # zero in exact arithmetic; the QR and SVD leave round-off
         selection = np.asarray(control_selection, dtype=bool)
         v[~selection] = 0.0
-    return CascadeFactorization(prefix, steps, v, ranks, selection)
+    redo = (levels, nv, svd_threshold, dampings, control_selection)
+    return CascadeFactorization(prefix, steps, v, ranks, selection, redo)
+
+
+def _compiled_svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
+                          dampings: Sequence[float], control_selection: np.ndarray | None,
+                          prefix: _Prefix | None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`svd_cascade`'s ``(v, ranks)`` in one compiled call (:func:`.kernels.cascade.svd_levels`);
+    a level LAPACK cannot factorise (a NaN) raises :class:`~sotdrake.exceptions.SolverError`."""
+    if not levels:
+        return np.zeros(nv), np.zeros(0, dtype=int)
+    given = compiled_input
+    J = np.vstack([J for J, _ in levels]) if len(levels) > 1 else levels[0][0]
+    r = np.concatenate([r for _, r in levels]) if len(levels) > 1 else levels[0][1]
+    sizes = np.array([J_i.shape[0] for J_i, _ in levels], dtype=np.int64)
+    mask = np.ones(nv) if control_selection is None else np.asarray(control_selection, dtype=float)
+    first, Z, v = 0, np.eye(nv), np.zeros(nv)
+    if prefix is not None:  # (its free columns are there: levels remain below it)
+        assert prefix.free is not None
+        first, Z, v = prefix.solved, prefix.free, prefix.velocity
+    try:
+        v, ranks = _kernels().svd_levels(given(J), sizes, given(r), mask, given(Z), given(v), int(first),
+                                         float(svd_threshold), given(np.asarray(dampings, dtype=float)))
+    except np.linalg.LinAlgError as error:
+        raise SolverError(f"the SVD cascade failed ({error}); is every level finite?") from error
+    if prefix is not None:
+        ranks[:first] = [J_i.shape[0] for J_i, _ in levels[:first]]
+    return v, ranks
 
 
 def solve_cascade(

@@ -60,7 +60,7 @@ import numpy as np
 from numba import njit
 
 from ..compiled import compiled_input
-from .kernels.lapack import geqrf, level_residuals, ormqr, row_norms, upper_inverse
+from .kernels.lapack import certified_blocks, geqrf, level_residuals, ormqr, row_norms, upper_inverse
 from .tolerances import CERTIFIED, MULTIPLIER_TOLERANCE, REPORTED_ACTIVE, VERIFIED
 
 
@@ -69,19 +69,9 @@ def _certified(R_inv, sizes, certified):
     """Whether every level's diagonal block of ``R⁻¹`` has ``‖R_kk⁻¹‖_F < 1/certified`` (then
     ``σ_min`` of its rows in what is left free exceeds ``certified``). The whole ``R⁻¹`` is tried
     first: its norm bounds every block's."""
-    limit = 1.0 / (certified * certified)
-    if np.sum(R_inv * R_inv) < limit:
+    if np.sum(R_inv * R_inv) < 1.0 / (certified * certified):
         return True
-    start = 0
-    for size in sizes:
-        block = 0.0
-        for i in range(start, start + size):
-            for j in range(start, start + size):
-                block += R_inv[i, j] * R_inv[i, j]
-        if not block < limit:  # (False on NaN too)
-            return False
-        start += size
-    return True
+    return certified_blocks(R_inv, sizes, certified) == sizes.size
 
 
 @njit(cache=True)

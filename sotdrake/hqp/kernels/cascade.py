@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .lapack import fortran, geqrf, orgqr, ormqr, upper_inverse
+from .lapack import certified_blocks, fortran, geqrf, orgqr, ormqr, upper_inverse
 
 
 @njit(cache=True)
@@ -37,17 +37,10 @@ def prefix(B, sizes, references, threshold, more):
     ok, R_inverse = upper_inverse(qr[:M])
     if not ok:
         return nothing
-    limit = 1.0 / (threshold * threshold)
-    solved, K = 0, 0
-    for size in sizes:
-        square = 0.0
-        for i in range(K, K + size):
-            for j in range(i, K + size):
-                square += R_inverse[i, j] * R_inverse[i, j]
-        if not square < limit:  # (False on NaN too)
-            break
-        solved += 1
-        K += size
+    solved = certified_blocks(R_inverse, sizes, threshold)
+    K = 0
+    for k in range(solved):
+        K += sizes[k]
     if solved == 0:
         return nothing
     L_inverse_T = np.ascontiguousarray(R_inverse[:K, :K].T)

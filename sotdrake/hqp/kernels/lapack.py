@@ -14,7 +14,7 @@ Every wrapper takes column-major (Fortran-ordered) matrices (its signature refus
 overwrites them as the LAPACK routine does (with ``NUMBA_DISABLE_JIT=1``, through
 ``scipy.linalg.lapack``'s routine of the same name), and returns LAPACK's ``info`` (0: success, < 0: a bad
 argument, > 0: the routine's own failure). :func:`fortran` makes such a copy; :func:`contiguous`, :func:`upper_inverse`,
-:func:`norm`, :func:`row_norms` and :func:`level_residuals` are the compiled solvers' shared helpers,
+:func:`norm`, :func:`row_norms`, :func:`level_residuals` and :func:`certified_blocks` are the compiled solvers' shared helpers,
 :func:`~sotdrake.compiled.compiled_input` the arrays they take.
 """
 
@@ -232,6 +232,25 @@ def upper_inverse(R):
         for i in range(j + 1):
             inverse[i, j] = a[i, j]
     return True, inverse
+
+
+@njit(cache=True)
+def certified_blocks(R_inv, sizes, certified):
+    """How many leading levels (of ``sizes`` rows) are certified: their diagonal block of the upper
+    triangular ``R⁻¹`` has ``‖R_kk⁻¹‖_F < 1/certified``, so the level's rows have ``σ_min >
+    certified`` in what the levels above leave free (a NaN is not certified)."""
+    limit = 1.0 / (certified * certified)
+    count, start = 0, 0
+    for size in sizes:
+        block = 0.0
+        for i in range(start, start + size):
+            for j in range(i, start + size):
+                block += R_inv[i, j] * R_inv[i, j]
+        if not block < limit:  # (False on NaN too)
+            break
+        count += 1
+        start += size
+    return count
 
 
 @njit(cache=True)

@@ -45,6 +45,12 @@ def sides_at_bounds(x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fix
     return np.where(upper, 1, np.where(lower, -1, 0))
 
 
+def default_stages(qp: StageOwner) -> bool:
+    """Whether the stages the whole-stack paths stand for are the default ones: the active set on
+    every level, then the minimum-norm stage."""
+    return qp.regularize and all(name == ACTIVE_SET for name in qp.level_solvers)
+
+
 def equalities_only(qp: StageOwner, levels, x_lower, x_upper, fixed, damping, start) -> bool:
     """Whether :mod:`.active_bounds` may solve the stack: equality levels without extensions,
     the default path on every stage, the minimum-norm stage, no damping, and the start (0, or
@@ -52,7 +58,7 @@ def equalities_only(qp: StageOwner, levels, x_lower, x_upper, fixed, damping, st
     for level in levels:
         if not level.all_equality or level.extend is not None:
             return False
-    if not qp.regularize or (damping > 0.0 and len(levels)) or any(name != ACTIVE_SET for name in qp.level_solvers):
+    if not default_stages(qp) or (damping > 0.0 and len(levels)):
         return False
     return start_inside(x_lower, x_upper, fixed, 0.0 if start is None else start)
 
@@ -119,9 +125,9 @@ def _bound_guess(qp: StageOwner, x_lower: np.ndarray, x_upper: np.ndarray) -> np
 
 def solve_held_rows(qp: StageOwner, levels: list[LevelRows], x_lower: np.ndarray, x_upper: np.ndarray,
                     began: float) -> HqpResult | None:
-    """A stack (at least one level) with inequality rows by :func:`~.active_bounds.solve_held_rows` (every equality row met,
-    the violated inequality rows held), from the bounds held at the last answer, or None (then the
-    stages decide). With a ``hold_tolerance`` the stages let the levels below a held row pass it by
+    """A stack (at least one level) with inequality rows by :func:`~.active_bounds.solve_held_rows`
+    (every equality row met, the violated inequality rows held), from the bounds held at the last
+    answer, or None (then the stages decide). With a ``hold_tolerance`` the stages let the levels below a held row pass it by
     that much: an answer that holds a row is then not theirs, and None is given."""
     path = _active_bounds_path()
     A, b = np.concatenate([level.A_eq for level in levels]), np.concatenate([level.b_eq for level in levels])

@@ -240,7 +240,7 @@ class HierarchicalQP:
         and :meth:`solve`'s checks name it); shapes that do not fit give None. ``warm``: as :meth:`solve`'s."""
         n = self.n
         self._use(warm)
-        if (self.solver != ACTIVE_SET or not self.regularize or any(name != ACTIVE_SET for name in self.level_solvers)
+        if (self.solver != ACTIVE_SET or not equality_stack.default_stages(self)
                 or (damping != 0.0 and len(jacobians)) or len(values) != len(jacobians)):
             return None
         x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)

@@ -45,7 +45,7 @@ import numpy as np
 from ..exceptions import SolverError
 from .cascade import CascadeFactorization, cascade_factorization
 from .equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
-from .equality_stack import solve_held_rows
+from .equality_stack import default_stages, solve_held_rows
 from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows
 from .solve import HierarchicalQP
 from .warm import WarmStart, back_off
@@ -172,7 +172,7 @@ class HeldRows(StackPath):
     def attempt(self, qp: HierarchicalQP, problem: StackProblem) -> HqpResult | None:
         p = problem
         if (p.solver != ACTIVE_SET or p.stacked is not None or p.equalities_only or p.damping != 0.0
-                or not qp.regularize or any(name != ACTIVE_SET for name in qp.level_solvers)):
+                or not default_stages(qp)):
             return None
         qp._use(p.warm)
         warm = qp.warm

@@ -636,6 +636,16 @@ def test_stand_short_on_dynsimu(dynamics_script):
     assert summary["max_torque_ratio"] <= 1.0 + 1e-9
 
 
+@pytest.mark.parametrize("scenario", ["lift_leg_no_com", "squat", "push"])
+def test_every_scenario_builds_and_runs(dynamics_script, scenario):
+    """The scenarios the tests above do not run: built and run for 20 ms on RobotDynSimu, the
+    robot standing, the torques within the limits."""
+    run = dynamics_script.build_diagram(scenario, "dynsimu")
+    simulator, times = dynamics_script.simulate_ticks(run, 0.02, progress=False)
+    summary, _ = dynamics_script.summarize(run, simulator, times, 0.02)
+    assert not summary["fell"] and summary["max_torque_ratio"] <= 1.0 + 1e-9
+
+
 def test_stand_short_on_physics(dynamics_script):
     """Torque control of the simulated TALOS for 0.25 s: the feet carry the weight as the solver
     says, no slip, torques within limits, the measured forces inside the friction cone."""
@@ -648,6 +658,21 @@ def test_stand_short_on_physics(dynamics_script):
     feet = trace["feet"][-1]
     assert feet[2] + feet[5] == pytest.approx(90.27 * 9.81, rel=0.02)
     np.testing.assert_allclose(feet[[2, 5]], trace["wrenches"][-1, [5, 11]], rtol=0.05)
+
+
+def test_physics_records_the_solve_the_plant_applies(dynamics_script):
+    """On the simulated TALOS, the solver's per-tick record (each contact's normal force) is that of
+    the solve whose torque the plant's step applied, not of a second solve at the stepped state."""
+    run = dynamics_script.build_diagram("stand", "physics")
+    simulator = Simulator(run.diagram)
+    context = simulator.get_context()
+    sot, sot_context = run.robot.sot, run.robot.sot.GetMyContextFromRoot(context)
+    simulator.AdvanceTo(0.003)
+    for tick in range(4, 9):
+        applied = _solution(run.robot, context).local_wrenches  # what the plant's next step reads
+        simulator.AdvanceTo(tick * 1e-3)
+        loads = sot.previous_loads(sot_context, ["contactLF", "contactRF"])
+        np.testing.assert_array_equal(loads, [applied["contactLF"][5], applied["contactRF"][5]])
 
 
 def test_derated_torque_bounds_bind_and_hold(standing):

@@ -1,7 +1,9 @@
 """What ``SolverDyn`` keeps from one tick to the next: one discrete-state vector of its Context.
 
-A discrete update is computed from the same context as the device's and the plant's, so every
-system of a tick sees the same record. The vector holds, per declared contact (declaration order):
+A discrete update is computed from the same context as the device's and the plant's step (the
+physical plant's step is a discrete update too: its output ports are not sampled, see
+:func:`sotdrake.physics.add_physical_talos`), so every system of a tick sees the same record, and
+the record is that of the solve whose torque the tick applies. The vector holds, per declared contact (declaration order):
 the normal force it carried at the last tick (N; NaN: not held), which weighs the shear
 regularization (:func:`.formulation.shear_weights`); the bounds held at the last tick's optimum
 (:data:`.formulation.HELD_BOUNDS` signed entries, :func:`.formulation.held_bounds`), where the QR

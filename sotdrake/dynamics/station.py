@@ -21,8 +21,10 @@ from ..physics import SOLE_BOX, PhysicalTalos, add_physical_talos
 def add_torque_driven_talos(builder: DiagramBuilder, variant: str = "reduced", time_step: float = 1e-3) -> PhysicalTalos:
     """Add the simulated TALOS of :func:`sotdrake.physics.add_physical_talos` (plant + SceneGraph,
     visual meshes, ground, sole and link boxes) with its actuators torque-driven: no PD controller,
-    checked (see the module docstring)."""
-    physical = add_physical_talos(builder, variant, time_step, pd_gains=False)
+    checked (see the module docstring). Its output ports are not sampled (``sampled_outputs=False``):
+    the plant's step and the controller's discrete updates read the same state, and the stack is
+    solved once per tick."""
+    physical = add_physical_talos(builder, variant, time_step, pd_gains=False, sampled_outputs=False)
     check_torque_driven(physical.plant)
     return physical
 

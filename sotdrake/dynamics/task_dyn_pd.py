@@ -98,8 +98,9 @@ class TaskDynPD(Entity[DynPDSettings]):
             self.drift = self.DeclareVectorInputPort("drift", dimension)
             self.reference_acceleration = self.DeclareVectorInputPort("reference_acceleration", dimension)
         # The previous Jacobian as discrete state (rows, then J row-major, up to nv rows): a discrete
-        # update is computed from the same context as the device's and the plant's, so every
-        # system of a tick sees the same J̇ (an unrestricted update would be applied before them).
+        # update is computed from the same context as the device's and the plant's step (the physical
+        # plant's outputs are not sampled), so every system of a tick sees the same J̇ (an
+        # unrestricted update would be applied before them).
         self.stack = None
         if not self.exact_drift:
             self._previous = self.DeclareDiscreteState(np.zeros(1 + nv * nv))

@@ -21,6 +21,15 @@ whole-body collision boxes.
 * Every other link: the box bounding its collision meshes (:mod:`.body_collision`), point contact
   with the ground only (self-collisions filtered), so a fall lands on the ground.
 * Every actuator PD-controlled by the plant (:mod:`.actuators`).
+* ``sampled_outputs`` (Drake's sampled output ports, on by default): the plant's step is then an
+  *unrestricted* update, applied before the diagram's discrete updates of the same instant, and its
+  contact results are those the step computed. Off, the step is a discrete update computed from the
+  same context as the controller's; the contact results are computed from the current state when
+  read. The torque-driven plant (:func:`sotdrake.dynamics.station.add_torque_driven_talos`) turns
+  them off: ``SolverDyn``'s torque is read by the plant's step, and its per-tick record (the contact
+  loads, the held bounds, a task's previous Jacobian) must come from that same solve. With sampled
+  outputs, the record would see the state after the step, and the whole stack would be solved a
+  second time at every tick.
 * ``obstacles``: fixed shapes ``(name, shape, X_WO)`` (those of the controller's collision world,
   :func:`sotdrake.collision.obstacle_geometries`), anchored in the world as collision (point contact,
   the links' friction) and visual geometry at the same pose: the simulated robot touches them.
@@ -120,18 +129,22 @@ def add_physical_talos(
     pd_gains: bool = True,
     obstacles: Sequence[tuple[str, Shape, RigidTransform]] = (),
     contact: str = "hydroelastic",
+    sampled_outputs: bool = True,
 ) -> PhysicalTalos:
     """Add the simulated TALOS (plant + SceneGraph, visual meshes, soles, link boxes unless
     ``body_collision=False``, ground, PD actuators; ``pd_gains=False`` leaves the actuators without PD
     controllers, driven by the actuation input alone: torque control; ``obstacles``: see the module
     docstring). ``contact``: the soles' contact model, ``"hydroelastic"`` (default) or ``"point"`` (see
-    the module docstring; the station of :func:`~.station.add_talos_station` takes ``"point"``)."""
+    the module docstring; the station of :func:`~.station.add_talos_station` takes ``"point"``).
+    ``sampled_outputs``: see the module docstring (False for a controller that reads the plant's state
+    inside its own discrete updates)."""
     obstacles = _checked_obstacles(obstacles)
     if not (isinstance(time_step, (int, float)) and np.isfinite(time_step) and 0 < time_step <= MAX_TIME_STEP):
         raise InvalidInput(f"the physics needs a discrete plant: time_step in (0, {MAX_TIME_STEP:g}] s, got {time_step!r}")
     if contact not in CONTACT_MODELS:
         raise InvalidInput(f"contact is one of {CONTACT_MODELS}, got {contact!r}")
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step)
+    plant.SetUseSampledOutputPorts(bool(sampled_outputs))
     plant.set_name("talos_plant")
     instance = add_talos(plant, variant, meshes=True, collision=False)
     ground = ProximityProperties()

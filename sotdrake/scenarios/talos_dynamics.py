@@ -147,7 +147,7 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
     sot.addContact(contactLF)
     sot.addContact(contactRF)
 
-    com = None
+    com = momentum = None
     com0 = robot.dynamic.com_at(robot.q0)
     if scenario != "lift_leg_no_com":
         com = MetaTaskDynCom(robot, kp=PUSH_COM_KP if scenario == "push" else COM_KP)

@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sotdrake.exceptions import SolverError
+from sotdrake.exceptions import InvalidInput, SolverError
 from sotdrake.hqp import HierarchicalQP
 from sotdrake.hqp.equality_hierarchy import StackedLevels
-from sotdrake.hqp.problem import LevelRows
+from sotdrake.hqp.problem import LevelRows, result_of
 from sotdrake.hqp.stack_paths import (
     ACTIVE_BOUNDS,
     BASIC,
@@ -180,6 +180,10 @@ def assert_same_mixed_answer(result, reference, levels, lower, upper):
         assert np.allclose(result.slacks[k], slack) and result.slack_norms[k] == pytest.approx(np.linalg.norm(slack))
     assert np.all(result.x >= lower - 1e-9 * scale) and np.all(result.x <= upper + 1e-9 * scale)
     assert np.linalg.norm(result.x - reference.x) <= 1e-6 * scale
+    reported = result_of([LevelRows(*level) for level in levels], result.x, lower, upper, lower == upper, [])
+    for k in range(len(levels)):  # the rows at a side and the bounds reached, as the stages report them at x
+        np.testing.assert_array_equal(result.active_rows[k], reported.active_rows[k])
+    np.testing.assert_array_equal(result.active_bounds, reported.active_bounds)
 
 
 @pytest.mark.parametrize("bounds", ["none", "loose", "tight"])
@@ -218,6 +222,30 @@ def test_held_rows_give_the_stages_answer_and_answer_when_the_equality_rows_are_
     if bounds != "tight":
         assert clear[True] >= 20 and answered[True] == clear[True]
         assert clear[False] >= 10 and answered[False] >= 0.7 * clear[False]
+
+
+@pytest.mark.parametrize("defect", ["nan coefficient", "sides out of order", "infinite equality value", "too few columns"])
+def test_held_rows_leave_bad_rows_to_the_stages(defect):
+    """Rows the stages refuse: the path gives no answer, and the stack's solve raises the stages' error."""
+    rng = np.random.default_rng(5)
+    n, levels, lower, upper = equality_stack(rng, "loose")
+    x_eq = STAGES.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)).x
+    mixed = with_inequalities(rng, n, levels, x_eq, holding=True)
+    k = next(i for i, (_, lo, hi) in enumerate(mixed) if lo is not hi)
+    A, lo, hi = (np.array(part, dtype=float) for part in mixed[k])
+    if defect == "nan coefficient":
+        A[0, 0] = np.nan
+    elif defect == "sides out of order":
+        lo[0], hi[0] = 1.0, -1.0
+    elif defect == "infinite equality value":
+        lo[0] = hi[0] = np.inf
+    else:
+        A = A[:, :-1]
+    mixed[k] = (A, lo, hi)
+    problem = StackProblem(mixed, lower, upper)
+    assert HELD_ROWS.attempt(HierarchicalQP(n), problem) is None
+    with pytest.raises(InvalidInput):
+        solve_stack(HierarchicalQP(n), problem, KINEMATIC)
 
 
 def test_held_rows_back_off_after_failures_and_apply_only_where_they_say():

@@ -240,34 +240,105 @@ def solve_stack(A: np.ndarray, b: np.ndarray, sizes: np.ndarray, x_lower: np.nda
 
 
 @njit(cache=True)
-def _solve_held_rows(A, b, sizes, C, c_lower, c_upper, x_lower, x_upper, guess, certified, feasibility, rounds, tolerance):
-    """:func:`solve_held_rows`, compiled: ``(status, x, sides, row sides)``."""
+def _split_rows(A, lower, upper, sizes):
+    """``(ok, A_eq, b_eq, eq_sizes, C, c_lower, c_upper, has_inequality)`` of levels ``lower ≤ A x ≤
+    upper`` stacked (``sizes`` rows each): each level's equality rows (``lower = upper``), then every
+    inequality row; not ok on a coefficient that is not finite, a NaN side, sides out of order or an
+    equality row at an infinite value (the stages then say what is wrong)."""
+    m, n = A.shape
+    equality = np.empty(m, np.bool_)
+    for i in range(m):
+        if not (lower[i] <= upper[i]):  # (False on NaN too)
+            return (False, A[:0], lower[:0], sizes[:0], A[:0], lower[:0], upper[:0], np.zeros(0, np.bool_))
+        equality[i] = lower[i] == upper[i]
+        if equality[i] and not math.isfinite(lower[i]):
+            return (False, A[:0], lower[:0], sizes[:0], A[:0], lower[:0], upper[:0], np.zeros(0, np.bool_))
+        for j in range(n):
+            if not math.isfinite(A[i, j]):
+                return (False, A[:0], lower[:0], sizes[:0], A[:0], lower[:0], upper[:0], np.zeros(0, np.bool_))
+    rows = np.flatnonzero(equality)
+    others = np.flatnonzero(~equality)
+    eq_sizes = np.zeros(sizes.size, np.int64)
+    has_inequality = np.zeros(sizes.size, np.bool_)
+    start = 0
+    for k in range(sizes.size):
+        for i in range(start, start + sizes[k]):
+            if equality[i]:
+                eq_sizes[k] += 1
+            else:
+                has_inequality[k] = True
+        start += sizes[k]
+    return True, A[rows], lower[rows], eq_sizes, A[others], lower[others], upper[others], has_inequality
+
+
+@njit(cache=True)
+def _level_outcome(A, lower, upper, sizes, x, x_lower, x_upper, fixed):
+    """``(slacks, each level's slack norm, active rows, active bounds)`` at ``x``, as
+    :func:`~.problem.result_of` gives them: per row the signed residual of an equality row or the
+    violation (``≥ 0``) of an inequality row, the inequality rows at a side and the free components
+    at a bound (within :data:`~.tolerances.REPORTED_ACTIVE`, relative above 1)."""
+    r = A @ x
+    slacks = np.empty(r.size)
+    active = np.zeros(r.size, np.bool_)
+    for i in range(r.size):
+        if lower[i] == upper[i]:
+            slacks[i] = r[i] - lower[i]
+            continue
+        slacks[i] = max(max(lower[i] - r[i], r[i] - upper[i]), 0.0)
+        scale = REPORTED_ACTIVE * max(1.0, abs(r[i]))
+        active[i] = abs(r[i] - lower[i]) <= scale or abs(r[i] - upper[i]) <= scale
+    norms = np.zeros(sizes.size)
+    start = 0
+    for k in range(sizes.size):
+        for i in range(start, start + sizes[k]):
+            norms[k] += slacks[i] * slacks[i]
+        norms[k] = math.sqrt(norms[k])
+        start += sizes[k]
+    scale = REPORTED_ACTIVE * np.maximum(1.0, np.abs(x))
+    bounds = np.flatnonzero(~fixed & ((np.abs(x - x_lower) <= scale) | (np.abs(x - x_upper) <= scale)))
+    return slacks, norms, active, bounds
+
+
+@njit(cache=True)
+def _solve_held_rows(A, lower, upper, sizes, x_lower, x_upper, guess, certified, feasibility, rounds, tolerance):
+    """:func:`solve_held_rows`, compiled: ``(status, x, sides, row sides, slacks, slack norms, active
+    rows, active bounds, levels with inequality rows)``."""
     fixed = x_lower == x_upper
+    none = np.zeros(0, np.int64)
+    ok, A_eq, b_eq, eq_sizes, C, c_lower, c_upper, has_inequality = _split_rows(A, lower, upper, sizes)
+    if not ok:
+        return NOT_APPLICABLE, np.zeros(0), guess, none, np.zeros(0), np.zeros(0), np.zeros(0, np.bool_), none, has_inequality
     for i in range(x_lower.size):
         if not fixed[i] and not (x_lower[i] <= 0.0 and x_upper[i] >= 0.0):  # (False on NaN too)
-            return NOT_APPLICABLE, np.zeros(0), guess, np.zeros(0, dtype=np.int64)
-    ok, x, sides, row_sides = _solve(A, b, row_norms(A), sizes, C, c_lower, c_upper, row_norms(C), x_lower, x_upper, fixed,
-                                     guess, certified, feasibility, rounds)
+            return NOT_APPLICABLE, np.zeros(0), guess, none, np.zeros(0), np.zeros(0), np.zeros(0, np.bool_), none, has_inequality
+    ok, x, sides, row_sides = _solve(A_eq, b_eq, row_norms(A_eq), eq_sizes, C, c_lower, c_upper, row_norms(C), x_lower,
+                                     x_upper, fixed, guess, certified, feasibility, rounds)
     if not ok:
-        return NOT_VERIFIED, x, sides, row_sides
+        return NOT_VERIFIED, x, sides, row_sides, np.zeros(0), np.zeros(0), np.zeros(0, np.bool_), none, has_inequality
     _onto_bounds(x, x_lower, x_upper, tolerance)
-    return SOLVED, x, sides, row_sides
+    slacks, norms, active, bounds = _level_outcome(A, lower, upper, sizes, x, x_lower, x_upper, fixed)
+    return SOLVED, x, sides, row_sides, slacks, norms, active, bounds, has_inequality
 
 
-def solve_held_rows(A: np.ndarray, b: np.ndarray, sizes: np.ndarray, C: np.ndarray, c_lower: np.ndarray,
-                    c_upper: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, guess: np.ndarray, certified: float,
-                    feasibility: float, tolerance: float, rounds: int = 16) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+def solve_held_rows(A: np.ndarray, lower: np.ndarray, upper: np.ndarray, sizes: np.ndarray, x_lower: np.ndarray,
+                    x_upper: np.ndarray, guess: np.ndarray, certified: float, feasibility: float, tolerance: float,
+                    rounds: int = 16) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                               np.ndarray, np.ndarray, np.ndarray]:
     """A stack with inequality rows whose equality rows can all be met (see the module docstring's
-    last part): ``(status, x, sides, row sides)``, the first three as :func:`solve_stack`'s, then the
-    side of each inequality row held at ``x``. ``A x = b``: every
-    level's equality rows, stacked (levels of ``sizes`` rows); ``c_lower ≤ C x ≤ c_upper``: every
-    inequality row, stacked (no held one guessed: a violated one is held, a wrong-signed one released,
-    up to ``rounds`` rounds). ``sizes``: int64; ``guess``: a side per component (int64)."""
+    last part): levels ``lower ≤ A x ≤ upper`` stacked (levels of ``sizes`` rows, int64; a row with
+    ``lower = upper`` is an equality row). ``(status, x, sides, row sides, slacks, slack norms, active
+    rows, active bounds, levels with inequality rows)``: the first three as :func:`solve_stack`'s, then
+    the side of each inequality row held at ``x`` (inequality rows in stack order), and, when solved,
+    each row's slack (the signed residual of an equality row, the violation of an inequality row),
+    each level's slack norm, the inequality rows at a side (a mask over every row), the free
+    components at a bound, and which levels have inequality rows. No held row is guessed: a violated one is held, a wrong-signed one
+    released, up to ``rounds`` rounds. ``guess``: a side per component (int64). Rows that are not
+    finite, or sides out of order: :data:`NOT_APPLICABLE`."""
     given = compiled_input
-    status, x, sides, row_sides = _solve_held_rows(
-        given(A), given(b), given(sizes, np.int64), given(C), given(c_lower), given(c_upper), given(x_lower),
-        given(x_upper), given(guess, np.int64), float(certified), float(feasibility), int(rounds), float(tolerance))
-    return int(status), x, sides, row_sides
+    status, *answer = _solve_held_rows(
+        given(A), given(lower), given(upper), given(sizes, np.int64), given(x_lower), given(x_upper),
+        given(guess, np.int64), float(certified), float(feasibility), int(rounds), float(tolerance))
+    return (int(status), *answer)
 
 
 @njit(cache=True)

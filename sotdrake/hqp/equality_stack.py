@@ -11,13 +11,14 @@ failures in a row make the next calls skip them for a while (the back-offs, kept
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..compiled import kernels
 from .linalg import all_true
-from .problem import ACTIVE_BOUNDS, ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows, result_of
+from .problem import ACTIVE_BOUNDS, ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult
 from .tolerances import CERTIFIED_FACTOR, FEASIBILITY, VERIFIED
 from .warm import back_off
 
@@ -123,26 +124,40 @@ def _bound_guess(qp: StageOwner, x_lower: np.ndarray, x_upper: np.ndarray) -> np
     return guess
 
 
-def solve_held_rows(qp: StageOwner, levels: list[LevelRows], x_lower: np.ndarray, x_upper: np.ndarray,
-                    began: float) -> HqpResult | None:
-    """A stack (at least one level) with inequality rows by :func:`~.active_bounds.solve_held_rows`
-    (every equality row met, the violated inequality rows held), from the bounds held at the last
-    answer, or None (then the stages decide). With a ``hold_tolerance`` the stages let the levels below a held row pass it by
-    that much: an answer that holds a row is then not theirs, and None is given."""
+def solve_held_rows(qp: StageOwner, levels: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], x_lower: np.ndarray,
+                    x_upper: np.ndarray, began: float) -> HqpResult | None:
+    """A stack (at least one level ``(A_k, lower_k, upper_k)``) with inequality rows by
+    :func:`~.active_bounds.solve_held_rows` (every equality row met, the violated inequality rows
+    held), from the bounds held at the last answer, or None (then the stages decide; also for rows
+    that do not fit or are not finite: the stages say what is wrong). With a ``hold_tolerance`` the
+    stages let the levels below a held row pass it by that much: an answer that holds a row is then
+    not theirs, and None is given."""
     path = _active_bounds_path()
-    A, b = np.concatenate([level.A_eq for level in levels]), np.concatenate([level.b_eq for level in levels])
-    C = np.concatenate([level.A_in for level in levels])
-    c_lower = np.concatenate([level.lower_in for level in levels])
-    c_upper = np.concatenate([level.upper_in for level in levels])
-    sizes = np.array([len(level.A_eq) for level in levels], dtype=np.int64)
-    status, x, sides, row_sides = path.solve_held_rows(
-        A, b, sizes, C, c_lower, c_upper, x_lower, x_upper, _bound_guess(qp, x_lower, x_upper),
+    n = len(x_lower)
+    try:
+        rows = [(np.asarray(A, dtype=float), np.asarray(lower, dtype=float), np.asarray(upper, dtype=float))
+                for A, lower, upper in levels]
+    except (TypeError, ValueError):
+        return None
+    if any(A.ndim != 2 or A.shape[1] != n or lower.shape != (len(A),) or upper.shape != (len(A),) for A, lower, upper in rows):
+        return None
+    starts = [0]
+    for level in rows:
+        starts.append(starts[-1] + len(level[0]))
+    sizes = np.diff(starts)
+    A, lower, upper = (np.concatenate([level[i] for level in rows]) for i in range(3))
+    status, x, sides, row_sides, slacks, slack_norms, active, bounds, has_inequality = path.solve_held_rows(
+        A, lower, upper, sizes, x_lower, x_upper, _bound_guess(qp, x_lower, x_upper),
         certified=CERTIFIED_FACTOR * qp.rank_threshold, feasibility=min(VERIFIED, qp.feasibility_tolerance),
         tolerance=qp.feasibility_tolerance)
     if status != path.SOLVED or (qp.hold_tolerance and row_sides.any()):
         return None
     qp.warm.bound_sides = sides
-    stages = len(levels) + 1
-    answer = result_of(levels, x, x_lower, x_upper, x_lower == x_upper, [ACTIVE_BOUNDS] * stages)
-    answer.iterations, answer.solve_time_s = [0] * stages, time.perf_counter() - began
-    return answer
+    level_slacks, active_rows = [], []
+    for k, inequality in enumerate(has_inequality.tolist()):
+        level_slacks.append(slacks[starts[k] : starts[k + 1]])
+        active_rows.append(np.flatnonzero(active[starts[k] : starts[k + 1]]) if inequality else NO_ACTIVE_ROWS)
+    stages = len(rows) + 1
+    return HqpResult(x=x, slacks=level_slacks, slack_norms=slack_norms, active_rows=active_rows, active_bounds=bounds,
+                     solve_time_s=time.perf_counter() - began,
+                     level_solvers=[ACTIVE_BOUNDS] * stages, iterations=[0] * stages)

@@ -180,9 +180,8 @@ class HeldRows(StackPath):
             warm.row_skips -= 1
             return None
         began = time.perf_counter()
-        levels = [LevelRows(*level) for level in p.levels]  # (the split, and the checks the stages make)
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            result = solve_held_rows(qp, levels, np.asarray(p.x_lower, dtype=float), np.asarray(p.x_upper, dtype=float),
+            result = solve_held_rows(qp, p.levels, np.asarray(p.x_lower, dtype=float), np.asarray(p.x_upper, dtype=float),
                                      began)
         if result is None:
             warm.row_failures += 1

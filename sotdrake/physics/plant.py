@@ -29,7 +29,9 @@ whole-body collision boxes.
   them off: ``SolverDyn``'s torque is read by the plant's step, and its per-tick record (the contact
   loads, the held bounds, a task's previous Jacobian) must come from that same solve. With sampled
   outputs, the record would see the state after the step, and the whole stack would be solved a
-  second time at every tick.
+  second time at every tick. Unsampled contact results depend on the actuation input: a controller
+  that reads them back (a stabilizer on the measured CoP, as the position-servoed walk has) closes
+  an algebraic loop, which ``DiagramBuilder.Build`` refuses; such a diagram keeps them sampled.
 * ``obstacles``: fixed shapes ``(name, shape, X_WO)`` (those of the controller's collision world,
   :func:`sotdrake.collision.obstacle_geometries`), anchored in the world as collision (point contact,
   the links' friction) and visual geometry at the same pose: the simulated robot touches them.

@@ -286,3 +286,26 @@ def test_physics_walk_closed_loop_reads_the_plants_q(walk_script):
     assert not np.array_equal(q_plant, device.GetOutputPort("state").Eval(device.GetMyContextFromRoot(context)))
     ff = walk.diagram.GetSubsystemByName("feedforward_torque")
     assert np.abs(ff.get_output_port().Eval(ff.GetMyContextFromRoot(context))).max() > 10.0  # the legs' static torques
+
+
+def test_physics_walk_servos_get_the_velocity_the_device_integrated(walk_script):
+    """The servos' desired state is consistent: the velocity they are given is the one that moved the
+    device's joints over the last tick, ``q_des(t) − q_des(t − dt) = dt · v_des(t)``, while the walk
+    steps (the plan changing at every tick)."""
+    walk = walk_script.build_diagram(mode="physics", steps=(2, 0.2), solver="cascade")
+    simulator = Simulator(walk.diagram)
+    context = simulator.get_context()
+    desired = walk.diagram.GetSubsystemByName("desired_state")
+    desired_context = desired.GetMyContextFromRoot(context)
+    dt = walk.robot.dt
+    simulator.AdvanceTo(0.6)
+    previous = desired.get_output_port().Eval(desired_context).copy()
+    moved = 0.0
+    for k in range(1, 21):
+        simulator.AdvanceTo(0.6 + k * dt)
+        state = desired.get_output_port().Eval(desired_context).copy()
+        half = len(state) // 2
+        np.testing.assert_allclose(state[:half] - previous[:half], dt * state[half:], rtol=0, atol=1e-12)
+        moved = max(moved, np.abs(state[half:]).max())
+        previous = state
+    assert moved > 0.05  # (the joints are moving: rad/s)

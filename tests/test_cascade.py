@@ -143,14 +143,39 @@ def test_the_compiled_svd_cascade_is_the_plain_one(seed):
     dampings = [float(d) for d in rng.choice([0.0, 1e-3, 0.1], size=len(levels))]
     selection = rng.random(nv) < 0.8 if rng.random() < 0.5 else None
     v, ranks = svd_cascade(levels, nv, 1e-4, dampings, selection)
-    compiled, compiled_ranks = _compiled_svd_cascade(levels, nv, 1e-4, dampings, selection, None)
+    compiled, compiled_ranks, none = _compiled_svd_cascade(levels, nv, 1e-4, dampings, selection, None)
     np.testing.assert_allclose(compiled, v, rtol=0, atol=1e-9 * max(1.0, np.abs(v).max()))
-    assert list(compiled_ranks) == list(ranks)
+    assert list(compiled_ranks) == list(ranks) and none is None
+    # Other references solved in the same pass: the plain cascade's velocity for them.
+    extra = [rng.normal(size=J.shape[0]) for J, _ in levels]
+    v_extra, _ = svd_cascade([(J, e) for (J, _), e in zip(levels, extra, strict=True)], nv, 1e-4, dampings, selection)
+    again, _, compiled_extra = _compiled_svd_cascade(levels, nv, 1e-4, dampings, selection, None, extra)
+    np.testing.assert_allclose(again, v, rtol=0, atol=1e-9 * max(1.0, np.abs(v).max()))
+    np.testing.assert_allclose(compiled_extra, v_extra, rtol=0, atol=1e-9 * max(1.0, np.abs(v_extra).max()))
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_the_extra_references_velocity_is_the_cascade_of_those_references(seed):
+    """A factorization given extra references (the full-rank prefix, the SVD levels below it, or
+    both) keeps their velocity: the cascade's, solved again for them."""
+    rng = np.random.default_rng(seed)
+    nv = int(rng.integers(6, 40))
+    levels = random_stack(rng, nv) + ([(np.eye(nv), rng.normal(size=nv))] if rng.random() < 0.5 else [])
+    selection = rng.random(nv) < 0.8 if rng.random() < 0.5 else None
+    extra = [rng.normal(size=J.shape[0]) for J, _ in levels]
+    factorization = cascade_factorization(levels, nv, 1e-4, 0.0, selection, extra)
+    expected = solve_cascade([(J, e) for (J, _), e in zip(levels, extra, strict=True)], nv, control_selection=selection).velocity
+    plain = solve_cascade(levels, nv, control_selection=selection).velocity
+    np.testing.assert_allclose(factorization.extra_velocity, expected, rtol=0, atol=1e-9 * max(1.0, np.abs(expected).max()))
+    np.testing.assert_allclose(factorization.velocity, plain, rtol=0, atol=1e-9 * max(1.0, np.abs(plain).max()))
+    if selection is not None:
+        assert np.all(factorization.extra_velocity[~selection] == 0.0)
+    assert cascade_factorization(levels, nv, 1e-4, 0.0, selection).extra_velocity is None
 
 
 def test_the_compiled_cascade_on_an_empty_stack_and_a_non_finite_level():
     nv = 6
-    v, ranks = _compiled_svd_cascade([], nv, 1e-4, [], None, None)
+    v, ranks, _ = _compiled_svd_cascade([], nv, 1e-4, [], None, None)
     assert np.array_equal(v, np.zeros(nv)) and len(ranks) == 0
     levels = [(np.eye(2, nv), np.ones(2)), (np.full((1, nv), np.nan), np.zeros(1))]
     with pytest.raises(SolverError, match="finite"):

@@ -41,7 +41,9 @@ threshold, a NaN, or more rows than ``nv``), the SVD cascade above goes on from 
 other columns of ``Q`` (``P = P_0 - Q_K Q_Kᵀ``, ``Q_K``: the solved levels' columns) and decides.
 The fast path and the SVD cascade are one compiled call each (:mod:`.kernels.cascade`); the plain
 :func:`svd_cascade` is their reference, and keeps the SVD levels of a factorization asked to solve
-other references (:meth:`CascadeFactorization.solve`).
+other references (:meth:`CascadeFactorization.solve`). References known before the solve (``extra``
+of :func:`cascade_factorization`: ``SOT``'s curvature corrections, for its velocity limits) are
+solved in the same compiled pass, as a second right-hand side.
 """
 
 from __future__ import annotations
@@ -73,6 +75,7 @@ class _Prefix(NamedTuple):
     L_inverse_T: np.ndarray
     reflectors: np.ndarray
     scales: np.ndarray
+    extra_velocity: np.ndarray | None = None  # v for the extra references (see cascade_factorization)
 
     def resolve(self, references: Sequence[np.ndarray]) -> np.ndarray:
         """``v`` of the solved levels for ``references`` (one per level of the stack)."""
@@ -87,7 +90,7 @@ class _Prefix(NamedTuple):
 
 
 def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
-                      selection: np.ndarray | None) -> _Prefix | None:
+                      selection: np.ndarray | None, extra: Sequence[np.ndarray] | None = None) -> _Prefix | None:
     """The leading levels that the QR path can certify full rank (see the module docstring), or
     None when not even the first can be. The QR of the first ``K`` rows does not depend on the
     rows below them, so one QR of the stack serves every prefix (one compiled call:
@@ -103,15 +106,25 @@ def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, 
     B = levels[rows[0]][0] if len(rows) == 1 else np.vstack([levels[i][0] for i in rows])
     if selection is not None:  # (a mask by selection, not a product: a NaN in a lower level's rows must not reach the blocks above it)
         B = B * selection
-    r = levels[rows[0]][1] if len(rows) == 1 else np.concatenate([levels[i][1] for i in rows])
+    r = _references(levels, rows, extra)
     sizes = np.array([levels[i][0].shape[0] for i in rows], dtype=np.int64)
-    given = compiled_input
-    solved, v, reflectors, scales, L_inverse_T, free = _kernels().prefix(given(B), sizes, given(r), float(svd_threshold),
+    solved, v, reflectors, scales, L_inverse_T, free = _kernels().prefix(compiled_input(B), sizes, r, float(svd_threshold),
                                                                          taken < len(levels))
     if solved == 0:
         return None
     count = rows[solved] if solved < len(rows) else len(levels) if taken == len(levels) else taken
-    return _Prefix(count, v, free if count < len(levels) else None, rows[:solved], L_inverse_T, reflectors, scales)
+    return _Prefix(count, v[:, 0].copy(), free if count < len(levels) else None, rows[:solved], L_inverse_T, reflectors,
+                   scales, None if extra is None else v[:, 1].copy())
+
+
+def _references(levels: Sequence[tuple[np.ndarray, np.ndarray]], rows: Sequence[int],
+                extra: Sequence[np.ndarray] | None) -> np.ndarray:
+    """The references of the levels ``rows``, stacked as one column (M × 1), and the ``extra`` ones
+    as a second column."""
+    columns = [np.concatenate([levels[i][1] for i in rows]) if len(rows) != 1 else np.asarray(levels[rows[0]][1], dtype=float)]
+    if extra is not None:
+        columns.append(np.concatenate([np.asarray(extra[i], dtype=float) for i in rows]))
+    return np.ascontiguousarray(np.column_stack(columns), dtype=float)
 
 
 _kernels = kernels(".kernels.cascade", __package__, "prefix", "the basic SoT's cascade", "a few seconds")
@@ -137,12 +150,13 @@ class CascadeFactorization:
     """The cascade of a stack of Jacobians, solved for its references, and kept so that it solves
     the same Jacobians for other references without factorising again (:meth:`solve`): for given
     rank decisions the cascade's ``v`` is linear in the references. ``velocity`` and ``ranks``:
-    those of the references it was built with."""
+    those of the references it was built with; ``extra_velocity``: ``v`` for the extra references
+    it was given (None without)."""
 
     def __init__(self, prefix: _Prefix | None, steps: list[_Step] | None, velocity: np.ndarray, ranks: np.ndarray,
-                 selection: np.ndarray | None, redo: tuple):
+                 selection: np.ndarray | None, redo: tuple, extra_velocity: np.ndarray | None = None):
         self._prefix, self._steps, self._selection, self._redo = prefix, steps, selection, redo
-        self.velocity, self.ranks = velocity, ranks
+        self.velocity, self.ranks, self.extra_velocity = velocity, ranks, extra_velocity
 
     def solve(self, references: Sequence[np.ndarray]) -> np.ndarray:
         """``v`` for ``references`` (one per level, the sizes of the Jacobians')."""
@@ -165,48 +179,58 @@ def cascade_factorization(
     svd_threshold: float = 1e-4,
     damping: float | Sequence[float] = 0.0,
     control_selection: np.ndarray | None = None,
+    extra: Sequence[np.ndarray] | None = None,
 ) -> CascadeFactorization:
-    """:func:`solve_cascade`'s solve, kept for other references (:class:`CascadeFactorization`)."""
+    """:func:`solve_cascade`'s solve, kept for other references (:class:`CascadeFactorization`).
+    ``extra`` (one per level, the sizes of the references): other references solved in the same
+    pass, their ``v`` kept as ``extra_velocity`` (by linearity, any combination of the two
+    references is then the same combination of the two velocities)."""
     dampings = [float(damping)] * len(levels) if isinstance(damping, (int, float)) else list(damping)
-    prefix = _full_rank_prefix(levels, nv, svd_threshold, control_selection) if not any(dampings) else None
+    prefix = _full_rank_prefix(levels, nv, svd_threshold, control_selection, extra) if not any(dampings) else None
     steps: list[_Step] | None = []
     if prefix is not None and prefix.solved == len(levels):
         v, ranks = prefix.velocity, np.array([J.shape[0] for J, _ in levels], dtype=int)
+        v_extra = prefix.extra_velocity
     else:
-        v, ranks = _compiled_svd_cascade(levels, nv, svd_threshold, dampings, control_selection, prefix)
+        v, ranks, v_extra = _compiled_svd_cascade(levels, nv, svd_threshold, dampings, control_selection, prefix, extra)
         steps = None  # (made by the Python cascade if other references are asked for)
     selection = None
     if control_selection is not None:  # zero in exact arithmetic; the QR and SVD leave round-off
         selection = np.asarray(control_selection, dtype=bool)
         v[~selection] = 0.0
+        if v_extra is not None:
+            v_extra[~selection] = 0.0
     redo = (levels, nv, svd_threshold, dampings, control_selection)
-    return CascadeFactorization(prefix, steps, v, ranks, selection, redo)
+    return CascadeFactorization(prefix, steps, v, ranks, selection, redo, v_extra)
 
 
 def _compiled_svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
                           dampings: Sequence[float], control_selection: np.ndarray | None,
-                          prefix: _Prefix | None) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`svd_cascade`'s ``(v, ranks)`` in one compiled call (:func:`.kernels.cascade.svd_levels`);
-    a level LAPACK cannot factorise (a NaN) raises :class:`~sotdrake.exceptions.SolverError`."""
+                          prefix: _Prefix | None, extra: Sequence[np.ndarray] | None = None
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """:func:`svd_cascade`'s ``(v, ranks)`` in one compiled call (:func:`.kernels.cascade.svd_levels`),
+    and ``v`` for the ``extra`` references (None without); a level LAPACK cannot factorise (a NaN)
+    raises :class:`~sotdrake.exceptions.SolverError`."""
     if not levels:
-        return np.zeros(nv), np.zeros(0, dtype=int)
+        return np.zeros(nv), np.zeros(0, dtype=int), None if extra is None else np.zeros(nv)
     given = compiled_input
     J = np.vstack([J for J, _ in levels]) if len(levels) > 1 else levels[0][0]
-    r = np.concatenate([r for _, r in levels]) if len(levels) > 1 else levels[0][1]
+    r = _references(levels, range(len(levels)), extra)
     sizes = np.array([J_i.shape[0] for J_i, _ in levels], dtype=np.int64)
     mask = np.ones(nv) if control_selection is None else np.asarray(control_selection, dtype=float)
-    first, Z, v = 0, np.eye(nv), np.zeros(nv)
+    first, Z, v = 0, np.eye(nv), np.zeros((nv, r.shape[1]))
     if prefix is not None:  # (its free columns are there: levels remain below it)
         assert prefix.free is not None
-        first, Z, v = prefix.solved, prefix.free, prefix.velocity
+        first, Z = prefix.solved, prefix.free
+        v = prefix.velocity[:, None] if prefix.extra_velocity is None else np.column_stack([prefix.velocity, prefix.extra_velocity])
     try:
-        v, ranks = _kernels().svd_levels(given(J), sizes, given(r), mask, given(Z), given(v), int(first),
+        v, ranks = _kernels().svd_levels(given(J), sizes, r, mask, given(Z), np.ascontiguousarray(v), int(first),
                                          float(svd_threshold), given(np.asarray(dampings, dtype=float)))
     except np.linalg.LinAlgError as error:
         raise SolverError(f"the SVD cascade failed ({error}); is every level finite?") from error
     if prefix is not None:
         ranks[:first] = [J_i.shape[0] for J_i, _ in levels[:first]]
-    return v, ranks
+    return v[:, 0].copy(), ranks, None if extra is None else v[:, 1].copy()
 
 
 def solve_cascade(

@@ -96,25 +96,28 @@ class SOT(KinematicSolver[StackSettings]):
                 self._levels(context, s)  # a NaN makes unequal bounds: named first
                 raise SolverError(f"{self.name} cannot solve inequality rows: use the hierarchical QP")
         pairs = [(level.jacobian, level.reference) for level in levels]
+        limit = self._velocity_limit(s)
+        # With limits, the curvature corrections' own velocity too, in the same pass (see below).
+        corrections = None if limit is None else [p - r for (_, r), p in zip(pairs, levels.plain, strict=False)]
         try:
-            result = CASCADE.factorize(pairs, nv, s.svd_threshold, s.damping, s.control_selection)  # (BASIC: the cascade alone)
+            result = CASCADE.factorize(pairs, nv, s.svd_threshold, s.damping, s.control_selection, corrections)
         except (SolverError, ValueError, np.linalg.LinAlgError):
             result = None
         if result is None or not math.isfinite(result.velocity.sum() + sum(r.sum() for _, r in pairs)):
             self._levels(context, s)  # a non-finite level: raises, naming the task
             raise SolverError(f"{self.name}: the cascade gave a non-finite control at t = {context.get_time()}")
         velocity, scale = result.velocity, 1.0
-        limit = self._velocity_limit(s)
         if limit is not None:
             scale = velocity_scale(velocity, limit)
             if scale < 1.0:
                 # The cascade is linear in the references (for its rank decisions, which depend on
                 # the Jacobians only): scale the tasks' ė* but not the curvature correction c (its
-                # size is the one of the scaled motion), i.e. solve the same factorisation for
-                # s·ė* - c = s·(ė* - c) - (1 - s)·c, then keep within the limits.
-                plain = levels.plain
-                pairs = [(J, scale * r - (1.0 - scale) * (p - r)) for (J, r), p in zip(pairs, plain, strict=False)]
-                velocity, second = scale_to_limits(result.solve([r for _, r in pairs]), limit)
+                # size is the one of the scaled motion), i.e. the same factorisation's v for
+                # s·ė* - c = s·(ė* - c) - (1 - s)·c: s·v - (1 - s)·v_c, v_c the corrections' velocity
+                # (solved with v), then keep within the limits.
+                assert corrections is not None and result.extra_velocity is not None
+                pairs = [(J, scale * r - (1.0 - scale) * c) for (J, r), c in zip(pairs, corrections, strict=False)]
+                velocity, second = scale_to_limits(scale * velocity - (1.0 - scale) * result.extra_velocity, limit)
                 scale *= second
                 if not self._warned_scaling:
                     self._warned_scaling = True

@@ -22,14 +22,16 @@ from .lapack import certified_blocks, fortran, geqrf, orgqr, ormqr, upper_invers
 @njit(cache=True)
 def prefix(B, sizes, references, threshold, more):
     """``(solved, v, reflectors, scales, L_inverse_T, free)``: how many levels (of ``sizes`` rows,
-    those with rows) are certified, ``v`` (nv) solving them for ``references`` (M), the first ``K``
+    those with rows) are certified, ``v`` (nv × c) solving them for each column of ``references``
+    (M × c: the cascade is linear in its references, one factorisation serves them all), the first ``K``
     Householder reflectors and their scales (``Q_K``), ``(L_K⁻¹)ᵀ`` (K × K) and, when some level is
     not certified or ``more`` levels follow those stacked, ``free``: the last ``nv − K`` columns of
     the full ``Q`` (an orthonormal basis of what the solved levels leave free; else nv × 0). ``solved`` 0:
     nothing certified (or LAPACK failed), the other values empty."""
     M, nv = B.shape
+    c = references.shape[1]
     empty = np.zeros((nv, 0))
-    nothing = (0, np.zeros(nv), np.zeros((0, nv)).T, np.zeros(0), np.zeros((0, 0)), empty)
+    nothing = (0, np.zeros((nv, c)), np.zeros((0, nv)).T, np.zeros(0), np.zeros((0, 0)), empty)
     qr = fortran(B.T)  # nv × M, column-major
     tau = np.empty(M)
     if geqrf(qr, tau) != 0:
@@ -44,8 +46,8 @@ def prefix(B, sizes, references, threshold, more):
     if solved == 0:
         return nothing
     L_inverse_T = np.ascontiguousarray(R_inverse[:K, :K].T)
-    y = np.zeros((1, nv)).T  # nv × 1, column-major
-    y[:K, 0] = L_inverse_T @ references[:K]
+    y = np.zeros((c, nv)).T  # nv × c, column-major
+    y[:K, :] = L_inverse_T @ np.ascontiguousarray(references[:K])
     reflectors = fortran(qr[:, :K])  # (the later columns may hold a NaN)
     scales = tau[:K].copy()
     if ormqr(reflectors, scales, y, False) != 0:
@@ -57,13 +59,14 @@ def prefix(B, sizes, references, threshold, more):
         if orgqr(padded, K, scales) != 0:
             return nothing
         free = np.ascontiguousarray(padded[:, K:])
-    return solved, y[:, 0].copy(), reflectors, scales, L_inverse_T, free
+    return solved, np.ascontiguousarray(y), reflectors, scales, L_inverse_T, free
 
 
 @njit(cache=True)
 def svd_levels(J, sizes, references, mask, Z, v, first, threshold, dampings):
     """The SVD cascade (:func:`.cascade.svd_cascade`) from level ``first`` on: ``(v, ranks)``.
-    ``J`` and ``references``: every level's rows stacked (levels of ``sizes`` rows); ``mask``: the
+    ``J`` and ``references``: every level's rows stacked (levels of ``sizes`` rows; ``references``
+    M × c, a velocity per column, ``v`` nv × c); ``mask``: the
     control selection's ``P_0`` as nv ones and zeros; ``Z`` (nv × d) and ``v``: what the levels
     above ``first`` leave free and their velocity (the identity and 0 from the top); ``dampings``:
     one δ per level. Per level, the SVD ``(J P_0 Z)ᵀ = W Σ Uᵀ`` (LAPACK's ``gesdd``, as
@@ -90,8 +93,8 @@ def svd_levels(J, sizes, references, mask, Z, v, first, threshold, dampings):
             s = sigma[:rank]
             inverse = 1.0 / s if dampings[i] == 0.0 else s / (s * s + dampings[i])
             V = Z @ np.ascontiguousarray(W[:, :rank])
-            residual = references[starts[i]:starts[i + 1]] - rows @ v
-            v = v + V @ (inverse * (np.ascontiguousarray(Ut[:rank]) @ residual))
+            residual = np.ascontiguousarray(references[starts[i]:starts[i + 1]]) - rows @ v
+            v = v + V @ (inverse.reshape(-1, 1) * (np.ascontiguousarray(Ut[:rank]) @ residual))
         if i < levels - 1:
             Z = Z @ np.ascontiguousarray(W[:, rank:])
     return v, ranks

@@ -3,12 +3,12 @@
 A discrete update is computed from the same context as the device's and the plant's step (the
 physical plant's step is a discrete update too: its output ports are not sampled, see
 :func:`sotdrake.physics.add_physical_talos`), so every system of a tick sees the same record, and
-the record is that of the solve whose torque the tick applies. The vector holds, per declared contact (declaration order):
-the normal force it carried at the last tick (N; NaN: not held), which weighs the shear
-regularization (:func:`.formulation.shear_weights`); the bounds held at the last tick's optimum
-(:data:`.formulation.HELD_BOUNDS` signed entries, :func:`.formulation.held_bounds`), where the QR
-path starts (a guess: the answer does not depend on it); and each contact's release ramp
-``(t0, f0)`` (s, N; NaN: none).
+the record is that of the solve whose torque the tick applies. The vector holds, per declared
+contact (declaration order): the normal force it carried at the last tick (N; NaN: not held),
+which weighs the shear regularization (:func:`.formulation.shear_weights`); the bounds held at the
+last tick's optimum (:data:`.formulation.HELD_BOUNDS` signed entries,
+:func:`.formulation.held_bounds`), where the QR path starts (a guess: the answer does not depend on
+it); and each contact's release ramp ``(t0, f0)`` (s, N; NaN: none).
 """
 
 from __future__ import annotations

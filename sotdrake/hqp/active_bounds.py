@@ -331,9 +331,9 @@ def solve_held_rows(A: np.ndarray, lower: np.ndarray, upper: np.ndarray, sizes: 
     the side of each inequality row held at ``x`` (inequality rows in stack order), and, when solved,
     each row's slack (the signed residual of an equality row, the violation of an inequality row),
     each level's slack norm, the inequality rows at a side (a mask over every row), the free
-    components at a bound, and which levels have inequality rows. No held row is guessed: a violated one is held, a wrong-signed one
-    released, up to ``rounds`` rounds. ``guess``: a side per component (int64). Rows that are not
-    finite, or sides out of order: :data:`NOT_APPLICABLE`."""
+    components at a bound, and which levels have inequality rows. No held row is guessed: a violated
+    one is held, a wrong-signed one released, up to ``rounds`` rounds. ``guess``: a side per
+    component (int64). Rows that are not finite, or sides out of order: :data:`NOT_APPLICABLE`."""
     given = compiled_input
     status, *answer = _solve_held_rows(
         given(A), given(lower), given(upper), given(sizes, np.int64), given(x_lower), given(x_upper),

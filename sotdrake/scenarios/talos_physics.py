@@ -20,6 +20,7 @@ import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams
 from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
 from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import ZeroOrderHold
 
 from sotdrake import (
     SOT,
@@ -61,6 +62,7 @@ class Physics:
     scenario: str
     visualizer: object = None
     taskCom: MetaTaskKineCom | None = None
+    loop: str = "open"
 
 
 def build_diagram(scenario: str = "stand", loop: str = "open", push=0.0,
@@ -92,14 +94,21 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push=0.0,
         attime(1.0, lambda: sot.push(taskRH.task.name), "push taskrh: move the right hand")
 
     builder.Connect(robot.device.GetOutputPort("state"), station.position)
-    builder.Connect(sot.GetOutputPort("control"), station.velocity)
+    velocity, scale = sot.GetOutputPort("control"), sot.GetOutputPort("velocity_scale")
+    if loop == "closed":
+        # The plant's step is applied before the device's update of its instant, and the closed-loop
+        # SoT reads the stepped plant: the servos' velocity and the traced scale are those of the
+        # device's last update, held one tick, so that nothing else asks for a solve of its own.
+        velocity, scale = (_held(builder, port, name, dt) for port, name in
+                           ((velocity, "held_velocity"), (scale, "held_velocity_scale")))
+    builder.Connect(velocity, station.velocity)
 
     tracer = Tracer(builder, dt)
     tracer.add(plant.get_state_output_port(), "x_plant")
     tracer.add(robot.device.GetOutputPort("state"), "q_device")
     tracer.add(station.feet, "feet")
     tracer.add(station.other_contact, "other_contact")
-    tracer.add(sot.GetOutputPort("velocity_scale"), "velocity_scale")
+    tracer.add(scale, "velocity_scale")
     visualizer = None
     if meshcat is not None:
         visualizer = MeshcatVisualizer.AddToBuilder(builder, physical.scene_graph, meshcat, MeshcatVisualizerParams(publish_period=1 / 60))
@@ -111,7 +120,14 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push=0.0,
         meshcat.SetCameraPose(camera_in_world=[1.5, -1.6, 1.3], target_in_world=[0.15, -0.1, 0.65])
     diagram = builder.Build()
     diagram.set_name("talos_physics")
-    return Physics(diagram, robot, physical, station, sot, taskRH, tracer, scenario, visualizer, taskCom)
+    return Physics(diagram, robot, physical, station, sot, taskRH, tracer, scenario, visualizer, taskCom, loop)
+
+
+def _held(builder: DiagramBuilder, port, name: str, dt: float):
+    """``port``'s value held one tick (a Drake ``ZeroOrderHold`` sampling it every ``dt``)."""
+    hold = builder.AddNamedSystem(name, ZeroOrderHold(dt, port.size()))
+    builder.Connect(port, hold.get_input_port())
+    return hold.get_output_port()
 
 
 def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[dict, dict]:
@@ -123,6 +139,8 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
     path = robot.dynamic.trajectory(["rh", "left-sole", "right-sole"], np.vstack([q0, q]))
     hand = point_on(path["rh"], HAND_OFFSET)
     feet = trace["feet"]
+    # In the closed loop the traced scale is the last update's, held: its first sample precedes any.
+    scales = trace["velocity_scale"][1:] if run.loop == "closed" else trace["velocity_scale"]
     slips = np.max([translation_drift(path[s], 2) for s in ("left-sole", "right-sole")], axis=0)
     slip = slips.max()
     base = np.vstack([q0, q])[:, 4:7]
@@ -151,8 +169,8 @@ def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[di
         **fall,
         "min_base_height_m": float(base[:, 2].min()),
         # The command scaled into the velocity limits (1: never): the smallest factor, and how often.
-        "min_velocity_scale": float(trace["velocity_scale"].min()),
-        "scaled_ticks": int(np.count_nonzero(trace["velocity_scale"] < 1.0)),
+        "min_velocity_scale": float(scales.min()),
+        "scaled_ticks": int(np.count_nonzero(scales < 1.0)),
         "duration_s": duration,
         "ticks": len(trace["time"]),
         "wall_s": wall,

@@ -108,6 +108,7 @@ _LAZY: dict[str, tuple[str, ...]] = {
         "TalosStation",
         "add_physical_talos",
         "add_talos_station",
+        "hold_one_tick",
     ),
     ".walking": (
         "GRAVITY",
@@ -193,6 +194,7 @@ if TYPE_CHECKING:
         TalosStation,
         add_physical_talos,
         add_talos_station,
+        hold_one_tick,
     )
     from .publishing import RobotStateMessage, add_signal_publisher, add_state_publisher
     from .sweep import (
@@ -366,6 +368,7 @@ __all__ = [
     "grid",
     "hold_feet_and_com",
     "hold_move_hold",
+    "hold_one_tick",
     "initial_plan",
     "leg_masses",
     "limit_joint_velocities",

@@ -20,6 +20,7 @@ from .actuators import (
     STIFFNESS_RANGE,
     DesiredState,
     check_pd_gains,
+    hold_one_tick,
     set_pd_gains,
 )
 from .body_collision import fit_link_boxes
@@ -63,5 +64,6 @@ __all__ = [
     "add_talos_station",
     "check_pd_gains",
     "fit_link_boxes",
+    "hold_one_tick",
     "set_pd_gains",
 ]

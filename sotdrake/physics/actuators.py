@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import PdControllerGains
-from pydrake.systems.framework import BasicVector, Context, LeafSystem
+from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem, OutputPort
+from pydrake.systems.primitives import ZeroOrderHold
 
 from ..exceptions import InvalidInput, SotError
 
@@ -66,3 +67,14 @@ class DesiredState(LeafSystem):
 
     def _calc(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(np.concatenate([self.position.Eval(context)[self._q], self.velocity.Eval(context)[self._v]]))
+
+
+def hold_one_tick(builder: DiagramBuilder, port: OutputPort, name: str, dt: float) -> OutputPort:
+    """``port``'s value held one tick (a Drake ``ZeroOrderHold`` named ``name`` sampling it every
+    ``dt``). The plant's step (sampled outputs) is applied before the diagram's discrete updates of
+    its instant: when the solver's inputs change with that step (the plan's update, a closed loop),
+    the servos take the velocity the device integrated at the last tick, held, rather than a command
+    of their own, and the stack is solved once per tick (the held value is 0 before the first)."""
+    hold = builder.AddNamedSystem(name, ZeroOrderHold(dt, port.size()))
+    builder.Connect(port, hold.get_input_port())
+    return hold.get_output_port()

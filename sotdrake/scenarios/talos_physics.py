@@ -20,7 +20,6 @@ import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams
 from pydrake.multibody.meshcat import ContactVisualizer, ContactVisualizerParams
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import ZeroOrderHold
 
 from sotdrake import (
     SOT,
@@ -44,7 +43,15 @@ from sotdrake import (
     tilt_of_quaternions,
     write_run,
 )
-from sotdrake.physics import PLANT_STEP, SOLE_BOX, KinematicBaseEstimator, PhysicalTalos, TalosStation, add_talos_station
+from sotdrake.physics import (
+    PLANT_STEP,
+    SOLE_BOX,
+    KinematicBaseEstimator,
+    PhysicalTalos,
+    TalosStation,
+    add_talos_station,
+    hold_one_tick,
+)
 from sotdrake.scenarios.common import HAND_OFFSET, gripping_hand, point_drift, point_on, translation_drift
 
 TARGET = (0.5, -0.2, 1.0)
@@ -99,7 +106,7 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push=0.0,
         # The plant's step is applied before the device's update of its instant, and the closed-loop
         # SoT reads the stepped plant: the servos' velocity and the traced scale are those of the
         # device's last update, held one tick, so that nothing else asks for a solve of its own.
-        velocity, scale = (_held(builder, port, name, dt) for port, name in
+        velocity, scale = (hold_one_tick(builder, port, name, dt) for port, name in
                            ((velocity, "held_velocity"), (scale, "held_velocity_scale")))
     builder.Connect(velocity, station.velocity)
 
@@ -121,13 +128,6 @@ def build_diagram(scenario: str = "stand", loop: str = "open", push=0.0,
     diagram = builder.Build()
     diagram.set_name("talos_physics")
     return Physics(diagram, robot, physical, station, sot, taskRH, tracer, scenario, visualizer, taskCom, loop)
-
-
-def _held(builder: DiagramBuilder, port, name: str, dt: float):
-    """``port``'s value held one tick (a Drake ``ZeroOrderHold`` sampling it every ``dt``)."""
-    hold = builder.AddNamedSystem(name, ZeroOrderHold(dt, port.size()))
-    builder.Connect(port, hold.get_input_port())
-    return hold.get_output_port()
 
 
 def summarize(run: Physics, simulator, duration: float, wall: float) -> tuple[dict, dict]:

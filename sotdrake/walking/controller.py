@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer, Multiplexer, ZeroOrderHold
+from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer, Multiplexer
 
 from sotdrake import (
     SOT,
@@ -322,18 +322,16 @@ def _connect_physics(bot: Robot, sot: SOT, pg: PatternGenerator, spec: WalkingRo
     servos' desired state, the feed-forward torque (:class:`Servos`), the contact monitor, the
     stabiliser's measured CoM and CoP, their traces; returns the Meshcat visualizer of the plant (None
     without ``meshcat``)."""
-    from sotdrake.physics import ContactMonitor, DesiredState
+    from sotdrake.physics import ContactMonitor, DesiredState, hold_one_tick
 
     connect, model, plant = bot.builder.Connect, bot.model, physical.plant
     desired = bot.add(DesiredState(physical))
     connect(bot.device.GetOutputPort("state"), desired.GetInputPort("position"))
     control = bot.limitator if bot.limitator is not None else sot  # the command the device integrates
-    # The servos' velocity is the command the device integrated at the last tick, held: the plant's step
-    # (applied before the discrete updates of its instant, with the pattern generator's) then reads no
-    # command of its own, and the stack is solved once per tick, as the device's update asks.
-    held = bot.add(ZeroOrderHold(bot.dt, control.GetOutputPort("control").size()), "held_velocity")
-    connect(control.GetOutputPort("control"), held.get_input_port())
-    connect(held.get_output_port(), desired.GetInputPort("velocity"))
+    # The plan is updated with the plant's step, before the device's update: the servos take the
+    # command the device integrated at the last tick, held (one solve per tick).
+    connect(hold_one_tick(bot.builder, control.GetOutputPort("control"), "held_velocity", bot.dt),
+            desired.GetInputPort("velocity"))
     connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))
     monitor = bot.add(ContactMonitor(physical))
     connect(plant.get_contact_results_output_port(), monitor.get_input_port())

@@ -7,11 +7,14 @@ Three runs, each with every contact model of :func:`sotdrake.physics.add_physica
 * ``reach_plant_1ms``: the same with the plant stepping at the SoT's 1 ms tick, the comparison that
   chose ``PLANT_STEP`` (its outcome figures beside ``reach``'s);
 * ``stand_dynamics``: ``diagrams/talos_dynamics.py --scenario stand --device physics`` (the
-  dynamic SoT, torque control, the plant at the control step);
+  dynamic SoT, torque control, the torque-driven plant at the control step, Drake's SAP contact
+  solver); ``stand_dynamics_tamsi``: the same with ``--contact-solver tamsi``;
 
-and the plant alone (``plant``): the station of :func:`sotdrake.physics.add_talos_station` with its
-PD references held at half-sitting, no controller, standing, at the run's plant step: the floor of
-any physics run.
+and the plant alone (``plant``). For the reaches: the station of
+:func:`sotdrake.physics.add_talos_station` with its PD references held at half-sitting, no
+controller, standing, at the run's plant step: the floor of any physics run. For the torque-driven
+stand (a plant that cannot stand without its controller): the torque-driven plant fed the torques
+the run's controller sent it, from the same initial state.
 
 Times are CPU times (``time.process_time``) of ``Simulator.AdvanceTo`` over the run, the best of
 ``--repeat`` turns (the machine may be shared: CPU time, and the minimum, are the least disturbed).
@@ -42,24 +45,25 @@ sys.path[:0] = [str(HERE.parent), str(HERE)]
 from output import add_output_arguments, write_json
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
 
-import sotdrake.dynamics.station as dynamics_station
 from sotdrake import load_talos
+from sotdrake.dynamics.station import add_torque_driven_talos
 from sotdrake.physics import CONTACT_MODELS, PLANT_STEP, add_talos_station
 from sotdrake.scenarios import talos_dynamics, talos_physics
 
 
 @contextmanager
 def contact_model(contact: str):
-    """Every physical TALOS built inside uses ``contact`` (the scripts take the defaults: point
-    contact in ``add_talos_station``, hydroelastic in the torque-driven device)."""
-    saved = talos_physics.add_talos_station, dynamics_station.add_physical_talos
-    talos_physics.add_talos_station = functools.partial(saved[0], contact=contact)
-    dynamics_station.add_physical_talos = functools.partial(saved[1], contact=contact)
+    """The station ``talos_physics`` builds inside uses ``contact`` (its script takes the default,
+    point contact)."""
+    saved = talos_physics.add_talos_station
+    talos_physics.add_talos_station = functools.partial(saved, contact=contact)
     try:
         yield
     finally:
-        talos_physics.add_talos_station, dynamics_station.add_physical_talos = saved
+        talos_physics.add_talos_station = saved
 
 
 def _advance(simulator: Simulator, duration: float) -> float:
@@ -84,7 +88,7 @@ def plant_alone(contact: str, duration: float, plant_step: float) -> float:
     return _advance(simulator, duration) / duration
 
 
-def reach(contact: str, duration: float, plant_step: float = PLANT_STEP) -> tuple[float, dict, float]:
+def reach(contact: str, duration: float, plant_step: float = PLANT_STEP) -> tuple[float, dict, float, float]:
     with contact_model(contact):
         run = talos_physics.build_diagram("reach", plant_step=plant_step)
     simulator = Simulator(run.diagram)
@@ -92,21 +96,35 @@ def reach(contact: str, duration: float, plant_step: float = PLANT_STEP) -> tupl
     summary, _ = talos_physics.summarize(run, simulator, duration, cpu)
     keys = ("hand_error_m", "hand_initial_error_m", "base_drift_m", "base_height_drop_m", "min_normal_force_n",
             "max_foot_slip_m", "min_cop_margin_m", "fell")
-    return cpu / duration, {k: summary[k] for k in keys}, plant_step
+    return cpu / duration, {k: summary[k] for k in keys}, plant_step, plant_alone(contact, duration, plant_step)
 
 
-def stand_dynamics(contact: str, duration: float) -> tuple[float, dict, float]:
-    with contact_model(contact):
-        run = talos_dynamics.build_diagram("stand", "physics")
+def stand_dynamics(contact: str, duration: float, contact_solver: str = "sap") -> tuple[float, dict, float, float]:
+    run = talos_dynamics.build_diagram("stand", "physics", contact=contact, contact_solver=contact_solver)
     simulator = Simulator(run.diagram)
     cpu = _advance(simulator, duration)
     times = np.full(round(duration / run.robot.dt), cpu / round(duration / run.robot.dt))
     summary, _ = talos_dynamics.summarize(run, simulator, times, duration)
     keys = ("com_drift_m", "max_foot_slip_m", "max_torque_ratio", "max_friction_ratio", "fell")
-    return cpu / duration, {k: summary[k] for k in keys}, run.robot.dt
+    plant = torque_replay(run, run.tracer.data(simulator.get_context()), contact, contact_solver, duration)
+    return cpu / duration, {k: summary[k] for k in keys}, run.robot.dt, plant
 
 
-RUNS = {"reach": reach, "reach_plant_1ms": functools.partial(reach, plant_step=1e-3), "stand_dynamics": stand_dynamics}
+def torque_replay(run, trace: dict, contact: str, contact_solver: str, duration: float) -> float:
+    """CPU seconds per simulated second of the torque-driven plant alone, fed the torques the
+    controller sent it in ``run`` (held over each tick, from the same initial state): the plant's
+    part of that run."""
+    builder = DiagramBuilder()
+    physical = add_torque_driven_talos(builder, run.robot.model.variant, run.robot.dt, contact, contact_solver)
+    physical.plant.SetDefaultPositions(run.robot.q0)
+    torques = PiecewisePolynomial.ZeroOrderHold(trace["time"], trace["torque"].T)
+    source = builder.AddSystem(TrajectorySource(torques))
+    builder.Connect(source.get_output_port(), physical.plant.get_actuation_input_port(physical.instance))
+    return _advance(Simulator(builder.Build()), duration) / duration
+
+
+RUNS = {"reach": reach, "reach_plant_1ms": functools.partial(reach, plant_step=1e-3), "stand_dynamics": stand_dynamics,
+        "stand_dynamics_tamsi": functools.partial(stand_dynamics, contact_solver="tamsi")}
 
 
 def measure(duration: float, repeat: int, contacts: tuple[str, ...]) -> dict:
@@ -116,8 +134,7 @@ def measure(duration: float, repeat: int, contacts: tuple[str, ...]) -> dict:
         for name, run in RUNS.items():
             best = None
             for _ in range(repeat):
-                cpu, outcome, plant_step = run(contact, duration)
-                plant = plant_alone(contact, duration, plant_step)
+                cpu, outcome, plant_step, plant = run(contact, duration)
                 if best is None or cpu < best["cpu_per_sim_s"]:
                     best = {"cpu_per_sim_s": cpu, "plant_cpu_per_sim_s": plant, "plant_step_s": plant_step,
                             "outcome": outcome}

@@ -97,6 +97,8 @@ _LAZY: dict[str, tuple[str, ...]] = {
     ".dynamics.station": ("sole_rectangle",),
     ".dynamics.trajectories": ("hold_move_hold", "minimum_jerk_moves", "trajectory_ports"),
     ".physics": (
+        "CONTACT_MODELS",
+        "CONTACT_SOLVERS",
         "FRICTION",
         "PLANT_STEP",
         "SOLE_BOX",
@@ -183,6 +185,8 @@ if TYPE_CHECKING:
     from .hqp import ACTIVE_SET, SOLVERS
     from .live import add_live_arguments, live_meshcat, run_live
     from .physics import (
+        CONTACT_MODELS,
+        CONTACT_SOLVERS,
         FRICTION,
         PLANT_STEP,
         SOLE_BOX,
@@ -241,6 +245,8 @@ def __dir__() -> list[str]:
 
 __all__ = [
     "ACTIVE_SET",
+    "CONTACT_MODELS",
+    "CONTACT_SOLVERS",
     "FRICTION",
     "GRAVITY",
     "PLANT_STEP",

@@ -339,6 +339,9 @@ def bad_inputs() -> list[tuple[str, Callable]]:
     # physics
     add(_numbers("add_physical_talos(time_step)", lambda fx, v: add_physical_talos(
         __import__("pydrake.systems.framework", fromlist=["x"]).DiagramBuilder(), time_step=v), [0.0, -1e-3, 1.0]))
+    for label, value in [("'SAP'", "SAP"), ("None", None), ("['sap']", ["sap"])]:
+        table.append((f"add_physical_talos(contact_solver={label})", lambda fx, v=value: add_physical_talos(
+            __import__("pydrake.systems.framework", fromlist=["x"]).DiagramBuilder(), contact_solver=v)))
     add(_numbers("set_pd_gains(stiffness)", lambda fx, v: set_pd_gains(_physical().plant, v, 0.05), [0.0, -1.0, 1e9]))
     add(_numbers("Push(force x)", lambda fx, v: Push(_physical().plant, "torso_2_link", [v, 0.0, 0.0], 1.0, 0.1), [1e6]))
     for label, args in [("body 'nope'", ("nope", [1.0, 0, 0], 1.0, 0.1)), ("body None", (None, [1.0, 0, 0], 1.0, 0.1)),

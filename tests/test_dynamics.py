@@ -646,12 +646,15 @@ def test_every_scenario_builds_and_runs(dynamics_script, scenario):
     assert not summary["fell"] and summary["max_torque_ratio"] <= 1.0 + 1e-9
 
 
-def test_stand_short_on_physics(dynamics_script):
-    """Torque control of the simulated TALOS for 0.25 s: the feet carry the weight as the solver
-    says, no slip, torques within limits, the measured forces inside the friction cone."""
-    run = dynamics_script.build_diagram("stand", "physics")
+@pytest.mark.parametrize("contact, contact_solver", [("hydroelastic", "sap"), ("hydroelastic", "tamsi"), ("point", "tamsi")])
+def test_stand_short_on_physics(dynamics_script, contact, contact_solver):
+    """Torque control of the simulated TALOS for 0.25 s, with each sole model and contact solver:
+    the feet carry the weight as the solver says, no slip, torques within limits, the measured
+    forces inside the friction cone."""
+    run = dynamics_script.build_diagram("stand", "physics", contact=contact, contact_solver=contact_solver)
     simulator, times = dynamics_script.simulate_ticks(run, 0.25, progress=False)
     summary, trace = dynamics_script.summarize(run, simulator, times, 0.25)
+    assert (summary["contact"], summary["contact_solver"]) == (contact, contact_solver)
     assert not summary["fell"]
     assert summary["com_drift_m"] < 1e-3 and summary["max_foot_slip_m"] < 1e-4
     assert summary["max_torque_ratio"] <= 1.0 + 1e-9 and summary["max_friction_ratio"] < 1.0
@@ -694,6 +697,16 @@ def test_derated_torque_bounds_bind_and_hold(standing):
     np.testing.assert_allclose(derated.sot.effort, 0.2 * robot.sot.effort)
     ratio = np.abs(_solution(derated, _set_state(derated, diagram_derated, x0)).torque) / derated.sot.effort
     assert ratio.max() <= 1 + 1e-9 and ratio.max() > 1 - 1e-6
+
+
+@pytest.mark.parametrize("device, options", [
+    ("physics", {"contact": "mesh"}), ("physics", {"contact_solver": "SAP"}), ("physics", {"contact_solver": ["sap"]}),
+    ("physics", {"contact": None}), ("dynsimu", {"contact": "point"}), ("dynsimu", {"contact_solver": "tamsi"})])
+def test_a_contact_option_the_device_does_not_take_is_refused(device, options):
+    builder = DiagramBuilder()
+    with pytest.raises(InvalidInput, match="contact"):
+        RobotDyn(builder, load_talos("reduced"), device, **options)
+    assert not builder.GetSystems()  # refused before anything was added
 
 
 @pytest.mark.parametrize("scale", [0.0, -0.5, 1.5, float("nan"), True, "1"])
@@ -752,3 +765,9 @@ def test_a_task_waiting_to_be_pushed_computes_nothing():
     robot.sot.push(foot.task.name, simulator.get_mutable_context())
     simulator.AdvanceTo(0.01)
     assert len(calls) >= 5
+
+
+def test_the_script_refuses_a_contact_option_off_the_physics_device(dynamics_script, capsys):
+    with pytest.raises(SystemExit) as stop:
+        dynamics_script.main(["--device", "dynsimu", "--contact-solver", "tamsi", "--no-meshcat", "--quiet"])
+    assert stop.value.code == 2 and "--device physics" in capsys.readouterr().err

@@ -7,7 +7,7 @@ from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import DiagramBuilder
 
 from sotdrake.exceptions import InvalidInput, SotError
-from sotdrake.physics import Push, add_physical_talos, check_pd_gains, set_pd_gains
+from sotdrake.physics import CONTACT_SOLVERS, Push, add_physical_talos, check_pd_gains, set_pd_gains
 from sotdrake.robots import add_talos
 from sotdrake.scenarios import talos_physics
 
@@ -86,6 +86,13 @@ def test_physics_inputs():
         add_physical_talos(builder, time_step=0.0)
     with pytest.raises(InvalidInput, match="contact"):
         add_physical_talos(builder, contact="mesh")
+    for solver in ("SAP", "similar", None, 1):
+        with pytest.raises(InvalidInput, match="contact_solver"):
+            add_physical_talos(builder, contact_solver=solver)
+    assert not builder.GetSystems()  # refused before anything was added
+    for solver, approximation in CONTACT_SOLVERS.items():
+        plant = add_physical_talos(DiagramBuilder(), contact_solver=solver).plant
+        assert plant.get_discrete_contact_approximation() == approximation
     robot = add_physical_talos(DiagramBuilder())
     with pytest.raises(InvalidInput):
         Push(robot.plant, "torso_2_link", [np.nan, 0, 0], 1.0, 0.1)

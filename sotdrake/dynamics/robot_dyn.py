@@ -7,7 +7,9 @@ Creating it adds and plugs, in a ``DiagramBuilder``: the dynamic entity ``dynami
 * ``device='dynsimu'``: ``RobotDynSimu`` (``sot.control`` = ``q̈`` → ``device.control``,
   ``device.state → dynamic.state``);
 * ``device='physics'``: the torque-driven plant of :mod:`.station` (``sot.torque`` → the plant's
-  actuation input, the plant's state → ``dynamic.state``: closed loop, no PD).
+  actuation input, the plant's state → ``dynamic.state``: closed loop, no PD); ``contact`` and
+  ``contact_solver`` choose its soles' contact model and its contact solver
+  (:func:`sotdrake.physics.add_physical_talos`).
 
 Tasks (:mod:`.meta_tasks_dyn`) and contacts (:meth:`add_contact`) are connected to the solver as
 they are created; the stack and the contact set are the solver's settings in the Context.
@@ -23,6 +25,7 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from ..configuration import Layout
 from ..exceptions import InvalidInput, check_finite
 from ..hqp import ACTIVE_SET
+from ..physics import CONTACT_MODELS, CONTACT_SOLVERS
 from ..robots import RobotModel
 from .checks import MAX_DT, check_positive
 from .contact import Contact6d
@@ -42,9 +45,15 @@ class RobotDyn:
     (see the module docstring); tasks and contacts are connected to the solver as they are created."""
 
     def __init__(self, builder: DiagramBuilder, model: RobotModel, device: str = "dynsimu", dt: float = 1e-3,
-                 q0: np.ndarray | None = None, max_contacts: int = 2, solver: str = ACTIVE_SET, effort_scale: float = 1.0):
+                 q0: np.ndarray | None = None, max_contacts: int = 2, solver: str = ACTIVE_SET, effort_scale: float = 1.0,
+                 contact: str = "hydroelastic", contact_solver: str = "sap"):
         if device not in DEVICES:
             raise InvalidInput(f"unknown device {device!r}; available: {list(DEVICES)}")
+        if contact not in CONTACT_MODELS or contact_solver not in tuple(CONTACT_SOLVERS):
+            raise InvalidInput(f"contact is one of {CONTACT_MODELS} and contact_solver one of {sorted(CONTACT_SOLVERS)}, "
+                               f"got {contact!r:.50} and {contact_solver!r:.50}")
+        if device == "dynsimu" and (contact, contact_solver) != ("hydroelastic", "sap"):
+            raise InvalidInput("contact and contact_solver choose the physics plant's contact: device='physics'")
         if device == "physics" and model.name != "talos":
             raise InvalidInput(f"device='physics' is TALOS' torque-driven plant; {model.name} runs on device='dynsimu'")
         dt = check_positive("dt", dt, MAX_DT, " s")
@@ -67,7 +76,8 @@ class RobotDyn:
             builder.Connect(self.sot.GetOutputPort("control"), self.device.GetInputPort("control"))
             self.state_port = self.device.GetOutputPort("state")
         else:
-            self.physical = add_torque_driven_talos(builder, model.variant, time_step=dt)
+            self.physical = add_torque_driven_talos(builder, model.variant, time_step=dt, contact=contact,
+                                                    contact_solver=contact_solver)
             plant = self.physical.plant
             if plant.num_positions() != model.nq or plant.num_actuators() != model.plant.num_actuators():
                 raise InvalidInput("the physics plant and the control model differ in size")

@@ -1,12 +1,12 @@
 """The physics plant under torque control: TALOS on the ground, its actuators driven by ``τ``.
 
-The world of :mod:`sotdrake.physics` itself (a discrete ``MultibodyPlant`` with Drake's SAP solver,
-gravity, a rigid-hydroelastic ground, the compliant-hydroelastic sole boxes ``SOLE_BOX``, a box per
+The world of :mod:`sotdrake.physics` itself (a discrete ``MultibodyPlant`` with Drake's SAP solver
+or, on request, TAMSI; gravity, a rigid-hydroelastic ground, the sole boxes ``SOLE_BOX``, a box per
 link so that a fall lands on the ground), but *no PD controller* on the actuators: the actuation
 input is the torque itself (actuator order, N·m), and the plant's state output is what the
 controller reads back (closed loop). Every actuator is checked to have no PD controller (a PD left
-on would silently add a position servo). The torque limits
-are the controller's hard bounds (``SolverDyn``), and the diagrams report ``max |τ|/limit``.
+on would silently add a position servo). The torque limits are the controller's hard bounds
+(``SolverDyn``), and the diagrams report ``max |τ|/limit``.
 """
 
 from __future__ import annotations
@@ -18,13 +18,16 @@ from ..exceptions import SotError
 from ..physics import SOLE_BOX, PhysicalTalos, add_physical_talos
 
 
-def add_torque_driven_talos(builder: DiagramBuilder, variant: str = "reduced", time_step: float = 1e-3) -> PhysicalTalos:
+def add_torque_driven_talos(builder: DiagramBuilder, variant: str = "reduced", time_step: float = 1e-3,
+                            contact: str = "hydroelastic", contact_solver: str = "sap") -> PhysicalTalos:
     """Add the simulated TALOS of :func:`sotdrake.physics.add_physical_talos` (plant + SceneGraph,
     visual meshes, ground, sole and link boxes) with its actuators torque-driven: no PD controller,
     checked (see the module docstring). Its output ports are not sampled (``sampled_outputs=False``):
     the plant's step and the controller's discrete updates read the same state, and the stack is
-    solved once per tick."""
-    physical = add_physical_talos(builder, variant, time_step, pd_gains=False, sampled_outputs=False)
+    solved once per tick. ``contact`` (the soles' model) and ``contact_solver`` (``"sap"`` or
+    ``"tamsi"``): see :mod:`sotdrake.physics.plant`."""
+    physical = add_physical_talos(builder, variant, time_step, pd_gains=False, sampled_outputs=False,
+                                  contact=contact, contact_solver=contact_solver)
     check_torque_driven(physical.plant)
     return physical
 

@@ -28,6 +28,7 @@ from .contact_monitor import ContactMonitor
 from .estimator import KinematicBaseEstimator
 from .plant import (
     CONTACT_MODELS,
+    CONTACT_SOLVERS,
     CORNER_DISSIPATION,
     CORNER_RADIUS,
     CORNER_STIFFNESS,
@@ -43,6 +44,7 @@ from .station import PLANT_STEP, TalosStation, add_talos_station
 
 __all__ = [
     "CONTACT_MODELS",
+    "CONTACT_SOLVERS",
     "CORNER_DISSIPATION",
     "CORNER_RADIUS",
     "CORNER_STIFFNESS",

@@ -2,8 +2,17 @@
 whole-body collision boxes.
 
 * A discrete ``MultibodyPlant`` (``time_step``: 1 ms by default, the station's
-  :data:`~.station.PLANT_STEP`; Drake's SAP solver in its default lagged approximation) on
-  a ground half-space (drawn as a flat 6 m plate), gravity on.
+  :data:`~.station.PLANT_STEP`) on a ground half-space (drawn as a flat 6 m plate), gravity on.
+  ``contact_solver`` (one of ``CONTACT_SOLVERS``): ``"sap"`` (the default), Drake's SAP solver in
+  its lagged approximation, which treats the PD actuators implicitly (stable with stiff servos and
+  a 2 ms step) and converges through any fall; ``"tamsi"``, Drake's TAMSI solver, for a plant
+  without PD actuators (torque control: :func:`sotdrake.dynamics.station.add_torque_driven_talos`).
+  Torque-driven, the two give the same motions (standing, swaying, lifting a leg, pushed,
+  squatting and walking: the outcome figures agree to two or three digits, the soles slip less
+  under TAMSI), and TAMSI steps in 0.55 to 0.65 of SAP's CPU time (the torques of a stand replayed
+  to each, in one process). But TAMSI may not converge in a hard fall, and the step then stops the
+  simulation with an error; with the PD actuators, it treats them explicitly, and a stiff servo at
+  a 2 ms step diverges.
 * Soles, ``SOLE_BOX`` (0.211 × 0.124 m, the footprint of TALOS' foot collision mesh, bottom at the
   sole frame), in one of two contact models (``contact``), friction ``μ = 0.9`` (static), ``0.8``
   (dynamic) against the rigid ground:
@@ -60,6 +69,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import (
     AddMultibodyPlantSceneGraph,
     CoulombFriction,
+    DiscreteContactApproximation,
     MultibodyPlant,
 )
 from pydrake.multibody.tree import ModelInstanceIndex
@@ -83,6 +93,8 @@ GROUND_COLOR = np.array([0.62, 0.64, 0.60, 1.0])
 MAX_TIME_STEP = 0.01
 #: The soles' contact models of :func:`add_physical_talos` (``contact``).
 CONTACT_MODELS = ("hydroelastic", "point")
+#: The contact solvers of :func:`add_physical_talos` (``contact_solver``), Drake's approximations.
+CONTACT_SOLVERS = {"sap": DiscreteContactApproximation.kLagged, "tamsi": DiscreteContactApproximation.kTamsi}
 #: Point-contact soles: the corner spheres' radius (m), stiffness (N/m each), dissipation (s/m).
 CORNER_RADIUS = 0.002
 CORNER_STIFFNESS = 1e6
@@ -132,6 +144,7 @@ def add_physical_talos(
     obstacles: Sequence[tuple[str, Shape, RigidTransform]] = (),
     contact: str = "hydroelastic",
     sampled_outputs: bool = True,
+    contact_solver: str = "sap",
 ) -> PhysicalTalos:
     """Add the simulated TALOS (plant + SceneGraph, visual meshes, soles, link boxes unless
     ``body_collision=False``, ground, PD actuators; ``pd_gains=False`` leaves the actuators without PD
@@ -139,13 +152,17 @@ def add_physical_talos(
     docstring). ``contact``: the soles' contact model, ``"hydroelastic"`` (default) or ``"point"`` (see
     the module docstring; the station of :func:`~.station.add_talos_station` takes ``"point"``).
     ``sampled_outputs``: see the module docstring (False for a controller that reads the plant's state
-    inside its own discrete updates)."""
+    inside its own discrete updates). ``contact_solver``: ``"sap"`` or ``"tamsi"`` (see the module
+    docstring)."""
     obstacles = _checked_obstacles(obstacles)
     if not (isinstance(time_step, (int, float)) and np.isfinite(time_step) and 0 < time_step <= MAX_TIME_STEP):
         raise InvalidInput(f"the physics needs a discrete plant: time_step in (0, {MAX_TIME_STEP:g}] s, got {time_step!r}")
     if contact not in CONTACT_MODELS:
         raise InvalidInput(f"contact is one of {CONTACT_MODELS}, got {contact!r}")
+    if not (isinstance(contact_solver, str) and contact_solver in CONTACT_SOLVERS):
+        raise InvalidInput(f"contact_solver is one of {sorted(CONTACT_SOLVERS)}, got {contact_solver!r:.100}")
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step)
+    plant.set_discrete_contact_approximation(CONTACT_SOLVERS[contact_solver])
     plant.SetUseSampledOutputPorts(bool(sampled_outputs))
     plant.set_name("talos_plant")
     instance = add_talos(plant, variant, meshes=True, collision=False)

@@ -43,6 +43,8 @@ from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 from pydrake.trajectories import PiecewisePolynomial
 
 from sotdrake import (
+    CONTACT_MODELS,
+    CONTACT_SOLVERS,
     TALOS_GRIPPERS,
     Tracer,
     add_task_weight,
@@ -93,6 +95,7 @@ class DynamicsRun:
     monitor: ContactMonitor | None
     com_reference: np.ndarray  # the CoM reference's constant part (the initial CoM)
     visualizer: Any = None
+    contact: tuple[str, str] | None = None  # the physics device's soles and contact solver
 
 
 def sway_reference(t: float) -> tuple[float, float, float]:
@@ -127,8 +130,10 @@ def _com_trajectory(scenario: str, com0: np.ndarray, left_sole_xy: np.ndarray, d
 
 def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Meshcat | None = None, dt: float = 1e-3,
                   solver: str = ACTIVE_SET, effort_scale: float = 1.0, momentum_damping: float | None = None,
-                  pushes: tuple | None = None, momentum_weight: float | None = None) -> DynamicsRun:
-    """``effort_scale``: the solver's torque bounds as a fraction of TALOS' effort limits;
+                  pushes: tuple | None = None, momentum_weight: float | None = None, contact: str = "hydroelastic",
+                  contact_solver: str = "sap") -> DynamicsRun:
+    """``contact`` and ``contact_solver``: the physics device's soles and contact solver (:class:`RobotDyn`);
+    ``effort_scale``: the solver's torque bounds as a fraction of TALOS' effort limits;
     ``momentum_damping``: ``K_v`` (1/s) of an angular-momentum damping task under the CoM task
     (``MetaTaskDynMomentum``), None for none, or, with ``momentum_weight``, in one weighted level with
     the posture (``add_task_weight``: posture 1, momentum ``momentum_weight``); ``pushes``: ``(start
@@ -138,7 +143,8 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
         raise ValueError(f"unknown scenario {scenario!r}; available: {SCENARIOS}")
     builder = DiagramBuilder()
     model = load_talos("reduced")
-    robot = RobotDyn(builder, model, device, dt, solver=solver, effort_scale=effort_scale)
+    robot = RobotDyn(builder, model, device, dt, solver=solver, effort_scale=effort_scale, contact=contact,
+                     contact_solver=contact_solver)
     sot, connect = robot.sot, builder.Connect
     # As in the tutorial, the grippers (on their upper limit at the start) are left out: q̈ = 0.
     sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
@@ -188,22 +194,29 @@ def build_diagram(scenario: str = "stand", device: str = "physics", meshcat: Mes
 
     monitor = _add_monitor_and_pushes(robot, scenario, pushes) if device == "physics" else None
 
-    tracer = Tracer(builder, dt)
-    tracer.add(robot.state_port, "x")
-    tracer.add(robot.dynamic.GetOutputPort("com"), "com")
-    tracer.add(sot.GetOutputPort("torque"), "torque")
-    tracer.add(sot.GetOutputPort("wrenches"), "wrenches")
-    if com is not None:
-        tracer.add(com.featureDes.GetOutputPort("errorIN"), "com_reference")
-    if foot is not None:
-        tracer.add(value, "foot_reference")
-    if monitor is not None:
-        tracer.add(monitor.GetOutputPort("feet"), "feet")
-
+    tracer = _add_tracer(robot, dt, com, value if foot is not None else None, monitor)
     visualizer = _add_visualizer(robot, model, meshcat) if meshcat is not None else None
     diagram = builder.Build()
     diagram.set_name("talos_dynamics")
-    return DynamicsRun(diagram, robot, tracer, scenario, device, com, foot, monitor, com0, visualizer)
+    return DynamicsRun(diagram, robot, tracer, scenario, device, com, foot, monitor, com0, visualizer,
+                       (contact, contact_solver) if device == "physics" else None)
+
+
+def _add_tracer(robot: RobotDyn, dt: float, com: MetaTaskDynCom | None, foot_reference, monitor: ContactMonitor | None
+                ) -> Tracer:
+    """The trace: the state, the CoM, the torques and wrenches, the references and the feet's forces."""
+    tracer = Tracer(robot.builder, dt)
+    tracer.add(robot.state_port, "x")
+    tracer.add(robot.dynamic.GetOutputPort("com"), "com")
+    tracer.add(robot.sot.GetOutputPort("torque"), "torque")
+    tracer.add(robot.sot.GetOutputPort("wrenches"), "wrenches")
+    if com is not None:
+        tracer.add(com.featureDes.GetOutputPort("errorIN"), "com_reference")
+    if foot_reference is not None:
+        tracer.add(foot_reference, "foot_reference")
+    if monitor is not None:
+        tracer.add(monitor.GetOutputPort("feet"), "feet")
+    return tracer
 
 
 def _add_monitor_and_pushes(robot: RobotDyn, scenario: str, pushes) -> ContactMonitor:
@@ -294,6 +307,8 @@ def summarize(run: DynamicsRun, simulator: Simulator, times: np.ndarray, duratio
         slips = np.maximum(slips, np.where(t < until, slip, 0.0))
     fall = floating_base_fall(t, x, slips)
     summary: dict = {"scenario": run.scenario, "device": run.device, "duration_s": duration, "ticks": len(times), **fall}
+    if run.contact is not None:
+        summary["contact"], summary["contact_solver"] = run.contact
     summary["com_drift_m"] = float(point_drift(com).max())
     if "com_reference" in trace:
         error = np.linalg.norm(com - trace["com_reference"], axis=1)
@@ -420,11 +435,17 @@ def main(argv: list[str] | None = None) -> dict:
                         help="the solver's torque bounds as a fraction in (0, 1] of TALOS' effort limits (a derated robot)")
     parser.add_argument("--momentum-damping", type=float, default=None, metavar="KV",
                         help="damp the angular momentum under the CoM task at this rate (1/s; MetaTaskDynMomentum)")
+    parser.add_argument("--contact", choices=CONTACT_MODELS, default="hydroelastic",
+                        help="physics: the soles' contact model")
+    parser.add_argument("--contact-solver", choices=sorted(CONTACT_SOLVERS), default="sap",
+                        help="physics: the plant's contact solver (tamsi: faster; sap: converges through any fall)")
     args = parser.parse_args(argv)
+    if args.device != "physics" and (args.contact, args.contact_solver) != ("hydroelastic", "sap"):
+        parser.error("--contact and --contact-solver are the physics device's (--device physics)")
     meshcat = start(args)
     logging.getLogger("drake").setLevel(logging.WARNING)
     run = build_diagram(args.scenario, args.device, meshcat, solver=args.solver, effort_scale=args.effort_scale,
-                        momentum_damping=args.momentum_damping)
+                        momentum_damping=args.momentum_damping, contact=args.contact, contact_solver=args.contact_solver)
     simulator, times = simulate_ticks(run, args.duration, not args.quiet)
     summary, trace = summarize(run, simulator, times, args.duration)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -106,21 +106,24 @@ def stand_dynamics(contact: str, duration: float, contact_solver: str = "sap") -
     times = np.full(round(duration / run.robot.dt), cpu / round(duration / run.robot.dt))
     summary, _ = talos_dynamics.summarize(run, simulator, times, duration)
     keys = ("com_drift_m", "max_foot_slip_m", "max_torque_ratio", "max_friction_ratio", "fell")
-    plant = torque_replay(run, run.tracer.data(simulator.get_context()), contact, contact_solver, duration)
+    plant, _ = torque_replay(run, run.tracer.data(simulator.get_context()), contact, contact_solver, duration)
     return cpu / duration, {k: summary[k] for k in keys}, run.robot.dt, plant
 
 
-def torque_replay(run, trace: dict, contact: str, contact_solver: str, duration: float) -> float:
+def torque_replay(run, trace: dict, contact: str, contact_solver: str, duration: float) -> tuple[float, np.ndarray]:
     """CPU seconds per simulated second of the torque-driven plant alone, fed the torques the
     controller sent it in ``run`` (held over each tick, from the same initial state): the plant's
-    part of that run."""
+    part of that run; and the replay's final state (the run's, bit for bit)."""
     builder = DiagramBuilder()
     physical = add_torque_driven_talos(builder, run.robot.model.variant, run.robot.dt, contact, contact_solver)
     physical.plant.SetDefaultPositions(run.robot.q0)
     torques = PiecewisePolynomial.ZeroOrderHold(trace["time"], trace["torque"].T)
     source = builder.AddSystem(TrajectorySource(torques))
     builder.Connect(source.get_output_port(), physical.plant.get_actuation_input_port(physical.instance))
-    return _advance(Simulator(builder.Build()), duration) / duration
+    simulator = Simulator(builder.Build())
+    cpu = _advance(simulator, duration) / duration
+    plant_context = physical.plant.GetMyContextFromRoot(simulator.get_context())
+    return cpu, physical.plant.GetPositionsAndVelocities(plant_context)
 
 
 RUNS = {"reach": reach, "reach_plant_1ms": functools.partial(reach, plant_step=1e-3), "stand_dynamics": stand_dynamics,

@@ -146,6 +146,20 @@ def test_twin_keeps_the_graph_and_recomputes_every_connected_output_at_every_tic
     assert np.array_equal(after, state0)
 
 
+@pytest.mark.parametrize("contact_solver", ["sap", "tamsi"])
+def test_the_physics_bench_replays_the_torques_to_the_runs_state(contact_solver):
+    """The torque-driven plant alone, fed the torques a run's controller sent it, reaches that run's
+    state bit for bit: the bench's plant-alone time is the run's plant."""
+    import physics
+
+    run = physics.talos_dynamics.build_diagram("stand", "physics", contact_solver=contact_solver)
+    simulator = physics.Simulator(run.diagram)
+    simulator.AdvanceTo(0.05)
+    _, x = physics.torque_replay(run, run.tracer.data(simulator.get_context()), "hydroelastic", contact_solver, 0.05)
+    plant = run.robot.physical.plant
+    np.testing.assert_array_equal(x, plant.GetPositionsAndVelocities(plant.GetMyContextFromRoot(simulator.get_context())))
+
+
 def test_the_physics_bench_runs_each_model_and_keeps_the_outcome(tmp_path):
     """``bench/physics.py`` end to end on a short run: every run of every contact model gives a CPU
     time, a real-time factor that is its inverse, a plant's share, its plant step and its outcome

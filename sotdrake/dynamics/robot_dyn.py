@@ -25,7 +25,7 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from ..configuration import Layout
 from ..exceptions import InvalidInput, check_finite
 from ..hqp import ACTIVE_SET
-from ..physics import CONTACT_MODELS, CONTACT_SOLVERS
+from ..physics.plant import check_contact_options
 from ..robots import RobotModel
 from .checks import MAX_DT, check_positive
 from .contact import Contact6d
@@ -49,9 +49,7 @@ class RobotDyn:
                  contact: str = "hydroelastic", contact_solver: str = "sap"):
         if device not in DEVICES:
             raise InvalidInput(f"unknown device {device!r}; available: {list(DEVICES)}")
-        if contact not in CONTACT_MODELS or contact_solver not in tuple(CONTACT_SOLVERS):
-            raise InvalidInput(f"contact is one of {CONTACT_MODELS} and contact_solver one of {sorted(CONTACT_SOLVERS)}, "
-                               f"got {contact!r:.50} and {contact_solver!r:.50}")
+        check_contact_options(contact, contact_solver)  # (before anything is added to the builder)
         if device == "dynsimu" and (contact, contact_solver) != ("hydroelastic", "sap"):
             raise InvalidInput("contact and contact_solver choose the physics plant's contact: device='physics'")
         if device == "physics" and model.name != "talos":

@@ -248,14 +248,12 @@ def _split_rows(A, lower, upper, sizes):
     m, n = A.shape
     equality = np.empty(m, np.bool_)
     for i in range(m):
-        if not (lower[i] <= upper[i]):  # (False on NaN too)
-            return (False, A[:0], lower[:0], sizes[:0], A[:0], lower[:0], upper[:0], np.zeros(0, np.bool_))
         equality[i] = lower[i] == upper[i]
-        if equality[i] and not math.isfinite(lower[i]):
-            return (False, A[:0], lower[:0], sizes[:0], A[:0], lower[:0], upper[:0], np.zeros(0, np.bool_))
+        ok = lower[i] <= upper[i] and (not equality[i] or math.isfinite(lower[i]))  # (False on NaN too)
         for j in range(n):
-            if not math.isfinite(A[i, j]):
-                return (False, A[:0], lower[:0], sizes[:0], A[:0], lower[:0], upper[:0], np.zeros(0, np.bool_))
+            ok = ok and math.isfinite(A[i, j])
+        if not ok:
+            return (False, A[:0], lower[:0], sizes[:0], A[:0], lower[:0], upper[:0], np.zeros(0, np.bool_))
     rows = np.flatnonzero(equality)
     others = np.flatnonzero(~equality)
     eq_sizes = np.zeros(sizes.size, np.int64)

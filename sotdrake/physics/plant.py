@@ -157,10 +157,7 @@ def add_physical_talos(
     obstacles = _checked_obstacles(obstacles)
     if not (isinstance(time_step, (int, float)) and np.isfinite(time_step) and 0 < time_step <= MAX_TIME_STEP):
         raise InvalidInput(f"the physics needs a discrete plant: time_step in (0, {MAX_TIME_STEP:g}] s, got {time_step!r}")
-    if contact not in CONTACT_MODELS:
-        raise InvalidInput(f"contact is one of {CONTACT_MODELS}, got {contact!r}")
-    if not (isinstance(contact_solver, str) and contact_solver in CONTACT_SOLVERS):
-        raise InvalidInput(f"contact_solver is one of {sorted(CONTACT_SOLVERS)}, got {contact_solver!r:.100}")
+    check_contact_options(contact, contact_solver)
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step)
     plant.set_discrete_contact_approximation(CONTACT_SOLVERS[contact_solver])
     plant.SetUseSampledOutputPorts(bool(sampled_outputs))
@@ -210,6 +207,15 @@ def add_physical_talos(
         np.array([a.joint().velocity_start() for a in actuators]),
         soles, tuple(boxed),
     )
+
+
+def check_contact_options(contact: object, contact_solver: object) -> None:
+    """Refuse (:class:`InvalidInput`, naming the argument) a ``contact`` not in ``CONTACT_MODELS`` or a
+    ``contact_solver`` not in ``CONTACT_SOLVERS``."""
+    if contact not in CONTACT_MODELS:
+        raise InvalidInput(f"contact is one of {CONTACT_MODELS}, got {contact!r}")
+    if not (isinstance(contact_solver, str) and contact_solver in CONTACT_SOLVERS):
+        raise InvalidInput(f"contact_solver is one of {sorted(CONTACT_SOLVERS)}, got {contact_solver!r:.100}")
 
 
 #: The obstacles' colour in the physics drawing (RGBA).

@@ -213,8 +213,9 @@ def test_qr_prefix_on_nan_and_empty_levels():
 
 @pytest.mark.parametrize("seed", range(120))
 def test_the_factorization_solves_other_references(seed):
-    """A kept factorisation solved for new references gives the cascade's v for them: the QR path,
-    the SVD levels after it, rank-deficient and conflicting levels, damping and control selection."""
+    """A factorisation given other references (``extra``) gives the cascade's v for them, and its own
+    v unchanged: the QR path, the SVD levels after it, rank-deficient and conflicting levels,
+    damping and control selection."""
     rng = np.random.default_rng(seed)
     nv = int(rng.integers(4, 40))
     levels = full_rank_stack(rng, nv // 2) if rng.random() < 0.7 else []
@@ -225,9 +226,9 @@ def test_the_factorization_solves_other_references(seed):
         levels = random_stack(rng, nv)
     selection = rng.random(nv) < 0.9 if rng.random() < 0.3 else None
     damping = 1e-3 if rng.random() < 0.2 else 0.0
-    kept = cascade_factorization(levels, nv, 1e-4, damping, selection)
-    np.testing.assert_array_equal(kept.velocity, solve_cascade(levels, nv, 1e-4, damping, selection).velocity)
     others = [rng.normal(size=J.shape[0]) for J, _ in levels]
+    kept = cascade_factorization(levels, nv, 1e-4, damping, selection, extra=others)
+    own = solve_cascade(levels, nv, 1e-4, damping, selection).velocity
     expected = solve_cascade([(J, r) for (J, _), r in zip(levels, others, strict=True)], nv, 1e-4, damping, selection)
-    np.testing.assert_allclose(kept.solve(others), expected.velocity, rtol=0, atol=1e-9 * max(1.0, np.abs(expected.velocity).max()))
-    assert kept.solve([r for _, r in levels]) == pytest.approx(kept.velocity, abs=1e-9 * max(1.0, np.abs(kept.velocity).max()))
+    np.testing.assert_allclose(kept.extra_velocity, expected.velocity, rtol=0, atol=1e-9 * max(1.0, np.abs(expected.velocity).max()))
+    np.testing.assert_allclose(kept.velocity, own, rtol=0, atol=1e-9 * max(1.0, np.abs(own).max()))

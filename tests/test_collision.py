@@ -143,6 +143,55 @@ def test_the_bias_acceleration_of_the_witness_points_matches_finite_differences(
     assert checked >= 20
 
 
+def test_the_schedules_rows_are_those_of_drakes_results_looked_up_one_by_one(world, talos_model, rng):
+    """The collision task's rows (:meth:`PairTable.distances`, over the schedule's pairs) equal the
+    rows :func:`distances_of` builds from the same results, looking each geometry up, at random
+    configurations and velocities with the table: names, distances, normals, witness points,
+    Jacobians and biases; and Drake answers every scheduled pair in the schedule's order."""
+    from sotdrake.collision.distance import distances_of
+    from sotdrake.collision.schedule import PairSchedule, ScheduleState
+
+    schedule = PairSchedule(world)
+    context = world.new_context()
+    plant_context = world.plant_context(context)
+    query_pairs = 0
+    for _ in range(5):
+        q = _random_configuration(talos_model, rng)
+        q[6] -= 0.25  # the hands near the table top
+        world.plant.SetPositions(plant_context, q)
+        world.plant.SetVelocities(plant_context, rng.standard_normal(talos_model.nv))
+        step = schedule.step(ScheduleState(), context, q, 0.3)
+        assert [schedule.pairs[p][0] for p in step.state.in_range_pairs] == [r.id_A for r in step.in_range]
+        mine = schedule.table.distances(world, context, step.in_range, step.state.in_range_pairs, bias=True)
+        reference = distances_of(world, context, step.in_range, bias=True)
+        assert mine.names == reference.names and any("table" in pair for pair in mine.names)
+        for field in ("distance", "normal", "p_WCa", "p_WCb", "jacobian", "bias"):
+            np.testing.assert_allclose(getattr(mine, field), getattr(reference, field), rtol=0, atol=1e-12, err_msg=field)
+        query_pairs += len(mine.names)
+    assert query_pairs >= 50
+
+
+def test_each_body_gets_a_leaf_below_it_and_no_leaf_is_above_another(talos_model, rng):
+    """:func:`kernels.cover` on random sets of TALOS' bodies (sides of random pairs, obstacles among
+    them): each side's slot names its body, each body's leaf has it on its way to the world, and no
+    leaf is on another's way (the fewest Jacobians)."""
+    from sotdrake.collision.distance import _kernels, _tree
+
+    tree = _tree(CollisionWorld(talos_model))
+    nb = len(tree.bodies)
+    for _ in range(200):
+        k = int(rng.integers(1, 30))
+        bodies = rng.integers(-1, nb, size=(2, k))
+        needed, slots = np.empty(2 * k, dtype=np.int64), np.empty((2, k), dtype=np.int64)
+        leaves, leaf_of = np.empty(2 * k, dtype=np.int64), np.empty(2 * k, dtype=np.int64)
+        m, count = _kernels().cover(bodies, tree.depth, tree.ancestors, needed, slots, leaves, leaf_of)
+        assert needed[:m].tolist() == sorted(set(bodies[bodies >= 0].tolist()))
+        assert (np.where(slots >= 0, needed[slots], -1) == bodies).all()
+        top = needed[leaves[:count]]
+        assert all(tree.ancestors[top[leaf_of[j]], needed[j]] for j in range(m))
+        assert not any(tree.ancestors[a, b] for a in top for b in top if a != b)
+
+
 def test_obstacle_side_is_b_and_witness_points_are_apart_by_the_distance(world, talos_model):
     context = world.new_context()
     q = talos_model.half_sitting.copy()

@@ -770,4 +770,4 @@ def test_a_task_waiting_to_be_pushed_computes_nothing():
 def test_the_script_refuses_a_contact_option_off_the_physics_device(dynamics_script, capsys):
     with pytest.raises(SystemExit) as stop:
         dynamics_script.main(["--device", "dynsimu", "--contact-solver", "tamsi", "--no-meshcat", "--quiet"])
-    assert stop.value.code == 2 and "--device physics" in capsys.readouterr().err
+    assert stop.value.code == 2 and "device='physics'" in capsys.readouterr().err

@@ -23,7 +23,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydrake.multibody.tree import JacobianWrtVariable
+from pydrake.multibody.tree import BodyIndex, JacobianWrtVariable, JointIndex
 from pydrake.systems.framework import Context
 
 from ..compiled import kernels
@@ -77,21 +77,14 @@ def pair_distances(world: CollisionWorld, context: Context, max_distance: float,
 
 def distances_of(world: CollisionWorld, context: Context, results: Sequence, bias: bool = False) -> PairDistances:
     """:class:`PairDistances` of Drake's ``SignedDistancePair`` ``results`` (as
-    :func:`pair_distances`, which gathers them with one query; :mod:`.schedule` gathers them pair
-    by pair). Each body's pose and Jacobian are taken once (and with ``bias`` every body's bias
-    acceleration in one call), then the rows are assembled by one compiled call
-    (:func:`.kernels.assemble`)."""
-    plant = world.plant
-    plant_context = world.plant_context(context)
-    k, nv = len(results), plant.num_velocities()
-    if k == 0:
-        return PairDistances(names=[], distance=np.empty(0), normal=np.empty((0, 3)), p_WCa=np.empty((0, 3)),
-                             p_WCb=np.empty((0, 3)), jacobian=np.zeros((0, nv)), bias=np.zeros(0))
-    geometries = _geometries(world)
+    :func:`pair_distances`, which gathers them with one query; the collision task's schedule,
+    which knows its pairs, calls :meth:`PairTable.distances`). A pair whose side A is an obstacle
+    is swapped, so that A is always on the robot."""
+    k = len(results)
     sides: tuple[list[_Geometry], list[_Geometry]] = ([], [])
     distance, normal, p_GC = np.empty(k), np.empty((k, 3)), np.empty((2, k, 3))
     for i, r in enumerate(results):
-        a, b = geometries.get(r.id_A) or _geometry(world, r.id_A), geometries.get(r.id_B) or _geometry(world, r.id_B)
+        a, b = _geometry(world, r.id_A), _geometry(world, r.id_B)
         distance[i] = r.distance
         if a.obstacle:  # keep the robot on side A
             a, b = b, a
@@ -100,30 +93,99 @@ def distances_of(world: CollisionWorld, context: Context, results: Sequence, bia
             normal[i], p_GC[0, i], p_GC[1, i] = r.nhat_BA_W, r.p_ACa, r.p_BCb
         sides[0].append(a)
         sides[1].append(b)
-    slot: dict[int, _Geometry] = {}  # body index -> a geometry of it; its row in the per-body arrays below
-    for side in sides:
-        for g in side:
-            if not g.obstacle:
-                slot.setdefault(g.body_index, g)
-    rows = {index: j for j, index in enumerate(slot)}
-    m = max(len(slot), 1)
-    X_WB, J = np.empty((m, 4, 4)), np.empty((m, 6, nv))  # body origins' poses and spatial Jacobians (ω; v), world
+    bodies = np.array([[-1 if g.obstacle else g.body_index for g in side] for side in sides], dtype=np.int64).reshape(2, k)
+    X_BG = np.array([[g.X_BG for g in side] for side in sides]).reshape(2, k, 4, 4)
+    names = [(a.name, b.name) for a, b in zip(*sides, strict=True)]
+    return _rows(world, context, names, distance, normal, p_GC, bodies, X_BG, bias)
+
+
+@dataclass(frozen=True)
+class PairTable:
+    """What :func:`distances_of` looks up for each result, looked up once for a fixed list of
+    geometry pairs (the collision task's candidates, :class:`~.schedule.PairSchedule`): per pair,
+    its ``names`` (robot side first), each side's body index (``bodies``, n×2; -1 for an obstacle),
+    each side's geometry pose in its body (``X_BG``, n×2×4×4) and whether the pair's first geometry
+    is the obstacle (``swapped``: its sides are exchanged in the rows)."""
+
+    names: list[tuple[str, str]]
+    bodies: np.ndarray
+    X_BG: np.ndarray
+    swapped: np.ndarray
+
+    @classmethod
+    def of(cls, world: CollisionWorld, geometry_pairs: Sequence) -> PairTable:
+        infos = [[_geometry(world, g) for g in pair] for pair in geometry_pairs]
+        swapped = np.array([a.obstacle for a, _ in infos], dtype=bool)
+        infos = [pair[::-1] if a.obstacle else pair for pair, (a, _) in zip(infos, infos, strict=True)]
+        bodies = np.array([[-1 if g.obstacle else g.body_index for g in pair] for pair in infos], dtype=np.int64)
+        X_BG = np.array([[g.X_BG for g in pair] for pair in infos])
+        return cls([(a.name, b.name) for a, b in infos], bodies.reshape(-1, 2), X_BG.reshape(-1, 2, 4, 4), swapped)
+
+    def distances(self, world: CollisionWorld, context: Context, results: Sequence, pairs: np.ndarray,
+                  bias: bool = False) -> PairDistances:
+        """:class:`PairDistances` of ``results``, Drake's answers for the pairs of index ``pairs``
+        (int array) in this table, each for its pair in the table's order (``id_A`` the pair's first
+        geometry: Drake answers a pair in increasing id order, the order the schedule keeps)."""
+        k = len(results)
+        if k == 0:
+            return _rows(world, context, [], np.empty(0), np.empty((0, 3)), np.empty((2, 0, 3)), np.empty((2, 0), dtype=np.int64),
+                         np.empty((2, 0, 4, 4)), bias)
+        distance, normal, p_GC = np.empty(k), np.empty((k, 3)), np.empty((2, k, 3))
+        for i, r in enumerate(results):
+            distance[i], normal[i], p_GC[0, i], p_GC[1, i] = r.distance, r.nhat_BA_W, r.p_ACa, r.p_BCb
+        swapped = self.swapped[pairs]
+        if swapped.any():  # keep the robot on side A
+            normal[swapped] *= -1.0
+            p_GC[:, swapped] = p_GC[::-1, swapped]
+        return _rows(world, context, [self.names[p] for p in pairs.tolist()], distance, normal, p_GC,
+                     np.ascontiguousarray(self.bodies[pairs].T), np.ascontiguousarray(self.X_BG[pairs].transpose(1, 0, 2, 3)),
+                     bias)
+
+
+def _rows(world: CollisionWorld, context: Context, names: list, distance: np.ndarray, normal: np.ndarray,
+          p_GC: np.ndarray, bodies: np.ndarray, X_BG: np.ndarray, bias: bool) -> PairDistances:
+    """The rows of ``k`` pairs (robot on side A) from Drake's numbers (``distance``, ``normal``,
+    the witness points ``p_GC``, 2×k×3, in their geometries' frames), each side's body index
+    (``bodies``, 2×k, -1 for an obstacle) and geometry pose in its body (``X_BG``, 2×k×4×4).
+
+    Each moving body's pose is taken once. The Jacobians are taken once per *leaf* of the bodies
+    involved (a body that is no other one's ancestor among them, :func:`.kernels.cover`), of the
+    point fixed in the leaf that is at the world's origin: a joint's column there is the same for
+    every body downstream of it, so an ancestor's Jacobian is the leaf's with the columns of the
+    joints below it zeroed (the bodies' ``columns``). The rows are assembled by one compiled call
+    (:func:`.kernels.assemble`); with ``bias``, every body's bias acceleration is taken in one call."""
+    plant = world.plant
+    plant_context = world.plant_context(context)
+    k, nv = len(distance), plant.num_velocities()
+    out = PairDistances(names=names, distance=distance, normal=normal, p_WCa=np.empty((k, 3)), p_WCb=np.empty((k, 3)),
+                        jacobian=np.empty((k, nv)), bias=np.zeros(k))
+    if k == 0:
+        return out
+    tree = _tree(world)
+    needed, slots = np.empty(2 * k, dtype=np.int64), np.empty((2, k), dtype=np.int64)
+    leaves, leaf_of = np.empty(2 * k, dtype=np.int64), np.empty(2 * k, dtype=np.int64)
+    m, count = _kernels().cover(bodies, tree.depth, tree.ancestors, needed, slots, leaves, leaf_of)
+    needed = needed[:m]
+    X_WB, J = np.empty((m, 4, 4)), np.empty((count, 6, nv))  # poses; leaves' spatial Jacobians (ω; v) at W's origin
     A_bias, omega = np.zeros((m, 6)), np.zeros((m, 3))  # bias spatial accelerations (α; a) and angular velocities
+    for j, b in enumerate(needed.tolist()):
+        X_WB[j] = plant.EvalBodyPoseInWorld(plant_context, tree.bodies[b]).GetAsMatrix4()
     world_frame = plant.world_frame()
-    accelerations = plant.CalcSpatialAccelerationsFromVdot(plant_context, np.zeros(nv)) if bias else None
-    for j, g in enumerate(slot.values()):
-        X_WB[j] = plant.EvalBodyPoseInWorld(plant_context, g.body).GetAsMatrix4()
-        J[j] = plant.CalcJacobianSpatialVelocity(plant_context, JacobianWrtVariable.kV, g.frame, _ORIGIN, world_frame, world_frame)
-        if accelerations is not None:  # (v̇ = 0: each body's bias spatial acceleration, by body index)
-            A = accelerations[g.body_index]
+    leaves = leaves[:count]
+    X_WL = X_WB[leaves]
+    p_LO = -np.matmul(X_WL[:, None, :3, 3], X_WL[:, :3, :3])[:, 0]  # W's origin in each leaf's frame: −R_WLᵀ p_WLo
+    for leaf, j in enumerate(leaves.tolist()):
+        J[leaf] = plant.CalcJacobianSpatialVelocity(plant_context, JacobianWrtVariable.kV, tree.frames[needed[j]],
+                                                    p_LO[leaf], world_frame, world_frame)
+    if bias:  # (v̇ = 0: each body's bias spatial acceleration, by body index)
+        accelerations = plant.CalcSpatialAccelerationsFromVdot(plant_context, np.zeros(nv))
+        for j, b in enumerate(needed.tolist()):
+            A = accelerations[b]
             A_bias[j, :3], A_bias[j, 3:] = A.rotational(), A.translational()
-            omega[j] = plant.EvalBodySpatialVelocityInWorld(plant_context, g.body).rotational()
-    slots = np.array([[-1 if g.obstacle else rows[g.body_index] for g in side] for side in sides], dtype=np.int64)
-    X_BG = np.array([[g.X_BG for g in side] for side in sides])
-    out = PairDistances(names=[(a.name, b.name) for a, b in zip(*sides, strict=True)], distance=distance, normal=normal,
-                        p_WCa=np.empty((k, 3)), p_WCb=np.empty((k, 3)), jacobian=np.empty((k, nv)), bias=np.zeros(k))
+            omega[j] = plant.EvalBodySpatialVelocityInWorld(plant_context, tree.bodies[b]).rotational()
     points = np.empty((2, k, 3))
-    _kernels().assemble(X_WB, J, A_bias, omega, slots, X_BG, p_GC, normal, bias, out.jacobian, out.bias, points)
+    _kernels().assemble(X_WB, J, leaf_of, tree.columns[needed], A_bias, omega, slots, X_BG, p_GC, normal, bias,
+                        out.jacobian, out.bias, points)
     out.p_WCa[:], out.p_WCb[:] = points[0], points[1]
     return out
 
@@ -131,24 +193,34 @@ def distances_of(world: CollisionWorld, context: Context, results: Sequence, bia
 _kernels = kernels(".kernels", __package__, "assemble", "the collision rows' assembly", "a few seconds")
 
 
-_ORIGIN = np.zeros(3)
-
-
 @dataclass(frozen=True)
 class _Geometry:
     """What :func:`distances_of` needs of a geometry: its body's (or obstacle's) ``name``, the
-    ``body`` (the world body for an obstacle), its index and frame, and ``X_BG`` (4×4)."""
+    body's index (the world body's for an obstacle), ``X_BG`` (4×4) and whether it is an obstacle."""
 
     name: str
-    body: object
     body_index: int
-    frame: object
     X_BG: np.ndarray
     obstacle: bool
 
 
-#: Per collision world, its geometries as :class:`_Geometry` (filled on first use).
+@dataclass(frozen=True)
+class _Tree:
+    """The robot's bodies as :func:`_rows` takes them, by body index: the bodies and their frames,
+    ``depth`` (the number of joints from the world), ``ancestors[L, b]`` (body ``b`` is ``L`` or on
+    its way to the world) and ``columns[b, c]`` (velocity ``c`` belongs to a joint on ``b``'s way
+    to the world)."""
+
+    bodies: list
+    frames: list
+    depth: np.ndarray
+    ancestors: np.ndarray
+    columns: np.ndarray
+
+
+#: Per collision world, its geometries as :class:`_Geometry` (filled on first use) and its :class:`_Tree`.
 _GEOMETRIES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_TREES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _geometries(world: CollisionWorld) -> dict:
@@ -159,11 +231,37 @@ def _geometries(world: CollisionWorld) -> dict:
 
 
 def _geometry(world: CollisionWorld, geometry: object) -> _Geometry:
-    name, body, X_BG = world.geometry_info(geometry)
-    info = _Geometry(name, body, int(body.index()), body.body_frame(), X_BG.GetAsMatrix4(),
-                     geometry in world.obstacle_ids)
-    _geometries(world)[geometry] = info
+    info = _geometries(world).get(geometry)
+    if info is None:
+        name, body, X_BG = world.geometry_info(geometry)
+        info = _geometries(world)[geometry] = _Geometry(name, int(body.index()), X_BG.GetAsMatrix4(),
+                                                        geometry in world.obstacle_ids)
     return info
+
+
+def _tree(world: CollisionWorld) -> _Tree:
+    tree = _TREES.get(world)
+    if tree is None:
+        plant = world.plant
+        nb, nv = plant.num_bodies(), plant.num_velocities()
+        inboard = {}  # body index -> the joint whose child it is
+        for i in range(plant.num_joints()):
+            joint = plant.get_joint(JointIndex(i))
+            inboard[int(joint.child_body().index())] = joint
+        depth, ancestors, columns = np.zeros(nb, dtype=np.int64), np.zeros((nb, nb), dtype=bool), np.zeros((nb, nv), dtype=bool)
+        for b in range(nb):
+            body = b
+            while True:
+                ancestors[b, body] = True
+                joint = inboard.get(body)
+                if joint is None:
+                    break
+                depth[b] += 1
+                columns[b, joint.velocity_start():joint.velocity_start() + joint.num_velocities()] = True
+                body = int(joint.parent_body().index())
+        bodies = [plant.get_body(BodyIndex(b)) for b in range(nb)]
+        tree = _TREES[world] = _Tree(bodies, [body.body_frame() for body in bodies], depth, ancestors, columns)
+    return tree
 
 
 def minimum_distance(world: CollisionWorld, context: Context, q: np.ndarray, max_distance: float = 1.0,

@@ -1,14 +1,17 @@
 """The collision wing's compiled kernels (numba): the pairs' rows from their bodies' kinematics
-(:func:`assemble`) and the support gaps of pairs along given directions (:func:`gaps`).
+(:func:`cover`, :func:`assemble`) and the support gaps of pairs along given directions (:func:`gaps`).
 
-**The rows.** For pair ``i``, with side A's body (slot ``a``: its pose ``X_WB``, spatial Jacobian
-``J = (J_ω; J_v)`` of its origin, bias spatial acceleration ``(α; a_Bo)`` and angular velocity
-``ω``, world frame) and the witness point ``p_GC`` in A's geometry frame G (pose ``X_BG`` in the
-body), ``r = R_WB p_BC`` (``p_BC = X_BG p_GC``) is the point from the body's origin and
-``p_WC = p_WBo + r``. Its velocity is ``v_WBo + ω × r``, so ``n̂ᵀ v_WC = (n̂ᵀ J_v + (r × n̂)ᵀ J_ω) v``,
-and its bias acceleration, fixed in the body, ``a_Bo + α × r + ω × (ω × r)``. ``J_d`` adds A's row
-and subtracts B's (the module docstring of :mod:`.distance`); a side of slot -1 is an obstacle (the
-world body: ``X_BG`` is then the geometry's pose in the world; no velocity).
+**The rows.** For pair ``i``, with side A's body (slot ``a``: its pose ``X_WB``, bias spatial
+acceleration ``(α; a_Bo)`` and angular velocity ``ω``, world frame) and the witness point ``p_GC``
+in A's geometry frame G (pose ``X_BG`` in the body), ``r = R_WB p_BC`` (``p_BC = X_BG p_GC``) is
+the point from the body's origin and ``p_WC = p_WBo + r``. With ``J = (J_ω; J_v)`` the spatial
+Jacobian of the point of the body at the world's origin (world frame), the point's velocity is
+``v_WO + ω × p_WC``, so ``n̂ᵀ v_WC = (n̂ᵀ J_v + (p_WC × n̂)ᵀ J_ω) v``; its bias acceleration, fixed
+in the body, is ``a_Bo + α × r + ω × (ω × r)``. ``J`` is that of the body's leaf (:func:`cover`)
+on the columns of the body's own joints (``columns``): at a point fixed in the world, a joint's
+column is the same for every body downstream of it. ``J_d`` adds A's row and subtracts B's (the
+module docstring of :mod:`.distance`); a side of slot -1 is an obstacle (the world body: ``X_BG``
+is then the geometry's pose in the world; no velocity).
 
 One compiled call per tick instead of a few dozen numpy calls on ``k × 3`` arrays (about 0.3 ms
 for 36 pairs).
@@ -32,15 +35,56 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 
 @njit(cache=True)
-def assemble(X_WB, J, A_bias, omega, slots, X_BG, p_GC, normal, with_bias, jacobian, bias, points):
+def cover(bodies, depth, ancestors, needed, slots, leaves, leaf_of):
+    """The moving bodies of the pairs and their leaves. ``bodies`` (2×k int64: each side's body
+    index, -1 for an obstacle) gives ``needed[:m]`` (the distinct ones, increasing) and ``slots``
+    (2×k: each side's place in ``needed``, -1 for an obstacle). Then, deepest first (``depth`` by
+    body index), a needed body on no chosen leaf's way to the world (``ancestors[L, b]``) becomes a
+    leaf: ``leaves[:count]`` (places in ``needed``) and ``leaf_of[:m]`` (the leaf, a number in
+    ``0 … count − 1``, whose way holds each body). Returns ``(m, count)``."""
+    seen = np.full(ancestors.shape[0], -1)
+    for side in range(2):
+        for i in range(bodies.shape[1]):
+            if bodies[side, i] >= 0:
+                seen[bodies[side, i]] = 0
+    m = 0
+    for body in range(seen.shape[0]):
+        if seen[body] == 0:
+            seen[body] = m
+            needed[m] = body
+            m += 1
+    for side in range(2):
+        for i in range(bodies.shape[1]):
+            slots[side, i] = seen[bodies[side, i]] if bodies[side, i] >= 0 else -1
+    order = np.argsort(-depth[needed[:m]], kind="mergesort")
+    count = 0
+    for o in order:
+        body = needed[o]
+        found = -1
+        for leaf in range(count):
+            if ancestors[needed[leaves[leaf]], body]:
+                found = leaf
+                break
+        if found < 0:
+            leaves[count] = o
+            found = count
+            count += 1
+        leaf_of[o] = found
+    return m, count
+
+
+@njit(cache=True)
+def assemble(X_WB, J, leaf_of, columns, A_bias, omega, slots, X_BG, p_GC, normal, with_bias, jacobian, bias, points):
     """Fill ``jacobian`` (k×nv, zeroed here), ``bias`` (k) and ``points`` (2×k×3: ``p_WCa``, ``p_WCb``)
     for ``slots`` (2×k int64: each side's body slot, -1 for an obstacle), ``X_BG`` (2×k×4×4), ``p_GC``
-    (2×k×3) and ``normal`` (k×3, ``n̂_BA_W``); the per-slot ``X_WB`` (m×4×4), ``J`` (m×6×nv),
-    ``A_bias`` (m×6, ``(α; a)``) and ``omega`` (m×3); ``bias`` only when ``with_bias``."""
+    (2×k×3) and ``normal`` (k×3, ``n̂_BA_W``); the per-slot ``X_WB`` (m×4×4), ``leaf_of`` (m),
+    ``columns`` (m×nv bool), ``A_bias`` (m×6, ``(α; a)``) and ``omega`` (m×3); the per-leaf ``J``
+    (6×nv, the point at the world's origin); ``bias`` only when ``with_bias``."""
     k, nv = normal.shape[0], J.shape[2]
     for i in range(k):
         bias[i] = 0.0
@@ -62,13 +106,15 @@ def assemble(X_WB, J, A_bias, omega, slots, X_BG, p_GC, normal, with_bias, jacob
             rx = X[0, 0] * bx + X[0, 1] * by + X[0, 2] * bz
             ry = X[1, 0] * bx + X[1, 1] * by + X[1, 2] * bz
             rz = X[2, 0] * bx + X[2, 1] * by + X[2, 2] * bz
-            points[side, i, 0], points[side, i, 1], points[side, i, 2] = X[0, 3] + rx, X[1, 3] + ry, X[2, 3] + rz
+            wx, wy, wz = X[0, 3] + rx, X[1, 3] + ry, X[2, 3] + rz  # p_WC
+            points[side, i, 0], points[side, i, 1], points[side, i, 2] = wx, wy, wz
             nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
-            cx, cy, cz = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx  # r × n̂
-            Js = J[s]
+            cx, cy, cz = wy * nz - wz * ny, wz * nx - wx * nz, wx * ny - wy * nx  # p_WC × n̂
+            Js, mask = J[leaf_of[s]], columns[s]
             for c in range(nv):
-                jacobian[i, c] += sign * (nx * Js[3, c] + ny * Js[4, c] + nz * Js[5, c]
-                                          + cx * Js[0, c] + cy * Js[1, c] + cz * Js[2, c])
+                if mask[c]:
+                    jacobian[i, c] += sign * (nx * Js[3, c] + ny * Js[4, c] + nz * Js[5, c]
+                                              + cx * Js[0, c] + cy * Js[1, c] + cz * Js[2, c])
             if with_bias:
                 A, w = A_bias[s], omega[s]
                 ax = A[3] + (A[1] * rz - A[2] * ry)  # a_Bo + α × r

@@ -48,6 +48,7 @@ from pydrake.systems.framework import Context
 
 from ..compiled import compiled_input, kernels
 from ..exceptions import InvalidInput
+from .distance import PairTable
 from .world import CollisionWorld
 
 _kernels = kernels(".kernels", __package__, "gaps", "the collision pairs' support gaps", "a few seconds")
@@ -62,18 +63,20 @@ SUPPORT_KINDS = {"points": 0, "ellipsoid": 1, "cylinder": 2, "capsule": 3}
 class ScheduleState:
     """The schedule's run-time state: ``q`` the configuration the bounds are at (None before the
     first tick), ``lower`` the lower bound of each pair's signed distance there (m), ``in_range``
-    the Drake results of the pairs in range there (for ``max_distance``), ``queried`` how many pairs
-    were queried exactly to get there."""
+    the Drake results of the pairs in range there (for ``max_distance``) and ``in_range_pairs``
+    their indices in the schedule's pairs, ``queried`` how many pairs were queried exactly to get
+    there."""
 
     q: np.ndarray | None = None
     lower: np.ndarray = field(default_factory=lambda: np.zeros(0))
     in_range: list = field(default_factory=list)
     max_distance: float | np.ndarray = -np.inf
     queried: int = 0
+    in_range_pairs: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     def __deepcopy__(self, memo: dict) -> ScheduleState:
         return ScheduleState(None if self.q is None else self.q.copy(), self.lower.copy(), list(self.in_range),
-                             copy.copy(self.max_distance), self.queried)
+                             copy.copy(self.max_distance), self.queried, self.in_range_pairs.copy())
 
 
 @dataclass
@@ -113,14 +116,17 @@ def bounding_sphere(shape: object) -> tuple[np.ndarray, float]:
 class PairSchedule:
     """The fixed part of the schedule for ``world``'s candidate pairs (``geometry_pairs``: None for
     every pair its SceneGraph does not filter out): the coefficients of bound (1) (see the module
-    docstring), one row per pair, over the motion vector of :meth:`motion`."""
+    docstring), one row per pair, over the motion vector of :meth:`motion`. Each pair is kept in
+    increasing id order, the order in which Drake answers it; ``table`` holds what the pairs' rows
+    need of them (:class:`~.distance.PairTable`)."""
 
     def __init__(self, world: CollisionWorld, geometry_pairs: Sequence[tuple[GeometryId, GeometryId]] | None = None):
         inspector = world.scene_graph.model_inspector()
         if geometry_pairs is None:
             candidates = inspector.GetCollisionCandidates()
             geometry_pairs = sorted(candidates, key=lambda pair: (pair[0].get_value(), pair[1].get_value()))
-        self.pairs = list(geometry_pairs)
+        self.pairs = [(a, b) if a.get_value() < b.get_value() else (b, a) for a, b in geometry_pairs]
+        self.table = PairTable.of(world, self.pairs)
         self.world = world
         plant = world.plant
         joints = [plant.get_joint(JointIndex(i)) for i in range(plant.num_joints())]
@@ -307,29 +313,30 @@ class PairSchedule:
         by the caller) and query exactly the pairs whose bound is below ``max_distance`` (m; one
         distance, or one per pair)."""
         n = len(self.pairs)
-        if state.q is not None and np.array_equal(state.max_distance, max_distance) and np.array_equal(state.q, q):
+        if state.q is not None and _same(state.max_distance, max_distance) and _same(state.q, q):
             return ScheduleStep(state, state.in_range, 0)  # (the tick's update has already advanced it)
         if state.q is None or state.lower.shape != (n,):
             lower = np.full(n, -np.inf)
         else:
             lower = state.lower - self.coefficients @ self.motion(state.q, q)
-        limits = np.broadcast_to(max_distance, (n,))
-        due = np.flatnonzero(lower < limits)
+        scalar = np.ndim(max_distance) == 0
+        due = np.flatnonzero(lower < max_distance)
         query = self.world.query(context) if due.size else None  # (the query object updates every pose)
-        in_range, out, normals = [], [], []
+        in_range, pairs_in_range, out, normals = [], [], [], []
         for p in due.tolist():
-            a, b = self.pairs[p]
-            result = query.ComputeSignedDistancePairClosestPoints(a, b)  # type: ignore[union-attr]
-            lower[p] = result.distance
-            if result.distance < limits[p]:
+            result = query.ComputeSignedDistancePairClosestPoints(*self.pairs[p])  # type: ignore[union-attr]
+            lower[p] = distance = result.distance
+            if distance < (max_distance if scalar else max_distance[p]):  # type: ignore[index]
                 in_range.append(result)
-            elif self._gapped[p]:  # (Drake may answer for (b, a): n̂ is taken from b to a)
+                pairs_in_range.append(p)
+            elif self._gapped[p]:  # (answered in the pair's order: n̂ from its second geometry to its first)
                 out.append(p)
-                normals.append(result.nhat_BA_W if result.id_A == a else -result.nhat_BA_W)
+                normals.append(result.nhat_BA_W)
         if out:  # skipped from now on: a bound that does not trust the query's convergence
             pairs = np.array(out, dtype=np.int64)
             lower[pairs] = np.minimum(lower[pairs], self.gaps(context, pairs, np.array(normals)))
-        return ScheduleStep(ScheduleState(q.copy(), lower, in_range, max_distance, len(due)), in_range, len(due))
+        state = ScheduleState(q.copy(), lower, in_range, max_distance, len(due), np.array(pairs_in_range, dtype=np.int64))
+        return ScheduleStep(state, in_range, len(due))
 
 
 class _PackedSupports:
@@ -387,6 +394,13 @@ def support(data: tuple, u: np.ndarray) -> float:
         return float(np.linalg.norm(data[1] * u))
     radial = float(np.hypot(u[0], u[1])) if kind == "cylinder" else float(np.linalg.norm(u))
     return data[1] * radial + data[2] * abs(float(u[2]))
+
+
+def _same(a: float | np.ndarray, b: float | np.ndarray) -> bool:
+    """``a`` and ``b`` equal (two numbers, or two arrays of one shape)."""
+    if np.ndim(a) == 0 and np.ndim(b) == 0:
+        return bool(a == b)
+    return np.shape(a) == np.shape(b) and bool((a == b).all())  # type: ignore[union-attr]
 
 
 def _shortest_paths(graph: np.ndarray) -> np.ndarray:

@@ -65,7 +65,7 @@ from pydrake.systems.framework import BasicVector, Context, State, ValueProducer
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_number
 from ..task import TaskLevel
-from .distance import PairDistances, distances_of
+from .distance import PairDistances
 from .schedule import PairSchedule, ScheduleState, ScheduleStep
 from .world import CollisionWorld
 
@@ -311,7 +311,9 @@ class TaskCollision(Entity[CollisionMargins]):
 
     def _calc_distances(self, context: Context, value: AbstractValue) -> None:
         holder = self._world_context.Eval(context)
-        value.set_value(distances_of(self.world, holder.context, self._step.Eval(context).in_range, self.acceleration))
+        step = self._step.Eval(context)
+        value.set_value(self._pair_schedule.table.distances(self.world, holder.context, step.in_range,  # type: ignore[union-attr]
+                                                            step.state.in_range_pairs, self.acceleration))
 
     def _calc_minimum(self, context: Context, output: BasicVector) -> None:
         output.SetAtIndex(0, self._distances.Eval(context).minimum)

@@ -40,8 +40,7 @@ certified (a rank loss, a conflict with a higher level, a singular value within 
 threshold, a NaN, or more rows than ``nv``), the SVD cascade above goes on from ``Z`` = the
 other columns of ``Q`` (``P = P_0 - Q_K Q_Kᵀ``, ``Q_K``: the solved levels' columns) and decides.
 The fast path and the SVD cascade are one compiled call each (:mod:`.kernels.cascade`); the plain
-:func:`svd_cascade` is their reference, and keeps the SVD levels of a factorization asked to solve
-other references (:meth:`CascadeFactorization.solve`). References known before the solve (``extra``
+:func:`svd_cascade` is their reference. References known before the solve (``extra``
 of :func:`cascade_factorization`: ``SOT``'s curvature corrections, for its velocity limits) are
 solved in the same compiled pass, as a second right-hand side.
 """
@@ -54,7 +53,6 @@ from typing import NamedTuple
 
 import numpy as np
 from scipy.linalg.lapack import dgesdd as _gesdd
-from scipy.linalg.lapack import dormqr as _ormqr
 
 from ..compiled import compiled_input, kernels
 from ..exceptions import SolverError
@@ -63,30 +61,12 @@ from ..exceptions import SolverError
 class _Prefix(NamedTuple):
     """The first ``solved`` levels solved by the QR path: ``v`` after them and, when levels remain,
     ``free``, the last ``nv - K`` columns of the full ``Q``: an orthonormal basis of ``Q_K``'s
-    orthogonal complement (what the solved levels leave free, with ``P_0``'s mask on the Jacobians).
-    ``levels`` (indices of the solved levels with rows), ``L_inverse_T`` (``(L⁻¹)ᵀ`` of their
-    rows), ``reflectors`` and ``scales`` (their Householder ``Q``) give ``v`` for other
-    references: ``v = Q L⁻¹ r``."""
+    orthogonal complement (what the solved levels leave free, with ``P_0``'s mask on the Jacobians)."""
 
     solved: int
     velocity: np.ndarray
     free: np.ndarray | None
-    levels: list[int]
-    L_inverse_T: np.ndarray
-    reflectors: np.ndarray
-    scales: np.ndarray
     extra_velocity: np.ndarray | None = None  # v for the extra references (see cascade_factorization)
-
-    def resolve(self, references: Sequence[np.ndarray]) -> np.ndarray:
-        """``v`` of the solved levels for ``references`` (one per level of the stack)."""
-        nv = self.reflectors.shape[0]
-        y = np.zeros(nv)
-        K = self.L_inverse_T.shape[0]
-        y[:K] = self.L_inverse_T @ np.concatenate([references[i] for i in self.levels])
-        v, _, info = _ormqr("L", "N", self.reflectors, self.scales, y, lwork=max(1, nv))
-        if info != 0:
-            raise SolverError(f"the QR path failed (LAPACK info {info})")
-        return v
 
 
 def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
@@ -108,13 +88,12 @@ def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, 
         B = B * selection
     r = _references(levels, rows, extra)
     sizes = np.array([levels[i][0].shape[0] for i in rows], dtype=np.int64)
-    solved, v, reflectors, scales, L_inverse_T, free = _kernels().prefix(compiled_input(B), sizes, r, float(svd_threshold),
+    solved, v, _, _, _, free = _kernels().prefix(compiled_input(B), sizes, r, float(svd_threshold),
                                                                          taken < len(levels))
     if solved == 0:
         return None
     count = rows[solved] if solved < len(rows) else len(levels) if taken == len(levels) else taken
-    return _Prefix(count, v[:, 0].copy(), free if count < len(levels) else None, rows[:solved], L_inverse_T, reflectors,
-                   scales, None if extra is None else v[:, 1].copy())
+    return _Prefix(count, v[:, 0].copy(), free if count < len(levels) else None, None if extra is None else v[:, 1].copy())
 
 
 def _references(levels: Sequence[tuple[np.ndarray, np.ndarray]], rows: Sequence[int],
@@ -136,41 +115,13 @@ class CascadeResult(NamedTuple):
     ranks: np.ndarray  # numerical rank of each A_i
 
 
-class _Step(NamedTuple):
-    """One SVD level kept for re-solving: ``v ← v + V (inverse ⊙ (Uᵀ (ė* - J v)))``."""
+class CascadeFactorization(NamedTuple):
+    """The cascade of a stack solved for its references (``velocity``, and each level's rank) and,
+    when it was given extra references, for those (``extra_velocity``, else None)."""
 
-    level: int
-    jacobian: np.ndarray
-    V: np.ndarray
-    inverse: np.ndarray
-    Ut: np.ndarray
-
-
-class CascadeFactorization:
-    """The cascade of a stack of Jacobians, solved for its references, and kept so that it solves
-    the same Jacobians for other references without factorising again (:meth:`solve`): for given
-    rank decisions the cascade's ``v`` is linear in the references. ``velocity`` and ``ranks``:
-    those of the references it was built with; ``extra_velocity``: ``v`` for the extra references
-    it was given (None without)."""
-
-    def __init__(self, prefix: _Prefix | None, steps: list[_Step] | None, velocity: np.ndarray, ranks: np.ndarray,
-                 selection: np.ndarray | None, redo: tuple, extra_velocity: np.ndarray | None = None):
-        self._prefix, self._steps, self._selection, self._redo = prefix, steps, selection, redo
-        self.velocity, self.ranks, self.extra_velocity = velocity, ranks, extra_velocity
-
-    def solve(self, references: Sequence[np.ndarray]) -> np.ndarray:
-        """``v`` for ``references`` (one per level, the sizes of the Jacobians')."""
-        if self._steps is None:  # the SVD levels kept, from the Python cascade (the same rank decisions)
-            levels, nv, threshold, dampings, selection = self._redo
-            self._steps = []
-            svd_cascade(levels, nv, threshold, dampings, selection, self._prefix, self._steps)
-        v = self._prefix.resolve(references) if self._prefix is not None else np.zeros(self.velocity.size)
-        for step in self._steps:
-            reference = references[step.level]
-            v = v + step.V @ (step.inverse * (step.Ut @ (reference - step.jacobian @ v)))
-        if self._selection is not None:
-            v[~self._selection] = 0.0
-        return v
+    velocity: np.ndarray
+    ranks: np.ndarray
+    extra_velocity: np.ndarray | None = None
 
 
 def cascade_factorization(
@@ -181,27 +132,23 @@ def cascade_factorization(
     control_selection: np.ndarray | None = None,
     extra: Sequence[np.ndarray] | None = None,
 ) -> CascadeFactorization:
-    """:func:`solve_cascade`'s solve, kept for other references (:class:`CascadeFactorization`).
+    """:func:`solve_cascade`'s solve (:class:`CascadeFactorization`).
     ``extra`` (one per level, the sizes of the references): other references solved in the same
     pass, their ``v`` kept as ``extra_velocity`` (by linearity, any combination of the two
     references is then the same combination of the two velocities)."""
     dampings = [float(damping)] * len(levels) if isinstance(damping, (int, float)) else list(damping)
     prefix = _full_rank_prefix(levels, nv, svd_threshold, control_selection, extra) if not any(dampings) else None
-    steps: list[_Step] | None = []
     if prefix is not None and prefix.solved == len(levels):
         v, ranks = prefix.velocity, np.array([J.shape[0] for J, _ in levels], dtype=int)
         v_extra = prefix.extra_velocity
     else:
         v, ranks, v_extra = _compiled_svd_cascade(levels, nv, svd_threshold, dampings, control_selection, prefix, extra)
-        steps = None  # (made by the Python cascade if other references are asked for)
-    selection = None
     if control_selection is not None:  # zero in exact arithmetic; the QR and SVD leave round-off
         selection = np.asarray(control_selection, dtype=bool)
         v[~selection] = 0.0
         if v_extra is not None:
             v_extra[~selection] = 0.0
-    redo = (levels, nv, svd_threshold, dampings, control_selection)
-    return CascadeFactorization(prefix, steps, v, ranks, selection, redo, v_extra)
+    return CascadeFactorization(v, ranks, v_extra)
 
 
 def _compiled_svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
@@ -260,10 +207,9 @@ def solve_cascade(
 
 def svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
                 dampings: Sequence[float], control_selection: np.ndarray | None,
-                prefix: _Prefix | None = None, steps: list[_Step] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                prefix: _Prefix | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(v, ranks)`` of the cascade, one SVD per level; ``dampings``: one δ per level. With
-    ``prefix``, its levels are taken as solved (full rank) and the cascade goes on from them. With
-    ``steps``, each level that moves ``v`` is appended to it (:class:`CascadeFactorization`)."""
+    ``prefix``, its levels are taken as solved (full rank) and the cascade goes on from them."""
     v = np.zeros(nv)
     mask = None if control_selection is None else np.asarray(control_selection, dtype=bool)
     Z = None  # an orthonormal basis of what the levels above leave free (None: every direction)
@@ -295,8 +241,6 @@ def svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_th
             V = W[:, :rank] if Z is None else Z @ W[:, :rank]
             Ut = Ut[:rank]
             v = v + V @ (inverse * (Ut @ (reference - J @ v if i else reference)))
-            if steps is not None:
-                steps.append(_Step(i, J, V, inverse, Ut))
         if i < last:
             Z = W[:, rank:] if Z is None else Z @ W[:, rank:]
     return v, ranks

@@ -77,26 +77,10 @@ def pair_distances(world: CollisionWorld, context: Context, max_distance: float,
 
 def distances_of(world: CollisionWorld, context: Context, results: Sequence, bias: bool = False) -> PairDistances:
     """:class:`PairDistances` of Drake's ``SignedDistancePair`` ``results`` (as
-    :func:`pair_distances`, which gathers them with one query; the collision task's schedule,
-    which knows its pairs, calls :meth:`PairTable.distances`). A pair whose side A is an obstacle
-    is swapped, so that A is always on the robot."""
-    k = len(results)
-    sides: tuple[list[_Geometry], list[_Geometry]] = ([], [])
-    distance, normal, p_GC = np.empty(k), np.empty((k, 3)), np.empty((2, k, 3))
-    for i, r in enumerate(results):
-        a, b = _geometry(world, r.id_A), _geometry(world, r.id_B)
-        distance[i] = r.distance
-        if a.obstacle:  # keep the robot on side A
-            a, b = b, a
-            normal[i], p_GC[0, i], p_GC[1, i] = -r.nhat_BA_W, r.p_BCb, r.p_ACa
-        else:
-            normal[i], p_GC[0, i], p_GC[1, i] = r.nhat_BA_W, r.p_ACa, r.p_BCb
-        sides[0].append(a)
-        sides[1].append(b)
-    bodies = np.array([[-1 if g.obstacle else g.body_index for g in side] for side in sides], dtype=np.int64).reshape(2, k)
-    X_BG = np.array([[g.X_BG for g in side] for side in sides]).reshape(2, k, 4, 4)
-    names = [(a.name, b.name) for a, b in zip(*sides, strict=True)]
-    return _rows(world, context, names, distance, normal, p_GC, bodies, X_BG, bias)
+    :func:`pair_distances`, which gathers them with one query), each geometry looked up (the
+    collision task's schedule, which knows its pairs, looks them up once: :class:`PairTable`)."""
+    table = PairTable.of(world, [(r.id_A, r.id_B) for r in results])
+    return table.distances(world, context, results, np.arange(len(results)), bias)
 
 
 @dataclass(frozen=True)
@@ -116,7 +100,7 @@ class PairTable:
     def of(cls, world: CollisionWorld, geometry_pairs: Sequence) -> PairTable:
         infos = [[_geometry(world, g) for g in pair] for pair in geometry_pairs]
         swapped = np.array([a.obstacle for a, _ in infos], dtype=bool)
-        infos = [pair[::-1] if a.obstacle else pair for pair, (a, _) in zip(infos, infos, strict=True)]
+        infos = [pair[::-1] if pair[0].obstacle else pair for pair in infos]
         bodies = np.array([[-1 if g.obstacle else g.body_index for g in pair] for pair in infos], dtype=np.int64)
         X_BG = np.array([[g.X_BG for g in pair] for pair in infos])
         return cls([(a.name, b.name) for a, b in infos], bodies.reshape(-1, 2), X_BG.reshape(-1, 2, 4, 4), swapped)
@@ -125,11 +109,9 @@ class PairTable:
                   bias: bool = False) -> PairDistances:
         """:class:`PairDistances` of ``results``, Drake's answers for the pairs of index ``pairs``
         (int array) in this table, each for its pair in the table's order (``id_A`` the pair's first
-        geometry: Drake answers a pair in increasing id order, the order the schedule keeps)."""
+        geometry: Drake answers a pair in increasing id order, the order the schedule keeps). A
+        pair whose first geometry is an obstacle is swapped, so that side A is on the robot."""
         k = len(results)
-        if k == 0:
-            return _rows(world, context, [], np.empty(0), np.empty((0, 3)), np.empty((2, 0, 3)), np.empty((2, 0), dtype=np.int64),
-                         np.empty((2, 0, 4, 4)), bias)
         distance, normal, p_GC = np.empty(k), np.empty((k, 3)), np.empty((2, k, 3))
         for i, r in enumerate(results):
             distance[i], normal[i], p_GC[0, i], p_GC[1, i] = r.distance, r.nhat_BA_W, r.p_ACa, r.p_BCb

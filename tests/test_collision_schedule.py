@@ -121,6 +121,8 @@ def test_the_task_rows_are_the_full_query_rows_and_a_clone_replays_them():
     assert np.array_equal(q, q_replay)
     state = task.GetMyContextFromRoot(clone).get_abstract_state(task._schedule_index).get_value()
     assert copy.deepcopy(state).lower.tolist() == state.lower.tolist()
+    # Shared by the copies, never changed: a tick makes a new state, its arrays read-only.
+    assert not any(a.flags.writeable for a in (state.q, state.lower, state.in_range_pairs))
 
 
 def _shape_world(shapes):

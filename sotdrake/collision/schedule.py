@@ -46,7 +46,7 @@ from pydrake.geometry import Box, Capsule, Cylinder, Ellipsoid, GeometryId, Sphe
 from pydrake.multibody.tree import BodyIndex, Joint, JointIndex, RigidBody
 from pydrake.systems.framework import Context
 
-from ..compiled import compiled_input, kernels
+from ..compiled import compiled_input, kernels, read_only
 from ..exceptions import InvalidInput
 from .distance import PairTable
 from .world import CollisionWorld
@@ -59,24 +59,24 @@ UNBOUNDED = 1e9
 SUPPORT_KINDS = {"points": 0, "ellipsoid": 1, "cylinder": 2, "capsule": 3}
 
 
-@dataclass
+@dataclass(frozen=True)
 class ScheduleState:
     """The schedule's run-time state: ``q`` the configuration the bounds are at (None before the
     first tick), ``lower`` the lower bound of each pair's signed distance there (m), ``in_range``
     the Drake results of the pairs in range there (for ``max_distance``) and ``in_range_pairs``
     their indices in the schedule's pairs, ``queried`` how many pairs were queried exactly to get
-    there."""
+    there. Never changed once made (each tick makes a new one, its arrays read-only), so the copies
+    Drake makes of the state (context clones, every unrestricted update's scratch state) share it."""
 
     q: np.ndarray | None = None
     lower: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    in_range: list = field(default_factory=list)
+    in_range: Sequence = ()
     max_distance: float | np.ndarray = -np.inf
     queried: int = 0
     in_range_pairs: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     def __deepcopy__(self, memo: dict) -> ScheduleState:
-        return ScheduleState(None if self.q is None else self.q.copy(), self.lower.copy(), list(self.in_range),
-                             copy.copy(self.max_distance), self.queried, self.in_range_pairs.copy())
+        return self
 
 
 @dataclass
@@ -85,7 +85,7 @@ class ScheduleStep:
     and how many pairs were ``queried`` exactly."""
 
     state: ScheduleState
-    in_range: list
+    in_range: Sequence
     queried: int
 
     def __deepcopy__(self, memo: dict) -> ScheduleStep:  # (Drake's results are immutable: shared)
@@ -335,7 +335,8 @@ class PairSchedule:
         if out:  # skipped from now on: a bound that does not trust the query's convergence
             pairs = np.array(out, dtype=np.int64)
             lower[pairs] = np.minimum(lower[pairs], self.gaps(context, pairs, np.array(normals)))
-        state = ScheduleState(q.copy(), lower, in_range, max_distance, len(due), np.array(pairs_in_range, dtype=np.int64))
+        state = ScheduleState(read_only(q.copy()), read_only(lower), tuple(in_range), read_only(np.array(max_distance)),
+                              len(due), read_only(np.array(pairs_in_range, dtype=np.int64)))
         return ScheduleStep(state, in_range, len(due))
 
 

@@ -22,7 +22,10 @@ configuration (what any level built on exact distances pays; ``floor_ratio_cpu_m
 ratio it alone would give: the stack without the level, plus it); at the end of each block, at the
 ``with`` stack's configuration, the cost of one full broad-phase query with the Jacobians of the
 pairs in range (what each tick paid without the schedule). ``self_only`` is checked at every tick
-with Drake's query on a world of its own (the smallest signed distance, m).
+with Drake's query on a world of its own (the smallest signed distance, m). Then, on a ``with``
+stack of its own, where the tick goes (``breakdown_cpu_us_mean``: the mean CPU time per tick of the
+schedule's step, of its support gaps within it, of the rows of the pairs in range and of the
+solver's solve, each call wrapped in a timer).
 
 placo (``bench/collisions_placo.py``, run by an interpreter that has placo: this one if it imports
 placo, else ``--placo-python``) gets the same robot, self pairs, starting posture and hand path (the
@@ -53,12 +56,14 @@ from pydrake.multibody.tree import JointIndex
 from pydrake.systems.analysis import Simulator
 
 from sotdrake.collision import CollisionWorld
-from sotdrake.collision.distance import minimum_distance, pair_distances
+from sotdrake.collision.distance import PairTable, minimum_distance, pair_distances
 from sotdrake.collision.reach import HAND_OFFSET, build_collision_reach
+from sotdrake.collision.schedule import PairSchedule
 from sotdrake.collision.task import INFLUENCE_DISTANCE, SAFETY_DISTANCE
 from sotdrake.meta_tasks import gotoNd
 from sotdrake.robots import load_talos
 from sotdrake.robots.loader import urdf_path
+from sotdrake.solvers import solver_kine
 
 TARGET = np.array([0.5, -0.2, 1.0])
 BLOCK = 100
@@ -171,6 +176,42 @@ def run_stacks(ticks: int) -> tuple[dict, dict]:
     return summary, {"stack": stacks["self_only"], "hand_path": hand_path}
 
 
+def breakdown(ticks: int) -> dict:
+    """The mean CPU time (µs) per tick of the ``with`` stack's parts over ``ticks`` ticks after the
+    first: the schedule's step (the exact queries of the pairs due and the bounds), its support gaps,
+    the rows of the pairs in range, and the solver's solve."""
+    timed = {"schedule": (PairSchedule, "step"), "gaps": (PairSchedule, "gaps"), "rows": (PairTable, "distances"),
+             "solver": (solver_kine, "solve_stack")}
+    spent = dict.fromkeys(timed, 0.0)
+    originals = {part: getattr(owner, name) for part, (owner, name) in timed.items()}
+
+    def timer(part: str, function):
+        def timed_call(*args, **kwargs):
+            began = time.thread_time()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                spent[part] += time.thread_time() - began
+        return timed_call
+
+    reach = build_collision_reach(collision=True, table=True)
+    simulator, _ = _simulator(reach)
+    dt = reach.robot.dt
+    simulator.AdvanceTo(dt)
+    try:
+        for part, (owner, name) in timed.items():
+            setattr(owner, name, timer(part, originals[part]))
+        began = time.thread_time()
+        for k in range(2, ticks + 1):
+            simulator.AdvanceTo(k * dt)
+        total = time.thread_time() - began
+    finally:
+        for part, (owner, name) in timed.items():
+            setattr(owner, name, originals[part])
+    count = max(ticks - 1, 1)
+    return {"tick": total / count * 1e6, **{part: value / count * 1e6 for part, value in spent.items()}}
+
+
 def _placo_python(option: str | None) -> str | None:
     if option:
         return option
@@ -230,6 +271,7 @@ def main(argv: list[str] | None = None) -> dict:
     add_output_arguments(parser, "collisions.json")
     args = parser.parse_args(argv)
     summary, side = run_stacks(args.ticks)
+    summary["breakdown_cpu_us_mean"] = breakdown(args.ticks)
     summary["placo"] = run_placo(_placo_python(args.placo_python), side, args.placo_ticks, summary)
     print(json.dumps(summary, indent=1))
     write_json(summary, args.out, save=args.save, indent=1)

@@ -175,3 +175,20 @@ def test_the_physics_bench_runs_each_model_and_keeps_the_outcome(tmp_path):
             assert run["cpu_per_sim_s"] > 0 and run["realtime_factor"] == pytest.approx(1 / run["cpu_per_sim_s"])
             assert run["plant_share"] > 0 and run["outcome"]["fell"] is False
         assert runs["reach"]["plant_step_s"] == physics.PLANT_STEP and runs["reach_plant_1ms"]["plant_step_s"] == 1e-3
+
+
+def test_the_collision_bench_breaks_the_tick_down_and_restores_the_calls():
+    """bench/collisions.py's breakdown: the schedule (its gaps within it), the rows and the solver are
+    separate calls within the tick, each timed; the wrapped calls are put back afterwards."""
+    import collisions
+
+    from sotdrake.collision.distance import PairTable
+    from sotdrake.collision.schedule import PairSchedule
+    from sotdrake.solvers import solver_kine
+
+    originals = (PairSchedule.step, PairSchedule.gaps, PairTable.distances, solver_kine.solve_stack)
+    parts = collisions.breakdown(30)
+    assert (PairSchedule.step, PairSchedule.gaps, PairTable.distances, solver_kine.solve_stack) == originals
+    assert all(parts[name] > 0 for name in ("schedule", "rows", "solver"))
+    assert parts["gaps"] <= parts["schedule"]
+    assert parts["schedule"] + parts["rows"] + parts["solver"] <= parts["tick"]

@@ -99,9 +99,8 @@ class Cascade(StackPath):
     def factorize(self, levels: Sequence[tuple[np.ndarray, np.ndarray]], n: int, threshold: float,
                   damping: float | Sequence[float] = 0.0, selection: np.ndarray | None = None,
                   extra: Sequence[np.ndarray] | None = None) -> CascadeFactorization:
-        """The cascade of ``levels`` ``[(J_k, ė*_k), …]`` kept for other references, and solved for
-        the ``extra`` ones in the same pass (what ``SOT`` uses: it scales the references to its
-        velocity limits)."""
+        """The cascade of ``levels`` ``[(J_k, ė*_k), …]``, and solved for the ``extra`` references
+        in the same pass (what ``SOT`` uses: it scales the references to its velocity limits)."""
         return cascade_factorization(levels, n, threshold, damping, selection, extra)
 
     def attempt(self, qp: HierarchicalQP, problem: StackProblem) -> HqpResult | None:

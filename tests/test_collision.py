@@ -175,9 +175,9 @@ def test_each_body_gets_a_leaf_below_it_and_no_leaf_is_above_another(talos_model
     """:func:`kernels.cover` on random sets of TALOS' bodies (sides of random pairs, obstacles among
     them): each side's slot names its body, each body's leaf has it on its way to the world, and no
     leaf is on another's way (the fewest Jacobians)."""
-    from sotdrake.collision.distance import _kernels, _tree
+    from sotdrake.collision.distance import _kernels, body_tree
 
-    tree = _tree(CollisionWorld(talos_model))
+    tree = body_tree(CollisionWorld(talos_model))
     nb = len(tree.bodies)
     for _ in range(200):
         k = int(rng.integers(1, 30))

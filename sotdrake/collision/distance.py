@@ -143,7 +143,7 @@ def _rows(world: CollisionWorld, context: Context, names: list, distance: np.nda
                         jacobian=np.empty((k, nv)), bias=np.zeros(k))
     if k == 0:
         return out
-    tree = _tree(world)
+    tree = body_tree(world)
     needed, slots = np.empty(2 * k, dtype=np.int64), np.empty((2, k), dtype=np.int64)
     leaves, leaf_of = np.empty(2 * k, dtype=np.int64), np.empty(2 * k, dtype=np.int64)
     m, count = _kernels().cover(bodies, tree.depth, tree.ancestors, needed, slots, leaves, leaf_of)
@@ -187,11 +187,11 @@ class _Geometry:
 
 
 @dataclass(frozen=True)
-class _Tree:
-    """The robot's bodies as :func:`_rows` takes them, by body index: the bodies and their frames,
-    ``depth`` (the number of joints from the world), ``ancestors[L, b]`` (body ``b`` is ``L`` or on
-    its way to the world) and ``columns[b, c]`` (velocity ``c`` belongs to a joint on ``b``'s way
-    to the world)."""
+class BodyTree:
+    """The robot's kinematic tree, by body index (the rows' leaves, the schedule's paths): the
+    bodies and their frames, ``depth`` (the number of joints from the world), ``ancestors[L, b]``
+    (body ``b`` is ``L`` or on its way to the world) and ``columns[b, c]`` (velocity ``c`` belongs
+    to a joint on ``b``'s way to the world)."""
 
     bodies: list
     frames: list
@@ -200,7 +200,7 @@ class _Tree:
     columns: np.ndarray
 
 
-#: Per collision world, its geometries as :class:`_Geometry` (filled on first use) and its :class:`_Tree`.
+#: Per collision world, its geometries as :class:`_Geometry` (filled on first use) and its :class:`BodyTree`.
 _GEOMETRIES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _TREES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -221,7 +221,8 @@ def _geometry(world: CollisionWorld, geometry: object) -> _Geometry:
     return info
 
 
-def _tree(world: CollisionWorld) -> _Tree:
+def body_tree(world: CollisionWorld) -> BodyTree:
+    """``world``'s :class:`BodyTree`, made on first use (the rows' leaves, the schedule's paths)."""
     tree = _TREES.get(world)
     if tree is None:
         plant = world.plant
@@ -242,7 +243,7 @@ def _tree(world: CollisionWorld) -> _Tree:
                 columns[b, joint.velocity_start():joint.velocity_start() + joint.num_velocities()] = True
                 body = int(joint.parent_body().index())
         bodies = [plant.get_body(BodyIndex(b)) for b in range(nb)]
-        tree = _TREES[world] = _Tree(bodies, [body.body_frame() for body in bodies], depth, ancestors, columns)
+        tree = _TREES[world] = BodyTree(bodies, [body.body_frame() for body in bodies], depth, ancestors, columns)
     return tree
 
 

@@ -43,12 +43,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.geometry import Box, Capsule, Cylinder, Ellipsoid, GeometryId, Sphere
-from pydrake.multibody.tree import BodyIndex, Joint, JointIndex, RigidBody
+from pydrake.multibody.tree import BodyIndex, Joint, JointIndex
 from pydrake.systems.framework import Context
 
 from ..compiled import compiled_input, kernels, read_only
 from ..exceptions import InvalidInput
-from .distance import PairTable
+from .distance import PairTable, body_tree
 from .world import CollisionWorld
 
 _kernels = kernels(".kernels", __package__, "gaps", "the collision pairs' support gaps", "a few seconds")
@@ -130,8 +130,7 @@ class PairSchedule:
         self.world = world
         plant = world.plant
         joints = [plant.get_joint(JointIndex(i)) for i in range(plant.num_joints())]
-        self._parents = {j.child_body().index(): j.parent_body() for j in joints}
-        self._chains: dict = {}
+        self._children = np.array([int(j.child_body().index()) for j in joints], dtype=int)
         # Motion vector: |Δq| of each 1-dof joint, then |Δp| and φ of each floating joint.
         self._one_dof = [j for j in joints if j.num_positions() == 1 and j.type_name() in ("revolute", "prismatic")]
         self._floating = [j for j in joints if j.type_name() in ("quaternion_floating", "rpy_floating")]
@@ -206,9 +205,10 @@ class PairSchedule:
     def _pair_row(self, world: CollisionWorld, joints: list, nodes: dict, distance: np.ndarray, spheres: dict,
                   ga: GeometryId, gb: GeometryId) -> np.ndarray:
         """The coefficients of bound (1) for the pair ``(ga, gb)``."""
-        chains = [self._ancestors(world.geometry_info(g)[1]) for g in (ga, gb)]
+        a, b = (int(world.geometry_info(g)[1].index()) for g in (ga, gb))
+        ancestors = body_tree(world).ancestors  # ([L, c]: body c is L or on its way to the world)
         row = np.zeros(self.coefficients.shape[1])
-        on_path = [j for j in joints if (j.child_body().index() in chains[0]) != (j.child_body().index() in chains[1])]
+        on_path = [j for j, on in zip(joints, ancestors[a, self._children] != ancestors[b, self._children], strict=True) if on]
 
         def reach(j: Joint) -> float:  # ρ_j: from the joint's origin to the nearer sphere's far side
             ends = [distance[nodes[("M", j.index())], nodes[("geometry", g)]] + spheres[g][1] for g in (ga, gb)]
@@ -225,15 +225,6 @@ class PairSchedule:
             elif j.num_positions() > 0:
                 row[:] = UNBOUNDED
         return row
-
-    def _ancestors(self, body: RigidBody) -> set:
-        """The indices of ``body`` and of every body on its way to the world."""
-        out = self._chains.get(body.index())
-        if out is None:
-            parent = self._parents.get(body.index())
-            out = {body.index()} | (set() if parent is None else self._ancestors(parent))
-            self._chains[body.index()] = out
-        return out
 
     def motion(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
         """The motion vector from ``q0`` to ``q1``: ``|Δq_j|`` of each one-dof joint, then ``|Δp|``

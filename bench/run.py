@@ -72,8 +72,28 @@ ACTIVE_TARGET = np.array([-0.45, -0.35, 1.0])  # the hand behind the back: joint
 # --- the sotdrake stacks ---------------------------------------------------------------------
 
 
-def build_stack(solver: str = "cascade", variant: str = "reduced", tasks: int = 4, target=TARGET):
-    """The scenario's stack (feet, CoM, hand), or the first ``tasks`` of a longer list."""
+#: The tasks of the benchmark stacks, by name (``build_stack``'s ``names``), in the order of the
+#: ten-task stack: the feet, the CoM, the hand, then 6D tasks and the posture.
+TASK_MAKERS = {
+    "contactRF": lambda robot: MetaTaskKine6d("contactRF", robot, "RF", "right-ankle"),
+    "contactLF": lambda robot: MetaTaskKine6d("contactLF", robot, "LF", "left-ankle"),
+    "com": lambda robot: MetaTaskKineCom(robot),
+    "rh": lambda robot: MetaTaskKine6d("rh", robot, "rh", "right-wrist"),
+    "lh": lambda robot: MetaTaskKine6d("lh", robot, "lh", "left-wrist"),
+    "chest": lambda robot: MetaTaskKine6d("chest", robot, "chest", "chest"),
+    "head": lambda robot: MetaTaskKine6d("head", robot, "head", "gaze"),
+    "relbow": lambda robot: MetaTaskKine6d("relbow", robot, "relbow", "arm_right_4_joint"),
+    "lelbow": lambda robot: MetaTaskKine6d("lelbow", robot, "lelbow", "arm_left_4_joint"),
+    "posture": lambda robot: MetaTaskKinePosture(robot),
+}
+
+
+def build_stack(solver: str = "cascade", variant: str = "reduced", tasks: int = 4, target=TARGET,
+                names: list[str] | None = None, full_6d: bool = False):
+    """The scenario's stack (feet, CoM, hand), or the first ``tasks`` of a longer list (one: the
+    hand alone), or the tasks ``names`` of :data:`TASK_MAKERS` in that order. ``full_6d``: the
+    extra 6D tasks (``lh``, ``chest``, ``head``, the elbows) keep their six rows (by default the
+    hand and elbows keep the position, the chest and head the orientation)."""
     builder = DiagramBuilder()
     model = load_talos(variant)
     robot = Robot(builder, model, DT)
@@ -86,21 +106,10 @@ def build_stack(solver: str = "cascade", variant: str = "reduced", tasks: int = 
         gotoNd(hand, hand.current_pose().translation() + [0.05, 0.05, 0.1], "111", GAIN_HAND)
         sot.push(hand.task.name)
         return robot, sot, hand, builder.Build()
-    makers = [
-        lambda: MetaTaskKine6d("contactRF", robot, "RF", "right-ankle"),
-        lambda: MetaTaskKine6d("contactLF", robot, "LF", "left-ankle"),
-        lambda: MetaTaskKineCom(robot),
-        lambda: MetaTaskKine6d("rh", robot, "rh", "right-wrist"),
-        lambda: MetaTaskKine6d("lh", robot, "lh", "left-wrist"),
-        lambda: MetaTaskKine6d("chest", robot, "chest", "chest"),
-        lambda: MetaTaskKine6d("head", robot, "head", "gaze"),
-        lambda: MetaTaskKine6d("relbow", robot, "relbow", "arm_right_4_joint"),
-        lambda: MetaTaskKine6d("lelbow", robot, "lelbow", "arm_left_4_joint"),
-        lambda: MetaTaskKinePosture(robot),
-    ]
-    order = [3] if tasks == 1 else list(range(tasks))  # one task: the hand alone
-    for index in order:
-        meta = makers[index]()
+    if names is None:
+        names = ["rh"] if tasks == 1 else list(TASK_MAKERS)[:tasks]
+    for key in names:
+        meta = TASK_MAKERS[key](robot)
         name = meta.task.name
         if name in ("taskcontactRF", "taskcontactLF"):
             meta.gain.setConstant(GAIN_FEET)
@@ -111,10 +120,12 @@ def build_stack(solver: str = "cascade", variant: str = "reduced", tasks: int = 
             meta.opmodif = np.array([[1, 0, 0, 0.1], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
             gotoNd(meta, target, "111", GAIN_HAND)
         elif name in ("tasklh", "taskrelbow", "tasklelbow"):
-            meta.feature.selec("111")
+            if not full_6d:
+                meta.feature.selec("111")
             meta.gain.setConstant(1.0)
         elif name in ("taskchest", "taskhead"):
-            meta.feature.selec("111000")  # orientation only
+            if not full_6d:
+                meta.feature.selec("111000")  # orientation only
             meta.gain.setConstant(1.0)
         sot.push(name)
     return robot, sot, hand, builder.Build()

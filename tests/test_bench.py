@@ -192,3 +192,36 @@ def test_the_collision_bench_breaks_the_tick_down_and_restores_the_calls():
     assert all(parts[name] > 0 for name in ("schedule", "rows", "solver"))
     assert parts["gaps"] <= parts["schedule"]
     assert parts["schedule"] + parts["rows"] + parts["solver"] <= parts["tick"]
+
+
+def test_the_marginal_bench_adds_one_task_of_each_kind_and_summarizes_every_repeat(tmp_path):
+    """bench/marginal.py: each kind's stack is the base stack and one more task of that kind at the
+    bottom (its rows: 6, 3, one per joint), under both kinematic solvers; the figures are the medians over the
+    repeats of each repeat's differences, and the floor's slope is fitted on 2 to 6 tasks."""
+    import marginal
+
+    for solver, key in marginal.SOLVERS.items():
+        for kind, name in marginal.KINDS.items():
+            robot, sot, _, diagram = bench.build_stack(key, names=[*marginal.BASE, name], full_6d=True)
+            base = ["taskcontactRF", "taskcontactLF", "taskrh"]
+            assert sot.stack() == [*base, f"task{name}"], solver
+            rows = {"6D": 6, "CoM": 3, "posture": robot.dimension - 6}[kind]  # (the posture: every joint, not the base)
+            level = sot.GetInputPort(f"task{name}").Eval(sot.GetMyContextFromRoot(diagram.CreateDefaultContext()))
+            assert level.jacobian.shape == (rows, robot.dimension)
+    rounds = []
+    for k in range(3):  # the floor 10 + 3 µs per task (+ k), each kind costing 1, 2, 3 floor slopes (+ k)
+        r = {("floor", n): 10.0 + 3.0 * n + k for n in marginal.FLOOR_TASKS}
+        for i, solver in enumerate(marginal.SOLVERS):
+            r[(solver, None)] = 100.0 * (i + 1)
+            r.update({(solver, kind): 100.0 * (i + 1) + 3.0 * (j + 1) + k for j, kind in enumerate(marginal.KINDS)})
+        rounds.append(r)
+    summary = marginal.summarize(rounds)
+    assert summary["floor_slope_cpu_us"] == pytest.approx(3.0)
+    kinds = summary["solvers"]["SolverKine"]["kinds"]
+    assert summary["solvers"]["SolverKine"]["base_tick_cpu_us"] == 200.0
+    assert [kinds[kind]["marginal_cpu_us"] for kind in marginal.KINDS] == pytest.approx([4.0, 7.0, 10.0])
+    assert [kinds[kind]["target_met"] for kind in marginal.KINDS] == [True, False, False]
+    assert kinds["CoM"]["ratio_to_floor_slope"] == pytest.approx(7.0 / 3.0)
+    result = marginal.main(["--ticks", "50", "--warmup", "5", "--repeat", "1", "--out", str(tmp_path / "m.json")])
+    assert json.loads((tmp_path / "m.json").read_text())["solvers"].keys() == {"SOT", "SolverKine"}
+    assert np.isfinite([k["marginal_cpu_us"] for r in result["solvers"].values() for k in r["kinds"].values()]).all()

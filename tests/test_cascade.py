@@ -232,3 +232,35 @@ def test_the_factorization_solves_other_references(seed):
     expected = solve_cascade([(J, r) for (J, _), r in zip(levels, others, strict=True)], nv, 1e-4, damping, selection)
     np.testing.assert_allclose(kept.extra_velocity, expected.velocity, rtol=0, atol=1e-9 * max(1.0, np.abs(expected.velocity).max()))
     np.testing.assert_allclose(kept.velocity, own, rtol=0, atol=1e-9 * max(1.0, np.abs(own).max()))
+
+
+@pytest.mark.parametrize("ratio", [0.5, 0.999, 1.001, 1.5, 3.0, 10.0])
+@pytest.mark.parametrize("masked", [False, True])
+def test_an_overdetermined_last_level_near_the_threshold_is_the_svd_one(ratio, masked):
+    """A posture-like last level (more rows than what the level above leaves free) whose smallest
+    singular value there is ``ratio`` times the threshold, with or without masked velocities: the
+    cascade keeps it above the threshold and truncates it at or below, as the plain SVD cascade,
+    with its velocity (whether one QR or the SVD solves the level)."""
+    rng = np.random.default_rng(11)
+    nv, threshold = 10, 1e-3
+    Q = np.linalg.qr(rng.normal(size=(nv, nv)))[0]
+    selection = np.ones(nv, dtype=bool)
+    if masked:  # two velocities masked: the basis of the level above's null space made to contain them
+        selection[[3, 7]] = False
+        Q = np.linalg.qr(np.hstack([np.eye(nv)[:, [3, 7]], rng.normal(size=(nv, nv - 2))]))[0]
+    top = 3
+    J1 = 3.0 * Q[:, 2:2 + top].T  # (its rows are orthogonal to the masked velocities)
+    free = Q[:, 2 + top:]  # what is left free and selected: nv - 2 - top directions
+    scales = np.linspace(1.0, 2.0, free.shape[1])
+    scales[-1] = ratio * threshold
+    J2 = rng.normal(size=(nv + 4, free.shape[1])) @ np.diag(scales)
+    J2 = np.linalg.qr(J2)[0] @ np.diag(scales) @ free.T + rng.normal(size=(nv + 4, 1)) @ J1[:1] / 3.0
+    levels = [(J1, rng.normal(size=top)), (J2, rng.normal(size=nv + 4))]
+    mask = selection if masked else None
+    result = solve_cascade(levels, nv, svd_threshold=threshold, control_selection=mask)
+    v, ranks = svd_cascade(levels, nv, threshold, [0.0, 0.0], mask)
+    kept = free.shape[1] if ratio > 1 else free.shape[1] - 1
+    assert list(result.ranks) == list(ranks) == [top, kept]
+    np.testing.assert_allclose(result.velocity, v, rtol=1e-8, atol=1e-8)
+    if masked:
+        assert np.all(result.velocity[~selection] == 0.0)

@@ -9,7 +9,8 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from sotdrake.exceptions import InvalidInput, SolverError, StackError
-from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
+from sotdrake.hqp.stack_paths import WarmQrSweep
+from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture, gotoNd
 from sotdrake.robot import Robot, add_sot
 from sotdrake.robots import TALOS_GRIPPERS
 from sotdrake.scenarios import sot_concept as sot_concept_scenario
@@ -51,7 +52,7 @@ def test_joint_limits_hold_with_the_hqp_and_not_with_the_cascade(concept):
     assert results["extra_joint_limits"]["max_joint_velocity_ratio"] <= 1.0 + 1e-9
 
 
-def build_reach(model, com_kind, ball=(1.05, -0.35, 0.75), dt=1e-3):
+def build_reach(model, com_kind, ball=(1.05, -0.35, 0.75), dt=1e-3, posture=False):
     builder = DiagramBuilder()
     robot = Robot(builder, model, dt)
     sot = add_sot(robot, solver="hqp")
@@ -69,6 +70,10 @@ def build_reach(model, com_kind, ball=(1.05, -0.35, 0.75), dt=1e-3):
     hand = MetaTaskKine6d("rh", robot, "rh", "right-wrist")
     gotoNd(hand, ball, "111", 5.0)
     sot.push(hand.task.name)
+    if posture:  # the half-sitting posture at the bottom
+        task = MetaTaskKinePosture(robot)
+        task.gain.setConstant(1.0)
+        sot.push(task.task.name)
     return robot, sot, hand, com, builder.Build()
 
 
@@ -109,7 +114,8 @@ def test_a_failing_level_holds_the_device_and_says_why(talos_model, monkeypatch,
         raise SolverError("hierarchical QP: no solution on level 3 (clarabel: kIterationLimit)")
 
     monkeypatch.setattr(HierarchicalQP, "solve", fail)
-    monkeypatch.setattr(HierarchicalQP, "solve_equalities", lambda self, *args, **kwargs: None)  # (its equality-stack path)
+    monkeypatch.setattr(HierarchicalQP, "solve_equalities", lambda self, *args, **kwargs: None)  # (its equality-stack paths)
+    monkeypatch.setattr(WarmQrSweep, "attempt", lambda self, *args, **kwargs: None)
     context = diagram.CreateDefaultContext()
     own = sot.GetMyContextFromRoot(context)
     with caplog.at_level("WARNING", logger="sotdrake.solver_kine"):
@@ -157,3 +163,30 @@ def test_randomized_robot_runs_never_freeze_and_keep_the_limits(talos_model):
         assert result["position_limit_violations"] == 0 and result["velocity_limit_violations"] == 0, seed
         active += result["ticks_with_active_limits"]
     assert active > 0  # the limits were in play
+
+
+def test_a_posture_at_the_bottom_gives_the_stages_motion(talos_model, monkeypatch):
+    """The usual stack (feet, CoM, a hand driven out of reach, the posture at the bottom: more rows
+    than what is left free) moves TALOS as the level-by-level stages alone would, tick by tick,
+    joint limits reached included: the whole-stack paths that answer it give the stages' answer."""
+    from sotdrake.hqp import stack_paths
+    from sotdrake.solvers import solver_kine
+
+    def run(paths):
+        monkeypatch.setattr(solver_kine, "KINEMATIC", paths)
+        robot, sot, _, _, diagram = build_reach(talos_model, "held", dt=2e-3, posture=True)
+        simulator = Simulator(diagram)
+        positions, limits = [], 0
+        for k in range(1, 201):
+            simulator.AdvanceTo(k * 2e-3 - 1e-3)
+            context = simulator.get_context()
+            diagnostics = sot.GetOutputPort("diagnostics").Eval(sot.GetMyContextFromRoot(context))
+            assert diagnostics.failure == ""
+            limits = max(limits, len(diagnostics.active_limits))
+            positions.append(robot.device.position(context))
+        return np.array(positions), limits
+
+    default, limits = run(stack_paths.KINEMATIC)
+    stages, _ = run((stack_paths.STAGES,))
+    assert limits >= 1  # the hand out of reach brings joints to their limits
+    np.testing.assert_allclose(default, stages, rtol=0, atol=1e-9)

@@ -4,6 +4,8 @@ applies only where it says; the solvers' declared lists always decide."""
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 
@@ -20,9 +22,11 @@ from sotdrake.hqp.stack_paths import (
     KINEMATIC,
     QR_SWEEP,
     STAGES,
+    WARM_QR_SWEEP,
     StackProblem,
     solve_stack,
 )
+from sotdrake.hqp.warm import back_off
 
 
 def equality_stack(rng: np.random.Generator, bounds: str):
@@ -53,7 +57,7 @@ def assert_same_answer(result, reference, levels, lower, upper):
 
 
 @pytest.mark.parametrize("bounds", ["none", "loose", "tight"])
-@pytest.mark.parametrize("path", [QR_SWEEP, ACTIVE_BOUNDS], ids=lambda p: p.name)
+@pytest.mark.parametrize("path", [QR_SWEEP, ACTIVE_BOUNDS, WARM_QR_SWEEP], ids=lambda p: p.name)
 def test_the_closed_forms_under_bounds_give_the_stages_answer(path, bounds):
     rng = np.random.default_rng(20261126)
     clear = 0
@@ -101,7 +105,8 @@ def test_the_cascade_applies_to_equalities_without_bounds_and_the_default_solver
     assert CASCADE.attempt(qp, StackProblem(inequality, lower, upper)) is None
     assert QR_SWEEP.attempt(qp, StackProblem(inequality, lower, upper)) is None
     assert ACTIVE_BOUNDS.attempt(qp, StackProblem(inequality, lower, upper)) is None
-    for path in (CASCADE, QR_SWEEP, ACTIVE_BOUNDS):
+    assert WARM_QR_SWEEP.attempt(qp, StackProblem(inequality, lower, upper)) is None
+    for path in (CASCADE, QR_SWEEP, ACTIVE_BOUNDS, WARM_QR_SWEEP):
         assert path.attempt(qp, StackProblem(levels, lower, upper, solver="clarabel")) is None
 
 
@@ -129,7 +134,7 @@ def test_the_solvers_lists_always_decide():
         solve_stack(HierarchicalQP(n), StackProblem(levels, lower, upper), (QR_SWEEP, ACTIVE_BOUNDS))
 
 
-@pytest.mark.parametrize("path", [QR_SWEEP, ACTIVE_BOUNDS], ids=lambda p: p.name)
+@pytest.mark.parametrize("path", [QR_SWEEP, ACTIVE_BOUNDS, WARM_QR_SWEEP], ids=lambda p: p.name)
 def test_a_level_without_rows_does_not_keep_the_closed_forms_out(path):
     """An inequality level with no row (a collision level with no pair in range) is no inequality."""
     rng = np.random.default_rng(13)
@@ -142,6 +147,91 @@ def test_a_level_without_rows_does_not_keep_the_closed_forms_out(path):
     result = path.attempt(HierarchicalQP(n), problem)
     assert result is not None
     assert_same_answer(result, STAGES.attempt(HierarchicalQP(n), problem), levels, lower, upper)
+
+
+def with_posture(rng: np.random.Generator, bounds: str):
+    """An equality stack (:func:`equality_stack`, its levels of full row rank together) with a
+    posture-like level at the bottom: n rows (a random invertible matrix, random targets), more than
+    the levels above leave free."""
+    n, levels, lower, upper = equality_stack(rng, bounds)
+    while np.linalg.matrix_rank(np.vstack([A for A, _, _ in levels])) < sum(len(A) for A, _, _ in levels):
+        n, levels, lower, upper = equality_stack(rng, bounds)
+    posture = np.eye(n) + 0.3 * rng.normal(size=(n, n)) / np.sqrt(n)
+    target = rng.normal(size=n)
+    return n, [*levels, (posture, target, target)], lower, upper
+
+
+@pytest.mark.parametrize("bounds", ["none", "loose", "tight"])
+def test_the_warm_qr_sweep_answers_a_posture_below_the_levels(bounds):
+    """A level of more rows than what is left free (a posture task at the bottom): the active bounds
+    cannot certify it (their levels must be of full row rank); the warm QR sweep answers with the
+    stages' answer, cold (no bound held: it holds the bounds in the way one at a time, a few times)
+    and from a warm start (the bounds the last answer holds, here the stages', as its first guess:
+    with tight bounds most components end at one, too many to find one at a time)."""
+    rng = np.random.default_rng(20261127)
+    answered = {"cold": 0, "warm": 0}
+    for _ in range(40):
+        n, levels, lower, upper = with_posture(rng, bounds)
+        problem = StackProblem(levels, lower, upper)
+        reference = STAGES.attempt(HierarchicalQP(n), problem)
+        assert ACTIVE_BOUNDS.attempt(HierarchicalQP(n), problem) is None
+        for start in answered:
+            qp = HierarchicalQP(n)
+            if start == "warm":
+                qp.warm.bound_sides = (reference.x, lower, upper)
+            result = WARM_QR_SWEEP.attempt(qp, problem)
+            if result is not None:
+                assert_same_answer(result, reference, levels, lower, upper)
+                assert isinstance(qp.warm.bound_sides, tuple) and qp.warm.bound_sides[0] is result.x
+                answered[start] += 1
+    assert answered["warm"] >= 30 and (answered["cold"] >= 30 or bounds == "tight")
+
+
+def test_the_warm_qr_sweep_applies_only_where_it_stands_for_the_default_stages():
+    rng = np.random.default_rng(29)
+    n, levels, lower, upper = with_posture(rng, "loose")
+    assert WARM_QR_SWEEP.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)) is not None
+    assert WARM_QR_SWEEP.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper, damping=0.1)) is None
+    assert WARM_QR_SWEEP.attempt(HierarchicalQP(n, rank_threshold=1e-6), StackProblem(levels, lower, upper)) is None
+    assert WARM_QR_SWEEP.attempt(HierarchicalQP(n, hold_tolerance=1e-3), StackProblem(levels, lower, upper)) is None
+    assert WARM_QR_SWEEP.attempt(HierarchicalQP(n, regularize=False), StackProblem(levels, lower, upper)) is None
+    outside = np.full(n, 2e3)  # the stages' start outside the bounds: they relax a bound to it
+    assert WARM_QR_SWEEP.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper, start=outside)) is None
+    nan = lower.copy()
+    nan[0] = np.nan
+    assert WARM_QR_SWEEP.attempt(HierarchicalQP(n), StackProblem(levels, nan, upper)) is None
+
+
+def test_the_warm_qr_sweep_backs_off_after_failures():
+    """A stack whose rank is not clear-cut (two rows within 1e-7 of each other: a singular value
+    between the negligible and the certified ones) is the stages' to decide: after f failures in a
+    row the next 2^(f−1) calls skip the sweep, a success resets the count, and a cloned warm start
+    keeps the count."""
+    rng = np.random.default_rng(31)
+    n = 12
+    A = rng.normal(size=(2, n))
+    A[1] = A[0] + 1e-7 * rng.normal(size=n)
+    b = rng.normal(size=2)
+    unclear = StackProblem([(A, b, b)], np.full(n, -1e3), np.full(n, 1e3))
+    qp = HierarchicalQP(n)
+    tries = 0
+    for _ in range(12):
+        before = qp.warm.sweep_skips
+        assert WARM_QR_SWEEP.attempt(qp, unclear) is None
+        if before == 0:
+            tries += 1
+            assert qp.warm.sweep_failures == tries and qp.warm.sweep_skips == back_off(tries)
+        else:
+            assert qp.warm.sweep_skips == before - 1
+    assert tries == 4  # calls 0, 1, 3 and 7 tried (skips 1, 2, 4 between them)
+    assert copy.deepcopy(qp.warm).sweep_failures == tries
+    target = b[:1]
+    clear = StackProblem([(A[:1], target, target)], np.full(n, -1e3), np.full(n, 1e3))
+    for _ in range(qp.warm.sweep_skips):
+        assert WARM_QR_SWEEP.attempt(qp, clear) is None
+    assert WARM_QR_SWEEP.attempt(qp, clear) is not None and qp.warm.sweep_failures == 0
+    qp.forget_warm_starts()
+    assert qp.warm.sweep_failures == qp.warm.sweep_skips == 0
 
 
 def with_inequalities(rng: np.random.Generator, n: int, levels: list, x_eq: np.ndarray, holding: bool) -> list:

@@ -268,8 +268,28 @@ def entity_profile_table(d: dict) -> list[str]:
     return lines
 
 
+def marginal_table(d: dict) -> list[str]:
+    lines = [
+        "### The marginal cost of a task, by kind (`bench/reference/marginal.json`)",
+        "",
+        f"The base stack (both soles, the right hand) and the same stack with one more task of each kind at the "
+        f"bottom, timed in the same turns as `bench/floor.py`'s graph: the median tick's CPU time, the difference "
+        f"(the kind's marginal cost) and its ratio to the floor's slope ({_fixed(d.get('floor_slope_cpu_us'))} µs per "
+        f"task; target ≤ 2). Medians over {_num(d.get('repeat'))} repeats of {_num(d.get('ticks'))} ticks. "
+        f"Regenerate with `.venv/bin/python bench/marginal.py --save`.",
+        "",
+    ]
+    rows = []
+    for solver, r in d.get("solvers", {}).items():
+        for kind, k in r.get("kinds", {}).items():
+            rows.append([f"`{solver}`", kind, _fixed(r.get("base_tick_cpu_us"), 0), _fixed(k.get("tick_cpu_us"), 0),
+                         _fixed(k.get("marginal_cpu_us")), _fixed(k.get("ratio_to_floor_slope"), 2)])
+    return lines + _table(["solver", "kind added", "base µs", "with it µs", "marginal µs", "ratio to the floor's slope"], rows)
+
+
 RENDERERS = {
     "entity_profile.json": entity_profile_table,
+    "marginal.json": marginal_table,
     "push_map_kinematic.json": lambda d: push_map_table(d, "push_map_kinematic.json"),
     "push_map_dynamic.json": lambda d: push_map_table(d, "push_map_dynamic.json"),
     "dynamics.json": dynamics_tables,

@@ -87,7 +87,7 @@ def solve_active_bounds(qp: StageOwner, jacobians, values, x_lower, x_upper, beg
         A, b = np.concatenate(jacobians), np.concatenate(values)
     else:
         A, b = np.zeros((0, qp.n)), np.zeros(0)
-    guess = _bound_guess(qp, x_lower, x_upper)
+    guess = bound_guess(qp, x_lower, x_upper)
     status, x, sides, residual, slack_norms, active_bounds = path.solve_stack(
         A, b, sizes, x_lower, x_upper, guess, certified=CERTIFIED_FACTOR * qp.rank_threshold,
         feasibility=min(VERIFIED, qp.feasibility_tolerance), tolerance=qp.feasibility_tolerance)
@@ -115,7 +115,7 @@ def solve_active_bounds(qp: StageOwner, jacobians, values, x_lower, x_upper, beg
     )
 
 
-def _bound_guess(qp: StageOwner, x_lower: np.ndarray, x_upper: np.ndarray) -> np.ndarray:
+def bound_guess(qp: StageOwner, x_lower: np.ndarray, x_upper: np.ndarray) -> np.ndarray:
     """The sides of the bounds held at the last answer (the warm start's)."""
     guess = qp.warm.bound_sides
     if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
@@ -147,7 +147,7 @@ def solve_held_rows(qp: StageOwner, levels: Sequence[tuple[np.ndarray, np.ndarra
     sizes = np.diff(starts)
     A, lower, upper = (np.concatenate([level[i] for level in rows]) for i in range(3))
     status, x, sides, row_sides, slacks, slack_norms, active, bounds, has_inequality = path.solve_held_rows(
-        A, lower, upper, sizes, x_lower, x_upper, _bound_guess(qp, x_lower, x_upper),
+        A, lower, upper, sizes, x_lower, x_upper, bound_guess(qp, x_lower, x_upper),
         certified=CERTIFIED_FACTOR * qp.rank_threshold, feasibility=min(VERIFIED, qp.feasibility_tolerance),
         tolerance=qp.feasibility_tolerance)
     if status != path.SOLVED or (qp.hold_tolerance and row_sides.any()):

@@ -14,7 +14,12 @@ tolerances); otherwise they give None and the next path is tried. The stages alw
   the bounds held at the last tick.
 * :data:`ACTIVE_BOUNDS`: equality levels under bounds, by one QR of all the levels with the bounds
   held at the last call, certified by the minimum-norm stage's KKT conditions
-  (:mod:`.equality_stack`), with a back-off after failures kept in the warm start.
+  (:mod:`.equality_stack`), with a back-off after failures kept in the warm start. Every level must
+  be of full row rank in what the levels above leave free.
+* :data:`WARM_QR_SWEEP`: the QR sweep from the bounds held at the last answer (the warm start's),
+  for the equality stacks the active bounds cannot certify: a level with more rows than the levels
+  above leave free (a posture task at the bottom) or of lower rank, which the sweep's
+  least-squares steps take; with its own back-off.
 * :data:`HELD_ROWS`: a stack with inequality rows whose equality rows can all be met exactly: its
   equality rows and the inequality rows it has to hold at a bound, by the active bounds
   (:class:`HeldRows`: then it is the whole stack's optimum), with its own back-off after failures
@@ -26,7 +31,7 @@ What each solver tries, in order:
 
 =========================  ==================================
 ``SOT`` (basic)            :data:`BASIC` = (cascade,)
-``SolverKine``             :data:`KINEMATIC` = (active bounds, held rows, stages)
+``SolverKine``             :data:`KINEMATIC` = (active bounds, warm QR sweep, held rows, stages)
 ``SolverDyn``              :data:`DYNAMIC` = (QR sweep, stages)
 =========================  ==================================
 
@@ -45,9 +50,10 @@ import numpy as np
 from ..exceptions import SolverError
 from .cascade import CascadeFactorization, cascade_factorization
 from .equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
-from .equality_stack import default_stages, solve_held_rows
+from .equality_stack import bound_guess, default_stages, solve_held_rows, start_inside
 from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows
 from .solve import HierarchicalQP
+from .tolerances import FEASIBILITY, RANK_THRESHOLD
 from .warm import WarmStart, back_off
 
 CASCADE_NAME = "cascade"
@@ -151,6 +157,45 @@ class ActiveBounds(StackPath):
                                    p.damping, warm=p.warm)
 
 
+class WarmQrSweep(StackPath):
+    """Equality levels under bounds by the QR sweep (:mod:`.equality_hierarchy`), its first guess
+    the bounds held at the last answer (the warm start's), for the kinematic solver: it answers the
+    equality stacks the active bounds cannot certify (a level of more rows than the levels above
+    leave free, as a posture task at the bottom, or of lower rank: the sweep's least-squares steps
+    take them), when its rank decisions are clear-cut. It stands for the default stages only: no
+    damping, the default tolerances, the start inside the bounds (no bound relaxed to it). After f
+    failures in a row the next 2^(f−1) calls, at most 16, skip it (the warm start's
+    ``sweep_failures``/``sweep_skips``): a stack it cannot decide costs a sixteenth of a sweep a tick."""
+
+    name = "warm-qr-sweep"
+
+    def attempt(self, qp: HierarchicalQP, problem: StackProblem) -> HqpResult | None:
+        p = problem
+        if (p.solver != ACTIVE_SET or p.stacked is not None or not p.equalities_only or p.damping != 0.0
+                or not default_stages(qp) or qp.rank_threshold != RANK_THRESHOLD
+                or qp.feasibility_tolerance != FEASIBILITY or qp.hold_tolerance != 0.0):
+            return None
+        x_lower, x_upper = np.asarray(p.x_lower, dtype=float), np.asarray(p.x_upper, dtype=float)
+        with np.errstate(invalid="ignore"):  # (±∞ bounds)
+            if not start_inside(x_lower, x_upper, x_lower == x_upper, 0.0 if p.start is None else p.start):
+                return None
+            qp._use(p.warm)
+            warm = qp.warm
+            if warm.sweep_skips:
+                warm.sweep_skips -= 1
+                return None
+            sides = bound_guess(qp, x_lower, x_upper)
+        result = solve_equality_hierarchy([(A, b) for A, b, _ in p.levels], x_lower, x_upper,
+                                          np.flatnonzero(sides < 0).tolist(), np.flatnonzero(sides > 0).tolist())
+        if result is None:
+            warm.sweep_failures += 1
+            warm.sweep_skips = back_off(warm.sweep_failures)
+            return None
+        warm.sweep_failures = 0
+        warm.bound_sides = (result.x, x_lower, x_upper)  # (as the stages leave it: the active bounds' next guess)
+        return result
+
+
 class HeldRows(StackPath):
     """A stack with inequality rows whose equality rows can all be met exactly, with its violated
     inequality rows held at their bounds (:func:`.equality_stack.solve_held_rows`).
@@ -204,8 +249,9 @@ class Stages(StackPath):
 
 
 CASCADE, QR_SWEEP, ACTIVE_BOUNDS, HELD_ROWS, STAGES = Cascade(), QrSweep(), ActiveBounds(), HeldRows(), Stages()
+WARM_QR_SWEEP = WarmQrSweep()
 BASIC: tuple[StackPath, ...] = (CASCADE,)
-KINEMATIC: tuple[StackPath, ...] = (ACTIVE_BOUNDS, HELD_ROWS, STAGES)
+KINEMATIC: tuple[StackPath, ...] = (ACTIVE_BOUNDS, WARM_QR_SWEEP, HELD_ROWS, STAGES)
 DYNAMIC: tuple[StackPath, ...] = (QR_SWEEP, STAGES)
 
 

@@ -7,9 +7,11 @@ for the joint limits, which become velocity bounds over one tick (:mod:`.limits`
 
 The stack is solved by the paths :data:`~sotdrake.hqp.stack_paths.KINEMATIC` declares: a stack of
 equality tasks first at once, by one QR from the last tick's active limits, verified
-(:mod:`~sotdrake.hqp.equality_stack`); a stack with inequality rows whose equality rows can all be
-met by the same QR on its equality rows and the inequality rows it has to hold at a bound
-(:class:`~sotdrake.hqp.stack_paths.HeldRows`); then level by level when neither applies or verifies.
+(:mod:`~sotdrake.hqp.equality_stack`), or by the QR sweep from the same limits when a level has
+more rows than what is left free (a posture task at the bottom,
+:class:`~sotdrake.hqp.stack_paths.WarmQrSweep`); a stack with inequality rows whose equality rows
+can all be met by the same QR on its equality rows and the inequality rows it has to hold at a
+bound (:class:`~sotdrake.hqp.stack_paths.HeldRows`); then level by level when none applies or verifies.
 
 ``setAccelerationLimit(a_max)`` adds hard bounds ``|v − v_prev| ≤ a_max dt`` on each joint (the
 last command ``v_prev`` kept in the Context), combined with the position and velocity limits and the
@@ -57,9 +59,9 @@ class HqpSettings(StackSettings):
 @dataclass
 class HqpDiagnostics:
     """Per-level results of one tick: ``slack_norms``, ``active_rows`` (inequality rows at a bound),
-    ``active_limits`` (velocity components at a joint-limit bound), ``level_solvers``
-    ("active-set", or "<Drake solver>+polish", per stage), ``solve_time_s``, and ``failure`` (a
-    message, or empty)."""
+    ``active_limits`` (velocity components at a joint-limit bound), ``level_solvers`` (per stage:
+    "active-set", "<Drake solver>+polish", or the whole-stack path that answered: "active-bounds",
+    "qr"), ``solve_time_s``, and ``failure`` (a message, or empty)."""
 
     tasks: list[str] = field(default_factory=list)
     slack_norms: np.ndarray = field(default_factory=lambda: np.zeros(0))

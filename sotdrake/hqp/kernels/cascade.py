@@ -63,6 +63,61 @@ def prefix(B, sizes, references, threshold, more):
 
 
 @njit(cache=True)
+def _without_masked(Z, mask):
+    """``Z`` (nv × d, orthonormal columns) without the masked coordinates' directions: ``Z N``, ``N``
+    an orthonormal basis of the null space of ``Z``'s masked rows, when those rows are orthonormal
+    (each masked unit vector lies in ``range(Z)``, as when no level above has a masked column);
+    else ``Z`` as it is. The directions removed are in every level's null space (``J P_0`` is zero
+    on them): the levels' non-zero singular values, hence the cascade, do not change."""
+    g = 0
+    for value in mask:
+        if value == 0.0:
+            g += 1
+    d = Z.shape[1]
+    if g == 0 or g >= d:
+        return Z
+    rows = np.zeros((g, d))  # the masked rows of Z
+    k = 0
+    for i in range(mask.size):
+        if mask[i] == 0.0:
+            rows[k] = Z[i]
+            k += 1
+    for a in range(g):  # orthonormal to round-off, or left as it is
+        for b in range(g):
+            if abs(rows[a] @ rows[b] - (1.0 if a == b else 0.0)) > 1e-9:
+                return Z
+    reflectors = fortran(rows.T)  # d × g
+    tau = np.empty(g)
+    if geqrf(reflectors, tau) != 0:
+        return Z
+    basis = np.zeros((d, d)).T  # column-major: the full Q of the QR, its last d − g columns N
+    basis[:, :g] = reflectors
+    if orgqr(basis, g, tau) != 0:
+        return Z
+    return np.ascontiguousarray(Z @ np.ascontiguousarray(basis[:, g:]))
+
+
+@njit(cache=True)
+def _least_squares(A, residual, threshold):
+    """``(ok, z)``: the least-squares solution of ``A z = residual`` (m × d, m ≥ d; one column of
+    ``z`` per column of ``residual``) by one QR, ``A = Q R``, when ``σ_min(A) ≥ 1/‖R⁻¹‖_F >
+    threshold`` certifies that the SVD would keep every direction (then it is the truncated SVD's
+    solution); not ok otherwise (the SVD decides)."""
+    d = A.shape[1]
+    qr = fortran(A)
+    tau = np.empty(d)
+    if geqrf(qr, tau) != 0:
+        return False, residual
+    ok, R_inverse = upper_inverse(qr[:d])
+    if not ok or not np.sum(R_inverse * R_inverse) * threshold * threshold < 1.0:  # (False on NaN too)
+        return False, residual
+    projected = fortran(residual)
+    if ormqr(qr, tau, projected, True) != 0:
+        return False, residual
+    return True, R_inverse @ np.ascontiguousarray(projected[:d])
+
+
+@njit(cache=True)
 def svd_levels(J, sizes, references, mask, Z, v, first, threshold, dampings):
     """The SVD cascade (:func:`.cascade.svd_cascade`) from level ``first`` on: ``(v, ranks)``.
     ``J`` and ``references``: every level's rows stacked (levels of ``sizes`` rows; ``references``
@@ -71,18 +126,31 @@ def svd_levels(J, sizes, references, mask, Z, v, first, threshold, dampings):
     above ``first`` leave free and their velocity (the identity and 0 from the top); ``dampings``:
     one δ per level. Per level, the SVD ``(J P_0 Z)ᵀ = W Σ Uᵀ`` (LAPACK's ``gesdd``, as
     ``np.linalg.svd``), the singular values above ``threshold`` kept (``σ/(σ² + δ)`` inverted) and
-    ``Z ← Z W_{>rank}``. A non-finite level raises ``np.linalg.LinAlgError``."""
+    ``Z ← Z W_{>rank}``. An undamped level with at least as many rows as directions left (a posture
+    task at the bottom) is first tried by one QR (:func:`_least_squares`), several times cheaper at
+    these sizes: certified of full column rank, its solution is the SVD's and it leaves nothing
+    free. The masked directions are taken out of ``Z`` first (:func:`_without_masked`), so that they
+    do not make such a level rank deficient. A non-finite level raises ``np.linalg.LinAlgError``."""
     levels = sizes.size
     ranks = np.zeros(levels, dtype=np.int64)
     starts = np.zeros(levels + 1, dtype=np.int64)
     for i in range(levels):
         starts[i + 1] = starts[i] + sizes[i]
     v = v.copy()
+    Z = _without_masked(Z, mask)
     for i in range(first, levels):
         rows = J[starts[i]:starts[i + 1]]
         if rows.shape[0] == 0 or Z.shape[1] == 0:  # nothing asked, or nothing left free
             continue
         A = (rows * mask) @ Z  # J P_0 P_{i-1} in what is left free (m × d)
+        residual = np.ascontiguousarray(references[starts[i]:starts[i + 1]]) - rows @ v
+        if dampings[i] == 0.0 and A.shape[0] >= A.shape[1]:
+            ok, z = _least_squares(A, residual, threshold)
+            if ok:
+                ranks[i] = A.shape[1]
+                v = v + Z @ z
+                Z = np.zeros((Z.shape[0], 0))
+                continue
         W, sigma, Ut = np.linalg.svd(np.ascontiguousarray(A.T), full_matrices=i < levels - 1)
         rank = 0
         for s in sigma:
@@ -93,7 +161,6 @@ def svd_levels(J, sizes, references, mask, Z, v, first, threshold, dampings):
             s = sigma[:rank]
             inverse = 1.0 / s if dampings[i] == 0.0 else s / (s * s + dampings[i])
             V = Z @ np.ascontiguousarray(W[:, :rank])
-            residual = np.ascontiguousarray(references[starts[i]:starts[i + 1]]) - rows @ v
             v = v + V @ (inverse.reshape(-1, 1) * (np.ascontiguousarray(Ut[:rank]) @ residual))
         if i < levels - 1:
             Z = Z @ np.ascontiguousarray(W[:, rank:])

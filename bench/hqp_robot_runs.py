@@ -138,7 +138,7 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
     simulator = Simulator(runs.diagram, context)
     simulator.Initialize()
     frozen, position_violations, velocity_violations, solve_times, active = 0, 0, 0, [], 0
-    failures, fallbacks, drake, iterations, by_active_bounds = [], 0, 0, 0, 0
+    failures, fallbacks, drake, iterations, by_active_bounds, by_sweep = [], 0, 0, 0, 0, 0
     for k in range(ticks):
         diagnostics = sot.GetOutputPort("diagnostics").Eval(own)
         v = sot.GetOutputPort("control").Eval(own)
@@ -153,6 +153,7 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
         iterations = max(iterations, diagnostics.max_iterations)
         active += len(diagnostics.active_limits) > 0
         by_active_bounds += diagnostics.level_solvers[:1] == ["active-bounds"]  # the whole stack at once
+        by_sweep += diagnostics.level_solvers[:1] == ["qr"]  # the whole stack by the QR sweep
         iv = layout.joints_v
         velocity_violations += int(np.any(v[iv] < v_lower[iv] - 1e-9) or np.any(v[iv] > v_upper[iv] + 1e-9))
         simulator.AdvanceTo((k + 1) * dt)
@@ -163,7 +164,7 @@ def one_run(runs: Runs, rng: np.random.Generator, ticks: int) -> dict:
             "velocity_limit_violations": velocity_violations, "ticks_with_active_limits": active,
             "solve_times_s": solve_times, "failures": failures[:3], "ticks_with_a_fallback": fallbacks,
             "ticks_with_a_drake_fallback": drake,
-            "max_iterations": iterations, "ticks_by_active_bounds": by_active_bounds}
+            "max_iterations": iterations, "ticks_by_active_bounds": by_active_bounds, "ticks_by_qr_sweep": by_sweep}
 
 
 def main(argv=None) -> dict:
@@ -208,6 +209,7 @@ def main(argv=None) -> dict:
         "ticks_with_a_drake_fallback": sum(r["ticks_with_a_drake_fallback"] for r in results),
         "max_active_set_iterations": max(r["max_iterations"] for r in results),
         "ticks_by_active_bounds": sum(r["ticks_by_active_bounds"] for r in results),
+        "ticks_by_qr_sweep": sum(r["ticks_by_qr_sweep"] for r in results),
         "solve_ms_median": float(np.median(times)), "solve_ms_p99": float(np.percentile(times, 99)),
         "solve_ms_max": float(times.max()), "wall_s": wall,
         "failures": [f for r in results for f in r["failures"]][:10],

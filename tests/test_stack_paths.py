@@ -200,6 +200,9 @@ def test_the_warm_qr_sweep_applies_only_where_it_stands_for_the_default_stages()
     nan = lower.copy()
     nan[0] = np.nan
     assert WARM_QR_SWEEP.attempt(HierarchicalQP(n), StackProblem(levels, nan, upper)) is None
+    qp = HierarchicalQP(n)
+    assert WARM_QR_SWEEP.attempt(qp, StackProblem([], lower, upper)) is None  # an empty stack: not a failure
+    assert qp.warm.sweep_failures == 0
 
 
 def test_the_warm_qr_sweep_backs_off_after_failures():

@@ -171,7 +171,7 @@ class WarmQrSweep(StackPath):
 
     def attempt(self, qp: HierarchicalQP, problem: StackProblem) -> HqpResult | None:
         p = problem
-        if (p.solver != ACTIVE_SET or p.stacked is not None or not p.equalities_only or p.damping != 0.0
+        if (p.solver != ACTIVE_SET or p.stacked is not None or not p.levels or not p.equalities_only or p.damping != 0.0
                 or not default_stages(qp) or qp.rank_threshold != RANK_THRESHOLD
                 or qp.feasibility_tolerance != FEASIBILITY or qp.hold_tolerance != 0.0):
             return None

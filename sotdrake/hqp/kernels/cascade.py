@@ -86,15 +86,14 @@ def _without_masked(Z, mask):
         for b in range(g):
             if abs(rows[a] @ rows[b] - (1.0 if a == b else 0.0)) > 1e-9:
                 return Z
-    reflectors = fortran(rows.T)  # d × g
+    reflectors = fortran(rows.T)  # d × g: its QR's full Q = [·, N], N the last d − g columns
     tau = np.empty(g)
     if geqrf(reflectors, tau) != 0:
         return Z
-    basis = np.zeros((d, d)).T  # column-major: the full Q of the QR, its last d − g columns N
-    basis[:, :g] = reflectors
-    if orgqr(basis, g, tau) != 0:
+    rotated = fortran(Z.T)  # Qᵀ Zᵀ by the g reflectors: its last d − g rows are (Z N)ᵀ
+    if ormqr(reflectors, tau, rotated, True) != 0:
         return Z
-    return np.ascontiguousarray(Z @ np.ascontiguousarray(basis[:, g:]))
+    return np.ascontiguousarray(rotated[g:].T)
 
 
 @njit(cache=True)

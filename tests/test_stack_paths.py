@@ -19,6 +19,7 @@ from sotdrake.hqp.stack_paths import (
     CASCADE,
     DYNAMIC,
     HELD_ROWS,
+    INACTIVE_ROWS,
     KINEMATIC,
     QR_SWEEP,
     STAGES,
@@ -367,3 +368,55 @@ def test_held_rows_back_off_after_failures_and_apply_only_where_they_say():
     assert np.all(result.x >= lower - 1e-9) and np.all(result.x <= upper + 1e-9)
     assert result.slack_norms == pytest.approx(STAGES.attempt(HierarchicalQP(n), StackProblem(cut, lower, upper)).slack_norms,
                                                abs=1e-7)
+
+
+@pytest.mark.parametrize("bounds", ["none", "loose", "tight"])
+def test_inactive_rows_give_the_stages_answer_below_a_level_that_cannot_be_met(bounds):
+    """Inequality rows around the answer of the equality rows alone, in a stack whose last level
+    cannot be met (a posture): when they all hold there, that answer is the stages' answer of the
+    whole stack (each level's slack, the bounds, the minimum-norm point, the rows reported at a
+    side); when one is cut off, the path leaves the stack to the stages and counts a failure."""
+    rng = np.random.default_rng(20261128)
+    answered = {True: 0, False: 0}
+    for trial in range(60):
+        n, levels, lower, upper = with_posture(rng, bounds)
+        x_eq = STAGES.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)).x
+        holding = trial % 3 != 0
+        mixed = with_inequalities(rng, n, levels, x_eq, holding)
+        problem = StackProblem(mixed, lower, upper)
+        qp = HierarchicalQP(n)
+        result = INACTIVE_ROWS.attempt(qp, problem)
+        if result is not None:
+            assert holding
+            assert_same_mixed_answer(result, STAGES.attempt(HierarchicalQP(n), problem), mixed, lower, upper)
+        elif not holding:
+            assert qp.warm.inactive_failures in (0, 1)  # (1: the rows cut off; 0: the equality rows undecided)
+        answered[holding] += result is not None
+    assert (answered[True] >= 25 or bounds == "tight") and answered[False] == 0  # (tight: too many bounds to find cold)
+
+
+def test_inactive_rows_apply_only_where_they_say_and_back_off():
+    rng = np.random.default_rng(37)
+    n, levels, lower, upper = with_posture(rng, "loose")
+    x_eq = STAGES.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)).x
+    holding = with_inequalities(rng, n, levels, x_eq, holding=True)
+    qp = HierarchicalQP(n)
+    assert INACTIVE_ROWS.attempt(qp, StackProblem(levels, lower, upper)) is None  # no inequality row: not its stack
+    assert INACTIVE_ROWS.attempt(qp, StackProblem(holding, lower, upper, damping=0.1)) is None
+    assert INACTIVE_ROWS.attempt(qp, StackProblem(holding, lower, upper, solver="clarabel")) is None
+    A, lo, hi = holding[0]
+    bad = [(A, lo, np.full_like(hi, np.nan)), *holding[1:]]
+    assert INACTIVE_ROWS.attempt(qp, StackProblem(bad, lower, upper)) is None  # (the stages say what is wrong)
+    assert INACTIVE_ROWS.attempt(qp, StackProblem(holding, lower, upper)) is not None
+    cut = with_inequalities(rng, n, levels, x_eq, holding=False)
+    tries = 0
+    for _ in range(12):  # tries at calls 0, 2, 5 and 10 (skips 1, 2, 4 between them)
+        before = qp.warm.inactive_skips
+        assert INACTIVE_ROWS.attempt(qp, StackProblem(cut, lower, upper)) is None
+        if before == 0:
+            tries += 1
+            assert qp.warm.inactive_failures == tries and qp.warm.inactive_skips == back_off(tries)
+    assert tries == 4 and copy.deepcopy(qp.warm).inactive_failures == 4
+    for _ in range(qp.warm.inactive_skips):
+        assert INACTIVE_ROWS.attempt(qp, StackProblem(holding, lower, upper)) is None
+    assert INACTIVE_ROWS.attempt(qp, StackProblem(holding, lower, upper)) is not None and qp.warm.inactive_failures == 0

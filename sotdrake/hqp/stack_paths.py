@@ -24,6 +24,10 @@ tolerances); otherwise they give None and the next path is tried. The stages alw
   equality rows and the inequality rows it has to hold at a bound, by the active bounds
   (:class:`HeldRows`: then it is the whole stack's optimum), with its own back-off after failures
   kept in the warm start.
+* :data:`INACTIVE_ROWS`: a stack with inequality rows that all hold at the answer of its equality
+  rows alone (by the active bounds or the warm QR sweep): that answer (:class:`InactiveRows`), with
+  its own back-off. It takes what the held rows cannot: a level whose equality rows cannot all be
+  met, as a posture task below a collision level whose pairs are in range but not about to touch.
 * :data:`STAGES`: level by level, each stage's own paths tried in the order of :mod:`.paths`
   (:meth:`.solve.HierarchicalQP.solve`). It takes inequality rows and Drake's solvers.
 
@@ -31,7 +35,7 @@ What each solver tries, in order:
 
 =========================  ==================================
 ``SOT`` (basic)            :data:`BASIC` = (cascade,)
-``SolverKine``             :data:`KINEMATIC` = (active bounds, warm QR sweep, held rows, stages)
+``SolverKine``             :data:`KINEMATIC` = (active bounds, warm QR sweep, held rows, inactive rows, stages)
 ``SolverDyn``              :data:`DYNAMIC` = (QR sweep, stages)
 =========================  ==================================
 
@@ -47,13 +51,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import SolverError
+from ..exceptions import InvalidInput, SolverError
 from .cascade import CascadeFactorization, cascade_factorization
 from .equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
 from .equality_stack import bound_guess, default_stages, solve_held_rows, start_inside
-from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows
+from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows, result_of
 from .solve import HierarchicalQP
-from .tolerances import FEASIBILITY, RANK_THRESHOLD
+from .tolerances import FEASIBILITY, RANK_THRESHOLD, VERIFIED
 from .warm import WarmStart, back_off
 
 CASCADE_NAME = "cascade"
@@ -237,6 +241,62 @@ class HeldRows(StackPath):
         return result
 
 
+class InactiveRows(StackPath):
+    """A stack with inequality rows that all hold at the answer ``x*`` of its equality rows alone
+    (each level's equality rows, solved by :data:`ACTIVE_BOUNDS` or :data:`WARM_QR_SWEEP`, which
+    take a level that cannot be met, as a posture task at the bottom): ``x*`` is then the whole
+    stack's answer. A level's objective over what the levels above leave optimal is at least its
+    equality rows' own least value, which ``x*`` reaches with no violation, so each level's optimal
+    set is the equality rows' one cut by the inequality rows held so far, ``x*`` is in all of them,
+    and the minimum-norm point of the last one (a subset of the equality rows' last set, ``x*`` its
+    minimum-norm point) is ``x*``. An inequality row passed by more than the compiled paths' check
+    (1e-10, relative above 1) leaves the stack to the stages; after f such failures in a row the next
+    2^(f−1) calls, at most 16, skip the path (the warm start's ``inactive_failures``/``inactive_skips``)."""
+
+    name = "inactive-rows"
+
+    def attempt(self, qp: HierarchicalQP, problem: StackProblem) -> HqpResult | None:
+        p = problem
+        if p.solver != ACTIVE_SET or p.stacked is not None or p.equalities_only or p.damping != 0.0:
+            return None
+        qp._use(p.warm)
+        warm = qp.warm
+        if warm.inactive_skips:
+            warm.inactive_skips -= 1
+            return None
+        began = time.perf_counter()
+        try:
+            levels = [LevelRows(A, lower, upper) for A, lower, upper in p.levels]
+        except (InvalidInput, ValueError, TypeError):  # (the stages say what is wrong with the rows)
+            return None
+        if any(level.extend is not None for level in levels):
+            return None
+        equalities = []
+        for level in levels:
+            values = level.lower[level.equality]
+            equalities.append((level.A[level.equality], values, values))
+        sub = StackProblem(equalities, p.x_lower, p.x_upper, start=p.start, warm=warm)
+        answer = ACTIVE_BOUNDS.attempt(qp, sub) or WARM_QR_SWEEP.attempt(qp, sub)
+        if answer is None:
+            return None
+        x = answer.x
+        for level in levels:
+            if level.all_equality:
+                continue
+            value = level.A_in @ x
+            margin = VERIFIED * np.maximum(1.0, np.abs(value))
+            if not (np.all(value >= level.lower_in - margin) and np.all(value <= level.upper_in + margin)):
+                warm.inactive_failures += 1
+                warm.inactive_skips = back_off(warm.inactive_failures)
+                return None
+        warm.inactive_failures = 0
+        x_lower, x_upper = np.asarray(p.x_lower, dtype=float), np.asarray(p.x_upper, dtype=float)
+        result = result_of(levels, x, x_lower, x_upper, x_lower == x_upper, [self.name] * (len(levels) + 1))
+        result.iterations = [0] * (len(levels) + 1)
+        result.solve_time_s = time.perf_counter() - began
+        return result
+
+
 class Stages(StackPath):
     """Level by level (:meth:`.solve.HierarchicalQP.solve`): answers or raises."""
 
@@ -249,9 +309,9 @@ class Stages(StackPath):
 
 
 CASCADE, QR_SWEEP, ACTIVE_BOUNDS, HELD_ROWS, STAGES = Cascade(), QrSweep(), ActiveBounds(), HeldRows(), Stages()
-WARM_QR_SWEEP = WarmQrSweep()
+WARM_QR_SWEEP, INACTIVE_ROWS = WarmQrSweep(), InactiveRows()
 BASIC: tuple[StackPath, ...] = (CASCADE,)
-KINEMATIC: tuple[StackPath, ...] = (ACTIVE_BOUNDS, WARM_QR_SWEEP, HELD_ROWS, STAGES)
+KINEMATIC: tuple[StackPath, ...] = (ACTIVE_BOUNDS, WARM_QR_SWEEP, HELD_ROWS, INACTIVE_ROWS, STAGES)
 DYNAMIC: tuple[StackPath, ...] = (QR_SWEEP, STAGES)
 
 

@@ -35,7 +35,8 @@ class WarmStart:
     ``failures``/``skips``: the active bounds' back-off (after f failed tries in a row, the next
     2^(f-1) calls, at most 16, skip them); ``row_failures``/``row_skips``: the same back-off for the
     held-rows path (:class:`~.stack_paths.HeldRows`), ``sweep_failures``/``sweep_skips`` for the
-    warm QR sweep (:class:`~.stack_paths.WarmQrSweep`)."""
+    warm QR sweep (:class:`~.stack_paths.WarmQrSweep`), ``inactive_failures``/``inactive_skips`` for
+    the inactive rows (:class:`~.stack_paths.InactiveRows`)."""
 
     n: int
     working_sets: dict = field(default_factory=dict)
@@ -46,6 +47,8 @@ class WarmStart:
     row_skips: int = 0
     sweep_failures: int = 0
     sweep_skips: int = 0
+    inactive_failures: int = 0
+    inactive_skips: int = 0
 
     def __post_init__(self) -> None:
         if self.bound_sides is None:
@@ -55,12 +58,13 @@ class WarmStart:
         """Forget everything: the next solve is cold."""
         self.working_sets.clear()
         self.bound_sides = np.zeros(self.n, dtype=int)
-        self.failures = self.skips = self.row_failures = self.row_skips = self.sweep_failures = self.sweep_skips = 0
+        self.failures = self.skips = self.row_failures = self.row_skips = 0
+        self.sweep_failures = self.sweep_skips = self.inactive_failures = self.inactive_skips = 0
 
     def __deepcopy__(self, memo: dict) -> WarmStart:  # what a Context's clone calls
         return WarmStart(self.n, copy.deepcopy(self.working_sets, memo), copy.deepcopy(self.bound_sides, memo),
                          self.failures, self.skips, self.row_failures, self.row_skips, self.sweep_failures,
-                         self.sweep_skips)
+                         self.sweep_skips, self.inactive_failures, self.inactive_skips)
 
 
 class WarmStarts(dict):

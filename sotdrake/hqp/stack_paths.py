@@ -58,7 +58,7 @@ from .equality_stack import bound_guess, default_stages, solve_held_rows, start_
 from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows, result_of
 from .solve import HierarchicalQP
 from .tolerances import FEASIBILITY, RANK_THRESHOLD, VERIFIED
-from .warm import WarmStart, back_off
+from .warm import WarmStart
 
 CASCADE_NAME = "cascade"
 
@@ -184,19 +184,14 @@ class WarmQrSweep(StackPath):
             if not start_inside(x_lower, x_upper, x_lower == x_upper, 0.0 if p.start is None else p.start):
                 return None
             qp._use(p.warm)
-            warm = qp.warm
-            if warm.sweep_skips:
-                warm.sweep_skips -= 1
+            if qp.warm.skipped("sweep"):
                 return None
             sides = bound_guess(qp, x_lower, x_upper)
         result = solve_equality_hierarchy([(A, b) for A, b, _ in p.levels], x_lower, x_upper,
                                           np.flatnonzero(sides < 0).tolist(), np.flatnonzero(sides > 0).tolist())
-        if result is None:
-            warm.sweep_failures += 1
-            warm.sweep_skips = back_off(warm.sweep_failures)
-            return None
-        warm.sweep_failures = 0
-        warm.bound_sides = (result.x, x_lower, x_upper)  # (as the stages leave it: the active bounds' next guess)
+        qp.warm.record("sweep", result is not None)
+        if result is not None:  # (as the stages leave it: the active bounds' next guess)
+            qp.warm.bound_sides = (result.x, x_lower, x_upper)
         return result
 
 
@@ -225,19 +220,13 @@ class HeldRows(StackPath):
                 or not default_stages(qp)):
             return None
         qp._use(p.warm)
-        warm = qp.warm
-        if warm.row_skips:
-            warm.row_skips -= 1
+        if qp.warm.skipped("row"):
             return None
         began = time.perf_counter()
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             result = solve_held_rows(qp, p.levels, np.asarray(p.x_lower, dtype=float), np.asarray(p.x_upper, dtype=float),
                                      began)
-        if result is None:
-            warm.row_failures += 1
-            warm.row_skips = back_off(warm.row_failures)
-            return None
-        warm.row_failures = 0
+        qp.warm.record("row", result is not None)
         return result
 
 
@@ -261,8 +250,7 @@ class InactiveRows(StackPath):
             return None
         qp._use(p.warm)
         warm = qp.warm
-        if warm.inactive_skips:
-            warm.inactive_skips -= 1
+        if warm.skipped("inactive"):
             return None
         began = time.perf_counter()
         try:
@@ -286,10 +274,9 @@ class InactiveRows(StackPath):
             value = level.A_in @ x
             margin = VERIFIED * np.maximum(1.0, np.abs(value))
             if not (np.all(value >= level.lower_in - margin) and np.all(value <= level.upper_in + margin)):
-                warm.inactive_failures += 1
-                warm.inactive_skips = back_off(warm.inactive_failures)
+                warm.record("inactive", False)
                 return None
-        warm.inactive_failures = 0
+        warm.record("inactive", True)
         x_lower, x_upper = np.asarray(p.x_lower, dtype=float), np.asarray(p.x_upper, dtype=float)
         result = result_of(levels, x, x_lower, x_upper, x_lower == x_upper, [self.name] * (len(levels) + 1))
         result.iterations = [0] * (len(levels) + 1)

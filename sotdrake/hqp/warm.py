@@ -61,6 +61,21 @@ class WarmStart:
         self.failures = self.skips = self.row_failures = self.row_skips = 0
         self.sweep_failures = self.sweep_skips = self.inactive_failures = self.inactive_skips = 0
 
+    def skipped(self, path: str) -> bool:
+        """Whether this call skips the whole-stack path ``path`` (``"row"``, ``"sweep"`` or
+        ``"inactive"``: its back-off), counting the skip."""
+        skips = getattr(self, f"{path}_skips")
+        if skips:
+            setattr(self, f"{path}_skips", skips - 1)
+        return skips > 0
+
+    def record(self, path: str, answered: bool) -> None:
+        """The outcome of a try of ``path``: an answer resets its failures, a failure starts its back-off."""
+        failures = 0 if answered else getattr(self, f"{path}_failures") + 1
+        setattr(self, f"{path}_failures", failures)
+        if failures:
+            setattr(self, f"{path}_skips", back_off(failures))
+
     def __deepcopy__(self, memo: dict) -> WarmStart:  # what a Context's clone calls
         return WarmStart(self.n, copy.deepcopy(self.working_sets, memo), copy.deepcopy(self.bound_sides, memo),
                          self.failures, self.skips, self.row_failures, self.row_skips, self.sweep_failures,

@@ -257,8 +257,6 @@ class InactiveRows(StackPath):
             levels = [LevelRows(A, lower, upper) for A, lower, upper in p.levels]
         except (InvalidInput, ValueError, TypeError):  # (the stages say what is wrong with the rows)
             return None
-        if any(level.extend is not None for level in levels):
-            return None
         equalities = []
         for level in levels:
             values = level.lower[level.equality]

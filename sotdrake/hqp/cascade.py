@@ -88,8 +88,7 @@ def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, 
         B = B * selection
     r = _references(levels, rows, extra)
     sizes = np.array([levels[i][0].shape[0] for i in rows], dtype=np.int64)
-    solved, v, _, _, _, free = _kernels().prefix(compiled_input(B), sizes, r, float(svd_threshold),
-                                                                         taken < len(levels))
+    solved, v, free = _kernels().prefix(compiled_input(B), sizes, r, float(svd_threshold), taken < len(levels))
     if solved == 0:
         return None
     count = rows[solved] if solved < len(rows) else len(levels) if taken == len(levels) else taken

@@ -20,7 +20,6 @@ from ..compiled import kernels
 from .linalg import all_true
 from .problem import ACTIVE_BOUNDS, ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult
 from .tolerances import CERTIFIED_FACTOR, FEASIBILITY, VERIFIED
-from .warm import back_off
 
 if TYPE_CHECKING:
     from .owner import StageOwner
@@ -71,7 +70,7 @@ def try_active_bounds(qp: StageOwner, jacobians, values, x_lower, x_upper, began
     if qp.warm.skips:
         with np.errstate(invalid="ignore"):
             if start_inside(x_lower, x_upper, x_lower == x_upper, 0.0):
-                qp.warm.skips -= 1
+                qp.warm.skipped("bounds")
         return None
     return solve_active_bounds(qp, jacobians, values, x_lower, x_upper, began)
 
@@ -93,11 +92,10 @@ def solve_active_bounds(qp: StageOwner, jacobians, values, x_lower, x_upper, beg
         feasibility=min(VERIFIED, qp.feasibility_tolerance), tolerance=qp.feasibility_tolerance)
     if status == path.NOT_APPLICABLE:  # (0 outside the bounds of a free component, as _equalities_only)
         return None
+    qp.warm.record("bounds", status != path.NOT_VERIFIED)
     if status == path.NOT_VERIFIED:
-        qp.warm.failures += 1
-        qp.warm.skips = back_off(qp.warm.failures)
         return None
-    qp.warm.failures, qp.warm.bound_sides = 0, sides
+    qp.warm.bound_sides = sides
     slacks, start = [], 0
     for size in sizes.tolist():
         slacks.append(residual[start : start + size])

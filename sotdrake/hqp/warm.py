@@ -23,6 +23,11 @@ def back_off(failures: int) -> int:
     return min(2 ** (failures - 1), BACK_OFF_LIMIT)
 
 
+#: Each whole-stack path's back-off fields in :class:`WarmStart`: ``(failures, skips)``.
+BACK_OFFS = {"bounds": ("failures", "skips"), "row": ("row_failures", "row_skips"),
+             "sweep": ("sweep_failures", "sweep_skips"), "inactive": ("inactive_failures", "inactive_skips")}
+
+
 @dataclass
 class WarmStart:
     """The state a :class:`~.solve.HierarchicalQP` reads and writes during a solve (``n``: its
@@ -62,19 +67,21 @@ class WarmStart:
         self.sweep_failures = self.sweep_skips = self.inactive_failures = self.inactive_skips = 0
 
     def skipped(self, path: str) -> bool:
-        """Whether this call skips the whole-stack path ``path`` (``"row"``, ``"sweep"`` or
-        ``"inactive"``: its back-off), counting the skip."""
-        skips = getattr(self, f"{path}_skips")
-        if skips:
-            setattr(self, f"{path}_skips", skips - 1)
-        return skips > 0
+        """Whether this call skips the whole-stack path ``path`` (a key of :data:`BACK_OFFS`: its
+        back-off), counting the skip."""
+        skips = BACK_OFFS[path][1]
+        left = getattr(self, skips)
+        if left:
+            setattr(self, skips, left - 1)
+        return left > 0
 
     def record(self, path: str, answered: bool) -> None:
         """The outcome of a try of ``path``: an answer resets its failures, a failure starts its back-off."""
-        failures = 0 if answered else getattr(self, f"{path}_failures") + 1
-        setattr(self, f"{path}_failures", failures)
-        if failures:
-            setattr(self, f"{path}_skips", back_off(failures))
+        failures, skips = BACK_OFFS[path]
+        count = 0 if answered else getattr(self, failures) + 1
+        setattr(self, failures, count)
+        if count:
+            setattr(self, skips, back_off(count))
 
     def __deepcopy__(self, memo: dict) -> WarmStart:  # what a Context's clone calls
         return WarmStart(self.n, copy.deepcopy(self.working_sets, memo), copy.deepcopy(self.bound_sides, memo),

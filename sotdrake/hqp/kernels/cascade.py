@@ -21,17 +21,16 @@ from .lapack import certified_blocks, fortran, geqrf, orgqr, ormqr, upper_invers
 
 @njit(cache=True)
 def prefix(B, sizes, references, threshold, more):
-    """``(solved, v, reflectors, scales, L_inverse_T, free)``: how many levels (of ``sizes`` rows,
-    those with rows) are certified, ``v`` (nv × c) solving them for each column of ``references``
-    (M × c: the cascade is linear in its references, one factorisation serves them all), the first ``K``
-    Householder reflectors and their scales (``Q_K``), ``(L_K⁻¹)ᵀ`` (K × K) and, when some level is
-    not certified or ``more`` levels follow those stacked, ``free``: the last ``nv − K`` columns of
-    the full ``Q`` (an orthonormal basis of what the solved levels leave free; else nv × 0). ``solved`` 0:
-    nothing certified (or LAPACK failed), the other values empty."""
+    """``(solved, v, free)``: how many levels (of ``sizes`` rows, those with rows) are certified,
+    ``v`` (nv × c) solving them for each column of ``references`` (M × c: the cascade is linear in
+    its references, one factorisation serves them all) and, when some level is not certified or
+    ``more`` levels follow those stacked, ``free``: the last ``nv − K`` columns of the full ``Q`` (an
+    orthonormal basis of what the solved levels leave free; else nv × 0). ``solved`` 0: nothing
+    certified (or LAPACK failed), the other values empty."""
     M, nv = B.shape
     c = references.shape[1]
     empty = np.zeros((nv, 0))
-    nothing = (0, np.zeros((nv, c)), np.zeros((0, nv)).T, np.zeros(0), np.zeros((0, 0)), empty)
+    nothing = (0, np.zeros((nv, c)), empty)
     qr = fortran(B.T)  # nv × M, column-major
     tau = np.empty(M)
     if geqrf(qr, tau) != 0:
@@ -59,7 +58,7 @@ def prefix(B, sizes, references, threshold, more):
         if orgqr(padded, K, scales) != 0:
             return nothing
         free = np.ascontiguousarray(padded[:, K:])
-    return solved, np.ascontiguousarray(y), reflectors, scales, L_inverse_T, free
+    return solved, np.ascontiguousarray(y), free
 
 
 @njit(cache=True)

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from sotdrake.exceptions import SolverError
-from sotdrake.hqp.cascade import _compiled_svd_cascade, _full_rank_prefix, cascade_factorization, svd_cascade
+from sotdrake.hqp.cascade import _stacked, cascade_factorization, svd_cascade
+from sotdrake.hqp.kernels.cascade import cascade, prefix
 from sotdrake.solvers import solve_cascade
 
 
@@ -76,6 +77,21 @@ def test_singular_level_is_truncated_not_amplified():
     assert result.ranks[0] == 1
 
 
+def compiled(levels, nv, selection=None, dampings=None, threshold=1e-4):
+    """The compiled cascade's ``(v, ranks, levels solved by the QR prefix)`` (one reference column)."""
+    J, references, sizes = _stacked(levels, None)
+    mask = np.ones(nv) if selection is None else selection.astype(float)
+    dampings = np.zeros(len(levels)) if dampings is None else np.asarray(dampings, dtype=float)
+    v, ranks, solved = cascade(np.ascontiguousarray(J, dtype=float), sizes, references, mask, threshold, dampings)
+    return v[:, 0], ranks, solved
+
+
+def qr_prefix(levels, nv, threshold=1e-4):
+    """The compiled prefix alone on the levels (``(solved, v, free)``)."""
+    J, references, sizes = _stacked(levels, None)
+    return prefix(np.ascontiguousarray(J, dtype=float), sizes, references, threshold, False)
+
+
 def full_rank_stack(rng, nv):
     """Levels whose stacked rows are independent: every level full rank below the ones above."""
     levels, total = [], 0
@@ -97,9 +113,8 @@ def test_full_rank_fast_path_is_the_svd_cascade(seed):
     if rng.random() < 0.5:
         selection = rng.random(nv) < 0.8
         selection[: sum(J.shape[0] for J, _ in levels)] = True  # enough free velocities
-    prefix = _full_rank_prefix(levels, nv, 1e-4, selection)
-    assert prefix is not None and prefix.solved == len(levels) and prefix.free is None
-    fast = prefix.velocity
+    fast, fast_ranks, solved = compiled(levels, nv, selection)
+    assert solved == len(levels) and list(fast_ranks) == [J.shape[0] for J, _ in levels]
     v, ranks = svd_cascade(levels, nv, 1e-4, [0.0] * len(levels), selection)
     np.testing.assert_allclose(fast, v, rtol=0, atol=1e-10 * max(1.0, np.abs(v).max()))
     assert list(ranks) == [J.shape[0] for J, _ in levels]
@@ -122,10 +137,10 @@ def test_qr_prefix_stops_at_the_first_rank_loss(seed):
         levels.append((np.eye(nv), rng.normal(size=nv)))
     selection = rng.random(nv) < 0.9 if rng.random() < 0.3 else None
     v, ranks = svd_cascade(levels, nv, 1e-4, [0.0] * len(levels), selection)
-    prefix = _full_rank_prefix(levels, nv, 1e-4, selection)
+    solved = compiled(levels, nv, selection)[2]
     deficient = [i for i, (rank, (J, _)) in enumerate(zip(ranks, levels, strict=True)) if rank < J.shape[0]]
-    if prefix is not None and deficient:
-        assert prefix.solved <= deficient[0]
+    if deficient:
+        assert solved <= deficient[0]
     result = solve_cascade(levels, nv, control_selection=selection)
     if selection is not None:
         assert np.all(result.velocity[~selection] == 0.0)  # exactly: an unselected joint never moves
@@ -134,7 +149,7 @@ def test_qr_prefix_stops_at_the_first_rank_loss(seed):
 
 
 @pytest.mark.parametrize("seed", range(40))
-def test_the_compiled_svd_cascade_is_the_plain_one(seed):
+def test_the_compiled_cascade_is_the_plain_one(seed):
     """The compiled SVD levels from the top (damped per level, with or without a control selection)
     give the plain cascade's velocity and ranks."""
     rng = np.random.default_rng(seed)
@@ -143,15 +158,15 @@ def test_the_compiled_svd_cascade_is_the_plain_one(seed):
     dampings = [float(d) for d in rng.choice([0.0, 1e-3, 0.1], size=len(levels))]
     selection = rng.random(nv) < 0.8 if rng.random() < 0.5 else None
     v, ranks = svd_cascade(levels, nv, 1e-4, dampings, selection)
-    compiled, compiled_ranks, none = _compiled_svd_cascade(levels, nv, 1e-4, dampings, selection, None)
-    np.testing.assert_allclose(compiled, v, rtol=0, atol=1e-9 * max(1.0, np.abs(v).max()))
-    assert list(compiled_ranks) == list(ranks) and none is None
+    factorization = cascade_factorization(levels, nv, 1e-4, dampings, selection)
+    np.testing.assert_allclose(factorization.velocity, v, rtol=0, atol=1e-9 * max(1.0, np.abs(v).max()))
+    assert list(factorization.ranks) == list(ranks) and factorization.extra_velocity is None
     # Other references solved in the same pass: the plain cascade's velocity for them.
     extra = [rng.normal(size=J.shape[0]) for J, _ in levels]
     v_extra, _ = svd_cascade([(J, e) for (J, _), e in zip(levels, extra, strict=True)], nv, 1e-4, dampings, selection)
-    again, _, compiled_extra = _compiled_svd_cascade(levels, nv, 1e-4, dampings, selection, None, extra)
-    np.testing.assert_allclose(again, v, rtol=0, atol=1e-9 * max(1.0, np.abs(v).max()))
-    np.testing.assert_allclose(compiled_extra, v_extra, rtol=0, atol=1e-9 * max(1.0, np.abs(v_extra).max()))
+    again = cascade_factorization(levels, nv, 1e-4, dampings, selection, extra)
+    np.testing.assert_allclose(again.velocity, v, rtol=0, atol=1e-9 * max(1.0, np.abs(v).max()))
+    np.testing.assert_allclose(again.extra_velocity, v_extra, rtol=0, atol=1e-9 * max(1.0, np.abs(v_extra).max()))
 
 
 @pytest.mark.parametrize("seed", range(40))
@@ -175,11 +190,13 @@ def test_the_extra_references_velocity_is_the_cascade_of_those_references(seed):
 
 def test_the_compiled_cascade_on_an_empty_stack_and_a_non_finite_level():
     nv = 6
-    v, ranks, _ = _compiled_svd_cascade([], nv, 1e-4, [], None, None)
-    assert np.array_equal(v, np.zeros(nv)) and len(ranks) == 0
+    empty = cascade_factorization([], nv, 1e-4, 0.0, None, [])
+    assert np.array_equal(empty.velocity, np.zeros(nv)) and len(empty.ranks) == 0
+    assert np.array_equal(empty.extra_velocity, np.zeros(nv))
     levels = [(np.eye(2, nv), np.ones(2)), (np.full((1, nv), np.nan), np.zeros(1))]
-    with pytest.raises(SolverError, match="finite"):
-        _compiled_svd_cascade(levels, nv, 1e-4, [0.0, 0.0], None, None)
+    for damping in (0.0, 1e-3):  # below the QR prefix, and in the SVD levels from the top
+        with pytest.raises(SolverError, match="finite"):
+            cascade_factorization(levels, nv, 1e-4, damping)
 
 
 @pytest.mark.parametrize("ratio", [0.5, 0.999, 1.001, 1.5, 2.0, 3.0, 10.0])
@@ -202,13 +219,16 @@ def test_near_the_threshold_the_rank_decision_is_the_svd_one(ratio):
 def test_qr_prefix_on_nan_and_empty_levels():
     nv = 4
     J = np.ones((1, nv))
-    assert _full_rank_prefix([(np.full((1, nv), np.nan), np.zeros(1))], nv, 1e-4, None) is None
-    assert _full_rank_prefix([(np.zeros((0, nv)), np.zeros(0))], nv, 1e-4, None) is None
+    assert qr_prefix([(np.full((1, nv), np.nan), np.zeros(1))], nv)[0] == 0
+    v, ranks, solved = compiled([(np.zeros((0, nv)), np.zeros(0))], nv)
+    assert solved == 0 and np.array_equal(v, np.zeros(nv)) and list(ranks) == [0]
     with_empty = [(np.zeros((0, nv)), np.zeros(0)), (J, np.ones(1))]
-    np.testing.assert_allclose(_full_rank_prefix(with_empty, nv, 1e-4, None).velocity, np.full(nv, 0.25))
+    v, ranks, solved = compiled(with_empty, nv)
+    np.testing.assert_allclose(v, np.full(nv, 0.25))
+    assert solved == 2 and list(ranks) == [0, 1]
     # a NaN below a full-rank level: the level above is solved, the NaN is left to the SVD cascade
-    prefix = _full_rank_prefix([(J, np.ones(1)), (np.full((1, nv), np.nan), np.zeros(1))], nv, 1e-4, None)
-    assert prefix.solved == 1 and np.isfinite(prefix.velocity).all() and np.isfinite(prefix.free).all()
+    solved, v, free = qr_prefix([(J, np.ones(1)), (np.full((1, nv), np.nan), np.zeros(1))], nv)
+    assert solved == 1 and np.isfinite(v).all() and np.isfinite(free).all()
 
 
 @pytest.mark.parametrize("seed", range(120))

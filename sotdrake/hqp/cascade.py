@@ -39,8 +39,8 @@ below, so the path also solves the leading certified levels of any stack: when a
 certified (a rank loss, a conflict with a higher level, a singular value within ``√m_i`` of the
 threshold, a NaN, or more rows than ``nv``), the SVD cascade above goes on from ``Z`` = the
 other columns of ``Q`` (``P = P_0 - Q_K Q_Kᵀ``, ``Q_K``: the solved levels' columns) and decides.
-The fast path and the SVD cascade are one compiled call each (:mod:`.kernels.cascade`); the plain
-:func:`svd_cascade` is their reference. References known before the solve (``extra``
+The fast path and the SVD cascade below it are one compiled call (:mod:`.kernels.cascade`); the
+plain :func:`svd_cascade` is their reference. References known before the solve (``extra``
 of :func:`cascade_factorization`: ``SOT``'s curvature corrections, for its velocity limits) are
 solved in the same compiled pass, as a second right-hand side.
 """
@@ -58,54 +58,20 @@ from ..compiled import compiled_input, kernels
 from ..exceptions import SolverError
 
 
-class _Prefix(NamedTuple):
-    """The first ``solved`` levels solved by the QR path: ``v`` after them and, when levels remain,
-    ``free``, the last ``nv - K`` columns of the full ``Q``: an orthonormal basis of ``Q_K``'s
-    orthogonal complement (what the solved levels leave free, with ``P_0``'s mask on the Jacobians)."""
-
-    solved: int
-    velocity: np.ndarray
-    free: np.ndarray | None
-    extra_velocity: np.ndarray | None = None  # v for the extra references (see cascade_factorization)
-
-
-def _full_rank_prefix(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
-                      selection: np.ndarray | None, extra: Sequence[np.ndarray] | None = None) -> _Prefix | None:
-    """The leading levels that the QR path can certify full rank (see the module docstring), or
-    None when not even the first can be. The QR of the first ``K`` rows does not depend on the
-    rows below them, so one QR of the stack serves every prefix (one compiled call:
-    :func:`.kernels.cascade.prefix`)."""
-    taken, total = 0, 0
-    for J, _ in levels:  # the levels whose rows fit in nv
-        if total + J.shape[0] > nv:
-            break
-        taken, total = taken + 1, total + J.shape[0]
-    rows = [i for i in range(taken) if levels[i][0].shape[0]]  # an empty level changes nothing
-    if not rows:
-        return None
-    B = levels[rows[0]][0] if len(rows) == 1 else np.vstack([levels[i][0] for i in rows])
-    if selection is not None:  # (a mask by selection, not a product: a NaN in a lower level's rows must not reach the blocks above it)
-        B = B * selection
-    r = _references(levels, rows, extra)
-    sizes = np.array([levels[i][0].shape[0] for i in rows], dtype=np.int64)
-    solved, v, free = _kernels().prefix(compiled_input(B), sizes, r, float(svd_threshold), taken < len(levels))
-    if solved == 0:
-        return None
-    count = rows[solved] if solved < len(rows) else len(levels) if taken == len(levels) else taken
-    return _Prefix(count, v[:, 0].copy(), free if count < len(levels) else None, None if extra is None else v[:, 1].copy())
-
-
-def _references(levels: Sequence[tuple[np.ndarray, np.ndarray]], rows: Sequence[int],
-                extra: Sequence[np.ndarray] | None) -> np.ndarray:
-    """The references of the levels ``rows``, stacked as one column (M × 1), and the ``extra`` ones
-    as a second column."""
-    columns = [np.concatenate([levels[i][1] for i in rows]) if len(rows) != 1 else np.asarray(levels[rows[0]][1], dtype=float)]
+def _stacked(levels: Sequence[tuple[np.ndarray, np.ndarray]], extra: Sequence[np.ndarray] | None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(J, references, sizes)``: the levels' rows stacked (M × nv), their references as one column
+    (M × 1) and the ``extra`` ones as a second, and each level's number of rows."""
+    sizes = np.array([J.shape[0] for J, _ in levels], dtype=np.int64)
+    J = levels[0][0] if len(levels) == 1 else np.concatenate([J for J, _ in levels])
+    references = np.empty((J.shape[0], 1 if extra is None else 2))
+    references[:, 0] = levels[0][1] if len(levels) == 1 else np.concatenate([r for _, r in levels])
     if extra is not None:
-        columns.append(np.concatenate([np.asarray(extra[i], dtype=float) for i in rows]))
-    return np.ascontiguousarray(np.column_stack(columns), dtype=float)
+        references[:, 1] = np.concatenate(extra)
+    return J, references, sizes
 
 
-_kernels = kernels(".kernels.cascade", __package__, "prefix", "the basic SoT's cascade", "a few seconds")
+_kernels = kernels(".kernels.cascade", __package__, "cascade", "the basic SoT's cascade", "a few seconds")
 
 
 class CascadeResult(NamedTuple):
@@ -135,48 +101,19 @@ def cascade_factorization(
     ``extra`` (one per level, the sizes of the references): other references solved in the same
     pass, their ``v`` kept as ``extra_velocity`` (by linearity, any combination of the two
     references is then the same combination of the two velocities)."""
-    dampings = [float(damping)] * len(levels) if isinstance(damping, (int, float)) else list(damping)
-    prefix = _full_rank_prefix(levels, nv, svd_threshold, control_selection, extra) if not any(dampings) else None
-    if prefix is not None and prefix.solved == len(levels):
-        v, ranks = prefix.velocity, np.array([J.shape[0] for J, _ in levels], dtype=int)
-        v_extra = prefix.extra_velocity
+    if isinstance(damping, (int, float)):
+        dampings = np.zeros(len(levels)) if damping == 0 else np.full(len(levels), float(damping))
     else:
-        v, ranks, v_extra = _compiled_svd_cascade(levels, nv, svd_threshold, dampings, control_selection, prefix, extra)
-    if control_selection is not None:  # zero in exact arithmetic; the QR and SVD leave round-off
-        selection = np.asarray(control_selection, dtype=bool)
-        v[~selection] = 0.0
-        if v_extra is not None:
-            v_extra[~selection] = 0.0
-    return CascadeFactorization(v, ranks, v_extra)
-
-
-def _compiled_svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
-                          dampings: Sequence[float], control_selection: np.ndarray | None,
-                          prefix: _Prefix | None, extra: Sequence[np.ndarray] | None = None
-                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """:func:`svd_cascade`'s ``(v, ranks)`` in one compiled call (:func:`.kernels.cascade.svd_levels`),
-    and ``v`` for the ``extra`` references (None without); a level LAPACK cannot factorise (a NaN)
-    raises :class:`~sotdrake.exceptions.SolverError`."""
+        dampings = np.array(damping, dtype=float)
     if not levels:
-        return np.zeros(nv), np.zeros(0, dtype=int), None if extra is None else np.zeros(nv)
-    given = compiled_input
-    J = np.vstack([J for J, _ in levels]) if len(levels) > 1 else levels[0][0]
-    r = _references(levels, range(len(levels)), extra)
-    sizes = np.array([J_i.shape[0] for J_i, _ in levels], dtype=np.int64)
+        return CascadeFactorization(np.zeros(nv), np.zeros(0, dtype=int), None if extra is None else np.zeros(nv))
+    J, references, sizes = _stacked(levels, extra)
     mask = np.ones(nv) if control_selection is None else np.asarray(control_selection, dtype=float)
-    first, Z, v = 0, np.eye(nv), np.zeros((nv, r.shape[1]))
-    if prefix is not None:  # (its free columns are there: levels remain below it)
-        assert prefix.free is not None
-        first, Z = prefix.solved, prefix.free
-        v = prefix.velocity[:, None] if prefix.extra_velocity is None else np.column_stack([prefix.velocity, prefix.extra_velocity])
     try:
-        v, ranks = _kernels().svd_levels(given(J), sizes, r, mask, given(Z), np.ascontiguousarray(v), int(first),
-                                         float(svd_threshold), given(np.asarray(dampings, dtype=float)))
+        v, ranks, _ = _kernels().cascade(compiled_input(J), sizes, references, mask, float(svd_threshold), dampings)
     except np.linalg.LinAlgError as error:
         raise SolverError(f"the SVD cascade failed ({error}); is every level finite?") from error
-    if prefix is not None:
-        ranks[:first] = [J_i.shape[0] for J_i, _ in levels[:first]]
-    return v[:, 0].copy(), ranks, None if extra is None else v[:, 1].copy()
+    return CascadeFactorization(np.ascontiguousarray(v[:, 0]), ranks, None if extra is None else np.ascontiguousarray(v[:, 1]))
 
 
 def solve_cascade(
@@ -205,21 +142,15 @@ def solve_cascade(
 
 
 def svd_cascade(levels: Sequence[tuple[np.ndarray, np.ndarray]], nv: int, svd_threshold: float,
-                dampings: Sequence[float], control_selection: np.ndarray | None,
-                prefix: _Prefix | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """``(v, ranks)`` of the cascade, one SVD per level; ``dampings``: one δ per level. With
-    ``prefix``, its levels are taken as solved (full rank) and the cascade goes on from them."""
+                dampings: Sequence[float], control_selection: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """``(v, ranks)`` of the cascade, one SVD per level (the compiled path's reference); ``dampings``:
+    one δ per level."""
     v = np.zeros(nv)
     mask = None if control_selection is None else np.asarray(control_selection, dtype=bool)
     Z = None  # an orthonormal basis of what the levels above leave free (None: every direction)
     ranks = np.zeros(len(levels), dtype=int)
-    first = 0
-    if prefix is not None:
-        first, v = prefix.solved, prefix.velocity
-        ranks[:first] = [J.shape[0] for J, _ in levels[:first]]
-        Z = prefix.free
     last = len(levels) - 1
-    for i in range(first, len(levels)):
+    for i in range(len(levels)):
         J, reference = levels[i]
         if J.shape[0] == 0 or (Z is not None and Z.shape[1] == 0):  # nothing asked, or nothing left free
             continue

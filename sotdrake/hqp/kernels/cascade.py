@@ -1,5 +1,5 @@
-"""The basic SoT cascade in two compiled calls: the full-rank prefix (:func:`prefix`, for
-:func:`.cascade._full_rank_prefix`) and the SVD levels below it (:func:`svd_levels`).
+"""The basic SoT cascade in one compiled call (:func:`cascade`): the full-rank prefix (:func:`prefix`)
+and the SVD levels below it (:func:`svd_levels`).
 
 The stacked levels ``B`` (M × nv, ``M ≤ nv``, rows in priority order, the control selection
 applied) are factorised once, ``Bᵀ = Q R`` (Householder, no pivoting: ``B = L Qᵀ`` with ``L = Rᵀ``),
@@ -163,3 +163,40 @@ def svd_levels(J, sizes, references, mask, Z, v, first, threshold, dampings):
         if i < levels - 1:
             Z = Z @ np.ascontiguousarray(W[:, rank:])
     return v, ranks
+
+
+@njit(cache=True)
+def cascade(J, sizes, references, mask, threshold, dampings):
+    """The whole cascade (:func:`.cascade.cascade_factorization`): ``(v, ranks, solved)``. ``J``
+    (M × nv) and ``references`` (M × c): every level's rows stacked, levels of ``sizes`` rows;
+    ``mask``: the control selection's ``P_0`` as nv ones and zeros; ``dampings``: one δ per level.
+    Without damping, the leading levels whose rows fit in nv go to :func:`prefix` (``J P_0``, the
+    mask applied by an elementwise product, as the SVD levels apply it); the ``solved`` ones it
+    certifies keep their rows as ranks, and :func:`svd_levels` goes on from what they leave free
+    (0: the SVD levels from the top). The masked velocities are set to zero. A non-finite level below
+    the prefix raises ``np.linalg.LinAlgError``."""
+    nv, levels, c = J.shape[1], sizes.size, references.shape[1]
+    undamped = True
+    for damping in dampings:
+        if damping != 0.0:
+            undamped = False
+    first, v, Z = 0, np.zeros((nv, c)), np.eye(nv)
+    if undamped:
+        taken, M = 0, 0
+        while taken < levels and M + sizes[taken] <= nv:
+            M += sizes[taken]
+            taken += 1
+        if M:
+            solved, y, free = prefix(J[:M] * mask, sizes[:taken], np.ascontiguousarray(references[:M]), threshold,
+                                     taken < levels)
+            if solved:
+                first, v, Z = solved, y, free
+    if first == levels:
+        ranks = sizes.copy()
+    else:
+        v, ranks = svd_levels(J, sizes, references, mask, Z, v, first, threshold, dampings)
+        ranks[:first] = sizes[:first]
+    for i in range(nv):  # zero in exact arithmetic; the QR and SVD leave round-off
+        if mask[i] == 0.0:
+            v[i] = 0.0
+    return v, ranks, first

@@ -11,6 +11,7 @@ import pytest
 
 from sotdrake.exceptions import InvalidInput, SolverError
 from sotdrake.hqp import HierarchicalQP
+from sotdrake.hqp.active_bounds import SOLVED, solve_held_rows
 from sotdrake.hqp.equality_hierarchy import StackedLevels
 from sotdrake.hqp.problem import LevelRows, result_of
 from sotdrake.hqp.stack_paths import (
@@ -27,6 +28,7 @@ from sotdrake.hqp.stack_paths import (
     StackProblem,
     solve_stack,
 )
+from sotdrake.hqp.tolerances import CERTIFIED_FACTOR, VERIFIED
 from sotdrake.hqp.warm import back_off
 
 
@@ -316,6 +318,45 @@ def test_held_rows_give_the_stages_answer_and_answer_when_the_equality_rows_are_
     if bounds != "tight":
         assert clear[True] >= 20 and answered[True] == clear[True]
         assert clear[False] >= 10 and answered[False] >= 0.7 * clear[False]
+
+
+def test_a_guess_of_the_held_rows_changes_the_cost_never_the_answer():
+    """Stacks whose answer holds inequality rows: the path warm from its last answer's rows (the same
+    stack, then its targets moved) gives the stages' answer; the answer's own held rows as the
+    guess are verified at once (one round), and random guesses give the cold answer or none."""
+    rng = np.random.default_rng(20261128)
+    certified, feasibility = CERTIFIED_FACTOR * 1e-8, VERIFIED
+    warm_answers = one_round = 0
+    for _ in range(60):
+        n, levels, lower, upper = equality_stack(rng, "loose")
+        x_eq = STAGES.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)).x
+        mixed = with_inequalities(rng, n, levels, x_eq, holding=False)
+        qp = HierarchicalQP(n)
+        if HELD_ROWS.attempt(qp, StackProblem(mixed, lower, upper)) is None:
+            continue
+        assert qp.warm.row_sides is not None and qp.warm.row_sides[1].any()  # (the cut row)
+        moved = [(A, np.where(lo != hi, lo + 1e-3 * rng.normal(size=lo.shape), lo), hi) if lo is not hi else (A, lo, hi)
+                 for A, lo, hi in mixed]  # (the inequality rows' lower sides)
+        for stack in (mixed, moved):
+            problem = StackProblem(stack, lower, upper)
+            result = HELD_ROWS.attempt(qp, problem)
+            if result is not None:
+                assert_same_mixed_answer(result, STAGES.attempt(HierarchicalQP(n), problem), stack, lower, upper)
+                warm_answers += 1
+        A, lo, hi = (np.concatenate([level[i] for level in mixed]) for i in range(3))
+        sizes = np.array([len(level[0]) for level in mixed], dtype=np.int64)
+        guess = np.zeros(n, dtype=np.int64)
+        cold = solve_held_rows(A, lo, hi, sizes, lower, upper, guess, certified, feasibility, 1e-9)
+        assert cold[0] == SOLVED
+        right = solve_held_rows(A, lo, hi, sizes, lower, upper, guess, certified, feasibility, 1e-9, rounds=1, row_guess=cold[3])
+        assert right[0] == SOLVED and np.array_equal(right[3], cold[3])
+        one_round += 1
+        for _ in range(5):
+            wrong = rng.integers(-1, 2, size=cold[3].size)
+            answer = solve_held_rows(A, lo, hi, sizes, lower, upper, guess, certified, feasibility, 1e-9, row_guess=wrong)
+            if answer[0] == SOLVED:
+                assert np.linalg.norm(answer[1] - cold[1]) <= 1e-6 * (1.0 + np.abs(cold[1]).max())
+    assert one_round >= 20 and warm_answers >= 1.8 * one_round
 
 
 @pytest.mark.parametrize("defect", ["nan coefficient", "sides out of order", "infinite equality value", "too few columns"])

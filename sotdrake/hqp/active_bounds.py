@@ -38,7 +38,9 @@ after the levels' rows (certified as one more block: full row rank in what the l
 and its multiplier is its component of ``ν``: a row held at its upper side needs ``ν ≥ 0``, at its
 lower side ``ν ≤ 0`` (the same tolerance). A row not held must hold (on unit rows, to
 ``feasibility`` relative above 1), else it is held at the side it passes; a wrong-signed one is
-released. No row is held at the start (rows change from one call to the next). A passing point
+released. The rows held at the start are a guess too (typically those held in the previous tick's
+answer, when the stack's rows have the same layout): like the bounds' guess, it changes the cost,
+never the answer. A passing point
 meets every equality row exactly and holds every inequality row: each level's objective (residual,
 violation) is at its least value, 0, so the hierarchy's optimal set is the polyhedron of all the rows
 and bounds, and the point, which satisfies the KKT conditions of ``min ½‖x‖²`` over it, is the QP's
@@ -63,6 +65,9 @@ from ..compiled import compiled_input
 from .kernels.lapack import certified_blocks, geqrf, level_residuals, ormqr, row_norms, upper_inverse
 from .tolerances import CERTIFIED, MULTIPLIER_TOLERANCE, REPORTED_ACTIVE, VERIFIED
 
+#: No guess of the held rows.
+_NO_ROWS = np.zeros(0, np.int64)
+
 
 @njit(cache=True)
 def _certified(R_inv, sizes, certified):
@@ -75,10 +80,11 @@ def _certified(R_inv, sizes, certified):
 
 
 @njit(cache=True)
-def _solve(A, b, norms, sizes, C, c_lower, c_upper, c_norms, x_lower, x_upper, fixed, guess, certified, feasibility,
-           rounds):
+def _solve(A, b, norms, sizes, C, c_lower, c_upper, c_norms, x_lower, x_upper, fixed, guess, row_guess, certified,
+           feasibility, rounds):
     """:func:`solve_with_active_bounds` (``C`` without rows) and :func:`solve_held_rows`,
-    compiled: ``(ok, x, sides, row sides)``."""
+    compiled: ``(ok, x, sides, row sides)``; ``row_guess``: the side each row of ``C`` is held at
+    first (a side at an infinite bound is not held)."""
     m, n = A.shape
     p = C.shape[0]
     U = A / norms.reshape(-1, 1)  # the unit rows
@@ -87,6 +93,9 @@ def _solve(A, b, norms, sizes, C, c_lower, c_upper, c_norms, x_lower, x_upper, f
     v_lower, v_upper = c_lower / c_norms, c_upper / c_norms
     side = np.where(fixed, 0, guess)
     row_side = np.zeros(p, dtype=np.int64)
+    for i in range(min(p, row_guess.size)):
+        if (row_guess[i] > 0 and math.isfinite(c_upper[i])) or (row_guess[i] < 0 and math.isfinite(c_lower[i])):
+            row_side[i] = 1 if row_guess[i] > 0 else -1
     x = np.zeros(n)
     for _ in range(rounds):
         free = np.flatnonzero(~(fixed | (side != 0)))
@@ -197,7 +206,7 @@ def solve_with_active_bounds(
     given = compiled_input
     A, none = given(A), np.zeros(0)
     ok, x, sides, _ = _solve(A, given(b), given(norms), given(sizes, np.int64), np.zeros((0, A.shape[1])), none, none, none,
-                             given(x_lower), given(x_upper), given(fixed, np.bool_), given(guess, np.int64), float(certified),
+                             given(x_lower), given(x_upper), given(fixed, np.bool_), given(guess, np.int64), _NO_ROWS, float(certified),
                              float(feasibility), int(rounds))
     return (x, sides) if ok else None
 
@@ -217,7 +226,7 @@ def _solve_stack(A, b, sizes, x_lower, x_upper, guess, certified, feasibility, r
         if not fixed[i] and not (x_lower[i] <= 0.0 and x_upper[i] >= 0.0):
             return NOT_APPLICABLE, empty, guess, empty, empty, none
     ok, x, sides, _ = _solve(A, b, row_norms(A), sizes, np.zeros((0, A.shape[1])), np.zeros(0), np.zeros(0), np.zeros(0),
-                             x_lower, x_upper, fixed, guess, certified, feasibility, rounds)
+                             x_lower, x_upper, fixed, guess, none, certified, feasibility, rounds)
     if not ok:
         return NOT_VERIFIED, x, sides, empty, empty, none
     x, residual, slack_norms, active = _outcome(A, b, sizes, x, x_lower, x_upper, fixed, tolerance)
@@ -298,7 +307,8 @@ def _level_outcome(A, lower, upper, sizes, x, x_lower, x_upper, fixed):
 
 
 @njit(cache=True)
-def _solve_held_rows(A, lower, upper, sizes, x_lower, x_upper, guess, certified, feasibility, rounds, tolerance):
+def _solve_held_rows(A, lower, upper, sizes, x_lower, x_upper, guess, row_guess, certified, feasibility, rounds,
+                     tolerance):
     """:func:`solve_held_rows`, compiled: ``(status, x, sides, row sides, slacks, slack norms, active
     rows, active bounds, levels with inequality rows)``."""
     fixed = x_lower == x_upper
@@ -310,7 +320,7 @@ def _solve_held_rows(A, lower, upper, sizes, x_lower, x_upper, guess, certified,
         if not fixed[i] and not (x_lower[i] <= 0.0 and x_upper[i] >= 0.0):  # (False on NaN too)
             return NOT_APPLICABLE, np.zeros(0), guess, none, np.zeros(0), np.zeros(0), np.zeros(0, np.bool_), none, has_inequality
     ok, x, sides, row_sides = _solve(A_eq, b_eq, row_norms(A_eq), eq_sizes, C, c_lower, c_upper, row_norms(C), x_lower,
-                                     x_upper, fixed, guess, certified, feasibility, rounds)
+                                     x_upper, fixed, guess, row_guess, certified, feasibility, rounds)
     if not ok:
         return NOT_VERIFIED, x, sides, row_sides, np.zeros(0), np.zeros(0), np.zeros(0, np.bool_), none, has_inequality
     _onto_bounds(x, x_lower, x_upper, tolerance)
@@ -320,8 +330,9 @@ def _solve_held_rows(A, lower, upper, sizes, x_lower, x_upper, guess, certified,
 
 def solve_held_rows(A: np.ndarray, lower: np.ndarray, upper: np.ndarray, sizes: np.ndarray, x_lower: np.ndarray,
                     x_upper: np.ndarray, guess: np.ndarray, certified: float, feasibility: float, tolerance: float,
-                    rounds: int = 16) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                               np.ndarray, np.ndarray, np.ndarray]:
+                    rounds: int = 16, row_guess: np.ndarray | None = None
+                    ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                               np.ndarray]:
     """A stack with inequality rows whose equality rows can all be met (see the module docstring's
     last part): levels ``lower ≤ A x ≤ upper`` stacked (levels of ``sizes`` rows, int64; a row with
     ``lower = upper`` is an equality row). ``(status, x, sides, row sides, slacks, slack norms, active
@@ -329,13 +340,16 @@ def solve_held_rows(A: np.ndarray, lower: np.ndarray, upper: np.ndarray, sizes: 
     the side of each inequality row held at ``x`` (inequality rows in stack order), and, when solved,
     each row's slack (the signed residual of an equality row, the violation of an inequality row),
     each level's slack norm, the inequality rows at a side (a mask over every row), the free
-    components at a bound, and which levels have inequality rows. No held row is guessed: a violated
-    one is held, a wrong-signed one released, up to ``rounds`` rounds. ``guess``: a side per
-    component (int64). Rows that are not finite, or sides out of order: :data:`NOT_APPLICABLE`."""
+    components at a bound, and which levels have inequality rows. ``guess``: a side per component,
+    ``row_guess`` (None: none) the side each inequality row is held at first (int64, in stack order;
+    a side at an infinite bound, or past the rows there are, is not held); then a violated row is
+    held, a wrong-signed one released, up to ``rounds`` rounds. Rows that are not finite, or sides
+    out of order: :data:`NOT_APPLICABLE`."""
     given = compiled_input
     status, *answer = _solve_held_rows(
         given(A), given(lower), given(upper), given(sizes, np.int64), given(x_lower), given(x_upper),
-        given(guess, np.int64), float(certified), float(feasibility), int(rounds), float(tolerance))
+        given(guess, np.int64), _NO_ROWS if row_guess is None else given(row_guess, np.int64), float(certified),
+        float(feasibility), int(rounds), float(tolerance))
     return (int(status), *answer)
 
 

@@ -126,7 +126,9 @@ def solve_held_rows(qp: StageOwner, levels: Sequence[tuple[np.ndarray, np.ndarra
                     x_upper: np.ndarray, began: float) -> HqpResult | None:
     """A stack (at least one level ``(A_k, lower_k, upper_k)``) with inequality rows by
     :func:`~.active_bounds.solve_held_rows` (every equality row met, the violated inequality rows
-    held), from the bounds held at the last answer, or None (then the stages decide; also for rows
+    held), from the bounds held at the last answer and, when the rows have the same places (level
+    sizes, which rows are inequalities), the rows it held (tried once more without them when they
+    do not lead to a verified answer), or None (then the stages decide; also for rows
     that do not fit or are not finite: the stages say what is wrong). With a ``hold_tolerance`` the
     stages let the levels below a held row pass it by that much: an answer that holds a row is then
     not theirs, and None is given."""
@@ -144,10 +146,16 @@ def solve_held_rows(qp: StageOwner, levels: Sequence[tuple[np.ndarray, np.ndarra
         starts.append(starts[-1] + len(level[0]))
     sizes = np.diff(starts)
     A, lower, upper = (np.concatenate([level[i] for level in rows]) for i in range(3))
-    status, x, sides, row_sides, slacks, slack_norms, active, bounds, has_inequality = path.solve_held_rows(
-        A, lower, upper, sizes, x_lower, x_upper, bound_guess(qp, x_lower, x_upper),
-        certified=CERTIFIED_FACTOR * qp.rank_threshold, feasibility=min(VERIFIED, qp.feasibility_tolerance),
-        tolerance=qp.feasibility_tolerance)
+    layout = sizes.tobytes() + (lower != upper).tobytes()  # (the rows' places: the held rows' guess is by place)
+    row_guess = qp.warm.row_sides[1] if qp.warm.row_sides is not None and qp.warm.row_sides[0] == layout else None
+    bound_sides = bound_guess(qp, x_lower, x_upper)
+    for guess in (row_guess, None) if row_guess is not None else (None,):  # a wrong guess: once more without it
+        status, x, sides, row_sides, slacks, slack_norms, active, bounds, has_inequality = path.solve_held_rows(
+            A, lower, upper, sizes, x_lower, x_upper, bound_sides, certified=CERTIFIED_FACTOR * qp.rank_threshold,
+            feasibility=min(VERIFIED, qp.feasibility_tolerance), tolerance=qp.feasibility_tolerance, row_guess=guess)
+        if status != path.NOT_VERIFIED:
+            break
+    qp.warm.row_sides = (layout, row_sides) if status == path.SOLVED else None
     if status != path.SOLVED or (qp.hold_tolerance and row_sides.any()):
         return None
     qp.warm.bound_sides = sides

@@ -37,6 +37,8 @@ class WarmStart:
     stage's index and shapes), and under ``FREE_MINIMUM_NORM`` whether the last minimum-norm stage
     ended with an empty working set; ``bound_sides``: the side of each bound held at the last
     answer, or that answer ``(x, x_lower, x_upper)`` (read off when the next call needs it);
+    ``row_sides``: the held-rows path's last answer's ``(layout, side of each inequality row)``
+    (:func:`~.equality_stack.solve_held_rows`; None after a call it did not answer);
     ``failures``/``skips``: the active bounds' back-off (after f failed tries in a row, the next
     2^(f-1) calls, at most 16, skip them); ``row_failures``/``row_skips``: the same back-off for the
     held-rows path (:class:`~.stack_paths.HeldRows`), ``sweep_failures``/``sweep_skips`` for the
@@ -46,6 +48,7 @@ class WarmStart:
     n: int
     working_sets: dict = field(default_factory=dict)
     bound_sides: np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    row_sides: tuple[bytes, np.ndarray] | None = None
     failures: int = 0
     skips: int = 0
     row_failures: int = 0
@@ -63,6 +66,7 @@ class WarmStart:
         """Forget everything: the next solve is cold."""
         self.working_sets.clear()
         self.bound_sides = np.zeros(self.n, dtype=int)
+        self.row_sides = None
         self.failures = self.skips = self.row_failures = self.row_skips = 0
         self.sweep_failures = self.sweep_skips = self.inactive_failures = self.inactive_skips = 0
 
@@ -85,8 +89,8 @@ class WarmStart:
 
     def __deepcopy__(self, memo: dict) -> WarmStart:  # what a Context's clone calls
         return WarmStart(self.n, copy.deepcopy(self.working_sets, memo), copy.deepcopy(self.bound_sides, memo),
-                         self.failures, self.skips, self.row_failures, self.row_skips, self.sweep_failures,
-                         self.sweep_skips, self.inactive_failures, self.inactive_skips)
+                         copy.deepcopy(self.row_sides, memo), self.failures, self.skips, self.row_failures, self.row_skips,
+                         self.sweep_failures, self.sweep_skips, self.inactive_failures, self.inactive_skips)
 
 
 class WarmStarts(dict):

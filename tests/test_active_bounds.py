@@ -4,8 +4,9 @@ point it returns is the hierarchical QP's (the stages' path), whatever the guess
 import numpy as np
 import pytest
 
-from sotdrake.hqp.active_bounds import outcome, solve_with_active_bounds
+from sotdrake.hqp.active_bounds import outcome, sides_at_bounds, solve_with_active_bounds
 from sotdrake.hqp.solve import ACTIVE_BOUNDS, ACTIVE_SET, HierarchicalQP, LevelRows
+from sotdrake.hqp.tolerances import FEASIBILITY
 from sotdrake.hqp.warm import WarmStart
 from tests.conftest import compiled_only
 
@@ -296,3 +297,26 @@ def test_solve_stack_is_the_active_bounds_and_their_outcome_in_one_call():
     assert hqp.solve_equalities([A], [b], lower, upper, warm=warm) is None  # skipped
     assert warm.skips == 0
     assert hqp.solve_equalities([A], [b], lower, upper, warm=warm) is not None and warm.failures == 0
+
+
+def test_the_sides_of_the_bounds_an_answer_holds():
+    """Each component's side against a plain reference: at a finite upper bound (to the feasibility
+    tolerance, relative above 1) +1, at a finite lower bound -1, else 0, and 0 on a fixed component;
+    infinite bounds and NaN are never at a side."""
+    rng = np.random.default_rng(11)
+    for _ in range(50):
+        n = 40
+        lower, upper = -10.0 ** rng.uniform(-3, 3, n), 10.0 ** rng.uniform(-3, 3, n)
+        x = rng.uniform(lower, upper)
+        pick = rng.random(n)
+        x[pick < 0.2] = upper[pick < 0.2] * (1 - rng.uniform(-2, 2, n)[pick < 0.2] * FEASIBILITY)
+        x[pick > 0.8] = lower[pick > 0.8] * (1 - rng.uniform(-2, 2, n)[pick > 0.8] * FEASIBILITY)
+        lower[rng.random(n) < 0.1], upper[rng.random(n) < 0.1] = -np.inf, np.inf
+        x[rng.random(n) < 0.05] = np.nan
+        fixed = rng.random(n) < 0.1
+        with np.errstate(invalid="ignore"):  # (inf - inf)
+            at_upper = ~fixed & np.isfinite(upper) & (x >= upper - FEASIBILITY * np.maximum(1.0, np.abs(upper)))
+            at_lower = ~fixed & ~at_upper & np.isfinite(lower) & (x <= lower + FEASIBILITY * np.maximum(1.0, np.abs(lower)))
+        expected = at_upper.astype(int) - at_lower.astype(int)
+        assert np.array_equal(sides_at_bounds(x, lower, upper, fixed), expected)
+        assert 0 < np.count_nonzero(expected)

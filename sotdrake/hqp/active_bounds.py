@@ -63,7 +63,7 @@ from numba import njit
 
 from ..compiled import compiled_input
 from .kernels.lapack import certified_blocks, geqrf, level_residuals, ormqr, row_norms, upper_inverse
-from .tolerances import CERTIFIED, MULTIPLIER_TOLERANCE, REPORTED_ACTIVE, VERIFIED
+from .tolerances import CERTIFIED, FEASIBILITY, MULTIPLIER_TOLERANCE, REPORTED_ACTIVE, VERIFIED
 
 #: No guess of the held rows.
 _NO_ROWS = np.zeros(0, np.int64)
@@ -351,6 +351,22 @@ def solve_held_rows(A: np.ndarray, lower: np.ndarray, upper: np.ndarray, sizes: 
         given(guess, np.int64), _NO_ROWS if row_guess is None else given(row_guess, np.int64), float(certified),
         float(feasibility), int(rounds), float(tolerance))
     return (int(status), *answer)
+
+
+@njit(cache=True)
+def sides_at_bounds(x, x_lower, x_upper, fixed):
+    """+1 where ``x`` is at its (finite) upper bound, -1 at its lower bound (to :data:`FEASIBILITY`,
+    relative above 1), 0 elsewhere and on the ``fixed`` components (those of the call the guess is
+    for): the sides of the bounds an answer holds, the next call's guess (int64)."""
+    sides = np.zeros(x.size, np.int64)
+    for i in range(x.size):
+        if fixed[i]:
+            continue
+        if x_upper[i] < np.inf and x[i] >= x_upper[i] - FEASIBILITY * max(1.0, abs(x_upper[i])):
+            sides[i] = 1
+        elif x_lower[i] > -np.inf and x[i] <= x_lower[i] + FEASIBILITY * max(1.0, abs(x_lower[i])):
+            sides[i] = -1
+    return sides
 
 
 @njit(cache=True)

@@ -16,10 +16,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..compiled import kernels
+from ..compiled import compiled_input, kernels
 from .linalg import all_true
 from .problem import ACTIVE_BOUNDS, ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult
-from .tolerances import CERTIFIED_FACTOR, FEASIBILITY, VERIFIED
+from .tolerances import CERTIFIED_FACTOR, VERIFIED
 
 if TYPE_CHECKING:
     from .owner import StageOwner
@@ -34,15 +34,6 @@ def start_inside(x_lower: np.ndarray, x_upper: np.ndarray, fixed: np.ndarray, st
     of order fail: every comparison with NaN is False, and ``lower > upper`` cannot hold it); the
     compiled :func:`.active_bounds.solve_stack` makes the same check for the start 0."""
     return all_true(((x_lower <= start) & (x_upper >= start)) | fixed)
-
-
-def sides_at_bounds(x: np.ndarray, x_lower: np.ndarray, x_upper: np.ndarray, fixed: np.ndarray) -> np.ndarray:
-    """+1 where ``x`` is at its (finite) upper bound, -1 at its lower bound (to 1e-9, relative
-    above 1), 0 elsewhere and on the ``fixed`` components (those of the call the guess is for):
-    the guess of :mod:`.active_bounds`."""
-    upper = ~fixed & (x >= x_upper - FEASIBILITY * np.maximum(1.0, np.abs(x_upper))) & (x_upper < np.inf)
-    lower = ~fixed & (x <= x_lower + FEASIBILITY * np.maximum(1.0, np.abs(x_lower))) & (x_lower > -np.inf)
-    return np.where(upper, 1, np.where(lower, -1, 0))
 
 
 def default_stages(qp: StageOwner) -> bool:
@@ -117,7 +108,8 @@ def bound_guess(qp: StageOwner, x_lower: np.ndarray, x_upper: np.ndarray) -> np.
     """The sides of the bounds held at the last answer (the warm start's)."""
     guess = qp.warm.bound_sides
     if isinstance(guess, tuple):  # the stages' last answer: the sides of the bounds it holds
-        return sides_at_bounds(guess[0], guess[1], guess[2], x_lower == x_upper)
+        given = compiled_input
+        return _active_bounds_path().sides_at_bounds(given(guess[0]), given(guess[1]), given(guess[2]), x_lower == x_upper)
     assert guess is not None  # (set at the warm start's creation)
     return guess
 

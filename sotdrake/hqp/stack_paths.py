@@ -199,9 +199,10 @@ class HeldRows(StackPath):
     """A stack with inequality rows whose equality rows can all be met exactly, with its violated
     inequality rows held at their bounds (:func:`.equality_stack.solve_held_rows`).
 
-    Every level's equality rows, and the inequality rows held (none at first; each round holds
-    those violated and releases those whose multiplier has the wrong sign), are solved at once under
-    the bounds held at the last call (:mod:`.active_bounds`). A point that meets every equality row,
+    Every level's equality rows, and the inequality rows held (at first those the last answer held,
+    when the rows keep their places; each round holds one violated and releases those whose
+    multiplier has the wrong sign), are solved at once under the bounds held at the last call
+    (:mod:`.active_bounds`). A point that meets every equality row,
     holds every inequality row and satisfies the KKT conditions of ``min ½‖x‖²`` over all the rows
     and bounds is the stack's answer: each level's objective (its residual, its violation) is 0 there,
     its least value, so every level's optimal set is the part of the one above where the level's

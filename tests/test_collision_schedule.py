@@ -9,13 +9,14 @@ bound stays below its exact signed distance.
 from __future__ import annotations
 
 import copy
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 
-from sotdrake.collision import CollisionWorld, add_obstacle
+from sotdrake.collision import CollisionWorld, add_obstacle, kernels
 from sotdrake.collision.distance import pair_distances
 from sotdrake.collision.reach import TABLE, build_collision_reach
 from sotdrake.collision.schedule import PairSchedule, ScheduleState, bounding_sphere
@@ -80,6 +81,37 @@ def test_a_pair_fixed_together_keeps_its_bound(scheduled, talos_model):
     decrease = schedule.coefficients @ schedule.motion(q, moved)
     assert np.all(decrease[~table] == 0.0)
     assert np.all(decrease[table] >= 0.05 - 1e-12)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_the_compiled_bounds_after_a_motion_are_the_plain_ones(seed):
+    """:func:`kernels.lowered` against ``lower − coefficients · motion`` of the plain
+    :meth:`PairSchedule.motion`, with quaternion and roll-pitch-yaw floating joints, one of them
+    moving no bound."""
+    rng = np.random.default_rng(seed)
+    kinds = ["quaternion_floating", "rpy_floating", "quaternion_floating"]
+    starts, nq = [], 0
+    for kind in kinds:
+        starts.append(nq)
+        nq += 7 if kind == "quaternion_floating" else 6
+    one_dof = np.arange(nq, nq + 12, dtype=np.int64)
+    nq += 12
+    q0, q1 = rng.normal(size=nq), rng.normal(size=nq)
+    for s, kind in zip(starts, kinds, strict=True):
+        if kind == "quaternion_floating":
+            q0[s:s + 4] /= np.linalg.norm(q0[s:s + 4])
+            q1[s:s + 4] = q0[s:s + 4] + 0.1 * rng.normal(size=4)
+            q1[s:s + 4] /= np.linalg.norm(q1[s:s + 4])
+    joint = SimpleNamespace
+    floating = [joint(position_start=lambda s=s: s, type_name=lambda k=k: k) for s, k in zip(starts, kinds, strict=True)]
+    bounding = np.array([True, True, False])
+    plain = SimpleNamespace(_one_dof_q=one_dof, _floating=floating, _bounding=bounding)
+    coefficients = rng.uniform(0, 2, size=(30, 12 + 2 * len(kinds)))
+    lower = rng.normal(size=30)
+    expected = lower - coefficients @ PairSchedule.motion(plain, q0, q1)
+    compiled = kernels.lowered(lower, coefficients, q0, q1, one_dof, np.array(starts, dtype=np.int64),
+                               np.array([k == "quaternion_floating" for k in kinds]), bounding)
+    np.testing.assert_allclose(compiled, expected, rtol=1e-13, atol=1e-13)
 
 
 def test_bounding_spheres_hold_the_shapes():

@@ -34,7 +34,9 @@ def robot() -> None:
     world = CollisionWorld(load_talos("reduced"))
     context = world.new_context()
     pair_distances(world, context, 0.05, bias=True)
-    PairSchedule(world).step(ScheduleState(), context, load_talos("reduced").half_sitting, 0.05)  # (its gaps)
+    schedule, q = PairSchedule(world), load_talos("reduced").half_sitting
+    first = schedule.step(ScheduleState(), context, q, 0.05)  # (its gaps)
+    schedule.step(first.state, context, q + 1e-3, 0.05)  # (its bounds after a motion)
 
     with tempfile.TemporaryDirectory() as out:
         quiet = ["--no-meshcat", "--quiet", "--duration", "0.01"]

@@ -1,5 +1,6 @@
 """The collision wing's compiled kernels (numba): the pairs' rows from their bodies' kinematics
-(:func:`cover`, :func:`assemble`) and the support gaps of pairs along given directions (:func:`gaps`).
+(:func:`cover`, :func:`assemble`), the support gaps of pairs along given directions (:func:`gaps`)
+and the schedule's bounds after a motion (:func:`lowered`).
 
 **The rows.** For pair ``i``, with side A's body (slot ``a``: its pose ``X_WB``, bias spatial
 acceleration ``(α; a_Bo)`` and angular velocity ``ω``, world frame) and the witness point ``p_GC``
@@ -169,3 +170,36 @@ def gaps(pairs, normal, X_WB, X_BG, kinds, params, offsets, points, out):
             extreme = _support(kinds[s], points[offsets[s]:offsets[s + 1]], params[s], ux, uy, uz)
             value += centre - extreme if side == 0 else -(centre + extreme)
         out[i] = value
+
+
+@njit(cache=True)
+def lowered(lower, coefficients, q0, q1, one_dof_q, floating_q, quaternion, bounding):
+    """``lower − coefficients · m``, ``m`` the motion vector from ``q0`` to ``q1`` of
+    :meth:`~.schedule.PairSchedule.motion` (its reference in plain Python): ``|Δq|`` of the one-dof
+    joints at ``one_dof_q``, then per floating joint starting at ``floating_q[k]`` (a quaternion
+    ``(w, x, y, z)`` then the position, when ``quaternion[k]``; else roll-pitch-yaw then the
+    position) ``|Δp|`` and a bound of its rotation's angle, zeros when ``bounding[k]`` is False."""
+    u = one_dof_q.size
+    motion = np.zeros(u + 2 * floating_q.size)
+    for j in range(u):
+        motion[j] = abs(q1[one_dof_q[j]] - q0[one_dof_q[j]])
+    for k in range(floating_q.size):
+        if not bounding[k]:
+            continue
+        s = floating_q[k]
+        if quaternion[k]:
+            aw, ax, ay, az = q0[s], q0[s + 1], q0[s + 2], q0[s + 3]
+            bw, bx, by, bz = q1[s], q1[s + 1], q1[s + 2], q1[s + 3]
+            w = aw * bw + ax * bx + ay * by + az * bz
+            vx = aw * bx - bw * ax - (ay * bz - az * by)  # the vector part of conj(a)·b
+            vy = aw * by - bw * ay - (az * bx - ax * bz)
+            vz = aw * bz - bw * az - (ax * by - ay * bx)
+            angle = 2.0 * math.atan2(math.sqrt(vx * vx + vy * vy + vz * vz), abs(w))
+            position = s + 4
+        else:  # each angle's change bounds its rotation; the sum bounds theirs
+            angle = abs(q1[s] - q0[s]) + abs(q1[s + 1] - q0[s + 1]) + abs(q1[s + 2] - q0[s + 2])
+            position = s + 3
+        dx, dy, dz = q1[position] - q0[position], q1[position + 1] - q0[position + 1], q1[position + 2] - q0[position + 2]
+        motion[u + 2 * k] = math.sqrt(dx * dx + dy * dy + dz * dz)
+        motion[u + 2 * k + 1] = angle
+    return lower - np.dot(coefficients, motion)

@@ -134,7 +134,9 @@ class PairSchedule:
         # Motion vector: |Δq| of each 1-dof joint, then |Δp| and φ of each floating joint.
         self._one_dof = [j for j in joints if j.num_positions() == 1 and j.type_name() in ("revolute", "prismatic")]
         self._floating = [j for j in joints if j.type_name() in ("quaternion_floating", "rpy_floating")]
-        self._one_dof_q = np.array([j.position_start() for j in self._one_dof], dtype=int)
+        self._one_dof_q = np.array([j.position_start() for j in self._one_dof], dtype=np.int64)
+        self._floating_q = np.array([j.position_start() for j in self._floating], dtype=np.int64)
+        self._quaternion = np.array([j.type_name() == "quaternion_floating" for j in self._floating], dtype=np.bool_)
         nodes, lengths = self._graph(world, joints)
         geometries = sorted({g for pair in self.pairs for g in pair}, key=lambda g: g.get_value())
         spheres = {g: bounding_sphere(inspector.GetShape(g)) for g in geometries}
@@ -173,7 +175,8 @@ class PairSchedule:
             self.coefficients[p] = self._pair_row(world, joints, nodes, distance, spheres, ga, gb)
         # A floating joint on no pair's path (a robot's base, for self pairs only) moves no bound.
         first = len(self._one_dof)
-        self._bounding = [bool(self.coefficients[:, first + 2 * k:first + 2 * k + 2].any()) for k in range(len(self._floating))]
+        self._bounding = np.array([self.coefficients[:, first + 2 * k:first + 2 * k + 2].any() for k in range(len(self._floating))],
+                                  dtype=np.bool_)
 
     def _graph(self, world: CollisionWorld, joints: list) -> tuple[dict, dict]:
         """The points fixed in each body (joint origins, on both sides of each joint) and the
@@ -229,7 +232,8 @@ class PairSchedule:
     def motion(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
         """The motion vector from ``q0`` to ``q1``: ``|Δq_j|`` of each one-dof joint, then ``|Δp|``
         (m) and the rotation angle ``φ`` (rad) of each floating joint (zeros for one whose
-        coefficients are all zero: it moves no pair's bound)."""
+        coefficients are all zero: it moves no pair's bound). The schedule's step takes it in one
+        compiled call with the bounds (:func:`.kernels.lowered`); this is that call's reference."""
         out = [np.abs(q1[self._one_dof_q] - q0[self._one_dof_q])]
         for j, bounding in zip(self._floating, self._bounding, strict=True):
             if not bounding:
@@ -309,7 +313,8 @@ class PairSchedule:
         if state.q is None or state.lower.shape != (n,):
             lower = np.full(n, -np.inf)
         else:
-            lower = state.lower - self.coefficients @ self.motion(state.q, q)
+            lower = _kernels().lowered(state.lower, self.coefficients, state.q, compiled_input(q), self._one_dof_q,
+                                       self._floating_q, self._quaternion, self._bounding)
         scalar = np.ndim(max_distance) == 0
         due = np.flatnonzero(lower < max_distance)
         query = self.world.query(context) if due.size else None  # (the query object updates every pose)

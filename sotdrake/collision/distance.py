@@ -112,6 +112,8 @@ class PairTable:
         geometry: Drake answers a pair in increasing id order, the order the schedule keeps). A
         pair whose first geometry is an obstacle is swapped, so that side A is on the robot."""
         k = len(results)
+        if k == 0:
+            return PairDistances(jacobian=np.zeros((0, world.plant.num_velocities())), bias=np.zeros(0))
         distance, normal, p_GC = np.empty(k), np.empty((k, 3)), np.empty((2, k, 3))
         for i, r in enumerate(results):
             distance[i], normal[i], p_GC[0, i], p_GC[1, i] = r.distance, r.nhat_BA_W, r.p_ACa, r.p_BCb

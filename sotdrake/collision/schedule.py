@@ -316,6 +316,8 @@ class PairSchedule:
             lower = _kernels().lowered(state.lower, self.coefficients, state.q, compiled_input(q), self._one_dof_q,
                                        self._floating_q, self._quaternion, self._bounding)
         scalar = np.ndim(max_distance) == 0
+        if scalar:
+            max_distance = float(max_distance)
         due = np.flatnonzero(lower < max_distance)
         query = self.world.query(context) if due.size else None  # (the query object updates every pose)
         in_range, pairs_in_range, out, normals = [], [], [], []
@@ -331,7 +333,8 @@ class PairSchedule:
         if out:  # skipped from now on: a bound that does not trust the query's convergence
             pairs = np.array(out, dtype=np.int64)
             lower[pairs] = np.minimum(lower[pairs], self.gaps(context, pairs, np.array(normals)))
-        state = ScheduleState(read_only(q.copy()), read_only(lower), tuple(in_range), read_only(np.array(max_distance)),
+        state = ScheduleState(read_only(q.copy()), read_only(lower), tuple(in_range),
+                              max_distance if scalar else read_only(np.array(max_distance)),
                               len(due), read_only(np.array(pairs_in_range, dtype=np.int64)))
         return ScheduleStep(state, in_range, len(due))
 
@@ -395,6 +398,8 @@ def support(data: tuple, u: np.ndarray) -> float:
 
 def _same(a: float | np.ndarray, b: float | np.ndarray) -> bool:
     """``a`` and ``b`` equal (two numbers, or two arrays of one shape)."""
+    if type(a) is float and type(b) is float:  # (the usual case, first: np.ndim costs more)
+        return a == b
     if np.ndim(a) == 0 and np.ndim(b) == 0:
         return bool(a == b)
     return np.shape(a) == np.shape(b) and bool((a == b).all())  # type: ignore[union-attr]

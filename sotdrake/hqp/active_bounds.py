@@ -40,11 +40,10 @@ lower side ``ν ≤ 0`` (the same tolerance). A row not held must hold (on unit 
 ``feasibility`` relative above 1), else it is held at the side it passes; a wrong-signed one is
 released. The rows held at the start are a guess too (typically those held in the previous tick's
 answer, when the stack's rows have the same layout): like the bounds' guess, it changes the cost,
-never the answer. A passing point
-meets every equality row exactly and holds every inequality row: each level's objective (residual,
-violation) is at its least value, 0, so the hierarchy's optimal set is the polyhedron of all the rows
-and bounds, and the point, which satisfies the KKT conditions of ``min ½‖x‖²`` over it, is the QP's
-answer.
+never the answer. A passing point meets every equality row exactly and holds every inequality row:
+each level's objective (residual, violation) is at its least value, 0, so the hierarchy's optimal
+set is the polyhedron of all the rows and bounds, and the point, which satisfies the KKT conditions
+of ``min ½‖x‖²`` over it, is the QP's answer.
 
 Cost: one QR of an ``|F| × m`` matrix, one triangular inverse and a few matrix-vector products per
 round, instead of a factorisation per level and an active-set stage per level a bound is in the way of.

@@ -120,10 +120,10 @@ def solve_held_rows(qp: StageOwner, levels: Sequence[tuple[np.ndarray, np.ndarra
     :func:`~.active_bounds.solve_held_rows` (every equality row met, the violated inequality rows
     held), from the bounds held at the last answer and, when the rows have the same places (level
     sizes, which rows are inequalities), the rows it held (tried once more without them when they
-    do not lead to a verified answer), or None (then the stages decide; also for rows
-    that do not fit or are not finite: the stages say what is wrong). With a ``hold_tolerance`` the
-    stages let the levels below a held row pass it by that much: an answer that holds a row is then
-    not theirs, and None is given."""
+    do not lead to a verified answer), or None (then the stages decide; also for rows that do not
+    fit or are not finite: the stages say what is wrong). With a ``hold_tolerance`` the stages let
+    the levels below a held row pass it by that much: an answer that holds a row is then not
+    theirs, and None is given."""
     path = _active_bounds_path()
     n = len(x_lower)
     try:

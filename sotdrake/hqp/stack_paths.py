@@ -202,16 +202,16 @@ class HeldRows(StackPath):
     Every level's equality rows, and the inequality rows held (at first those the last answer held,
     when the rows keep their places; each round holds one violated and releases those whose
     multiplier has the wrong sign), are solved at once under the bounds held at the last call
-    (:mod:`.active_bounds`). A point that meets every equality row,
-    holds every inequality row and satisfies the KKT conditions of ``min ½‖x‖²`` over all the rows
-    and bounds is the stack's answer: each level's objective (its residual, its violation) is 0 there,
-    its least value, so every level's optimal set is the part of the one above where the level's
-    rows are met, the last one is the polyhedron of all the rows, and the answer is its
-    minimum-norm point. When no row is held this is the equality rows' answer holding every
-    inequality row (a collision level while no pair is about to touch); when one is, a level that
-    the rows keep from its target (the hand pushed against the torso) makes the rows dependent and
-    the path gives None: the stages decide. After f failures in a row the next 2^(f−1) calls, at most
-    16, skip the path (the warm start's ``row_failures``/``row_skips``)."""
+    (:mod:`.active_bounds`). A point that meets every equality row, holds every inequality row and
+    satisfies the KKT conditions of ``min ½‖x‖²`` over all the rows and bounds is the stack's
+    answer: each level's objective (its residual, its violation) is 0 there, its least value, so
+    every level's optimal set is the part of the one above where the level's rows are met, the last
+    one is the polyhedron of all the rows, and the answer is its minimum-norm point. When no row is
+    held this is the equality rows' answer holding every inequality row (a collision level while no
+    pair is about to touch); when one is, a level that the rows keep from its target (the hand
+    pushed against the torso) makes the rows dependent and the path gives None: the stages decide.
+    After f failures in a row the next 2^(f−1) calls, at most 16, skip the path (the warm start's
+    ``row_failures``/``row_skips``)."""
 
     name = "held-rows"
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from sotdrake.exceptions import SolverError
+from sotdrake.exceptions import InvalidInput, SolverError
 from sotdrake.hqp.cascade import _stacked, cascade_factorization, svd_cascade
 from sotdrake.hqp.kernels.cascade import cascade, prefix
 from sotdrake.solvers import solve_cascade
@@ -284,3 +284,19 @@ def test_an_overdetermined_last_level_near_the_threshold_is_the_svd_one(ratio, m
     np.testing.assert_allclose(result.velocity, v, rtol=1e-8, atol=1e-8)
     if masked:
         assert np.all(result.velocity[~selection] == 0.0)
+
+
+def test_a_stack_that_does_not_fit_is_refused_naming_what():
+    """Wrong sizes give an InvalidInput naming the argument, before any compiled code reads them."""
+    nv, J, r = 4, np.eye(2, 4), np.ones(2)
+    cases = {
+        "damping": lambda: solve_cascade([(J, r)], nv, damping=[0.0, 0.1]),
+        "control_selection": lambda: solve_cascade([(J, r)], nv, control_selection=np.ones(3, dtype=bool)),
+        "columns": lambda: solve_cascade([(np.eye(2, 3), r)], nv),
+        "level 1": lambda: solve_cascade([(J, r), (J, np.ones(3))], nv),
+        "extra": lambda: cascade_factorization([(J, r)], nv, extra=[]),
+        "level 0": lambda: cascade_factorization([(J, r)], nv, extra=[np.ones(3)]),
+    }
+    for name, call in cases.items():
+        with pytest.raises(InvalidInput, match=name):
+            call()

@@ -55,7 +55,7 @@ import numpy as np
 from scipy.linalg.lapack import dgesdd as _gesdd
 
 from ..compiled import compiled_input, kernels
-from ..exceptions import SolverError
+from ..exceptions import InvalidInput, SolverError
 
 
 def _stacked(levels: Sequence[tuple[np.ndarray, np.ndarray]], extra: Sequence[np.ndarray] | None
@@ -63,6 +63,12 @@ def _stacked(levels: Sequence[tuple[np.ndarray, np.ndarray]], extra: Sequence[np
     """``(J, references, sizes)``: the levels' rows stacked (M × nv), their references as one column
     (M × 1) and the ``extra`` ones as a second, and each level's number of rows."""
     sizes = np.array([J.shape[0] for J, _ in levels], dtype=np.int64)
+    if extra is not None and len(extra) != len(levels):
+        raise InvalidInput(f"extra: one reference per level ({len(levels)}), got {len(extra)}")
+    for k, (size, (_, r)) in enumerate(zip(sizes.tolist(), levels, strict=True)):
+        if np.shape(r) != (size,) or (extra is not None and np.shape(extra[k]) != (size,)):
+            raise InvalidInput(f"level {k}: {size} rows and references of shape {np.shape(r)}"
+                               + ("" if extra is None else f" and {np.shape(extra[k])}"))
     J = levels[0][0] if len(levels) == 1 else np.concatenate([J for J, _ in levels])
     references = np.empty((J.shape[0], 1 if extra is None else 2))
     references[:, 0] = levels[0][1] if len(levels) == 1 else np.concatenate([r for _, r in levels])
@@ -105,10 +111,16 @@ def cascade_factorization(
         dampings = np.zeros(len(levels)) if damping == 0 else np.full(len(levels), float(damping))
     else:
         dampings = np.array(damping, dtype=float)
+    if dampings.shape != (len(levels),):
+        raise InvalidInput(f"damping: one value or one per level ({len(levels)}), got {dampings.size}")
+    mask = np.ones(nv) if control_selection is None else np.asarray(control_selection, dtype=float)
+    if mask.shape != (nv,):
+        raise InvalidInput(f"control_selection: {nv} values expected, got shape {mask.shape}")
     if not levels:
         return CascadeFactorization(np.zeros(nv), np.zeros(0, dtype=int), None if extra is None else np.zeros(nv))
     J, references, sizes = _stacked(levels, extra)
-    mask = np.ones(nv) if control_selection is None else np.asarray(control_selection, dtype=float)
+    if J.ndim != 2 or J.shape[1] != nv:
+        raise InvalidInput(f"the levels' Jacobians: {nv} columns expected, got shape {J.shape}")
     try:
         v, ranks, _ = _kernels().cascade(compiled_input(J), sizes, references, mask, float(svd_threshold), dampings)
     except np.linalg.LinAlgError as error:

@@ -136,7 +136,7 @@ def solve_held_rows(qp: StageOwner, levels: Sequence[tuple[np.ndarray, np.ndarra
     starts = [0]
     for level in rows:
         starts.append(starts[-1] + len(level[0]))
-    sizes = np.diff(starts)
+    sizes = np.array([len(level[0]) for level in rows], dtype=np.int64)
     A, lower, upper = (np.concatenate([level[i] for level in rows]) for i in range(3))
     layout = sizes.tobytes() + (lower != upper).tobytes()  # (the rows' places: the held rows' guess is by place)
     row_guess = qp.warm.row_sides[1] if qp.warm.row_sides is not None and qp.warm.row_sides[0] == layout else None

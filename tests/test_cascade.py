@@ -150,8 +150,8 @@ def test_qr_prefix_stops_at_the_first_rank_loss(seed):
 
 @pytest.mark.parametrize("seed", range(40))
 def test_the_compiled_cascade_is_the_plain_one(seed):
-    """The compiled SVD levels from the top (damped per level, with or without a control selection)
-    give the plain cascade's velocity and ranks."""
+    """The compiled cascade (the QR prefix when no level is damped, the SVD levels below it), damped
+    per level, with or without a control selection, gives the plain cascade's velocity and ranks."""
     rng = np.random.default_rng(seed)
     nv = int(rng.integers(6, 40))
     levels = random_stack(rng, nv) + ([(np.eye(nv), rng.normal(size=nv))] if rng.random() < 0.5 else [])

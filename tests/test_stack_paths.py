@@ -265,6 +265,14 @@ def with_inequalities(rng: np.random.Generator, n: int, levels: list, x_eq: np.n
     return out
 
 
+def around_the_equality_answer(rng: np.random.Generator, n: int, levels: list, lower, upper,
+                               holding: bool) -> tuple[list, np.ndarray]:
+    """``(mixed, x_eq)``: the stages' answer ``x_eq`` of the equality ``levels`` under the bounds, and
+    the levels with inequality rows around it (:func:`with_inequalities`)."""
+    x_eq = STAGES.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)).x
+    return with_inequalities(rng, n, levels, x_eq, holding), x_eq
+
+
 def assert_same_mixed_answer(result, reference, levels, lower, upper):
     """Each level's slack (inequality violations included) as the stages', the bounds held, the
     minimum-norm point; the reported slacks are the point's."""
@@ -297,9 +305,8 @@ def test_held_rows_give_the_stages_answer_and_answer_when_the_equality_rows_are_
     total = 0
     for trial in range(150):
         n, levels, lower, upper = equality_stack(rng, bounds)
-        x_eq = STAGES.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)).x
         holding = trial % 3 != 0
-        mixed = with_inequalities(rng, n, levels, x_eq, holding)
+        mixed, x_eq = around_the_equality_answer(rng, n, levels, lower, upper, holding)
         problem = StackProblem(mixed, lower, upper)
         result = HELD_ROWS.attempt(HierarchicalQP(n), problem)
         reference = STAGES.attempt(HierarchicalQP(n), problem)
@@ -329,8 +336,7 @@ def test_a_guess_of_the_held_rows_changes_the_cost_never_the_answer():
     warm_answers = one_round = wrong_answers = 0
     for _ in range(60):
         n, levels, lower, upper = equality_stack(rng, "loose")
-        x_eq = STAGES.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)).x
-        mixed = with_inequalities(rng, n, levels, x_eq, holding=False)
+        mixed, _ = around_the_equality_answer(rng, n, levels, lower, upper, False)
         qp = HierarchicalQP(n)
         if HELD_ROWS.attempt(qp, StackProblem(mixed, lower, upper)) is None:
             continue
@@ -365,8 +371,7 @@ def test_held_rows_leave_bad_rows_to_the_stages(defect):
     """Rows the stages refuse: the path gives no answer, and the stack's solve raises the stages' error."""
     rng = np.random.default_rng(5)
     n, levels, lower, upper = equality_stack(rng, "loose")
-    x_eq = STAGES.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)).x
-    mixed = with_inequalities(rng, n, levels, x_eq, holding=True)
+    mixed, _ = around_the_equality_answer(rng, n, levels, lower, upper, True)
     k = next(i for i, (_, lo, hi) in enumerate(mixed) if lo is not hi)
     A, lo, hi = (np.array(part, dtype=float) for part in mixed[k])
     if defect == "nan coefficient":
@@ -391,8 +396,7 @@ def test_held_rows_back_off_after_failures_and_apply_only_where_they_say():
         n, levels, lower, upper = equality_stack(rng, "loose")  # a clear stack: the equality solve answers
     qp = HierarchicalQP(n)
     assert HELD_ROWS.attempt(qp, StackProblem(levels, lower, upper)) is None  # no inequality row: not its stack
-    x_eq = STAGES.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)).x
-    held = with_inequalities(rng, n, levels, x_eq, holding=False)
+    held, x_eq = around_the_equality_answer(rng, n, levels, lower, upper, False)
     assert HELD_ROWS.attempt(HierarchicalQP(n), StackProblem(held, lower, upper)) is not None  # (its row is held)
     relaxed = HierarchicalQP(n, hold_tolerance=1e-6)  # then the stages let the levels below pass a held row
     assert HELD_ROWS.attempt(relaxed, StackProblem(held, lower, upper)) is None
@@ -422,9 +426,8 @@ def test_inactive_rows_give_the_stages_answer_below_a_level_that_cannot_be_met(b
     answered = {True: 0, False: 0}
     for trial in range(60):
         n, levels, lower, upper = with_posture(rng, bounds)
-        x_eq = STAGES.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)).x
         holding = trial % 3 != 0
-        mixed = with_inequalities(rng, n, levels, x_eq, holding)
+        mixed, _ = around_the_equality_answer(rng, n, levels, lower, upper, holding)
         problem = StackProblem(mixed, lower, upper)
         qp = HierarchicalQP(n)
         result = INACTIVE_ROWS.attempt(qp, problem)
@@ -440,8 +443,7 @@ def test_inactive_rows_give_the_stages_answer_below_a_level_that_cannot_be_met(b
 def test_inactive_rows_apply_only_where_they_say_and_back_off():
     rng = np.random.default_rng(37)
     n, levels, lower, upper = with_posture(rng, "loose")
-    x_eq = STAGES.attempt(HierarchicalQP(n), StackProblem(levels, lower, upper)).x
-    holding = with_inequalities(rng, n, levels, x_eq, holding=True)
+    holding, x_eq = around_the_equality_answer(rng, n, levels, lower, upper, True)
     qp = HierarchicalQP(n)
     assert INACTIVE_ROWS.attempt(qp, StackProblem(levels, lower, upper)) is None  # no inequality row: not its stack
     assert INACTIVE_ROWS.attempt(qp, StackProblem(holding, lower, upper, damping=0.1)) is None

@@ -10,6 +10,7 @@ failures in a row make the next calls skip them for a while (the back-offs, kept
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
@@ -133,10 +134,8 @@ def solve_held_rows(qp: StageOwner, levels: Sequence[tuple[np.ndarray, np.ndarra
         return None
     if any(A.ndim != 2 or A.shape[1] != n or lower.shape != (len(A),) or upper.shape != (len(A),) for A, lower, upper in rows):
         return None
-    starts = [0]
-    for level in rows:
-        starts.append(starts[-1] + len(level[0]))
     sizes = np.array([len(level[0]) for level in rows], dtype=np.int64)
+    starts = [0, *itertools.accumulate(sizes.tolist())]
     A, lower, upper = (np.concatenate([level[i] for level in rows]) for i in range(3))
     layout = sizes.tobytes() + (lower != upper).tobytes()  # (the rows' places: the held rows' guess is by place)
     row_guess = qp.warm.row_sides[1] if qp.warm.row_sides is not None and qp.warm.row_sides[0] == layout else None

@@ -162,26 +162,26 @@ class SolverError(SotError):
     """The solver met a non-finite Jacobian or reference; the message names the task."""
 
 
-def _all_numbers(value) -> bool:
+def all_numbers(value) -> bool:
     """True if ``value`` is a real number or nested sequences/arrays of them (no str, bool, None)."""
     import numbers
 
     import numpy as np
 
     if isinstance(value, np.ndarray):
-        return value.dtype.kind in "iuf" or (value.dtype.kind == "O" and all(_all_numbers(v) for v in value.ravel()))
+        return value.dtype.kind in "iuf" or (value.dtype.kind == "O" and all(all_numbers(v) for v in value.ravel()))
     if isinstance(value, (bool, np.bool_)):
         return False
     if isinstance(value, numbers.Real):
         return True
     if isinstance(value, (list, tuple)):
-        return all(_all_numbers(v) for v in value)
+        return all(all_numbers(v) for v in value)
     return False
 
 
 def check_number(name: str, value, low: float, high: float, unit: str = "") -> float:
     """``value`` as a float if it is a real number (not a bool) in ``[low, high]``, else InvalidInput."""
-    if not _all_numbers(value) or isinstance(value, (list, tuple)) or getattr(value, "ndim", 0) != 0:
+    if not all_numbers(value) or isinstance(value, (list, tuple)) or getattr(value, "ndim", 0) != 0:
         raise InvalidInput(f"{name} must be a number in [{low:g}, {high:g}]{unit}, got {value!r:.100}")
     number = float(value)
     if not low <= number <= high:  # NaN fails too
@@ -197,7 +197,7 @@ def check_finite(name: str, value, shape: tuple[int, ...] | None = None, bound: 
     expected = f"{'' if shape is None else f'shape {shape}, '}finite numbers" + (
         "" if bound is None else f" in [-{bound:g}, {bound:g}]")
     try:
-        if not _all_numbers(value):
+        if not all_numbers(value):
             raise TypeError("not numbers")
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError):

@@ -76,14 +76,9 @@ class Dynamic(LeafSystem):
         Creating the same op point twice returns the existing ports; another frame under the same
         name is an error. Raises :class:`FrameNotFound` for an unknown frame.
         """
-        frame = self.model.frame(frame_name)
+        frame = self.check_op_point(name, frame_name)
         if name in self._op_points:
-            if self._op_points[name][0] is not frame:
-                raise InvalidInput(f"op point {name!r} already exists on another frame")
             return self.GetOutputPort(name), self.GetOutputPort("J" + name)
-        for port_name in (name, "J" + name):
-            if self.HasOutputPort(port_name):
-                raise InvalidInput(f"{self.get_name()} already has an output named {port_name!r}")
         self._op_points[name] = (frame, frame_name)
         pose = self.DeclareAbstractOutputPort(
             name, lambda: AbstractValue.Make(RigidTransform()), lambda c, o: o.set_value(self._pose(c, frame))
@@ -94,6 +89,22 @@ class Dynamic(LeafSystem):
             lambda c, o: o.set_value(self._jacobian(c, frame)),
         )
         return pose, jac
+
+    def check_op_point(self, name: str, frame_name: str):
+        """The frame of a new or existing op point ``name`` on ``frame_name``, checked as
+        :meth:`createOpPoint` does (an unknown frame, another frame under that name, a name taken by
+        another output), without declaring anything."""
+        if not isinstance(name, str) or not name:
+            raise InvalidInput(f"op point name: expected a non-empty string, got {name!r:.60}")
+        frame = self.model.frame(frame_name)
+        if name in self._op_points:
+            if self._op_points[name][0] is not frame:
+                raise InvalidInput(f"op point {name!r} already exists on another frame")
+            return frame
+        for port_name in (name, "J" + name):
+            if self.HasOutputPort(port_name):
+                raise InvalidInput(f"{self.get_name()} already has an output named {port_name!r}")
+        return frame
 
     def hasOpPoint(self, name: str) -> bool:
         return name in self._op_points

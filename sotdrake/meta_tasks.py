@@ -60,6 +60,21 @@ def _as_robot(robot: Robot, meta: str) -> Robot:
     return robot
 
 
+def _new_task(robot: Robot, meta: str, name: str, feature: bool = True, reference: bool = False,
+              inequality: bool = False, pd: bool = False) -> Robot:
+    """``robot``, after the checks that must pass before a meta task adds anything: the robot, the
+    name, ``inequality`` and ``pd`` not both, and no entity yet of the names it adds (``feature<name>``
+    with ``feature``, ``feature<name>_ref`` with ``reference``, ``gain<name>``, ``task<name>``)."""
+    robot = _as_robot(robot, meta)
+    if not isinstance(name, str) or not name:
+        raise InvalidInput(f"{meta}: the name must be a non-empty string, got {name!r:.60}")
+    if inequality and pd:
+        raise InvalidInput(f"{meta}({name!r}): a task is an inequality or a PD task, not both")
+    names = ["gain" + name, "task" + name] + ["feature" + name] * feature + ["feature" + name + "_ref"] * reference
+    robot.check_new_names(names)
+    return robot
+
+
 def _check_not_recording(what: str) -> None:
     if recording():
         raise SotError(f"{what} reads the current state: call it with a context, not inside attime")
@@ -72,7 +87,7 @@ def _input_value(port: InputPort, context: Context):
     system = port.get_system()
     try:
         own = system.GetMyContextFromRoot(context)
-    except RuntimeError as error:
+    except (RuntimeError, TypeError) as error:
         raise InvalidInput(f"context: expected the root diagram context (from which {system.get_name()}'s "
                            f"input {port.get_name()!r} is evaluated), got another context") from error
     return copy.copy(port.Eval(own))
@@ -107,7 +122,7 @@ class MetaTaskKine6d(_MetaTask):
 
     def __init__(self, name: str, robot: Robot, opPoint: str, opPointRef: str | None = None,
                  inequality: bool = False, pd: bool = False):
-        robot = _as_robot(robot, "MetaTaskKine6d")
+        robot = _new_task(robot, "MetaTaskKine6d", name, reference=True, inequality=inequality, pd=pd)
         dyn = robot.dynamic
         self.dyn, self.opPoint = dyn, opPoint
         position, jacobian = dyn.createOpPoint(opPoint, opPointRef or opPoint)
@@ -150,7 +165,7 @@ class MetaTaskKineCom(_MetaTask):
     """Task on the centre of mass (``FeatureGeneric`` over ``dynamic.com``), metres, world frame."""
 
     def __init__(self, robot: Robot, name: str = "com", inequality: bool = False, pd: bool = False):
-        robot = _as_robot(robot, "MetaTaskKineCom")
+        robot = _new_task(robot, "MetaTaskKineCom", name, reference=True, inequality=inequality, pd=pd)
         self.dyn = dyn = robot.dynamic
         feature = robot.add(FeatureGeneric("feature" + name, 3, robot.dimension))
         self.featureDes = robot.add(FeatureGenericDesired("feature" + name + "_ref", 3))
@@ -177,7 +192,7 @@ class MetaTaskKinePosture(_MetaTask):
     initial configuration (half-sitting for TALOS), the floating base left free."""
 
     def __init__(self, robot: Robot, name: str = "posture", pd: bool = False):
-        robot = _as_robot(robot, "MetaTaskKinePosture")
+        robot = _new_task(robot, "MetaTaskKinePosture", name, pd=pd)
         feature = robot.add(FeaturePosture("feature" + name, robot.model.plant, robot.device.initial_position))
         robot.builder.Connect(robot.device.GetOutputPort("state"), feature.GetInputPort("state"))
         self._finish(robot, name, feature, pd=pd)
@@ -191,9 +206,12 @@ class MetaTaskKine6dRel(_MetaTask):
 
     def __init__(self, name: str, robot: Robot, opPoint: str, opPointBase: str,
                  opPointRef: str | None = None, opPointBaseRef: str | None = None, inequality: bool = False):
-        robot = _as_robot(robot, "MetaTaskKine6dRel")
+        robot = _new_task(robot, "MetaTaskKine6dRel", name, reference=True, inequality=inequality)
         dyn = robot.dynamic
         self.dyn, self.opPoint, self.opPointBase = dyn, opPoint, opPointBase
+        if opPoint == opPointBase:
+            raise InvalidInput(f"MetaTaskKine6dRel({name!r}): op point {opPoint!r} relative to itself")
+        dyn.check_op_point(opPointBase, opPointBaseRef or opPointBase)  # (both checked before either is declared)
         a, Ja = dyn.createOpPoint(opPoint, opPointRef or opPoint)
         b, Jb = dyn.createOpPoint(opPointBase, opPointBaseRef or opPointBase)
         feature = robot.add(FeatureRelative6d("feature" + name, robot.dimension))
@@ -224,7 +242,7 @@ class MetaTaskVisualPoint(_MetaTask):
     ``point_velocity``) with :meth:`plugPoint`, or set a fixed point with :meth:`setPoint`."""
 
     def __init__(self, name: str, robot: Robot, opPoint: str = "camera", opPointRef: str = "rgbd_rgb_optical_frame"):
-        robot = _as_robot(robot, "MetaTaskVisualPoint")
+        robot = _new_task(robot, "MetaTaskVisualPoint", name)
         position, jacobian = robot.dynamic.createOpPoint(opPoint, opPointRef)
         feature = robot.add(FeatureVisualPoint("feature" + name, robot.dimension))
         robot.builder.Connect(position, feature.GetInputPort("position"))
@@ -251,7 +269,7 @@ class MetaTaskKineMomentum(_MetaTask):
     its CoM. A floating base only (a fixed base carries the momentum: :class:`InvalidInput`)."""
 
     def __init__(self, robot: Robot, name: str = "momentum", mask: str = "111"):
-        robot = _as_robot(robot, "MetaTaskKineMomentum")
+        robot = _new_task(robot, "MetaTaskKineMomentum", name)
         base_rows(Layout.of(robot.model.plant))  # a fixed base is refused before anything is added
         check_mask(mask, 6, f"MetaTaskKineMomentum({name!r})")
         feature = robot.add(FeatureMomentum("feature" + name, robot.dimension))
@@ -270,10 +288,12 @@ class MetaTaskKineManipulability(_MetaTask):
 
     def __init__(self, name: str, robot: Robot, opPoint: str, floor: float, rows: str = "111000",
                  joints: list[str] | None = None, gain: float = 10.0):
-        robot = _as_robot(robot, "MetaTaskKineManipulability")
+        robot = _new_task(robot, "MetaTaskKineManipulability", name)
         floor = check_number(f"MetaTaskKineManipulability({name!r}): floor", floor, 0.0, 1e6)
         check_number(f"MetaTaskKineManipulability({name!r}): gain", gain, 1e-6, 1e4, " 1/s")
         robot.model.frame(opPoint)  # an unknown frame is refused before anything is added
+        if isinstance(joints, str):
+            raise InvalidInput(f"MetaTaskKineManipulability({name!r}): joints is a list of joint names, got the string {joints!r:.60}")
         columns = None if joints is None else ~robot.velocity_selection(excluding=joints)
         feature = FeatureManipulability("feature" + name, robot.dimension, upstream_coordinates(robot.model.plant), rows, columns)
         robot.add(feature)
@@ -301,6 +321,7 @@ class MetaTaskKineFeature(_MetaTask):
                                f"got {type(feature).__name__}")
         if feature.nv != robot.dimension:
             raise InvalidInput(f"MetaTaskKineFeature({name!r}): the feature has nv = {feature.nv}, the robot {robot.dimension}")
+        _new_task(robot, "MetaTaskKineFeature", name, feature=False, inequality=inequality, pd=pd)
         if feature.get_name() not in robot._names:
             robot.add(feature)
         self._finish(robot, name, feature, inequality, pd)
@@ -318,8 +339,9 @@ class MetaTaskKineJointLimits(_MetaTask):
 
     def __init__(self, robot: Robot, name: str = "jointLimits", margin: float = 0.05, gain: float = 10.0,
                  inequality: bool = True):
-        robot = _as_robot(robot, "MetaTaskKineJointLimits")
+        robot = _new_task(robot, "MetaTaskKineJointLimits", name, inequality=inequality)
         margin = check_number(f"MetaTaskKineJointLimits({name!r}) margin (fraction of each joint's range)", margin, 0.0, 0.45)
+        check_gain(from_numbers(gain), robot.dt, f"MetaTaskKineJointLimits({name!r}) gain")
         plant = robot.model.plant
         feature = FeatureJointLimits("feature" + name, plant)
         if feature.dimension == 0:
@@ -349,13 +371,20 @@ def hold_feet_and_com(robot: Robot, sot, gain: float = 10.0, com: bool = True):
     robot's gripper joints (:data:`~sotdrake.robots.TALOS_GRIPPERS`, which start on their limit)
     are left out of the control, as the tutorial does:
     ``sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))``."""
+    robot = _as_robot(robot, "hold_feet_and_com")
+    feet = [(name, robot.OperationalPointsMap[op]) for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle"))]
+    for name, frame in feet:  # (everything checked before anything is added)
+        _new_task(robot, "hold_feet_and_com", name, reference=True)
+        robot.dynamic.check_op_point(name[-2:], frame)
+    if com:
+        _new_task(robot, "hold_feet_and_com", "com", reference=True)
     plant = robot.model.plant
     grippers = [joint for joint in TALOS_GRIPPERS if plant.HasJointNamed(joint)]
     if grippers and not getattr(sot, "accepts_inequalities", True) and sot.settings().control_selection is None:
         sot.setControlSelection(robot.velocity_selection(excluding=grippers))
     contacts = []
-    for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle")):
-        contact = MetaTaskKine6d(name, robot, name[-2:], robot.OperationalPointsMap[op])
+    for name, frame in feet:
+        contact = MetaTaskKine6d(name, robot, name[-2:], frame)
         contact.gain.setConstant(gain)
         sot.push(contact.task.name)
         contacts.append(contact)

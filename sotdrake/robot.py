@@ -46,6 +46,8 @@ class Robot:
     ):
         """``measured_position``: where the kinematics reads ``q`` (closed loop, e.g. a simulated
         robot's joints and estimated base); by default the device's own ``q`` (open loop)."""
+        if not isinstance(builder, DiagramBuilder):
+            raise InvalidInput(f"Robot: expected a DiagramBuilder, got {type(builder).__name__}")
         if builder.already_built():
             raise SotError("cannot add a robot: the diagram is already built (create the robot before builder.Build())")
         taken = {system.get_name() for system in builder.GetSystems()} & {"dynamic", "device"}
@@ -85,6 +87,18 @@ class Robot:
             mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
         return mask
 
+    def check_new_names(self, names: list[str]) -> None:
+        """:class:`InvalidInput` if an entity of one of ``names`` exists already, :class:`SotError`
+        if the diagram is built (what :meth:`add` checks, for a caller that adds several entities
+        and must refuse before adding any)."""
+        if self.builder.already_built():
+            raise SotError(f"cannot add {names[0]!r}: the diagram is already built "
+                           "(create tasks and entities before builder.Build())")
+        existing = self._names | {system.get_name() for system in self.builder.GetSystems()}
+        for name in names:
+            if name in existing:
+                raise InvalidInput(f"an entity named {name!r} already exists")
+
     def add(self, system: SystemT, name: str | None = None) -> SystemT:
         """Add ``system`` to the builder under ``name`` (default: its own), which must be new."""
         if self.builder.already_built():
@@ -95,8 +109,7 @@ class Robot:
         name = system.get_name()
         if not name:
             raise InvalidInput(f"a {type(system).__name__} needs a name to be added")
-        if name in self._names or any(system.get_name() == name for system in self.builder.GetSystems()):
-            raise InvalidInput(f"an entity named {name!r} already exists")
+        self.check_new_names([name])
         self._names.add(name)
         return self.builder.AddNamedSystem(name, system)
 
@@ -182,6 +195,10 @@ def add_sot(
     bound). ``solver='hqp'``: ``SolverKine`` (hierarchical QP with inequalities and joint limits;
     ``damping`` on the last level, ``position_margin``, ``qp_solver``).
     """
+    if not isinstance(robot, Robot):
+        raise InvalidInput(f"add_sot takes the robot (add_sot(robot)), got {type(robot).__name__}")
+    if not isinstance(name, str) or not name:
+        raise InvalidInput(f"add_sot: the solver's name must be a non-empty string, got {name!r:.60}")
     if solver == "cascade":
         sot = SOT(name, robot.dimension, svd_threshold, damping, dt=robot.dt)
         sot.setVelocityLimit(velocity_limit_vector(robot.model))

@@ -114,12 +114,18 @@ def simulate(diagram: Diagram, duration: float, visualizer=None, progress: bool 
     start = time.perf_counter()
     with frozen_gc(), tqdm(total=round(duration, 6), disable=not progress, file=sys.stderr, desc=label, leave=bool(not label),
               bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} s [{elapsed}<{remaining}]") as bar:
-        for k in range(1, int(np.ceil(duration / chunk - 1e-9)) + 1):
-            t = min(k * chunk, duration)
-            simulator.AdvanceTo(t)
+        try:
+            for k in range(1, int(np.ceil(duration / chunk - 1e-9)) + 1):
+                t = min(k * chunk, duration)
+                simulator.AdvanceTo(t)
+                for tracer in tracers:
+                    tracer.flush(simulator.get_context())
+                bar.update(t - bar.n)
+        except BaseException:  # (an error, Ctrl-C: the samples recorded so far reach the files)
             for tracer in tracers:
-                tracer.flush(simulator.get_context())
-            bar.update(t - bar.n)
+                with contextlib.suppress(Exception):
+                    tracer.flush(simulator.get_context(), force=True)
+            raise
     return simulator, time.perf_counter() - start
 
 

@@ -30,7 +30,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafContext, LeafSystem
 
 from .entity import Entity
-from .exceptions import InvalidInput, SotWarning, StackError, check_finite
+from .exceptions import InvalidInput, SotWarning, StackError, all_numbers, check_finite
 from .features.base import FeatureValue, feature_signals
 from .progress import ProgressWatch
 from .ranges import MAX_TARGET_POSITION
@@ -254,6 +254,8 @@ class TaskInequality(_TaskBase, Entity[InequalityBounds]):
 
     def setBounds(self, lower, upper, context: Context | None = None) -> None:
         try:
+            if not (all_numbers(lower) and all_numbers(upper)):
+                raise TypeError("not numbers")
             lower = np.asarray(lower, dtype=float).reshape(-1)
             upper = np.asarray(upper, dtype=float).reshape(-1)
         except (TypeError, ValueError):

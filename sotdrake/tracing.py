@@ -19,6 +19,7 @@ the context flushed first; flushing another root context starts it over.
 
 from __future__ import annotations
 
+import logging
 import tempfile
 import weakref
 from pathlib import Path
@@ -27,8 +28,10 @@ import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPort
 from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 
-from .exceptions import InvalidInput, check_number
+from .exceptions import InvalidInput, SotError, check_number
 from .simulation import save_figure
+
+log = logging.getLogger(__name__)
 
 #: The tracers that stream, for :func:`flush_tracers` (weak: a tracer dropped is forgotten).
 _STREAMING: weakref.WeakSet[Tracer] = weakref.WeakSet()
@@ -60,16 +63,30 @@ class _ChunkFile:
         self.chunks += 1
 
     def read(self) -> dict[str, list[np.ndarray]]:
-        """Each column's chunks, in order."""
-        size = self.path.stat().st_size
+        """Each column's chunks, in order: the complete ones (a chunk cut short, by a run stopped
+        while it was being written, is left out with a warning)."""
+        try:
+            size = self.path.stat().st_size
+        except OSError as error:
+            raise InvalidInput(f"trace file {str(self.path)!r}: {error.strerror}") from None
         with open(self.path, "rb") as file:
             if size == 0:
                 return {}
-            names = [str(name) for name in np.lib.format.read_array(file, allow_pickle=False)]
+            try:
+                names = [str(name) for name in np.lib.format.read_array(file, allow_pickle=False)]
+            except ValueError as error:
+                raise InvalidInput(f"{self.path}: not a trace file ({error})") from None
             out: dict[str, list[np.ndarray]] = {name: [] for name in names}
             while file.tell() < size:
-                for name in names:
-                    out[name].append(np.lib.format.read_array(file, allow_pickle=False))
+                start = file.tell()
+                try:
+                    chunk = [np.lib.format.read_array(file, allow_pickle=False) for _ in names]
+                except ValueError:
+                    log.warning("%s: the chunk at byte %d is cut short (a run stopped while writing it): read up to "
+                                "there", self.path, start)
+                    break
+                for name, values in zip(names, chunk, strict=True):
+                    out[name].append(values)
         return out
 
 
@@ -83,16 +100,21 @@ class Tracer:
     seconds a chunk holds (> 0)."""
 
     def __init__(self, builder: DiagramBuilder, period: float, stream: bool | str | Path = True, chunk: float = 1.0):
-        if not period > 0:
-            raise InvalidInput(f"tracer period must be > 0, got {period}")
+        period = check_number("tracer period", period, 1e-9, 1e6, " s")
         if not isinstance(stream, bool | str | Path):
             raise InvalidInput(f"tracer stream must be True, False or a file path, got {stream!r}")
         check_number("chunk", chunk, 1e-9, float("inf"), " s")
+        path = None if isinstance(stream, bool) else Path(stream).expanduser()
+        if path is not None:
+            if path.is_dir() or not path.parent.is_dir():
+                raise InvalidInput(f"tracer stream: {str(path)!r} is a folder or its folder does not exist: give a file path")
+            if any(tracer.path is not None and tracer.path.resolve() == path.resolve() for tracer in list(_STREAMING)):
+                raise InvalidInput(f"tracer stream: another tracer streams to {str(path)!r}")
         self.builder, self.period, self.chunk = builder, period, float(chunk)
         self.sinks: dict[str, VectorLogSink] = {}
         self._file: _ChunkFile | None = None
         if stream is not False:
-            self._file = _ChunkFile(None if stream is True else Path(stream))
+            self._file = _ChunkFile(path)
             _STREAMING.add(self)
         self._owner: int | None = None  # id of the root context the file holds
         self._last = -np.inf  # the time of the last sample moved to the file
@@ -104,8 +126,12 @@ class Tracer:
 
     def add(self, port: OutputPort, name: str) -> VectorLogSink:
         """Log ``port`` (a vector output) under ``name``."""
-        if name in self.sinks or name == "time" or "/" in name:
-            raise InvalidInput(f"tracer: signal name {name!r} is already used (or has a '/')")
+        if not isinstance(name, str) or not name or name in self.sinks or name == "time" or "/" in name:
+            raise InvalidInput(f"tracer: a signal name is a new non-empty string without '/', got {name!r:.60}")
+        if self.builder.already_built():
+            raise SotError(f"tracer: cannot add {name!r}: the diagram is already built (add signals before builder.Build())")
+        if any(system.get_name() == f"tracer_{name}" for system in self.builder.GetSystems()):
+            raise InvalidInput(f"tracer: another tracer of this diagram logs a signal named {name!r}: give another name")
         sink = LogVectorOutput(port, self.builder, self.period)
         sink.set_name(f"tracer_{name}")
         self.sinks[name] = sink

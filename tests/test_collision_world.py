@@ -164,9 +164,11 @@ def test_reach_map_counts_a_colliding_path_as_not_reached(reach_map):
     through = reach_map.reach_case(target, duration=1.0, dt=0.02, obstacles="table")
     assert through["hand_error_m"] < reach_map.REACHED_M
     assert through["collides"] and through["min_signed_distance_m"] < -0.05 and not through["reached"]
-    kept = reach_map.reach_case(target, duration=1.0, dt=0.02, obstacles="table", collision=True)
+    kept = reach_map.reach_case(target, duration=1.0, dt=reach_map.MAX_COLLISION_DT, obstacles="table", collision=True)
     assert not kept["collides"] and kept["min_signed_distance_m"] >= 0.01 - 1e-4
     assert not kept["reached"] and kept["hand_error_m"] > 0.05
+    with pytest.raises(InvalidInput, match=r"at most 0\.01 s"):  # (one 20 ms tick can carry a link through the table)
+        reach_map.build_diagram(0.02, obstacles="table", collision=True)
 
 
 def test_reach_map_script_with_a_scene_and_the_level(reach_map, tmp_path):
@@ -181,6 +183,8 @@ def test_reach_map_script_with_a_scene_and_the_level(reach_map, tmp_path):
                               "--obstacles", str(scene), "--collision"])
     assert summary["errors"] == 0 and summary["colliding_paths"] == 0 and summary["min_signed_distance_m"] > 0
     assert summary["obstacles"] == str(scene) and summary["collision_level"] is True
+    with pytest.raises(SystemExit, match=r"at most 0\.01 s"):
+        reach_map.main(["--targets", "8", "--out", str(tmp_path), "--quiet", "--collision", "--dt", "0.1"])
     with pytest.raises(SystemExit, match=r"missing\.sdf"):
         reach_map.main(["--targets", "8", "--out", str(tmp_path), "--quiet", "--obstacles", "/nonexistent/missing.sdf"])
 

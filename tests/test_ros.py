@@ -100,6 +100,26 @@ def test_ros_publish_refuses_a_second_trigger_and_a_repeated_signal(observer):
         publisher.trigger(10, 1e-3)
 
 
+def test_a_topic_ros_refuses_leaves_nothing_behind(observer):
+    publisher = RosPublish("p", observer)
+    publisher.add("double", "a", "/refused_a")
+    with pytest.raises(InvalidInput, match="ROS refused"):
+        publisher.add("vector", "b", "/rosout", size=2)  # (a reserved topic of another type)
+    assert list(publisher.signals) == ["a"] and publisher.num_input_ports() == 1
+    publisher.add("vector", "b", "/refused_b", size=2)  # (the name is still free)
+    with pytest.raises(InvalidInput, match="vector"):
+        publisher.add("vector", "c", "/refused_c", size=True)
+    subscriber = RosSubscribe("s", observer)
+    subscriber.add("double", "x", "/refused_x")
+    with pytest.raises(InvalidInput, match="x_age"):
+        subscriber.add("double", "x_age", "/refused_y")
+    with pytest.raises(InvalidInput, match="distinct"):
+        subscriber.add("joint_states", "j", "/refused_j", names=["a", "a"])
+    assert list(subscriber.slots) == ["x"] and subscriber.num_output_ports() == 2
+    with pytest.raises(InvalidInput, match="depth"):
+        RosSubscribe("t", observer, depth=-1)
+
+
 def test_ros_publisher_rate_in_ticks_or_in_seconds(observer, talos_model):
     """The seed's addDownsampledSignal(…, 100) is every 100 ticks; a period in seconds must be a
     whole number of ticks."""
@@ -118,6 +138,13 @@ def test_ros_publisher_rate_in_ticks_or_in_seconds(observer, talos_model):
                          ({"period": -1.0}, "> 0")):
         with pytest.raises(InvalidInput, match=says):
             add_ros_publisher(Robot(DiagramBuilder(), talos_model, dt=1e-3), node=observer, joint_states=None, **kwargs)
+    robot = Robot(DiagramBuilder(), talos_model, dt=1e-3)
+    systems = robot.builder.GetSystems()
+    for kwargs in ({"every": 0}, {"every": 2.5}, {"every": True}, {"topic": "/a b"}, {"joint_states": "/x y"}):
+        with pytest.raises(InvalidInput):  # (refused before anything is added: the retry below works)
+            add_ros_publisher(robot, node=observer, **kwargs)
+        assert robot.builder.GetSystems() == systems
+    add_ros_publisher(robot, node=observer, every=100)
 
 
 def test_ros_publish_kinds_reach_another_node(observer):

@@ -30,6 +30,9 @@ class _CollisionLevel:
 
     def __init__(self, robot: Robot | RobotDyn, name: str, pairs: Sequence[tuple[str, str]] | None, safety: float,
                  influence: float, xi: float, acceleration: bool):
+        if not isinstance(name, str) or not name:
+            raise InvalidInput(f"{type(self).__name__}: the name must be a non-empty string, got {name!r:.60}")
+        robot.check_new_names(["task" + name])
         margins = check_margins(safety, influence, xi, robot.dt, f"{type(self).__name__}({name!r})")
         self.robot, self.name = robot, name
         self.world: CollisionWorld = collision_world(robot)

@@ -94,9 +94,27 @@ def _checked_drake_shape(shape: Shape, name: str) -> Shape:
         vertices = np.array([hull.vertex(i) for i in range(hull.num_vertices())])
         if vertices.size == 0 or np.ptp(vertices, axis=0).min() <= 0:
             raise InvalidInput(f"add_obstacle({name!r}): the mesh is flat or empty (its convex hull has no volume)")
+        if hasattr(shape, "scale3"):  # (a mirrored or huge mesh, as a described one)
+            for axis, value in zip("xyz", shape.scale3(), strict=True):
+                _size(name, f"mesh scale {axis}", float(value))
+        else:
+            _size(name, "mesh scale", float(shape.scale()))
     elif not isinstance(shape, (Box, Sphere, Cylinder, Capsule, Ellipsoid)):
         raise InvalidInput(f"add_obstacle({name!r}): {type(shape).__name__} is not a shape an obstacle can have")
+    else:  # the sizes a described shape has checked (Drake accepts any positive one)
+        for what, value in _DRAKE_SIZES[type(shape)](shape):
+            _size(name, f"{type(shape).__name__.lower()} {what}", float(value))
     return shape
+
+
+#: The sizes (m) of each Drake shape an obstacle can be, for :func:`_size`.
+_DRAKE_SIZES = {
+    Box: lambda s: (("size x", s.width()), ("size y", s.depth()), ("size z", s.height())),
+    Sphere: lambda s: (("radius", s.radius()),),
+    Cylinder: lambda s: (("radius", s.radius()), ("length", s.length())),
+    Capsule: lambda s: (("radius", s.radius()), ("length", s.length())),
+    Ellipsoid: lambda s: (("a", s.a()), ("b", s.b()), ("c", s.c())),
+}
 
 
 def _pose(name: str, X_WO: object) -> RigidTransform:

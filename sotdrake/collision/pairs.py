@@ -16,13 +16,13 @@ self-collision pairs of a robot are every pair of its bodies that carry collisio
 from __future__ import annotations
 
 import itertools
-import xml.etree.ElementTree as ET
 from collections.abc import Iterable
 from pathlib import Path
 
 from pydrake.multibody.plant import MultibodyPlant
 
 from ..exceptions import FrameNotFound, InvalidInput
+from ..robots.srdf import srdf_root
 
 #: A pair of body (or obstacle) names, in no particular order.
 Pair = frozenset[str]
@@ -32,7 +32,7 @@ def srdf_disabled_pairs(srdf_path: Path | None) -> set[Pair]:
     """The pairs of links the SRDF's ``<disable_collisions>`` elements exclude (empty without an SRDF)."""
     if srdf_path is None:
         return set()
-    root = ET.parse(srdf_path).getroot()
+    root = srdf_root(srdf_path)
     return {frozenset((e.get("link1", ""), e.get("link2", ""))) for e in root.iter("disable_collisions")}
 
 

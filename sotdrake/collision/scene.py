@@ -67,7 +67,9 @@ def scene_shapes(source: str | Path, X_WS: object = None, name: str = "scene") -
             instances = parser.AddModelsFromString(source, kind)
         else:
             raise InvalidInput(f"add_scene({name!r}): source must be a path or the text of a URDF/SDF, got {type(source).__name__}")
-    except RuntimeError as error:
+    except (RuntimeError, ValueError, SystemExit) as error:  # (SystemExit: one of Drake's checks, a box of size 0 …)
+        if isinstance(error, InvalidInput) or (isinstance(error, SystemExit) and not str(error).startswith("Failure at ")):
+            raise
         raise InvalidInput(f"add_scene({name!r}): Drake could not parse {str(source)[:200]!r}: {str(error)[:400]}") from None
     for instance in instances:  # weld each model's root to the world (a static SDF model is already)
         root = _root_body(plant, [plant.get_body(i) for i in plant.GetBodyIndices(instance)])

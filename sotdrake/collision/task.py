@@ -54,6 +54,7 @@ signed distance in range, ``+inf`` when no pair is within ``d_i``).
 from __future__ import annotations
 
 import copy
+import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -68,6 +69,8 @@ from ..task import TaskLevel
 from .distance import PairDistances
 from .schedule import PairSchedule, ScheduleState, ScheduleStep
 from .world import CollisionWorld
+
+log = logging.getLogger(__name__)
 
 #: Defaults: safety distance (m), influence distance (m), damper speed (m/s).
 SAFETY_DISTANCE, INFLUENCE_DISTANCE, DAMPER_SPEED = 0.01, 0.05, 0.5
@@ -221,6 +224,7 @@ class TaskCollision(Entity[CollisionMargins]):
         settings = {self.abstract_state_ticket(self._settings_index)}
         # Which pairs are queried at a tick (.schedule): the bounds in the state, advanced every tick.
         self._pair_schedule: PairSchedule | None = None  # made at the first tick (obstacles are in by then)
+        self._warned_inside = False  # logging only (a pair inside d_s, warned once per task): results never depend on it
         self._schedule_index = self.DeclareAbstractState(AbstractValue.Make(ScheduleState()))
         self._step = self.DeclareCacheEntry(
             "pair_schedule", ValueProducer(allocate=lambda: AbstractValue.Make(ScheduleStep(ScheduleState(), [], 0)),
@@ -281,6 +285,8 @@ class TaskCollision(Entity[CollisionMargins]):
 
     def _calc_rows(self, context: Context, output: AbstractValue) -> None:
         distances, margins = self._distances.Eval(context), self._settings_of(context)
+        if not self._warned_inside and distances.minimum < margins.safety - 1e-4:
+            self._warn_inside(distances, margins.safety, context.get_time())
         if self._velocity is None:
             rows = damper_rows(distances, margins, self.dt)
         else:
@@ -290,6 +296,16 @@ class TaskCollision(Entity[CollisionMargins]):
             if not movable.all():
                 rows = TaskLevel(rows.jacobian[movable], rows.lower[movable], rows.upper[movable], rows.error[movable])
         output.set_value(rows)
+
+    def _warn_inside(self, distances: PairDistances, safety: float, t: float) -> None:
+        """Warn once: pairs inside the safety distance (a robot that starts in collision, an obstacle
+        through it): their rows ask them to part, which the robot may not be able to do."""
+        self._warned_inside = True
+        inside = [f"{a}–{b} {1e3 * d:.1f} mm" for (a, b), d in zip(distances.names, distances.distance, strict=True)
+                  if d < safety - 1e-4]
+        log.warning("%s: t = %.3f s: %d pair(s) inside the safety distance d_s = %.1f mm (%s%s): their rows ask them to "
+                    "part, which the robot may not be able to do (a start in collision? an obstacle through the robot?)",
+                    self.name, t, len(inside), 1e3 * safety, ", ".join(inside[:5]), ", …" if len(inside) > 5 else "")
 
     def _calc_step(self, context: Context, value: AbstractValue) -> None:
         holder = self._world_context.Eval(context)

@@ -25,7 +25,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import RigidBody
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 
-from ..exceptions import SotError
+from ..exceptions import InvalidInput, SotError
 from ..robots import RobotModel
 from .pairs import Pair, adjacent_pairs, check_pairs, srdf_disabled_pairs
 
@@ -156,6 +156,8 @@ _WORLDS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 def collision_world(robot) -> CollisionWorld:
     """The collision world of ``robot`` (a :class:`~sotdrake.robot.Robot`), made on first use and
     shared by its collision tasks and obstacles."""
+    if not hasattr(robot, "model") or not hasattr(robot, "builder"):
+        raise InvalidInput(f"expected the robot (a Robot, or a RobotDyn), got {robot!r:.60}")
     world = _WORLDS.get(robot)
     if world is None:
         world = _WORLDS[robot] = CollisionWorld(robot.model)

@@ -52,7 +52,12 @@ def check_pd_gains(name: str, kp, kv, dt: float) -> tuple[float, float]:
     gains are refused when ``K_p dt² + 2 K_v dt ≥ 4`` (the error would grow at every tick)."""
     kp = check_number(f"{name}: Kp", kp, 0.0, MAX_PD_GAIN, " 1/s²")
     kv = check_number(f"{name}: Kv", kv, 0.0, MAX_PD_GAIN, " 1/s")
+    check_stable_gains(name, kp, kv, dt)
+    return kp, kv
+
+
+def check_stable_gains(name: str, kp: float, kv: float, dt: float) -> None:
+    """:class:`InvalidInput` when ``K_p dt² + 2 K_v dt ≥ 4`` (see :func:`check_pd_gains`)."""
     if kp * dt**2 + 2 * kv * dt >= 4.0:
         raise InvalidInput(f"{name}: Kp = {kp:g} 1/s², Kv = {kv:g} 1/s make the loop unstable at dt = {dt:g} s: "
                            f"Kp dt² + 2 Kv dt must be < 4, got {kp * dt**2 + 2 * kv * dt:g}")
-    return kp, kv

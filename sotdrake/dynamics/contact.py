@@ -45,7 +45,7 @@ from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite, check_number
-from .checks import MAX_FRICTION, MAX_NORMAL_FORCE, MAX_RATE_GAIN, MAX_SOLE, check_count, check_positive
+from .checks import MAX_FRICTION, MAX_NORMAL_FORCE, MAX_RATE_GAIN, MAX_SOLE, check_count, check_positive, check_stable_gains
 from .terms import OpPointMotion
 
 
@@ -156,8 +156,11 @@ class Contact6d(Entity[ContactSettings]):
     ``rectangle = (x_min, x_max, y_min, y_max)`` (m, in C) is the sole; None for a point contact."""
 
     def __init__(self, name: str, nv: int, rectangle: tuple[float, float, float, float] | None,
-                 mu: float = 0.7, f_min: float = 1.0, cop_margin: float = 0.01):
+                 mu: float = 0.7, f_min: float = 1.0, cop_margin: float = 0.01, dt: float | None = None):
+        """``dt`` (s, the control tick, when known): the gains are also checked against it, as a task's
+        (:func:`.checks.check_stable_gains`: ``K_p dt² + 2 K_v dt < 4``)."""
         Entity.__init__(self, name, ContactSettings())
+        self.dt = dt
         self.nv = check_count(f"{name}: nv", nv, 1, 10**6)
         self.rectangle: tuple[float, float, float, float] | None = None
         if rectangle is not None:
@@ -202,6 +205,8 @@ class Contact6d(Entity[ContactSettings]):
     def setVelocityGain(self, gain: float, context: Context | None = None) -> None:
         """``K_v`` in [0, :data:`.checks.MAX_RATE_GAIN`] (1/s): damping of a residual contact velocity."""
         value = check_number(f"{self.name}: velocity gain K_v", gain, 0.0, MAX_RATE_GAIN, " 1/s")
+        if self.dt is not None:
+            check_stable_gains(f"{self.name} (contact)", self.settings(context).position_gain, value, self.dt)
         self._command(context, lambda s: setattr(s, "velocity_gain", value))
 
     def setPositionGain(self, gain: float, context: Context | None = None) -> None:
@@ -210,6 +215,8 @@ class Contact6d(Entity[ContactSettings]):
         value = check_number(f"{self.name}: position gain K_p", gain, 0.0, MAX_POSITION_GAIN, " 1/s²")
         if value and self.settings(context).kept is None:
             raise InvalidInput(f"{self.name}: a position gain needs the pose to return to: call keep(X_WC) first")
+        if self.dt is not None:
+            check_stable_gains(f"{self.name} (contact)", value, self.settings(context).velocity_gain, self.dt)
         self._command(context, lambda s: setattr(s, "position_gain", value))
 
     def keep(self, pose: RigidTransform, context: Context | None = None) -> None:

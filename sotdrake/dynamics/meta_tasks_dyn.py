@@ -15,11 +15,20 @@ from pydrake.systems.framework import Context
 from pydrake.systems.primitives import MatrixGain
 
 from ..centroidal import base_rows
+from ..exceptions import InvalidInput
 from ..features import Feature6d, Feature6dDesired, FeatureGeneric, FeatureGenericDesired, FeatureMomentum, FeaturePosture
 from ..features.base import check_mask
 from ..selection import parse_selection
 from .robot_dyn import RobotDyn
 from .task_dyn_pd import TaskDynPD
+
+
+def _new_names(robot: RobotDyn, name: str, *suffixes: str) -> None:
+    """Refuse, before anything is added, a name that is not a non-empty string or whose entities
+    (``task<name>``, ``feature<name>`` and ``feature<name><suffix>``) exist already."""
+    if not isinstance(name, str) or not name:
+        raise InvalidInput(f"a dynamic meta task's name must be a non-empty string, got {name!r:.60}")
+    robot.check_new_names(["task" + name, "feature" + name, *("feature" + name + suffix for suffix in suffixes)])
 
 
 class _MetaTaskDyn:
@@ -37,6 +46,7 @@ class MetaTaskDyn6d(_MetaTaskDyn):
                  kp: float = 100.0, kv: float | None = None):
         """The task's ``reference_acceleration`` input takes the 6 error rows' ``s̈*`` (with the
         default frame ``'desired'`` and a fixed desired rotation: ``(p̈*, 0)``)."""
+        _new_names(robot, name, "_ref")
         TaskDynPD.check_gains("task" + name, kp, kv, robot.dt)  # before anything is added
         self.opPoint = opPoint
         position, jacobian = robot.dynamic.createOpPoint(opPoint, opPointRef or opPoint)
@@ -62,6 +72,7 @@ class MetaTaskDynCom(_MetaTaskDyn):
     """The centre of mass (``FeatureGeneric`` over ``dynamic.com``) with the exact CoM drift."""
 
     def __init__(self, robot: RobotDyn, name: str = "com", kp: float = 100.0, kv: float | None = None):
+        _new_names(robot, name, "_ref")
         TaskDynPD.check_gains("task" + name, kp, kv, robot.dt)  # before anything is added
         feature = robot.add(FeatureGeneric("feature" + name, 3, robot.dimension))
         self.featureDes = robot.add(FeatureGenericDesired("feature" + name + "_ref", 3))
@@ -85,6 +96,7 @@ class MetaTaskDynPosture(_MetaTaskDyn):
     """Every joint towards the initial posture (``FeaturePosture``; the free flyer left free)."""
 
     def __init__(self, robot: RobotDyn, name: str = "posture", kp: float = 25.0, kv: float | None = None):
+        _new_names(robot, name)
         TaskDynPD.check_gains("task" + name, kp, kv, robot.dt)  # before anything is added
         feature = robot.add(FeaturePosture("feature" + name, robot.model.plant, robot.q0))
         robot.builder.Connect(robot.dynamic.GetOutputPort("position"), feature.GetInputPort("state"))
@@ -100,6 +112,7 @@ class MetaTaskDynMomentum(_MetaTaskDyn):
     follow it). A floating base only."""
 
     def __init__(self, robot: RobotDyn, name: str = "momentum", kv: float = 10.0, mask: str = "111"):
+        _new_names(robot, name, "_drift_rows")
         TaskDynPD.check_gains("task" + name, 0.0, kv, robot.dt)  # before anything is added
         base_rows(robot.dynamic.layout)
         check_mask(mask, 6, f"MetaTaskDynMomentum({name!r})")

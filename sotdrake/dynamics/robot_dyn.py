@@ -23,7 +23,7 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from ..configuration import Layout
-from ..exceptions import InvalidInput, check_finite
+from ..exceptions import InvalidInput, NotFound, SotError, check_finite
 from ..hqp import ACTIVE_SET
 from ..physics.plant import check_contact_options
 from ..robots import RobotModel
@@ -90,6 +90,8 @@ class RobotDyn:
         plant = self.model.plant
         mask = np.ones(self.dimension, dtype=bool)
         for name in excluding:
+            if not isinstance(name, str) or not plant.HasJointNamed(name):
+                raise NotFound(str(name), [plant.get_joint(j).name() for j in plant.GetJointIndices()])
             joint = plant.GetJointByName(name)
             mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
         return mask
@@ -108,13 +110,24 @@ class RobotDyn:
     def dimension(self) -> int:
         return self.model.nv
 
+    def check_new_names(self, names: list[str]) -> None:
+        """:class:`InvalidInput` if an entity of one of ``names`` exists already (for a caller that
+        adds several entities and must refuse before adding any)."""
+        if self.builder.already_built():
+            raise SotError(f"cannot add {names[0]!r}: the diagram is already built (create tasks and contacts before builder.Build())")
+        existing = self._names | {system.get_name() for system in self.builder.GetSystems()}
+        for name in names:
+            if name in existing:
+                raise InvalidInput(f"an entity named {name!r} already exists")
+
     def add(self, system: LeafSystem, name: str | None = None) -> LeafSystem:
         """Add ``system`` under ``name`` (default: its own), which must be new."""
         if name is not None:
             system.set_name(name)
         name = system.get_name()
-        if not name or name in self._names:
-            raise InvalidInput(f"an entity needs a new name, got {name!r}")
+        if not name:
+            raise InvalidInput(f"an entity needs a name, got {name!r}")
+        self.check_new_names([name])
         self._names.add(name)
         return self.builder.AddNamedSystem(name, system)
 
@@ -136,15 +149,22 @@ class RobotDyn:
         is the robot model's rectangle for that op point (``model.sole_rectangles``; TALOS': its
         physics sole box); None makes a point contact. The contact keeps the op point's pose at
         ``q0`` (:meth:`.contact.Contact6d.keep`, used with ``setPositionGain``)."""
-        self.model.frame(opPoint)  # an unknown op point is refused before anything is added
+        if not isinstance(name, str) or not name:
+            raise InvalidInput(f"add_contact: the contact's name must be a non-empty string, got {name!r:.60}")
+        self.model.frame(opPoint)  # (everything checked before anything is added)
         if isinstance(rectangle, str):
             if rectangle != "sole":
                 raise InvalidInput(f"{name}: rectangle is 'sole', (x_min, x_max, y_min, y_max) or None, got {rectangle!r}")
             rectangle = self.sole_rectangle(opPoint)
+        self.check_new_names([name])
+        self.dynamic.check_op_point(name, opPoint)
+        port = name if name.startswith("contact") else "contact" + name
+        if self.sot.HasInputPort(port):
+            raise InvalidInput(f"add_contact({name!r}): {self.sot.name} already has the input {port!r} of another contact")
         if len(self.sot.known_contacts) >= self.sot.max_contacts:
             raise InvalidInput(f"{name}: {self.sot.name} was built for {self.sot.max_contacts} contacts (RobotDyn's max_contacts), "
                                f"it has {self.sot.known_contacts}")
-        contact = self.add(Contact6d(name, self.dimension, rectangle, mu, f_min, cop_margin))
+        contact = self.add(Contact6d(name, self.dimension, rectangle, mu, f_min, cop_margin, dt=self.dt))
         plant = self.model.plant
         at_q0 = plant.CreateDefaultContext()
         plant.SetPositions(at_q0, self.q0)

@@ -31,7 +31,7 @@ from pydrake.systems.framework import Context, InputPort, ValueProducer
 
 from ..compiled import read_only
 from ..configuration import Layout
-from ..exceptions import SolverError, StackError, check_number
+from ..exceptions import InvalidInput, SolverError, StackError, check_number
 from ..hqp import ACTIVE_SET, HqpResult, check_solver
 from ..hqp.warm import WarmStart, WarmStarts
 from ..robots import RobotModel
@@ -163,6 +163,9 @@ class SolverDyn(StackSolver[DynSettings]):
     def setDampingGain(self, gain: float, context: Context | None = None) -> None:
         """``K_d`` in [0, :data:`.checks.MAX_RATE_GAIN`] (1/s) of the last level ``q̈ = −K_d v``."""
         value = check_number(f"{self.name}: damping gain K_d", gain, 0.0, MAX_RATE_GAIN, " 1/s")
+        if value * self.dt >= 1.0:  # (v ← (1 − K_d dt) v: from 1 on, v changes sign every tick)
+            raise InvalidInput(f"{self.name}: damping gain K_d = {value:g} 1/s at dt = {self.dt:g} s: K_d dt must be < 1, "
+                               f"got {value * self.dt:g}")
         self._dyn_command(context, lambda s: setattr(s, "damping_gain", value))
 
     def setSolver(self, solver: str, context: Context | None = None) -> None:

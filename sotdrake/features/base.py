@@ -41,6 +41,8 @@ def check_mask(mask: object, dimension: int, what: str) -> str:
     try:
         parse_selection(mask, dimension)
     except InvalidInput:
+        if mask and not set(mask) - {"0"} and len(mask) <= dimension:
+            raise InvalidInput(f"{what}: the selection mask {mask!r} selects no component: expected {expected}") from None
         if mask and not set(mask) - {"0", "1"} and len(mask) > dimension:
             raise InvalidInput(f"{what}: the selection mask {mask!r} has {len(mask)} characters, the feature has "
                                f"{dimension} components: expected {expected}") from None

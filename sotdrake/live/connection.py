@@ -64,8 +64,14 @@ def read_connection(path: Path) -> Connection:
     mode = path.stat().st_mode
     if mode & (stat.S_IRWXG | stat.S_IRWXO):
         raise InvalidInput(f"{path}: mode {stat.filemode(mode)}, expected -rw------- (only the owner may read it)")
-    data = json.loads(path.read_text())
-    return Connection(str(data["host"]), int(data["port"]), str(data["token"]), int(data["pid"]), data.get("meshcat"))
+    try:
+        data = json.loads(path.read_text())
+        connection = Connection(str(data["host"]), int(data["port"]), str(data["token"]), int(data["pid"]), data.get("meshcat"))
+    except (ValueError, KeyError, TypeError) as error:  # (not JSON, a field missing or of another kind)
+        raise InvalidInput(f"{path}: not a live run's connection file ({type(error).__name__}: {error})") from None
+    if not 0 < connection.port < 65536:
+        raise InvalidInput(f"{path}: not a live run's connection file (port {connection.port})")
+    return connection
 
 
 def remove_connection(path: Path, connection: Connection) -> None:

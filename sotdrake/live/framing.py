@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import socket
+import time
 from collections.abc import Iterator
 
 #: Longest line accepted, newline included (bytes).
@@ -31,10 +32,18 @@ class LineReader:
         self.sock, self.limit = sock, limit
         self._buffer = bytearray()
         self._skipping = False
+        #: ``time.monotonic()`` after which reading raises ``TimeoutError`` (None: no deadline): one
+        #: deadline for a whole line, however slowly its bytes come
+        self.deadline: float | None = None
 
     def lines(self) -> Iterator[bytes | LineTooLong]:
         """Yield each line (without its newline) until the peer closes the connection."""
         while True:
+            if self.deadline is not None:
+                remaining = self.deadline - time.monotonic()
+                if remaining <= 0:
+                    raise TimeoutError("no complete line before the deadline")
+                self.sock.settimeout(remaining)
             chunk = self.sock.recv(_RECV)
             if not chunk:
                 return

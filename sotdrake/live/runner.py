@@ -37,7 +37,7 @@ from typing import Protocol
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, Diagram
 
-from ..exceptions import InvalidInput, SotError
+from ..exceptions import InvalidInput, SotError, check_number
 from ..simulation import frozen_gc
 from ..tracing import Tracer, tracers_of
 from .connection import Connection, default_path, new_token, remove_connection, write_connection
@@ -72,12 +72,12 @@ class LiveRun:
     def __init__(self, diagram: Diagram, dt: float, handles: object = None, realtime_rate: float = 1.0,
                  port: int = 0, max_lag: float = 0.004, command_share: float = 0.03,
                  meshcat_url: str | None = None):
-        if not (isinstance(dt, float | int) and dt > 0):
-            raise InvalidInput(f"dt must be > 0 s, got {dt!r}")
-        if not (math.isfinite(realtime_rate) and realtime_rate > 0):
-            raise InvalidInput(f"realtime_rate must be finite and > 0, got {realtime_rate!r}")
-        if not 0 <= command_share < 1:
-            raise InvalidInput(f"command_share must be in [0, 1), got {command_share!r}")
+        dt = check_number("LiveRun: dt (the tick)", dt, 1e-6, 1.0, " s")
+        realtime_rate = check_number("LiveRun: realtime_rate", realtime_rate, 1e-3, 1e3)
+        max_lag = check_number("LiveRun: max_lag", max_lag, 0.0, 60.0, " s")
+        command_share = check_number("LiveRun: command_share", command_share, 0.0, 0.99)
+        if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+            raise InvalidInput(f"LiveRun: port must be an integer in [0, 65535] (0: any free port), got {port!r:.60}")
         self.diagram, self.dt, self.rate, self.max_lag = diagram, float(dt), float(realtime_rate), max_lag
         self.command_share = command_share
         self.simulator = Simulator(diagram)
@@ -181,8 +181,13 @@ class LiveRun:
                 break
             self._ticks += 1
             if self._ticks % 100 == 0:
-                for tracer in tracers:
-                    tracer.flush(context)
+                try:
+                    for tracer in tracers:
+                        tracer.flush(context)
+                except OSError as error:  # (a full disk): the run stops as on a failed tick, its files are written
+                    self.error = f"the trace could not be written: {error}"
+                    log.error("live: the run stopped at t = %.4f s: %s", context.get_time(), self.error)
+                    break
             self._boundary(context)
 
     def _boundary(self, context: Context) -> None:

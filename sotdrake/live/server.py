@@ -119,14 +119,16 @@ class _Client:
     def read_loop(self) -> None:
         server = self.server
         try:
-            lines = LineReader(self.sock, MAX_LINE).lines()
-            self.sock.settimeout(server.auth_timeout)
+            reader = LineReader(self.sock, MAX_LINE)
+            reader.deadline = time.monotonic() + server.auth_timeout  # (the whole token line, not each byte)
+            lines = reader.lines()
             first = next(lines, None)
             expected = f"token {server.token}".encode()
             if not isinstance(first, bytes) or not hmac.compare_digest(first.strip(), expected):
                 log.warning("live: refused a client from %s (bad token)", self.address)
                 self.send(answer(0, False, "authentication failed: the first line must be 'token <token>'"))
                 return
+            reader.deadline = None
             self.sock.settimeout(None)
             self.send(answer(0, True, "sotdrake live: ready"))
             for ident, line in enumerate(lines, start=1):

@@ -50,6 +50,7 @@ from ..exceptions import CommandRejected, NotFound
 from ..features import Feature, Feature6d, Feature6dDesired, FeatureGenericDesired
 from ..gains import GainAdaptive, GainHyperbolic
 from ..meta_tasks import MetaTaskKine6d, MetaTaskKineCom, _MetaTask, gotoNd
+from ..sequencer import MAX_TIME
 from ..solvers import SolverKine
 from ..solvers.stack import StackSolver
 from ..task import TaskInequality, TaskPD
@@ -260,6 +261,8 @@ class Vocabulary:
             raise CommandRejected("attime: no scheduler in this run")
         if time < context.get_time():
             raise CommandRejected(f"attime: T = {time} s is in the past (t = {context.get_time():.4f} s)")
+        if time > MAX_TIME:
+            raise CommandRejected(f"attime: T = {time} s is beyond the latest time a command may wait for ({MAX_TIME:g} s)")
         return self._pending_attime(time, prepared)
 
     # --- use -------------------------------------------------------------------------------

@@ -29,9 +29,11 @@ is ``srdf=`` or, when not given, ``<name>.srdf`` beside the file or in a sibling
 
 from __future__ import annotations
 
+import logging
 import re
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -48,6 +50,8 @@ from .model import OperationalPoints, RobotModel, posture_from_srdf
 from .packages import PackageResolver
 from .srdf import PostureNotFound, group_state_names, read_end_effectors
 from .urdf_text import prepare_urdf
+
+log = logging.getLogger(__name__)
 
 #: Suffix → Drake's parser format (``.xml`` is told apart by its root element).
 FORMATS = {".urdf": "urdf", ".sdf": "sdf", ".mjcf": "mjcf", ".xml": "xml"}
@@ -81,6 +85,30 @@ def _format(path: Path) -> str:
 
 def _bad_root(path: Path, tag: str) -> str:
     raise RobotDescriptionError(f"{path}: root element <{tag}>: expected <robot> (URDF), <sdf> or <mujoco> (MJCF)")
+
+
+@contextmanager
+def drake_refusals(source: object) -> Iterator[None]:
+    """Drake's refusals of a description as :class:`RobotDescriptionError` naming ``source``: its
+    parser's errors and the checks of its constructors (a box of negative size, joint limits
+    ``lower > upper`` or NaN in an SDF or MJCF file …), which pydrake raises as ``SystemExit``."""
+    try:
+        yield
+    except SystemExit as error:
+        if not str(error).startswith("Failure at "):  # (not one of Drake's checks: a real exit)
+            raise
+        raise RobotDescriptionError(f"{source}: Drake refused the description: {error}") from None
+    except (RuntimeError, ValueError) as error:
+        if isinstance(error, RobotDescriptionError):
+            raise
+        raise RobotDescriptionError(f"{source}: Drake's parser refused the file: {error}") from None
+
+
+def _read_text(path: Path) -> str:
+    try:
+        return path.read_text()
+    except UnicodeDecodeError as error:
+        raise RobotDescriptionError(f"{path}: not UTF-8 text ({error})") from None
 
 
 def check_user_urdf(text: str, source: str) -> str:
@@ -118,17 +146,20 @@ def _root_links(text: str) -> list[str]:
 
 
 def _add_urdf(plant: MultibodyPlant, path: Path, resolver: PackageResolver, meshes: bool, floating_base: bool) -> ModelInstanceIndex:
-    from .loader import add_actuators
+    from .loader import add_actuators, joint_table
 
-    text = check_user_urdf(path.read_text(), str(path))
+    text = check_user_urdf(_read_text(path), str(path))
     text = prepare_urdf(text, Path(), meshes, True, str(path), resolver.path)
     roots = _root_links(text)
     if len(roots) != 1:
         raise RobotDescriptionError(f"{path}: a URDF has one root link (a link no joint has as child), found {roots}")
-    try:
+    with drake_refusals(path):
         (instance,) = Parser(plant).AddModelsFromString(text, "urdf")
-    except RuntimeError as error:
-        raise RobotDescriptionError(f"{path}: Drake's parser refused the file: {error}") from None
+    followers = sorted(joint_table(text)[1])
+    if followers:
+        log.warning("%s: the joints %s follow another joint (<mimic>): Drake's physics holds them coupled, the SoT's "
+                    "kinematic device does not; leave them out of the control (robot.velocity_selection(excluding=%s)) "
+                    "or give them a task", path, followers, followers)
     if roots[0] != "world" and not floating_base:
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(roots[0], instance))
     add_actuators(plant, instance, text)
@@ -142,18 +173,31 @@ def _add_other(plant: MultibodyPlant, path: Path, resolver: PackageResolver, flo
     for name, folder in resolver.packages.items():
         if not parser.package_map().Contains(name):
             parser.package_map().Add(name, str(folder))
-    try:
+    with drake_refusals(path):
         instances = parser.AddModels(str(path))
-    except RuntimeError as error:
-        raise RobotDescriptionError(f"{path}: Drake's parser refused the file: {error}") from None
+    free = _mjcf_free_bodies(path)
     for instance in instances:
         if not floating_base:
             children = {plant.get_joint(j).child_body().index() for j in plant.GetJointIndices()}
-            roots = [b for b in plant.GetBodyIndices(instance) if b not in children and b != BodyIndex(0)]
+            roots = [b for b in plant.GetBodyIndices(instance)
+                     if b not in children and b != BodyIndex(0) and plant.get_body(b).name() not in free]
             if roots:
                 plant.WeldFrames(plant.world_frame(), plant.get_body(roots[0]).body_frame())
         add_actuators(plant, instance, "<robot/>")
     return instances
+
+
+def _mjcf_free_bodies(path: Path) -> set[str]:
+    """The bodies an MJCF file frees itself (a ``<freejoint/>`` or a ``<joint type="free"/>``):
+    Drake leaves them floating; they are not welded (none for another format)."""
+    try:
+        root = ET.parse(path).getroot()
+    except (ET.ParseError, UnicodeDecodeError):
+        return set()
+    if root.tag != "mujoco":
+        return set()
+    return {body.get("name", "") for body in root.iter("body")
+            if body.find("freejoint") is not None or any(j.get("type") == "free" for j in body.findall("joint"))}
 
 
 def add_robot_file(
@@ -174,6 +218,32 @@ def add_robot_file(
     if _format(file) == "urdf":
         return [_add_urdf(plant, file, resolver, meshes, floating_base)]
     return _add_other(plant, file, resolver, floating_base)
+
+
+def check_time_step(time_step: object) -> float:
+    """``time_step`` (s) if it is a finite number ≥ 0 (0: a continuous plant), else :class:`InvalidInput`."""
+    if isinstance(time_step, bool) or not isinstance(time_step, (int, float, np.floating, np.integer)) \
+            or not (np.isfinite(time_step) and time_step >= 0):
+        raise InvalidInput(f"time_step: expected a finite number ≥ 0 (s; 0 for a continuous plant), got {time_step!r:.60}")
+    return float(time_step)
+
+
+#: Drake joints whose ``q̇`` is not ``v`` (roll-pitch-yaw angles): the SoT's device integrates ``q``
+#: as ``q̇ = v`` for every joint but the quaternion floating base.
+UNSUPPORTED_JOINTS = {"ball_rpy": "a ball joint (Drake's BallRpyJoint)", "rpy_floating": "a roll-pitch-yaw floating joint"}
+
+
+def check_joint_types(plant: MultibodyPlant, source: object) -> None:
+    """:class:`RobotDescriptionError` naming a joint of ``plant`` the SoT cannot integrate
+    (:data:`UNSUPPORTED_JOINTS`)."""
+    for index in plant.GetJointIndices():
+        joint = plant.get_joint(index)
+        kind = UNSUPPORTED_JOINTS.get(joint.type_name())
+        if kind is not None:
+            raise RobotDescriptionError(
+                f"{source}: joint {joint.name()!r} is {kind}, whose q̇ is not its velocity v: not supported (the SoT "
+                "integrates revolute, prismatic, continuous, planar and universal joints and one free base); "
+                "model it as a chain of revolute joints, or as a free base (<freejoint/>)")
 
 
 def find_srdf(path: Path) -> Path | None:
@@ -253,6 +323,13 @@ def posture_of(model: RobotModel, given: Any) -> np.ndarray:
             q[joint.position_start() : joint.position_start() + joint.num_positions()] = values
     elif given is not None:
         q = check_finite("reference_posture (q0, Drake's order)", given, (plant.num_positions(),)).copy()
+        for body in plant.GetFloatingBaseBodies():  # (a unit quaternion: the given one, normalized)
+            start = plant.get_body(body).floating_positions_start()
+            norm = float(np.linalg.norm(q[start:start + 4]))
+            if norm == 0.0:
+                raise InvalidInput(f"reference_posture: the floating base's quaternion q[{start}:{start + 4}] (w, x, y, z) "
+                                   "is zero; e.g. (1, 0, 0, 0) for no rotation")
+            q[start:start + 4] /= norm
     elif srdf is not None:
         names = group_state_names(srdf)
         preferred = [n for n in PREFERRED_POSTURES if n in names] or names[:1]
@@ -282,18 +359,22 @@ def load_robot_file(
         raise RobotFileNotFound(str(path), list(ROBOTS))
     if not isinstance(floating_base, bool):
         raise InvalidInput(f"floating_base must be True or False, got {floating_base!r}")
+    if srdf is not None and not isinstance(srdf, (str, PathLike)):
+        raise InvalidInput(f"srdf: expected the path of an SRDF file (a string or a path), got {srdf!r:.60}")
     srdf_path = find_srdf(file) if srdf is None else Path(srdf).expanduser()
     if srdf_path is not None and not srdf_path.is_file():
         raise InvalidInput(f"srdf={str(srdf)!r}: no such file")
-    plant = MultibodyPlant(time_step)
+    plant = MultibodyPlant(check_time_step(time_step))
     scene_graph = None
     if meshes:
         scene_graph = SceneGraph()
         plant.RegisterAsSourceForSceneGraph(scene_graph)
     add_robot_file(plant, file, meshes=meshes, floating_base=floating_base, package_paths=package_paths)
-    plant.Finalize()
+    with drake_refusals(file):
+        plant.Finalize()
     if _movable_dofs(plant) == 0:
         raise RobotDescriptionError(f"{file}: the robot has no movable joint (every joint is fixed): nothing to control")
+    check_joint_types(plant, file)
     floating = bool(plant.GetFloatingBaseBodies())
     model = RobotModel(
         plant=plant,

@@ -31,7 +31,7 @@ from pydrake.multibody.tree import ModelInstanceIndex, PlanarJoint
 
 from ..exceptions import InvalidInput, RobotNotFound, SotError, VariantNotFound
 from .catalog import BASES, ROBOTS, RobotSpec
-from .from_file import add_robot_file, load_robot_file, looks_like_path, operational_points_of, posture_of
+from .from_file import add_robot_file, check_time_step, load_robot_file, looks_like_path, operational_points_of, posture_of
 from .model import RobotModel, posture_from_srdf, register_loader
 from .srdf import read_group_state
 from .urdf_text import prepare_urdf
@@ -117,7 +117,7 @@ def _root_link(urdf_text: str) -> str:
     return link
 
 
-def _joint_table(urdf_text: str) -> tuple[dict[str, float], set[str]]:
+def joint_table(urdf_text: str) -> tuple[dict[str, float], set[str]]:
     """Effort limit of each joint and the set of mimic followers, read from the URDF."""
     root = ET.fromstring(urdf_text)
     effort: dict[str, float] = {}
@@ -135,7 +135,7 @@ def _joint_table(urdf_text: str) -> tuple[dict[str, float], set[str]]:
 def add_actuators(plant: MultibodyPlant, instance: ModelInstanceIndex, urdf_text: str) -> None:
     """An actuator (URDF effort limit, else unlimited) on every 1-DOF joint of ``instance`` that the
     URDF's transmissions left without one, mimic followers excepted."""
-    effort, followers = _joint_table(urdf_text)
+    effort, followers = joint_table(urdf_text)
     # URDF transmissions may land in another model instance: look at every actuator.
     actuated = {plant.get_joint_actuator(i).joint().name() for i in plant.GetJointActuatorIndices()}
     for index in plant.GetJointIndices(instance):
@@ -242,12 +242,15 @@ def load_robot(
     ``reference_posture`` replaces its own."""
     if floating_base is not None and not isinstance(floating_base, bool):
         raise InvalidInput(f"floating_base must be True or False, got {floating_base!r}")
+    time_step = check_time_step(time_step)
     if _names_a_file(name):
         if variant is not None:
             raise InvalidInput(f"variant={variant!r}: a robot loaded from a file has no variants")
-        if base is not None and floating_base is None:
+        if base is not None:
             if base not in ("free", "fixed"):
                 raise InvalidInput(f"a robot loaded from a file has a free or fixed base, not {base!r}")
+            if floating_base is not None and floating_base != (base == "free"):
+                raise InvalidInput(f"base={base!r} and floating_base={floating_base} disagree")
             floating_base = base == "free"
         return load_robot_file(name, meshes, time_step, srdf=srdf, package_paths=package_paths,
                                floating_base=bool(floating_base), operational_points=operational_points,

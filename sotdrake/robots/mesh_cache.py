@@ -16,7 +16,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, RobotDescriptionError
 
 
 def cache_root() -> Path:
@@ -44,7 +44,10 @@ def obj_for_mesh(mesh_path: Path) -> Path:
         return target
     import trimesh  # imported here: only needed the first time a mesh is converted
 
-    mesh = trimesh.load(source, file_type=file_type, force="mesh")
+    try:
+        mesh = trimesh.load(source, file_type=file_type, force="mesh")
+    except Exception as error:  # (each reader has its own errors: pycollada's, numpy's, struct's …)
+        raise RobotDescriptionError(f"{source}: the mesh does not load ({type(error).__name__}: {error})") from None
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=target.parent, suffix=".obj.tmp")
     try:

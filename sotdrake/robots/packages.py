@@ -58,6 +58,9 @@ class PackageResolver:
             if not isinstance(package_paths, Mapping):
                 raise InvalidInput(f"package_paths: expected a dict of package name → folder, got {package_paths!r:.100}")
             for name, folder in package_paths.items():
+                if not isinstance(name, str) or not isinstance(folder, (str, PathLike)):
+                    raise InvalidInput(f"package_paths: expected package names → folders (strings or paths), got "
+                                       f"{name!r:.60}: {folder!r:.60}")
                 path = Path(folder).expanduser()
                 if not path.is_dir():
                     raise InvalidInput(f"package_paths[{name!r}]: {str(path)!r} is not a folder")

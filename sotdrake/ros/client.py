@@ -33,7 +33,7 @@ class RunCommandClient:
     def _response(self, message: String) -> None:
         try:
             answer = json.loads(message.data)
-        except ValueError:
+        except (ValueError, RecursionError):  # (not an answer: JSON nested too deeply, bad text)
             return
         if isinstance(answer, dict) and str(answer.get("id", "")).startswith(self._prefix):
             with self._arrived:

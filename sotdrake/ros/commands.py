@@ -14,7 +14,6 @@
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -22,7 +21,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, EventStatus, LeafSystem
 from std_msgs.msg import Float64MultiArray
 
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, check_finite, check_number
 from .messages import check_topic, to_message
 from .node import RosNode
 from .publish import _Triggered, joint_coordinates
@@ -114,11 +113,11 @@ class JointStateWatchdog(LeafSystem):
                  name: str = "joint_state_watchdog"):
         LeafSystem.__init__(self)
         self.set_name(name)
-        if not (isinstance(size, int) and size > 0):
+        if isinstance(size, bool) or not (isinstance(size, int) and size > 0):
             raise InvalidInput(f"{name}: size must be a positive int, got {size!r}")
-        if not (math.isfinite(timeout) and timeout > 0) or not (math.isfinite(dt) and dt > 0):
-            raise InvalidInput(f"{name}: timeout and dt must be finite and > 0 s, got {timeout!r}, {dt!r}")
-        held = np.zeros(size) if initial is None else np.asarray(initial, dtype=float).ravel()
+        timeout = check_number(f"{name}: timeout", timeout, 1e-9, 1e6, " s")
+        dt = check_number(f"{name}: dt", dt, 1e-9, 1e6, " s")
+        held = np.zeros(size) if initial is None else check_finite(f"{name}: initial", initial).ravel()
         if held.shape != (size,) or not np.all(np.isfinite(held)):
             raise InvalidInput(f"{name}: initial must be {size} finite numbers, got {initial!r}")
         self.timeout = float(timeout)

@@ -44,10 +44,11 @@ def port_size(kind: str, size: int | None = None, shape: Sequence[int] | None = 
     if kind == "matrixHomo":
         return 16
     if kind == "matrix":
-        if shape is None or len(shape) != 2 or not all(isinstance(n, int) and n > 0 for n in shape):
+        if (not isinstance(shape, (tuple, list)) or len(shape) != 2
+                or not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in shape)):
             raise InvalidInput(f"a 'matrix' signal needs shape=(rows, cols) of positive ints, got {shape!r}")
         return shape[0] * shape[1]
-    if not (isinstance(size, int) and size > 0):
+    if isinstance(size, bool) or not (isinstance(size, int) and size > 0):
         raise InvalidInput(f"a 'vector' signal needs size=<positive int> (e.g. robot.dimension), got {size!r}")
     return size
 

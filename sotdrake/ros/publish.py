@@ -60,10 +60,10 @@ class _Triggered(LeafSystem):
         ``every·dt``, …) — the seed's ``addDownsampledSignal(…, every)``; returns the period (s)."""
         if self.period is not None:
             raise InvalidInput(f"{self.get_name()}: the trigger is already set (every {self.period} s)")
-        if not (isinstance(every, int) and every > 0):
+        if isinstance(every, bool) or not (isinstance(every, int) and every > 0):
             raise InvalidInput(f"{self.get_name()}: every must be a positive number of ticks, got {every!r}")
-        if not (isinstance(dt, float | int) and dt > 0):
-            raise InvalidInput(f"{self.get_name()}: dt must be > 0 s, got {dt!r}")
+        if isinstance(dt, bool) or not (isinstance(dt, float | int) and 0 < dt < float("inf")):
+            raise InvalidInput(f"{self.get_name()}: dt must be a finite number > 0 (s), got {dt!r}")
         self.period, self.every, self.dt = every * float(dt), every, float(dt)
         # An event every tick, publishing every ``every``-th: tick times are k·dt exactly as the
         # device's, where k·(every·dt) would drift off the grid by round-off (0.1·3 > 0.3).
@@ -117,8 +117,13 @@ class RosPublish(_Triggered):
             raise InvalidInput(f"{self.get_name()}: signal {signal!r} already added (topic {self.signals[signal].topic})")
         n = port_size(kind, size, shape)
         check_topic(topic)
+        if self.HasInputPort(signal):
+            raise InvalidInput(f"{self.get_name()}: an input named {signal!r} exists already")
+        try:  # (the publisher first: a topic ROS refuses leaves no port behind)
+            publisher = self.ros.node.create_publisher(message_type(kind), topic, self.depth)
+        except Exception as error:  # (rclpy's own errors: a substitution it cannot expand, a reserved topic …)
+            raise InvalidInput(f"{self.get_name()}: ROS refused the topic {topic!r} for {kind!r}: {error}") from None
         port = self.DeclareVectorInputPort(signal, n)
-        publisher = self.ros.node.create_publisher(message_type(kind), topic, self.depth)
         self.signals[signal] = _Signal(kind, topic, port, (int(shape[0]), int(shape[1])) if shape is not None else None, publisher)
         return port
 
@@ -192,6 +197,13 @@ def add_ros_publisher(robot: Robot, topic: str = "/sot_control/state", joint_sta
     if period is not None:
         every = ticks_of(period, robot.dt)
     every = 100 if every is None else every
+    # Checked before anything is added: a refusal leaves the builder as it was.
+    if isinstance(every, bool) or not (isinstance(every, int) and every > 0):
+        raise InvalidInput(f"add_ros_publisher: every must be a positive number of ticks, got {every!r}")
+    check_topic(topic)
+    if joint_states is not None:
+        check_topic(joint_states)
+    robot.check_new_names(["ros_publish_state"] + ["ros_publish_joint_states"] * (joint_states is not None))
     q = robot.device.GetOutputPort("state")
     state = robot.add(RosPublish("ros_publish_state", node))
     state.add("vector", "state", topic, size=q.size())

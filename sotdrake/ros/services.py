@@ -82,20 +82,24 @@ class RosServices:
         return response
 
     def _request(self, message: String) -> None:
+        """One request: refused with an answer (``ok`` false), never an exception, which would end
+        the node's executor and with it every later command."""
         text, ident = message.data, None
-        if text.lstrip().startswith("{"):
-            try:
+        try:
+            if text.lstrip().startswith("{"):
                 request = json.loads(text)
                 text, ident = request["command"], request.get("id")
                 if not isinstance(text, str):
                     raise TypeError("command is not a string")
-            except (ValueError, KeyError, TypeError) as error:
-                self.respond({"id": None, "ok": False, "error": f"bad request (JSON with 'command'): {error}"})
-                return
+            line = text.encode("utf-8")
+        except (ValueError, KeyError, TypeError, AttributeError, RecursionError) as error:
+            # (RecursionError: JSON nested too deeply; UnicodeEncodeError, a ValueError: a lone surrogate)
+            self.respond({"id": None, "ok": False, "error": f"bad request (JSON with 'command', UTF-8 text): {error!s:.200}"})
+            return
         with self._answers.lock:
             self._count += 1
             self._answers.ids[self._count] = ident
-        self.live.server._handle_line(self._answers, self._count, text.encode("utf-8"))  # type: ignore[arg-type]
+        self.live.server._handle_line(self._answers, self._count, line)  # type: ignore[arg-type]
 
     def respond(self, answer: dict) -> None:
         self.responses.publish(String(data=json.dumps(answer)))

@@ -28,7 +28,7 @@ from pydrake.systems.framework import BasicVector, LeafSystem, OutputPort
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray
 
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, check_finite
 from .messages import check_topic
 from .node import RosNode, ros_node
 
@@ -61,6 +61,8 @@ class RosSubscribe(LeafSystem):
     def __init__(self, name: str = "ros_subscribe", node: RosNode | None = None, depth: int = 10):
         LeafSystem.__init__(self)
         self.set_name(name)
+        if isinstance(depth, bool) or not (isinstance(depth, int) and depth > 0):
+            raise InvalidInput(f"{name}: the queue depth must be a positive int, got {depth!r}")
         self.ros = node or ros_node()
         self.depth = depth
         self.slots: dict[str, _Slot] = {}
@@ -73,13 +75,17 @@ class RosSubscribe(LeafSystem):
             raise InvalidInput(f"unknown subscription type {kind!r}: one of {', '.join(SUBSCRIBE_KINDS)}")
         if not isinstance(signal, str) or not signal.isidentifier() or signal in self.slots:
             raise InvalidInput(f"{self.get_name()}: signal {signal!r} is not a new identifier")
+        for port in (signal, f"{signal}_age"):
+            if self.HasOutputPort(port):
+                raise InvalidInput(f"{self.get_name()}: signal {signal!r}: an output named {port!r} exists already")
         check_topic(topic)
         if kind == "joint_states":
-            if not names or not all(isinstance(n, str) for n in names):
-                raise InvalidInput(f"{self.get_name()}: 'joint_states' needs names=[joint names], got {names!r}")
+            if (isinstance(names, str) or not names or not all(isinstance(n, str) for n in names)
+                    or len(set(names)) != len(names)):
+                raise InvalidInput(f"{self.get_name()}: 'joint_states' needs names=[distinct joint names], got {names!r:.100}")
             n = len(names)
         elif kind == "vector":
-            if not (isinstance(size, int) and size > 0):
+            if isinstance(size, bool) or not (isinstance(size, int) and size > 0):
                 raise InvalidInput(f"{self.get_name()}: a 'vector' needs size=<positive int>, got {size!r}")
             n = size
         else:
@@ -89,12 +95,15 @@ class RosSubscribe(LeafSystem):
             if kind == "pose":
                 value[3] = 1.0
         else:
-            value = np.asarray(default, dtype=float).ravel()
-            if value.size != n or not np.all(np.isfinite(value)):
+            value = check_finite(f"{self.get_name()}: default of {signal!r}", default).ravel()
+            if value.size != n:
                 raise InvalidInput(f"{self.get_name()}: default of {signal!r} must be {n} finite numbers, got {default!r}")
         slot = _Slot(kind, topic, value, list(names) if names is not None else None)
+        try:  # (the subscription first: a topic ROS refuses leaves no slot or port behind)
+            self.ros.node.create_subscription(SUBSCRIBE_KINDS[kind], topic, lambda m: self._receive(slot, m), self.depth)
+        except Exception as error:
+            raise InvalidInput(f"{self.get_name()}: ROS refused the topic {topic!r} for {kind!r}: {error}") from None
         self.slots[signal] = slot
-        self.ros.node.create_subscription(SUBSCRIBE_KINDS[kind], topic, lambda m: self._receive(slot, m), self.depth)
         port = self.DeclareVectorOutputPort(signal, n, lambda c, out: out.SetFromVector(self.value(signal)))
         self.DeclareVectorOutputPort(f"{signal}_age", 1, lambda c, out: self._age(signal, out))
         return port

@@ -24,7 +24,8 @@ in front of the robot (``--obstacles path/to/scene.sdf`` any URDF/SDF scene, loa
 ``add_scene``); ``--collision`` adds the collision level (``d_s`` = 1 cm, ``d_i`` = 5 cm, ``ξ`` =
 0.5 m/s) between the CoM and the hand, so that the hand stops short instead of going through;
 its default period is then 5 ms (``COLLISION_DT``: the level's rows model one tick to first order,
-which the unlimited 20 ms steps of the arm break, by up to 7 cm on the grid's far corners).
+which the unlimited 20 ms steps of the arm break, by up to 7 cm on the grid's far corners), and a
+period above 10 ms is refused (``MAX_COLLISION_DT``).
 
 Targets: ``--targets N`` with ``--sampling grid`` (N a cube, k × k × k evenly spaced in the box
 x ∈ [-0.4, 0.9], y ∈ [-1.1, 0.5], z ∈ [0.2, 1.8] m, world frame, the robot's base above the
@@ -88,6 +89,9 @@ REACHED_M = 0.01
 #: The default period with the collision level (s): its rows are a first-order model of one tick,
 #: which holds for the steps of 5 ms ticks; at 20 ms the arm's unlimited steps cross it.
 COLLISION_DT = 0.005
+#: The longest period the map takes with the collision level (s): measured on the table grid, every
+#: pair stays ≥ d_s at 5, 7.5 and 10 ms; at 20 ms a gripper link crossed the table in one tick.
+MAX_COLLISION_DT = 0.01
 #: Pairs farther apart than this (m) are not measured by the collision check.
 CHECK_DISTANCE = 0.05
 
@@ -119,6 +123,9 @@ def build_diagram(dt: float = 0.02, variant: str = "reduced", obstacles: str | N
     """Feet, CoM, the collision level (``collision``) and the right hand under ``SolverKine``, the
     ``obstacles`` (:func:`add_obstacles`); the hand's target is its initial pose until
     :func:`simulate_target` sets one in the context."""
+    if collision and not dt <= MAX_COLLISION_DT:
+        raise InvalidInput(f"reach map: dt = {dt!r} s with the collision level: at most {MAX_COLLISION_DT:g} s (the map lifts "
+                           "the step limit: a longer tick can carry a link through an obstacle in one step)")
     builder = DiagramBuilder()
     robot = talos(builder, variant, dt)
     sot = add_sot(robot, "sot", solver="hqp", damping=HAND_DAMPING)
@@ -276,6 +283,7 @@ def main(argv: list[str] | None = None) -> dict:
     if not args.duration > 0 or not args.dt > 0:
         raise SystemExit(f"--duration and --dt must be > 0, got {args.duration}, {args.dt}")
     try:
+        build_diagram(args.dt, obstacles=args.obstacles, collision=args.collision)  # (its refusals, before any case)
         cases = targets(args.targets, args.sampling, args.seed)
         if args.obstacles not in (None, "table"):
             add_scene(CollisionWorld(talos(DiagramBuilder(), "reduced", args.dt).model), Path(args.obstacles), None, "scene")

@@ -24,7 +24,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort
 
 from ..entity import Entity
-from ..exceptions import InvalidInput, StackError, TaskNotFound
+from ..exceptions import InvalidInput, StackError, TaskNotFound, all_numbers
 from ..task import Task, TaskLevel
 from ..task_weight import TaskWeight
 from .step_limit import DEFAULT_STEP_LIMIT, check_step_limit
@@ -236,11 +236,11 @@ class Stack:
             raise InvalidInput(f"{self.name}.addContact: priority must be 'top' (the contact level, above the stack) "
                                f"or 'bottom' (keep() then push, the seed's SolverKine.addContact), got {priority!r}")
         name = self.task_name(task)
+        self.check_solvable(name)
         if priority == "bottom":
             current = self.settings(context)
             if name in current.contacts or name in current.tasks:
                 raise StackError(f"{self.name}.addContact: {name!r} is already a contact or in the stack")
-            self.check_solvable(name)
             keep = getattr(task, "keep", None)
             if callable(keep):
                 keep(context)
@@ -301,7 +301,7 @@ class Stack:
         value = None
         if limit is not None:
             try:
-                value = np.asarray(limit, dtype=float).copy()
+                value = np.asarray(limit, dtype=float).copy() if all_numbers(limit) else np.full(0, np.nan)
             except (TypeError, ValueError):
                 value = np.full(0, np.nan)
             if value.shape != (self.nv,) or np.isnan(value).any() or not (value > 0).all():

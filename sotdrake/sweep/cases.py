@@ -11,7 +11,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, all_numbers
+from .table import check_parameter_name
 
 Case = dict[str, object]
 
@@ -27,11 +28,13 @@ def grid(axes: Mapping[str, Sequence]) -> list[Case]:
     ``(1, 0), (1, 1), (2, 0), (2, 1)``."""
     if not axes:
         raise InvalidInput("grid: give at least one axis (name → values)")
+    if not isinstance(axes, Mapping):
+        raise InvalidInput(f"grid: expected a dict of axis name → values, got {axes!r:.100}")
     for name, values in axes.items():
-        if not isinstance(name, str) or not name:
-            raise InvalidInput(f"grid: axis names are non-empty strings, got {name!r}")
-        if isinstance(values, (str, bytes)) or len(values) == 0:
-            raise InvalidInput(f"grid: axis {name!r} needs a non-empty sequence of values, got {values!r}")
+        check_parameter_name(name, "grid")
+        if isinstance(values, (str, bytes)) or not isinstance(values, (Sequence, np.ndarray)) or len(values) == 0:
+            raise InvalidInput(f"grid: axis {name!r} needs a non-empty sequence of values (a list, a tuple, an array), "
+                               f"got {values!r:.100}")
     names = list(axes)
     return [dict(zip(names, map(_plain, combination), strict=False)) for combination in itertools.product(*axes.values())]
 
@@ -39,13 +42,18 @@ def grid(axes: Mapping[str, Sequence]) -> list[Case]:
 def random_cases(count: int, ranges: Mapping[str, tuple[float, float]], seed: int) -> list[Case]:
     """``count`` cases drawn uniformly in the box ``ranges`` (name → (low, high)) by numpy's
     ``default_rng(seed)``: the same seed gives the same cases on any machine."""
-    if not isinstance(count, (int, np.integer)) or count < 1:
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
         raise InvalidInput(f"random_cases: count must be an integer ≥ 1, got {count!r}")
-    if not ranges:
+    if not isinstance(ranges, Mapping) or not ranges:
         raise InvalidInput("random_cases: give at least one range (name → (low, high))")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InvalidInput(f"random_cases: seed must be an integer ≥ 0, got {seed!r}")
     for name, bounds in ranges.items():
+        check_parameter_name(name, "random_cases")
+        if not (isinstance(bounds, (Sequence, np.ndarray)) and len(bounds) == 2 and all_numbers(list(bounds))):
+            raise InvalidInput(f"random_cases: range {name!r} is two numbers (low, high), got {bounds!r:.100}")
         low, high = (float(b) for b in bounds)
-        if not (np.isfinite(low) and np.isfinite(high) and low <= high):
+        if not (np.isfinite(high - low) and low <= high):  # (the width too: uniform draws need it finite)
             raise InvalidInput(f"random_cases: range {name!r} must be finite with low ≤ high, got {bounds!r}")
     rng = np.random.default_rng(seed)
     lows = np.array([float(b[0]) for b in ranges.values()])

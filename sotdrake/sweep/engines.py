@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..exceptions import InvalidInput, SotError
-from .table import make_row, write_csv, write_parquet
+from .table import check_parameter_name, make_row, write_csv, write_parquet
 
 ENGINES = ("local", "ray")
 #: Cases a Ray worker runs before it is replaced by a fresh process (its memory freed).
@@ -50,7 +50,7 @@ def run_case(function: CaseFunction, index: int, case: Mapping) -> dict:
         if not isinstance(summary, Mapping):
             raise TypeError(f"the case function must return a dict (the summary), got {type(summary).__name__}")
         return make_row(index, case, summary)
-    except Exception as error:
+    except (Exception, SystemExit) as error:  # (SystemExit: a script's helper stopping on a bad case)
         return make_row(index, case, None, f"{type(error).__name__}: {error}")
 
 
@@ -226,9 +226,18 @@ def run_sweep(function: CaseFunction, cases: Sequence[Mapping], engine: str = "l
         raise InvalidInput(f"address={address!r} is for engine 'ray', not {engine!r}")
     if num_cpus is not None and (not isinstance(num_cpus, int) or num_cpus < 1):
         raise InvalidInput(f"num_cpus must be an integer ≥ 1, got {num_cpus!r}")
+    if not callable(function):
+        raise InvalidInput(f"run_sweep: the case function must be callable, got {function!r:.80}")
+    if isinstance(num_cpus, bool):
+        raise InvalidInput(f"num_cpus must be an integer ≥ 1, got {num_cpus!r}")
+    if not all(isinstance(case, Mapping) for case in cases):
+        raise InvalidInput("run_sweep: every case is a dict of parameter name → value (grid(), random_cases())")
     cases = [dict(case) for case in cases]
     if not cases:
         raise InvalidInput("a sweep needs at least one case")
+    for case in cases:
+        for name in case:
+            check_parameter_name(name, "run_sweep")
     before = os.getloadavg()
     start = time.perf_counter()
     if engine == "local":

@@ -43,11 +43,20 @@ def flatten(summary: Mapping, prefix: str = "") -> dict[str, Cell]:
     flat: dict[str, Cell] = {}
     for key, value in summary.items():
         name = f"{prefix}{key}"
-        if isinstance(value, Mapping):
-            flat.update(flatten(value, f"{name}."))
-        else:
-            flat[name] = _cell(value)
+        for flat_name, cell in (flatten(value, f"{name}.") if isinstance(value, Mapping) else {name: _cell(value)}).items():
+            if flat_name in flat:  # ({"a.b": 1, "a": {"b": 2}}: one column, two values)
+                raise InvalidInput(f"summary: two values for the column {flat_name!r} (a dotted key and a nested one)")
+            flat[flat_name] = cell
     return flat
+
+
+def check_parameter_name(name: object, where: str) -> str:
+    """``name`` if it can name a case parameter (a column): a non-empty string, not a reserved column."""
+    if not isinstance(name, str) or not name:
+        raise InvalidInput(f"{where}: parameter names are non-empty strings, got {name!r:.60}")
+    if name in RESERVED:
+        raise InvalidInput(f"{where}: a case parameter cannot be named {name!r} (reserved columns: {RESERVED})")
+    return name
 
 
 def make_row(index: int, case: Mapping, summary: Mapping | None, error: str = "") -> dict[str, Cell]:

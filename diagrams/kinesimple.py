@@ -6,16 +6,14 @@
 The scenario, its options (``--help``) and what it reports: :mod:`sotdrake.scenarios.kinesimple`.
 """
 
-from sotdrake import report
+from sotdrake import run_script
 from sotdrake.scenarios.kinesimple import build_diagram, main
 
 __all__ = ["build_diagram", "main"]
 
 if __name__ == "__main__":
-    result = main()
-    if isinstance(result, dict):
-        report(result)
-    else:  # --interactive: the seed's names at the prompt
+    result = run_script(main)  # (a summary is printed)
+    if not isinstance(result, dict):  # --interactive: the seed's names at the prompt
         from sotdrake import displaySignals  # noqa: F401
 
         kine, runner = result

@@ -18,7 +18,7 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from sotdrake import script_arguments, simulate, start_meshcat, write_control_graph
+from sotdrake import run_script, script_arguments, simulate, start_meshcat, write_control_graph
 from sotdrake.scenarios import talos_appli, talos_physics
 
 #: The hero camera: in front of TALOS, a little to its left and above, so that the right hand on
@@ -95,4 +95,4 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

@@ -7,10 +7,10 @@ drives up to the table, under ``SolverKine`` (joint limits hard).
 The scenario, its options (``--help``) and what it reports: :mod:`sotdrake.scenarios.pr2_reach`.
 """
 
-from sotdrake import report
+from sotdrake import run_script
 from sotdrake.scenarios.pr2_reach import build_diagram, main
 
 __all__ = ["build_diagram", "main"]
 
 if __name__ == "__main__":
-    report(main())
+    run_script(main)

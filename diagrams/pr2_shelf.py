@@ -7,10 +7,10 @@ level.
 The scenario, its options (``--help``) and what it reports: :mod:`sotdrake.scenarios.pr2_shelf`.
 """
 
-from sotdrake import report
+from sotdrake import run_script
 from sotdrake.scenarios.pr2_shelf import build_diagram, main
 
 __all__ = ["build_diagram", "main"]
 
 if __name__ == "__main__":
-    report(main())
+    run_script(main)

@@ -8,10 +8,10 @@ direction × duration, under the kinematic or the dynamic controller.
 The scenario, its options (``--help``) and what it reports: :mod:`sotdrake.scenarios.push_map`.
 """
 
-from sotdrake import report
+from sotdrake import run_script
 from sotdrake.scenarios.push_map import main
 
 __all__ = ["main"]
 
 if __name__ == "__main__":
-    report(main())
+    run_script(main)

@@ -6,10 +6,10 @@
 The scenario, its options (``--help``) and what it reports: :mod:`sotdrake.scenarios.push_momentum`.
 """
 
-from sotdrake import report
+from sotdrake import run_script
 from sotdrake.scenarios.push_momentum import main
 
 __all__ = ["main"]
 
 if __name__ == "__main__":
-    report(main(), leave_out=("runs",))
+    run_script(main, leave_out=("runs",))

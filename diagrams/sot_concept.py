@@ -6,10 +6,10 @@
 The scenario, its options (``--help``) and what it reports: :mod:`sotdrake.scenarios.sot_concept`.
 """
 
-from sotdrake import report  # noqa: F401  (the summary is printed by main's table)
+from sotdrake import run_script
 from sotdrake.scenarios.sot_concept import build_diagram, main
 
 __all__ = ["build_diagram", "main"]
 
 if __name__ == "__main__":
-    main()
+    run_script(main, print_summary=False)

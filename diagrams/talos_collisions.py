@@ -8,10 +8,10 @@ level.
 The scenario, its options (``--help``) and what it reports: :mod:`sotdrake.scenarios.talos_collisions`.
 """
 
-from sotdrake import report
+from sotdrake import run_script
 from sotdrake.scenarios.talos_collisions import main
 
 __all__ = ["main"]
 
 if __name__ == "__main__":
-    report(main())
+    run_script(main)

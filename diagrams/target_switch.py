@@ -6,10 +6,10 @@
 The scenario, its options (``--help``) and what it reports: :mod:`sotdrake.scenarios.target_switch`.
 """
 
-from sotdrake import report
+from sotdrake import run_script
 from sotdrake.scenarios.target_switch import build_diagram, main
 
 __all__ = ["build_diagram", "main"]
 
 if __name__ == "__main__":
-    report(main())
+    run_script(main)

@@ -10,10 +10,10 @@ The controller is :mod:`sotdrake.walking.controller`; the scenario, its options 
 what it reports: :mod:`sotdrake.scenarios.walk`.
 """
 
-from sotdrake import report
+from sotdrake import run_script
 from sotdrake.scenarios.walk import build_diagram, main
 
 __all__ = ["build_diagram", "main"]
 
 if __name__ == "__main__":
-    report(main())
+    run_script(main)

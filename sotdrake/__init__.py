@@ -49,7 +49,7 @@ from .features import (
     FeatureVisualPoint,
 )
 from .gains import GainAdaptive, GainHyperbolic
-from .interactive import Runner
+from .interactive import MAX_DURATION, Runner
 from .introspection import displayAll, displaySignals, entities, entity, signal, signals_report
 from .joint_limitator import JointLimitator, limit_joint_velocities
 from .kinematics import Dynamic
@@ -70,7 +70,7 @@ from .meta_tasks import (
 from .robot import Robot, add_sot, robot, talos
 from .robots import ROBOTS, TALOS_GRIPPERS, RobotModel, available_robots, load_robot, load_talos
 from .sequencer import attime
-from .simulation import report, save_figure, script_arguments, simulate, start, write_run
+from .simulation import report, run_script, save_figure, script_arguments, simulate, start, write_run
 from .solver_wrapper import Solver
 from .solvers import SOT, SolverKine
 from .stack_checks import check_stack
@@ -249,6 +249,7 @@ __all__ = [
     "CONTACT_SOLVERS",
     "FRICTION",
     "GRAVITY",
+    "MAX_DURATION",
     "PLANT_STEP",
     "ROBOTS",
     "SHELF",
@@ -396,6 +397,7 @@ __all__ = [
     "robot",
     "run_collision_reach",
     "run_live",
+    "run_script",
     "run_sweep",
     "save_figure",
     "save_recording",

@@ -191,8 +191,10 @@ class Entity(LeafSystem, Generic[S]):
 
     def _declare_timed_change(self, time: float, changes: list[Callable[[S], None]]) -> None:
         """A one-shot event at ``time`` that applies ``changes`` in order (see ``attime``). A change
-        refused then (a :class:`SotError`, e.g. removing the last contact) leaves the settings as
-        they were, is logged and kept in :attr:`refused_commands`, and the run goes on."""
+        refused then (a :class:`SotError`, e.g. removing the last contact) leaves this entity's
+        settings as they were, is logged and kept in :attr:`refused_commands`, and the run goes on.
+        Each entity has its own event: the parts of one ``attime`` command that go to other entities
+        are applied or refused on their own (a Drake system updates its own state only)."""
 
         def update(context, state):
             value = state.get_mutable_abstract_state(self._settings_index)
@@ -201,7 +203,8 @@ class Entity(LeafSystem, Generic[S]):
                 for change in changes:
                     change(new)
             except SotError as error:
-                log.warning("t = %.3f s: %s: a timed command was refused, nothing changed: %s", time, self.name, error)
+                log.warning("t = %.3f s: %s: its part of a timed command was refused, its settings are unchanged (the "
+                            "parts for other entities apply on their own): %s", time, self.name, error)
                 self.refused_commands.append((float(time), str(error)))
                 return
             frozen = _Frozen(new)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import math
+import numbers
 from dataclasses import dataclass
 
 from .exceptions import InvalidInput
@@ -76,7 +77,7 @@ def check_gain(coefficients, dt: float | None, name: str) -> None:
                            f"got {type(coefficients).__name__}")
     fields = vars(coefficients)
     for key, value in fields.items():
-        if not (isinstance(value, (int, float)) and math.isfinite(value)):
+        if isinstance(value, bool) or not (isinstance(value, numbers.Real) and math.isfinite(value)):
             raise InvalidInput(f"{name}: coefficient {key} must be a finite number, got {value!r}")
     if not 0.0 <= coefficients.b <= MAX_GAIN_DECAY:
         raise InvalidInput(f"{name}: decay rate b must be in [0, {MAX_GAIN_DECAY:g}], got {coefficients.b:g}")

@@ -30,8 +30,13 @@ class TimedCommand(NamedTuple):
 
 
 def attime(time: float, command: Callable[[], object] | tuple, description: str = "") -> TimedCommand:
-    """Schedule ``command`` (entity commands without a context) at simulated time ``time`` (s)."""
+    """Schedule ``command`` (entity commands without a context) at simulated time ``time`` (s).
+    ``command`` may also be ``(command, description)``. Each entity the command changes applies its
+    part at ``time`` on its own: a part refused then (see :mod:`sotdrake.entity`) leaves that
+    entity unchanged, not the others."""
     if isinstance(command, tuple):
+        if len(command) != 2 or not isinstance(command[1], str):
+            raise InvalidInput(f"attime: a command is a callable or (callable, description), got a tuple of {len(command)}")
         command, description = command
     check_number("attime: the time (s)", time, 0.0, MAX_TIME)
     if not callable(command):

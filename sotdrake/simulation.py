@@ -10,7 +10,7 @@ import json
 import logging
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +18,7 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram
 
-from .exceptions import InvalidInput, check_number
+from .exceptions import InvalidInput, SotError, check_number
 from .interactive import MAX_DURATION
 from .introspection import all_systems
 
@@ -74,13 +74,50 @@ def start(args: argparse.Namespace, live: bool = False) -> Meshcat | None:
     return start_meshcat(live)
 
 
+def json_safe(value: object) -> object:
+    """``value`` with every non-finite float (``inf``: e.g. no pair came in range; NaN) as ``None``,
+    in the dictionaries and lists it holds: JSON has no such numbers (``Infinity`` is not JSON)."""
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {key: json_safe(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(item) for item in value]
+    return value
+
+
+def run_script(main: Callable[[], object], leave_out: tuple[str, ...] = ("outputs",), print_summary: bool = True) -> object:
+    """What a script of ``diagrams/`` runs under ``__main__``: ``main()``, its summary printed
+    (:func:`report`, ``leave_out``) when it returns a ``dict`` and ``print_summary``. A :class:`SotError` (an option
+    argparse let through that the build or the run refuses) ends the script with the error's one
+    line on stderr and exit status 2, as argparse's own errors, and removes the ``--out`` folders
+    :func:`start` created that are still empty."""
+    try:
+        result = main()
+    except SotError as error:
+        for folder in reversed(_CREATED_OUTPUTS):
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # (only an empty one)
+        print(f"{Path(sys.argv[0]).name}: error: {error}", file=sys.stderr, flush=True)
+        raise SystemExit(2) from None
+    if isinstance(result, dict) and print_summary:
+        report(result, leave_out)
+    return result
+
+
+#: The ``--out`` folders (and parents) :func:`check_output_directory` created in this process.
+_CREATED_OUTPUTS: list[Path] = []
+
+
 def check_output_directory(out: Path) -> None:
     """Create ``out`` (and its parents) if needed and check that files can be written there; a
     ``SystemExit`` naming ``--out`` and the reason otherwise (no traceback)."""
     import os
 
+    missing = [folder for folder in (out, *out.parents) if not folder.exists()]
     try:
         out.mkdir(parents=True, exist_ok=True)
+        _CREATED_OUTPUTS.extend(reversed(missing))
     except OSError as error:
         raise SystemExit(f"--out {out}: cannot create the output directory ({error.strerror or error})") from None
     if not os.access(out, os.W_OK | os.X_OK):
@@ -188,7 +225,7 @@ def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = N
     summary.setdefault("refused_commands", {system.get_name(): [{"t": t, "message": m} for t, m in system.refused_commands]
                                             for system in all_systems(diagram) if getattr(system, "refused_commands", None)})
     summary["outputs"] = {k: str(v) for k, v in outputs.items()}
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    (out / "summary.json").write_text(json.dumps(json_safe(summary), indent=2) + "\n")
     names = ", ".join(Path(p).name for p in outputs.values())
     note = "; open recording.html in a browser: it plays by itself" if "recording" in outputs else ""
     print(f"wrote {names}{', ' if names else ''}summary.json in {out}{note}", file=sys.stderr)
@@ -227,5 +264,5 @@ def report(summary: dict, leave_out: tuple[str, ...] = ("outputs",)) -> dict:
         return {key: value for key, value in mapping.items() if key not in leave_out}
 
     shown = {key: kept(value) if isinstance(value, dict) else value for key, value in kept(summary).items()}
-    print(json.dumps(shown, indent=2), flush=True)
+    print(json.dumps(json_safe(shown), indent=2), flush=True)
     return summary

@@ -266,8 +266,9 @@ class TaskInequality(_TaskBase, Entity[InequalityBounds]):
                 raise InvalidInput(
                     f"{self.name}: {what} bound must be as many numbers as the other, each ±inf or in "
                     f"[-{MAX_TARGET_POSITION:g}, {MAX_TARGET_POSITION:g}] (no NaN)")
-        if np.any(lower > upper):
-            raise InvalidInput(f"{self.name}: lower bound above upper bound: {lower} > {upper}")
+        if np.any(lower > upper) or np.any(np.isposinf(lower)) or np.any(np.isneginf(upper)):
+            raise InvalidInput(f"{self.name}: lower bound above upper bound, or a side no error meets (lower = +inf, "
+                               f"upper = -inf): {lower}, {upper}")
 
         def set_bounds(s: InequalityBounds) -> None:
             s.lower, s.upper = lower.copy(), upper.copy()
@@ -295,5 +296,8 @@ class TaskInequality(_TaskBase, Entity[InequalityBounds]):
         if e.shape != s.lower.shape:
             raise InvalidInput(f"{self.name}: error has {e.size} rows, bounds have {s.lower.size}")
         check_finite(f"{self.name}.controlGain", gain)
-        with np.errstate(invalid="ignore"):  # ±inf bounds stay ±inf
-            return gain * (s.lower - e), gain * (s.upper - e)
+        with np.errstate(invalid="ignore"):
+            lower, upper = gain * (s.lower - e), gain * (s.upper - e)
+        if gain == 0.0:  # (0·∞: a free side stays free)
+            lower[np.isneginf(s.lower)], upper[np.isposinf(s.upper)] = -np.inf, np.inf
+        return lower, upper

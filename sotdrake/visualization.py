@@ -14,13 +14,13 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Rgba, Sphere
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Diagram
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
 from .drake_logging import drake_log_level
+from .exceptions import InvalidInput, SotError, check_finite, check_number
 from .robot import Robot
 from .target_marker import TargetMarker
 
@@ -46,7 +46,13 @@ def start_meshcat(live: bool = False) -> Meshcat:
 def add_robot_visualizer(robot: Robot | RobotDyn, meshcat: Meshcat, publish_period: float = 1 / 60) -> MeshcatVisualizer:
     """Draw ``robot.device.state`` in ``meshcat`` (illustration geometry, OBJ meshes): ``q`` (the
     kinematic device) or ``(q, v)`` (the dynamic SoT's ``RobotDynSimu``)."""
+    if not isinstance(meshcat, Meshcat):
+        raise InvalidInput(f"add_robot_visualizer: expected a Meshcat (start_meshcat()), got {type(meshcat).__name__}")
+    publish_period = check_number("add_robot_visualizer: publish_period", publish_period, 1e-4, 10.0, " s")
     builder = robot.builder
+    taken = {system.get_name() for system in builder.GetSystems()} & {"scene_graph", "robot_pose"}
+    if taken or builder.already_built():  # (checked first: Drake would end the process at Build())
+        raise SotError(f"add_robot_visualizer: the diagram is built or has a visualizer already ({sorted(taken)})")
     visual = robot.model.with_meshes()
     state = robot.device.GetOutputPort("state")
     scene_graph = builder.AddNamedSystem("scene_graph", visual.scene_graph)
@@ -70,15 +76,23 @@ def add_target_marker(meshcat: Meshcat, path: str, position, radius: float = 0.0
     (bright sphere and crosshair) read from the Context at every publish, so it follows ``gotoNd``
     and is recorded, and the point the task controls (the op point moved by the task's ``opmodif``
     as set now). Returns that system, or None for a point."""
+    if not (hasattr(meshcat, "SetObject") and hasattr(meshcat, "SetTransform")):
+        raise InvalidInput(f"add_target_marker: expected a Meshcat (start_meshcat()), got {type(meshcat).__name__}")
+    if not isinstance(path, str) or not path:
+        raise InvalidInput(f"add_target_marker: path must be a Meshcat path such as '/target', got {path!r:.60}")
+    radius = check_number("add_target_marker: radius", radius, 1e-6, 100.0, " m")
     if hasattr(position, "featureDes") and hasattr(position, "opPoint"):
         return _add_task_marker(meshcat, path, position, radius, rgba)
+    point = check_finite("add_target_marker: position (m)", position, (3,))
     meshcat.SetObject(path, Sphere(radius), TARGET_COLOR if rgba is None else rgba)
-    meshcat.SetTransform(path, RigidTransform(np.asarray(position, dtype=float)))
+    meshcat.SetTransform(path, RigidTransform(point))
     return None
 
 
 def _add_task_marker(meshcat: Meshcat, path: str, task, radius: float, rgba: Rgba | None) -> TargetMarker:
     builder = task.robot.builder
+    if builder.already_built() or any(system.get_name() == f"marker{task.name}" for system in builder.GetSystems()):
+        raise SotError(f"add_target_marker: task {task.name!r} has a marker already, or the diagram is built")
     marker = builder.AddNamedSystem(f"marker{task.name}", TargetMarker(meshcat, path, task.opmodif, radius, rgba))
     builder.Connect(task.featureDes.GetOutputPort("position"), marker.desired_pose)
     builder.Connect(task.dyn.GetOutputPort(task.opPoint), marker.op_point_pose)
@@ -86,7 +100,12 @@ def _add_task_marker(meshcat: Meshcat, path: str, task, radius: float, rgba: Rgb
 
 
 def save_recording(visualizer: MeshcatVisualizer, meshcat: Meshcat, path: Path) -> Path:
-    """Stop the recording, publish it and write Meshcat's standalone HTML to ``path``."""
+    """Stop the recording, publish it and write Meshcat's standalone HTML to ``path`` (a file in an
+    existing folder: checked first, the recording is left as it was otherwise)."""
+    if not isinstance(visualizer, MeshcatVisualizer) or not isinstance(meshcat, Meshcat):
+        raise InvalidInput("save_recording: expected the visualizer (add_robot_visualizer) and its Meshcat")
+    if not isinstance(path, (str, Path)) or Path(path).is_dir() or not Path(path).parent.is_dir():
+        raise InvalidInput(f"save_recording: {str(path)!r:.100} is a folder or its folder does not exist: give a file path")
     visualizer.StopRecording()
     visualizer.PublishRecording()
     path = Path(path)

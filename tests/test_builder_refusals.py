@@ -104,3 +104,46 @@ def test_wrongly_typed_arguments(arm):
         robot(None, bot.model)
     with pytest.raises(InvalidInput, match="selects no component"):
         gotoNd(hand, [0.3, 0.0, 0.5], "000")
+
+
+def test_visualization_helpers_check_first(arm, tmp_path):
+    from pydrake.geometry import Meshcat
+
+    from sotdrake import add_robot_visualizer, add_target_marker, save_recording
+
+    bot, _ = arm
+    meshcat = Meshcat()
+    systems = [s.get_name() for s in bot.builder.GetSystems()]
+    for call in (lambda: add_robot_visualizer(bot, meshcat, publish_period=-1.0), lambda: add_robot_visualizer(bot, None)):
+        with pytest.raises(InvalidInput):
+            call()
+        assert [s.get_name() for s in bot.builder.GetSystems()] == systems
+    visualizer = add_robot_visualizer(bot, meshcat)
+    with pytest.raises(SotError, match="visualizer already"):  # (Drake would end the process at Build())
+        add_robot_visualizer(bot, meshcat)
+    for position, radius in (([1.0, 2.0], 0.02), ([0.0, 0.0, float("nan")], 0.02), ([0.0, 0.0, 1.0], -1.0)):
+        with pytest.raises(InvalidInput):
+            add_target_marker(meshcat, "/target", position, radius)
+    hand = MetaTaskKine6d("h", bot, "hand", "hand")
+    add_target_marker(meshcat, "/hand", hand)
+    with pytest.raises(SotError, match="marker already"):
+        add_target_marker(meshcat, "/hand2", hand)
+    with pytest.raises(InvalidInput, match="folder"):
+        save_recording(visualizer, meshcat, tmp_path / "missing" / "recording.html")
+    bot.builder.Build()
+
+
+def test_attime_takes_a_command_or_a_pair():
+    from sotdrake.sequencer import attime
+
+    for command in ((lambda: None,), (lambda: None, "d", "x"), (lambda: None, 3)):
+        with pytest.raises(InvalidInput, match="callable"):
+            attime(1.0, command)
+
+
+@pytest.mark.parametrize("field", ["swing_height", "feet_distance", "step_duration", "start_duration", "sole_length"])
+def test_gait_lengths_and_durations_are_finite(field):
+    from sotdrake.walking.gait import GaitParameters
+
+    with pytest.raises(InvalidInput, match=field):
+        GaitParameters(**{field: float("inf")})

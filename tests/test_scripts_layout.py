@@ -70,3 +70,43 @@ def test_a_scenario_script_says_what_it_shows_and_points_to_its_scenario():
         assert f":mod:`sotdrake.scenarios.{scenario.group(1)}`" in doc, path.name
         assert len(doc.splitlines()) <= 12, f"{path.name}: the description belongs in sotdrake.scenarios.{scenario.group(1)}"
     assert checked >= 15
+
+
+def test_every_script_ends_a_refused_option_with_one_line():
+    """Each script's ``__main__`` goes through ``run_script`` (a ``SotError``: one line, exit 2, no
+    traceback, no empty ``--out`` folder left)."""
+    mains = {path.stem: path.read_text().split('if __name__ == "__main__":')[-1] for path in sorted((ROOT / "diagrams").glob("*.py"))}
+    missing = [name for name, block in mains.items() if "run_script(" not in block and name != "ros_test"]
+    assert not missing, f"scripts whose __main__ does not call run_script: {missing}"
+
+
+def test_run_script_ends_a_sot_error_with_one_line_and_status_2(tmp_path, capsys, monkeypatch):
+    import argparse
+
+    import pytest
+
+    from sotdrake import InvalidInput, run_script, start
+
+    out = tmp_path / "new" / "run"
+
+    def main():
+        start(argparse.Namespace(duration=1.0, out=str(out), no_meshcat=True))
+        raise InvalidInput("--gains: a gain must be ≥ 0")
+
+    monkeypatch.setattr("sys.argv", ["walk.py"])
+    with pytest.raises(SystemExit) as stopped:
+        run_script(main)
+    assert stopped.value.code == 2
+    assert capsys.readouterr().err.strip() == "walk.py: error: --gains: a gain must be ≥ 0"
+    assert not (tmp_path / "new").exists()  # (the folders start() made for the run, still empty)
+    assert run_script(lambda: {"a": 1}) == {"a": 1} and '"a": 1' in capsys.readouterr().out
+
+
+def test_a_summary_is_json_without_infinities():
+    import json
+    import math
+
+    from sotdrake.simulation import json_safe
+
+    summary = {"min_signed_distance_m": math.inf, "runs": [{"x": float("nan"), "y": 1.5}], "n": 3}
+    assert json.loads(json.dumps(json_safe(summary))) == {"min_signed_distance_m": None, "runs": [{"x": None, "y": 1.5}], "n": 3}

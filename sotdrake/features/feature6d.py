@@ -114,9 +114,7 @@ def pose_error_and_jacobian(
     if rows is None:
         selected = _ALL_ROWS
     else:
-        selected = _compiled_rows(rows)
-        if selected.ndim != 1 or not selected.size:  # (the compiled function checks the indices)
-            raise InvalidInput(f"rows: expected indices of the six components, got {rows!r}")
+        selected = _compiled_rows(rows)  # (checked: increasing indices of the six components)
     # The transposes: Drake's matrices are column-major, so these are C-ordered views (no copy).
     X, X_d = compiled_input(_matrix(X_WOp).T), compiled_input(_matrix(X_WFd).T)
     X_shift = _IDENTITY if X_OpF is None else compiled_input(_matrix(X_OpF).T)
@@ -134,6 +132,8 @@ def _compiled_rows(rows: np.ndarray) -> np.ndarray:
     if hit is not None and hit[0] is rows:
         return hit[1]
     selected = compiled_input(rows, np.int64)
+    if selected.ndim != 1 or not selected.size or not (np.diff(selected) > 0).all() or selected[0] < 0 or selected[-1] > 5:
+        raise InvalidInput(f"rows: expected increasing indices of the six components (0 … 5), got {rows!r:.80}")
     if isinstance(rows, np.ndarray) and not rows.flags.writeable and len(_ROWS) < 256:
         _ROWS[id(rows)] = (rows, selected)  # (rows kept alive: its id cannot be reused)
     return selected

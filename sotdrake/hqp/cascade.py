@@ -55,7 +55,7 @@ import numpy as np
 from scipy.linalg.lapack import dgesdd as _gesdd
 
 from ..compiled import compiled_input, kernels
-from ..exceptions import InvalidInput, SolverError
+from ..exceptions import InvalidInput, SolverError, all_numbers
 
 
 def _stacked(levels: Sequence[tuple[np.ndarray, np.ndarray]], extra: Sequence[np.ndarray] | None
@@ -107,15 +107,24 @@ def cascade_factorization(
     ``extra`` (one per level, the sizes of the references): other references solved in the same
     pass, their ``v`` kept as ``extra_velocity`` (by linearity, any combination of the two
     references is then the same combination of the two velocities)."""
-    if isinstance(damping, (int, float)):
+    if type(damping) is float or type(damping) is int:  # (the usual case: a Python number)
         dampings = np.zeros(len(levels)) if damping == 0 else np.full(len(levels), float(damping))
-    else:
+    elif all_numbers(damping):
         dampings = np.array(damping, dtype=float)
+        dampings = np.full(len(levels), float(dampings)) if dampings.ndim == 0 else dampings
+    else:
+        raise InvalidInput(f"damping: one number or one per level, got {damping!r:.80}")
     if dampings.shape != (len(levels),):
         raise InvalidInput(f"damping: one value or one per level ({len(levels)}), got {dampings.size}")
+    if not (dampings >= 0).all() or not np.isfinite(dampings).all():
+        raise InvalidInput(f"damping: finite numbers ≥ 0, got {dampings}")
+    if not (all_numbers(svd_threshold) and np.ndim(svd_threshold) == 0 and 0 <= svd_threshold < np.inf):
+        raise InvalidInput(f"svd_threshold: a finite number ≥ 0, got {svd_threshold!r:.80}")
     mask = np.ones(nv) if control_selection is None else np.asarray(control_selection, dtype=float)
     if mask.shape != (nv,):
         raise InvalidInput(f"control_selection: {nv} values expected, got shape {mask.shape}")
+    if control_selection is not None and not ((mask == 0.0) | (mask == 1.0)).all():
+        raise InvalidInput("control_selection: nv booleans (or 0 and 1), one per velocity")
     if not levels:
         return CascadeFactorization(np.zeros(nv), np.zeros(0, dtype=int), None if extra is None else np.zeros(nv))
     J, references, sizes = _stacked(levels, extra)
@@ -148,6 +157,14 @@ def solve_cascade(
     (Fortran-ordered as it comes, no copy): ``A_iᵀ = W Σ Uᵀ``, so ``W``'s columns are ``A_i``'s
     right singular vectors. A LAPACK failure raises :class:`~sotdrake.exceptions.SolverError`.
     """
+    if isinstance(levels, (str, bytes)) or not isinstance(levels, Sequence):
+        raise InvalidInput(f"levels: a sequence of (J, ė*) pairs, highest priority first, got {levels!r:.80}")
+    try:
+        bad = [k for k, (J, r) in enumerate(levels) if not (np.isfinite(J).all() and np.isfinite(r).all())]
+    except (TypeError, ValueError):
+        raise InvalidInput("levels: a sequence of (J, ė*) pairs of numpy arrays, highest priority first") from None
+    if bad:
+        raise InvalidInput(f"levels {bad}: Jacobians and references must be finite")
     solved = cascade_factorization(levels, nv, svd_threshold, damping, control_selection)
     v = solved.velocity
     return CascadeResult(v, cascade_residuals(levels, v) if with_residuals else None, solved.ranks)

@@ -73,7 +73,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..compiled import compiled_input, kernels
-from ..exceptions import InvalidInput, SolverError
+from ..exceptions import InvalidInput, SolverError, all_numbers, check_number
 from . import equality_stack, rescue
 from . import paths as declared
 from .drake_program import DrakePrograms
@@ -112,6 +112,10 @@ _jit_stage = kernels(".kernels.stage", __package__, "build", "the hierarchical Q
 
 
 
+#: The most variables a :class:`HierarchicalQP` takes (its dense n × n matrices).
+MAX_VARIABLES = 10_000
+
+
 class HierarchicalQP:
     """Solve stacks of :class:`LevelRows` in strict priority (see the module docstring).
 
@@ -131,12 +135,16 @@ class HierarchicalQP:
         regularize: bool = True,
         feasibility_tolerance: float = FEASIBILITY,
     ):
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 0 <= n <= MAX_VARIABLES:
+            raise InvalidInput(f"HierarchicalQP: n (the number of variables) must be an integer in [0, {MAX_VARIABLES}], got {n!r:.60}")
+        n = int(n)
         for name in [solver, *(level_solvers or [])]:
             check_solver(name)
-        if not (np.isfinite(rank_threshold) and rank_threshold > 0):
-            raise InvalidInput(f"rank_threshold must be finite and > 0, got {rank_threshold}")
-        if not (np.isfinite(hold_tolerance) and hold_tolerance >= 0):
-            raise InvalidInput(f"hold_tolerance must be finite and ≥ 0, got {hold_tolerance}")
+        rank_threshold = check_number("rank_threshold", rank_threshold, 1e-300, 1.0)
+        hold_tolerance = check_number("hold_tolerance", hold_tolerance, 0.0, 1e6)
+        feasibility_tolerance = check_number("feasibility_tolerance", feasibility_tolerance, 1e-300, 1e-2)
+        if not isinstance(regularize, bool):
+            raise InvalidInput(f"regularize must be True or False, got {regularize!r:.60}")
         self.n, self.solver, self.level_solvers = n, solver, list(level_solvers or [])
         self.hold_tolerance, self.rank_threshold, self.regularize = hold_tolerance, rank_threshold, regularize
         self.feasibility_tolerance = feasibility_tolerance
@@ -185,6 +193,11 @@ class HierarchicalQP:
         solver = self.solver if solver is None else check_solver(solver)
         self._use(warm)
         n = self.n
+        if (isinstance(levels, (str, bytes)) or not isinstance(levels, Sequence)
+                or not all(isinstance(level, LevelRows) for level in levels)):
+            raise InvalidInput(f"levels: a sequence of LevelRows (highest priority first), got {levels!r:.100}")
+        if isinstance(damping, bool) or not all_numbers(damping) or np.ndim(damping) != 0:
+            raise InvalidInput(f"damping must be a finite number ≥ 0, got {damping!r:.60}")
         x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
         if x_lower.shape != (n,) or x_upper.shape != (n,):
             raise InvalidInput(f"bounds must be {n} numbers without NaN")

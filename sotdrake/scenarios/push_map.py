@@ -25,6 +25,7 @@ polar map per push duration: direction × magnitude, fall or not, base displacem
 
 from __future__ import annotations
 
+import argparse
 from functools import partial
 from pathlib import Path
 
@@ -75,12 +76,13 @@ def _base_drift(run, simulator) -> float:
 
 
 def numbers(text: str) -> list[float]:
+    """Comma-separated finite numbers > 0 (an argparse type: a bad one names its option)."""
     try:
         values = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError as error:
-        raise SystemExit(f"expected comma-separated numbers, got {text!r}") from error
-    if not values:
-        raise SystemExit(f"expected comma-separated numbers, got {text!r}")
+    except ValueError:
+        values = []
+    if not values or not all(np.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected comma-separated finite numbers > 0, got {text!r}")
     return values
 
 
@@ -124,7 +126,7 @@ def main(argv: list[str] | None = None) -> dict:
                         help="the SoT on PD actuators (kinematic) or SolverDyn's torques (dynamic)")
     add_sweep_arguments(parser)
     args = parser.parse_args(argv)
-    if not args.duration > args.push_start >= 0 or args.directions < 1:
+    if not (np.isfinite(args.duration) and args.duration > args.push_start >= 0) or args.directions < 1:
         raise SystemExit(f"need --duration > --push-start ≥ 0 and --directions ≥ 1, got {args.duration}, "
                          f"{args.push_start}, {args.directions}")
     cases = grid({"magnitude_n": args.magnitudes,

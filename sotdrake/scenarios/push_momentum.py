@@ -17,8 +17,10 @@ and every run's outcome).
 
 from __future__ import annotations
 
+import argparse
 import json
 import logging
+import math
 import sys
 
 import numpy as np
@@ -77,10 +79,21 @@ def largest_push(damping: float | None, low: float, high: float, steps: int, arg
     return {"damping_kv": damping, "survived_n": low, "fell_n": high, "runs": runs}
 
 
+def _bracket(text: str) -> tuple[float, float]:
+    """``LOW,HIGH`` (N): two finite numbers (an argparse type: a bad one names ``--forces``)."""
+    try:
+        low, high = (float(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LOW,HIGH (two numbers, N), got {text!r}") from None
+    if not (math.isfinite(low) and math.isfinite(high)):
+        raise argparse.ArgumentTypeError(f"expected LOW,HIGH (two finite numbers, N), got {text!r}")
+    return low, high
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = script_arguments(__doc__, "out/push_momentum", duration=2.5, bag=False)
     parser.add_argument("--damping", type=float, default=10.0, help="K_v of the angular-momentum damping task (1/s)")
-    parser.add_argument("--forces", default="100,900", help="LOW,HIGH: the bisection's bracket (N)")
+    parser.add_argument("--forces", type=_bracket, default=(100.0, 900.0), help="LOW,HIGH: the bisection's bracket (N)")
     parser.add_argument("--steps", type=int, default=4, help="bisection steps")
     parser.add_argument("--weight", type=float, default=None,
                         help="put the momentum task in one weighted level with the posture (posture 1, momentum WEIGHT) "
@@ -91,7 +104,9 @@ def main(argv: list[str] | None = None) -> dict:
     args.no_meshcat = True  # many runs, numbers only
     start(args)
     logging.getLogger("drake").setLevel(logging.WARNING)
-    low, high = (float(x) for x in args.forces.split(","))
+    low, high = args.forces
+    if not (math.isfinite(args.damping) and args.damping >= 0) or (args.weight is not None and not args.weight > 0):
+        raise SystemExit(f"--damping must be a finite number ≥ 0 and --weight > 0, got {args.damping}, {args.weight}")
     if not 0 <= low < high or args.steps < 0:
         raise SystemExit(f"--forces must be LOW,HIGH with 0 ≤ LOW < HIGH and --steps ≥ 0, got {args.forces}, {args.steps}")
     summary = {"momentum_level": "strict, under the CoM task" if args.weight is None else f"weighted with the posture, w = {args.weight:g}",

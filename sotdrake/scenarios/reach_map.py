@@ -280,7 +280,7 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     if args.dt is None:
         args.dt = COLLISION_DT if args.collision else 0.02
-    if not args.duration > 0 or not args.dt > 0:
+    if not 0 < args.duration < float("inf") or not 0 < args.dt < float("inf"):
         raise SystemExit(f"--duration and --dt must be > 0, got {args.duration}, {args.dt}")
     try:
         build_diagram(args.dt, obstacles=args.obstacles, collision=args.collision)  # (its refusals, before any case)

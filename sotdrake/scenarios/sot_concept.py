@@ -403,14 +403,14 @@ def main(argv: list[str] | None = None) -> dict:
     names = GROUPS.get(args.config, [args.config])
     if args.robot != "talos" and any(not CONFIGURATIONS[n].seed for n in names):
         parser.error(f"--robot {args.robot} runs the seed configurations only (the extras' balls are TALOS's)")
+    if args.steps < 0:
+        parser.error(f"--steps must be ≥ 0, got {args.steps}")
     meshcat = start(args)
     args.out.mkdir(parents=True, exist_ok=True)
     summary, traces = {}, {}
     for name in names:
         config = CONFIGURATIONS[name]
         if config.steps and args.steps != len(config.steps):
-            if args.steps < 0:
-                parser.error(f"--steps must be ≥ 0, got {args.steps}")
             times = step_times(args.steps)
             config = replace(config, steps=times, duration=max(config.duration, (times[-1] if times else 0.0) + 1.5))
         if args.duration is not None:

@@ -30,6 +30,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake import (
+    MAX_DURATION,
     SOT,
     TALOS_GRIPPERS,
     MetaTaskKine6d,
@@ -216,6 +217,8 @@ def main(argv: list[str] | None = None) -> dict:
     group.add_argument("--bag", action="store_true", help="also write the run as a rosbag2 (run/run.mcap)")
     args = parser.parse_args(argv)
     push_time = None if args.no_push else 1.0
+    if args.duration is not None and not 0 < args.duration <= MAX_DURATION:  # (before a live run waits for its start)
+        parser.error(f"--duration must be a number in (0, {MAX_DURATION:g}] s, got {args.duration}")
     if args.ros:
         return main_ros(args)
     if args.live:
@@ -237,8 +240,6 @@ def main(argv: list[str] | None = None) -> dict:
 def main_live(args, push_time: float | None) -> dict:
     """``--live``: real-time rate until Ctrl-C (or ``--duration``), then the trace, plots, graph
     and summary (no recording: Meshcat is live)."""
-    if args.duration is not None and not args.duration > 0:
-        raise SystemExit(f"--duration must be > 0, got {args.duration}")
     logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
     meshcat = None if args.no_meshcat else live_meshcat(args.meshcat_port)
     appli = build_diagram(meshcat, push_time=push_time, solver=args.solver)

@@ -106,6 +106,7 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     args.no_meshcat = True  # no recording: two runs compared in numbers and a plot
     start(args)
+    build_diagram(args.a_max, args.duration / 2)  # (a refused --a-max stops the script before either run)
     runs, traces = {}, {}
     for label, a_max in (("without", None), ("with", args.a_max)):
         runs[label], traces[label], case = run(a_max, args.duration, not args.quiet)

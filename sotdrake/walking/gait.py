@@ -43,15 +43,15 @@ class GaitParameters:
     swing_profile: str = "cubic"  # or "quintic": zero acceleration at the lift-off, apex and touch-down (see .swing)
 
     def __post_init__(self) -> None:
-        checks = {
-            "step_duration": self.step_duration > 0,
+        checks = {  # (lengths in m, durations in s: finite, at most a kilometre or a thousand seconds)
+            "step_duration": 0 < self.step_duration <= 1e3,
             "single_support": 0 < self.single_support < self.step_duration,
-            "feet_distance": self.feet_distance > 0,
-            "swing_height": self.swing_height >= 0,
-            "start_duration": self.start_duration > 0,
-            "stop_duration": self.stop_duration > 0,
-            "sole_length": self.sole_length > 0,
-            "sole_width": self.sole_width > 0,
+            "feet_distance": 0 < self.feet_distance <= 1e3,
+            "swing_height": 0 <= self.swing_height <= 1e3,
+            "start_duration": 0 < self.start_duration <= 1e3,
+            "stop_duration": 0 < self.stop_duration <= 1e3,
+            "sole_length": 0 < self.sole_length <= 1e3,
+            "sole_width": 0 < self.sole_width <= 1e3,
             "horizon_steps": self.horizon_steps >= 2,
             "replan_steps": 1 <= self.replan_steps < self.horizon_steps,
             "landing_depth": 0 <= self.landing_depth <= 0.02,

@@ -239,7 +239,8 @@ def certified_blocks(R_inv, sizes, certified):
     """How many leading levels (of ``sizes`` rows) are certified: their diagonal block of the upper
     triangular ``R⁻¹`` has ``‖R_kk⁻¹‖_F < 1/certified``, so the level's rows have ``σ_min >
     certified`` in what the levels above leave free (a NaN is not certified)."""
-    limit = 1.0 / (certified * certified)
+    square = certified * certified
+    limit = 1.0 / square if square > 0.0 else np.inf  # (a threshold of 0, or below 1e-154: no bound)
     count, start = 0, 0
     for size in sizes:
         block = 0.0

@@ -1,0 +1,99 @@
+"""The solver wing as a library: arguments that cannot be solved are an :class:`InvalidInput` at
+the call (never a raw Python or numba error, never a NaN answer), and the edge values the
+documented ranges include (a threshold of 0, a gain of 0 on a one-sided bound, numpy scalars) work."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from sotdrake import InvalidInput, MetaTaskKine6d, add_sot, gotoNd, load_robot, robot
+from sotdrake.gains import GainAdaptive, GainHyperbolic
+from sotdrake.hqp.cascade import cascade_factorization, solve_cascade
+from sotdrake.hqp.solve import HierarchicalQP, LevelRows
+from sotdrake.task import TaskInequality
+from tests.test_own_robot import three_link
+
+
+@pytest.mark.parametrize("threshold", [0.0, 1e-200])
+def test_a_threshold_of_zero_is_no_truncation(threshold):
+    rng = np.random.default_rng(3)
+    A, B = rng.normal(size=(3, 5)), rng.normal(size=(2, 5))
+    a, b = rng.normal(size=3), rng.normal(size=2)
+    v = solve_cascade([(A, a), (B, b)], 5, svd_threshold=threshold).velocity
+    reference = solve_cascade([(A, a), (B, b)], 5, svd_threshold=1e-12).velocity
+    np.testing.assert_allclose(v, reference, atol=1e-10)
+    np.testing.assert_allclose(A @ v, a, atol=1e-10)
+
+
+def test_the_basic_sot_runs_with_a_threshold_of_zero(tmp_path):
+    builder = DiagramBuilder()
+    bot = robot(builder, load_robot(three_link(tmp_path / "arm.urdf")))
+    sot = add_sot(bot)
+    sot.setThreshold(0.0)
+    hand = MetaTaskKine6d("hand", bot, "hand", "hand")
+    gotoNd(hand, hand.current_pose().translation() + [0.0, 0.05, 0.0], "011", 5.0)
+    sot.push(hand)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(0.05)
+    q = bot.device.GetOutputPort("state").Eval(bot.device.GetMyContextFromRoot(simulator.get_context()))
+    assert np.isfinite(q).all() and np.abs(q - bot.device.initial_position).max() > 0
+
+
+@pytest.mark.parametrize("options", [
+    {"svd_threshold": -1.0}, {"svd_threshold": float("nan")}, {"svd_threshold": "1e-4"}, {"damping": -1.0},
+    {"damping": float("nan")}, {"damping": True}, {"damping": "x"}, {"control_selection": np.full(3, 2.0)},
+])
+def test_cascade_options_are_checked(options):
+    with pytest.raises(InvalidInput):
+        cascade_factorization([(np.eye(3), np.ones(3))], 3, **options)
+
+
+def test_a_non_finite_level_is_named():
+    with pytest.raises(InvalidInput, match=r"levels \[1\]"):
+        solve_cascade([(np.eye(3), np.ones(3)), (np.eye(3), np.array([1.0, np.nan, 1.0]))], 3)
+    assert solve_cascade([(np.eye(3), np.ones(3))], 3, damping=np.float32(0.1)).velocity == pytest.approx(np.full(3, 1 / 1.1))
+
+
+@pytest.mark.parametrize("arguments", [
+    {"n": -1}, {"n": 1.5}, {"n": "3"}, {"n": None}, {"n": True}, {"n": 2**40},
+    {"n": 3, "rank_threshold": "x"}, {"n": 3, "rank_threshold": True}, {"n": 3, "hold_tolerance": -1.0},
+    {"n": 3, "feasibility_tolerance": -1.0}, {"n": 3, "feasibility_tolerance": float("nan")}, {"n": 3, "regularize": "no"},
+])
+def test_hierarchical_qp_arguments(arguments):
+    with pytest.raises(InvalidInput):
+        HierarchicalQP(**arguments)
+
+
+def test_hierarchical_qp_solve_arguments():
+    hqp = HierarchicalQP(3)
+    bounds = (np.full(3, -1.0), np.full(3, 1.0))
+    for levels in (None, [np.eye(3)], [(np.eye(3), np.ones(3))], "levels"):
+        with pytest.raises(InvalidInput, match="LevelRows"):
+            hqp.solve(levels, *bounds)  # type: ignore[arg-type]
+    level = LevelRows(np.eye(3), np.full(3, 0.5), np.full(3, 0.5))
+    for damping in (True, "x", None, [0.1]):
+        with pytest.raises(InvalidInput, match="damping"):
+            hqp.solve([level], *bounds, damping=damping)  # type: ignore[arg-type]
+    assert hqp.solve([level], *bounds).x == pytest.approx(np.full(3, 0.5))
+
+
+def test_a_one_sided_bound_under_a_gain_of_zero_stays_free():
+    task = TaskInequality("limits", 2)
+    task.setBounds([-np.inf, -1.0], [0.5, np.inf])
+    lower, upper = task._rows(task.CreateDefaultContext(), np.array([0.2, 0.3]), 0.0)
+    assert lower.tolist() == [-np.inf, -0.0] and upper.tolist() == [0.0, np.inf]
+    for lower_bound, upper_bound in (([np.inf], [np.inf]), ([-np.inf], [-np.inf])):
+        with pytest.raises(InvalidInput, match="no error meets"):
+            task.setBounds(lower_bound, upper_bound)
+
+
+def test_gains_take_numpy_numbers():
+    gain = GainAdaptive("g", 1e-3)
+    gain.set(np.int64(4), np.int64(1), np.int64(5))
+    gain.setByPoint(np.float32(4.0), np.float32(1.0), np.float32(0.1), np.float32(0.5))
+    GainHyperbolic("h", 1e-3).set(np.float32(4.0), np.float32(1.0), np.float32(5.0), np.float32(0.0))
+    with pytest.raises(InvalidInput):
+        gain.set(True, 1.0, 5.0)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from pydrake.systems.framework import Context, Diagram, System
 
+from .device import Device
 from .entity import probing
 from .exceptions import StackError
 from .solvers.stack import StackSolver
@@ -33,6 +34,10 @@ def check_stack(diagram: Diagram, context: Context | None = None) -> None:
         with probing():
             context = diagram.CreateDefaultContext()
     systems = _systems_by_name(diagram)
+    connected = {(system.get_name(), int(index)) for system, index in diagram.connection_map()}
+    for device in diagram.GetSystems():  # (nothing on a device's control: Drake's error in the first tick)
+        if isinstance(device, Device) and (device.get_name(), int(device.control.get_index())) not in connected:
+            raise StackError(f"{device.get_name()}: its control input is not connected: add a solver (add_sot(robot))")
     for solver in systems.values():
         if not isinstance(solver, StackSolver):
             continue

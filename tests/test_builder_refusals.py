@@ -147,3 +147,12 @@ def test_gait_lengths_and_durations_are_finite(field):
 
     with pytest.raises(InvalidInput, match=field):
         GaitParameters(**{field: float("inf")})
+
+
+def test_a_robot_without_a_solver_is_named_before_the_run(tmp_path):
+    from sotdrake import simulate
+
+    builder = DiagramBuilder()
+    robot(builder, load_robot(three_link(tmp_path / "arm.urdf")))
+    with pytest.raises(StackError, match="control input is not connected"):
+        simulate(builder.Build(), 0.01, progress=False)

@@ -179,6 +179,14 @@ def all_numbers(value) -> bool:
     return False
 
 
+def check_name(what: str, name: object) -> str:
+    """``name`` if it is a non-empty string (an entity's, a task's, an op point's), else
+    :class:`InvalidInput`: "``what`` must be a non-empty string"."""
+    if not isinstance(name, str) or not name:
+        raise InvalidInput(f"{what} must be a non-empty string, got {name!r:.60}")
+    return name
+
+
 def check_number(name: str, value, low: float, high: float, unit: str = "") -> float:
     """``value`` as a float if it is a real number (not a bool) in ``[low, high]``, else InvalidInput."""
     if not all_numbers(value) or isinstance(value, (list, tuple)) or getattr(value, "ndim", 0) != 0:

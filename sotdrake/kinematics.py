@@ -29,7 +29,7 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem, OutputPo
 
 from .centroidal import centroidal_momentum_matrix
 from .configuration import Layout, PlantContextHolder
-from .exceptions import InvalidInput, check_finite
+from .exceptions import InvalidInput, check_finite, check_name
 from .robots import RobotModel
 
 
@@ -94,8 +94,7 @@ class Dynamic(LeafSystem):
         """The frame of a new or existing op point ``name`` on ``frame_name``, checked as
         :meth:`createOpPoint` does (an unknown frame, another frame under that name, a name taken by
         another output), without declaring anything."""
-        if not isinstance(name, str) or not name:
-            raise InvalidInput(f"op point name: expected a non-empty string, got {name!r:.60}")
+        check_name("op point name", name)
         frame = self.model.frame(frame_name)
         if name in self._op_points:
             if self._op_points[name][0] is not frame:

@@ -27,7 +27,7 @@ from pydrake.systems.framework import Context, InputPort, OutputPort
 from .centroidal import base_rows
 from .configuration import Layout
 from .entity import command_group, recording
-from .exceptions import InvalidInput, SotError, check_finite, check_number
+from .exceptions import InvalidInput, SotError, check_finite, check_name, check_number
 from .features import (
     Feature,
     Feature6d,
@@ -66,8 +66,7 @@ def _new_task(robot: Robot, meta: str, name: str, feature: bool = True, referenc
     name, ``inequality`` and ``pd`` not both, and no entity yet of the names it adds (``feature<name>``
     with ``feature``, ``feature<name>_ref`` with ``reference``, ``gain<name>``, ``task<name>``)."""
     robot = _as_robot(robot, meta)
-    if not isinstance(name, str) or not name:
-        raise InvalidInput(f"{meta}: the name must be a non-empty string, got {name!r:.60}")
+    check_name(f"{meta}: the name", name)
     if inequality and pd:
         raise InvalidInput(f"{meta}({name!r}): a task is an inequality or a PD task, not both")
     names = ["gain" + name, "task" + name] + ["feature" + name] * feature + ["feature" + name + "_ref"] * reference

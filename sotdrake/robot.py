@@ -18,7 +18,7 @@ from pydrake.lcm import DrakeLcm
 from pydrake.systems.framework import DiagramBuilder, OutputPort, System
 
 from .device import Device
-from .exceptions import InvalidInput, NotFound, SotError
+from .exceptions import InvalidInput, NotFound, SotError, check_name
 from .joint_limitator import JointLimitator
 from .kinematics import Dynamic
 from .robots import RobotModel, load_robot
@@ -28,6 +28,19 @@ from .solvers.kinematic import KinematicSolver
 from .task import Task
 
 SystemT = TypeVar("SystemT", bound=System)
+
+
+def check_new_names(builder: DiagramBuilder, taken: set[str], names: list[str]) -> None:
+    """:class:`SotError` if ``builder`` is built, :class:`InvalidInput` if one of ``names`` is
+    ``taken`` (the entities a robot added) or the name of a system of ``builder``: what adding an
+    entity checks, for a caller that adds several and must refuse before adding any."""
+    if builder.already_built():
+        raise SotError(f"cannot add {names[0]!r}: the diagram is already built "
+                       "(create tasks, contacts and entities before builder.Build())")
+    existing = taken | {system.get_name() for system in builder.GetSystems()}
+    for name in names:
+        if name in existing:
+            raise InvalidInput(f"an entity named {name!r} already exists")
 
 
 class Robot:
@@ -91,13 +104,7 @@ class Robot:
         """:class:`InvalidInput` if an entity of one of ``names`` exists already, :class:`SotError`
         if the diagram is built (what :meth:`add` checks, for a caller that adds several entities
         and must refuse before adding any)."""
-        if self.builder.already_built():
-            raise SotError(f"cannot add {names[0]!r}: the diagram is already built "
-                           "(create tasks and entities before builder.Build())")
-        existing = self._names | {system.get_name() for system in self.builder.GetSystems()}
-        for name in names:
-            if name in existing:
-                raise InvalidInput(f"an entity named {name!r} already exists")
+        check_new_names(self.builder, self._names, names)
 
     def add(self, system: SystemT, name: str | None = None) -> SystemT:
         """Add ``system`` to the builder under ``name`` (default: its own), which must be new."""
@@ -197,8 +204,7 @@ def add_sot(
     """
     if not isinstance(robot, Robot):
         raise InvalidInput(f"add_sot takes the robot (add_sot(robot)), got {type(robot).__name__}")
-    if not isinstance(name, str) or not name:
-        raise InvalidInput(f"add_sot: the solver's name must be a non-empty string, got {name!r:.60}")
+    check_name("add_sot: the solver's name", name)
     if solver == "cascade":
         sot = SOT(name, robot.dimension, svd_threshold, damping, dt=robot.dt)
         sot.setVelocityLimit(velocity_limit_vector(robot.model))

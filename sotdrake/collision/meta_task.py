@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 from pydrake.systems.framework import Context
 
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, check_name
 from ..robot import Robot
 from .task import DAMPER_SPEED, INFLUENCE_DISTANCE, SAFETY_DISTANCE, TaskCollision, check_margins
 from .world import CollisionWorld, collision_world
@@ -30,8 +30,7 @@ class _CollisionLevel:
 
     def __init__(self, robot: Robot | RobotDyn, name: str, pairs: Sequence[tuple[str, str]] | None, safety: float,
                  influence: float, xi: float, acceleration: bool):
-        if not isinstance(name, str) or not name:
-            raise InvalidInput(f"{type(self).__name__}: the name must be a non-empty string, got {name!r:.60}")
+        check_name(f"{type(self).__name__}: the name", name)
         robot.check_new_names(["task" + name])
         margins = check_margins(safety, influence, xi, robot.dt, f"{type(self).__name__}({name!r})")
         self.robot, self.name = robot, name

@@ -31,6 +31,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import RigidBody
 
 from ..exceptions import InvalidInput, SotError
+from ..robots.from_file import is_drake_check
 from .obstacles import _pose, add_obstacle, draw_obstacles, make_shape
 from .world import CollisionWorld, collision_world
 
@@ -68,7 +69,7 @@ def scene_shapes(source: str | Path, X_WS: object = None, name: str = "scene") -
         else:
             raise InvalidInput(f"add_scene({name!r}): source must be a path or the text of a URDF/SDF, got {type(source).__name__}")
     except (RuntimeError, ValueError, SystemExit) as error:  # (SystemExit: one of Drake's checks, a box of size 0 …)
-        if isinstance(error, InvalidInput) or (isinstance(error, SystemExit) and not str(error).startswith("Failure at ")):
+        if isinstance(error, InvalidInput) or (isinstance(error, SystemExit) and not is_drake_check(error)):
             raise
         raise InvalidInput(f"add_scene({name!r}): Drake could not parse {str(source)[:200]!r}: {str(error)[:400]}") from None
     for instance in instances:  # weld each model's root to the world (a static SDF model is already)

@@ -15,7 +15,7 @@ from pydrake.systems.framework import Context
 from pydrake.systems.primitives import MatrixGain
 
 from ..centroidal import base_rows
-from ..exceptions import InvalidInput
+from ..exceptions import check_name
 from ..features import Feature6d, Feature6dDesired, FeatureGeneric, FeatureGenericDesired, FeatureMomentum, FeaturePosture
 from ..features.base import check_mask
 from ..selection import parse_selection
@@ -26,8 +26,7 @@ from .task_dyn_pd import TaskDynPD
 def _new_names(robot: RobotDyn, name: str, *suffixes: str) -> None:
     """Refuse, before anything is added, a name that is not a non-empty string or whose entities
     (``task<name>``, ``feature<name>`` and ``feature<name><suffix>``) exist already."""
-    if not isinstance(name, str) or not name:
-        raise InvalidInput(f"a dynamic meta task's name must be a non-empty string, got {name!r:.60}")
+    check_name("a dynamic meta task's name", name)
     robot.check_new_names(["task" + name, "feature" + name, *("feature" + name + suffix for suffix in suffixes)])
 
 

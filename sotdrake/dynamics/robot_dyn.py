@@ -23,9 +23,10 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from ..configuration import Layout
-from ..exceptions import InvalidInput, NotFound, SotError, check_finite
+from ..exceptions import InvalidInput, NotFound, check_finite, check_name
 from ..hqp import ACTIVE_SET
 from ..physics.plant import check_contact_options
+from ..robot import check_new_names
 from ..robots import RobotModel
 from .checks import MAX_DT, check_positive
 from .contact import Contact6d
@@ -113,12 +114,7 @@ class RobotDyn:
     def check_new_names(self, names: list[str]) -> None:
         """:class:`InvalidInput` if an entity of one of ``names`` exists already (for a caller that
         adds several entities and must refuse before adding any)."""
-        if self.builder.already_built():
-            raise SotError(f"cannot add {names[0]!r}: the diagram is already built (create tasks and contacts before builder.Build())")
-        existing = self._names | {system.get_name() for system in self.builder.GetSystems()}
-        for name in names:
-            if name in existing:
-                raise InvalidInput(f"an entity named {name!r} already exists")
+        check_new_names(self.builder, self._names, names)
 
     def add(self, system: LeafSystem, name: str | None = None) -> LeafSystem:
         """Add ``system`` under ``name`` (default: its own), which must be new."""
@@ -149,8 +145,7 @@ class RobotDyn:
         is the robot model's rectangle for that op point (``model.sole_rectangles``; TALOS': its
         physics sole box); None makes a point contact. The contact keeps the op point's pose at
         ``q0`` (:meth:`.contact.Contact6d.keep`, used with ``setPositionGain``)."""
-        if not isinstance(name, str) or not name:
-            raise InvalidInput(f"add_contact: the contact's name must be a non-empty string, got {name!r:.60}")
+        check_name("add_contact: the contact's name", name)
         self.model.frame(opPoint)  # (everything checked before anything is added)
         if isinstance(rectangle, str):
             if rectangle != "sole":

@@ -107,23 +107,25 @@ def cascade_factorization(
     ``extra`` (one per level, the sizes of the references): other references solved in the same
     pass, their ``v`` kept as ``extra_velocity`` (by linearity, any combination of the two
     references is then the same combination of the two velocities)."""
-    if type(damping) is float or type(damping) is int:  # (the usual case: a Python number)
+    # (The checks of a solver's every tick take the first branch of each: a Python float, a bool mask.)
+    if (type(damping) is float or type(damping) is int) and 0 <= damping < math.inf:
         dampings = np.zeros(len(levels)) if damping == 0 else np.full(len(levels), float(damping))
     elif all_numbers(damping):
         dampings = np.array(damping, dtype=float)
         dampings = np.full(len(levels), float(dampings)) if dampings.ndim == 0 else dampings
+        if not (dampings >= 0).all() or not np.isfinite(dampings).all():
+            raise InvalidInput(f"damping: finite numbers ≥ 0, got {dampings}")
     else:
         raise InvalidInput(f"damping: one number or one per level, got {damping!r:.80}")
     if dampings.shape != (len(levels),):
         raise InvalidInput(f"damping: one value or one per level ({len(levels)}), got {dampings.size}")
-    if not (dampings >= 0).all() or not np.isfinite(dampings).all():
-        raise InvalidInput(f"damping: finite numbers ≥ 0, got {dampings}")
-    if not (all_numbers(svd_threshold) and np.ndim(svd_threshold) == 0 and 0 <= svd_threshold < np.inf):
+    if not (type(svd_threshold) is float and 0 <= svd_threshold < math.inf) and not (
+            all_numbers(svd_threshold) and np.ndim(svd_threshold) == 0 and 0 <= svd_threshold < np.inf):
         raise InvalidInput(f"svd_threshold: a finite number ≥ 0, got {svd_threshold!r:.80}")
     mask = np.ones(nv) if control_selection is None else np.asarray(control_selection, dtype=float)
     if mask.shape != (nv,):
         raise InvalidInput(f"control_selection: {nv} values expected, got shape {mask.shape}")
-    if control_selection is not None and not ((mask == 0.0) | (mask == 1.0)).all():
+    if control_selection is not None and np.asarray(control_selection).dtype != bool and not ((mask == 0.0) | (mask == 1.0)).all():
         raise InvalidInput("control_selection: nv booleans (or 0 and 1), one per velocity")
     if not levels:
         return CascadeFactorization(np.zeros(nv), np.zeros(0, dtype=int), None if extra is None else np.zeros(nv))

@@ -196,7 +196,7 @@ class HierarchicalQP:
         if (isinstance(levels, (str, bytes)) or not isinstance(levels, Sequence)
                 or not all(isinstance(level, LevelRows) for level in levels)):
             raise InvalidInput(f"levels: a sequence of LevelRows (highest priority first), got {levels!r:.100}")
-        if isinstance(damping, bool) or not all_numbers(damping) or np.ndim(damping) != 0:
+        if isinstance(damping, bool) or not all_numbers(damping) or np.ndim(damping) != 0 or not 0 <= damping < np.inf:
             raise InvalidInput(f"damping must be a finite number ≥ 0, got {damping!r:.60}")
         x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
         if x_lower.shape != (n,) or x_upper.shape != (n,):
@@ -208,8 +208,6 @@ class HierarchicalQP:
         fixed = x_lower == x_upper
         if not all_true(np.isfinite(x_lower[fixed])):
             raise InvalidInput("a fixed component (lower == upper) needs a finite value")
-        if not (np.isfinite(damping) and damping >= 0):
-            raise InvalidInput(f"damping must be finite and ≥ 0, got {damping}")
         for level in levels:
             if level.A.shape[1] != n:
                 raise InvalidInput(f"a level has {level.A.shape[1]} columns, expected {n}")

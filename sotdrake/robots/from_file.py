@@ -87,6 +87,12 @@ def _bad_root(path: Path, tag: str) -> str:
     raise RobotDescriptionError(f"{path}: root element <{tag}>: expected <robot> (URDF), <sdf> or <mujoco> (MJCF)")
 
 
+def is_drake_check(error: BaseException) -> bool:
+    """Whether ``error`` is one of Drake's failed checks, which pydrake raises as ``SystemExit``
+    (``Failure at …``; an ``except Exception`` does not catch it)."""
+    return isinstance(error, SystemExit) and str(error).startswith("Failure at ")
+
+
 @contextmanager
 def drake_refusals(source: object) -> Iterator[None]:
     """Drake's refusals of a description as :class:`RobotDescriptionError` naming ``source``: its
@@ -95,7 +101,7 @@ def drake_refusals(source: object) -> Iterator[None]:
     try:
         yield
     except SystemExit as error:
-        if not str(error).startswith("Failure at "):  # (not one of Drake's checks: a real exit)
+        if not is_drake_check(error):  # (a real exit)
             raise
         raise RobotDescriptionError(f"{source}: Drake refused the description: {error}") from None
     except (RuntimeError, ValueError) as error:

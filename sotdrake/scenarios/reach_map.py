@@ -119,13 +119,19 @@ def add_obstacles(world, obstacles: str | None) -> None:
         add_scene(world, Path(obstacles), None, "scene")
 
 
+def check_period(dt: float, collision: bool) -> None:
+    """:class:`InvalidInput` for a period the map cannot take: with the collision level, above
+    :data:`MAX_COLLISION_DT` (the map lifts the step limit)."""
+    if collision and not dt <= MAX_COLLISION_DT:
+        raise InvalidInput(f"reach map: dt = {dt!r} s with the collision level: at most {MAX_COLLISION_DT:g} s (the map lifts "
+                           "the step limit: a longer tick can carry a link through an obstacle in one step)")
+
+
 def build_diagram(dt: float = 0.02, variant: str = "reduced", obstacles: str | None = None, collision: bool = False) -> Reach:
     """Feet, CoM, the collision level (``collision``) and the right hand under ``SolverKine``, the
     ``obstacles`` (:func:`add_obstacles`); the hand's target is its initial pose until
     :func:`simulate_target` sets one in the context."""
-    if collision and not dt <= MAX_COLLISION_DT:
-        raise InvalidInput(f"reach map: dt = {dt!r} s with the collision level: at most {MAX_COLLISION_DT:g} s (the map lifts "
-                           "the step limit: a longer tick can carry a link through an obstacle in one step)")
+    check_period(dt, collision)
     builder = DiagramBuilder()
     robot = talos(builder, variant, dt)
     sot = add_sot(robot, "sot", solver="hqp", damping=HAND_DAMPING)
@@ -283,7 +289,7 @@ def main(argv: list[str] | None = None) -> dict:
     if not 0 < args.duration < float("inf") or not 0 < args.dt < float("inf"):
         raise SystemExit(f"--duration and --dt must be > 0, got {args.duration}, {args.dt}")
     try:
-        build_diagram(args.dt, obstacles=args.obstacles, collision=args.collision)  # (its refusals, before any case)
+        check_period(args.dt, args.collision)  # (before any case)
         cases = targets(args.targets, args.sampling, args.seed)
         if args.obstacles not in (None, "table"):
             add_scene(CollisionWorld(talos(DiagramBuilder(), "reduced", args.dt).model), Path(args.obstacles), None, "scene")

@@ -85,9 +85,10 @@ def peak_accelerations(time: np.ndarray, q: np.ndarray, joints_q: np.ndarray, dt
     return {"start": float(rate[~after].max()), "switch": float(rate[after].max())}
 
 
-def run(a_max: float | None, duration: float, progress: bool) -> tuple[dict, dict, TargetSwitch]:
+def run(case: TargetSwitch, a_max: float | None, duration: float, progress: bool) -> tuple[dict, dict]:
+    """The summary and the trace of ``case`` (:func:`build_diagram` with ``a_max`` and its switch at
+    ``duration / 2``) run for ``duration`` s."""
     switch_time = duration / 2
-    case = build_diagram(a_max, switch_time)
     simulator, wall = simulate(case.diagram, duration, None, progress)
     context = simulator.get_context()
     trace = case.tracer.data(context)
@@ -97,7 +98,7 @@ def run(a_max: float | None, duration: float, progress: bool) -> tuple[dict, dic
     error = float(np.linalg.norm(case.hand.current_pose(context).translation() - np.array(SECOND)))
     summary = {"a_max_rad_s2": a_max, "peak_joint_acceleration_rad_s2": peaks, "hand_final_error_m": error,
                "wall_s": wall}
-    return summary, trace, case
+    return summary, trace
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -106,14 +107,16 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     args.no_meshcat = True  # no recording: two runs compared in numbers and a plot
     start(args)
-    build_diagram(args.a_max, args.duration / 2)  # (a refused --a-max stops the script before either run)
+    limits = {"without": None, "with": args.a_max}
+    # Both built before either runs: a refused --a-max stops the script with nothing written.
+    cases = {label: build_diagram(a_max, args.duration / 2) for label, a_max in limits.items()}
     runs, traces = {}, {}
-    for label, a_max in (("without", None), ("with", args.a_max)):
-        runs[label], traces[label], case = run(a_max, args.duration, not args.quiet)
+    for label, case in cases.items():
+        runs[label], traces[label] = run(case, limits[label], args.duration, not args.quiet)
         write_run(args.out / label, case.diagram, dict(runs[label]), traces[label], graph=False)
     summary = {"duration_s": args.duration, "switch_time_s": args.duration / 2, **runs}
     args.out.mkdir(parents=True, exist_ok=True)
-    _plot(traces, case, args.out / "plots.png")
+    _plot(traces, cases["with"], args.out / "plots.png")
     (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary
 

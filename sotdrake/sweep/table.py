@@ -64,9 +64,7 @@ def make_row(index: int, case: Mapping, summary: Mapping | None, error: str = ""
     A summary key that repeats a parameter or a reserved column is prefixed with ``summary.``."""
     row: dict[str, Cell] = {"case": int(index)}
     for name, value in case.items():
-        if name in RESERVED:
-            raise InvalidInput(f"a case parameter cannot be named {name!r} (reserved columns: {RESERVED})")
-        row[name] = _cell(value)
+        row[check_parameter_name(name, "a case")] = _cell(value)
     row["status"] = "error" if error else "ok"
     row["error"] = error
     for key, value in flatten(summary or {}).items():

@@ -5,17 +5,19 @@
 mode*: every entity command it issues without a context is recorded instead of applied. Each entity
 touched gets a timed event at ``T`` that replays its commands on the state of the context being
 simulated, so the sequence is part of the diagram: a reset or cloned context replays it exactly.
-Call it before creating the simulator's context.
+Call it before creating the simulator's context: a context that already exists runs a command
+scheduled later only if its time has not passed ``T`` yet (warned).
 """
 
 from __future__ import annotations
 
 import logging
+import warnings
 from collections.abc import Callable
 from typing import NamedTuple
 
 from .entity import Entity, _recorders
-from .exceptions import InvalidInput, SotError, check_number
+from .exceptions import InvalidInput, SotError, SotWarning, check_number
 
 #: Latest time an attime command may be scheduled at (s): a year of simulated time.
 MAX_TIME = 3.2e7
@@ -52,6 +54,11 @@ def attime(time: float, command: Callable[[], object] | tuple, description: str 
     by_entity: dict[Entity, list] = {}
     for entity, change in recorded:
         by_entity.setdefault(entity, []).append(change)
+    late = [entity.name for entity in by_entity if len(entity._in_contexts)]
+    if late:
+        warnings.warn(f"attime({time}, {description!r}): a context of {late} already exists; one whose time is already "
+                      "past T never runs this command (schedule before creating the simulator's context, or use the "
+                      "live runner's attime, which refuses a past time)", SotWarning, stacklevel=2)
     for entity, changes in by_entity.items():
         if description:
             changes = [*changes, lambda _s, d=description, t=time: log.info("t = %.3f s: %s", t, d)]

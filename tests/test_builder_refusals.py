@@ -156,3 +156,16 @@ def test_a_robot_without_a_solver_is_named_before_the_run(tmp_path):
     robot(builder, load_robot(three_link(tmp_path / "arm.urdf")))
     with pytest.raises(StackError, match="control input is not connected"):
         simulate(builder.Build(), 0.01, progress=False)
+
+
+@pytest.mark.parametrize("options", [
+    {"velocity": (0.1, 0.0)}, {"velocity": "abc"}, {"then": (1.0, 0.0, 0.0)}, {"then": (-1.0, 0.0, 0.0, 0.0)},
+    {"steps": (3,)}, {"steps": (2.5, 0.1)}, {"steps": (1e9, 0.1)}, {"steps": (-2, 0.1)}, {"gains": (1.0,)},
+    {"gains": (float("nan"), 1.0)},
+])
+def test_the_walk_checks_its_commands_before_loading_anything(options):
+    """A wrong shape used to end in a raw TypeError while unpacking; a billion steps in a list of that size."""
+    from sotdrake.walking.controller import build_diagram
+
+    with pytest.raises(InvalidInput, match="build_diagram"):
+        build_diagram(**options)

@@ -4,6 +4,7 @@ independent lexicographic reference (quadprog) and with the Drake-solver paths."
 import numpy as np
 import pytest
 import quadprog
+from scipy.optimize import lsq_linear
 
 from sotdrake.exceptions import InvalidInput
 from sotdrake.hqp import rescue
@@ -157,6 +158,31 @@ def test_small_stacks_equal_the_reference(seed, solvers):
     result = hqp.solve(levels, x_lower, x_upper)
     np.testing.assert_allclose(result.slack_norms, reference_slack_norms(n, levels, x_lower, x_upper), atol=1e-6)
     assert bounds_hold(result.x, x_lower, x_upper)
+
+
+@pytest.mark.parametrize("batch", range(3))
+def test_a_level_of_rows_eight_decades_apart_is_the_bounded_least_squares_optimum(batch, solvers):
+    """A nearly flat level: rows of norms 1e-7 to 10, so the smallest rows decide the optimum in
+    what the largest leave free and the bounds' multipliers there are about 1e-10 (the residual's
+    size times the small rows'). Against scipy's BVLS, an independent bounded least squares: the
+    residual within 1e-6 relative (1e-12 of the data's size), on levels whose unit rows have
+    every singular value above 1e-5 (no rank decision at τ between the two)."""
+    rng = np.random.default_rng(7_000 + batch)
+    checked = 0
+    while checked < 150:
+        n, m = int(rng.integers(2, 9)), int(rng.integers(1, 10))
+        A = rng.normal(size=(m, n)) * 10.0 ** rng.integers(-7, 2, size=(m, 1))
+        if np.linalg.svd(A / np.linalg.norm(A, axis=1, keepdims=True), compute_uv=False).min() < 1e-5:
+            continue
+        b = rng.normal(size=m) * 10.0 ** rng.integers(-4, 1, size=m)
+        lower, upper = -rng.uniform(0.1, 1.0, n), rng.uniform(0.1, 1.0, n)
+        x = solvers.setdefault(n, HierarchicalQP(n)).solve([LevelRows(A, b, b)], lower, upper).x
+        reference = lsq_linear(A, b, bounds=(lower, upper), method="bvls", tol=1e-15).x
+        residual, best = np.linalg.norm(A @ x - b), np.linalg.norm(A @ reference - b)
+        scale = np.linalg.norm(b) + np.linalg.norm(A, 2) * np.linalg.norm(reference)
+        assert bounds_hold(x, lower, upper)
+        assert residual <= best * (1 + 1e-6) + 1e-12 * scale, (checked, residual, best)
+        checked += 1
 
 
 @pytest.mark.parametrize("solver", ["clarabel", "osqp"])

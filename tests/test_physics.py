@@ -99,6 +99,45 @@ def test_physics_inputs():
     assert robot.plant.num_actuators() == 32 and len(robot.actuated_q) == 32
 
 
+def test_a_refused_station_leaves_the_builder_as_it_was(talos_model):
+    """A bad q0 used to end the process (Drake's failed check); a bad push body was found once the
+    plant was in the builder. Each is now refused with the builder unchanged, and still usable."""
+    from sotdrake.exceptions import NotFound
+    from sotdrake.physics import add_talos_station
+
+    builder = DiagramBuilder()
+    q0 = talos_model.half_sitting
+    for bad, error in (({"q0": q0[:3]}, "39 positions"), ({"q0": np.full_like(q0, np.nan)}, "q0"), ({"q0": "q"}, "q0"),
+                       ({"push_force": [1.0, 2.0]}, "push"), ({"push_force": [0.0, 0.0, 1.0], "push_duration": -1.0}, "push"),
+                       ({"time_step": -1.0}, "time_step"), ({"contact": "mesh"}, "contact")):
+        with pytest.raises(InvalidInput, match=error):
+            add_talos_station(builder, **{"q0": q0, **bad})
+        assert not builder.GetSystems()
+    with pytest.raises(NotFound, match="nobody"):
+        add_talos_station(builder, q0, push_force=[0.0, 0.0, 1.0], push_body="nobody")
+    assert not builder.GetSystems()
+    station = add_talos_station(builder, q0, push_force=[0.0, 0.0, 1.0])
+    diagram = builder.Build()
+    assert diagram.GetSubsystemByName("push") is station.push
+
+
+def test_the_estimator_and_the_hold_check_their_arguments(talos_model):
+    from pydrake.systems.primitives import ConstantVectorSource
+
+    from sotdrake.physics import KinematicBaseEstimator
+    from sotdrake.physics.actuators import hold_one_tick
+
+    for q0 in (talos_model.half_sitting[:3], np.full(talos_model.nq, np.nan), None):
+        with pytest.raises(InvalidInput, match="q0"):
+            KinematicBaseEstimator(talos_model, q0)
+    builder = DiagramBuilder()
+    source = builder.AddSystem(ConstantVectorSource(np.zeros(2)))
+    for dt in (0.0, -1e-3, float("nan"), "1e-3", None):
+        with pytest.raises(InvalidInput, match="dt"):
+            hold_one_tick(builder, source.get_output_port(), "held", dt)
+    assert len(builder.GetSystems()) == 1
+
+
 def test_script_outputs(physics, tmp_path):
     summary = physics.main(["--scenario", "stand", "--duration", "0.2", "--out", str(tmp_path), "--no-meshcat", "--quiet"])
     for key in ("hand_error_m", "base_drift_m", "base_height_drop_m", "min_normal_force_n", "max_foot_slip_m", "realtime_factor"):

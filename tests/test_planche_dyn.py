@@ -85,5 +85,8 @@ def test_bad_options_are_refused(planche, tmp_path):
     for flag in ("--slow", "--effort"):
         with pytest.raises(SystemExit):
             planche.main(["--solver", "dyn", flag, "0", "--out", str(tmp_path), "--no-meshcat", "--quiet"])
+        with pytest.raises(SystemExit):  # an option of --solver dyn alone, not silently ignored
+            planche.main([flag, "2", "--out", str(tmp_path), "--no-meshcat", "--quiet"])
+    assert not any(tmp_path.iterdir())
     with pytest.raises(planche.dynamic().SotError, match="slow"):
         planche.build_dynamic("full", dataclasses.replace(planche.dynamic().DynOptions(), slow=-1.0))

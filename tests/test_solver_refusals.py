@@ -80,6 +80,30 @@ def test_hierarchical_qp_solve_arguments():
     assert hqp.solve([level], *bounds).x == pytest.approx(np.full(3, 0.5))
 
 
+def test_magnitudes_whose_squares_overflow_are_refused_and_those_below_are_solved():
+    """Beyond ±1e150 the squared norms the solver forms overflow (a row of 1e160 was solved as 0).
+    (An inequality row's violation is measured in its own units, to 1e-9: scaled far below unit
+    norm, it is met to that absolute tolerance, hence its smaller scales not checked here.)"""
+    A, b = np.array([[1.0, 2.0], [0.5, -1.0]]), np.array([0.3, 0.1])
+    bounds = (np.full(2, -1.0), np.full(2, 1.0))
+    band = HierarchicalQP(2).solve([LevelRows(A, b - 0.1, b + 0.1)], *bounds).x
+    for scale in (1e-140, 1e-20, 1e60, 1e140):
+        assert HierarchicalQP(2).solve([LevelRows(A * scale, b * scale, b * scale)], *bounds).x == pytest.approx([0.25, 0.025])
+    for scale in (1e-4, 1e60, 1e140):
+        level = LevelRows(A * scale, (b - 0.1) * scale, (b + 0.1) * scale)
+        assert HierarchicalQP(2).solve([level], *bounds).x == pytest.approx(band)
+    for rows in ((A * 1e160, b, b), (A, b * 1e160, b * 1e160), (A, b - 1e160, b + 1), (A, b - 1, b + 1e160)):
+        with pytest.raises(InvalidInput, match="1e"):
+            LevelRows(*rows)
+    assert LevelRows(A, np.full(2, -np.inf), np.full(2, np.inf)).A_in.shape == (2, 2)
+    hqp, level = HierarchicalQP(2), LevelRows(A, b, b)
+    for lower, upper, start in ((np.array([-1e160, -1.0]), bounds[1], None), (bounds[0], np.array([1.0, 1e160]), None),
+                                (*bounds, np.array([0.0, 1e160]))):
+        with pytest.raises(InvalidInput, match="1e"):
+            hqp.solve([level], lower, upper, start=start)
+    assert hqp.solve([level], np.full(2, -np.inf), np.full(2, np.inf)).x == pytest.approx([0.25, 0.025])
+
+
 def test_a_one_sided_bound_under_a_gain_of_zero_stays_free():
     task = TaskInequality("limits", 2)
     task.setBounds([-np.inf, -1.0], [0.5, np.inf])

@@ -5,7 +5,7 @@ import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from sotdrake.exceptions import InvalidInput, SolverError, SotError, StackError, TaskNotFound
+from sotdrake.exceptions import InvalidInput, SolverError, SotError, SotWarning, StackError, TaskNotFound
 from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from sotdrake.robot import Robot, add_sot
 from sotdrake.robots import TALOS_GRIPPERS
@@ -94,6 +94,18 @@ def test_attime_rejects_what_it_cannot_schedule(talos_model):
         attime(1.0, lambda: rh.keep())  # needs the state at T: use a context instead
     with pytest.raises(TaskNotFound):
         attime(1.0, lambda: sot.push("tasknothing"))
+
+
+def test_attime_after_a_context_exists_warns_and_runs_only_if_its_time_is_ahead(talos_model):
+    robot, sot, (rh, lf, com, lh), diagram = build(talos_model, with_sequence=False)
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(0.02)
+    with pytest.warns(SotWarning, match="past T never runs"):
+        attime(0.01, lambda: sot.push(rh.task.name), "late")
+    with pytest.warns(SotWarning, match="past T never runs"):
+        attime(0.03, lambda: sot.push(lh.task.name), "ahead")
+    simulator.AdvanceTo(0.05)
+    assert sot.stack(simulator.get_context()) == ["tasklf", "taskcom", "tasklh"]
 
 
 def test_non_finite_task_is_reported_with_its_name(talos_model):

@@ -176,6 +176,9 @@ def test_set_velocity_out_of_range_is_refused_and_changes_nothing():
             pg.setVelocity(*bad)
     with pytest.raises(InvalidInput, match=r"x = 0.25 m/s is out of range; accepted: -0.2 ≤ x ≤ 0.2"):
         pg.setVelocity(0.25, 0, 0)
+    for steps in ([], [(0.1, 0.0, 0.0)] * 10_001, [(0.1, 0.0)]):
+        with pytest.raises(InvalidInput, match="1 to 10000"):
+            pg.setSteps(steps)
     assert pg.settings().command.velocity == (0.1, 0.0, 0.0)
 
 
@@ -283,3 +286,19 @@ def test_short_kinematic_walk_with_walkromeos_arm_posture_holds_the_arms():
     assert np.abs(trace["q_device"][:, arms] - q0[arms]).max() < 1e-4
     with pytest.raises(InvalidInput, match="arms"):
         walk_script.build_diagram(arms="swing")
+
+
+@pytest.mark.parametrize("options, named", [
+    (["--stiffness", "100"], "--stiffness: options of --mode physics"),
+    (["--closed-loop", "--com-gain", "4"], "--com-gain, --closed-loop: options of --mode physics"),
+    (["--step-duration", "-1"], "--step-duration -1.0"),
+    (["--single-support", "5"], "--single-support 5.0"),
+])
+def test_the_walk_script_names_the_option_it_refuses(options, named, tmp_path, capsys):
+    """A physics option outside --mode physics was ignored; a gait option was named by its field."""
+    from sotdrake.scenarios import walk as walk_script
+
+    with pytest.raises(SystemExit) as stopped:
+        walk_script.main([*options, "--out", str(tmp_path / "run"), "--no-meshcat", "--quiet"])
+    assert stopped.value.code == 2 and named in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()

@@ -70,7 +70,7 @@ from .linalg import (
     scaled_least_squares,
     svd,
 )
-from .tolerances import MULTIPLIER_TOLERANCE, NO_STEP, RANK_THRESHOLD, RATIO_TIE, VERIFIED
+from .tolerances import MULTIPLIER_FLOOR, MULTIPLIER_TOLERANCE, NO_STEP, RANK_THRESHOLD, RATIO_TIE, VERIFIED
 
 
 @dataclass
@@ -311,8 +311,7 @@ def python_solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibilit
         # Multipliers: λ ≥ 0 at an upper side, ≤ 0 at a lower side (equality rows: free), up to a
         # round-off tolerance relative to the gradient's scale.
         held_index = held.nonzero()[0]
-        residual = M @ z - t if len(M) else np.zeros(0)
-        tolerance = MULTIPLIER_TOLERANCE * max(1.0, m_max * math.sqrt(float(residual @ residual)))
+        tolerance = MULTIPLIER_TOLERANCE * multiplier_scale(M, t, z, m_max)
         wrong = np.where(equality[held_index], 0.0, -side[held_index] * lam)
         if wrong.size and wrong.max() > tolerance:
             leaving = held_index[int((wrong > tolerance).nonzero()[0][0]) if bland else int(np.argmax(wrong))]
@@ -378,6 +377,18 @@ def feasible(G: np.ndarray, lower: np.ndarray, upper: np.ndarray, z: np.ndarray,
                 or any_true(value > upper + feasibility * np.maximum(1.0, np.abs(upper))))
 
 
+def multiplier_scale(M: np.ndarray, t: np.ndarray, z: np.ndarray, m_max: float) -> float:
+    """The scale of the multipliers at ``z`` (their tolerance is :data:`MULTIPLIER_TOLERANCE` times
+    it): ``max(m_scale) · max(‖M z − t‖, MULTIPLIER_FLOOR (max(m_scale) ‖z‖ + ‖t‖))``, 1 without
+    objective rows. Relative to the level's data, so a nearly flat level (rows of norm 1e-6 deciding
+    its optimum) keeps the sign of its small multipliers."""
+    if len(M) == 0:
+        return 1.0
+    residual = M @ z - t
+    terms = m_max * math.sqrt(float(z @ z)) + math.sqrt(float(t @ t))
+    return m_max * max(math.sqrt(float(residual @ residual)), MULTIPLIER_FLOOR * terms)
+
+
 def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality, working=None) -> np.ndarray | None:
     """The EQP point of the working set ``side`` if it satisfies the KKT conditions, else None."""
     held = side.nonzero()[0]
@@ -388,9 +399,6 @@ def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, e
     if len(held):
         wrong = -held_side * lam
         wrong[equality[held]] = 0.0  # equality rows: either sign
-        worst = float(wrong.max())
-        if worst > MULTIPLIER_TOLERANCE:  # the tolerance is at least that: only then is it worth computing
-            residual = M @ z - t if len(M) else np.zeros(0)
-            if worst > MULTIPLIER_TOLERANCE * max(1.0, float(m_scale.max(initial=0.0)) * math.sqrt(float(residual @ residual))):
-                return None
+        if float(wrong.max()) > MULTIPLIER_TOLERANCE * multiplier_scale(M, t, z, float(m_scale.max(initial=0.0))):
+            return None
     return z

@@ -27,6 +27,9 @@ ACTIVE_SET = "active-set"
 ACTIVE_BOUNDS = "active-bounds"
 """How every stage was solved when the equality levels were solved at once from the guessed active
 bounds (:mod:`.active_bounds`), part of the default path."""
+MAX_MAGNITUDE = 1e150
+"""The largest magnitude of a level's coefficient or finite side, of a finite bound and of a start:
+the squared norms the solver forms overflow beyond about 1e154."""
 KEPT_LAST_LEVEL = "kept the last level's point"
 """How the minimum-norm stage ended when every path failed on it: the last level's point, which is
 in the optimal set (every level at its optimum, bounds held), kept instead of the minimum-norm one.
@@ -50,6 +53,12 @@ def check_solver(name: str) -> str:
         raise InvalidInput(f"unknown QP solver {name!r}; available: {[ACTIVE_SET, *sorted(SOLVERS)]}")
     return name
 
+
+
+def beyond(values: np.ndarray) -> bool:
+    """Whether a finite entry of ``values`` is beyond ±:data:`MAX_MAGNITUDE`."""
+    large = np.abs(values) > MAX_MAGNITUDE
+    return any_true(large) and any_true(large & np.isfinite(values))
 
 
 def _row_norms(A: np.ndarray) -> np.ndarray:
@@ -78,16 +87,21 @@ class LevelRows:
         if A.ndim != 2 or lower.shape != (A.shape[0],) or upper.shape != (A.shape[0],):
             raise InvalidInput(f"level rows: A {A.shape}, lower {lower.shape}, upper {upper.shape} do not fit")
         if same:
-            if not all_true(np.isfinite(A)):
-                raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
-            if not all_true(np.isfinite(lower)):
-                raise InvalidInput("level rows: an equality row needs a finite value (NaN or infinite)")
+            if not all_true(np.abs(A) <= MAX_MAGNITUDE):  # (False on NaN)
+                raise InvalidInput(f"level rows: NaN, infinite or beyond ±{MAX_MAGNITUDE:g} coefficients "
+                                   "(A must be finite, lower/upper not NaN)")
+            if not all_true(np.abs(lower) <= MAX_MAGNITUDE):
+                raise InvalidInput(f"level rows: an equality row needs a finite value within ±{MAX_MAGNITUDE:g} "
+                                   "(NaN, infinite or beyond)")
         else:
             ordered = lower <= upper  # False on a NaN side too: the cause is looked for only then
-            if not all_true(np.isfinite(A)) or (not all_true(ordered) and any_true(np.isnan(lower) | np.isnan(upper))):
-                raise InvalidInput("level rows: NaN or infinite coefficients (A must be finite, lower/upper not NaN)")
+            if not all_true(np.abs(A) <= MAX_MAGNITUDE) or (not all_true(ordered) and any_true(np.isnan(lower) | np.isnan(upper))):
+                raise InvalidInput(f"level rows: NaN, infinite or beyond ±{MAX_MAGNITUDE:g} coefficients "
+                                   "(A must be finite, lower/upper not NaN)")
             if not all_true(ordered):
                 raise InvalidInput(f"level rows: lower bound above upper bound in rows {np.flatnonzero(lower > upper)}")
+            if beyond(lower) or beyond(upper):
+                raise InvalidInput(f"level rows: a finite side beyond ±{MAX_MAGNITUDE:g}")
         self.A, self.lower, self.upper = A, lower, upper
         self.extend = extend
         # The split the solver reads at every stage, made once.

@@ -83,6 +83,7 @@ from .problem import (
     ACTIVE_BOUNDS,
     ACTIVE_SET,
     KEPT_LAST_LEVEL,
+    MAX_MAGNITUDE,
     ROUND_OFF_LIMITED,
     SOLVERS,
     Extension,
@@ -90,6 +91,7 @@ from .problem import (
     LevelRows,
     Stage,
     _EqualityFactors,
+    beyond,
     check_solver,
     least_norm,
     null_space,
@@ -208,13 +210,15 @@ class HierarchicalQP:
         fixed = x_lower == x_upper
         if not all_true(np.isfinite(x_lower[fixed])):
             raise InvalidInput("a fixed component (lower == upper) needs a finite value")
+        if beyond(x_lower) or beyond(x_upper):
+            raise InvalidInput(f"a finite bound beyond ±{MAX_MAGNITUDE:g}")
         for level in levels:
             if level.A.shape[1] != n:
                 raise InvalidInput(f"a level has {level.A.shape[1]} columns, expected {n}")
         if start is not None:
             start = np.asarray(start, dtype=float)
-            if start.shape != (n,) or not all_true(np.isfinite(start)):
-                raise InvalidInput(f"start must be {n} finite numbers")
+            if start.shape != (n,) or not all_true(np.abs(start) <= MAX_MAGNITUDE):
+                raise InvalidInput(f"start must be {n} finite numbers within ±{MAX_MAGNITUDE:g}")
         began = time.perf_counter()
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # ±∞ bounds: once here, not per operation
             if solver == ACTIVE_SET and self._equalities_only(levels, x_lower, x_upper, fixed, damping, start):

@@ -34,7 +34,14 @@ to this (relative above 1)."""
 MULTIPLIER_TOLERANCE = 1e-9
 """A held bound's (or row's) multiplier may have the wrong sign by this much, relative to the size
 of the residual (``max(1, ‖x‖)`` in :mod:`.active_bounds`, ``‖ρ‖ ‖c‖`` in :mod:`.equality_hierarchy`,
-``max(1, max(m_scale) ‖M z − t‖)`` in :mod:`.active_set`)."""
+``max(m_scale) · max(‖M z − t‖, MULTIPLIER_FLOOR (max(m_scale) ‖z‖ + ‖t‖))`` in :mod:`.active_set`)."""
+
+MULTIPLIER_FLOOR = 1e-6
+"""In :mod:`.active_set`, the residual below which the multipliers' tolerance stops shrinking, as a
+fraction of the size of the level's terms (``max(m_scale) ‖z‖ + ‖t‖``): a level met exactly still
+has round-off in its multipliers. Relative to the data, not absolute: a level whose optimum is
+decided by rows of norm 1e-6 (a nearly flat level) has multipliers of about 1e-10 that must keep
+their sign."""
 
 RATIO_TIE = 1e-12
 """Two ratios of the active set's ratio test within this factor of each other are a tie, broken by

@@ -15,7 +15,7 @@ from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import ZeroOrderHold
 
-from ..exceptions import InvalidInput, SotError
+from ..exceptions import InvalidInput, SotError, check_number
 
 #: Accepted ranges of the PD gains: stiffness (rad⁻¹, kp = stiffness · effort limit) and damping (s).
 STIFFNESS_RANGE = (1e-3, 1e4)
@@ -75,6 +75,7 @@ def hold_one_tick(builder: DiagramBuilder, port: OutputPort, name: str, dt: floa
     its instant: when the solver's inputs change with that step (the plan's update, a closed loop),
     the servos take the velocity the device integrated at the last tick, held, rather than a command
     of their own, and the stack is solved once per tick (the held value is 0 before the first)."""
+    check_number(f"{name}: dt (s)", dt, 1e-6, 1.0)
     hold = builder.AddNamedSystem(name, ZeroOrderHold(dt, port.size()))
     builder.Connect(port, hold.get_input_port())
     return hold.get_output_port()

@@ -7,7 +7,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
 
 from ..configuration import Layout, PlantContextHolder
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, check_finite
 
 
 class KinematicBaseEstimator(LeafSystem):
@@ -31,6 +31,7 @@ class KinematicBaseEstimator(LeafSystem):
         self._base_q: int = self.layout.base_q  # where the base's (quaternion, position) sits in q
         self._base = self.plant.get_body(next(iter(self.plant.GetFloatingBaseBodies()))).body_frame()
         self._soles = [model.frame("left-sole"), model.frame("right-sole")]
+        q0 = check_finite(f"{name}: q0", q0, (self.plant.num_positions(),))
         context = self.plant.CreateDefaultContext()
         self.plant.SetPositions(context, q0)
         self._X_WS0 = [self.plant.CalcRelativeTransform(context, self.plant.world_frame(), s) for s in self._soles]

@@ -25,17 +25,26 @@ class Push(LeafSystem):
         if not (isinstance(body_name, str) and plant.HasBodyNamed(body_name)):
             raise NotFound(str(body_name), sorted(plant.get_body(BodyIndex(i)).name() for i in range(plant.num_bodies())))
         self.body_index = plant.GetBodyByName(body_name).index()
+        self.force = self.check_arguments(force, start, duration)
+        self.start, self.end = float(start), float(start) + float(duration)
+        self.DeclareAbstractOutputPort("applied_spatial_force", lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]), self._calc)
+
+    @staticmethod
+    def check_arguments(force, start: float, duration: float) -> np.ndarray:
+        """``force`` as an array if it, ``start`` and ``duration`` are valid (see the class docstring),
+        else :class:`InvalidInput`; a ``force`` of None is no push (nothing to check)."""
+        if force is None:
+            return np.zeros(3)
         try:
-            self.force = check_finite("force", force)
+            checked = check_finite("force", force)
             times_ok = all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in (start, duration))
         except InvalidInput:
-            self.force, times_ok = np.full(1, np.nan), False
-        if (self.force.shape != (3,) or not np.all(np.isfinite(self.force)) or np.linalg.norm(self.force) > MAX_PUSH_FORCE
+            checked, times_ok = np.full(1, np.nan), False
+        if (checked.shape != (3,) or not np.all(np.isfinite(checked)) or np.linalg.norm(checked) > MAX_PUSH_FORCE
                 or not times_ok or not duration > 0 or start < 0):
             raise InvalidInput(f"push: force a finite 3-vector of norm ≤ {MAX_PUSH_FORCE:g} N, start ≥ 0 s and "
                                f"duration > 0 s, got {force!r}, {start!r}, {duration!r}")
-        self.start, self.end = float(start), float(start) + float(duration)
-        self.DeclareAbstractOutputPort("applied_spatial_force", lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]), self._calc)
+        return checked
 
     def _calc(self, context: Context, output: AbstractValue) -> None:
         push = ExternallyAppliedSpatialForce()

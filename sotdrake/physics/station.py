@@ -17,6 +17,8 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder, InputPort, OutputPort
 from pydrake.systems.primitives import ConstantVectorSource
 
+from ..atomic import all_or_nothing
+from ..exceptions import InvalidInput, check_finite
 from .actuators import DesiredState
 from .contact_monitor import ContactMonitor
 from .plant import PhysicalTalos, add_physical_talos
@@ -76,8 +78,18 @@ def add_talos_station(
     ``contact``: the soles' contact model of :func:`~.plant.add_physical_talos`, point contact at
     their corners by default (the plant 1.3 to 1.6 times as fast as with ``"hydroelastic"``, the same
     standing, reaching and pushed figures)."""
+    q0 = check_finite("add_talos_station: q0", q0)
+    Push.check_arguments(push_force, push_start, push_duration)
+    with all_or_nothing(builder):
+        return _add_station(builder, q0, time_step, push_force, push_body, push_start, push_duration, contact, plant_options)
+
+
+def _add_station(builder: DiagramBuilder, q0: np.ndarray, time_step: float, push_force, push_body: str, push_start: float,
+                 push_duration: float, contact: str, plant_options: dict) -> TalosStation:
     physical = add_physical_talos(builder, time_step=time_step, contact=contact, **plant_options)
     plant = physical.plant
+    if q0.shape != (plant.num_positions(),):
+        raise InvalidInput(f"add_talos_station: q0 must be the plant's {plant.num_positions()} positions, got {q0.shape}")
     plant.SetDefaultPositions(q0)
     desired = builder.AddNamedSystem("desired_state", DesiredState(physical))
     builder.Connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))

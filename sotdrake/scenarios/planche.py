@@ -385,12 +385,8 @@ def main_dynamic(args) -> dict:
     if args.support is not None:
         options = replace(options, shrink=args.support == "shrunken")
     if args.slow is not None:
-        if not args.slow > 0:
-            raise SystemExit(f"--slow must be > 0, got {args.slow}")
         options = replace(options, slow=args.slow)
     if args.effort is not None:
-        if not args.effort > 0:
-            raise SystemExit(f"--effort must be > 0, got {args.effort}")
         options = replace(options, effort=args.effort)
     if args.duration_given is None:
         args.duration = TIMES[args.variant]["contact"] * options.slow + 2.0
@@ -416,6 +412,13 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--effort", type=float, default=None,
                         help="--solver dyn, a diagnostic: Romeo's torque limits × EFFORT (default 1, the model's)")
     args = parser.parse_args(argv)
+    dynamic_only = [f"--{name}" for name in ("support", "slow", "effort") if getattr(args, name) is not None]
+    if args.solver != "dyn" and dynamic_only:
+        parser.error(f"{', '.join(dynamic_only)}: options of --solver dyn (this run is --solver {args.solver})")
+    for name in ("slow", "effort"):
+        value = getattr(args, name)
+        if value is not None and not 0 < value <= 100:
+            parser.error(f"--{name} must be a number in (0, 100], got {value}")
     args.duration_given = args.duration
     if args.duration is None:
         args.duration = TIMES[args.variant]["contact"] + 2.0

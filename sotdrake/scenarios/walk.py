@@ -41,12 +41,13 @@ walks N steps of L metres (the walking frame's advance per step) instead of a ve
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 from pathlib import Path
 
 import numpy as np
 
-from sotdrake import fall_report, save_figure, script_arguments, simulate, start, tilt_of_rotations, write_run
+from sotdrake import InvalidInput, fall_report, save_figure, script_arguments, simulate, start, tilt_of_rotations, write_run
 from sotdrake.walking import GaitParameters, motion_zmp
 from sotdrake.walking.com_planner import GRAVITY
 from sotdrake.walking.controller import (
@@ -293,6 +294,24 @@ def plot(walk: Walk, simulator, trace: dict, path: Path) -> Path:
     return save_figure(fig, path)
 
 
+def _gait(parser: argparse.ArgumentParser, args: argparse.Namespace) -> GaitParameters:
+    """The robot's gait with the timing options of ``args`` (a refused value: the option named)."""
+    gait = ROBOTS[args.robot].gait
+    try:
+        if args.step_duration is not None or args.single_support is not None:
+            duration = args.step_duration or gait.step_duration
+            gait = dataclasses.replace(gait, step_duration=duration,
+                                       single_support=args.single_support or duration - gait.double_support)
+        if args.landing_depth is not None:
+            gait = dataclasses.replace(gait, landing_depth=args.landing_depth)
+    except InvalidInput as error:
+        parser.error(f"--step-duration {args.step_duration}, --single-support {args.single_support}, "
+                     f"--landing-depth {args.landing_depth}: {error}")
+    if args.swing_profile is not None or args.mode == "dynamic":
+        gait = dataclasses.replace(gait, swing_profile=args.swing_profile or DYNAMIC_SWING_PROFILE)
+    return gait
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = script_arguments(__doc__, "out/walk", duration=15.0)
     parser.add_argument("--robot", choices=sorted(ROBOTS), default="talos")
@@ -323,18 +342,14 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--zmp-model", choices=["lipm", "multibody"], default=None,
                         help="the CoM plan: the pendulum alone, or with the legs' momentum (default: multibody in physics mode)")
     args = parser.parse_args(argv)
+    physics_only = [f"--{name.replace('_', '-')}" for name in ("stiffness", "damping", "feedforward", "com_gain", "zmp_gain",
+                                                               "closed_loop") if getattr(args, name) != parser.get_default(name)]
+    if physics_only and args.mode != "physics":
+        parser.error(f"{', '.join(physics_only)}: options of --mode physics (this run is --mode {args.mode})")
+    gait = _gait(parser, args)
     meshcat = start(args)
     steps = (args.steps, args.step_length) if args.steps else None
     servos = Servos(args.stiffness, args.feedforward, args.com_gain, args.zmp_gain, args.closed_loop, args.damping)
-    gait = ROBOTS[args.robot].gait
-    if args.step_duration is not None or args.single_support is not None:
-        duration = args.step_duration or gait.step_duration
-        gait = dataclasses.replace(gait, step_duration=duration,
-                                   single_support=args.single_support or duration - gait.double_support)
-    if args.landing_depth is not None:
-        gait = dataclasses.replace(gait, landing_depth=args.landing_depth)
-    if args.swing_profile is not None or args.mode == "dynamic":
-        gait = dataclasses.replace(gait, swing_profile=args.swing_profile or DYNAMIC_SWING_PROFILE)
     walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, gait=gait, meshcat=meshcat,
                          servos=servos, multibody_zmp=None if args.zmp_model is None else args.zmp_model == "multibody",
                          arms=args.arms, gains=tuple(args.gains))

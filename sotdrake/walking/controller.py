@@ -46,10 +46,11 @@ from sotdrake import (
     load_robot,
     load_talos,
 )
-from sotdrake.exceptions import InvalidInput
+from sotdrake.exceptions import InvalidInput, check_finite
 from sotdrake.robots import RobotModel
+from sotdrake.sequencer import MAX_TIME
 
-from .gait import GaitParameters
+from .gait import MAX_STEPS, GaitParameters
 from .gravity_feedforward import GravityFeedforward
 from .measured_com import MeasuredCom
 from .multibody_zmp import leg_masses
@@ -187,6 +188,7 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     planned with the legs' momentum (:func:`~sotdrake.walking.multibody_zmp.leg_masses`), kinematic
     and physics modes (None: in physics mode only); ``arms``: one of :data:`ARMS` (kinematic and
     physics modes); ``gains``: the tracking and the orientation gains (1/s), kinematic and physics modes."""
+    _check_commands(velocity, then, steps, gains)
     spec = _walking_robot(robot, mode, arms)
     if mode == "dynamic":
         from .dynamic_controller import build_dynamic
@@ -246,6 +248,18 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     diagram.set_name("walk")
     return Walk(diagram, bot, pg, sot, tasks, tracer, mode, spec, robot, physical, commands, visualizer,
                 servos if physical is not None else None)
+
+
+def _check_commands(velocity, then: tuple | None, steps: tuple[int, float] | None, gains: tuple[float, float]) -> None:
+    """The shapes of :func:`build_diagram`'s commands (their values are checked where they go)."""
+    for what, value, size in (("velocity (x, y, θ)", velocity, 3), ("then (T, x, y, θ)", then, 4),
+                              ("steps (n, length)", steps, 2), ("gains (tracking, orientation)", gains, 2)):
+        if value is not None or what.startswith(("velocity", "gains")):
+            check_finite(f"build_diagram: {what}", value, (size,))
+    if then is not None and not 0 <= then[0] <= MAX_TIME:
+        raise InvalidInput(f"build_diagram: then's T must be in [0, {MAX_TIME:g}] s, got {then[0]!r}")
+    if steps is not None and not (float(steps[0]).is_integer() and 1 <= steps[0] <= MAX_STEPS):
+        raise InvalidInput(f"build_diagram: steps' n must be a whole number in [1, {MAX_STEPS}], got {steps[0]!r}")
 
 
 def _add_stack(bot: Robot, pg: PatternGenerator, sot: SOT, spec: WalkingRobot, arms: str, solver: str,

@@ -24,6 +24,8 @@ from ..exceptions import InvalidInput, check_finite
 MAX_LINEAR_VELOCITY = 0.2
 #: Accepted yaw rate (rad/s): one step then turns by at most 0.32 rad.
 MAX_YAW_RATE = 0.4
+#: Most steps one ``pg.setSteps`` plans (a few hours of walking).
+MAX_STEPS = 10_000
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ from pydrake.systems.framework import Context, ValueProducer
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite
 from .com_planner import INPUT_COST
-from .gait import MAX_LINEAR_VELOCITY, MAX_YAW_RATE, GaitParameters, check_velocity
+from .gait import MAX_LINEAR_VELOCITY, MAX_STEPS, MAX_YAW_RATE, GaitParameters, check_velocity
 from .multibody_zmp import LegMasses
 from .plan import References, Start, WalkCommand, WalkPlan, foot_pose, initial_plan, replan
 
@@ -97,8 +97,8 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
         """Walk the steps ``[(dx, dy, dθ), …]`` (displacements of the walking frame per step, m and
         rad, each ``|dx|, |dy| ≤ 0.4``, ``|dθ| ≤ 0.4``), then close the feet and stop."""
         array = check_finite(f"{self.name}.setSteps", steps)
-        if array.ndim != 2 or array.shape[1] != 3 or len(array) == 0:
-            raise InvalidInput(f"{self.name}.setSteps: expected a non-empty list of (dx, dy, dθ), got shape {array.shape}")
+        if array.ndim != 2 or array.shape[1] != 3 or not 1 <= len(array) <= MAX_STEPS:
+            raise InvalidInput(f"{self.name}.setSteps: expected a list of 1 to {MAX_STEPS} (dx, dy, dθ), got shape {array.shape}")
         limit = 2 * MAX_LINEAR_VELOCITY * self.gait.step_duration
         if np.abs(array[:, :2]).max() > limit or np.abs(array[:, 2]).max() > MAX_YAW_RATE:
             raise InvalidInput(f"{self.name}.setSteps: accepted |dx|, |dy| ≤ {limit:g} m, |dθ| ≤ {MAX_YAW_RATE} rad; "

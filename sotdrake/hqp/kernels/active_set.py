@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..tolerances import MULTIPLIER_TOLERANCE, NO_STEP, RATIO_TIE
+from ..tolerances import MULTIPLIER_FLOOR, MULTIPLIER_TOLERANCE, NO_STEP, RATIO_TIE
 from .eqp import eqp
 from .lapack import fortran, geqp3
 
@@ -95,11 +95,12 @@ def _independent_rows(E, threshold):
 
 @njit(cache=True, error_model="numpy")
 def _residual_scale(M, t, z, m_max):
-    """``max(1, max(m_scale) ‖M z − t‖)``: the scale of the multipliers' round-off."""
+    """:func:`.active_set.multiplier_scale`."""
     if M.shape[0] == 0:
         return 1.0
     residual = M @ z - t
-    return max(1.0, m_max * math.sqrt(residual @ residual))
+    terms = m_max * math.sqrt(z @ z) + math.sqrt(t @ t)
+    return m_max * max(math.sqrt(residual @ residual), MULTIPLIER_FLOOR * terms)
 
 
 @njit(cache=True, error_model="numpy")
@@ -116,10 +117,8 @@ def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, identit
         wrong = np.empty(held.size)
         for i in range(held.size):
             wrong[i] = 0.0 if equality[held[i]] else -side[held[i]] * lam[i]
-        worst = wrong.max()
-        if worst > MULTIPLIER_TOLERANCE:  # (False on NaN, as the Python version's)
-            if worst > MULTIPLIER_TOLERANCE * _residual_scale(M, t, z, m_scale.max() if m_scale.size else 0.0):
-                return 1, z
+        if wrong.max() > MULTIPLIER_TOLERANCE * _residual_scale(M, t, z, m_scale.max() if m_scale.size else 0.0):
+            return 1, z  # (False on NaN, as the Python version's)
     return 0, z
 
 

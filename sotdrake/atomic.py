@@ -1,0 +1,23 @@
+"""Builders that add several systems either add them all or leave the builder as it was."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from pydrake.systems.framework import DiagramBuilder
+
+
+@contextmanager
+def all_or_nothing(builder: DiagramBuilder) -> Iterator[DiagramBuilder]:
+    """``with all_or_nothing(builder): ...``: if the block raises (a refused argument found once
+    some systems are in), the systems it added are removed with their connections and exported
+    ports (``DiagramBuilder.RemoveSystem``) before the error goes on: the builder is as before."""
+    before = {id(system) for system in builder.GetSystems()}
+    try:
+        yield builder
+    except BaseException:
+        for system in reversed(builder.GetSystems()):
+            if id(system) not in before:
+                builder.RemoveSystem(system)
+        raise

@@ -44,13 +44,16 @@ def log_so3_list(R) -> list[float]:
     path of the features: cheaper than numpy for a 3×3)."""
     (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R
     cos_theta = min(1.0, max(-1.0, 0.5 * (r00 + r11 + r22 - 1.0)))
-    theta = math.acos(cos_theta)
-    wx, wy, wz = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)
+    wx, wy, wz = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)  # sin θ · u
+    sin_theta = math.sqrt(wx * wx + wy * wy + wz * wz)
+    # θ from both (not acos alone, whose error grows as 1/sin θ towards π), and θ / sin θ from the
+    # sin θ that w holds: the result is θ times a unit vector to the last bits, up to the π branch.
+    theta = math.atan2(sin_theta, cos_theta)
     if theta < 1e-6:
         k = 1.0 + theta * theta / 6.0  # sin θ ≈ θ (1 - θ²/6)
         return [wx * k, wy * k, wz * k]
     if math.pi - theta > 1e-4:
-        k = theta / math.sin(theta)
+        k = theta / sin_theta
         return [wx * k, wy * k, wz * k]
     # Near π: the axis from the symmetric part, R + Rᵀ = 2 cos θ I + 2 (1 - cos θ) u uᵀ.
     R = np.array(R, dtype=float)

@@ -23,6 +23,7 @@ move each other's twists.
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg import solve_triangular
 
 from .exceptions import InvalidInput
 
@@ -52,10 +53,26 @@ def jacobian_derivatives(J_WF: np.ndarray, p_WF: np.ndarray, upstream: np.ndarra
 
 
 def manipulability(J: np.ndarray) -> float:
-    """``μ = √det(J Jᵀ)`` of the rows ``J`` (k×nv, k ≤ nv); 0 at a singularity."""
+    """``μ = √det(J Jᵀ)`` of the rows ``J`` (k×nv, k ≤ nv); 0 at a singularity. Computed as
+    ``|det R|`` of the QR factorisation ``Jᵀ = Q R`` (the product of ``J``'s singular values), not
+    from ``det(J Jᵀ)``, whose round-off squares ``J``'s condition number (μ = 1e-8 read as 2e-8);
+    a diagonal entry of ``R`` within :data:`SINGULAR` of ``‖J‖`` (round-off) is a singularity."""
+    return _factors(J)[0]
+
+
+#: A diagonal entry of ``R`` (``Jᵀ = Q R``) at most this fraction of ``‖J‖_F`` is round-off: μ = 0.
+SINGULAR = 1e-14
+
+
+def _factors(J: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(μ, Q, R)`` with ``Jᵀ = Q R`` (reduced)."""
     if J.ndim != 2 or J.shape[0] > J.shape[1] or J.shape[0] == 0:
         raise InvalidInput(f"manipulability: J must have between 1 and nv rows, got shape {J.shape}")
-    return float(np.sqrt(max(np.linalg.det(J @ J.T), 0.0)))
+    Q, R = np.linalg.qr(J.T)
+    diagonal = np.abs(np.diag(R))
+    if not diagonal.min() > SINGULAR * np.linalg.norm(J):
+        return 0.0, Q, R
+    return float(np.prod(diagonal)), Q, R
 
 
 def manipulability_and_gradient(J_WF: np.ndarray, p_WF: np.ndarray, upstream: np.ndarray, rows: np.ndarray,
@@ -67,10 +84,10 @@ def manipulability_and_gradient(J_WF: np.ndarray, p_WF: np.ndarray, upstream: np
     nv = J_WF.shape[1]
     cols = np.arange(nv) if columns is None else np.flatnonzero(columns)
     J = J_WF[rows][:, cols]
-    mu = manipulability(J)
+    mu, Q, R = _factors(J)
     if mu <= 0.0:
         return 0.0, np.zeros(nv)
-    dual = np.linalg.solve(J @ J.T, J)  # J⁺ᵀ = (J Jᵀ)⁻¹ J
+    dual = solve_triangular(R, Q.T)  # J⁺ᵀ = (J Jᵀ)⁻¹ J = R⁻¹ Qᵀ (J = Rᵀ Qᵀ)
     dJ = jacobian_derivatives(J_WF, p_WF, upstream)[:, rows, :][:, :, cols]
     return mu, mu * np.einsum("ij,kij->k", dual, dJ)
 

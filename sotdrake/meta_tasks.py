@@ -199,7 +199,9 @@ class MetaTaskKinePosture(_MetaTask):
 
 class MetaTaskKine6dRel(_MetaTask):
     """Task on the pose of op point A with respect to op point B (``FeatureRelative6d``), e.g. one
-    hand with respect to the other. The desired relative pose starts as the current one.
+    hand with respect to the other. The desired relative pose starts as the current one;
+    ``featureDes`` holds it (``X_BA*``) and, for a moving one, its velocity in B's axes
+    (``featureDes.setVelocity((ω*, ṗ*))``), the feed-forward of ``errordot``.
     ``inequality=True``: a ``TaskInequality`` on the relative error (e.g. a hand kept in front of
     the waist)."""
 
@@ -219,6 +221,7 @@ class MetaTaskKine6dRel(_MetaTask):
         for port, source in (("position", a), ("Jq", Ja), ("positionRef", b), ("JqRef", Jb)):
             connect(source, feature.GetInputPort(port))
         connect(self.featureDes.GetOutputPort("position"), feature.GetInputPort("reference"))
+        connect(self.featureDes.GetOutputPort("velocity"), feature.GetInputPort("reference_velocity"))
         self._finish(robot, name, feature, inequality)
         self.keep()
 

@@ -10,7 +10,7 @@ import json
 import logging
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -76,14 +76,37 @@ def start(args: argparse.Namespace, live: bool = False) -> Meshcat | None:
 
 def json_safe(value: object) -> object:
     """``value`` with every non-finite float (``inf``: e.g. no pair came in range; NaN) as ``None``,
-    in the dictionaries and lists it holds: JSON has no such numbers (``Infinity`` is not JSON)."""
+    in the dictionaries and lists it holds: JSON has no such numbers (``Infinity`` is not JSON);
+    numpy numbers and arrays as Python numbers and lists, a path as its string."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    elif isinstance(value, np.generic):
+        value = value.item()
     if isinstance(value, float) and not np.isfinite(value):
         return None
     if isinstance(value, dict):
         return {key: json_safe(item) for key, item in value.items()}
     if isinstance(value, (list, tuple)):
         return [json_safe(item) for item in value]
+    if isinstance(value, Path):
+        return str(value)
     return value
+
+
+def save_npz(path: Path | str, arrays: Mapping[str, object], allow_pickle: bool = False) -> Path:
+    """``arrays`` (name → array) in a compressed ``.npz`` (``.npz`` appended to ``path`` if it has
+    not that suffix, as numpy does), read back with ``np.load``. Unlike ``np.savez_compressed``, any
+    name is stored, ``file`` and ``allow_pickle`` included (numpy takes them as its own arguments)."""
+    import zipfile
+
+    path = Path(path)
+    if path.suffix != ".npz":
+        path = path.with_name(path.name + ".npz")
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED, allowZip64=True) as archive:
+        for name, value in arrays.items():
+            with archive.open(f"{name}.npy", "w", force_zip64=True) as file:
+                np.lib.format.write_array(file, np.asanyarray(value), allow_pickle=allow_pickle)
+    return path
 
 
 def run_script(main: Callable[[], object], leave_out: tuple[str, ...] = ("outputs",), print_summary: bool = True) -> object:
@@ -210,22 +233,28 @@ def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = N
     from .visualization import save_recording, write_control_graph
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    outputs = {}
-    if trace is not None:
-        outputs["trace"] = out / "trace.npz"
-        np.savez_compressed(outputs["trace"], **trace)
-    if graph:
-        outputs["control_graph"] = write_control_graph(diagram, out / "control_graph.svg")
-    if meshcat is not None and visualizer is not None:
-        outputs["recording"] = save_recording(visualizer, meshcat, out / "recording.html")
-    if bag and trace is not None:
-        outputs["bag"] = _write_bag(out / "run", diagram, trace)
-    summary.setdefault("stalled_tasks", stalled_tasks(diagram))
-    summary.setdefault("refused_commands", {system.get_name(): [{"t": t, "message": m} for t, m in system.refused_commands]
-                                            for system in all_systems(diagram) if getattr(system, "refused_commands", None)})
-    summary["outputs"] = {k: str(v) for k, v in outputs.items()}
-    (out / "summary.json").write_text(json.dumps(json_safe(summary), indent=2) + "\n")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        outputs = {}
+        if trace is not None:
+            outputs["trace"] = save_npz(out / "trace.npz", trace, allow_pickle=True)
+        if graph:
+            outputs["control_graph"] = write_control_graph(diagram, out / "control_graph.svg")
+        if meshcat is not None and visualizer is not None:
+            outputs["recording"] = save_recording(visualizer, meshcat, out / "recording.html")
+        summary.setdefault("stalled_tasks", stalled_tasks(diagram))
+        summary.setdefault("refused_commands", {system.get_name(): [{"t": t, "message": m} for t, m in system.refused_commands]
+                                                for system in all_systems(diagram) if getattr(system, "refused_commands", None)})
+        try:
+            if bag and trace is not None:
+                outputs["bag"] = _write_bag(out / "run", diagram, trace)
+        finally:  # (the summary even when the bag is refused: the run's other outputs are written)
+            summary["outputs"] = {k: str(v) for k, v in outputs.items()}
+            (out / "summary.json").write_text(json.dumps(json_safe(summary), indent=2) + "\n")
+    except SotError:
+        raise
+    except (OSError, ValueError) as error:  # (a NUL byte in the path: ValueError)
+        raise InvalidInput(f"write_run: cannot write the run in {str(out)!r}: {getattr(error, 'strerror', None) or error}") from None
     names = ", ".join(Path(p).name for p in outputs.values())
     note = "; open recording.html in a browser: it plays by itself" if "recording" in outputs else ""
     print(f"wrote {names}{', ' if names else ''}summary.json in {out}{note}", file=sys.stderr)

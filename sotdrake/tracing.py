@@ -29,7 +29,7 @@ from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPo
 from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 
 from .exceptions import InvalidInput, SotError, check_number
-from .simulation import save_figure
+from .simulation import save_figure, save_npz
 
 log = logging.getLogger(__name__)
 
@@ -104,17 +104,15 @@ class Tracer:
         if not isinstance(stream, bool | str | Path):
             raise InvalidInput(f"tracer stream must be True, False or a file path, got {stream!r}")
         check_number("chunk", chunk, 1e-9, float("inf"), " s")
-        path = None if isinstance(stream, bool) else Path(stream).expanduser()
-        if path is not None:
-            if path.is_dir() or not path.parent.is_dir():
-                raise InvalidInput(f"tracer stream: {str(path)!r} is a folder or its folder does not exist: give a file path")
-            if any(tracer.path is not None and tracer.path.resolve() == path.resolve() for tracer in list(_STREAMING)):
-                raise InvalidInput(f"tracer stream: another tracer streams to {str(path)!r}")
+        path = None if isinstance(stream, bool) else _stream_path(Path(stream).expanduser())
         self.builder, self.period, self.chunk = builder, period, float(chunk)
         self.sinks: dict[str, VectorLogSink] = {}
         self._file: _ChunkFile | None = None
         if stream is not False:
-            self._file = _ChunkFile(path)
+            try:
+                self._file = _ChunkFile(path)
+            except (OSError, ValueError) as error:  # (a NUL byte in the path: ValueError)
+                raise InvalidInput(f"tracer stream: cannot write {str(path)!r}: {getattr(error, 'strerror', None) or error}") from None
             _STREAMING.add(self)
         self._owner: int | None = None  # id of the root context the file holds
         self._last = -np.inf  # the time of the last sample moved to the file
@@ -126,8 +124,10 @@ class Tracer:
 
     def add(self, port: OutputPort, name: str) -> VectorLogSink:
         """Log ``port`` (a vector output) under ``name``."""
-        if not isinstance(name, str) or not name or name in self.sinks or name == "time" or "/" in name:
-            raise InvalidInput(f"tracer: a signal name is a new non-empty string without '/', got {name!r:.60}")
+        if (not isinstance(name, str) or not name or name in self.sinks or name == "time" or "/" in name
+                or not name.isprintable()):
+            raise InvalidInput(f"tracer: a signal name is a new non-empty string without '/' or control characters, "
+                               f"got {name!r:.60}")
         if self.builder.already_built():
             raise SotError(f"tracer: cannot add {name!r}: the diagram is already built (add signals before builder.Build())")
         if any(system.get_name() == f"tracer_{name}" for system in self.builder.GetSystems()):
@@ -172,14 +172,15 @@ class Tracer:
         return out
 
     def save(self, context: Context, path: Path) -> Path:
-        np.savez_compressed(path, allow_pickle=False, **self.data(context))  # numbers only
-        return Path(path)
+        """The data in a ``.npz`` (``np.load``), numbers only; returns its path."""
+        return save_npz(path, self.data(context))
 
     def save_csv(self, context: Context, path: Path) -> Path:
-        """One CSV: ``time`` then ``<signal>[i]`` columns (every signal shares the period)."""
+        """One CSV: ``time`` then ``<signal>[i]`` columns (every signal shares the period); a name
+        holding a comma or a quote is quoted as CSV quotes (RFC 4180)."""
         data = self.data(context)
         columns = [data["time"][:, None]] + [data[name] for name in self.sinks]
-        header = ["time"] + [f"{name}[{i}]" for name in self.sinks for i in range(data[name].shape[1])]
+        header = ["time"] + [_csv_field(f"{name}[{i}]") for name in self.sinks for i in range(data[name].shape[1])]
         np.savetxt(path, np.hstack(columns), delimiter=",", header=",".join(header), comments="")
         return Path(path)
 
@@ -228,6 +229,27 @@ class Tracer:
         return save_figure(fig, path)
 
 
+def _stream_path(path: Path) -> Path:
+    """``path`` if a tracer may stream to it: a file in an existing folder, no other tracer's, and
+    either new, empty or a trace file already (a file of another kind is not overwritten)."""
+    try:
+        if path.is_dir() or not path.parent.is_dir():
+            raise InvalidInput(f"tracer stream: {str(path)!r} is a folder or its folder does not exist: give a file path")
+        if any(tracer.path is not None and tracer.path.resolve() == path.resolve() for tracer in list(_STREAMING)):
+            raise InvalidInput(f"tracer stream: another tracer streams to {str(path)!r}")
+        if path.is_file() and path.stat().st_size:
+            with open(path, "rb") as file:
+                try:
+                    np.lib.format.read_array(file, allow_pickle=False)
+                except ValueError:
+                    raise InvalidInput(f"tracer stream: {str(path)!r} exists and is not a trace file: not overwritten") from None
+    except SotError:
+        raise
+    except (OSError, ValueError) as error:  # (a NUL byte in the path: ValueError)
+        raise InvalidInput(f"tracer stream: {str(path)!r}: {getattr(error, 'strerror', None) or error}") from None
+    return path
+
+
 def flush_tracers(diagram: Diagram, context: Context, force: bool = False) -> int:
     """:meth:`Tracer.flush` for every streaming tracer whose sinks are in ``diagram`` (``context``:
     its root context); returns the number of chunks written."""
@@ -243,8 +265,19 @@ def tracers_of(diagram: Diagram) -> list[Tracer]:
             if tracer.sinks and id(next(iter(tracer.sinks.values()))) in ids]
 
 
+def _csv_field(text: str) -> str:
+    """``text`` as one CSV field: quoted (its quotes doubled) if it holds a comma, a quote or a line break."""
+    return '"' + text.replace('"', '""') + '"' if any(c in text for c in ',"\r\n') else text
+
+
 def read_trace(path: str | Path) -> dict[str, np.ndarray]:
-    """The arrays of a chunk file a tracer streamed to (``time`` and each signal, concatenated)."""
+    """The arrays of a chunk file a tracer streamed to (``time`` and each signal, concatenated; empty
+    when the file was cut inside its first chunk, with a warning)."""
+    if not isinstance(path, str | Path):
+        raise InvalidInput(f"read_trace: a file path, got {path!r:.60}")
     reader = _ChunkFile.__new__(_ChunkFile)
     reader.path = Path(path)
-    return {name: np.concatenate(parts) for name, parts in reader.read().items()}
+    if reader.path.is_dir():
+        raise InvalidInput(f"read_trace: {str(path)!r} is a folder, not a trace file")
+    return {name: np.concatenate(parts) if parts else np.zeros((0,) if name == "time" else (0, 0))
+            for name, parts in reader.read().items()}

@@ -502,3 +502,58 @@ def test_a_missed_contact_level_is_warned_once(caplog):
     assert solution.residuals[1] > 1e-3 and not solution.diagnostics.failure
     warnings = [r for r in caplog.records if "contacts' zero acceleration is missed" in r.getMessage()]
     assert len(warnings) == 1
+
+
+def test_a_derated_robot_whose_dynamics_cannot_be_met_gets_the_best_dynamics_not_zero_torque(talos_model, caplog):
+    """At half the effort limits, this valid state's dynamics cannot be met under the joint-limit and
+    selection bounds: the level under it, held at that residual, failed on every path and the solver
+    sent zero torque (q̈ = 0). Whatever path answers, the torque is within the limits, not zero, and
+    the dynamics residual is the bounded least-squares optimum of the dynamics row alone (scipy's
+    BVLS, independent), with a warning that names the dynamics."""
+    from scipy.optimize import lsq_linear
+
+    from sotdrake.dynamics.formulation import dynamic_levels
+
+    case = json.loads((Path(__file__).parent / "data" / "derated_dynamics_state.json").read_text())
+    builder = DiagramBuilder()
+    robot = RobotDyn(builder, talos_model, "dynsimu", effort_scale=case["effort_scale"])
+    for name, sole in (("contactLF", "left-sole"), ("contactRF", "right-sole")):
+        robot.sot.addContact(robot.add_contact(name, sole))
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    robot.device.GetMyContextFromRoot(context).SetDiscreteState(np.array(case["x"]))
+    for name, (mu, f_min, margin) in case["contact_settings"].items():
+        contact = robot.contacts[name]
+        contact.setFriction(mu, context), contact.setMinimumNormalForce(f_min, context), contact.setCopMargin(margin, context)
+    sot = robot.sot
+    sot.setDampingGain(case["Kd"], context)
+    sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS), context)
+    own = sot.GetMyContextFromRoot(context)
+    with caplog.at_level("WARNING", logger="sotdrake.solver_dyn"):
+        solution = sot._solution.Eval(own)
+    problem = sot._problem(own, sot.settings(context))
+    dynamics = dynamic_levels(problem.terms, problem.contacts, [], case["Kd"])[0][0]
+    fixed = problem.lower == problem.upper  # (the grippers' q̈ = 0: BVLS takes only open boxes)
+    b = dynamics.lower - dynamics.A[:, fixed] @ problem.lower[fixed]
+    best = lsq_linear(dynamics.A[:, ~fixed], b, bounds=(problem.lower[~fixed], problem.upper[~fixed]), method="bvls", tol=1e-12)
+    optimum = float(np.linalg.norm(dynamics.A[:, ~fixed] @ best.x - b))
+    assert optimum > 1e-3  # (the case: the dynamics cannot be met)
+    assert np.abs(solution.torque).max() > 1.0 and np.all(np.abs(solution.torque) <= sot.effort * (1 + 1e-9))
+    assert solution.residuals[0] <= optimum * (1 + 1e-6) + 1e-9
+    assert any("the dynamics is missed" in record.message for record in caplog.records)
+
+
+def test_solver_dyn_and_add_task_refuse_what_they_cannot_use(talos_model):
+    for name, model in (("", talos_model), (None, talos_model), ("s", None), ("s", "talos")):
+        with pytest.raises(InvalidInput):
+            SolverDyn(name, model, 1e-3)  # type: ignore[arg-type]
+    builder = DiagramBuilder()
+    robot = RobotDyn(builder, talos_model, "dynsimu")
+    for horizon in (1e-200, 0.0, 11.0):
+        with pytest.raises(InvalidInput, match="horizon"):
+            robot.sot.setJointLimitHorizon(horizon)
+    systems = len(builder.GetSystems())
+    for task in (TaskDynPD("taskfast", talos_model.nv, 1e-4, kp=4.5e6, kv=0.0), TaskDynPD("tasksmall", 10, 1e-3), "task"):
+        with pytest.raises(InvalidInput, match="add_task"):
+            robot.add_task(task)  # type: ignore[arg-type]
+    assert len(builder.GetSystems()) == systems and not robot.tasks

@@ -230,6 +230,23 @@ def test_relative_pose(arm, rng):
     check(lambda q: f(q)[0], q, arm, f(q)[1])
 
 
+def test_relative_pose_errordot_is_the_derivative_along_the_references_motion(arm, rng):
+    """The desired relative pose moving at ``(ω*, ṗ*)`` in B's axes (``R* ← exp([ω*]× s) R*``,
+    ``p* ← p* + s ṗ*``): ``ė_ref`` is the central difference of ``e`` (it was 0)."""
+
+    for _ in range(5):
+        q, X_BAd, V = arm.random_q(rng), random_pose(rng), rng.normal(size=6)
+        poses = (arm.pose(q, "l4"), arm.jacobian(q, "l4"), arm.pose(q, "l1"), arm.jacobian(q, "l1"))
+        h, moved = 1e-6, []
+        for step in (h, -h):
+            X = X_BAd.copy()
+            X[:3, :3], X[:3, 3] = exp_so3(V[:3] * step) @ X_BAd[:3, :3], X_BAd[:3, 3] + step * V[3:]
+            moved.append(relative_pose_error_and_jacobian(*poses, X)[0])
+        e_dot = relative_pose_error_and_jacobian(*poses, X_BAd, V)[2]
+        np.testing.assert_allclose(e_dot, (moved[0] - moved[1]) / (2 * h), atol=1e-6)
+        assert not relative_pose_error_and_jacobian(*poses, X_BAd)[2].any()
+
+
 def test_visual_point(arm, rng):
     q = arm.random_q(rng)
     X_WC = arm.pose(q, "l4")

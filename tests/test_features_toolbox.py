@@ -19,6 +19,7 @@ from sotdrake.meta_tasks import (
     MetaTaskVisualPoint,
 )
 from sotdrake.robot import Robot
+from sotdrake.selection import parse_selection
 from tests.conftest import random_configuration
 from tests.finite_differences import manifold_jacobian
 from tests.test_features import feature_at
@@ -115,6 +116,20 @@ def test_moving_targets_feed_forward_reaches_the_task(talos_model):
     assert level.is_equality
 
 
+def test_the_relative_task_takes_its_references_velocity(rig):
+    """``MetaTaskKine6dRel.featureDes.setVelocity`` reaches the feature's ``errordot`` (it was 0)."""
+    robot, features, metas, diagram = rig
+    context = diagram.CreateDefaultContext()
+    relative = metas["relative"]
+    relative.featureDes.setVelocity([0.0, 0.0, 0.5, 0.2, 0.0, 0.0], context)
+    own = relative.feature.GetMyContextFromRoot(context)
+    e_dot = relative.feature.GetOutputPort("errordot").Eval(own)
+    R = relative.featureDes.settings(context).position.rotation().matrix()  # at X_BA* (e = 0): −R*ᵀ ṗ*, −R*ᵀ ω*
+    np.testing.assert_allclose(e_dot, np.concatenate([-R.T @ [0.2, 0.0, 0.0], -R.T @ [0.0, 0.0, 0.5]]), atol=1e-9)
+    relative.featureDes.setVelocity(np.zeros(6), context)
+    assert not relative.feature.GetOutputPort("errordot").Eval(own).any()
+
+
 def test_visual_point_errordot_by_moving_the_point(rig):
     robot, features, metas, diagram = rig
     context = diagram.CreateDefaultContext()
@@ -157,3 +172,6 @@ def test_posture_select_dof(talos_model):
     assert feature_at(robot, posture.feature, context, talos_model.half_sitting)[0].shape == (31,)
     with pytest.raises(InvalidInput):
         posture.feature.selectDof(99, True)
+    posture.feature.selec("1", context)  # a short mask: the components it does not reach are unselected
+    posture.feature.selectDof(12, True, context)
+    assert parse_selection(posture.feature.settings(context).selection, talos_model.nv).tolist() == [0, 12]

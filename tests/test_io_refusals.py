@@ -4,6 +4,7 @@ stopped halfway keeps what it recorded."""
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import socket
@@ -13,6 +14,7 @@ import types
 
 import numpy as np
 import pytest
+from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
@@ -208,3 +210,111 @@ def test_a_live_run_whose_trace_cannot_be_written_stops_and_writes_its_files(tmp
     with pytest.raises(SotError, match="trace could not be written"):
         run_live(handles, tmp_path, duration=0.5, realtime_rate=10.0)
     assert (tmp_path / "summary.json").is_file()
+
+
+@pytest.mark.parametrize("data", ['{"id": "r7", "command": 5}', '{"id": "r7", "command": "\\ud800"}', '{"id": "r7"}'])
+def test_a_refused_ros_request_is_answered_to_its_id(data):
+    """A client waits for the answer to its id: a request refused before it reached the runner was
+    answered with id null, and the client waited its whole timeout."""
+    pytest.importorskip("rclpy")
+    from std_msgs.msg import String
+
+    from sotdrake.ros.services import RosServices
+
+    answers: list[dict] = []
+    RosServices._request(types.SimpleNamespace(respond=answers.append), String(data=data))  # type: ignore[arg-type]
+    assert answers == [{"id": "r7", "ok": False, "error": answers[0]["error"]}]
+
+
+def test_a_trace_file_is_the_only_file_a_tracer_overwrites(tmp_path):
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine")
+    for stream in (notes, tmp_path / "a\0b", tmp_path / "missing" / "t.npys", tmp_path):
+        with pytest.raises(InvalidInput, match="tracer stream"):
+            Tracer(DiagramBuilder(), 1e-3, stream=stream)
+    assert notes.read_text() == "mine"
+    trace = tmp_path / "t.npys"
+    Tracer(DiagramBuilder(), 1e-3, stream=trace)._file.append({"time": np.arange(2.0)})  # type: ignore[union-attr]
+    Tracer(DiagramBuilder(), 1e-3, stream=trace)  # a trace file: a new run starts it over
+    assert trace.stat().st_size == 0
+
+
+def test_any_signal_name_is_saved_and_read_back(tmp_path):
+    """``file`` and ``allow_pickle`` were taken by numpy as its own arguments (a raw TypeError, or a
+    series silently dropped from ``trace.npz``); a comma shifted the CSV's columns; a trailing NUL
+    merged two names in the chunk file."""
+    builder = DiagramBuilder()
+    tracer = Tracer(builder, 0.01, stream=tmp_path / "t.npys", chunk=0.02)
+    names = ("file", "allow_pickle", "force x,y", 'say "hi"')
+    for k, name in enumerate(names):
+        tracer.add(builder.AddSystem(ConstantVectorSource(np.full(2, float(k)))).get_output_port(), name)
+    with pytest.raises(InvalidInput, match="control characters"):
+        tracer.add(builder.AddSystem(ConstantVectorSource(np.zeros(1))).get_output_port(), "file\0")
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    for t in (0.02, 0.04, 0.05):
+        simulator.AdvanceTo(t)
+        tracer.flush(simulator.get_context())
+    data = tracer.data(simulator.get_context())
+    with np.load(tracer.save(simulator.get_context(), tmp_path / "t")) as saved:  # (".npz" appended, as numpy does)
+        assert sorted(saved.files) == sorted(["time", *names])
+        for k, name in enumerate(names):
+            assert np.array_equal(saved[name], data[name]) and (saved[name] == k).all()
+    outputs = simulation.write_run(tmp_path / "run", diagram, {"n": np.int64(3), "x": np.float32(0.5), "v": np.arange(2)},
+                                   data, graph=False)
+    assert set(np.load(outputs["trace"]).files) == {"time", *names}
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["v"] == [0, 1]
+    with open(tracer.save_csv(simulator.get_context(), tmp_path / "t.csv")) as file:
+        rows = list(csv.reader(file))
+    assert rows[0][5:7] == ["force x,y[0]", "force x,y[1]"] and rows[0][7] == 'say "hi"[0]'
+    assert all(len(row) == len(rows[0]) for row in rows)
+
+
+def test_a_file_cut_inside_its_first_chunk_reads_as_empty(tmp_path):
+    path = tmp_path / "cut.npys"
+    Tracer(DiagramBuilder(), 1e-3, stream=path)._file.append({"time": np.arange(3.0), "x": np.ones((3, 2))})  # type: ignore[union-attr]
+    whole = path.read_bytes()
+    for cut in range(len(whole) // 2, len(whole) - 1, 37):
+        path.write_bytes(whole[:cut])
+        trace = read_trace(path)
+        assert trace["time"].size == 0 and trace["x"].size == 0
+    for bad in (tmp_path, 3, None):
+        with pytest.raises(InvalidInput, match="read_trace"):
+            read_trace(bad)  # type: ignore[arg-type]
+
+
+def test_every_series_of_a_trace_has_its_own_topic_in_the_bag(tmp_path):
+    """Keys that became one topic (``cop left``, ``cop_left``), a topic a point took already (``com``
+    beside ``com_position``), a key starting with a digit, a task named with a dash: the last one
+    won, was dropped, or failed the whole run's bag after its ``trace.npz`` (and no summary)."""
+    pytest.importorskip("rosbags")
+    from sotdrake.ros.bag import read_bag, write_bag, write_trace_bag
+
+    t = np.arange(4) * 0.1
+    trace = {"time": t, "q": np.zeros((4, 2)), "cop left": np.ones((4, 2)), "cop_left": 2 * np.ones((4, 2)),
+             "com_position": np.full((4, 3), 7.0), "com": np.full((4, 3), 6.0), "2nd": np.full(4, 5.0),
+             "error_hand-right": np.full((4, 3), 4.0)}
+    bag = read_bag(write_trace_bag(tmp_path / "bag", trace, (["a", "b"], np.arange(2))).parent)
+    assert sorted(bag) == ["/joint_states", "/sot/_2nd", "/sot/com", "/sot/com_2", "/sot/cop_left", "/sot/cop_left_2",
+                           "/sot/error/hand_right"]
+    assert [bag[topic][0][1].data[0] for topic in ("/sot/cop_left", "/sot/cop_left_2", "/sot/com_2")] == [1.0, 2.0, 6.0]
+    for bad in ({"parent": tmp_path / "missing" / "b"}, {"names": [1, 2]}, {"arrays": {"/a": ["x"] * 4}}, {"frame": 3},
+                {"time": t + 2.2e9}):
+        arguments = {"directory": bad.get("parent", tmp_path / "b"), "time": bad.get("time", t),
+                     "joint_states": (bad.get("names", ["a", "b"]), np.zeros((4, 2))), "arrays": bad.get("arrays"),
+                     "frame": bad.get("frame", "world")}
+        with pytest.raises(InvalidInput, match="write_bag"):
+            write_bag(**arguments)
+
+
+def test_a_refused_bag_still_leaves_the_runs_summary(tmp_path):
+    pytest.importorskip("rclpy")
+    builder = DiagramBuilder()
+    builder.AddSystem(ConstantVectorSource(np.zeros(1)))
+    diagram = builder.Build()
+    with pytest.raises(InvalidInput, match="configuration"):
+        simulation.write_run(tmp_path / "run", diagram, {"a": 1}, {"time": np.zeros(2)}, graph=False, bag=True)
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["outputs"] == {"trace": str(tmp_path / "run" / "trace.npz")}
+    for out in (tmp_path / "run" / "trace.npz", tmp_path / "a\0b"):  # a file, a NUL byte
+        with pytest.raises(InvalidInput, match="write_run"):
+            simulation.write_run(out, diagram, {}, graph=False)

@@ -83,6 +83,14 @@ def test_the_measure_vanishes_at_a_singularity():
         manipulability(np.zeros((4, 3)))
 
 
+@pytest.mark.parametrize("angle", [1e-4, 1e-7, 1e-9])
+def test_the_measure_near_a_singularity_is_the_product_of_the_singular_values(angle, rng):
+    """Through ``det(J Jᵀ)`` the round-off squared the condition number: 8.9e-9 for 3.9e-9."""
+    U, V = np.linalg.qr(rng.normal(size=(2, 2)))[0], np.linalg.qr(rng.normal(size=(5, 5)))[0][:2]
+    J = U @ np.diag([2.0, angle]) @ V
+    assert manipulability(J) == pytest.approx(np.prod(np.linalg.svd(J, compute_uv=False)), rel=1e-6)
+
+
 def test_the_floor_holds_on_a_stretching_arm_and_names_are_checked(talos_model):
     from pydrake.systems.analysis import Simulator
 

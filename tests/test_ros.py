@@ -217,6 +217,35 @@ def test_ros_subscribe_holds_the_default_then_the_last_value(observer, caplog):
         subscribe.add("vector", "t2", "/t2", default=(1.0,), size=3)
 
 
+def test_a_subscribed_pose_holds_a_unit_quaternion(observer):
+    """A pose's quaternion is normalised; one that is not a rotation (norm 0, or far from 1) is
+    dropped, and a default must hold a unit one (a zero quaternion passed through before)."""
+    from geometry_msgs.msg import PoseStamped
+
+    from sotdrake.ros import RosNode
+
+    subscribe = RosSubscribe("sub_pose", observer)
+    port = subscribe.add("pose", "target", "/test_subscribe/pose")
+    for default in ((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0)):
+        with pytest.raises(InvalidInput, match="unit quaternion"):
+            subscribe.add("pose", "other", "/test_subscribe/other", default=default)
+    sender = RosNode("test_subscribe_pose_sender")
+    try:
+        pub = sender.node.create_publisher(PoseStamped, "/test_subscribe/pose", 10)
+        wait_for(lambda: pub.get_subscription_count() > 0, what="the subscription to match")
+        for w, x, count in ((0.0, 0.0, 0), (0.9, 1.2, 1), (0.0, 0.0, 1)):  # (zero: dropped; norm 1.5: normalised)
+            message = PoseStamped()
+            message.pose.position.x, message.pose.orientation.w, message.pose.orientation.x = 0.5, w, x
+            pub.publish(message)
+            if count:
+                wait_for(lambda count=count: subscribe.count("target") == count, what="the pose")
+        time.sleep(0.2)
+        assert subscribe.count("target") == 1
+        np.testing.assert_allclose(port.Eval(subscribe.CreateDefaultContext()), [0.5, 0.0, 0.0, 0.6, 0.8, 0.0, 0.0])
+    finally:
+        sender.close()
+
+
 # --- the tutorial over ROS: talos_appli.py --ros --bag, driven by ros_test.py ----------------------
 #: run_command lines that must be refused, changing nothing, while the run goes on.
 HOSTILE = [

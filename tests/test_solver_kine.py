@@ -136,6 +136,28 @@ def test_solver_kine_inputs(talos_model):
         add_sot(Robot(DiagramBuilder(), talos_model), solver="soth")
 
 
+def test_a_velocity_limit_is_a_hard_bound_and_the_svd_threshold_is_refused(talos_model):
+    """Both were accepted and ignored: the command went on to the model's limits (20 times the
+    limit set), and a threshold changed nothing."""
+    builder = DiagramBuilder()
+    robot = Robot(builder, talos_model)
+    sot = add_sot(robot, solver="hqp")
+    hand = MetaTaskKine6d("rh", robot, "rh", "right-wrist")
+    gotoNd(hand, (0.6, -0.5, 1.2), "111", 50.0)
+    sot.push(hand.task.name)
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    control = sot.GetOutputPort("control")
+    assert np.abs(control.Eval(sot.GetMyContextFromRoot(context))).max() > 0.5
+    limit = np.full(talos_model.nv, 0.1)
+    limit[20] = 0.01
+    sot.setVelocityLimit(limit, context)
+    v = control.Eval(sot.GetMyContextFromRoot(context))
+    assert np.all(np.abs(v) <= limit * (1 + 1e-9)) and np.abs(v).max() > 0.09
+    with pytest.raises(StackError, match="setThreshold"):
+        sot.setThreshold(1e-3, context)
+
+
 def test_concept_script_writes_one_entry_per_configuration(concept, tmp_path):
     summary = concept.main(["--config", "all", "--duration", "0.1", "--out", str(tmp_path), "--no-meshcat", "--quiet"])
     assert set(summary) == set(concept.CONFIGURATIONS)

@@ -17,6 +17,7 @@ MAX_FRICTION = 10.0  # μ of a contact (dimensionless): rubber on concrete is ab
 MAX_NORMAL_FORCE = 1e4  # N: f_min of a contact (TALOS weighs 886 N)
 MAX_RATE_GAIN = 1e3  # 1/s: a contact's K_v, the solver's K_d (the tick is 1 ms: K dt ≤ 1)
 MAX_HORIZON = 10.0  # s: the joint limits' horizon
+MIN_HORIZON = 1e-6  # s: its shortest (the bounds divide by its square)
 MAX_POSITION_MARGIN = 0.1  # rad (m for a prismatic joint): the joint limits' margin
 MAX_RELEASE = 60.0  # s: the ramp of rmContact
 MAX_PD_GAIN = 1e8  # 1/s² for K_p, 1/s for K_v of TaskDynPD (the tick bounds them further: check_pd_gains)

@@ -6,7 +6,8 @@ origin, force; N·m and N) *expressed in C*. The world wrench is ``W = diag(R, R
 ``R = R_WC``; the generalized force it produces is ``J_Cᵀ W`` (``J_C`` the spatial-velocity
 Jacobian of C, rows ``(ω; v)``, world).
 
-Constraints on ``w`` (all linear, so the hierarchy keeps them exactly):
+Constraints on ``w`` (all linear: rows of the contacts' level, met exactly whenever that level can
+be met under the hard bounds; ``f_z ≥ f_min`` is a hard bound):
 
 * unilateral: ``f_z ≥ f_min`` (a bound), and ``f_z ≤ f_max`` while it is released (a ramp);
 * friction pyramid inscribed in the cone of coefficient ``μ``: ``|f_x|, |f_y| ≤ μ/√2 · f_z``, so

@@ -130,20 +130,28 @@ class DynamicSolve:
     def rescue(self, p: Problem, s: DynSettings, hqp: HierarchicalQP, warm: Warm, error: SolverError,
                tried: list[HqpResult], diagnostics: DynDiagnostics, time: float, name: str) -> tuple[HqpResult | None, int]:
         """The relaxed optimum (dynamics, contact accelerations and the stack exact; friction/CoP
-        rows possibly violated), else the dynamics and contacts alone; None (zero torque) if even
-        that fails. Also the number of levels of what was tried (the residuals' size)."""
+        rows possibly violated), else the dynamics and contacts alone, else the dynamics alone (its
+        best residual within the bounds); None (zero torque) if even that fails. Also the number of
+        levels of what was tried (the residuals' size)."""
         terms, contacts, tasks, loads, lower, upper = p.terms, p.contacts, p.tasks, p.loads, p.lower, p.upper
         diagnostics.failure = f"t = {time:.4f} s: {error}"
         relaxed = tried[0] if tried else None
         levels: list[LevelRows] = []
         if relaxed is None:
-            try:
-                levels, _ = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False, loads=loads)
-                relaxed = hqp.solve(levels, lower, upper, 0.0, s.solver, start=inside(lower, upper),
-                                    warm=warm("full", len(lower)))
-                diagnostics.failure += "; the stack is dropped for this tick"
-            except SolverError as second:
-                diagnostics.failure += f"; {second}; zero torque"
+            levels, _ = dynamic_levels(terms, contacts, [], s.damping_gain, with_inequalities=False, loads=loads)
+            # The dynamics and contacts, else the dynamics alone (when the dynamics cannot be met under
+            # the torque and joint bounds, the level below it held at that residual can fail).
+            for kept, dropped in ((len(levels), "the stack"), (1, "the stack and the contacts")):
+                try:
+                    relaxed = hqp.solve(levels[:kept], lower, upper, 0.0, s.solver, start=inside(lower, upper),
+                                        warm=warm("full", len(lower)))
+                    diagnostics.failure += f"; {dropped} dropped for this tick"
+                    levels = levels[:kept]
+                    break
+                except SolverError as second:
+                    diagnostics.failure += f"; {second}"
+            else:
+                diagnostics.failure += "; zero torque"
         else:
             levels, _ = dynamic_levels(terms, contacts, tasks, s.damping_gain, with_inequalities=False, loads=loads)
             diagnostics.failure += "; the contacts' wrench rows are relaxed for this tick"

@@ -54,6 +54,8 @@ from .terms import DynamicsTerms
 WRENCH_REGULARIZATION = 1e-3
 #: The contacts' level counts as missed above this slack (m/s², rad/s²; relative above a reference of 1).
 CONTACT_SLACK = 1e-6
+#: The dynamics level counts as missed above this residual (N·m, N; relative to ``max(1, ‖h‖)``).
+DYNAMICS_SLACK = 1e-6
 #: How many bounds at the optimum the solver remembers from one tick to the next.
 HELD_BOUNDS = 8
 

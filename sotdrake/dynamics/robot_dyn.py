@@ -129,7 +129,15 @@ class RobotDyn:
 
     def add_task(self, task: TaskDynPD) -> TaskDynPD:
         """Add a task, plug ``dynamic.velocity`` into it and connect it to the solver (and the solver's
-        ``stack`` to it, when the task keeps a previous Jacobian)."""
+        ``stack`` to it, when the task keeps a previous Jacobian). Refused first (nothing added) when
+        it is not a task of this robot's size and control period (a ``TaskDynPD``'s gains were
+        checked stable at its own period)."""
+        if not (isinstance(task, LeafSystem) and task.HasOutputPort("task") and task.HasInputPort("velocity")
+                and hasattr(task, "nv") and hasattr(task, "dt")):
+            raise InvalidInput(f"add_task: a task of the dynamic level (a TaskDynPD), got {task!r:.60}")
+        if task.nv != self.dimension or task.dt != self.dt:
+            raise InvalidInput(f"add_task({task.name!r}): the task has nv = {task.nv} and dt = {task.dt:g} s, the robot "
+                               f"nv = {self.dimension} and dt = {self.dt:g} s: build it with the robot's")
         self.add(task)
         self.tasks[task.name] = task
         self.builder.Connect(self.dynamic.GetOutputPort("velocity"), task.GetInputPort("velocity"))

@@ -31,13 +31,13 @@ from pydrake.systems.framework import Context, InputPort, ValueProducer
 
 from ..compiled import read_only
 from ..configuration import Layout
-from ..exceptions import InvalidInput, SolverError, StackError, check_number
+from ..exceptions import InvalidInput, SolverError, StackError, check_name, check_number
 from ..hqp import ACTIVE_SET, HqpResult, check_solver
 from ..hqp.warm import WarmStart, WarmStarts
 from ..robots import RobotModel
 from ..solvers.stack import Stack, StackSolver
 from ..task import TaskLevel
-from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, check_count, check_positive
+from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, MIN_HORIZON, check_count, check_positive
 from .contact import Contact6d, world_wrench
 from .contact_memory import ContactMemory
 from .dyn_contacts import DynContacts
@@ -45,6 +45,7 @@ from .dyn_solve import DynamicSolve
 from .dyn_types import DynDiagnostics, DynSettings, DynSolution, Problem
 from .formulation import (
     CONTACT_SLACK,
+    DYNAMICS_SLACK,
     ActiveContact,
     held_bounds,
     normal_force_limits,
@@ -75,6 +76,9 @@ class SolverDyn(StackSolver[DynSettings]):
                  solver: str = ACTIVE_SET, effort_scale: float = 1.0):
         """``effort_scale`` in (0, 1]: the torque bounds are this fraction of the model's effort
         limits (a derated robot; 1: the limits of the URDF)."""
+        check_name(f"SolverDyn({name!r:.40})", name)
+        if not isinstance(model, RobotModel):
+            raise InvalidInput(f"{name}: model must be a RobotModel (load_robot, load_talos), got {model!r:.60}")
         effort_scale = check_positive(f"{name}: effort_scale", effort_scale, 1.0)  # any real number type, not a bool
         dt = check_positive(f"{name}: dt", dt, MAX_DT, " s")
         max_contacts = check_count(f"{name}: max_contacts", max_contacts, 1, MAX_CONTACTS)
@@ -83,6 +87,7 @@ class SolverDyn(StackSolver[DynSettings]):
         self.stack_of_tasks = Stack(self, model.nv, self.accepts_inequalities)
         self._declare_solution_and_common_outputs()
         self._warned_contacts = False  # logging only: results never depend on it
+        self._warned_dynamics = False  # logging only
         self.dt, self.model = dt, model
         self.layout = self._layout = Layout.of(model.plant)
         limits = model.joint_limits()
@@ -173,9 +178,9 @@ class SolverDyn(StackSolver[DynSettings]):
         self._dyn_command(context, lambda s: setattr(s, "solver", solver))
 
     def setJointLimitHorizon(self, horizon: float, margin: float = 1e-3, context: Context | None = None) -> None:
-        """Joint limits as acceleration bounds over ``horizon`` s (in (0, :data:`.checks.MAX_HORIZON`]),
-        ``margin`` rad (in [0, :data:`.checks.MAX_POSITION_MARGIN`])."""
-        values = (check_positive(f"{self.name}: joint-limit horizon", horizon, MAX_HORIZON, " s"),
+        """Joint limits as acceleration bounds over ``horizon`` s (in [:data:`.checks.MIN_HORIZON`,
+        :data:`.checks.MAX_HORIZON`]), ``margin`` rad (in [0, :data:`.checks.MAX_POSITION_MARGIN`])."""
+        values = (check_number(f"{self.name}: joint-limit horizon", horizon, MIN_HORIZON, MAX_HORIZON, " s"),
                   check_number(f"{self.name}: joint-limit margin", margin, 0.0, MAX_POSITION_MARGIN, " rad"))
 
         def change(s: DynSettings) -> None:
@@ -273,8 +278,14 @@ class SolverDyn(StackSolver[DynSettings]):
             world = [world_wrench(c.rows.rotation, x[sl]) for c, sl in zip(contacts, slices, strict=True)]
         local = {c.name: x[sl].copy() for c, sl in zip(contacts, slices, strict=True)}
         diagnostics.slack_norms = result.slack_norms
-        if contacts and not self._warned_contacts and result.slack_norms[1] > CONTACT_SLACK:
+        if contacts and not self._warned_contacts and len(result.slack_norms) > 1 and result.slack_norms[1] > CONTACT_SLACK:
             self._warn_contact_slack(context, contacts, float(result.slack_norms[1]))
+        if not self._warned_dynamics and result.slack_norms[0] > DYNAMICS_SLACK * max(1.0, float(np.linalg.norm(p.terms.h))):
+            self._warned_dynamics = True
+            log.warning("%s: t = %.3f s: the dynamics is missed by %.3g (N·m, N): the torque limits cannot give the "
+                        "joint accelerations the joint-limit and selection bounds require (a joint too fast towards its "
+                        "limit for the effort left), so τ does not produce q̈; see diagnostics.slack_norms[0] (warned "
+                        "once)", self.name, context.get_time(), float(result.slack_norms[0]))
         diagnostics.level_solvers = result.level_solvers
         diagnostics.active_bounds = result.active_bounds
         diagnostics.held_bounds = held_bounds(x, lower, upper, result.active_bounds)

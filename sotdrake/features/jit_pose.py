@@ -24,14 +24,15 @@ from numba import njit
 def _log(R, out):
     """``out ← log(R)`` (the branches of :func:`sotdrake.lie.log_so3_list`)."""
     cos_theta = min(1.0, max(-1.0, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)))
-    theta = math.acos(cos_theta)
     wx, wy, wz = 0.5 * (R[2, 1] - R[1, 2]), 0.5 * (R[0, 2] - R[2, 0]), 0.5 * (R[1, 0] - R[0, 1])
+    sin_theta = math.sqrt(wx * wx + wy * wy + wz * wz)
+    theta = math.atan2(sin_theta, cos_theta)
     if theta < 1e-6:
         k = 1.0 + theta * theta / 6.0
         out[0], out[1], out[2] = wx * k, wy * k, wz * k
         return
     if math.pi - theta > 1e-4:
-        k = theta / math.sin(theta)
+        k = theta / sin_theta
         out[0], out[1], out[2] = wx * k, wy * k, wz * k
         return
     # Near π: the axis from the symmetric part, R + Rᵀ = 2 cos θ I + 2 (1 - cos θ) u uᵀ.

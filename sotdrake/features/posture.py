@@ -71,7 +71,9 @@ class FeaturePosture(Feature):
             raise InvalidInput(f"{self.name}.selectDof: selected must be True or False, got {selected!r:.50}")
 
         def change(s):
-            mask = np.array([c == "1" for c in reversed(s.selection)])
+            flags = [c == "1" for c in reversed(s.selection)][: self.nv]  # (a shorter mask: the rest unselected)
+            mask = np.zeros(self.nv, dtype=bool)
+            mask[: len(flags)] = flags
             mask[index] = selected
             if not mask.any():
                 raise InvalidInput(f"{self.name}.selectDof: no component would be left selected")

@@ -46,18 +46,27 @@ def write_bag(directory: Path | str, time: Sequence[float] | np.ndarray, joint_s
         raise InvalidInput(f"write_bag: time must be non-decreasing numbers in [0, {MAX_BAG_TIME:g}] s, not empty")
     series: list[tuple[str, str, np.ndarray]] = []
     names: list[str] = []
+    if not isinstance(frame, str):
+        raise InvalidInput(f"write_bag: frame is a string, got {frame!r:.60}")
+    try:  # (the sizes are checked below, the values here: numbers)
+        if joint_states is not None:
+            joint_states = (list(joint_states[0]), np.asarray(joint_states[1], dtype=float))
+        points = {topic: np.asarray(values, dtype=float) for topic, values in (points or {}).items()}
+        arrays = {topic: np.asarray(values, dtype=float) for topic, values in (arrays or {}).items()}
+    except (TypeError, ValueError, IndexError):
+        raise InvalidInput("write_bag: joint_states is (names, positions), points and arrays map topics to numbers") from None
     if joint_states is not None:
-        names, positions = list(joint_states[0]), np.asarray(joint_states[1], dtype=float)
+        names, positions = joint_states
+        if not all(isinstance(name, str) for name in names):
+            raise InvalidInput(f"write_bag: joint names are strings, got {names!r:.100}")
         if positions.shape != (t.size, len(names)):
             raise InvalidInput(f"write_bag: joint positions are {positions.shape}, want {(t.size, len(names))}")
         series.append((check_topic(joint_topic), "sensor_msgs/msg/JointState", positions))
-    for topic, values in (points or {}).items():
-        values = np.asarray(values, dtype=float)
+    for topic, values in points.items():
         if values.shape != (t.size, 3):
             raise InvalidInput(f"write_bag: {topic} is {values.shape}, want {(t.size, 3)}")
         series.append((check_topic(topic), "geometry_msgs/msg/PointStamped", values))
-    for topic, values in (arrays or {}).items():
-        values = np.asarray(values, dtype=float)
+    for topic, values in arrays.items():
         if values.ndim not in (1, 2) or len(values) != t.size:
             raise InvalidInput(f"write_bag: {topic} is {values.shape}, want {t.size} rows")
         series.append((check_topic(topic), "std_msgs/msg/Float64MultiArray", values.reshape(t.size, -1)))
@@ -68,7 +77,10 @@ def write_bag(directory: Path | str, time: Sequence[float] | np.ndarray, joint_s
     if directory.exists() and not _replaceable_bag(directory):
         raise InvalidInput(f"write_bag: {str(directory)!r} exists and is not a bag (no metadata.yaml): not replaced")
     # Written beside it, then moved in place: a failed write leaves the old bag as it was.
-    staging = Path(tempfile.mkdtemp(prefix=".bag-", dir=directory.parent))
+    try:
+        staging = Path(tempfile.mkdtemp(prefix=".bag-", dir=directory.parent))
+    except (OSError, ValueError) as error:
+        raise InvalidInput(f"write_bag: cannot write in {str(directory.parent)!r}: {getattr(error, 'strerror', None) or error}") from None
     try:
         _write_series(staging / directory.name, t, series, names, frame)
         if directory.exists():
@@ -79,8 +91,8 @@ def write_bag(directory: Path | str, time: Sequence[float] | np.ndarray, joint_s
     return directory / f"{directory.name}.mcap"
 
 
-#: The latest sample time a bag takes (s): its stamps are nanoseconds in a signed 64-bit integer.
-MAX_BAG_TIME = 9.2e9
+#: The latest sample time a bag takes (s): a header's stamp holds its seconds in a signed 32-bit integer.
+MAX_BAG_TIME = 2.1e9
 
 
 def _replaceable_bag(directory: Path) -> bool:
@@ -116,6 +128,8 @@ def read_bag(directory: Path | str) -> dict[str, list[tuple[int, object]]]:
     from rosbags.rosbag2 import Reader, ReaderError
 
     messages: dict[str, list[tuple[int, object]]] = {}
+    if not isinstance(directory, str | Path):
+        raise InvalidInput(f"read_bag: a bag folder's path, got {directory!r:.60}")
     try:
         with Reader(Path(directory)) as reader:
             for connection, timestamp, data in reader.messages():
@@ -132,7 +146,8 @@ def write_trace_bag(directory: Path | str, trace: Mapping[str, np.ndarray], join
     ``(names, indices in q)``), ``error_<task>`` → ``/sot/error/<task>``, ``<name>_position`` →
     ``/sot/<name>``, ``targets`` (name → constant point) → ``/sot/target/<name>``, any other numeric
     series of the trace (a CoP, a ZMP, contact wrenches, …) → ``/sot/<key>`` (``Float64MultiArray``);
-    every ``every``-th sample."""
+    every ``every``-th sample. A character a topic name does not take becomes ``_`` (a leading
+    digit gets one before it); a topic already used gets ``_2``, ``_3`` …: every series is written."""
     if not (isinstance(every, int) and every > 0):
         raise InvalidInput(f"write_trace_bag: every must be a positive int, got {every!r}")
     missing = [key for key in ("time", "q") if key not in trace]
@@ -142,17 +157,31 @@ def write_trace_bag(directory: Path | str, trace: Mapping[str, np.ndarray], join
     names, indices = joints
     if len(names) != len(indices) or not all(0 <= int(i) < np.shape(trace["q"])[-1] for i in indices):
         raise InvalidInput(f"write_trace_bag: joints are (names, indices in q), with indices below {np.shape(trace['q'])[-1]}")
-    arrays = {f"/sot/error/{k[6:]}": np.asarray(v)[::every] for k, v in trace.items() if k.startswith("error_")}
+    taken = {"/joint_states"}
+    arrays = {_topic("/sot/error/", k[6:], taken): np.asarray(v)[::every] for k, v in trace.items() if k.startswith("error_")}
     as_points = [k for k, v in trace.items() if k.endswith("_position") and np.ndim(v) == 2 and np.shape(v)[1] == 3]
-    points = {f"/sot/{k[:-9]}": np.asarray(trace[k])[::every] for k in as_points}
+    points = {_topic("/sot/", k[:-9], taken): np.asarray(trace[k])[::every] for k in as_points}
     for name, point in (targets or {}).items():
-        points[f"/sot/target/{name}"] = np.tile(np.asarray(point, dtype=float), (time.size, 1))
+        points[_topic("/sot/target/", name, taken)] = np.tile(np.asarray(point, dtype=float), (time.size, 1))
     samples = np.asarray(trace["time"]).size
     for key, value in trace.items():  # every other series of the trace (CoP, ZMP, wrenches, …), as arrays
         value = np.asarray(value)
-        topic = "/sot/" + re.sub(r"[^A-Za-z0-9_]", "_", key)
         if (key not in ("time", "q", *as_points) and not key.startswith("error_") and value.ndim in (1, 2)
-                and value.shape[0] == samples and np.issubdtype(value.dtype, np.number) and topic not in points
-                and re.fullmatch(r"/sot/[A-Za-z_]\w*", topic)):
-            arrays[topic] = value[::every]
+                and value.shape[0] == samples and np.issubdtype(value.dtype, np.number)):
+            arrays[_topic("/sot/", key, taken)] = value[::every]
     return write_bag(directory, time, (names, np.asarray(trace["q"])[::every][:, indices]), points, arrays)
+
+
+def _topic(prefix: str, name: str, taken: set[str]) -> str:
+    """A ROS topic ``prefix + name`` for a trace key, new in ``taken`` (added to it): each character
+    that a topic name does not take as ``_``, a leading digit after ``_``, then ``_2``, ``_3`` … until
+    it is new (``cop left`` and ``cop_left``, ``com`` beside ``com_position``: two topics)."""
+    base = prefix + re.sub(r"[^A-Za-z0-9_]", "_", str(name) or "_")
+    if base[len(prefix)].isdigit():
+        base = prefix + "_" + base[len(prefix):]
+    topic, count = base, 1
+    while topic in taken:
+        count += 1
+        topic = f"{base}_{count}"
+    taken.add(topic)
+    return topic

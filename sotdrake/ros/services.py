@@ -31,6 +31,7 @@ from std_srvs.srv import Empty
 
 from ..live.connection import remove_connection
 from ..live.runner import DiagramHandles, LiveRun, close_live, open_live
+from ..simulation import json_safe
 from .node import RosNode, ros_node
 
 log = logging.getLogger("sotdrake.ros")
@@ -88,13 +89,14 @@ class RosServices:
         try:
             if text.lstrip().startswith("{"):
                 request = json.loads(text)
-                text, ident = request["command"], request.get("id")
+                ident = request.get("id")  # (first: a refused command is still answered to its id)
+                text = request["command"]
                 if not isinstance(text, str):
                     raise TypeError("command is not a string")
             line = text.encode("utf-8")
         except (ValueError, KeyError, TypeError, AttributeError, RecursionError) as error:
             # (RecursionError: JSON nested too deeply; UnicodeEncodeError, a ValueError: a lone surrogate)
-            self.respond({"id": None, "ok": False, "error": f"bad request (JSON with 'command', UTF-8 text): {error!s:.200}"})
+            self.respond({"id": ident, "ok": False, "error": f"bad request (JSON with 'command', UTF-8 text): {error!s:.200}"})
             return
         with self._answers.lock:
             self._count += 1
@@ -102,7 +104,7 @@ class RosServices:
         self.live.server._handle_line(self._answers, self._count, line)  # type: ignore[arg-type]
 
     def respond(self, answer: dict) -> None:
-        self.responses.publish(String(data=json.dumps(answer)))
+        self.responses.publish(String(data=json.dumps(json_safe(answer))))  # (an id of NaN: null, JSON has no NaN)
 
     def wait_for_start(self, poll: float = 0.01) -> bool:
         """Apply commands (at t = 0) until ``start_dynamic_graph`` is called (True) or the run is

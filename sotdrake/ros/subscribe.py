@@ -5,9 +5,10 @@
 | ``vector`` | ``std_msgs/Float64MultiArray`` | its ``data`` (``size`` numbers) |
 | ``double`` | ``std_msgs/Float64`` | 1 number |
 | ``joint_states`` | ``sensor_msgs/JointState`` | the positions of ``names``, in that order |
-| ``pose`` | ``geometry_msgs/PoseStamped`` | ``(x, y, z, qw, qx, qy, qz)`` (m, unit quaternion) |
+| ``pose`` | ``geometry_msgs/PoseStamped`` | ``(x, y, z, qw, qx, qy, qz)`` (m, unit quaternion: normalised) |
 
-Before the first message (or after a message of the wrong size, which is dropped with a warning)
+Before the first message (or after a message of the wrong size, or a pose whose quaternion's norm is
+outside (0.5, 2), which is dropped with a warning)
 the port holds its ``default``, and one warning says so. Messages arrive on the ROS executor's
 thread; the output is the latest at the time it is evaluated (so, unlike other systems, it is not
 a function of the context alone: a run that reads it is as repeatable as the traffic it receives).
@@ -98,6 +99,9 @@ class RosSubscribe(LeafSystem):
             value = check_finite(f"{self.get_name()}: default of {signal!r}", default).ravel()
             if value.size != n:
                 raise InvalidInput(f"{self.get_name()}: default of {signal!r} must be {n} finite numbers, got {default!r}")
+            if kind == "pose" and abs(float(np.linalg.norm(value[3:])) - 1.0) > 1e-6:
+                raise InvalidInput(f"{self.get_name()}: default of {signal!r}: (x, y, z, qw, qx, qy, qz) with a unit "
+                                   f"quaternion, got one of norm {np.linalg.norm(value[3:]):.6g}")
         slot = _Slot(kind, topic, value, list(names) if names is not None else None)
         try:  # (the subscription first: a topic ROS refuses leaves no slot or port behind)
             self.ros.node.create_subscription(SUBSCRIBE_KINDS[kind], topic, lambda m: self._receive(slot, m), self.depth)
@@ -126,6 +130,11 @@ class RosSubscribe(LeafSystem):
         elif slot.kind == "pose":
             p, o = message.pose.position, message.pose.orientation
             value = np.array([p.x, p.y, p.z, o.w, o.x, o.y, o.z], dtype=float)
+            norm = float(np.linalg.norm(value[3:]))
+            if not 0.5 < norm < 2.0:  # (NaN too) a quaternion, not a rotation: dropped, not scaled from noise
+                log.warning("%s: %s: dropped a pose whose quaternion has norm %.3g", self.get_name(), slot.topic, norm)
+                return None
+            value[3:] /= norm
         elif slot.kind == "double":
             value = np.array([message.data], dtype=float)
         else:

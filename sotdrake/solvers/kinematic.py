@@ -66,7 +66,7 @@ class KinematicSolver(StackSolver[S]):
             self._last_velocity = int(self.DeclareDiscreteState(np.zeros(1 + nv)))
             self.DeclarePeriodicDiscreteUpdateEvent(dt, 0.0, self._remember)
         self.stack_of_tasks = Stack(self, nv, self.accepts_inequalities, self._declare_task_memory)
-        self.setThreshold(svd_threshold)
+        self.stack_of_tasks.setThreshold(svd_threshold)  # (SolverKine refuses the command: no SVD truncation)
         self.setDamping(damping)
         empty = CascadeResult(np.zeros(nv), np.zeros(0), np.zeros(0, dtype=int))
         # The solution depends on the inputs, the settings and the last tick; the last tick is

@@ -33,7 +33,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort
 
 from ..configuration import Layout
-from ..exceptions import InvalidInput, SolverError
+from ..exceptions import InvalidInput, SolverError, StackError
 from ..hqp import ACTIVE_SET, HierarchicalQP, check_solver
 from ..hqp.stack_paths import KINEMATIC, StackProblem, solve_stack
 from ..hqp.warm import WarmStart
@@ -178,6 +178,13 @@ class SolverKine(KinematicSolver[HqpSettings]):
         kept = context.get_discrete_state(cast(int, self._last_velocity)).get_value()
         return kept[1:] if kept[0] == 1.0 else np.zeros(self.nv)
 
+    def setThreshold(self, svd_threshold: float, context: Context | None = None) -> None:
+        """Refused: the levels are solved exactly (hierarchical QP); its rank decisions take one
+        threshold τ on unit rows (``HierarchicalQP``'s ``rank_threshold``, 1e-8), not an SVD
+        truncation."""
+        raise StackError(f"{self.name} is a SolverKine: its levels are solved exactly (hierarchical QP), it has no SVD "
+                         "truncation threshold (setThreshold is the basic SOT's; the QP's rank threshold is 1e-8 on unit rows)")
+
     def setSolver(self, solver: str, context: Context | None = None) -> None:
         """How the levels are solved: ``'active-set'`` (default, exact), or a Drake solver
         (``'clarabel'``, ``'osqp'``, ``'snopt'``) polished by the active-set method."""
@@ -191,6 +198,8 @@ class SolverKine(KinematicSolver[HqpSettings]):
         lower, upper = self._bounds(q, self._period, s.position_margin, s.control_selection, s.base_velocity_limit)
         if s.step_limit != np.inf:  # each tick's step within δ (see .step_limit)
             lower, upper = clip_bounds(lower, upper, s.step_limit / self._period)
+        if s.velocity_limit is not None:  # setVelocityLimit: hard bounds here (the cascade scales its command)
+            lower, upper = clip_bounds(lower, upper, s.velocity_limit)
         if s.acceleration_limit is not None:
             lower, upper = self._acceleration_bounds(lower, upper, q, self._previous_velocity(context), s.acceleration_limit,
                                                      self._period, s.position_margin)

@@ -44,7 +44,7 @@ def check_step_limit(name: str, step: object) -> float:
     return float(step)
 
 
-def clip_bounds(lower: np.ndarray, upper: np.ndarray, cap: float) -> tuple[np.ndarray, np.ndarray]:
+def clip_bounds(lower: np.ndarray, upper: np.ndarray, cap: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``lower ≤ v ≤ upper`` intersected with ``|v| ≤ cap``; a bound beyond the cap (a joint
     outside its position limits, asked to come back faster) is brought to it, so the bounds stay
     ordered."""

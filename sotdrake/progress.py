@@ -6,7 +6,9 @@ equality task of a stack watches its error as the solver evaluates it: every
 :data:`CHECK_PERIOD` seconds of simulated time it compares ``‖e‖`` with the smallest value seen;
 when that has not fallen by more than :data:`RELATIVE_PROGRESS` for :data:`PATIENCE` seconds while
 ``‖e‖`` is above :data:`MIN_ERROR`, it logs one warning (logger ``sotdrake.task``) naming the task
-and the remaining ``‖e‖`` (m for positions, rad for angles): the distance to the target.
+and the remaining ``‖e‖`` (m for positions, rad for angles): the distance to the target. A task
+that makes progress again (a new target, the task pushed into the stack) is no longer stalled, and
+may be warned about again if it stalls again.
 
 Logging only: the control never depends on it. A simulation that starts again (time going back)
 starts the watch again.
@@ -57,6 +59,7 @@ class ProgressWatch:
         norm = math.sqrt(float(e @ e)) if e.size else 0.0
         if norm < self.best * (1.0 - RELATIVE_PROGRESS) or norm < MIN_ERROR:
             self.best, self.best_time = norm, t
+            self.warned, self.remaining = False, math.nan  # (progress: not stalled any more)
         elif not self.warned and t - self.best_time >= PATIENCE:
             self.warned, self.remaining = True, norm
             log.warning(

@@ -237,7 +237,7 @@ def test_constructors_refuse_bad_arguments_by_name(talos_model):
         *[(lambda v=v: SolverDyn("s", model, v), "dt") for v in [*NOT_NUMBERS, *NON_FINITE, 0.0, -1e-3]],
         *[(lambda v=v: SolverDyn("s", model, 1e-3, max_contacts=v), "max_contacts") for v in [0, -1, 1.5, "2", None, True, 10**6]],
         *[(lambda v=v: SolverDyn("s", model, 1e-3, damping_gain=v), "K_d") for v in [*NOT_NUMBERS, *NON_FINITE, -1.0]],
-        *[(lambda v=v: RobotDyn(DiagramBuilder(), model, "dynsimu", dt=v), "dt") for v in [NAN, 0.0, "x", INF]],
+        *[(lambda v=v: RobotDyn(DiagramBuilder(), model, "dynsimu", dt=v), "dt") for v in [NAN, 0.0, "x", INF, 1e-7]],
         (lambda: RobotDynSimu(model.plant, 1e-3, np.r_[np.zeros(4), model.half_sitting[4:]]), "quaternion"),
     ]
     for device in ("dynsimu", "physics"):  # physics: Drake aborted the process on these q0
@@ -557,3 +557,15 @@ def test_solver_dyn_and_add_task_refuse_what_they_cannot_use(talos_model):
         with pytest.raises(InvalidInput, match="add_task"):
             robot.add_task(task)  # type: ignore[arg-type]
     assert len(builder.GetSystems()) == systems and not robot.tasks
+
+
+def test_a_move_may_end_at_the_latest_time_its_range_takes():
+    """``t1 = 1000`` s, the top of the documented range, raised Drake's raw "Times must be in
+    increasing order" (the held piece after the move started and ended there)."""
+    from sotdrake.dynamics.trajectories import hold_move_hold
+
+    trajectory = hold_move_hold(0.0, 1000.0, np.zeros(2), np.ones(2))
+    assert trajectory.end_time() == 1000.0 and trajectory.value(1000.0).ravel() == pytest.approx([1.0, 1.0])
+    assert trajectory.value(500.0).ravel() == pytest.approx([0.5, 0.5])
+    with pytest.raises(InvalidInput, match="t1"):
+        hold_move_hold(0.0, 1000.1, np.zeros(2), np.ones(2))

@@ -297,3 +297,22 @@ def test_pushing_a_task_without_gain_into_a_running_stack_is_refused_at_push():
         stack.sot.push("bare", context)
     assert stack.sot.stack(context) == ["taskrh"]
     simulator.AdvanceTo(0.01)  # the run goes on, unchanged
+
+
+def test_a_task_that_progresses_again_is_no_longer_stalled(caplog):
+    """Warned at its floor (a task out of the stack, a target out of reach), then given a new
+    target it tracks: the summary listed it as stalled at the old floor."""
+    from sotdrake.progress import CHECK_PERIOD, PATIENCE, ProgressWatch
+
+    watch = ProgressWatch("taskrh")
+    t, e = 0.0, np.array([0.4, 0.1])
+    with caplog.at_level(logging.WARNING, logger="sotdrake.task"):
+        while t < PATIENCE + 3 * CHECK_PERIOD:
+            watch.observe(t, e)
+            t += CHECK_PERIOD
+        assert watch.warned and watch.remaining == pytest.approx(np.linalg.norm(e))
+        for _ in range(5):
+            e = 0.5 * e
+            watch.observe(t, e)
+            t += CHECK_PERIOD
+    assert not watch.warned and len([r for r in caplog.records if "taskrh" in r.getMessage()]) == 1

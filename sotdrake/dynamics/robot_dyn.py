@@ -23,12 +23,12 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from ..configuration import Layout
-from ..exceptions import InvalidInput, NotFound, check_finite, check_name
+from ..exceptions import InvalidInput, NotFound, check_finite, check_name, check_number
 from ..hqp import ACTIVE_SET
 from ..physics.plant import check_contact_options
 from ..robot import check_new_names
 from ..robots import RobotModel
-from .checks import MAX_DT, check_positive
+from .checks import MAX_DT
 from .contact import Contact6d
 from .device import RobotDynSimu, check_base_quaternion
 from .dynamic_entity import DynamicEntity
@@ -55,7 +55,7 @@ class RobotDyn:
             raise InvalidInput("contact and contact_solver choose the physics plant's contact: device='physics'")
         if device == "physics" and model.name != "talos":
             raise InvalidInput(f"device='physics' is TALOS' torque-driven plant; {model.name} runs on device='dynsimu'")
-        dt = check_positive("dt", dt, MAX_DT, " s")
+        dt = check_number("dt (the control period)", dt, 1e-6, MAX_DT, " s")
         # q0 checked before anything is added (Drake aborts the process on a non-finite or
         # wrongly sized default position of the physics plant).
         q0 = model.half_sitting if q0 is None else check_finite("q0", q0, (model.nq,))

@@ -39,9 +39,10 @@ def minimum_jerk_moves(start: np.ndarray, moves: Sequence[tuple[float, float, np
                 values.append(current + s * (target - current))
                 rates.append(ds * (target - current))
         current = target
-    times.append(end)
-    values.append(current)
-    rates.append(np.zeros_like(start))
+    if end > times[-1]:  # (held until ``end``; a last move that ends there needs no held piece)
+        times.append(end)
+        values.append(current)
+        rates.append(np.zeros_like(start))
     return PiecewisePolynomial.CubicHermite(times, np.column_stack(values), np.column_stack(rates))
 
 

@@ -264,7 +264,13 @@ def test_bad_obstacles_are_refused_and_nothing_is_added(talos_model, tmp_path):
     flat.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     garbage = tmp_path / "garbage.obj"
     garbage.write_text("not a mesh")
+    tetrahedron = "v 0 0 0\nv {} 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
+    nan, huge = tmp_path / "nan.obj", tmp_path / "huge.obj"
+    nan.write_text("v nan 0 0\n" + tetrahedron.format(1))  # (the hull left the NaN vertex out: accepted)
+    huge.write_text(tetrahedron.format(1e6))  # (a described shape beyond 100 m is refused; this was not)
     for shape, pose, word in [
+        (("mesh", str(nan)), RigidTransform(), "line 1"),
+        (("mesh", str(huge)), RigidTransform(), "spans"),
         (("box", (0.0, 1.0, 1.0)), RigidTransform(), "box size x"),
         (("sphere", -0.1), RigidTransform(), "sphere radius"),
         (("cylinder", 0.1, float("inf")), RigidTransform(), "cylinder length"),

@@ -60,6 +60,11 @@ def test_urdf_text_scene_welds_its_root_and_places_child_links(world, talos_mode
     ("<robot name='r'><link name='a'><collision><geometry><mesh filename='/nonexistent/m.obj'/></geometry></collision>"
      "</link></robot>", "m.obj"),
     ("<robot name='r'><link name='a'>", "could not parse"),
+    # (SDFormat replaces these by its 1 m defaults, with a warning only)
+    ("<sdf version='1.7'><model name='m'><static>true</static><link name='l'><collision name='c'><geometry><box>"
+     "<size>0 1 1</size></box></geometry></collision></link></model></sdf>", "box's size"),
+    ("<sdf version='1.7'><model name='m'><static>true</static><link name='l'><collision name='c'><geometry><sphere>"
+     "<radius>-1</radius></sphere></geometry></collision></link></model></sdf>", "sphere's radius"),
 ])
 def test_bad_scenes_are_refused_and_nothing_is_added(talos_model, source, word):
     world = CollisionWorld(talos_model)

@@ -79,7 +79,21 @@ def make_shape(shape: object, name: str = "obstacle") -> Shape:
 def _mesh_path(name: str, path: object) -> Path:
     if not isinstance(path, (str, Path)) or not Path(path).is_file():
         raise InvalidInput(f"add_obstacle({name!r}): mesh file {path!r:.200} does not exist")
+    if Path(path).suffix.lower() == ".obj":  # (the convex hull leaves a NaN vertex out: read the file's own)
+        with open(path, encoding="utf-8", errors="replace") as file:
+            for number, line in enumerate(file, 1):
+                if line.startswith("v ") and not all(math.isfinite(_number(word)) for word in line.split()[1:4]):
+                    raise InvalidInput(f"add_obstacle({name!r}): mesh {str(path)!r} line {number}: a vertex that is not "
+                                       f"three finite numbers: {line.strip()!r:.80}")
     return Path(path)
+
+
+def _number(word: str) -> float:
+    """``word`` as a float, NaN if it is not a number."""
+    try:
+        return float(word)
+    except ValueError:
+        return math.nan
 
 
 def _checked_drake_shape(shape: Shape, name: str) -> Shape:
@@ -92,8 +106,12 @@ def _checked_drake_shape(shape: Shape, name: str) -> Shape:
                 raise InvalidInput(f"add_obstacle({name!r}): the mesh is flat (its convex hull has no volume)") from None
             raise InvalidInput(f"add_obstacle({name!r}): the mesh does not load: {error}") from None
         vertices = np.array([hull.vertex(i) for i in range(hull.num_vertices())])
-        if vertices.size == 0 or np.ptp(vertices, axis=0).min() <= 0:
-            raise InvalidInput(f"add_obstacle({name!r}): the mesh is flat or empty (its convex hull has no volume)")
+        if vertices.size == 0 or not np.ptp(vertices, axis=0).min() > 0:  # (NaN too)
+            raise InvalidInput(f"add_obstacle({name!r}): the mesh is flat, empty or has a non-finite vertex (its convex "
+                               "hull has no volume)")
+        extent = float(np.ptp(vertices, axis=0).max())  # (the hull's vertices are scaled)
+        if not extent <= 2 * MAX_SIZE:
+            raise InvalidInput(f"add_obstacle({name!r}): the mesh spans {extent:.6g} m (scaled): at most {2 * MAX_SIZE:g} m")
         if hasattr(shape, "scale3"):  # (a mirrored or huge mesh, as a described one)
             for axis, value in zip("xyz", shape.scale3(), strict=True):
                 _size(name, f"mesh scale {axis}", float(value))

@@ -21,6 +21,7 @@ and the top), its back at x = +0.2 m, open towards −x, its frame on the floor 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -62,9 +63,13 @@ def scene_shapes(source: str | Path, X_WS: object = None, name: str = "scene") -
             if path.suffix.lower() not in (".urdf", ".sdf") or not path.is_file():
                 raise InvalidInput(f"add_scene({name!r}): source {str(source)!r:.200} is not an existing .urdf or .sdf file "
                                    "(or the text of one)")
+            if path.suffix.lower() == ".sdf":
+                _check_sdf_sizes(path.read_text(encoding="utf-8", errors="replace"), name)
             instances = parser.AddModels(str(path))
         elif isinstance(source, str):
             kind = "sdf" if "<sdf" in source else "urdf"
+            if kind == "sdf":
+                _check_sdf_sizes(source, name)
             instances = parser.AddModelsFromString(source, kind)
         else:
             raise InvalidInput(f"add_scene({name!r}): source must be a path or the text of a URDF/SDF, got {type(source).__name__}")
@@ -92,6 +97,37 @@ def scene_shapes(source: str | Path, X_WS: object = None, name: str = "scene") -
         raise InvalidInput(f"add_scene({name!r}): {str(source)[:200]!r} has no collision geometry (no <collision> element "
                            "Drake loads): nothing to avoid")
     return shapes
+
+
+#: The sizes of SDFormat's shapes (m): each a positive finite number (SDFormat replaces a wrong one by its
+#: default, 1 m, with a warning only).
+_SDF_SIZES = {"box": ("size",), "sphere": ("radius",), "cylinder": ("radius", "length"), "capsule": ("radius", "length"),
+              "ellipsoid": ("radii",)}
+
+
+def _check_sdf_sizes(text: str, name: str) -> None:
+    """:class:`InvalidInput` naming the first SDF shape size that is not a positive finite number."""
+    import xml.etree.ElementTree as ElementTree
+
+    try:
+        root = ElementTree.fromstring(text)
+    except ElementTree.ParseError:
+        return  # (Drake's parser says what is wrong with it)
+    for shape, fields in _SDF_SIZES.items():
+        for element in root.iter(shape):
+            for field in fields:
+                value = element.find(field)
+                words = [] if value is None or value.text is None else value.text.split()
+                if value is not None and not (words and all(_positive(word) for word in words)):
+                    raise InvalidInput(f"add_scene({name!r}): an SDF {shape}'s {field} must be positive finite numbers "
+                                       f"(m), got {value.text!r:.80}")
+
+
+def _positive(word: str) -> bool:
+    try:
+        return math.isfinite(float(word)) and float(word) > 0
+    except ValueError:
+        return False
 
 
 def _root_body(plant: MultibodyPlant, bodies: list[RigidBody]) -> RigidBody | None:

@@ -95,7 +95,11 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
 
     def setSteps(self, steps, context: Context | None = None) -> None:
         """Walk the steps ``[(dx, dy, dθ), …]`` (displacements of the walking frame per step, m and
-        rad, each ``|dx|, |dy| ≤ 0.4``, ``|dθ| ≤ 0.4``), then close the feet and stop."""
+        rad, each ``|dx|, |dy| ≤ 2 · 0.2 m/s · step duration`` (0.32 m with the default 0.8 s),
+        ``|dθ| ≤ 0.4``), then close the feet and stop. Each step's foot lands at its rest place in
+        the moved frame: a sideways displacement towards the foot that stays (``dy > 0`` on a right
+        step) of the feet's distance or more crosses the feet; give it to the foot on its side, as
+        ``setVelocity`` does."""
         array = check_finite(f"{self.name}.setSteps", steps)
         if array.ndim != 2 or array.shape[1] != 3 or not 1 <= len(array) <= MAX_STEPS:
             raise InvalidInput(f"{self.name}.setSteps: expected a list of 1 to {MAX_STEPS} (dx, dy, dθ), got shape {array.shape}")

@@ -81,15 +81,15 @@ def _mesh_path(name: str, path: object) -> Path:
         raise InvalidInput(f"add_obstacle({name!r}): mesh file {path!r:.200} does not exist")
     if Path(path).suffix.lower() == ".obj":  # (the convex hull leaves a NaN vertex out: read the file's own)
         with open(path, encoding="utf-8", errors="replace") as file:
-            for number, line in enumerate(file, 1):
-                if line.startswith("v ") and not all(math.isfinite(_number(word)) for word in line.split()[1:4]):
-                    raise InvalidInput(f"add_obstacle({name!r}): mesh {str(path)!r} line {number}: a vertex that is not "
+            for line_number, line in enumerate(file, 1):
+                if line.startswith("v ") and not all(math.isfinite(number(word)) for word in line.split()[1:4]):
+                    raise InvalidInput(f"add_obstacle({name!r}): mesh {str(path)!r} line {line_number}: a vertex that is not "
                                        f"three finite numbers: {line.strip()!r:.80}")
     return Path(path)
 
 
-def _number(word: str) -> float:
-    """``word`` as a float, NaN if it is not a number."""
+def number(word: str) -> float:
+    """``word`` as a float, NaN if it is not a number (a mesh's or a scene's text)."""
     try:
         return float(word)
     except ValueError:

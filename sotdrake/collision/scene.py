@@ -33,7 +33,7 @@ from pydrake.multibody.tree import RigidBody
 
 from ..exceptions import InvalidInput, SotError
 from ..robots.from_file import is_drake_check
-from .obstacles import _pose, add_obstacle, draw_obstacles, make_shape
+from .obstacles import _pose, add_obstacle, draw_obstacles, make_shape, number
 from .world import CollisionWorld, collision_world
 
 #: The shelf shipped with sotdrake (see the module docstring).
@@ -118,16 +118,9 @@ def _check_sdf_sizes(text: str, name: str) -> None:
             for field in fields:
                 value = element.find(field)
                 words = [] if value is None or value.text is None else value.text.split()
-                if value is not None and not (words and all(_positive(word) for word in words)):
+                if value is not None and not (words and all(0 < number(word) < math.inf for word in words)):  # (NaN: False)
                     raise InvalidInput(f"add_scene({name!r}): an SDF {shape}'s {field} must be positive finite numbers "
                                        f"(m), got {value.text!r:.80}")
-
-
-def _positive(word: str) -> bool:
-    try:
-        return math.isfinite(float(word)) and float(word) > 0
-    except ValueError:
-        return False
 
 
 def _root_body(plant: MultibodyPlant, bodies: list[RigidBody]) -> RigidBody | None:

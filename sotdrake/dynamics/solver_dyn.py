@@ -280,12 +280,8 @@ class SolverDyn(StackSolver[DynSettings]):
         diagnostics.slack_norms = result.slack_norms
         if contacts and not self._warned_contacts and len(result.slack_norms) > 1 and result.slack_norms[1] > CONTACT_SLACK:
             self._warn_contact_slack(context, contacts, float(result.slack_norms[1]))
-        if not self._warned_dynamics and result.slack_norms[0] > DYNAMICS_SLACK * max(1.0, float(np.linalg.norm(p.terms.h))):
-            self._warned_dynamics = True
-            log.warning("%s: t = %.3f s: the dynamics is missed by %.3g (N·m, N): the torque limits cannot give the "
-                        "joint accelerations the joint-limit and selection bounds require (a joint too fast towards its "
-                        "limit for the effort left), so τ does not produce q̈; see diagnostics.slack_norms[0] (warned "
-                        "once)", self.name, context.get_time(), float(result.slack_norms[0]))
+        if not self._warned_dynamics and result.slack_norms[0] > DYNAMICS_SLACK:
+            self._warn_dynamics_slack(context, p.terms, float(result.slack_norms[0]))
         diagnostics.level_solvers = result.level_solvers
         diagnostics.active_bounds = result.active_bounds
         diagnostics.held_bounds = held_bounds(x, lower, upper, result.active_bounds)
@@ -304,6 +300,17 @@ class SolverDyn(StackSolver[DynSettings]):
             log.warning("%s: t = %.3f s: the contacts' zero acceleration is missed by %.3g (m/s², rad/s²): the "
                         "joint-acceleration and torque bounds leave too little, the held contacts accelerate; see "
                         "diagnostics.slack_norms[1] (warned once)", self.name, context.get_time(), slack)
+
+    def _warn_dynamics_slack(self, context: Context, terms: DynamicsTerms, slack: float) -> None:
+        """Warn (once per solver) when the dynamics is not met (relative to ``max(1, ‖h‖)``): the
+        torque limits cannot give the joint accelerations the hard bounds require, so ``τ`` does not
+        produce ``q̈``. The slack is in the diagnostics at every tick (``slack_norms[0]``)."""
+        if slack > DYNAMICS_SLACK * max(1.0, float(np.linalg.norm(terms.h))):
+            self._warned_dynamics = True
+            log.warning("%s: t = %.3f s: the dynamics is missed by %.3g (N·m, N): the torque limits cannot give the "
+                        "joint accelerations the joint-limit and selection bounds require (a joint too fast towards its "
+                        "limit for the effort left), so τ does not produce q̈; see diagnostics.slack_norms[0] (warned "
+                        "once)", self.name, context.get_time(), slack)
 
     def _bounds(self, terms: DynamicsTerms, s: DynSettings, contacts: list[ActiveContact], slices: list[slice]
                 ) -> tuple[np.ndarray, np.ndarray]:

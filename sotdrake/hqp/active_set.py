@@ -311,9 +311,10 @@ def python_solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibilit
         # Multipliers: λ ≥ 0 at an upper side, ≤ 0 at a lower side (equality rows: free), up to a
         # round-off tolerance relative to the gradient's scale.
         held_index = held.nonzero()[0]
-        tolerance = MULTIPLIER_TOLERANCE * multiplier_scale(M, t, z, m_max)
         wrong = np.where(equality[held_index], 0.0, -side[held_index] * lam)
-        if wrong.size and wrong.max() > tolerance:
+        worst = float(wrong.max(initial=0.0))  # (the tolerance, ≥ 0, is computed only for a wrong sign)
+        tolerance = MULTIPLIER_TOLERANCE * multiplier_scale(M, t, z, m_max) if worst > 0.0 else 0.0
+        if worst > tolerance:
             leaving = held_index[int((wrong > tolerance).nonzero()[0][0]) if bland else int(np.argmax(wrong))]
             last_dropped, dropped_side = leaving, side[leaving]
             side[leaving] = 0
@@ -399,6 +400,7 @@ def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, e
     if len(held):
         wrong = -held_side * lam
         wrong[equality[held]] = 0.0  # equality rows: either sign
-        if float(wrong.max()) > MULTIPLIER_TOLERANCE * multiplier_scale(M, t, z, float(m_scale.max(initial=0.0))):
-            return None
+        worst = float(wrong.max())
+        if worst > 0.0 and worst > MULTIPLIER_TOLERANCE * multiplier_scale(M, t, z, float(m_scale.max(initial=0.0))):
+            return None  # (the tolerance is ≥ 0: computed only for a multiplier of the wrong sign)
     return z

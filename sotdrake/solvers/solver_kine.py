@@ -196,10 +196,9 @@ class SolverKine(KinematicSolver[HqpSettings]):
         task_levels = self._levels(context, s, check=False)
         q = self._position.Eval(context)
         lower, upper = self._bounds(q, self._period, s.position_margin, s.control_selection, s.base_velocity_limit)
-        if s.step_limit != np.inf:  # each tick's step within δ (see .step_limit)
-            lower, upper = clip_bounds(lower, upper, s.step_limit / self._period)
-        if s.velocity_limit is not None:  # setVelocityLimit: hard bounds here (the cascade scales its command)
-            lower, upper = clip_bounds(lower, upper, s.velocity_limit)
+        cap = self._velocity_limit(s)  # setVelocityLimit and each tick's step within δ (.step_limit): hard bounds here
+        if cap is not None:
+            lower, upper = clip_bounds(lower, upper, cap)
         if s.acceleration_limit is not None:
             lower, upper = self._acceleration_bounds(lower, upper, q, self._previous_velocity(context), s.acceleration_limit,
                                                      self._period, s.position_margin)

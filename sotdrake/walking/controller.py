@@ -252,10 +252,12 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
 
 def _check_commands(velocity, then: tuple | None, steps: tuple[int, float] | None, gains: tuple[float, float]) -> None:
     """The shapes of :func:`build_diagram`'s commands (their values are checked where they go)."""
-    for what, value, size in (("velocity (x, y, θ)", velocity, 3), ("then (T, x, y, θ)", then, 4),
-                              ("steps (n, length)", steps, 2), ("gains (tracking, orientation)", gains, 2)):
-        if value is not None or what.startswith(("velocity", "gains")):
-            check_finite(f"build_diagram: {what}", value, (size,))
+    check_finite("build_diagram: velocity (x, y, θ)", velocity, (3,))
+    check_finite("build_diagram: gains (tracking, orientation)", gains, (2,))
+    if then is not None:
+        check_finite("build_diagram: then (T, x, y, θ)", then, (4,))
+    if steps is not None:
+        check_finite("build_diagram: steps (n, length)", steps, (2,))
     if then is not None and not 0 <= then[0] <= MAX_TIME:
         raise InvalidInput(f"build_diagram: then's T must be in [0, {MAX_TIME:g}] s, got {then[0]!r}")
     if steps is not None and not (float(steps[0]).is_integer() and 1 <= steps[0] <= MAX_STEPS):

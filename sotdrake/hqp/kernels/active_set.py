@@ -117,8 +117,9 @@ def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, identit
         wrong = np.empty(held.size)
         for i in range(held.size):
             wrong[i] = 0.0 if equality[held[i]] else -side[held[i]] * lam[i]
-        if wrong.max() > MULTIPLIER_TOLERANCE * _residual_scale(M, t, z, m_scale.max() if m_scale.size else 0.0):
-            return 1, z  # (False on NaN, as the Python version's)
+        worst = wrong.max()
+        if worst > 0.0 and worst > MULTIPLIER_TOLERANCE * _residual_scale(M, t, z, m_scale.max() if m_scale.size else 0.0):
+            return 1, z  # (False on NaN, as the Python version's; the tolerance ≥ 0: computed for a wrong sign only)
     return 0, z
 
 
@@ -254,11 +255,13 @@ def solve(M, t, m_scale, G, lower, upper, z, guess, has_guess, threshold, feasib
         z = z + step
         # Multipliers: λ ≥ 0 at an upper side, ≤ 0 at a lower side (equality rows: free), up to a
         # round-off tolerance relative to the gradient's scale.
-        tolerance = MULTIPLIER_TOLERANCE * _residual_scale(M, t, z, m_max)
         wrong = np.empty(held.size)
         for i in range(held.size):
             wrong[i] = 0.0 if equality[held[i]] else -side[held[i]] * lam[i]
-        if held.size and wrong.max() > tolerance:
+        worst = wrong.max() if held.size else 0.0
+        # (the tolerance, ≥ 0, is computed only for a multiplier of the wrong sign)
+        tolerance = MULTIPLIER_TOLERANCE * _residual_scale(M, t, z, m_max) if worst > 0.0 else 0.0
+        if worst > tolerance:
             first = 0
             if bland:
                 while not wrong[first] > tolerance:

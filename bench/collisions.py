@@ -143,7 +143,7 @@ def run_stacks(ticks: int) -> tuple[dict, dict]:
                 simulator.AdvanceTo(k * dt)
                 cpu[name].append(time.thread_time() - began)
                 if name == "with":
-                    state = task_context.get_abstract_state(task._schedule_index).get_value()
+                    state = task_context.get_abstract_state(task._schedule_index).get_value().state
                     queried.append(state.queried)
                     in_range.append(len(state.in_range))
                     floor_us.append(_exact_queries_us(task.world, floor_context, state))

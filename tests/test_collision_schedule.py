@@ -151,10 +151,47 @@ def test_the_task_rows_are_the_full_query_rows_and_a_clone_replays_them():
     q = device.GetOutputPort("state").Eval(device.GetMyContextFromRoot(context))
     q_replay = device.GetOutputPort("state").Eval(device.GetMyContextFromRoot(clone))
     assert np.array_equal(q, q_replay)
-    state = task.GetMyContextFromRoot(clone).get_abstract_state(task._schedule_index).get_value()
-    assert copy.deepcopy(state).lower.tolist() == state.lower.tolist()
+    memory = task.GetMyContextFromRoot(clone).get_abstract_state(task._schedule_index).get_value()
+    original = task.GetMyContextFromRoot(context).get_abstract_state(task._schedule_index).get_value()
+    assert memory is not original and np.array_equal(memory.state.q, original.state.q)
+    assert memory.state.lower.tolist() == original.state.lower.tolist()
+    copied = copy.deepcopy(memory)
+    assert copied is not memory and copied.state is memory.state
     # Shared by the copies, never changed: a tick makes a new state, its arrays read-only.
+    state = memory.state
     assert not any(a.flags.writeable for a in (state.q, state.lower, state.in_range_pairs))
+
+
+def test_the_schedule_memory_is_a_warm_start_the_run_does_not_depend_on():
+    """The bounds only decide which pairs are queried: a run whose memory is emptied or set back
+    to an earlier tick's (any earlier configuration gives true lower bounds) commands the same
+    motion, bit for bit, and queries more pairs."""
+    from sotdrake.collision.schedule import ScheduleMemory
+
+    reach = build_collision_reach(collision=True, table=True)
+    simulator = Simulator(reach.diagram)
+    context = simulator.get_mutable_context()
+    gotoNd(reach.hand, np.array([0.5, -0.3, 0.70]), "111", 10.0, context=context)
+    simulator.Initialize()
+    task, device = reach.collision.task, reach.robot.device
+    dt = device.dt
+    simulator.AdvanceTo(dt)
+    early = task.GetMyContextFromRoot(context).get_abstract_state(task._schedule_index).get_value().state
+    simulator.AdvanceTo(40 * dt)
+    runs = {}
+    for name, memory in (("kept", None), ("emptied", ScheduleMemory()), ("early", ScheduleMemory(early))):
+        clone = context.Clone()
+        if memory is not None:
+            task.GetMyContextFromRoot(clone).get_mutable_abstract_state(task._schedule_index).set_value(memory)
+        replay = Simulator(reach.diagram, clone)
+        queried = 0
+        for k in range(41, 61):
+            replay.AdvanceTo(k * dt)
+            queried += task.GetMyContextFromRoot(clone).get_abstract_state(task._schedule_index).get_value().state.queried
+        runs[name] = (device.GetOutputPort("state").Eval(device.GetMyContextFromRoot(clone)).copy(), queried)
+    assert np.array_equal(runs["emptied"][0], runs["kept"][0])
+    assert np.array_equal(runs["early"][0], runs["kept"][0])
+    assert runs["emptied"][1] > runs["kept"][1] and runs["early"][1] > runs["kept"][1]
 
 
 def _shape_world(shapes):

@@ -61,13 +61,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, Context, State, ValueProducer
+from pydrake.systems.framework import BasicVector, Context, ValueProducer
 
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_number
 from ..task import TaskLevel
 from .distance import PairDistances
-from .schedule import PairSchedule, ScheduleState, ScheduleStep
+from .schedule import PairSchedule, ScheduleMemory, ScheduleState, ScheduleStep
 from .world import CollisionWorld
 
 log = logging.getLogger(__name__)
@@ -222,15 +222,15 @@ class TaskCollision(Entity[CollisionMargins]):
             prerequisites_of_calc=position,
         )
         settings = {self.abstract_state_ticket(self._settings_index)}
-        # Which pairs are queried at a tick (.schedule): the bounds in the state, advanced every tick.
+        # Which pairs are queried at a tick (.schedule): the bounds, a warm start in the Context that
+        # the step replaces in place (left out of its prerequisites: the pairs in range never depend on it).
         self._pair_schedule: PairSchedule | None = None  # made at the first tick (obstacles are in by then)
         self._warned_inside = False  # logging only (a pair inside d_s, warned once per task): results never depend on it
-        self._schedule_index = self.DeclareAbstractState(AbstractValue.Make(ScheduleState()))
+        self._schedule_index = self.DeclareAbstractState(AbstractValue.Make(ScheduleMemory()))
         self._step = self.DeclareCacheEntry(
             "pair_schedule", ValueProducer(allocate=lambda: AbstractValue.Make(ScheduleStep(ScheduleState(), [], 0)),
                                            calc=self._calc_step),
-            prerequisites_of_calc=position | settings | {self.abstract_state_ticket(self._schedule_index)})
-        self.DeclarePeriodicUnrestrictedUpdateEvent(self.dt, 0.0, self._advance_schedule)
+            prerequisites_of_calc=position | settings)
         self._distances = self.DeclareCacheEntry(
             "distances",
             ValueProducer(allocate=lambda: AbstractValue.Make(PairDistances(jacobian=np.zeros((0, nv)))),
@@ -311,19 +311,16 @@ class TaskCollision(Entity[CollisionMargins]):
         holder = self._world_context.Eval(context)
         if self._pair_schedule is None:
             self._pair_schedule = PairSchedule(self.world, self._geometry_pairs)
-        state = context.get_abstract_state(self._schedule_index).get_value()
+        memory = context.get_abstract_state(self._schedule_index).get_value()
         q, margins = self._position.Eval(context), self._settings_of(context)
         influence: float | np.ndarray = margins.influence
         if self._velocity is not None:  # a pair faster than the damper allows is taken in range before d_i
-            if holder.approach is None:  # (the tick's update and its outputs both ask for it)
+            if holder.approach is None:  # (once per configuration)
                 holder.approach = self._pair_schedule.approach_bound(holder.context)
             influence = speed_aware_influence(margins, holder.approach)
-        value.set_value(self._pair_schedule.step(state, holder.context, q, influence))
-
-    def _advance_schedule(self, context: Context, state: State) -> None:
-        """The periodic update: the schedule's bounds at this tick's ``q`` (:mod:`.schedule`)."""
-        if self._position.HasValue(context):
-            state.get_mutable_abstract_state(self._schedule_index).set_value(self._step.Eval(context).state)
+        step = self._pair_schedule.step(memory.state, holder.context, q, influence)
+        memory.state = step.state
+        value.set_value(step)
 
     def _calc_distances(self, context: Context, value: AbstractValue) -> None:
         holder = self._world_context.Eval(context)

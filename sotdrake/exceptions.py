@@ -162,6 +162,12 @@ class SolverError(SotError):
     """The solver met a non-finite Jacobian or reference; the message names the task."""
 
 
+def os_reason(error: BaseException) -> str:
+    """What an ``OSError`` says went wrong (its ``strerror``, e.g. "Permission denied"), or the
+    error itself when it has no such text."""
+    return str(getattr(error, "strerror", None) or error)
+
+
 def all_numbers(value) -> bool:
     """True if ``value`` is a real number or nested sequences/arrays of them (no str, bool, None)."""
     import numbers

@@ -18,7 +18,7 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram
 
-from .exceptions import InvalidInput, SotError, check_number
+from .exceptions import InvalidInput, SotError, check_number, os_reason
 from .interactive import MAX_DURATION
 from .introspection import all_systems
 
@@ -254,7 +254,7 @@ def write_run(out: Path, diagram: Diagram, summary: dict, trace: dict | None = N
     except SotError:
         raise
     except (OSError, ValueError) as error:  # (a NUL byte in the path: ValueError)
-        raise InvalidInput(f"write_run: cannot write the run in {str(out)!r}: {getattr(error, 'strerror', None) or error}") from None
+        raise InvalidInput(f"write_run: cannot write the run in {str(out)!r}: {os_reason(error)}") from None
     names = ", ".join(Path(p).name for p in outputs.values())
     note = "; open recording.html in a browser: it plays by itself" if "recording" in outputs else ""
     print(f"wrote {names}{', ' if names else ''}summary.json in {out}{note}", file=sys.stderr)

@@ -28,7 +28,7 @@ import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPort
 from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 
-from .exceptions import InvalidInput, SotError, check_number
+from .exceptions import InvalidInput, SotError, check_number, os_reason
 from .simulation import save_figure, save_npz
 
 log = logging.getLogger(__name__)
@@ -112,7 +112,7 @@ class Tracer:
             try:
                 self._file = _ChunkFile(path)
             except (OSError, ValueError) as error:  # (a NUL byte in the path: ValueError)
-                raise InvalidInput(f"tracer stream: cannot write {str(path)!r}: {getattr(error, 'strerror', None) or error}") from None
+                raise InvalidInput(f"tracer stream: cannot write {str(path)!r}: {os_reason(error)}") from None
             _STREAMING.add(self)
         self._owner: int | None = None  # id of the root context the file holds
         self._last = -np.inf  # the time of the last sample moved to the file
@@ -246,7 +246,7 @@ def _stream_path(path: Path) -> Path:
     except SotError:
         raise
     except (OSError, ValueError) as error:  # (a NUL byte in the path: ValueError)
-        raise InvalidInput(f"tracer stream: {str(path)!r}: {getattr(error, 'strerror', None) or error}") from None
+        raise InvalidInput(f"tracer stream: {str(path)!r}: {os_reason(error)}") from None
     return path
 
 

@@ -19,7 +19,7 @@ import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, os_reason
 from .messages import check_topic
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
@@ -80,7 +80,7 @@ def write_bag(directory: Path | str, time: Sequence[float] | np.ndarray, joint_s
     try:
         staging = Path(tempfile.mkdtemp(prefix=".bag-", dir=directory.parent))
     except (OSError, ValueError) as error:
-        raise InvalidInput(f"write_bag: cannot write in {str(directory.parent)!r}: {getattr(error, 'strerror', None) or error}") from None
+        raise InvalidInput(f"write_bag: cannot write in {str(directory.parent)!r}: {os_reason(error)}") from None
     try:
         _write_series(staging / directory.name, t, series, names, frame)
         if directory.exists():

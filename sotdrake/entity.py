@@ -31,7 +31,7 @@ from typing import Any, Generic, TypeVar
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafContext, LeafSystem
 
-from .exceptions import InvalidInput, SotError, SotWarning
+from .exceptions import InvalidInput, SotError, SotWarning, check_name
 
 log = logging.getLogger("sotdrake.entity")
 
@@ -120,6 +120,7 @@ class Entity(LeafSystem, Generic[S]):
     """A ``LeafSystem`` named like its SoT entity, with run-time settings in its Context."""
 
     def __init__(self, name: str, defaults: S):
+        check_name(f"{type(self).__name__} name", name)
         LeafSystem.__init__(self)
         self.set_name(name)
         self._defaults = defaults

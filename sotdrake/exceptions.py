@@ -193,6 +193,19 @@ def check_name(what: str, name: object) -> str:
     return name
 
 
+#: The largest count :func:`check_count` takes by default (velocities, rows of a feature).
+MAX_COUNT = 100_000
+
+
+def check_count(name: str, value, low: int = 1, high: int = MAX_COUNT) -> int:
+    """``value`` as an int if it is a whole number (not a bool) in ``[low, high]``, else InvalidInput."""
+    import numbers
+
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not low <= int(value) <= high:
+        raise InvalidInput(f"{name} must be a whole number in [{low}, {high}], got {value!r:.60}")
+    return int(value)
+
+
 def check_number(name: str, value, low: float, high: float, unit: str = "") -> float:
     """``value`` as a float if it is a real number (not a bool) in ``[low, high]``, else InvalidInput."""
     if not all_numbers(value) or isinstance(value, (list, tuple)) or getattr(value, "ndim", 0) != 0:

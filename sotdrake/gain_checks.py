@@ -15,6 +15,8 @@ import math
 import numbers
 from dataclasses import dataclass
 
+import numpy as np
+
 from .exceptions import InvalidInput
 from .ranges import (
     ERROR_SCALE,
@@ -27,6 +29,11 @@ from .ranges import (
 log = logging.getLogger("sotdrake.gains")
 
 
+def error_norm(x: np.ndarray) -> float:
+    """``‖x‖ = √(x·x)``, what a gain reads of its error (the tick's cheapest form)."""
+    return math.sqrt(x @ x)
+
+
 @dataclass(frozen=True)
 class AdaptiveCoefficients:
     """The adaptive gain ``λ(‖e‖) = a·exp(−b‖e‖) + c`` (1/s; ``b`` in 1/unit of the error)."""
@@ -36,6 +43,8 @@ class AdaptiveCoefficients:
     c: float = 1.0
 
     def __call__(self, error_norm: float) -> float:
+        if self.b == 0.0:  # (a constant a + c, also for an infinite error norm: no 0·∞)
+            return self.a + self.c
         return self.a * math.exp(-self.b * error_norm) + self.c
 
     @property

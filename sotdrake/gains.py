@@ -29,7 +29,7 @@ from pydrake.systems.framework import Context
 
 from .entity import Entity
 from .exceptions import InvalidInput
-from .gain_checks import AdaptiveCoefficients, HyperbolicCoefficients, check_gain
+from .gain_checks import AdaptiveCoefficients, HyperbolicCoefficients, check_gain, error_norm
 from .ranges import ERROR_SCALE
 
 #: Largest magnitude of a number given to a gain command (λ0, λ∞, slope, tanAt0 …).
@@ -43,10 +43,6 @@ def hyperbolic(gain0: float, gain_inf: float, tan_at0: float, decal0: float) -> 
         raise InvalidInput(f"expected λ0 ≥ λ∞ ≥ 0 and tanAt0 ≥ 0, got ({gain0}, {gain_inf}, {tan_at0}, {decal0})")
     a = gain0 - gain_inf
     return HyperbolicCoefficients(a, tan_at0 / a / 2 if a > 0 else 0.0, gain_inf, decal0)
-
-
-def _norm(x: np.ndarray) -> float:
-    return math.sqrt(x @ x)
 
 
 _SYMBOLS = {"gain": "λ", "gain0": "λ0", "gain_inf": "λ∞", "tan_at0": "tanAt0", "decal0": "decal0",
@@ -118,7 +114,7 @@ class _Gain(Entity[GainSettings]):
         """``dt``: the control period (s) of the loop the gain serves; with it, gains with
         ``λ·dt ≥ 2`` are refused (see :mod:`sotdrake.gain_checks`)."""
         Entity.__init__(self, name, GainSettings(constant(1.0)))
-        if dt is not None and not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+        if dt is not None and not (isinstance(dt, (int, float)) and not isinstance(dt, bool) and math.isfinite(dt) and dt > 0):
             raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
         self.dt = dt
         self.error = self.DeclareAbstractInputPort("error", AbstractValue.Make(np.zeros(0)))
@@ -127,7 +123,7 @@ class _Gain(Entity[GainSettings]):
     def _calc_gain(self, context: Context, output) -> None:
         coefficients = self._settings_of(context).coefficients
         # A constant gain does not read its error (nor makes the feature compute it).
-        output.SetAtIndex(0, coefficients.c if coefficients.is_constant else coefficients(_norm(self.error.Eval(context))))
+        output.SetAtIndex(0, coefficients.c if coefficients.is_constant else coefficients(error_norm(self.error.Eval(context))))
 
     def setConstant(self, gain: float, context: Context | None = None) -> None:
         self.setCoefficients(constant(gain), context)

@@ -8,8 +8,10 @@ The rule, per joint coordinate ``i`` (rad or m), with the look-ahead step ``h`` 
 
 The inequalities are strict, as in sot-core: a joint on its limit keeps a velocity that takes it
 away from the limit and gets exactly zero toward it (or of zero). The floating base's velocities
-pass unchanged (sot-core: "do not take into account the free flyer"). A joint already outside its
-limits is stopped whatever its velocity (sot-core's rule; no solver in sotdrake puts it there).
+pass unchanged (sot-core: "do not take into account the free flyer"). The rule reads the next
+position only: a joint already outside its limits keeps a velocity that brings it back inside
+within the step ``h``, and any slower return is zeroed (sot-core's rule; no solver in sotdrake puts
+a joint there).
 
 sot-core hard-codes ``h = 0.005`` s (the period of the robots it was written for); here ``h`` is a
 setting, by default the device's period. The filter changes the command only, never the stack's
@@ -28,7 +30,7 @@ from pydrake.systems.framework import BasicVector, Context
 
 from .configuration import Layout
 from .entity import Entity
-from .exceptions import InvalidInput, SolverError
+from .exceptions import InvalidInput, SolverError, all_numbers
 
 __all__ = ["JointLimitator", "limit_joint_velocities"]
 
@@ -112,6 +114,8 @@ class JointLimitator(Entity[LimitatorSettings]):
 
     def _limit(self, name: str, value, n: int) -> np.ndarray:
         try:
+            if not all_numbers(value):
+                raise TypeError("not numbers")
             array = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
             raise InvalidInput(f"{self.name}.setLimits: {name} must be {n} numbers (rad or m), got {value!r:.200}") from None
@@ -119,7 +123,11 @@ class JointLimitator(Entity[LimitatorSettings]):
             raise InvalidInput(f"{self.name}.setLimits: {name} must be {n} numbers (one per joint coordinate), got shape {array.shape}")
         if np.any(np.isnan(array)):
             raise InvalidInput(f"{self.name}.setLimits: {name} contains NaN: {array}")
-        return array  # ±inf: no limit
+        wrong_side = np.inf if name == "lower" else -np.inf  # (no position is below +inf or above -inf)
+        if np.any(array == wrong_side):
+            raise InvalidInput(f"{self.name}.setLimits: {name} must not be {wrong_side:g} (it would stop the joint for good); "
+                               f"±inf on its own side is no limit")
+        return array  # -inf lower, +inf upper: no limit
 
     @property
     def joint_count(self) -> int:

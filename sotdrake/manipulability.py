@@ -17,7 +17,8 @@ origin), and moving along ``e_k`` changes ``S_i`` by the Lie bracket ``ad(S_k) S
 ``upstream`` comes from the plant (:func:`upstream_coordinates`): a joint's coordinates move those
 of the joints below it; a floating base's translations move its rotations' twists (they turn about
 the base's origin) and, with its rotations, every joint's; the base's rotations (world axes) do not
-move each other's twists.
+move each other's twists. Inside a planar joint its translations move its rotation's axis, inside a
+universal joint its first angle turns its second axis.
 """
 
 from __future__ import annotations
@@ -104,7 +105,20 @@ def upstream_coordinates(plant) -> np.ndarray:
         for other in joints:
             if other.index() != joint.index() and other.child_body().index() in below:
                 upstream[k, other.velocity_start() : other.velocity_start() + other.num_velocities()] = True
-        if joint.num_velocities() == 6:  # a floating base (ω; v): its translations move its rotations' twists
-            start = joint.velocity_start()
-            upstream[start + 3 : start + 6, start : start + 3] = True
+        start = joint.velocity_start()
+        for k_own, i_own in _INSIDE_JOINT.get(joint.type_name(), ()):
+            upstream[start + k_own, start + i_own] = True
     return upstream
+
+
+#: Per Drake joint type of more than one velocity, the pairs ``(k, i)`` of its own velocities where
+#: moving k moves i's twist. A floating base ``(ω; v)`` (quaternion or roll-pitch-yaw): its
+#: translations move its rotations' axes (through the moving origin); a planar joint ``(ẋ, ẏ, θ̇)``:
+#: x and y move the axis of θ; a universal joint: the first angle turns the second axis. A ball
+#: joint's velocity is its angular velocity about fixed axes through a fixed point: no pair.
+_INSIDE_JOINT: dict[str, tuple[tuple[int, int], ...]] = {
+    "quaternion_floating": tuple((k, i) for k in range(3, 6) for i in range(3)),
+    "rpy_floating": tuple((k, i) for k in range(3, 6) for i in range(3)),
+    "planar": ((0, 2), (1, 2)),
+    "universal": ((0, 1),),
+}

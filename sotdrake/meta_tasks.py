@@ -44,7 +44,7 @@ from .features.feature6d import as_transform
 from .features.manipulability import FeatureManipulability
 from .features.momentum import FeatureMomentum
 from .gain_checks import check_gain
-from .gains import GainAdaptive, from_numbers
+from .gains import GainAdaptive, constant, from_numbers
 from .kinematics import Dynamic
 from .manipulability import upstream_coordinates
 from .ranges import MAX_TARGET_POSITION
@@ -252,6 +252,10 @@ class MetaTaskVisualPoint(_MetaTask):
         self._finish(robot, name, feature)
 
     def plugPoint(self, point: OutputPort, velocity: OutputPort | None = None) -> None:
+        for what, port in (("point", point), ("velocity", velocity)):
+            if port is not None and not isinstance(port, OutputPort):
+                raise InvalidInput(f"{self.name}.plugPoint: {what} must be an output port (3 numbers, world frame), "
+                                   f"got {type(port).__name__}")
         self.robot.builder.Connect(point, self.feature.GetInputPort("point"))
         if velocity is not None:
             self.robot.builder.Connect(velocity, self.feature.GetInputPort("point_velocity"))
@@ -292,7 +296,8 @@ class MetaTaskKineManipulability(_MetaTask):
                  joints: list[str] | None = None, gain: float = 10.0):
         robot = _new_task(robot, "MetaTaskKineManipulability", name)
         floor = check_number(f"MetaTaskKineManipulability({name!r}): floor", floor, 0.0, 1e6)
-        check_number(f"MetaTaskKineManipulability({name!r}): gain", gain, 1e-6, 1e4, " 1/s")
+        gain = check_number(f"MetaTaskKineManipulability({name!r}): gain", gain, 1e-6, 1e4, " 1/s")
+        check_gain(constant(gain), robot.dt, f"MetaTaskKineManipulability({name!r}) gain")
         robot.model.frame(opPoint)  # an unknown frame is refused before anything is added
         if isinstance(joints, str):
             raise InvalidInput(f"MetaTaskKineManipulability({name!r}): joints is a list of joint names, got the string {joints!r:.60}")
@@ -343,7 +348,8 @@ class MetaTaskKineJointLimits(_MetaTask):
                  inequality: bool = True):
         robot = _new_task(robot, "MetaTaskKineJointLimits", name, inequality=inequality)
         margin = check_number(f"MetaTaskKineJointLimits({name!r}) margin (fraction of each joint's range)", margin, 0.0, 0.45)
-        check_gain(from_numbers(gain), robot.dt, f"MetaTaskKineJointLimits({name!r}) gain")
+        gain = check_number(f"MetaTaskKineJointLimits({name!r}) gain (one number)", gain, 1e-6, 1e4, " 1/s")
+        check_gain(constant(gain), robot.dt, f"MetaTaskKineJointLimits({name!r}) gain")
         plant = robot.model.plant
         feature = FeatureJointLimits("feature" + name, plant)
         if feature.dimension == 0:
@@ -374,6 +380,8 @@ def hold_feet_and_com(robot: Robot, sot, gain: float = 10.0, com: bool = True):
     are left out of the control, as the tutorial does:
     ``sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))``."""
     robot = _as_robot(robot, "hold_feet_and_com")
+    gain = check_number("hold_feet_and_com: gain", gain, 0.0, 1e4, " 1/s")
+    check_gain(constant(gain), robot.dt, "hold_feet_and_com gain")
     feet = [(name, robot.OperationalPointsMap[op]) for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle"))]
     for name, frame in feet:  # (everything checked before anything is added)
         _new_task(robot, "hold_feet_and_com", name, reference=True)

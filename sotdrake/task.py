@@ -30,13 +30,16 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafContext, LeafSystem
 
 from .entity import Entity
-from .exceptions import InvalidInput, SotWarning, StackError, all_numbers, check_finite
+from .exceptions import InvalidInput, SotWarning, StackError, all_numbers, check_count, check_finite, check_name
 from .features.base import FeatureValue, feature_signals
+from .gain_checks import error_norm
 from .progress import ProgressWatch
 from .ranges import MAX_TARGET_POSITION
 
 #: Largest derivative gain β of a TaskPD (dimensionless: ė* = -λ e - β ė).
-MAX_BETA = 100.0
+#: ``β`` is below this (exclusive): with ``β ≥ 1`` the error's two-step recursion diverges whatever λ
+#: (see :class:`TaskPD`).
+MAX_BETA = 1.0
 
 
 class TaskLevel(NamedTuple):
@@ -79,10 +82,6 @@ def unconnected_input_message(task_name: str, error: RuntimeError) -> str | None
             "is not connected (a meta task connects its feature's inputs)")
 
 
-def _norm(x: np.ndarray) -> float:
-    return math.sqrt(x @ x)
-
-
 def _empty(nv: int) -> TaskLevel:
     return TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
 
@@ -104,7 +103,7 @@ class _TaskBase(LeafSystem):
         raise NotImplementedError
 
     def _declare_ports(self, nv: int) -> None:
-        self.nv = nv
+        self.nv = nv = check_count(f"{self.get_name()}: nv (the velocities)", nv)
         self._progress = ProgressWatch(self.get_name())  # logging only (sotdrake.progress)
         self.feature = self.DeclareAbstractInputPort(
             "feature", AbstractValue.Make(FeatureValue(np.zeros(0), np.zeros((0, nv)), np.zeros(0))))
@@ -114,7 +113,7 @@ class _TaskBase(LeafSystem):
         self.errordot = self.DeclareAbstractInputPort("errordot", AbstractValue.Make(np.zeros(0)))
         self._task_output = self.DeclareAbstractOutputPort("task", lambda: AbstractValue.Make(_empty(nv)), self._calc)
         self.DeclareVectorOutputPort(
-            "error_norm", 1, lambda c, o: o.SetAtIndex(0, _norm(self._task_output.Eval(c).error)),
+            "error_norm", 1, lambda c, o: o.SetAtIndex(0, error_norm(self._task_output.Eval(c).error)),
             prerequisites_of_calc={self.cache_entry_ticket(self._task_output.cache_entry().cache_index())},
         )
 
@@ -169,6 +168,7 @@ class Task(_TaskBase):
     """
 
     def __init__(self, name: str, nv: int):
+        check_name("Task name", name)
         LeafSystem.__init__(self)
         self.set_name(name)
         self._declare_ports(nv)
@@ -187,6 +187,11 @@ class TaskPD(_TaskBase, Entity[PDSettings]):
     """``ė* = -λ e - β ė - ė_ref`` with ``ė = (e_k - e_{k-1})/dt`` (zero on the first tick and when
     the error changes size).
 
+    Realised exactly, the error follows ``e_{k+1} = (1 − λ dt − β) e_k + β e_{k−1}``, whose roots lie
+    inside the unit circle (Jury's test) if and only if ``λ dt > 0`` and ``0 ≤ β < 1 − λ dt / 2``:
+    ``setBeta`` refuses ``β ≥ 1`` (unstable for every λ), and the task warns once when the gain it
+    reads makes ``β ≥ 1 − λ dt / 2`` (the error would oscillate and grow instead of converging).
+
     The previous error is discrete state ``[rows, e_{k-1}, 0…]`` (rows -1 before the first tick),
     updated every ``dt`` together with the device: Drake computes every discrete update of a tick
     from the same context, so the command of tick k sees ``e_{k-1}``. (An unrestricted update would
@@ -199,9 +204,10 @@ class TaskPD(_TaskBase, Entity[PDSettings]):
 
     def __init__(self, name: str, nv: int, dt: float, max_rows: int | None = None):
         Entity.__init__(self, name, PDSettings())
-        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+        if not (isinstance(dt, (int, float)) and not isinstance(dt, bool) and math.isfinite(dt) and dt > 0):
             raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
         self.dt = float(dt)
+        self._warned_beta = False
         self.max_rows = nv if max_rows is None else int(max_rows)
         if self.max_rows < 1:
             raise InvalidInput(f"{name}: max_rows must be ≥ 1, got {max_rows!r}")
@@ -210,8 +216,9 @@ class TaskPD(_TaskBase, Entity[PDSettings]):
         self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._remember)
 
     def setBeta(self, beta: float, context: Context | None = None) -> None:
-        if isinstance(beta, bool) or not isinstance(beta, (int, float)) or not (math.isfinite(beta) and 0 <= beta <= MAX_BETA):
-            raise InvalidInput(f"{self.name}: β must be a number in [0, {MAX_BETA:g}], got {beta!r}")
+        if isinstance(beta, bool) or not isinstance(beta, (int, float)) or not (math.isfinite(beta) and 0 <= beta < MAX_BETA):
+            raise InvalidInput(f"{self.name}.setBeta: β must be a number in [0, {MAX_BETA:g}) (β ≥ 1 makes the error "
+                               f"diverge), got {beta!r}")
         self._command(context, lambda s: setattr(s, "beta", float(beta)))
 
     def _remember(self, context: Context, discrete_state) -> None:
@@ -225,7 +232,13 @@ class TaskPD(_TaskBase, Entity[PDSettings]):
     def _rows(self, context, e, gain):
         kept = context.get_discrete_state(self._previous).get_value()
         rate = (e - kept[1 : 1 + e.size]) / self.dt if kept[0] == e.size else np.zeros_like(e)
-        reference = -gain * e - self._settings_of(context).beta * rate
+        beta = self._settings_of(context).beta
+        if beta > 0.0 and not self._warned_beta and beta >= 1.0 - 0.5 * float(np.max(gain)) * self.dt:
+            self._warned_beta = True  # (logging only)
+            warnings.warn(f"{self.name}: β = {beta:g} ≥ 1 − λ dt / 2 = {1.0 - 0.5 * float(np.max(gain)) * self.dt:g}: the "
+                          "error oscillates and grows instead of converging; lower β or λ (warned once)", SotWarning,
+                          stacklevel=2)
+        reference = -gain * e - beta * rate
         return reference, reference
 
 

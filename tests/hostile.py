@@ -239,7 +239,7 @@ def bad_inputs() -> list[tuple[str, Callable]]:
     add(_numbers("sot.setThreshold", lambda fx, v: fx.sot.setThreshold(v, c(fx)), [-1.0, 2.0]))
     add(_numbers("sot.setDamping", lambda fx, v: fx.sot.setDamping(v, c(fx)), [-1.0, 1e5]))
     # the PD task
-    add(_numbers("taskhead.setBeta", lambda fx, v: T(fx, "head").task.setBeta(v, c(fx)), [-1.0, 1e3]))
+    add(_numbers("taskhead.setBeta", lambda fx, v: T(fx, "head").task.setBeta(v, c(fx)), [-1.0, 1.0, 1e3]))
     # targets
     add(_numbers("gotoNd(rh, (x, 0, 1))", lambda fx, v: gotoNd(T(fx, "rh"), [v, 0.0, 1.0], context=c(fx)), [101.0, -1e5]))
     add(_numbers("gotoNd(rh, 6D roll)", lambda fx, v: gotoNd(T(fx, "rh"), [0.5, 0.0, 1.0, v, 0.0, 0.0], context=c(fx)), [7.0, -1e4]))
@@ -251,6 +251,10 @@ def bad_inputs() -> list[tuple[str, Callable]]:
     add(_numbers("posture.setPosture(q[10])", lambda fx, v: T(fx, "posture").feature.setPosture(_with(fx, 10, v), c(fx)), [1e3]))
     add(_numbers("device.set_position(q[10])", lambda fx, v: fx.robot.device.set_position(c(fx), _with(fx, 10, v)), [1e3]))
     table.append(("device.set_position(zero quaternion)", lambda fx: fx.robot.device.set_position(c(fx), _with(fx, slice(0, 4), 0.0))))
+    table.append(("posture.setPosture(zero quaternion)",
+                  lambda fx: T(fx, "posture").feature.setPosture(_with(fx, slice(0, 4), 0.0), c(fx))))
+    table.append(("posture.setPosture(quaternion of norm 2)",
+                  lambda fx: T(fx, "posture").feature.setPosture(_with(fx, slice(0, 4), 1.0), c(fx))))
     for label, value in [("[]", []), ("(1, 2)", [1.0, 2.0]), ("4 numbers", [1.0, 2.0, 3.0, 4.0]),
                          ("'abc'", "abc"), ("None", None), ("{}", {}), ("[[1, 2, 3]]", [[1.0, 2.0, 3.0]]),
                          ("zeros(4, 4)", np.zeros((4, 4))), ("scaled rotation", np.diag([2.0, 2.0, 2.0, 1.0])),

@@ -30,6 +30,7 @@ def test_gain_numbers_dispatch():
     assert from_numbers(10) == constant(10) and from_numbers([10]) == constant(10)
     assert from_numbers((4, 1, 5)) == from_slope(4, 1, 5)
     assert from_slope(2, 2, 5) == constant(2)  # a = 0: constant, no division by zero
+    assert from_slope(5, 1, 0)(float("inf")) == 5.0  # b = 0: the constant a + c, even for an overflowed ‖e‖ (no 0·∞)
 
 
 @pytest.mark.parametrize(

@@ -166,7 +166,10 @@ def test_bad_inputs_are_refused_and_change_nothing(arm):
     assert limitator.settings().step == 0.005
     before = limitator.limits()
     for lower, upper, word in (([0.0], [1.0, 1.0], "lower"), ([0.0, 0.0], [1.0, float("nan")], "NaN"),
-                               ([0.0, 2.0], [1.0, 1.0], "lower must be"), (["a", 0.0], [1.0, 1.0], "lower")):
+                               ([0.0, 2.0], [1.0, 1.0], "lower must be"), (["a", 0.0], [1.0, 1.0], "lower"),
+                               ([float("inf"), 0.0], [float("inf"), 1.0], "lower must not be inf"),
+                               ([0.0, 0.0], [1.0, -float("inf")], "upper must not be -inf"),
+                               ([True, 0.0], [1.0, 1.0], "lower")):
         with pytest.raises(InvalidInput, match=word):
             limitator.setLimits(lower, upper)
     for a, b in zip(limitator.limits(), before, strict=True):

@@ -75,6 +75,65 @@ def test_the_gradient_is_the_finite_difference_of_the_measure(frame, rng, rows):
         assert e[0] == mu and np.array_equal(J[0], gradient) and not e_dot.any()
 
 
+def _jointed_plant(first: str):
+    """A chain of boxes on ``first`` (a planar or roll-pitch-yaw floating joint to the world), then a
+    universal joint, a roll-pitch-yaw ball joint and a revolute joint, the frame ``tip`` at its end."""
+    from pydrake.math import RigidTransform
+    from pydrake.multibody.plant import MultibodyPlant
+    from pydrake.multibody.tree import (
+        BallRpyJoint,
+        FixedOffsetFrame,
+        PlanarJoint,
+        RevoluteJoint,
+        RpyFloatingJoint,
+        SpatialInertia,
+        UniversalJoint,
+    )
+
+    plant = MultibodyPlant(0.0)
+    bodies = [plant.AddRigidBody(f"b{i}", SpatialInertia.SolidBoxWithMass(1.0, 0.1, 0.1, 0.3)) for i in range(4)]
+    frames = [plant.AddFrame(FixedOffsetFrame(f"end{i}", body.body_frame(), RigidTransform([0.05, 0.1, 0.3])))
+              for i, body in enumerate(bodies)]
+    if first == "planar":
+        plant.AddJoint(PlanarJoint("base", plant.world_frame(), bodies[0].body_frame(), np.zeros(3)))
+    else:
+        plant.AddJoint(RpyFloatingJoint("base", plant.world_frame(), bodies[0].body_frame()))
+    plant.AddJoint(UniversalJoint("universal", frames[0], bodies[1].body_frame()))
+    plant.AddJoint(BallRpyJoint("ball", frames[1], bodies[2].body_frame()))
+    plant.AddJoint(RevoluteJoint("hinge", frames[2], bodies[3].body_frame(), [0.3, 0.0, 1.0]))
+    plant.AddFrame(FixedOffsetFrame("tip", frames[3], RigidTransform()))
+    plant.Finalize()
+    return plant
+
+
+@pytest.mark.parametrize("first", ["planar", "rpy_floating"])
+def test_the_derivative_inside_planar_universal_ball_and_rpy_joints_is_its_finite_difference(first, rng):
+    """Inside a planar joint its translations move its rotation's axis, inside a universal joint
+    the first angle turns the second axis (and the floating joint's translations its rotations'):
+    the derivative along each velocity, and the gradient, against finite differences along
+    ``q̇ = N(q) v``."""
+    plant = _jointed_plant(first)
+    frame = Frame(plant, "tip", plant.GetDefaultPositions())
+    context = plant.CreateDefaultContext()
+    h = 1e-6
+    for _ in range(3):
+        q = rng.uniform(-0.6, 0.6, plant.num_positions())
+        J, p = frame.jacobian_and_position(q)
+        derivatives = jacobian_derivatives(J, p, frame.upstream)
+        plant.SetPositions(context, q)
+        for k in range(frame.nv):
+            qdot = plant.MapVelocityToQDot(context, np.eye(frame.nv)[k])
+            numeric = (frame.jacobian_and_position(q + h * qdot)[0] - frame.jacobian_and_position(q - h * qdot)[0]) / (2 * h)
+            np.testing.assert_allclose(derivatives[k], numeric, atol=1e-7 * max(1.0, np.abs(numeric).max()))
+        rows = np.array([3, 4, 5])
+        mu, gradient = manipulability_and_gradient(J, p, frame.upstream, rows)
+        for k in range(frame.nv):
+            qdot = plant.MapVelocityToQDot(context, np.eye(frame.nv)[k])
+            ahead, behind = (manipulability_and_gradient(*frame.jacobian_and_position(q + sign * h * qdot), frame.upstream, rows)[0]
+                             for sign in (1.0, -1.0))
+            assert gradient[k] == pytest.approx((ahead - behind) / (2 * h), abs=1e-7 * max(1.0, mu))
+
+
 def test_the_measure_vanishes_at_a_singularity():
     J = np.array([[1.0, 2.0, 0.0], [2.0, 4.0, 0.0]])  # rank 1
     assert manipulability(J) == 0.0

@@ -25,6 +25,8 @@ from sotdrake import (
     InvalidInput,
     MetaTaskKine6d,
     MetaTaskKineCom,
+    MetaTaskKineJointLimits,
+    MetaTaskKineManipulability,
     OperationalPointNotFound,
     SotWarning,
     StackError,
@@ -57,6 +59,8 @@ class Stack:
             self.rh.featureDes.settings(context).position.GetAsMatrix4().tobytes(),
             self.rh.feature.settings(context).selection,
             self.rh.gain.settings(context).coefficients,
+            tuple(sorted(self.robot._names)),  # no entity added
+            repr(self.sot.settings(context).control_selection),
         )
 
 
@@ -117,6 +121,18 @@ MISTAKES = [
         r"gotoNd takes a MetaTaskKine6d or MetaTaskKineCom, got str: pass the meta task itself",
     ),
     Mistake("unknown task name", lambda s: s.sot.push("taskRH"), TaskNotFound, r"unknown task 'taskRH' \(did you mean 'taskrh'"),
+    Mistake("hold the feet with a NaN gain", lambda s: hold_feet_and_com(s.robot, s.sot, gain=float("nan")), InvalidInput,
+            r"hold_feet_and_com: gain must be a number"),
+    Mistake("hold the feet with λ dt ≥ 2", lambda s: hold_feet_and_com(s.robot, s.sot, gain=5000.0), InvalidInput,
+            r"hold_feet_and_com gain: λ·dt must be < 2"),
+    Mistake("manipulability with λ dt ≥ 2",
+            lambda s: MetaTaskKineManipulability("m1", s.robot, "right-wrist", 0.01, gain=5000.0), InvalidInput,
+            r"MetaTaskKineManipulability\('m1'\) gain: λ·dt must be < 2"),
+    Mistake("joint limits with three gain numbers", lambda s: MetaTaskKineJointLimits(s.robot, name="jl1", gain=(5.0, 1.0, 2.0)),
+            InvalidInput, r"MetaTaskKineJointLimits\('jl1'\) gain \(one number\) must be a number in \[1e-06"),
+    Mistake("joint limits with a zero gain (every limited joint frozen)",
+            lambda s: MetaTaskKineJointLimits(s.robot, name="jl1", gain=0.0), InvalidInput,
+            r"MetaTaskKineJointLimits\('jl1'\) gain \(one number\) must be a number in \[1e-06"),
 ]
 
 
@@ -316,3 +332,18 @@ def test_a_task_that_progresses_again_is_no_longer_stalled(caplog):
             watch.observe(t, e)
             t += CHECK_PERIOD
     assert not watch.warned and len([r for r in caplog.records if "taskrh" in r.getMessage()]) == 1
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda: Task(None, 3), r"Task name must be a non-empty string"),
+    (lambda: Task("t", -1), r"t: nv \(the velocities\) must be a whole number"),
+    (lambda: Task("t", 2.5), r"t: nv \(the velocities\) must be a whole number"),
+    (lambda: Task("t", True), r"t: nv \(the velocities\) must be a whole number"),
+    (lambda: GainAdaptive(None), r"GainAdaptive name must be a non-empty string"),
+    (lambda: GainAdaptive("g", True), r"g: dt must be a number > 0"),
+    (lambda: FeatureGeneric("f", -1, 5), r"FeatureGeneric\('f'\): dimension must be a whole number"),
+    (lambda: FeatureGeneric("f", 3, 0), r"FeatureGeneric\('f'\): nv \(the velocities\) must be a whole number"),
+], ids=["task name", "task nv < 0", "task nv 2.5", "task nv bool", "gain name", "gain dt bool", "feature dimension", "feature nv"])
+def test_an_entity_of_a_wrong_name_or_size_is_refused_when_made(make, match):
+    with pytest.raises(InvalidInput, match=match):
+        make()

@@ -6,6 +6,7 @@ import math
 import subprocess
 import sys
 import uuid
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.lcm import LcmPublisherSystem
 
-from sotdrake.exceptions import InvalidInput, NotFound, StackError, TaskNotFound
+from sotdrake.exceptions import InvalidInput, NotFound, SotWarning, StackError, TaskNotFound
 from sotdrake.gains import GainHyperbolic, hyperbolic
 from sotdrake.interactive import Runner
 from sotdrake.introspection import displayAll, displaySignals, entities, entity, signal, signals_report
@@ -110,6 +111,16 @@ def test_task_pd_uses_the_error_rate(talos_model):
     np.testing.assert_allclose(level.reference, -2.0 * np.array([0.9, 0.1, -1.0]) - 0.5 * rate)
     with pytest.raises(InvalidInput):
         task.setBeta(-1.0)
+    with pytest.raises(InvalidInput, match="diverge"):  # e_{k+1} = (1 − λdt − β) e_k + β e_{k−1}: a root of size ≥ β
+        task.setBeta(1.0)
+    assert task._settings_of(simulator.get_context()).beta == 0.5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        task.GetOutputPort("task").Eval(simulator.get_context())  # β = 0.5 < 1 − λ dt / 2 = 0.99: no warning
+    task.setBeta(0.995, simulator.get_mutable_context())  # stable for λ dt < 0.01, not at λ = 2 /s, dt = 0.01 s
+    task.GetInputPort("error").FixValue(simulator.get_mutable_context(), np.array([0.8, 0.1, -1.0]))
+    with pytest.warns(SotWarning, match="oscillates and grows"):
+        task.GetOutputPort("task").Eval(simulator.get_context())
     small = TaskPD("small", talos_model.nv, dt=0.01, max_rows=2)  # keeps at most 2 rows
     context = small.CreateDefaultContext()
     small.GetInputPort("jacobian").FixValue(context, J)

@@ -22,7 +22,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context
 
 from ..entity import Entity
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, check_count
 from ..selection import parse_selection
 
 #: Component names of the usual feature sizes (a mask reads them right to left).
@@ -99,6 +99,8 @@ class Feature(Entity):
     """
 
     def __init__(self, name: str, dimension: int, nv: int, settings: FeatureSettings | None = None):
+        dimension = check_count(f"{type(self).__name__}({name!r:.60}): dimension", dimension, low=0)
+        nv = check_count(f"{type(self).__name__}({name!r:.60}): nv (the velocities)", nv)
         Entity.__init__(self, name, settings or FeatureSettings("1" * dimension))
         self.dimension, self.nv = dimension, nv
 

@@ -14,7 +14,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context
 
 from ..entity import Entity
-from ..exceptions import check_finite
+from ..exceptions import check_count, check_finite
 from ..ranges import MAX_TARGET_POSITION, MAX_TARGET_VELOCITY
 from .base import Feature, optional_input, usual_input
 
@@ -31,6 +31,7 @@ class FeatureGenericDesired(Entity[FeatureGenericDesiredSettings]):
     target, e.g. from Drake's ``TrajectorySource`` or ``Sine``)."""
 
     def __init__(self, name: str, dimension: int):
+        dimension = check_count(f"FeatureGenericDesired({name!r}): dimension", dimension)
         Entity.__init__(self, name, FeatureGenericDesiredSettings(np.zeros(dimension), np.zeros(dimension)))
         self.dimension = dimension
         self.value_in = self.DeclareVectorInputPort("value_in", dimension)

@@ -52,7 +52,7 @@ class KinematicSolver(StackSolver[S]):
         self.nv = nv
         self.dt = dt
         if dt is not None:
-            if not (isinstance(dt, (int, float)) and np.isfinite(dt) and dt > 0):
+            if not (isinstance(dt, (int, float)) and not isinstance(dt, bool) and np.isfinite(dt) and dt > 0):
                 raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
         self.layout = layout
         self.position = None

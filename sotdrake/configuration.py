@@ -167,11 +167,15 @@ def velocity_names(plant: MultibodyPlant) -> list[str]:
 
 class PlantContextHolder:
     """A plant context as the value of a cache entry: a system computing kinematics sets its
-    positions in the entry's ``calc``; a copy (for a cloned system context) gets a fresh one."""
+    positions in the entry's ``calc``; a copy (for a cloned system context) gets a context of its
+    own at the same state (Drake copies the entry as up to date: its value must be the original's)."""
 
     def __init__(self, plant: MultibodyPlant):
         self.plant = plant
         self.context: Context = plant.CreateDefaultContext()
 
     def __deepcopy__(self, memo: dict) -> PlantContextHolder:
-        return PlantContextHolder(self.plant)
+        clone = type(self).__new__(type(self))
+        clone.__dict__.update(self.__dict__)
+        clone.context = self.context.Clone()
+        return clone

@@ -107,6 +107,28 @@ def test_a_cloned_context_replays_the_sway_under_solver_dyn():
     assert np.all(np.isfinite(records[-1]["torque"]))
 
 
+def test_a_context_cloned_at_a_tick_replays_the_run_and_its_kinematics():
+    """Drake copies a cache entry as up to date with its context: a cloned plant context held in
+    one (the kinematics') must be at the original's configuration, not at the default one."""
+    from sotdrake.scenarios import kinesimple
+
+    run = kinesimple.build_diagram()
+    device, dynamic = run.robot.device, run.robot.dynamic
+    simulator = Simulator(run.diagram)
+    simulator.Initialize()
+    simulator.AdvanceTo(0.1)
+    clone = simulator.get_context().Clone()
+    assert np.array_equal(dynamic.GetOutputPort("Jcom").Eval(dynamic.GetMyContextFromRoot(clone)),
+                          dynamic.GetOutputPort("Jcom").Eval(dynamic.GetMyContextFromRoot(simulator.get_context())))
+    replay = Simulator(run.diagram, clone)
+    replay.Initialize()
+    simulator.AdvanceTo(0.2)
+    replay.AdvanceTo(0.2)
+    state = device.GetOutputPort("state")
+    assert np.array_equal(state.Eval(device.GetMyContextFromRoot(clone)),
+                          state.Eval(device.GetMyContextFromRoot(simulator.get_context())))
+
+
 def test_warm_starts_are_copied_with_the_context():
     warm = WarmStart(3)
     warm.working_sets[(0, False, (1, 1), (1, 1))] = np.array([1, 0, -1])

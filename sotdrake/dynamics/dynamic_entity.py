@@ -51,7 +51,9 @@ class StateContextHolder(PlantContextHolder):
         self.x = np.zeros(plant.num_multibody_states())
 
     def __deepcopy__(self, memo: dict) -> StateContextHolder:
-        return StateContextHolder(self.plant)
+        clone = PlantContextHolder.__deepcopy__(self, memo)
+        clone.x = self.x.copy()
+        return clone  # type: ignore[return-value]
 
 
 _ORIGIN = np.zeros(3)  # the op point is the frame's origin

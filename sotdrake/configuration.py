@@ -25,6 +25,7 @@ at the velocity limits.) :func:`difference` is the inverse of ``⊕``.
 
 from __future__ import annotations
 
+import copy
 import math
 from typing import NamedTuple
 
@@ -175,7 +176,6 @@ class PlantContextHolder:
         self.context: Context = plant.CreateDefaultContext()
 
     def __deepcopy__(self, memo: dict) -> PlantContextHolder:
-        clone = type(self).__new__(type(self))
-        clone.__dict__.update(self.__dict__)
+        clone = copy.copy(self)
         clone.context = self.context.Clone()
         return clone

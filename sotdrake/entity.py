@@ -128,7 +128,8 @@ class Entity(LeafSystem, Generic[S]):
         # out): while one exists, a change of the defaults does not reach it.
         self._in_contexts: weakref.WeakSet[_Frozen] = weakref.WeakSet()
         self._warned_late_default = False
-        #: ``(time, message)`` of each timed command refused during a run (a record, like a log).
+        #: ``(time, message)`` of each timed command refused during a run (a record, like a log; each
+        #: refusal once, however many runs of the diagram met it).
         self.refused_commands: list[tuple[float, str]] = []
         self._declaring = True
         self._settings_index = self.DeclareAbstractState(AbstractValue.Make(_DefaultsSnapshot(self)))
@@ -206,7 +207,9 @@ class Entity(LeafSystem, Generic[S]):
             except SotError as error:
                 log.warning("t = %.3f s: %s: its part of a timed command was refused, its settings are unchanged (the "
                             "parts for other entities apply on their own): %s", time, self.name, error)
-                self.refused_commands.append((float(time), str(error)))
+                refusal = (float(time), str(error))
+                if refusal not in self.refused_commands:  # (a diagram run again meets the same refusal: kept once)
+                    self.refused_commands.append(refusal)
                 return
             frozen = _Frozen(new)
             self._in_contexts.add(frozen)

@@ -178,6 +178,8 @@ def all_numbers(value) -> bool:
         return value.dtype.kind in "iuf" or (value.dtype.kind == "O" and all(all_numbers(v) for v in value.ravel()))
     if isinstance(value, (bool, np.bool_)):
         return False
+    if isinstance(value, numbers.Integral):  # (a Python int beyond a float's range is not one of ours)
+        return abs(int(value)) < 2**1024
     if isinstance(value, numbers.Real):
         return True
     if isinstance(value, (list, tuple)):

@@ -15,7 +15,7 @@ import numpy as np
 from pydrake.systems.framework import Context, Diagram, System
 
 from .entity import own_context
-from .exceptions import NotFound
+from .exceptions import NotFound, SotError
 
 
 def entities(diagram: Diagram) -> list[str]:
@@ -79,8 +79,8 @@ def signals_report(system: System, context: Context) -> str:
             else:
                 try:
                     text = _format(_value(port.EvalAbstract(own)))
-                except RuntimeError as error:  # e.g. an upstream input not connected
-                    text = f"(cannot evaluate: {str(error).splitlines()[0]})"
+                except (RuntimeError, SotError) as error:  # an upstream input not connected, a signal this robot has not
+                    text = f"(cannot evaluate: {(str(error).splitlines() or [type(error).__name__])[0]})"
             lines.append(f"  {kind} {port.get_name():24s} {text}")
     return "\n".join(lines)
 

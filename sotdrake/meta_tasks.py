@@ -433,6 +433,10 @@ def gotoNd(
                            + (": pass the meta task itself" if isinstance(task, str) else ""))
     if selec is not None:
         check_mask(selec, dimension, f"gotoNd({task.name}) selec")
+    if context is not None:  # each entity changed must find its context in it: the root's (not one entity's own)
+        changed = [task.featureDes] + ([task.feature] if selec is not None else []) + ([task.gain] if coefficients is not None else [])
+        for entity in changed:
+            entity.own_context(context)
 
     with command_group(f"gotoNd({task.name!r})"):
         if isinstance(task, MetaTaskKine6d):

@@ -282,11 +282,25 @@ class TaskInequality(_TaskBase, Entity[InequalityBounds]):
         if np.any(lower > upper) or np.any(np.isposinf(lower)) or np.any(np.isneginf(upper)):
             raise InvalidInput(f"{self.name}: lower bound above upper bound, or a side no error meets (lower = +inf, "
                                f"upper = -inf): {lower}, {upper}")
+        rows = self._feature_rows(context)
+        if rows is not None and rows != lower.size:
+            raise InvalidInput(f"{self.name}.setBounds: {lower.size} bounds, the feature's error has {rows} rows now "
+                               "(one bound per selected row)")
 
         def set_bounds(s: InequalityBounds) -> None:
             s.lower, s.upper = lower.copy(), upper.copy()
 
         self._command(context, set_bounds)
+
+    def _feature_rows(self, context: Context | None) -> int | None:
+        """The rows of the feature's error in ``context`` (None without a context, or when the
+        inputs cannot be evaluated there: the tick then says what is missing)."""
+        if context is None:
+            return None
+        try:
+            return int(self._inputs(self.own_context(context))[0].size)
+        except Exception:  # (an unconnected or failing input: not this command's business)
+            return None
 
     def unbounded(self, context: Context | None = None) -> bool:
         """True while no bounds are set (in ``context``, else in the defaults): the task is inert."""

@@ -103,6 +103,10 @@ def test_commands_apply_through_the_api(vocabulary, context, appli):
     assert run(vocabulary, context, "sot.push(taskRH)") == "ok"  # the meta task stands for its task
     assert sot.stack(context)[-1] == "taskrh" and sot.stack() == ["taskcontactRF", "taskcontactLF", "taskcom"]
     run(vocabulary, context, "sot.up('taskrh')")
+    run(vocabulary, context, "sot.rm('taskrh')")  # sot-dyninv's name for remove
+    assert "taskrh" not in sot.stack(context)
+    run(vocabulary, context, "sot.push(taskRH)")
+    run(vocabulary, context, "sot.up('taskrh')")
     assert sot.stack(context) == ["taskcontactRF", "taskcontactLF", "taskrh", "taskcom"]
     run(vocabulary, context, "gotoNd(taskRH, (0.4, -0.3, 0.9), '111', (4.9, 0.9, 0.01, 0.9))")
     desired = appli.taskRH.featureDes.settings(context).position.translation()
@@ -287,3 +291,24 @@ def test_a_run_broken_mid_way_stops_and_writes_its_files(tmp_path, appli, monkey
     summary = json.loads((out / "summary.json").read_text())
     assert "non-finite" in summary["live"]["error"] and summary["duration_s"] < 20.0
     assert (out / "trace.npz").is_file() and not (out / "live.json").exists()
+
+
+def test_attime_checks_the_values_now_on_a_copy_and_leaves_the_rest_to_its_time(vocabulary, context, appli):
+    """A command whose values are refused (a negative gain, a wrong target size) is refused when it
+    is scheduled, not at T where only a log line would say so; one that depends on the stack at T
+    (a push) is scheduled; the trial changes nothing in the run's context."""
+    scheduled = []
+    vocabulary.set_scheduler(lambda time, prepared: scheduled.append((time, str(prepared))) or "ok")
+    try:
+        before = {name: _settings(system, context) for name, system in _entities(appli)}
+        with pytest.raises(CommandRejected, match="a gain must be ≥ 0"):
+            run(vocabulary, context, "attime(1, gainrh.setConstant(-5))")
+        with pytest.raises(CommandRejected, match="attime: gotoNd"):
+            run(vocabulary, context, "attime(1, gotoNd(taskRH, (0.1, 0.2), '111', 3))")
+        assert scheduled == []
+        run(vocabulary, context, "attime(1, gainrh.setConstant(3))")
+        run(vocabulary, context, "attime(1, sot.remove('taskrh'))")  # not in the stack now: may be at T
+        assert [time for time, _ in scheduled] == [1.0, 1.0]
+        assert {name: _settings(system, context) for name, system in _entities(appli)} == before
+    finally:
+        vocabulary.set_scheduler(None)

@@ -192,10 +192,12 @@ def test_a_burst_of_commands_is_answered_with_no_effect(live, record_property):
 
 def test_attime_schedules_a_command(live):
     t = float(live.ask("time()"))
-    assert live.ask(f"attime({t + 0.3:.3f}, sot.remove('taskrh'))").startswith("ok: sot.remove('taskrh') at t =")
+    assert live.ask(f"attime({t + 1.0:.3f}, sot.remove('taskrh'))").startswith("ok: sot.remove('taskrh') at t =")
+    assert live.ask(f"attime({t + 1.0:.3f}, sot.up('taskrh'))").startswith("ok:")  # refused at T: removed by then
     assert "taskrh" in live.ask("sot.stack()")
-    live.wait_until(t + 0.4)
+    live.wait_until(t + 1.1)
     assert live.ask("sot.stack()") == "['taskcontactRF', 'taskcontactLF', 'taskcom']"
+    assert json.loads(live.ask("status()"))["attime_refused"] == 1
     assert not live.client.command(f"attime({t - 1:.3f}, sot.pop())")["ok"]  # the past
 
 

@@ -347,3 +347,36 @@ def test_a_task_that_progresses_again_is_no_longer_stalled(caplog):
 def test_an_entity_of_a_wrong_name_or_size_is_refused_when_made(make, match):
     with pytest.raises(InvalidInput, match=match):
         make()
+
+
+def test_inequality_bounds_of_another_row_count_are_refused_in_a_running_context():
+    """The row count is the feature's selection at run time: with a context the command checks it
+    there, so a live ``setBounds`` cannot stop the run at the next tick."""
+    from sotdrake import MetaTaskKineJointLimits
+
+    builder = DiagramBuilder()
+    robot = talos(builder)
+    sot = add_sot(robot, solver="hqp")
+    limits = MetaTaskKineJointLimits(robot)
+    sot.push(limits.task.name)
+    simulator = Simulator(builder.Build())
+    simulator.Initialize()
+    context = simulator.get_mutable_context()
+    before = limits.task.settings(context).lower.copy()
+    with pytest.raises(InvalidInput, match=r"setBounds: 2 bounds, the feature's error has \d+ rows now"):
+        limits.task.setBounds((-0.5, -0.5), (0.5, 0.5), context)
+    assert np.array_equal(limits.task.settings(context).lower, before)
+    rows = limits.feature.dimension
+    limits.task.setBounds([-0.5] * rows, [0.5] * rows, context)
+    simulator.AdvanceTo(0.01)
+
+
+def test_gotond_with_one_entitys_own_context_changes_nothing():
+    """gotoNd changes three entities: a context that is one of theirs (not the root's) is refused
+    before any of them changes."""
+    stack = make_stack()
+    context = stack.builder.Build().CreateDefaultContext()
+    before = stack.state(context)
+    with pytest.raises(InvalidInput, match="featurerh"):
+        gotoNd(stack.rh, [0.3, 0.2, 0.1], "111111", 4.0, context=stack.rh.featureDes.GetMyContextFromRoot(context))
+    assert stack.state(context) == before

@@ -313,3 +313,16 @@ def test_add_robot_puts_your_file_in_a_plant_of_your_own(tmp_path):
     add_robot(plant, seven_dof(tmp_path / "arm7.urdf"), base="free")
     plant.Finalize()
     assert (plant.num_positions(), plant.num_velocities(), plant.num_actuators()) == (14, 13, 7)
+
+
+def test_the_signals_of_a_fixed_base_robot_are_listed_with_those_it_has_not():
+    """A fixed-base arm has no centroidal momentum: the report says so on that port and lists the
+    others (the live ``displaySignals(dynamic)`` and ``displayAll`` use it)."""
+    from sotdrake.introspection import signals_report
+
+    builder = DiagramBuilder()
+    arm = robot(builder, load_robot("panda"))
+    context = builder.Build().CreateDefaultContext()
+    report = signals_report(arm.dynamic, context)
+    assert "momentum_matrix          (cannot evaluate: the centroidal momentum needs a floating base" in report
+    assert re.search(r"out com\s+\[", report)

@@ -97,6 +97,8 @@ def test_a_refused_timed_command_leaves_the_run_going(talos_model, solver, caplo
     assert [t for t, _ in sot.refused_commands] == [0.01] and "last contact" in sot.refused_commands[0][1]
     assert any("refused" in r.message for r in caplog.records)
     simulator.AdvanceTo(0.06)  # and the simulator still advances
+    Simulator(diagram).AdvanceTo(0.05)  # a second run meets the same refusal: the record keeps it once
+    assert [t for t, _ in sot.refused_commands] == [0.01]
 
 
 # --- the shared fall criterion ------------------------------------------------------------------

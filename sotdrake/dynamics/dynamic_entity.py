@@ -27,6 +27,7 @@ computed by its port (Drake caches each output port's value): ``com_drift`` and 
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -51,9 +52,9 @@ class StateContextHolder(PlantContextHolder):
         self.x = np.zeros(plant.num_multibody_states())
 
     def __deepcopy__(self, memo: dict) -> StateContextHolder:
-        clone = PlantContextHolder.__deepcopy__(self, memo)
-        clone.x = self.x.copy()
-        return clone  # type: ignore[return-value]
+        clone = copy.copy(self)
+        clone.context, clone.x = self.context.Clone(), self.x.copy()
+        return clone
 
 
 _ORIGIN = np.zeros(3)  # the op point is the frame's origin

@@ -100,6 +100,8 @@ class LiveRun:
         self._last_wall = time.monotonic()
         self.connection_files: list[Path] = []
         self.error: str | None = None  # why the simulation stopped, if it failed
+        #: The attime commands refused when their time came (``t``, ``command``, ``answer``).
+        self.attime_refused: list[dict] = []
 
     @property
     def context(self) -> Context:
@@ -126,6 +128,7 @@ class LiveRun:
             "accepted": counts.accepted,
             "rejected": counts.rejected,
             "scheduled": len(self._scheduled),
+            "attime_refused": len(self.attime_refused),
         }
         self._max_lag_ticks = 0
         return json.dumps(report)
@@ -196,6 +199,8 @@ class LiveRun:
             item = heapq.heappop(self._scheduled)
             ok, text = apply(item.prepared, context)
             (log.info if ok else log.warning)("t = %.3f s: attime %s: %s", now, item.prepared, text)
+            if not ok:
+                self.attime_refused.append({"t": round(now, 6), "command": str(item.prepared), "answer": text})
         wall = time.monotonic()
         lag = (wall - self._wall0) * self.rate - (now - self._t0)  # simulated seconds behind
         self._max_lag_ticks = max(self._max_lag_ticks, math.floor(lag / self.dt + 1e-9))
@@ -253,6 +258,7 @@ def close_live(live: LiveRun, handles: DiagramHandles, out: Path, wall: float, s
         summary = {"duration_s": simulated, "wall_s": wall, "realtime_factor": simulated / wall if wall else None}
     summary["live"] = json.loads(live.status())
     summary["live"]["error"] = live.error
+    summary["live"]["attime_refused"] = live.attime_refused
     if on_stop is not None and trace is not None:
         on_stop(out, summary, trace)
     if write is not None and trace is not None and live.error is None:

@@ -46,7 +46,7 @@ import numpy as np
 from pydrake.systems.framework import Context, Diagram, System
 
 from .. import introspection
-from ..exceptions import CommandRejected, NotFound
+from ..exceptions import CommandRejected, InvalidInput, NotFound, SotError
 from ..features import Feature, Feature6d, Feature6dDesired, FeatureGenericDesired
 from ..gains import GainAdaptive, GainHyperbolic
 from ..meta_tasks import MetaTaskKine6d, MetaTaskKineCom, _MetaTask, gotoNd
@@ -79,6 +79,8 @@ class Method:
     params: tuple[Param, ...]
     apply: Callable[..., Any]
     doc: str = ""
+    #: It reads and changes the context it is given only (``attime`` tries it on a copy first).
+    context_only: bool = True
 
     def signature(self, callee: str) -> str:
         shown = [p.name if p.default is _REQUIRED else f"{p.name}={p.default!r}" for p in self.params]
@@ -169,9 +171,11 @@ class Vocabulary:
         self._add_functions()
 
     # --- construction ----------------------------------------------------------------------
-    def add_function(self, name: str, params: tuple[Param, ...], apply: Callable[..., Any], doc: str = "") -> None:
-        """Offer ``name(...)`` (e.g. the runner's ``status()``); ``apply(context, *values)``."""
-        self._methods[""][name] = Method(params, apply, doc)
+    def add_function(self, name: str, params: tuple[Param, ...], apply: Callable[..., Any], doc: str = "",
+                     context_only: bool = False) -> None:
+        """Offer ``name(...)`` (e.g. the runner's ``status()``); ``apply(context, *values)``;
+        ``context_only``: it reads and changes that context only (no other effect)."""
+        self._methods[""][name] = Method(params, apply, doc, context_only)
 
     def set_scheduler(self, schedule: Callable[[float, Prepared], str]) -> None:
         """Where ``attime(T, command)`` hands its prepared command (the live runner)."""
@@ -242,7 +246,9 @@ class Vocabulary:
                 self._objects[f"{name}.{part}"] = system
 
     def _add_functions(self) -> None:
-        add = self.add_function
+        def add(name: str, params: tuple[Param, ...], apply: Callable[..., Any], doc: str = "") -> None:
+            self.add_function(name, params, apply, doc, context_only=True)
+
         add("gotoNd", _GOTO_PARAMS, lambda c, meta, position, selec, gain: gotoNd(meta, position, selec, gain, context=c),
             "drive a task to a position (1, 3 or 4 gain numbers)")
         add("displaySignals", (Param("entity", "entity"),), lambda c, e: introspection.signals_report(e, c))
@@ -263,6 +269,15 @@ class Vocabulary:
             raise CommandRejected(f"attime: T = {time} s is in the past (t = {context.get_time():.4f} s)")
         if time > MAX_TIME:
             raise CommandRejected(f"attime: T = {time} s is beyond the latest time a command may wait for ({MAX_TIME:g} s)")
+        if prepared.method.context_only:  # its values checked now, on a copy of the run's context
+            try:  # (what depends on the stack at T, e.g. a push, is checked at T)
+                prepared(context.Clone())
+            except CommandRejected:
+                raise
+            except InvalidInput as error:
+                raise CommandRejected(f"attime: {prepared}: {error}") from None
+            except SotError:
+                pass
         return self._pending_attime(time, prepared)
 
     # --- use -------------------------------------------------------------------------------
@@ -374,6 +389,7 @@ def _solver_methods(solver: Any) -> dict[str, Method]:
         "push": Method(task, lambda c, n: solver.push(n, c), "append at the lowest priority"),
         "pop": Method((), lambda c: solver.pop(c), "remove the lowest-priority task"),
         "remove": Method(task, lambda c, n: solver.remove(n, c)),
+        "rm": Method(task, lambda c, n: solver.remove(n, c), "remove (sot-dyninv's name)"),
         "up": Method(task, lambda c, n: solver.up(n, c)),
         "down": Method(task, lambda c, n: solver.down(n, c)),
         "clear": Method((), lambda c: solver.clear(c), "empty the stack (contacts stay)"),

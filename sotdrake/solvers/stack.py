@@ -35,7 +35,7 @@ MAX_DAMPING = 1e4
 
 
 def _real(value) -> bool:
-    return isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool) and bool(np.isfinite(value))
+    return all_numbers(value) and not np.ndim(value) and bool(np.isfinite(value))
 
 
 @dataclass
@@ -357,6 +357,10 @@ class StackSolver(Entity[S], Generic[S]):
 
     def remove(self, name: object, context: Context | None = None) -> None:
         """Remove ``name`` (a task name, a task or a meta task) from the stack."""
+        self.stack_of_tasks.remove(name, context)
+
+    def rm(self, name: object, context: Context | None = None) -> None:
+        """:meth:`remove` under sot-dyninv's name (its scripts' ``sot.rm(task.name)``)."""
         self.stack_of_tasks.remove(name, context)
 
     def clear(self, context: Context | None = None) -> None:

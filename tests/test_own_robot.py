@@ -326,3 +326,75 @@ def test_the_signals_of_a_fixed_base_robot_are_listed_with_those_it_has_not():
     report = signals_report(arm.dynamic, context)
     assert "momentum_matrix          (cannot evaluate: the centroidal momentum needs a floating base" in report
     assert re.search(r"out com\s+\[", report)
+
+
+@pytest.mark.parametrize("folder", ["with space", "pct%20dir", "nön_ascii_中", "hash#dir"])
+def test_meshes_in_any_folder_and_markup_of_any_style_load(tmp_path, folder, monkeypatch):
+    """Mesh paths with spaces, %-escapes or non-ASCII characters (Drake does not decode a URI), in
+    single or double quotes; a self-closing ``<gazebo/>`` and tags named in comments leave every
+    link and joint; ``velocity='0'`` in any spelling is no limit."""
+    monkeypatch.setenv("SOTDRAKE_CACHE", str(tmp_path / folder / "cache"))
+    root = tmp_path / folder
+    (root / "meshes").mkdir(parents=True)
+    (root / "meshes" / "box.stl").write_text(_ASCII_STL)
+    (root / "meshes" / "box.obj").write_text("v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
+    visual = ("<visual><geometry><mesh filename='meshes/box.stl'/></geometry></visual>"
+              '<collision><geometry><mesh filename = "meshes/box.obj"/></geometry></collision>')
+    text = chain_urdf("quirky", ["0 0 1"] * 3, 0.3, [(-2.0, 2.0)] * 3, visual=visual)
+    text = text.replace('<link name="link3">', '<gazebo reference="link3"/><!-- no <visual> or <gazebo> here --><link name="link3">')
+    text = text.replace('velocity="2"/></joint>', """velocity='0e0'/></joint>""", 1)
+    path = root / "quirky.urdf"
+    path.write_text(text.replace("</robot>", '<gazebo reference="link3"><material>x</material></gazebo></robot>'))
+    model = load_robot(path, meshes=True)
+    assert model.nv == 3 and model.plant.HasJointNamed("joint3")  # nothing cut away
+    assert model.scene_graph is not None and model.scene_graph.model_inspector().num_geometries() >= 2
+    assert np.isinf(model.plant.get_joint(model.plant.GetJointByName("joint1").index()).velocity_upper_limits()[0])
+
+
+def test_a_description_under_a_name_drakes_parser_reads_otherwise_is_refused_with_the_name_to_give(tmp_path):
+    mjcf = tmp_path / "arm.mjcf"
+    mjcf.write_text('<mujoco model="m"><worldbody><body name="b"><joint name="j" type="hinge"/>'
+                    '<geom type="sphere" size="0.1"/></body></worldbody></mujoco>')
+    with pytest.raises(RobotDescriptionError, match=r"a MJCF file.*'arm\.xml'"):
+        load_robot(mjcf)
+    sdf = tmp_path / "arm_sdf.xml"
+    sdf.write_text('<sdf version="1.7"><model name="m"><link name="a"/></model></sdf>')
+    with pytest.raises(RobotDescriptionError, match=r"a SDF file.*'arm_sdf\.sdf'"):
+        load_robot(sdf)
+    renamed = tmp_path / "arm.xml"
+    renamed.write_text(mjcf.read_text())
+    assert load_robot(renamed).nv == 1
+
+
+def test_a_posture_by_joint_name_gets_a_unit_base_quaternion_or_is_refused():
+    """The floating base's joint given by name (Drake's 7 numbers): normalized as an array posture
+    is, refused when zero."""
+    base = [2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+    model = load_robot("talos", reference_posture={"base_link": base})
+    np.testing.assert_allclose(model.reference_posture[:4], [1.0, 0.0, 0.0, 0.0])
+    with pytest.raises(InvalidInput, match=r"quaternion .* is zero"):
+        load_robot("talos", reference_posture={"base_link": [0.0] * 6 + [1.0]})
+
+
+def test_an_unusable_mesh_cache_is_named(tmp_path, monkeypatch):
+    blocker = tmp_path / "not_a_folder"
+    blocker.write_text("")
+    monkeypatch.setenv("SOTDRAKE_CACHE", str(blocker))
+    (tmp_path / "box.stl").write_text(_ASCII_STL)
+    from sotdrake.robots.mesh_cache import obj_for_mesh
+
+    with pytest.raises(InvalidInput, match=r"the mesh cache .*not_a_folder.*set SOTDRAKE_CACHE"):
+        obj_for_mesh(tmp_path / "box.stl")
+
+
+def test_an_srdf_of_another_robot_is_warned(caplog):
+    import logging
+
+    with caplog.at_level(logging.WARNING, logger="sotdrake.robots.model"):
+        model = load_robot(erd_robot("ur_description/urdf/ur5_robot.urdf"), srdf=erd_robot("panda_description/srdf/panda.srdf"))
+    assert not model.reference_posture.any()
+    assert any("none of its 8 joints is one of the model's" in r.getMessage() for r in caplog.records)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="sotdrake.robots.model"):
+        load_robot("talos")  # (its SRDF names joints of the full model too: not warned)
+    assert not caplog.records

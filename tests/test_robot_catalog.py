@@ -223,3 +223,35 @@ def test_collada_meshes_convert_to_obj(tmp_path, monkeypatch):
     extent = np.ptp(np.array([mesh.vertex(i) for i in range(mesh.num_vertices())]), axis=0)
     assert mesh.num_triangles() > 100 and 0.03 < extent.max() < 0.3  # a wrist, in metres
     assert obj_for_mesh(dae) == obj
+
+
+def test_add_robot_refuses_a_finalized_plant_a_second_copy_and_a_non_plant():
+    from pydrake.multibody.plant import MultibodyPlant
+
+    from sotdrake.exceptions import InvalidInput, RobotDescriptionError
+    from sotdrake.robots.loader import add_robot
+
+    finalized = MultibodyPlant(0.0)
+    finalized.Finalize()
+    with pytest.raises(InvalidInput, match="the plant is finalized"):  # (Drake ended the process on it)
+        add_robot(finalized, "ur5")
+    plant = MultibodyPlant(0.0)
+    add_robot(plant, "ur5")
+    with pytest.raises(RobotDescriptionError, match=r"robot 'ur5'.*already contains a model instance named 'ur5'"):
+        add_robot(plant, "ur5")
+    with pytest.raises(InvalidInput, match="plant must be a Drake MultibodyPlant"):
+        add_robot(None, "ur5")
+
+
+def test_a_catalog_robots_reference_posture_changes_its_own_and_stays_on_the_ground():
+    """Naming the default group state gives the default posture (the soles on the ground); a
+    ``{joint: value}`` changes only that joint of the robot's own reference posture."""
+    romeo = load_robot("romeo")
+    np.testing.assert_allclose(load_robot("romeo", reference_posture="half_sitting").reference_posture,
+                               romeo.reference_posture, atol=1e-12)
+    talos = load_robot("talos")
+    bent = load_robot("talos", reference_posture={"arm_right_4_joint": -1.0})
+    joint = talos.plant.GetJointByName("arm_right_4_joint").position_start()
+    assert bent.reference_posture[joint] == -1.0
+    others = np.arange(talos.nq) != joint
+    np.testing.assert_array_equal(bent.reference_posture[others], talos.reference_posture[others])

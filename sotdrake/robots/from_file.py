@@ -142,7 +142,13 @@ def check_user_urdf(text: str, source: str) -> str:
                     f"{source}: joint {joint.get('name', '?')!r} ({joint.get('type')}): limit {side}={value!r} is not a "
                     'finite number; give finite limits (rad or m), or make an unbounded joint type="continuous"'
                 )
-    return re.sub(r'(<limit\b[^>]*?)\svelocity\s*=\s*"0(\.0*)?"', r"\1", text)
+    def zero_velocity(match: re.Match) -> str:  # velocity="0", '0', "0e0", "-0.0": no limit
+        try:
+            return match.group(1) if float(match.group(3)) == 0.0 else match.group(0)
+        except ValueError:
+            return match.group(0)  # (the parser says what is wrong with it)
+
+    return re.sub(r"""(<limit\b[^>]*?)\svelocity\s*=\s*(["'])(.*?)\2""", zero_velocity, text, flags=re.S)
 
 
 def _root_links(text: str) -> list[str]:
@@ -221,8 +227,14 @@ def add_robot_file(
     if not file.is_file():
         raise RobotFileNotFound(str(path), list(ROBOTS))
     resolver = PackageResolver(file, package_paths)
-    if _format(file) == "urdf":
+    kind = _format(file)
+    if kind == "urdf":
         return [_add_urdf(plant, file, resolver, meshes, floating_base)]
+    drake_kind = {".sdf": "sdf", ".xml": "mjcf"}.get(file.suffix.lower())  # (what Drake's parser reads by its name)
+    if drake_kind != kind:
+        wanted = {"sdf": ".sdf", "mjcf": ".xml"}[kind]
+        raise RobotDescriptionError(f"{file}: a {kind.upper()} file, which Drake's parser reads only under a name ending in "
+                                    f"{wanted!r}: rename it (or link it, beside its meshes) to {file.stem + wanted!r}")
     return _add_other(plant, file, resolver, floating_base)
 
 
@@ -302,11 +314,12 @@ def operational_points_of(model: RobotModel, given: Mapping[str, str] | Sequence
     return OperationalPoints(points)
 
 
-def posture_of(model: RobotModel, given: Any) -> np.ndarray:
-    """The reference posture (see the module docstring), clipped into the joint limits."""
+def posture_of(model: RobotModel, given: Any, start: np.ndarray | None = None) -> np.ndarray:
+    """The reference posture (see the module docstring), clipped into the joint limits; a group
+    state or a ``{joint: value}`` changes ``start`` (default: the default positions)."""
     plant = model.plant
     lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
-    q = np.clip(plant.GetDefaultPositions(), lower, upper)
+    q = np.clip(plant.GetDefaultPositions() if start is None else np.array(start, dtype=float), lower, upper)
     srdf = model.srdf_path
     if isinstance(given, str):
         if srdf is None:
@@ -327,21 +340,28 @@ def posture_of(model: RobotModel, given: Any) -> np.ndarray:
             joint = plant.GetJointByName(joint_name)
             values = check_finite(f"reference_posture[{joint_name!r}]", np.atleast_1d(value), (joint.num_positions(),))
             q[joint.position_start() : joint.position_start() + joint.num_positions()] = values
+        _normalize_base_quaternions(plant, q)
     elif given is not None:
         q = check_finite("reference_posture (q0, Drake's order)", given, (plant.num_positions(),)).copy()
-        for body in plant.GetFloatingBaseBodies():  # (a unit quaternion: the given one, normalized)
-            start = plant.get_body(body).floating_positions_start()
-            norm = float(np.linalg.norm(q[start:start + 4]))
-            if norm == 0.0:
-                raise InvalidInput(f"reference_posture: the floating base's quaternion q[{start}:{start + 4}] (w, x, y, z) "
-                                   "is zero; e.g. (1, 0, 0, 0) for no rotation")
-            q[start:start + 4] /= norm
+        _normalize_base_quaternions(plant, q)
     elif srdf is not None:
         names = group_state_names(srdf)
         preferred = [n for n in PREFERRED_POSTURES if n in names] or names[:1]
         if preferred:
             q = posture_from_srdf(plant, srdf, preferred[0], q)
     return np.clip(q, lower, upper)
+
+
+def _normalize_base_quaternions(plant: MultibodyPlant, q: np.ndarray) -> None:
+    """Each floating base's quaternion in ``q`` made unit (the given one, normalized); a zero one is
+    refused (:class:`InvalidInput`)."""
+    for body in plant.GetFloatingBaseBodies():
+        start = plant.get_body(body).floating_positions_start()
+        norm = float(np.linalg.norm(q[start:start + 4]))
+        if norm == 0.0:
+            raise InvalidInput(f"reference_posture: the floating base's quaternion q[{start}:{start + 4}] (w, x, y, z) "
+                               "is zero; e.g. (1, 0, 0, 0) for no rotation")
+        q[start:start + 4] /= norm
 
 
 def load_robot_file(
@@ -370,6 +390,8 @@ def load_robot_file(
     srdf_path = find_srdf(file) if srdf is None else Path(srdf).expanduser()
     if srdf_path is not None and not srdf_path.is_file():
         raise InvalidInput(f"srdf={str(srdf)!r}: no such file")
+    if srdf_path is not None:
+        srdf_path = srdf_path.resolve()  # (kept: a later change of directory does not change the file)
     plant = MultibodyPlant(check_time_step(time_step))
     scene_graph = None
     if meshes:
@@ -394,8 +416,9 @@ def load_robot_file(
         base="free" if floating else "fixed",
         source_path=file.resolve(),
         load_options={
-            "srdf": srdf,
-            "package_paths": package_paths,
+            "srdf": None if srdf is None else srdf_path,
+            "package_paths": None if package_paths is None else {name: Path(folder).expanduser().resolve()
+                                                                 for name, folder in package_paths.items()},
             "floating_base": floating_base,
             "operational_points": operational_points,
             "reference_posture": reference_posture,

@@ -31,7 +31,7 @@ from pydrake.multibody.tree import ModelInstanceIndex, PlanarJoint
 
 from ..exceptions import InvalidInput, RobotNotFound, SotError, VariantNotFound
 from .catalog import BASES, ROBOTS, RobotSpec
-from .from_file import add_robot_file, check_time_step, load_robot_file, looks_like_path, operational_points_of, posture_of
+from .from_file import add_robot_file, check_time_step, drake_refusals, load_robot_file, looks_like_path, operational_points_of, posture_of
 from .model import RobotModel, posture_from_srdf, register_loader
 from .srdf import read_group_state
 from .urdf_text import prepare_urdf
@@ -162,6 +162,10 @@ def add_robot(
     :func:`~sotdrake.robots.from_file.add_robot_file`; ``base``: ``'free'`` or ``'fixed'``, the
     default).
     """
+    if not isinstance(plant, MultibodyPlant):
+        raise InvalidInput(f"add_robot: plant must be a Drake MultibodyPlant, got {type(plant).__name__}")
+    if plant.is_finalized():
+        raise InvalidInput("add_robot: the plant is finalized; add the robot before plant.Finalize()")
     if _names_a_file(name):
         if variant is not None or base not in (None, "free", "fixed"):
             raise InvalidInput(f"a robot file has no variants and a free or fixed base, got variant={variant!r}, base={base!r}")
@@ -172,7 +176,8 @@ def add_robot(
     variant = _variant(spec, variant)
     base = _base(spec, variant, base)
     text = robot_urdf_text(name, variant, meshes, collision)
-    (instance,) = Parser(plant).AddModelsFromString(text, "urdf")
+    with drake_refusals(f"robot {name!r}"):  # (e.g. a second copy in one plant: its model name is taken)
+        (instance,) = Parser(plant).AddModelsFromString(text, "urdf")
     root = _root_link(text)
     if root != "world":
         root_frame = plant.GetFrameByName(root, instance)
@@ -266,9 +271,26 @@ def load_robot(
         model.OperationalPointsMap.update(operational_points_of(model, operational_points))
         model.load_options["operational_points"] = operational_points
     if reference_posture is not None:
-        model.half_sitting = posture_of(model, reference_posture)
+        model.half_sitting = _catalog_posture(model, str(name), reference_posture)
         model.load_options["reference_posture"] = reference_posture
     return model
+
+
+def _catalog_posture(model: RobotModel, name: str, given: Any) -> np.ndarray:
+    """A catalog robot's ``reference_posture``: a ``{joint: value}`` changes its own reference
+    posture; a floating base that the posture does not place (an SRDF group state without
+    ``root_joint``, a mapping without the base's joint) is put with its lowest sole at z = 0, as
+    the robot's own posture is. An array is taken as it is."""
+    plant = model.plant
+    q = posture_of(model, given, start=model.half_sitting)
+    base_joints = {plant.get_joint(j).name() for j in plant.GetJointIndices() if plant.get_joint(j).num_positions() >= 6}
+    srdf = model.srdf_path
+    places_base = (isinstance(given, Mapping) and bool(base_joints & set(given))) or (
+        isinstance(given, str) and srdf is not None and "root_joint" in read_group_state(srdf, given))
+    soles = [model.frame(sole) for sole in robot_spec(name).soles]
+    if plant.GetFloatingBaseBodies() and soles and not places_base and not isinstance(given, (np.ndarray, Sequence)):
+        q = _put_on_ground(plant, q, soles)
+    return q
 
 
 register_loader(load_robot)

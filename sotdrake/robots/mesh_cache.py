@@ -16,7 +16,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from ..exceptions import InvalidInput, RobotDescriptionError
+from ..exceptions import InvalidInput, RobotDescriptionError, os_reason
 
 
 def cache_root() -> Path:
@@ -48,8 +48,12 @@ def obj_for_mesh(mesh_path: Path) -> Path:
         mesh = trimesh.load(source, file_type=file_type, force="mesh")
     except Exception as error:  # (each reader has its own errors: pycollada's, numpy's, struct's …)
         raise RobotDescriptionError(f"{source}: the mesh does not load ({type(error).__name__}: {error})") from None
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, suffix=".obj.tmp")
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=target.parent, suffix=".obj.tmp")
+    except OSError as error:
+        raise InvalidInput(f"the mesh cache {str(cache_root())!r} cannot hold {source.name}'s conversion "
+                           f"({os_reason(error)}): set SOTDRAKE_CACHE to a writable folder") from None
     try:
         with os.fdopen(fd, "w") as f:
             # Geometry only: a material library would name a file that is not written.

@@ -3,6 +3,7 @@ reference posture read from an SRDF."""
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,6 +18,8 @@ from pydrake.multibody.tree import Frame, FrameIndex, JointActuatorIndex
 
 from ..exceptions import FrameNotFound, OperationalPointNotFound
 from .srdf import read_group_state
+
+log = logging.getLogger(__name__)
 
 #: The robot loader (:func:`.loader.load_robot`), registered by :mod:`.loader` at its import, so that
 #: :meth:`RobotModel.with_meshes` can load a robot again without this module importing the loader.
@@ -137,7 +140,8 @@ def posture_from_srdf(plant: MultibodyPlant, srdf_path: Path, name: str | tuple[
     if q is not None:
         plant.SetPositions(context, q)
     for group in (name,) if isinstance(name, str) else name:
-        for joint_name, value in read_group_state(srdf_path, group).items():
+        skipped, state = [], read_group_state(srdf_path, group)  # (a reduced model leaves some joints out)
+        for joint_name, value in state.items():
             if joint_name == "root_joint":
                 x, y, z, qx, qy, qz, qw = value
                 body = next(iter(plant.GetFloatingBaseBodies()), None)
@@ -145,11 +149,14 @@ def posture_from_srdf(plant: MultibodyPlant, srdf_path: Path, name: str | tuple[
                     continue
                 pose = RigidTransform(Quaternion(np.array([qw, qx, qy, qz]) / np.linalg.norm([qw, qx, qy, qz])), [x, y, z])
                 plant.SetFreeBodyPose(context, plant.get_body(body), pose)
-            elif plant.HasJointNamed(joint_name):
+            elif plant.HasJointNamed(joint_name) and plant.GetJointByName(joint_name).num_positions() == value.size:
                 joint = plant.GetJointByName(joint_name)
-                if joint.num_positions() != value.size:
-                    continue
                 q_all = plant.GetPositions(context)
                 q_all[joint.position_start() : joint.position_start() + joint.num_positions()] = value
                 plant.SetPositions(context, q_all)
+            else:
+                skipped.append(joint_name)
+        if skipped and len(skipped) == len(state):
+            log.warning("%s: group state %r: none of its %d joints is one of the model's (with as many positions): "
+                        "an SRDF of another robot? (%s)", srdf_path, group, len(skipped), ", ".join(skipped[:8]))
     return plant.GetPositions(context)

@@ -28,6 +28,7 @@ import re
 import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from pathlib import Path
+from xml.sax.saxutils import escape, unescape
 
 from ..exceptions import SotError
 from .mesh_cache import obj_for_mesh
@@ -36,7 +37,12 @@ from .urdf_checks import check_urdf_limits
 #: Mesh formats converted to OBJ (Drake's Meshcat and proximity geometry want OBJ or glTF).
 CONVERTED_MESH_SUFFIXES = (".stl", ".dae")
 
-_MESH_URI = re.compile(r'(<mesh\b[^>]*\bfilename=")([^"]+)(")')
+_MESH_URI = re.compile(r"""(<mesh\b[^>]*?\bfilename\s*=\s*)(["'])(.*?)\2""", re.S)
+
+
+def _element(tag: str) -> str:
+    """A regular expression of one ``<tag …/>`` or ``<tag …>…</tag>`` element (not nested in itself)."""
+    return rf"<{tag}\b[^>]*/>|<{tag}\b(?:[^>]*[^/>])?>.*?</{tag}>"
 
 
 def resolve_mesh_path(uri: str, share: Path) -> Path:
@@ -58,7 +64,8 @@ def _mesh_uri(uri: str, share: Path, resolve: Callable[[str], Path] | None = Non
     path = resolve_mesh_path(uri, share) if resolve is None else resolve(uri)
     if path.suffix.lower() in CONVERTED_MESH_SUFFIXES:
         path = obj_for_mesh(path)
-    return path.as_uri()
+    # file:// and the path as it is (Drake does not decode a URI's %-escapes), escaped for the attribute.
+    return escape("file://" + str(path.resolve()), {'"': "&quot;", "'": "&apos;"})
 
 
 def prepare_urdf(
@@ -86,11 +93,11 @@ def prepare_urdf(
             joint = re.sub(r"<mimic\b[^>]*/>", "", joint)
         return joint
 
-    text = re.sub(r"<gazebo\b.*?</gazebo>", "", text, flags=re.S)
-    for tag in ("safety_controller", "calibration", "mechanicalReduction"):
-        text = re.sub(rf"<{tag}\b[^>]*/>|<{tag}\b.*?</{tag}>", "", text, flags=re.S)
+    text = re.sub(r"<!--.*?-->", "", text, flags=re.S)  # (a tag named in a comment is not one)
+    for tag in ("gazebo", "safety_controller", "calibration", "mechanicalReduction"):
+        text = re.sub(_element(tag), "", text, flags=re.S)
     text = re.sub(r'(<link\b[^>]*?)\stype="[^"]*"', r"\1", text)
-    text = re.sub(r"<joint\b[^>]*>.*?</joint>", fix_joint, text, flags=re.S)
+    text = re.sub(_element("joint"), fix_joint, text, flags=re.S)
     text = re.sub(r"""\sfriction\s*=\s*("[^"]*"|'[^']*')""", "", text)
     root = ET.fromstring(text)
     moving = {j.get("name") for j in root.findall("joint") if j.get("type") != "fixed"}
@@ -101,9 +108,9 @@ def prepare_urdf(
         simple = "SimpleTransmission" in block and all(n in moving for n in names)
         return block if simple else ""
 
-    text = re.sub(r"<transmission\b.*?</transmission>", keep_transmission, text, flags=re.S)
+    text = re.sub(_element("transmission"), keep_transmission, text, flags=re.S)
     if not meshes:
-        return re.sub(r"<(visual|collision)\b.*?</\1>", "", text, flags=re.S)
+        return re.sub(_element("visual") + "|" + _element("collision"), "", text, flags=re.S)
     if not collision:
-        text = re.sub(r"<collision\b.*?</collision>", "", text, flags=re.S)
-    return _MESH_URI.sub(lambda m: m.group(1) + _mesh_uri(m.group(2), share, resolve) + m.group(3), text)
+        text = re.sub(_element("collision"), "", text, flags=re.S)
+    return _MESH_URI.sub(lambda m: m.group(1) + m.group(2) + _mesh_uri(unescape(m.group(3)), share, resolve) + m.group(2), text)

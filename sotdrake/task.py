@@ -36,9 +36,8 @@ from .gain_checks import error_norm
 from .progress import ProgressWatch
 from .ranges import MAX_TARGET_POSITION
 
-#: Largest derivative gain β of a TaskPD (dimensionless: ė* = -λ e - β ė).
-#: ``β`` is below this (exclusive): with ``β ≥ 1`` the error's two-step recursion diverges whatever λ
-#: (see :class:`TaskPD`).
+#: The derivative gain β of a TaskPD (dimensionless: ė* = -λ e - β ė) is below this (exclusive):
+#: with ``β ≥ 1`` the error's two-step recursion diverges whatever λ (see :class:`TaskPD`).
 MAX_BETA = 1.0
 
 

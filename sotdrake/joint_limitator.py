@@ -92,8 +92,7 @@ class JointLimitator(Entity[LimitatorSettings]):
 
     def setStep(self, step: float, context: Context | None = None) -> None:
         """The look-ahead step ``h`` (s) of the rule ``q + h·v`` (sot-core: 0.005)."""
-        if not (isinstance(step, (int, float, np.floating)) and not isinstance(step, bool)
-                and math.isfinite(step) and 0 < step <= MAX_STEP):
+        if not (all_numbers(step) and not np.ndim(step) and math.isfinite(step) and 0 < step <= MAX_STEP):
             raise InvalidInput(f"{self.name}.setStep: step must be a number in (0, {MAX_STEP:g}] s, got {step!r}")
         self._command(context, lambda s: setattr(s, "step", float(step)))
 

@@ -164,6 +164,9 @@ def test_bad_inputs_are_refused_and_change_nothing(arm):
         with pytest.raises(InvalidInput, match="step"):
             limitator.setStep(bad)
     assert limitator.settings().step == 0.005
+    limitator.setStep(np.int64(1))  # a numpy integer is a number
+    assert limitator.settings().step == 1.0
+    limitator.setStep(0.005)
     before = limitator.limits()
     for lower, upper, word in (([0.0], [1.0, 1.0], "lower"), ([0.0, 0.0], [1.0, float("nan")], "NaN"),
                                ([0.0, 2.0], [1.0, 1.0], "lower must be"), (["a", 0.0], [1.0, 1.0], "lower"),

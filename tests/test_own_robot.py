@@ -398,3 +398,24 @@ def test_an_srdf_of_another_robot_is_warned(caplog):
     with caplog.at_level(logging.WARNING, logger="sotdrake.robots.model"):
         load_robot("talos")  # (its SRDF names joints of the full model too: not warned)
     assert not caplog.records
+
+
+def test_a_free_flying_body_without_joints_is_a_robot_its_base_driven():
+    """A quadrotor's single body with ``floating_base=True``: the floating base is all there is to
+    control (a fixed one would leave nothing, and is refused)."""
+    from sotdrake import robot as make_robot
+
+    path = erd_robot("hector_description/robots/quadrotor_base.urdf")
+    with pytest.raises(RobotDescriptionError, match="no movable joint"):
+        load_robot(path)
+    model = load_robot(path, floating_base=True)
+    builder = DiagramBuilder()
+    flyer = make_robot(builder, model)
+    sot = add_sot(flyer, solver="hqp")
+    body = MetaTaskKine6d("body", flyer, "body", "base_link")
+    target = body.current_pose().translation() + [0.3, 0.1, 0.2]
+    gotoNd(body, target, "111", 5.0)
+    sot.push(body.task.name)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(2.0)
+    assert np.linalg.norm(body.current_pose(simulator.get_context()).translation() - target) < 1e-3

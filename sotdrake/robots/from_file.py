@@ -400,8 +400,9 @@ def load_robot_file(
     add_robot_file(plant, file, meshes=meshes, floating_base=floating_base, package_paths=package_paths)
     with drake_refusals(file):
         plant.Finalize()
-    if _movable_dofs(plant) == 0:
-        raise RobotDescriptionError(f"{file}: the robot has no movable joint (every joint is fixed): nothing to control")
+    if _movable_dofs(plant) == 0 and not plant.GetFloatingBaseBodies():
+        raise RobotDescriptionError(f"{file}: the robot has no movable joint (every joint is fixed): nothing to control "
+                                    "(a single flying body: floating_base=True)")
     check_joint_types(plant, file)
     floating = bool(plant.GetFloatingBaseBodies())
     model = RobotModel(

@@ -92,10 +92,13 @@ class Robot:
         """nv booleans, False on the velocities of the joints named in ``excluding``."""
         plant = self.model.plant
         mask = np.ones(self.dimension, dtype=bool)
+        if isinstance(excluding, str):  # (one joint's name, not its characters)
+            raise InvalidInput(f"velocity_selection: excluding is a list of joint names, got the string {excluding!r:.60}: "
+                               f"give [{excluding!r:.60}]")
         for name in excluding:
             if not plant.HasJointNamed(name):
                 joints = [plant.get_joint(j).name() for j in plant.GetJointIndices()]
-                raise NotFound(name, joints)
+                raise NotFound(name, joints).but("velocity_selection: excluding")
             joint = plant.GetJointByName(name)
             mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
         return mask

@@ -419,3 +419,19 @@ def test_a_free_flying_body_without_joints_is_a_robot_its_base_driven():
     simulator = Simulator(builder.Build())
     simulator.AdvanceTo(2.0)
     assert np.linalg.norm(body.current_pose(simulator.get_context()).translation() - target) < 1e-3
+
+
+def test_loader_arguments_of_the_wrong_kind_are_named():
+    from sotdrake.exceptions import NotFound
+
+    with pytest.raises(InvalidInput, match="meshes must be True or False, got 'yes'"):
+        load_robot("ur5", meshes="yes")
+    with pytest.raises(NotFound, match=r"reference_posture: a joint's name: unknown name 'elbow_jont' \(did you mean 'elbow_joint'"):
+        load_robot("ur5", reference_posture={"elbow_jont": 0.5})
+    builder = DiagramBuilder()
+    arm = robot(builder, load_robot("ur5"))
+    with pytest.raises(InvalidInput, match=r"excluding is a list of joint names, got the string 'elbow_joint'"):
+        arm.velocity_selection(excluding="elbow_joint")
+    with pytest.raises(NotFound, match="velocity_selection: excluding: unknown name 'elbow'"):
+        arm.velocity_selection(excluding=["elbow"])
+    assert arm.velocity_selection(excluding=["elbow_joint"]).sum() == arm.dimension - 1

@@ -336,7 +336,8 @@ def posture_of(model: RobotModel, given: Any, start: np.ndarray | None = None) -
         plant.SetPositions(context, q)
         for joint_name, value in given.items():
             if not isinstance(joint_name, str) or not plant.HasJointNamed(joint_name):
-                raise NotFound(str(joint_name), [plant.get_joint(j).name() for j in plant.GetJointIndices()])
+                raise NotFound(str(joint_name), [plant.get_joint(j).name() for j in plant.GetJointIndices()]).but(
+                    "reference_posture: a joint's name")
             joint = plant.GetJointByName(joint_name)
             values = check_finite(f"reference_posture[{joint_name!r}]", np.atleast_1d(value), (joint.num_positions(),))
             q[joint.position_start() : joint.position_start() + joint.num_positions()] = values

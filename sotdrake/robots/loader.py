@@ -248,6 +248,8 @@ def load_robot(
     if floating_base is not None and not isinstance(floating_base, bool):
         raise InvalidInput(f"floating_base must be True or False, got {floating_base!r}")
     time_step = check_time_step(time_step)
+    if not isinstance(meshes, (bool, np.bool_)):
+        raise InvalidInput(f"meshes must be True or False, got {meshes!r:.60}")
     if _names_a_file(name):
         if variant is not None:
             raise InvalidInput(f"variant={variant!r}: a robot loaded from a file has no variants")

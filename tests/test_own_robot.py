@@ -435,3 +435,13 @@ def test_loader_arguments_of_the_wrong_kind_are_named():
     with pytest.raises(NotFound, match="velocity_selection: excluding: unknown name 'elbow'"):
         arm.velocity_selection(excluding=["elbow"])
     assert arm.velocity_selection(excluding=["elbow_joint"]).sum() == arm.dimension - 1
+
+
+@pytest.mark.parametrize("shape", ['<sphere radius="0"/>', '<box size="0.1 0 0.1"/>', '<cylinder radius="0.1" length="-1"/>',
+                                   '<cylinder radius="0.1"/>', '<sphere radius="nan"/>'])
+def test_a_shape_of_no_size_is_refused_naming_its_link(tmp_path, shape):
+    visual = f"<visual><geometry>{shape}</geometry></visual>"
+    path = tmp_path / "arm.urdf"
+    path.write_text(chain_urdf("arm", ["0 0 1"] * 2, 0.3, [(-2.0, 2.0)] * 2, visual=visual))
+    with pytest.raises(RobotDescriptionError, match=r"link 'base': a \w+'s \w+ must be positive finite numbers"):
+        load_robot(path, meshes=True)

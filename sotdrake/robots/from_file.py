@@ -30,6 +30,7 @@ is ``srdf=`` or, when not given, ``<name>.srdf`` beside the file or in a sibling
 from __future__ import annotations
 
 import logging
+import math
 import re
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Mapping, Sequence
@@ -142,6 +143,9 @@ def check_user_urdf(text: str, source: str) -> str:
                     f"{source}: joint {joint.get('name', '?')!r} ({joint.get('type')}): limit {side}={value!r} is not a "
                     'finite number; give finite limits (rad or m), or make an unbounded joint type="continuous"'
                 )
+    for link in root.iter("link"):
+        _check_shape_sizes(link, source)
+
     def zero_velocity(match: re.Match) -> str:  # velocity="0", '0', "0e0", "-0.0": no limit
         try:
             return match.group(1) if float(match.group(3)) == 0.0 else match.group(0)
@@ -149,6 +153,27 @@ def check_user_urdf(text: str, source: str) -> str:
             return match.group(0)  # (the parser says what is wrong with it)
 
     return re.sub(r"""(<limit\b[^>]*?)\svelocity\s*=\s*(["'])(.*?)\2""", zero_velocity, text, flags=re.S)
+
+
+#: A URDF shape's size attributes, each positive finite numbers (m).
+_URDF_SIZES = {"sphere": ("radius",), "box": ("size",), "cylinder": ("radius", "length"), "capsule": ("radius", "length")}
+
+
+def _check_shape_sizes(link: ET.Element, source: str) -> None:
+    """:class:`RobotDescriptionError` naming the link of a shape whose size is not positive (Drake
+    takes a sphere of radius 0)."""
+    for geometry in link.iter("geometry"):  # (a shape elsewhere, e.g. pinocchio's <collision_checking>, names one)
+        for element in geometry:
+            shape = element.tag
+            for field in _URDF_SIZES.get(shape, ()):
+                text = element.get(field)
+                try:
+                    ok = text is not None and bool(text.split()) and all(0 < float(word) < math.inf for word in text.split())
+                except ValueError:
+                    ok = False
+                if not ok:
+                    raise RobotDescriptionError(f"{source}: link {link.get('name', '?')!r}: a {shape}'s {field} must be "
+                                                f"positive finite numbers (m), got {text!r:.60}")
 
 
 def _root_links(text: str) -> list[str]:

@@ -191,13 +191,16 @@ def test_a_burst_of_commands_is_answered_with_no_effect(live, record_property):
 
 
 def test_attime_schedules_a_command(live):
+    if "taskrh" not in live.ask("sot.stack()"):  # (the tests share one run: another may have removed it)
+        live.ask("sot.push('taskrh')")
+    refused = live.status()["attime_refused"]
     t = float(live.ask("time()"))
     assert live.ask(f"attime({t + 1.0:.3f}, sot.remove('taskrh'))").startswith("ok: sot.remove('taskrh') at t =")
     assert live.ask(f"attime({t + 1.0:.3f}, sot.up('taskrh'))").startswith("ok:")  # refused at T: removed by then
     assert "taskrh" in live.ask("sot.stack()")
     live.wait_until(t + 1.1)
-    assert live.ask("sot.stack()") == "['taskcontactRF', 'taskcontactLF', 'taskcom']"
-    assert json.loads(live.ask("status()"))["attime_refused"] == 1
+    assert "taskrh" not in live.ask("sot.stack()")
+    assert live.status()["attime_refused"] == refused + 1
     assert not live.client.command(f"attime({t - 1:.3f}, sot.pop())")["ok"]  # the past
 
 

@@ -31,10 +31,10 @@ def test_bad_numbers_in_a_urdf_are_a_description_error(tmp_path, origin):
 
 
 def test_drake_checks_become_description_errors(tmp_path):
-    """A box of negative size (Drake's shape check) and SDF/MJCF joint limits Drake asserts on:
-    pydrake raises them as SystemExit, which a script's ``except Exception`` would not catch."""
+    """A URDF box of negative size (refused by the loader's own check) and SDF/MJCF joint limits Drake
+    asserts on: pydrake raises these as SystemExit, which a script's ``except Exception`` would not catch."""
     box = chain_urdf("box", ["0 0 1"], 0.3, [(-1, 1)], visual='<collision><geometry><box size="-1 0.1 0.1"/></geometry></collision>')
-    with pytest.raises(RobotDescriptionError, match=r"box.urdf.*Drake refused"):
+    with pytest.raises(RobotDescriptionError, match=r"box\.urdf: link .base.: a box.s size must be positive"):
         load_robot(_write(tmp_path, "box.urdf", box), meshes=True)
     sdf = SDF.replace("<lower>-1</lower>", "<lower>nan</lower>", 1)
     with pytest.raises(RobotDescriptionError, match=r"arm\.sdf"):

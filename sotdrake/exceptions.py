@@ -200,11 +200,11 @@ MAX_COUNT = 100_000
 
 
 def check_count(name: str, value, low: int = 1, high: int = MAX_COUNT) -> int:
-    """``value`` as an int if it is a whole number (not a bool) in ``[low, high]``, else InvalidInput."""
+    """``value`` as an int if it is an integer (not a bool) in ``[low, high]``, else InvalidInput."""
     import numbers
 
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not low <= int(value) <= high:
-        raise InvalidInput(f"{name} must be a whole number in [{low}, {high}], got {value!r:.60}")
+        raise InvalidInput(f"{name} must be an integer in [{low}, {high}], got {value!r:.100}")
     return int(value)
 
 

@@ -336,13 +336,13 @@ def test_a_task_that_progresses_again_is_no_longer_stalled(caplog):
 
 @pytest.mark.parametrize("make, match", [
     (lambda: Task(None, 3), r"Task name must be a non-empty string"),
-    (lambda: Task("t", -1), r"t: nv \(the velocities\) must be a whole number"),
-    (lambda: Task("t", 2.5), r"t: nv \(the velocities\) must be a whole number"),
-    (lambda: Task("t", True), r"t: nv \(the velocities\) must be a whole number"),
+    (lambda: Task("t", -1), r"t: nv \(the velocities\) must be an integer"),
+    (lambda: Task("t", 2.5), r"t: nv \(the velocities\) must be an integer"),
+    (lambda: Task("t", True), r"t: nv \(the velocities\) must be an integer"),
     (lambda: GainAdaptive(None), r"GainAdaptive name must be a non-empty string"),
     (lambda: GainAdaptive("g", True), r"g: dt must be a number > 0"),
-    (lambda: FeatureGeneric("f", -1, 5), r"FeatureGeneric\('f'\): dimension must be a whole number"),
-    (lambda: FeatureGeneric("f", 3, 0), r"FeatureGeneric\('f'\): nv \(the velocities\) must be a whole number"),
+    (lambda: FeatureGeneric("f", -1, 5), r"FeatureGeneric\('f'\): dimension must be an integer"),
+    (lambda: FeatureGeneric("f", 3, 0), r"FeatureGeneric\('f'\): nv \(the velocities\) must be an integer"),
 ], ids=["task name", "task nv < 0", "task nv 2.5", "task nv bool", "gain name", "gain dt bool", "feature dimension", "feature nv"])
 def test_an_entity_of_a_wrong_name_or_size_is_refused_when_made(make, match):
     with pytest.raises(InvalidInput, match=match):

@@ -9,8 +9,6 @@ otherwise reach the solver as infinite or overflowing rows.
 
 from __future__ import annotations
 
-import numbers
-
 from ..exceptions import InvalidInput, check_number
 
 MAX_FRICTION = 10.0  # μ of a contact (dimensionless): rubber on concrete is about 1
@@ -35,13 +33,6 @@ def check_positive(name: str, value, high: float, unit: str = "") -> float:
     if not number > 0.0:
         raise InvalidInput(f"{name} must be a number in (0, {high:g}]{unit}, got {value!r:.100}")
     return number
-
-
-def check_count(name: str, value, low: int, high: int) -> int:
-    """``value`` as an int if it is an integer (not a bool) in ``[low, high]``, else :class:`InvalidInput`."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not low <= int(value) <= high:
-        raise InvalidInput(f"{name} must be an integer in [{low}, {high}], got {value!r:.100}")
-    return int(value)
 
 
 def check_pd_gains(name: str, kp, kv, dt: float) -> tuple[float, float]:

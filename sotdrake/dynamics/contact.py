@@ -45,8 +45,8 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context
 
 from ..entity import Entity
-from ..exceptions import InvalidInput, check_finite, check_number
-from .checks import MAX_FRICTION, MAX_NORMAL_FORCE, MAX_RATE_GAIN, MAX_SOLE, check_count, check_positive, check_stable_gains
+from ..exceptions import InvalidInput, check_count, check_finite, check_number
+from .checks import MAX_FRICTION, MAX_NORMAL_FORCE, MAX_RATE_GAIN, MAX_SOLE, check_positive, check_stable_gains
 from .terms import OpPointMotion
 
 

@@ -31,13 +31,13 @@ from pydrake.systems.framework import Context, InputPort, ValueProducer
 
 from ..compiled import read_only
 from ..configuration import Layout
-from ..exceptions import InvalidInput, SolverError, StackError, check_name, check_number
+from ..exceptions import InvalidInput, SolverError, StackError, check_count, check_name, check_number
 from ..hqp import ACTIVE_SET, HqpResult, check_solver
 from ..hqp.warm import WarmStart, WarmStarts
 from ..robots import RobotModel
 from ..solvers.stack import Stack, StackSolver
 from ..task import TaskLevel
-from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, MIN_HORIZON, check_count, check_positive
+from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, MIN_HORIZON, check_positive
 from .contact import Contact6d, world_wrench
 from .contact_memory import ContactMemory
 from .dyn_contacts import DynContacts

@@ -36,10 +36,10 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context
 
 from ..entity import Entity
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, check_count
 from ..features.base import FeatureValue, feature_signals, optional_input, usual_input
 from ..task import TaskLevel
-from .checks import MAX_DT, MAX_PD_GAIN, check_count, check_pd_gains, check_positive
+from .checks import MAX_DT, MAX_PD_GAIN, check_pd_gains, check_positive
 
 
 @dataclass

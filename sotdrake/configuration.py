@@ -93,6 +93,14 @@ def contiguous_slice(indices: np.ndarray) -> slice | None:
     return None
 
 
+def check_base_quaternion(name: str, q: np.ndarray, layout: Layout) -> None:
+    """The floating base's quaternion in ``q`` must have norm 1 (± 1e-3), else :class:`InvalidInput`."""
+    if layout.base_q is not None:
+        norm = float(np.linalg.norm(q[layout.base_q : layout.base_q + 4]))
+        if abs(norm - 1.0) > 1e-3:
+            raise InvalidInput(f"{name}: the base quaternion must have norm 1 (± 1e-3), got {norm:g}")
+
+
 def integrate(q: np.ndarray, v: np.ndarray, dt: float, layout: Layout) -> np.ndarray:
     """``q ⊕ v·dt`` (see the module docstring); ``q`` is not modified. Compiled
     (:mod:`.jit_configuration`); :func:`python_integrate` is its reference."""

@@ -21,9 +21,9 @@ import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from .configuration import Layout, integrate, position_names
+from .configuration import Layout, check_base_quaternion, integrate, position_names
 from .entity import own_context
-from .exceptions import InvalidInput, SolverError, SotError, check_finite, check_number
+from .exceptions import SolverError, SotError, check_finite, check_number
 from .ranges import MAX_JOINT_TARGET
 
 log = logging.getLogger("sotdrake.device")
@@ -74,10 +74,7 @@ class Device(LeafSystem):
         """``q`` as a new array: nq finite numbers within :data:`~sotdrake.ranges.MAX_JOINT_TARGET`,
         the base quaternion (if any) of norm 1 ± 1e-3."""
         q = check_finite(f"{label} (rad, m)", q, (self.nq,), MAX_JOINT_TARGET).copy()
-        if self.layout.base_q is not None:
-            norm = np.linalg.norm(q[self.layout.base_q : self.layout.base_q + 4])
-            if abs(norm - 1.0) > 1e-3:
-                raise InvalidInput(f"{label}: the base quaternion must have norm 1 (± 1e-3), got {norm:g}")
+        check_base_quaternion(label, q, self.layout)
         return q
 
     def position(self, context: Context) -> np.ndarray:

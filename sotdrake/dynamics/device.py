@@ -17,16 +17,8 @@ import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from ..configuration import Layout, integrate
+from ..configuration import Layout, check_base_quaternion, integrate
 from ..exceptions import InvalidInput, SolverError, check_finite
-
-
-def check_base_quaternion(name: str, q: np.ndarray, layout: Layout) -> None:
-    """The floating base's quaternion in ``q`` must have norm 1 (± 1e-3), else :class:`InvalidInput`."""
-    if layout.base_q is not None:
-        norm = float(np.linalg.norm(q[layout.base_q : layout.base_q + 4]))
-        if abs(norm - 1.0) > 1e-3:
-            raise InvalidInput(f"{name}: the base quaternion must have norm 1 (± 1e-3), got {norm:g}")
 
 
 def integrate_acceleration(q: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float, layout: Layout) -> tuple[np.ndarray, np.ndarray]:

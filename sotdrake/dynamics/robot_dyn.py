@@ -22,7 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
-from ..configuration import Layout
+from ..configuration import Layout, check_base_quaternion
 from ..exceptions import InvalidInput, NotFound, check_finite, check_name, check_number
 from ..hqp import ACTIVE_SET
 from ..physics.plant import check_contact_options
@@ -30,7 +30,7 @@ from ..robot import check_new_names
 from ..robots import RobotModel
 from .checks import MAX_DT
 from .contact import Contact6d
-from .device import RobotDynSimu, check_base_quaternion
+from .device import RobotDynSimu
 from .dynamic_entity import DynamicEntity
 from .solver_dyn import SolverDyn
 from .station import add_torque_driven_talos, sole_rectangle

@@ -22,7 +22,7 @@ from functools import lru_cache
 import numpy as np
 from pydrake.systems.framework import Context
 
-from ..configuration import Layout
+from ..configuration import Layout, check_base_quaternion
 from ..exceptions import InvalidInput, check_finite
 from ..lie import left_jacobian_inverse_so3, log_so3, quaternion_wxyz_to_rotation, right_jacobian_inverse_so3
 from ..ranges import MAX_JOINT_TARGET, MAX_TARGET_VELOCITY
@@ -62,7 +62,7 @@ class FeaturePosture(Feature):
         if rows is not None and self._joint_q[rows].min() >= 0:  # joints only: the selected rows
             return joint_rows(q, q_star, v_star, self._joint_q, rows)
         if q_star is not s.posture:  # (a posture from the port: its base quaternion checked as setPosture's)
-            _check_base_quaternion(f"{self.name}: posture_in at t = {context.get_time():g}", q_star, self.layout)
+            check_base_quaternion(f"{self.name}: posture_in at t = {context.get_time():g}", q_star, self.layout)
         return posture_error_and_jacobian(q, q_star, v_star, self.layout)
 
     def selectDof(self, index: int, selected: bool, context: Context | None = None) -> None:
@@ -85,21 +85,12 @@ class FeaturePosture(Feature):
 
     def setPosture(self, posture, context: Context | None = None) -> None:
         q_star = check_finite(f"{self.name}.posture", posture, (self.nq,), MAX_JOINT_TARGET).copy()
-        _check_base_quaternion(f"{self.name}.setPosture", q_star, self.layout)
+        check_base_quaternion(f"{self.name}.setPosture", q_star, self.layout)
         self._command(context, lambda s: setattr(s, "posture", q_star))
 
     def setPostureDot(self, velocity, context: Context | None = None) -> None:
         v_star = check_finite(f"{self.name}.postureDot", velocity, (self.nv,), MAX_TARGET_VELOCITY).copy()
         self._command(context, lambda s: setattr(s, "postureDot", v_star))
-
-
-def _check_base_quaternion(label: str, q: np.ndarray, layout: Layout) -> None:
-    """InvalidInput unless the base quaternion of ``q`` (if any) has norm 1 ± 1e-3 (the device's rule:
-    the error's rotation is taken from it as it is, a zero one has none)."""
-    if layout.base_q is not None:
-        norm = float(np.linalg.norm(q[layout.base_q : layout.base_q + 4]))
-        if abs(norm - 1.0) > 1e-3:
-            raise InvalidInput(f"{label}: the base quaternion must have norm 1 (± 1e-3), got {norm:g}")
 
 
 def posture_error_and_jacobian(

@@ -187,6 +187,15 @@ def all_numbers(value) -> bool:
     return False
 
 
+def finite_number(value) -> bool:
+    """True if ``value`` is one finite real number (not a bool, an array or an int beyond a float's range)."""
+    import math
+
+    import numpy as np
+
+    return all_numbers(value) and not np.ndim(value) and math.isfinite(value)
+
+
 def check_name(what: str, name: object) -> str:
     """``name`` if it is a non-empty string (an entity's, a task's, an op point's), else
     :class:`InvalidInput`: "``what`` must be a non-empty string"."""

@@ -28,7 +28,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context
 
 from .entity import Entity
-from .exceptions import InvalidInput, all_numbers
+from .exceptions import InvalidInput, finite_number
 from .gain_checks import AdaptiveCoefficients, HyperbolicCoefficients, check_gain, error_norm
 from .ranges import ERROR_SCALE
 
@@ -52,7 +52,7 @@ _SYMBOLS = {"gain": "λ", "gain0": "λ0", "gain_inf": "λ∞", "tan_at0": "tanAt
 def _finite(**values: float) -> None:
     for key, value in values.items():
         name = _SYMBOLS.get(key, key)
-        if isinstance(value, bool) or not all_numbers(value) or np.ndim(value) or not math.isfinite(value):
+        if not finite_number(value):
             raise InvalidInput(f"gain {name} must be a finite number, got {value!r}")
         if abs(value) > MAX_GAIN_INPUT:
             raise InvalidInput(f"gain {name} must be in [-{MAX_GAIN_INPUT:g}, {MAX_GAIN_INPUT:g}], got {value!r}")

@@ -9,16 +9,14 @@
 
 from __future__ import annotations
 
-import math
 import numbers
 import sys
 import time
 
-import numpy as np
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, Diagram
 
-from .exceptions import InvalidInput, all_numbers
+from .exceptions import InvalidInput, finite_number
 
 #: Longest run one ``go`` or ``advance_to`` accepts (s of simulated time): a day.
 MAX_DURATION = 86400.0
@@ -26,7 +24,7 @@ MAX_DURATION = 86400.0
 
 def _number(name: str, value, low: float, high: float, low_open: bool = False) -> float:
     """``value`` as a float in ``[low, high]`` (``(low, high]`` with ``low_open``), else InvalidInput."""
-    ok = all_numbers(value) and not np.ndim(value) and math.isfinite(value)
+    ok = finite_number(value)
     if not ok or value > high or value < low or (low_open and value == low):
         bracket = "(" if low_open else "["
         raise InvalidInput(f"{name} must be a number in {bracket}{low:g}, {high:g}], got {value!r}")

@@ -30,7 +30,7 @@ from pydrake.systems.framework import BasicVector, Context
 
 from .configuration import Layout
 from .entity import Entity
-from .exceptions import InvalidInput, SolverError, all_numbers
+from .exceptions import InvalidInput, SolverError, all_numbers, finite_number
 
 __all__ = ["JointLimitator", "limit_joint_velocities"]
 
@@ -92,7 +92,7 @@ class JointLimitator(Entity[LimitatorSettings]):
 
     def setStep(self, step: float, context: Context | None = None) -> None:
         """The look-ahead step ``h`` (s) of the rule ``q + h·v`` (sot-core: 0.005)."""
-        if not (all_numbers(step) and not np.ndim(step) and math.isfinite(step) and 0 < step <= MAX_STEP):
+        if not (finite_number(step) and 0 < step <= MAX_STEP):
             raise InvalidInput(f"{self.name}.setStep: step must be a number in (0, {MAX_STEP:g}] s, got {step!r}")
         self._command(context, lambda s: setattr(s, "step", float(step)))
 

@@ -17,7 +17,7 @@ object is ever reached by a name coming from a command:
 
 | kind | methods |
 | --- | --- |
-| ``SOT``, ``SolverKine`` (the stack) | ``push``, ``pop``, ``remove``, ``up``, ``down``, ``clear``, ``stack`` |
+| ``SOT``, ``SolverKine`` (the stack) | ``push``, ``pop``, ``remove`` (``rm``), ``up``, ``down``, ``clear``, ``stack`` |
 | ``SOT``, ``SolverKine`` (contacts, settings) | ``addContact``, ``rmContact``, ``contacts``, ``setDamping``; ``SOT``: ``setThreshold`` |
 | ``GainAdaptive`` | ``setConstant``, ``set(λ0, λ∞, slope)``, ``setByPoint(λ0, λ∞, e_ref, p)``, ``coefficients`` |
 | ``GainHyperbolic`` | ``setConstant``, ``set(λ0, λ∞, tanAt0, decal0)``, ``coefficients`` |

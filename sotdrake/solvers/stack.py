@@ -24,7 +24,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort
 
 from ..entity import Entity
-from ..exceptions import InvalidInput, StackError, TaskNotFound, all_numbers
+from ..exceptions import InvalidInput, StackError, TaskNotFound, all_numbers, finite_number
 from ..task import Task, TaskLevel
 from ..task_weight import TaskWeight
 from .step_limit import DEFAULT_STEP_LIMIT, check_step_limit
@@ -32,10 +32,6 @@ from .step_limit import DEFAULT_STEP_LIMIT, check_step_limit
 #: Accepted ranges: the SVD threshold (a singular value, unit of the Jacobian) and the damping δ.
 MAX_SVD_THRESHOLD = 1.0
 MAX_DAMPING = 1e4
-
-
-def _real(value) -> bool:
-    return all_numbers(value) and not np.ndim(value) and bool(np.isfinite(value))
 
 
 @dataclass
@@ -273,13 +269,13 @@ class Stack:
     # --- settings of the solve ---------------------------------------------------------------
     def setThreshold(self, svd_threshold: float, context: Context | None = None) -> None:
         """Singular values of ``J_i P_{i-1}`` at or below this are treated as zero (rank)."""
-        if not _real(svd_threshold) or not 0 <= svd_threshold <= MAX_SVD_THRESHOLD:
+        if not finite_number(svd_threshold) or not 0 <= svd_threshold <= MAX_SVD_THRESHOLD:
             raise InvalidInput(f"svd_threshold must be a number in [0, {MAX_SVD_THRESHOLD:g}], got {svd_threshold!r}")
         self._command(context, lambda s: setattr(s, "svd_threshold", float(svd_threshold)))
 
     def setDamping(self, damping: float, context: Context | None = None) -> None:
         """True damping δ (``min ‖A x - r‖² + δ‖x‖²`` at each level); 0 for the pseudo-inverse."""
-        if not _real(damping) or not 0 <= damping <= MAX_DAMPING:
+        if not finite_number(damping) or not 0 <= damping <= MAX_DAMPING:
             raise InvalidInput(f"damping must be a number in [0, {MAX_DAMPING:g}], got {damping!r}")
         self._command(context, lambda s: setattr(s, "damping", float(damping)))
 

@@ -249,6 +249,13 @@ def test_a_catalog_robots_reference_posture_changes_its_own_and_stays_on_the_gro
     romeo = load_robot("romeo")
     np.testing.assert_allclose(load_robot("romeo", reference_posture="half_sitting").reference_posture,
                                romeo.reference_posture, atol=1e-12)
+    crouched = load_robot("romeo", reference_posture={"LKneePitch": 1.2, "RKneePitch": 1.2})
+    plant = crouched.plant
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, crouched.reference_posture)
+    soles = [plant.CalcRelativeTransform(context, plant.world_frame(), crouched.frame(sole)).translation()[2]
+             for sole in ROBOTS["romeo"].soles]
+    np.testing.assert_allclose(soles, 0.0, atol=1e-12)  # set down again after the knees bend
     talos = load_robot("talos")
     bent = load_robot("talos", reference_posture={"arm_right_4_joint": -1.0})
     joint = talos.plant.GetJointByName("arm_right_4_joint").position_start()

@@ -290,7 +290,7 @@ def _catalog_posture(model: RobotModel, name: str, given: Any) -> np.ndarray:
     places_base = (isinstance(given, Mapping) and bool(base_joints & set(given))) or (
         isinstance(given, str) and srdf is not None and "root_joint" in read_group_state(srdf, given))
     soles = [model.frame(sole) for sole in robot_spec(name).soles]
-    if plant.GetFloatingBaseBodies() and soles and not places_base and not isinstance(given, (np.ndarray, Sequence)):
+    if plant.GetFloatingBaseBodies() and soles and not places_base and isinstance(given, (str, Mapping)):
         q = _put_on_ground(plant, q, soles)
     return q
 

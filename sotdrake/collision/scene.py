@@ -21,7 +21,6 @@ and the top), its back at x = +0.2 m, open towards −x, its frame on the floor 
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +32,8 @@ from pydrake.multibody.tree import RigidBody
 
 from ..exceptions import InvalidInput, SotError
 from ..robots.from_file import is_drake_check
-from .obstacles import _pose, add_obstacle, draw_obstacles, make_shape, number
+from ..robots.urdf_checks import positive_lengths
+from .obstacles import _pose, add_obstacle, draw_obstacles, make_shape
 from .world import CollisionWorld, collision_world
 
 #: The shelf shipped with sotdrake (see the module docstring).
@@ -117,8 +117,7 @@ def _check_sdf_sizes(text: str, name: str) -> None:
         for element in root.iter(shape):
             for field in fields:
                 value = element.find(field)
-                words = [] if value is None or value.text is None else value.text.split()
-                if value is not None and not (words and all(0 < number(word) < math.inf for word in words)):  # (NaN: False)
+                if value is not None and not positive_lengths(value.text):
                     raise InvalidInput(f"add_scene({name!r}): an SDF {shape}'s {field} must be positive finite numbers "
                                        f"(m), got {value.text!r:.80}")
 

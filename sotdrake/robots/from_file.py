@@ -30,7 +30,6 @@ is ``srdf=`` or, when not given, ``<name>.srdf`` beside the file or in a sibling
 from __future__ import annotations
 
 import logging
-import math
 import re
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Mapping, Sequence
@@ -50,6 +49,7 @@ from .catalog import ROBOTS
 from .model import OperationalPoints, RobotModel, posture_from_srdf
 from .packages import PackageResolver
 from .srdf import PostureNotFound, group_state_names, read_end_effectors
+from .urdf_checks import positive_lengths
 from .urdf_text import prepare_urdf
 
 log = logging.getLogger(__name__)
@@ -167,11 +167,7 @@ def _check_shape_sizes(link: ET.Element, source: str) -> None:
             shape = element.tag
             for field in _URDF_SIZES.get(shape, ()):
                 text = element.get(field)
-                try:
-                    ok = text is not None and bool(text.split()) and all(0 < float(word) < math.inf for word in text.split())
-                except ValueError:
-                    ok = False
-                if not ok:
+                if not positive_lengths(text):
                     raise RobotDescriptionError(f"{source}: link {link.get('name', '?')!r}: a {shape}'s {field} must be "
                                                 f"positive finite numbers (m), got {text!r:.60}")
 

@@ -50,3 +50,13 @@ def check_urdf_limits(urdf_text: str, source: str = "URDF") -> None:
         if "lower" in values and "upper" in values and values["lower"] > values["upper"]:
             raise RobotDescriptionError(
                 f"{source}: joint {name!r}: limit lower={values['lower']} must be ≤ upper={values['upper']}")
+
+
+def positive_lengths(text: str | None) -> bool:
+    """True if ``text`` is one or more whitespace-separated positive finite numbers (a shape's sizes,
+    m, in a URDF attribute or an SDF element); False for anything else (NaN, a word, nothing)."""
+    words = [] if text is None else text.split()
+    try:
+        return bool(words) and all(0 < float(word) < math.inf for word in words)
+    except ValueError:
+        return False

@@ -114,7 +114,7 @@ class _Gain(Entity[GainSettings]):
         """``dt``: the control period (s) of the loop the gain serves; with it, gains with
         ``λ·dt ≥ 2`` are refused (see :mod:`sotdrake.gain_checks`)."""
         Entity.__init__(self, name, GainSettings(constant(1.0)))
-        if dt is not None and not (isinstance(dt, (int, float)) and not isinstance(dt, bool) and math.isfinite(dt) and dt > 0):
+        if dt is not None and not (finite_number(dt) and dt > 0):
             raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
         self.dt = dt
         self.error = self.DeclareAbstractInputPort("error", AbstractValue.Make(np.zeros(0)))

@@ -67,7 +67,7 @@ class JointLimitator(Entity[LimitatorSettings]):
     (default the plant's position limits), changed by :meth:`setStep` and :meth:`setLimits`."""
 
     def __init__(self, plant: MultibodyPlant, dt: float, name: str = "joint_limitator"):
-        if not (isinstance(dt, (int, float)) and not isinstance(dt, bool) and math.isfinite(dt) and 0 < dt <= MAX_STEP):
+        if not (finite_number(dt) and 0 < dt <= MAX_STEP):
             raise InvalidInput(f"{name}: dt (the look-ahead step) must be a number in (0, {MAX_STEP:g}] s, got {dt!r}")
         self.layout = Layout.of(plant)
         joints = self.layout.joints_q

@@ -30,7 +30,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafContext, LeafSystem
 
 from .entity import Entity
-from .exceptions import InvalidInput, SotWarning, StackError, all_numbers, check_count, check_finite, check_name
+from .exceptions import InvalidInput, SotWarning, StackError, all_numbers, check_count, check_finite, check_name, finite_number
 from .features.base import FeatureValue, feature_signals
 from .gain_checks import error_norm
 from .progress import ProgressWatch
@@ -203,7 +203,7 @@ class TaskPD(_TaskBase, Entity[PDSettings]):
 
     def __init__(self, name: str, nv: int, dt: float, max_rows: int | None = None):
         Entity.__init__(self, name, PDSettings())
-        if not (isinstance(dt, (int, float)) and not isinstance(dt, bool) and math.isfinite(dt) and dt > 0):
+        if not (finite_number(dt) and dt > 0):
             raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
         self.dt = float(dt)
         self._warned_beta = False
@@ -232,11 +232,12 @@ class TaskPD(_TaskBase, Entity[PDSettings]):
         kept = context.get_discrete_state(self._previous).get_value()
         rate = (e - kept[1 : 1 + e.size]) / self.dt if kept[0] == e.size else np.zeros_like(e)
         beta = self._settings_of(context).beta
-        if beta > 0.0 and not self._warned_beta and beta >= 1.0 - 0.5 * float(np.max(gain)) * self.dt:
-            self._warned_beta = True  # (logging only)
-            warnings.warn(f"{self.name}: β = {beta:g} ≥ 1 − λ dt / 2 = {1.0 - 0.5 * float(np.max(gain)) * self.dt:g}: the "
-                          "error oscillates and grows instead of converging; lower β or λ (warned once)", SotWarning,
-                          stacklevel=2)
+        if beta > 0.0 and not self._warned_beta:
+            bound = 1.0 - 0.5 * float(np.max(gain)) * self.dt  # (stable below it: see the class docstring)
+            if beta >= bound:
+                self._warned_beta = True  # (logging only)
+                warnings.warn(f"{self.name}: β = {beta:g} ≥ 1 − λ dt / 2 = {bound:g}: the error oscillates and grows "
+                              "instead of converging; lower β or λ (warned once)", SotWarning, stacklevel=2)
         reference = -gain * e - beta * rate
         return reference, reference
 

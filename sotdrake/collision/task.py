@@ -64,7 +64,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, ValueProducer
 
 from ..entity import Entity
-from ..exceptions import InvalidInput, check_number
+from ..exceptions import InvalidInput, check_number, finite_number
 from ..task import TaskLevel
 from .distance import PairDistances
 from .schedule import PairSchedule, ScheduleMemory, ScheduleState, ScheduleStep
@@ -199,7 +199,7 @@ class TaskCollision(Entity[CollisionMargins]):
                                    f"got {controlled.dtype} {controlled.shape}")
             controlled = controlled.copy()
         self.controlled = controlled
-        if not (isinstance(dt, (int, float)) and not isinstance(dt, bool) and math.isfinite(dt) and dt > 0):
+        if not (finite_number(dt) and dt > 0):
             raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
         if nv != world.plant.num_velocities():
             raise InvalidInput(f"{name}: nv = {nv}, the collision model has {world.plant.num_velocities()} velocities")

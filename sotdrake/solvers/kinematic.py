@@ -13,7 +13,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, ValueProducer
 
 from ..configuration import Layout
-from ..exceptions import InvalidInput, SolverError
+from ..exceptions import InvalidInput, SolverError, finite_number
 from ..hqp.cascade import CascadeResult
 from ..task import TaskLevel
 from .second_order import curvature_correction
@@ -52,7 +52,7 @@ class KinematicSolver(StackSolver[S]):
         self.nv = nv
         self.dt = dt
         if dt is not None:
-            if not (isinstance(dt, (int, float)) and not isinstance(dt, bool) and np.isfinite(dt) and dt > 0):
+            if not (finite_number(dt) and dt > 0):
                 raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
         self.layout = layout
         self.position = None

@@ -164,14 +164,14 @@ class Entity(LeafSystem, Generic[S]):
         if context is None:
             new = copy.deepcopy(self._defaults)
             change(new)
-            self._defaults = new
+            self._defaults = new = copy.deepcopy(new)  # (nothing shared with the caller's arrays)
             if len(self._in_contexts) and not self._warned_late_default:
                 self._warn_late_default()
             return
         own = self.own_context(context)
         new = copy.deepcopy(own.get_abstract_state(self._settings_index).get_value().value)
         change(new)
-        frozen = _Frozen(new)
+        frozen = _Frozen(copy.deepcopy(new))  # (nothing shared with the caller's arrays)
         self._in_contexts.add(frozen)
         own.get_mutable_abstract_state(self._settings_index).set_value(frozen)
 
@@ -211,7 +211,7 @@ class Entity(LeafSystem, Generic[S]):
                 if refusal not in self.refused_commands:  # (a diagram run again meets the same refusal: kept once)
                     self.refused_commands.append(refusal)
                 return
-            frozen = _Frozen(new)
+            frozen = _Frozen(copy.deepcopy(new))
             self._in_contexts.add(frozen)
             value.set_value(frozen)
 

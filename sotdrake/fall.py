@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .exceptions import InvalidInput, all_numbers
+
 FALL_TILT_DEG = 30.0  # deg
 FALL_BASE_DROP_M = 0.25  # m
 FALL_SLIP_M = 0.05  # m
@@ -35,10 +37,24 @@ def fall_thresholds() -> dict[str, float]:
             "fall_contact_force_n": FALL_CONTACT_FORCE}
 
 
+def _array(what: str, value, shape: str, ndim: int, last: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a float array of ``ndim`` dimensions whose last ones are ``last``, else
+    :class:`InvalidInput` naming ``what`` and the ``shape`` expected."""
+    try:
+        if not all_numbers(value):
+            raise TypeError("not numbers")
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInput(f"{what}: expected {shape} numbers, got {value!r:.80}") from None
+    if array.ndim != ndim or array.shape[1:] != last:
+        raise InvalidInput(f"{what}: expected {shape} numbers, got shape {array.shape}")
+    return array
+
+
 def tilt_of_quaternions(quaternion_wxyz: np.ndarray) -> np.ndarray:
     """Tilt (deg) from upright of each row of ``quaternion_wxyz`` (T × 4, Drake's order, normalised
     here): ``arccos(1 − 2(qx² + qy²))``."""
-    quaternion = np.asarray(quaternion_wxyz, dtype=float)
+    quaternion = _array("tilt_of_quaternions", quaternion_wxyz, "T × 4 (qw, qx, qy, qz)", 2, (4,))
     quaternion = quaternion / np.linalg.norm(quaternion, axis=1, keepdims=True)
     return np.degrees(np.arccos(np.clip(1 - 2 * (quaternion[:, 1] ** 2 + quaternion[:, 2] ** 2), -1, 1)))
 
@@ -46,7 +62,12 @@ def tilt_of_quaternions(quaternion_wxyz: np.ndarray) -> np.ndarray:
 def tilt_of_rotations(R_WB: np.ndarray) -> np.ndarray:
     """Tilt (deg) from upright of each rotation matrix of ``R_WB`` (T × 3 × 3, or poses T × 4 × 4):
     ``arccos(R_zz)``."""
-    return np.degrees(np.arccos(np.clip(np.asarray(R_WB, dtype=float)[:, 2, 2], -1, 1)))
+    R = np.asarray(R_WB, dtype=float) if all_numbers(R_WB) else None
+    if R is None or R.ndim != 3 or R.shape[1:] not in ((3, 3), (4, 4)):
+        raise InvalidInput(f"tilt_of_rotations: expected T × 3 × 3 rotations or T × 4 × 4 poses, got {R_WB!r:.80}"
+                           if R is None else f"tilt_of_rotations: expected T × 3 × 3 rotations or T × 4 × 4 poses, "
+                           f"got shape {R.shape}")
+    return np.degrees(np.arccos(np.clip(R[:, 2, 2], -1, 1)))
 
 
 def fall_report(time: np.ndarray, base_tilt_deg: np.ndarray, base_height: np.ndarray,
@@ -55,26 +76,32 @@ def fall_report(time: np.ndarray, base_tilt_deg: np.ndarray, base_height: np.nda
     ``base_tilt_deg`` (T, from :func:`tilt_of_quaternions` or :func:`tilt_of_rotations`),
     ``base_height`` (T, m, world z), optionally ``sole_slip`` (T, m: the largest horizontal
     displacement of a held sole at each instant, 0 for a sole meant to move) and
-    ``other_contact`` (T, N). A non-finite sample is a fall (``non-finite``)."""
-    time = np.asarray(time, dtype=float)
-    tilt_in = np.asarray(base_tilt_deg, dtype=float)
-    height = np.asarray(base_height, dtype=float)
-    if not (time.shape == tilt_in.shape == height.shape) or time.ndim != 1 or not len(time):
-        raise ValueError(f"fall_report: time, tilt and height must be equal-length vectors, got {time.shape}, "
-                         f"{tilt_in.shape}, {height.shape}")
-    finite = np.isfinite(tilt_in) & np.isfinite(height)
+    ``other_contact`` (T, N). A non-finite sample is a fall (``non-finite``). Series of other
+    lengths, or not numbers, or a first sample not finite: :class:`InvalidInput`."""
+    time = _array("fall_report: time", time, "T", 1, ())
+    series = {"base_tilt_deg": base_tilt_deg, "base_height": base_height, "sole_slip": sole_slip, "other_contact": other_contact}
+    arrays = {name: _array(f"fall_report: {name}", value, f"{len(time)} (one per time)", 1, ())
+              for name, value in series.items() if value is not None}
+    if not len(time) or any(array.shape != time.shape for array in arrays.values()):
+        raise InvalidInput(f"fall_report: every series has one sample per time (T = {len(time)} > 0), got "
+                           f"{ {name: array.size for name, array in arrays.items()} }")
+    tilt_in, height = arrays["base_tilt_deg"], arrays["base_height"]
+    finite = np.isfinite(tilt_in) & np.isfinite(height) & np.isfinite(time)
+    for name in ("sole_slip", "other_contact"):
+        if name in arrays:
+            finite &= np.isfinite(arrays[name])
     if not finite[0]:
-        raise ValueError("fall_report: the run's first sample must be finite")
+        raise InvalidInput("fall_report: the run's first sample must be finite")
     tilt = np.where(finite, tilt_in, 0.0)
     drop = np.where(finite, height[0] - height, 0.0)
     reasons = [("non-finite", ~finite), ("tilt", tilt > FALL_TILT_DEG), ("base drop", drop > FALL_BASE_DROP_M)]
     report: dict = {"max_base_tilt_deg": float(tilt.max()), "max_base_drop_m": float(max(0.0, drop.max()))}
     if sole_slip is not None:
-        slip = np.nan_to_num(np.asarray(sole_slip, dtype=float), nan=0.0)
+        slip = np.where(finite, arrays["sole_slip"], 0.0)
         reasons.append(("slip", slip > FALL_SLIP_M))
         report["max_sole_slip_m"] = float(slip.max())
     if other_contact is not None:
-        contact = np.nan_to_num(np.asarray(other_contact, dtype=float), nan=0.0)
+        contact = np.where(finite, arrays["other_contact"], 0.0)
         reasons.append(("contact", contact > FALL_CONTACT_FORCE))
         report["max_other_contact_n"] = float(contact.max())
     fell = np.zeros(len(time), dtype=bool)

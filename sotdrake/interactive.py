@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import math
 import numbers
 import sys
 import time
@@ -36,9 +37,10 @@ class Runner:
     module docstring); ``context`` is the root context to give commands."""
 
     def __init__(self, diagram: Diagram, dt: float, realtime_rate: float = 0.0):
-        _number("dt", dt, 0.0, 1.0, low_open=True)
-        _number("realtime_rate", realtime_rate, 0.0, 1e6)
-        self.dt = dt
+        self.dt = _number("dt", dt, 0.0, 1.0, low_open=True)
+        realtime_rate = _number("realtime_rate", realtime_rate, 0.0, 1e6)
+        if not isinstance(diagram, Diagram):
+            raise InvalidInput(f"Runner: diagram must be a built Diagram (builder.Build()), got {type(diagram).__name__}")
         self.simulator = Simulator(diagram)
         self.simulator.set_target_realtime_rate(realtime_rate)
         self.simulator.Initialize()
@@ -58,23 +60,23 @@ class Runner:
     def step(self, ticks: int = 1) -> float:
         if not isinstance(ticks, numbers.Integral) or isinstance(ticks, bool) or not 0 <= ticks <= MAX_DURATION / self.dt:
             raise InvalidInput(f"ticks must be an integer in [0, {int(MAX_DURATION / self.dt)}], got {ticks!r}")
-        # The tick at t is processed when the simulator reaches t; land just before the next one.
-        target = (round(self.t / self.dt) + ticks) * self.dt
-        self.simulator.AdvanceTo(target)
+        # The tick at t is processed when the simulator reaches t: from the last tick reached (now,
+        # or before now after advance_to between ticks), ``ticks`` more; never a time in the past.
+        target = (math.floor(self.t / self.dt + 1e-6) + ticks) * self.dt
+        self.simulator.AdvanceTo(max(self.t, target))
         return self.t
 
     def advance_to(self, target: float) -> float:
         """Advance to the simulated time ``target`` (s), which must not be earlier than now."""
-        _number("target", target, self.t, self.t + MAX_DURATION)
-        self.simulator.AdvanceTo(target)
+        self.simulator.AdvanceTo(_number("target", target, self.t, self.t + MAX_DURATION))
         return self.t
 
     def go(self, duration: float | None = None, chunk: float = 0.1) -> float:
         """Run ``duration`` seconds (None: until Ctrl-C), printing the time now and then; the
         simulator advances ``chunk`` seconds at a time (``chunk`` in ``[dt, 60]`` s)."""
         if duration is not None:
-            _number("duration", duration, 0.0, MAX_DURATION)
-        _number("chunk", chunk, self.dt, 60.0)
+            duration = _number("duration", duration, 0.0, MAX_DURATION)
+        chunk = _number("chunk", chunk, self.dt, 60.0)
         end = None if duration is None else self.t + duration
         last = time.monotonic()
         try:

@@ -115,7 +115,7 @@ class JointLimitator(Entity[LimitatorSettings]):
         try:
             if not all_numbers(value):
                 raise TypeError("not numbers")
-            array = np.asarray(value, dtype=float)
+            array = np.array(value, dtype=float)  # (a copy: the caller's array may change later)
         except (TypeError, ValueError):
             raise InvalidInput(f"{self.name}.setLimits: {name} must be {n} numbers (rad or m), got {value!r:.200}") from None
         if array.shape != (n,):

@@ -29,7 +29,7 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem, OutputPo
 
 from .centroidal import centroidal_momentum_matrix
 from .configuration import Layout, PlantContextHolder
-from .exceptions import InvalidInput, check_finite, check_name
+from .exceptions import InvalidInput, SotError, check_finite, check_name
 from .robots import RobotModel
 
 
@@ -74,11 +74,15 @@ class Dynamic(LeafSystem):
         ``frame_name`` (an op-point name like ``'right-wrist'``, a joint or a frame of the plant).
 
         Creating the same op point twice returns the existing ports; another frame under the same
-        name is an error. Raises :class:`FrameNotFound` for an unknown frame.
+        name is an error. Raises :class:`FrameNotFound` for an unknown frame, :class:`SotError` once
+        this entity is in a built diagram (its contexts would not have the new ports).
         """
         frame = self.check_op_point(name, frame_name)
         if name in self._op_points:
             return self.GetOutputPort(name), self.GetOutputPort("J" + name)
+        if self.GetSystemPathname() != "::" + self.get_name():  # (in a diagram: one that is built)
+            raise SotError(f"{self.get_name()}: cannot create the op point {name!r:.60}: the diagram is already built "
+                           "(create op points, and the meta tasks that make them, before builder.Build())")
         self._op_points[name] = (frame, frame_name)
         pose = self.DeclareAbstractOutputPort(
             name, lambda: AbstractValue.Make(RigidTransform()), lambda c, o: o.set_value(self._pose(c, frame))
@@ -153,7 +157,7 @@ class Dynamic(LeafSystem):
 
     def frame(self, name: str):
         """The frame of one of this entity's op points, else :meth:`RobotModel.frame`."""
-        return self._op_points[name][0] if name in self._op_points else self.model.frame(name)
+        return self._op_points[name][0] if isinstance(name, str) and name in self._op_points else self.model.frame(name)
 
     def pose_at(self, name: str, q: np.ndarray) -> RigidTransform:
         """``X_WF`` of an op point of this entity, or of a frame, at configuration ``q``."""

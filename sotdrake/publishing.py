@@ -14,8 +14,6 @@ Both take the rate as the seed wrote it, ``every`` ticks of the device (sot-core
 
 from __future__ import annotations
 
-import math
-
 from drake import lcmt_robot_state
 from pydrake.common.value import AbstractValue
 from pydrake.lcm import DrakeLcm
@@ -23,7 +21,7 @@ from pydrake.systems.framework import Context, LeafSystem, OutputPort
 from pydrake.systems.lcm import LcmPublisherSystem, LcmScopeSystem
 
 from .configuration import position_names
-from .exceptions import InvalidInput
+from .exceptions import InvalidInput, finite_number
 from .robot import Robot
 
 
@@ -58,7 +56,7 @@ def publish_period(robot: Robot, period: float | None = None, every: int | None 
         return every * robot.dt
     if period is None:
         return 0.01
-    if isinstance(period, bool) or not isinstance(period, (int, float)) or not math.isfinite(period) or period <= 0:
+    if not finite_number(period) or period <= 0:
         raise InvalidInput(f"publish period must be a number > 0 (s), got {period!r}")
     return float(period)
 

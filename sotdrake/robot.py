@@ -17,6 +17,7 @@ import numpy as np
 from pydrake.lcm import DrakeLcm
 from pydrake.systems.framework import DiagramBuilder, OutputPort, System
 
+from .atomic import all_or_nothing
 from .device import Device
 from .exceptions import InvalidInput, NotFound, SotError, check_name
 from .joint_limitator import JointLimitator
@@ -28,6 +29,23 @@ from .solvers.kinematic import KinematicSolver
 from .task import Task
 
 SystemT = TypeVar("SystemT", bound=System)
+
+
+def velocity_selection(plant, excluding: Sequence[str] = ()) -> np.ndarray:
+    """``plant``'s nv booleans, False on the velocities of the joints named in ``excluding`` (a list
+    of names: a string alone is refused, not read as its characters); :class:`NotFound` for a name
+    the plant does not have."""
+    mask = np.ones(plant.num_velocities(), dtype=bool)
+    if isinstance(excluding, str):  # (one joint's name, not its characters)
+        raise InvalidInput(f"velocity_selection: excluding is a list of joint names, got the string {excluding!r:.60}: "
+                           f"give [{excluding!r:.60}]")
+    for name in excluding:
+        if not isinstance(name, str) or not plant.HasJointNamed(name):
+            joints = [plant.get_joint(j).name() for j in plant.GetJointIndices()]
+            raise NotFound(str(name), joints).but("velocity_selection: excluding")
+        joint = plant.GetJointByName(name)
+        mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
+    return mask
 
 
 def check_new_names(builder: DiagramBuilder, taken: set[str], names: list[str]) -> None:
@@ -75,9 +93,11 @@ class Robot:
         self.limitator: JointLimitator | None = None  # between the solver and the device (Solver(robot))
         self._names: set[str] = set()
         self.lcm: DrakeLcm | None = None  # the publishers' LCM instance (sotdrake.publishing), made by the first of them
-        self.dynamic = self.add(Dynamic(model, "dynamic"))
-        self.device = self.add(Device(model.plant, dt, model.half_sitting if q0 is None else q0, "device"))
-        builder.Connect(measured_position or self.device.GetOutputPort("state"), self.dynamic.GetInputPort("position"))
+        device = Device(model.plant, dt, model.half_sitting if q0 is None else q0, "device")  # (checks dt and q0 first)
+        with all_or_nothing(builder):  # (a measured_position that cannot be connected: the builder as it was)
+            self.dynamic = self.add(Dynamic(model, "dynamic"))
+            self.device = self.add(device)
+            builder.Connect(measured_position or self.device.GetOutputPort("state"), self.dynamic.GetInputPort("position"))
 
     @property
     def dimension(self) -> int:
@@ -90,18 +110,7 @@ class Robot:
 
     def velocity_selection(self, excluding: Sequence[str] = ()) -> np.ndarray:
         """nv booleans, False on the velocities of the joints named in ``excluding``."""
-        plant = self.model.plant
-        mask = np.ones(self.dimension, dtype=bool)
-        if isinstance(excluding, str):  # (one joint's name, not its characters)
-            raise InvalidInput(f"velocity_selection: excluding is a list of joint names, got the string {excluding!r:.60}: "
-                               f"give [{excluding!r:.60}]")
-        for name in excluding:
-            if not plant.HasJointNamed(name):
-                joints = [plant.get_joint(j).name() for j in plant.GetJointIndices()]
-                raise NotFound(name, joints).but("velocity_selection: excluding")
-            joint = plant.GetJointByName(name)
-            mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
-        return mask
+        return velocity_selection(self.model.plant, excluding)
 
     def check_new_names(self, names: list[str]) -> None:
         """:class:`InvalidInput` if an entity of one of ``names`` exists already, :class:`SotError`
@@ -124,7 +133,10 @@ class Robot:
         return self.builder.AddNamedSystem(name, system)
 
     def add_task(self, task: Task) -> Task:
-        """Add a task and connect it to the solver (now, or when the solver is created)."""
+        """Add a task and connect it to the solver (now, or when the solver is created); refused
+        (nothing added) when the solver could not take it."""
+        if self.solver is not None:
+            self.solver.check_task_input(task)
         self.add(task)
         self.tasks[task.name] = task
         if self.solver is not None:
@@ -141,6 +153,12 @@ class Robot:
             raise InvalidInput(f"{self.solver.name} already drives the device")
         if limitator is not None and limitator.layout.nv != self.dimension:
             raise InvalidInput(f"limitator {limitator.name!r} is for nv = {limitator.layout.nv}, the robot has nv = {self.dimension}")
+        names = [solver.get_name()] + ([] if limitator is None else [limitator.get_name()])
+        if len(set(names)) < len(names):
+            raise InvalidInput(f"the solver and its limitator need two names, got {names[0]!r} for both")
+        self.check_new_names(names)  # (everything refused before anything is added)
+        for task in self.tasks.values():
+            solver.check_task_input(task)
         self.add(solver)
         self.solver = solver
         if limitator is None:

@@ -10,11 +10,12 @@ import json
 import logging
 import sys
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
-from pydrake.geometry import Meshcat
+from pydrake.geometry import Meshcat, MeshcatVisualizer
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram
 
@@ -26,18 +27,43 @@ from .introspection import all_systems
 SOLVER_HELP = {"cascade": "the basic SOT (pseudo-inverse cascade)", "hqp": "SolverKine (hierarchical QP, joint limits hard)"}
 
 
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """argparse's help with each option's default, except where the default says nothing: None
+    (the help tells what happens without the option) and a flag's ``True``/``False``."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default is None or isinstance(action.default, bool) or action.nargs == 0:
+            return action.help
+        return super()._get_help_string(action)
+
+
+class ScriptParser(argparse.ArgumentParser):
+    """The parser of a script: once the arguments are parsed, the folders of ``--out`` that do not
+    exist yet are noted, so that :func:`run_script` removes those the script made (whichever way:
+    :func:`start`, a live run's files) and left empty when an option is refused."""
+
+    def parse_known_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
+                         namespace: argparse.Namespace | None = None) -> tuple[argparse.Namespace, list[str]]:
+        parsed, extras = super().parse_known_args(args, namespace)
+        out = getattr(parsed, "out", None)
+        if isinstance(out, (str, Path)):
+            _note_missing(Path(out))
+        return parsed, extras
+
+
 def script_arguments(doc: str, out: str, duration: float | None = 8.0, solver: str | None = None,
-                     bag: bool = True) -> argparse.ArgumentParser:
-    """The arguments every script in ``diagrams/`` takes: ``--duration``, ``--out``,
-    ``--no-meshcat`` and ``--quiet``, with ``bag`` ``--bag`` (the run's trace also as a rosbag2,
-    written by :func:`write_run`), and with ``solver`` (its default: ``'cascade'`` or ``'hqp'``)
-    ``--solver`` for :func:`sotdrake.robot.add_sot`; add the script's own, then call ``parse_args``."""
-    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0],
-                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                     bag: bool = True, meshcat: bool = True) -> argparse.ArgumentParser:
+    """The arguments every script in ``diagrams/`` takes: ``--duration``, ``--out`` and ``--quiet``;
+    with ``meshcat`` (a script that records its run) ``--no-meshcat``, with ``bag`` ``--bag`` (the
+    run's trace also as a rosbag2, written by :func:`write_run`), and with ``solver`` (its default:
+    ``'cascade'`` or ``'hqp'``) ``--solver`` for :func:`sotdrake.robot.add_sot`; add the script's
+    own, then call ``parse_args``. The description is the first paragraph of ``doc``."""
+    parser = ScriptParser(description=doc.split("\n\n")[0], formatter_class=HelpFormatter)
     parser.add_argument("--duration", type=float, default=duration,
                         help="simulated time (s)" if duration is not None else "simulated time (s); None: each run's own")
     parser.add_argument("--out", type=Path, default=Path(out), help="output directory")
-    parser.add_argument("--no-meshcat", action="store_true", help="no recording (faster)")
+    if meshcat:
+        parser.add_argument("--no-meshcat", action="store_true", help="no recording (faster)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     if bag:
         parser.add_argument("--bag", action="store_true",
@@ -53,9 +79,11 @@ def script_arguments(doc: str, out: str, duration: float | None = 8.0, solver: s
 def start(args: argparse.Namespace, live: bool = False) -> Meshcat | None:
     """Check ``--duration`` (in ``(0, MAX_DURATION]``: a day, as ``Runner.go``) and ``--out`` (a
     directory that can be created and written: checked before the run, not after it), set up
-    logging, and start Meshcat unless ``--no-meshcat``: for the recording (no URL printed: it would
-    stop working when the script exits) or, with ``live``, to watch (the URL printed). See
-    :func:`sotdrake.visualization.start_meshcat`."""
+    logging, and start Meshcat unless ``--no-meshcat`` (or the script has no such option): for the
+    recording (no URL printed: it would stop working when the script exits) or, with ``live``, to
+    watch (the URL printed). See :func:`sotdrake.visualization.start_meshcat`. A refused option is a
+    ``SystemExit`` whose message names it: :func:`run_script` ends the script with it
+    (``<script>: error: <message>``, exit status 2)."""
     if args.duration is not None and not 0 < args.duration <= MAX_DURATION:
         raise SystemExit(f"--duration must be a number in (0, {MAX_DURATION:g}] s, got {args.duration}")
     out = getattr(args, "out", None)
@@ -67,7 +95,7 @@ def start(args: argparse.Namespace, live: bool = False) -> Meshcat | None:
         if importlib.util.find_spec("rosbags") is None:
             raise SystemExit('--bag needs the ros2 extra: pip install ".[ros2]"')
     logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
-    if args.no_meshcat:
+    if getattr(args, "no_meshcat", True):
         return None
     from .visualization import start_meshcat
 
@@ -111,46 +139,89 @@ def save_npz(path: Path | str, arrays: Mapping[str, object], allow_pickle: bool 
 
 def run_script(main: Callable[[], object], leave_out: tuple[str, ...] = ("outputs",), print_summary: bool = True) -> object:
     """What a script of ``diagrams/`` runs under ``__main__``: ``main()``, its summary printed
-    (:func:`report`, ``leave_out``) when it returns a ``dict`` and ``print_summary``. A :class:`SotError` (an option
-    argparse let through that the build or the run refuses) ends the script with the error's one
-    line on stderr and exit status 2, as argparse's own errors, and removes the ``--out`` folders
-    :func:`start` created that are still empty."""
+    (:func:`report`, ``leave_out``) when it returns a ``dict`` and ``print_summary``.
+
+    Every refusal of a script ends here, as argparse's own errors: a :class:`SotError` (an option
+    argparse let through that the build or the run refuses) or a ``SystemExit`` with a message (the
+    checks of :func:`start`, :func:`check_output_directory` and the scripts' own) ends the script
+    with ``<script>: error: <the message>`` on one line of stderr and exit status 2; a
+    ``SystemExit`` with a non-zero status (``parser.error``, which has printed its line) keeps its
+    status. Either way the ``--out`` folders :func:`start` created during ``main()`` and still
+    empty are removed. A ``SystemExit`` of status 0 or None (``--help``) passes unchanged."""
+    made = len(_CREATED_OUTPUTS)
     try:
         result = main()
     except SotError as error:
-        for folder in reversed(_CREATED_OUTPUTS):
-            with contextlib.suppress(OSError):
-                folder.rmdir()  # (only an empty one)
-        print(f"{Path(sys.argv[0]).name}: error: {error}", file=sys.stderr, flush=True)
-        raise SystemExit(2) from None
+        _remove_created_outputs(made)
+        _refuse(str(error))
+    except SystemExit as stop:
+        if stop.code is None or stop.code == 0:
+            raise
+        _remove_created_outputs(made)
+        if not isinstance(stop.code, int):
+            _refuse(str(stop.code))
+        raise
     if isinstance(result, dict) and print_summary:
         report(result, leave_out)
     return result
 
 
-#: The ``--out`` folders (and parents) :func:`check_output_directory` created in this process.
+def _refuse(message: str) -> NoReturn:
+    """``<script>: error: <message>`` (on one line) on stderr, then exit status 2."""
+    line = " ".join(part.strip() for part in message.splitlines() if part.strip())
+    print(f"{Path(sys.argv[0]).name}: error: {line}", file=sys.stderr, flush=True)
+    raise SystemExit(2) from None
+
+
+def _remove_created_outputs(made: int) -> None:
+    """Remove the folders noted in :data:`_CREATED_OUTPUTS` after the first ``made`` ones, the
+    deepest first, if they are still empty (one that exists since before is never noted)."""
+    while len(_CREATED_OUTPUTS) > made:
+        with contextlib.suppress(OSError):
+            _CREATED_OUTPUTS.pop().rmdir()  # (only an empty one)
+
+
+#: The ``--out`` folders (and parents) that did not exist when a script's arguments were parsed or
+#: that :func:`check_output_directory` created, in this process, the deepest last.
 _CREATED_OUTPUTS: list[Path] = []
+
+
+def _note_missing(out: Path) -> list[Path]:
+    """Note the folders of ``out`` (itself and its parents) that do not exist; returns them, the
+    deepest first."""
+    try:
+        missing = [folder for folder in (out, *out.parents) if not folder.exists()]
+    except (OSError, ValueError):  # (a NUL byte, a name too long: --out is refused later)
+        return []
+    _CREATED_OUTPUTS.extend(reversed(missing))
+    return missing
 
 
 def check_output_directory(out: Path) -> None:
     """Create ``out`` (and its parents) if needed and check that files can be written there; a
-    ``SystemExit`` naming ``--out`` and the reason otherwise (no traceback)."""
+    ``SystemExit`` naming ``--out`` and the reason otherwise (no traceback; :func:`run_script`
+    ends the script with it). The folders created are removed by :func:`run_script` if the script
+    is refused before it writes in them."""
     import os
 
-    missing = [folder for folder in (out, *out.parents) if not folder.exists()]
+    missing = _note_missing(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
-        _CREATED_OUTPUTS.extend(reversed(missing))
-    except OSError as error:
-        raise SystemExit(f"--out {out}: cannot create the output directory ({error.strerror or error})") from None
+    except (OSError, ValueError) as error:
+        for folder in missing:  # (the parents made before the failure, deepest first)
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        raise SystemExit(f"--out {out}: cannot create the output directory ({os_reason(error)})") from None
     if not os.access(out, os.W_OK | os.X_OK):
         raise SystemExit(f"--out {out}: the output directory is not writable")
 
 
-def simulate(diagram: Diagram, duration: float, visualizer=None, progress: bool = True,
+def simulate(diagram: Diagram, duration: float, visualizer: MeshcatVisualizer | None = None, progress: bool = True,
              label: str = "") -> tuple[Simulator, float]:
-    """Run ``duration`` seconds of simulated time (recording ``visualizer`` if given); returns the
-    simulator and the wall time of the loop (s). The stacks are checked first
+    """Run ``duration`` seconds of simulated time (recording ``visualizer`` if given: the
+    ``MeshcatVisualizer`` that :func:`sotdrake.visualization.add_robot_visualizer` returns, not the
+    ``Meshcat``; anything else is refused before the simulator is built); returns the simulator and
+    the wall time of the loop (s). The stacks are checked first
     (:func:`sotdrake.stack_checks.check_stack`: a task without gain or feature is named).
 
     The streaming tracers of ``diagram`` (:class:`sotdrake.tracing.Tracer`) move their samples to
@@ -164,6 +235,10 @@ def simulate(diagram: Diagram, duration: float, visualizer=None, progress: bool 
 
     if check_number("duration", duration, 0.0, MAX_DURATION, " s") == 0:
         raise InvalidInput("duration must be > 0 s, got 0")
+    if visualizer is not None and not isinstance(visualizer, MeshcatVisualizer):
+        hint = ": give add_robot_visualizer(robot, meshcat)'s result" if isinstance(visualizer, Meshcat) else ""
+        raise InvalidInput("simulate: visualizer must be None or the MeshcatVisualizer that add_robot_visualizer returns, "
+                           f"got {type(visualizer).__name__}{hint}")
     check_stack(diagram)
     simulator = Simulator(diagram)
     simulator.Initialize()

@@ -19,7 +19,6 @@ instead (any source of rows). Outputs ``task``, a :class:`TaskLevel` for the sol
 
 from __future__ import annotations
 
-import math
 import re
 import warnings
 from dataclasses import dataclass, field
@@ -62,9 +61,10 @@ class TaskLevel(NamedTuple):
 _UNCONNECTED = re.compile(r"required InputPort\[\d+\] \((\w+)\) of System (\S+) \(([\w.]+)\) is not connected")
 
 
-def unconnected_input_message(task_name: str, error: RuntimeError) -> str | None:
+def unconnected_input_message(task_name: str, error: RuntimeError, meta_task: str = "MetaTaskKine6d") -> str | None:
     """A sentence naming what is missing when ``error`` is Drake's "required InputPort … is not
-    connected", raised while task ``task_name`` was evaluated; None for another error."""
+    connected", raised while task ``task_name`` was evaluated (``meta_task``: the kind of meta task
+    that would have connected it); None for another error."""
     match = _UNCONNECTED.search(str(error))
     if match is None:
         return None
@@ -76,7 +76,7 @@ def unconnected_input_message(task_name: str, error: RuntimeError) -> str | None
                 "gain = GainAdaptive(...), or build it with a meta task (MetaTaskKine6d …), which does")
     if system == task_name:
         return (f"task {task_name!r} has no feature: connect a feature's 'signals' output to its 'feature' input "
-                "(or its 'error' and 'jacobian' inputs), or build it with a meta task (MetaTaskKine6d …), which does")
+                f"(or its 'error' and 'jacobian' inputs), or build it with a meta task ({meta_task} …), which does")
     return (f"task {task_name!r} cannot be evaluated: the input {port!r} of {system!r} ({kind.rsplit('.', 1)[-1]}) "
             "is not connected (a meta task connects its feature's inputs)")
 
@@ -215,7 +215,7 @@ class TaskPD(_TaskBase, Entity[PDSettings]):
         self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._remember)
 
     def setBeta(self, beta: float, context: Context | None = None) -> None:
-        if isinstance(beta, bool) or not isinstance(beta, (int, float)) or not (math.isfinite(beta) and 0 <= beta < MAX_BETA):
+        if not finite_number(beta) or not 0 <= beta < MAX_BETA:
             raise InvalidInput(f"{self.name}.setBeta: β must be a number in [0, {MAX_BETA:g}) (β ≥ 1 makes the error "
                                f"diverge), got {beta!r}")
         self._command(context, lambda s: setattr(s, "beta", float(beta)))

@@ -35,7 +35,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort
 
 from .entity import Entity
-from .exceptions import InvalidInput, StackError, TaskNotFound
+from .exceptions import InvalidInput, StackError, TaskNotFound, finite_number
 from .task import _UNCONNECTED, TaskLevel, unconnected_input_message
 
 #: Largest weight of a member (dimensionless; rows scaled by at most √MAX_WEIGHT = 1e4).
@@ -62,18 +62,23 @@ def weighted_level(levels: Sequence[TaskLevel], weights: Sequence[float] | np.nd
     return TaskLevel(jacobian, lower, upper, error)
 
 
+def check_weight(name: str, member: str, weight: Any) -> float:
+    """``weight`` as a float if it is one finite number in ``[0, MAX_WEIGHT]`` (a numpy scalar
+    too), else :class:`InvalidInput` naming the group, the member and the value given."""
+    if not (finite_number(weight) and 0 <= weight <= MAX_WEIGHT):
+        raise InvalidInput(f"{name}: the weight of {member!r} must be a finite number in [0, {MAX_WEIGHT:g}], got {weight!r:.100}")
+    return float(weight)
+
+
 def check_weights(name: str, members: Sequence[str], weights: Any) -> np.ndarray:
     """``weights`` as an array of ``len(members)`` floats, each finite in ``[0, MAX_WEIGHT]``, not
     all zero; else :class:`InvalidInput` naming the group and the member."""
     items = list(np.ravel(weights)) if isinstance(weights, np.ndarray) else weights
-    if not isinstance(items, (list, tuple)) or any(not _is_number(w) for w in items):
+    if not isinstance(items, (list, tuple)) or len(items) != len(members):
         raise InvalidInput(f"{name}: weights must be {len(members)} numbers (one per member {members}), got {weights!r:.100}")
-    values = np.asarray(items, dtype=float).reshape(-1)
-    if values.shape != (len(members),):
-        raise InvalidInput(f"{name}: weights must be {len(members)} numbers (one per member {members}), got {weights!r:.100}")
-    for member, w in zip(members, values, strict=True):
-        if not (math.isfinite(w) and 0 <= w <= MAX_WEIGHT):
-            raise InvalidInput(f"{name}: the weight of {member!r} must be a finite number in [0, {MAX_WEIGHT:g}], got {w!r}")
+    for member, w in zip(members, items, strict=True):
+        check_weight(name, member, w)
+    values = np.array([float(w) for w in items])
     if not values.any():
         raise InvalidInput(f"{name}: every weight is 0, the level would ask nothing: give at least one member a weight > 0")
     return values
@@ -140,21 +145,27 @@ class TaskWeight(Entity[WeightSettings]):
 
     def setWeights(self, weights: Sequence[float] | Mapping[str, float], context: Context | None = None) -> None:
         """Every weight at once: one number per member (in the order of ``members``) or a mapping
-        from member names to weights (members not named keep theirs)."""
-        if isinstance(weights, Mapping):
-            current = self.settings(context).weights.copy()
-            for member, w in weights.items():
-                current[self.members.index(self._member(member))] = w if _is_number(w) else math.nan
-            values = check_weights(self.name, self.members, current)
-        else:
+        from member names to weights (members not named keep theirs as they are when the change
+        applies: inside ``attime``, at its time; not all 0 then)."""
+        if not isinstance(weights, Mapping):
             values = check_weights(self.name, self.members, weights)
-        self._command(context, lambda s: setattr(s, "weights", values.copy()))
+            self._command(context, lambda s: setattr(s, "weights", values.copy()))
+            return
+        named = {}
+        for member, w in weights.items():
+            key = self._member(member)
+            named[self.members.index(key)] = check_weight(self.name, key, w)
+
+        def change(s: WeightSettings) -> None:
+            values = s.weights.copy()
+            for index, w in named.items():
+                values[index] = w
+            s.weights = check_weights(self.name, self.members, values)
+
+        self._command(context, change)
 
     def setWeight(self, member: Any, weight: float, context: Context | None = None) -> None:
         """The weight of one member (a task, a meta task, or its name)."""
-        if not _is_number(weight):
-            raise InvalidInput(f"{self.name}: the weight of {self._member(member)!r} must be a finite number in "
-                               f"[0, {MAX_WEIGHT:g}], got {weight!r:.100}")
         self.setWeights({self._member(member): weight}, context)
 
     # --- checks and calc -----------------------------------------------------------------------
@@ -204,10 +215,6 @@ class TaskWeight(Entity[WeightSettings]):
                                                                                  np.zeros(0)))
 
 
-def _is_number(value: object) -> bool:
-    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-
-
 def add_task_weight(robot: Any, name: str, members: Sequence[Any], weights: Sequence[float] | None = None) -> TaskWeight:
     """Add a :class:`TaskWeight` named ``name`` over ``members`` (tasks or meta tasks already added
     to ``robot``, a :class:`~sotdrake.robot.Robot` or a
@@ -219,11 +226,13 @@ def add_task_weight(robot: Any, name: str, members: Sequence[Any], weights: Sequ
     for task in group.member_tasks():
         if robot.tasks.get(task.name) is not task:
             raise InvalidInput(f"{name}: the member {task.name!r} is not a task of this robot (add it first, e.g. with a meta task)")
+    solver = getattr(robot, "solver", None) or getattr(robot, "sot", None)
+    if solver is not None:
+        solver.check_task_input(group)
     robot.add(group)
     for task in group.member_tasks():
         robot.builder.Connect(task.GetOutputPort("task"), group.member_port(task))
     robot.tasks[name] = group
-    solver = getattr(robot, "solver", None) or getattr(robot, "sot", None)
     if solver is not None:
         robot.builder.Connect(group.GetOutputPort("task"), solver.declare_task_input(group))
     return group

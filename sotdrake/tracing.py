@@ -13,93 +13,62 @@ flush are
 :func:`sotdrake.simulation.simulate` and the live runner (:class:`sotdrake.live.runner.LiveRun`);
 with a ``Simulator`` of your own, call :func:`flush_tracers` (or :meth:`Tracer.flush`) between
 ``AdvanceTo`` calls. :meth:`Tracer.data` reads the chunks back and appends what the logs still
-hold: the same arrays as with ``stream=False`` (everything in Drake's logs). The file belongs to
-the context flushed first; flushing another root context starts it over.
+hold: the same arrays as with ``stream=False`` (everything in Drake's logs).
+
+**One stream per root context.** Each root context flushed has its own stream, and the tracer keeps
+a reference to that context (and so to its ``Simulator``) while it lives. The tracer's file
+(:attr:`Tracer.path`) holds the latest run: a context flushed from the start of its run (a new
+context, or a context run again from an earlier time) takes it over, and the run it held before
+moves to a temporary file, still read by :meth:`Tracer.data` for its context. A context whose first
+sample follows a chunk of another context's stream (a ``Context.Clone()`` taken during a run)
+streams to a temporary file of its own that starts with that stream's chunks up to there: replaying
+a clone leaves the original's trace as it was, and the clone's data start at the run's start.
 """
 
 from __future__ import annotations
 
-import logging
-import tempfile
 import weakref
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPort
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPort, PortDataType
 from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 
+from .atomic import all_or_nothing
 from .exceptions import InvalidInput, SotError, check_number, os_reason
 from .simulation import save_figure, save_npz
-
-log = logging.getLogger(__name__)
+from .trace_chunks import ChunkFile
+from .writable import check_writable, writing
 
 #: The tracers that stream, for :func:`flush_tracers` (weak: a tracer dropped is forgotten).
 _STREAMING: weakref.WeakSet[Tracer] = weakref.WeakSet()
 
 
-class _ChunkFile:
-    """A sequence of ``.npy`` arrays in one file, appended to: the column names (a string array),
-    then per chunk one array per column in that order. Nothing is re-read when a chunk is added."""
+@dataclass(eq=False)
+class _Stream:
+    """The chunks of one root context: ``file`` (None when they were dropped: ``dropped``), the time
+    of the last sample moved there (``last``) and when it was last flushed (the tracer's count)."""
 
-    def __init__(self, path: Path | None):
-        self._temporary = None
-        if path is None:  # deleted with this object
-            self._temporary = tempfile.NamedTemporaryFile(prefix="sotdrake-trace-", suffix=".npys")
-            path = Path(self._temporary.name)
-        self.path = Path(path)
-        self.chunks = 0
-        self.reset()
-
-    def reset(self) -> None:
-        self.path.write_bytes(b"")
-        self.chunks = 0
-
-    def append(self, columns: dict[str, np.ndarray]) -> None:
-        with open(self.path, "ab") as file:
-            if self.chunks == 0:
-                np.lib.format.write_array(file, np.array(list(columns), dtype=str), allow_pickle=False)
-            for values in columns.values():
-                np.lib.format.write_array(file, np.ascontiguousarray(values), allow_pickle=False)
-        self.chunks += 1
-
-    def read(self) -> dict[str, list[np.ndarray]]:
-        """Each column's chunks, in order: the complete ones (a chunk cut short, by a run stopped
-        while it was being written, is left out with a warning)."""
-        try:
-            size = self.path.stat().st_size
-        except OSError as error:
-            raise InvalidInput(f"trace file {str(self.path)!r}: {error.strerror}") from None
-        with open(self.path, "rb") as file:
-            if size == 0:
-                return {}
-            try:
-                names = [str(name) for name in np.lib.format.read_array(file, allow_pickle=False)]
-            except ValueError as error:
-                raise InvalidInput(f"{self.path}: not a trace file ({error})") from None
-            out: dict[str, list[np.ndarray]] = {name: [] for name in names}
-            while file.tell() < size:
-                start = file.tell()
-                try:
-                    chunk = [np.lib.format.read_array(file, allow_pickle=False) for _ in names]
-                except ValueError:
-                    log.warning("%s: the chunk at byte %d is cut short (a run stopped while writing it): read up to "
-                                "there", self.path, start)
-                    break
-                for name, values in zip(names, chunk, strict=True):
-                    out[name].append(values)
-        return out
+    context: Context
+    file: ChunkFile | None = None
+    last: float = -np.inf
+    flushed: int = 0
+    dropped: bool = False
 
 
 class Tracer:
     """sot-core's ``Tracer``: vector output ports logged every ``period`` seconds (see the module
     docstring), saved to ``.npz`` and CSV and plotted.
 
-    ``stream``: ``True`` (default) streams the samples to a temporary chunk file, deleted with the
-    tracer; a path streams to that file (kept: read it back with :func:`read_trace`); ``False``
-    keeps every sample in Drake's logs (memory grows with the run). ``chunk``: the simulated
-    seconds a chunk holds (> 0)."""
+    ``stream``: ``True`` (default) streams the samples to temporary chunk files, deleted with the
+    tracer; a path streams the latest run to that file (kept: read it back with :func:`read_trace`);
+    ``False`` keeps every sample in Drake's logs (memory grows with the run). ``chunk``: the
+    simulated seconds a chunk holds (> 0)."""
 
     def __init__(self, builder: DiagramBuilder, period: float, stream: bool | str | Path = True, chunk: float = 1.0):
+        if not isinstance(builder, DiagramBuilder):
+            raise InvalidInput(f"tracer: expected the DiagramBuilder of the signals, got {type(builder).__name__}")
         period = check_number("tracer period", period, 1e-9, 1e6, " s")
         if not isinstance(stream, bool | str | Path):
             raise InvalidInput(f"tracer stream must be True, False or a file path, got {stream!r}")
@@ -107,23 +76,25 @@ class Tracer:
         path = None if isinstance(stream, bool) else _stream_path(Path(stream).expanduser())
         self.builder, self.period, self.chunk = builder, period, float(chunk)
         self.sinks: dict[str, VectorLogSink] = {}
-        self._file: _ChunkFile | None = None
+        self._file: ChunkFile | None = None
         if stream is not False:
             try:
-                self._file = _ChunkFile(path)
+                self._file = ChunkFile(path)
             except (OSError, ValueError) as error:  # (a NUL byte in the path: ValueError)
                 raise InvalidInput(f"tracer stream: cannot write {str(path)!r}: {os_reason(error)}") from None
             _STREAMING.add(self)
-        self._owner: int | None = None  # id of the root context the file holds
-        self._last = -np.inf  # the time of the last sample moved to the file
+        self._streams: list[_Stream] = []
+        self._holder: _Stream | None = None  # the stream whose chunks are in self._file
+        self._flushes = 0
 
     @property
     def path(self) -> Path | None:
-        """The chunk file (``None`` with ``stream=False``)."""
+        """The chunk file of the latest run (``None`` with ``stream=False``)."""
         return None if self._file is None else self._file.path
 
     def add(self, port: OutputPort, name: str) -> VectorLogSink:
-        """Log ``port`` (a vector output) under ``name``."""
+        """Log ``port`` (a vector output port of a system of this builder) under ``name``; anything
+        else is refused with :class:`InvalidInput` and the builder left as it was."""
         if (not isinstance(name, str) or not name or name in self.sinks or name == "time" or "/" in name
                 or not name.isprintable()):
             raise InvalidInput(f"tracer: a signal name is a new non-empty string without '/' or control characters, "
@@ -132,57 +103,126 @@ class Tracer:
             raise SotError(f"tracer: cannot add {name!r}: the diagram is already built (add signals before builder.Build())")
         if any(system.get_name() == f"tracer_{name}" for system in self.builder.GetSystems()):
             raise InvalidInput(f"tracer: another tracer of this diagram logs a signal named {name!r}: give another name")
-        sink = LogVectorOutput(port, self.builder, self.period)
-        sink.set_name(f"tracer_{name}")
+        _check_vector_port(self.builder, port, name)
+        with all_or_nothing(self.builder):
+            sink = LogVectorOutput(port, self.builder, self.period)
+            sink.set_name(f"tracer_{name}")
         self.sinks[name] = sink
         return sink
 
     def flush(self, context: Context, force: bool = False) -> bool:
-        """Move the logged samples of the root ``context`` to the file once they span ``chunk``
-        seconds (or with ``force``, whatever they hold); returns whether a chunk was written."""
+        """Move the logged samples of the root ``context`` to its stream's file once they span
+        ``chunk`` seconds (or with ``force``, whatever they hold); returns whether a chunk was
+        written. Samples that do not follow the stream's last ones start a new run (module docstring)."""
         if self._file is None or not self.sinks:
             return False
         logs = [sink.FindMutableLog(context) for sink in self.sinks.values()]
         times = logs[0].sample_times()
         if times.size == 0 or not (force or times[-1] - times[0] >= self.chunk - 1e-9):
             return False
-        if self._owner != id(context) or times[0] <= self._last:  # another context, or a rerun
-            self._file.reset()
-        self._owner, self._last = id(context), float(times[-1])
+        stream = self._stream_to_write(context, float(times[0]))
+        if stream.file is None:  # (its earlier chunks were dropped: the samples stay in Drake's logs)
+            return False
         columns = {"time": times.copy(), **{name: log.data().T.copy() for name, log in zip(self.sinks, logs, strict=True)}}
-        self._file.append(columns)
+        stream.file.append(columns, float(times[-1]))
+        self._flushes += 1
+        stream.last, stream.flushed = float(times[-1]), self._flushes
         for log in logs:
             log.Clear()
         return True
 
+    def _stream_of(self, context: Context) -> _Stream | None:
+        return next((stream for stream in self._streams if stream.context is context), None)
+
+    def _stream_to_write(self, context: Context, first: float) -> _Stream:
+        """The stream the samples of ``context`` from time ``first`` on go to: its own if they
+        follow it, a copy of the stream they branch from (a clone), else a new run in the tracer's file."""
+        stream = self._stream_of(context)
+        if stream is not None and first > stream.last:
+            return stream
+        if stream is None:
+            stream = _Stream(context)
+            self._streams.append(stream)
+            branch = self._branch(context, first)
+            if branch is not None:
+                parent, chunks = branch
+                assert parent.file is not None
+                stream.file, stream.last = parent.file.prefix(chunks), parent.file.ends[chunks - 1]
+                return stream
+        assert self._file is not None
+        if self._holder is not None and self._holder is not stream:
+            self._holder.file = self._file.moved_away()
+            self._holder.dropped = self._holder.file is None
+        else:
+            self._file.reset()
+        stream.file, stream.last, stream.dropped, self._holder = self._file, -np.inf, False, stream
+        return stream
+
+    def _branch(self, context: Context, first: float | None) -> tuple[_Stream, int] | None:
+        """The stream of another context and the number of its chunks that ``context`` continues:
+        its first sample (``first``; None when its logs are empty: its time) is one period after the
+        end of that chunk, or at it (a new ``Simulator`` publishes at the clone's time again). The
+        stream flushed last wins a tie."""
+        now = context.get_time() if first is None else first
+        tolerance = 1e-9 * max(1.0, abs(now))
+        low, high = (now - 1.5 * self.period, now + tolerance) if first is not None else (now - self.period, now + tolerance)
+        found = [(stream.flushed, index + 1, stream) for stream in self._streams
+                 if stream.context is not context and stream.file is not None
+                 for index, end in enumerate(stream.file.ends) if 0 < end and low < end <= high]
+        if not found:
+            return None
+        _, chunks, stream = max(found, key=lambda item: item[:2])
+        return stream, chunks
+
     def data(self, context: Context) -> dict[str, np.ndarray]:
-        """``time`` (k,) and each signal as (k, size): the file's chunks (if they belong to
-        ``context``) followed by the samples the sinks' logs in ``context`` still hold."""
-        streamed = {}
-        if self._file is not None and self._owner == id(context) and self._file.chunks and self.sinks:
-            times = next(iter(self.sinks.values())).FindLog(context).sample_times()
-            if times.size == 0 or times[0] > self._last:  # not a rerun since the last flush
-                streamed = self._file.read()
+        """``time`` (k,) and each signal as (k, size): the chunks of ``context``'s stream (or of the
+        stream it was cloned from, up to the clone) followed by the samples the sinks' logs in
+        ``context`` still hold. :class:`SotError` if the chunks of ``context`` were dropped."""
+        if not isinstance(context, Context):
+            raise InvalidInput(f"tracer: data() needs the root context of the run, got {type(context).__name__}")
+        logs = {name: sink.FindLog(context) for name, sink in self.sinks.items()}
+        streamed: dict[str, list[np.ndarray]] = {}
+        if self._file is not None and logs:
+            times = next(iter(logs.values())).sample_times()
+            first = float(times[0]) if times.size else None
+            stream = self._stream_of(context)
+            if stream is not None and stream.dropped:
+                raise SotError(f"tracer: the chunks of this context were dropped when a later run took over "
+                               f"{str(self._file.path)!r} (not a regular file)")
+            if stream is not None and stream.file is not None and (first is None or first > stream.last):
+                streamed = stream.file.read()
+            elif stream is None and (branch := self._branch(context, first)) is not None:
+                parent, chunks = branch
+                assert parent.file is not None
+                streamed = parent.file.read(stop=parent.file.offsets[chunks - 1])
         out: dict[str, np.ndarray] = {}
-        for name, sink in self.sinks.items():
-            log = sink.FindLog(context)
+        for name, log in logs.items():
             out.setdefault("time", np.concatenate([*streamed.get("time", []), log.sample_times()]))
             tail = log.data().T
             out[name] = np.concatenate([*streamed.get(name, []), tail]) if streamed else tail.copy()
         return out
 
     def save(self, context: Context, path: Path) -> Path:
-        """The data in a ``.npz`` (``np.load``), numbers only; returns its path."""
-        return save_npz(path, self.data(context))
+        """The data in a ``.npz`` (``np.load``; ``.npz`` appended to ``path`` if it has not that
+        suffix), numbers only; returns its path. A path that cannot be written: :class:`InvalidInput`."""
+        target = check_writable("tracer: save", path)
+        if target.suffix != ".npz":
+            target = check_writable("tracer: save", target.with_name(target.name + ".npz"))
+        data = self.data(context)
+        with writing("tracer: save", target):
+            return save_npz(target, data)
 
     def save_csv(self, context: Context, path: Path) -> Path:
         """One CSV: ``time`` then ``<signal>[i]`` columns (every signal shares the period); a name
-        holding a comma or a quote is quoted as CSV quotes (RFC 4180)."""
+        holding a comma or a quote is quoted as CSV quotes (RFC 4180). A path that cannot be
+        written: :class:`InvalidInput`."""
+        target = check_writable("tracer: save_csv", path)
         data = self.data(context)
         columns = [data["time"][:, None]] + [data[name] for name in self.sinks]
         header = ["time"] + [_csv_field(f"{name}[{i}]") for name in self.sinks for i in range(data[name].shape[1])]
-        np.savetxt(path, np.hstack(columns), delimiter=",", header=",".join(header), comments="")
-        return Path(path)
+        with writing("tracer: save_csv", target):
+            np.savetxt(target, np.hstack(columns), delimiter=",", header=",".join(header), comments="")
+        return target
 
     def plot(
         self,
@@ -197,12 +237,14 @@ class Tracer:
         """A PNG with one panel per signal (default: all) against time (s). ``title``: the figure's
         title; ``labels``: each panel's y label, with its unit (default: the signal's name);
         ``legends``: the names of a signal's components (default: the signal's name, or
-        ``name[i]``); signals in ``log`` are drawn on a log scale (as magnitudes)."""
+        ``name[i]``); signals in ``log`` are drawn on a log scale (as magnitudes). A path that
+        cannot be written: :class:`InvalidInput`, checked before drawing."""
         import matplotlib
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
+        target = check_writable("tracer: plot", path)
         data = self.data(context)
         names = signals or list(self.sinks)
         labels, legends = labels or {}, legends or {}
@@ -210,23 +252,42 @@ class Tracer:
             if name not in self.sinks:
                 raise InvalidInput(f"tracer: unknown signal {name!r}; traced: {list(self.sinks)}")
         fig, axes = plt.subplots(len(names), 1, figsize=(9, 2.6 * len(names) + 0.6), sharex=True, squeeze=False)
-        for axis, name in zip(axes[:, 0], names, strict=False):
-            values = data[name]
-            components = legends.get(name) or ([name] if values.shape[1] == 1 else
-                                               [f"{name}[{i}]" for i in range(values.shape[1])])
-            if len(components) != values.shape[1]:
-                raise InvalidInput(f"tracer: {name} has {values.shape[1]} components, the legend names {len(components)}")
-            if name in log:
-                axis.semilogy(data["time"], np.maximum(np.abs(values), 1e-16))
-            else:
-                axis.plot(data["time"], values)
-            axis.set_ylabel(labels.get(name, name))
-            axis.legend(components, fontsize=7, ncol=1 + len(components) // 8, loc="best")
-            axis.grid(True, alpha=0.3)
-        axes[-1, 0].set_xlabel("time (s)")
-        if title:
-            fig.suptitle(title)
-        return save_figure(fig, path)
+        try:
+            for axis, name in zip(axes[:, 0], names, strict=False):
+                values = data[name]
+                components = legends.get(name) or ([name] if values.shape[1] == 1 else
+                                                   [f"{name}[{i}]" for i in range(values.shape[1])])
+                if len(components) != values.shape[1]:
+                    raise InvalidInput(f"tracer: {name} has {values.shape[1]} components, the legend names {len(components)}")
+                if name in log:
+                    axis.semilogy(data["time"], np.maximum(np.abs(values), 1e-16))
+                else:
+                    axis.plot(data["time"], values)
+                axis.set_ylabel(labels.get(name, name))
+                axis.legend(components, fontsize=7, ncol=1 + len(components) // 8, loc="best")
+                axis.grid(True, alpha=0.3)
+            axes[-1, 0].set_xlabel("time (s)")
+            if title:
+                fig.suptitle(title)
+            with writing("tracer: plot", target):
+                save_figure(fig, target)
+        finally:
+            plt.close(fig)
+        return target
+
+
+def _check_vector_port(builder: DiagramBuilder, port: object, name: str) -> None:
+    """:class:`InvalidInput` naming the signal unless ``port`` is a vector-valued output port of a
+    system added to ``builder``."""
+    need = f"tracer: cannot log {name!r}: it needs a vector output port of a system of this builder"
+    if not isinstance(port, OutputPort):
+        raise InvalidInput(f"{need}, got {type(port).__name__} {port!r:.60}")
+    system = port.get_system()
+    where = f"port {port.get_name()!r} of {system.get_name()!r}"
+    if port.get_data_type() != PortDataType.kVectorValued:
+        raise InvalidInput(f"{need}; {where} is abstract-valued (not a vector)")
+    if not any(added is system for added in builder.GetSystems()):
+        raise InvalidInput(f"{need}; {where} belongs to another builder")
 
 
 def _stream_path(path: Path) -> Path:
@@ -275,7 +336,7 @@ def read_trace(path: str | Path) -> dict[str, np.ndarray]:
     when the file was cut inside its first chunk, with a warning)."""
     if not isinstance(path, str | Path):
         raise InvalidInput(f"read_trace: a file path, got {path!r:.60}")
-    reader = _ChunkFile.__new__(_ChunkFile)
+    reader = ChunkFile.__new__(ChunkFile)
     reader.path = Path(path)
     if reader.path.is_dir():
         raise InvalidInput(f"read_trace: {str(path)!r} is a folder, not a trace file")

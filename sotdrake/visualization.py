@@ -16,13 +16,14 @@ from typing import TYPE_CHECKING
 
 from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Rgba, Sphere
 from pydrake.math import RigidTransform
-from pydrake.systems.framework import Diagram
+from pydrake.systems.framework import System
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
 from .drake_logging import drake_log_level
 from .exceptions import InvalidInput, SotError, check_finite, check_number
 from .robot import Robot
 from .target_marker import TargetMarker
+from .writable import check_writable, writing
 
 if TYPE_CHECKING:
     from .dynamics.robot_dyn import RobotDyn
@@ -99,18 +100,20 @@ def _add_task_marker(meshcat: Meshcat, path: str, task, radius: float, rgba: Rgb
     return marker
 
 
-def save_recording(visualizer: MeshcatVisualizer, meshcat: Meshcat, path: Path) -> Path:
-    """Stop the recording, publish it and write Meshcat's standalone HTML to ``path`` (a file in an
-    existing folder: checked first, the recording is left as it was otherwise)."""
+def save_recording(visualizer: MeshcatVisualizer, meshcat: Meshcat, path: str | Path) -> Path:
+    """Stop the recording, publish it and write Meshcat's standalone HTML to ``path``. The path is
+    checked first (a file that can be written, in an existing folder): otherwise
+    :class:`InvalidInput` and the recording is left as it was."""
     if not isinstance(visualizer, MeshcatVisualizer) or not isinstance(meshcat, Meshcat):
         raise InvalidInput("save_recording: expected the visualizer (add_robot_visualizer) and its Meshcat")
     if not isinstance(path, (str, Path)) or Path(path).is_dir() or not Path(path).parent.is_dir():
         raise InvalidInput(f"save_recording: {str(path)!r:.100} is a folder or its folder does not exist: give a file path")
+    target = check_writable("save_recording", path)
     visualizer.StopRecording()
     visualizer.PublishRecording()
-    path = Path(path)
-    path.write_text(meshcat.StaticHtml())
-    return path
+    with writing("save_recording", target):
+        target.write_text(meshcat.StaticHtml())
+    return target
 
 
 def graphviz_dot() -> list[str] | None:
@@ -125,17 +128,26 @@ def graphviz_dot() -> list[str] | None:
     return None if pure is None else [pure, "-Kdot"]
 
 
-def write_control_graph(diagram: Diagram, path: Path) -> Path:
+def write_control_graph(diagram: System, path: str | Path) -> Path:
     """Drake's GraphViz of ``diagram`` (one level deep) as ``path`` (.svg); the ``.dot`` source is
     always written beside it. The SVG is laid out by :func:`graphviz_dot`; without any ``dot``
-    command only the source is written and a warning says how to get the SVG."""
-    path = Path(path)
-    source = path.with_suffix(".dot")
-    source.write_text(diagram.GetGraphvizString(max_depth=1))
+    command only the source is written and a warning says how to get the SVG. Both paths are
+    checked first: a system that is not one, or a path that cannot be written, is refused with
+    :class:`InvalidInput` and nothing is written."""
+    if not isinstance(diagram, System):
+        raise InvalidInput(f"write_control_graph: expected a Drake diagram or system, got {type(diagram).__name__}")
+    path = check_writable("write_control_graph", path)
+    source = check_writable("write_control_graph", path.with_suffix(".dot"))
+    text = diagram.GetGraphvizString(max_depth=1)
+    with writing("write_control_graph", source):
+        source.write_text(text)
     dot = graphviz_dot()
     if dot is None:
         log.warning("no 'dot' command: wrote %s only (`pip install graphviz-pure` or install Graphviz "
                     "for %s)", source, path.name)
         return source
-    subprocess.run([*dot, "-Tsvg", str(source), "-o", str(path)], check=True)
+    done = subprocess.run([*dot, "-Tsvg", str(source), "-o", str(path)], capture_output=True, text=True)
+    if done.returncode != 0:
+        reason = (done.stderr.strip().splitlines() or [f"exit status {done.returncode}"])[-1]
+        raise SotError(f"write_control_graph: {dot[0]} could not lay out {str(source)!r}: {reason:.200}")
     return path

@@ -149,6 +149,19 @@ def test_gait_lengths_and_durations_are_finite(field):
         GaitParameters(**{field: float("inf")})
 
 
+@pytest.mark.parametrize("options", [
+    {"sole_centre": (float("nan"), 0.0)}, {"sole_centre": (0.0, 0.0, 0.0)}, {"sole_centre": "ab"},
+    {"horizon_steps": 4.5}, {"replan_steps": 2.0}, {"replan_steps": 6}, {"swing_height": "0.05"},
+    {"step_duration": True}, {"single_support": 0.8}, {"swing_profile": None},
+])
+def test_gait_parameters_of_the_wrong_kind_are_refused_when_made(options):
+    """A NaN sole centre made the CoM NaN; a fractional horizon failed at the first replan, mid-run."""
+    from sotdrake.walking.gait import GaitParameters
+
+    with pytest.raises(InvalidInput, match=f"GaitParameters.{next(iter(options))}"):
+        GaitParameters(**options)
+
+
 def test_a_robot_without_a_solver_is_named_before_the_run(tmp_path):
     from sotdrake import simulate
 

@@ -310,7 +310,7 @@ def test_the_scripts_bad_arguments_stop_before_the_run(dynamics_script, tmp_path
 def test_the_scripts_exit_code_and_message_without_traceback(tmp_path):
     blocker = tmp_path / "a_file"
     blocker.write_text("")
-    for argv, code in ((["--effort-scale", "1.5"], 2), (["--out", str(blocker / "run")], 1)):
+    for argv, code in ((["--effort-scale", "1.5"], 2), (["--out", str(blocker / "run")], 2)):
         run = subprocess.run([sys.executable, str(ROOT / "diagrams" / "talos_dynamics.py"), "--no-meshcat", "--quiet",
                               "--device", "dynsimu", "--duration", "0.01", *argv], capture_output=True, text=True, cwd=ROOT,
                              env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=600)

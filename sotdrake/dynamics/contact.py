@@ -206,19 +206,27 @@ class Contact6d(Entity[ContactSettings]):
     def setVelocityGain(self, gain: float, context: Context | None = None) -> None:
         """``K_v`` in [0, :data:`.checks.MAX_RATE_GAIN`] (1/s): damping of a residual contact velocity."""
         value = check_number(f"{self.name}: velocity gain K_v", gain, 0.0, MAX_RATE_GAIN, " 1/s")
-        if self.dt is not None:
-            check_stable_gains(f"{self.name} (contact)", self.settings(context).position_gain, value, self.dt)
-        self._command(context, lambda s: setattr(s, "velocity_gain", value))
+
+        def change(s: ContactSettings) -> None:  # (checked with K_p as it is when the change applies: attime's too)
+            if self.dt is not None:
+                check_stable_gains(f"{self.name} (contact)", s.position_gain, value, self.dt)
+            s.velocity_gain = value
+
+        self._command(context, change)
 
     def setPositionGain(self, gain: float, context: Context | None = None) -> None:
         """``K_p`` in [0, :data:`MAX_POSITION_GAIN`] (1/s²): the return to the kept pose
         (:meth:`keep`; see the module docstring). ``K_p ≤ K_v²/4`` does not overshoot."""
         value = check_number(f"{self.name}: position gain K_p", gain, 0.0, MAX_POSITION_GAIN, " 1/s²")
-        if value and self.settings(context).kept is None:
-            raise InvalidInput(f"{self.name}: a position gain needs the pose to return to: call keep(X_WC) first")
-        if self.dt is not None:
-            check_stable_gains(f"{self.name} (contact)", value, self.settings(context).velocity_gain, self.dt)
-        self._command(context, lambda s: setattr(s, "position_gain", value))
+
+        def change(s: ContactSettings) -> None:  # (checked with the settings as they are when it applies)
+            if value and s.kept is None:
+                raise InvalidInput(f"{self.name}: a position gain needs the pose to return to: call keep(X_WC) first")
+            if self.dt is not None:
+                check_stable_gains(f"{self.name} (contact)", value, s.velocity_gain, self.dt)
+            s.position_gain = value
+
+        self._command(context, change)
 
     def keep(self, pose: RigidTransform, context: Context | None = None) -> None:
         """The pose ``X_WC*`` (world) the contact returns to with :meth:`setPositionGain` (the

@@ -8,7 +8,7 @@ contact (declaration order): the normal force it carried at the last tick (N; Na
 which weighs the shear regularization (:func:`.formulation.shear_weights`); the bounds held at the
 last tick's optimum (:data:`.formulation.HELD_BOUNDS` signed entries,
 :func:`.formulation.held_bounds`), where the QR path starts (a guess: the answer does not depend on
-it); and each contact's release ramp ``(t0, f0)`` (s, N; NaN: none).
+it); and each contact's release ramp ``(t0, f0, k)`` (s, N, the release's number; NaN: none).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from .formulation import HELD_BOUNDS
 def memory_slices(max_contacts: int) -> tuple[slice, slice, slice]:
     """Where the loads, the held bounds and the ramps lie in the discrete state."""
     return (slice(0, max_contacts), slice(max_contacts, max_contacts + HELD_BOUNDS),
-            slice(max_contacts + HELD_BOUNDS, 3 * max_contacts + HELD_BOUNDS))
+            slice(max_contacts + HELD_BOUNDS, 4 * max_contacts + HELD_BOUNDS))
 
 
 class ContactMemory:
@@ -45,7 +45,7 @@ class ContactMemory:
 
     def ramp(self, context: Context, contact: int) -> tuple[float, float]:
         """``(t0, f0)`` of the ``contact``-th declared contact's release ramp (NaN: none)."""
-        i = self.ramps.start + 2 * contact
+        i = self.ramps.start + 3 * contact
         memory = self._values(context)
         return float(memory[i]), float(memory[i + 1])
 
@@ -60,16 +60,17 @@ class ContactMemory:
         loads = [record[i] for i in contacts]
         return loads if all(math.isfinite(f) for f in loads) else None
 
-    def record(self, state: Any, time: float, loads: list[float], releasing: list[bool], held_bounds: np.ndarray) -> None:
+    def record(self, state: Any, time: float, loads: list[float], releases: list[int | None], held_bounds: np.ndarray) -> None:
         """Into the discrete ``state``: each declared contact's normal force (``loads``, NaN: not
-        held) and the bounds held at the optimum; the ramp of a newly released contact
-        (``releasing``) starts now from the force it carries, a contact not released has none."""
+        held) and the bounds held at the optimum; the ramp of a newly released contact (``releases``:
+        the number of its release, None when it is not being released) starts now from the force it
+        carries, a contact not released has none."""
         memory = state.get_mutable_value(self.index)  # initialized to the current state: changed in place
-        for i, (load, released) in enumerate(zip(loads, releasing, strict=True)):
+        for i, (load, release) in enumerate(zip(loads, releases, strict=True)):
             memory[self.loads.start + i] = load
-            r = self.ramps.start + 2 * i
-            if not released:
-                memory[r] = memory[r + 1] = math.nan
-            elif math.isnan(memory[r]):
-                memory[r], memory[r + 1] = time, 0.0 if math.isnan(load) else load
+            r = self.ramps.start + 3 * i
+            if release is None:
+                memory[r : r + 3] = math.nan
+            elif memory[r + 2] != release:  # (NaN: no ramp yet)
+                memory[r], memory[r + 1], memory[r + 2] = time, 0.0 if math.isnan(load) else load, release
         memory[self.held] = held_bounds

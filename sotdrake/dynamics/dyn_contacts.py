@@ -29,6 +29,7 @@ class DynContacts:
         self.system, self.nv, self.max_contacts = system, nv, max_contacts
         self.ports: dict[str, InputPort] = {}
         self.index: dict[str, int] = {}  # the declaration order of the contacts
+        self.contacts: dict[str, Contact6d] = {}  # the contact entity read by each port
 
     @property
     def name(self) -> str:
@@ -48,12 +49,18 @@ class DynContacts:
         )
         self.index[contact.name] = len(self.ports)
         self.ports[contact.name] = port
+        self.contacts[contact.name] = contact
         return port
 
     def name_of(self, contact: object) -> str:
+        """The declared contact's name of a name or a :class:`~.contact.Contact6d`, which must be
+        the one this solver reads (not another robot's contact of the same name)."""
         name = getattr(contact, "name", contact)
         if not isinstance(name, str) or name not in self.ports:
             raise ContactNotFound(name if isinstance(name, str) else repr(name), list(self.ports))
+        if not isinstance(contact, str) and self.contacts[name] is not contact:
+            raise StackError(f"{self.name}: the contact {name!r} given is not the one this solver reads (a contact of "
+                             "another robot or diagram?): give this robot's contact, or its name")
         return name
 
     def addContact(self, contact: object, context: Context | None = None, priority: str = "top") -> None:
@@ -68,6 +75,7 @@ class DynContacts:
             if name in s.contacts and name not in s.releasing:
                 raise StackError(f"{self.name}.addContact: {name!r} is already a contact")
             s.releasing.pop(name, None)
+            s.release_numbers.pop(name, None)
             if name not in s.contacts:
                 s.contacts.append(name)
 
@@ -90,7 +98,8 @@ class DynContacts:
                             "give a duration > 0 to ramp its force down", self.name, name)
                 s.contacts.remove(name)
             else:
-                s.releasing[name] = float(duration)
+                s.releases += 1
+                s.releasing[name], s.release_numbers[name] = float(duration), s.releases
 
         self.system._command(context, change)
 

@@ -12,15 +12,14 @@ from __future__ import annotations
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context
-from pydrake.systems.primitives import MatrixGain
 
 from ..centroidal import base_rows
-from ..exceptions import check_name
+from ..exceptions import InvalidInput, check_name
 from ..features import Feature6d, Feature6dDesired, FeatureGeneric, FeatureGenericDesired, FeatureMomentum, FeaturePosture
 from ..features.base import check_mask
-from ..selection import parse_selection
 from .robot_dyn import RobotDyn
 from .task_dyn_pd import TaskDynPD
+from .terms import base_translation_rows
 
 
 def _new_names(robot: RobotDyn, name: str, *suffixes: str) -> None:
@@ -36,6 +35,8 @@ class _MetaTaskDyn:
         self.robot, self.name, self.feature = robot, name, feature
         self.task = robot.add_task(TaskDynPD("task" + name, robot.dimension, robot.dt, kp, kv, dimension, exact_drift))
         robot.builder.Connect(feature.GetOutputPort("signals"), self.task.GetInputPort("feature"))
+        if dimension is not None:  # (its drift and reference acceleration have all the feature's components)
+            robot.builder.Connect(feature.GetOutputPort("selected_rows"), self.task.GetInputPort("rows"))
 
 
 class MetaTaskDyn6d(_MetaTaskDyn):
@@ -73,6 +74,9 @@ class MetaTaskDynCom(_MetaTaskDyn):
     def __init__(self, robot: RobotDyn, name: str = "com", kp: float = 100.0, kv: float | None = None):
         _new_names(robot, name, "_ref")
         TaskDynPD.check_gains("task" + name, kp, kv, robot.dt)  # before anything is added
+        if base_translation_rows(robot.dynamic.layout) is None:
+            raise InvalidInput(f"MetaTaskDynCom({name!r}): {robot.model.name} has no floating base: the dynamic CoM task's "
+                               "Jacobian and drift are those of the base's translation (a fixed base holds the CoM)")
         feature = robot.add(FeatureGeneric("feature" + name, 3, robot.dimension))
         self.featureDes = robot.add(FeatureGenericDesired("feature" + name + "_ref", 3))
         connect = robot.builder.Connect
@@ -107,20 +111,17 @@ class MetaTaskDynMomentum(_MetaTaskDyn):
     ``A_G q̈ = −K_v (h_G − h*) − Ȧ_G v`` on the rows of ``mask`` (default ``'111'``: the angular
     momentum about the CoM; ``h* = 0`` until ``feature.setReference``): the momentum error decays
     at the rate ``K_v`` (1/s). The exact ``Ȧ_G v`` (the dynamic entity's ``momentum_drift``, its
-    selected rows) is the task's ``drift``; the mask is fixed at construction (the drift's rows
-    follow it). A floating base only."""
+    selected rows) is the task's ``drift``; ``feature.selec`` changes the mask later, at build or
+    run time. A floating base only."""
 
     def __init__(self, robot: RobotDyn, name: str = "momentum", kv: float = 10.0, mask: str = "111"):
-        _new_names(robot, name, "_drift_rows")
+        _new_names(robot, name)
         TaskDynPD.check_gains("task" + name, 0.0, kv, robot.dt)  # before anything is added
         base_rows(robot.dynamic.layout)
         check_mask(mask, 6, f"MetaTaskDynMomentum({name!r})")
-        rows = parse_selection(mask, 6)
         feature = robot.add(FeatureMomentum("feature" + name, robot.dimension))
         feature.selec(mask)
         connect = robot.builder.Connect
         connect(robot.dynamic.GetOutputPort("momentum_matrix"), feature.GetInputPort("momentum_matrix"))
-        self._finish(robot, name, feature, 0.0, kv, dimension=rows.size, exact_drift=True)
-        select = robot.add(MatrixGain(np.eye(6)[rows]), "feature" + name + "_drift_rows")
-        connect(robot.dynamic.GetOutputPort("momentum_drift"), select.get_input_port())
-        connect(select.get_output_port(), self.task.GetInputPort("drift"))
+        self._finish(robot, name, feature, 0.0, kv, dimension=6, exact_drift=True)
+        connect(robot.dynamic.GetOutputPort("momentum_drift"), self.task.GetInputPort("drift"))

@@ -22,11 +22,12 @@ from collections.abc import Sequence
 import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
+from ..atomic import all_or_nothing
 from ..configuration import Layout, check_base_quaternion
-from ..exceptions import InvalidInput, NotFound, check_finite, check_name, check_number
+from ..exceptions import InvalidInput, check_finite, check_name, check_number
 from ..hqp import ACTIVE_SET
-from ..physics.plant import check_contact_options
-from ..robot import check_new_names
+from ..physics.plant import MAX_TIME_STEP, check_contact_options
+from ..robot import check_new_names, velocity_selection
 from ..robots import RobotModel
 from .checks import MAX_DT
 from .contact import Contact6d
@@ -55,7 +56,8 @@ class RobotDyn:
             raise InvalidInput("contact and contact_solver choose the physics plant's contact: device='physics'")
         if device == "physics" and model.name != "talos":
             raise InvalidInput(f"device='physics' is TALOS' torque-driven plant; {model.name} runs on device='dynsimu'")
-        dt = check_number("dt (the control period)", dt, 1e-6, MAX_DT, " s")
+        dt = check_number("dt (the control period" + (", the physics plant's step)" if device == "physics" else ")"), dt, 1e-6,
+                          MAX_TIME_STEP if device == "physics" else MAX_DT, " s")
         # q0 checked before anything is added (Drake aborts the process on a non-finite or
         # wrongly sized default position of the physics plant).
         q0 = model.half_sitting if q0 is None else check_finite("q0", q0, (model.nq,))
@@ -66,36 +68,30 @@ class RobotDyn:
         self.tasks: dict[str, TaskDynPD] = {}
         self.contacts: dict[str, Contact6d] = {}
         self._names: set[str] = set()
-        self.dynamic = self.add(DynamicEntity(model, "dynamic"))
-        self.sot = self.add(SolverDyn("sot", model, dt, max_contacts=max_contacts, solver=solver, effort_scale=effort_scale))
-        builder.Connect(self.dynamic.GetOutputPort("dynamics"), self.sot.GetInputPort("dynamics"))
-        self.physical = None
-        if device == "dynsimu":
-            self.device = self.add(RobotDynSimu(model.plant, dt, self.q0, name="device"))
-            builder.Connect(self.sot.GetOutputPort("control"), self.device.GetInputPort("control"))
-            self.state_port = self.device.GetOutputPort("state")
-        else:
-            self.physical = add_torque_driven_talos(builder, model.variant, time_step=dt, contact=contact,
-                                                    contact_solver=contact_solver)
-            plant = self.physical.plant
-            if plant.num_positions() != model.nq or plant.num_actuators() != model.plant.num_actuators():
-                raise InvalidInput("the physics plant and the control model differ in size")
-            plant.SetDefaultPositions(self.q0)
-            self.device = plant
-            builder.Connect(self.sot.GetOutputPort("torque"), plant.get_actuation_input_port(self.physical.instance))
-            self.state_port = plant.get_state_output_port()
-        builder.Connect(self.state_port, self.dynamic.GetInputPort("state"))
+        with all_or_nothing(builder):  # (a refusal found once systems are in leaves the builder as it was)
+            self.dynamic = self.add(DynamicEntity(model, "dynamic"))
+            self.sot = self.add(SolverDyn("sot", model, dt, max_contacts=max_contacts, solver=solver, effort_scale=effort_scale))
+            builder.Connect(self.dynamic.GetOutputPort("dynamics"), self.sot.GetInputPort("dynamics"))
+            self.physical = None
+            if device == "dynsimu":
+                self.device = self.add(RobotDynSimu(model.plant, dt, self.q0, name="device"))
+                builder.Connect(self.sot.GetOutputPort("control"), self.device.GetInputPort("control"))
+                self.state_port = self.device.GetOutputPort("state")
+            else:
+                self.physical = add_torque_driven_talos(builder, model.variant, time_step=dt, contact=contact,
+                                                        contact_solver=contact_solver)
+                plant = self.physical.plant
+                if plant.num_positions() != model.nq or plant.num_actuators() != model.plant.num_actuators():
+                    raise InvalidInput("the physics plant and the control model differ in size")
+                plant.SetDefaultPositions(self.q0)
+                self.device = plant
+                builder.Connect(self.sot.GetOutputPort("torque"), plant.get_actuation_input_port(self.physical.instance))
+                self.state_port = plant.get_state_output_port()
+            builder.Connect(self.state_port, self.dynamic.GetInputPort("state"))
 
     def velocity_selection(self, excluding: Sequence[str] = ()) -> np.ndarray:
         """nv booleans, False on the velocities of the joints named in ``excluding``."""
-        plant = self.model.plant
-        mask = np.ones(self.dimension, dtype=bool)
-        for name in excluding:
-            if not isinstance(name, str) or not plant.HasJointNamed(name):
-                raise NotFound(str(name), [plant.get_joint(j).name() for j in plant.GetJointIndices()])
-            joint = plant.GetJointByName(name)
-            mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
-        return mask
+        return velocity_selection(self.model.plant, excluding)
 
     def sole_rectangle(self, opPoint: str) -> tuple[float, float, float, float]:
         """The contact rectangle ``(x_min, x_max, y_min, y_max)`` (m, sole frame) of a sole op point."""
@@ -138,6 +134,7 @@ class RobotDyn:
         if task.nv != self.dimension or task.dt != self.dt:
             raise InvalidInput(f"add_task({task.name!r}): the task has nv = {task.nv} and dt = {task.dt:g} s, the robot "
                                f"nv = {self.dimension} and dt = {self.dt:g} s: build it with the robot's")
+        self.sot.check_task_input(task)
         self.add(task)
         self.tasks[task.name] = task
         self.builder.Connect(self.dynamic.GetOutputPort("velocity"), task.GetInputPort("velocity"))

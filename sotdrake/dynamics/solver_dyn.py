@@ -363,5 +363,5 @@ class SolverDyn(StackSolver[DynSettings]):
         solution = self._solution.Eval(context)
         local = solution.local_wrenches
         loads = [float(local[name][-1]) if name in local else math.nan for name in self._contact_ports]
-        releasing = [name in s.releasing and name in s.contacts for name in self._contact_ports]
-        self._memory.record(state, context.get_time(), loads, releasing, solution.diagnostics.held_bounds)
+        releases = [s.release_numbers.get(name) if name in s.contacts else None for name in self._contact_ports]
+        self._memory.record(state, context.get_time(), loads, releases, solution.diagnostics.held_bounds)

@@ -36,9 +36,9 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context
 
 from ..entity import Entity
-from ..exceptions import InvalidInput, check_count
+from ..exceptions import InvalidInput, StackError, check_count, check_number
 from ..features.base import FeatureValue, feature_signals, optional_input, usual_input
-from ..task import TaskLevel
+from ..task import TaskLevel, unconnected_input_message
 from .checks import MAX_DT, MAX_PD_GAIN, check_pd_gains, check_positive
 
 
@@ -64,7 +64,9 @@ class TaskDynPD(Entity[DynPDSettings]):
 
     Inputs: ``feature`` (``e``, ``J``, ``ė_ref`` in one value) or ``error`` (``e``), ``jacobian``
     (``J``, rows × nv) and ``errordot`` (``ė_ref``, unit/s); ``velocity`` (``v``, nv); with a
-    ``dimension``, ``drift`` (``J̇ v``, unit/s²) and ``reference_acceleration`` (``ë_ref``, unit/s²);
+    ``dimension``, ``drift`` (``J̇ v``, unit/s²) and ``reference_acceleration`` (``ë_ref``, unit/s²),
+    of the error's rows or of all the feature's components, and then ``rows`` (the feature's
+    ``selected_rows``: the task takes those components, so that the feature's mask may change);
     without an exact drift, ``stack`` (the solver's solved task names: the previous Jacobian is kept
     only while the task is solved). Outputs: ``task`` (a :class:`~sotdrake.task.TaskLevel` over
     ``q̈``, unit/s²) and ``error_norm`` (``‖e‖``).
@@ -75,7 +77,8 @@ class TaskDynPD(Entity[DynPDSettings]):
     def __init__(self, name: str, nv: int, dt: float, kp: float = 100.0, kv: float | None = None,
                  dimension: int | None = None, exact_drift: bool = False):
         """``dimension``: the size of the (vector) inputs ``drift`` and ``reference_acceleration``,
-        which exist only when it is given (the feature's number of selected rows).
+        which exist only when it is given (the feature's number of selected rows, or of all its
+        components with the ``rows`` input connected).
         ``exact_drift``: ``drift`` will always be connected (e.g. the CoM's ``J̇ v``), so the task
         keeps no previous Jacobian and has no per-tick update (it needs ``dimension``)."""
         Entity.__init__(self, name, DynPDSettings())
@@ -97,6 +100,7 @@ class TaskDynPD(Entity[DynPDSettings]):
         if dimension is not None:
             self.drift = self.DeclareVectorInputPort("drift", dimension)
             self.reference_acceleration = self.DeclareVectorInputPort("reference_acceleration", dimension)
+        self.rows = self.DeclareAbstractInputPort("rows", AbstractValue.Make(np.zeros(0, dtype=int)))
         # The previous Jacobian as discrete state (rows, then J row-major, up to nv rows): a discrete
         # update is computed from the same context as the device's and the plant's step (the physical
         # plant's outputs are not sampled), so every system of a tick sees the same J̇ (an
@@ -131,12 +135,23 @@ class TaskDynPD(Entity[DynPDSettings]):
         return check_pd_gains(name, kp, kv, dt)
 
     def setKp(self, kp: float, context: Context | None = None) -> None:
-        self.setGain(kp, self.settings(context).kv, context)
+        """``K_p`` alone (1/s²), ``K_v`` left as it is when the change applies (inside ``attime``: at
+        its time, after the commands timed before it), the pair checked stable then."""
+        kp = check_number(f"{self.name}: Kp", kp, 0.0, MAX_PD_GAIN, " 1/s²")
+
+        def change(s: DynPDSettings) -> None:
+            s.kp, s.kv = check_pd_gains(self.name, kp, s.kv, self.dt)
+
+        self._command(context, change)
 
     def setKv(self, kv: float, context: Context | None = None) -> None:
-        if kv is None:  # setGain's None (critical damping) is not a K_v
-            raise InvalidInput(f"{self.name}: Kv must be a number in [0, {MAX_PD_GAIN:g}] 1/s, got None")
-        self.setGain(self.settings(context).kp, kv, context)
+        """``K_v`` alone (1/s), as :meth:`setKp`."""
+        kv = check_number(f"{self.name}: Kv", kv, 0.0, MAX_PD_GAIN, " 1/s")
+
+        def change(s: DynPDSettings) -> None:
+            s.kp, s.kv = check_pd_gains(self.name, s.kp, kv, self.dt)
+
+        self._command(context, change)
 
     # --- calc --------------------------------------------------------------------------------
     def _inputs(self, context: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -164,29 +179,40 @@ class TaskDynPD(Entity[DynPDSettings]):
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         s = self._settings_of(context)
-        e, J, errordot = self._inputs(context)
+        try:
+            e, J, errordot = self._inputs(context)
+        except RuntimeError as error:
+            missing = unconnected_input_message(self.name, error, "MetaTaskDyn6d")
+            if missing is not None:
+                raise StackError(missing) from None
+            raise
         v = self.velocity.Eval(context)
         e_dot = J @ v
         if errordot is not None:
-            e_dot += self._sized("errordot", errordot, e)
+            e_dot += self._sized("errordot", errordot, e, context)
         if self.exact_drift:
             drift = self.drift.Eval(context)  # type: ignore[union-attr]
         else:
             drift = optional_input(self.drift, context, None) if self.drift is not None else None
         if drift is not None:
-            drift = self._sized("drift", drift, e)
+            drift = self._sized("drift", drift, e, context)
         else:
             previous = self._previous_jacobian(context)
             drift = (J - previous) @ v / self.dt if previous.shape == J.shape and previous.shape[0] else np.zeros_like(e)
-        reference = self._sized("reference_acceleration", self.reference_acceleration.Eval(context), e) \
+        reference = self._sized("reference_acceleration", self.reference_acceleration.Eval(context), e, context) \
             if self.reference_acceleration is not None and self.reference_acceleration.HasValue(context) else None
         rhs = pd_reference(e, e_dot, s.kp, s.kv, reference, drift)
         value.set_value(TaskLevel(J, rhs, rhs, e))
 
-    def _sized(self, what: str, value: np.ndarray, e: np.ndarray) -> np.ndarray:
+    def _sized(self, what: str, value: np.ndarray, e: np.ndarray, context: Context) -> np.ndarray:
+        """``value`` as the error's rows: as it is, or its components the ``rows`` input selects."""
         if type(value) is np.ndarray and value.shape == e.shape and value.dtype == float:
             return value  # as the ports give it (the usual case)
         value = np.asarray(value, dtype=float).reshape(-1)
+        if value.shape != e.shape and self.rows.HasValue(context):
+            rows = self.rows.Eval(context)
+            if rows.size == e.size and rows.size and value.size > rows[-1]:
+                value = value[rows]
         if value.shape != e.shape:
             raise InvalidInput(f"{self.name}: {what} has {value.size} rows, the error has {e.size}")
         return value

@@ -31,6 +31,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from ..configuration import Layout
+from ..exceptions import InvalidInput
 
 
 class DynamicsTerms(NamedTuple):
@@ -68,7 +69,8 @@ def com_terms(M: np.ndarray, Cv: np.ndarray, mass: float, layout: Layout) -> tup
     """``(J_CoM, J̇_CoM v)`` from the base's translational rows (see the module docstring)."""
     rows = base_translation_rows(layout)
     if rows is None:
-        raise ValueError("the CoM from the base rows needs a floating base")
+        raise InvalidInput("the dynamic CoM task needs a floating base (its Jacobian and drift are the base's translation "
+                           "rows of M and of the bias over the mass): the robot's base is fixed or planar")
     return M[rows] / mass, Cv[rows] / mass
 
 

@@ -10,8 +10,11 @@ from pydrake.systems.framework import OutputPort
 from pydrake.systems.primitives import Demultiplexer, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from ..exceptions import InvalidInput, check_finite, check_number
+from ..exceptions import InvalidInput, check_count, check_finite, check_number
 from .robot_dyn import RobotDyn
+
+#: The most points :func:`minimum_jerk_moves` samples per move.
+MAX_SAMPLES = 10_000
 
 
 def minimum_jerk_moves(start: np.ndarray, moves: Sequence[tuple[float, float, np.ndarray]], end: float = 1e3,
@@ -21,7 +24,9 @@ def minimum_jerk_moves(start: np.ndarray, moves: Sequence[tuple[float, float, np
     after the last until ``end`` (s), as Drake's cubic Hermite spline through ``samples`` points of
     each move with their exact velocities (so the acceleration follows the profile closely and
     starts and ends near 0). Each move must start at or after the previous one's end and last
-    > 0 s; the values are finite vectors of ``start``'s size."""
+    > 0 s; the values are finite vectors of ``start``'s size; ``samples``: an integer ≥ 2 (the
+    move's two ends and the points between)."""
+    samples = check_count("minimum-jerk moves: samples", samples, 2, MAX_SAMPLES)
     start = check_finite("minimum-jerk moves: start", start)
     times, values, rates = [0.0], [start], [np.zeros_like(start)]
     current = start
@@ -54,6 +59,10 @@ def hold_move_hold(t0: float, t1: float, a: np.ndarray, b: np.ndarray) -> Piecew
 def trajectory_ports(robot: RobotDyn, trajectory: PiecewisePolynomial, name: str) -> tuple[OutputPort, OutputPort, OutputPort]:
     """Value, velocity and acceleration output ports of ``trajectory`` (Drake's
     ``TrajectorySource`` named ``name``, split by a ``Demultiplexer``)."""
+    if not isinstance(trajectory, PiecewisePolynomial):
+        raise InvalidInput(f"trajectory_ports({name!r:.60}): trajectory must be a PiecewisePolynomial, got "
+                           f"{type(trajectory).__name__}")
+    robot.check_new_names([name, name + "_split"])  # (both refused before either is added)
     n = trajectory.rows()
     source = robot.add(TrajectorySource(trajectory, output_derivative_order=2), name)
     split = robot.add(Demultiplexer([n, n, n]), name + "_split")

@@ -95,7 +95,9 @@ class Feature(Entity):
 
     Output ``signals``: a :class:`FeatureValue` (``e`` in the feature's unit, ``J = ∂e/∂v``,
     rows × nv, ``ė_ref`` in unit/s), the selected rows only; the seed's ``error``, ``jacobian``
-    and ``errordot`` outputs carry the same three values one by one.
+    and ``errordot`` outputs carry the same three values one by one; ``selected_rows``: the indices
+    of the selected components (ints, increasing), for a consumer of a full-size companion signal
+    (a dynamic task's ``J̇ v`` or reference acceleration) to take the same rows.
     """
 
     def __init__(self, name: str, dimension: int, nv: int, settings: FeatureSettings | None = None):
@@ -114,6 +116,10 @@ class Feature(Entity):
             self.DeclareAbstractOutputPort(name, lambda i=i: AbstractValue.Make(empty[i]),
                                            lambda c, o, i=i: o.set_value(self.signals.Eval(c)[i]),
                                            prerequisites_of_calc=ticket)
+        self.DeclareAbstractOutputPort(
+            "selected_rows", lambda: AbstractValue.Make(np.zeros(0, dtype=int)),
+            lambda c, o: o.set_value(parse_selection(self._settings_of(c).selection, self.dimension)),
+            prerequisites_of_calc={self.abstract_state_ticket(self._settings_index)})
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         settings = self._settings_of(context)

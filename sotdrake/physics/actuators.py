@@ -15,7 +15,7 @@ from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import ZeroOrderHold
 
-from ..exceptions import InvalidInput, SotError, check_number
+from ..exceptions import InvalidInput, SotError, check_number, finite_number
 
 #: Accepted ranges of the PD gains: stiffness (rad⁻¹, kp = stiffness · effort limit) and damping (s).
 STIFFNESS_RANGE = (1e-3, 1e4)
@@ -25,7 +25,7 @@ DAMPING_RANGE = (0.0, 10.0)
 def set_pd_gains(plant: MultibodyPlant, stiffness: float, damping: float) -> None:
     """``kp = stiffness · effort_limit``, ``kd = damping · kp`` on every actuator, then
     :func:`check_pd_gains`."""
-    ok = all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in (stiffness, damping))
+    ok = finite_number(stiffness) and finite_number(damping)
     if not (ok and STIFFNESS_RANGE[0] <= stiffness <= STIFFNESS_RANGE[1] and DAMPING_RANGE[0] <= damping <= DAMPING_RANGE[1]):
         raise InvalidInput(
             f"PD gains: stiffness in [{STIFFNESS_RANGE[0]}, {STIFFNESS_RANGE[1]}] rad⁻¹ and damping in "

@@ -75,8 +75,9 @@ from pydrake.multibody.plant import (
 from pydrake.multibody.tree import ModelInstanceIndex
 from pydrake.systems.framework import DiagramBuilder
 
+from ..atomic import all_or_nothing
 from ..drake_logging import drop_drake_message
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, finite_number
 from ..robots.talos import add_talos
 from .actuators import set_pd_gains
 from .body_collision import fit_link_boxes
@@ -155,9 +156,18 @@ def add_physical_talos(
     inside its own discrete updates). ``contact_solver``: ``"sap"`` or ``"tamsi"`` (see the module
     docstring)."""
     obstacles = _checked_obstacles(obstacles)
-    if not (isinstance(time_step, (int, float)) and np.isfinite(time_step) and 0 < time_step <= MAX_TIME_STEP):
+    if not (finite_number(time_step) and 0 < time_step <= MAX_TIME_STEP):
         raise InvalidInput(f"the physics needs a discrete plant: time_step in (0, {MAX_TIME_STEP:g}] s, got {time_step!r}")
     check_contact_options(contact, contact_solver)
+    with all_or_nothing(builder):  # (a refusal found once the plant is in, e.g. a bad gain, leaves the builder as it was)
+        return _build_physical_talos(builder, variant, time_step, stiffness, damping, body_collision, pd_gains, obstacles,
+                                     contact, sampled_outputs, contact_solver)
+
+
+def _build_physical_talos(builder: DiagramBuilder, variant: str, time_step: float, stiffness: float, damping: float,
+                          body_collision: bool, pd_gains: bool, obstacles: list, contact: str, sampled_outputs: bool,
+                          contact_solver: str) -> PhysicalTalos:
+    """:func:`add_physical_talos` once its arguments are checked."""
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step)
     plant.set_discrete_contact_approximation(CONTACT_SOLVERS[contact_solver])
     plant.SetUseSampledOutputPorts(bool(sampled_outputs))

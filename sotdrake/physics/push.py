@@ -9,7 +9,7 @@ from pydrake.multibody.plant import ExternallyAppliedSpatialForce, MultibodyPlan
 from pydrake.multibody.tree import BodyIndex
 from pydrake.systems.framework import Context, LeafSystem
 
-from ..exceptions import InvalidInput, NotFound, check_finite
+from ..exceptions import InvalidInput, NotFound, check_finite, finite_number
 
 #: Largest accepted push (N): ten times TALOS' weight.
 MAX_PUSH_FORCE = 1e4
@@ -37,7 +37,7 @@ class Push(LeafSystem):
             return np.zeros(3)
         try:
             checked = check_finite("force", force)
-            times_ok = all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in (start, duration))
+            times_ok = finite_number(start) and finite_number(duration)
         except InvalidInput:
             checked, times_ok = np.full(1, np.nan), False
         if (checked.shape != (3,) or not np.all(np.isfinite(checked)) or np.linalg.norm(checked) > MAX_PUSH_FORCE

@@ -19,7 +19,6 @@ or in one call, with ``/joint_states`` too: ``add_ros_publisher(robot)``.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -31,7 +30,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, EventStatus, InputPort, LeafSystem
 from sensor_msgs.msg import JointState
 
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, finite_number
 from ..robot import Robot
 from .messages import check_topic, message_type, port_size, to_message
 from .node import RosNode, ros_node
@@ -178,7 +177,7 @@ class RosPublishers:
 def ticks_of(period: float, dt: float) -> int:
     """``period`` (s) as a whole number of ticks of ``dt`` (s); a period that is not a multiple of
     ``dt`` (to 1e-9 of a tick) raises :class:`~sotdrake.exceptions.InvalidInput`."""
-    if isinstance(period, bool) or not isinstance(period, (int, float)) or not math.isfinite(period) or period <= 0:
+    if not finite_number(period) or period <= 0:
         raise InvalidInput(f"publish period must be a number > 0 (s), got {period!r}")
     ticks = round(period / dt)
     if ticks < 1 or abs(period / dt - ticks) > 1e-9:

@@ -1,5 +1,10 @@
 """Push-recovery map: TALOS standing on a discrete ``MultibodyPlant`` with ground contact, pushed
-on the torso over a grid of magnitude × direction × duration, under either controller:
+on the torso over a grid of magnitude × direction × duration, under the kinematic controller (the
+SoT on PD actuators) or the dynamic one (``SolverDyn``'s torques); writes ``push_map.csv`` (and
+``.parquet``), ``push_map.json``, ``plots.png``, ``control_graph.svg`` and ``summary.json`` in
+``--out``.
+
+The controllers:
 
 * ``--controller kinematic`` (default): the physics stand scenario (``diagrams/talos_physics.py
   --scenario stand``: the SoT holds feet and CoM, PD actuators track its references, open loop);
@@ -14,6 +19,12 @@ shares (:mod:`sotdrake.fall`: the base tilted more than 30° or dropped more tha
 sole slid more than 5 cm, another body on the ground); its base displacement is the largest
 horizontal distance of the base from its start (m). Every link collides with the ground (a box
 per link), so a fallen TALOS lands on it.
+
+The options are checked, ``--out`` included, before any case runs: a push of more than 10,000 N
+(``sotdrake.physics.MAX_PUSH_FORCE``), a push that does not end within the run (``--push-start`` +
+the longest of ``--push-durations`` > ``--duration``: its impulse would not be the one reported),
+a run of more than a day and a grid of more than 100,000 cases are refused. When every case fails,
+the tables and the summary (its ``errors``) are written and the plot is left out.
 
     python diagrams/push_map.py --magnitudes 150,300,600 --directions 4 --push-durations 0.1,0.3 \\
         --engine ray --out out/push_map
@@ -31,11 +42,15 @@ from pathlib import Path
 
 import numpy as np
 
-from sotdrake import InvalidInput, fall_thresholds, save_figure, script_arguments, simulate, write_run
+from sotdrake import MAX_DURATION, InvalidInput, fall_thresholds, save_figure, script_arguments, simulate, start, write_run
 from sotdrake.scenarios import talos_dynamics, talos_physics
 from sotdrake.sweep import EngineUnavailable, add_sweep_arguments, engine_options, grid, run_sweep
 
 TIMING = ("wall_s", "realtime_factor")
+#: The largest push (N) the physics takes (``sotdrake.physics.MAX_PUSH_FORCE``: ten times TALOS' weight).
+MAX_PUSH_FORCE = 1e4
+#: The most cases a map takes (magnitudes × directions × durations).
+MAX_CASES = 100_000
 
 
 def push_force(magnitude: float, direction_deg: float) -> np.ndarray:
@@ -86,9 +101,11 @@ def numbers(text: str) -> list[float]:
     return values
 
 
-def plot(rows: list[dict], path: Path, controller: str = "kinematic") -> Path:
+def plot(rows: list[dict], path: Path, controller: str = "kinematic") -> Path | None:
     """One polar map per push duration: angle = push direction, radius = magnitude; colour = base
-    displacement, a red cross where TALOS fell."""
+    displacement, a red cross where TALOS fell; None (nothing written) when no case ran."""
+    if not any(r["status"] == "ok" for r in rows):
+        return None
     import matplotlib
 
     matplotlib.use("Agg")
@@ -116,31 +133,54 @@ def plot(rows: list[dict], path: Path, controller: str = "kinematic") -> Path:
     return save_figure(fig, path, tight=False)
 
 
+def check_options(args: argparse.Namespace) -> tuple[list[dict], dict]:
+    """The cases and the engine's options of ``args`` once every option is checked: a
+    ``SystemExit`` naming the first one refused (:func:`~sotdrake.run_script` ends the script with
+    it), before anything is written."""
+    if not (np.isfinite(args.duration) and 0 < args.duration <= MAX_DURATION):
+        raise SystemExit(f"--duration must be a number in (0, {MAX_DURATION:g}] s, got {args.duration}")
+    if not (np.isfinite(args.push_start) and 0 <= args.push_start < args.duration):
+        raise SystemExit(f"--push-start must be in [0, --duration) s, got --push-start {args.push_start} with --duration {args.duration}")
+    longest = max(args.push_durations)
+    if args.push_start + longest > args.duration + 1e-9:
+        raise SystemExit(f"--push-start {args.push_start:g} + --push-durations {longest:g} ends after --duration {args.duration:g} s: "
+                         "the push must end within the run (its impulse would not be the one reported)")
+    if max(args.magnitudes) > MAX_PUSH_FORCE:
+        raise SystemExit(f"--magnitudes must be at most {MAX_PUSH_FORCE:g} N, got {max(args.magnitudes):g}")
+    if not 1 <= args.directions <= MAX_CASES:
+        raise SystemExit(f"--directions must be in [1, {MAX_CASES:,}], got {args.directions}")
+    count = len(args.magnitudes) * args.directions * len(args.push_durations)
+    if count > MAX_CASES:
+        raise SystemExit(f"--magnitudes × --directions × --push-durations: at most {MAX_CASES:,} cases, got {count:,}")
+    engine = engine_options(args)
+    cases = grid({"magnitude_n": args.magnitudes,
+                  "direction_deg": [360.0 * k / args.directions for k in range(args.directions)],
+                  "push_duration_s": args.push_durations})
+    return cases, engine
+
+
 def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/push_map", duration=3.0, bag=False)
-    parser.add_argument("--magnitudes", type=numbers, default=[150.0, 300.0, 600.0], help="forces (N), comma-separated")
+    parser = script_arguments(__doc__, "out/push_map", duration=3.0, bag=False, meshcat=False)
+    parser.add_argument("--magnitudes", type=numbers, default=[150.0, 300.0, 600.0],
+                        help=f"forces (N, at most {MAX_PUSH_FORCE:g}), comma-separated")
     parser.add_argument("--directions", type=int, default=4, help="number of directions, evenly spaced from 0°")
-    parser.add_argument("--push-durations", type=numbers, default=[0.1, 0.3], help="push durations (s), comma-separated")
+    parser.add_argument("--push-durations", type=numbers, default=[0.1, 0.3],
+                        help="push durations (s), comma-separated; each push ends within --duration")
     parser.add_argument("--push-start", type=float, default=0.3, help="when the push starts (s)")
     parser.add_argument("--controller", choices=["kinematic", "dynamic"], default="kinematic",
                         help="the SoT on PD actuators (kinematic) or SolverDyn's torques (dynamic)")
     add_sweep_arguments(parser)
     args = parser.parse_args(argv)
-    if not (np.isfinite(args.duration) and args.duration > args.push_start >= 0) or args.directions < 1:
-        raise SystemExit(f"need --duration > --push-start ≥ 0 and --directions ≥ 1, got {args.duration}, "
-                         f"{args.push_start}, {args.directions}")
-    cases = grid({"magnitude_n": args.magnitudes,
-                  "direction_deg": [360.0 * k / args.directions for k in range(args.directions)],
-                  "push_duration_s": args.push_durations})
+    cases, engine = check_options(args)
+    start(args)  # (--out checked, and made, before any case)
     settings = {"controller": args.controller, "duration_s": args.duration, "push_start_s": args.push_start, **fall_thresholds()}
     try:
         result = run_sweep(partial(push_case, duration=args.duration, push_start=args.push_start, controller=args.controller),
-                           cases, progress=not args.quiet, label="pushes", settings=settings,
-                           **engine_options(args))
+                           cases, progress=not args.quiet, label="pushes", settings=settings, **engine)
     except EngineUnavailable as error:
         raise SystemExit(str(error)) from error
     paths = result.write(args.out, "push_map")
-    plot(result.rows, args.out / "plots.png", args.controller)
+    figure = plot(result.rows, args.out / "plots.png", args.controller)
     ok = [r for r in result.rows if r["status"] == "ok"]
     summary = {
         "cases": len(cases),
@@ -155,6 +195,7 @@ def main(argv: list[str] | None = None) -> dict:
         "load_average_after": result.load_average_after,
         **settings,
         "tables": {k: str(v) for k, v in paths.items()},
+        "plot": None if figure is None else str(figure),
         "case_results": [{k: r.get(k) for k in ("magnitude_n", "direction_deg", "push_duration_s", "impulse_ns", "fell",
                                                 "fall_reason", "max_base_tilt_deg", "max_sole_slip_m", "base_drift_m")}
                          for r in ok],
@@ -165,4 +206,3 @@ def main(argv: list[str] | None = None) -> dict:
         diagram = talos_physics.build_diagram("stand", "open", push_force(100.0, 0.0)).diagram
     write_run(args.out, diagram, summary)
     return summary
-

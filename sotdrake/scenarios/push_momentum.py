@@ -12,7 +12,9 @@ than 30° from upright (or the state is not finite); it stops there::
     python diagrams/push_momentum.py --damping 10 --forces 100,900 --steps 4 --out out/push_momentum
 
 writes ``DIR/summary.json`` (each setting's largest force survived, the smallest that felled TALOS,
-and every run's outcome).
+and every run's outcome). The options are checked before the first run: ``0 ≤ LOW < HIGH ≤
+10,000 N`` (``sotdrake.physics.MAX_PUSH_FORCE``) and a push that ends within the run
+(``--push-start`` + ``--push-duration`` ≤ ``--duration``).
 """
 
 from __future__ import annotations
@@ -26,8 +28,9 @@ import sys
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from sotdrake import script_arguments, start
+from sotdrake import MAX_DURATION, script_arguments, start
 from sotdrake.scenarios import talos_dynamics
+from sotdrake.scenarios.push_map import MAX_PUSH_FORCE
 
 FALL_DROP_M = 0.25  # the base below its start by this much: fallen (as talos_dynamics.py says)
 FALL_TILT_DEG = 30.0  # or the base tilted this far from upright (as push_map.py says)
@@ -90,8 +93,26 @@ def _bracket(text: str) -> tuple[float, float]:
     return low, high
 
 
+def check_options(args: argparse.Namespace) -> None:
+    """A ``SystemExit`` naming the first option of ``args`` refused (:func:`~sotdrake.run_script`
+    ends the script with it), before anything runs or is written."""
+    low, high = args.forces
+    if not (math.isfinite(args.damping) and args.damping >= 0) or (args.weight is not None and not args.weight > 0):
+        raise SystemExit(f"--damping must be a finite number ≥ 0 and --weight > 0, got {args.damping}, {args.weight}")
+    if not 0 <= low < high <= MAX_PUSH_FORCE or args.steps < 0:
+        raise SystemExit(f"--forces must be LOW,HIGH with 0 ≤ LOW < HIGH ≤ {MAX_PUSH_FORCE:g} N and --steps ≥ 0, "
+                         f"got {args.forces}, {args.steps}")
+    if not 0 < args.duration <= MAX_DURATION:
+        raise SystemExit(f"--duration must be a number in (0, {MAX_DURATION:g}] s, got {args.duration}")
+    if not (math.isfinite(args.push_start) and math.isfinite(args.push_duration)):
+        raise SystemExit(f"--push-start and --push-duration must be finite, got {args.push_start}, {args.push_duration}")
+    if not (0 <= args.push_start and args.push_duration > 0 and args.push_start + args.push_duration <= args.duration + 1e-9):
+        raise SystemExit(f"--push-start {args.push_start:g} s and --push-duration {args.push_duration:g} s: the push must start "
+                         f"at 0 s or later and end within the run (--duration {args.duration:g} s)")
+
+
 def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/push_momentum", duration=2.5, bag=False)
+    parser = script_arguments(__doc__, "out/push_momentum", duration=2.5, bag=False, meshcat=False)
     parser.add_argument("--damping", type=float, default=10.0, help="K_v of the angular-momentum damping task (1/s)")
     parser.add_argument("--forces", type=_bracket, default=(100.0, 900.0), help="LOW,HIGH: the bisection's bracket (N)")
     parser.add_argument("--steps", type=int, default=4, help="bisection steps")
@@ -101,14 +122,10 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--push-start", type=float, default=0.5, help="s")
     parser.add_argument("--push-duration", type=float, default=0.1, help="s")
     args = parser.parse_args(argv)
-    args.no_meshcat = True  # many runs, numbers only
-    start(args)
+    check_options(args)
+    start(args)  # (no recording: many runs, numbers only)
     logging.getLogger("drake").setLevel(logging.WARNING)
     low, high = args.forces
-    if not (math.isfinite(args.damping) and args.damping >= 0) or (args.weight is not None and not args.weight > 0):
-        raise SystemExit(f"--damping must be a finite number ≥ 0 and --weight > 0, got {args.damping}, {args.weight}")
-    if not 0 <= low < high or args.steps < 0:
-        raise SystemExit(f"--forces must be LOW,HIGH with 0 ≤ LOW < HIGH and --steps ≥ 0, got {args.forces}, {args.steps}")
     summary = {"momentum_level": "strict, under the CoM task" if args.weight is None else f"weighted with the posture, w = {args.weight:g}",
                "push": {"start_s": args.push_start, "duration_s": args.push_duration, "body": "torso_2_link", "direction": "+x"},
                "duration_s": args.duration,
@@ -117,4 +134,3 @@ def main(argv: list[str] | None = None) -> dict:
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary
-

@@ -27,9 +27,13 @@ its default period is then 5 ms (``COLLISION_DT``: the level's rows model one ti
 which the unlimited 20 ms steps of the arm break, by up to 7 cm on the grid's far corners), and a
 period above 10 ms is refused (``MAX_COLLISION_DT``).
 
-Targets: ``--targets N`` with ``--sampling grid`` (N a cube, k × k × k evenly spaced in the box
-x ∈ [-0.4, 0.9], y ∈ [-1.1, 0.5], z ∈ [0.2, 1.8] m, world frame, the robot's base above the
-origin facing +x) or ``--sampling random`` (N uniform in the box, ``--seed``).
+Targets: ``--targets N`` (at most 100,000) with ``--sampling grid`` (N a cube, k × k × k evenly
+spaced in the box x ∈ [-0.4, 0.9], y ∈ [-1.1, 0.5], z ∈ [0.2, 1.8] m, world frame, the robot's
+base above the origin facing +x; a single target is the box's centre) or ``--sampling random``
+(N uniform in the box, ``--seed``, 0 by default; refused with a grid). A case lasts from one tick
+to a day (``--dt`` ≤ ``--duration`` ≤ 86400 s); ``--dt`` must keep ``λ·dt < 2`` for the stack's
+largest gain (10 /s: ``--dt`` < 0.2 s). The options are checked, ``--out`` included, before any case
+runs.
 
     python diagrams/reach_map.py --targets 1000 --engine ray --out out/reach_map
     python diagrams/reach_map.py --targets 125 --obstacles table --collision --out out/reach_map_table
@@ -41,6 +45,7 @@ margin), ``control_graph.svg`` and ``summary.json`` in the output directory.
 
 from __future__ import annotations
 
+import argparse
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -50,6 +55,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from sotdrake import (
+    MAX_DURATION,
     SOT,
     TABLE,
     TALOS_GRIPPERS,
@@ -68,6 +74,7 @@ from sotdrake import (
     minimum_distance,
     save_figure,
     script_arguments,
+    start,
     talos,
     write_run,
 )
@@ -84,6 +91,14 @@ from sotdrake.sweep import (
 HAND_OFFSET = (0.1, 0.0, 0.0)
 BOX: dict[str, tuple[float, float]] = {"x": (-0.4, 0.9), "y": (-1.1, 0.5), "z": (0.2, 1.8)}
 HAND_GAIN = 8.0
+#: The gain of the feet and the CoM (1/s, :func:`~sotdrake.hold_feet_and_com`): the stack's largest.
+SUPPORT_GAIN = 10.0
+#: λ·dt at and above which a gain is refused (``sotdrake.ranges.GAIN_DT_REFUSED``: the loop diverges).
+GAIN_DT_REFUSED = 2.0
+#: The shortest control period of a case (s), as any ``Robot``'s.
+MIN_DT = 1e-6
+#: The most targets a map takes (a grid or a random sample).
+MAX_TARGETS = 100_000
 HAND_DAMPING = 1e-2
 REACHED_M = 0.01
 #: The default period with the collision level (s): its rows are a first-order model of one tick,
@@ -120,8 +135,13 @@ def add_obstacles(world, obstacles: str | None) -> None:
 
 
 def check_period(dt: float, collision: bool) -> None:
-    """:class:`InvalidInput` for a period the map cannot take: with the collision level, above
-    :data:`MAX_COLLISION_DT` (the map lifts the step limit)."""
+    """:class:`InvalidInput` for a period the map cannot take: below :data:`MIN_DT`, one where the
+    stack's largest gain (:data:`SUPPORT_GAIN`) diverges (``λ·dt ≥ 2``), or, with the collision
+    level, above :data:`MAX_COLLISION_DT` (the map lifts the step limit)."""
+    largest = max(HAND_GAIN, SUPPORT_GAIN)
+    if not MIN_DT <= dt < GAIN_DT_REFUSED / largest:
+        raise InvalidInput(f"reach map: dt = {dt!r} s: must be in [{MIN_DT:g}, {GAIN_DT_REFUSED / largest:g}) s (λ·dt < "
+                           f"{GAIN_DT_REFUSED:g} with the stack's largest gain, λ = {largest:g} 1/s)")
     if collision and not dt <= MAX_COLLISION_DT:
         raise InvalidInput(f"reach map: dt = {dt!r} s with the collision level: at most {MAX_COLLISION_DT:g} s (the map lifts "
                            "the step limit: a longer tick can carry a link through an obstacle in one step)")
@@ -137,7 +157,7 @@ def build_diagram(dt: float = 0.02, variant: str = "reduced", obstacles: str | N
     sot = add_sot(robot, "sot", solver="hqp", damping=HAND_DAMPING)
     sot.setStepLimit(np.inf)  # (see the module docstring)
     sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
-    hold_feet_and_com(robot, sot)
+    hold_feet_and_com(robot, sot, SUPPORT_GAIN)
     checker = CollisionWorld(robot.model)
     for world in (robot, checker):
         add_obstacles(world, obstacles)
@@ -212,7 +232,10 @@ def reach_case(case: dict, duration: float = 1.0, dt: float = 0.02, variant: str
 
 
 def targets(count: int, sampling: str = "grid", seed: int = 0, box: dict[str, tuple[float, float]] = BOX) -> list[dict]:
-    """``count`` targets in ``box``: a k × k × k grid (``count`` = k³) or a seeded uniform sample."""
+    """``count`` targets (at most :data:`MAX_TARGETS`) in ``box``: a k × k × k grid (``count`` = k³;
+    k = 1: the box's centre) or a seeded uniform sample."""
+    if isinstance(count, (int, np.integer)) and not isinstance(count, bool) and count > MAX_TARGETS:
+        raise InvalidInput(f"--targets must be at most {MAX_TARGETS:,}, got {count}")
     if sampling == "random":
         return random_cases(count, box, seed)
     if sampling != "grid":
@@ -222,12 +245,15 @@ def targets(count: int, sampling: str = "grid", seed: int = 0, box: dict[str, tu
         near = sorted({max(side, 1) ** 3, (max(side, 1) + 1) ** 3, max(side - 1, 1) ** 3})
         raise InvalidInput(f"--targets with a grid must be a cube (k³ targets), got {count}; nearest: {near}, "
                            "or use --sampling random")
-    return grid({axis: np.linspace(low, high, side).round(6).tolist() for axis, (low, high) in box.items()})
+    return grid({axis: (np.linspace(low, high, side) if side > 1 else np.array([(low + high) / 2])).round(6).tolist()
+                 for axis, (low, high) in box.items()})
 
 
-def plot(rows: list[dict], path: Path, slices: int = 4) -> Path:
+def plot(rows: list[dict], path: Path, slices: int = 4) -> Path | None:
     """Slices of the workspace at ``slices`` heights: hand error (top) and smallest joint-limit
-    margin (bottom) at each target, seen from above."""
+    margin (bottom) at each target, seen from above; None (nothing written) when no case ran."""
+    if not any(r["status"] == "ok" for r in rows):
+        return None
     import matplotlib
 
     matplotlib.use("Agg")
@@ -274,38 +300,58 @@ def plot(rows: list[dict], path: Path, slices: int = 4) -> Path:
     return save_figure(fig, path, tight=False)
 
 
+def check_options(args: argparse.Namespace) -> tuple[list[dict], dict]:
+    """The cases and the engine's options of ``args`` (its ``dt`` set), once every option is
+    checked: a ``SystemExit`` naming the first one refused (:func:`~sotdrake.run_script` ends the
+    script with it), before anything is written."""
+    if args.dt is None:
+        args.dt = COLLISION_DT if args.collision else 0.02
+    try:
+        check_period(args.dt, args.collision)
+    except InvalidInput as error:
+        raise SystemExit(f"--dt {args.dt}: {error}") from None
+    if not args.dt <= args.duration <= MAX_DURATION:
+        raise SystemExit(f"--duration must be in [--dt, {MAX_DURATION:g}] s (at least one tick a case), "
+                         f"got --duration {args.duration} with --dt {args.dt}")
+    if args.seed is not None and args.sampling != "random":
+        raise SystemExit(f"--seed {args.seed}: an option of --sampling random (this map is --sampling {args.sampling})")
+    if args.seed is not None and args.seed < 0:
+        raise SystemExit(f"--seed must be ≥ 0, got {args.seed}")
+    engine = engine_options(args)
+    try:
+        cases = targets(args.targets, args.sampling, args.seed or 0)
+        if args.obstacles not in (None, "table"):
+            add_scene(CollisionWorld(talos(DiagramBuilder(), "reduced", args.dt).model), Path(args.obstacles), None, "scene")
+    except SotError as error:
+        raise SystemExit(str(error)) from error
+    return cases, engine
+
+
 def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/reach_map", duration=1.0, bag=False)
-    parser.add_argument("--targets", type=int, default=125, help="number of targets (a cube with --sampling grid)")
-    parser.add_argument("--sampling", choices=["grid", "random"], default="grid")
-    parser.add_argument("--seed", type=int, default=0, help="with --sampling random")
+    parser = script_arguments(__doc__, "out/reach_map", duration=1.0, bag=False, meshcat=False)
+    parser.add_argument("--targets", type=int, default=125,
+                        help=f"number of targets (a cube with --sampling grid; at most {MAX_TARGETS:,})")
+    parser.add_argument("--sampling", choices=["grid", "random"], default="grid",
+                        help="grid: k × k × k targets evenly spaced in the box; random: uniform in the box (--seed)")
+    parser.add_argument("--seed", type=int, default=None, help="with --sampling random: the random sample's seed (default 0)")
     parser.add_argument("--dt", type=float, default=None, help="control period of each case (s; default 0.02, 0.005 with --collision)")
     parser.add_argument("--obstacles", default=None, help="'table' (the table top) or a URDF/SDF scene file")
     parser.add_argument("--collision", action="store_true", help="add the collision level under the hand")
     add_sweep_arguments(parser)
     args = parser.parse_args(argv)
-    if args.dt is None:
-        args.dt = COLLISION_DT if args.collision else 0.02
-    if not 0 < args.duration < float("inf") or not 0 < args.dt < float("inf"):
-        raise SystemExit(f"--duration and --dt must be > 0, got {args.duration}, {args.dt}")
-    try:
-        check_period(args.dt, args.collision)  # (before any case)
-        cases = targets(args.targets, args.sampling, args.seed)
-        if args.obstacles not in (None, "table"):
-            add_scene(CollisionWorld(talos(DiagramBuilder(), "reduced", args.dt).model), Path(args.obstacles), None, "scene")
-    except (InvalidInput, SotError) as error:
-        raise SystemExit(str(error)) from error
+    cases, engine = check_options(args)
+    start(args)  # (--out checked, and made, before any case)
     settings = {"duration_s": args.duration, "dt_s": args.dt, "ticks_per_case": round(args.duration / args.dt),
                 "hand_gain": HAND_GAIN, "hand_damping": HAND_DAMPING, "sampling": args.sampling,
-                "seed": args.seed, "box_m": BOX, "obstacles": args.obstacles, "collision_level": args.collision}
+                "seed": (args.seed or 0) if args.sampling == "random" else None, "box_m": BOX, "obstacles": args.obstacles,
+                "collision_level": args.collision}
     try:
         case = partial(reach_case, duration=args.duration, dt=args.dt, obstacles=args.obstacles, collision=args.collision)
-        result = run_sweep(case, cases, progress=not args.quiet,
-                           label="reach targets", settings=settings, **engine_options(args))
+        result = run_sweep(case, cases, progress=not args.quiet, label="reach targets", settings=settings, **engine)
     except EngineUnavailable as error:
         raise SystemExit(str(error)) from error
     paths = result.write(args.out, "reach_map")
-    plot(result.rows, args.out / "plots.png")
+    figure = plot(result.rows, args.out / "plots.png")
     ok = [r for r in result.rows if r["status"] == "ok"]
     summary = {
         "targets": len(cases),
@@ -324,6 +370,7 @@ def main(argv: list[str] | None = None) -> dict:
         "load_average_after": result.load_average_after,
         **settings,
         "tables": {k: str(v) for k, v in paths.items()},
+        "plot": None if figure is None else str(figure),
     }
     write_run(args.out, build_diagram(args.dt, obstacles=args.obstacles, collision=args.collision).diagram, summary)
     return summary

@@ -10,7 +10,7 @@ the joints and ticks), at the start and at the switch, and the hand's final erro
     python diagrams/target_switch.py --a-max 20 --out out/target_switch
 
 writes ``DIR/summary.json``, ``DIR/plots.png`` (the right elbow's velocity in both runs) and each run's
-``trace.npz``.
+``trace.npz``. ``--duration`` is at least 10 ms (ticks of 1 ms before and after the switch).
 """
 
 from __future__ import annotations
@@ -41,6 +41,9 @@ from sotdrake import (
 
 FIRST, SECOND = (0.45, -0.25, 0.95), (0.40, -0.45, 1.15)  # the hand's targets (m, world)
 GAIN = 4.0  # the hand's gain (1/s)
+DT = 1e-3  # the control period (s)
+#: The shortest run (s): each half (before and after the switch) has ticks to measure.
+MIN_DURATION = 10 * DT
 
 
 @dataclass
@@ -52,7 +55,7 @@ class TargetSwitch:
     tracer: Tracer
 
 
-def build_diagram(a_max: float | None, switch_time: float, dt: float = 1e-3) -> TargetSwitch:
+def build_diagram(a_max: float | None, switch_time: float, dt: float = DT) -> TargetSwitch:
     """The stand-and-reach stack, the target switched at ``switch_time`` (s); ``a_max`` (rad/s²)
     on every joint, or None for no acceleration limit."""
     builder = DiagramBuilder()
@@ -102,11 +105,13 @@ def run(case: TargetSwitch, a_max: float | None, duration: float, progress: bool
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = script_arguments(__doc__, "out/target_switch", duration=2.0, bag=False)
+    parser = script_arguments(__doc__, "out/target_switch", duration=2.0, bag=False, meshcat=False)
     parser.add_argument("--a-max", type=float, default=20.0, help="the acceleration limit of every joint (rad/s²)")
     args = parser.parse_args(argv)
-    args.no_meshcat = True  # no recording: two runs compared in numbers and a plot
-    start(args)
+    if not args.duration >= MIN_DURATION:  # (both halves of the run need ticks)
+        raise SystemExit(f"--duration must be at least {MIN_DURATION:g} s (ticks before and after the switch at half of it), "
+                         f"got {args.duration}")
+    start(args)  # (no recording: two runs compared in numbers and a plot)
     limits = {"without": None, "with": args.a_max}
     # Both built before either runs: a refused --a-max stops the script with nothing written.
     cases = {label: build_diagram(a_max, args.duration / 2) for label, a_max in limits.items()}

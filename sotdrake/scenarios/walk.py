@@ -53,6 +53,7 @@ from sotdrake.walking.com_planner import GRAVITY
 from sotdrake.walking.controller import (
     ARMS,
     DYNAMIC_SWING_PROFILE,
+    MAX_STEPS,
     MODES,
     POSTURE_GAIN,
     ROBOTS,
@@ -295,13 +296,17 @@ def plot(walk: Walk, simulator, trace: dict, path: Path) -> Path:
 
 
 def _gait(parser: argparse.ArgumentParser, args: argparse.Namespace) -> GaitParameters:
-    """The robot's gait with the timing options of ``args`` (a refused value: the option named)."""
+    """The robot's gait with the timing options of ``args`` (a refused value, 0 included: the option
+    named); an option not given keeps the robot's value."""
     gait = ROBOTS[args.robot].gait
+    for option, value in (("--step-duration", args.step_duration), ("--single-support", args.single_support)):
+        if value is not None and not value > 0:
+            parser.error(f"{option} {value}: must be > 0 s")
     try:
         if args.step_duration is not None or args.single_support is not None:
-            duration = args.step_duration or gait.step_duration
-            gait = dataclasses.replace(gait, step_duration=duration,
-                                       single_support=args.single_support or duration - gait.double_support)
+            duration = args.step_duration if args.step_duration is not None else gait.step_duration
+            single = args.single_support if args.single_support is not None else duration - gait.double_support
+            gait = dataclasses.replace(gait, step_duration=duration, single_support=single)
         if args.landing_depth is not None:
             gait = dataclasses.replace(gait, landing_depth=args.landing_depth)
     except InvalidInput as error:
@@ -346,9 +351,11 @@ def main(argv: list[str] | None = None) -> dict:
                                                                "closed_loop") if getattr(args, name) != parser.get_default(name)]
     if physics_only and args.mode != "physics":
         parser.error(f"{', '.join(physics_only)}: options of --mode physics (this run is --mode {args.mode})")
+    if args.steps is not None and not 1 <= args.steps <= MAX_STEPS:
+        parser.error(f"--steps must be in [1, {MAX_STEPS}], got {args.steps}")
     gait = _gait(parser, args)
     meshcat = start(args)
-    steps = (args.steps, args.step_length) if args.steps else None
+    steps = (args.steps, args.step_length) if args.steps is not None else None
     servos = Servos(args.stiffness, args.feedforward, args.com_gain, args.zmp_gain, args.closed_loop, args.damping)
     walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, gait=gait, meshcat=meshcat,
                          servos=servos, multibody_zmp=None if args.zmp_model is None else args.zmp_model == "multibody",

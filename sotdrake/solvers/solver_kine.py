@@ -33,7 +33,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort
 
 from ..configuration import Layout
-from ..exceptions import InvalidInput, SolverError, StackError
+from ..exceptions import InvalidInput, SolverError, StackError, finite_number
 from ..hqp import ACTIVE_SET, HierarchicalQP, check_solver
 from ..hqp.stack_paths import KINEMATIC, StackProblem, solve_stack
 from ..hqp.warm import WarmStart
@@ -127,7 +127,7 @@ class SolverKine(KinematicSolver[HqpSettings]):
         KinematicSolver.setDamping(self, damping, context)
 
     def setPositionMargin(self, margin: float, context: Context | None = None) -> None:
-        if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not (np.isfinite(margin) and 0 <= margin <= 0.5):
+        if not finite_number(margin) or not 0 <= margin <= 0.5:
             raise InvalidInput(f"position margin must be a number in [0, 0.5] (rad or m), got {margin!r}")
         self._command(context, lambda s: setattr(s, "position_margin", float(margin)))
 
@@ -135,7 +135,7 @@ class SolverKine(KinematicSolver[HqpSettings]):
         """Bound each component of the floating base's angular (rad/s) and linear (m/s) velocity,
         both in ``(0, 100]``; the default comes from the legs' limits (:mod:`.base_velocity`)."""
         for name, value in (("angular", angular), ("linear", linear)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= MAX_BASE_VELOCITY:
+            if not finite_number(value) or not 0 < value <= MAX_BASE_VELOCITY:
                 raise InvalidInput(
                     f"{self.name}.setBaseVelocityLimit: {name} must be a number in (0, {MAX_BASE_VELOCITY:g}], got {value!r}"
                 )

@@ -79,11 +79,19 @@ class Stack:
         return self.system.settings(context)
 
     # --- wiring (build time) ---------------------------------------------------------------
+    def check_task_input(self, task: Task | TaskWeight) -> None:
+        """:class:`InvalidInput` if :meth:`declare_task_input` would refuse ``task`` (another size,
+        or a name one of the solver's own inputs has): for a caller that checks before adding."""
+        if task.nv != self.nv:
+            raise InvalidInput(f"task {task.name} has nv = {task.nv}, solver {self.name} has nv = {self.nv}")
+        if task.name not in self.task_ports and self.system.HasInputPort(task.name):
+            raise InvalidInput(f"{task.name!r}: the solver {self.name} has an input of that name (its own): give the task "
+                               "or weighted level another name")
+
     def declare_task_input(self, task: Task | TaskWeight) -> InputPort:
         """The input port for ``task`` (a task, or a :class:`~sotdrake.task_weight.TaskWeight`
         group; created once); connect ``task.task`` to it."""
-        if task.nv != self.nv:
-            raise InvalidInput(f"task {task.name} has nv = {task.nv}, solver {self.name} has nv = {self.nv}")
+        self.check_task_input(task)
         if task.name not in self.task_ports:
             self._task_systems[task.name] = task
             self.task_ports[task.name] = self.system.DeclareAbstractInputPort(
@@ -328,6 +336,10 @@ class StackSolver(Entity[S], Generic[S]):
         """The input port for ``task`` (a task, or a :class:`~sotdrake.task_weight.TaskWeight`
         group; created once); connect ``task.task`` to it."""
         return self.stack_of_tasks.declare_task_input(task)
+
+    def check_task_input(self, task: Task | TaskWeight) -> None:
+        """Whether :meth:`declare_task_input` would take ``task`` (:class:`InvalidInput` if not)."""
+        self.stack_of_tasks.check_task_input(task)
 
     @property
     def known_tasks(self) -> list[str]:

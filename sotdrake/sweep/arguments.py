@@ -21,7 +21,17 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
 
 
 def engine_options(args: argparse.Namespace) -> dict:
-    """The keyword arguments of :func:`run_sweep` taken from ``args``."""
+    """The keyword arguments of :func:`run_sweep` taken from ``args``. An option of another engine
+    (``--address`` or ``--num-cpus`` without ``--engine ray``, ``--num-cpus`` with ``--address``:
+    the cluster has its own CPUs) or ``--num-cpus`` below 1 is refused, not ignored: a
+    ``SystemExit`` naming it (:func:`sotdrake.simulation.run_script` ends the script with it)."""
     if args.address is not None and args.engine != "ray":
         raise SystemExit("--address needs --engine ray")
+    if args.num_cpus is not None:
+        if args.engine != "ray":
+            raise SystemExit(f"--num-cpus needs --engine ray (--engine {args.engine} runs in this process, on one core)")
+        if args.address is not None:
+            raise SystemExit("--num-cpus is for the local Ray runtime: a cluster joined with --address has its own CPUs")
+        if args.num_cpus < 1:
+            raise SystemExit(f"--num-cpus must be ≥ 1, got {args.num_cpus}")
     return {"engine": args.engine, "address": args.address, "num_cpus": args.num_cpus}

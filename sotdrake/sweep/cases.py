@@ -23,16 +23,18 @@ def _plain(value):
 
 
 def grid(axes: Mapping[str, Sequence]) -> list[Case]:
-    """Every combination of the values of ``axes`` (name → values), the last axis varying fastest
-    (``itertools.product`` order): ``grid({'a': [1, 2], 'b': [0, 1]})`` gives
+    """Every combination of the values of ``axes`` (name → values: a non-empty list, tuple or array,
+    not a 0-d one; anything else is an :class:`InvalidInput` naming the axis), the last axis varying
+    fastest (``itertools.product`` order): ``grid({'a': [1, 2], 'b': [0, 1]})`` gives
     ``(1, 0), (1, 1), (2, 0), (2, 1)``."""
-    if not axes:
-        raise InvalidInput("grid: give at least one axis (name → values)")
     if not isinstance(axes, Mapping):
         raise InvalidInput(f"grid: expected a dict of axis name → values, got {axes!r:.100}")
+    if not axes:
+        raise InvalidInput("grid: give at least one axis (name → values)")
     for name, values in axes.items():
         check_parameter_name(name, "grid")
-        if isinstance(values, (str, bytes)) or not isinstance(values, (Sequence, np.ndarray)) or len(values) == 0:
+        if (isinstance(values, (str, bytes)) or not isinstance(values, (Sequence, np.ndarray))
+                or (isinstance(values, np.ndarray) and values.ndim == 0) or len(values) == 0):
             raise InvalidInput(f"grid: axis {name!r} needs a non-empty sequence of values (a list, a tuple, an array), "
                                f"got {values!r:.100}")
     names = list(axes)

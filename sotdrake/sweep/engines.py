@@ -26,7 +26,7 @@ import os
 import sys
 import time
 import types
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -213,31 +213,19 @@ def run_ray(function: CaseFunction, cases: Sequence[Mapping], address: str | Non
     return sorted(rows, key=lambda r: r["case"]), workers
 
 
-def run_sweep(function: CaseFunction, cases: Sequence[Mapping], engine: str = "local",
+def run_sweep(function: CaseFunction, cases: Iterable[Mapping], engine: str = "local",
               address: str | None = None, num_cpus: int | None = None, progress: bool = True,
               label: str = "", settings: Mapping | None = None,
               by_value: Sequence[types.ModuleType] = ()) -> SweepResult:
     """Run ``function`` over ``cases`` with ``engine`` (``'local'`` or ``'ray'``; ``address``
-    and ``num_cpus`` are Ray's). ``settings``: what every case shares (durations, time step),
-    kept in the sweep's metadata."""
-    if engine not in ENGINES:
-        raise InvalidInput(f"engine must be one of {ENGINES}, got {engine!r}")
-    if address is not None and engine != "ray":
-        raise InvalidInput(f"address={address!r} is for engine 'ray', not {engine!r}")
-    if num_cpus is not None and (not isinstance(num_cpus, int) or num_cpus < 1):
-        raise InvalidInput(f"num_cpus must be an integer ≥ 1, got {num_cpus!r}")
+    and ``num_cpus`` are Ray's). ``cases``: any iterable of dicts (a list, a generator: read once,
+    before anything runs); anything else, or no case, is an :class:`InvalidInput` naming
+    ``cases``. ``settings``: what every case shares (durations, time step), kept in the sweep's
+    metadata."""
+    _check_engine(engine, address, num_cpus)
     if not callable(function):
         raise InvalidInput(f"run_sweep: the case function must be callable, got {function!r:.80}")
-    if isinstance(num_cpus, bool):
-        raise InvalidInput(f"num_cpus must be an integer ≥ 1, got {num_cpus!r}")
-    if not all(isinstance(case, Mapping) for case in cases):
-        raise InvalidInput("run_sweep: every case is a dict of parameter name → value (grid(), random_cases())")
-    cases = [dict(case) for case in cases]
-    if not cases:
-        raise InvalidInput("a sweep needs at least one case")
-    for case in cases:
-        for name in case:
-            check_parameter_name(name, "run_sweep")
+    cases = _materialise(cases)
     before = os.getloadavg()
     start = time.perf_counter()
     if engine == "local":
@@ -246,3 +234,30 @@ def run_sweep(function: CaseFunction, cases: Sequence[Mapping], engine: str = "l
         rows, workers = run_ray(function, cases, address, num_cpus, progress, label, by_value)
     wall = time.perf_counter() - start
     return SweepResult(rows, engine, workers, wall, before, os.getloadavg(), dict(settings or {}))
+
+
+def _check_engine(engine: str, address: str | None, num_cpus: int | None) -> None:
+    """:class:`InvalidInput` for an unknown ``engine`` or a Ray option it cannot take."""
+    if engine not in ENGINES:
+        raise InvalidInput(f"engine must be one of {ENGINES}, got {engine!r}")
+    if address is not None and engine != "ray":
+        raise InvalidInput(f"address={address!r} is for engine 'ray', not {engine!r}")
+    if num_cpus is not None and (isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 1):
+        raise InvalidInput(f"num_cpus must be an integer ≥ 1, got {num_cpus!r}")
+
+
+def _materialise(cases: Iterable[Mapping]) -> list[dict]:
+    """``cases`` as a list of dicts, read once (a generator too), each parameter name checked."""
+    if isinstance(cases, (Mapping, str, bytes)) or not isinstance(cases, Iterable):
+        raise InvalidInput(f"run_sweep: cases must be a list (or any iterable) of dicts of parameter name → value "
+                           f"(grid(), random_cases()), got {type(cases).__name__}")
+    cases = list(cases)
+    if not cases:
+        raise InvalidInput("run_sweep: cases is empty: a sweep needs at least one case")
+    if not all(isinstance(case, Mapping) for case in cases):
+        raise InvalidInput("run_sweep: every case is a dict of parameter name → value (grid(), random_cases())")
+    checked = [dict(case) for case in cases]
+    for case in checked:
+        for name in case:
+            check_parameter_name(name, "run_sweep")
+    return checked

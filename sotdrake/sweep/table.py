@@ -61,14 +61,24 @@ def check_parameter_name(name: object, where: str) -> str:
 
 def make_row(index: int, case: Mapping, summary: Mapping | None, error: str = "") -> dict[str, Cell]:
     """The row of case ``index``: its parameters, status, error and flattened ``summary``.
-    A summary key that repeats a parameter or a reserved column is prefixed with ``summary.``."""
+    A summary key that repeats a parameter or a reserved column is prefixed with ``summary.``;
+    when that prefixed column is taken too (``{'x': 2, 'summary': {'x': 3}}`` with a parameter
+    ``x``), no value is dropped: :class:`InvalidInput` naming both keys (in a sweep, the case
+    becomes an error row)."""
     row: dict[str, Cell] = {"case": int(index)}
     for name, value in case.items():
         row[check_parameter_name(name, "a case")] = _cell(value)
     row["status"] = "error" if error else "ok"
     row["error"] = error
-    for key, value in flatten(summary or {}).items():
-        row[f"summary.{key}" if key in row else key] = value
+    flat = flatten(summary or {})
+    for key, value in flat.items():
+        column = key
+        if key in row:
+            column = f"summary.{key}"
+            if column in flat or column in row:
+                raise InvalidInput(f"summary: the key {key!r} repeats a column of the case ({column!r} would hold it) "
+                                   f"and {column!r} is taken too: rename one of them")
+        row[column] = value
     return row
 
 

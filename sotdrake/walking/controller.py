@@ -187,10 +187,14 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     ``servos``: the physics mode's servo options (:class:`Servos`); ``multibody_zmp``: the CoM is
     planned with the legs' momentum (:func:`~sotdrake.walking.multibody_zmp.leg_masses`), kinematic
     and physics modes (None: in physics mode only); ``arms``: one of :data:`ARMS` (kinematic and
-    physics modes); ``gains``: the tracking and the orientation gains (1/s), kinematic and physics modes."""
+    physics modes); ``gains``: the tracking and the orientation gains (1/s), kinematic and physics modes.
+    In dynamic mode (``SolverDyn``, a list of steps) ``then``, ``solver`` other than ``'hqp'``,
+    ``multibody_zmp``, ``arms`` other than ``'posture'`` and ``gains`` other than the defaults are
+    refused (:class:`InvalidInput` naming them), before anything is built, not ignored."""
     _check_commands(velocity, then, steps, gains)
     spec = _walking_robot(robot, mode, arms)
     if mode == "dynamic":
+        _check_dynamic_options(then, solver, multibody_zmp, arms, gains)
         from .dynamic_controller import build_dynamic
 
         return build_dynamic(robot, spec, steps, dt, gait or dataclasses.replace(spec.gait, swing_profile=DYNAMIC_SWING_PROFILE), meshcat)
@@ -248,6 +252,19 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     diagram.set_name("walk")
     return Walk(diagram, bot, pg, sot, tasks, tracer, mode, spec, robot, physical, commands, visualizer,
                 servos if physical is not None else None)
+
+
+def _check_dynamic_options(then: tuple | None, solver: str, multibody_zmp: bool | None, arms: str,
+                           gains: tuple[float, float]) -> None:
+    """:class:`InvalidInput` naming the options of :func:`build_diagram` that the dynamic mode does
+    not read (it walks a list of steps under ``SolverDyn``, its own stack)."""
+    unread = [name for name, given in (("then (--then)", then is not None), ("solver (--solver)", solver != "hqp"),
+                                       ("multibody_zmp (--zmp-model)", multibody_zmp is not None),
+                                       ("arms (--arms)", arms != "posture"),
+                                       ("gains (--gains)", tuple(gains) != (TRACKING_GAIN, POSTURE_GAIN))) if given]
+    if unread:
+        raise InvalidInput(f"build_diagram: {', '.join(unread)}: options of the kinematic and physics modes, not read by "
+                           "mode='dynamic' (SolverDyn walks a list of steps with its own stack)")
 
 
 def _check_commands(velocity, then: tuple | None, steps: tuple[int, float] | None, gains: tuple[float, float]) -> None:

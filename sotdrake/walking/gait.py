@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import InvalidInput, check_finite
+from ..exceptions import InvalidInput, check_count, check_finite, check_number
 
 #: The seed's range of ``pg.setVelocity(x, y, θ)``: ``-0.2 ≤ x, y ≤ 0.2`` (m/s).
 MAX_LINEAR_VELOCITY = 0.2
@@ -45,23 +45,21 @@ class GaitParameters:
     swing_profile: str = "cubic"  # or "quintic": zero acceleration at the lift-off, apex and touch-down (see .swing)
 
     def __post_init__(self) -> None:
-        checks = {  # (lengths in m, durations in s: finite, at most a kilometre or a thousand seconds)
-            "step_duration": 0 < self.step_duration <= 1e3,
-            "single_support": 0 < self.single_support < self.step_duration,
-            "feet_distance": 0 < self.feet_distance <= 1e3,
-            "swing_height": 0 <= self.swing_height <= 1e3,
-            "start_duration": 0 < self.start_duration <= 1e3,
-            "stop_duration": 0 < self.stop_duration <= 1e3,
-            "sole_length": 0 < self.sole_length <= 1e3,
-            "sole_width": 0 < self.sole_width <= 1e3,
-            "horizon_steps": self.horizon_steps >= 2,
-            "replan_steps": 1 <= self.replan_steps < self.horizon_steps,
-            "landing_depth": 0 <= self.landing_depth <= 0.02,
-            "swing_profile": self.swing_profile in ("cubic", "quintic"),
-        }
-        for name, ok in checks.items():
-            if not ok:
-                raise InvalidInput(f"GaitParameters.{name} out of range: {getattr(self, name)!r}")
+        for name in ("step_duration", "feet_distance", "start_duration", "stop_duration", "sole_length", "sole_width"):
+            check_number(f"GaitParameters.{name}", getattr(self, name), 0.0, 1e3)  # m or s: finite, at most 1 km or 1000 s
+            if getattr(self, name) == 0:
+                raise InvalidInput(f"GaitParameters.{name} must be > 0, got {getattr(self, name)!r}")
+        check_number("GaitParameters.swing_height", self.swing_height, 0.0, 1e3, " m")
+        check_number("GaitParameters.landing_depth", self.landing_depth, 0.0, 0.02, " m")
+        if not check_number("GaitParameters.single_support", self.single_support, 0.0, 1e3, " s") > 0 \
+                or not self.single_support < self.step_duration:
+            raise InvalidInput(f"GaitParameters.single_support must be in (0, step_duration = {self.step_duration!r}) s, "
+                               f"got {self.single_support!r}")
+        check_finite("GaitParameters.sole_centre (x, y in the sole frame, m)", self.sole_centre, (2,), 1e3)
+        horizon = check_count("GaitParameters.horizon_steps", self.horizon_steps, 2, MAX_STEPS)
+        check_count("GaitParameters.replan_steps", self.replan_steps, 1, horizon - 1)
+        if self.swing_profile not in ("cubic", "quintic"):
+            raise InvalidInput(f"GaitParameters.swing_profile must be 'cubic' or 'quintic', got {self.swing_profile!r:.60}")
 
     @property
     def double_support(self) -> float:

@@ -30,13 +30,15 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import Context, ValueProducer
 
 from ..entity import Entity
-from ..exceptions import InvalidInput, check_finite
+from ..exceptions import InvalidInput, check_finite, finite_number
 from .com_planner import INPUT_COST
 from .gait import MAX_LINEAR_VELOCITY, MAX_STEPS, MAX_YAW_RATE, GaitParameters, check_velocity
 from .multibody_zmp import LegMasses
 from .plan import References, Start, WalkCommand, WalkPlan, foot_pose, initial_plan, replan
 
 SIDES = ("left", "right")
+#: The longest replanning period (s) a pattern generator takes.
+MAX_DT = 1.0
 
 
 @dataclass
@@ -56,10 +58,13 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
     def __init__(self, start: Start, dt: float, gait: GaitParameters | None = None,
                  input_cost: float = INPUT_COST, name: str = "pg", legs: LegMasses | None = None):
         Entity.__init__(self, name, PatternGeneratorSettings())
-        if not dt > 0:
-            raise InvalidInput(f"{name}: dt must be > 0, got {dt}")
-        if not (np.isfinite(input_cost) and input_cost > 0):
-            raise InvalidInput(f"{name}: input_cost must be finite and > 0, got {input_cost}")
+        if not (finite_number(dt) and 0 < dt <= MAX_DT):
+            raise InvalidInput(f"{name}: dt must be a number in (0, {MAX_DT:g}] s, got {dt!r:.60}")
+        if not (finite_number(input_cost) and input_cost > 0):
+            raise InvalidInput(f"{name}: input_cost must be finite and > 0, got {input_cost!r:.60}")
+        if not isinstance(start, Start):
+            raise InvalidInput(f"{name}: start must be a Start (the soles, the CoM and the waist at t = 0: start_of), "
+                               f"got {type(start).__name__}")
         self.gait = gait or GaitParameters()
         self.start, self.dt, self.input_cost, self.legs = start, float(dt), float(input_cost), legs
         self._yaw0 = {side: start.foot(side)[2] for side in SIDES}
@@ -151,8 +156,11 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
 
 
 def start_of(dynamic, q0: np.ndarray, feet=("left-sole", "right-sole"), waist: str = "waist") -> Start:
-    """The :class:`Start` of a robot at ``q0`` from its ``dynamic`` entity (op points or frames)."""
-    return Start({side: dynamic.pose_at(name, q0) for side, name in zip(SIDES, feet, strict=False)},
+    """The :class:`Start` of a robot at ``q0`` from its ``dynamic`` entity (op points or frames):
+    ``feet`` names the left sole then the right one."""
+    if isinstance(feet, str) or len(feet) != 2:
+        raise InvalidInput(f"start_of: feet must be two names, the left sole's then the right one's, got {feet!r:.100}")
+    return Start({side: dynamic.pose_at(name, q0) for side, name in zip(SIDES, feet, strict=True)},
                  dynamic.com_at(q0), dynamic.pose_at(waist, q0))
 
 

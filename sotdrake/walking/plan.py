@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
+from ..exceptions import InvalidInput, check_finite
 from .com_planner import INPUT_COST, ComPlan, plan_com
 from .footsteps import Footstep, closing_steps, first_side, other, plan_steps, velocity_displacement
 from .gait import GaitParameters
@@ -48,16 +49,35 @@ class WalkCommand:
 
 @dataclass(frozen=True)
 class Start:
-    """Where the walk starts: sole poses ``X_WS`` of both feet, the CoM ``p_WCm`` and the waist pose."""
+    """Where the walk starts: sole poses ``X_WS`` of both feet (``"left"`` and ``"right"``), the CoM
+    ``p_WCm`` (finite, above the ground z = 0: its height is the pendulum's) and the waist pose;
+    anything else is refused (:class:`~sotdrake.exceptions.InvalidInput`) when it is made."""
 
     feet: dict  # side → RigidTransform
     com: np.ndarray
     waist: RigidTransform
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.feet, dict) or sorted(self.feet) != ["left", "right"]:
+            raise InvalidInput(f"Start: feet must be a dict of the 'left' and 'right' sole poses, got {self.feet!r:.100}")
+        for side, pose in [*self.feet.items(), ("waist", self.waist)]:
+            if not isinstance(pose, RigidTransform) or not np.all(np.isfinite(pose.GetAsMatrix34())):
+                raise InvalidInput(f"Start: the {side} pose must be a finite RigidTransform, got {pose!r:.100}")
+        com = check_finite("Start: com (m, world)", self.com, (3,), 1e3)
+        if not com[2] > 0:
+            raise InvalidInput(f"Start: the CoM must be above the ground (z > 0: its height is the pendulum's), got z = {com[2]:g} m")
+        object.__setattr__(self, "com", com)
+
     def foot(self, side: str) -> tuple[float, float, float]:
-        """``(x, y, yaw)`` of a sole at the start."""
+        """``(x, y, yaw)`` of a sole at the start: the left sole's yaw in [−π, π], the right one's
+        within π of it (feet turned about ±π read as −3.12 and 3.12 rad are 0.04 rad apart, and
+        their mean yaw is π, not 0)."""
         X = self.feet[side]
-        return (X.translation()[0], X.translation()[1], RollPitchYaw(X.rotation()).yaw_angle())
+        yaw = RollPitchYaw(X.rotation()).yaw_angle()
+        if side == "right":
+            left = RollPitchYaw(self.feet["left"].rotation()).yaw_angle()
+            yaw = left + float(np.angle(np.exp(1j * (yaw - left))))
+        return (X.translation()[0], X.translation()[1], yaw)
 
     @property
     def body(self) -> tuple[float, float, float]:

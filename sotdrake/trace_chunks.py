@@ -1,0 +1,106 @@
+"""The tracer's chunk files: ``.npy`` arrays one after the other in one file (the column names, then
+each chunk's columns), appended while a run goes and read back whole or up to a chunk. The format
+:func:`sotdrake.tracing.read_trace` reads."""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .exceptions import InvalidInput, SotError
+
+log = logging.getLogger("sotdrake.tracing")
+
+
+class ChunkFile:
+    """A sequence of ``.npy`` arrays in one file, appended to: the column names (a string array),
+    then per chunk one array per column in that order. Nothing is re-read when a chunk is added;
+    the byte offset and the last sample time of each chunk's end are kept."""
+
+    def __init__(self, path: Path | None):
+        self._temporary = None
+        if path is None:  # deleted with this object
+            self._temporary = tempfile.NamedTemporaryFile(prefix="sotdrake-trace-", suffix=".npys")
+            path = Path(self._temporary.name)
+        self.path = Path(path)
+        self.chunks = 0
+        self.offsets: list[int] = []
+        self.ends: list[float] = []
+        self.reset()
+
+    def reset(self) -> None:
+        self.path.write_bytes(b"")
+        self.chunks, self.offsets, self.ends = 0, [], []
+
+    def append(self, columns: dict[str, np.ndarray], end: float | None = None) -> None:
+        """Write one chunk; ``end``: the time of its last sample (default: the last ``time``)."""
+        if end is None:
+            times = np.asarray(columns.get("time", ()))
+            end = float(times[-1]) if times.size else float("nan")
+        with open(self.path, "ab") as file:
+            if self.chunks == 0:
+                np.lib.format.write_array(file, np.array(list(columns), dtype=str), allow_pickle=False)
+            for values in columns.values():
+                np.lib.format.write_array(file, np.ascontiguousarray(values), allow_pickle=False)
+            offset = file.tell()
+        self.chunks += 1
+        self.offsets.append(offset)
+        self.ends.append(end)
+
+    def prefix(self, chunks: int) -> ChunkFile:
+        """A temporary file holding this file's first ``chunks`` chunks."""
+        copy = ChunkFile(None)
+        with open(self.path, "rb") as source, open(copy.path, "wb") as target:
+            remaining = self.offsets[chunks - 1]
+            while remaining > 0:
+                block = source.read(min(remaining, 1 << 22))
+                if not block:
+                    raise SotError(f"trace file {str(self.path)!r} is shorter than the chunks written to it")
+                target.write(block)
+                remaining -= len(block)
+        copy.chunks, copy.offsets, copy.ends = chunks, self.offsets[:chunks], self.ends[:chunks]
+        return copy
+
+    def moved_away(self) -> ChunkFile | None:
+        """This file's chunks moved to a temporary file (this file is then empty), or None when this
+        is not a regular file (a device: its chunks cannot be read back) and the chunks are dropped."""
+        if not self.path.is_file():
+            self.reset()
+            return None
+        moved = ChunkFile(None)
+        shutil.move(str(self.path), str(moved.path))
+        moved.chunks, moved.offsets, moved.ends = self.chunks, self.offsets, self.ends
+        self.reset()
+        return moved
+
+    def read(self, stop: int | None = None) -> dict[str, list[np.ndarray]]:
+        """Each column's chunks, in order (up to byte ``stop`` if given): the complete ones (a chunk
+        cut short, by a run stopped while it was being written, is left out with a warning)."""
+        try:
+            size = self.path.stat().st_size
+        except OSError as error:
+            raise InvalidInput(f"trace file {str(self.path)!r}: {error.strerror}") from None
+        size = size if stop is None else min(size, stop)
+        with open(self.path, "rb") as file:
+            if size == 0:
+                return {}
+            try:
+                names = [str(name) for name in np.lib.format.read_array(file, allow_pickle=False)]
+            except ValueError as error:
+                raise InvalidInput(f"{self.path}: not a trace file ({error})") from None
+            out: dict[str, list[np.ndarray]] = {name: [] for name in names}
+            while file.tell() < size:
+                start = file.tell()
+                try:
+                    chunk = [np.lib.format.read_array(file, allow_pickle=False) for _ in names]
+                except ValueError:
+                    log.warning("%s: the chunk at byte %d is cut short (a run stopped while writing it): read up to "
+                                "there", self.path, start)
+                    break
+                for name, values in zip(names, chunk, strict=True):
+                    out[name].append(values)
+        return out

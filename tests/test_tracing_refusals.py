@@ -1,0 +1,165 @@
+"""The tracer, the recording and the control graph refuse what they cannot do before doing anything:
+a port that cannot be logged leaves the builder as it was, a path that cannot be written is named
+(nothing written, the recording still going), and each root context keeps its own stream, so a
+replayed clone does not wipe the original run's trace."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, PassThrough, Sine
+
+from sotdrake.exceptions import InvalidInput
+from sotdrake.simulation import simulate
+from sotdrake.tracing import Tracer, flush_tracers, read_trace
+
+
+def _sine(builder: DiagramBuilder) -> Sine:
+    return builder.AddSystem(Sine(np.array([1.0]), np.array([3.0]), np.array([0.1])))
+
+
+def _traced(stream, chunk: float = 0.1):
+    builder = DiagramBuilder()
+    tracer = Tracer(builder, 0.01, stream=stream, chunk=chunk)
+    tracer.add(_sine(builder).get_output_port(0), "sine")
+    return builder.Build(), tracer
+
+
+def _bad_paths(tmp_path):
+    (tmp_path / "file.txt").write_text("mine")
+    return [tmp_path / "missing" / "out.x", tmp_path / "file.txt" / "out.x", str(tmp_path / "a\0b.x")]
+
+
+def test_add_refuses_a_port_it_cannot_log_and_leaves_the_builder_as_it_was():
+    builder, other = DiagramBuilder(), DiagramBuilder()
+    source = builder.AddSystem(ConstantVectorSource(np.ones(2)))
+    pose = builder.AddSystem(PassThrough(AbstractValue.Make(RigidTransform())))
+    builder.Connect(builder.AddSystem(PassThrough(AbstractValue.Make(RigidTransform()))).get_output_port(),
+                    pose.get_input_port())
+    foreign = _sine(other)
+    tracer = Tracer(builder, 0.01, stream=False)
+    tracer.add(source.get_output_port(), "ok")
+    systems = [system.get_name() for system in builder.GetSystems()]
+    for port, reason in ((pose.get_output_port(), "abstract"), (foreign.get_output_port(0), "another builder"),
+                         (None, "NoneType"), ("ok", "str")):
+        with pytest.raises(InvalidInput, match=f"'signal'.*vector output port of a system of this builder.*{reason}"):
+            tracer.add(port, "signal")  # type: ignore[arg-type]
+        assert [system.get_name() for system in builder.GetSystems()] == systems and list(tracer.sinks) == ["ok"]
+    with pytest.raises(InvalidInput, match="DiagramBuilder"):
+        Tracer(None, 0.01)  # type: ignore[arg-type]
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(0.03)
+    assert tracer.data(simulator.get_context())["ok"].shape == (4, 2)
+
+
+def test_a_replayed_clone_keeps_the_original_trace():
+    def run(stream):
+        diagram, tracer = _traced(stream)
+        simulator = Simulator(diagram)
+        context = simulator.get_context()
+        for k in range(1, 11):
+            simulator.AdvanceTo(0.05 * k)
+            flush_tracers(diagram, context)
+        clone = context.Clone()
+        for k in range(11, 21):
+            simulator.AdvanceTo(0.05 * k)
+            flush_tracers(diagram, context)
+        replay = Simulator(diagram, clone)
+        for k in range(11, 21):
+            replay.AdvanceTo(0.05 * k)
+            flush_tracers(diagram, clone)
+        return tracer.data(context), tracer.data(clone)
+
+    (original, clone), (kept_original, kept_clone) = run(True), run(False)
+    assert original["time"][0] == clone["time"][0] == 0.0 and original["time"].size == 101
+    for got, expected in ((original, kept_original), (clone, kept_clone)):
+        for name in expected:
+            np.testing.assert_array_equal(got[name], expected[name])
+
+
+def test_a_clone_taken_right_after_a_flush_starts_with_the_original_chunks():
+    diagram, tracer = _traced(True, chunk=0.05)
+    simulator = Simulator(diagram)
+    context = simulator.get_context()
+    for k in range(1, 5):
+        simulator.AdvanceTo(0.05 * k)
+        flush_tracers(diagram, context, force=True)
+    assert tracer.sinks["sine"].FindLog(context).num_samples() == 0
+    clone = context.Clone()
+    np.testing.assert_array_equal(tracer.data(clone)["time"], tracer.data(context)["time"])
+    replay = Simulator(diagram, clone)
+    replay.AdvanceTo(0.3)
+    flush_tracers(diagram, clone, force=True)
+    assert tracer.data(clone)["time"][0] == 0.0 and tracer.data(clone)["time"][-1] == pytest.approx(0.3)
+    assert tracer.data(context)["time"].size == 21
+
+
+def test_a_second_run_takes_the_file_and_the_first_keeps_its_trace(tmp_path):
+    diagram, tracer = _traced(tmp_path / "trace.npys")
+    first, _ = simulate(diagram, 0.5, progress=False)
+    second, _ = simulate(diagram, 0.3, progress=False)
+    flush_tracers(diagram, second.get_context(), force=True)
+    assert read_trace(tmp_path / "trace.npys")["time"].size == 31
+    assert tracer.data(first.get_context())["time"].size == 51
+    assert tracer.data(second.get_context())["time"].size == 31
+
+
+def test_tracer_files_to_a_path_that_cannot_be_written_are_refused(tmp_path):
+    diagram, tracer = _traced(False)
+    simulator, _ = simulate(diagram, 0.05, progress=False)
+    context = simulator.get_context()
+    paths = _bad_paths(tmp_path)
+    before = sorted(tmp_path.rglob("*"))
+    for path in paths:
+        for save in (tracer.save, tracer.save_csv, tracer.plot):
+            with pytest.raises(InvalidInput, match=r"tracer: \w+: cannot write .*out\.x|a\\x00b"):
+                save(context, path)
+    assert sorted(tmp_path.rglob("*")) == before
+    assert tracer.save(context, tmp_path / "t.npz").is_file()
+
+
+def test_save_recording_checks_the_path_before_stopping_the_recording(tmp_path):
+    from pydrake.geometry import Meshcat, MeshcatVisualizer
+
+    from sotdrake.visualization import save_recording
+
+    calls: list[str] = []
+
+    class Watched(MeshcatVisualizer):
+        def StopRecording(self):
+            calls.append("stop")
+            super().StopRecording()
+
+        def PublishRecording(self):
+            calls.append("publish")
+            super().PublishRecording()
+
+    meshcat = Meshcat()
+    visualizer = Watched(meshcat)
+    visualizer.StartRecording(False)
+    for path in _bad_paths(tmp_path):
+        with pytest.raises(InvalidInput, match="save_recording"):
+            save_recording(visualizer, meshcat, path)
+    assert calls == []
+    assert save_recording(visualizer, meshcat, tmp_path / "recording.html").read_text().strip()
+    assert calls == ["stop", "publish"]
+
+
+def test_write_control_graph_refuses_a_path_it_cannot_write(tmp_path):
+    from sotdrake.visualization import write_control_graph
+
+    builder = DiagramBuilder()
+    _sine(builder)
+    diagram = builder.Build()
+    for path in _bad_paths(tmp_path):
+        with pytest.raises(InvalidInput, match="write_control_graph: cannot write"):
+            write_control_graph(diagram, path)
+    with pytest.raises(InvalidInput, match="diagram"):
+        write_control_graph(None, tmp_path / "g.svg")  # type: ignore[arg-type]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file.txt"]
+    assert write_control_graph(diagram, tmp_path / "g.svg").exists() and (tmp_path / "g.dot").exists()

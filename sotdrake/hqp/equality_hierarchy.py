@@ -69,7 +69,8 @@ import numpy as np
 from ..compiled import announce_compilation, compiled_input
 from .kernels.lapack import row_norms
 from .kernels.sweep import IN_THE_WAY, _compiled_sweep, _most_in_the_way, _outcome  # noqa: F401  (IN_THE_WAY: its tolerance, named here)
-from .problem import NO_ACTIVE_ROWS, HqpResult, LevelRows
+from .linalg import all_true
+from .problem import MAX_MAGNITUDE, NO_ACTIVE_ROWS, HqpResult, LevelRows
 
 SOLVER_NAME = "qr"
 
@@ -120,6 +121,16 @@ def _sweep(stack: StackedLevels, x_lower: np.ndarray, x_upper: np.ndarray, held:
     return (x, released.tolist()) if ok else None
 
 
+def _checked_input(stack: StackedLevels, x_lower: np.ndarray, x_upper: np.ndarray) -> bool:
+    """Whether the levels and the bounds are what the sweep takes: every coefficient and value
+    finite and within ±:data:`~.problem.MAX_MAGNITUDE` (a row's norm too), the bounds without NaN
+    and ``x_lower ≤ x_upper``. Otherwise the answer is not clear-cut: the QP's stages name what is
+    wrong. (NaN fails every comparison.)"""
+    if stack.norms.size and not (stack.norms.max() <= MAX_MAGNITUDE and np.abs(stack.b).max() <= MAX_MAGNITUDE):
+        return False
+    return all_true(x_lower <= x_upper)
+
+
 def solve_equality_hierarchy(levels: Sequence[tuple[np.ndarray, np.ndarray]], x_lower: np.ndarray,
                              x_upper: np.ndarray, at_lower: Sequence[int] = (), at_upper: Sequence[int] = ()) -> HqpResult | None:
     """The hierarchical QP's answer to the equality ``levels`` ``[(A_k, b_k), …]`` under the bounds,
@@ -146,6 +157,8 @@ def solve_stacked(stack: StackedLevels, x_lower: np.ndarray, x_upper: np.ndarray
         return None
     n = len(x_lower)
     x_lower, x_upper = compiled_input(x_lower), compiled_input(x_upper)
+    if not _checked_input(stack, x_lower, x_upper):
+        return None
     free = x_lower != x_upper
     held: dict[int, float] = {}
     for guess, sign, bound in ((at_lower, 1.0, x_lower), (at_upper, -1.0, x_upper)):

@@ -9,6 +9,7 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver, SnoptSolver
@@ -74,6 +75,19 @@ the stages below it (``own=False``), the constraints that must keep holding ther
 affine expressions of the variables (``x = x_{k-1} + Z y``)."""
 
 
+def float_array(what: str, value: Any) -> np.ndarray:
+    """``value`` as a float array (not copied when it is one), or :class:`InvalidInput` naming
+    ``what`` when it is not real numbers (a string, a ragged list, complex numbers)."""
+    try:
+        complex_numbers = np.iscomplexobj(value)
+        array = np.asarray(value, dtype=float) if not complex_numbers else None
+    except (TypeError, ValueError):
+        raise InvalidInput(f"{what} must be numbers (a matrix or vector of floats), got {value!r:.80}") from None
+    if array is None:
+        raise InvalidInput(f"{what} must be real numbers, got complex ones")
+    return array
+
+
 class LevelRows:
     """Rows ``lower ≤ A x ≤ upper`` of one level (``lower[i] == upper[i]``: an equality row).
 
@@ -82,8 +96,10 @@ class LevelRows:
 
     def __init__(self, A: np.ndarray, lower: np.ndarray, upper: np.ndarray, extend: Extension | None = None):
         same = upper is lower  # (a task's equality rows: one array of values, no order to check)
-        A, lower = np.asarray(A, dtype=float), np.asarray(lower, dtype=float)
-        upper = lower if same else np.asarray(upper, dtype=float)
+        A, lower = float_array("level rows: A", A), float_array("level rows: lower", lower)
+        upper = lower if same else float_array("level rows: upper", upper)
+        if extend is not None and not callable(extend):
+            raise InvalidInput(f"level rows: extend must be a callable (program, x) or None, got {extend!r:.60}")
         if A.ndim != 2 or lower.shape != (A.shape[0],) or upper.shape != (A.shape[0],):
             raise InvalidInput(f"level rows: A {A.shape}, lower {lower.shape}, upper {upper.shape} do not fit")
         if same:

@@ -93,6 +93,7 @@ from .problem import (
     _EqualityFactors,
     beyond,
     check_solver,
+    float_array,
     least_norm,
     null_space,
     result_of,
@@ -140,6 +141,9 @@ class HierarchicalQP:
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 0 <= n <= MAX_VARIABLES:
             raise InvalidInput(f"HierarchicalQP: n (the number of variables) must be an integer in [0, {MAX_VARIABLES}], got {n!r:.60}")
         n = int(n)
+        if isinstance(level_solvers, str):
+            raise InvalidInput(f"level_solvers is a list of solver names, one per level, got the string {level_solvers!r:.60}: "
+                               f"give [{level_solvers!r:.60}]")
         for name in [solver, *(level_solvers or [])]:
             check_solver(name)
         rank_threshold = check_number("rank_threshold", rank_threshold, 1e-300, 1.0)
@@ -200,7 +204,7 @@ class HierarchicalQP:
             raise InvalidInput(f"levels: a sequence of LevelRows (highest priority first), got {levels!r:.100}")
         if isinstance(damping, bool) or not all_numbers(damping) or np.ndim(damping) != 0 or not 0 <= damping < np.inf:
             raise InvalidInput(f"damping must be a finite number ≥ 0, got {damping!r:.60}")
-        x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
+        x_lower, x_upper = float_array("bounds", x_lower), float_array("bounds", x_upper)
         if x_lower.shape != (n,) or x_upper.shape != (n,):
             raise InvalidInput(f"bounds must be {n} numbers without NaN")
         if not all_true(x_lower <= x_upper):  # (False on a NaN too: the cause is looked for only then)

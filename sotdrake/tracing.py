@@ -15,9 +15,10 @@ with a ``Simulator`` of your own, call :func:`flush_tracers` (or :meth:`Tracer.f
 ``AdvanceTo`` calls. :meth:`Tracer.data` reads the chunks back and appends what the logs still
 hold: the same arrays as with ``stream=False`` (everything in Drake's logs).
 
-**One stream per root context.** Each root context flushed has its own stream, and the tracer keeps
-a reference to that context (and so to its ``Simulator``) while it lives. The tracer's file
-(:attr:`Tracer.path`) holds the latest run: a context flushed from the start of its run (a new
+**One stream per root context.** Each root context flushed has its own stream while it lives (the
+tracer holds it by a weak reference: a context dropped, with its ``Simulator``, drops its stream and
+deletes its temporary file, so that many runs through one diagram keep neither memory nor files).
+The tracer's file (:attr:`Tracer.path`) holds the latest run: a context flushed from the start of its run (a new
 context, or a context run again from an earlier time) takes it over, and the run it held before
 moves to a temporary file, still read by :meth:`Tracer.data` for its context. A context whose first
 sample follows a chunk of another context's stream (a ``Context.Clone()`` taken during a run)
@@ -47,14 +48,19 @@ _STREAMING: weakref.WeakSet[Tracer] = weakref.WeakSet()
 
 @dataclass(eq=False)
 class _Stream:
-    """The chunks of one root context: ``file`` (None when they were dropped: ``dropped``), the time
-    of the last sample moved there (``last``) and when it was last flushed (the tracer's count)."""
+    """The chunks of one root context (held by a weak reference: a context gone, its stream goes,
+    its temporary file with it): ``file`` (None when they were dropped: ``dropped``), the time of
+    the last sample moved there (``last``) and when it was last flushed (the tracer's count)."""
 
-    context: Context
+    context_ref: weakref.ref
     file: ChunkFile | None = None
     last: float = -np.inf
     flushed: int = 0
     dropped: bool = False
+
+    @property
+    def context(self) -> Context | None:
+        return self.context_ref()
 
 
 class Tracer:
@@ -141,7 +147,7 @@ class Tracer:
         if stream is not None and first > stream.last:
             return stream
         if stream is None:
-            stream = _Stream(context)
+            stream = _Stream(weakref.ref(context, _forgetter(self)))
             self._streams.append(stream)
             branch = self._branch(context, first)
             if branch is not None:
@@ -309,6 +315,25 @@ def _stream_path(path: Path) -> Path:
     except (OSError, ValueError) as error:  # (a NUL byte in the path: ValueError)
         raise InvalidInput(f"tracer stream: {str(path)!r}: {os_reason(error)}") from None
     return path
+
+
+def _forgetter(tracer: Tracer):
+    """The callback of a stream's weak reference to its context: once the context is gone, the
+    stream is dropped (its temporary file deleted; the tracer's own file, if the stream held it,
+    keeps its chunks for :func:`read_trace`)."""
+    tracer_ref = weakref.ref(tracer)
+
+    def forget(context_ref: weakref.ref) -> None:
+        owner = tracer_ref()
+        if owner is None:
+            return
+        for stream in [stream for stream in owner._streams if stream.context_ref is context_ref]:
+            owner._streams.remove(stream)
+            if owner._holder is stream:
+                owner._holder = None
+            stream.file = None
+
+    return forget
 
 
 def flush_tracers(diagram: Diagram, context: Context, force: bool = False) -> int:

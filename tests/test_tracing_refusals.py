@@ -109,6 +109,25 @@ def test_a_second_run_takes_the_file_and_the_first_keeps_its_trace(tmp_path):
     assert tracer.data(second.get_context())["time"].size == 31
 
 
+def test_runs_after_runs_through_one_diagram_keep_no_files_open(tmp_path, monkeypatch):
+    """A sweep's cases, each a new Simulator of one diagram: a run's stream goes with its context,
+    so the temporary files (and the file descriptors) do not pile up with the runs."""
+    import gc
+    import os
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # (this test's temporary files only)
+    diagram, tracer = _traced(True)
+    counts = []
+    for _ in range(30):
+        simulator, _ = simulate(diagram, 0.3, progress=False)
+        assert tracer.data(simulator.get_context())["time"].size == 31
+        del simulator
+        gc.collect()
+        counts.append((len(os.listdir(tmp_path)), len(os.listdir("/proc/self/fd"))))
+    assert counts[-1] == counts[4], counts
+
+
 def test_tracer_files_to_a_path_that_cannot_be_written_are_refused(tmp_path):
     diagram, tracer = _traced(False)
     simulator, _ = simulate(diagram, 0.05, progress=False)

@@ -70,7 +70,7 @@ from .meta_tasks import (
 from .robot import Robot, add_sot, robot, talos
 from .robots import ROBOTS, TALOS_GRIPPERS, RobotModel, available_robots, load_robot, load_talos
 from .sequencer import attime
-from .simulation import report, run_script, save_figure, script_arguments, simulate, start, write_run
+from .simulation import options_given, report, run_script, save_figure, script_arguments, simulate, start, write_run
 from .solver_wrapper import Solver
 from .solvers import SOT, SolverKine
 from .stack_checks import check_stack
@@ -388,6 +388,7 @@ __all__ = [
     "minimum_jerk_moves",
     "motion_zmp",
     "obstacle_geometries",
+    "options_given",
     "pair_distances",
     "per_process",
     "polygon_margin",

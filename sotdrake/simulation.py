@@ -76,6 +76,15 @@ def script_arguments(doc: str, out: str, duration: float | None = 8.0, solver: s
     return parser
 
 
+def options_given(parser: argparse.ArgumentParser, args: argparse.Namespace, names: Sequence[str],
+                  values: bool = False) -> list[str]:
+    """The options among ``names`` (argparse destinations, e.g. ``'com_gain'``) given a value other
+    than their default, as ``--com-gain`` (with ``values``: ``--com-gain 4.0``): for a script that
+    refuses the options of another mode rather than ignore them."""
+    return [f"--{name.replace('_', '-')}" + (f" {getattr(args, name)}" if values else "") for name in names
+            if getattr(args, name) != parser.get_default(name)]
+
+
 def start(args: argparse.Namespace, live: bool = False) -> Meshcat | None:
     """Check ``--duration`` (in ``(0, MAX_DURATION]``: a day, as ``Runner.go``) and ``--out`` (a
     directory that can be created and written: checked before the run, not after it), set up

@@ -51,7 +51,7 @@ def test_nan_or_crossed_bounds_are_refused_whatever_path_is_tried(paths, lower, 
 def test_the_cascade_names_a_nan_coefficient_instead_of_failing():
     b = np.ones(1)
     free = np.full(N, np.inf)
-    with pytest.raises(InvalidInput, match="level 0: a coefficient is NaN"):
+    with pytest.raises(InvalidInput, match="level 0: level rows: NaN, infinite or beyond"):
         solve_stack(HierarchicalQP(N), StackProblem([(np.array([[np.nan, 0.0, 0.0, 0.0]]), b, b)], -free, free), BASIC)
 
 

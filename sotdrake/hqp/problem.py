@@ -88,6 +88,24 @@ def float_array(what: str, value: Any) -> np.ndarray:
     return array
 
 
+def checked_bounds(n: int, x_lower: Any, x_upper: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(x_lower, x_upper)`` as float arrays of ``n`` numbers, or :class:`InvalidInput` naming
+    what is wrong: a NaN, a lower bound above its upper one, a fixed component (lower == upper)
+    that is not finite, a finite bound beyond ±:data:`MAX_MAGNITUDE`."""
+    x_lower, x_upper = float_array("bounds", x_lower), float_array("bounds", x_upper)
+    if x_lower.shape != (n,) or x_upper.shape != (n,):
+        raise InvalidInput(f"bounds must be {n} numbers without NaN")
+    if not all_true(x_lower <= x_upper):  # (False on a NaN too: the cause is looked for only then)
+        if any_true(np.isnan(x_lower) | np.isnan(x_upper)):
+            raise InvalidInput(f"bounds must be {n} numbers without NaN")
+        raise InvalidInput(f"lower bound above upper bound at {np.flatnonzero(x_lower > x_upper)}")
+    if not all_true(np.isfinite(x_lower[x_lower == x_upper])):
+        raise InvalidInput("a fixed component (lower == upper) needs a finite value")
+    if beyond(x_lower) or beyond(x_upper):
+        raise InvalidInput(f"a finite bound beyond ±{MAX_MAGNITUDE:g}")
+    return x_lower, x_upper
+
+
 class LevelRows:
     """Rows ``lower ≤ A x ≤ upper`` of one level (``lower[i] == upper[i]``: an equality row).
 

@@ -91,9 +91,8 @@ from .problem import (
     LevelRows,
     Stage,
     _EqualityFactors,
-    beyond,
     check_solver,
-    float_array,
+    checked_bounds,
     least_norm,
     null_space,
     result_of,
@@ -204,18 +203,8 @@ class HierarchicalQP:
             raise InvalidInput(f"levels: a sequence of LevelRows (highest priority first), got {levels!r:.100}")
         if isinstance(damping, bool) or not all_numbers(damping) or np.ndim(damping) != 0 or not 0 <= damping < np.inf:
             raise InvalidInput(f"damping must be a finite number ≥ 0, got {damping!r:.60}")
-        x_lower, x_upper = float_array("bounds", x_lower), float_array("bounds", x_upper)
-        if x_lower.shape != (n,) or x_upper.shape != (n,):
-            raise InvalidInput(f"bounds must be {n} numbers without NaN")
-        if not all_true(x_lower <= x_upper):  # (False on a NaN too: the cause is looked for only then)
-            if any_true(np.isnan(x_lower) | np.isnan(x_upper)):
-                raise InvalidInput(f"bounds must be {n} numbers without NaN")
-            raise InvalidInput(f"lower bound above upper bound at {np.flatnonzero(x_lower > x_upper)}")
+        x_lower, x_upper = checked_bounds(n, x_lower, x_upper)
         fixed = x_lower == x_upper
-        if not all_true(np.isfinite(x_lower[fixed])):
-            raise InvalidInput("a fixed component (lower == upper) needs a finite value")
-        if beyond(x_lower) or beyond(x_upper):
-            raise InvalidInput(f"a finite bound beyond ±{MAX_MAGNITUDE:g}")
         for level in levels:
             if level.A.shape[1] != n:
                 raise InvalidInput(f"a level has {level.A.shape[1]} columns, expected {n}")

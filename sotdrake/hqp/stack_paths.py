@@ -55,7 +55,7 @@ from ..exceptions import InvalidInput, SolverError
 from .cascade import CascadeFactorization, cascade_factorization
 from .equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
 from .equality_stack import bound_guess, default_stages, solve_held_rows, start_inside
-from .problem import ACTIVE_SET, MAX_MAGNITUDE, NO_ACTIVE_ROWS, HqpResult, LevelRows, beyond, result_of
+from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows, checked_bounds, result_of
 from .solve import HierarchicalQP
 from .tolerances import FEASIBILITY, RANK_THRESHOLD, VERIFIED
 from .warm import WarmStart
@@ -312,29 +312,25 @@ def solve_stack(qp: HierarchicalQP, problem: StackProblem, paths: Sequence[Stack
         result = path.attempt(qp, problem)
         if result is not None:
             return result
-    wrong = _what_is_wrong(problem)
+    wrong = _what_is_wrong(problem, qp.n)
     if wrong is not None:
         raise InvalidInput(f"solve_stack: {wrong}")
     raise SolverError(f"no path answered ({', '.join(path.name for path in paths)})")
 
 
-def _what_is_wrong(problem: StackProblem) -> str | None:
-    """What keeps ``problem`` from being a stack the QP takes (a NaN, an infinite coefficient or
-    equality value, a magnitude beyond ±1e150, bounds crossed), or None: asked only when no path
-    answered, so that a path that gives up on bad input is not taken for a failure of the solver."""
-    levels = [(level.A, level.lower, level.upper) for level in problem.stacked.levels()] if problem.stacked is not None \
-        else problem.levels
-    for k, (A, lower, upper) in enumerate(levels):
-        A, lower, upper = (np.asarray(a, dtype=float) for a in (A, lower, upper))
-        if A.size and not np.abs(A).max() <= MAX_MAGNITUDE:
-            return f"level {k}: a coefficient is NaN, infinite or beyond ±{MAX_MAGNITUDE:g}"
-        equality = lower == upper
-        if np.isnan(lower).any() or np.isnan(upper).any() or not np.isfinite(lower[equality]).all() \
-                or beyond(lower) or beyond(upper):
-            return f"level {k}: a value is NaN, an infinite equality value or beyond ±{MAX_MAGNITUDE:g}"
-    x_lower, x_upper = np.asarray(problem.x_lower, dtype=float), np.asarray(problem.x_upper, dtype=float)
-    if np.isnan(x_lower).any() or np.isnan(x_upper).any() or beyond(x_lower) or beyond(x_upper):
-        return f"the bounds hold a NaN or a finite value beyond ±{MAX_MAGNITUDE:g}"
-    if (x_lower > x_upper).any():
-        return f"lower bound above upper bound at {np.flatnonzero(x_lower > x_upper)}"
+def _what_is_wrong(problem: StackProblem, n: int) -> str | None:
+    """What keeps ``problem`` from being a stack the QP takes (the refusal of :class:`LevelRows` or
+    of :func:`~.problem.checked_bounds`: a NaN, an infinite coefficient or equality value, a
+    magnitude beyond ±1e150, bounds crossed), or None: asked only when no path answered, so that a
+    path that gives up on bad input is not taken for a failure of the solver."""
+    try:
+        if problem.stacked is None:
+            for k, level in enumerate(problem.levels):
+                try:
+                    LevelRows(*level)
+                except InvalidInput as error:
+                    raise InvalidInput(f"level {k}: {error}") from None
+        checked_bounds(n, problem.x_lower, problem.x_upper)
+    except InvalidInput as error:
+        return str(error)
     return None

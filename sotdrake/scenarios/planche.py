@@ -70,6 +70,7 @@ from sotdrake import (
     add_target_marker,
     attime,
     gotoNd,
+    options_given,
     save_figure,
     script_arguments,
     simulate,
@@ -412,7 +413,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--effort", type=float, default=None,
                         help="--solver dyn, a diagnostic: Romeo's torque limits × EFFORT (default 1, the model's)")
     args = parser.parse_args(argv)
-    dynamic_only = [f"--{name}" for name in ("support", "slow", "effort") if getattr(args, name) is not None]
+    dynamic_only = options_given(parser, args, ("support", "slow", "effort"))  # (each None by default)
     if args.solver != "dyn" and dynamic_only:
         parser.error(f"{', '.join(dynamic_only)}: options of --solver dyn (this run is --solver {args.solver})")
     for name in ("slow", "effort"):

@@ -51,6 +51,7 @@ from sotdrake import (
     add_task_weight,
     attime,
     load_talos,
+    options_given,
     save_figure,
     script_arguments,
     start,
@@ -441,8 +442,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--contact-solver", choices=sorted(CONTACT_SOLVERS), default="sap",
                         help="physics: the plant's contact solver (tamsi: faster; sap: converges through any fall)")
     args = parser.parse_args(argv)
-    physics_only = [f"--{name.replace('_', '-')} {getattr(args, name)}" for name in ("contact", "contact_solver")
-                    if getattr(args, name) != parser.get_default(name)]
+    physics_only = options_given(parser, args, ("contact", "contact_solver"), values=True)
     if physics_only and args.device != "physics":
         parser.error(f"{', '.join(physics_only)}: options of --device physics (device='physics'); this run is --device {args.device}")
     meshcat = start(args)

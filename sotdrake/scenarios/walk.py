@@ -47,7 +47,17 @@ from pathlib import Path
 
 import numpy as np
 
-from sotdrake import InvalidInput, fall_report, save_figure, script_arguments, simulate, start, tilt_of_rotations, write_run
+from sotdrake import (
+    InvalidInput,
+    fall_report,
+    options_given,
+    save_figure,
+    script_arguments,
+    simulate,
+    start,
+    tilt_of_rotations,
+    write_run,
+)
 from sotdrake.walking import GaitParameters, motion_zmp
 from sotdrake.walking.com_planner import GRAVITY
 from sotdrake.walking.controller import (
@@ -347,8 +357,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--zmp-model", choices=["lipm", "multibody"], default=None,
                         help="the CoM plan: the pendulum alone, or with the legs' momentum (default: multibody in physics mode)")
     args = parser.parse_args(argv)
-    physics_only = [f"--{name.replace('_', '-')}" for name in ("stiffness", "damping", "feedforward", "com_gain", "zmp_gain",
-                                                               "closed_loop") if getattr(args, name) != parser.get_default(name)]
+    physics_only = options_given(parser, args, ("stiffness", "damping", "feedforward", "com_gain", "zmp_gain", "closed_loop"))
     if physics_only and args.mode != "physics":
         parser.error(f"{', '.join(physics_only)}: options of --mode physics (this run is --mode {args.mode})")
     if args.steps is not None and not 1 <= args.steps <= MAX_STEPS:

@@ -37,7 +37,6 @@ import argparse
 import cProfile
 import io
 import json
-import math
 import os
 import platform
 import pstats
@@ -46,7 +45,6 @@ import time
 from collections import defaultdict
 from collections.abc import Generator
 from pathlib import Path
-from typing import Any
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # a control loop's small matrices: one thread, for every peer alike
 
@@ -59,137 +57,16 @@ sys.path.insert(0, str(HERE.parent))
 from host import Steal
 from peers import finish
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
-from scenario import DT, GAIN_COM, GAIN_FEET, GAIN_HAND, TARGET, load_compiled_paths
+from report import TARGETS, check_targets, markdown, print_table
+from scenario import DT, TARGET, load_compiled_paths
+from stacks import GRIPPERS, TASK_MAKERS, build_stack, interleave, interleaved_medians, stats, tick_times, time_ticks
 
-from sotdrake.meta_tasks import MetaTaskKine6d, MetaTaskKineCom, MetaTaskKinePosture, gotoNd
-from sotdrake.robot import Robot, add_sot
-from sotdrake.robots import TALOS_GRIPPERS, load_talos
-
-GRIPPERS = TALOS_GRIPPERS
 ACTIVE_TARGET = np.array([-0.45, -0.35, 1.0])  # the hand behind the back: joint limits active
 
+__all__ = ["ACTIVE_TARGET", "GRIPPERS", "TARGETS", "TASK_MAKERS", "build_stack", "check_targets", "interleave",
+           "interleaved_medians", "markdown", "print_table", "stats", "tick_times", "time_ticks"]
+
 # --- the sotdrake stacks ---------------------------------------------------------------------
-
-
-#: The tasks of the benchmark stacks, by name (``build_stack``'s ``names``), in the order of the
-#: ten-task stack: the feet, the CoM, the hand, then 6D tasks and the posture.
-TASK_MAKERS = {
-    "contactRF": lambda robot: MetaTaskKine6d("contactRF", robot, "RF", "right-ankle"),
-    "contactLF": lambda robot: MetaTaskKine6d("contactLF", robot, "LF", "left-ankle"),
-    "com": lambda robot: MetaTaskKineCom(robot),
-    "rh": lambda robot: MetaTaskKine6d("rh", robot, "rh", "right-wrist"),
-    "lh": lambda robot: MetaTaskKine6d("lh", robot, "lh", "left-wrist"),
-    "chest": lambda robot: MetaTaskKine6d("chest", robot, "chest", "chest"),
-    "head": lambda robot: MetaTaskKine6d("head", robot, "head", "gaze"),
-    "relbow": lambda robot: MetaTaskKine6d("relbow", robot, "relbow", "arm_right_4_joint"),
-    "lelbow": lambda robot: MetaTaskKine6d("lelbow", robot, "lelbow", "arm_left_4_joint"),
-    "posture": lambda robot: MetaTaskKinePosture(robot),
-}
-
-
-def build_stack(solver: str = "cascade", variant: str = "reduced", tasks: int = 4, target=TARGET,
-                names: list[str] | None = None, full_6d: bool = False):
-    """The scenario's stack (feet, CoM, hand), or the first ``tasks`` of a longer list (one: the
-    hand alone), or the tasks ``names`` of :data:`TASK_MAKERS` in that order. ``full_6d``: the
-    extra 6D tasks (``lh``, ``chest``, ``head``, the elbows) keep their six rows (by default the
-    hand and elbows keep the position, the chest and head the orientation)."""
-    builder = DiagramBuilder()
-    model = load_talos(variant)
-    robot = Robot(builder, model, DT)
-    sot = add_sot(robot, solver=solver)
-    excluded = [g for g in GRIPPERS if model.plant.HasJointNamed(g)]
-    sot.setControlSelection(robot.velocity_selection(excluding=excluded))
-    hand = None
-    if variant == "left_arm":
-        hand = MetaTaskKine6d("lh", robot, "lh", "left-wrist")
-        gotoNd(hand, hand.current_pose().translation() + [0.05, 0.05, 0.1], "111", GAIN_HAND)
-        sot.push(hand.task.name)
-        return robot, sot, hand, builder.Build()
-    if names is None:
-        names = ["rh"] if tasks == 1 else list(TASK_MAKERS)[:tasks]
-    for key in names:
-        meta = TASK_MAKERS[key](robot)
-        name = meta.task.name
-        if name in ("taskcontactRF", "taskcontactLF"):
-            meta.gain.setConstant(GAIN_FEET)
-        elif name == "taskcom":
-            meta.gain.setConstant(GAIN_COM)
-        elif name == "taskrh":
-            hand = meta
-            meta.opmodif = np.array([[1, 0, 0, 0.1], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-            gotoNd(meta, target, "111", GAIN_HAND)
-        elif name in ("tasklh", "taskrelbow", "tasklelbow"):
-            if not full_6d:
-                meta.feature.selec("111")
-            meta.gain.setConstant(1.0)
-        elif name in ("taskchest", "taskhead"):
-            if not full_6d:
-                meta.feature.selec("111000")  # orientation only
-            meta.gain.setConstant(1.0)
-        sot.push(name)
-    return robot, sot, hand, builder.Build()
-
-
-def tick_times(diagram, ticks: int, warmup: int, sample=None,
-               gen2: list[int] | None = None) -> Generator[None, None, tuple[np.ndarray, Simulator, np.ndarray]]:
-    """Wall time and CPU time (this thread's) of each tick (AdvanceTo one tick at a time), one tick
-    per ``next`` (see :func:`interleave`); ``sample(context)`` runs every 10 ticks outside the timed
-    region. Returns ``(wall, simulator, cpu)``, in seconds. As ``simulate`` does, the garbage
-    collector is collected and frozen after the build (:func:`sotdrake.simulation.frozen_gc`);
-    ``gen2`` gets the number of full (generation 2) collections that ran inside the timed ticks
-    (target 0)."""
-    from sotdrake.simulation import frozen_gc, gen2_collections
-
-    simulator = Simulator(diagram)
-    simulator.Initialize()
-    times, cpu = np.empty(warmup + ticks), np.empty(warmup + ticks)
-    full = 0
-    with frozen_gc():
-        for k in range(warmup + ticks):
-            t = (k + 1) * DT - 0.5 * DT  # the tick at k·dt runs inside this call
-            before = gen2_collections()
-            start, start_cpu = time.perf_counter(), time.thread_time()
-            simulator.AdvanceTo(t)
-            times[k], cpu[k] = time.perf_counter() - start, time.thread_time() - start_cpu
-            full += gen2_collections() - before
-            if sample is not None and k % 10 == 0:
-                sample(simulator.get_context())
-            yield
-    if gen2 is not None:
-        gen2.append(full)
-    return times[warmup:], simulator, cpu[warmup:]
-
-
-def time_ticks(diagram, ticks: int, warmup: int, sample=None) -> tuple[np.ndarray, Simulator, np.ndarray]:
-    """:func:`tick_times` run to its end."""
-    return finish(tick_times(diagram, ticks, warmup, sample))
-
-
-def interleave(runs: dict[str, tuple[Generator[None, None, Any], int]], turns: int = 40) -> dict[str, Any]:
-    """Run tick generators (``name: (generator, its number of ticks)``) in ``turns`` turns, each run
-    advancing ``ceil(ticks / turns)`` ticks per turn so that they all end in the last turn: every
-    run sees the same seconds of a shared host, whose speed swings within seconds, and the ratio of
-    two runs' medians compares like with like. Returns each run's result."""
-    results: dict[str, Any] = {}
-    steps = {name: math.ceil(count / turns) for name, (_, count) in runs.items()}
-    while len(results) < len(runs):
-        for name, (run, _) in runs.items():
-            if name in results:
-                continue
-            for _ in range(steps[name]):
-                try:
-                    next(run)
-                except StopIteration as done:
-                    results[name] = done.value
-                    break
-    return results
-
-
-def stats(times_s: np.ndarray) -> dict:
-    us = 1e6 * np.asarray(times_s)
-    return {"median": float(np.median(us)), "p95": float(np.percentile(us, 95)), "p99": float(np.percentile(us, 99)),
-            "max": float(us.max()), "n": int(us.size)}
 
 
 def sotdrake_run(solver: str, ticks: int, warmup: int, target=TARGET) -> dict:
@@ -359,28 +236,6 @@ def profile(path: Path, ticks: int) -> None:
 # --- scaling, physics, peers ----------------------------------------------------------------------
 
 
-def interleaved_medians(diagrams: dict, ticks: int, warmup: int, chunk: int = 50) -> tuple[dict, dict]:
-    """Median tick (µs), wall and CPU, of each diagram, timed in turns of ``chunk`` ticks (round
-    robin), so that a change of the machine's load falls on all of them alike."""
-    simulators = {}
-    for key, diagram in diagrams.items():
-        simulators[key] = Simulator(diagram)
-        simulators[key].Initialize()
-        simulators[key].AdvanceTo((warmup - 0.5) * DT)
-    times = {key: [] for key in diagrams}
-    cpu = {key: [] for key in diagrams}
-    for _ in range(max(1, ticks // chunk)):
-        for key, simulator in simulators.items():
-            t0 = simulator.get_context().get_time()
-            for k in range(chunk):
-                start, start_cpu = time.perf_counter(), time.thread_time()
-                simulator.AdvanceTo(t0 + (k + 1) * DT)
-                times[key].append(time.perf_counter() - start)
-                cpu[key].append(time.thread_time() - start_cpu)
-    return ({key: float(np.median(v)) * 1e6 for key, v in times.items()},
-            {key: float(np.median(v)) * 1e6 for key, v in cpu.items()})
-
-
 def _slope(by_tasks: dict) -> float:
     counts = np.arange(2, 11)
     return float(np.polyfit(counts, [by_tasks[n] for n in counts], 1)[0])
@@ -483,41 +338,6 @@ def paired_ratio(rounds: int, ticks: int, warmup: int, solver: str = "cascade", 
 
 
 REFERENCE = HERE / "reference.json"  # the committed reference run; only --save overwrites it
-
-#: The targets of the basic ``SOT`` tick (issue "a control tick that holds 1 kHz"): key of the
-#: verdict (CPU time: a shared machine's other jobs do not inflate it by descheduling), key of the
-#: same quantity in wall-clock time, sense, bound, label.
-TARGETS = {
-    "ratio_vs_pink": ("ratio_vs_pink_cpu_paired", "ratio_vs_pink_paired", "<=", 1.0, "basic SOT tick / pink's median (paired runs)"),
-    "ratio_vs_pink_stretch": ("ratio_vs_pink_cpu_paired", "ratio_vs_pink_paired", "<=", 0.5, "the same, stretch target"),
-    "tick_p99": ("tick_cpu_us_p99", "tick_us_p99", "<=", 1000.0, "basic SOT tick p99 (µs)"),
-    "marginal_task": ("marginal_task_cpu_us", "marginal_task_us", "<=", 40.0, "marginal cost of one more task (µs)"),
-    "realtime_factor_kinematic": ("realtime_factor_kinematic_cpu", "realtime_factor_kinematic", ">=", 3.0,
-                                  "real-time factor, kinematic tutorial"),
-    "realtime_factor_physics": ("realtime_factor_physics_cpu", "realtime_factor_physics", ">=", 1.0,
-                                "real-time factor, physics (talos_physics reach)"),
-    "hqp_random_median": ("hqp_random_solve_cpu_ms_median", "hqp_random_solve_ms_median", "<=", 1.0,
-                          "HQP on random stacks, median solve (ms)"),
-    "hqp_vs_plain_reference": ("hqp_random_ratio_vs_plain", "hqp_random_ratio_vs_plain", "<=", 0.5,
-                               "HQP on random stacks / a plain lexicographic reference (per-stack median, CPU)"),
-    "hqp_active_ratio": ("hqp_active_ratio_vs_pink", "hqp_active_ratio_vs_pink", "<=", 2.0,
-                         "`SolverKine` tick with active limits / pink's median"),
-}
-
-
-def _values(r: dict) -> dict:
-    return dict(r, tick_cpu_us_p99=r.get("tick_cpu_us", {}).get("p99"), tick_us_p99=r["tick_us"].get("p99"))
-
-
-def check_targets(results: dict) -> dict:
-    """``{target: True/False}`` for each target whose number (CPU time) was measured."""
-    values = _values(results)
-    met = {}
-    for key, (cpu_key, _, sense, bound, _) in TARGETS.items():
-        if values.get(cpu_key) is not None:
-            met[key] = values[cpu_key] <= bound if sense == "<=" else values[cpu_key] >= bound
-    return met
-
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
@@ -639,110 +459,6 @@ def main(argv=None) -> dict:
         REFERENCE.write_text(text)
     print_table(results)
     return results
-
-
-def _fmt(value, spec: str) -> str:
-    return "n/a" if value is None else format(value, spec)
-
-
-def markdown(r: dict) -> str:
-    """The README's benchmark tables, from a run's JSON."""
-    def row(name, t, acc, cpu=None):
-        cpu_text = "" if cpu is None else f"{cpu['median']:.0f} / {cpu['p99']:.0f}"
-        return (f"| {name} | {cpu_text} | {t['median']:.0f} | {t['p95']:.0f} | {_fmt(t.get('p99'), '.0f')} | "
-                f"{acc['hand_error_m']:.1e} | {acc['max_foot_drift_m']:.1e} | {acc['max_com_drift_m']:.1e} |")
-
-    lines = ["| peer (same scenario, same run) | CPU median / p99 (µs) | wall median (µs) | wall p95 (µs) | wall p99 (µs) "
-             "| hand error (m) | max foot drift (m) | max CoM drift (m) |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- |",
-             row("sotdrake `SOT` (strict cascade)", r["tick_us"], r["accuracy"]["sotdrake"], r.get("tick_cpu_us")),
-             row("sotdrake `SolverKine` (HQP, limits hard)", r["hqp_tick_us"], r["accuracy"]["sotdrake_hqp"]),
-             row("… with joint limits active (target behind the back)", r["hqp_active_limits_tick_us"],
-                 r["accuracy"]["sotdrake_hqp_active_limits"])]
-    for name, label in (("pink", "pink {} (weighted QP, daqp)"), ("placo", "placo {} (C++ core; feet hard, CoM and hand soft)")):
-        peer_run = r.get(name, {})
-        if peer_run.get("available"):
-            lines.append(row(label.format(peer_run.get("version", "")), peer_run["tick_us"], peer_run["accuracy"],
-                             peer_run.get("tick_cpu_us")))
-        else:
-            lines.append(f"| {name} | {peer_run.get('reason', 'not run')} | | | | | | |")
-    met = r.get("targets", {})
-    values = _values(r)
-    lines += ["", "| quantity | CPU time | wall clock | target (on CPU time) |", "| --- | --- | --- | --- |"]
-    for key, (cpu_key, wall_key, sense, bound, label) in TARGETS.items():
-        verdict = "" if key not in met else (" (met)" if met[key] else " (**not met**)")
-        lines.append(f"| {label} | {_fmt(values.get(cpu_key), '.2f')} | {_fmt(values.get(wall_key), '.2f')} | "
-                     f"{sense.replace('<=', '≤').replace('>=', '≥')} {bound:g}{verdict} |")
-    for key, label in (("ratio_vs_pink_cpu", "basic SOT tick / pink's, the long runs above (CPU time)"),
-                       ("ratio_vs_pink", "basic SOT tick / pink's, the long runs above (wall clock)"),
-                       ("hqp_ratio_vs_pink", "`SolverKine` tick / pink's (wall clock)"),
-                       ("hqp_active_ratio_vs_pink_cpu_paired", "`SolverKine` tick with active limits / pink's (paired runs, CPU time)"),
-                       ("hqp_active_ratio_vs_pink_paired", "`SolverKine` tick with active limits / pink's (paired runs, wall clock)"),
-                       ("ratio_vs_placo", "basic SOT tick / placo's (wall clock)")):
-        if key in r:
-            lines.append(f"| {label} | {r[key]:.2f} | | |")
-    lines += ["", "Median tick, CPU time (µs), by number of tasks: "
-              + ", ".join(f"{n}: {v:.0f}" for n, v in r.get("tick_cpu_us_median_by_tasks", {}).items())
-              + "; by DoF, one hand task: "
-              + ", ".join(f"{n}: {v:.0f}" for n, v in r.get("tick_cpu_us_median_by_dof", {}).items()) + ".",
-              "Median tick, wall clock (µs), by number of tasks: "
-              + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_tasks"].items())
-              + "; by DoF, one hand task: " + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_dof"].items()) + ".",
-              *([f"Framework floor (`bench/floor.py`: the same graph, callbacks without maths), CPU time: "
-                 f"{r['framework_floor_cpu_us_per_task']:.1f} µs per task."] if "framework_floor_cpu_us_per_task" in r else []),
-              "Breakdown of the basic tick (exclusive time): "
-              + ", ".join(f"{k} {100 * v:.0f}%" for k, v in sorted(r["breakdown_fraction"].items(), key=lambda x: -x[1])) + "."]
-    if "machine" in r:
-        m = r["machine"]
-        lines.append(f"Measured {r.get('date', '')} on {m.get('cpus')} CPUs, "
-                     f"load average {', '.join(f'{x:.1f}' for x in m.get('load_average', []))}"
-                     + (f", {Steal.describe(m['host_steal_fraction'])}" if "host_steal_fraction" in m else "") + ".")
-    return "\n".join(lines)
-
-
-def print_table(r: dict) -> None:
-    def row(name, t, acc):
-        return (f"{name:28s} {t['median']:9.1f} {t['p95']:9.1f} {t['p99']:9.1f} {t['max']:9.1f}   "
-                f"{acc['hand_error_m']:10.2e} {acc['max_foot_drift_m']:10.2e} {acc['max_com_drift_m']:10.2e}")
-
-    print(f"\nhand error and drifts after {r['accuracy_after_s']:.1f} s of the run; real-time factors without Meshcat")
-    print(f"\n{'tick (µs), accuracy (m)':28s} {'p50':>9s} {'p95':>9s} {'p99':>9s} {'max':>9s}   "
-          f"{'hand err':>10s} {'foot drift':>10s} {'CoM drift':>10s}")
-    print(row("sotdrake SOT (cascade)", r["tick_us"], r["accuracy"]["sotdrake"]))
-    print(row("  … its CPU time", r["tick_cpu_us"], r["accuracy"]["sotdrake"]))
-    print(row("sotdrake SolverKine (HQP)", r["hqp_tick_us"], r["accuracy"]["sotdrake_hqp"]))
-    print(row("  … limits active", r["hqp_active_limits_tick_us"], r["accuracy"]["sotdrake_hqp_active_limits"]))
-    for name in ("pink", "placo"):
-        if r[name].get("available"):
-            print(row(f"{name} {r[name].get('version', '')}", r[name]["tick_us"], r[name]["accuracy"]))
-        else:
-            print(f"{name:28s} {r[name]['reason']}")
-    print()
-    for key in ("ratio_vs_pink_cpu_paired", "ratio_vs_pink_paired", "ratio_vs_pink_cpu", "ratio_vs_pink", "hqp_ratio_vs_pink",
-                "hqp_active_ratio_vs_pink", "hqp_active_ratio_vs_pink_cpu_paired", "hqp_active_ratio_vs_pink_paired",
-                "ratio_vs_placo", "marginal_task_cpu_us", "marginal_task_us", "realtime_factor_kinematic_cpu",
-                "realtime_factor_kinematic", "realtime_factor_physics_cpu", "realtime_factor_physics"):
-        if key in r:
-            print(f"{key:36s} {r[key]:.2f}")
-    if "gen2_collections_in_ticks" in r:
-        print(f"{'full GC collections in the ticks':36s} {r['gen2_collections_in_ticks']} (target 0)")
-    h = r["hqp_random"]
-    print(f"\nHQP on {h['count']} random stacks (ms): median {h['median']:.3f}, p99 {h['p99']:.3f}, max {h['max']:.3f}"
-          + f"; CPU time median {h['cpu_ms_median']:.3f}"
-          + (f" (plain lexicographic reference {h['plain_reference_cpu_ms_median']:.3f}; per-stack ratio median "
-             f"{h['ratio_median']:.2f}, target ≤ 0.5)" if "ratio_median" in h else ""))
-    print(f"HQP solver's own share of the active-limits tick: median {r['hqp_active_solver_us_median']:.0f} µs"
-          f" of {r['hqp_active_tick_us_median']:.0f} µs")
-    print("\nbreakdown of the basic tick: "
-          + ", ".join(f"{k} {100 * v:.0f}%" for k, v in sorted(r["breakdown_fraction"].items(), key=lambda x: -x[1])))
-    print("tick (µs) by number of tasks: " + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_tasks"].items()))
-    print(f"marginal cost of one more task: {r['marginal_task_cpu_us']:.1f} µs CPU, {r['marginal_task_us']:.1f} µs wall clock")
-    if "framework_floor_cpu_us_per_task" in r:
-        print("framework floor (bench/floor.py: the same graph, callbacks without maths): "
-              f"{r['framework_floor_cpu_us_per_task']:.1f} µs CPU per task; "
-              + ", ".join(f"{n}: {v:.0f}" for n, v in r["framework_floor_cpu_us_by_tasks"].items()))
-    print("tick (µs) by DoF (one hand task): " + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_dof"].items()))
-    print("targets (CPU time): " + ", ".join(f"{TARGETS[k][4]}: {'met' if v else 'NOT met'}" for k, v in r["targets"].items()))
 
 
 if __name__ == "__main__":

@@ -55,6 +55,15 @@ def test_a_file_that_is_not_utf8_or_a_corrupt_mesh(tmp_path):
         load_robot(_write(tmp_path, "mesh.urdf", chain_urdf("mesh", ["0 0 1"], 0.3, [(-1, 1)], visual=mesh)), meshes=True)
 
 
+@pytest.mark.parametrize("content", [b"", b"solid x\nnot a facet\nendsolid x\n", b"\0" * 80 + (1000).to_bytes(4, "little") + b"\1" * 100],
+                         ids=["empty", "ascii-garbage", "truncated-binary"])
+def test_an_stl_without_triangles_is_refused(tmp_path, content):
+    (tmp_path / "part.stl").write_bytes(content)
+    mesh = '<visual><geometry><mesh filename="part.stl"/></geometry></visual>'
+    with pytest.raises(RobotDescriptionError, match=r"part\.stl.*no triangle"):
+        load_robot(_write(tmp_path, "stl.urdf", chain_urdf("stl", ["0 0 1"], 0.3, [(-1, 1)], visual=mesh)), meshes=True)
+
+
 @pytest.mark.parametrize(("value", "message"), [
     ("abc", "not a list of numbers"), ("nan", "not finite"),
 ])
@@ -127,6 +136,28 @@ def test_mimic_followers_are_reported(tmp_path, caplog):
     with caplog.at_level(logging.WARNING, logger="sotdrake.robots.from_file"):
         load_robot(_write(tmp_path, "mimic.urdf", text))
     assert any("joint2" in r.getMessage() and "velocity_selection" in r.getMessage() for r in caplog.records)
+
+
+@pytest.mark.parametrize(("multiplier", "offset"), [("-1", None), ("0.5", "0.1"), ("3", None)])
+def test_mimic_followers_follow_their_leader_in_the_reference_posture(tmp_path, multiplier, offset):
+    """q0 is a posture the physics holds: q_f = m q_l + offset (clipped into the follower's limits)."""
+    text = chain_urdf("mimic", ["0 0 1", "0 1 0"], 0.3, [(-1, 1), (-1, 1)])
+    mimic = f'<mimic joint="joint1" multiplier="{multiplier}"' + (f' offset="{offset}"' if offset else "") + "/>"
+    text = text.replace('name="joint2" type="revolute">', f'name="joint2" type="revolute">{mimic}')
+    path = _write(tmp_path, "mimic.urdf", text)
+    for given in ({"joint1": 0.4}, [0.4, 0.0], {"joint1": 0.4, "joint2": -0.9}):
+        model = load_robot(path, reference_posture=given)
+        expected = np.clip(float(multiplier) * 0.4 + float(offset or 0.0), -1, 1)
+        assert model.mimic == {"joint2": ("joint1", float(multiplier), float(offset or 0.0))}
+        assert model.half_sitting.tolist() == pytest.approx([0.4, expected], abs=1e-15)
+
+
+def test_a_catalog_robot_s_mimic_fingers_start_coupled():
+    model = load_robot("panda")
+    q = {name: model.half_sitting[model.plant.GetJointByName(name).position_start()]
+         for name in ("panda_finger_joint1", "panda_finger_joint2")}
+    assert model.mimic == {"panda_finger_joint2": ("panda_finger_joint1", 1.0, 0.0)}
+    assert q["panda_finger_joint2"] == q["panda_finger_joint1"] != 0.0
 
 
 def test_refusals_are_sot_errors(tmp_path):

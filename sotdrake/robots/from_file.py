@@ -23,7 +23,8 @@ Any frame, link or joint name is accepted where an op point is expected.
 
 Reference posture ``q0``: the given array (nq, Drake's order) or ``{joint: value}``, else an SRDF
 ``group_state`` (the one named, else ``half_sitting``, ``standing``, ``default``, ``home``,
-``ready``, else the first), else every joint at 0; always clipped into the joint limits. The SRDF
+``ready``, else the first), else every joint at 0; always clipped into the joint limits, a
+``<mimic>`` follower set from its leader (``q_f = multiplier q_l + offset``, as the physics holds it). The SRDF
 is ``srdf=`` or, when not given, ``<name>.srdf`` beside the file or in a sibling ``srdf/`` folder.
 """
 
@@ -44,11 +45,12 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import BodyIndex, JointIndex, ModelInstanceIndex
 
-from ..exceptions import InvalidInput, NotFound, RobotDescriptionError, RobotFileNotFound, check_finite
+from ..exceptions import InvalidInput, RobotDescriptionError, RobotFileNotFound
 from .catalog import ROBOTS
-from .model import OperationalPoints, RobotModel, posture_from_srdf
+from .mimic import mimic_table
+from .model import OperationalPoints, RobotModel
+from .model_defaults import operational_points_of, posture_of
 from .packages import PackageResolver
-from .srdf import PostureNotFound, group_state_names, read_end_effectors
 from .urdf_checks import positive_lengths
 from .urdf_text import prepare_urdf
 
@@ -56,9 +58,6 @@ log = logging.getLogger(__name__)
 
 #: Suffix → Drake's parser format (``.xml`` is told apart by its root element).
 FORMATS = {".urdf": "urdf", ".sdf": "sdf", ".mjcf": "mjcf", ".xml": "xml"}
-
-#: SRDF group states tried, in order, when no reference posture is named.
-PREFERRED_POSTURES = ("half_sitting", "standing", "default", "home", "ready")
 
 PathArg = str | PathLike[str]
 
@@ -301,91 +300,6 @@ def _movable_dofs(plant: MultibodyPlant) -> int:
     )
 
 
-def default_operational_points(model: RobotModel) -> dict[str, str]:
-    """The SRDF's end effectors, the leaf links and, for a floating base, ``waist`` (see the module
-    docstring)."""
-    plant = model.plant
-    points: dict[str, str] = {}
-    if model.srdf_path is not None:
-        points.update({n: link for n, link in read_end_effectors(model.srdf_path).items() if plant.HasFrameNamed(link)})
-    parents = {plant.get_joint(j).parent_body().index() for j in plant.GetJointIndices()}
-    for index in range(1, plant.num_bodies()):
-        body = plant.get_body(BodyIndex(index))
-        if body.index() not in parents:
-            points.setdefault(body.name(), body.name())
-    if plant.GetFloatingBaseBodies():
-        points["waist"] = "root_joint"
-    return points
-
-
-def operational_points_of(model: RobotModel, given: Mapping[str, str] | Sequence[str] | None) -> OperationalPoints:
-    """The op-point map of ``model``: ``given`` (checked: each target must be a joint, link or frame
-    of the model, else :class:`~sotdrake.exceptions.FrameNotFound` listing them) or the defaults."""
-    if given is None:
-        return OperationalPoints(default_operational_points(model))
-    if isinstance(given, str) or not isinstance(given, (Mapping, Sequence)):
-        raise InvalidInput(
-            f"operational_points: expected a dict of op-point name → frame name, or a list of frame names, got {given!r:.100}"
-        )
-    points = dict(given) if isinstance(given, Mapping) else {name: name for name in given}
-    for name, target in points.items():
-        if not isinstance(name, str) or not isinstance(target, str):
-            raise InvalidInput(f"operational_points: names and frames are strings, got {name!r}: {target!r}")
-        model.frame(target)  # raises FrameNotFound naming the model's frames
-    return OperationalPoints(points)
-
-
-def posture_of(model: RobotModel, given: Any, start: np.ndarray | None = None) -> np.ndarray:
-    """The reference posture (see the module docstring), clipped into the joint limits; a group
-    state or a ``{joint: value}`` changes ``start`` (default: the default positions)."""
-    plant = model.plant
-    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
-    q = np.clip(plant.GetDefaultPositions() if start is None else np.array(start, dtype=float), lower, upper)
-    srdf = model.srdf_path
-    if isinstance(given, str):
-        if srdf is None:
-            raise InvalidInput(
-                f"reference_posture={given!r} names an SRDF group state, but the robot has no SRDF: "
-                "give srdf='path/to/robot.srdf', or the posture as an array or {joint: value}"
-            )
-        names = group_state_names(srdf)
-        if given not in names:
-            raise PostureNotFound(given, names)
-        q = posture_from_srdf(plant, srdf, given, q)
-    elif isinstance(given, Mapping):
-        context = plant.CreateDefaultContext()
-        plant.SetPositions(context, q)
-        for joint_name, value in given.items():
-            if not isinstance(joint_name, str) or not plant.HasJointNamed(joint_name):
-                raise NotFound(str(joint_name), [plant.get_joint(j).name() for j in plant.GetJointIndices()]).but(
-                    "reference_posture: a joint's name")
-            joint = plant.GetJointByName(joint_name)
-            values = check_finite(f"reference_posture[{joint_name!r}]", np.atleast_1d(value), (joint.num_positions(),))
-            q[joint.position_start() : joint.position_start() + joint.num_positions()] = values
-        _normalize_base_quaternions(plant, q)
-    elif given is not None:
-        q = check_finite("reference_posture (q0, Drake's order)", given, (plant.num_positions(),)).copy()
-        _normalize_base_quaternions(plant, q)
-    elif srdf is not None:
-        names = group_state_names(srdf)
-        preferred = [n for n in PREFERRED_POSTURES if n in names] or names[:1]
-        if preferred:
-            q = posture_from_srdf(plant, srdf, preferred[0], q)
-    return np.clip(q, lower, upper)
-
-
-def _normalize_base_quaternions(plant: MultibodyPlant, q: np.ndarray) -> None:
-    """Each floating base's quaternion in ``q`` made unit (the given one, normalized); a zero one is
-    refused (:class:`InvalidInput`)."""
-    for body in plant.GetFloatingBaseBodies():
-        start = plant.get_body(body).floating_positions_start()
-        norm = float(np.linalg.norm(q[start:start + 4]))
-        if norm == 0.0:
-            raise InvalidInput(f"reference_posture: the floating base's quaternion q[{start}:{start + 4}] (w, x, y, z) "
-                               "is zero; e.g. (1, 0, 0, 0) for no rotation")
-        q[start:start + 4] /= norm
-
-
 def load_robot_file(
     path: PathArg,
     meshes: bool = False,
@@ -448,5 +362,7 @@ def load_robot_file(
         },
     )
     model.OperationalPointsMap.update(operational_points_of(model, operational_points))
+    if _format(file) == "urdf":
+        model.mimic = mimic_table(_read_text(file))
     model.half_sitting = posture_of(model, reference_posture)
     return model

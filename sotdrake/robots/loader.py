@@ -31,8 +31,10 @@ from pydrake.multibody.tree import ModelInstanceIndex, PlanarJoint
 
 from ..exceptions import InvalidInput, RobotNotFound, SotError, VariantNotFound
 from .catalog import BASES, ROBOTS, RobotSpec
-from .from_file import add_robot_file, check_time_step, drake_refusals, load_robot_file, looks_like_path, operational_points_of, posture_of
+from .from_file import add_robot_file, check_time_step, drake_refusals, load_robot_file, looks_like_path
+from .mimic import follow_mimics, mimic_table
 from .model import RobotModel, posture_from_srdf, register_loader
+from .model_defaults import operational_points_of, posture_of
 from .srdf import read_group_state
 from .urdf_text import prepare_urdf
 
@@ -121,15 +123,12 @@ def joint_table(urdf_text: str) -> tuple[dict[str, float], set[str]]:
     """Effort limit of each joint and the set of mimic followers, read from the URDF."""
     root = ET.fromstring(urdf_text)
     effort: dict[str, float] = {}
-    followers: set[str] = set()
     for joint in root.iter("joint"):
         name, limit = joint.get("name", ""), joint.find("limit")
         limit_effort = float(limit.get("effort") or 0) if limit is not None else 0.0
         if limit_effort > 0:  # 0: not given (Romeo's fingers)
             effort[name] = limit_effort
-        if joint.find("mimic") is not None and joint.get("type") != "fixed":
-            followers.add(name)
-    return effort, followers
+    return effort, set(mimic_table(urdf_text))
 
 
 def add_actuators(plant: MultibodyPlant, instance: ModelInstanceIndex, urdf_text: str) -> None:
@@ -324,5 +323,6 @@ def _load_catalog_robot(name: str, variant: str | None, meshes: bool, time_step:
         {op: target for op, target in spec.op_points.items() if _has_target(plant, target)}
     )
     soles = [model.frame(s) for s in spec.soles]
-    model.half_sitting = reference_posture(plant, spec, model.srdf_path, soles)
+    model.mimic = mimic_table(robot_urdf_text(name, variant))
+    model.half_sitting = follow_mimics(plant, model.mimic, reference_posture(plant, spec, model.srdf_path, soles))
     return model

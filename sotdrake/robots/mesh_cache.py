@@ -16,6 +16,8 @@ import os
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from ..exceptions import InvalidInput, RobotDescriptionError, os_reason
 
 
@@ -48,6 +50,9 @@ def obj_for_mesh(mesh_path: Path) -> Path:
         mesh = trimesh.load(source, file_type=file_type, force="mesh")
     except Exception as error:  # (each reader has its own errors: pycollada's, numpy's, struct's …)
         raise RobotDescriptionError(f"{source}: the mesh does not load ({type(error).__name__}: {error})") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0 or not np.isfinite(mesh.vertices).all():
+        raise RobotDescriptionError(f"{source}: the mesh has no triangle or a non-finite vertex (an empty, truncated or "
+                                    "corrupt file)")
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=target.parent, suffix=".obj.tmp")

@@ -64,6 +64,8 @@ class RobotModel:
     source_path: Path | None = None
     #: the keyword arguments it was loaded with (to load it again, e.g. with meshes)
     load_options: dict[str, Any] = field(default_factory=dict, repr=False)
+    #: the URDF's ``<mimic>`` joints: follower → (leader, multiplier, offset), ``q_f = m q_l + offset``
+    mimic: dict[str, tuple[str, float, float]] = field(default_factory=dict)
     _frames: dict[str, Frame] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:

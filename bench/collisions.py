@@ -10,7 +10,7 @@ The stacks (``sotdrake.collision.reach``) drive the right hand point to the tuto
 (0.5, -0.2, 1.0) under SolverKine; they are advanced in alternating blocks so that all see the same
 load on the host:
 
-* ``without``: no collision level; ``with``: every pair (887 self pairs from the SRDF, 46 link–table
+* ``without``: no collision level; ``with``: every pair (887 self pairs from the SRDF, 52 body–table
   pairs); ``with_arm_pairs``: the 143 pairs a user would pick for this reach; ``self_only``: the
   887 self pairs, no table (the side-by-side with placo); ``empty_level``: a collision level whose
   one pair never comes in range, so what remains is what an inequality level costs the solver.

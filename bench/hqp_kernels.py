@@ -155,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.merge:
         code = merge(args.merge, args.out)
         if args.save:
-            write_json(json.loads(args.out.read_text()), args.out, save=True, indent=1)
+            write_json(json.loads(args.out.read_text()), args.out, save=args.save, indent=1)
         return code
     if args.worker:
         Path(args.worker).write_text(json.dumps(sweep(args.first, args.count, args.reuse)))

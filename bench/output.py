@@ -18,14 +18,17 @@ def add_output_arguments(parser: argparse.ArgumentParser, name: str, *aliases: s
     ``bench/results/<name>``) and ``--save``."""
     parser.add_argument(flag, *aliases, type=Path, default=RESULTS / name,
                         help=f"the JSON file written (default: bench/results/{name}, ignored by git)")
-    parser.add_argument("--save", action="store_true",
+    parser.add_argument("--save", action="store_const", const=REFERENCE / name, default=None,
                         help=f"also write bench/reference/{name}, the committed run the docs' tables show")
 
 
-def write_json(data: object, out: Path, save: bool = False, indent: int = 2) -> list[Path]:
-    """Write ``data`` as JSON to ``out`` and, with ``save``, to ``bench/reference/<out's name>``."""
+def write_json(data: object, out: Path, save: bool | Path | None = False, indent: int = 2) -> list[Path]:
+    """Write ``data`` as JSON to ``out`` and, with ``save``, to the reference file: ``save`` itself
+    (what ``--save`` holds: the bench's own reference, whatever ``out`` is), or with ``True``
+    ``bench/reference/<out's name>``."""
     text = json.dumps(data, indent=indent, default=repr) + "\n"
-    paths = [Path(out)] + ([REFERENCE / Path(out).name] if save else [])
+    reference = save if isinstance(save, Path) else REFERENCE / Path(out).name
+    paths = [Path(out)] + ([reference] if save else [])
     for path in paths:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text)

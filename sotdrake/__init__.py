@@ -77,7 +77,7 @@ from .stack_checks import check_stack
 from .target_marker import TargetMarker, desired_position
 from .task import Task, TaskInequality, TaskLevel, TaskPD
 from .task_weight import TaskWeight, add_task_weight, weighted_level
-from .tracing import Tracer
+from .tracing import Tracer, flush_tracers, read_trace
 from .visualization import (
     add_robot_visualizer,
     add_target_marker,
@@ -369,6 +369,7 @@ __all__ = [
     "entity",
     "fall_report",
     "fall_thresholds",
+    "flush_tracers",
     "footprint",
     "friction_ratio",
     "gotoNd",
@@ -393,6 +394,7 @@ __all__ = [
     "per_process",
     "polygon_margin",
     "random_cases",
+    "read_trace",
     "replan",
     "report",
     "robot",

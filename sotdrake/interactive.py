@@ -4,7 +4,9 @@
 ``Runner`` wraps a ``Simulator``: ``next()`` advances one control tick (``device.increment(dt)``),
 ``step(n)`` n ticks, ``go(duration=None)`` runs for ``duration`` seconds, or until Ctrl-C when None
 (the seed's infinite ``go``). Between them, issue commands with ``context=runner.context``
-(``sot.push("taskrh", runner.context)``); ``attime`` events in the diagram fire as they come.
+(``sot.push("taskrh", runner.context)``); ``attime`` events in the diagram fire as they come. The
+diagram's streaming tracers are flushed as the run goes (:func:`sotdrake.tracing.flush_tracers`),
+so that an endless ``go`` keeps its memory flat.
 """
 
 from __future__ import annotations
@@ -44,6 +46,9 @@ class Runner:
         self.simulator = Simulator(diagram)
         self.simulator.set_target_realtime_rate(realtime_rate)
         self.simulator.Initialize()
+        from .tracing import tracers_of  # (here: tracing imports this module's MAX_DURATION through simulation)
+
+        self._tracers = tracers_of(diagram)
 
     @property
     def context(self) -> Context:
@@ -63,28 +68,34 @@ class Runner:
         # The tick at t is processed when the simulator reaches t: from the last tick reached (now,
         # or before now after advance_to between ticks), ``ticks`` more; never a time in the past.
         target = (math.floor(self.t / self.dt + 1e-6) + ticks) * self.dt
-        self.simulator.AdvanceTo(max(self.t, target))
+        self._advance(max(self.t, target))
         return self.t
 
     def advance_to(self, target: float) -> float:
         """Advance to the simulated time ``target`` (s), which must not be earlier than now."""
-        self.simulator.AdvanceTo(_number("target", target, self.t, self.t + MAX_DURATION))
+        self._advance(_number("target", target, self.t, self.t + MAX_DURATION))
         return self.t
 
-    def go(self, duration: float | None = None, chunk: float = 0.1) -> float:
+    def go(self, duration: float | None = None, chunk: float | None = None) -> float:
         """Run ``duration`` seconds (None: until Ctrl-C), printing the time now and then; the
-        simulator advances ``chunk`` seconds at a time (``chunk`` in ``[dt, 60]`` s)."""
+        simulator advances ``chunk`` seconds at a time (``chunk`` in ``[dt, 60]`` s; None: 0.1 s,
+        or one tick when that is longer)."""
         if duration is not None:
             duration = _number("duration", duration, 0.0, MAX_DURATION)
-        chunk = _number("chunk", chunk, self.dt, 60.0)
+        chunk = max(0.1, self.dt) if chunk is None else _number("chunk", chunk, self.dt, 60.0)
         end = None if duration is None else self.t + duration
         last = time.monotonic()
         try:
             while end is None or self.t < end - 1e-12:
-                self.simulator.AdvanceTo(self.t + chunk if end is None else min(self.t + chunk, end))
+                self._advance(self.t + chunk if end is None else min(self.t + chunk, end))
                 if time.monotonic() - last > 1.0:
                     print(f"t = {self.t:.2f} s", file=sys.stderr)
                     last = time.monotonic()
         except KeyboardInterrupt:
             print(f"stopped at t = {self.t:.3f} s", file=sys.stderr)
         return self.t
+
+    def _advance(self, target: float) -> None:
+        self.simulator.AdvanceTo(target)
+        for tracer in self._tracers:
+            tracer.flush(self.context)

@@ -140,8 +140,15 @@ class Robot:
         self.add(task)
         self.tasks[task.name] = task
         if self.solver is not None:
-            self.builder.Connect(task.GetOutputPort("task"), self.solver.declare_task_input(task))
+            self._connect(task, self.solver)
         return task
+
+    def _connect(self, task: Task, solver: KinematicSolver) -> None:
+        """``task.task → solver``, and the solver's step bound to a task that reads it (the
+        collision level: which pairs one tick can bring within reach)."""
+        self.builder.Connect(task.GetOutputPort("task"), solver.declare_task_input(task))
+        if task.HasInputPort("step_bound") and solver.HasOutputPort("step_bound"):
+            self.builder.Connect(solver.GetOutputPort("step_bound"), task.GetInputPort("step_bound"))
 
     def add_solver(self, solver: KinematicSolver, limitator: JointLimitator | None = None) -> KinematicSolver:
         """Add the solver, plug ``solver.control → device.control`` and connect every task.
@@ -172,7 +179,7 @@ class Robot:
         if solver.HasInputPort("position"):  # the HQP reads q for the joint limits
             self.builder.Connect(self.device.GetOutputPort("state"), solver.GetInputPort("position"))
         for task in self.tasks.values():
-            self.builder.Connect(task.GetOutputPort("task"), solver.declare_task_input(task))
+            self._connect(task, solver)
         return solver
 
 

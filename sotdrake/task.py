@@ -41,12 +41,16 @@ MAX_BETA = 1.0
 
 
 class TaskLevel(NamedTuple):
-    """What a solver needs of a task: rows ``lower ≤ J v ≤ upper`` (equal for an equality task)."""
+    """What a solver needs of a task: rows ``lower ≤ J v ≤ upper`` (equal for an equality task).
+    ``row_keys``: for a level whose rows are not the same from one tick to the next (the collision
+    pairs in range), which row is which (one integer per row, the same for the same row at every
+    tick); None for a task's fixed rows."""
 
     jacobian: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
     error: np.ndarray
+    row_keys: np.ndarray | None = None
 
     @property
     def is_equality(self) -> bool:

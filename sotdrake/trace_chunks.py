@@ -4,9 +4,11 @@ each chunk's columns), appended while a run goes and read back whole or up to a 
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import shutil
 import tempfile
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +21,8 @@ log = logging.getLogger("sotdrake.tracing")
 class ChunkFile:
     """A sequence of ``.npy`` arrays in one file, appended to: the column names (a string array),
     then per chunk one array per column in that order. Nothing is re-read when a chunk is added;
-    the byte offset and the last sample time of each chunk's end are kept."""
+    the byte offset, the last sample time and a digest of the last row (:func:`row_digest`) of each
+    chunk are kept."""
 
     def __init__(self, path: Path | None):
         self._temporary = None
@@ -30,11 +33,12 @@ class ChunkFile:
         self.chunks = 0
         self.offsets: list[int] = []
         self.ends: list[float] = []
+        self.last_rows: list[bytes] = []
         self.reset()
 
     def reset(self) -> None:
         self.path.write_bytes(b"")
-        self.chunks, self.offsets, self.ends = 0, [], []
+        self.chunks, self.offsets, self.ends, self.last_rows = 0, [], [], []
 
     def append(self, columns: dict[str, np.ndarray], end: float | None = None) -> None:
         """Write one chunk; ``end``: the time of its last sample (default: the last ``time``)."""
@@ -50,6 +54,7 @@ class ChunkFile:
         self.chunks += 1
         self.offsets.append(offset)
         self.ends.append(end)
+        self.last_rows.append(row_digest(values[-1] for values in columns.values()))
 
     def prefix(self, chunks: int) -> ChunkFile:
         """A temporary file holding this file's first ``chunks`` chunks."""
@@ -63,6 +68,7 @@ class ChunkFile:
                 target.write(block)
                 remaining -= len(block)
         copy.chunks, copy.offsets, copy.ends = chunks, self.offsets[:chunks], self.ends[:chunks]
+        copy.last_rows = self.last_rows[:chunks]
         return copy
 
     def moved_away(self) -> ChunkFile | None:
@@ -73,7 +79,7 @@ class ChunkFile:
             return None
         moved = ChunkFile(None)
         shutil.move(str(self.path), str(moved.path))
-        moved.chunks, moved.offsets, moved.ends = self.chunks, self.offsets, self.ends
+        moved.chunks, moved.offsets, moved.ends, moved.last_rows = self.chunks, self.offsets, self.ends, self.last_rows
         self.reset()
         return moved
 
@@ -104,3 +110,13 @@ class ChunkFile:
                 for name, values in zip(names, chunk, strict=True):
                     out[name].append(values)
         return out
+
+
+def row_digest(values: Iterable[np.ndarray]) -> bytes:
+    """A digest of one sample row (the time, then each signal's values): two rows with the same
+    digest hold the same numbers."""
+    digest = hashlib.blake2b(digest_size=16)
+    for value in values:
+        digest.update(np.ascontiguousarray(value, dtype=float).tobytes())
+    return digest.digest()
+

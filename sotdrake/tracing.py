@@ -18,12 +18,14 @@ hold: the same arrays as with ``stream=False`` (everything in Drake's logs).
 **One stream per root context.** Each root context flushed has its own stream while it lives (the
 tracer holds it by a weak reference: a context dropped, with its ``Simulator``, drops its stream and
 deletes its temporary file, so that many runs through one diagram keep neither memory nor files).
-The tracer's file (:attr:`Tracer.path`) holds the latest run: a context flushed from the start of its run (a new
-context, or a context run again from an earlier time) takes it over, and the run it held before
-moves to a temporary file, still read by :meth:`Tracer.data` for its context. A context whose first
-sample follows a chunk of another context's stream (a ``Context.Clone()`` taken during a run)
-streams to a temporary file of its own that starts with that stream's chunks up to there: replaying
-a clone leaves the original's trace as it was, and the clone's data start at the run's start.
+The tracer's file (:attr:`Tracer.path`) holds the latest run: a context flushed from the start of
+its run (a new context, or a context run again from an earlier time) takes it over, and the run it
+held before moves to a temporary file, still read by :meth:`Tracer.data` for its context. A
+context whose first sample follows a chunk of another context's stream (a ``Context.Clone()``
+taken during a run: one period after the chunk's last sample, or at it with the same values)
+streams to a temporary file of its own that starts with that stream's chunks up to there:
+replaying a clone leaves the original's trace as it was, and the clone's data start at the run's
+start.
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 from .atomic import all_or_nothing
 from .exceptions import InvalidInput, SotError, check_number, os_reason
 from .simulation import save_figure, save_npz
-from .trace_chunks import ChunkFile
+from .trace_chunks import ChunkFile, row_digest
 from .writable import check_writable, writing
 
 #: The tracers that stream, for :func:`flush_tracers` (weak: a tracer dropped is forgotten).
@@ -126,7 +128,7 @@ class Tracer:
         times = logs[0].sample_times()
         if times.size == 0 or not (force or times[-1] - times[0] >= self.chunk - 1e-9):
             return False
-        stream = self._stream_to_write(context, float(times[0]))
+        stream = self._stream_to_write(context, float(times[0]), _first_row(times, logs))
         if stream.file is None:  # (its earlier chunks were dropped: the samples stay in Drake's logs)
             return False
         columns = {"time": times.copy(), **{name: log.data().T.copy() for name, log in zip(self.sinks, logs, strict=True)}}
@@ -140,7 +142,7 @@ class Tracer:
     def _stream_of(self, context: Context) -> _Stream | None:
         return next((stream for stream in self._streams if stream.context is context), None)
 
-    def _stream_to_write(self, context: Context, first: float) -> _Stream:
+    def _stream_to_write(self, context: Context, first: float, first_row: bytes) -> _Stream:
         """The stream the samples of ``context`` from time ``first`` on go to: its own if they
         follow it, a copy of the stream they branch from (a clone), else a new run in the tracer's file."""
         stream = self._stream_of(context)
@@ -149,7 +151,7 @@ class Tracer:
         if stream is None:
             stream = _Stream(weakref.ref(context, _forgetter(self)))
             self._streams.append(stream)
-            branch = self._branch(context, first)
+            branch = self._branch(context, first, first_row)
             if branch is not None:
                 parent, chunks = branch
                 assert parent.file is not None
@@ -164,17 +166,19 @@ class Tracer:
         stream.file, stream.last, stream.dropped, self._holder = self._file, -np.inf, False, stream
         return stream
 
-    def _branch(self, context: Context, first: float | None) -> tuple[_Stream, int] | None:
+    def _branch(self, context: Context, first: float | None, first_row: bytes | None) -> tuple[_Stream, int] | None:
         """The stream of another context and the number of its chunks that ``context`` continues:
         its first sample (``first``; None when its logs are empty: its time) is one period after the
-        end of that chunk, or at it (a new ``Simulator`` publishes at the clone's time again). The
-        stream flushed last wins a tie."""
+        end of that chunk, or at it with the same values (``first_row``, :func:`row_digest`: a new
+        ``Simulator`` publishes at the clone's time again; a new context set to that time publishes
+        its own values). The stream flushed last wins a tie."""
         now = context.get_time() if first is None else first
         tolerance = 1e-9 * max(1.0, abs(now))
         low, high = (now - 1.5 * self.period, now + tolerance) if first is not None else (now - self.period, now + tolerance)
         found = [(stream.flushed, index + 1, stream) for stream in self._streams
                  if stream.context is not context and stream.file is not None
-                 for index, end in enumerate(stream.file.ends) if 0 < end and low < end <= high]
+                 for index, end in enumerate(stream.file.ends) if 0 < end and low < end <= high
+                 and (first_row is None or end < now - tolerance or stream.file.last_rows[index] == first_row)]
         if not found:
             return None
         _, chunks, stream = max(found, key=lambda item: item[:2])
@@ -191,19 +195,21 @@ class Tracer:
         if self._file is not None and logs:
             times = next(iter(logs.values())).sample_times()
             first = float(times[0]) if times.size else None
+            first_row = _first_row(times, list(logs.values())) if times.size else None
             stream = self._stream_of(context)
             if stream is not None and stream.dropped:
                 raise SotError(f"tracer: the chunks of this context were dropped when a later run took over "
                                f"{str(self._file.path)!r} (not a regular file)")
             if stream is not None and stream.file is not None and (first is None or first > stream.last):
                 streamed = stream.file.read()
-            elif stream is None and (branch := self._branch(context, first)) is not None:
+            elif stream is None and (branch := self._branch(context, first, first_row)) is not None:
                 parent, chunks = branch
                 assert parent.file is not None
                 streamed = parent.file.read(stop=parent.file.offsets[chunks - 1])
-        out: dict[str, np.ndarray] = {}
+        out: dict[str, np.ndarray] = {"time": np.zeros(0)}  # (a tracer without signals: no time either)
         for name, log in logs.items():
-            out.setdefault("time", np.concatenate([*streamed.get("time", []), log.sample_times()]))
+            if name == next(iter(logs)):
+                out["time"] = np.concatenate([*streamed.get("time", []), log.sample_times()])
             tail = log.data().T
             out[name] = np.concatenate([*streamed.get(name, []), tail]) if streamed else tail.copy()
         return out
@@ -253,6 +259,8 @@ class Tracer:
         target = check_writable("tracer: plot", path)
         data = self.data(context)
         names = signals or list(self.sinks)
+        if not names:
+            raise InvalidInput("tracer: plot: no signal is traced (Tracer.add a port before the build)")
         labels, legends = labels or {}, legends or {}
         for name in [*names, *labels, *legends, *log]:
             if name not in self.sinks:
@@ -367,3 +375,9 @@ def read_trace(path: str | Path) -> dict[str, np.ndarray]:
         raise InvalidInput(f"read_trace: {str(path)!r} is a folder, not a trace file")
     return {name: np.concatenate(parts) if parts else np.zeros((0,) if name == "time" else (0, 0))
             for name, parts in reader.read().items()}
+
+
+def _first_row(times: np.ndarray, logs: list) -> bytes:
+    """The digest of the logs' first sample (its time, then each signal's values)."""
+    return row_digest([times[:1], *(log.data()[:, 0] for log in logs)])
+

@@ -73,5 +73,6 @@ def test_output_arguments_default_to_the_ignored_folder():
     parser = argparse.ArgumentParser()
     output.add_output_arguments(parser, "x.json", "--json")
     args = parser.parse_args([])
-    assert args.out == output.RESULTS / "x.json" and args.save is False
-    assert parser.parse_args(["--json", "y.json", "--save"]).out == Path("y.json")
+    assert args.out == output.RESULTS / "x.json" and args.save is None
+    saved = parser.parse_args(["--json", "y.json", "--save"])
+    assert saved.out == Path("y.json") and saved.save == output.REFERENCE / "x.json"  # (the bench's reference, whatever --json is)

@@ -28,7 +28,7 @@ from sotdrake.collision import (
     pair_distances,
     srdf_disabled_pairs,
 )
-from sotdrake.collision.distance import signed_distance_pairs
+from sotdrake.collision.distance import minimum_distance, signed_distance_pairs
 from sotdrake.collision.reach import TABLE, build_collision_reach, run_collision_reach
 from sotdrake.collision.targets import random_targets
 from sotdrake.collision.task import SAFETY_DISTANCE, CollisionMargins
@@ -92,6 +92,41 @@ def test_distance_jacobian_matches_finite_differences(world, talos_model, rng):
             assert not wrong.any(), [(distances.names[i], distances.distance[i], error[i]) for i in np.flatnonzero(wrong)]
             checked += int(smooth.sum())
     assert checked >= 60
+
+
+def test_one_tick_within_the_step_bound_never_brings_a_pair_closer_than_its_approach(world, talos_model, rng):
+    """``PairSchedule.tick_approach``: random configurations, random per-velocity step bounds (some
+    joints unbounded), random ticks within them (on the manifold, each velocity at ±its bound or
+    inside): every pair's signed distance falls by at most its approach (inf for a pair whose path
+    has an unbounded step). Checked with Drake's query of every pair."""
+    from sotdrake.collision.schedule import PairSchedule
+
+    schedule = PairSchedule(world)
+    context = world.new_context()
+    plant_context = world.plant_context(context)
+    layout = Layout.of(talos_model.plant)
+
+    def distances(q):
+        world.plant.SetPositions(plant_context, q)
+        query = world.query(context)
+        return np.array([query.ComputeSignedDistancePairClosestPoints(a, b).distance for a, b in schedule.pairs])
+
+    for trial in range(4):
+        q = _random_configuration(talos_model, rng)
+        step = rng.uniform(0.0, 0.03, talos_model.nv)
+        if trial == 3:
+            step[rng.choice(talos_model.nv, 3, replace=False)] = np.inf
+        approach = schedule.tick_approach(step)
+        assert approach.shape == (len(schedule.pairs),) and (approach >= 0).all()
+        before = distances(q)
+        for _ in range(2):
+            v = np.where(np.isinf(step), rng.uniform(-0.5, 0.5, step.size),
+                         np.where(rng.random(step.size) < 0.5, np.sign(rng.standard_normal(step.size)), rng.uniform(-1, 1, step.size))
+                         * np.where(np.isinf(step), 0.0, step))
+            after = distances(integrate(q, v, 1.0, layout))
+            assert (after >= before - approach - 1e-9).all()
+        if trial == 3:
+            assert np.isinf(approach).any() and np.isfinite(approach).any()
 
 
 def test_the_bias_acceleration_of_the_witness_points_matches_finite_differences(world, talos_model, rng):
@@ -358,6 +393,30 @@ def test_the_collision_level_is_strict_above_the_hand():
     assert not kept.failures and kept.feet_drift <= TOLERANCE
 
 
+def test_a_pair_one_tick_can_bring_within_reach_has_its_row_before_the_influence_distance():
+    """The hand flung at a target high above the table (gain 8 /s from 0.7 m away, 5 ms ticks): the
+    level reads the solver's step bound (the reach map's step limit), so that a pair one tick may
+    bring within d_s has its row before d_i, and every pair stays beyond d_s (with an unlimited step
+    and rows only within d_i, a gripper link went from 5 cm above the table to 5.8 mm in one tick)."""
+    from sotdrake.scenarios import reach_map
+
+    reach = reach_map.build_diagram(0.005, "reduced", "table", True)
+    task = next(s for s in reach.diagram.GetSystems() if isinstance(s, TaskCollision))
+    assert task.GetInputPort("step_bound").HasValue(task.GetMyContextFromRoot(reach.diagram.CreateDefaultContext()))
+    simulator = reach_map.simulate_target(reach, (0.575, 0.1, 1.8), 0.1)
+    assert reach_map.summarize(reach, simulator, (0.575, 0.1, 1.8))["min_signed_distance_m"] >= SAFETY_DISTANCE - TOLERANCE
+
+
+def test_a_braking_reach_at_a_coarse_tick_keeps_the_safety_distance():
+    """A fast reach (gain 50) by the torso at a 10 ms tick, stiff damper (ξ dt just under d_i − d_s):
+    the arm brakes at the table, and no row may be loosened by the last tick's faster motion or by
+    another pair's correction (the pairs in range change from tick to tick)."""
+    coarse = build_collision_reach(collision=True, table=True, safety=0.0, influence=0.05, xi=4.8, dt=0.01)
+    report = run_collision_reach(coarse, np.array([-0.049, 0.079, 1.245]), duration=0.4, gain=50.0)
+    assert report.min_distance >= -TOLERANCE, report
+    assert not report.nan and not report.failures, report
+
+
 @pytest.mark.slow
 def test_the_acceleration_level_keeps_the_safety_distance_under_solver_dyn(talos_model):
     """The dynamic SoT (SolverDyn, both soles in contact, the CoM, the collision level at the
@@ -417,6 +476,24 @@ def test_talos_collisions_script_keeps_the_safety_distance_with_the_level(tmp_pa
         assert run["with"]["min_signed_distance_m"] >= SAFETY_DISTANCE - TOLERANCE
         assert run["with"]["solver_failures"] == 0 and run["with"]["feet_drift_m"] <= TOLERANCE
     assert min(run["without"]["min_signed_distance_m"] for run in summary["runs"].values()) < 0.0
+
+
+@pytest.mark.parametrize("script", ["talos_collisions", "pr2_shelf"])
+def test_the_scripts_refuse_a_run_shorter_than_a_tick(tmp_path, script):
+    main = importlib.import_module(f"sotdrake.scenarios.{script}").main
+    with pytest.raises(SystemExit, match="at least one tick"):
+        main(["--duration", "0.0004", "--out", str(tmp_path / "out"), "--quiet", "--no-meshcat"])
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_check_of_a_run_refuses_what_drake_would_abort_on(world, reach):
+    context = world.new_context()
+    for q in (np.zeros(3), np.full(world.plant.num_positions(), np.nan)):
+        with pytest.raises(InvalidInput, match="minimum_distance: q"):
+            minimum_distance(world, context, q)
+    for duration in (0.0004, 0.0, float("nan")):
+        with pytest.raises(InvalidInput, match="duration: expected at least one tick"):
+            run_collision_reach(reach, np.array([0.5, -0.2, 1.0]), duration=duration)
 
 
 def test_acceleration_rows_are_a_second_order_damper_that_keeps_its_set():

@@ -17,10 +17,10 @@ from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 
 from sotdrake.collision import CollisionWorld, add_obstacle, kernels
-from sotdrake.collision.distance import pair_distances
+from sotdrake.collision.distance import distances_of, signed_distance_pairs
 from sotdrake.collision.reach import TABLE, build_collision_reach
 from sotdrake.collision.schedule import PairSchedule, ScheduleState, bounding_sphere
-from sotdrake.collision.task import INFLUENCE_DISTANCE
+from sotdrake.collision.task import INFLUENCE_DISTANCE, one_tick_influence
 from sotdrake.exceptions import InvalidInput
 from sotdrake.meta_tasks import gotoNd
 
@@ -123,6 +123,10 @@ def test_bounding_spheres_hold_the_shapes():
     assert bounding_sphere(Capsule(0.1, 0.4))[1] == pytest.approx(0.3)
 
 
+def _ordered(a, b):
+    return (a, b) if a.get_value() < b.get_value() else (b, a)
+
+
 def test_the_task_rows_are_the_full_query_rows_and_a_clone_replays_them():
     reach = build_collision_reach(collision=True, table=True)
     simulator = Simulator(reach.diagram)
@@ -133,11 +137,18 @@ def test_the_task_rows_are_the_full_query_rows_and_a_clone_replays_them():
     world = task.world
     check = world.new_context()
     dt = device.dt
+    # Each pair's influence: d_i, or farther for a pair one tick within the solver's step bound may
+    # bring within d_t (computed here from the schedule's bound, the task's own numbers left aside).
+    step = reach.sot.GetOutputPort("step_bound").Eval(reach.sot.GetMyContextFromRoot(context))
+    schedule = PairSchedule(world)
+    influence = dict(zip(schedule.pairs, one_tick_influence(task.settings(), schedule.tick_approach(step)), strict=True))
+    assert max(influence.values()) > INFLUENCE_DISTANCE
     for k in range(1, 61):
         simulator.AdvanceTo(k * dt)
         q = device.GetOutputPort("state").Eval(device.GetMyContextFromRoot(context))
         world.plant.SetPositions(world.plant_context(check), q)
-        full = pair_distances(world, check, INFLUENCE_DISTANCE)
+        results = signed_distance_pairs(world, check, max(influence.values()))
+        full = distances_of(world, check, [r for r in results if r.distance < influence[_ordered(r.id_A, r.id_B)]])
         mine = task.GetOutputPort("distances").Eval(task.GetMyContextFromRoot(context))
         assert sorted(mine.names) == sorted(full.names)
         assert np.allclose(np.sort(mine.distance), np.sort(full.distance), atol=1e-9)

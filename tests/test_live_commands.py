@@ -230,6 +230,9 @@ def test_server_token_framing_and_answers(vocabulary, context, appli):
         assert b"authentication failed" in reply and b"ready" not in reply and server.queue.empty()
         connection = Connection(server.host, server.port, "secret-token", os.getpid())
         with Client(connection, timeout=60) as client:
+            for broken in ("sot.stack()\nsot.pop()", b"sot.pop()\r\n", "sot.stack()\r"):
+                with pytest.raises(InvalidInput, match="one line"):
+                    client.send_line(broken)  # (two commands under one id would shift every answer after)
             huge = client.send_line(b"sot.push('" + b"a" * 1_000_000 + b"')")
             assert "line too long" in client.receive(huge)["error"]  # answered by the reader, not queued
             lines = [b"sot.push('\xff')", b"__import__('os').system('ls')", b"sot.stack()", b"sot.pop()"]
@@ -246,6 +249,23 @@ def test_server_token_framing_and_answers(vocabulary, context, appli):
             assert server.counts == ServerCounts(received=5, accepted=2, rejected=3)
     finally:
         server.close()
+
+
+def test_a_closed_server_stops_listening_and_lets_go_of_its_run(vocabulary):
+    import gc
+    import threading
+    import weakref
+
+    server = CommandServer(vocabulary, "secret-token")
+    host, port, accepting = server.host, server.port, server._accepting
+    server.close()
+    assert not accepting.is_alive()
+    with pytest.raises(ConnectionRefusedError):
+        socket.create_connection((host, port), timeout=5).close()
+    gone = weakref.ref(server)
+    del server
+    gc.collect()
+    assert gone() is None and "live-accept" not in [t.name for t in threading.enumerate()]
 
 
 @pytest.mark.filterwarnings("ignore:overflow encountered")
@@ -305,6 +325,10 @@ def test_attime_checks_the_values_now_on_a_copy_and_leaves_the_rest_to_its_time(
             run(vocabulary, context, "attime(1, gainrh.setConstant(-5))")
         with pytest.raises(CommandRejected, match="attime: gotoNd"):
             run(vocabulary, context, "attime(1, gotoNd(taskRH, (0.1, 0.2), '111', 3))")
+        with pytest.raises(CommandRejected, match="nope"):
+            run(vocabulary, context, "attime(1, sot.push('nope'))")  # no task of that name, now or at T
+        with pytest.raises(CommandRejected, match="nope"):
+            run(vocabulary, context, "attime(1, signal(sot, 'nope'))")
         assert scheduled == []
         run(vocabulary, context, "attime(1, gainrh.setConstant(3))")
         run(vocabulary, context, "attime(1, sot.remove('taskrh'))")  # not in the stack now: may be at T

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sotdrake.solvers.second_order import curvature_correction
+from sotdrake.solvers.second_order import corrected_bounds, curvature_correction, keyed_curvature_correction
 from tests.oracles import curvature_correction as python_curvature_correction
 
 L1, L2 = 0.7, 0.5
@@ -55,6 +55,42 @@ def test_the_correction_is_skipped_on_a_jump_a_resize_and_the_first_tick():
     assert curvature_correction(J, v, -(J @ v)) is None  # the Jacobian jumped (a new frame)
     assert curvature_correction(J, np.zeros(2), np.zeros(2)) is not None  # at rest: zero, not skipped
     np.testing.assert_array_equal(curvature_correction(J, np.zeros(2), np.zeros(2)), np.zeros(2))
+
+
+def test_rows_that_come_and_go_are_corrected_each_from_its_own_row_of_the_last_tick():
+    """Keyed rows (the collision pairs in range): the hand's two coordinates as rows 7 and 3, the
+    last tick had them in the other order with a row 5 that has left; a new row 9 and a row whose
+    Jacobian jumped get no correction."""
+    rng = np.random.default_rng(6)
+    q_before, v = rng.uniform(-2.0, 2.0, 2), rng.uniform(-1.0, 1.0, 2)
+    dt = 1e-3
+    J_before, J = jacobian(q_before), jacobian(q_before + v * dt)
+    expected = curvature_correction(J, v, J_before @ v)
+    assert expected is not None and np.abs(expected).min() > 0
+    y = np.array([(J_before @ v)[1], 123.0, (J_before @ v)[0]])
+    previous = (y, np.array([3.0, 5.0, 7.0]))  # (as the solver keeps them: floats)
+    rows = np.vstack([J[0], J[1], J[0] * 2.0])
+    correction = keyed_curvature_correction(rows, np.array([7, 3, 9]), v, previous)
+    np.testing.assert_allclose(correction, [expected[0], expected[1], 0.0], rtol=1e-12, atol=0)
+    jumped = keyed_curvature_correction(np.vstack([-J[0], J[1]]), np.array([7, 3]), v, previous)
+    np.testing.assert_allclose(jumped, [0.0, expected[1]], rtol=1e-12, atol=0)
+    assert keyed_curvature_correction(rows, np.array([7, 3, 9]), None, previous) is None
+    assert keyed_curvature_correction(rows, np.array([7, 3, 9]), v, None) is None
+    np.testing.assert_array_equal(keyed_curvature_correction(np.zeros((0, 2)), np.zeros(0, dtype=int), v, previous), [])
+    np.testing.assert_array_equal(keyed_curvature_correction(rows, np.array([7, 3, 9]), v, (np.zeros(0), np.zeros(0))),
+                                  np.zeros(3))
+
+
+def test_a_correction_shifts_an_equality_and_only_tightens_an_inequality():
+    c = np.array([0.1, -0.2, 0.3, 0.4])
+    reference = np.array([1.0, 2.0, 3.0, 4.0])
+    lower, upper = corrected_bounds(reference, reference, c)
+    assert lower is upper
+    np.testing.assert_array_equal(lower, reference - c)
+    lower, upper = corrected_bounds(np.array([0.0, 0.0, 1.0, -np.inf]), np.array([np.inf, 1.0, 1.0, 0.0]), c)
+    np.testing.assert_array_equal(lower, [0.0, 0.2, 0.7, -np.inf])  # (row 2: an equality inside an inequality level)
+    np.testing.assert_array_equal(upper, [np.inf, 1.0, 0.7, -0.4])
+    assert (lower <= upper).all()
 
 
 def test_the_compiled_correction_is_its_python_reference():

@@ -11,7 +11,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource, PassThrough, Sine
+from pydrake.systems.primitives import ConstantVectorSource, Integrator, PassThrough, Sine
 
 from sotdrake.exceptions import InvalidInput
 from sotdrake.simulation import simulate
@@ -97,6 +97,50 @@ def test_a_clone_taken_right_after_a_flush_starts_with_the_original_chunks():
     flush_tracers(diagram, clone, force=True)
     assert tracer.data(clone)["time"][0] == 0.0 and tracer.data(clone)["time"][-1] == pytest.approx(0.3)
     assert tracer.data(context)["time"].size == 21
+
+
+def test_a_new_context_set_to_a_later_time_is_not_taken_for_a_clone():
+    """A new context (not a clone) started at t = 0.5 s, where another run's chunk ends: its trace
+    is its own run, as with ``stream=False`` (an integrator: its state there is not the other run's)."""
+    def run(stream):
+        builder = DiagramBuilder()
+        tracer = Tracer(builder, 0.01, stream=stream, chunk=0.5)
+        source, integrator = builder.AddSystem(ConstantVectorSource(np.ones(1))), builder.AddSystem(Integrator(1))
+        builder.Connect(source.get_output_port(), integrator.get_input_port())
+        tracer.add(integrator.get_output_port(0), "x")
+        diagram = builder.Build()
+        first = Simulator(diagram)
+        for k in range(1, 21):
+            first.AdvanceTo(0.1 * k)
+            flush_tracers(diagram, first.get_context())
+        context = diagram.CreateDefaultContext()
+        context.SetTime(0.5)
+        second = Simulator(diagram, context)
+        for k in range(6, 21):
+            second.AdvanceTo(0.1 * k)
+            flush_tracers(diagram, context)
+        return tracer.data(context)
+
+    streamed, kept = run(True), run(False)
+    assert streamed["time"][0] == 0.5 and streamed["time"].size == 151
+    for name in kept:
+        np.testing.assert_array_equal(streamed[name], kept[name])
+
+
+@pytest.mark.parametrize("stream", [True, False])
+def test_a_tracer_without_signals_saves_an_empty_time_and_refuses_to_plot(tmp_path, stream):
+    builder = DiagramBuilder()
+    _sine(builder)
+    tracer = Tracer(builder, 0.01, stream=stream)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(0.1)
+    context = simulator.get_context()
+    assert {name: value.shape for name, value in tracer.data(context).items()} == {"time": (0,)}
+    assert tracer.save_csv(context, tmp_path / "t.csv").read_text().strip() == "time"
+    assert set(np.load(tracer.save(context, tmp_path / "t.npz"))) == {"time"}
+    with pytest.raises(InvalidInput, match="no signal is traced"):
+        tracer.plot(context, tmp_path / "t.png")
+    assert not (tmp_path / "t.png").exists()
 
 
 def test_a_second_run_takes_the_file_and_the_first_keeps_its_trace(tmp_path):

@@ -27,6 +27,7 @@ from pydrake.multibody.tree import BodyIndex, JacobianWrtVariable, JointIndex
 from pydrake.systems.framework import Context
 
 from ..compiled import kernels
+from ..exceptions import check_finite
 from .world import CollisionWorld
 
 
@@ -253,6 +254,7 @@ def minimum_distance(world: CollisionWorld, context: Context, q: np.ndarray, max
                      geometry_pairs: Sequence | None = None) -> float:
     """The smallest signed distance (m) over the world's pairs at configuration ``q`` (+inf when
     none is closer than ``max_distance``): Drake's query alone, for checking a run."""
+    q = check_finite("minimum_distance: q (the world plant's positions)", q, (world.plant.num_positions(),))
     world.plant.SetPositions(world.plant_context(context), q)
     results = signed_distance_pairs(world, context, max_distance, geometry_pairs)
     return min((r.distance for r in results), default=float("inf"))

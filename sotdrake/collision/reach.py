@@ -26,6 +26,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
+from ..exceptions import InvalidInput, finite_number
 from ..meta_tasks import MetaTaskKine6d, gotoNd, hold_feet_and_com
 from ..robot import Robot, add_sot, talos
 from ..robots import TALOS_GRIPPERS, RobotModel
@@ -141,7 +142,7 @@ def run_collision_reach(reach: Reach, target: np.ndarray, duration: float = 1.0,
     lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
     report = ReachReport(np.inf, 0.0, 0.0, False, [], np.nan, 0)
     dt = device.dt
-    ticks = round(duration / dt)
+    ticks = ticks_of(duration, dt)
     for k in range(1, ticks + 1):
         simulator.AdvanceTo(k * dt)
         if k % check_every and k != ticks:
@@ -277,7 +278,7 @@ def _run_dyn(reach: DynReach, simulator: Simulator, target: np.ndarray, duration
     lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
     report = ReachReport(np.inf, 0.0, 0.0, False, [], np.nan, 0)
     dt = robot.dt
-    ticks = round(duration / dt)
+    ticks = ticks_of(duration, dt)
     q = model.half_sitting
     for k in range(1, ticks + 1):
         simulator.AdvanceTo(k * dt)
@@ -297,3 +298,11 @@ def _run_dyn(reach: DynReach, simulator: Simulator, target: np.ndarray, duration
     p_hand = plant.CalcRelativeTransform(plant_context, plant.world_frame(), model.frame("right-wrist")) @ np.array(HAND_OFFSET)
     report.hand_error = float(np.linalg.norm(p_hand - target))
     return report
+
+
+def ticks_of(duration: float, dt: float) -> int:
+    """The number of ticks of a run of ``duration`` s (at least one, else :class:`InvalidInput`)."""
+    if not (finite_number(duration) and duration >= dt):
+        raise InvalidInput(f"duration: expected at least one tick ({dt:g} s), got {duration!r:.40} s")
+    return round(duration / dt)
+

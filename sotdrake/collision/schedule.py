@@ -155,6 +155,8 @@ class PairSchedule:
         self._one_dof_q = np.array([j.position_start() for j in self._one_dof], dtype=np.int64)
         self._floating_q = np.array([j.position_start() for j in self._floating], dtype=np.int64)
         self._quaternion = np.array([j.type_name() == "quaternion_floating" for j in self._floating], dtype=np.bool_)
+        self._one_dof_v = np.array([j.velocity_start() for j in self._one_dof], dtype=np.int64)
+        self._floating_v = np.array([j.velocity_start() for j in self._floating], dtype=np.int64)
         nodes, lengths = self._graph(world, joints)
         geometries = sorted({g for pair in self.pairs for g in pair}, key=lambda g: g.get_value())
         spheres = {g: bounding_sphere(inspector.GetShape(g)) for g in geometries}
@@ -293,6 +295,21 @@ class PairSchedule:
         w = w[slot]
         speed[spheres] = np.linalg.norm(v[slot] + np.cross(w, centres), axis=1) + np.linalg.norm(w, axis=1) * self._sphere_radius[spheres]
         return speed[self._pair_spheres[:, 0]] + speed[self._pair_spheres[:, 1]]
+
+    def tick_approach(self, step: np.ndarray) -> np.ndarray:
+        """Per pair, how much closer (m) one tick can bring it at most: bound (1) for a motion of at
+        most ``step[j]`` (rad or m; inf: unbounded) in each velocity ``j`` (a floating joint's
+        rotation at most ``‖step[ω]‖``, its translation ``‖step[v]‖``, world frame)."""
+        step = np.asarray(step, dtype=float)
+        motion = np.zeros(self.coefficients.shape[1])
+        u = len(self._one_dof_v)
+        motion[:u] = step[self._one_dof_v]
+        for k, v in enumerate(self._floating_v.tolist()):
+            motion[u + 2 * k], motion[u + 2 * k + 1] = np.linalg.norm(step[v + 3:v + 6]), np.linalg.norm(step[v:v + 3])
+        unbounded = np.isinf(motion)
+        approach = self.coefficients[:, ~unbounded] @ motion[~unbounded]
+        approach[(self.coefficients[:, unbounded] > 0).any(axis=1)] = np.inf
+        return approach
 
     def gaps(self, context: Context, pairs: np.ndarray, normal: np.ndarray) -> np.ndarray:
         """The support gap (m) of each pair index in ``pairs`` along its row of ``normal`` (unit,

@@ -157,6 +157,13 @@ def speed_aware_influence(margins: CollisionMargins, approach: np.ndarray) -> np
     return np.maximum(margins.influence, target_distance(margins) + approach / damper_rate(margins))
 
 
+def one_tick_influence(margins: CollisionMargins, approach: np.ndarray) -> np.ndarray:
+    """Per pair, the distance (m) within which the velocity level needs its row: ``d_i``, or farther
+    for a pair that one tick may bring ``approach`` (m) closer, ``d_t + approach`` (a pair farther
+    than that stays beyond ``d_t`` whatever the command, within the solver's step bound)."""
+    return np.maximum(margins.influence, target_distance(margins) + approach)
+
+
 class _WorldContext:
     """The collision diagram's context as the value of a cache entry (a copy gets a context of its
     own, at the same configuration), and the pairs' approach speed bound at its positions and
@@ -180,8 +187,11 @@ class TaskCollision(Entity[CollisionMargins]):
     obstacle)`` names; ``controlled``: the solver's control selection (nv booleans, None for all;
     see the module docstring).
 
-    Inputs: ``position`` (the world plant's ``q``) and, at the acceleration level, ``velocity``
-    (``v``, nv). Outputs: ``task`` (inequality rows over ``v``, m/s, or ``q̈``, m/s²),
+    Inputs: ``position`` (the world plant's ``q``); at the acceleration level ``velocity`` (``v``,
+    nv); at the velocity level, optional, ``step_bound`` (nv: the largest ``|v_j| dt`` the solver
+    allows, rad or m; the kinematic solvers' output of that name, connected by the robot): a pair
+    that one such tick may bring within ``d_t`` has its row from farther than ``d_i``
+    (:func:`one_tick_influence`). Outputs: ``task`` (inequality rows over ``v``, m/s, or ``q̈``, m/s²),
     ``distances`` (each pair's signed distance, m, and its Jacobian) and ``min_distance`` (the
     smallest signed distance, m; inf without pairs).
     """
@@ -213,9 +223,14 @@ class TaskCollision(Entity[CollisionMargins]):
         self._position = self.DeclareVectorInputPort("position", world.plant.num_positions())
         position = {self.input_port_ticket(self._position.get_index())}
         self._velocity = None
+        self._step_bound = None
         if self.acceleration:
             self._velocity = self.DeclareVectorInputPort("velocity", nv)
             position.add(self.input_port_ticket(self._velocity.get_index()))
+        else:
+            self._step_bound = self.DeclareVectorInputPort("step_bound", nv)
+            position.add(self.input_port_ticket(self._step_bound.get_index()))
+        self._approach: tuple[bytes, np.ndarray] | None = None  # (a memo of tick_approach: a pure function of the bound)
         self._world_context = self.DeclareCacheEntry(
             "collision_context",
             ValueProducer(allocate=lambda: AbstractValue.Make(_WorldContext(world)), calc=self._set_positions),
@@ -291,11 +306,12 @@ class TaskCollision(Entity[CollisionMargins]):
             rows = damper_rows(distances, margins, self.dt)
         else:
             rows = acceleration_rows(distances, margins, self.dt, self._velocity.Eval(context))
+        keys = self._step.Eval(context).state.in_range_pairs  # (the rows' pairs: which row is which from tick to tick)
         if self.controlled is not None and len(rows.lower):
             movable = np.abs(rows.jacobian[:, self.controlled]).max(axis=1) > MOVABLE_TOLERANCE
             if not movable.all():
-                rows = TaskLevel(rows.jacobian[movable], rows.lower[movable], rows.upper[movable], rows.error[movable])
-        output.set_value(rows)
+                rows, keys = TaskLevel(rows.jacobian[movable], rows.lower[movable], rows.upper[movable], rows.error[movable]), keys[movable]
+        output.set_value(rows._replace(row_keys=keys))
 
     def _warn_inside(self, distances: PairDistances, safety: float, t: float) -> None:
         """Warn once: pairs inside the safety distance (a robot that starts in collision, an obstacle
@@ -318,9 +334,17 @@ class TaskCollision(Entity[CollisionMargins]):
             if holder.approach is None:  # (once per configuration)
                 holder.approach = self._pair_schedule.approach_bound(holder.context)
             influence = speed_aware_influence(margins, holder.approach)
+        elif self._step_bound is not None and self._step_bound.HasValue(context):  # one tick may bring a pair from beyond d_i
+            influence = one_tick_influence(margins, self._tick_approach(self._step_bound.Eval(context)))
         step = self._pair_schedule.step(memory.state, holder.context, q, influence)
         memory.state = step.state
         value.set_value(step)
+
+    def _tick_approach(self, step: np.ndarray) -> np.ndarray:
+        key = step.tobytes()
+        if self._approach is None or self._approach[0] != key:
+            self._approach = key, self._pair_schedule.tick_approach(step)  # type: ignore[union-attr]
+        return self._approach[1]
 
     def _calc_distances(self, context: Context, value: AbstractValue) -> None:
         holder = self._world_context.Eval(context)

@@ -238,10 +238,16 @@ class CommandServer:
     def close(self, flush: float = 1.0) -> None:
         """Stop listening; send the answers already due (for up to ``flush`` s), then drop every
         connection."""
+        try:  # (close() alone does not wake the thread waiting in accept(): shut the socket down first)
+            self._listener.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
         try:
             self._listener.close()
         except OSError:
             pass
+        if self._accepting is not threading.current_thread():
+            self._accepting.join(1.0)
         with self._lock:
             clients = list(self._clients)
         for client in clients:

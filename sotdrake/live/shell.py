@@ -16,7 +16,7 @@ import socket
 import sys
 from pathlib import Path
 
-from ..exceptions import SotError
+from ..exceptions import InvalidInput, SotError
 from .connection import Connection, default_path, read_connection
 from .framing import MAX_LINE, LineReader, LineTooLong, decode_answer
 
@@ -39,8 +39,11 @@ class Client:
             raise SotError(hello["error"])
 
     def send_line(self, text: str | bytes) -> int:
-        """Send one line (no answer awaited); returns its id."""
+        """Send one line (no answer awaited); returns its id. A line break inside is refused
+        (:class:`InvalidInput`): the run would read two commands, answered under two ids."""
         data = text.encode() if isinstance(text, str) else text
+        if b"\n" in data or b"\r" in data:
+            raise InvalidInput(f"a command is one line; this one holds a line break: {data[:80]!r}")
         self.sock.sendall(data + b"\n")
         self._sent += 1
         return self._sent

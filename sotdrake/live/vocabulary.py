@@ -269,12 +269,12 @@ class Vocabulary:
             raise CommandRejected(f"attime: T = {time} s is in the past (t = {context.get_time():.4f} s)")
         if time > MAX_TIME:
             raise CommandRejected(f"attime: T = {time} s is beyond the latest time a command may wait for ({MAX_TIME:g} s)")
-        if prepared.method.context_only:  # its values checked now, on a copy of the run's context
-            try:  # (what depends on the stack at T, e.g. a push, is checked at T)
+        if prepared.method.context_only:  # its values and names checked now, on a copy of the run's context
+            try:  # (what depends on the stack at T, e.g. a push, is checked at T; the names never change)
                 prepared(context.Clone())
             except CommandRejected:
                 raise
-            except InvalidInput as error:
+            except (InvalidInput, NotFound) as error:
                 raise CommandRejected(f"attime: {prepared}: {error}") from None
             except SotError:
                 pass

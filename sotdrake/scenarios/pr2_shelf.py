@@ -115,6 +115,8 @@ def run(reach: ShelfReach, target: np.ndarray, duration: float) -> dict:
 def main(argv: list[str] | None = None) -> dict:
     parser = script_arguments(__doc__, "out/pr2_shelf", duration=4.0, bag=False)
     args = parser.parse_args(argv)
+    if args.duration < 1e-3:
+        raise SystemExit(f"--duration must be at least one tick (0.001 s), got {args.duration}")
     meshcat = start(args)
     args.out.mkdir(parents=True, exist_ok=True)
     reaches = {"without": build_diagram(collision=False), "with": build_diagram(collision=True, meshcat=meshcat)}

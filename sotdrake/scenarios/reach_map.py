@@ -24,8 +24,11 @@ in front of the robot (``--obstacles path/to/scene.sdf`` any URDF/SDF scene, loa
 ``add_scene``); ``--collision`` adds the collision level (``d_s`` = 1 cm, ``d_i`` = 5 cm, ``ξ`` =
 0.5 m/s) between the CoM and the hand, so that the hand stops short instead of going through;
 its default period is then 5 ms (``COLLISION_DT``: the level's rows model one tick to first order,
-which the unlimited 20 ms steps of the arm break, by up to 7 cm on the grid's far corners), and a
-period above 10 ms is refused (``MAX_COLLISION_DT``).
+which the unlimited 20 ms steps of the arm break, by up to 7 cm on the grid's far corners), a
+period above 10 ms is refused (``MAX_COLLISION_DT``), and the step limit is 0.01 rad or m per tick
+(``COLLISION_STEP``; 2 rad/s at 5 ms) instead of none: the level takes in range every pair that
+one tick within the solver's step bound may bring within ``d_s``, and a step without bound (the
+free base's) would take every pair at every tick.
 
 Targets: ``--targets N`` (at most 100,000) with ``--sampling grid`` (N a cube, k × k × k evenly
 spaced in the box x ∈ [-0.4, 0.9], y ∈ [-1.1, 0.5], z ∈ [0.2, 1.8] m, world frame, the robot's
@@ -104,9 +107,13 @@ REACHED_M = 0.01
 #: The default period with the collision level (s): its rows are a first-order model of one tick,
 #: which holds for the steps of 5 ms ticks; at 20 ms the arm's unlimited steps cross it.
 COLLISION_DT = 0.005
-#: The longest period the map takes with the collision level (s): measured on the table grid, every
-#: pair stays ≥ d_s at 5, 7.5 and 10 ms; at 20 ms a gripper link crossed the table in one tick.
+#: The longest period the map takes with the collision level (s): at 20 ms a gripper link crossed
+#: the table in one tick.
 MAX_COLLISION_DT = 0.01
+#: The step limit with the collision level (rad or m per tick): the level takes in range every pair
+#: that one tick within the solver's step bound may bring within reach, which an unlimited step
+#: (the free base) makes every pair.
+COLLISION_STEP = 0.01
 #: Pairs farther apart than this (m) are not measured by the collision check.
 CHECK_DISTANCE = 0.05
 
@@ -155,7 +162,7 @@ def build_diagram(dt: float = 0.02, variant: str = "reduced", obstacles: str | N
     builder = DiagramBuilder()
     robot = talos(builder, variant, dt)
     sot = add_sot(robot, "sot", solver="hqp", damping=HAND_DAMPING)
-    sot.setStepLimit(np.inf)  # (see the module docstring)
+    sot.setStepLimit(COLLISION_STEP if collision else np.inf)  # (see the module docstring)
     sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
     hold_feet_and_com(robot, sot, SUPPORT_GAIN)
     checker = CollisionWorld(robot.model)

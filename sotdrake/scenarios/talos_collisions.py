@@ -35,6 +35,8 @@ HAND_GAIN = 10.0  # 1/s, constant
 def main(argv: list[str] | None = None) -> dict:
     parser = script_arguments(__doc__, "out/talos_collisions", duration=1.5, bag=False)
     args = parser.parse_args(argv)
+    if args.duration < 1e-3:
+        raise SystemExit(f"--duration must be at least one tick (0.001 s), got {args.duration}")
     meshcat = start(args)
     args.out.mkdir(parents=True, exist_ok=True)
     with_constraint = build_collision_reach(collision=True, table=True, meshcat=meshcat)

@@ -1,7 +1,7 @@
 """What the two kinematic solvers (``SOT`` and ``SolverKine``) share besides their :class:`.stack.Stack`:
 the control period and the last tick kept in the Context (for the curvature correction of
 :mod:`.second_order`), the levels read from the task inputs, the kinematic settings and contacts,
-and the ports ``control`` / ``residuals`` / ``velocity_scale``. Each solver brings its own solve
+and the ports ``control`` / ``residuals`` / ``velocity_scale`` / ``step_bound``. Each solver brings its own solve
 (``_calc``, the ``solution`` cache entry's calc)."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from ..configuration import Layout
 from ..exceptions import InvalidInput, SolverError, finite_number
 from ..hqp.cascade import CascadeResult
 from ..task import TaskLevel
-from .second_order import curvature_correction
+from .second_order import corrected_bounds, curvature_correction, keyed_curvature_correction
 from .stack import S, Stack, StackSettings, StackSolver
 
 
@@ -25,7 +25,7 @@ class _Levels(list):
     and Jacobian, in the order of the contacts, then the stack (the contacts are one level);
     ``plain``: each level's ``lower`` before the curvature correction (the same array when none)."""
 
-    tasks: list[tuple[str, np.ndarray]]
+    tasks: list[tuple[str, np.ndarray, np.ndarray | None]]
     plain: list[np.ndarray]
 
 
@@ -37,7 +37,8 @@ class KinematicSolver(StackSolver[S]):
     with a ``layout``, ``position`` (``q``, nq, Drake's positions). Outputs: ``control`` (``v``, nv,
     rad/s and m/s), ``residuals`` (per level, the norm of what it misses, unit/s of its task) and
     ``velocity_scale`` (1-vector: the uniform scale the command was given to fit the velocity and
-    step limits, 1 when none).
+    step limits, 1 when none) and ``step_bound`` (nv: the largest ``|v_j| dt`` the settings allow,
+    rad or m, inf for none: what a collision level reads).
     """
 
     accepts_inequalities = False
@@ -59,7 +60,7 @@ class KinematicSolver(StackSolver[S]):
         if layout is not None:
             self.position = self.DeclareVectorInputPort("position", layout.nq)
         # The last tick (discrete state): [1, v] (or [0, …] before the first tick), and per task
-        # [rows, J v] (rows -1: not in the stack, or more rows than nv).
+        # [rows, J v, the rows' keys] (rows -1: not in the stack, or more rows than nv; keys -1: fixed rows).
         self._last_velocity: int | None = None
         self._last_task_velocity: dict[str, int] = {}
         if dt is not None:
@@ -88,6 +89,10 @@ class KinematicSolver(StackSolver[S]):
             "velocity_scale", 1, lambda c, o: o.SetAtIndex(0, getattr(self._solution.Eval(c), "scale", 1.0))
         )
         self._warned_scaling = False  # logging only: warn once per solver, results never depend on it
+        # The largest |v_j| dt a tick may command (rad or m; inf: no bound), from the settings alone:
+        # what a collision level needs to know which pairs one tick can bring within reach.
+        self.DeclareVectorOutputPort("step_bound", nv, self._calc_step_bound,
+                                     prerequisites_of_calc={self.abstract_state_ticket(self._settings_index)})
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
         raise NotImplementedError
@@ -101,7 +106,7 @@ class KinematicSolver(StackSolver[S]):
 
     def _declare_task_memory(self, name: str) -> None:
         if self._last_velocity is not None:
-            self._last_task_velocity[name] = int(self.DeclareDiscreteState(np.full(1 + self.nv, -1.0)))
+            self._last_task_velocity[name] = int(self.DeclareDiscreteState(np.full(1 + 2 * self.nv, -1.0)))
 
     # --- contacts and settings (the stack's) ---------------------------------------------------
     def addContact(self, task, context: Context | None = None, priority: str = "top") -> None:
@@ -135,6 +140,13 @@ class KinematicSolver(StackSolver[S]):
         or ``inf`` for none). See :meth:`.stack.Stack.setStepLimit`."""
         self.stack_of_tasks.setStepLimit(step, context)
 
+    def _calc_step_bound(self, context: Context, output) -> None:
+        limit = self._velocity_limit(self._settings_of(context))
+        if limit is None or self.dt is None:
+            output.SetFromVector(np.full(self.nv, np.inf))
+        else:
+            output.SetFromVector(np.asarray(limit) * self.dt)
+
     def _velocity_limit(self, s: StackSettings) -> np.ndarray | None:
         """The bound of the command: the velocity limit and the step limit's ``δ / dt``, or None."""
         if self.dt is None or s.step_limit == np.inf:
@@ -146,7 +158,7 @@ class KinematicSolver(StackSolver[S]):
 
     # --- the last tick and the levels ----------------------------------------------------------
     def _remember(self, context: Context, discrete_state) -> None:
-        """Keep this tick's command ``v`` and each level's ``J v`` (see :mod:`.second_order`). Drake
+        """Keep this tick's command ``v`` and each level's ``J v`` and row keys (see :mod:`.second_order`). Drake
         computes every discrete update of a tick from the same context, so the device moves with
         the ``v`` kept here."""
         solution = self._solution.Eval(context)
@@ -154,19 +166,21 @@ class KinematicSolver(StackSolver[S]):
         discrete_state.set_value(self._last_velocity, np.concatenate(([1.0], v)))
         indices = self._last_task_velocity
         kept_rows = dict.fromkeys(indices, -1)  # -1: not in the stack (or more rows than nv)
-        for name, J in solution.tasks:
-            if J.shape[0] <= self.nv:
+        nv = self.nv
+        for name, J, keys in solution.tasks:
+            if J.shape[0] <= nv:
                 y = J @ v
                 kept = discrete_state.get_mutable_value(indices[name])
                 kept[0], kept[1 : 1 + y.size] = y.size, y
+                kept[1 + nv : 1 + nv + y.size] = -1.0 if keys is None else keys
                 kept_rows[name] = y.size
         for name, rows in kept_rows.items():
             if rows < 0:
                 discrete_state.get_mutable_value(indices[name])[0] = -1.0
 
-    def _last_tick(self, context: Context, names: list[str]) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
-        """``(v_{k-1}, {task: J_{k-1} v_{k-1}})`` of the last tick for the tasks ``names``, or None
-        before the first."""
+    def _last_tick(self, context: Context, names: list[str]) -> tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray]]] | None:
+        """``(v_{k-1}, {task: (J_{k-1} v_{k-1}, its rows' keys)})`` of the last tick for the tasks
+        ``names`` (keys -1: a task's fixed rows), or None before the first."""
         state = context.get_discrete_state()
         kept = state.get_value(self._last_velocity)
         if kept[0] != 1.0:
@@ -176,7 +190,8 @@ class KinematicSolver(StackSolver[S]):
         for name in names:
             y = state.get_value(indices[name])
             if y[0] >= 0:
-                task_velocities[name] = y[1 : 1 + int(y[0])]
+                rows = int(y[0])
+                task_velocities[name] = (y[1 : 1 + rows], y[1 + self.nv : 1 + self.nv + rows])
         return kept[1:], task_velocities
 
     def _levels(self, context: Context, settings: StackSettings, check: bool = True, correct: bool = True) -> _Levels:
@@ -194,15 +209,18 @@ class KinematicSolver(StackSolver[S]):
         for name in names:
             level = ports[name].Eval(context)
             J = level.jacobian
-            levels.tasks.append((name, J))
+            levels.tasks.append((name, J, level.row_keys))
             if check:
                 _check_level(name, level, self.nv, context)
             plain.append(level.lower)
             if last_tick is not None:
-                correction = curvature_correction(J, last_tick[0], last_tick[1].get(name))
+                previous = last_tick[1].get(name)
+                if level.row_keys is None:
+                    correction = curvature_correction(J, last_tick[0], None if previous is None else previous[0])
+                else:  # (rows that come and go: each matched with its own row of the last tick)
+                    correction = keyed_curvature_correction(J, level.row_keys, last_tick[0], previous)
                 if correction is not None:
-                    lower = level.lower - correction
-                    upper = lower if level.upper is level.lower else level.upper - correction
+                    lower, upper = corrected_bounds(level.lower, level.upper, correction)
                     level = TaskLevel(J, lower, upper, level.error)
             levels.append(level)
         if settings.contacts:

@@ -22,6 +22,19 @@ when a chattering solution flips its sign each tick (where extrapolating the Jac
 would double the drift instead). The correction is skipped (zero) on the first tick of a level, when
 its size changes, or when its Jacobian jumped rather than moved: ``‖(J_k - J_{k-1}) v‖ >
 MAX_RELATIVE_CHANGE · ‖J_k‖ ‖v‖`` (Frobenius norm of ``J_k``: a new selection or frame).
+
+A level whose rows come and go (the collision pairs in range: ``TaskLevel.row_keys``) is corrected
+row by row: row ``i`` gets ``½ (J_k,i v_{k-1} − y_{k-1,j})`` from the row ``j`` of the last tick that
+had its key, when its own Jacobian moved rather than jumped (``|J_k,i v − y_j| ≤
+MAX_RELATIVE_CHANGE ‖J_k,i‖ ‖v‖``: a witness point that switched features jumps), else 0. Rows
+matched by their place instead would shift one pair's bound by another pair's correction.
+
+An equality row's reference is shifted by the correction (both ways); an inequality's bound is
+only ever tightened by it (:func:`corrected_bounds`). The correction is the last tick's velocity's
+curvature; when the command brakes at a bound (an arm stopping short of the table), the new
+velocity's is smaller, and a bound loosened by the old one lets the row cross it (a gripper 0.9 mm
+into the table at a 10 ms tick). Left as it is, a bound the motion curves away from is kept with a
+margin of at most that correction.
 """
 
 from __future__ import annotations
@@ -49,3 +62,39 @@ def curvature_correction(J: np.ndarray, previous_velocity: np.ndarray | None,
 
 
 _jit_second_order = kernels(".jit_second_order", __package__, "correction", "the tick-curvature correction", "a few seconds")
+
+
+def keyed_curvature_correction(J: np.ndarray, keys: np.ndarray, previous_velocity: np.ndarray | None,
+                               previous: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray | None:
+    """Row by row ``c_k dt`` of a level whose rows are told apart by ``keys`` (one integer per row of
+    ``J``), ``previous = (y_{k-1}, its rows' keys)`` (see the module docstring); None before the
+    level's first tick."""
+    if previous_velocity is None or previous is None:
+        return None
+    y, previous_keys = previous
+    if J.ndim != 2 or previous_velocity.shape != (J.shape[1],) or np.shape(keys) != (J.shape[0],):
+        raise ValueError(f"curvature correction: a {J.shape} Jacobian, {np.shape(keys)} keys and a velocity of shape "
+                         f"{previous_velocity.shape}")
+    correction = np.zeros(J.shape[0])
+    if not len(y) or not J.shape[0]:
+        return correction
+    order = np.argsort(previous_keys, kind="stable")
+    place = np.minimum(np.searchsorted(previous_keys[order], keys), len(order) - 1)
+    found = previous_keys[order][place] == keys
+    change = J @ previous_velocity - y[order[place]]
+    moved = np.abs(change) <= MAX_RELATIVE_CHANGE * np.linalg.norm(J, axis=1) * np.linalg.norm(previous_velocity)
+    matched = found & moved
+    correction[matched] = 0.5 * change[matched]
+    return correction
+
+
+def corrected_bounds(lower: np.ndarray, upper: np.ndarray, correction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The bounds of a level with its correction (see the module docstring): an equality row's
+    (``lower == upper``) both shifted by ``-correction``, an inequality's only tightened."""
+    if upper is lower:
+        shifted = lower - correction
+        return shifted, shifted
+    equal = lower == upper
+    return (np.where(equal, lower - correction, lower - np.minimum(correction, 0.0)),
+            np.where(equal, upper - correction, upper - np.maximum(correction, 0.0)))
+

@@ -80,7 +80,8 @@ class SolverKine(KinematicSolver[HqpSettings]):
     Inputs: one per task (a :class:`~sotdrake.task.TaskLevel` over ``v``) and ``position`` (``q``,
     nq, for the joint limits). Outputs: ``control`` (``v``, nv, rad/s and m/s), ``residuals`` (the
     optimal slack norm of each level), ``velocity_scale`` (always 1: the limits are hard bounds, not
-    a scaling) and ``diagnostics`` (:class:`HqpDiagnostics`).
+    a scaling), ``step_bound`` (see :class:`.kinematic.KinematicSolver`) and ``diagnostics``
+    (:class:`HqpDiagnostics`).
     """
 
     accepts_inequalities = True
@@ -240,4 +241,4 @@ class _Solution:
     velocity: np.ndarray
     residuals: np.ndarray
     diagnostics: HqpDiagnostics
-    tasks: list[tuple[str, np.ndarray]]  # each task's name and Jacobian (what the last tick keeps)
+    tasks: list[tuple[str, np.ndarray, np.ndarray | None]]  # each task's name, Jacobian and row keys (what the last tick keeps)

@@ -41,7 +41,7 @@ class _CascadeSolution:
     velocity). ``tasks``: each task's name and Jacobian (what the last tick keeps)."""
 
     def __init__(self, velocity: np.ndarray, ranks: np.ndarray, levels: list[tuple[np.ndarray, np.ndarray]],
-                 scale: float = 1.0, tasks: list[tuple[str, np.ndarray]] | None = None):
+                 scale: float = 1.0, tasks: list[tuple[str, np.ndarray, np.ndarray | None]] | None = None):
         self.velocity, self.ranks, self._levels = velocity, ranks, levels
         self._residuals: np.ndarray | None = None
         self.scale = scale

@@ -45,7 +45,7 @@ sot.push('taskcontactLF')
 sot.push('taskcom')
 """
 
-#: The seed's three calls that move the hand.
+#: The seed's calls that move the hand.
 HAND = (
     "gotoNd(taskRH, (0.5, -0.2, 1.0), '111', (4.9, 0.9, 0.01, 0.9))",
     "sot.push('taskrh')",

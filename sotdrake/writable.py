@@ -14,14 +14,16 @@ from .exceptions import InvalidInput, SotError, os_reason
 
 def check_writable(what: str, path: str | os.PathLike) -> Path:
     """``path`` as a ``Path`` if a file can be written there (opened to append, so an existing
-    file is left as it is; a file this check creates is removed), else :class:`InvalidInput`
-    naming ``what``, the path and the reason."""
+    file is left as it is; a file this check creates is removed; a FIFO or a socket is refused),
+    else :class:`InvalidInput` naming ``what``, the path and the reason."""
     if not isinstance(path, str | os.PathLike):
         raise InvalidInput(f"{what}: expected a file path, got {path!r:.60}")
     target = Path(path).expanduser()
     try:
         if target.is_dir():
             raise InvalidInput(f"{what}: {str(target)!r:.100} is a folder: give a file path")
+        if target.is_fifo() or target.is_socket():  # (opening a FIFO waits for a reader: forever, for a script)
+            raise InvalidInput(f"{what}: cannot write {str(target)!r:.100}: a FIFO or a socket (give a file path)")
         existed = target.exists()
         with open(target, "ab"):
             pass

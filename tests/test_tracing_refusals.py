@@ -30,8 +30,12 @@ def _traced(stream, chunk: float = 0.1):
 
 
 def _bad_paths(tmp_path):
+    import os
+
     (tmp_path / "file.txt").write_text("mine")
-    return [tmp_path / "missing" / "out.x", tmp_path / "file.txt" / "out.x", str(tmp_path / "a\0b.x")]
+    if not (tmp_path / "fifo").exists():
+        os.mkfifo(tmp_path / "fifo")  # (writing to it would wait for a reader)
+    return [tmp_path / "missing" / "out.x", tmp_path / "file.txt" / "out.x", str(tmp_path / "a\0b.x"), tmp_path / "fifo"]
 
 
 def test_add_refuses_a_port_it_cannot_log_and_leaves_the_builder_as_it_was():
@@ -180,7 +184,7 @@ def test_tracer_files_to_a_path_that_cannot_be_written_are_refused(tmp_path):
     before = sorted(tmp_path.rglob("*"))
     for path in paths:
         for save in (tracer.save, tracer.save_csv, tracer.plot):
-            with pytest.raises(InvalidInput, match=r"tracer: \w+: cannot write .*out\.x|a\\x00b"):
+            with pytest.raises(InvalidInput, match=r"tracer: \w+: cannot write .*(out\.x|fifo)|a\\x00b"):
                 save(context, path)
     assert sorted(tmp_path.rglob("*")) == before
     assert tracer.save(context, tmp_path / "t.npz").is_file()
@@ -224,5 +228,5 @@ def test_write_control_graph_refuses_a_path_it_cannot_write(tmp_path):
             write_control_graph(diagram, path)
     with pytest.raises(InvalidInput, match="diagram"):
         write_control_graph(None, tmp_path / "g.svg")  # type: ignore[arg-type]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["file.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fifo", "file.txt"]
     assert write_control_graph(diagram, tmp_path / "g.svg").exists() and (tmp_path / "g.dot").exists()

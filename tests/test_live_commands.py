@@ -329,6 +329,9 @@ def test_attime_checks_the_values_now_on_a_copy_and_leaves_the_rest_to_its_time(
             run(vocabulary, context, "attime(1, sot.push('nope'))")  # no task of that name, now or at T
         with pytest.raises(CommandRejected, match="nope"):
             run(vocabulary, context, "attime(1, signal(sot, 'nope'))")
+        for query in ("stack()", "sot.stack()", "time()", "displaySignals(sot)", "help()"):
+            with pytest.raises(CommandRejected, match="only answers a question"):
+                run(vocabulary, context, f"attime(1, {query})")
         assert scheduled == []
         run(vocabulary, context, "attime(1, gainrh.setConstant(3))")
         run(vocabulary, context, "attime(1, sot.remove('taskrh'))")  # not in the stack now: may be at T

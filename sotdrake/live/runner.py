@@ -84,7 +84,8 @@ class LiveRun:
         self.simulator.set_target_realtime_rate(self.rate)
         self.vocabulary = Vocabulary(diagram, handles)
         self.vocabulary.set_scheduler(self._schedule)
-        self.vocabulary.add_function("status", (), lambda c: self.status(), "time, real-time lag, command counts")
+        self.vocabulary.add_function("status", (), lambda c: self.status(), "time, real-time lag, command counts",
+                                     query=True)
         self.vocabulary.add_function("stop", (), lambda c: self.stop(), "stop the run (writes its files)")
         self.server = CommandServer(self.vocabulary, new_token(), port=port)
         self.connection = Connection(self.server.host, self.server.port, self.server.token,

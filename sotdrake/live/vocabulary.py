@@ -81,6 +81,8 @@ class Method:
     doc: str = ""
     #: It reads and changes the context it is given only (``attime`` tries it on a copy first).
     context_only: bool = True
+    #: It only answers a question (``attime`` refuses it: at T its answer would go nowhere).
+    query: bool = False
 
     def signature(self, callee: str) -> str:
         shown = [p.name if p.default is _REQUIRED else f"{p.name}={p.default!r}" for p in self.params]
@@ -172,10 +174,11 @@ class Vocabulary:
 
     # --- construction ----------------------------------------------------------------------
     def add_function(self, name: str, params: tuple[Param, ...], apply: Callable[..., Any], doc: str = "",
-                     context_only: bool = False) -> None:
+                     context_only: bool = False, query: bool = False) -> None:
         """Offer ``name(...)`` (e.g. the runner's ``status()``); ``apply(context, *values)``;
-        ``context_only``: it reads and changes that context only (no other effect)."""
-        self._methods[""][name] = Method(params, apply, doc, context_only)
+        ``context_only``: it reads and changes that context only (no other effect); ``query``: it
+        only answers a question."""
+        self._methods[""][name] = Method(params, apply, doc, context_only, query)
 
     def set_scheduler(self, schedule: Callable[[float, Prepared], str]) -> None:
         """Where ``attime(T, command)`` hands its prepared command (the live runner)."""
@@ -246,11 +249,11 @@ class Vocabulary:
                 self._objects[f"{name}.{part}"] = system
 
     def _add_functions(self) -> None:
-        def add(name: str, params: tuple[Param, ...], apply: Callable[..., Any], doc: str = "") -> None:
-            self.add_function(name, params, apply, doc, context_only=True)
+        def add(name: str, params: tuple[Param, ...], apply: Callable[..., Any], doc: str = "", query: bool = True) -> None:
+            self.add_function(name, params, apply, doc, context_only=True, query=query)
 
         add("gotoNd", _GOTO_PARAMS, lambda c, meta, position, selec, gain: gotoNd(meta, position, selec, gain, context=c),
-            "drive a task to a position (1, 3 or 4 gain numbers)")
+            "drive a task to a position (1, 3 or 4 gain numbers)", query=False)
         add("displaySignals", (Param("entity", "entity"),), lambda c, e: introspection.signals_report(e, c))
         add("signal", (Param("entity", "entity"), Param("port", "text")), lambda c, e, p: introspection.signal(e, p, c))
         add("entities", (), lambda c: ", ".join(introspection.entities(self.diagram)), "the diagram's systems")
@@ -258,7 +261,7 @@ class Vocabulary:
             solver = self._solver
             add("stack", (), lambda c: repr(solver.stack(c)), f"{solver.name}'s stack, highest priority first")
         add("attime", (Param("time", "time"), Param("command", "command")), self._attime,
-            "apply a command when the simulated time reaches T (s)")
+            "apply a command when the simulated time reaches T (s)", query=False)
         add("time", (), lambda c: f"{c.get_time():.4f}", "the simulated time (s)")
         add("help", (), lambda c: self.help(), "this list")
 
@@ -269,6 +272,8 @@ class Vocabulary:
             raise CommandRejected(f"attime: T = {time} s is in the past (t = {context.get_time():.4f} s)")
         if time > MAX_TIME:
             raise CommandRejected(f"attime: T = {time} s is beyond the latest time a command may wait for ({MAX_TIME:g} s)")
+        if prepared.method.query:
+            raise CommandRejected(f"attime: {prepared} only answers a question; at T its answer would go nowhere")
         if prepared.method.context_only:  # its values and names checked now, on a copy of the run's context
             try:  # (what depends on the stack at T, e.g. a push, is checked at T; the names never change)
                 prepared(context.Clone())
@@ -395,8 +400,8 @@ def _solver_methods(solver: Any) -> dict[str, Method]:
         "clear": Method((), lambda c: solver.clear(c), "empty the stack (contacts stay)"),
         "addContact": Method(task, lambda c, n: solver.addContact(n, c)),
         "rmContact": Method(task, lambda c, n: solver.rmContact(n, c)),
-        "stack": Method((), lambda c: repr(solver.stack(c))),
-        "contacts": Method((), lambda c: repr(solver.contacts(c))),
+        "stack": Method((), lambda c: repr(solver.stack(c)), query=True),
+        "contacts": Method((), lambda c: repr(solver.contacts(c)), query=True),
         "setThreshold": Method((Param("svd_threshold", "number"),), lambda c, x: solver.setThreshold(x, c)),
         "setDamping": Method((Param("damping", "number"),), lambda c, x: solver.setDamping(x, c)),
     }

@@ -278,6 +278,17 @@ def test_bad_margins_are_refused(safety, influence, xi, word):
         check_margins(safety, influence, xi, 1e-3)
 
 
+def test_a_task_s_size_tick_and_margins_of_the_wrong_kind_are_refused(world):
+    for dt in (0.0, -1.0, float("nan"), "1e-3"):
+        with pytest.raises(InvalidInput, match="dt"):
+            check_margins(0.01, 0.05, 0.5, dt)  # type: ignore[arg-type]
+    nv = world.plant.num_velocities()
+    for bad in ({"nv": float(nv)}, {"nv": True}, {"margins": (0.01, 0.05, 0.5)}):
+        arguments = {"nv": nv, "margins": None, **bad}
+        with pytest.raises(InvalidInput, match=r"nv|margins"):
+            TaskCollision("taskc", world, arguments["nv"], 1e-3, margins=arguments["margins"])
+
+
 def test_bad_pairs_are_refused(world):
     nv = world.plant.num_velocities()
     for pairs, error, word in [

@@ -98,7 +98,9 @@ class CollisionMargins:
 def check_margins(safety: object, influence: object, xi: object, dt: float, where: str = "margins") -> CollisionMargins:
     """The margins if ``0 ≤ d_s``, ``d_s + a < d_i ≤ 1 m`` (``a`` = :data:`TICK_ALLOWANCE`),
     ``0 < ξ ≤ 10 m/s`` and ``ξ dt < d_i − d_s − a`` (the damper cannot cross ``d_s + a`` in one tick
-    ``dt``); else :class:`~sotdrake.exceptions.InvalidInput` naming the argument."""
+    ``dt``, a number > 0 s); else :class:`~sotdrake.exceptions.InvalidInput` naming the argument."""
+    if not (finite_number(dt) and dt > 0):
+        raise InvalidInput(f"{where}: dt (the tick) must be a number > 0 s, got {dt!r:.40}")
     d_s = check_number(f"{where}: safety (the safety distance d_s)", safety, 0.0, MAX_INFLUENCE, " m")
     d_i = check_number(f"{where}: influence (the influence distance d_i)", influence, 0.0, MAX_INFLUENCE, " m")
     if not d_i > d_s + TICK_ALLOWANCE:
@@ -211,8 +213,10 @@ class TaskCollision(Entity[CollisionMargins]):
         self.controlled = controlled
         if not (finite_number(dt) and dt > 0):
             raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
-        if nv != world.plant.num_velocities():
-            raise InvalidInput(f"{name}: nv = {nv}, the collision model has {world.plant.num_velocities()} velocities")
+        if isinstance(nv, bool) or not isinstance(nv, (int, np.integer)) or nv != world.plant.num_velocities():
+            raise InvalidInput(f"{name}: nv = {nv!r:.40}, the collision model has {world.plant.num_velocities()} velocities")
+        if margins is not None and not isinstance(margins, CollisionMargins):
+            raise InvalidInput(f"{name}: margins must be CollisionMargins(safety, influence, xi), got {margins!r:.60}")
         margins = margins or CollisionMargins()
         margins = check_margins(margins.safety, margins.influence, margins.xi, dt, name)
         self.pairs = None if pairs is None else world.check_pairs(pairs)

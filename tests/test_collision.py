@@ -329,8 +329,9 @@ def test_bad_obstacles_are_refused_and_nothing_is_added(talos_model, tmp_path):
     ]:
         with pytest.raises(InvalidInput, match=word):
             add_obstacle(world, shape, pose, "obstacle")
-    with pytest.raises(InvalidInput, match="link"):
-        add_obstacle(world, ("sphere", 0.1), RigidTransform(), "torso_2_link")
+    for taken in ("torso_2_link", "world", "imu_link"):  # (a body without collision geometry too: its name is taken)
+        with pytest.raises(InvalidInput, match="link"):
+            add_obstacle(world, ("sphere", 0.1), RigidTransform(), taken)
     assert world.obstacles == {}
     add_obstacle(world, ("sphere", 0.1), RigidTransform([1.0, 0, 1.0]), "ball")
     world.new_context()

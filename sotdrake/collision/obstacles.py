@@ -155,7 +155,7 @@ def add_obstacle(robot, shape: object, X_WO: object, name: str, meshcat: Meshcat
     world = robot if isinstance(robot, CollisionWorld) else collision_world(robot)
     if not isinstance(name, str) or not name.strip():
         raise InvalidInput(f"add_obstacle: name must be a non-empty string, got {name!r:.80}")
-    if name in world.obstacles or name in world.links:
+    if name in world.obstacles or name in world.links or world.plant.HasBodyNamed(name):
         raise InvalidInput(f"add_obstacle: {name!r} is already the name of a {'obstacle' if name in world.obstacles else 'link'}")
     drake_shape = make_shape(shape, name)
     pose = _pose(name, X_WO)

@@ -12,6 +12,7 @@ keyed by the source file's size and modification time.
 from __future__ import annotations
 
 import hashlib
+import logging
 import os
 import tempfile
 from pathlib import Path
@@ -19,6 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InvalidInput, RobotDescriptionError, os_reason
+
+log = logging.getLogger(__name__)
 
 
 def cache_root() -> Path:
@@ -51,8 +54,11 @@ def obj_for_mesh(mesh_path: Path) -> Path:
     except Exception as error:  # (each reader has its own errors: pycollada's, numpy's, struct's …)
         raise RobotDescriptionError(f"{source}: the mesh does not load ({type(error).__name__}: {error})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0 or not np.isfinite(mesh.vertices).all():
-        raise RobotDescriptionError(f"{source}: the mesh has no triangle or a non-finite vertex (an empty, truncated or "
-                                    "corrupt file)")
+        if file_type == "stl":  # (an STL is triangles only: none read is a broken file)
+            raise RobotDescriptionError(f"{source}: the mesh has no triangle or a non-finite vertex (an empty, truncated "
+                                        "or corrupt file)")
+        # A COLLADA file may hold what the converter does not read (ANYmal's feet): the link is not drawn.
+        log.warning("%s: no triangle read from this COLLADA mesh: its link is not drawn", source)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=target.parent, suffix=".obj.tmp")

@@ -225,6 +225,16 @@ def test_collada_meshes_convert_to_obj(tmp_path, monkeypatch):
     assert obj_for_mesh(dae) == obj
 
 
+def test_a_collada_mesh_the_converter_reads_nothing_from_is_reported_not_refused(tmp_path, monkeypatch, caplog):
+    """ANYmal's foot: its COLLADA holds nothing the converter reads; the robot loads, the foot not drawn."""
+    import logging
+
+    monkeypatch.setenv("SOTDRAKE_CACHE", str(tmp_path))
+    with caplog.at_level(logging.WARNING, logger="sotdrake.robots.mesh_cache"):
+        assert load_robot("anymal", meshes=True).nq == 19
+    assert any("anymal_foot.dae" in r.getMessage() and "not drawn" in r.getMessage() for r in caplog.records)
+
+
 def test_add_robot_refuses_a_finalized_plant_a_second_copy_and_a_non_plant():
     from pydrake.multibody.plant import MultibodyPlant
 

@@ -17,10 +17,13 @@ from .services import DEPTH, RUN_COMMAND_REQUEST, RUN_COMMAND_RESPONSE, START_SE
 
 class RunCommandClient:
     """``command(line)`` sends one ``run_command`` and waits for its answer (a dict with ``ok`` and
-    ``answer`` or ``error``); ``start()`` calls ``start_dynamic_graph``."""
+    ``answer`` or ``error``); ``start()`` calls ``start_dynamic_graph``.
+
+    Without ``node``, the client has a node of its own, ``sotdrake_client_<pid>`` (the run's is
+    ``sotdrake``: two nodes of one name confuse ROS tools), closed by ``sotdrake.ros.shutdown()``."""
 
     def __init__(self, node: RosNode | None = None, timeout: float = 120.0):
-        self.ros, self.timeout = node or ros_node(), timeout
+        self.ros, self.timeout = node or ros_node(f"sotdrake_client_{os.getpid()}"), timeout
         node_ = self.ros.node
         self._answers: dict[str, dict] = {}
         self._arrived = threading.Condition()

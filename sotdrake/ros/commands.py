@@ -45,7 +45,8 @@ class JointCommandPublisher(_Triggered):
 
     Inputs: ``position`` (``q``, size nq; rad or m).
     Outputs: none; publishes the positions of ``joints`` (default: every one-coordinate joint, plant
-    order) on ``topic`` at :meth:`trigger`'s rate.
+    order) on ``topic`` at :meth:`trigger`'s rate. A ``topic`` ROS refuses, unknown ``joints``:
+    :class:`InvalidInput` naming the argument.
     """
 
     def __init__(self, plant: MultibodyPlant, topic: str = "/forward_position_controller/commands",
@@ -54,7 +55,7 @@ class JointCommandPublisher(_Triggered):
         self.topic = check_topic(topic)
         self.joints, self.indices = _joint_indices(plant, joints)
         self.position = self.DeclareVectorInputPort("position", plant.num_positions())
-        self.publisher = self.ros.node.create_publisher(Float64MultiArray, topic, 10)
+        self.publisher = self._publisher(Float64MultiArray, topic, 10)
 
     def send(self, context: Context) -> None:
         self.publisher.publish(to_message("vector", self.position.Eval(context)[self.indices]))
@@ -66,7 +67,9 @@ class TorqueCommandPublisher(_Triggered):
     Inputs: ``torque`` (τ_ff, size na, N·m), ``state`` (the reference ``(q, v)``, size nq + nv).
     Outputs: none; publishes on ``<prefix>/feedforward`` (na values, N·m), ``<prefix>/reference``
     (the actuated joints' q then v: 2·na values, rad and rad/s) and ``<prefix>/gains`` (Kp then Kd:
-    2·na values, N·m/rad and N·m·s/rad), all in actuator order.
+    2·na values, N·m/rad and N·m·s/rad), all in actuator order. ``kp`` and ``kd`` (one or na finite
+    numbers ≥ 0) and a ``prefix`` ROS refuses are :class:`InvalidInput` naming the argument; nothing
+    is published then.
     """
 
     def __init__(self, plant: MultibodyPlant, kp: float | Sequence[float], kd: float | Sequence[float],
@@ -81,17 +84,22 @@ class TorqueCommandPublisher(_Triggered):
         self.v_indices = np.array([plant.num_positions() + j.velocity_start() for j in joints], dtype=int)
         gains = []
         for label, gain in (("kp", kp), ("kd", kd)):
-            value = np.broadcast_to(np.asarray(gain, dtype=float), (na,)) if np.ndim(gain) == 0 else np.asarray(gain, float)
-            if value.shape != (na,) or not np.all(np.isfinite(value)) or np.any(value < 0):
-                raise InvalidInput(f"{label} must be one or {na} finite numbers ≥ 0, got {gain!r}")
+            value = check_finite(f"{name}: {label} (one or {na} numbers ≥ 0)", gain)
+            value = np.broadcast_to(value, (na,)) if value.ndim == 0 else value
+            if value.shape != (na,) or np.any(value < 0):
+                raise InvalidInput(f"{name}: {label} must be one or {na} finite numbers ≥ 0, got {gain!r:.200}")
             gains.append(value)
         self.gains = np.concatenate(gains)
         prefix = check_topic(prefix).rstrip("/")
         self.torque = self.DeclareVectorInputPort("torque", na)
         self.state = self.DeclareVectorInputPort("state", plant.num_positions() + plant.num_velocities())
-        node_ = self.ros.node
-        self.publishers = {part: node_.create_publisher(Float64MultiArray, f"{prefix}/{part}", 10)
-                           for part in ("feedforward", "reference", "gains")}
+        self.publishers = {}
+        try:
+            for part in ("feedforward", "reference", "gains"):
+                self.publishers[part] = self._publisher(Float64MultiArray, f"{prefix}/{part}", 10, "prefix")
+        except BaseException:
+            self.release()
+            raise
 
     def send(self, context: Context) -> None:
         x = self.state.Eval(context)

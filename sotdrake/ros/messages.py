@@ -18,7 +18,7 @@ from rclpy.validate_full_topic_name import validate_full_topic_name
 from rclpy.validate_topic_name import validate_topic_name
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 
-from ..exceptions import InvalidInput
+from ..exceptions import MAX_COUNT, InvalidInput
 
 #: The kinds ``RosPublish.add`` takes (the SoT's names).
 KINDS = ("vector", "matrix", "matrixHomo", "double")
@@ -36,7 +36,9 @@ def check_topic(topic: str) -> str:
 
 
 def port_size(kind: str, size: int | None = None, shape: Sequence[int] | None = None) -> int:
-    """The input port size of a signal of ``kind`` (see the module table)."""
+    """The input port size of a signal of ``kind`` (see the module table): ``size`` (a ``vector``)
+    and ``rows × cols`` (a ``matrix``) are positive ints of at most ``MAX_COUNT`` numbers, else
+    :class:`InvalidInput`."""
     if kind not in KINDS:
         raise InvalidInput(f"unknown signal type {kind!r}: one of {', '.join(KINDS)}")
     if kind == "double":
@@ -45,11 +47,13 @@ def port_size(kind: str, size: int | None = None, shape: Sequence[int] | None = 
         return 16
     if kind == "matrix":
         if (not isinstance(shape, (tuple, list)) or len(shape) != 2
-                or not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in shape)):
-            raise InvalidInput(f"a 'matrix' signal needs shape=(rows, cols) of positive ints, got {shape!r}")
-        return shape[0] * shape[1]
-    if isinstance(size, bool) or not (isinstance(size, int) and size > 0):
-        raise InvalidInput(f"a 'vector' signal needs size=<positive int> (e.g. robot.dimension), got {size!r}")
+                or not all(isinstance(n, int) and not isinstance(n, bool) and 0 < n <= MAX_COUNT for n in shape)
+                or shape[0] * shape[1] > MAX_COUNT):
+            raise InvalidInput(f"a 'matrix' signal needs shape=(rows, cols) of positive ints, at most {MAX_COUNT} "
+                               f"numbers, got {shape!r:.100}")
+        return int(shape[0]) * int(shape[1])
+    if isinstance(size, bool) or not (isinstance(size, int) and 0 < size <= MAX_COUNT):
+        raise InvalidInput(f"a 'vector' signal needs size=<positive int ≤ {MAX_COUNT}> (e.g. robot.dimension), got {size!r:.100}")
     return size
 
 

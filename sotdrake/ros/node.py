@@ -8,36 +8,78 @@ host) are read from the environment when the node is created, as by any ROS 2 pr
 
 from __future__ import annotations
 
+import logging
+import re
 import threading
 
 import rclpy
+from pydrake.systems.framework import LeafSystem
 from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, SotError
+
+log = logging.getLogger("sotdrake.ros")
+
+#: The longest node name ROS 2 takes.
+MAX_NODE_NAME = 255
+_NODE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def check_node_name(name: object) -> str:
+    """``name`` if it is a ROS node name (a str of ASCII letters, digits and ``_``, not first a
+    digit, at most :data:`MAX_NODE_NAME` characters), else :class:`InvalidInput`."""
+    if not isinstance(name, str) or len(name) > MAX_NODE_NAME or not _NODE_NAME.fullmatch(name):
+        raise InvalidInput(f"name: a ROS node name is 1 to {MAX_NODE_NAME} ASCII letters, digits and '_' "
+                           f"(not first a digit), got {name!r:.100}")
+    return name
+
+
+def check_not_built(system: LeafSystem, what: str) -> None:
+    """:class:`SotError` if ``system`` is in a diagram (which is built: its contexts would not have
+    a port added now)."""
+    if system.GetSystemPathname() != "::" + system.get_name():
+        raise SotError(f"{system.get_name()}: cannot add {what}: the diagram is already built "
+                       "(add signals before builder.Build())")
 
 
 class RosNode:
     """A node with its own rclpy context and an executor thread (callbacks run there, never in the
-    simulation thread); :meth:`close` ends both."""
+    simulation thread); :meth:`close` ends both. ``name`` is checked (:func:`check_node_name`)
+    before anything is created."""
 
     def __init__(self, name: str = "sotdrake"):
-        if not name or not name.replace("_", "a").isalnum() or name[0].isdigit():
-            raise InvalidInput(f"a ROS node name is letters, digits and '_' (not first a digit), got {name!r}")
+        self.name = check_node_name(name)
         self.context = Context()
         rclpy.init(context=self.context)
-        self.node: Node = rclpy.create_node(name, context=self.context)
+        try:
+            self.node: Node = rclpy.create_node(name, context=self.context)
+        except BaseException:
+            rclpy.shutdown(context=self.context)
+            raise
         self.executor = MultiThreadedExecutor(num_threads=2, context=self.context)
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, name=f"ros-{name}", daemon=True)
         self._thread.start()
 
     def _spin(self) -> None:
-        try:
-            self.executor.spin()
-        except Exception:  # the context was shut down under the executor
-            pass
+        """Spin until the node is closed: a callback's exception is logged, and spinning goes on
+        (the node keeps answering)."""
+        while self.context.ok():
+            try:
+                self.executor.spin()
+                return  # (the executor was shut down)
+            except Exception:
+                if not self.context.ok():  # the context was shut down under the executor
+                    return
+                log.exception("%s: a ROS callback raised; the node goes on", self.name)
+
+    def check_open(self, who: str) -> None:
+        """:class:`SotError` naming ``who`` if this node is closed (``shutdown()``, :meth:`close`)."""
+        if not self.context.ok():
+            raise SotError(f"{who}: the ROS node it was made with ({self.name}) is shut down "
+                           "(sotdrake.ros.shutdown() or close()); build the diagram again")
 
     def close(self) -> None:
         if self.context.ok():
@@ -47,23 +89,22 @@ class RosNode:
         self._thread.join(timeout=2.0)
 
 
-_shared: RosNode | None = None
+_shared: dict[str, RosNode] = {}
 _lock = threading.Lock()
 
 
-def ros_node() -> RosNode:
-    """The process's shared node (``sotdrake``), created on first use."""
-    global _shared
+def ros_node(name: str = "sotdrake") -> RosNode:
+    """The process's shared node named ``name`` (default ``sotdrake``), created on first use."""
     with _lock:
-        if _shared is None or not _shared.context.ok():
-            _shared = RosNode("sotdrake")
-        return _shared
+        node = _shared.get(name)
+        if node is None or not node.context.ok():
+            node = _shared[name] = RosNode(name)
+        return node
 
 
 def shutdown() -> None:
-    """Close the shared node (a new one is created on the next :func:`ros_node`)."""
-    global _shared
+    """Close the shared nodes (a new one is created on the next :func:`ros_node`)."""
     with _lock:
-        if _shared is not None:
-            _shared.close()
-            _shared = None
+        for node in _shared.values():
+            node.close()
+        _shared.clear()

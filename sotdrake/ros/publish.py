@@ -33,7 +33,7 @@ from sensor_msgs.msg import JointState
 from ..exceptions import InvalidInput, finite_number
 from ..robot import Robot
 from .messages import check_topic, message_type, port_size, to_message
-from .node import RosNode, ros_node
+from .node import RosNode, check_not_built, ros_node
 
 
 def stamp(t: float) -> Time:
@@ -53,6 +53,26 @@ class _Triggered(LeafSystem):
         self.every, self.dt = 0, 0.0
         self.published = 0
         self.publish_seconds = 0.0  # wall time spent publishing
+        self._publishers: list[Any] = []
+
+    def _publisher(self, message: type, topic: str, depth: int, argument: str = "topic") -> Any:
+        """A ROS publisher of ``message`` on ``topic`` (checked first), owned by this system; a
+        topic ROS refuses is an :class:`InvalidInput` naming ``argument``."""
+        check_topic(topic)
+        try:
+            publisher = self.ros.node.create_publisher(message, topic, depth)
+        except Exception as error:  # (rclpy's own errors: a substitution it cannot expand, a reserved topic …)
+            raise InvalidInput(f"{self.get_name()}: {argument}: ROS refused the topic {topic!r} for "
+                               f"{message.__name__}: {error}") from None
+        self._publishers.append(publisher)
+        return publisher
+
+    def release(self) -> None:
+        """Destroy this system's ROS publishers (it is not to be used: a refused construction)."""
+        if self.ros.context.ok():
+            for publisher in self._publishers:
+                self.ros.node.destroy_publisher(publisher)
+        self._publishers.clear()
 
     def trigger(self, every: int, dt: float) -> float:
         """Publish every ``every`` ticks of ``dt`` s of simulated time (from t = 0: at t = 0,
@@ -72,6 +92,7 @@ class _Triggered(LeafSystem):
     def _on_tick(self, context: Context) -> EventStatus:
         if round(context.get_time() / self.dt) % self.every:
             return EventStatus.DidNothing()
+        self.ros.check_open(self.get_name())
         start = time.perf_counter()
         self.send(context)
         self.publish_seconds += time.perf_counter() - start
@@ -109,7 +130,12 @@ class RosPublish(_Triggered):
     def add(self, kind: str, signal: str, topic: str, size: int | None = None,
             shape: Sequence[int] | None = None) -> InputPort:
         """An input port ``signal`` of ``kind`` published on ``topic`` (``size`` for a ``vector``,
-        ``shape=(rows, cols)`` for a ``matrix``); returns the port."""
+        ``shape=(rows, cols)`` for a ``matrix``, at most ``MAX_COUNT`` numbers); returns the port.
+
+        Checked before anything is created (:class:`InvalidInput`, nothing added): the signal is a
+        new identifier, the kind and its size, the topic (ROS's refusal too); :class:`SotError`
+        once this system is in a built diagram."""
+        check_not_built(self, f"the signal {signal!r:.60}")
         if not isinstance(signal, str) or not signal.isidentifier():
             raise InvalidInput(f"{self.get_name()}: a signal name is an identifier, got {signal!r}")
         if signal in self.signals:
@@ -118,11 +144,14 @@ class RosPublish(_Triggered):
         check_topic(topic)
         if self.HasInputPort(signal):
             raise InvalidInput(f"{self.get_name()}: an input named {signal!r} exists already")
-        try:  # (the publisher first: a topic ROS refuses leaves no port behind)
-            publisher = self.ros.node.create_publisher(message_type(kind), topic, self.depth)
-        except Exception as error:  # (rclpy's own errors: a substitution it cannot expand, a reserved topic …)
-            raise InvalidInput(f"{self.get_name()}: ROS refused the topic {topic!r} for {kind!r}: {error}") from None
-        port = self.DeclareVectorInputPort(signal, n)
+        # (the publisher after every check, before the port: a topic ROS refuses leaves no port behind)
+        publisher = self._publisher(message_type(kind), topic, self.depth)
+        try:
+            port = self.DeclareVectorInputPort(signal, n)
+        except BaseException:
+            self._publishers.remove(publisher)
+            self.ros.node.destroy_publisher(publisher)
+            raise
         self.signals[signal] = _Signal(kind, topic, port, (int(shape[0]), int(shape[1])) if shape is not None else None, publisher)
         return port
 
@@ -144,15 +173,18 @@ class JointStatePublisher(_Triggered):
 
     Inputs: ``state`` (``q``, size nq; rad or m per joint).
     Outputs: none. ``name`` and ``position`` per joint (velocity and effort empty).
+    A ``topic`` ROS refuses is an :class:`InvalidInput` naming it.
     """
 
     def __init__(self, plant: MultibodyPlant, topic: str = "/joint_states", name: str = "ros_publish_joint_states",
                  node: RosNode | None = None, depth: int = 10):
         super().__init__(name, node)
+        if isinstance(depth, bool) or not (isinstance(depth, int) and depth > 0):
+            raise InvalidInput(f"{name}: depth: the queue depth must be a positive int, got {depth!r}")
         self.topic = check_topic(topic)
         self.names, self.indices = joint_coordinates(plant)
         self.state = self.DeclareVectorInputPort("state", plant.num_positions())
-        self.publisher = self.ros.node.create_publisher(JointState, topic, depth)
+        self.publisher = self._publisher(JointState, topic, depth)
 
     def message(self, context: Context) -> JointState:
         q = self.state.Eval(context)
@@ -190,27 +222,41 @@ def add_ros_publisher(robot: Robot, topic: str = "/sot_control/state", joint_sta
     """``robot.device.state`` on ``topic`` (``std_msgs/Float64MultiArray``, system
     ``ros_publish_state``) and the joints on ``joint_states`` (None: not published), every
     ``every`` ticks of ``robot.dt`` (the seed's ``addDownsampledSignal(…, every)``; default 100)
-    or every ``period`` s (a whole number of ticks); not both."""
+    or every ``period`` s (a whole number of ticks); not both.
+
+    Everything is checked, and the ROS publishers made, before any system is added: a refusal
+    (:class:`InvalidInput`: the rate, a topic, ROS refusing one, the two topics equal; a built
+    diagram: :class:`SotError`) leaves the builder as it was."""
     if every is not None and period is not None:
         raise InvalidInput(f"give the publishing rate as every (ticks) or as period (s), not both: every={every!r}, period={period!r}")
     if period is not None:
         every = ticks_of(period, robot.dt)
     every = 100 if every is None else every
-    # Checked before anything is added: a refusal leaves the builder as it was.
     if isinstance(every, bool) or not (isinstance(every, int) and every > 0):
         raise InvalidInput(f"add_ros_publisher: every must be a positive number of ticks, got {every!r}")
     check_topic(topic)
     if joint_states is not None:
         check_topic(joint_states)
+        if joint_states == topic:
+            raise InvalidInput(f"add_ros_publisher: joint_states and topic must be two topics, both are {topic!r}")
     robot.check_new_names(["ros_publish_state"] + ["ros_publish_joint_states"] * (joint_states is not None))
     q = robot.device.GetOutputPort("state")
-    state = robot.add(RosPublish("ros_publish_state", node))
-    state.add("vector", "state", topic, size=q.size())
-    state.trigger(every, robot.dt)
-    robot.builder.Connect(q, state.GetInputPort("state"))
-    joints = None
-    if joint_states is not None:
-        joints = robot.add(JointStatePublisher(robot.model.plant, joint_states, node=node))
-        joints.trigger(every, robot.dt)
-        robot.builder.Connect(q, joints.state)
+    made: list[_Triggered] = []
+    try:  # (the systems, their publishers made, before any is added)
+        state = RosPublish("ros_publish_state", node)
+        made.append(state)
+        state.add("vector", "state", topic, size=q.size())
+        state.trigger(every, robot.dt)
+        joints = None
+        if joint_states is not None:
+            joints = JointStatePublisher(robot.model.plant, joint_states, node=node)
+            made.append(joints)
+            joints.trigger(every, robot.dt)
+    except BaseException:
+        for system in made:
+            system.release()
+        raise
+    robot.builder.Connect(q, robot.add(state).GetInputPort("state"))
+    if joints is not None:
+        robot.builder.Connect(q, robot.add(joints).state)
     return RosPublishers(state, joints)

@@ -41,6 +41,21 @@ RUN_COMMAND_RESPONSE = "/run_command/response"
 START_SERVICE = "/start_dynamic_graph"
 #: Queue depth of the command topics (reliable QoS).
 DEPTH = 1000
+#: The longest string a request's ``id`` may be.
+MAX_ID_CHARS = 1000
+
+
+def _is_id(ident: object) -> bool:
+    return ident is None or isinstance(ident, (bool, int, float)) or (isinstance(ident, str) and len(ident) <= MAX_ID_CHARS)
+
+
+def check_id(ident: object) -> object:
+    """``ident`` if it is a request id: a JSON scalar (a string of at most :data:`MAX_ID_CHARS`
+    characters, a number, true, false or null), else :class:`ValueError` saying so."""
+    if _is_id(ident):
+        return ident
+    raise ValueError(f"'id' must be a JSON string (at most {MAX_ID_CHARS} characters), number or null, "
+                     f"got a {'string too long' if isinstance(ident, str) else type(ident).__name__}")
 
 
 class _Answers:
@@ -83,18 +98,22 @@ class RosServices:
         return response
 
     def _request(self, message: String) -> None:
-        """One request: refused with an answer (``ok`` false), never an exception, which would end
-        the node's executor and with it every later command."""
+        """One request: refused with an answer (``ok`` false), never an exception: not JSON with a
+        ``command`` string, not UTF-8, an ``id`` that is not a JSON scalar (:func:`check_id`; answered
+        to a null id)."""
         text, ident = message.data, None
         try:
             if text.lstrip().startswith("{"):
                 request = json.loads(text)
                 ident = request.get("id")  # (first: a refused command is still answered to its id)
+                ident = check_id(ident)  # (a list or object is not one: answered to null)
                 text = request["command"]
                 if not isinstance(text, str):
                     raise TypeError("command is not a string")
             line = text.encode("utf-8")
         except (ValueError, KeyError, TypeError, AttributeError, RecursionError) as error:
+            if not _is_id(ident):
+                ident = None
             # (RecursionError: JSON nested too deeply; UnicodeEncodeError, a ValueError: a lone surrogate)
             self.respond({"id": ident, "ok": False, "error": f"bad request (JSON with 'command', UTF-8 text): {error!s:.200}"})
             return
@@ -104,7 +123,13 @@ class RosServices:
         self.live.server._handle_line(self._answers, self._count, line)  # type: ignore[arg-type]
 
     def respond(self, answer: dict) -> None:
-        self.responses.publish(String(data=json.dumps(json_safe(answer))))  # (an id of NaN: null, JSON has no NaN)
+        """Publish ``answer`` as JSON (an id of NaN: null, JSON has no NaN); an answer that cannot be
+        written (nested too deeply) goes out as an error to a null id, never an exception."""
+        try:
+            text = json.dumps(json_safe(answer))
+        except (RecursionError, ValueError, TypeError) as error:
+            text = json.dumps({"id": None, "ok": False, "error": f"an answer could not be written as JSON: {error!s:.200}"})
+        self.responses.publish(String(data=text))
 
     def wait_for_start(self, poll: float = 0.01) -> bool:
         """Apply commands (at t = 0) until ``start_dynamic_graph`` is called (True) or the run is

@@ -29,9 +29,9 @@ from pydrake.systems.framework import BasicVector, LeafSystem, OutputPort
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray
 
-from ..exceptions import InvalidInput, check_finite
+from ..exceptions import MAX_COUNT, InvalidInput, check_finite
 from .messages import check_topic
-from .node import RosNode, ros_node
+from .node import RosNode, check_not_built, ros_node
 
 log = logging.getLogger("sotdrake.ros")
 
@@ -71,7 +71,13 @@ class RosSubscribe(LeafSystem):
     def add(self, kind: str, signal: str, topic: str, default: Sequence[float] | None = None,
             size: int | None = None, names: Sequence[str] | None = None) -> OutputPort:
         """An output ``signal`` fed from ``topic``; returns the port. ``size`` for a ``vector``,
-        ``names`` for ``joint_states``; ``default`` (zeros, or the identity pose) before any message."""
+        ``names`` for ``joint_states`` (``size`` and the number of names at most ``MAX_COUNT``);
+        ``default`` (zeros, or the identity pose) before any message.
+
+        Checked before anything is created (:class:`InvalidInput`, nothing added): the kind, the
+        signal (a new identifier), the topic (ROS's refusal too), the size or names, the default;
+        :class:`SotError` once this system is in a built diagram."""
+        check_not_built(self, f"the signal {signal!r:.60}")
         if kind not in SUBSCRIBE_KINDS:
             raise InvalidInput(f"unknown subscription type {kind!r}: one of {', '.join(SUBSCRIBE_KINDS)}")
         if not isinstance(signal, str) or not signal.isidentifier() or signal in self.slots:
@@ -82,12 +88,12 @@ class RosSubscribe(LeafSystem):
         check_topic(topic)
         if kind == "joint_states":
             if (isinstance(names, str) or not names or not all(isinstance(n, str) for n in names)
-                    or len(set(names)) != len(names)):
+                    or len(set(names)) != len(names) or len(names) > MAX_COUNT):
                 raise InvalidInput(f"{self.get_name()}: 'joint_states' needs names=[distinct joint names], got {names!r:.100}")
             n = len(names)
         elif kind == "vector":
-            if isinstance(size, bool) or not (isinstance(size, int) and size > 0):
-                raise InvalidInput(f"{self.get_name()}: a 'vector' needs size=<positive int>, got {size!r}")
+            if isinstance(size, bool) or not (isinstance(size, int) and 0 < size <= MAX_COUNT):
+                raise InvalidInput(f"{self.get_name()}: a 'vector' needs size=<positive int ≤ {MAX_COUNT}>, got {size!r:.100}")
             n = size
         else:
             n = 1 if kind == "double" else 7

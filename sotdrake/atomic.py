@@ -1,11 +1,17 @@
-"""Builders that add several systems either add them all or leave the builder as it was."""
+"""Builders that add several systems either add them all or leave the builder as it was, and
+whether a system is already in a built diagram (its contexts would not have a port added now)."""
 
 from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder, System
+
+
+def in_built_diagram(system: System) -> bool:
+    """Whether ``system`` is in a diagram (one is only made by ``builder.Build()``)."""
+    return system.GetSystemPathname() != "::" + system.get_name()
 
 
 @contextmanager

@@ -27,6 +27,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, OutputPort, ValueProducer
 
+from .atomic import in_built_diagram
 from .centroidal import centroidal_momentum_matrix
 from .configuration import Layout, PlantContextHolder
 from .exceptions import InvalidInput, SotError, check_finite, check_name
@@ -80,7 +81,7 @@ class Dynamic(LeafSystem):
         frame = self.check_op_point(name, frame_name)
         if name in self._op_points:
             return self.GetOutputPort(name), self.GetOutputPort("J" + name)
-        if self.GetSystemPathname() != "::" + self.get_name():  # (in a diagram: one that is built)
+        if in_built_diagram(self):
             raise SotError(f"{self.get_name()}: cannot create the op point {name!r:.60}: the diagram is already built "
                            "(create op points, and the meta tasks that make them, before builder.Build())")
         self._op_points[name] = (frame, frame_name)

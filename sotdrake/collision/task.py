@@ -211,8 +211,6 @@ class TaskCollision(Entity[CollisionMargins]):
                                    f"got {controlled.dtype} {controlled.shape}")
             controlled = controlled.copy()
         self.controlled = controlled
-        if not (finite_number(dt) and dt > 0):
-            raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
         if isinstance(nv, bool) or not isinstance(nv, (int, np.integer)) or nv != world.plant.num_velocities():
             raise InvalidInput(f"{name}: nv = {nv!r:.40}, the collision model has {world.plant.num_velocities()} velocities")
         if margins is not None and not isinstance(margins, CollisionMargins):

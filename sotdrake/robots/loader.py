@@ -32,7 +32,7 @@ from pydrake.multibody.tree import ModelInstanceIndex, PlanarJoint
 from ..exceptions import InvalidInput, RobotNotFound, SotError, VariantNotFound
 from .catalog import BASES, ROBOTS, RobotSpec
 from .from_file import add_robot_file, check_time_step, drake_refusals, load_robot_file, looks_like_path
-from .mimic import follow_mimics, mimic_table
+from .mimic import follow_mimics, mimic_joints, mimic_table
 from .model import RobotModel, posture_from_srdf, register_loader
 from .model_defaults import operational_points_of, posture_of
 from .srdf import read_group_state
@@ -128,7 +128,7 @@ def joint_table(urdf_text: str) -> tuple[dict[str, float], set[str]]:
         limit_effort = float(limit.get("effort") or 0) if limit is not None else 0.0
         if limit_effort > 0:  # 0: not given (Romeo's fingers)
             effort[name] = limit_effort
-    return effort, set(mimic_table(urdf_text))
+    return effort, set(mimic_joints(root))
 
 
 def add_actuators(plant: MultibodyPlant, instance: ModelInstanceIndex, urdf_text: str) -> None:
@@ -170,7 +170,12 @@ def add_robot(
             raise InvalidInput(f"a robot file has no variants and a free or fixed base, got variant={variant!r}, base={base!r}")
         instances = add_robot_file(plant, name, meshes=meshes, floating_base=base == "free")
         return instances[0]
-    name = str(name)
+    return _add_catalog_robot(plant, str(name), variant, meshes, base, collision)[0]
+
+
+def _add_catalog_robot(plant: MultibodyPlant, name: str, variant: str | None, meshes: bool, base: str | None,
+                       collision: bool = True) -> tuple[ModelInstanceIndex, str]:
+    """:func:`add_robot` for a catalog robot: its model instance and the URDF text it was read from."""
     spec = robot_spec(name)
     variant = _variant(spec, variant)
     base = _base(spec, variant, base)
@@ -185,7 +190,7 @@ def add_robot(
         elif base == "planar":
             plant.AddJoint(PlanarJoint(PLANAR_BASE_JOINT, plant.world_frame(), root_frame, np.zeros(3)))
     add_actuators(plant, instance, text)
-    return instance
+    return instance, text
 
 
 def _put_on_ground(plant: MultibodyPlant, q: np.ndarray, soles: list) -> np.ndarray:
@@ -305,7 +310,7 @@ def _load_catalog_robot(name: str, variant: str | None, meshes: bool, time_step:
     if meshes:
         scene_graph = SceneGraph()
         plant.RegisterAsSourceForSceneGraph(scene_graph)
-    add_robot(plant, name, variant, meshes, base)
+    _, text = _add_catalog_robot(plant, name, variant, meshes, base)
     plant.Finalize()
     model = RobotModel(
         plant=plant,
@@ -323,6 +328,6 @@ def _load_catalog_robot(name: str, variant: str | None, meshes: bool, time_step:
         {op: target for op, target in spec.op_points.items() if _has_target(plant, target)}
     )
     soles = [model.frame(s) for s in spec.soles]
-    model.mimic = mimic_table(robot_urdf_text(name, variant))
+    model.mimic = mimic_table(text)
     model.half_sitting = follow_mimics(plant, model.mimic, reference_posture(plant, spec, model.srdf_path, soles))
     return model

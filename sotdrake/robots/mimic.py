@@ -12,8 +12,13 @@ from pydrake.multibody.plant import MultibodyPlant
 def mimic_table(urdf_text: str) -> dict[str, tuple[str, float, float]]:
     """The URDF's moving ``<mimic>`` joints: follower → (leader, multiplier, offset), as Drake's
     parser couples them (``q_f = multiplier q_l + offset``; by default 1 and 0)."""
+    return mimic_joints(ET.fromstring(urdf_text))
+
+
+def mimic_joints(root: ET.Element) -> dict[str, tuple[str, float, float]]:
+    """:func:`mimic_table` of a URDF already parsed (its root element)."""
     table = {}
-    for joint in ET.fromstring(urdf_text).iter("joint"):
+    for joint in root.iter("joint"):
         mimic = joint.find("mimic")
         if mimic is not None and joint.get("type") != "fixed":
             table[joint.get("name", "")] = (mimic.get("joint", ""), float(mimic.get("multiplier") or 1.0),

@@ -18,6 +18,7 @@ from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 
+from ..atomic import in_built_diagram
 from ..exceptions import InvalidInput, SotError
 
 log = logging.getLogger("sotdrake.ros")
@@ -39,7 +40,7 @@ def check_node_name(name: object) -> str:
 def check_not_built(system: LeafSystem, what: str) -> None:
     """:class:`SotError` if ``system`` is in a diagram (which is built: its contexts would not have
     a port added now)."""
-    if system.GetSystemPathname() != "::" + system.get_name():
+    if in_built_diagram(system):
         raise SotError(f"{system.get_name()}: cannot add {what}: the diagram is already built "
                        "(add signals before builder.Build())")
 

@@ -114,7 +114,15 @@ def start(args: argparse.Namespace, live: bool = False) -> Meshcat | None:
 def json_safe(value: object) -> object:
     """``value`` with every non-finite float (``inf``: e.g. no pair came in range; NaN) as ``None``,
     in the dictionaries and lists it holds: JSON has no such numbers (``Infinity`` is not JSON);
-    numpy numbers and arrays as Python numbers and lists, a path as its string."""
+    numpy numbers and arrays as Python numbers and lists, a path as its string. A value nested too
+    deeply for JSON (or holding itself) is an :class:`InvalidInput`."""
+    try:
+        return _json_safe(value)
+    except RecursionError:
+        raise InvalidInput(f"a value nested too deeply for JSON (or holding itself): {type(value).__name__}") from None
+
+
+def _json_safe(value: object) -> object:
     if isinstance(value, np.ndarray):
         value = value.tolist()
     elif isinstance(value, np.generic):
@@ -122,9 +130,9 @@ def json_safe(value: object) -> object:
     if isinstance(value, float) and not np.isfinite(value):
         return None
     if isinstance(value, dict):
-        return {key: json_safe(item) for key, item in value.items()}
+        return {key: _json_safe(item) for key, item in value.items()}
     if isinstance(value, (list, tuple)):
-        return [json_safe(item) for item in value]
+        return [_json_safe(item) for item in value]
     if isinstance(value, Path):
         return str(value)
     return value

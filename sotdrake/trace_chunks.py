@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import os
 import shutil
 import tempfile
+import weakref
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -25,10 +27,11 @@ class ChunkFile:
     chunk are kept."""
 
     def __init__(self, path: Path | None):
-        self._temporary = None
-        if path is None:  # deleted with this object
-            self._temporary = tempfile.NamedTemporaryFile(prefix="sotdrake-trace-", suffix=".npys")
-            path = Path(self._temporary.name)
+        if path is None:  # deleted with this object (or at exit), no file left open
+            handle, name = tempfile.mkstemp(prefix="sotdrake-trace-", suffix=".npys")
+            os.close(handle)
+            path = Path(name)
+            weakref.finalize(self, path.unlink, missing_ok=True)
         self.path = Path(path)
         self.chunks = 0
         self.offsets: list[int] = []

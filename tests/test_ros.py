@@ -93,7 +93,7 @@ def test_ros_publish_refuses_a_second_trigger_and_a_repeated_signal(observer):
     publisher.add("double", "s", "/s")
     with pytest.raises(InvalidInput, match="already added"):
         publisher.add("double", "s", "/t")
-    with pytest.raises(InvalidInput, match="positive number of ticks"):
+    with pytest.raises(InvalidInput, match="every"):
         publisher.trigger(0, 1e-3)
     publisher.trigger(10, 1e-3)
     with pytest.raises(InvalidInput, match="already set"):
@@ -103,7 +103,7 @@ def test_ros_publish_refuses_a_second_trigger_and_a_repeated_signal(observer):
 def test_a_topic_ros_refuses_leaves_nothing_behind(observer):
     publisher = RosPublish("p", observer)
     publisher.add("double", "a", "/refused_a")
-    with pytest.raises(InvalidInput, match="ROS refused"):
+    with pytest.raises(InvalidInput, match=r"ROS refused|carries rcl_interfaces"):
         publisher.add("vector", "b", "/rosout", size=2)  # (a reserved topic of another type)
     assert list(publisher.signals) == ["a"] and publisher.num_input_ports() == 1
     publisher.add("vector", "b", "/refused_b", size=2)  # (the name is still free)

@@ -153,7 +153,7 @@ def test_the_client_has_a_node_name_of_its_own():
 @pytest.mark.parametrize(("kwargs", "says"), [
     ({"topic": "{bad}"}, "topic"),
     ({"topic": "/test_refusals/state_a", "joint_states": "{bad}"}, "topic"),
-    ({"topic": "/test_refusals/state_b", "joint_states": "/rosout"}, "ROS refused"),
+    ({"topic": "/test_refusals/state_b", "joint_states": "/rosout"}, "ROS refused|carries rcl_interfaces/msg/Log"),
     ({"topic": "/test_refusals/same", "joint_states": "/test_refusals/same"}, "two topics"),
 ])
 def test_add_ros_publisher_refused_by_ros_leaves_the_builder_unchanged(observer, kwargs, says):  # noqa: F811
@@ -242,3 +242,56 @@ def test_simulating_after_the_node_is_closed_names_the_system():
     node.close()
     with pytest.raises(SotError, match=r"test_refusals_closed_pub.*shut down"):
         Simulator(diagram).AdvanceTo(0.01)
+
+
+# --- names, counts and message types ------------------------------------------------------------------
+def test_numpy_counts_are_taken_and_bools_refused(observer):  # noqa: F811
+    import numpy as np
+
+    publish = RosPublish("test_refusals_np_pub", observer, depth=np.int64(5))
+    publish.add("vector", "v", "/test_refusals/np_v", size=np.int64(3))
+    publish.add("matrix", "m", "/test_refusals/np_m", shape=(np.int32(2), np.int64(3)))
+    assert [publish.get_input_port(i).size() for i in range(2)] == [3, 6]
+    assert publish.trigger(np.int64(2), np.float64(1e-3)) == pytest.approx(2e-3)
+    subscribe = RosSubscribe("test_refusals_np_sub", observer, depth=np.int64(3))
+    assert subscribe.add("vector", "v", "/test_refusals/np_sv", size=np.int64(4)).size() == 4
+    for system in (RosPublish, RosSubscribe):
+        with pytest.raises(InvalidInput, match="depth"):
+            system("test_refusals_bool_depth", observer, depth=True)
+
+
+@pytest.mark.parametrize("system", [RosPublish, RosSubscribe])
+def test_a_system_without_a_name_is_refused(observer, system):  # noqa: F811
+    with pytest.raises(InvalidInput, match="name"):
+        system(None, observer)
+
+
+def test_a_second_node_of_one_name_is_refused_until_the_first_is_closed():
+    name = f"test_refusals_twice_{os.getpid()}"
+    first = RosNode(name)
+    try:
+        with pytest.raises(InvalidInput, match="already open"):
+            RosNode(name)
+    finally:
+        first.close()
+    RosNode(name).close()
+
+
+@pytest.mark.parametrize("joints", [[], ["shoulder_pan_joint", "shoulder_pan_joint"], "shoulder_pan_joint", [3]])
+def test_joint_command_publisher_refuses_empty_repeated_or_odd_joints(observer, joints):  # noqa: F811
+    _, robot = _ur5()
+    with pytest.raises(InvalidInput, match="joints"):
+        JointCommandPublisher(robot.model.plant, "/test_refusals/joint_commands", joints=joints, node=observer)
+    assert observer.node.count_publishers("/test_refusals/joint_commands") == 0
+
+
+def test_a_topic_of_another_message_type_is_refused(observer):  # noqa: F811
+    observer.node.create_publisher(String, "/test_refusals/typed", 10)
+    subscribe = RosSubscribe("test_refusals_typed_sub", observer)
+    with pytest.raises(InvalidInput, match="std_msgs/msg/String"):
+        subscribe.add("double", "x", "/test_refusals/typed")
+    assert subscribe.slots == {} and subscribe.num_output_ports() == 0
+    publish = RosPublish("test_refusals_typed_pub", observer)
+    with pytest.raises(InvalidInput, match="std_msgs/msg/String"):
+        publish.add("vector", "x", "/test_refusals/typed", size=2)
+    assert publish.signals == {} and observer.node.count_publishers("/test_refusals/typed") == 1

@@ -106,7 +106,19 @@ def test_a_summary_is_json_without_infinities():
     import json
     import math
 
+    import pytest
+
+    from sotdrake import InvalidInput
     from sotdrake.simulation import json_safe
 
     summary = {"min_signed_distance_m": math.inf, "runs": [{"x": float("nan"), "y": 1.5}], "n": 3}
     assert json.loads(json.dumps(json_safe(summary))) == {"min_signed_distance_m": None, "runs": [{"x": None, "y": 1.5}], "n": 3}
+
+    cyclic: list = [1.0]
+    cyclic.append(cyclic)
+    deep: list = []
+    for _ in range(5000):
+        deep = [deep]
+    for value in (cyclic, {"runs": deep}):
+        with pytest.raises(InvalidInput, match="nested too deeply"):
+            json_safe(value)

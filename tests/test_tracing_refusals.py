@@ -230,3 +230,22 @@ def test_write_control_graph_refuses_a_path_it_cannot_write(tmp_path):
         write_control_graph(None, tmp_path / "g.svg")  # type: ignore[arg-type]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fifo", "file.txt"]
     assert write_control_graph(diagram, tmp_path / "g.svg").exists() and (tmp_path / "g.dot").exists()
+
+
+def test_a_streaming_tracer_leaves_no_open_file_and_no_file_at_exit(tmp_path):
+    """The temporary chunk file is a path, not an open file: no ResourceWarning when the process
+    ends with a tracer alive, and the file is gone after it."""
+    import subprocess
+    import sys
+
+    code = ("import numpy as np, tempfile\n"
+            f"tempfile.tempdir = {str(tmp_path)!r}\n"
+            "from sotdrake.trace_chunks import ChunkFile\n"
+            "kept = ChunkFile(None)\n"
+            "kept.append({'time': np.arange(3.0), 'x': np.ones((3, 2))})\n"
+            "copy = kept.prefix(1)\n"
+            "print(len(list(__import__('pathlib').Path(tempfile.tempdir).iterdir())))\n")
+    result = subprocess.run([sys.executable, "-X", "dev", "-W", "error::ResourceWarning", "-c", code],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0 and "ResourceWarning" not in result.stderr, result.stderr
+    assert result.stdout.strip() == "2" and list(tmp_path.iterdir()) == []

@@ -19,7 +19,7 @@ import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from ..exceptions import InvalidInput, os_reason
+from ..exceptions import InvalidInput, check_count, os_reason
 from .messages import check_topic
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
@@ -148,8 +148,7 @@ def write_trace_bag(directory: Path | str, trace: Mapping[str, np.ndarray], join
     series of the trace (a CoP, a ZMP, contact wrenches, …) → ``/sot/<key>`` (``Float64MultiArray``);
     every ``every``-th sample. A character a topic name does not take becomes ``_`` (a leading
     digit gets one before it); a topic already used gets ``_2``, ``_3`` …: every series is written."""
-    if not (isinstance(every, int) and every > 0):
-        raise InvalidInput(f"write_trace_bag: every must be a positive int, got {every!r}")
+    every = check_count("write_trace_bag: every", every, high=2**31)
     missing = [key for key in ("time", "q") if key not in trace]
     if missing:
         raise InvalidInput(f"write_trace_bag: the trace has no {missing} (a diagram script's trace: time, q, …)")

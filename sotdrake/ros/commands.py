@@ -21,7 +21,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, EventStatus, LeafSystem
 from std_msgs.msg import Float64MultiArray
 
-from ..exceptions import InvalidInput, check_finite, check_number
+from ..exceptions import InvalidInput, check_count, check_finite, check_name, check_number
 from .messages import check_topic, to_message
 from .node import RosNode
 from .publish import _Triggered, joint_coordinates
@@ -33,10 +33,13 @@ def _joint_indices(plant: MultibodyPlant, joints: Sequence[str] | None) -> tuple
     names, indices = joint_coordinates(plant)
     if joints is None:
         return names, indices
+    if isinstance(joints, str) or not isinstance(joints, Sequence) or not joints \
+            or not all(isinstance(j, str) for j in joints) or len(set(joints)) != len(joints):
+        raise InvalidInput(f"joints: a non-empty list of distinct joint names, got {joints!r:.100}")
     where = dict(zip(names, indices, strict=True))
     unknown = [j for j in joints if j not in where]
     if unknown:
-        raise InvalidInput(f"unknown joints {unknown}: one-coordinate joints of the model are {names}")
+        raise InvalidInput(f"joints: unknown joints {unknown}: one-coordinate joints of the model are {names}")
     return list(joints), np.array([where[j] for j in joints], dtype=int)
 
 
@@ -45,8 +48,8 @@ class JointCommandPublisher(_Triggered):
 
     Inputs: ``position`` (``q``, size nq; rad or m).
     Outputs: none; publishes the positions of ``joints`` (default: every one-coordinate joint, plant
-    order) on ``topic`` at :meth:`trigger`'s rate. A ``topic`` ROS refuses, unknown ``joints``:
-    :class:`InvalidInput` naming the argument.
+    order) on ``topic`` at :meth:`trigger`'s rate. A ``topic`` ROS refuses, unknown, repeated or no
+    ``joints``: :class:`InvalidInput` naming the argument.
     """
 
     def __init__(self, plant: MultibodyPlant, topic: str = "/forward_position_controller/commands",
@@ -120,9 +123,8 @@ class JointStateWatchdog(LeafSystem):
     def __init__(self, size: int, timeout: float, dt: float, initial: Sequence[float] | None = None,
                  name: str = "joint_state_watchdog"):
         LeafSystem.__init__(self)
-        self.set_name(name)
-        if isinstance(size, bool) or not (isinstance(size, int) and size > 0):
-            raise InvalidInput(f"{name}: size must be a positive int, got {size!r}")
+        self.set_name(check_name("name", name))
+        size = check_count(f"{name}: size", size)
         timeout = check_number(f"{name}: timeout", timeout, 1e-9, 1e6, " s")
         dt = check_number(f"{name}: dt", dt, 1e-9, 1e6, " s")
         held = np.zeros(size) if initial is None else check_finite(f"{name}: initial", initial).ravel()

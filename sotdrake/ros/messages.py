@@ -10,7 +10,9 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from rclpy.exceptions import InvalidTopicNameException
@@ -35,6 +37,26 @@ def check_topic(topic: str) -> str:
     return topic
 
 
+def message_type_name(message: type) -> str:
+    """ROS' name of a message class, e.g. ``std_msgs/msg/Float64``."""
+    return f"{message.__module__.split('.')[0]}/msg/{message.__name__}"
+
+
+def check_topic_type(node: Any, topic: str, message: type) -> None:
+    """:class:`InvalidInput` if ``topic`` (resolved in ``node``'s namespace) is already known to
+    ``node``'s graph with another message type than ``message``'s: ROS would connect nothing, with
+    no error on either side. (A topic that appears later with another type is not seen here.)"""
+    try:
+        resolved = node.resolve_topic_name(topic)
+        known = dict(node.get_topic_names_and_types())
+    except Exception:  # (a name rclpy cannot resolve is refused where the topic is created)
+        return
+    wanted = message_type_name(message)
+    types = known.get(resolved, [])
+    if types and wanted not in types:
+        raise InvalidInput(f"topic {topic!r} carries {', '.join(types)}, not {wanted}: ROS would connect nothing")
+
+
 def port_size(kind: str, size: int | None = None, shape: Sequence[int] | None = None) -> int:
     """The input port size of a signal of ``kind`` (see the module table): ``size`` (a ``vector``)
     and ``rows × cols`` (a ``matrix``) are positive ints of at most ``MAX_COUNT`` numbers, else
@@ -47,14 +69,14 @@ def port_size(kind: str, size: int | None = None, shape: Sequence[int] | None = 
         return 16
     if kind == "matrix":
         if (not isinstance(shape, (tuple, list)) or len(shape) != 2
-                or not all(isinstance(n, int) and not isinstance(n, bool) and 0 < n <= MAX_COUNT for n in shape)
-                or shape[0] * shape[1] > MAX_COUNT):
+                or not all(isinstance(n, numbers.Integral) and not isinstance(n, bool) and 0 < int(n) <= MAX_COUNT for n in shape)
+                or int(shape[0]) * int(shape[1]) > MAX_COUNT):
             raise InvalidInput(f"a 'matrix' signal needs shape=(rows, cols) of positive ints, at most {MAX_COUNT} "
                                f"numbers, got {shape!r:.100}")
         return int(shape[0]) * int(shape[1])
-    if isinstance(size, bool) or not (isinstance(size, int) and 0 < size <= MAX_COUNT):
+    if isinstance(size, bool) or not (isinstance(size, numbers.Integral) and 0 < int(size) <= MAX_COUNT):
         raise InvalidInput(f"a 'vector' signal needs size=<positive int ≤ {MAX_COUNT}> (e.g. robot.dimension), got {size!r:.100}")
-    return size
+    return int(size)
 
 
 def to_message(kind: str, value: np.ndarray, shape: tuple[int, int] | None = None) -> Float64 | Float64MultiArray:

@@ -45,13 +45,22 @@ def check_not_built(system: LeafSystem, what: str) -> None:
                        "(add signals before builder.Build())")
 
 
+#: The nodes of this process that are open, by name (two nodes of one name confuse ROS' graph).
+_open: dict[str, RosNode] = {}
+
+
 class RosNode:
     """A node with its own rclpy context and an executor thread (callbacks run there, never in the
-    simulation thread); :meth:`close` ends both. ``name`` is checked (:func:`check_node_name`)
-    before anything is created."""
+    simulation thread); :meth:`close` ends both. ``name`` is checked (:func:`check_node_name`), and
+    refused while another node of this process has it (:func:`ros_node` shares one), before
+    anything is created."""
 
     def __init__(self, name: str = "sotdrake"):
         self.name = check_node_name(name)
+        other = _open.get(name)
+        if other is not None and other.is_open():
+            raise InvalidInput(f"name: a ROS node named {name!r} is already open in this process "
+                               "(close it first, or share it with sotdrake.ros.ros_node(name))")
         self.context = Context()
         rclpy.init(context=self.context)
         try:
@@ -63,6 +72,7 @@ class RosNode:
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, name=f"ros-{name}", daemon=True)
         self._thread.start()
+        _open[name] = self
 
     def _spin(self) -> None:
         """Spin until the node is closed: a callback's exception is logged, and spinning goes on
@@ -76,6 +86,10 @@ class RosNode:
                     return
                 log.exception("%s: a ROS callback raised; the node goes on", self.name)
 
+    def is_open(self) -> bool:
+        """Whether this node is open (not shut down or closed)."""
+        return bool(self.context.ok())
+
     def check_open(self, who: str) -> None:
         """:class:`SotError` naming ``who`` if this node is closed (``shutdown()``, :meth:`close`)."""
         if not self.context.ok():
@@ -88,6 +102,8 @@ class RosNode:
             self.node.destroy_node()
             rclpy.shutdown(context=self.context)
         self._thread.join(timeout=2.0)
+        if _open.get(self.name) is self:
+            del _open[self.name]
 
 
 _shared: dict[str, RosNode] = {}
@@ -99,6 +115,8 @@ def ros_node(name: str = "sotdrake") -> RosNode:
     with _lock:
         node = _shared.get(name)
         if node is None or not node.context.ok():
+            if node is not None:
+                node.close()
             node = _shared[name] = RosNode(name)
         return node
 

@@ -30,9 +30,9 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, EventStatus, InputPort, LeafSystem
 from sensor_msgs.msg import JointState
 
-from ..exceptions import InvalidInput, finite_number
+from ..exceptions import InvalidInput, check_count, check_name, finite_number
 from ..robot import Robot
-from .messages import check_topic, message_type, port_size, to_message
+from .messages import check_topic, check_topic_type, message_type, port_size, to_message
 from .node import RosNode, check_not_built, ros_node
 
 
@@ -47,7 +47,7 @@ class _Triggered(LeafSystem):
 
     def __init__(self, name: str, node: RosNode | None):
         LeafSystem.__init__(self)
-        self.set_name(name)
+        self.set_name(check_name("name", name))
         self.ros = node or ros_node()
         self.period: float | None = None
         self.every, self.dt = 0, 0.0
@@ -59,6 +59,10 @@ class _Triggered(LeafSystem):
         """A ROS publisher of ``message`` on ``topic`` (checked first), owned by this system; a
         topic ROS refuses is an :class:`InvalidInput` naming ``argument``."""
         check_topic(topic)
+        try:
+            check_topic_type(self.ros.node, topic, message)
+        except InvalidInput as error:
+            raise InvalidInput(f"{self.get_name()}: {argument}: {error}") from None
         try:
             publisher = self.ros.node.create_publisher(message, topic, depth)
         except Exception as error:  # (rclpy's own errors: a substitution it cannot expand, a reserved topic …)
@@ -79,10 +83,9 @@ class _Triggered(LeafSystem):
         ``every·dt``, …) — the seed's ``addDownsampledSignal(…, every)``; returns the period (s)."""
         if self.period is not None:
             raise InvalidInput(f"{self.get_name()}: the trigger is already set (every {self.period} s)")
-        if isinstance(every, bool) or not (isinstance(every, int) and every > 0):
-            raise InvalidInput(f"{self.get_name()}: every must be a positive number of ticks, got {every!r}")
-        if isinstance(dt, bool) or not (isinstance(dt, float | int) and 0 < dt < float("inf")):
-            raise InvalidInput(f"{self.get_name()}: dt must be a finite number > 0 (s), got {dt!r}")
+        every = check_count(f"{self.get_name()}: every (ticks)", every, high=2**31)
+        if not finite_number(dt) or not dt > 0:
+            raise InvalidInput(f"{self.get_name()}: dt must be a finite number > 0 (s), got {dt!r:.100}")
         self.period, self.every, self.dt = every * float(dt), every, float(dt)
         # An event every tick, publishing every ``every``-th: tick times are k·dt exactly as the
         # device's, where k·(every·dt) would drift off the grid by round-off (0.1·3 > 0.3).
@@ -122,9 +125,7 @@ class RosPublish(_Triggered):
 
     def __init__(self, name: str = "ros_publish", node: RosNode | None = None, depth: int = 10):
         super().__init__(name, node)
-        if not (isinstance(depth, int) and depth > 0):
-            raise InvalidInput(f"{name}: the queue depth must be a positive int, got {depth!r}")
-        self.depth = depth
+        self.depth = check_count(f"{name}: depth (the queue depth)", depth)
         self.signals: dict[str, _Signal] = {}
 
     def add(self, kind: str, signal: str, topic: str, size: int | None = None,
@@ -179,8 +180,7 @@ class JointStatePublisher(_Triggered):
     def __init__(self, plant: MultibodyPlant, topic: str = "/joint_states", name: str = "ros_publish_joint_states",
                  node: RosNode | None = None, depth: int = 10):
         super().__init__(name, node)
-        if isinstance(depth, bool) or not (isinstance(depth, int) and depth > 0):
-            raise InvalidInput(f"{name}: depth: the queue depth must be a positive int, got {depth!r}")
+        depth = check_count(f"{name}: depth (the queue depth)", depth)
         self.topic = check_topic(topic)
         self.names, self.indices = joint_coordinates(plant)
         self.state = self.DeclareVectorInputPort("state", plant.num_positions())
@@ -232,8 +232,7 @@ def add_ros_publisher(robot: Robot, topic: str = "/sot_control/state", joint_sta
     if period is not None:
         every = ticks_of(period, robot.dt)
     every = 100 if every is None else every
-    if isinstance(every, bool) or not (isinstance(every, int) and every > 0):
-        raise InvalidInput(f"add_ros_publisher: every must be a positive number of ticks, got {every!r}")
+    every = check_count("add_ros_publisher: every (ticks)", every, high=2**31)
     check_topic(topic)
     if joint_states is not None:
         check_topic(joint_states)

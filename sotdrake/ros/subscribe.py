@@ -29,8 +29,8 @@ from pydrake.systems.framework import BasicVector, LeafSystem, OutputPort
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray
 
-from ..exceptions import MAX_COUNT, InvalidInput, check_finite
-from .messages import check_topic
+from ..exceptions import MAX_COUNT, InvalidInput, check_count, check_finite, check_name
+from .messages import check_topic, check_topic_type
 from .node import RosNode, check_not_built, ros_node
 
 log = logging.getLogger("sotdrake.ros")
@@ -61,11 +61,9 @@ class RosSubscribe(LeafSystem):
 
     def __init__(self, name: str = "ros_subscribe", node: RosNode | None = None, depth: int = 10):
         LeafSystem.__init__(self)
-        self.set_name(name)
-        if isinstance(depth, bool) or not (isinstance(depth, int) and depth > 0):
-            raise InvalidInput(f"{name}: the queue depth must be a positive int, got {depth!r}")
+        self.set_name(check_name("name", name))
+        self.depth = check_count(f"{name}: depth (the queue depth)", depth)
         self.ros = node or ros_node()
-        self.depth = depth
         self.slots: dict[str, _Slot] = {}
 
     def add(self, kind: str, signal: str, topic: str, default: Sequence[float] | None = None,
@@ -92,9 +90,7 @@ class RosSubscribe(LeafSystem):
                 raise InvalidInput(f"{self.get_name()}: 'joint_states' needs names=[distinct joint names], got {names!r:.100}")
             n = len(names)
         elif kind == "vector":
-            if isinstance(size, bool) or not (isinstance(size, int) and 0 < size <= MAX_COUNT):
-                raise InvalidInput(f"{self.get_name()}: a 'vector' needs size=<positive int ≤ {MAX_COUNT}>, got {size!r:.100}")
-            n = size
+            n = check_count(f"{self.get_name()}: a 'vector' size", size)
         else:
             n = 1 if kind == "double" else 7
         if default is None:
@@ -108,6 +104,10 @@ class RosSubscribe(LeafSystem):
             if kind == "pose" and abs(float(np.linalg.norm(value[3:])) - 1.0) > 1e-6:
                 raise InvalidInput(f"{self.get_name()}: default of {signal!r}: (x, y, z, qw, qx, qy, qz) with a unit "
                                    f"quaternion, got one of norm {np.linalg.norm(value[3:]):.6g}")
+        try:
+            check_topic_type(self.ros.node, topic, SUBSCRIBE_KINDS[kind])
+        except InvalidInput as error:
+            raise InvalidInput(f"{self.get_name()}: topic: {error}") from None
         slot = _Slot(kind, topic, value, list(names) if names is not None else None)
         try:  # (the subscription first: a topic ROS refuses leaves no slot or port behind)
             self.ros.node.create_subscription(SUBSCRIBE_KINDS[kind], topic, lambda m: self._receive(slot, m), self.depth)

@@ -34,7 +34,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context
 
 from .compiled import compiled_input, kernels
-from .exceptions import InvalidInput
+from .exceptions import InvalidInput, check_type
 from .lie import log_so3, quaternion_exp_list, quaternion_multiply_list, quaternion_wxyz_to_rotation
 
 BASE_POSITION_SUFFIXES = ("qw", "qx", "qy", "qz", "x", "y", "z")
@@ -70,6 +70,8 @@ class Layout(NamedTuple):
 
     @staticmethod
     def of(plant: MultibodyPlant) -> Layout:
+        """The layout of ``plant``'s q and v (:class:`InvalidInput` if it is not a MultibodyPlant)."""
+        check_type("plant", plant, MultibodyPlant, "a MultibodyPlant (e.g. robot.model.plant)")
         bases = list(plant.GetFloatingBaseBodies())
         if len(bases) > 1:
             raise InvalidInput("a plant with at most one floating base is supported")
@@ -170,6 +172,7 @@ def position_names(plant: MultibodyPlant) -> list[str]:
 def velocity_names(plant: MultibodyPlant) -> list[str]:
     """A name for every coordinate of ``v``: a one-velocity joint by its joint name, another joint as
     ``<joint>[k]``, the floating base as ``<body>_wx, _wy, _wz, _vx, _vy, _vz`` (world frame)."""
+    check_type("velocity_names: plant", plant, MultibodyPlant, "a MultibodyPlant (e.g. robot.model.plant)")
     return _names(plant, plant.num_velocities(), lambda j: j.velocity_start(), lambda j: j.num_velocities(),
                   lambda b: b.floating_velocities_start_in_v(), BASE_VELOCITY_SUFFIXES)
 

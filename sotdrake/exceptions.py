@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterable
+from typing import TypeVar
+
+T = TypeVar("T")
 
 
 class SotError(Exception):
@@ -202,6 +205,24 @@ def check_name(what: str, name: object) -> str:
     if not isinstance(name, str) or not name:
         raise InvalidInput(f"{what} must be a non-empty string, got {name!r:.60}")
     return name
+
+
+def check_type(what: str, value: T, kind: type | tuple[type, ...], expected: str) -> T:
+    """``value`` if it is an instance of ``kind``, else :class:`InvalidInput`: "``what``: expected
+    ``expected``, got <its type>"."""
+    if not isinstance(value, kind):
+        raise InvalidInput(f"{what}: expected {expected}, got {type(value).__name__}")
+    return value
+
+
+def check_flag(what: str, value: object) -> bool:
+    """``value`` as a bool if it is one (a Python or numpy bool), else :class:`InvalidInput`: a
+    flag given as a string or a number is a mistake (``"no"`` is true)."""
+    import numpy as np
+
+    if not isinstance(value, (bool, np.bool_)):
+        raise InvalidInput(f"{what}: expected True or False, got {value!r:.60}")
+    return bool(value)
 
 
 #: The largest count :func:`check_count` takes by default (velocities, rows of a feature).

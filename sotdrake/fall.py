@@ -29,6 +29,8 @@ FALL_TILT_DEG = 30.0  # deg
 FALL_BASE_DROP_M = 0.25  # m
 FALL_SLIP_M = 0.05  # m
 FALL_CONTACT_FORCE = 10.0  # N
+#: A quaternion of a smaller norm is no rotation (:func:`tilt_of_quaternions` refuses it).
+MIN_QUATERNION_NORM = 1e-6
 
 
 def fall_thresholds() -> dict[str, float]:
@@ -53,10 +55,19 @@ def _array(what: str, value, shape: str, ndim: int, last: tuple[int, ...]) -> np
 
 def tilt_of_quaternions(quaternion_wxyz: np.ndarray) -> np.ndarray:
     """Tilt (deg) from upright of each row of ``quaternion_wxyz`` (T × 4, Drake's order, normalised
-    here): ``arccos(1 − 2(qx² + qy²))``."""
+    here): ``arccos(1 − 2(qx² + qy²))``. A finite row of norm below :data:`MIN_QUATERNION_NORM` is
+    no rotation: :class:`InvalidInput` naming its index. A row that is not finite (a run that
+    diverged) gives NaN, which :func:`fall_report` reads as a ``non-finite`` fall."""
     quaternion = _array("tilt_of_quaternions", quaternion_wxyz, "T × 4 (qw, qx, qy, qz)", 2, (4,))
-    quaternion = quaternion / np.linalg.norm(quaternion, axis=1, keepdims=True)
-    return np.degrees(np.arccos(np.clip(1 - 2 * (quaternion[:, 1] ** 2 + quaternion[:, 2] ** 2), -1, 1)))
+    norm = np.linalg.norm(quaternion, axis=1, keepdims=True)
+    finite = np.isfinite(quaternion).all(axis=1)
+    small = np.flatnonzero(finite & (norm[:, 0] < MIN_QUATERNION_NORM))
+    if small.size:
+        raise InvalidInput(f"tilt_of_quaternions: row {int(small[0])} has norm {norm[small[0], 0]:g}, not a rotation "
+                           f"(a unit quaternion (qw, qx, qy, qz) is expected): {quaternion[small[0]].tolist()}")
+    with np.errstate(invalid="ignore"):  # (the non-finite rows: NaN)
+        quaternion = np.where(finite[:, None], quaternion / np.where(finite[:, None], norm, 1.0), np.nan)
+        return np.degrees(np.arccos(np.clip(1 - 2 * (quaternion[:, 1] ** 2 + quaternion[:, 2] ** 2), -1, 1)))
 
 
 def tilt_of_rotations(R_WB: np.ndarray) -> np.ndarray:

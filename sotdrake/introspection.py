@@ -15,11 +15,12 @@ import numpy as np
 from pydrake.systems.framework import Context, Diagram, System
 
 from .entity import own_context
-from .exceptions import NotFound, SotError
+from .exceptions import NotFound, SotError, check_name, check_type
 
 
 def entities(diagram: Diagram) -> list[str]:
     """Names of the diagram's systems, in the order they were added."""
+    check_type("entities: diagram", diagram, Diagram, "a built Diagram (builder.Build())")
     return [system.get_name() for system in diagram.GetSystems()]
 
 
@@ -33,6 +34,8 @@ def all_systems(diagram: Diagram) -> Iterator[System]:
 
 def entity(diagram: Diagram, name: str) -> System:
     """The system named ``name`` in ``diagram`` (sot-core's entity by name); :class:`NotFound` lists the names."""
+    check_type("entity: diagram", diagram, Diagram, "a built Diagram (builder.Build())")
+    check_name("entity: name", name)
     for system in diagram.GetSystems():
         if system.get_name() == name:
             return system
@@ -41,6 +44,8 @@ def entity(diagram: Diagram, name: str) -> System:
 
 def signal(system: System, name: str, context: Context):
     """Value of the output (else input) port ``name`` of ``system`` in ``context`` (root or own)."""
+    check_type("signal: system", system, System, "an entity (a Drake system)")
+    check_name("signal: name", name)
     own = own_context(system, context)
     if system.HasOutputPort(name):
         return _value(system.GetOutputPort(name).EvalAbstract(own))

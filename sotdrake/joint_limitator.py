@@ -30,7 +30,7 @@ from pydrake.systems.framework import BasicVector, Context
 
 from .configuration import Layout
 from .entity import Entity
-from .exceptions import InvalidInput, SolverError, all_numbers, finite_number
+from .exceptions import InvalidInput, SolverError, all_numbers, check_finite, finite_number
 
 __all__ = ["JointLimitator", "limit_joint_velocities"]
 
@@ -43,9 +43,48 @@ def limit_joint_velocities(q: np.ndarray, v: np.ndarray, lower: np.ndarray, uppe
     step·v_i < upper_i``, 0 elsewhere (a new array).
 
     ``q`` (rad or m), ``v`` (rad/s or m/s), ``lower`` and ``upper`` (rad or m, ``±inf`` for none) have
-    one entry per joint coordinate; ``step`` (s) is the look-ahead."""
+    one entry per joint coordinate; ``step`` (s) is the look-ahead. Checked (:class:`InvalidInput`
+    naming the argument): ``q`` and ``v`` finite, of one size n, ``lower`` and ``upper`` n numbers
+    without NaN with ``lower ≤ upper``, ``lower < +inf``, ``upper > -inf`` (as :meth:`JointLimitator.setLimits`),
+    ``step`` in ``(0, MAX_STEP]`` (as :meth:`JointLimitator.setStep`): a NaN position or crossed
+    limits used to zero every velocity silently."""
+    q = check_finite("limit_joint_velocities: q", q)
+    if q.ndim != 1:
+        raise InvalidInput(f"limit_joint_velocities: q must be one position per joint coordinate (a vector), got shape {q.shape}")
+    v = check_finite("limit_joint_velocities: v", v, q.shape)
+    lower, upper = (_limit_array(f"limit_joint_velocities: {name}", value, name, q.shape)
+                    for name, value in (("lower", lower), ("upper", upper)))
+    if np.any(lower > upper):
+        i = int(np.flatnonzero(lower > upper)[0])
+        raise InvalidInput(f"limit_joint_velocities: lower must be ≤ upper; joint coordinate {i}: {lower[i]:g} > {upper[i]:g}")
+    if not (finite_number(step) and 0 < step <= MAX_STEP):
+        raise InvalidInput(f"limit_joint_velocities: step must be a number in (0, {MAX_STEP:g}] s, got {step!r:.60}")
+    return _limit_joint_velocities(q, v, lower, upper, float(step))
+
+
+def _limit_joint_velocities(q: np.ndarray, v: np.ndarray, lower: np.ndarray, upper: np.ndarray, step: float) -> np.ndarray:
+    """:func:`limit_joint_velocities` without its checks (the entity's every tick: its settings are checked when set)."""
     q_next = q + step * v
     return np.where((q_next > lower) & (q_next < upper), v, 0.0)
+
+
+def _limit_array(what: str, value, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a float array of ``shape`` (a copy), limits of the side ``name`` ('lower' or
+    'upper'): no NaN, not the infinity of the other side; else :class:`InvalidInput` naming ``what``."""
+    try:
+        if not all_numbers(value):
+            raise TypeError("not numbers")
+        array = np.array(value, dtype=float)  # (a copy: the caller's array may change later)
+    except (TypeError, ValueError):
+        raise InvalidInput(f"{what} must be {shape[0]} numbers (rad or m), got {value!r:.200}") from None
+    if array.shape != shape:
+        raise InvalidInput(f"{what} must be {shape[0]} numbers (one per joint coordinate), got shape {array.shape}")
+    if np.any(np.isnan(array)):
+        raise InvalidInput(f"{what} contains NaN: {array}")
+    wrong_side = np.inf if name == "lower" else -np.inf  # (no position is below +inf or above -inf)
+    if np.any(array == wrong_side):
+        raise InvalidInput(f"{what} must not be {wrong_side:g} (it would stop the joint for good); ±inf on its own side is no limit")
+    return array  # -inf lower, +inf upper: no limit
 
 
 @dataclass
@@ -87,7 +126,7 @@ class JointLimitator(Entity[LimitatorSettings]):
         q = self._position.Eval(context)
         out = v.copy()
         joints_v = self.layout.joints_v
-        out[joints_v] = limit_joint_velocities(q[self.layout.joints_q], v[joints_v], s.lower, s.upper, s.step)
+        out[joints_v] = _limit_joint_velocities(q[self.layout.joints_q], v[joints_v], s.lower, s.upper, s.step)
         output.SetFromVector(out)
 
     def setStep(self, step: float, context: Context | None = None) -> None:
@@ -112,21 +151,7 @@ class JointLimitator(Entity[LimitatorSettings]):
         self._command(context, change)
 
     def _limit(self, name: str, value, n: int) -> np.ndarray:
-        try:
-            if not all_numbers(value):
-                raise TypeError("not numbers")
-            array = np.array(value, dtype=float)  # (a copy: the caller's array may change later)
-        except (TypeError, ValueError):
-            raise InvalidInput(f"{self.name}.setLimits: {name} must be {n} numbers (rad or m), got {value!r:.200}") from None
-        if array.shape != (n,):
-            raise InvalidInput(f"{self.name}.setLimits: {name} must be {n} numbers (one per joint coordinate), got shape {array.shape}")
-        if np.any(np.isnan(array)):
-            raise InvalidInput(f"{self.name}.setLimits: {name} contains NaN: {array}")
-        wrong_side = np.inf if name == "lower" else -np.inf  # (no position is below +inf or above -inf)
-        if np.any(array == wrong_side):
-            raise InvalidInput(f"{self.name}.setLimits: {name} must not be {wrong_side:g} (it would stop the joint for good); "
-                               f"±inf on its own side is no limit")
-        return array  # -inf lower, +inf upper: no limit
+        return _limit_array(f"{self.name}.setLimits: {name}", value, name, (n,))
 
     @property
     def joint_count(self) -> int:

@@ -33,6 +33,9 @@ from .configuration import Layout, PlantContextHolder
 from .exceptions import InvalidInput, SotError, check_finite, check_name
 from .robots import RobotModel
 
+#: The smallest norm of the base's quaternion in a ``q`` of :meth:`Dynamic.pose_at` and ``com_at``.
+MIN_QUATERNION_NORM = 1e-6
+
 
 class Dynamic(LeafSystem):
     """Kinematics of the control model: input ``position`` (q, size nq).
@@ -152,6 +155,10 @@ class Dynamic(LeafSystem):
     # --- evaluation at a given configuration (build time, tests, post-processing) ----------
     def _context_at(self, q: np.ndarray):
         q = check_finite("q", q, (self.model.nq,))
+        base = self._layout.base_q
+        if base is not None and not (norm := float(np.linalg.norm(q[base : base + 4]))) >= MIN_QUATERNION_NORM:
+            raise InvalidInput(f"q: the floating base's quaternion q[{base}:{base + 4}] = {q[base : base + 4].tolist()} (norm "
+                               f"{norm:g}) is no rotation; give a unit quaternion (qw, qx, qy, qz)")  # (Drake would raise)
         context = self.plant.CreateDefaultContext()
         self.plant.SetPositions(context, q)
         return context
@@ -161,7 +168,9 @@ class Dynamic(LeafSystem):
         return self._op_points[name][0] if isinstance(name, str) and name in self._op_points else self.model.frame(name)
 
     def pose_at(self, name: str, q: np.ndarray) -> RigidTransform:
-        """``X_WF`` of an op point of this entity, or of a frame, at configuration ``q``."""
+        """``X_WF`` of an op point of this entity, or of a frame, at configuration ``q`` (nq finite
+        numbers, the floating base's quaternion of norm ≥ 1e-6, normalised by Drake; else
+        :class:`InvalidInput` naming ``q``)."""
         return self.plant.CalcRelativeTransform(self._context_at(q), self._world, self.frame(name))
 
     def trajectory(self, names: list[str], qs: np.ndarray) -> dict[str, np.ndarray]:
@@ -182,7 +191,7 @@ class Dynamic(LeafSystem):
         return out
 
     def com_at(self, q: np.ndarray) -> np.ndarray:
-        """``p_WCm`` at configuration ``q``."""
+        """``p_WCm`` at configuration ``q`` (checked as :meth:`pose_at` does)."""
         return self.plant.CalcCenterOfMassPositionInWorld(self._context_at(q))
 
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import solve_triangular
 
-from .exceptions import InvalidInput
+from .exceptions import InvalidInput, check_finite
 
 
 def _cross_columns(a: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -57,8 +57,10 @@ def manipulability(J: np.ndarray) -> float:
     """``μ = √det(J Jᵀ)`` of the rows ``J`` (k×nv, k ≤ nv); 0 at a singularity. Computed as
     ``|det R|`` of the QR factorisation ``Jᵀ = Q R`` (the product of ``J``'s singular values), not
     from ``det(J Jᵀ)``, whose round-off squares ``J``'s condition number (μ = 1e-8 read as 2e-8);
-    a diagonal entry of ``R`` within :data:`SINGULAR` of ``‖J‖`` (round-off) is a singularity."""
-    return _factors(J)[0]
+    a diagonal entry of ``R`` within :data:`SINGULAR` of ``‖J‖`` (round-off) is a singularity.
+    ``J``: an array or nested lists of finite numbers; NaN or infinity (which used to read as a
+    singularity, μ = 0) is an :class:`InvalidInput`."""
+    return _factors(check_finite("manipulability: J", J))[0]
 
 
 #: A diagonal entry of ``R`` (``Jᵀ = Q R``) at most this fraction of ``‖J‖_F`` is round-off: μ = 0.

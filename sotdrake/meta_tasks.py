@@ -27,7 +27,7 @@ from pydrake.systems.framework import Context, InputPort, OutputPort
 from .centroidal import base_rows
 from .configuration import Layout
 from .entity import command_group, recording
-from .exceptions import InvalidInput, SotError, check_finite, check_name, check_number
+from .exceptions import InvalidInput, SotError, check_finite, check_flag, check_name, check_number
 from .features import (
     Feature,
     Feature6d,
@@ -48,7 +48,7 @@ from .gains import GainAdaptive, constant, from_numbers
 from .kinematics import Dynamic
 from .manipulability import upstream_coordinates
 from .ranges import MAX_TARGET_POSITION
-from .robot import Robot
+from .robot import Robot, check_not_elsewhere, in_builder
 from .robots import TALOS_GRIPPERS
 from .task import Task, TaskInequality, TaskPD
 
@@ -67,6 +67,7 @@ def _new_task(robot: Robot, meta: str, name: str, feature: bool = True, referenc
     with ``feature``, ``feature<name>_ref`` with ``reference``, ``gain<name>``, ``task<name>``)."""
     robot = _as_robot(robot, meta)
     check_name(f"{meta}: the name", name)
+    inequality, pd = check_flag(f"{meta}: inequality", inequality), check_flag(f"{meta}: pd", pd)
     if inequality and pd:
         raise InvalidInput(f"{meta}({name!r}): a task is an inequality or a PD task, not both")
     names = ["gain" + name, "task" + name] + ["feature" + name] * feature + ["feature" + name + "_ref"] * reference
@@ -329,7 +330,9 @@ class MetaTaskKineFeature(_MetaTask):
         if feature.nv != robot.dimension:
             raise InvalidInput(f"MetaTaskKineFeature({name!r}): the feature has nv = {feature.nv}, the robot {robot.dimension}")
         _new_task(robot, "MetaTaskKineFeature", name, feature=False, inequality=inequality, pd=pd)
-        if feature.get_name() not in robot._names:
+        check_not_elsewhere(robot.builder, feature, f"MetaTaskKineFeature({name!r}): feature")
+        if not in_builder(robot.builder, feature):  # (a feature of that name already there is another system)
+            robot.check_new_names([feature.get_name()])
             robot.add(feature)
         self._finish(robot, name, feature, inequality, pd)
 

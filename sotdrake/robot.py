@@ -9,6 +9,7 @@ stack order, a run-time setting held in the Context.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 from os import PathLike
 from typing import Any, TypeVar
@@ -19,7 +20,7 @@ from pydrake.systems.framework import DiagramBuilder, OutputPort, System
 
 from .atomic import all_or_nothing
 from .device import Device
-from .exceptions import InvalidInput, NotFound, SotError, check_name
+from .exceptions import InvalidInput, NotFound, SotError, check_name, check_type
 from .joint_limitator import JointLimitator
 from .kinematics import Dynamic
 from .robots import RobotModel, load_robot
@@ -29,6 +30,23 @@ from .solvers.kinematic import KinematicSolver
 from .task import Task
 
 SystemT = TypeVar("SystemT", bound=System)
+
+#: The builder each system was added to through a robot (a system belongs to one diagram).
+_BUILDER_OF: weakref.WeakKeyDictionary[System, weakref.ref[DiagramBuilder]] = weakref.WeakKeyDictionary()
+
+
+def in_builder(builder: DiagramBuilder, system: System) -> bool:
+    """Whether ``system`` (this very object) is one of ``builder``'s systems."""
+    return any(other is system for other in builder.GetSystems())
+
+
+def check_not_elsewhere(builder: DiagramBuilder, system: System, what: str) -> None:
+    """:class:`InvalidInput` if ``system`` was added, through a robot, to another builder than
+    ``builder`` (Drake would refuse the second diagram's ``Build()``)."""
+    owner = _BUILDER_OF.get(system)
+    if owner is not None and owner() is not None and owner() is not builder:
+        raise InvalidInput(f"{what}: {system.get_name()!r} belongs to another robot's DiagramBuilder (a system is in "
+                           "one diagram: make one of its own for this robot)")
 
 
 def velocity_selection(plant, excluding: Sequence[str] = ()) -> np.ndarray:
@@ -81,6 +99,10 @@ class Robot:
             raise InvalidInput(f"Robot: expected a DiagramBuilder, got {type(builder).__name__}")
         if builder.already_built():
             raise SotError("cannot add a robot: the diagram is already built (create the robot before builder.Build())")
+        check_type("Robot: model", model, RobotModel, "a RobotModel (load_robot('arm.urdf'); for a robot by its name, "
+                   "sotdrake.robot(builder, 'talos'))")
+        if measured_position is not None:
+            check_type("Robot: measured_position", measured_position, OutputPort, "an output port holding q (or None)")
         taken = {system.get_name() for system in builder.GetSystems()} & {"dynamic", "device"}
         if taken:
             raise InvalidInput(f"this builder already holds systems named {sorted(taken)} (another robot?): one robot per "
@@ -119,17 +141,22 @@ class Robot:
         check_new_names(self.builder, self._names, names)
 
     def add(self, system: SystemT, name: str | None = None) -> SystemT:
-        """Add ``system`` to the builder under ``name`` (default: its own), which must be new."""
+        """Add ``system`` to the builder under ``name`` (default: its own), which must be new; a
+        system already in another robot's builder is refused."""
+        check_type("add: system", system, System, "a Drake system (an entity, a LeafSystem)")
+        if name is not None:
+            check_name("add: name", name)
+        check_not_elsewhere(self.builder, system, "add")
         if self.builder.already_built():
             raise SotError(f"cannot add {system.get_name() or type(system).__name__!r}: the diagram is already built "
                            "(create tasks and entities before builder.Build())")
-        if name is not None:
-            system.set_name(name)
-        name = system.get_name()
+        name = system.get_name() if name is None else name
         if not name:
             raise InvalidInput(f"a {type(system).__name__} needs a name to be added")
         self.check_new_names([name])
+        system.set_name(name)
         self._names.add(name)
+        _BUILDER_OF[system] = weakref.ref(self.builder)
         return self.builder.AddNamedSystem(name, system)
 
     def add_task(self, task: Task) -> Task:

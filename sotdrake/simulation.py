@@ -19,7 +19,7 @@ from pydrake.geometry import Meshcat, MeshcatVisualizer
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram
 
-from .exceptions import InvalidInput, SotError, check_number, os_reason
+from .exceptions import InvalidInput, SotError, check_number, check_type, os_reason
 from .interactive import MAX_DURATION
 from .introspection import all_systems
 
@@ -165,6 +165,8 @@ def run_script(main: Callable[[], object], leave_out: tuple[str, ...] = ("output
     ``SystemExit`` with a non-zero status (``parser.error``, which has printed its line) keeps its
     status. Either way the ``--out`` folders :func:`start` created during ``main()`` and still
     empty are removed. A ``SystemExit`` of status 0 or None (``--help``) passes unchanged."""
+    if not callable(main):
+        raise InvalidInput(f"run_script: main must be the script's function (run_script(main)), got {type(main).__name__}")
     made = len(_CREATED_OUTPUTS)
     try:
         result = main()
@@ -250,6 +252,7 @@ def simulate(diagram: Diagram, duration: float, visualizer: MeshcatVisualizer | 
     from .stack_checks import check_stack
     from .tracing import tracers_of
 
+    check_type("simulate: diagram", diagram, Diagram, "a built Diagram (builder.Build())")
     if check_number("duration", duration, 0.0, MAX_DURATION, " s") == 0:
         raise InvalidInput("duration must be > 0 s, got 0")
     if visualizer is not None and not isinstance(visualizer, MeshcatVisualizer):

@@ -16,7 +16,7 @@ from pydrake.systems.framework import Context, Diagram, System
 
 from .device import Device
 from .entity import probing
-from .exceptions import StackError
+from .exceptions import StackError, check_type
 from .solvers.stack import StackSolver
 from .task import TaskInequality, _TaskBase
 from .task_weight import TaskWeight
@@ -30,6 +30,7 @@ def check_stack(diagram: Diagram, context: Context | None = None) -> None:
     """Check every solver's stack and contacts in ``context`` (the root context; default: a new
     default context, made without counting as a running one). Raises :class:`StackError` for a
     task without gain or feature; warns once for an inequality task without bounds."""
+    check_type("check_stack: diagram", diagram, Diagram, "a built Diagram (builder.Build())")
     if context is None:
         with probing():
             context = diagram.CreateDefaultContext()

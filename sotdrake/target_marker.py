@@ -17,6 +17,9 @@ from pydrake.geometry import Meshcat, Rgba, Sphere
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
+from .entity import own_context
+from .exceptions import InvalidInput
+
 if TYPE_CHECKING:
     from .meta_tasks import MetaTaskKine6d
 
@@ -83,6 +86,10 @@ class TargetMarker(LeafSystem):
 
 def desired_position(task: MetaTaskKine6d, context: Context) -> np.ndarray:
     """The desired position (m) of a ``MetaTaskKine6d`` in the root diagram ``context``: the last
-    ``gotoNd``'s (at build time, in ``attime`` or live), or its moving target's, as the task sees it."""
-    desired = task.featureDes
-    return np.array(desired.GetOutputPort("position").Eval(desired.GetMyContextFromRoot(context)).translation())
+    ``gotoNd``'s (at build time, in ``attime`` or live), or its moving target's, as the task sees it.
+    A ``task`` without ``featureDes`` or a ``context`` of another diagram (or a leaf context, or
+    None): :class:`InvalidInput`."""
+    desired = getattr(task, "featureDes", None)
+    if not isinstance(desired, LeafSystem):
+        raise InvalidInput(f"desired_position: task must be a MetaTaskKine6d (with a featureDes), got {task!r:.60}")
+    return np.array(desired.GetOutputPort("position").Eval(own_context(desired, context)).translation())

@@ -198,8 +198,9 @@ class TaskPD(_TaskBase, Entity[PDSettings]):
     The previous error is discrete state ``[rows, e_{k-1}, 0…]`` (rows -1 before the first tick),
     updated every ``dt`` together with the device: Drake computes every discrete update of a tick
     from the same context, so the command of tick k sees ``e_{k-1}``. (An unrestricted update would
-    run before the device's update and hand it ``e_k``, i.e. ``ė = 0``.) ``max_rows`` (default nv)
-    is the largest error the task keeps; a larger one is refused.
+    run before the device's update and hand it ``e_k``, i.e. ``ė = 0``.) ``max_rows`` (default nv, an
+    integer in [1, :data:`~sotdrake.exceptions.MAX_COUNT`]) is the largest error the task keeps; a
+    larger one is refused.
 
     Ports: those of every task (``feature`` or ``error`` / ``jacobian`` / ``errordot``,
     ``controlGain``; ``task``, ``error_norm``): see :class:`_TaskBase`.
@@ -211,10 +212,9 @@ class TaskPD(_TaskBase, Entity[PDSettings]):
             raise InvalidInput(f"{name}: dt must be a number > 0 (s), got {dt!r}")
         self.dt = float(dt)
         self._warned_beta = False
-        self.max_rows = nv if max_rows is None else int(max_rows)
-        if self.max_rows < 1:
-            raise InvalidInput(f"{name}: max_rows must be ≥ 1, got {max_rows!r}")
+        rows = None if max_rows is None else check_count(f"{name}: max_rows", max_rows)
         self._declare_ports(nv)
+        self.max_rows: int = self.nv if rows is None else rows
         self._previous = self.DeclareDiscreteState(np.concatenate([[-1.0], np.zeros(self.max_rows)]))
         self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._remember)
 

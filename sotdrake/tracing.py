@@ -35,7 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPort, PortDataType
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafContext, OutputPort, PortDataType, System
 from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 
 from .atomic import all_or_nothing
@@ -111,7 +111,7 @@ class Tracer:
             raise SotError(f"tracer: cannot add {name!r}: the diagram is already built (add signals before builder.Build())")
         if any(system.get_name() == f"tracer_{name}" for system in self.builder.GetSystems()):
             raise InvalidInput(f"tracer: another tracer of this diagram logs a signal named {name!r}: give another name")
-        _check_vector_port(self.builder, port, name)
+        check_vector_port(f"tracer: cannot log {name!r}", self.builder, port)
         with all_or_nothing(self.builder):
             sink = LogVectorOutput(port, self.builder, self.period)
             sink.set_name(f"tracer_{name}")
@@ -121,7 +121,9 @@ class Tracer:
     def flush(self, context: Context, force: bool = False) -> bool:
         """Move the logged samples of the root ``context`` to its stream's file once they span
         ``chunk`` seconds (or with ``force``, whatever they hold); returns whether a chunk was
-        written. Samples that do not follow the stream's last ones start a new run (module docstring)."""
+        written. Samples that do not follow the stream's last ones start a new run (module docstring).
+        A ``context`` that is not the diagram's root context: :class:`InvalidInput`, nothing flushed."""
+        self._check_context("flush", context)
         if self._file is None or not self.sinks:
             return False
         logs = [sink.FindMutableLog(context) for sink in self.sinks.values()]
@@ -138,6 +140,9 @@ class Tracer:
         for log in logs:
             log.Clear()
         return True
+
+    def _check_context(self, what: str, context: object) -> None:
+        _check_root(f"tracer: {what}", next(iter(self.sinks.values()), None), context)
 
     def _stream_of(self, context: Context) -> _Stream | None:
         return next((stream for stream in self._streams if stream.context is context), None)
@@ -187,9 +192,9 @@ class Tracer:
     def data(self, context: Context) -> dict[str, np.ndarray]:
         """``time`` (k,) and each signal as (k, size): the chunks of ``context``'s stream (or of the
         stream it was cloned from, up to the clone) followed by the samples the sinks' logs in
-        ``context`` still hold. :class:`SotError` if the chunks of ``context`` were dropped."""
-        if not isinstance(context, Context):
-            raise InvalidInput(f"tracer: data() needs the root context of the run, got {type(context).__name__}")
+        ``context`` still hold. :class:`SotError` if the chunks of ``context`` were dropped;
+        :class:`InvalidInput` if ``context`` is not the root context of the traced diagram."""
+        self._check_context("data", context)
         logs = {name: sink.FindLog(context) for name, sink in self.sinks.items()}
         streamed: dict[str, list[np.ndarray]] = {}
         if self._file is not None and logs:
@@ -216,7 +221,9 @@ class Tracer:
 
     def save(self, context: Context, path: Path) -> Path:
         """The data in a ``.npz`` (``np.load``; ``.npz`` appended to ``path`` if it has not that
-        suffix), numbers only; returns its path. A path that cannot be written: :class:`InvalidInput`."""
+        suffix), numbers only; returns its path. A path that cannot be written or a ``context`` that
+        is not the traced diagram's root context: :class:`InvalidInput`, nothing written."""
+        self._check_context("save", context)
         target = check_writable("tracer: save", path)
         if target.suffix != ".npz":
             target = check_writable("tracer: save", target.with_name(target.name + ".npz"))
@@ -227,7 +234,8 @@ class Tracer:
     def save_csv(self, context: Context, path: Path) -> Path:
         """One CSV: ``time`` then ``<signal>[i]`` columns (every signal shares the period); a name
         holding a comma or a quote is quoted as CSV quotes (RFC 4180). A path that cannot be
-        written: :class:`InvalidInput`."""
+        written or a ``context`` that is not the traced diagram's root context: :class:`InvalidInput`."""
+        self._check_context("save_csv", context)
         target = check_writable("tracer: save_csv", path)
         data = self.data(context)
         columns = [data["time"][:, None]] + [data[name] for name in self.sinks]
@@ -250,7 +258,9 @@ class Tracer:
         title; ``labels``: each panel's y label, with its unit (default: the signal's name);
         ``legends``: the names of a signal's components (default: the signal's name, or
         ``name[i]``); signals in ``log`` are drawn on a log scale (as magnitudes). A path that
-        cannot be written: :class:`InvalidInput`, checked before drawing."""
+        cannot be written or a ``context`` that is not the traced diagram's root context:
+        :class:`InvalidInput`, checked before drawing."""
+        self._check_context("plot", context)
         import matplotlib
 
         matplotlib.use("Agg")
@@ -290,10 +300,11 @@ class Tracer:
         return target
 
 
-def _check_vector_port(builder: DiagramBuilder, port: object, name: str) -> None:
-    """:class:`InvalidInput` naming the signal unless ``port`` is a vector-valued output port of a
-    system added to ``builder``."""
-    need = f"tracer: cannot log {name!r}: it needs a vector output port of a system of this builder"
+def check_vector_port(what: str, builder: DiagramBuilder, port: object) -> OutputPort:
+    """``port`` if it is a vector-valued output port of a system added to ``builder``, else
+    :class:`InvalidInput` starting with ``what`` (checked before anything is added: Drake would
+    refuse the connection only after its system was)."""
+    need = f"{what}: it needs a vector output port of a system of this builder"
     if not isinstance(port, OutputPort):
         raise InvalidInput(f"{need}, got {type(port).__name__} {port!r:.60}")
     system = port.get_system()
@@ -302,6 +313,22 @@ def _check_vector_port(builder: DiagramBuilder, port: object, name: str) -> None
         raise InvalidInput(f"{need}; {where} is abstract-valued (not a vector)")
     if not any(added is system for added in builder.GetSystems()):
         raise InvalidInput(f"{need}; {where} belongs to another builder")
+    return port
+
+
+def _check_root(what: str, system: System | None, context: object) -> None:
+    """:class:`InvalidInput` naming ``context`` unless it is the root context of the diagram that
+    holds ``system`` (any Context without one), checked before Drake is asked: a null context ends
+    the process."""
+    need = f"{what}: context must be the root Context of the diagram (diagram.CreateDefaultContext(), simulator.get_context())"
+    if not isinstance(context, Context):
+        raise InvalidInput(f"{need}, got {type(context).__name__} {context!r:.60}")
+    try:
+        if system is not None:  # (a root system takes any root context as its own: validated too)
+            system.ValidateContext(system.GetMyContextFromRoot(context))
+    except RuntimeError:
+        got = "a leaf context (of one system)" if isinstance(context, LeafContext) else "another diagram's (or a subdiagram's)"
+        raise InvalidInput(f"{need}, got {got}") from None
 
 
 def _stream_path(path: Path) -> Path:
@@ -346,7 +373,11 @@ def _forgetter(tracer: Tracer):
 
 def flush_tracers(diagram: Diagram, context: Context, force: bool = False) -> int:
     """:meth:`Tracer.flush` for every streaming tracer whose sinks are in ``diagram`` (``context``:
-    its root context); returns the number of chunks written."""
+    its root context); returns the number of chunks written. A ``diagram`` that is not a built
+    ``Diagram`` or a ``context`` that is not its root context: :class:`InvalidInput`, nothing flushed."""
+    if not isinstance(diagram, Diagram):
+        raise InvalidInput(f"flush_tracers: diagram must be a built Diagram (builder.Build()), got {type(diagram).__name__}")
+    _check_root("flush_tracers", diagram, context)
     return sum(tracer.flush(context, force) for tracer in tracers_of(diagram))
 
 

@@ -218,7 +218,7 @@ def test_torque_elimination_gives_the_full_hierarchys_optimum(standing, rng):
         contacts = [ActiveContact(name, sot._contact_ports[name].Eval(sot_context)) for name, _ in SOLES]
         tasks = sot._tasks(sot_context, sot._settings_of(sot_context))
         levels, slices = dynamic_levels(terms, contacts, tasks, 10.0, loads=None)
-        a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout)
+        a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout, dt=sot.dt)
         lower, upper = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
         full = HierarchicalQP(len(lower)).solve(levels, lower, upper).x
         np.testing.assert_allclose(solution.acceleration, full[:nv], atol=1e-6)
@@ -240,7 +240,7 @@ def test_qr_path_is_the_hqps_answer_on_talos(standing, rng):
         tasks = sot._tasks(sot_context, sot._settings_of(sot_context))
         actuated = actuated_rows(terms.B)
         levels, slices = dynamic_levels(terms, contacts, tasks, 10.0, False, np.array([400.0, 300.0]), actuated)
-        a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout)
+        a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout, dt=sot.dt)
         a_lo[:6] = a_up[:6] = 0.0  # some fixed components too
         lower, upper = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
         m = len(lower) - sot.na
@@ -297,7 +297,7 @@ def test_levels_and_bounds_match_their_definitions(standing, rng):
             damping[nv + 5 * i : nv + 5 * i + 5, nv + 6 * i : nv + 6 * i + 6] = wrench_regularization(c, 6, float(weight))
         np.testing.assert_allclose(levels[-1].A, damping, rtol=1e-15, atol=0)
         np.testing.assert_array_equal(levels[-1].b_eq, np.concatenate([-10.0 * terms.v, np.zeros(10)]))
-    a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, s.horizon, s.position_margin, sot.layout)
+    a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, s.horizon, s.position_margin, sot.layout, dt=sot.dt)
     a_lo[~s.control_selection] = a_up[~s.control_selection] = 0.0
     expected = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
     for got, want in zip(sot._bounds(terms, s, contacts, slices), expected, strict=True):
@@ -330,7 +330,7 @@ def test_strict_hierarchy_on_random_dynamic_stacks(standing, rng):
             J = rng.normal(size=(size, nv))
             b = rng.normal(scale=5.0, size=size)
             tasks.append(TaskLevel(J, b, b, b))
-        a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout)
+        a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout, dt=sot.dt)
         hqp = HierarchicalQP(nv + 12 + sot.na)
         slacks = []
         for k in range(1, 4):
@@ -356,7 +356,7 @@ def test_shear_follows_the_load(standing):
         robot.contacts[name].GetMyContextFromRoot(context))) for name, _ in SOLES]
     Jcom = robot.dynamic.GetOutputPort("Jcom").Eval(robot.dynamic.GetMyContextFromRoot(context))
     com = TaskLevel(Jcom, np.array([0.3, -0.5, 0.0]), np.array([0.3, -0.5, 0.0]), np.zeros(3))  # ZMP ~4.5 cm left
-    a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout)
+    a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout, dt=sot.dt)
     hqp = HierarchicalQP(nv + 12 + sot.na)
 
     def ratios(loads):
@@ -419,7 +419,7 @@ def test_a_bound_in_the_way_is_held_by_the_qr_path(standing, monkeypatch):
     contacts = sot._active_contacts(sot_context, sot._settings_of(sot_context))
     tasks = sot._tasks(sot_context, sot._settings_of(sot_context))
     levels, slices = dynamic_levels(terms, contacts, tasks, 10.0, False, None, actuated_rows(terms.B))
-    a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout)
+    a_lo, a_up = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout, dt=sot.dt)
     a_lo[~sot._settings_of(sot_context).control_selection] = a_up[~sot._settings_of(sot_context).control_selection] = 0.0
     lower, upper = variable_bounds(nv, contacts, slices, a_lo, a_up, sot.effort)
     m = len(lower) - sot.na
@@ -473,7 +473,7 @@ def test_acceleration_bounds_stop_a_joint_at_its_limit(talos_model):
     q[iq] = limits["position_upper"][iq] - 0.01
     v[iv] = 1.0
     lower, upper = acceleration_bounds(q, v, limits["position_lower"], limits["position_upper"],
-                                       limits["velocity_lower"], limits["velocity_upper"], 0.05, 1e-3, layout)
+                                       limits["velocity_lower"], limits["velocity_upper"], 0.05, 1e-3, layout, dt=1e-3)
     assert np.all(lower <= upper) and np.isinf(upper[:6]).all()
     T = 0.05  # q + v T + ½ a T² stays below the limit with the largest allowed a
     assert q[iq] + v[iv] * T + 0.5 * upper[iv] * T**2 <= limits["position_upper"][iq] - 1e-3 + 1e-12
@@ -658,6 +658,9 @@ def test_stand_short_on_physics(dynamics_script, contact, contact_solver):
     assert not summary["fell"]
     assert summary["com_drift_m"] < 1e-3 and summary["max_foot_slip_m"] < 1e-4
     assert summary["max_torque_ratio"] <= 1.0 + 1e-9 and summary["max_friction_ratio"] < 1.0
+    assert summary["max_friction_ratio_settled"] <= summary["max_friction_ratio"]
+    if contact == "hydroelastic":  # (standing still once the soles have landed: far inside the cone)
+        assert summary["max_friction_ratio_settled"] < 0.1
     feet = trace["feet"][-1]
     assert feet[2] + feet[5] == pytest.approx(90.27 * 9.81, rel=0.02)
     np.testing.assert_allclose(feet[[2, 5]], trace["wrenches"][-1, [5, 11]], rtol=0.05)

@@ -416,7 +416,7 @@ def test_random_stacks_at_random_valid_states(dyn, seed):
     np.testing.assert_allclose(v_dot, solution.acceleration, atol=1e-6 * max(1.0, np.abs(v_dot).max()))
     assert np.all(np.abs(solution.torque) <= sot.effort * (1 + 1e-9))
     terms = sot.dynamics.Eval(sot_context)
-    a_lower, a_upper = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout)
+    a_lower, a_upper = acceleration_bounds(terms.q, terms.v, *sot._limits, 0.05, 1e-3, sot.layout, dt=sot.dt)
     fixed = sot.settings(context).control_selection
     if fixed is not None:
         a_lower[~fixed] = a_upper[~fixed] = 0.0

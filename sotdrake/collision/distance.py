@@ -27,7 +27,7 @@ from pydrake.multibody.tree import BodyIndex, JacobianWrtVariable, JointIndex
 from pydrake.systems.framework import Context
 
 from ..compiled import kernels
-from ..exceptions import check_finite
+from ..exceptions import InvalidInput, check_finite
 from .world import CollisionWorld
 
 
@@ -72,7 +72,11 @@ def pair_distances(world: CollisionWorld, context: Context, max_distance: float,
 
     With ``bias``, ``J̇_d v`` of each pair: the bias acceleration of a point ``C`` fixed in body
     ``B`` is ``a_Bo + α × r + ω × (ω × r)`` (``r = p_BoC``, the body's bias spatial acceleration
-    ``(α, a_Bo)`` and angular velocity ``ω``, world frame)."""
+    ``(α, a_Bo)`` and angular velocity ``ω``, world frame).
+
+    A ``world`` that is not a :class:`CollisionWorld` or a ``context`` that is not one of its
+    collision diagram (:meth:`CollisionWorld.new_context`): :class:`InvalidInput`."""
+    _check_world("pair_distances", world)
     return distances_of(world, context, signed_distance_pairs(world, context, max_distance, geometry_pairs), bias)
 
 
@@ -253,8 +257,16 @@ def body_tree(world: CollisionWorld) -> BodyTree:
 def minimum_distance(world: CollisionWorld, context: Context, q: np.ndarray, max_distance: float = 1.0,
                      geometry_pairs: Sequence | None = None) -> float:
     """The smallest signed distance (m) over the world's pairs at configuration ``q`` (+inf when
-    none is closer than ``max_distance``): Drake's query alone, for checking a run."""
+    none is closer than ``max_distance``): Drake's query alone, for checking a run. A ``world``
+    that is not a :class:`CollisionWorld`, a ``context`` that is not one of its collision diagram
+    or a ``q`` of another size: :class:`InvalidInput`, the context left as it was."""
+    _check_world("minimum_distance", world)
     q = check_finite("minimum_distance: q (the world plant's positions)", q, (world.plant.num_positions(),))
     world.plant.SetPositions(world.plant_context(context), q)
     results = signed_distance_pairs(world, context, max_distance, geometry_pairs)
     return min((r.distance for r in results), default=float("inf"))
+
+
+def _check_world(what: str, world: object) -> None:
+    if not isinstance(world, CollisionWorld):
+        raise InvalidInput(f"{what}: world must be a CollisionWorld (collision_world(robot)), got {type(world).__name__}")

@@ -23,7 +23,7 @@ from pydrake.geometry import CollisionFilterDeclaration, GeometryId, GeometrySet
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import RigidBody
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafContext
 
 from ..exceptions import InvalidInput, SotError
 from ..robots import RobotModel
@@ -107,11 +107,23 @@ class CollisionWorld:
         return self.diagram.CreateDefaultContext()
 
     def plant_context(self, context: Context) -> Context:
-        return self.plant.GetMyContextFromRoot(context)
+        """The plant's context in the collision diagram ``context`` (:meth:`new_context`); any other
+        value (None, a leaf context, another diagram's context): :class:`InvalidInput`."""
+        return self._own_context(self.plant, context)
 
     def query(self, context: Context):
-        """The SceneGraph's query object in the collision diagram ``context``."""
-        return self.scene_graph.get_query_output_port().Eval(self.scene_graph.GetMyContextFromRoot(context))
+        """The SceneGraph's query object in the collision diagram ``context`` (:meth:`new_context`);
+        any other value: :class:`InvalidInput`."""
+        return self.scene_graph.get_query_output_port().Eval(self._own_context(self.scene_graph, context))
+
+    def _own_context(self, system, context: Context) -> Context:
+        try:  # (the check costs nothing when the context is right: this runs at every tick)
+            return system.GetMyContextFromRoot(context)
+        except (TypeError, RuntimeError):  # (None and other types: TypeError; a leaf or foreign context: RuntimeError)
+            got = "a leaf context" if isinstance(context, LeafContext) else \
+                "another diagram's context" if isinstance(context, Context) else f"{context!r:.60}"
+            raise InvalidInput(f"collision world of {self.model.name}: context must be a context of its collision diagram "
+                               f"(world.new_context()), got {got}") from None
 
     @property
     def obstacle_ids(self) -> set[GeometryId]:

@@ -119,7 +119,14 @@ def local_to_generalized(J: np.ndarray, R: np.ndarray) -> np.ndarray:
 
 
 def friction_ratio(force_world: np.ndarray, normal: np.ndarray, mu: float) -> float:
-    """``‖f_t‖ / (μ f_n)`` of a force (world) against a surface of unit ``normal`` (inf if f_n ≤ 0)."""
+    """``‖f_t‖ / (μ f_n)`` of a force (world) against a surface of unit ``normal`` (inf if f_n ≤ 0).
+    ``force_world`` and ``normal``: three finite numbers each, ``normal`` of norm 1 (± 1e-6); ``μ``: a
+    number in (0, MAX_FRICTION]; anything else is an :class:`InvalidInput` naming it (μ = 0 gave NaN)."""
+    force_world = check_finite("friction_ratio: force_world", force_world, (3,))
+    normal = check_finite("friction_ratio: normal", normal, (3,))
+    if abs(float(np.linalg.norm(normal)) - 1.0) > 1e-6:
+        raise InvalidInput(f"friction_ratio: normal must be a unit vector, got norm {np.linalg.norm(normal):g}")
+    mu = check_positive("friction_ratio: mu", mu, MAX_FRICTION)
     fn = float(force_world @ normal)
     ft = np.linalg.norm(force_world - fn * normal)
     return float(ft / (mu * fn)) if fn > 0 else (0.0 if ft == 0 else math.inf)

@@ -157,8 +157,18 @@ def torques_and_checks(M, h, actuated, JT, RT, sizes, x, effort, wrench_rows, ro
 
 
 @njit(cache=True)
-def _upper_bound(q, v, position_upper, velocity_upper, horizon, margin):
-    """:func:`.terms.upper_acceleration_bounds` of one joint (the same operations, in the same order)."""
+def _min(a, b):
+    return a if a <= b or math.isnan(a) else b  # np.minimum (NaN kept)
+
+
+@njit(cache=True)
+def _max(a, b):
+    return a if a >= b or math.isnan(a) else b  # np.maximum (NaN kept)
+
+
+@njit(cache=True)
+def _side_bounds(q, v, position_upper, velocity_upper, horizon, margin, dt):
+    """:func:`.terms.side_acceleration_bounds` of one joint (the same operations, in the same order)."""
     reach = q + v * horizon
     limit = position_upper - margin
     if q > limit:  # inside the margin: min(0, q_max − reach), as np.minimum (NaN kept)
@@ -169,12 +179,16 @@ def _upper_bound(q, v, position_upper, velocity_upper, horizon, margin):
     up *= 2
     up /= horizon * horizon
     rate = (velocity_upper - v) / horizon
-    return up if up <= rate or math.isnan(up) else rate  # np.minimum(up, rate)
+    room, brake = position_upper - q, velocity_upper / horizon
+    speed = 0.0  # (.terms.stopping_speed)
+    if room > 0.0 and brake > 0.0:
+        speed = 2 * room / (dt + math.sqrt(dt * dt + 2 * room / brake))
+    return _min(up, rate), _max((speed - v) / dt, -brake)
 
 
 @njit(cache=True)
 def dynamic_bounds(lower_template, upper_template, q, v, joints_q, joints_v, position_limits, velocity_limits, horizon,
-                   margin, selection, normal, normal_lower, normal_upper):
+                   margin, dt, selection, normal, normal_lower, normal_upper):
     """The bounds on ``x`` (copies of the templates: free wrenches, ``±effort``): the joints' rows
     ``joints_v`` from :func:`.terms.mirrored_acceleration_bounds` (the same operations), the
     components out of the control ``selection`` (a mask over the first ``selection.size`` ones) fixed at 0, the components
@@ -182,10 +196,12 @@ def dynamic_bounds(lower_template, upper_template, q, v, joints_q, joints_v, pos
     lower, upper = lower_template.copy(), upper_template.copy()
     for k in range(joints_v.size):
         qk, vk = q[joints_q[k]], v[joints_v[k]]
-        high = _upper_bound(qk, vk, position_limits[0, k], velocity_limits[0, k], horizon, margin)
-        low = -_upper_bound(-qk, -vk, position_limits[1, k], velocity_limits[1, k], horizon, margin)  # the mirrored joint
+        shaping_up, stop_up = _side_bounds(qk, vk, position_limits[0, k], velocity_limits[0, k], horizon, margin, dt)
+        shaping_down, stop_down = _side_bounds(-qk, -vk, position_limits[1, k], velocity_limits[1, k], horizon, margin, dt)
+        high = _min(_max(_min(shaping_up, stop_up), -stop_down), stop_up)
+        mirrored = _min(_max(_min(shaping_down, stop_down), -stop_up), stop_down)  # the mirrored joint's upper bound
         upper[joints_v[k]] = high
-        lower[joints_v[k]] = low if low <= high or math.isnan(low) else high  # np.minimum(low, high)
+        lower[joints_v[k]] = _min(-mirrored, high)
     for i in range(selection.size):
         if not selection[i]:
             lower[i] = upper[i] = 0.0

@@ -14,7 +14,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context
 
 from ..centroidal import base_rows
-from ..exceptions import InvalidInput, check_name
+from ..exceptions import InvalidInput, check_name, check_type
 from ..features import Feature6d, Feature6dDesired, FeatureGeneric, FeatureGenericDesired, FeatureMomentum, FeaturePosture
 from ..features.base import check_mask
 from .robot_dyn import RobotDyn
@@ -25,6 +25,7 @@ from .terms import base_translation_rows
 def _new_names(robot: RobotDyn, name: str, *suffixes: str) -> None:
     """Refuse, before anything is added, a name that is not a non-empty string or whose entities
     (``task<name>``, ``feature<name>`` and ``feature<name><suffix>``) exist already."""
+    check_type("a dynamic meta task's robot", robot, RobotDyn, "the RobotDyn (e.g. MetaTaskDyn6d('rh', robot, 'rh', 'right-wrist'))")
     check_name("a dynamic meta task's name", name)
     robot.check_new_names(["task" + name, "feature" + name, *("feature" + name + suffix for suffix in suffixes)])
 

@@ -24,7 +24,7 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from ..atomic import all_or_nothing
 from ..configuration import Layout, check_base_quaternion
-from ..exceptions import InvalidInput, check_finite, check_name, check_number
+from ..exceptions import InvalidInput, check_finite, check_name, check_number, check_type
 from ..hqp import ACTIVE_SET
 from ..physics.plant import MAX_TIME_STEP, check_contact_options
 from ..robot import check_new_names, velocity_selection
@@ -49,8 +49,10 @@ class RobotDyn:
     def __init__(self, builder: DiagramBuilder, model: RobotModel, device: str = "dynsimu", dt: float = 1e-3,
                  q0: np.ndarray | None = None, max_contacts: int = 2, solver: str = ACTIVE_SET, effort_scale: float = 1.0,
                  contact: str = "hydroelastic", contact_solver: str = "sap"):
-        if device not in DEVICES:
-            raise InvalidInput(f"unknown device {device!r}; available: {list(DEVICES)}")
+        check_type("RobotDyn: builder", builder, DiagramBuilder, "a DiagramBuilder")
+        check_type("RobotDyn: model", model, RobotModel, "a RobotModel (load_robot('talos', 'full'), load_robot('arm.urdf'))")
+        if not isinstance(device, str) or device not in DEVICES:
+            raise InvalidInput(f"unknown device {device!r:.60}; available: {list(DEVICES)}")
         check_contact_options(contact, contact_solver)  # (before anything is added to the builder)
         if device == "dynsimu" and (contact, contact_solver) != ("hydroelastic", "sap"):
             raise InvalidInput("contact and contact_solver choose the physics plant's contact: device='physics'")

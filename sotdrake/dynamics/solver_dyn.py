@@ -325,7 +325,7 @@ class SolverDyn(StackSolver[DynSettings]):
             template = self._bound_templates[n] = (read_only(np.concatenate((-free, -self.effort))),
                                                    read_only(np.concatenate((free, self.effort))))
         return bounds(template[0], template[1], terms.q, terms.v, *self._joint_indices, *self._stacked_limits, s.horizon,
-                      s.position_margin, s.control_selection, normal_force_limits(contacts, slices))
+                      s.position_margin, self.dt, s.control_selection, normal_force_limits(contacts, slices))
 
     def _held_guess(self, context: Context) -> tuple[list[int], list[int]]:
         """The components held at their lower and at their upper bound at the last tick's optimum."""

@@ -104,32 +104,44 @@ def acceleration_bounds(
     horizon: float,
     margin: float,
     layout: Layout,
+    *,
+    dt: float,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Joint limits as bounds on ``q̈`` (nv; the floating base free).
+    """Joint limits as bounds on ``q̈`` (nv; the floating base free), for a device that integrates
+    ``v' = v + q̈ dt``, ``q' = q + v' dt`` every tick ``dt`` (s).
 
     Position: with the acceleration held over ``horizon`` T, ``q + v T + ½ q̈ T² ≤ q_max − margin``
     gives ``q̈ ≤ 2 (q_max − margin − q − v T)/T²``; a joint already inside the margin gets
     ``q̈ ≤ min(0, 2 (q_max − q − v T)/T²)`` instead (it may stay on its limit, as the grippers start;
-    moving into the limit it is stopped). Velocity: ``v + q̈ T ≤ v_max`` gives ``q̈ ≤ (v_max − v)/T``. Lower bounds likewise;
-    where they would cross, the lower bound is lowered to the upper one.
+    moving into the limit it is stopped). Velocity: ``v + q̈ T ≤ v_max`` gives ``q̈ ≤ (v_max − v)/T``.
+    Stopping: the horizon's bound alone lets a fast joint overshoot (held on it, the joint is a
+    spring-damper of damping ratio 0.71); so ``v'`` is also bounded by the speed from which a
+    braking of ``A = v_max/T`` (rad/s²) stops the joint by ``q_max`` after this tick
+    (:func:`stopping_speed`): ``q̈ ≤ max((v_stop − v)/dt, −A)``. Lower bounds likewise. The stopping
+    bounds come first: where a side's horizon or velocity bound would keep the other side from
+    stopping (a joint near one limit of a narrow range), it gives way. A joint within its limits,
+    able to stop (``v² ≤ 2 A (q_max − q)``, and likewise below), then never leaves them as long as
+    the solver holds the bounds (braking at ``A`` keeps every later tick's bounds met); one that
+    can no longer stop in time, or beyond a limit, brakes at ``A``, never asked more. Where the two
+    sides would still cross, the lower bound is lowered to the upper one.
     """
     nv = len(v)
     lower, upper = np.full(nv, -np.inf), np.full(nv, np.inf)
     iq, iv = layout.joints_q, layout.joints_v
     with np.errstate(invalid="ignore"):
         lower[iv], upper[iv] = joint_acceleration_bounds(q[iq], v[iv], position_lower[iq], position_upper[iq],
-                                                         velocity_lower[iv], velocity_upper[iv], horizon, margin)
+                                                         velocity_lower[iv], velocity_upper[iv], horizon, margin, dt=dt)
     return lower, upper
 
 
 def joint_acceleration_bounds(
     qj: np.ndarray, vj: np.ndarray, position_lower: np.ndarray, position_upper: np.ndarray, velocity_lower: np.ndarray,
-    velocity_upper: np.ndarray, horizon: float, margin: float,
+    velocity_upper: np.ndarray, horizon: float, margin: float, *, dt: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`acceleration_bounds` of the joints alone: ``(lower, upper)`` over the joints' velocities,
     from their positions ``qj``, velocities ``vj`` and limits (each already restricted to the joints)."""
     return mirrored_acceleration_bounds(qj, vj, *stacked_limits(position_lower, position_upper, velocity_lower, velocity_upper),
-                                        horizon, margin)
+                                        horizon, margin, dt=dt)
 
 
 def stacked_limits(position_lower: np.ndarray, position_upper: np.ndarray, velocity_lower: np.ndarray,
@@ -140,10 +152,15 @@ def stacked_limits(position_lower: np.ndarray, position_upper: np.ndarray, veloc
 
 
 def mirrored_acceleration_bounds(qj: np.ndarray, vj: np.ndarray, position_limits: np.ndarray, velocity_limits: np.ndarray,
-                                 horizon: float, margin: float) -> tuple[np.ndarray, np.ndarray]:
+                                 horizon: float, margin: float, *, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """:func:`joint_acceleration_bounds` from limits already :func:`stacked <stacked_limits>`: both sides
-    in one evaluation of :func:`upper_acceleration_bounds` (see :data:`SIDES`)."""
-    upper = upper_acceleration_bounds(SIDES * qj, SIDES * vj, position_limits, velocity_limits, horizon, margin)
+    in one evaluation of :func:`side_acceleration_bounds` (see :data:`SIDES`): each side's upper
+    bound, raised to the other side's stopping bound where it is below, then lowered to its own."""
+    shaping, stopping = side_acceleration_bounds(SIDES * qj, SIDES * vj, position_limits, velocity_limits, horizon, margin,
+                                                 dt=dt)
+    upper = np.minimum(shaping, stopping)
+    upper[0] = np.minimum(np.maximum(upper[0], -stopping[1]), stopping[0])
+    upper[1] = np.minimum(np.maximum(upper[1], -stopping[0]), stopping[1])
     return np.minimum(-upper[1], upper[0]), upper[0]
 
 
@@ -154,15 +171,31 @@ SIDES = np.array([[1.0], [-1.0]])
 SIDES.flags.writeable = False
 
 
-def upper_acceleration_bounds(q: np.ndarray, v: np.ndarray, position_upper: np.ndarray, velocity_upper: np.ndarray,
-                              horizon: float, margin: float) -> np.ndarray:
-    """The upper bounds of :func:`acceleration_bounds` alone (any array shape, elementwise):
-    ``min(2 (q_max − margin − q − v T)/T², (v_max − v)/T)``, or ``min(0, 2 (q_max − q − v T)/T²)``
-    for the position part of a joint already inside the margin."""
+def side_acceleration_bounds(q: np.ndarray, v: np.ndarray, position_upper: np.ndarray, velocity_upper: np.ndarray,
+                             horizon: float, margin: float, *, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """The two upper bounds of :func:`acceleration_bounds` from one side's limits (any array shape,
+    elementwise): the horizon's and the velocity's, ``min(2 (q_max − margin − q − v T)/T², (v_max − v)/T)``
+    (``min(0, 2 (q_max − q − v T)/T²)`` for the position part of a joint already inside the
+    margin), and the stopping bound ``max((v_stop − v)/dt, −A)``, ``v_stop`` the :func:`stopping_speed`
+    of ``q_max − q`` at the braking ``A = v_max/T`` (a joint that can no longer stop in time brakes at
+    ``A``: it is never asked more)."""
     T = horizon
     reach = q + v * T
     limit = position_upper - margin
     up = np.where(q > limit, np.minimum(0.0, position_upper - reach), limit - reach)
     up *= 2
     up /= T**2  # = 2 x / T² for each x above, min(0, ·) included (a monotone map that keeps 0)
-    return np.minimum(up, (velocity_upper - v) / T, out=up)
+    np.minimum(up, (velocity_upper - v) / T, out=up)
+    brake = velocity_upper / T
+    return up, np.maximum((stopping_speed(position_upper - q, brake, dt) - v) / dt, -brake)
+
+
+def stopping_speed(room: np.ndarray, brake: np.ndarray, dt: float) -> np.ndarray:
+    """The largest ``v'`` (rad/s or m/s) after which a joint ``room`` away from its limit still
+    stops by it: the tick moves it ``v' dt``, then braking at ``brake`` (> 0; ``inf``: at once)
+    covers at most ``v'²/(2 brake)`` (the ticks' steps ``v_k dt`` sum to less than the braking's
+    integral), so ``v' dt + v'²/(2 brake) ≤ room`` gives ``v' = 2 room/(dt + √(dt² + 2 room/brake))``;
+    0 where ``room ≤ 0`` (on or beyond the limit) or ``brake`` is 0."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speed = 2 * room / (dt + np.sqrt(dt * dt + 2 * room / brake))
+    return np.where((room > 0) & (brake > 0), speed, 0.0)

@@ -3,7 +3,7 @@ Drake trajectories, and the ports that feed them (value, velocity, acceleration)
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 from pydrake.systems.framework import OutputPort
@@ -15,6 +15,8 @@ from .robot_dyn import RobotDyn
 
 #: The most points :func:`minimum_jerk_moves` samples per move.
 MAX_SAMPLES = 10_000
+#: The latest ``end`` (s) of :func:`minimum_jerk_moves`.
+MAX_END = 1e6
 
 
 def minimum_jerk_moves(start: np.ndarray, moves: Sequence[tuple[float, float, np.ndarray]], end: float = 1e3,
@@ -24,13 +26,19 @@ def minimum_jerk_moves(start: np.ndarray, moves: Sequence[tuple[float, float, np
     after the last until ``end`` (s), as Drake's cubic Hermite spline through ``samples`` points of
     each move with their exact velocities (so the acceleration follows the profile closely and
     starts and ends near 0). Each move must start at or after the previous one's end and last
-    > 0 s; the values are finite vectors of ``start``'s size; ``samples``: an integer ≥ 2 (the
-    move's two ends and the points between)."""
+    > 0 s; the values are finite vectors of ``start``'s size (at least one number); ``end`` in
+    ``(0, MAX_END]`` s; ``samples``: an integer ≥ 2 (the move's two ends and the points between).
+    Anything else is an :class:`InvalidInput` naming it, before Drake sees any."""
     samples = check_count("minimum-jerk moves: samples", samples, 2, MAX_SAMPLES)
+    if not check_number("minimum-jerk moves: end", end, 0.0, MAX_END, " s") > 0:
+        raise InvalidInput(f"minimum-jerk moves: end must be > 0 s (the trajectory holds until then), got {end!r}")
+    end = float(end)
     start = check_finite("minimum-jerk moves: start", start)
+    if start.ndim != 1 or not start.size:
+        raise InvalidInput(f"minimum-jerk moves: start must be a vector of at least one number, got shape {start.shape}")
     times, values, rates = [0.0], [start], [np.zeros_like(start)]
     current = start
-    for t0, t1, target in moves:
+    for t0, t1, target in _moves(moves):
         t0 = check_number("minimum-jerk move: t0", t0, times[-1], end, " s")
         t1 = check_number("minimum-jerk move: t1", t1, t0, end, " s")
         if t1 == t0:
@@ -51,8 +59,20 @@ def minimum_jerk_moves(start: np.ndarray, moves: Sequence[tuple[float, float, np
     return PiecewisePolynomial.CubicHermite(times, np.column_stack(values), np.column_stack(rates))
 
 
+def _moves(moves) -> list[tuple]:
+    """``moves`` as a list of triples ``(t0, t1, target)``, else :class:`InvalidInput`."""
+    if isinstance(moves, (str, bytes)) or not isinstance(moves, Iterable):
+        raise InvalidInput(f"minimum-jerk moves: moves must be a list of (t0, t1, target), got {moves!r:.100}")
+    moves = list(moves)
+    for move in moves:
+        if isinstance(move, (str, bytes)) or not isinstance(move, Sequence) or len(move) != 3:
+            raise InvalidInput(f"minimum-jerk moves: each move is (t0, t1, target), got {move!r:.100}")
+    return moves
+
+
 def hold_move_hold(t0: float, t1: float, a: np.ndarray, b: np.ndarray) -> PiecewisePolynomial:
-    """``a`` until ``t0``, a minimum-jerk move to ``b`` at ``t1`` (``0 ≤ t0 < t1``, s), then ``b``."""
+    """``a`` until ``t0``, a minimum-jerk move to ``b`` at ``t1`` (``0 ≤ t0 < t1 ≤ 1000``, s), then ``b``;
+    ``a`` and ``b``: finite vectors of one size, at least one number (:func:`minimum_jerk_moves`'s checks)."""
     return minimum_jerk_moves(a, [(t0, t1, b)])
 
 

@@ -41,8 +41,8 @@ class FeaturePosture(Feature):
     outputs ``signals``, ``error``, ``jacobian``, ``errordot``."""
 
     def __init__(self, name: str, plant, posture: np.ndarray):
-        nq, nv = plant.num_positions(), plant.num_velocities()
         self.layout = Layout.of(plant)
+        nq, nv = plant.num_positions(), plant.num_velocities()
         mask = np.zeros(nv, dtype=bool)
         mask[self.layout.joints_v] = True
         settings = PostureSettings(_mask(mask), check_finite("posture", posture, (nq,)).copy(), np.zeros(nv))

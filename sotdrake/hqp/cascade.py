@@ -49,13 +49,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from scipy.linalg.lapack import dgesdd as _gesdd
 
 from ..compiled import compiled_input, kernels
-from ..exceptions import InvalidInput, SolverError, all_numbers
+from ..exceptions import MAX_COUNT, InvalidInput, SolverError, all_numbers, check_count
+from .problem import floats
 
 
 def _stacked(levels: Sequence[tuple[np.ndarray, np.ndarray]], extra: Sequence[np.ndarray] | None
@@ -75,6 +76,42 @@ def _stacked(levels: Sequence[tuple[np.ndarray, np.ndarray]], extra: Sequence[np
     if extra is not None:
         references[:, 1] = np.concatenate(extra)
     return J, references, sizes
+
+
+def _selection_mask(control_selection: Any, nv: int) -> np.ndarray:
+    """``control_selection`` (nv booleans, or 0 and 1) as a float mask, or :class:`InvalidInput`."""
+    try:
+        given = np.asarray(control_selection)
+    except (TypeError, ValueError):  # (a ragged list)
+        given = np.zeros(0, dtype=object)
+    if given.dtype.kind not in "biuf":  # (strings, complex numbers, None)
+        raise InvalidInput(f"control_selection: nv booleans (or 0 and 1), one per velocity, got {control_selection!r:.80}")
+    if given.shape != (nv,):
+        raise InvalidInput(f"control_selection: {nv} values expected, got shape {given.shape}")
+    mask = given.astype(float)
+    if given.dtype != bool and not ((mask == 0.0) | (mask == 1.0)).all():
+        raise InvalidInput("control_selection: nv booleans (or 0 and 1), one per velocity")
+    return mask
+
+
+def _real_levels(levels: Any) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``levels`` as ``(J, ė*)`` pairs of float arrays (lists converted), or :class:`InvalidInput`
+    naming the level: not a pair, not real numbers, J not a matrix, a NaN or an infinite entry."""
+    if isinstance(levels, (str, bytes)) or not isinstance(levels, Sequence):
+        raise InvalidInput(f"levels: a sequence of (J, ė*) pairs, highest priority first, got {levels!r:.80}")
+    pairs, bad = [], []
+    for k, level in enumerate(levels):
+        if not isinstance(level, (tuple, list)) or len(level) != 2:
+            raise InvalidInput(f"levels[{k}]: a (J, ė*) pair of arrays, got {level!r:.80}")
+        J, r = floats(f"levels[{k}]: J", level[0]), floats(f"levels[{k}]: ė*", level[1])
+        if J.ndim != 2:
+            raise InvalidInput(f"levels[{k}]: J must be a matrix (2-D), got shape {J.shape}")
+        if not (np.isfinite(J).all() and np.isfinite(r).all()):
+            bad.append(k)
+        pairs.append((J, r))
+    if bad:
+        raise InvalidInput(f"levels {bad}: Jacobians and references must be finite")
+    return pairs
 
 
 _kernels = kernels(".kernels.cascade", __package__, "cascade", "the basic SoT's cascade", "a few seconds")
@@ -122,11 +159,9 @@ def cascade_factorization(
     if not (type(svd_threshold) is float and 0 <= svd_threshold < math.inf) and not (
             all_numbers(svd_threshold) and np.ndim(svd_threshold) == 0 and 0 <= svd_threshold < np.inf):
         raise InvalidInput(f"svd_threshold: a finite number ≥ 0, got {svd_threshold!r:.80}")
-    mask = np.ones(nv) if control_selection is None else np.asarray(control_selection, dtype=float)
-    if mask.shape != (nv,):
-        raise InvalidInput(f"control_selection: {nv} values expected, got shape {mask.shape}")
-    if control_selection is not None and np.asarray(control_selection).dtype != bool and not ((mask == 0.0) | (mask == 1.0)).all():
-        raise InvalidInput("control_selection: nv booleans (or 0 and 1), one per velocity")
+    if not (type(nv) is int and 0 <= nv <= MAX_COUNT):
+        nv = check_count("nv (the number of velocities)", nv, 0)
+    mask = np.ones(nv) if control_selection is None else _selection_mask(control_selection, nv)
     if not levels:
         return CascadeFactorization(np.zeros(nv), np.zeros(0, dtype=int), None if extra is None else np.zeros(nv))
     J, references, sizes = _stacked(levels, extra)
@@ -150,7 +185,8 @@ def solve_cascade(
     """Solve ``levels`` = ``[(J_1, ė_1*), …]`` in strict priority; see the module docstring.
 
     ``control_selection`` (nv booleans, sot-core's ``controlSelec``) restricts the solution to the
-    selected velocity components (``P_0 = diag(selection)``); the others are zero.
+    selected velocity components (``P_0 = diag(selection)``); the others are zero. ``nv``: an integer
+    in [0, :data:`~sotdrake.exceptions.MAX_COUNT`]; the arrays may be (nested) lists of real numbers.
     ``damping`` is one δ for every level or one per level. ``with_residuals=False`` leaves
     ``residuals`` None (see :func:`cascade_residuals`).
 
@@ -159,14 +195,7 @@ def solve_cascade(
     (Fortran-ordered as it comes, no copy): ``A_iᵀ = W Σ Uᵀ``, so ``W``'s columns are ``A_i``'s
     right singular vectors. A LAPACK failure raises :class:`~sotdrake.exceptions.SolverError`.
     """
-    if isinstance(levels, (str, bytes)) or not isinstance(levels, Sequence):
-        raise InvalidInput(f"levels: a sequence of (J, ė*) pairs, highest priority first, got {levels!r:.80}")
-    try:
-        bad = [k for k, (J, r) in enumerate(levels) if not (np.isfinite(J).all() and np.isfinite(r).all())]
-    except (TypeError, ValueError):
-        raise InvalidInput("levels: a sequence of (J, ė*) pairs of numpy arrays, highest priority first") from None
-    if bad:
-        raise InvalidInput(f"levels {bad}: Jacobians and references must be finite")
+    levels = _real_levels(levels)
     solved = cascade_factorization(levels, nv, svd_threshold, damping, control_selection)
     v = solved.velocity
     return CascadeResult(v, cascade_residuals(levels, v) if with_residuals else None, solved.ranks)

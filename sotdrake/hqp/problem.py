@@ -7,14 +7,14 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver, SnoptSolver
 
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, finite_number
 from .linalg import QR_MIN_SIZE, all_true, any_true, independent_qr, scaled_least_squares, svd
 from .tolerances import REPORTED_ACTIVE
 
@@ -48,12 +48,34 @@ falls on does not hang on the CPU's last bits. Seen on random stacks whose level
 of size 1e14, where the bound-relative tolerance is below what doubles can verify."""
 
 
-def check_solver(name: str) -> str:
-    """``name`` if it is ``"active-set"`` or one of :data:`SOLVERS`, else :class:`InvalidInput`."""
-    if name != ACTIVE_SET and name not in SOLVERS:
-        raise InvalidInput(f"unknown QP solver {name!r}; available: {[ACTIVE_SET, *sorted(SOLVERS)]}")
-    return name
+def check_solver(name: str, what: str = "solver") -> str:
+    """``name`` if it is ``"active-set"`` or one of :data:`SOLVERS`, else :class:`InvalidInput`
+    naming ``what`` (a name that is not a string, e.g. a list of names, included)."""
+    if isinstance(name, str) and (name == ACTIVE_SET or name in SOLVERS):
+        return name
+    raise InvalidInput(f"{what}: unknown QP solver {name!r:.80}; available: {[ACTIVE_SET, *sorted(SOLVERS)]}")
 
+
+def checked_solvers(solver: str, level_solvers: Any) -> list[str]:
+    """``level_solvers`` (None: none) as a list, after :func:`check_solver` of ``solver`` and of each
+    of them; :class:`InvalidInput` for a string (not a list of names) or a non-sequence."""
+    if isinstance(level_solvers, str):
+        raise InvalidInput(f"level_solvers is a list of solver names, one per level, got the string {level_solvers!r:.60}: "
+                           f"give [{level_solvers!r:.60}]")
+    if level_solvers is not None and not isinstance(level_solvers, (Sequence, np.ndarray)):
+        raise InvalidInput(f"level_solvers: a list of solver names, one per level (or None), got {level_solvers!r:.60}")
+    check_solver(solver)
+    names = [] if level_solvers is None else list(level_solvers)
+    for name in names:
+        check_solver(name, "level_solvers")
+    return names
+
+
+def check_damping(damping: Any) -> None:
+    """:class:`InvalidInput` unless ``damping`` is a finite number ≥ 0 (a Python float first: the
+    solvers' every call)."""
+    if not (type(damping) is float and 0.0 <= damping < math.inf) and not (finite_number(damping) and damping >= 0):
+        raise InvalidInput(f"damping must be a finite number ≥ 0, got {damping!r:.60}")
 
 
 def beyond(values: np.ndarray) -> bool:
@@ -86,6 +108,30 @@ def float_array(what: str, value: Any) -> np.ndarray:
     if array is None:
         raise InvalidInput(f"{what} must be real numbers, got complex ones")
     return array
+
+
+FLOAT64 = np.dtype(np.float64)
+"""The dtype of the arrays the solvers hand over (compared by identity: ``==`` costs 70 ns)."""
+
+
+def floats(what: str, value: Any) -> np.ndarray:
+    """``value`` itself if it is a float64 array (the solvers' every call: no cost), else
+    :func:`float_array` (a list converted, strings and complex numbers refused by ``what``)."""
+    if type(value) is np.ndarray and value.dtype is FLOAT64:
+        return value
+    return float_array(what, value)
+
+
+def float_arrays(what: str, items: Any) -> list[np.ndarray]:
+    """``items`` (a sequence of arrays, one per level) as a list of float arrays: itself when it is a
+    list of float64 arrays (no cost), else each converted by :func:`floats`, or :class:`InvalidInput`
+    naming ``what`` (and the index of an item that is not real numbers)."""
+    if type(items) is not list and (isinstance(items, (str, bytes)) or not isinstance(items, (Sequence, np.ndarray))):
+        raise InvalidInput(f"{what}: a list of arrays, one per level, got {items!r:.80}")
+    for item in items:
+        if type(item) is not np.ndarray or item.dtype is not FLOAT64:
+            return [floats(f"{what}[{k}]", item) for k, item in enumerate(items)]
+    return items if type(items) is list else list(items)
 
 
 def checked_bounds(n: int, x_lower: Any, x_upper: Any) -> tuple[np.ndarray, np.ndarray]:

@@ -73,7 +73,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..compiled import compiled_input, kernels
-from ..exceptions import InvalidInput, SolverError, all_numbers, check_number
+from ..exceptions import InvalidInput, SolverError, check_number
 from . import equality_stack, rescue
 from . import paths as declared
 from .drake_program import DrakePrograms
@@ -91,8 +91,12 @@ from .problem import (
     LevelRows,
     Stage,
     _EqualityFactors,
+    check_damping,
     check_solver,
     checked_bounds,
+    checked_solvers,
+    float_arrays,
+    floats,
     least_norm,
     null_space,
     result_of,
@@ -110,9 +114,6 @@ _NO_LEVEL = (np.zeros((0, 0)), *[np.zeros(0)] * 2, np.zeros((0, 0)), *[np.zeros(
 
 
 _jit_stage = kernels(".kernels.stage", __package__, "build", "the hierarchical QP's stage assembly", "about ten seconds")
-
-
-
 
 #: The most variables a :class:`HierarchicalQP` takes (its dense n × n matrices).
 MAX_VARIABLES = 10_000
@@ -140,18 +141,14 @@ class HierarchicalQP:
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 0 <= n <= MAX_VARIABLES:
             raise InvalidInput(f"HierarchicalQP: n (the number of variables) must be an integer in [0, {MAX_VARIABLES}], got {n!r:.60}")
         n = int(n)
-        if isinstance(level_solvers, str):
-            raise InvalidInput(f"level_solvers is a list of solver names, one per level, got the string {level_solvers!r:.60}: "
-                               f"give [{level_solvers!r:.60}]")
-        for name in [solver, *(level_solvers or [])]:
-            check_solver(name)
+        names = checked_solvers(solver, level_solvers)
         rank_threshold = check_number("rank_threshold", rank_threshold, 1e-300, 1.0)
         hold_tolerance = check_number("hold_tolerance", hold_tolerance, 0.0, 1e6)
         feasibility_tolerance = check_number("feasibility_tolerance", feasibility_tolerance, 1e-300, 1e-2)
-        if not isinstance(regularize, bool):
+        if not isinstance(regularize, (bool, np.bool_)):
             raise InvalidInput(f"regularize must be True or False, got {regularize!r:.60}")
-        self.n, self.solver, self.level_solvers = n, solver, list(level_solvers or [])
-        self.hold_tolerance, self.rank_threshold, self.regularize = hold_tolerance, rank_threshold, regularize
+        self.n, self.solver, self.level_solvers = n, solver, names
+        self.hold_tolerance, self.rank_threshold, self.regularize = hold_tolerance, rank_threshold, bool(regularize)
         self.feasibility_tolerance = feasibility_tolerance
         self.programs = DrakePrograms(n)  # Drake's programs and solvers, cached: results never depend on them
         self._identity = np.eye(n)  # a constant (never written to)
@@ -187,31 +184,30 @@ class HierarchicalQP:
         the default path for this call. Raises :class:`SolverError` naming the stage if every path
         fails (which the tests have never seen with consistent bounds).
 
-        ``start`` (n numbers, default 0): the point the first level starts from. Each stage
-        relaxes a hard bound that its starting point violates to that point (a joint already past
-        its limit may stay there rather than be pushed off at once), so a bound that excludes the
-        start is not enforced: give a start inside the bounds (e.g. ``clip(0, x_lower, x_upper)``)
-        to have every bound hold.
+        ``start`` (n real numbers, an array or a list; default 0): the point the first level starts
+        from. Each stage relaxes a hard bound that its starting point violates to that point (a joint
+        already past its limit may stay there rather than be pushed off at once), so a bound that
+        excludes the start is not enforced: give a start inside the bounds (e.g. ``clip(0, x_lower,
+        x_upper)``) to have every bound hold.
 
         ``warm``: the warm-start state to read and update (:class:`~.warm.WarmStart` of ``n``
         variables, e.g. kept in a system's Context); default: this object's own."""
         solver = self.solver if solver is None else check_solver(solver)
-        self._use(warm)
         n = self.n
         if (isinstance(levels, (str, bytes)) or not isinstance(levels, Sequence)
                 or not all(isinstance(level, LevelRows) for level in levels)):
             raise InvalidInput(f"levels: a sequence of LevelRows (highest priority first), got {levels!r:.100}")
-        if isinstance(damping, bool) or not all_numbers(damping) or np.ndim(damping) != 0 or not 0 <= damping < np.inf:
-            raise InvalidInput(f"damping must be a finite number ≥ 0, got {damping!r:.60}")
+        check_damping(damping)
         x_lower, x_upper = checked_bounds(n, x_lower, x_upper)
         fixed = x_lower == x_upper
         for level in levels:
             if level.A.shape[1] != n:
                 raise InvalidInput(f"a level has {level.A.shape[1]} columns, expected {n}")
         if start is not None:
-            start = np.asarray(start, dtype=float)
+            start = floats("start", start)
             if start.shape != (n,) or not all_true(np.abs(start) <= MAX_MAGNITUDE):
                 raise InvalidInput(f"start must be {n} finite numbers within ±{MAX_MAGNITUDE:g}")
+        self._use(warm)
         began = time.perf_counter()
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # ±∞ bounds: once here, not per operation
             if solver == ACTIVE_SET and self._equalities_only(levels, x_lower, x_upper, fixed, damping, start):
@@ -244,14 +240,17 @@ class HierarchicalQP:
         bounds alone (:mod:`.active_bounds`), without building :class:`LevelRows`: the answer of
         :meth:`solve` on the default path, or None when that path does not apply (another solver,
         damping, no minimum-norm stage, 0 outside the bounds) or does not verify; then :meth:`solve`
-        decides. The values are not checked here (a NaN or an infinite entry makes the path fail
-        and :meth:`solve`'s checks name it); shapes that do not fit give None. ``warm``: as :meth:`solve`'s."""
+        decides. Lists are taken; what is not real numbers, and a damping not ≥ 0, raise :class:`InvalidInput`;
+        a NaN or an infinite value makes the path fail (:meth:`solve` names it), shapes that do not fit give
+        None. ``warm``: as :meth:`solve`'s."""
         n = self.n
+        jacobians, values = float_arrays("jacobians", jacobians), float_arrays("values", values)
+        x_lower, x_upper = floats("x_lower", x_lower), floats("x_upper", x_upper)
+        check_damping(damping)
         self._use(warm)
         if (self.solver != ACTIVE_SET or not equality_stack.default_stages(self)
                 or (damping != 0.0 and len(jacobians)) or len(values) != len(jacobians)):
             return None
-        x_lower, x_upper = np.asarray(x_lower, dtype=float), np.asarray(x_upper, dtype=float)
         if x_lower.shape != (n,) or x_upper.shape != (n,):
             return None
         for J, value in zip(jacobians, values, strict=True):

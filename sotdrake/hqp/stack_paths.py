@@ -55,7 +55,7 @@ from ..exceptions import InvalidInput, SolverError
 from .cascade import CascadeFactorization, cascade_factorization
 from .equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
 from .equality_stack import bound_guess, default_stages, solve_held_rows, start_inside
-from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows, checked_bounds, result_of
+from .problem import ACTIVE_SET, FLOAT64, NO_ACTIVE_ROWS, HqpResult, LevelRows, checked_bounds, floats, result_of
 from .solve import HierarchicalQP
 from .tolerances import FEASIBILITY, RANK_THRESHOLD, VERIFIED
 from .warm import WarmStart
@@ -69,7 +69,10 @@ class StackProblem:
     level has ``lower_k is upper_k``), or the same levels already ``stacked`` (equalities only),
     the bounds ``x_lower ≤ x ≤ x_upper``, the damping ``μ`` of the last level, the solver's name,
     the stages' start (None: 0), the warm start of the call, and ``held``: the components expected
-    at their lower and at their upper bound (the QR sweep's first guess)."""
+    at their lower and at their upper bound (the QR sweep's first guess). The arrays may be (nested)
+    lists of real numbers (converted once here); ``levels`` that are not a sequence of triples, bounds
+    that are not vectors of real numbers, or a start that is not real numbers raise :class:`InvalidInput`
+    here (the values, NaN and sizes, are checked by the paths)."""
 
     levels: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]
     x_lower: np.ndarray
@@ -82,15 +85,55 @@ class StackProblem:
     stacked: StackedLevels | None = None
 
     def __post_init__(self) -> None:
-        if self.stacked is None and not all(isinstance(level, tuple | list) and len(level) == 3 for level in self.levels):
-            raise InvalidInput("StackProblem: levels are (A, lower, upper) triples (an equality level's lower is its "
-                               f"upper), got {self.levels!r:.100}")
+        levels = self.levels
+        if self.stacked is None:
+            if type(levels) is not list and (isinstance(levels, (str, bytes)) or not isinstance(levels, Sequence)):
+                raise InvalidInput(f"StackProblem: levels: a sequence of (A, lower, upper) triples, got {levels!r:.100}")
+            self.levels = _float_levels(levels)
+        self.x_lower, self.x_upper = _bound("x_lower", self.x_lower), _bound("x_upper", self.x_upper)
+        if self.start is not None:
+            self.start = floats("StackProblem: start", self.start)
 
     @property
     def equalities_only(self) -> bool:
         """Every level an equality (a level without rows, e.g. a collision level with no pair in
         range, counts as one)."""
         return self.stacked is not None or all(lower is upper or len(lower) == 0 for _, lower, upper in self.levels)
+
+
+def _bound(what: str, value: object) -> np.ndarray:
+    """A :class:`StackProblem`'s bound as a vector of floats, or :class:`InvalidInput` naming ``what``."""
+    if type(value) is np.ndarray and value.dtype is FLOAT64 and value.ndim == 1:
+        return value
+    array = floats(f"StackProblem: {what}", value)
+    if array.ndim != 1:
+        raise InvalidInput(f"StackProblem: {what}: expected a vector of numbers (one per variable), got {value!r:.80}")
+    return array
+
+
+def _float_levels(levels: Sequence) -> Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """``levels`` itself when they are triples of float64 arrays (the solvers' every call), else the
+    triples with their arrays converted (an equality level's ``lower is upper`` kept), or
+    :class:`InvalidInput` naming the level."""
+    ndarray, float64 = np.ndarray, FLOAT64
+    for level in levels:
+        if type(level) is not tuple or len(level) != 3:
+            break
+        A, lower, upper = level
+        if (type(A) is not ndarray or A.dtype is not float64 or type(lower) is not ndarray or lower.dtype is not float64
+                or type(upper) is not ndarray or upper.dtype is not float64):
+            break
+    else:
+        return levels
+    converted = []
+    for k, level in enumerate(levels):
+        if not isinstance(level, tuple | list) or len(level) != 3:
+            raise InvalidInput("StackProblem: levels are (A, lower, upper) triples (an equality level's lower is its "
+                               f"upper), got {levels!r:.100}")
+        A, lower, upper = level
+        A_k, lower_k = floats(f"StackProblem: level {k}: A", A), floats(f"StackProblem: level {k}: lower", lower)
+        converted.append((A_k, lower_k, lower_k if upper is lower else floats(f"StackProblem: level {k}: upper", upper)))
+    return converted
 
 
 class StackPath:

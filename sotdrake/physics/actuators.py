@@ -15,7 +15,8 @@ from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import ZeroOrderHold
 
-from ..exceptions import InvalidInput, SotError, check_number, finite_number
+from ..exceptions import InvalidInput, SotError, check_name, check_number, finite_number
+from ..tracing import check_vector_port
 
 #: Accepted ranges of the PD gains: stiffness (rad⁻¹, kp = stiffness · effort limit) and damping (s).
 STIFFNESS_RANGE = (1e-3, 1e4)
@@ -74,8 +75,21 @@ def hold_one_tick(builder: DiagramBuilder, port: OutputPort, name: str, dt: floa
     ``dt``). The plant's step (sampled outputs) is applied before the diagram's discrete updates of
     its instant: when the solver's inputs change with that step (the plan's update, a closed loop),
     the servos take the velocity the device integrated at the last tick, held, rather than a command
-    of their own, and the stack is solved once per tick (the held value is 0 before the first)."""
+    of their own, and the stack is solved once per tick (the held value is 0 before the first).
+
+    Refused with :class:`InvalidInput` before anything is added: a ``builder`` that is not a
+    ``DiagramBuilder`` (:class:`SotError` once built), a ``name`` empty or already a system's of the
+    builder, a ``port`` that is not a vector-valued output port of a system of the builder, a ``dt``
+    out of [1e-6, 1] s."""
+    if not isinstance(builder, DiagramBuilder):
+        raise InvalidInput(f"hold_one_tick: builder must be a DiagramBuilder, got {type(builder).__name__}")
+    check_name("hold_one_tick: name", name)
+    if builder.already_built():
+        raise SotError(f"hold_one_tick: cannot add {name!r}: the diagram is already built (add it before builder.Build())")
+    if any(system.get_name() == name for system in builder.GetSystems()):
+        raise InvalidInput(f"hold_one_tick: name {name!r} is already the name of a system of this builder: give another")
     check_number(f"{name}: dt (s)", dt, 1e-6, 1.0)
+    check_vector_port(f"hold_one_tick {name!r}: port", builder, port)
     hold = builder.AddNamedSystem(name, ZeroOrderHold(dt, port.size()))
     builder.Connect(port, hold.get_input_port())
     return hold.get_output_port()

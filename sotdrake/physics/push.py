@@ -17,7 +17,12 @@ MAX_PUSH_FORCE = 1e4
 
 class Push(LeafSystem):
     """A push on a body: ``force`` (N, world frame, ‖force‖ ≤ ``MAX_PUSH_FORCE``) at the body
-    origin during ``[start, start + duration)`` (s). Output ``applied_spatial_force`` for the plant."""
+    origin during ``[start, start + duration)`` (s). Output ``applied_spatial_force`` for the plant.
+
+    A discrete plant of step ``h`` reads the force once per step, at its start ``t``, and holds it
+    over the step: the output is then the push's mean over ``[t, t + h)`` (``force`` times the share
+    of the step the push covers), so that the impulse is ``force · duration`` whatever ``h`` and
+    wherever the push starts within a step."""
 
     def __init__(self, plant: MultibodyPlant, body_name: str, force, start: float, duration: float):
         LeafSystem.__init__(self)
@@ -27,6 +32,7 @@ class Push(LeafSystem):
         self.body_index = plant.GetBodyByName(body_name).index()
         self.force = self.check_arguments(force, start, duration)
         self.start, self.end = float(start), float(start) + float(duration)
+        self.step = float(plant.time_step())  # (0: a continuous plant reads the force as it is)
         self.DeclareAbstractOutputPort("applied_spatial_force", lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]), self._calc)
 
     @staticmethod
@@ -49,6 +55,12 @@ class Push(LeafSystem):
     def _calc(self, context: Context, output: AbstractValue) -> None:
         push = ExternallyAppliedSpatialForce()
         push.body_index = self.body_index
-        active = self.start <= context.get_time() < self.end
-        push.F_Bq_W = SpatialForce(np.zeros(3), self.force if active else np.zeros(3))
+        push.F_Bq_W = SpatialForce(np.zeros(3), self.force * self.share(context.get_time()))
         output.set_value([push])
+
+    def share(self, t: float) -> float:
+        """The share of the plant's step from ``t`` the push covers (1 or 0 on a continuous plant)."""
+        if self.step <= 0:
+            return 1.0 if self.start <= t < self.end else 0.0
+        covered = min(t + self.step, self.end) - max(t, self.start)
+        return min(1.0, max(0.0, covered / self.step))

@@ -83,6 +83,9 @@ F_MIN = 30.0
 #: (torques at their limits, 2 cm of slip); K_v = 8.9 (K_p = 20) asks 1 m/s².
 COM_KP = 100.0
 PUSH_COM_KP = 20.0
+#: The soles land on the plant's contact in the first instants: ``max_friction_ratio_settled`` is
+#: taken from then on (``max_friction_ratio``: the whole run).
+SETTLING_S = 0.05
 
 
 @dataclass
@@ -338,6 +341,9 @@ def summarize(run: DynamicsRun, simulator: Simulator, times: np.ndarray, duratio
         mu = FRICTION.dynamic_friction()
         ratios = [friction_ratio(f, np.array([0, 0, 1.0]), mu) for row in feet for f in (row[0:3], row[3:6]) if f[2] > 10.0]
         summary["max_friction_ratio"] = float(max(ratios)) if ratios else 0.0
+        settled = [friction_ratio(f, np.array([0, 0, 1.0]), mu) for row in feet[t >= SETTLING_S] for f in (row[0:3], row[3:6])
+                   if f[2] > 10.0]  # (at t = 0 the soles land on the plant's contact)
+        summary["max_friction_ratio_settled"] = float(max(settled)) if settled else 0.0
         rect = sole_rectangle()
         double = t < released_at
         margins = []

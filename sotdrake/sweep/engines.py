@@ -30,7 +30,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..exceptions import InvalidInput, SotError
+from ..exceptions import MAX_COUNT, InvalidInput, SotError, check_count
 from .table import check_parameter_name, make_row, write_csv, write_parquet
 
 ENGINES = ("local", "ray")
@@ -178,7 +178,8 @@ def run_ray(function: CaseFunction, cases: Sequence[Mapping], address: str | Non
             by_value: Sequence[types.ModuleType] = ()) -> tuple[list[dict], int]:
     """Every case as a Ray task (one CPU each); returns the rows sorted by case and the number of
     CPUs the runtime offered. A worker that dies (crash, out of memory) makes its case an error
-    row."""
+    row. ``num_cpus``: None or an integer in [1, MAX_COUNT] (a numpy integer too)."""
+    num_cpus = _check_num_cpus(num_cpus)
     ray = _import_ray()
     from ray import cloudpickle
 
@@ -221,8 +222,8 @@ def run_sweep(function: CaseFunction, cases: Iterable[Mapping], engine: str = "l
     and ``num_cpus`` are Ray's). ``cases``: any iterable of dicts (a list, a generator: read once,
     before anything runs); anything else, or no case, is an :class:`InvalidInput` naming
     ``cases``. ``settings``: what every case shares (durations, time step), kept in the sweep's
-    metadata."""
-    _check_engine(engine, address, num_cpus)
+    metadata. ``num_cpus``: None or an integer in [1, MAX_COUNT] (a numpy integer too)."""
+    num_cpus = _check_engine(engine, address, num_cpus)
     if not callable(function):
         raise InvalidInput(f"run_sweep: the case function must be callable, got {function!r:.80}")
     cases = _materialise(cases)
@@ -236,14 +237,19 @@ def run_sweep(function: CaseFunction, cases: Iterable[Mapping], engine: str = "l
     return SweepResult(rows, engine, workers, wall, before, os.getloadavg(), dict(settings or {}))
 
 
-def _check_engine(engine: str, address: str | None, num_cpus: int | None) -> None:
-    """:class:`InvalidInput` for an unknown ``engine`` or a Ray option it cannot take."""
-    if engine not in ENGINES:
-        raise InvalidInput(f"engine must be one of {ENGINES}, got {engine!r}")
+def _check_engine(engine: str, address: str | None, num_cpus: int | None) -> int | None:
+    """``num_cpus`` as an int (or None); :class:`InvalidInput` for an unknown ``engine`` or a Ray
+    option it cannot take."""
+    if not isinstance(engine, str) or engine not in ENGINES:
+        raise InvalidInput(f"engine must be one of {ENGINES}, got {engine!r:.60}")
     if address is not None and engine != "ray":
-        raise InvalidInput(f"address={address!r} is for engine 'ray', not {engine!r}")
-    if num_cpus is not None and (isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 1):
-        raise InvalidInput(f"num_cpus must be an integer ≥ 1, got {num_cpus!r}")
+        raise InvalidInput(f"address={address!r:.100} is for engine 'ray', not {engine!r}")
+    return _check_num_cpus(num_cpus)
+
+
+def _check_num_cpus(num_cpus: int | None) -> int | None:
+    """``num_cpus`` as an int if it is None or an integer (Python or numpy) in [1, MAX_COUNT]."""
+    return None if num_cpus is None else check_count("num_cpus", num_cpus, 1, MAX_COUNT)
 
 
 def _materialise(cases: Iterable[Mapping]) -> list[dict]:

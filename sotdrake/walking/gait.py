@@ -66,12 +66,38 @@ class GaitParameters:
         return self.step_duration - self.single_support
 
 
-def check_velocity(x: float, y: float, theta: float) -> np.ndarray:
+def check_velocity(x: float, y: float, theta: float, what: str = "pg.setVelocity") -> np.ndarray:
     """The command ``(x, y, θ)`` (m/s, m/s, rad/s, in the walking frame: x forward, y left, θ
-    counter-clockwise) as an array, or :class:`InvalidInput` naming the component and its range."""
-    v = check_finite("pg.setVelocity(x, y, theta)", [x, y, theta], (3,))
-    for name, value, limit in (("x", v[0], MAX_LINEAR_VELOCITY), ("y", v[1], MAX_LINEAR_VELOCITY), ("theta", v[2], MAX_YAW_RATE)):
-        if abs(value) > limit:
+    counter-clockwise) as an array, or :class:`InvalidInput` naming ``what``, the component and its
+    range (``|x|, |y| ≤`` :data:`MAX_LINEAR_VELOCITY`, ``|θ| ≤`` :data:`MAX_YAW_RATE`)."""
+    return velocity_vector(what, [x, y, theta], f"{what}(x, y, theta)")
+
+
+def velocity_vector(what: str, value, label: str | None = None) -> np.ndarray:
+    """``value``, three numbers ``(x, y, θ)``, checked as :func:`check_velocity` does; ``label``
+    names the whole vector when it is not finite or not three numbers (default ``what``)."""
+    v = check_finite(label or what, value, (3,))
+    for name, component, limit in (("x", v[0], MAX_LINEAR_VELOCITY), ("y", v[1], MAX_LINEAR_VELOCITY),
+                                   ("theta", v[2], MAX_YAW_RATE)):
+        if abs(component) > limit:
             unit = "rad/s" if name == "theta" else "m/s"
-            raise InvalidInput(f"pg.setVelocity: {name} = {value} {unit} is out of range; accepted: -{limit} ≤ {name} ≤ {limit}")
+            raise InvalidInput(f"{what}: {name} = {component} {unit} is out of range; accepted: -{limit} ≤ {name} ≤ {limit}")
     return v
+
+
+def check_steps(what: str, steps, step_duration: float | None = None, low: int = 1) -> tuple[tuple[float, float, float], ...]:
+    """``steps``, ``low`` to :data:`MAX_STEPS` displacements ``(dx, dy, dθ)`` (m, m, rad), as a
+    tuple of float triples, or :class:`InvalidInput` naming ``what``: not finite, not triples,
+    ``|dθ| > MAX_YAW_RATE`` (0.4 rad a step) or, given the gait's ``step_duration``, ``|dx|`` or
+    ``|dy| > 2 · MAX_LINEAR_VELOCITY · step_duration`` (the distance ``setVelocity``'s fastest
+    command moves the leading foot in a step)."""
+    array = check_finite(what, steps)
+    if array.shape == (0,) and low == 0:
+        return ()
+    if array.ndim != 2 or array.shape[1] != 3 or not low <= len(array) <= MAX_STEPS:
+        raise InvalidInput(f"{what}: expected a list of {low} to {MAX_STEPS} (dx, dy, dθ), got shape {array.shape}")
+    limit = np.inf if step_duration is None else 2 * MAX_LINEAR_VELOCITY * step_duration
+    if np.abs(array[:, :2]).max() > limit or np.abs(array[:, 2]).max() > MAX_YAW_RATE:
+        accepted = "" if step_duration is None else f"|dx|, |dy| ≤ {limit:g} m, "
+        raise InvalidInput(f"{what}: accepted {accepted}|dθ| ≤ {MAX_YAW_RATE} rad; got {array.tolist()!s:.300}")
+    return tuple((float(dx), float(dy), float(dtheta)) for dx, dy, dtheta in array)

@@ -30,9 +30,9 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import Context, ValueProducer
 
 from ..entity import Entity
-from ..exceptions import InvalidInput, check_finite, finite_number
-from .com_planner import INPUT_COST
-from .gait import MAX_LINEAR_VELOCITY, MAX_STEPS, MAX_YAW_RATE, GaitParameters, check_velocity
+from ..exceptions import InvalidInput, check_type, finite_number
+from .com_planner import INPUT_COST, check_input_cost
+from .gait import GaitParameters, check_steps, check_velocity
 from .multibody_zmp import LegMasses
 from .plan import References, Start, WalkCommand, WalkPlan, foot_pose, initial_plan, replan
 
@@ -49,7 +49,9 @@ class PatternGeneratorSettings:
 class PatternGenerator(Entity[PatternGeneratorSettings]):
     """See the module docstring. ``start``: the robot's sole poses, CoM and waist pose at t = 0;
     ``legs``: a leg-mass model (:func:`~.multibody_zmp.leg_masses`) puts the legs' momentum in the
-    CoM plan (the multibody ZMP correction), None the pendulum alone.
+    CoM plan (the multibody ZMP correction), None the pendulum alone. A ``dt`` not in (0, 1] s, a
+    ``gait`` that is not :class:`GaitParameters` (or None: the defaults), an ``input_cost`` out of
+    :func:`~.com_planner.check_input_cost`'s range: :class:`InvalidInput`, before anything is planned.
 
     Outputs (see the module docstring): each sole's ``<side>_foot_pose`` and the ``waist_pose``
     (``RigidTransform``, world).
@@ -60,13 +62,16 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
         Entity.__init__(self, name, PatternGeneratorSettings())
         if not (finite_number(dt) and 0 < dt <= MAX_DT):
             raise InvalidInput(f"{name}: dt must be a number in (0, {MAX_DT:g}] s, got {dt!r:.60}")
-        if not (finite_number(input_cost) and input_cost > 0):
-            raise InvalidInput(f"{name}: input_cost must be finite and > 0, got {input_cost!r:.60}")
+        input_cost = check_input_cost(name, input_cost)
         if not isinstance(start, Start):
             raise InvalidInput(f"{name}: start must be a Start (the soles, the CoM and the waist at t = 0: start_of), "
                                f"got {type(start).__name__}")
+        if gait is not None:
+            check_type(f"{name}: gait", gait, GaitParameters, "GaitParameters or None")
+        if legs is not None:
+            check_type(f"{name}: legs", legs, LegMasses, "LegMasses (leg_masses()) or None")
         self.gait = gait or GaitParameters()
-        self.start, self.dt, self.input_cost, self.legs = start, float(dt), float(input_cost), legs
+        self.start, self.dt, self.input_cost, self.legs = start, float(dt), input_cost, legs
         self._yaw0 = {side: start.foot(side)[2] for side in SIDES}
         self._plan = self.DeclareAbstractState(AbstractValue.Make(initial_plan(start, self.gait, input_cost, legs)))
         self.DeclareInitializationUnrestrictedUpdateEvent(self._update)
@@ -105,14 +110,7 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
         the moved frame: a sideways displacement towards the foot that stays (``dy > 0`` on a right
         step) of the feet's distance or more crosses the feet; give it to the foot on its side, as
         ``setVelocity`` does."""
-        array = check_finite(f"{self.name}.setSteps", steps)
-        if array.ndim != 2 or array.shape[1] != 3 or not 1 <= len(array) <= MAX_STEPS:
-            raise InvalidInput(f"{self.name}.setSteps: expected a list of 1 to {MAX_STEPS} (dx, dy, dθ), got shape {array.shape}")
-        limit = 2 * MAX_LINEAR_VELOCITY * self.gait.step_duration
-        if np.abs(array[:, :2]).max() > limit or np.abs(array[:, 2]).max() > MAX_YAW_RATE:
-            raise InvalidInput(f"{self.name}.setSteps: accepted |dx|, |dy| ≤ {limit:g} m, |dθ| ≤ {MAX_YAW_RATE} rad; "
-                               f"got {array.tolist()}")
-        command = WalkCommand(steps=tuple((float(dx), float(dy), float(dtheta)) for dx, dy, dtheta in array))
+        command = WalkCommand(steps=check_steps(f"{self.name}.setSteps", steps, self.gait.step_duration))
         self._command(context, lambda s: setattr(s, "command", command))
 
     def plan(self, context: Context) -> WalkPlan:

@@ -13,6 +13,12 @@ error, so that the ZMP of the whole body's planned motion, not the pendulum's, f
 Commands (:class:`WalkCommand`): a velocity ``(vx, vy, ω)`` (walk on, the plan extended a few
 steps ahead as time goes; zero: the feet close up and the robot stands), or a list of step
 displacements ``(dx, dy, dθ)`` of the walking frame (then the feet close up and it stands).
+
+Bad input is refused (:class:`~sotdrake.exceptions.InvalidInput`, naming the argument) before
+anything is planned: a command outside ``PatternGenerator.setVelocity``'s and ``setSteps``' ranges
+(when it is made, the steps' lengths when it is planned for a gait), a time that is not a finite
+number in ``[plan.planned_at, MAX_TIME]``, an ``input_cost`` outside the planner's range
+(:func:`~.com_planner.check_input_cost`), arguments of the wrong kind.
 """
 
 from __future__ import annotations
@@ -23,23 +29,39 @@ from typing import Any
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from ..exceptions import InvalidInput, check_finite
-from .com_planner import INPUT_COST, ComPlan, plan_com
+from ..exceptions import InvalidInput, check_finite, check_number, check_type
+from .com_planner import INPUT_COST, ComPlan, check_input_cost, plan_com
 from .footsteps import Footstep, closing_steps, first_side, other, plan_steps, velocity_displacement
-from .gait import GaitParameters
+from .gait import GaitParameters, check_steps, velocity_vector
 from .multibody_zmp import PASSES, LegMasses
 from .support import support_polygon
 from .swing import foot_trajectory
 from .zmp_reference import zmp_reference
 
+#: The latest time (s) a plan is made for (about 11 days; later, a step's duration is lost in round-off).
+MAX_TIME = 1e6
+
 
 @dataclass(frozen=True)
 class WalkCommand:
     """``velocity`` ``(vx, vy, ω)`` (m/s, m/s, rad/s, walking frame) or ``steps``, a tuple of
-    displacements ``(dx, dy, dθ)`` (m, m, rad); at most one of them non-zero."""
+    displacements ``(dx, dy, dθ)`` (m, m, rad); at most one of them non-zero. Checked when made
+    (:class:`~sotdrake.exceptions.InvalidInput` naming the field): finite, ``|vx|, |vy| ≤ 0.2``,
+    ``|ω| ≤ 0.4`` (``PatternGenerator.setVelocity``'s range), at most ``MAX_STEPS`` steps with
+    ``|dθ| ≤ 0.4``; the steps' ``|dx|, |dy|`` are checked against the gait by :func:`replan`.
+    Lists and numpy numbers are accepted, kept as tuples of floats."""
 
     velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     steps: tuple[tuple[float, float, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        velocity = velocity_vector("WalkCommand.velocity", self.velocity, "WalkCommand.velocity (vx, vy, ω)")
+        steps = check_steps("WalkCommand.steps", self.steps, low=0)
+        if steps and velocity.any():
+            raise InvalidInput(f"WalkCommand: give a velocity or steps, not both; got velocity={self.velocity!r:.80} "
+                               f"and {len(steps)} steps")
+        object.__setattr__(self, "velocity", tuple(float(v) for v in velocity))
+        object.__setattr__(self, "steps", steps)
 
     @property
     def walking(self) -> bool:
@@ -193,8 +215,20 @@ def corrected_com(zmp, position, velocity, height: float, input_cost: float, t: 
     return com, lipm
 
 
+def _check_model(what: str, gait: GaitParameters, input_cost: float, legs: LegMasses | None) -> float:
+    """``input_cost`` as a float after checking ``gait``, ``input_cost`` and ``legs`` (InvalidInput naming them)."""
+    check_type(f"{what}: gait", gait, GaitParameters, "GaitParameters")
+    if legs is not None:
+        check_type(f"{what}: legs", legs, LegMasses, "LegMasses (leg_masses()) or None")
+    return check_input_cost(what, input_cost)
+
+
 def initial_plan(start: Start, gait: GaitParameters, input_cost: float = INPUT_COST, legs: LegMasses | None = None) -> WalkPlan:
-    """Standing at t = 0: the CoM at rest, the ZMP reference from under it to the feet's mid-point."""
+    """Standing at t = 0: the CoM at rest, the ZMP reference from under it to the feet's mid-point.
+    A ``start`` that is not a :class:`Start`, a ``gait`` that is not :class:`GaitParameters`, an
+    ``input_cost`` out of range: :class:`InvalidInput`."""
+    check_type("initial_plan: start", start, Start, "Start (the soles, the CoM and the waist at t = 0: start_of)")
+    input_cost = _check_model("initial_plan", gait, input_cost, legs)
     feet = {side: start.foot(side) for side in ("left", "right")}
     zmp = zmp_reference(0.0, start.com[:2], feet, [], gait)
     trajectories, rates, accelerations = _trajectories(start, [], gait, zmp.end_time())
@@ -236,7 +270,8 @@ def new_steps(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParamete
 
 def replan(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParameters, input_cost: float = INPUT_COST,
            legs: LegMasses | None = None) -> WalkPlan:
-    """The plan for ``command`` from time ``t`` (see the module docstring)."""
+    """The plan for ``command`` from time ``t`` (see the module docstring; what it refuses there)."""
+    t, input_cost = _check_replan(plan, command, t, gait, input_cost, legs)
     kept, new = new_steps(plan, command, t, gait)
     steps = kept + new
     landed = {side: plan.start.foot(side) for side in ("left", "right")}
@@ -249,6 +284,20 @@ def replan(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParameters,
     trajectories, rates, accelerations = _trajectories(plan.start, steps, gait, zmp.end_time())
     com, lipm = corrected_com(zmp, position, velocity, plan.com.height, input_cost, t, trajectories, accelerations, legs)
     return WalkPlan(command, t, plan.start, tuple(steps), zmp, com, trajectories, rates, accelerations, lipm)
+
+
+def _check_replan(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParameters, input_cost: float,
+                  legs: LegMasses | None) -> tuple[float, float]:
+    """``(t, input_cost)`` as floats once :func:`replan`'s arguments are checked (before Drake sees any)."""
+    check_type("replan: plan", plan, WalkPlan, "WalkPlan (initial_plan() or replan())")
+    check_type("replan: command", command, WalkCommand, "WalkCommand")
+    input_cost = _check_model("replan", gait, input_cost, legs)
+    t = check_number("replan: t", t, -MAX_TIME, MAX_TIME, " s")
+    if t < plan.planned_at:
+        raise InvalidInput(f"replan: t = {t:g} s is before the plan's time {plan.planned_at:g} s: a plan is replanned forward")
+    if command.steps:
+        check_steps("replan: command.steps", command.steps, gait.step_duration)
+    return t, input_cost
 
 
 def foot_pose(reference, X_WS0: RigidTransform, yaw0: float) -> RigidTransform:

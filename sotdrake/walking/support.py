@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..exceptions import InvalidInput, check_finite
 from .gait import GaitParameters
 
 
@@ -51,14 +52,28 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
 
 
 def support_polygon(poses: list, gait: GaitParameters) -> np.ndarray:
-    """The convex hull of the footprints of the soles at ``poses`` (one or two ``(x, y, yaw)``)."""
+    """The convex hull of the footprints of the soles at ``poses`` (one or two ``(x, y, yaw)``; none:
+    :class:`InvalidInput`)."""
+    if not len(poses):
+        raise InvalidInput("support_polygon: poses is empty: give the (x, y, yaw) of one or two soles")
     return convex_hull(np.vstack([footprint(p, gait) for p in poses]))
 
 
 def polygon_margin(point, polygon: np.ndarray) -> float:
     """Signed distance (m) from ``point`` to the boundary of the counter-clockwise convex
-    ``polygon``: positive inside."""
-    p = np.asarray(point, dtype=float)
-    edges = np.roll(polygon, -1, axis=0) - polygon
-    normals = np.column_stack([-edges[:, 1], edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]
-    return float(np.min(np.einsum("ij,ij->i", normals, p - polygon)))
+    ``polygon``: positive inside. ``point``: two finite numbers; ``polygon``: n ≥ 3 finite vertices
+    (n×2), each given once, turning counter-clockwise and convex; anything else is an
+    :class:`InvalidInput` naming the argument (a NaN point used to give NaN)."""
+    p = check_finite("polygon_margin: point", point, (2,))
+    vertices = check_finite("polygon_margin: polygon", polygon)
+    if vertices.ndim != 2 or vertices.shape[1:] != (2,) or len(vertices) < 3:
+        raise InvalidInput(f"polygon_margin: polygon must be n ≥ 3 vertices (an n×2 array, m), got shape {vertices.shape}")
+    edges = np.roll(vertices, -1, axis=0) - vertices
+    lengths = np.linalg.norm(edges, axis=1)
+    following = np.roll(edges, -1, axis=0)
+    turns = edges[:, 0] * following[:, 1] - edges[:, 1] * following[:, 0]  # > 0: a left turn
+    if not lengths.min() > 0 or turns.min() < -1e-12 * lengths.max() ** 2 or not turns.sum() > 0:
+        raise InvalidInput("polygon_margin: polygon must be convex, counter-clockwise, each vertex given once (not "
+                           f"closed), got {vertices.tolist()!s:.200}")
+    normals = np.column_stack([-edges[:, 1], edges[:, 0]]) / lengths[:, None]
+    return float(np.min(np.einsum("ij,ij->i", normals, p - vertices)))

@@ -27,10 +27,10 @@ compiled_only = pytest.mark.skipif(bool(numba_config.DISABLE_JIT), reason="check
 
 def _compiled_cache_is_cold() -> bool:
     """Whether numba has no cache of the active-set iterations yet (a new install, or a new cache folder)."""
-    import sotdrake.solvers
+    import sotdrake.hqp.kernels.active_set as kernel
 
-    where = Path(os.environ["NUMBA_CACHE_DIR"]) if os.environ.get("NUMBA_CACHE_DIR") else Path(sotdrake.solvers.__file__).parent
-    return not where.is_dir() or next(where.rglob("jit_active_set.solve-*.nbi"), None) is None
+    where = Path(os.environ["NUMBA_CACHE_DIR"]) if os.environ.get("NUMBA_CACHE_DIR") else Path(kernel.__file__).parent
+    return not where.is_dir() or next(where.rglob(f"{Path(kernel.__file__).stem}.solve-*.nbi"), None) is None
 
 
 def pytest_configure(config):

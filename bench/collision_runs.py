@@ -32,7 +32,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from output import RESULTS, add_output_arguments, write_json
+from output import REFERENCE, RESULTS, add_output_arguments, write_json
 
 from sotdrake.collision.reach import build_collision_reach, build_dyn_collision_reach, run_collision_reach, run_dyn_collision_reach
 from sotdrake.collision.targets import random_targets
@@ -56,6 +56,7 @@ def main(argv: list[str] | None = None) -> dict:
     if args.jobs < 1:
         parser.error("--jobs must be at least 1")
     out = args.out.with_name("collision_runs_dyn.json") if args.dynamic and args.out == RESULTS / "collision_runs.json" else args.out
+    save = args.save and (REFERENCE / "collision_runs_dyn.json" if args.dynamic else args.save)  # (each solver's own reference)
     chosen = [i for i in range(args.runs) if args.only is None or i in args.only]
     started = time.perf_counter()
     shares = [chosen[w::args.jobs] for w in range(args.jobs)]
@@ -68,7 +69,7 @@ def main(argv: list[str] | None = None) -> dict:
     command = "python bench/collision_runs.py " + " ".join(sys.argv[1:] if argv is None else argv)
     summary = summarize(args, sorted(reports, key=lambda r: r["run"]), time.perf_counter() - started, command)
     print(json.dumps({k: v for k, v in summary.items() if k != "failed_runs"} | {"failed": len(summary["failed_runs"])}, indent=1))
-    write_json(summary, out, save=args.save, indent=1)
+    write_json(summary, out, save=save, indent=1)
     return summary
 
 

@@ -155,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.merge:
         code = merge(args.merge, args.out)
         if args.save:
-            write_json(json.loads(args.out.read_text()), args.out, save=args.save, indent=1)
+            write_json(json.loads(args.out.read_text()), args.out, save=bool(args.save), indent=1)  # (its own name: the warm runs too)
         return code
     if args.worker:
         Path(args.worker).write_text(json.dumps(sweep(args.first, args.count, args.reuse)))
@@ -192,7 +192,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name:<9} {args.count:>7} {summary['failed'][name]:>16} {summary['seconds'][name]:>8}")
     print(f"answering path differs between kernels on {len(differ)} stacks; "
           f"{len(differ_failed)} of them miss the contract under some kernel")
-    write_json(summary, args.out, args.save, indent=1)
+    write_json(summary, args.out, bool(args.save), indent=1)  # (bench/reference/<its name>: hqp_kernels_warm.json too)
     return 1 if any(failed.values()) else 0
 
 

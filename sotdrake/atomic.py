@@ -1,5 +1,6 @@
-"""Builders that add several systems either add them all or leave the builder as it was, and
-whether a system is already in a built diagram (its contexts would not have a port added now)."""
+"""Builders that add several systems either add them all or leave the builder as it was, whether
+a system is one of a builder's, and whether it is already in a built diagram (its contexts would not
+have a port added now)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,11 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 from pydrake.systems.framework import DiagramBuilder, System
+
+
+def in_builder(builder: DiagramBuilder, system: System) -> bool:
+    """Whether ``system`` (this very object) is one of ``builder``'s systems."""
+    return any(other is system for other in builder.GetSystems())
 
 
 def in_built_diagram(system: System) -> bool:

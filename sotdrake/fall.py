@@ -24,13 +24,12 @@ from __future__ import annotations
 import numpy as np
 
 from .exceptions import InvalidInput, all_numbers
+from .lie import MIN_QUATERNION_NORM
 
 FALL_TILT_DEG = 30.0  # deg
 FALL_BASE_DROP_M = 0.25  # m
 FALL_SLIP_M = 0.05  # m
 FALL_CONTACT_FORCE = 10.0  # N
-#: A quaternion of a smaller norm is no rotation (:func:`tilt_of_quaternions` refuses it).
-MIN_QUATERNION_NORM = 1e-6
 
 
 def fall_thresholds() -> dict[str, float]:
@@ -55,7 +54,7 @@ def _array(what: str, value, shape: str, ndim: int, last: tuple[int, ...]) -> np
 
 def tilt_of_quaternions(quaternion_wxyz: np.ndarray) -> np.ndarray:
     """Tilt (deg) from upright of each row of ``quaternion_wxyz`` (T × 4, Drake's order, normalised
-    here): ``arccos(1 − 2(qx² + qy²))``. A finite row of norm below :data:`MIN_QUATERNION_NORM` is
+    here): ``arccos(1 − 2(qx² + qy²))``. A finite row of norm below 1e-6 (``lie.MIN_QUATERNION_NORM``) is
     no rotation: :class:`InvalidInput` naming its index. A row that is not finite (a run that
     diverged) gives NaN, which :func:`fall_report` reads as a ``non-finite`` fall."""
     quaternion = _array("tilt_of_quaternions", quaternion_wxyz, "T × 4 (qw, qx, qy, qz)", 2, (4,))

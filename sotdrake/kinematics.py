@@ -31,10 +31,8 @@ from .atomic import in_built_diagram
 from .centroidal import centroidal_momentum_matrix
 from .configuration import Layout, PlantContextHolder
 from .exceptions import InvalidInput, SotError, check_finite, check_name
+from .lie import MIN_QUATERNION_NORM
 from .robots import RobotModel
-
-#: The smallest norm of the base's quaternion in a ``q`` of :meth:`Dynamic.pose_at` and ``com_at``.
-MIN_QUATERNION_NORM = 1e-6
 
 
 class Dynamic(LeafSystem):

@@ -17,6 +17,8 @@ import math
 import numpy as np
 
 _SMALL = 1e-8
+#: A quaternion of a smaller norm is no rotation (refused where one is read: a base's, a tilt's).
+MIN_QUATERNION_NORM = 1e-6
 
 
 def hat(a: np.ndarray) -> np.ndarray:

@@ -24,6 +24,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context, InputPort, OutputPort
 
+from .atomic import in_builder
 from .centroidal import base_rows
 from .configuration import Layout
 from .entity import command_group, recording
@@ -48,7 +49,7 @@ from .gains import GainAdaptive, constant, from_numbers
 from .kinematics import Dynamic
 from .manipulability import upstream_coordinates
 from .ranges import MAX_TARGET_POSITION
-from .robot import Robot, check_not_elsewhere, in_builder
+from .robot import Robot, check_not_elsewhere
 from .robots import TALOS_GRIPPERS
 from .task import Task, TaskInequality, TaskPD
 

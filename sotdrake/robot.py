@@ -35,11 +35,6 @@ SystemT = TypeVar("SystemT", bound=System)
 _BUILDER_OF: weakref.WeakKeyDictionary[System, weakref.ref[DiagramBuilder]] = weakref.WeakKeyDictionary()
 
 
-def in_builder(builder: DiagramBuilder, system: System) -> bool:
-    """Whether ``system`` (this very object) is one of ``builder``'s systems."""
-    return any(other is system for other in builder.GetSystems())
-
-
 def check_not_elsewhere(builder: DiagramBuilder, system: System, what: str) -> None:
     """:class:`InvalidInput` if ``system`` was added, through a robot, to another builder than
     ``builder`` (Drake would refuse the second diagram's ``Build()``)."""

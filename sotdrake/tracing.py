@@ -38,7 +38,7 @@ import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafContext, OutputPort, PortDataType, System
 from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 
-from .atomic import all_or_nothing
+from .atomic import all_or_nothing, in_builder
 from .exceptions import InvalidInput, SotError, check_number, os_reason
 from .simulation import save_figure, save_npz
 from .trace_chunks import ChunkFile, row_digest
@@ -311,7 +311,7 @@ def check_vector_port(what: str, builder: DiagramBuilder, port: object) -> Outpu
     where = f"port {port.get_name()!r} of {system.get_name()!r}"
     if port.get_data_type() != PortDataType.kVectorValued:
         raise InvalidInput(f"{need}; {where} is abstract-valued (not a vector)")
-    if not any(added is system for added in builder.GetSystems()):
+    if not in_builder(builder, system):
         raise InvalidInput(f"{need}; {where} belongs to another builder")
     return port
 

@@ -73,7 +73,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..compiled import compiled_input, kernels
-from ..exceptions import InvalidInput, SolverError, check_number
+from ..exceptions import InvalidInput, SolverError, check_flag, check_number
 from . import equality_stack, rescue
 from . import paths as declared
 from .drake_program import DrakePrograms
@@ -145,10 +145,9 @@ class HierarchicalQP:
         rank_threshold = check_number("rank_threshold", rank_threshold, 1e-300, 1.0)
         hold_tolerance = check_number("hold_tolerance", hold_tolerance, 0.0, 1e6)
         feasibility_tolerance = check_number("feasibility_tolerance", feasibility_tolerance, 1e-300, 1e-2)
-        if not isinstance(regularize, (bool, np.bool_)):
-            raise InvalidInput(f"regularize must be True or False, got {regularize!r:.60}")
+        regularize = check_flag("regularize", regularize)
         self.n, self.solver, self.level_solvers = n, solver, names
-        self.hold_tolerance, self.rank_threshold, self.regularize = hold_tolerance, rank_threshold, bool(regularize)
+        self.hold_tolerance, self.rank_threshold, self.regularize = hold_tolerance, rank_threshold, regularize
         self.feasibility_tolerance = feasibility_tolerance
         self.programs = DrakePrograms(n)  # Drake's programs and solvers, cached: results never depend on them
         self._identity = np.eye(n)  # a constant (never written to)

@@ -1,18 +1,36 @@
 """Builders that add several systems either add them all or leave the builder as it was, whether
-a system is one of a builder's, and whether it is already in a built diagram (its contexts would not
+names are free in a builder, whether a system is one of a builder's, and whether it is already in a
+built diagram (its contexts would not
 have a port added now)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator, Sequence
 from contextlib import contextmanager
 
 from pydrake.systems.framework import DiagramBuilder, System
+
+from .exceptions import InvalidInput, SotError
 
 
 def in_builder(builder: DiagramBuilder, system: System) -> bool:
     """Whether ``system`` (this very object) is one of ``builder``'s systems."""
     return any(other is system for other in builder.GetSystems())
+
+
+def check_new_names(builder: DiagramBuilder, names: Sequence[str], taken: Collection[str] = (), what: str = "") -> None:
+    """:class:`SotError` if ``builder`` is built, :class:`InvalidInput` if one of ``names`` is
+    ``taken`` (e.g. the entities a robot added) or the name of a system of ``builder``: what adding
+    an entity checks, for a caller that adds several and must refuse before adding any. ``what``:
+    the caller, named first in the messages."""
+    prefix = f"{what}: " if what else ""
+    if builder.already_built():
+        raise SotError(f"{prefix}cannot add {names[0]!r}: the diagram is already built "
+                       "(create tasks, contacts and entities before builder.Build())")
+    existing = set(taken) | {system.get_name() for system in builder.GetSystems()}
+    for name in names:
+        if name in existing:
+            raise InvalidInput(f"{prefix}an entity named {name!r} already exists: give another name")
 
 
 def in_built_diagram(system: System) -> bool:

@@ -18,7 +18,7 @@ import numpy as np
 from pydrake.lcm import DrakeLcm
 from pydrake.systems.framework import DiagramBuilder, OutputPort, System
 
-from .atomic import all_or_nothing
+from .atomic import all_or_nothing, check_new_names
 from .device import Device
 from .exceptions import InvalidInput, NotFound, SotError, check_name, check_type
 from .joint_limitator import JointLimitator
@@ -59,19 +59,6 @@ def velocity_selection(plant, excluding: Sequence[str] = ()) -> np.ndarray:
         joint = plant.GetJointByName(name)
         mask[joint.velocity_start() : joint.velocity_start() + joint.num_velocities()] = False
     return mask
-
-
-def check_new_names(builder: DiagramBuilder, taken: set[str], names: list[str]) -> None:
-    """:class:`SotError` if ``builder`` is built, :class:`InvalidInput` if one of ``names`` is
-    ``taken`` (the entities a robot added) or the name of a system of ``builder``: what adding an
-    entity checks, for a caller that adds several and must refuse before adding any."""
-    if builder.already_built():
-        raise SotError(f"cannot add {names[0]!r}: the diagram is already built "
-                       "(create tasks, contacts and entities before builder.Build())")
-    existing = taken | {system.get_name() for system in builder.GetSystems()}
-    for name in names:
-        if name in existing:
-            raise InvalidInput(f"an entity named {name!r} already exists")
 
 
 class Robot:
@@ -133,7 +120,7 @@ class Robot:
         """:class:`InvalidInput` if an entity of one of ``names`` exists already, :class:`SotError`
         if the diagram is built (what :meth:`add` checks, for a caller that adds several entities
         and must refuse before adding any)."""
-        check_new_names(self.builder, self._names, names)
+        check_new_names(self.builder, names, self._names)
 
     def add(self, system: SystemT, name: str | None = None) -> SystemT:
         """Add ``system`` to the builder under ``name`` (default: its own), which must be new; a
@@ -142,9 +129,6 @@ class Robot:
         if name is not None:
             check_name("add: name", name)
         check_not_elsewhere(self.builder, system, "add")
-        if self.builder.already_built():
-            raise SotError(f"cannot add {system.get_name() or type(system).__name__!r}: the diagram is already built "
-                           "(create tasks and entities before builder.Build())")
         name = system.get_name() if name is None else name
         if not name:
             raise InvalidInput(f"a {type(system).__name__} needs a name to be added")

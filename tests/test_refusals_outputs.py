@@ -111,8 +111,9 @@ def test_collision_queries_refuse_a_context_that_is_not_the_worlds(run, world):
 def test_hold_one_tick_refuses_before_adding_anything(talos_model):
     builder, robot, abstract, foreign = _unbuilt(talos_model)
     com, names = robot.dynamic.GetOutputPort("com"), _names(builder)
-    for bad_name in ("device", "", None):  # (a name taken or empty: Build() would end the process)
-        with pytest.raises(InvalidInput, match="hold_one_tick: name"):
+    for bad_name, says in (("device", "an entity named 'device' already exists"), ("", "name"), (None, "name")):
+        # (a name taken or empty: Build() would end the process)
+        with pytest.raises(InvalidInput, match=f"hold_one_tick: {says}"):
             hold_one_tick(builder, com, bad_name, 1e-3)  # type: ignore[arg-type]
     for port, says in ((abstract, "abstract-valued"), (foreign, "another builder"), (None, "NoneType")):
         with pytest.raises(InvalidInput, match=rf"hold_one_tick 'held': port: it needs a vector output port.*{says}"):
@@ -121,7 +122,7 @@ def test_hold_one_tick_refuses_before_adding_anything(talos_model):
         hold_one_tick(None, com, "held", 1e-3)  # type: ignore[arg-type]
     assert _names(builder) == names
     assert hold_one_tick(builder, com, "held", np.float64(1e-3)).size() == 3  # the corrected call
-    with pytest.raises(InvalidInput, match="'held' is already the name"):
+    with pytest.raises(InvalidInput, match="hold_one_tick: an entity named 'held' already exists"):
         hold_one_tick(builder, com, "held", 1e-3)
     assert _names(builder) == [*names, "held"]
     builder.Build()

@@ -57,9 +57,10 @@ def test_introspection_refuses_names_that_are_not_strings(built):
     assert S.entity(diagram, "sot") is sot and S.signal(sot, "control", context).shape == (robot.dimension,)
 
 
-def test_robot_add_refuses_what_is_not_a_system_and_renames_nothing_it_refuses(talos_model):
+@pytest.mark.parametrize("kind", [S.Robot, S.RobotDyn])
+def test_robot_add_refuses_what_is_not_a_system_and_renames_nothing_it_refuses(talos_model, kind):
     builder = DiagramBuilder()
-    robot = S.Robot(builder, talos_model)
+    robot = kind(builder, talos_model)
     before = _names(builder)
     for system in (None, "feature", 3):
         with pytest.raises(InvalidInput, match="add: system"):

@@ -22,12 +22,12 @@ from collections.abc import Sequence
 import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
-from ..atomic import all_or_nothing
+from ..atomic import all_or_nothing, check_new_names
 from ..configuration import Layout, check_base_quaternion
 from ..exceptions import InvalidInput, check_finite, check_name, check_number, check_type
 from ..hqp import ACTIVE_SET
 from ..physics.plant import MAX_TIME_STEP, check_contact_options
-from ..robot import check_new_names, velocity_selection
+from ..robot import velocity_selection
 from ..robots import RobotModel
 from .checks import MAX_DT
 from .contact import Contact6d
@@ -112,16 +112,18 @@ class RobotDyn:
     def check_new_names(self, names: list[str]) -> None:
         """:class:`InvalidInput` if an entity of one of ``names`` exists already (for a caller that
         adds several entities and must refuse before adding any)."""
-        check_new_names(self.builder, self._names, names)
+        check_new_names(self.builder, names, self._names)
 
     def add(self, system: LeafSystem, name: str | None = None) -> LeafSystem:
         """Add ``system`` under ``name`` (default: its own), which must be new."""
+        check_type("add: system", system, LeafSystem, "a Drake LeafSystem (an entity)")
         if name is not None:
-            system.set_name(name)
-        name = system.get_name()
+            check_name("add: name", name)
+        name = system.get_name() if name is None else name
         if not name:
             raise InvalidInput(f"an entity needs a name, got {name!r}")
         self.check_new_names([name])
+        system.set_name(name)
         self._names.add(name)
         return self.builder.AddNamedSystem(name, system)
 

@@ -15,6 +15,7 @@ from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import ZeroOrderHold
 
+from ..atomic import check_new_names
 from ..exceptions import InvalidInput, SotError, check_name, check_number, finite_number
 from ..tracing import check_vector_port
 
@@ -84,10 +85,7 @@ def hold_one_tick(builder: DiagramBuilder, port: OutputPort, name: str, dt: floa
     if not isinstance(builder, DiagramBuilder):
         raise InvalidInput(f"hold_one_tick: builder must be a DiagramBuilder, got {type(builder).__name__}")
     check_name("hold_one_tick: name", name)
-    if builder.already_built():
-        raise SotError(f"hold_one_tick: cannot add {name!r}: the diagram is already built (add it before builder.Build())")
-    if any(system.get_name() == name for system in builder.GetSystems()):
-        raise InvalidInput(f"hold_one_tick: name {name!r} is already the name of a system of this builder: give another")
+    check_new_names(builder, [name], what="hold_one_tick")
     check_number(f"{name}: dt (s)", dt, 1e-6, 1.0)
     check_vector_port(f"hold_one_tick {name!r}: port", builder, port)
     hold = builder.AddNamedSystem(name, ZeroOrderHold(dt, port.size()))

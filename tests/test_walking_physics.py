@@ -212,7 +212,7 @@ def test_dynamic_walk_switches_the_contacts_and_steps(walk_script):
     before its lift-off and added back at its touch-down; the first step of 0.2 m lands where planned
     with the CoM on its plan, no slip and the CoP well inside the soles. At the left foot's lift-off
     (a 0.4 m swing, quintic: zero acceleration at the lift-off) the right sole stays put: it turns by
-    < 3 mrad and moves by < 0.3 mm (with the cubic swing, 14 mrad and 1 mm: the next test)."""
+    < 1 mrad and moves by < 0.1 mm (measured: 0.15 mrad, 0.01 mm; the cubic swing: the next test)."""
     gait = dataclasses.replace(walk_script.ROBOTS["talos"].gait, start_duration=0.4, swing_profile=walk_script.DYNAMIC_SWING_PROFILE)
     walk = walk_script.build_diagram(mode="dynamic", steps=(2, 0.2), gait=gait)
     assert [c.description for c in walk.commands[:2]] == ["rmContact contactRF", "addContact contactRF"]
@@ -231,7 +231,7 @@ def test_dynamic_walk_switches_the_contacts_and_steps(walk_script):
     assert summary["max_slip_per_step_m"] < 3e-4
     assert summary["min_cop_margin_m"] > 0.02
     standing, spin, drift = _stance_spin(walk, trace, 1.2)
-    assert standing < 1e-3 and spin < 3e-3 and drift < 3e-4
+    assert standing < 1e-3 and spin < 1e-3 and drift < 1e-4
     right = walk.robot.dynamic.pose_at("right-sole", trace["x_plant"][-1, : walk.robot.model.nq]).translation()
     assert right[0] - trace["pg_feet"][0, 4] == pytest.approx(0.2, abs=5e-3)
 
@@ -248,12 +248,14 @@ def _stance_spin(walk, trace, liftoff: float, side: str = "right") -> tuple[floa
 
 
 @pytest.mark.slow
-def test_dynamic_walk_stance_sole_spins_at_a_cubic_swings_lift_off(walk_script):
-    """The slip the quintic swing removes (see the test above): with the cubic swing, at the
-    lift-off of a 0.4 m swing (the second step) the swing foot's acceleration jumps to 4.9 m/s²;
-    the stance sole takes the swing leg's yaw torque and its CoP jumps 5 cm forward in one tick; the
-    sole rolls onto its toe, whose small patch cannot hold that torque, and spins (14 mrad, 1 mm at
-    its origin) within 70 ms."""
+def test_dynamic_walk_stance_sole_holds_at_a_cubic_swings_lift_off(walk_script):
+    """With the cubic swing, at the lift-off of a 0.4 m swing (the second step) the swing foot's
+    acceleration jumps to 4.9 m/s²; the stance sole takes the swing leg's yaw torque and its CoP
+    jumps 5 cm forward in one tick, onto the toe. The contact's yaw torque is bounded by its contact
+    wrench cone, which shrinks the torsion allowed as the CoP nears the toe: the sole turns by about
+    2 mrad and its origin moves about 0.15 mm (the quintic swing: 0.15 mrad, 0.01 mm). With a yaw
+    bound blind to the CoP (``μ r f_z``), the toe's small patch could not hold the torque asked and
+    the sole spun 14 mrad, 1 mm, within 70 ms."""
     gait = dataclasses.replace(walk_script.ROBOTS["talos"].gait, start_duration=0.4, swing_profile="cubic")
     walk = walk_script.build_diagram(mode="dynamic", steps=(2, 0.2), gait=gait)
     liftoff = gait.start_duration + gait.step_duration  # the left foot's (1.2 s), the right one standing
@@ -263,7 +265,7 @@ def test_dynamic_walk_stance_sole_spins_at_a_cubic_swings_lift_off(walk_script):
     assert not summary["fell"]
     standing, spin, drift = _stance_spin(walk, trace, liftoff)
     assert standing < 1e-3  # on both soles: no spin
-    assert spin > 8e-3 and drift > 5e-4 and summary["max_slip_per_step_m"] > 5e-4
+    assert spin < 4e-3 and drift < 4e-4 and summary["max_slip_per_step_m"] < 4e-4
 
 
 def test_dynamic_walk_needs_a_list_of_steps(walk_script):

@@ -15,8 +15,9 @@ be met under the hard bounds; ``f_z ≥ f_min`` is a hard bound):
 * centre of pressure ``p = (−n_y/f_z, n_x/f_z)`` inside the sole rectangle ``[x_min, x_max] ×
   [y_min, y_max]`` (C's frame) shrunk by ``cop_margin``: ``−n_y − x_max f_z ≤ 0``,
   ``n_y + x_min f_z ≤ 0``, ``n_x − y_max f_z ≤ 0``, ``−n_x + y_min f_z ≤ 0``;
-* yaw torque ``|n_z| ≤ μ · r · f_z`` with ``r`` the sole's smaller half-size (a conservative
-  torsional friction).
+* yaw torque: the contact wrench cone's bounds (Caron, Pham and Nakamura, RSS 2015), exactly the
+  wrenches that forces at the rectangle's corners, each in the pyramid above, produce: the torsional
+  friction shrinks as the CoP nears an edge and as the shear grows (eight rows).
 
 A point contact (``rectangle=None``) has only the force ``f`` (3 unknowns, friction rows only) and
 only the translational rows of ``J_C``. The contact's motion constraint is
@@ -86,13 +87,27 @@ def _wrench_constraints(mu: float, rectangle: tuple[float, float, float, float] 
     else:
         x_min, x_max, y_min, y_max = rectangle
         x_min, x_max, y_min, y_max = x_min + cop_margin, x_max - cop_margin, y_min + cop_margin, y_max - cop_margin
-        r = min(x_max - x_min, y_max - y_min) / 2
         rows += [
             [0, -1, 0, 0, 0, -x_max], [0, 1, 0, 0, 0, x_min],
             [1, 0, 0, 0, 0, -y_max], [-1, 0, 0, 0, 0, y_min],
-            [0, 0, 1, 0, 0, -mu * r], [0, 0, -1, 0, 0, -mu * r],
         ]
+        rows += _yaw_rows(k, (x_min, x_max, y_min, y_max)).tolist()
     return np.array(rows, dtype=float)
+
+
+def _yaw_rows(k: float, rectangle: tuple[float, float, float, float]) -> np.ndarray:
+    """The yaw-torque rows of the contact wrench cone (Caron, Pham and Nakamura, RSS 2015) of the
+    rectangle of half-sizes ``X``, ``Y`` about its centre ``c``, its corners' forces in friction
+    pyramids ``|f_x|, |f_y| ≤ k f_z``: with ``(τ, f)`` the wrench about ``c``,
+    ``−k(X+Y) f_z + |Y f_x − k τ_x| + |X f_y − k τ_y| ≤ τ_z ≤ k(X+Y) f_z − |Y f_x + k τ_x| − |X f_y + k τ_y|``,
+    eight rows; about C's origin, ``τ = n − c × f``."""
+    x_min, x_max, y_min, y_max = rectangle
+    cx, cy, X, Y = (x_min + x_max) / 2, (y_min + y_max) / 2, (x_max - x_min) / 2, (y_max - y_min) / 2
+    about_centre = np.eye(6)  # w ↦ (n − c × f, f), c = (cx, cy, 0)
+    about_centre[0, 5], about_centre[1, 5], about_centre[2, 3], about_centre[2, 4] = -cy, cx, cy, -cx
+    rows = [[s * side * k, t * side * k, side, s * Y, t * X, -k * (X + Y)]
+            for s in (1, -1) for t in (1, -1) for side in (1, -1)]
+    return np.array(rows) @ about_centre
 
 
 def world_wrench_map(R: np.ndarray, k: int = 6) -> np.ndarray:

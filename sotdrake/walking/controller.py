@@ -116,8 +116,8 @@ ARM_JOINTS = re.compile(r"^arm_(left|right)_[1-7]_joint$|^[LR](Shoulder|Elbow|Wr
 ARM_POSTURE_GAIN = (0.1, 0.1, 125e3)
 #: Dynamic mode's swing profile: ``'quintic'`` (zero acceleration at the lift-off and touch-down).
 #: With the cubic the swing foot's forward acceleration jumps to 6 Δ/T² (4.9 m/s²) at the lift-off:
-#: in that tick the stance sole's yaw torque jumps to ~9 N·m and its CoP 5 cm forward; the sole rolls
-#: onto its toe, whose patch cannot hold that torque, and spins by up to 20 mrad (1.2 mm at its origin).
+#: in that tick the stance sole's CoP jumps 5 cm forward, onto its toe, and the sole turns by about
+#: 2 mrad (0.15 mm at its origin; the quintic: 0.15 mrad, 0.01 mm).
 DYNAMIC_SWING_PROFILE = "quintic"
 
 

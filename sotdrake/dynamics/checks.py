@@ -22,6 +22,21 @@ MAX_PD_GAIN = 1e8  # 1/s² for K_p, 1/s for K_v of TaskDynPD (the tick bounds th
 MAX_DT = 1.0  # s: a control period
 MAX_SOLE = 1.0  # m: |x|, |y| of a contact rectangle's edges
 MAX_CONTACTS = 16
+#: A contact's velocity gain ``K_v`` (1/s) by default, capped at ``COMPLIANT_CONTACT_RATE / dt``.
+CONTACT_VELOCITY_GAIN = 30.0
+#: The largest ``K_v dt`` of a contact's velocity damping measured stable on the physics plant's
+#: compliant soles. The contact row ``J_C q̈ = −J̇_C v − K_v J_C v`` assumes a rigid contact, on which
+#: ``v_C ← (1 − K_v dt) v_C`` is stable up to ``K_v dt < 2``; on the physics plant the sole velocity
+#: fed back is the stiff sole-on-ground mode, and TALOS standing (SAP, hydroelastic soles) goes
+#: unstable from ``K_v dt`` 0.2 to 0.4: K_v = 200 falls at a 1 ms tick, 60 at 5 ms, 30 at 10 ms
+#: (150, 30 and 25 stand), the load jumping from one sole to the other at every tick.
+COMPLIANT_CONTACT_RATE = 0.15
+
+
+def default_contact_velocity_gain(dt: float | None) -> float:
+    """A contact's default ``K_v`` (1/s): :data:`CONTACT_VELOCITY_GAIN`, at most
+    ``COMPLIANT_CONTACT_RATE / dt`` (30 down to a 5 ms tick, 15 at 10 ms)."""
+    return CONTACT_VELOCITY_GAIN if dt is None else min(CONTACT_VELOCITY_GAIN, COMPLIANT_CONTACT_RATE / dt)
 
 
 def check_positive(name: str, value, high: float, unit: str = "") -> float:

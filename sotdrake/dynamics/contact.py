@@ -22,8 +22,9 @@ be met under the hard bounds; ``f_z ≥ f_min`` is a hard bound):
 A point contact (``rectangle=None``) has only the force ``f`` (3 unknowns, friction rows only) and
 only the translational rows of ``J_C``. The contact's motion constraint is
 ``J_C q̈ + J̇_C v = −K_v J_C v − K_p e`` (zero acceleration, with an optional damping of any
-residual contact velocity, ``velocity_gain`` K_v ≥ 0, 1/s; default 30: on the compliant
-soles of the physics plant, K_v = 0 lets the ankles chatter within 30 ms; and an optional return
+residual contact velocity, ``velocity_gain`` K_v ≥ 0, 1/s; default 30, at most ``0.15/dt``: on
+the compliant soles of the physics plant, K_v = 0 lets the ankles chatter within 30 ms, and
+``K_v dt`` beyond 0.2 to 0.4 makes the stance unstable, :data:`.checks.COMPLIANT_CONTACT_RATE`; and an optional return
 to where the contact is kept, ``position_gain`` K_p ≥ 0, 1/s², default 0, as the seed's contact
 tasks keep their pose with a gain). ``e = (e_R; p_C − p*)`` (world) is the contact frame's
 displacement from its kept pose ``X_WC* = (R*, p*)`` (:meth:`Contact6d.keep`; by default the op
@@ -35,6 +36,7 @@ second-order error accumulates on the soles (about 0.1 mm in 0.3 s of a fast who
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 from functools import lru_cache
@@ -46,9 +48,20 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context
 
 from ..entity import Entity
-from ..exceptions import InvalidInput, check_count, check_finite, check_number
-from .checks import MAX_FRICTION, MAX_NORMAL_FORCE, MAX_RATE_GAIN, MAX_SOLE, check_positive, check_stable_gains
+from ..exceptions import InvalidInput, check_count, check_finite, check_flag, check_number
+from .checks import (
+    COMPLIANT_CONTACT_RATE,
+    MAX_FRICTION,
+    MAX_NORMAL_FORCE,
+    MAX_RATE_GAIN,
+    MAX_SOLE,
+    check_positive,
+    check_stable_gains,
+    default_contact_velocity_gain,
+)
 from .terms import OpPointMotion
+
+log = logging.getLogger(__name__)
 
 
 class ContactRows(NamedTuple):
@@ -179,11 +192,15 @@ class Contact6d(Entity[ContactSettings]):
     ``rectangle = (x_min, x_max, y_min, y_max)`` (m, in C) is the sole; None for a point contact."""
 
     def __init__(self, name: str, nv: int, rectangle: tuple[float, float, float, float] | None,
-                 mu: float = 0.7, f_min: float = 1.0, cop_margin: float = 0.01, dt: float | None = None):
+                 mu: float = 0.7, f_min: float = 1.0, cop_margin: float = 0.01, dt: float | None = None,
+                 compliant: bool = False):
         """``dt`` (s, the control tick, when known): the gains are also checked against it, as a task's
-        (:func:`.checks.check_stable_gains`: ``K_p dt² + 2 K_v dt < 4``)."""
-        Entity.__init__(self, name, ContactSettings())
+        (:func:`.checks.check_stable_gains`: ``K_p dt² + 2 K_v dt < 4``), and the default ``K_v`` is at
+        most ``0.15/dt``. ``compliant`` (a contact on the physics plant's soles, with ``dt``): a ``K_v``
+        set beyond :data:`.checks.COMPLIANT_CONTACT_RATE` ``/ dt`` is logged as a warning."""
+        Entity.__init__(self, name, ContactSettings(velocity_gain=default_contact_velocity_gain(dt)))
         self.dt = dt
+        self.compliant = check_flag(f"{name}: compliant", compliant) and dt is not None
         self.nv = check_count(f"{name}: nv", nv, 1, 10**6)
         self.rectangle: tuple[float, float, float, float] | None = None
         if rectangle is not None:
@@ -228,6 +245,10 @@ class Contact6d(Entity[ContactSettings]):
     def setVelocityGain(self, gain: float, context: Context | None = None) -> None:
         """``K_v`` in [0, :data:`.checks.MAX_RATE_GAIN`] (1/s): damping of a residual contact velocity."""
         value = check_number(f"{self.name}: velocity gain K_v", gain, 0.0, MAX_RATE_GAIN, " 1/s")
+        if self.compliant and self.dt is not None and value * self.dt > COMPLIANT_CONTACT_RATE:
+            log.warning("%s: velocity gain K_v = %g 1/s at a %g s tick: K_v dt = %g, beyond the %g measured stable on the "
+                        "physics plant's compliant soles (the stance can go unstable); K_v ≤ %g keeps it", self.name, value,
+                        self.dt, value * self.dt, COMPLIANT_CONTACT_RATE, COMPLIANT_CONTACT_RATE / self.dt)
 
         def change(s: ContactSettings) -> None:  # (checked with K_p as it is when the change applies: attime's too)
             if self.dt is not None:

@@ -168,7 +168,8 @@ class RobotDyn:
         if len(self.sot.known_contacts) >= self.sot.max_contacts:
             raise InvalidInput(f"{name}: {self.sot.name} was built for {self.sot.max_contacts} contacts (RobotDyn's max_contacts), "
                                f"it has {self.sot.known_contacts}")
-        contact = self.add(Contact6d(name, self.dimension, rectangle, mu, f_min, cop_margin, dt=self.dt))
+        contact = self.add(Contact6d(name, self.dimension, rectangle, mu, f_min, cop_margin, dt=self.dt,
+                                     compliant=self.physical is not None))
         plant = self.model.plant
         at_q0 = plant.CreateDefaultContext()
         plant.SetPositions(at_q0, self.q0)

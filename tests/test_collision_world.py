@@ -250,3 +250,20 @@ def test_a_fast_swing_across_the_body_keeps_the_soles_and_the_solver(talos_model
     report = run_dyn_collision_reach(reach, np.array([0.31115483373788877, 0.16614737410651748, 1.2714382077736812]))
     assert report.ticks == 300 and not report.nan and not report.failures, report.failures[:3]
     assert report.min_distance >= 0.01 - 1e-4 and report.feet_drift <= 1e-4, report
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("target", [(0.47, -0.30, 0.79), (0.48638, -0.44961, 0.70624)])
+def test_a_long_dynamic_reach_keeps_the_distance(talos_model, target):
+    """The hand held on a table target (and one under the table's edge) for 1 s: the torso and the
+    shoulders reach their limits at speed. Braked there by more than their torques give, they left
+    the legs (feet held) to absorb the rest: the pelvis turned, the thighs closed past d_s into
+    collision (to −42 and −60 mm), the level's rows infeasible. With each joint's braking what its
+    torque gives (``setTorqueBraking``) every pair stays ≥ d_s − 1e-4 m and no limit is crossed."""
+    from sotdrake.collision.reach import build_dyn_collision_reach, run_dyn_collision_reach
+
+    reach = build_dyn_collision_reach(talos_model, collision=True, table=True)
+    report = run_dyn_collision_reach(reach, np.array(target), duration=1.0)
+    assert report.ticks == 1000 and not report.nan, report
+    assert report.min_distance >= 0.01 - 1e-4 and report.limit_excess <= 1e-9, report
+    assert report.feet_drift <= 1e-4, report

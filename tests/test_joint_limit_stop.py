@@ -12,21 +12,24 @@ from sotdrake.dynamics.terms import joint_acceleration_bounds, stopping_speed
 TICKS = 1500
 
 
+@pytest.mark.parametrize("torque_braking", [False, True])
 @pytest.mark.parametrize("dt", [1e-3, 5e-3, 1e-2])
-def test_a_joint_never_crosses_its_limits_whatever_is_asked(rng, dt):
+def test_a_joint_never_crosses_its_limits_whatever_is_asked(rng, dt, torque_braking):
+    """Also with a torque braking below ``v_max/T`` for some joints (their horizon stretched)."""
     joints = 200
     lower = rng.uniform(-2.0, 0.0, joints)
     upper = lower + rng.uniform(0.05, 3.0, joints)
     v_max = rng.uniform(0.5, 6.0, joints)
     horizon, margin = rng.uniform(max(dt, 0.01), 0.2), rng.uniform(0.0, 2e-3)
-    brake = v_max / horizon
+    braking = rng.uniform(0.05, 2.0, joints) * v_max / horizon if torque_braking else None
+    brake = v_max / horizon if braking is None else np.minimum(v_max / horizon, braking)
     q = rng.uniform(lower, upper)
     v = rng.uniform(-v_max, v_max)
     room_up, room_down = upper - q, q - lower  # (start able to stop on both sides)
     v = np.clip(v, -np.sqrt(2 * brake * room_down), np.sqrt(2 * brake * room_up))
     worst = -np.inf
     for _ in range(TICKS):
-        lo, up = joint_acceleration_bounds(q, v, lower, upper, -v_max, v_max, horizon, margin, dt=dt)
+        lo, up = joint_acceleration_bounds(q, v, lower, upper, -v_max, v_max, horizon, margin, dt=dt, braking=braking)
         asked = rng.choice([-1e5, 1e5], joints) * rng.random(joints)  # (anything: the bounds decide)
         a = np.clip(asked, lo, up)
         v = v + a * dt
@@ -82,3 +85,28 @@ def test_solver_dyn_stops_an_elbow_thrown_at_its_limit(talos_model):
         simulator.AdvanceTo(k * 1e-3)
         excursion = max(excursion, robot.device.GetOutputPort("state").Eval(device)[iq] - upper)
     assert excursion <= 1e-9
+
+
+def test_torque_braking_is_what_half_a_joints_effort_gives_its_own_inertia(talos_model):
+    from pydrake.systems.framework import DiagramBuilder
+
+    from sotdrake import InvalidInput
+    from sotdrake.dynamics.robot_dyn import RobotDyn
+
+    sot = RobotDyn(DiagramBuilder(), talos_model).sot
+    plant = talos_model.plant
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, talos_model.half_sitting)
+    M = plant.CalcMassMatrix(context)
+    effort = talos_model.joint_limits()["effort"]
+    for name in ("torso_1_joint", "arm_right_4_joint", "leg_left_4_joint"):
+        joint = plant.GetJointByName(name)
+        j = joint.velocity_start()
+        actuator = next(a for a in plant.GetJointActuatorIndices() if plant.get_joint_actuator(a).joint().index() == joint.index())
+        assert sot.braking[j] == pytest.approx(0.5 * effort[int(actuator)] / M[j, j], rel=1e-12)
+    assert np.isinf(sot.braking[:6]).all()  # (the floating base: no actuator)
+    assert not sot.settings().torque_braking
+    with pytest.raises(InvalidInput, match="setTorqueBraking"):
+        sot.setTorqueBraking("yes")  # type: ignore[arg-type]
+    sot.setTorqueBraking(True)
+    assert sot.settings().torque_braking

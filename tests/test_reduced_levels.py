@@ -149,14 +149,19 @@ def test_the_compiled_bounds_are_the_joint_limits_as_acceleration_bounds_exactly
         v = rng.uniform(-6.0, 6.0, NV)
         horizon, margin, dt = rng.uniform(0.01, 0.2), rng.uniform(0.0, 0.01), rng.choice([1e-3, 5e-3, 1e-2])
         selection = rng.random(NV) > 0.2
-        a_lo, a_up = acceleration_bounds(q, v, lower_q, upper_q, -upper_v, upper_v, horizon, margin, layout, dt=dt)
+        braking = rng.uniform(1.0, 200.0, NV)  # torque braking: below v_max/T for some joints, above for others
+        braking[rng.random(NV) < 0.3] = np.inf  # (and none for some)
+        upper_v[rng.random(NV) < 0.1] = np.inf  # (a joint without a velocity limit)
+        a_lo, a_up = acceleration_bounds(q, v, lower_q, upper_q, -upper_v, upper_v, horizon, margin, layout, dt=dt,
+                                         braking=braking)
         a_lo[~selection] = a_up[~selection] = 0.0
         want = variable_bounds(NV, contacts, slices, a_lo, a_up, effort)
         n = len(want[0])
         free = np.full(n - joints, np.inf)
         templates = np.concatenate((-free, -effort)), np.concatenate((free, effort))
         got = bounds(*templates, q, v, iq.astype(np.int64), iv.astype(np.int64),
-                     *stacked_limits(lower_q[iq], upper_q[iq], -upper_v[iv], upper_v[iv]), horizon, margin, dt, selection,
+                     *stacked_limits(lower_q[iq], upper_q[iq], -upper_v[iv], upper_v[iv]), horizon, margin, dt,
+                     np.ascontiguousarray(braking[iv]), selection,
                      normal_force_limits(contacts, slices))
         for g, w in zip(got, want, strict=True):
             np.testing.assert_array_equal(g, w)

@@ -195,9 +195,9 @@ def build_dyn_collision_reach(model: RobotModel, collision: bool = True, table: 
                               obstacles: Sequence[tuple[object, RigidTransform, str]] = (), hand_kp: float = DYN_HAND_KP,
                               safety: float = SAFETY_DISTANCE, influence: float = INFLUENCE_DISTANCE,
                               xi: float = DAMPER_SPEED) -> DynReach:
-    """The dynamic SoT on TALOS (``model``, a :class:`~sotdrake.robots.RobotModel`): ``SolverDyn``,
-    both soles in contact (kept where they are at the reference posture, :data:`CONTACT_KP`), the
-    CoM, the collision level at the acceleration level (when
+    """The dynamic SoT on TALOS (``model``, a :class:`~sotdrake.robots.RobotModel`): ``SolverDyn``
+    with its joints' torque braking (``setTorqueBraking``), both soles in contact (kept where they
+    are at the reference posture, :data:`CONTACT_KP`), the CoM, the collision level at the acceleration level (when
     ``collision``), the hand point (``right-wrist`` + :data:`HAND_OFFSET`, position, gain ``hand_kp``
     1/s², :data:`DYN_HAND_KP`), the posture; the table (:data:`TABLE`) when ``table`` and ``obstacles`` as
     :func:`build_collision_reach` takes them."""
@@ -209,6 +209,7 @@ def build_dyn_collision_reach(model: RobotModel, collision: bool = True, table: 
     robot = RobotDyn(builder, model, "dynsimu", dt)
     sot = robot.sot
     sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))
+    sot.setTorqueBraking(True)  # (a weak joint braked by more than its torque: the legs take the rest, the thighs close)
     for name, op in (("contactLF", "left-sole"), ("contactRF", "right-sole")):
         contact = robot.add_contact(name, op)
         contact.setVelocityGain(CONTACT_KV)

@@ -28,7 +28,7 @@ class DynSettings(StackSettings):
     """``SolverDyn``'s settings (in its Context): the stack's, the contacts being released (name →
     ramp duration, s) and the number of each one's release (name → the count of releases commanded
     so far when it was released: a contact held again and released anew starts a new ramp even if
-    no tick passed in between), ``K_d`` (1/s), the joint-limit horizon (s) and margin (rad), the QP
+    no tick passed in between), ``K_d`` (1/s), the joint-limit horizon (s), margin (rad) and torque braking, the QP
     solver."""
 
     releasing: dict[str, float] = field(default_factory=dict)  # contact name → ramp duration (s)
@@ -37,6 +37,7 @@ class DynSettings(StackSettings):
     damping_gain: float = 10.0  # K_d of the last level (1/s)
     horizon: float = 0.05  # s, joint limits as acceleration bounds
     position_margin: float = 1e-3
+    torque_braking: bool = False  # each joint's horizon stretched to what its torque brakes
     solver: str = ACTIVE_SET
 
 

@@ -167,9 +167,12 @@ def _max(a, b):
 
 
 @njit(cache=True)
-def _side_bounds(q, v, position_upper, velocity_upper, horizon, margin, dt):
+def _side_bounds(q, v, position_upper, velocity_upper, horizon, margin, dt, braking):
     """:func:`.terms.side_acceleration_bounds` of one joint (the same operations, in the same order)."""
-    reach = q + v * horizon
+    rate = velocity_upper / horizon
+    brake = _min(rate, braking)
+    stretched = velocity_upper / brake if brake < rate and math.isfinite(velocity_upper) else horizon
+    reach = q + v * stretched
     limit = position_upper - margin
     if q > limit:  # inside the margin: min(0, q_max − reach), as np.minimum (NaN kept)
         inside = position_upper - reach
@@ -177,27 +180,29 @@ def _side_bounds(q, v, position_upper, velocity_upper, horizon, margin, dt):
     else:
         up = limit - reach
     up *= 2
-    up /= horizon * horizon
-    rate = (velocity_upper - v) / horizon
-    room, brake = position_upper - q, velocity_upper / horizon
+    up /= stretched * stretched
+    speed_rate = (velocity_upper - v) / horizon
+    room = position_upper - q
     speed = 0.0  # (.terms.stopping_speed)
     if room > 0.0 and brake > 0.0:
         speed = 2 * room / (dt + math.sqrt(dt * dt + 2 * room / brake))
-    return _min(up, rate), _max((speed - v) / dt, -brake)
+    return _min(up, speed_rate), _max((speed - v) / dt, -brake)
 
 
 @njit(cache=True)
 def dynamic_bounds(lower_template, upper_template, q, v, joints_q, joints_v, position_limits, velocity_limits, horizon,
-                   margin, dt, selection, normal, normal_lower, normal_upper):
+                   margin, dt, braking, selection, normal, normal_lower, normal_upper):
     """The bounds on ``x`` (copies of the templates: free wrenches, ``±effort``): the joints' rows
-    ``joints_v`` from :func:`.terms.mirrored_acceleration_bounds` (the same operations), the
+    ``joints_v`` from :func:`.terms.mirrored_acceleration_bounds` (the same operations, ``braking``
+    over the joints), the
     components out of the control ``selection`` (a mask over the first ``selection.size`` ones) fixed at 0, the components
     ``normal`` between ``normal_lower`` and ``normal_upper``."""
     lower, upper = lower_template.copy(), upper_template.copy()
     for k in range(joints_v.size):
         qk, vk = q[joints_q[k]], v[joints_v[k]]
-        shaping_up, stop_up = _side_bounds(qk, vk, position_limits[0, k], velocity_limits[0, k], horizon, margin, dt)
-        shaping_down, stop_down = _side_bounds(-qk, -vk, position_limits[1, k], velocity_limits[1, k], horizon, margin, dt)
+        shaping_up, stop_up = _side_bounds(qk, vk, position_limits[0, k], velocity_limits[0, k], horizon, margin, dt, braking[k])
+        shaping_down, stop_down = _side_bounds(-qk, -vk, position_limits[1, k], velocity_limits[1, k], horizon, margin, dt,
+                                               braking[k])
         high = _min(_max(_min(shaping_up, stop_up), -stop_down), stop_up)
         mirrored = _min(_max(_min(shaping_down, stop_down), -stop_up), stop_down)  # the mirrored joint's upper bound
         upper[joints_v[k]] = high

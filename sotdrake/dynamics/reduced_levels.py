@@ -112,14 +112,15 @@ def torques_and_checks(terms: DynamicsTerms, contacts: StackedContacts, actuated
 
 def bounds(lower_template: np.ndarray, upper_template: np.ndarray, q: np.ndarray, v: np.ndarray, joints_q: np.ndarray,
            joints_v: np.ndarray, position_limits: np.ndarray, velocity_limits: np.ndarray, horizon: float, margin: float,
-           dt: float, selection: np.ndarray | None, normal: list[tuple[int, float, float]]) -> tuple[np.ndarray, np.ndarray]:
+           dt: float, braking: np.ndarray, selection: np.ndarray | None, normal: list[tuple[int, float, float]]
+           ) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`~.solver_dyn.SolverDyn._bounds` compiled (:func:`.jit_reduced_levels.dynamic_bounds`):
     the components out of the control ``selection`` (a boolean mask over the first ones; None:
     every component controlled) fixed at 0, ``normal`` the normal forces' ``(index, lower, upper)``.
-    ``joints_q``, ``joints_v``: int64 index arrays."""
+    ``joints_q``, ``joints_v``: int64 index arrays; ``braking``: each joint's torque braking (inf: none)."""
     index = np.array([i for i, _, _ in normal], dtype=np.int64)
     return _compiled().dynamic_bounds(
         lower_template, upper_template, compiled_input(q), compiled_input(v), joints_q, joints_v, position_limits,
-        velocity_limits, float(horizon), float(margin), float(dt),
+        velocity_limits, float(horizon), float(margin), float(dt), braking,
         _NO_SELECTION if selection is None else compiled_input(selection, bool), index, np.array([lo for _, lo, _ in normal], dtype=float),
         np.array([hi for _, _, hi in normal], dtype=float))

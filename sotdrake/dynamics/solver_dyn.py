@@ -31,7 +31,7 @@ from pydrake.systems.framework import Context, InputPort, ValueProducer
 
 from ..compiled import read_only
 from ..configuration import Layout
-from ..exceptions import InvalidInput, SolverError, StackError, check_count, check_name, check_number
+from ..exceptions import InvalidInput, SolverError, StackError, check_count, check_flag, check_name, check_number
 from ..hqp import ACTIVE_SET, HqpResult, check_solver
 from ..hqp.warm import WarmStart, WarmStarts
 from ..robots import RobotModel
@@ -52,9 +52,18 @@ from .formulation import (
     wrench_slices,
 )
 from .reduced_levels import bounds
-from .terms import DynamicsTerms, stacked_limits
+from .terms import DynamicsTerms, stacked_limits, torque_braking
 
 log = logging.getLogger("sotdrake.solver_dyn")
+
+
+def _reference_braking(model: RobotModel, effort: np.ndarray) -> np.ndarray:
+    """:func:`.terms.torque_braking` at the model's reference posture (``half_sitting``): one value a
+    joint, so that the joint limits' bounds stay consistent from tick to tick."""
+    plant = model.plant
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, model.half_sitting)
+    return torque_braking(plant.CalcMassMatrix(context), plant.MakeActuationMatrix(), effort)
 
 
 class SolverDyn(StackSolver[DynSettings]):
@@ -98,6 +107,8 @@ class SolverDyn(StackSolver[DynSettings]):
         self._stacked_limits = stacked_limits(self._limits[0][iq], self._limits[1][iq], self._limits[2][iv], self._limits[3][iv])
         self.effort = limits["effort"] * float(effort_scale)  # |τ| bounds (N·m, N)
         self.effort_scale = float(effort_scale)
+        self.braking = read_only(_reference_braking(model, self.effort))  # nv: what each joint's torque brakes
+        self._joint_braking = (read_only(np.full(len(iv), np.inf)), read_only(np.ascontiguousarray(self.braking[iv])))
         self.na = len(self.effort)
         self.max_contacts = max_contacts
         self.setDampingGain(damping_gain)
@@ -187,6 +198,16 @@ class SolverDyn(StackSolver[DynSettings]):
             s.horizon, s.position_margin = values
 
         self._dyn_command(context, change)
+
+    def setTorqueBraking(self, on: bool, context: Context | None = None) -> None:
+        """Whether each joint's limits count on no more braking than its torque gives
+        (:attr:`braking`: half its effort on its own inertia at the reference posture, rad/s²): where
+        that is below ``v_max/T`` the joint's horizon stretches to ``T_j = v_max/A_j`` and its
+        stopping bound brakes at ``A_j`` (:func:`.terms.acceleration_bounds`), so a weak joint (a
+        shoulder, the torso) slows down early enough for its own torque to stop it at its limit,
+        rather than leaving the rest of the body to absorb the difference. Off by default."""
+        value = check_flag(f"{self.name}: setTorqueBraking", on)
+        self._dyn_command(context, lambda s: setattr(s, "torque_braking", value))
 
     # The kinematic solvers' settings, which SolverDyn has no use for: refused rather than ignored.
     def setThreshold(self, svd_threshold: float, context: Context | None = None) -> None:
@@ -325,7 +346,8 @@ class SolverDyn(StackSolver[DynSettings]):
             template = self._bound_templates[n] = (read_only(np.concatenate((-free, -self.effort))),
                                                    read_only(np.concatenate((free, self.effort))))
         return bounds(template[0], template[1], terms.q, terms.v, *self._joint_indices, *self._stacked_limits, s.horizon,
-                      s.position_margin, self.dt, s.control_selection, normal_force_limits(contacts, slices))
+                      s.position_margin, self.dt, self._joint_braking[s.torque_braking], s.control_selection,
+                      normal_force_limits(contacts, slices))
 
     def _held_guess(self, context: Context) -> tuple[list[int], list[int]]:
         """The components held at their lower and at their upper bound at the last tick's optimum."""

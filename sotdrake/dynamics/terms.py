@@ -106,6 +106,7 @@ def acceleration_bounds(
     layout: Layout,
     *,
     dt: float,
+    braking: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint limits as bounds on ``q̈`` (nv; the floating base free), for a device that integrates
     ``v' = v + q̈ dt``, ``q' = q + v' dt`` every tick ``dt`` (s).
@@ -124,24 +125,31 @@ def acceleration_bounds(
     the solver holds the bounds (braking at ``A`` keeps every later tick's bounds met); one that
     can no longer stop in time, or beyond a limit, brakes at ``A``, never asked more. Where the two
     sides would still cross, the lower bound is lowered to the upper one.
+
+    ``braking`` (nv, rad/s² or m/s², None: none): what each joint's torque can brake
+    (:func:`torque_braking`). Where it is below ``v_max/T`` it is the joint's ``A``, and the
+    position's horizon grows to ``T_j = v_max/A`` in proportion: the joint slows down early enough
+    that stopping at its limit needs no more than that torque, instead of asking the rest of the
+    body (through the floating base and the contacts) for the difference.
     """
     nv = len(v)
     lower, upper = np.full(nv, -np.inf), np.full(nv, np.inf)
     iq, iv = layout.joints_q, layout.joints_v
     with np.errstate(invalid="ignore"):
         lower[iv], upper[iv] = joint_acceleration_bounds(q[iq], v[iv], position_lower[iq], position_upper[iq],
-                                                         velocity_lower[iv], velocity_upper[iv], horizon, margin, dt=dt)
+                                                         velocity_lower[iv], velocity_upper[iv], horizon, margin, dt=dt,
+                                                         braking=None if braking is None else braking[iv])
     return lower, upper
 
 
 def joint_acceleration_bounds(
     qj: np.ndarray, vj: np.ndarray, position_lower: np.ndarray, position_upper: np.ndarray, velocity_lower: np.ndarray,
-    velocity_upper: np.ndarray, horizon: float, margin: float, *, dt: float,
+    velocity_upper: np.ndarray, horizon: float, margin: float, *, dt: float, braking: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`acceleration_bounds` of the joints alone: ``(lower, upper)`` over the joints' velocities,
-    from their positions ``qj``, velocities ``vj`` and limits (each already restricted to the joints)."""
+    from their positions ``qj``, velocities ``vj``, limits and ``braking`` (each already restricted to the joints)."""
     return mirrored_acceleration_bounds(qj, vj, *stacked_limits(position_lower, position_upper, velocity_lower, velocity_upper),
-                                        horizon, margin, dt=dt)
+                                        horizon, margin, dt=dt, braking=braking)
 
 
 def stacked_limits(position_lower: np.ndarray, position_upper: np.ndarray, velocity_lower: np.ndarray,
@@ -152,12 +160,13 @@ def stacked_limits(position_lower: np.ndarray, position_upper: np.ndarray, veloc
 
 
 def mirrored_acceleration_bounds(qj: np.ndarray, vj: np.ndarray, position_limits: np.ndarray, velocity_limits: np.ndarray,
-                                 horizon: float, margin: float, *, dt: float) -> tuple[np.ndarray, np.ndarray]:
+                                 horizon: float, margin: float, *, dt: float, braking: np.ndarray | None = None
+                                 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`joint_acceleration_bounds` from limits already :func:`stacked <stacked_limits>`: both sides
     in one evaluation of :func:`side_acceleration_bounds` (see :data:`SIDES`): each side's upper
     bound, raised to the other side's stopping bound where it is below, then lowered to its own."""
     shaping, stopping = side_acceleration_bounds(SIDES * qj, SIDES * vj, position_limits, velocity_limits, horizon, margin,
-                                                 dt=dt)
+                                                 dt=dt, braking=braking)
     upper = np.minimum(shaping, stopping)
     upper[0] = np.minimum(np.maximum(upper[0], -stopping[1]), stopping[0])
     upper[1] = np.minimum(np.maximum(upper[1], -stopping[0]), stopping[1])
@@ -172,22 +181,43 @@ SIDES.flags.writeable = False
 
 
 def side_acceleration_bounds(q: np.ndarray, v: np.ndarray, position_upper: np.ndarray, velocity_upper: np.ndarray,
-                             horizon: float, margin: float, *, dt: float) -> tuple[np.ndarray, np.ndarray]:
+                             horizon: float, margin: float, *, dt: float, braking: np.ndarray | None = None
+                             ) -> tuple[np.ndarray, np.ndarray]:
     """The two upper bounds of :func:`acceleration_bounds` from one side's limits (any array shape,
-    elementwise): the horizon's and the velocity's, ``min(2 (q_max − margin − q − v T)/T², (v_max − v)/T)``
-    (``min(0, 2 (q_max − q − v T)/T²)`` for the position part of a joint already inside the
+    elementwise): the horizon's and the velocity's, ``min(2 (q_max − margin − q − v T_j)/T_j², (v_max − v)/T)``
+    (``min(0, 2 (q_max − q − v T_j)/T_j²)`` for the position part of a joint already inside the
     margin), and the stopping bound ``max((v_stop − v)/dt, −A)``, ``v_stop`` the :func:`stopping_speed`
-    of ``q_max − q`` at the braking ``A = v_max/T`` (a joint that can no longer stop in time brakes at
-    ``A``: it is never asked more)."""
+    of ``q_max − q`` at the braking ``A = min(v_max/T, braking)`` (a joint that can no longer stop in
+    time brakes at ``A``: it is never asked more); ``T_j = v_max/A`` where ``braking`` is the smaller
+    (and ``v_max`` finite), else ``T``."""
     T = horizon
-    reach = q + v * T
+    brake = velocity_upper / T
+    Tj: float | np.ndarray = T
+    if braking is not None:
+        rate = brake
+        brake = np.minimum(rate, braking)
+        Tj = np.where((brake < rate) & np.isfinite(velocity_upper), velocity_upper / brake, T)
+    reach = q + v * Tj
     limit = position_upper - margin
     up = np.where(q > limit, np.minimum(0.0, position_upper - reach), limit - reach)
     up *= 2
-    up /= T**2  # = 2 x / T² for each x above, min(0, ·) included (a monotone map that keeps 0)
+    up /= Tj * Tj  # = 2 x / T_j² for each x above, min(0, ·) included (a monotone map that keeps 0)
     np.minimum(up, (velocity_upper - v) / T, out=up)
-    brake = velocity_upper / T
     return up, np.maximum((stopping_speed(position_upper - q, brake, dt) - v) / dt, -brake)
+
+
+#: The share of a joint's effort limit that :func:`torque_braking` counts on to brake it: the rest
+#: is left for gravity and for the reactions of the other joints' motion.
+BRAKING_SHARE = 0.5
+
+
+def torque_braking(M: np.ndarray, B: np.ndarray, effort: np.ndarray, share: float = BRAKING_SHARE) -> np.ndarray:
+    """``share · τ_max / M_jj`` for each velocity j (rad/s² or m/s²; inf where no actuator acts):
+    the acceleration a joint's own torque gives its own inertia, ``M`` the mass matrix (nv × nv, at
+    a reference posture), ``B`` the actuation matrix (nv × na), ``effort`` the actuators' limits (na)."""
+    effort_v = np.abs(B) @ np.asarray(effort, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(effort_v > 0, share * effort_v / np.diag(M), np.inf)
 
 
 def stopping_speed(room: np.ndarray, brake: np.ndarray, dt: float) -> np.ndarray:

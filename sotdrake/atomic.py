@@ -1,7 +1,6 @@
 """Builders that add several systems either add them all or leave the builder as it was, whether
 names are free in a builder, whether a system is one of a builder's, and whether it is already in a
-built diagram (its contexts would not
-have a port added now)."""
+built diagram (its contexts would not have a port added now)."""
 
 from __future__ import annotations
 

@@ -197,8 +197,8 @@ def build_dyn_collision_reach(model: RobotModel, collision: bool = True, table: 
                               xi: float = DAMPER_SPEED) -> DynReach:
     """The dynamic SoT on TALOS (``model``, a :class:`~sotdrake.robots.RobotModel`): ``SolverDyn``
     with its joints' torque braking (``setTorqueBraking``), both soles in contact (kept where they
-    are at the reference posture, :data:`CONTACT_KP`), the CoM, the collision level at the acceleration level (when
-    ``collision``), the hand point (``right-wrist`` + :data:`HAND_OFFSET`, position, gain ``hand_kp``
+    are at the reference posture, :data:`CONTACT_KP`), the CoM, the collision level at the
+    acceleration level (when ``collision``), the hand point (``right-wrist`` + :data:`HAND_OFFSET`, position, gain ``hand_kp``
     1/s², :data:`DYN_HAND_KP`), the posture; the table (:data:`TABLE`) when ``table`` and ``obstacles`` as
     :func:`build_collision_reach` takes them."""
     from ..dynamics.meta_tasks_dyn import MetaTaskDyn6d, MetaTaskDynCom, MetaTaskDynPosture

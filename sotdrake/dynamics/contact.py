@@ -24,9 +24,9 @@ only the translational rows of ``J_C``. The contact's motion constraint is
 ``J_C q̈ + J̇_C v = −K_v J_C v − K_p e`` (zero acceleration, with an optional damping of any
 residual contact velocity, ``velocity_gain`` K_v ≥ 0, 1/s; default 30, at most ``0.15/dt``: on
 the compliant soles of the physics plant, K_v = 0 lets the ankles chatter within 30 ms, and
-``K_v dt`` beyond 0.2 to 0.4 makes the stance unstable, :data:`.checks.COMPLIANT_CONTACT_RATE`; and an optional return
-to where the contact is kept, ``position_gain`` K_p ≥ 0, 1/s², default 0, as the seed's contact
-tasks keep their pose with a gain). ``e = (e_R; p_C − p*)`` (world) is the contact frame's
+``K_v dt`` beyond 0.2 to 0.4 makes the stance unstable, :data:`.checks.COMPLIANT_CONTACT_RATE`;
+and an optional return to where the contact is kept, ``position_gain`` K_p ≥ 0, 1/s², default 0,
+as the seed's contact tasks keep their pose with a gain). ``e = (e_R; p_C − p*)`` (world) is the contact frame's
 displacement from its kept pose ``X_WC* = (R*, p*)`` (:meth:`Contact6d.keep`; by default the op
 point at the robot's reference posture, set by ``RobotDyn.add_contact``): ``e_R = ½ vee(R R*ᵀ −
 R* Rᵀ)``, the rotation's axis times the sine of its angle (the rotation vector for the small

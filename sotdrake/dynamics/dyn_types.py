@@ -28,8 +28,8 @@ class DynSettings(StackSettings):
     """``SolverDyn``'s settings (in its Context): the stack's, the contacts being released (name →
     ramp duration, s) and the number of each one's release (name → the count of releases commanded
     so far when it was released: a contact held again and released anew starts a new ramp even if
-    no tick passed in between), ``K_d`` (1/s), the joint-limit horizon (s), margin (rad) and torque braking, the QP
-    solver."""
+    no tick passed in between), ``K_d`` (1/s), the joint-limit horizon (s), margin (rad) and torque
+    braking, the QP solver."""
 
     releasing: dict[str, float] = field(default_factory=dict)  # contact name → ramp duration (s)
     release_numbers: dict[str, int] = field(default_factory=dict)  # contact name → which release it is

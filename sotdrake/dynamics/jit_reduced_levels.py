@@ -194,9 +194,8 @@ def dynamic_bounds(lower_template, upper_template, q, v, joints_q, joints_v, pos
                    margin, dt, braking, selection, normal, normal_lower, normal_upper):
     """The bounds on ``x`` (copies of the templates: free wrenches, ``±effort``): the joints' rows
     ``joints_v`` from :func:`.terms.mirrored_acceleration_bounds` (the same operations, ``braking``
-    over the joints), the
-    components out of the control ``selection`` (a mask over the first ``selection.size`` ones) fixed at 0, the components
-    ``normal`` between ``normal_lower`` and ``normal_upper``."""
+    over the joints), the components out of the control ``selection`` (a mask over the first
+    ``selection.size`` ones) fixed at 0, the components ``normal`` between ``normal_lower`` and ``normal_upper``."""
     lower, upper = lower_template.copy(), upper_template.copy()
     for k in range(joints_v.size):
         qk, vk = q[joints_q[k]], v[joints_v[k]]

@@ -17,13 +17,6 @@ from sotdrake.dynamics.robot_dyn import RobotDyn
 SOLE = (-0.1, 0.1, -0.05, 0.05)
 
 
-@pytest.fixture(scope="module")
-def dynamics_script():
-    from sotdrake.scenarios import talos_dynamics
-
-    return talos_dynamics
-
-
 @pytest.mark.parametrize(("dt", "expected"), [(None, 30.0), (1e-3, 30.0), (5e-3, 30.0), (1e-2, 15.0), (0.05, 3.0)])
 def test_the_default_velocity_gain_is_capped_by_the_tick(dt, expected):
     contact = Contact6d("c", 6, SOLE, dt=dt)
@@ -53,13 +46,15 @@ def test_a_large_gain_on_the_compliant_soles_is_warned(talos_model, device, capl
 
 
 @pytest.mark.slow
-def test_talos_stands_at_a_10_ms_tick(dynamics_script):
+def test_talos_stands_at_a_10_ms_tick():
     """The push scenario's stack (a soft CoM task) at a 10 ms tick on the physics plant, without a
     push: with the contacts' K_v at 30 /s the load jumped from one sole to the other at every tick
     and TALOS fell at 0.2 s; with the capped default (15 /s) it stands."""
-    run = dynamics_script.build_diagram("push", "physics", dt=1e-2, pushes=())
-    simulator, times = dynamics_script.simulate_ticks(run, 0.6, progress=False)
-    summary, _ = dynamics_script.summarize(run, simulator, times, 0.6)
+    from sotdrake.scenarios import talos_dynamics
+
+    run = talos_dynamics.build_diagram("push", "physics", dt=1e-2, pushes=())
+    simulator, times = talos_dynamics.simulate_ticks(run, 0.6, progress=False)
+    summary, _ = talos_dynamics.summarize(run, simulator, times, 0.6)
     assert not summary["fell"]
     assert summary["com_max_error_m"] < 1e-3 and summary["max_foot_slip_m"] < 1e-4
     assert summary["torque_at_limit_ticks"] == 0

@@ -51,6 +51,7 @@ from ..entity import Entity
 from ..exceptions import InvalidInput, check_count, check_finite, check_flag, check_number
 from .checks import (
     COMPLIANT_CONTACT_RATE,
+    CONTACT_VELOCITY_GAIN,
     MAX_FRICTION,
     MAX_NORMAL_FORCE,
     MAX_RATE_GAIN,
@@ -180,7 +181,7 @@ class ContactSettings:
     mu: float = 0.7
     f_min: float = 1.0
     cop_margin: float = 0.01
-    velocity_gain: float = 30.0
+    velocity_gain: float = CONTACT_VELOCITY_GAIN
     position_gain: float = 0.0
     kept: tuple[np.ndarray, np.ndarray] | None = None  # (R*, p*): the pose the contact returns to (world)
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -28,6 +29,8 @@ from ..hqp import HierarchicalQP, HqpResult, LevelRows
 from ..hqp.equality_hierarchy import StackedLevels
 from ..hqp.stack_paths import DYNAMIC, StackProblem, solve_stack
 from ..hqp.warm import WarmStart
+from ..solvers.unmet_rows import keep_met_rows, keyed_inequality
+from ..task import TaskLevel
 from .dyn_types import _NO_INDICES, DynDiagnostics, DynSettings, Problem
 from .formulation import (
     WRENCH_REGULARIZATION,
@@ -69,17 +72,50 @@ class DynamicSolve:
         hqp = self._hqps.get(n)
         if hqp is None:
             hqp = self._hqps[n] = HierarchicalQP(n)
-        fast = self.reduced(p, s, warm, held)
-        diagnostics.torques_eliminated = fast is not None
-        if fast is not None:
-            return fast[0], fast[1], len(fast[0].slack_norms)
         tried: list[HqpResult] = []
         try:
-            result = self.full(p, s, hqp, warm, held, tried)
-            return result, None, len(result.slack_norms)
+            result, world = self.attempt(p, s, hqp, warm, held, diagnostics, tried)
         except SolverError as error:
             rescued, count = self.rescue(p, s, hqp, warm, error, tried, diagnostics, time, name)
             return rescued, None, count
+        if any(keyed_inequality(task) for task in p.tasks):
+            refined = self.keep_met_rows(p, s, hqp, warm, held, result, diagnostics)
+            if refined is not result:
+                result, world = refined, None
+        return result, world, len(result.slack_norms)
+
+    def attempt(self, p: Problem, s: DynSettings, hqp: HierarchicalQP, warm: Warm, held: tuple[Sequence[int], Sequence[int]],
+                diagnostics: DynDiagnostics, tried: list[HqpResult]) -> tuple[HqpResult, list[np.ndarray] | None]:
+        """The optimum and, from the fast path, the contacts' world wrenches: :meth:`reduced`, else
+        :meth:`full` (whose relaxed optimum is appended to ``tried``). Raises :class:`SolverError`."""
+        fast = self.reduced(p, s, warm, held)
+        diagnostics.torques_eliminated = fast is not None
+        if fast is not None:
+            return fast
+        return self.full(p, s, hqp, warm, held, tried), None
+
+    def keep_met_rows(self, p: Problem, s: DynSettings, hqp: HierarchicalQP, warm: Warm,
+                      held: tuple[Sequence[int], Sequence[int]], result: HqpResult, diagnostics: DynDiagnostics) -> HqpResult:
+        """``result`` with each collision level's rows that can hold kept exact
+        (:func:`~sotdrake.solvers.unmet_rows.keep_met_rows`); the extra solves warm-started from
+        their own warm starts (``"split "`` + the problem's), so that the stack's are the same as
+        without them."""
+        eliminated: dict[int, bool] = {}
+
+        def solve(tasks: list[TaskLevel]) -> HqpResult | None:
+            scratch = DynDiagnostics()
+            try:
+                trial, _ = self.attempt(replace(p, tasks=tasks), s, hqp, lambda problem, n: warm("split " + problem, n),
+                                        held, scratch, [])
+            except SolverError:
+                return None
+            eliminated[id(trial.x)] = scratch.torques_eliminated
+            return trial
+
+        refined = keep_met_rows(solve, p.tasks, result, 2 if p.contacts else 1)
+        if refined is not result:
+            diagnostics.torques_eliminated = eliminated[id(refined.x)]
+        return refined
 
     def reduced(self, p: Problem, s: DynSettings, warm: Warm, held: tuple[Sequence[int], Sequence[int]]
                 ) -> tuple[HqpResult, list[np.ndarray]] | None:

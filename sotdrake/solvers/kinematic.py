@@ -221,7 +221,7 @@ class KinematicSolver(StackSolver[S]):
                     correction = keyed_curvature_correction(J, level.row_keys, last_tick[0], previous)
                 if correction is not None:
                     lower, upper = corrected_bounds(level.lower, level.upper, correction)
-                    level = TaskLevel(J, lower, upper, level.error)
+                    level = TaskLevel(J, lower, upper, level.error, level.row_keys)
             levels.append(level)
         if settings.contacts:
             count = len(settings.contacts)

@@ -25,7 +25,7 @@ device holds), ``diagnostics.failure`` says which level and why, and a warning i
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import cast
 
 import numpy as np
@@ -34,16 +34,18 @@ from pydrake.systems.framework import Context, InputPort
 
 from ..configuration import Layout
 from ..exceptions import InvalidInput, SolverError, StackError, finite_number
-from ..hqp import ACTIVE_SET, HierarchicalQP, check_solver
+from ..hqp import ACTIVE_SET, HierarchicalQP, HqpResult, check_solver
 from ..hqp.stack_paths import KINEMATIC, StackProblem, solve_stack
 from ..hqp.warm import WarmStart
 from ..robots import RobotModel
+from ..task import TaskLevel
 from .acceleration_limits import MAX_ACCELERATION, AccelerationBounds
 from .base_velocity import MAX_BASE_VELOCITY, default_base_velocity_limit
 from .kinematic import KinematicSolver
 from .limits import VelocityBounds
 from .stack import StackSettings
 from .step_limit import clip_bounds
+from .unmet_rows import keep_met_rows, keyed_inequality
 
 log = logging.getLogger("sotdrake.solver_kine")
 
@@ -223,6 +225,8 @@ class SolverKine(KinematicSolver[HqpSettings]):
             log.warning("%s: %s; the device holds", self.name, diagnostics.failure)
             value.set_value(_Solution(np.zeros(self.nv), np.full(len(task_levels), np.nan), diagnostics, task_levels.tasks))
             return
+        if any(keyed_inequality(level) for level in task_levels):
+            result = keep_met_rows(lambda levels: self._trial(levels, problem), task_levels, result, 0)
         diagnostics.slack_norms = result.slack_norms
         diagnostics.active_rows = result.active_rows
         diagnostics.active_limits = result.active_bounds
@@ -231,6 +235,16 @@ class SolverKine(KinematicSolver[HqpSettings]):
         diagnostics.max_iterations = max(result.iterations, default=0)
         diagnostics.fallbacks = result.fallbacks
         value.set_value(_Solution(result.x, result.slack_norms, diagnostics, task_levels.tasks))
+
+    def _trial(self, levels: list[TaskLevel], problem: StackProblem) -> HqpResult | None:
+        """``problem`` with these task levels (:func:`~.unmet_rows.keep_met_rows`' extra solves),
+        solved cold (a fresh warm start: nothing carried from one tick to the next); None if it fails."""
+        trial = replace(problem, levels=[(level.jacobian, level.lower, level.upper) for level in levels],
+                        warm=WarmStart(self.nv))
+        try:
+            return solve_stack(self._hqp, trial, KINEMATIC)
+        except SolverError:
+            return None
 
 
 @dataclass

@@ -99,24 +99,25 @@ def keep_met_rows(solve: Solve, tasks: Sequence[TaskLevel], result: HqpResult, f
     splits: list[tuple[int, np.ndarray]] = []  # (level, moved) of each split
     for i, task in enumerate(tasks):
         j = i + len(splits)  # (each split before it added a level)
-        if not keyed_inequality(task) or not unmet(task, result.slacks[first + j]).any():
+        if (not keyed_inequality(task) or result.slack_norms[first + j] <= UNMET  # (no row beyond UNMET: met)
+                or not unmet(task, result.slacks[first + j]).any()):
             continue
         slack, moved = result.slacks[first + j], np.zeros(len(task.lower), dtype=bool)
-        last = None  # the last answer with rows moved: (answer, moved, kept, moved rows)
+        last = None  # the last answer with rows moved, and which
         for _ in range(min(MAX_ROUNDS, len(moved) - 1)):
             moved[int(np.argmax(np.where(moved, -np.inf, np.abs(slack))))] = True
             kept, rest = split(task, moved)
             trial = solve([*current[:j], kept, rest, *current[j + 1 :]])
             if trial is None:
                 break
-            last = trial, moved.copy(), kept, rest
+            last = trial, moved.copy()
             if not unmet(kept, trial.slacks[first + j]).any():
                 break
             slack = np.zeros(len(moved))
             slack[~moved] = trial.slacks[first + j]
         if last is not None:
-            result, mask, kept, rest = last
-            current[j : j + 1] = [kept, rest]
+            result, mask = last
+            current[j : j + 1] = split(task, mask)
             splits.append((first + j, mask))
     for level, moved in reversed(splits):
         result = merged(result, level, moved)

@@ -56,6 +56,14 @@ def wait_for(condition, timeout: float = WAIT_S, what: str = "an event") -> None
         time.sleep(0.02)
 
 
+def matched(publisher, node, topic: str) -> bool:
+    """Both sides of ``topic`` matched: ``publisher`` with a reader, and every reader of ``node`` on
+    it with a writer (each side discovers the other on its own; a reader drops what a writer it has
+    not matched yet sends)."""
+    readers = [s for s in node.subscriptions if s.topic_name == topic]
+    return publisher.get_subscription_count() > 0 and bool(readers) and all(r.get_publisher_count() > 0 for r in readers)
+
+
 @pytest.fixture(scope="module")
 def observer():
     node = RosNode("test_observer")
@@ -170,8 +178,8 @@ def test_ros_publish_kinds_reach_another_node(observer):
                                               f"/test_kinds/{name}", got[name].append, 100)
         publish.trigger(10, 1e-3)
         diagram = builder.Build()
-        wait_for(lambda: all(s.publisher.get_subscription_count() > 0 for s in publish.signals.values()),
-                 what="the subscriptions to match")
+        wait_for(lambda: all(matched(s.publisher, observer.node, s.topic) for s in publish.signals.values()),
+                 what="both sides of each topic to match")
         Simulator(diagram).AdvanceTo(0.05)  # publishes at t = 0, 0.01, …, 0.05
         wait_for(lambda: all(len(g) == 6 for g in got.values()), what="6 messages of each kind")
         assert publish.published == 6
@@ -199,8 +207,8 @@ def test_ros_subscribe_holds_the_default_then_the_last_value(observer, caplog):
     try:
         pub = sender.node.create_publisher(Float64MultiArray, "/test_subscribe/target", 10)
         pub_joints = sender.node.create_publisher(JointState, "/test_subscribe/joints", 10)
-        wait_for(lambda: pub.get_subscription_count() > 0 and pub_joints.get_subscription_count() > 0,
-                 what="the subscriptions to match")
+        wait_for(lambda: matched(pub, observer.node, "/test_subscribe/target")
+                 and matched(pub_joints, observer.node, "/test_subscribe/joints"), what="the subscriptions to match")
         pub.publish(Float64MultiArray(data=[1.0, 2.0]))  # wrong size: dropped
         pub.publish(Float64MultiArray(data=[4.0, 5.0, 6.0]))
         pub_joints.publish(JointState(name=["a", "b", "c"], position=[1.0, 2.0, 3.0]))
@@ -232,7 +240,7 @@ def test_a_subscribed_pose_holds_a_unit_quaternion(observer):
     sender = RosNode("test_subscribe_pose_sender")
     try:
         pub = sender.node.create_publisher(PoseStamped, "/test_subscribe/pose", 10)
-        wait_for(lambda: pub.get_subscription_count() > 0, what="the subscription to match")
+        wait_for(lambda: matched(pub, observer.node, "/test_subscribe/pose"), what="the subscription to match")
         for w, x, count in ((0.0, 0.0, 0), (0.9, 1.2, 1), (0.0, 0.0, 1)):  # (zero: dropped; norm 1.5: normalised)
             message = PoseStamped()
             message.pose.position.x, message.pose.orientation.w, message.pose.orientation.x = 0.5, w, x
@@ -244,6 +252,62 @@ def test_a_subscribed_pose_holds_a_unit_quaternion(observer):
         np.testing.assert_allclose(port.Eval(subscribe.CreateDefaultContext()), [0.5, 0.0, 0.0, 0.6, 0.8, 0.0, 0.0])
     finally:
         sender.close()
+
+
+# --- the client's handshake -------------------------------------------------------------------------
+class LossyRun:
+    """Stands for a run's services: drops its first ``lost`` requests (as a reader not yet matched
+    with the client's publisher would) and answers the rest with the simulated time 0."""
+
+    def __init__(self, lost: int):
+        from std_srvs.srv import Empty
+
+        from sotdrake.ros import START_SERVICE
+
+        self.ros, self.lost, self.seen = RosNode("test_lossy_run"), lost, []
+        node = self.ros.node
+        self.responses = node.create_publisher(String, RUN_COMMAND_RESPONSE, 1000)
+        node.create_subscription(String, RUN_COMMAND_REQUEST, self._request, 1000)
+        node.create_service(Empty, START_SERVICE, lambda request, response: response)
+
+    def _request(self, message):
+        request = json.loads(message.data)
+        self.seen.append(request["command"])
+        if len(self.seen) > self.lost:
+            self.responses.publish(String(data=json.dumps({"id": request["id"], "ok": True, "answer": "0.0000"})))
+
+
+@pytest.mark.parametrize("lost", [0, 3])
+def test_the_handshake_outlasts_lost_first_requests(observer, lost):
+    from sotdrake.ros.client import HELLO
+
+    run = LossyRun(lost)
+    try:
+        client = RunCommandClient(observer, WAIT_S)
+        client.wait()
+        assert len(run.seen) >= lost + 1 and set(run.seen) == {HELLO}
+        assert client.command("time()") == {"id": f"{client._prefix}-{client._count}", "ok": True, "answer": "0.0000"}
+        wait_for(lambda: len(run.seen) >= client._count, what="every request")
+        assert client._answers == {} and client._pending == set()  # (late answers to the handshake are dropped)
+        client.close()
+    finally:
+        run.ros.close()
+
+
+def test_the_handshake_says_what_did_not_answer(observer):
+    from sotdrake.exceptions import SotError
+
+    client = RunCommandClient(observer, WAIT_S)
+    with pytest.raises(SotError, match=r"not available after 0\.3 s"):
+        client.wait(0.3)  # (no run)
+    run = LossyRun(10**9)
+    try:
+        with pytest.raises(SotError, match=r"no answer to 'time\(\)' within 3 s"):
+            client.wait(3.0)
+        assert len(run.seen) >= 2 and client._answers == {} and client._pending == set()
+    finally:
+        run.ros.close()
+        client.close()
 
 
 # --- the tutorial over ROS: talos_appli.py --ros --bag, driven by ros_test.py ----------------------
@@ -357,6 +421,8 @@ def ros_run(tmp_path_factory, observer):
             result["state"], result["joints"] = list(seen["state"]), list(seen["joints"])
         client.close()
         yield result
+    except Exception as error:  # (the setup's, with what the run printed)
+        raise AssertionError(f"{error}\n--- the run's log, its end ---\n{log.read_text()[-4000:]}") from error
     finally:
         if appli.poll() is None:
             appli.kill()
@@ -479,8 +545,9 @@ def test_command_publishers_send_positions_torques_gains_and_references(observer
                   "reference": "/test_commands/lfc/reference", "gains": "/test_commands/lfc/gains"}
         for key, topic in topics.items():
             observer.node.create_subscription(Float64MultiArray, topic, got[key].append, 10)
-        wait_for(lambda: positions.publisher.get_subscription_count() > 0
-                 and all(p.get_subscription_count() > 0 for p in torques.publishers.values()), what="the subscriptions")
+        wait_for(lambda: matched(positions.publisher, observer.node, topics["positions"])
+                 and all(matched(torques.publishers[k], observer.node, topics[k]) for k in topics if k != "positions"),
+                 what="the subscriptions")
         q = np.arange(plant.num_positions(), dtype=float)
         context = positions.CreateDefaultContext()
         positions.position.FixValue(context, q)

@@ -14,6 +14,11 @@ from ..exceptions import SotError
 from .node import RosNode, ros_node
 from .services import DEPTH, RUN_COMMAND_REQUEST, RUN_COMMAND_RESPONSE, START_SERVICE
 
+#: The handshake's request: a query every run answers, which changes nothing.
+HELLO = "time()"
+#: How often (s) the handshake's request is sent again until it is answered.
+RESEND_S = 0.5
+
 
 class RunCommandClient:
     """``command(line)`` sends one ``run_command`` and waits for its answer (a dict with ``ok`` and
@@ -26,6 +31,7 @@ class RunCommandClient:
         self.ros, self.timeout = node or ros_node(f"sotdrake_client_{os.getpid()}"), timeout
         node_ = self.ros.node
         self._answers: dict[str, dict] = {}
+        self._pending: set[str] = set()
         self._arrived = threading.Condition()
         self._count = 0
         self._prefix = f"{node_.get_name()}-{os.getpid()}-{id(self):x}"
@@ -38,10 +44,12 @@ class RunCommandClient:
             answer = json.loads(message.data)
         except (ValueError, RecursionError):  # (not an answer: JSON nested too deeply, bad text)
             return
-        if isinstance(answer, dict) and str(answer.get("id", "")).startswith(self._prefix):
+        if isinstance(answer, dict) and isinstance(answer.get("id"), str):
             with self._arrived:
-                self._answers[answer["id"]] = answer
-                self._arrived.notify_all()
+                if answer["id"] in self._pending:
+                    self._pending.discard(answer["id"])
+                    self._answers[answer["id"]] = answer
+                    self._arrived.notify_all()
 
     def ready(self) -> bool:
         """Both services are up and matched with this client."""
@@ -49,23 +57,50 @@ class RunCommandClient:
                 and self.starter.service_is_ready())
 
     def wait(self, timeout: float | None = None) -> None:
-        """Wait for both services (the seed's ``wait_for_service``), up to ``timeout`` s."""
-        deadline = time.monotonic() + (self.timeout if timeout is None else timeout)
+        """Wait for both services (the seed's ``wait_for_service``), up to ``timeout`` s, then for
+        one answer to :data:`HELLO`.
+
+        Each side of a topic discovers the other on its own: a publisher matched here may not yet be
+        matched in the run, whose reader then drops what it was sent (volatile QoS), and so may its
+        answer. The handshake sends :data:`HELLO` again every :data:`RESEND_S` s until an answer
+        comes back; from then on, both topics deliver every message (reliable QoS)."""
+        wait = self.timeout if timeout is None else timeout
+        deadline = time.monotonic() + wait
         while not self.ready():
             if time.monotonic() > deadline:
                 raise SotError(f"run_command ({RUN_COMMAND_REQUEST}) and {START_SERVICE} not available after "
-                               f"{timeout or self.timeout:g} s (same ROS_DOMAIN_ID?)")
+                               f"{wait:g} s (same ROS_DOMAIN_ID?)")
             time.sleep(0.05)
+        sent: list[str] = []
+        with self._arrived:
+            while not any(ident in self._answers for ident in sent):
+                if time.monotonic() > deadline:
+                    self._forget(sent)
+                    raise SotError(f"run_command ({RUN_COMMAND_REQUEST}): no answer to {HELLO!r} within {wait:g} s")
+                sent.append(self._send(HELLO))
+                self._arrived.wait(RESEND_S)
+            self._forget(sent)
+
+    def _send(self, line: str) -> str:
+        """Publish ``line`` as a request (the caller holds ``_arrived``); its id."""
+        self._count += 1
+        ident = f"{self._prefix}-{self._count}"
+        self._pending.add(ident)
+        self.requests.publish(String(data=json.dumps({"id": ident, "command": line})))
+        return ident
+
+    def _forget(self, idents: list[str]) -> None:
+        for ident in idents:
+            self._pending.discard(ident)
+            self._answers.pop(ident, None)
 
     def command(self, line: str, timeout: float | None = None) -> dict:
         """Send ``line``; its answer (raises :class:`SotError` when none comes within ``timeout`` s)."""
-        with self._arrived:
-            self._count += 1
-            ident = f"{self._prefix}-{self._count}"
-        self.requests.publish(String(data=json.dumps({"id": ident, "command": line})))
         wait = self.timeout if timeout is None else timeout
         with self._arrived:
+            ident = self._send(line)
             if not self._arrived.wait_for(lambda: ident in self._answers, wait):
+                self._forget([ident])
                 raise SotError(f"run_command {line!r}: no answer within {wait:g} s")
             return self._answers.pop(ident)
 

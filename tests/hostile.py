@@ -537,7 +537,7 @@ def worker(kind: str, solver: str, indices: list[int], duration: float, dt: floa
 
 
 def run_attempts(kind: str, solver: str, indices: list[int], duration: float = 0.1,
-                 timeout: float = 120.0, log: Path | None = None, dt: float = 1e-3,
+                 timeout: float = 300.0, log: Path | None = None, dt: float = 1e-3,
                  per_worker: int = ATTEMPTS_PER_WORKER) -> dict[int, dict]:
     """Results by index; an attempt whose worker died is ``{"status": "process_exit", ...}``, one
     that stayed silent longer than ``timeout`` seconds ``{"status": "hang"}``. With ``log``, each

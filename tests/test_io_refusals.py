@@ -197,8 +197,10 @@ def test_a_case_that_stops_the_process_is_an_error_row():
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs a full device (/dev/full)")
-def test_a_live_run_whose_trace_cannot_be_written_stops_and_writes_its_files(tmp_path):
+def test_a_live_run_whose_trace_cannot_be_written_stops_and_writes_its_files(tmp_path, monkeypatch):
     from sotdrake.live.runner import run_live
+
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))  # (its connection file: not the user's)
 
     builder = DiagramBuilder()
     robot = talos(builder)

@@ -79,7 +79,7 @@ def live(tmp_path_factory):
              "--rate", str(RATE)],
             cwd=work, env=env, stdout=log_file, stderr=subprocess.STDOUT)
     deadline = time.monotonic() + START_S
-    while not (out / "live.json").exists():
+    while not ((out / "live.json").exists() and "commands: sotdrake-shell" in log.read_text()):  # (printed after)
         if process.poll() is not None or time.monotonic() > deadline:
             process.kill()
             pytest.fail(f"the live run did not start:\n{log.read_text()}")

@@ -1,7 +1,7 @@
 """ROS 2 (the ``ros2`` extra): ``RosPublish``, ``RosSubscribe``, ``run_command``,
 ``start_dynamic_graph``, the ``ros_test.py`` port and the bag, on the loopback only.
 
-Each test run has its own ``ROS_DOMAIN_ID`` (from the process id) and
+Each test process has its own ``ROS_DOMAIN_ID`` (one no other test process holds) and
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``. Every wait is for an event (a message, an answer, a
 process ending) with a stated, generous time-out; nothing depends on the host's speed: counts are
 checked against the simulated time the run reached.
@@ -21,7 +21,9 @@ import pytest
 
 pytest.importorskip("rclpy", reason='ROS 2 is an optional extra: pip install ".[ros2]"')
 
-os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 100)
+from tests.ros_domain import free_domain
+
+os.environ["ROS_DOMAIN_ID"] = str(free_domain())
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 from sensor_msgs.msg import JointState
@@ -298,10 +300,14 @@ def test_the_handshake_says_what_did_not_answer(observer):
     from sotdrake.exceptions import SotError
 
     client = RunCommandClient(observer, WAIT_S)
+    # (no run: once the graph has forgotten the endpoints of any run closed before)
+    wait_for(lambda: observer.node.count_subscribers(RUN_COMMAND_REQUEST) == observer.node.count_publishers(RUN_COMMAND_RESPONSE)
+             == 0 and not client.starter.service_is_ready(), what="the runs closed before to be gone")
     with pytest.raises(SotError, match=r"not available after 0\.3 s"):
-        client.wait(0.3)  # (no run)
+        client.wait(0.3)
     run = LossyRun(10**9)
     try:
+        wait_for(lambda: client.ready() and matched(client.requests, run.ros.node, RUN_COMMAND_REQUEST), what="the run")
         with pytest.raises(SotError, match=r"no answer to 'time\(\)' within 3 s"):
             client.wait(3.0)
         assert len(run.seen) >= 2 and client._answers == {} and client._pending == set()

@@ -27,7 +27,7 @@ from sotdrake.ros import (
     TorqueCommandPublisher,
     add_ros_publisher,
 )
-from tests.test_ros import observer, wait_for  # noqa: F401  (its ROS_DOMAIN_ID and LOCALHOST too)
+from tests.test_ros import matched, observer, wait_for  # noqa: F401  (its ROS_DOMAIN_ID and LOCALHOST too)
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::DeprecationWarning:lark")]
 
@@ -102,7 +102,7 @@ def services(observer):  # noqa: F811
     subscription = observer.node.create_subscription(String, RUN_COMMAND_RESPONSE,
                                                      lambda m: answers.append(json.loads(m.data)), 100)
     services = RosServices(_Live(), observer, hold=False)  # type: ignore[arg-type]
-    wait_for(lambda: services.responses.get_subscription_count() > 0, WAIT_S, "the response subscription")
+    wait_for(lambda: matched(services.responses, observer.node, RUN_COMMAND_RESPONSE), WAIT_S, "the response subscription")
     yield services, answers
     observer.node.destroy_subscription(subscription)
     services.close(flush_s=1.0)

@@ -5,6 +5,7 @@ import json
 import math
 import subprocess
 import sys
+import time
 import uuid
 import warnings
 from pathlib import Path
@@ -207,8 +208,8 @@ def test_state_published_at_100_hz_to_another_process(talos_model, tmp_path):
     channel = f"sot_control/state_{uuid.uuid4().hex[:12]}"  # unique: no other run on this host shares it
     subscriber = [sys.executable, str(ROOT / "tests" / "lcm_subscriber.py")]
     # Each listener stops on a "done" message sent after the run (a timeout only if it never comes).
-    listener = subprocess.Popen([*subscriber, channel, "state", "30", str(tmp_path / "state.jsonl")], stdout=subprocess.PIPE, text=True)
-    scope_listener = subprocess.Popen([*subscriber, channel + "_com", "scope", "30", str(tmp_path / "com.jsonl")],
+    listener = subprocess.Popen([*subscriber, channel, "state", "600", str(tmp_path / "state.jsonl")], stdout=subprocess.PIPE, text=True)
+    scope_listener = subprocess.Popen([*subscriber, channel + "_com", "scope", "600", str(tmp_path / "com.jsonl")],
                                       stdout=subprocess.PIPE, text=True)
     memory = DrakeLcm("memq://")
     sent: list[lcmt_robot_state] = []
@@ -227,9 +228,12 @@ def test_state_published_at_100_hz_to_another_process(talos_model, tmp_path):
         simulator.set_target_realtime_rate(1.0)  # as on a robot: no burst for the UDP buffers
         simulator.AdvanceTo(1.0)
         lcm = DrakeLcm()  # same host and URL as the publishers: sent after their last message
-        lcm.Publish(channel + "_done", b"")
-        lcm.Publish(channel + "_com_done", b"")
-        assert listener.wait(timeout=300) == 0 and scope_listener.wait(timeout=300) == 0
+        deadline = time.monotonic() + 300
+        while (listener.poll() is None or scope_listener.poll() is None) and time.monotonic() < deadline:
+            lcm.Publish(channel + "_done", b"")  # (again until heard: UDP may lose it too)
+            lcm.Publish(channel + "_com_done", b"")
+            time.sleep(0.2)
+        assert listener.wait(timeout=10) == 0 and scope_listener.wait(timeout=10) == 0
         messages = [json.loads(line) for line in (tmp_path / "state.jsonl").read_text().splitlines()]
         scopes = [json.loads(line) for line in (tmp_path / "com.jsonl").read_text().splitlines()]
     finally:

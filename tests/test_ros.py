@@ -316,6 +316,35 @@ def test_the_handshake_says_what_did_not_answer(observer):
         client.close()
 
 
+def test_the_client_refuses_bad_arguments_and_a_closed_client(observer):
+    from sotdrake.exceptions import SotError
+
+    def entities():
+        return [len(list(kind)) for kind in (observer.node.publishers, observer.node.subscriptions, observer.node.clients)]
+
+    before = entities()
+    for timeout in (-1.0, math.nan, math.inf, "5", True, None, [1.0]):
+        with pytest.raises(InvalidInput, match="timeout"):
+            RunCommandClient(observer, timeout)  # type: ignore[arg-type]
+    with pytest.raises(InvalidInput, match="node"):
+        RunCommandClient("test_observer", 1.0)  # type: ignore[arg-type]
+    client = RunCommandClient(observer, 1.0)
+    for call in (lambda: client.wait(-1), lambda: client.command("time()", math.nan), lambda: client.start(1e7)):
+        with pytest.raises(InvalidInput, match="timeout"):
+            call()
+    for line in (None, 5, b"time()", ["time()"]):
+        with pytest.raises(InvalidInput, match="line"):
+            client.command(line)  # type: ignore[arg-type]
+    assert client._count == 0  # (nothing sent)
+    client.close()
+    client.close()
+    assert not client.ready()
+    for name, call in (("wait", client.wait), ("command", lambda: client.command("time()")), ("start", client.start)):
+        with pytest.raises(SotError, match=f"{name}: the client is closed"):
+            call()
+    assert entities() == before
+
+
 # --- the tutorial over ROS: talos_appli.py --ros --bag, driven by ros_test.py ----------------------
 #: run_command lines that must be refused, changing nothing, while the run goes on.
 HOSTILE = [

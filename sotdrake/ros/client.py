@@ -10,7 +10,7 @@ import time
 from std_msgs.msg import String
 from std_srvs.srv import Empty
 
-from ..exceptions import SotError
+from ..exceptions import SotError, check_number, check_type
 from .node import RosNode, ros_node
 from .services import DEPTH, RUN_COMMAND_REQUEST, RUN_COMMAND_RESPONSE, START_SERVICE
 
@@ -18,6 +18,12 @@ from .services import DEPTH, RUN_COMMAND_REQUEST, RUN_COMMAND_RESPONSE, START_SE
 HELLO = "time()"
 #: How often (s) the handshake's request is sent again until it is answered.
 RESEND_S = 0.5
+#: The longest time-out (s) a client takes.
+MAX_TIMEOUT_S = 1e6
+
+
+def _check_timeout(timeout: object) -> float:
+    return check_number("timeout", timeout, 0.0, MAX_TIMEOUT_S, " s")
 
 
 class RunCommandClient:
@@ -25,9 +31,15 @@ class RunCommandClient:
     ``answer`` or ``error``); ``start()`` calls ``start_dynamic_graph``.
 
     Without ``node``, the client has a node of its own, ``sotdrake_client_<pid>`` (the run's is
-    ``sotdrake``: two nodes of one name confuse ROS tools), closed by ``sotdrake.ros.shutdown()``."""
+    ``sotdrake``: two nodes of one name confuse ROS tools), closed by ``sotdrake.ros.shutdown()``.
+    ``timeout`` (s, 0 to :data:`MAX_TIMEOUT_S`) is how long each call waits unless given its own.
+    A bad argument is :class:`~sotdrake.exceptions.InvalidInput`, a call on a closed client or node
+    :class:`~sotdrake.exceptions.SotError`, before anything is sent."""
 
     def __init__(self, node: RosNode | None = None, timeout: float = 120.0):
+        timeout = _check_timeout(timeout)
+        if node is not None:
+            check_type("node", node, RosNode, "a sotdrake.ros.RosNode or None").check_open("RunCommandClient")
         self.ros, self.timeout = node or ros_node(f"sotdrake_client_{os.getpid()}"), timeout
         node_ = self.ros.node
         self._answers: dict[str, dict] = {}
@@ -38,6 +50,13 @@ class RunCommandClient:
         self.requests = node_.create_publisher(String, RUN_COMMAND_REQUEST, DEPTH)
         self.responses = node_.create_subscription(String, RUN_COMMAND_RESPONSE, self._response, DEPTH)
         self.starter = node_.create_client(Empty, START_SERVICE)
+        self.closed = False
+
+    def _check_usable(self, what: str) -> None:
+        """:class:`SotError` if this client or its node is closed."""
+        if self.closed:
+            raise SotError(f"RunCommandClient.{what}: the client is closed")
+        self.ros.check_open(f"RunCommandClient.{what}")
 
     def _response(self, message: String) -> None:
         try:
@@ -52,7 +71,9 @@ class RunCommandClient:
                     self._arrived.notify_all()
 
     def ready(self) -> bool:
-        """Both services are up and matched with this client."""
+        """Both services are up and matched with this client (False once it is closed)."""
+        if self.closed or not self.ros.is_open():
+            return False
         return (self.requests.get_subscription_count() > 0 and self.responses.get_publisher_count() > 0
                 and self.starter.service_is_ready())
 
@@ -64,7 +85,8 @@ class RunCommandClient:
         matched in the run, whose reader then drops what it was sent (volatile QoS), and so may its
         answer. The handshake sends :data:`HELLO` again every :data:`RESEND_S` s until an answer
         comes back; from then on, both topics deliver every message (reliable QoS)."""
-        wait = self.timeout if timeout is None else timeout
+        wait = self.timeout if timeout is None else _check_timeout(timeout)
+        self._check_usable("wait")
         deadline = time.monotonic() + wait
         while not self.ready():
             if time.monotonic() > deadline:
@@ -96,7 +118,9 @@ class RunCommandClient:
 
     def command(self, line: str, timeout: float | None = None) -> dict:
         """Send ``line``; its answer (raises :class:`SotError` when none comes within ``timeout`` s)."""
-        wait = self.timeout if timeout is None else timeout
+        check_type("run_command: line", line, str, "a command line (str)")
+        wait = self.timeout if timeout is None else _check_timeout(timeout)
+        self._check_usable("command")
         with self._arrived:
             ident = self._send(line)
             if not self._arrived.wait_for(lambda: ident in self._answers, wait):
@@ -106,14 +130,21 @@ class RunCommandClient:
 
     def start(self, timeout: float | None = None) -> None:
         """Call ``start_dynamic_graph`` and wait for its reply."""
+        wait = self.timeout if timeout is None else _check_timeout(timeout)
+        self._check_usable("start")
         future = self.starter.call_async(Empty.Request())
         done = threading.Event()
         future.add_done_callback(lambda _: done.set())
-        wait = self.timeout if timeout is None else timeout
         if not done.wait(wait):
             raise SotError(f"{START_SERVICE}: no reply within {wait:g} s")
 
     def close(self) -> None:
+        """Destroy this client's publisher, subscription and service client (again: nothing)."""
+        if self.closed:
+            return
+        self.closed = True
+        if not self.ros.is_open():  # (they went with the node)
+            return
         node = self.ros.node
         node.destroy_publisher(self.requests)
         node.destroy_subscription(self.responses)

@@ -74,8 +74,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--settle", type=float, default=None, help="then wait this many simulated s")
     parser.add_argument("--stop", action="store_true", help="then stop the run (it writes its files)")
     args = parser.parse_args(argv)
-    if not 0 < args.timeout < float("inf") or (args.settle is not None and not 0 <= args.settle < float("inf")):
-        parser.error(f"--timeout must be a finite number > 0 (s) and --settle ≥ 0, got {args.timeout}, {args.settle}")
+    if not 0 < args.timeout <= 1e6 or (args.settle is not None and not 0 <= args.settle < float("inf")):
+        parser.error(f"--timeout must be a number in (0, 1e6] (s) and --settle ≥ 0, got {args.timeout}, {args.settle}")
     if args.appli is not None and not args.appli.is_file():
         parser.error(f"--appli {args.appli}: no such file")
 

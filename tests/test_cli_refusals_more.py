@@ -192,3 +192,12 @@ def test_scripts_without_a_recording_offer_no_no_meshcat(script, tmp_path):
     with pytest.raises(SystemExit) as stopped:
         module.main(["--no-meshcat", "--out", str(tmp_path / "run")])
     assert stopped.value.code == 2 and not (tmp_path / "run").exists()
+
+
+
+@pytest.mark.parametrize("timeout", ["0", "-1", "nan", "inf", "1e7"])
+def test_ros_test_refuses_a_timeout_its_client_would_not_take(timeout):
+    """Refused by the script's own line, before any ROS node is made (ROS 2 need not be installed)."""
+    done = subprocess.run([sys.executable, "diagrams/ros_test.py", "--timeout", timeout],
+                          cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 2 and "--timeout must be a number in (0, 1e6]" in done.stderr.strip().splitlines()[-1]

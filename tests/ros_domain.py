@@ -13,7 +13,10 @@ def free_domain() -> int:
     another checkout's suite): each holds a lock on its domain's file for as long as it lives."""
     for k in range(100):
         domain = 1 + (os.getpid() + k) % 100
-        lock = open(Path(tempfile.gettempdir()) / f"sotdrake-tests-ros-domain-{domain}.lock", "w")
+        try:  # (a file another user made: not ours to take)
+            lock = open(Path(tempfile.gettempdir()) / f"sotdrake-tests-ros-domain-{domain}.lock", "a")
+        except OSError:
+            continue
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:

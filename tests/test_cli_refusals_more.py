@@ -99,7 +99,7 @@ def test_push_momentum_refuses_before_it_runs(tmp_path):
 
 
 def test_push_momentum_script_refusal_leaves_nothing(tmp_path):
-    """The script as a user runs it: one line, status 2, no folder left."""
+    """The script as a user runs it: its error line last, status 2, no folder left."""
     out = tmp_path / "new" / "sub"
     done = subprocess.run([sys.executable, "diagrams/push_momentum.py", "--forces", "900,100", "--out", str(out)],
                           cwd=ROOT, capture_output=True, text=True, timeout=600)
@@ -192,7 +192,6 @@ def test_scripts_without_a_recording_offer_no_no_meshcat(script, tmp_path):
     with pytest.raises(SystemExit) as stopped:
         module.main(["--no-meshcat", "--out", str(tmp_path / "run")])
     assert stopped.value.code == 2 and not (tmp_path / "run").exists()
-
 
 
 @pytest.mark.parametrize("timeout", ["0", "-1", "nan", "inf", "1e7"])

@@ -60,8 +60,8 @@ def wait_for(condition, timeout: float = WAIT_S, what: str = "an event") -> None
 
 def matched(publisher, node, topic: str) -> bool:
     """Both sides of ``topic`` matched: ``publisher`` with a reader, and every reader of ``node`` on
-    it with a writer (each side discovers the other on its own; a reader drops what a writer it has
-    not matched yet sends)."""
+    it with a writer, ``publisher`` when it is the topic's only one (each side discovers the other on
+    its own; a reader drops what a writer it has not matched yet sends)."""
     readers = [s for s in node.subscriptions if s.topic_name == topic]
     return publisher.get_subscription_count() > 0 and bool(readers) and all(r.get_publisher_count() > 0 for r in readers)
 
@@ -259,14 +259,15 @@ def test_a_subscribed_pose_holds_a_unit_quaternion(observer):
 # --- the client's handshake -------------------------------------------------------------------------
 class LossyRun:
     """Stands for a run's services: drops its first ``lost`` requests (as a reader not yet matched
-    with the client's publisher would) and answers the rest with the simulated time 0."""
+    with the client's publisher would) and answers each of the others ``repeat`` times (the repeats
+    are late answers) with the simulated time 0."""
 
-    def __init__(self, lost: int):
+    def __init__(self, lost: int, repeat: int = 1):
         from std_srvs.srv import Empty
 
         from sotdrake.ros import START_SERVICE
 
-        self.ros, self.lost, self.seen = RosNode("test_lossy_run"), lost, []
+        self.ros, self.lost, self.repeat, self.seen, self.answered = RosNode("test_lossy_run"), lost, repeat, [], 0
         node = self.ros.node
         self.responses = node.create_publisher(String, RUN_COMMAND_RESPONSE, 1000)
         node.create_subscription(String, RUN_COMMAND_REQUEST, self._request, 1000)
@@ -276,23 +277,30 @@ class LossyRun:
         request = json.loads(message.data)
         self.seen.append(request["command"])
         if len(self.seen) > self.lost:
-            self.responses.publish(String(data=json.dumps({"id": request["id"], "ok": True, "answer": "0.0000"})))
+            for _ in range(self.repeat):
+                self.responses.publish(String(data=json.dumps({"id": request["id"], "ok": True, "answer": "0.0000"})))
+                self.answered += 1
 
 
 @pytest.mark.parametrize("lost", [0, 3])
-def test_the_handshake_outlasts_lost_first_requests(observer, lost):
+def test_the_handshake_outlasts_lost_first_requests(observer, lost, monkeypatch):
     from sotdrake.ros.client import HELLO
 
-    run = LossyRun(lost)
-    try:
-        client = RunCommandClient(observer, WAIT_S)
+    heard = []  # (every answer the client's subscription handled)
+    respond = RunCommandClient._response
+    monkeypatch.setattr(RunCommandClient, "_response", lambda self, message: (respond(self, message), heard.append(1)))
+    run = LossyRun(lost, repeat=2)
+    client = RunCommandClient(observer, WAIT_S)
+    try:  # (both sides of both topics matched first: the only requests lost are the run's drops)
+        wait_for(lambda: matched(client.requests, run.ros.node, RUN_COMMAND_REQUEST)
+                 and matched(run.responses, observer.node, RUN_COMMAND_RESPONSE), what="the topics")
         client.wait()
         assert len(run.seen) >= lost + 1 and set(run.seen) == {HELLO}
         assert client.command("time()") == {"id": f"{client._prefix}-{client._count}", "ok": True, "answer": "0.0000"}
-        wait_for(lambda: len(run.seen) >= client._count, what="every request")
-        assert client._answers == {} and client._pending == set()  # (late answers to the handshake are dropped)
-        client.close()
+        wait_for(lambda: len(run.seen) == client._count and len(heard) == run.answered, what="every request and answer")
+        assert client._answers == {} and client._pending == set()  # (the late answers were dropped)
     finally:
+        client.close()
         run.ros.close()
 
 
@@ -300,20 +308,39 @@ def test_the_handshake_says_what_did_not_answer(observer):
     from sotdrake.exceptions import SotError
 
     client = RunCommandClient(observer, WAIT_S)
-    # (no run: once the graph has forgotten the endpoints of any run closed before)
-    wait_for(lambda: observer.node.count_subscribers(RUN_COMMAND_REQUEST) == observer.node.count_publishers(RUN_COMMAND_RESPONSE)
-             == 0 and not client.starter.service_is_ready(), what="the runs closed before to be gone")
-    with pytest.raises(SotError, match=r"not available after 0\.3 s"):
-        client.wait(0.3)
-    run = LossyRun(10**9)
-    try:
+    run = None
+    try:  # (no run: once the graph has forgotten the endpoints of any run closed before)
+        wait_for(lambda: observer.node.count_subscribers(RUN_COMMAND_REQUEST) == observer.node.count_publishers(RUN_COMMAND_RESPONSE)
+                 == 0 and not client.starter.service_is_ready(), what="the runs closed before to be gone")
+        with pytest.raises(SotError, match=r"not available after 0\.3 s"):
+            client.wait(0.3)
+        run = LossyRun(10**9)
         wait_for(lambda: client.ready() and matched(client.requests, run.ros.node, RUN_COMMAND_REQUEST), what="the run")
         with pytest.raises(SotError, match=r"no answer to 'time\(\)' within 3 s"):
             client.wait(3.0)
-        assert len(run.seen) >= 2 and client._answers == {} and client._pending == set()
+        wait_for(lambda: len(run.seen) >= 2, what="the request sent again")
+        assert client._answers == {} and client._pending == set()
     finally:
-        run.ros.close()
         client.close()
+        if run is not None:
+            run.ros.close()
+
+
+def test_a_client_closed_while_it_waits_raises_at_once(observer):
+    from sotdrake.exceptions import SotError
+
+    run = LossyRun(10**9)
+    client = RunCommandClient(observer, WAIT_S)
+    try:
+        wait_for(client.ready, what="the run")
+        threading.Timer(0.5, client.close).start()
+        started = time.monotonic()
+        with pytest.raises(SotError, match="command: the client is closed"):
+            client.command("time()")
+        assert time.monotonic() - started < WAIT_S / 2  # (not its time-out)
+    finally:
+        client.close()
+        run.ros.close()
 
 
 def test_the_client_refuses_bad_arguments_and_a_closed_client(observer):

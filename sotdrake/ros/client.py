@@ -23,6 +23,7 @@ MAX_TIMEOUT_S = 1e6
 
 
 def _check_timeout(timeout: object) -> float:
+    """``timeout`` as a float if it is a number of seconds in [0, :data:`MAX_TIMEOUT_S`], else :class:`InvalidInput`."""
     return check_number("timeout", timeout, 0.0, MAX_TIMEOUT_S, " s")
 
 
@@ -54,9 +55,9 @@ class RunCommandClient:
 
     def _check_usable(self, what: str) -> None:
         """:class:`SotError` if this client or its node is closed."""
-        if self.closed:
-            raise SotError(f"RunCommandClient.{what}: the client is closed")
-        self.ros.check_open(f"RunCommandClient.{what}")
+        if self.closed or not self.ros.is_open():
+            raise SotError(f"RunCommandClient.{what}: the client is closed"
+                           + ("" if self.closed else f" (its ROS node {self.ros.name} is shut down)"))
 
     def _response(self, message: String) -> None:
         try:
@@ -71,7 +72,7 @@ class RunCommandClient:
                     self._arrived.notify_all()
 
     def ready(self) -> bool:
-        """Both services are up and matched with this client (False once it is closed)."""
+        """Both services are up and matched with this client, now (False once it is closed)."""
         if self.closed or not self.ros.is_open():
             return False
         return (self.requests.get_subscription_count() > 0 and self.responses.get_publisher_count() > 0
@@ -79,54 +80,73 @@ class RunCommandClient:
 
     def wait(self, timeout: float | None = None) -> None:
         """Wait for both services (the seed's ``wait_for_service``), up to ``timeout`` s, then for
-        one answer to :data:`HELLO`.
+        one answer to :data:`HELLO` (a round trip: :meth:`ready` is the check that does not wait).
 
         Each side of a topic discovers the other on its own: a publisher matched here may not yet be
         matched in the run, whose reader then drops what it was sent (volatile QoS), and so may its
         answer. The handshake sends :data:`HELLO` again every :data:`RESEND_S` s until an answer
-        comes back; from then on, both topics deliver every message (reliable QoS)."""
+        comes back; from then on, both topics deliver every message (reliable QoS). Each request
+        the handshake sends is a command the run counts."""
         wait = self.timeout if timeout is None else _check_timeout(timeout)
         self._check_usable("wait")
         deadline = time.monotonic() + wait
         while not self.ready():
+            self._check_usable("wait")
             if time.monotonic() > deadline:
                 raise SotError(f"run_command ({RUN_COMMAND_REQUEST}) and {START_SERVICE} not available after "
                                f"{wait:g} s (same ROS_DOMAIN_ID?)")
             time.sleep(0.05)
-        sent: list[str] = []
+        sent: set[str] = set()
         with self._arrived:
-            while not any(ident in self._answers for ident in sent):
-                if time.monotonic() > deadline:
-                    self._forget(sent)
-                    raise SotError(f"run_command ({RUN_COMMAND_REQUEST}): no answer to {HELLO!r} within {wait:g} s")
-                sent.append(self._send(HELLO))
-                self._arrived.wait(RESEND_S)
-            self._forget(sent)
+            try:
+                while True:
+                    sent.add(self._send(HELLO))
+                    left = deadline - time.monotonic()
+                    if self._arrived.wait_for(lambda: self._ended(sent), max(0.0, min(RESEND_S, left))):
+                        self._check_usable("wait")
+                        return
+                    if left <= RESEND_S:
+                        raise SotError(f"run_command ({RUN_COMMAND_REQUEST}): no answer to {HELLO!r} within {wait:g} s")
+            finally:
+                self._forget(sent)
+
+    def _ended(self, idents: set[str]) -> bool:
+        """An answer to one of ``idents`` arrived, or the client or its node was closed."""
+        return self.closed or not self.ros.is_open() or any(ident in idents for ident in self._answers)
 
     def _send(self, line: str) -> str:
         """Publish ``line`` as a request (the caller holds ``_arrived``); its id."""
         self._count += 1
         ident = f"{self._prefix}-{self._count}"
         self._pending.add(ident)
-        self.requests.publish(String(data=json.dumps({"id": ident, "command": line})))
+        try:
+            self.requests.publish(String(data=json.dumps({"id": ident, "command": line})))
+        except Exception as error:  # (the node shut down under the call)
+            self._check_usable("send")
+            raise SotError(f"run_command: the request could not be sent: {error}") from error
         return ident
 
-    def _forget(self, idents: list[str]) -> None:
+    def _forget(self, idents: set[str]) -> None:
+        """Drop ``idents`` (the caller holds ``_arrived``): an answer to one of them that comes late is dropped too."""
         for ident in idents:
             self._pending.discard(ident)
             self._answers.pop(ident, None)
 
     def command(self, line: str, timeout: float | None = None) -> dict:
-        """Send ``line``; its answer (raises :class:`SotError` when none comes within ``timeout`` s)."""
-        check_type("run_command: line", line, str, "a command line (str)")
+        """Send ``line``; its answer (raises :class:`SotError` when none comes within ``timeout`` s,
+        or when the client is closed meanwhile)."""
+        line = str.__str__(check_type("run_command: line", line, str, "a command line (str)"))
         wait = self.timeout if timeout is None else _check_timeout(timeout)
         self._check_usable("command")
         with self._arrived:
             ident = self._send(line)
-            if not self._arrived.wait_for(lambda: ident in self._answers, wait):
-                self._forget([ident])
-                raise SotError(f"run_command {line!r}: no answer within {wait:g} s")
-            return self._answers.pop(ident)
+            try:
+                if not self._arrived.wait_for(lambda: self._ended({ident}), wait):
+                    raise SotError(f"run_command {line!r:.100}: no answer within {wait:g} s")
+                self._check_usable("command")
+                return self._answers.pop(ident)
+            finally:
+                self._forget({ident})
 
     def start(self, timeout: float | None = None) -> None:
         """Call ``start_dynamic_graph`` and wait for its reply."""
@@ -139,10 +159,13 @@ class RunCommandClient:
             raise SotError(f"{START_SERVICE}: no reply within {wait:g} s")
 
     def close(self) -> None:
-        """Destroy this client's publisher, subscription and service client (again: nothing)."""
-        if self.closed:
-            return
-        self.closed = True
+        """Destroy this client's publisher, subscription and service client (again: nothing); a
+        :meth:`wait` or :meth:`command` under way in another thread raises :class:`SotError`."""
+        with self._arrived:
+            if self.closed:
+                return
+            self.closed = True
+            self._arrived.notify_all()
         if not self.ros.is_open():  # (they went with the node)
             return
         node = self.ros.node

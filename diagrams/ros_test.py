@@ -74,6 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--settle", type=float, default=None, help="then wait this many simulated s")
     parser.add_argument("--stop", action="store_true", help="then stop the run (it writes its files)")
     args = parser.parse_args(argv)
+    # (1e6 s: the client's MAX_TIMEOUT_S, checked here before ROS is imported)
     if not 0 < args.timeout <= 1e6 or (args.settle is not None and not 0 <= args.settle < float("inf")):
         parser.error(f"--timeout must be a number in (0, 1e6] (s) and --settle ≥ 0, got {args.timeout}, {args.settle}")
     if args.appli is not None and not args.appli.is_file():

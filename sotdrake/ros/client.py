@@ -53,9 +53,13 @@ class RunCommandClient:
         self.starter = node_.create_client(Empty, START_SERVICE)
         self.closed = False
 
+    def _usable(self) -> bool:
+        """Neither this client nor its node is closed."""
+        return not self.closed and self.ros.is_open()
+
     def _check_usable(self, what: str) -> None:
         """:class:`SotError` if this client or its node is closed."""
-        if self.closed or not self.ros.is_open():
+        if not self._usable():
             raise SotError(f"RunCommandClient.{what}: the client is closed"
                            + ("" if self.closed else f" (its ROS node {self.ros.name} is shut down)"))
 
@@ -73,10 +77,8 @@ class RunCommandClient:
 
     def ready(self) -> bool:
         """Both services are up and matched with this client, now (False once it is closed)."""
-        if self.closed or not self.ros.is_open():
-            return False
-        return (self.requests.get_subscription_count() > 0 and self.responses.get_publisher_count() > 0
-                and self.starter.service_is_ready())
+        return (self._usable() and self.requests.get_subscription_count() > 0
+                and self.responses.get_publisher_count() > 0 and self.starter.service_is_ready())
 
     def wait(self, timeout: float | None = None) -> None:
         """Wait for both services (the seed's ``wait_for_service``), up to ``timeout`` s, then for
@@ -112,7 +114,7 @@ class RunCommandClient:
 
     def _ended(self, idents: set[str]) -> bool:
         """An answer to one of ``idents`` arrived, or the client or its node was closed."""
-        return self.closed or not self.ros.is_open() or any(ident in idents for ident in self._answers)
+        return not self._usable() or any(ident in idents for ident in self._answers)
 
     def _send(self, line: str) -> str:
         """Publish ``line`` as a request (the caller holds ``_arrived``); its id."""

@@ -1,7 +1,11 @@
 """The LAPACK wrappers of compiled code against scipy.linalg.lapack: the same routines, the same bits."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
+from numba.core.errors import TypingError
 from scipy.linalg import lapack
 
 from sotdrake.hqp.kernels import lapack as jit_lapack
@@ -54,8 +58,48 @@ def test_triangular_inverse_reads_the_upper_triangle_only_and_says_singular():
     assert jit_lapack.trtri_upper(jit_lapack.fortran(singular)) == 3  # LAPACK's info: the zero pivot
 
 
+def _read_only(a):
+    a.flags.writeable = False
+    return a
+
+
+_F = jit_lapack.fortran
+
+
 @compiled_only
-def test_a_row_major_matrix_is_refused():
-    """A C-ordered array read as column-major would be its transpose: the signatures refuse it."""
-    with pytest.raises(TypeError):
-        jit_lapack.geqrf(np.zeros((3, 2)), np.zeros(2))
+@pytest.mark.parametrize(
+    "routine, arguments",
+    [
+        ("geqrf", lambda: (np.ones((3, 2)), np.zeros(2))),  # row-major: read as column-major it is the transpose
+        ("geqrf", lambda: (_F(np.ones((3, 2))).astype(np.float32, order="F"), np.zeros(2))),
+        ("geqrf", lambda: (_read_only(_F(np.ones((3, 2)))), np.zeros(2))),
+        ("geqrf", lambda: (_F(np.ones((3, 2))), np.zeros((2, 1)))),
+        ("geqp3", lambda: (_F(np.ones((3, 2))), np.zeros(2, np.int64), np.zeros(2))),
+        ("geqp3", lambda: (_F(np.ones((3, 2))), np.zeros(2, np.int32), np.zeros(4)[::2])),
+        ("ormqr", lambda: (_F(np.ones((3, 2))), np.zeros(2), np.ones((3, 2)), True)),
+        ("trtri_upper", lambda: (np.ones((2, 2)),)),
+        ("trtrs_upper", lambda: (_F(np.eye(2)), np.ones((2, 2)))),
+    ],
+)
+def test_an_array_lapack_would_misread_is_refused_before_it_runs(routine, arguments):
+    """LAPACK reads memory by its own layout and dtype: any other array is refused as the call is typed,
+    with nothing written."""
+    values = arguments()
+    before = [np.copy(value) for value in values]
+    with pytest.raises(TypingError, match="LAPACK wrapper: expected"):
+        getattr(jit_lapack, routine)(*values)
+    for value, copy in zip(values, before, strict=True):
+        np.testing.assert_array_equal(value, copy)
+
+
+@compiled_only
+def test_importing_the_package_compiles_no_lapack_wrapper():
+    """The wrappers compile on first use: a fresh install's ``import sotdrake`` compiles none of them."""
+    code = (
+        "import sotdrake\n"
+        "from sotdrake.hqp.kernels import lapack\n"
+        "names = ('geqrf', 'geqp3', 'orgqr', 'ormqr', 'trtri_upper', 'trtrs_upper')\n"
+        "print(sum(len(getattr(lapack, name).overloads) for name in names))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=600)
+    assert out.stdout.split()[-1] == "0"

@@ -343,6 +343,25 @@ def test_a_client_closed_while_it_waits_raises_at_once(observer):
         run.ros.close()
 
 
+@pytest.mark.parametrize("call", ["command", "start"])
+def test_a_call_raises_at_once_when_its_node_is_shut_down(call):
+    """Nothing answers (no run, no start service): shutting the client's node down from another
+    thread ends the call with an error, not at its time-out."""
+    from sotdrake.exceptions import SotError
+
+    node = RosNode("test_client_node")
+    client = RunCommandClient(node, WAIT_S)
+    try:
+        threading.Timer(0.5, node.close).start()
+        started = time.monotonic()
+        with pytest.raises(SotError, match=f"{call}: the client is closed \\(its ROS node test_client_node is shut down\\)"):
+            client.command("time()") if call == "command" else client.start()
+        assert time.monotonic() - started < WAIT_S / 2  # (not its time-out)
+    finally:
+        client.close()
+        node.close()
+
+
 def test_the_client_refuses_bad_arguments_and_a_closed_client(observer):
     from sotdrake.exceptions import SotError
 

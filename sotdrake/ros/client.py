@@ -52,6 +52,20 @@ class RunCommandClient:
         self.responses = node_.create_subscription(String, RUN_COMMAND_RESPONSE, self._response, DEPTH)
         self.starter = node_.create_client(Empty, START_SERVICE)
         self.closed = False
+        self.ros.context.on_shutdown(self._node_shut_down)  # (kept weakly by the context)
+
+    def _node_shut_down(self) -> None:
+        """Wake a :meth:`wait`, :meth:`command` or :meth:`start` under way: the node is shut down.
+        The context calls this holding its own lock, which :meth:`_usable` takes: a thread of its
+        own notifies, so that a waiting call that holds ``_arrived`` never waits on that lock."""
+        try:
+            threading.Thread(target=self._notify, name="sotdrake-client-wake", daemon=True).start()
+        except RuntimeError:  # (the interpreter is exiting: no call is waiting)
+            pass
+
+    def _notify(self) -> None:
+        with self._arrived:
+            self._arrived.notify_all()
 
     def _usable(self) -> bool:
         """Neither this client nor its node is closed."""
@@ -151,18 +165,21 @@ class RunCommandClient:
                 self._forget({ident})
 
     def start(self, timeout: float | None = None) -> None:
-        """Call ``start_dynamic_graph`` and wait for its reply."""
+        """Call ``start_dynamic_graph`` and wait for its reply (raises :class:`SotError` when none
+        comes within ``timeout`` s, or when the client is closed meanwhile)."""
         wait = self.timeout if timeout is None else _check_timeout(timeout)
         self._check_usable("start")
-        future = self.starter.call_async(Empty.Request())
-        done = threading.Event()
-        future.add_done_callback(lambda _: done.set())
-        if not done.wait(wait):
-            raise SotError(f"{START_SERVICE}: no reply within {wait:g} s")
+        with self._arrived:
+            future = self.starter.call_async(Empty.Request())
+            future.add_done_callback(lambda _: self._notify())
+            if not self._arrived.wait_for(lambda: future.done() or not self._usable(), wait):
+                raise SotError(f"{START_SERVICE}: no reply within {wait:g} s")
+            self._check_usable("start")
 
     def close(self) -> None:
         """Destroy this client's publisher, subscription and service client (again: nothing); a
-        :meth:`wait` or :meth:`command` under way in another thread raises :class:`SotError`."""
+        :meth:`wait`, :meth:`command` or :meth:`start` under way in another thread raises
+        :class:`SotError`, as it does when the client's node is shut down."""
         with self._arrived:
             if self.closed:
                 return

@@ -8,9 +8,13 @@ Each routine's address is registered with LLVM under a ``sotdrake_`` name when t
 imported, and the compiled code calls that name rather than an address, so numba caches it on disk
 (``cache=True``): a new process loads the compiled code instead of compiling it again. (numba
 checks a cached function against its own file only: after a change to this file, delete the
-``sotdrake/solvers/__pycache__/*.nbi`` and ``*.nbc`` files, or the solvers keep the old code.)
+``*.nbi`` and ``*.nbc`` files of ``sotdrake/hqp/kernels/__pycache__``, or the solvers keep the old code.)
+The wrappers compile when first called (from Python or from a solver being compiled), not when this
+module is imported: ``import sotdrake`` compiles nothing.
 
-Every wrapper takes column-major (Fortran-ordered) matrices (its signature refuses others),
+Every wrapper takes column-major (Fortran-ordered) float64 matrices and contiguous vectors of the
+dtype LAPACK writes; any other array is refused while the call is typed (numba's ``TypingError``,
+a ``TypeError``-like error raised before LAPACK runs, nothing written),
 overwrites them as the LAPACK routine does (with ``NUMBA_DISABLE_JIT=1``, through
 ``scipy.linalg.lapack``'s routine of the same name), and returns LAPACK's ``info`` (0: success, < 0: a bad
 argument, > 0: the routine's own failure). :func:`fortran` makes such a copy; :func:`contiguous`, :func:`upper_inverse`,
@@ -26,7 +30,8 @@ from typing import Any
 import numpy as np
 from llvmlite import binding
 from numba import config, njit, types
-from numba.extending import get_cython_function_address
+from numba.core.errors import TypingError
+from numba.extending import get_cython_function_address, overload
 from scipy.linalg import lapack as _lapack
 
 _ARGUMENTS = {"dgeqrf": 8, "dgeqp3": 9, "dorgqr": 9, "dormqr": 13, "dtrtri": 6, "dtrtrs": 10}
@@ -39,6 +44,29 @@ def _declare(name: str) -> Any:  # (a numba type, called from compiled code only
 
 
 _dgeqrf, _dgeqp3, _dorgqr, _dormqr, _dtrtri, _dtrtrs = (_declare(name) for name in _ARGUMENTS)
+
+
+def _requirement(dtype: Any, ndim: int, layout: str, what: str) -> Any:
+    """A function compiled code calls on an argument to refuse, while it is typed, any array other
+    than a writable ``ndim``-D ``dtype`` of ``layout`` ('F': column-major, 'C': contiguous): LAPACK
+    reads memory by its own layout, and another array's memory would be read as a wrong matrix."""
+
+    def require(array):  # (called from compiled code only)
+        pass
+
+    @overload(require)
+    def _typed(array):
+        if not (isinstance(array, types.Array) and array.dtype == dtype and array.ndim == ndim and array.layout == layout
+                and array.mutable):
+            raise TypingError(f"LAPACK wrapper: expected {what}, got {array}")
+        return lambda array: None
+
+    return require
+
+
+_matrix = _requirement(types.float64, 2, "F", "a column-major float64 matrix (lapack.fortran(a))")
+_vector = _requirement(types.float64, 1, "C", "a contiguous float64 vector")
+_pivots = _requirement(types.int32, 1, "C", "a contiguous int32 vector")
 
 #: Workspace per column (LAPACK's block size is at most 64 for these routines on small matrices).
 _BLOCK = 64
@@ -68,10 +96,12 @@ def fortran(a):
     return out
 
 
-@njit("int32(float64[::1, :], float64[::1])", cache=True)
+@njit(cache=True)
 def geqrf(a, tau):
     """QR ``A = Q R`` of ``a`` (m × n, column-major, overwritten as ``dgeqrf`` leaves it: R on and
     above the diagonal, the Householder vectors below); ``tau``: min(m, n) scales, written."""
+    _matrix(a)
+    _vector(tau)
     m, n = a.shape
     lwork = max(1, n) * _BLOCK
     work, info = np.empty(lwork), _integer(0)
@@ -80,10 +110,13 @@ def geqrf(a, tau):
     return info[0]
 
 
-@njit("int32(float64[::1, :], int32[::1], float64[::1])", cache=True)
+@njit(cache=True)
 def geqp3(a, pivots, tau):
     """QR with column pivoting ``A Π = Q R`` (``dgeqp3``): ``a`` as :func:`geqrf`; ``pivots`` (n
     int32, zeros: every column free) receives Π's columns, 1-based."""
+    _matrix(a)
+    _pivots(pivots)
+    _vector(tau)
     m, n = a.shape
     lwork = 2 * n + (n + 1) * _BLOCK
     work, info = np.empty(lwork), _integer(0)
@@ -92,10 +125,12 @@ def geqp3(a, pivots, tau):
     return info[0]
 
 
-@njit("int32(float64[::1, :], int64, float64[::1])", cache=True)
+@njit(cache=True)
 def orgqr(a, k, tau):
     """``Q``'s first n columns from the first ``k`` reflectors of a :func:`geqrf` (``dorgqr``),
     written over ``a`` (m × n, m ≥ n ≥ k)."""
+    _matrix(a)
+    _vector(tau)
     m, n = a.shape
     lwork = max(1, n) * _BLOCK
     work, info = np.empty(lwork), _integer(0)
@@ -104,11 +139,14 @@ def orgqr(a, k, tau):
     return info[0]
 
 
-@njit("int32(float64[::1, :], float64[::1], float64[::1, :], boolean)", cache=True)
+@njit(cache=True)
 def ormqr(a, tau, c, transposed):
     """``c ← Qᵀ c`` (``transposed``) or ``c ← Q c`` (``dormqr``, side L) with ``Q`` the product of the
     ``tau.size`` reflectors stored in ``a`` (a :func:`geqrf` or :func:`geqp3` output with ``c``'s row
     count)."""
+    _matrix(a)
+    _vector(tau)
+    _matrix(c)
     m, columns = c.shape
     lwork = max(1, columns) * _BLOCK
     work, info = np.empty(lwork), _integer(0)
@@ -118,10 +156,11 @@ def ormqr(a, tau, c, transposed):
     return info[0]
 
 
-@njit("int32(float64[::1, :])", cache=True)
+@njit(cache=True)
 def trtri_upper(a):
     """``a ← a⁻¹`` on and above the diagonal of the square upper triangular ``a`` (``dtrtri``, non-unit
     diagonal; what lies below is neither read nor written); ``info > 0``: singular."""
+    _matrix(a)
     n = a.shape[0]
     info = _integer(0)
     _dtrtri(_character(85).ctypes, _character(78).ctypes, _integer(n).ctypes, a.ctypes, _integer(max(1, n)).ctypes,
@@ -129,10 +168,12 @@ def trtri_upper(a):
     return info[0]
 
 
-@njit("int32(float64[::1, :], float64[::1, :])", cache=True)
+@njit(cache=True)
 def trtrs_upper(a, b):
     """``b ← a⁻¹ b`` for the upper triangle of the square ``a`` (``dtrtrs``, no transpose, non-unit
     diagonal; ``b``: n × nrhs); ``info > 0``: singular."""
+    _matrix(a)
+    _matrix(b)
     n, columns = a.shape[0], b.shape[1]
     info = _integer(0)
     _dtrtrs(_character(85).ctypes, _character(78).ctypes, _character(78).ctypes, _integer(n).ctypes, _integer(columns).ctypes,

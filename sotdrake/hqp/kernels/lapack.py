@@ -14,7 +14,7 @@ module is imported: ``import sotdrake`` compiles nothing.
 
 Every wrapper takes column-major (Fortran-ordered) float64 matrices and contiguous vectors of the
 dtype LAPACK writes; any other array is refused while the call is typed (numba's ``TypingError``,
-a ``TypeError``-like error raised before LAPACK runs, nothing written),
+raised before LAPACK runs: nothing is written),
 overwrites them as the LAPACK routine does (with ``NUMBA_DISABLE_JIT=1``, through
 ``scipy.linalg.lapack``'s routine of the same name), and returns LAPACK's ``info`` (0: success, < 0: a bad
 argument, > 0: the routine's own failure). :func:`fortran` makes such a copy; :func:`contiguous`, :func:`upper_inverse`,

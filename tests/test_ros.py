@@ -326,35 +326,20 @@ def test_the_handshake_says_what_did_not_answer(observer):
             run.ros.close()
 
 
-def test_a_client_closed_while_it_waits_raises_at_once(observer):
-    from sotdrake.exceptions import SotError
-
-    run = LossyRun(10**9)
-    client = RunCommandClient(observer, WAIT_S)
-    try:
-        wait_for(client.ready, what="the run")
-        threading.Timer(0.5, client.close).start()
-        started = time.monotonic()
-        with pytest.raises(SotError, match="command: the client is closed"):
-            client.command("time()")
-        assert time.monotonic() - started < WAIT_S / 2  # (not its time-out)
-    finally:
-        client.close()
-        run.ros.close()
-
-
+@pytest.mark.parametrize("closed", ["client", "node"])
 @pytest.mark.parametrize("call", ["command", "start"])
-def test_a_call_raises_at_once_when_its_node_is_shut_down(call):
-    """Nothing answers (no run, no start service): shutting the client's node down from another
-    thread ends the call with an error, not at its time-out."""
+def test_a_call_raises_at_once_when_its_client_or_node_is_closed(call, closed):
+    """Nothing answers (no run, no start service): closing the client, or shutting its node down,
+    from another thread ends the call with an error, not at its time-out."""
     from sotdrake.exceptions import SotError
 
     node = RosNode("test_client_node")
     client = RunCommandClient(node, WAIT_S)
+    reason = r"$" if closed == "client" else r" \(its ROS node test_client_node is shut down\)$"
     try:
-        threading.Timer(0.5, node.close).start()
+        threading.Timer(0.5, client.close if closed == "client" else node.close).start()
         started = time.monotonic()
-        with pytest.raises(SotError, match=f"{call}: the client is closed \\(its ROS node test_client_node is shut down\\)"):
+        with pytest.raises(SotError, match=f"{call}: the client is closed{reason}"):
             client.command("time()") if call == "command" else client.start()
         assert time.monotonic() - started < WAIT_S / 2  # (not its time-out)
     finally:

@@ -23,9 +23,12 @@ from __future__ import annotations
 import argparse
 import json
 import multiprocessing
+import os
 import sys
 import time
 from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # as bench/run.py; the spawned workers inherit it (see docs/benchmarks.md)
 
 import numpy as np
 

@@ -1,13 +1,14 @@
 """Builders that add several systems either add them all or leave the builder as it was, whether
 names are free in a builder, whether a system is one of a builder's, and whether it is already in a
-built diagram (its contexts would not have a port added now)."""
+built diagram (its contexts would not have a port added now); whether a port may be logged or
+published (a vector output port of a system of the builder)."""
 
 from __future__ import annotations
 
 from collections.abc import Collection, Iterator, Sequence
 from contextlib import contextmanager
 
-from pydrake.systems.framework import DiagramBuilder, System
+from pydrake.systems.framework import DiagramBuilder, OutputPort, PortDataType, System
 
 from .exceptions import InvalidInput, SotError
 
@@ -50,3 +51,19 @@ def all_or_nothing(builder: DiagramBuilder) -> Iterator[DiagramBuilder]:
             if id(system) not in before:
                 builder.RemoveSystem(system)
         raise
+
+
+def check_vector_port(what: str, builder: DiagramBuilder, port: object) -> OutputPort:
+    """``port`` if it is a vector-valued output port of a system added to ``builder``, else
+    :class:`InvalidInput` starting with ``what`` (checked before anything is added: Drake would
+    refuse the connection only after its system was)."""
+    need = f"{what}: it needs a vector output port of a system of this builder"
+    if not isinstance(port, OutputPort):
+        raise InvalidInput(f"{need}, got {type(port).__name__} {port!r:.60}")
+    system = port.get_system()
+    where = f"port {port.get_name()!r} of {system.get_name()!r}"
+    if port.get_data_type() != PortDataType.kVectorValued:
+        raise InvalidInput(f"{need}; {where} is abstract-valued (not a vector)")
+    if not in_builder(builder, system):
+        raise InvalidInput(f"{need}; {where} belongs to another builder")
+    return port

@@ -18,17 +18,15 @@ they use the device's initial configuration. ``inequality=True`` makes the task 
 
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 from pydrake.math import RigidTransform
-from pydrake.systems.framework import Context, InputPort, OutputPort
+from pydrake.systems.framework import Context, OutputPort
 
 from .atomic import in_builder
 from .centroidal import base_rows
 from .configuration import Layout
-from .entity import command_group, recording
-from .exceptions import InvalidInput, SotError, check_finite, check_flag, check_name, check_number
+from .entity import command_group
+from .exceptions import InvalidInput, check_finite, check_number
 from .features import (
     Feature,
     Feature6d,
@@ -45,77 +43,16 @@ from .features.feature6d import as_transform
 from .features.manipulability import FeatureManipulability
 from .features.momentum import FeatureMomentum
 from .gain_checks import check_gain
-from .gains import GainAdaptive, constant, from_numbers
-from .kinematics import Dynamic
+from .gains import constant, from_numbers
 from .manipulability import upstream_coordinates
+from .meta_task_base import MetaTask, as_robot, check_not_recording, input_value, new_task
 from .ranges import MAX_TARGET_POSITION
 from .robot import Robot, check_not_elsewhere
 from .robots import TALOS_GRIPPERS
-from .task import Task, TaskInequality, TaskPD
+from .task import TaskInequality
 
 
-def _as_robot(robot: Robot, meta: str) -> Robot:
-    if not isinstance(robot, Robot):
-        raise InvalidInput(f"{meta} takes the robot (e.g. {meta}('rh', robot, ...)), got {type(robot).__name__}"
-                           + (": pass the robot, not robot.dynamic" if isinstance(robot, Dynamic) else ""))
-    return robot
-
-
-def _new_task(robot: Robot, meta: str, name: str, feature: bool = True, reference: bool = False,
-              inequality: bool = False, pd: bool = False) -> Robot:
-    """``robot``, after the checks that must pass before a meta task adds anything: the robot, the
-    name, ``inequality`` and ``pd`` not both, and no entity yet of the names it adds (``feature<name>``
-    with ``feature``, ``feature<name>_ref`` with ``reference``, ``gain<name>``, ``task<name>``)."""
-    robot = _as_robot(robot, meta)
-    check_name(f"{meta}: the name", name)
-    inequality, pd = check_flag(f"{meta}: inequality", inequality), check_flag(f"{meta}: pd", pd)
-    if inequality and pd:
-        raise InvalidInput(f"{meta}({name!r}): a task is an inequality or a PD task, not both")
-    names = ["gain" + name, "task" + name] + ["feature" + name] * feature + ["feature" + name + "_ref"] * reference
-    robot.check_new_names(names)
-    return robot
-
-
-def _check_not_recording(what: str) -> None:
-    if recording():
-        raise SotError(f"{what} reads the current state: call it with a context, not inside attime")
-
-
-def _input_value(port: InputPort, context: Context):
-    """The value ``port`` (an input of a feature) has in the root diagram ``context``, as a copy: the
-    value read refers into the context's cache, which the next evaluation overwrites, and keeps that
-    context alive (settings holding it would keep their own context alive)."""
-    system = port.get_system()
-    try:
-        own = system.GetMyContextFromRoot(context)
-    except (RuntimeError, TypeError) as error:
-        raise InvalidInput(f"context: expected the root diagram context (from which {system.get_name()}'s "
-                           f"input {port.get_name()!r} is evaluated), got another context") from error
-    return copy.copy(port.Eval(own))
-
-
-class _MetaTask:
-    """The gain and the task of a feature, plugged as sot-core does, and the task given to the solver."""
-
-    def _finish(self, robot: Robot, name: str, feature: Feature, inequality: bool = False, pd: bool = False) -> None:
-        if inequality and pd:
-            raise InvalidInput("a task is an inequality or a PD task, not both")
-        self.robot, self.name = robot, name
-        self.feature = feature
-        self.gain = robot.add(GainAdaptive("gain" + name, robot.dt))
-        nv = robot.dimension
-        if inequality:
-            task: Task = TaskInequality("task" + name, nv)
-        else:
-            task = TaskPD("task" + name, nv, robot.dt, max(nv, feature.dimension)) if pd else Task("task" + name, nv)
-        self.task = robot.add_task(task)
-        connect = robot.builder.Connect
-        connect(feature.GetOutputPort("error"), self.gain.GetInputPort("error"))
-        connect(feature.GetOutputPort("signals"), self.task.GetInputPort("feature"))
-        connect(self.gain.GetOutputPort("gain"), self.task.GetInputPort("controlGain"))
-
-
-class MetaTaskKine6d(_MetaTask):
+class MetaTaskKine6d(MetaTask):
     """Task on the pose of an op point: ``MetaTaskKine6d('rh', robot, 'rh', 'right-wrist')``.
 
     ``opPointRef`` is an op-point name of ``robot.OperationalPointsMap``, or a joint or frame name.
@@ -123,7 +60,7 @@ class MetaTaskKine6d(_MetaTask):
 
     def __init__(self, name: str, robot: Robot, opPoint: str, opPointRef: str | None = None,
                  inequality: bool = False, pd: bool = False):
-        robot = _new_task(robot, "MetaTaskKine6d", name, reference=True, inequality=inequality, pd=pd)
+        robot = new_task(robot, "MetaTaskKine6d", name, reference=True, inequality=inequality, pd=pd)
         dyn = robot.dynamic
         self.dyn, self.opPoint = dyn, opPoint
         position, jacobian = dyn.createOpPoint(opPoint, opPointRef or opPoint)
@@ -149,11 +86,11 @@ class MetaTaskKine6d(_MetaTask):
     def current_pose(self, context: Context | None = None) -> RigidTransform:
         """``X_WF`` of the controlled frame (op point · opmodif) as the feature sees it in the root
         diagram ``context``; without one, at the device's initial configuration."""
-        _check_not_recording("current_pose()")
+        check_not_recording("current_pose()")
         if context is None:
             X = self.dyn.pose_at(self.opPoint, self.robot.device.initial_position)
         else:
-            X = _input_value(self.feature.GetInputPort("position"), context)
+            X = input_value(self.feature.GetInputPort("position"), context)
         opmodif = self.feature.settings(context).opmodif
         return X if opmodif is None else X.multiply(opmodif)
 
@@ -162,11 +99,11 @@ class MetaTaskKine6d(_MetaTask):
         self.featureDes.setPosition(self.current_pose(context), context)
 
 
-class MetaTaskKineCom(_MetaTask):
+class MetaTaskKineCom(MetaTask):
     """Task on the centre of mass (``FeatureGeneric`` over ``dynamic.com``), metres, world frame."""
 
     def __init__(self, robot: Robot, name: str = "com", inequality: bool = False, pd: bool = False):
-        robot = _new_task(robot, "MetaTaskKineCom", name, reference=True, inequality=inequality, pd=pd)
+        robot = new_task(robot, "MetaTaskKineCom", name, reference=True, inequality=inequality, pd=pd)
         self.dyn = dyn = robot.dynamic
         feature = robot.add(FeatureGeneric("feature" + name, 3, robot.dimension))
         self.featureDes = robot.add(FeatureGenericDesired("feature" + name + "_ref", 3))
@@ -180,26 +117,26 @@ class MetaTaskKineCom(_MetaTask):
 
     def keep(self, context: Context | None = None) -> None:
         """Desired CoM ← current CoM, as the feature sees it in ``context`` (see the module docstring)."""
-        _check_not_recording("keep()")
+        check_not_recording("keep()")
         if context is None:
             com = self.dyn.com_at(self.robot.device.initial_position)
         else:
-            com = _input_value(self.feature.GetInputPort("errorIN"), context)
+            com = input_value(self.feature.GetInputPort("errorIN"), context)
         self.featureDes.setReference(com, context)
 
 
-class MetaTaskKinePosture(_MetaTask):
+class MetaTaskKinePosture(MetaTask):
     """Task on the posture (``FeaturePosture``): by default every joint towards the device's
     initial configuration (half-sitting for TALOS), the floating base left free."""
 
     def __init__(self, robot: Robot, name: str = "posture", pd: bool = False):
-        robot = _new_task(robot, "MetaTaskKinePosture", name, pd=pd)
+        robot = new_task(robot, "MetaTaskKinePosture", name, pd=pd)
         feature = robot.add(FeaturePosture("feature" + name, robot.model.plant, robot.device.initial_position))
         robot.builder.Connect(robot.device.GetOutputPort("state"), feature.GetInputPort("state"))
         self._finish(robot, name, feature, pd=pd)
 
 
-class MetaTaskKine6dRel(_MetaTask):
+class MetaTaskKine6dRel(MetaTask):
     """Task on the pose of op point A with respect to op point B (``FeatureRelative6d``), e.g. one
     hand with respect to the other. The desired relative pose starts as the current one;
     ``featureDes`` holds it (``X_BA*``) and, for a moving one, its velocity in B's axes
@@ -209,7 +146,7 @@ class MetaTaskKine6dRel(_MetaTask):
 
     def __init__(self, name: str, robot: Robot, opPoint: str, opPointBase: str,
                  opPointRef: str | None = None, opPointBaseRef: str | None = None, inequality: bool = False):
-        robot = _new_task(robot, "MetaTaskKine6dRel", name, reference=True, inequality=inequality)
+        robot = new_task(robot, "MetaTaskKine6dRel", name, reference=True, inequality=inequality)
         dyn = robot.dynamic
         self.dyn, self.opPoint, self.opPointBase = dyn, opPoint, opPointBase
         if opPoint == opPointBase:
@@ -229,24 +166,24 @@ class MetaTaskKine6dRel(_MetaTask):
 
     def keep(self, context: Context | None = None) -> None:
         """Desired relative pose ← current relative pose, as the feature sees it in ``context``."""
-        _check_not_recording("keep()")
+        check_not_recording("keep()")
         if context is None:
             q = self.robot.device.initial_position
             X_WA, X_WB = self.dyn.pose_at(self.opPoint, q), self.dyn.pose_at(self.opPointBase, q)
         else:
-            X_WA = _input_value(self.feature.GetInputPort("position"), context)
-            X_WB = _input_value(self.feature.GetInputPort("positionRef"), context)
+            X_WA = input_value(self.feature.GetInputPort("position"), context)
+            X_WB = input_value(self.feature.GetInputPort("positionRef"), context)
         X_BA = X_WB.inverse().multiply(X_WA)
         self.featureDes.setPosition(X_BA, context)
 
 
-class MetaTaskVisualPoint(_MetaTask):
+class MetaTaskVisualPoint(MetaTask):
     """Look at a point: the point's image in the camera ``opPointRef`` (an optical frame: z forward)
     is driven to ``s*`` (default the image centre). Connect ``point`` (and, for a moving point,
     ``point_velocity``) with :meth:`plugPoint`, or set a fixed point with :meth:`setPoint`."""
 
     def __init__(self, name: str, robot: Robot, opPoint: str = "camera", opPointRef: str = "rgbd_rgb_optical_frame"):
-        robot = _new_task(robot, "MetaTaskVisualPoint", name)
+        robot = new_task(robot, "MetaTaskVisualPoint", name)
         position, jacobian = robot.dynamic.createOpPoint(opPoint, opPointRef)
         feature = robot.add(FeatureVisualPoint("feature" + name, robot.dimension))
         robot.builder.Connect(position, feature.GetInputPort("position"))
@@ -270,14 +207,14 @@ class MetaTaskVisualPoint(_MetaTask):
         self.plugPoint(source.get_output_port())
 
 
-class MetaTaskKineMomentum(_MetaTask):
+class MetaTaskKineMomentum(MetaTask):
     """Task on the centroidal momentum (``FeatureMomentum`` over ``dynamic.momentum_matrix``):
     ``A_G v = h*`` on the selected rows, by default ``mask='111'``, the angular momentum about the
     CoM, with ``h* = 0`` (``feature.setReference``): the whole body turns as little as it can about
     its CoM. A floating base only (a fixed base carries the momentum: :class:`InvalidInput`)."""
 
     def __init__(self, robot: Robot, name: str = "momentum", mask: str = "111"):
-        robot = _new_task(robot, "MetaTaskKineMomentum", name)
+        robot = new_task(robot, "MetaTaskKineMomentum", name)
         base_rows(Layout.of(robot.model.plant))  # a fixed base is refused before anything is added
         check_mask(mask, 6, f"MetaTaskKineMomentum({name!r})")
         feature = robot.add(FeatureMomentum("feature" + name, robot.dimension))
@@ -286,7 +223,7 @@ class MetaTaskKineMomentum(_MetaTask):
         self._finish(robot, name, feature)
 
 
-class MetaTaskKineManipulability(_MetaTask):
+class MetaTaskKineManipulability(MetaTask):
     """Keep an op point's manipulability above a floor: ``μ ≥ floor`` (``FeatureManipulability``
     under a ``TaskInequality``, gain ``gain`` 1/s: μ may approach the floor at most exponentially).
     ``opPoint``: an op point (``'right-wrist'``) or a frame; ``rows``: a mask over ``J_WF``'s rows
@@ -296,7 +233,7 @@ class MetaTaskKineManipulability(_MetaTask):
 
     def __init__(self, name: str, robot: Robot, opPoint: str, floor: float, rows: str = "111000",
                  joints: list[str] | None = None, gain: float = 10.0):
-        robot = _new_task(robot, "MetaTaskKineManipulability", name)
+        robot = new_task(robot, "MetaTaskKineManipulability", name)
         floor = check_number(f"MetaTaskKineManipulability({name!r}): floor", floor, 0.0, 1e6)
         gain = check_number(f"MetaTaskKineManipulability({name!r}): gain", gain, 1e-6, 1e4, " 1/s")
         check_gain(constant(gain), robot.dt, f"MetaTaskKineManipulability({name!r}) gain")
@@ -314,7 +251,7 @@ class MetaTaskKineManipulability(_MetaTask):
         self.task.setBounds([floor], [np.inf])
 
 
-class MetaTaskKineFeature(_MetaTask):
+class MetaTaskKineFeature(MetaTask):
     """The gain and the task of a feature of your own: ``MetaTaskKineFeature('knee', robot, feature)``
     adds ``feature`` to the builder (if it is not added yet), then ``gain<name>`` (a
     ``GainAdaptive``, λ = 1/s until set) and ``task<name>`` (a ``Task``; ``inequality=True``: a
@@ -324,13 +261,13 @@ class MetaTaskKineFeature(_MetaTask):
     feature's own inputs (e.g. ``robot.device``'s ``state``, an op point of ``robot.dynamic``)."""
 
     def __init__(self, name: str, robot: Robot, feature: Feature, inequality: bool = False, pd: bool = False):
-        robot = _as_robot(robot, "MetaTaskKineFeature")
+        robot = as_robot(robot, "MetaTaskKineFeature")
         if not isinstance(feature, Feature):
             raise InvalidInput(f"MetaTaskKineFeature({name!r}): expected a feature (Feature6d, FeatureGeneric …), "
                                f"got {type(feature).__name__}")
         if feature.nv != robot.dimension:
             raise InvalidInput(f"MetaTaskKineFeature({name!r}): the feature has nv = {feature.nv}, the robot {robot.dimension}")
-        _new_task(robot, "MetaTaskKineFeature", name, feature=False, inequality=inequality, pd=pd)
+        new_task(robot, "MetaTaskKineFeature", name, feature=False, inequality=inequality, pd=pd)
         check_not_elsewhere(robot.builder, feature, f"MetaTaskKineFeature({name!r}): feature")
         if not in_builder(robot.builder, feature):  # (a feature of that name already there is another system)
             robot.check_new_names([feature.get_name()])
@@ -338,7 +275,7 @@ class MetaTaskKineFeature(_MetaTask):
         self._finish(robot, name, feature, inequality, pd)
 
 
-class MetaTaskKineJointLimits(_MetaTask):
+class MetaTaskKineJointLimits(MetaTask):
     """Keep every joint with finite limits ``[l, u]`` inside them, a ``margin`` (a fraction of its
     range, dimensionless) away: :class:`~sotdrake.features.FeatureJointLimits`
     (``e = 2(q - l)/(u - l) - 1``, ±1 on the limits) as a ``TaskInequality`` with bounds
@@ -350,7 +287,7 @@ class MetaTaskKineJointLimits(_MetaTask):
 
     def __init__(self, robot: Robot, name: str = "jointLimits", margin: float = 0.05, gain: float = 10.0,
                  inequality: bool = True):
-        robot = _new_task(robot, "MetaTaskKineJointLimits", name, inequality=inequality)
+        robot = new_task(robot, "MetaTaskKineJointLimits", name, inequality=inequality)
         margin = check_number(f"MetaTaskKineJointLimits({name!r}) margin (fraction of each joint's range)", margin, 0.0, 0.45)
         gain = check_number(f"MetaTaskKineJointLimits({name!r}) gain (one number)", gain, 1e-6, 1e4, " 1/s")
         check_gain(constant(gain), robot.dt, f"MetaTaskKineJointLimits({name!r}) gain")
@@ -383,15 +320,15 @@ def hold_feet_and_com(robot: Robot, sot, gain: float = 10.0, com: bool = True):
     robot's gripper joints (:data:`~sotdrake.robots.TALOS_GRIPPERS`, which start on their limit)
     are left out of the control, as the tutorial does:
     ``sot.setControlSelection(robot.velocity_selection(excluding=TALOS_GRIPPERS))``."""
-    robot = _as_robot(robot, "hold_feet_and_com")
+    robot = as_robot(robot, "hold_feet_and_com")
     gain = check_number("hold_feet_and_com: gain", gain, 0.0, 1e4, " 1/s")
     check_gain(constant(gain), robot.dt, "hold_feet_and_com gain")
     feet = [(name, robot.OperationalPointsMap[op]) for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle"))]
     for name, frame in feet:  # (everything checked before anything is added)
-        _new_task(robot, "hold_feet_and_com", name, reference=True)
+        new_task(robot, "hold_feet_and_com", name, reference=True)
         robot.dynamic.check_op_point(name[-2:], frame)
     if com:
-        _new_task(robot, "hold_feet_and_com", "com", reference=True)
+        new_task(robot, "hold_feet_and_com", "com", reference=True)
     plant = robot.model.plant
     grippers = [joint for joint in TALOS_GRIPPERS if plant.HasJointNamed(joint)]
     if grippers and not getattr(sot, "accepts_inequalities", True) and sot.settings().control_selection is None:

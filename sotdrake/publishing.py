@@ -22,10 +22,10 @@ from pydrake.lcm import DrakeLcm, DrakeLcmInterface
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.lcm import LcmPublisherSystem, LcmScopeSystem
 
+from .atomic import check_vector_port
 from .configuration import position_names
 from .exceptions import InvalidInput, SotError, check_name, finite_number
 from .robot import Robot
-from .tracing import check_vector_port
 
 
 class RobotStateMessage(LeafSystem):

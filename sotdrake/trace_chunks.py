@@ -1,6 +1,6 @@
 """The tracer's chunk files: ``.npy`` arrays one after the other in one file (the column names, then
-each chunk's columns), appended while a run goes and read back whole or up to a chunk. The format
-:func:`sotdrake.tracing.read_trace` reads."""
+each chunk's columns), appended while a run goes and read back whole or up to a chunk, and
+:func:`read_trace`, which reads a finished file."""
 
 from __future__ import annotations
 
@@ -123,3 +123,15 @@ def row_digest(values: Iterable[np.ndarray]) -> bytes:
         digest.update(np.ascontiguousarray(value, dtype=float).tobytes())
     return digest.digest()
 
+
+def read_trace(path: str | Path) -> dict[str, np.ndarray]:
+    """The arrays of a chunk file a tracer streamed to (``time`` and each signal, concatenated; empty
+    when the file was cut inside its first chunk, with a warning)."""
+    if not isinstance(path, str | Path):
+        raise InvalidInput(f"read_trace: a file path, got {path!r:.60}")
+    reader = ChunkFile.__new__(ChunkFile)
+    reader.path = Path(path)
+    if reader.path.is_dir():
+        raise InvalidInput(f"read_trace: {str(path)!r} is a folder, not a trace file")
+    return {name: np.concatenate(parts) if parts else np.zeros((0,) if name == "time" else (0, 0))
+            for name, parts in reader.read().items()}

@@ -35,13 +35,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafContext, OutputPort, PortDataType, System
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafContext, OutputPort, System
 from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 
-from .atomic import all_or_nothing, in_builder
+from .atomic import all_or_nothing, check_vector_port
 from .exceptions import InvalidInput, SotError, check_number, os_reason
 from .simulation import save_figure, save_npz
 from .trace_chunks import ChunkFile, row_digest
+from .trace_chunks import read_trace as read_trace  # (where the tracer's users look for it)
 from .writable import check_writable, writing
 
 #: The tracers that stream, for :func:`flush_tracers` (weak: a tracer dropped is forgotten).
@@ -300,22 +301,6 @@ class Tracer:
         return target
 
 
-def check_vector_port(what: str, builder: DiagramBuilder, port: object) -> OutputPort:
-    """``port`` if it is a vector-valued output port of a system added to ``builder``, else
-    :class:`InvalidInput` starting with ``what`` (checked before anything is added: Drake would
-    refuse the connection only after its system was)."""
-    need = f"{what}: it needs a vector output port of a system of this builder"
-    if not isinstance(port, OutputPort):
-        raise InvalidInput(f"{need}, got {type(port).__name__} {port!r:.60}")
-    system = port.get_system()
-    where = f"port {port.get_name()!r} of {system.get_name()!r}"
-    if port.get_data_type() != PortDataType.kVectorValued:
-        raise InvalidInput(f"{need}; {where} is abstract-valued (not a vector)")
-    if not in_builder(builder, system):
-        raise InvalidInput(f"{need}; {where} belongs to another builder")
-    return port
-
-
 def _check_root(what: str, system: System | None, context: object) -> None:
     """:class:`InvalidInput` naming ``context`` unless it is the root context of the diagram that
     holds ``system`` (any Context without one), checked before Drake is asked: a null context ends
@@ -393,19 +378,6 @@ def tracers_of(diagram: Diagram) -> list[Tracer]:
 def _csv_field(text: str) -> str:
     """``text`` as one CSV field: quoted (its quotes doubled) if it holds a comma, a quote or a line break."""
     return '"' + text.replace('"', '""') + '"' if any(c in text for c in ',"\r\n') else text
-
-
-def read_trace(path: str | Path) -> dict[str, np.ndarray]:
-    """The arrays of a chunk file a tracer streamed to (``time`` and each signal, concatenated; empty
-    when the file was cut inside its first chunk, with a warning)."""
-    if not isinstance(path, str | Path):
-        raise InvalidInput(f"read_trace: a file path, got {path!r:.60}")
-    reader = ChunkFile.__new__(ChunkFile)
-    reader.path = Path(path)
-    if reader.path.is_dir():
-        raise InvalidInput(f"read_trace: {str(path)!r} is a folder, not a trace file")
-    return {name: np.concatenate(parts) if parts else np.zeros((0,) if name == "time" else (0, 0))
-            for name, parts in reader.read().items()}
 
 
 def _first_row(times: np.ndarray, logs: list) -> bytes:

@@ -3,6 +3,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+# One BLAS thread per test process, set before numpy loads OpenBLAS (numpy's and scipy's read it
+# then): the suite runs a process per core, and a second BLAS thread in each made the dynamic
+# tests about 25 % slower in CPU (the solvers' matrices are small; the threads only contend).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 import numpy as np
 import pytest
 from numba import config as numba_config

@@ -19,7 +19,8 @@ from pydrake.systems.analysis import Simulator
 from sotdrake.collision import CollisionWorld, add_obstacle, kernels
 from sotdrake.collision.distance import distances_of, signed_distance_pairs
 from sotdrake.collision.reach import TABLE, build_collision_reach
-from sotdrake.collision.schedule import PairSchedule, ScheduleState, bounding_sphere
+from sotdrake.collision.schedule import PairSchedule, ScheduleState
+from sotdrake.collision.shapes import bounding_sphere
 from sotdrake.collision.task import INFLUENCE_DISTANCE, one_tick_influence
 from sotdrake.exceptions import InvalidInput
 from sotdrake.meta_tasks import gotoNd
@@ -223,7 +224,7 @@ def test_the_compiled_support_gaps_are_the_python_reference_and_lower_bounds(see
     random direction the gap is at most the distance, along the query's own normal it equals it."""
     from pydrake.geometry import Box, Capsule, Cylinder, Ellipsoid, Sphere
 
-    from sotdrake.collision.schedule import support, support_data
+    from sotdrake.collision.shapes import support, support_data
 
     shapes = [("box", Box(0.3, 0.2, 0.1)), ("ball", Sphere(0.12)), ("can", Cylinder(0.1, 0.4)),
               ("pill", Capsule(0.08, 0.3)), ("egg", Ellipsoid(0.1, 0.15, 0.2))]

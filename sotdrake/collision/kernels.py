@@ -22,7 +22,7 @@ the gap ``min_{a∈A} n̂ᵀa − max_{b∈B} n̂ᵀb`` is at most their signed 
 ``n̂`` lies between them when it is positive, and their overlap along ``n̂`` is at least their
 penetration depth when it is not. Each side's extreme point comes from its support function in its
 own frame (``X_WG = (R, p)``: ``max_{g∈G} uᵀg = uᵀp + h_G(Rᵀu)``), by kind
-(:data:`~sotdrake.collision.schedule.SUPPORT_KINDS`): the largest ``uᵀv`` over a hull's vertices
+(:data:`~sotdrake.collision.shapes.SUPPORT_KINDS`): the largest ``uᵀv`` over a hull's vertices
 (a mesh's convex hull, a box's corners), ``‖(a u_x, b u_y, c u_z)‖`` for an ellipsoid (a sphere),
 ``r ‖(u_x, u_y)‖ + h |u_z|`` for a cylinder (radius ``r``, half-length ``h``) and
 ``r ‖u‖ + h |u_z|`` for a capsule.
@@ -150,7 +150,7 @@ def gaps(pairs, normal, X_WB, X_BG, kinds, params, offsets, points, out):
     """Fill ``out`` (k) with the gap of each pair ``(pairs[i, 0], pairs[i, 1])`` (k×2 int64: A's and
     B's shape index) along ``normal[i]`` (k×3, unit, world, from B to A): ``X_WB`` (k×2×4×4) the
     poses of the two shapes' bodies (the identity for an obstacle's world body); per shape index
-    ``s``, its pose in its body ``X_BG[s]`` (4×4), ``kinds[s]`` (:data:`~.schedule.SUPPORT_KINDS`),
+    ``s``, its pose in its body ``X_BG[s]`` (4×4), ``kinds[s]`` (:data:`~.shapes.SUPPORT_KINDS`),
     ``params[s]`` (3) and its vertices ``points[offsets[s]:offsets[s + 1]]``."""
     for i in range(pairs.shape[0]):
         nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]

@@ -49,7 +49,8 @@ from .. import introspection
 from ..exceptions import CommandRejected, InvalidInput, NotFound, SotError
 from ..features import Feature, Feature6d, Feature6dDesired, FeatureGenericDesired
 from ..gains import GainAdaptive, GainHyperbolic
-from ..meta_tasks import MetaTaskKine6d, MetaTaskKineCom, _MetaTask, gotoNd
+from ..meta_task_base import MetaTask
+from ..meta_tasks import MetaTaskKine6d, MetaTaskKineCom, gotoNd
 from ..sequencer import MAX_TIME
 from ..solvers import SolverKine
 from ..solvers.stack import StackSolver
@@ -166,7 +167,7 @@ class Vocabulary:
         for system in diagram.GetSystems():
             self._add_system(system.get_name(), system)
         for name, value in _fields(handles):
-            if isinstance(value, _MetaTask):
+            if isinstance(value, MetaTask):
                 self._add_meta_task(name, value)
             elif isinstance(value, System) and value.get_name() in self._objects and name not in self._methods:
                 self._add_system(name, value)
@@ -231,7 +232,7 @@ class Vocabulary:
         self._methods[name] = methods
         self._objects[name] = system
 
-    def _add_meta_task(self, name: str, meta: _MetaTask) -> None:
+    def _add_meta_task(self, name: str, meta: MetaTask) -> None:
         methods = {
             "selec": Method((Param("mask", "text"),), lambda c, m: meta.feature.selec(m, c)),
         }
@@ -360,13 +361,13 @@ class Vocabulary:
                     return value
                 if isinstance(value, EntityRef) and value.name in self._objects:
                     task = self._objects[value.name]
-                    task = getattr(task, "task", task) if isinstance(task, _MetaTask) else task
+                    task = getattr(task, "task", task) if isinstance(task, MetaTask) else task
                     return task.get_name() if isinstance(task, System) else value.name
                 raise CommandRejected(f"{what}: expected a task name such as 'taskrh' or a task, got {_kind(value)}")
             if kind == "meta":
-                if isinstance(value, EntityRef) and isinstance(self._objects.get(value.name), _MetaTask):
+                if isinstance(value, EntityRef) and isinstance(self._objects.get(value.name), MetaTask):
                     return self._objects[value.name]
-                metas = [n for n, o in self._objects.items() if isinstance(o, _MetaTask)]
+                metas = [n for n, o in self._objects.items() if isinstance(o, MetaTask)]
                 raise CommandRejected(f"{what}: expected a meta task ({', '.join(metas)}), got {_kind(value)}")
             if kind == "entity":
                 name = value.name if isinstance(value, EntityRef) else value

@@ -15,9 +15,8 @@ from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import ZeroOrderHold
 
-from ..atomic import check_new_names
+from ..atomic import check_new_names, check_vector_port
 from ..exceptions import InvalidInput, SotError, check_name, check_number, finite_number
-from ..tracing import check_vector_port
 
 #: Accepted ranges of the PD gains: stiffness (rad⁻¹, kp = stiffness · effort limit) and damping (s).
 STIFFNESS_RANGE = (1e-3, 1e4)

@@ -58,6 +58,7 @@ from .world import CollisionWorld
 
 _kernels = kernels(".kernels", __package__, "gaps", "the collision pairs' support gaps", "a few seconds")
 
+
 @dataclass(frozen=True)
 class ScheduleState:
     """The schedule's run-time state: ``q`` the configuration the bounds are at (None before the

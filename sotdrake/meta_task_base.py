@@ -67,8 +67,7 @@ class MetaTask:
     """The gain and the task of a feature, plugged as sot-core does, and the task given to the solver."""
 
     def _finish(self, robot: Robot, name: str, feature: Feature, inequality: bool = False, pd: bool = False) -> None:
-        if inequality and pd:
-            raise InvalidInput("a task is an inequality or a PD task, not both")
+        """The gain and the task of ``feature`` (after :func:`new_task`'s checks), connected and added."""
         self.robot, self.name = robot, name
         self.feature = feature
         self.gain = robot.add(GainAdaptive("gain" + name, robot.dt))

@@ -40,9 +40,10 @@ from pydrake.systems.framework import Context, Diagram
 from ..exceptions import InvalidInput, SotError, check_number
 from ..simulation import frozen_gc
 from ..tracing import Tracer, tracers_of
+from .arguments import Prepared
 from .connection import Connection, default_path, new_token, remove_connection, write_connection
 from .server import CommandServer, apply
-from .vocabulary import Prepared, Vocabulary
+from .vocabulary import Vocabulary
 
 log = logging.getLogger("sotdrake.live")
 

@@ -28,10 +28,11 @@ from dataclasses import dataclass
 from pydrake.systems.framework import Context
 
 from ..exceptions import SotError
+from .arguments import Prepared
 from .connection import HOST
 from .framing import MAX_LINE, LineReader, LineTooLong, answer
 from .grammar import parse_command
-from .vocabulary import Prepared, Vocabulary
+from .vocabulary import Vocabulary
 
 log = logging.getLogger("sotdrake.live")
 

@@ -37,12 +37,9 @@ it only on success, so a rejected command changes nothing.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 from pydrake.systems.framework import Context, Diagram, System
 
 from .. import introspection
@@ -56,103 +53,8 @@ from ..solvers import SolverKine
 from ..solvers.stack import StackSolver
 from ..task import TaskInequality, TaskPD
 from ..task_weight import TaskWeight
+from .arguments import REQUIRED, Method, Param, Prepared, describe, number, vector
 from .grammar import Command, EntityRef
-
-_REQUIRED = object()
-
-#: Longest vector argument (numbers), e.g. a posture of a bigger robot.
-MAX_VECTOR = 256
-
-
-@dataclass(frozen=True)
-class Param:
-    """One argument: ``kind`` is one of :data:`KINDS`; ``default`` makes it optional."""
-
-    name: str
-    kind: str
-    default: Any = _REQUIRED
-
-
-@dataclass(frozen=True)
-class Method:
-    """An allowed method: ``apply(context, *values)`` returns the answer (``None``: ``'ok'``)."""
-
-    params: tuple[Param, ...]
-    apply: Callable[..., Any]
-    doc: str = ""
-    #: It reads and changes the context it is given only (``attime`` tries it on a copy first).
-    context_only: bool = True
-    #: It only answers a question (``attime`` refuses it: at T its answer would go nowhere).
-    query: bool = False
-
-    def signature(self, callee: str) -> str:
-        shown = [p.name if p.default is _REQUIRED else f"{p.name}={p.default!r}" for p in self.params]
-        return f"{callee}({', '.join(shown)})"
-
-
-@dataclass(frozen=True)
-class Prepared:
-    """A checked command, ready to be applied to a context at a tick boundary."""
-
-    command: Command
-    method: Method
-    values: tuple
-
-    def __call__(self, context: Context) -> str:
-        answer = self.method.apply(context, *self.values)
-        return "ok" if answer is None else answer if isinstance(answer, str) else _text(answer)
-
-    def __str__(self) -> str:
-        return str(self.command)
-
-
-def _text(value) -> str:
-    """An answer's text: arrays in full (to 6 digits), transforms as 4×4 matrices."""
-    if hasattr(value, "GetAsMatrix4"):
-        value = value.GetAsMatrix4()
-    if isinstance(value, np.ndarray):
-        return np.array2string(value, precision=6, suppress_small=True, max_line_width=200, threshold=100_000)
-    return repr(value)
-
-
-def _number(value, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise CommandRejected(f"{what}: expected a number, got {_kind(value)}")
-    number = float(value)  # an int too large for a float raises OverflowError, caught below
-    if not math.isfinite(number):
-        raise CommandRejected(f"{what}: expected a finite number, got {value!r}")
-    return number
-
-
-def _kind(value) -> str:
-    if isinstance(value, EntityRef):
-        return f"the name {value.name}"
-    if isinstance(value, Command):
-        return f"the command {value}"
-    return f"{type(value).__name__} {value!r:.40}"
-
-
-def _vector(value, what: str) -> np.ndarray:
-    if not isinstance(value, tuple):
-        raise CommandRejected(f"{what}: expected a tuple of numbers such as (0.5, -0.2, 1.0), got {_kind(value)}")
-
-    def flat(v, depth=0):
-        if isinstance(v, tuple) and depth < 2:
-            for item in v:
-                yield from flat(item, depth + 1)
-        else:
-            yield v
-
-    numbers = [_number(x, what) for x in flat(value)]
-    if len(numbers) > MAX_VECTOR:
-        raise CommandRejected(f"{what}: at most {MAX_VECTOR} numbers, got {len(numbers)}")
-    rows = [len(r) if isinstance(r, tuple) else None for r in value]
-    if all(r is None for r in rows):
-        return np.array(numbers)
-    lengths = [r for r in rows if r is not None]
-    if len(lengths) != len(rows) or len(set(lengths)) != 1:
-        raise CommandRejected(f"{what}: a matrix needs rows of equal length, got {value!r:.80}")
-    return np.array(numbers).reshape(len(rows), lengths[0])
 
 
 class Vocabulary:
@@ -324,7 +226,7 @@ class Vocabulary:
         values = []
         for p in params:
             if p.name not in given:
-                if p.default is _REQUIRED:
+                if p.default is REQUIRED:
                     raise CommandRejected(f"{callee}: missing argument {p.name!r}: {method.signature(callee)}")
                 values.append(p.default)
                 continue
@@ -340,21 +242,21 @@ class Vocabulary:
         kind = param.kind
         try:
             if kind == "number":
-                return _number(value, what)
+                return number(value, what)
             if kind == "time":
-                time = _number(value, what)
+                time = number(value, what)
                 if time < 0:
                     raise CommandRejected(f"{what}: a time ≥ 0 (s), got {time}")
                 return time
             if kind == "numbers":
                 if isinstance(value, tuple):
-                    return tuple(_number(x, what) for x in value)
-                return _number(value, what)
+                    return tuple(number(x, what) for x in value)
+                return number(value, what)
             if kind == "vector":
-                return _vector(value, what)
+                return vector(value, what)
             if kind == "text":
                 if not isinstance(value, str):
-                    raise CommandRejected(f"{what}: expected a string, got {_kind(value)}")
+                    raise CommandRejected(f"{what}: expected a string, got {describe(value)}")
                 return value
             if kind == "task":
                 if isinstance(value, str):
@@ -363,20 +265,20 @@ class Vocabulary:
                     task = self._objects[value.name]
                     task = getattr(task, "task", task) if isinstance(task, MetaTask) else task
                     return task.get_name() if isinstance(task, System) else value.name
-                raise CommandRejected(f"{what}: expected a task name such as 'taskrh' or a task, got {_kind(value)}")
+                raise CommandRejected(f"{what}: expected a task name such as 'taskrh' or a task, got {describe(value)}")
             if kind == "meta":
                 if isinstance(value, EntityRef) and isinstance(self._objects.get(value.name), MetaTask):
                     return self._objects[value.name]
                 metas = [n for n, o in self._objects.items() if isinstance(o, MetaTask)]
-                raise CommandRejected(f"{what}: expected a meta task ({', '.join(metas)}), got {_kind(value)}")
+                raise CommandRejected(f"{what}: expected a meta task ({', '.join(metas)}), got {describe(value)}")
             if kind == "entity":
                 name = value.name if isinstance(value, EntityRef) else value
                 if isinstance(name, str) and isinstance(self._objects.get(name), System):
                     return self._objects[name]
-                raise CommandRejected(f"{what}: expected an entity such as sot, got {_kind(value)}")
+                raise CommandRejected(f"{what}: expected an entity such as sot, got {describe(value)}")
             if kind == "command":
                 if not isinstance(value, Command):
-                    raise CommandRejected(f"{what}: expected a command such as sot.push('taskrh'), got {_kind(value)}")
+                    raise CommandRejected(f"{what}: expected a command such as sot.push('taskrh'), got {describe(value)}")
                 if value.target == "" and value.method == "attime":
                     raise CommandRejected(f"{what}: attime cannot be nested")
                 return self.prepare(value)

@@ -51,7 +51,6 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import Meshcat, Rgba
@@ -71,13 +70,13 @@ from sotdrake import (
     attime,
     gotoNd,
     options_given,
-    save_figure,
     script_arguments,
     simulate,
     start,
     write_run,
 )
 from sotdrake import robot as make_robot
+from sotdrake.scenarios.figures import planche_figure
 
 DT = 5e-3  # the seed's dt (s)
 DEG = np.pi / 180
@@ -307,59 +306,6 @@ def summarize(run: Planche, simulator: Simulator, duration: float, wall: float) 
     return summary, trace
 
 
-def plot(trace: dict, summary: dict, path: Path, T: dict = FULL) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Rectangle
-
-    t = trace["time"]
-    fig, axes = plt.subplots(2, 2, figsize=(13, 8))
-    ax = axes[0, 0]
-    x_min, x_max, y_min, y_max = SHRUNKEN_SUPPORT
-    ax.add_patch(Rectangle((x_min, y_min), x_max - x_min, y_max - y_min, fill=False, color="k", label="shrunken support (6 × 3 cm)"))
-    single = (t >= T["lift"]) & (t < T["contact"])
-    ax.plot(trace["com_in_support"][:, 0], trace["com_in_support"][:, 1], lw=0.6, color="0.6", label="CoM, whole run")
-    ax.plot(trace["com_in_support"][single, 0], trace["com_in_support"][single, 1], lw=1.2, label="CoM, on the left foot")
-    ax.set_xlim(-0.06, 0.06)
-    ax.set_ylim(-0.12, 0.03)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x − left ankle x (m)")
-    ax.set_ylabel("y − left ankle y (m)")
-    ax.set_title("CoM over the left foot (ground projection)")
-    ax.legend(fontsize=7)
-    ax = axes[0, 1]
-    ax.plot(t, np.degrees(trace["chest_lean"]), label="chest lean from vertical (°)")
-    ax.plot(t, trace["right_ankle"][:, 0] * 100, label="right ankle x (cm)")
-    ax.plot(t, trace["right_ankle"][:, 2] * 100, label="right ankle z (cm)")
-    ax.set_ylabel("° or cm")
-    ax.set_title("the planche")
-    ax.legend(fontsize=7)
-    ax = axes[1, 0]
-    for name in sorted(k for k in trace if k.startswith("error_")):
-        ax.semilogy(t, np.maximum(trace[name][:, 0], 1e-12), label=f"‖e‖ {name[6:]}")
-    ax.set_ylabel("task error norm (m, rad or both)")
-    ax.set_title("task errors (the inequality's: distance to its reference)")
-    ax.legend(fontsize=7, ncol=2)
-    ax = axes[1, 1]
-    ax.plot(t, trace["com_margin"] * 100, label="CoM margin in the shrunken support (cm)")
-    ax.plot(t, np.degrees(trace["joint_limit_margin"]), label="min joint-limit margin (°)")
-    ax.plot(t, trace["left_ankle_drift"] * 1000, label="left ankle drift (mm)")
-    ax.axhline(0, color="r", lw=0.8, ls="--")
-    ax.set_ylabel("cm, ° or mm")
-    ax.set_title("constraints")
-    ax.legend(fontsize=7)
-    for a in (axes[0, 1], axes[1, 0], axes[1, 1]):
-        a.set_xlabel("time (s)")
-        for when in T.values():
-            if when <= t[-1]:
-                a.axvline(when, color="0.8", lw=0.6)
-    fig.suptitle(f"planche on Romeo ({summary['solver']}): chest lean up to {summary['max_chest_lean_deg']:.0f}°, "
-                 f"CoM within {-(summary['min_com_margin_single_support_m'] or 0) * 1e3:.4f} mm of the shrunken support on one foot")
-    return save_figure(fig, path)
-
-
 def dynamic():
     """The dynamic run's module (:mod:`sotdrake.scenarios.planche_dyn`)."""
     from sotdrake.scenarios import planche_dyn
@@ -430,6 +376,6 @@ def main(argv: list[str] | None = None) -> dict:
     simulator, wall = simulate(run.diagram, args.duration, run.visualizer, not args.quiet)
     summary, trace = summarize(run, simulator, args.duration, wall)
     args.out.mkdir(parents=True, exist_ok=True)
-    plot(trace, summary, args.out / "plots.png", run.times)
+    planche_figure(trace, summary, args.out / "plots.png", run.times, SHRUNKEN_SUPPORT)
     write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer, bag=args.bag)
     return summary

@@ -46,7 +46,6 @@ import functools
 import json
 import sys
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import Meshcat
@@ -69,7 +68,6 @@ from sotdrake import (
     gotoNd,
     manipulability,
     polygon_margin,
-    save_figure,
     script_arguments,
     simulate,
     start,
@@ -80,6 +78,7 @@ from sotdrake import (
 from sotdrake import robot as make_robot
 from sotdrake.configuration import velocity_names
 from sotdrake.exceptions import SotError
+from sotdrake.scenarios.figures import concept_figure
 
 SEED_GAIN = (4.9, 0.9, 0.01, 0.9)
 SUPPORT_BOX = ((-0.08, -0.15), (0.11, 0.15))  # the original's taskSupport: x, y lower; x, y upper (m)
@@ -363,33 +362,6 @@ def summarize(concept: Concept, simulator: Simulator, wall: float) -> tuple[dict
     return summary, trace
 
 
-def plot(traces: dict[str, dict], path: Path, robot_name: str = "talos") -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 2, figsize=(12, 8), sharex=True)
-    for name, trace in traces.items():
-        t = trace["time"]
-        axes[0, 0].semilogy(t, np.maximum(trace["hand_error"], 1e-16), label=name)
-        axes[0, 1].plot(t, trace["com_support_margin"], label=name)
-        axes[1, 0].semilogy(t, np.maximum(trace["velocity_ratio"], 1e-16), label=name)
-        axes[1, 1].plot(t, trace["min_margin"], label=name)
-    axes[0, 0].set_ylabel("hand to ball (m)")
-    axes[0, 1].set_ylabel("CoM margin in the support polygon (m)")
-    axes[0, 1].axhline(0.0, color="grey", ls=":")
-    axes[1, 0].set_ylabel("max |v| / velocity limit")
-    axes[1, 0].axhline(1.0, color="grey", ls=":")
-    axes[1, 1].set_ylabel("min joint-limit margin (rad)")
-    axes[1, 1].axhline(0.0, color="grey", ls=":")
-    for axis in axes[1]:
-        axis.set_xlabel("time (s)")
-    axes[0, 0].legend(fontsize=7)
-    fig.suptitle(f"sot-concept on {'TALOS' if robot_name == 'talos' else 'Romeo'}: the right hand grasps a ball")
-    return save_figure(fig, path)
-
-
 def main(argv: list[str] | None = None) -> dict:
     parser = script_arguments(__doc__, "out/concept", duration=None)
     parser.add_argument("--config", default="seed", choices=[*GROUPS, *CONFIGURATIONS],
@@ -426,7 +398,7 @@ def main(argv: list[str] | None = None) -> dict:
                   graph=False, bag=args.bag)
         if name == names[0]:
             write_control_graph(concept.diagram, args.out / "control_graph.svg")
-    plot(traces, args.out / "plots.png", args.robot)
+    concept_figure(traces, args.out / "plots.png", args.robot)
     (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     keys = ("hand_error_m", "com_support_margin_m", "max_foot_drift_m", "com_box_excess_m", "limited_joint_max_rad",
             "max_hand_speed_m_s", "max_joint_velocity_ratio")

@@ -29,7 +29,6 @@ import logging
 import sys
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -52,7 +51,6 @@ from sotdrake import (
     attime,
     load_talos,
     options_given,
-    save_figure,
     script_arguments,
     start,
     write_run,
@@ -65,6 +63,7 @@ from sotdrake.dynamics.trajectories import hold_move_hold, minimum_jerk_moves, t
 from sotdrake.hqp import ACTIVE_SET, SOLVERS
 from sotdrake.physics import FRICTION, ContactMonitor, Push
 from sotdrake.scenarios.common import floating_base_fall, point_drift, translation_drift
+from sotdrake.scenarios.figures import dynamics_figure, support_box
 
 SCENARIOS = ("stand", "sway", "lift_leg", "lift_leg_no_com", "squat", "push")
 SWAY = (0.05, 0.5, 2.0)  # amplitude (m), frequency (Hz), fade-in (s)
@@ -288,13 +287,6 @@ def simulate_ticks(run: DynamicsRun, duration: float, progress: bool = True) -> 
     return simulator, times
 
 
-def _support(path: dict, sides: list[str], margin_rectangle) -> tuple[np.ndarray, np.ndarray]:
-    x_min, x_max, y_min, y_max = margin_rectangle
-    corners = np.array([path[s][0, :3, 3] + path[s][0, :3, :3] @ np.array([x, y, 0.0])
-                        for s in sides for x in (x_min, x_max) for y in (y_min, y_max)])
-    return corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
-
-
 def summarize(run: DynamicsRun, simulator: Simulator, times: np.ndarray, duration: float) -> tuple[dict, dict]:
     trace = run.tracer.data(simulator.get_context())
     robot = run.robot
@@ -350,7 +342,7 @@ def summarize(run: DynamicsRun, simulator: Simulator, times: np.ndarray, duratio
         for k in range(len(t)):
             if not np.all(np.isfinite(feet[k, 6:8])) or k == 0:
                 continue
-            low, high = _support(path, ["contactLF", "contactRF"] if double[k] else ["contactLF"], rect)
+            low, high = support_box(path, ["contactLF", "contactRF"] if double[k] else ["contactLF"], rect)
             cop = feet[k, 6:8]
             margins.append(min((cop - low).min(), (high - cop).min()))
         summary["min_cop_margin_m"] = float(min(margins)) if margins else float("nan")
@@ -368,58 +360,6 @@ def summarize(run: DynamicsRun, simulator: Simulator, times: np.ndarray, duratio
             summary["released_force_at_liftoff_n"] = float(wrenches[int(np.searchsorted(t, released_at)) - 1, 11])
     trace["tick_s"] = times
     return summary, trace
-
-
-def plot(run: DynamicsRun, trace: dict, summary: dict, path: Path) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Rectangle
-
-    t = trace["time"]
-    fig, axes = plt.subplots(2, 2, figsize=(13, 8))
-    ax = axes[0, 0]
-    for i, axis in enumerate("xyz"):
-        ax.plot(t, trace["com"][:, i] - run.com_reference[i], label=f"CoM {axis}")
-        if "com_reference" in trace:
-            ax.plot(t, trace["com_reference"][:, i] - run.com_reference[i], "--", color=ax.lines[-1].get_color(), label=f"ref {axis}")
-    ax.set_ylabel("CoM − initial CoM (m)")
-    ax.legend(fontsize=7, ncol=2)
-    ax = axes[0, 1]
-    if "feet" in trace:
-        ax.plot(t, trace["feet"][:, 2], label="left sole (plant)")
-        ax.plot(t, trace["feet"][:, 5], label="right sole (plant)")
-    ax.plot(t, trace["wrenches"][:, 5], ":", label="left sole (solver)")
-    ax.plot(t, trace["wrenches"][:, 11], ":", label="right sole (solver)")
-    ax.set_ylabel("normal force (N)")
-    ax.legend(fontsize=7)
-    ax = axes[1, 0]
-    if "feet" in trace:
-        nq = run.robot.model.nq
-        poses = run.robot.dynamic.trajectory(["contactLF", "contactRF"], np.nan_to_num(trace["x"][:1, :nq]))
-        low, high = _support(poses, ["contactLF", "contactRF"], sole_rectangle())
-        ax.add_patch(Rectangle(tuple(low), *(high - low), fill=False, color="k", label="support polygon (both soles)"))
-        for side in ("contactLF", "contactRF"):
-            lo, hi = _support(poses, [side], sole_rectangle())
-            ax.add_patch(Rectangle(tuple(lo), *(hi - lo), fill=False, color="gray", ls=":"))
-        ax.plot(trace["feet"][:, 6], trace["feet"][:, 7], ".", ms=1, label="CoP (plant)")
-    ax.plot(trace["com"][:, 0], trace["com"][:, 1], "-", lw=0.8, label="CoM (ground projection)")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.legend(fontsize=7)
-    ax = axes[1, 1]
-    ratio = trace["torque"] / run.robot.sot.effort
-    ax.plot(t, ratio, lw=0.6)
-    ax.axhline(1, color="r", ls="--")
-    ax.axhline(-1, color="r", ls="--")
-    scale = run.robot.sot.effort_scale
-    ax.set_ylabel("τ / effort limit (each joint)" if scale == 1 else f"τ / bound (each joint; {scale:g} × effort limit)")
-    for a in (axes[0, 0], axes[0, 1], axes[1, 1]):
-        a.set_xlabel("time (s)")
-    fig.suptitle(f"{run.scenario} on {run.device}: fell = {summary['fell']}")
-    return save_figure(fig, path)
 
 
 def effort_fraction(text: str) -> float:
@@ -461,7 +401,7 @@ def main(argv: list[str] | None = None) -> dict:
     simulator, times = simulate_ticks(run, args.duration, not args.quiet)
     summary, trace = summarize(run, simulator, times, args.duration)
     args.out.mkdir(parents=True, exist_ok=True)
-    plot(run, trace, summary, args.out / "plots.png")
+    dynamics_figure(run.robot, run.com_reference, trace, summary, args.out / "plots.png")
     write_run(args.out, run.diagram, summary, trace, meshcat, run.visualizer, bag=args.bag)
     return summary
 

@@ -96,6 +96,8 @@ class Runner:
         return self.t
 
     def _advance(self, target: float) -> None:
+        if target <= self.t:  # (Drake would process the tick at t now: a clone of the context would process it again)
+            return
         self.simulator.AdvanceTo(target)
         for tracer in self._tracers:
             tracer.flush(self.context)

@@ -189,8 +189,14 @@ class Dynamic(LeafSystem):
         return out
 
     def com_at(self, q: np.ndarray) -> np.ndarray:
-        """``p_WCm`` at configuration ``q`` (checked as :meth:`pose_at` does)."""
-        return self.plant.CalcCenterOfMassPositionInWorld(self._context_at(q))
+        """``p_WCm`` at configuration ``q`` (checked as :meth:`pose_at` does); :class:`InvalidInput` for
+        a robot of no mass, which has no centre of mass."""
+        context = self._context_at(q)
+        mass = self.plant.CalcTotalMass(context)
+        if not mass > 0:
+            raise InvalidInput(f"the robot {self.model.name!r} has a total mass of {mass:g} kg: it has no centre of mass "
+                               "(give its links masses: <inertial> in a URDF)")
+        return self.plant.CalcCenterOfMassPositionInWorld(context)
 
 
 def _momentum_rows(plant) -> tuple[slice, float] | None:

@@ -8,13 +8,15 @@ from __future__ import annotations
 import copy
 from typing import Any
 
+import numpy as np
 from pydrake.systems.framework import Context, InputPort
 
 from .entity import recording
 from .exceptions import InvalidInput, SotError, check_flag, check_name
-from .features import Feature
+from .features import Feature, FeaturePosture
 from .gains import GainAdaptive
 from .kinematics import Dynamic
+from .ranges import MAX_TARGET_POSITION
 from .robot import Robot
 from .task import Task, TaskInequality, TaskPD
 
@@ -41,6 +43,26 @@ def new_task(robot: Robot, meta: str, name: str, feature: bool = True, reference
     names = ["gain" + name, "task" + name] + ["feature" + name] * feature + ["feature" + name + "_ref"] * reference
     robot.check_new_names(names)
     return robot
+
+
+def check_start(meta: str, name: str, what: str, position: np.ndarray) -> None:
+    """:class:`InvalidInput` if ``position`` (m, world), where the task's reference starts (``what``:
+    the op point or the CoM), is beyond the ±:data:`~sotdrake.ranges.MAX_TARGET_POSITION` a reference
+    may be: checked before the meta task adds anything."""
+    if not np.all(np.abs(position) <= MAX_TARGET_POSITION):
+        raise InvalidInput(f"{meta}({name!r}): {what} starts at {np.round(position, 3).tolist()} m, beyond the "
+                           f"±{MAX_TARGET_POSITION:g} m a reference may be (a robot in mm rather than m?)")
+
+
+def posture_feature(meta: str, name: str, robot: Any, posture: np.ndarray) -> FeaturePosture:
+    """``feature<name>``, a :class:`FeaturePosture` of ``robot``'s joints towards ``posture`` (not
+    added yet); :class:`InvalidInput` if the robot has no joint besides its floating base (the
+    feature would select nothing)."""
+    feature = FeaturePosture("feature" + name, robot.model.plant, posture)
+    if not len(feature.layout.joints_v):
+        raise InvalidInput(f"{meta}({name!r}): the robot {robot.model.name!r} has no joint besides its floating base: "
+                           "a posture task has nothing to hold")
+    return feature
 
 
 def check_not_recording(what: str) -> None:

@@ -34,7 +34,6 @@ from .features import (
     FeatureGeneric,
     FeatureGenericDesired,
     FeatureJointLimits,
-    FeaturePosture,
     FeatureRelative6d,
     FeatureVisualPoint,
 )
@@ -45,7 +44,7 @@ from .features.momentum import FeatureMomentum
 from .gain_checks import check_gain
 from .gains import constant, from_numbers
 from .manipulability import upstream_coordinates
-from .meta_task_base import MetaTask, as_robot, check_not_recording, input_value, new_task
+from .meta_task_base import MetaTask, as_robot, check_not_recording, check_start, input_value, new_task, posture_feature
 from .ranges import MAX_TARGET_POSITION
 from .robot import Robot, check_not_elsewhere
 from .robots import TALOS_GRIPPERS
@@ -63,6 +62,9 @@ class MetaTaskKine6d(MetaTask):
         robot = new_task(robot, "MetaTaskKine6d", name, reference=True, inequality=inequality, pd=pd)
         dyn = robot.dynamic
         self.dyn, self.opPoint = dyn, opPoint
+        dyn.check_op_point(opPoint, opPointRef or opPoint)
+        check_start("MetaTaskKine6d", name, f"the op point {opPoint!r}",
+                    dyn.pose_at(opPointRef or opPoint, robot.device.initial_position).translation())
         position, jacobian = dyn.createOpPoint(opPoint, opPointRef or opPoint)
         feature = robot.add(Feature6d("feature" + name, robot.dimension))
         self.featureDes = robot.add(Feature6dDesired("feature" + name + "_ref"))
@@ -105,6 +107,7 @@ class MetaTaskKineCom(MetaTask):
     def __init__(self, robot: Robot, name: str = "com", inequality: bool = False, pd: bool = False):
         robot = new_task(robot, "MetaTaskKineCom", name, reference=True, inequality=inequality, pd=pd)
         self.dyn = dyn = robot.dynamic
+        check_start("MetaTaskKineCom", name, "the centre of mass", dyn.com_at(robot.device.initial_position))
         feature = robot.add(FeatureGeneric("feature" + name, 3, robot.dimension))
         self.featureDes = robot.add(FeatureGenericDesired("feature" + name + "_ref", 3))
         connect = robot.builder.Connect
@@ -131,7 +134,7 @@ class MetaTaskKinePosture(MetaTask):
 
     def __init__(self, robot: Robot, name: str = "posture", pd: bool = False):
         robot = new_task(robot, "MetaTaskKinePosture", name, pd=pd)
-        feature = robot.add(FeaturePosture("feature" + name, robot.model.plant, robot.device.initial_position))
+        feature = robot.add(posture_feature("MetaTaskKinePosture", name, robot, robot.device.initial_position))
         robot.builder.Connect(robot.device.GetOutputPort("state"), feature.GetInputPort("state"))
         self._finish(robot, name, feature, pd=pd)
 
@@ -324,11 +327,14 @@ def hold_feet_and_com(robot: Robot, sot, gain: float = 10.0, com: bool = True):
     gain = check_number("hold_feet_and_com: gain", gain, 0.0, 1e4, " 1/s")
     check_gain(constant(gain), robot.dt, "hold_feet_and_com gain")
     feet = [(name, robot.OperationalPointsMap[op]) for name, op in (("contactRF", "right-ankle"), ("contactLF", "left-ankle"))]
+    q0 = robot.device.initial_position
     for name, frame in feet:  # (everything checked before anything is added)
         new_task(robot, "hold_feet_and_com", name, reference=True)
         robot.dynamic.check_op_point(name[-2:], frame)
+        check_start("hold_feet_and_com", name, f"the op point {frame!r}", robot.dynamic.pose_at(frame, q0).translation())
     if com:
         new_task(robot, "hold_feet_and_com", "com", reference=True)
+        check_start("hold_feet_and_com", "com", "the centre of mass", robot.dynamic.com_at(q0))
     plant = robot.model.plant
     grippers = [joint for joint in TALOS_GRIPPERS if plant.HasJointNamed(joint)]
     if grippers and not getattr(sot, "accepts_inequalities", True) and sot.settings().control_selection is None:

@@ -1,9 +1,10 @@
 """SoT selection masks.
 
-A mask is a string of ``'0'``/``'1'`` read **right to left**, as in sot-core: the last character is
-component 0. For a 6D feature with components ``(X, Y, Z, RX, RY, RZ)``, ``'000011'`` selects X and
-Y, ``'111'`` selects X, Y and Z, ``'111111'`` everything. A mask shorter than the feature is padded
-with zeros on the left; a longer one is an error unless its extra characters are zeros.
+A mask is a string of ``'0'``/``'1'`` read **right to left**, as in the sot-core of the seed's scripts
+(before 4.11.1, which reads left to right): the last character is component 0. For a 6D feature
+with components ``(X, Y, Z, RX, RY, RZ)``, ``'000011'`` selects X and Y, ``'111'`` selects X, Y and Z,
+``'111111'`` everything. A mask shorter than the feature is padded with zeros on the left; a longer
+one is an error unless its extra characters are zeros.
 """
 
 from __future__ import annotations

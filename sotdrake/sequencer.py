@@ -6,7 +6,8 @@ mode*: every entity command it issues without a context is recorded instead of a
 touched gets a timed event at ``T`` that replays its commands on the state of the context being
 simulated, so the sequence is part of the diagram: a reset or cloned context replays it exactly.
 Call it before creating the simulator's context: a context that already exists runs a command
-scheduled later only if its time has not passed ``T`` yet (warned).
+scheduled later only if its time has not passed ``T`` yet (warned); the schedule is the diagram's,
+so every context and clone not yet at ``T`` runs it, whenever it was made.
 """
 
 from __future__ import annotations
@@ -57,8 +58,10 @@ def attime(time: float, command: Callable[[], object] | tuple, description: str 
     late = [entity.name for entity in by_entity if len(entity._in_contexts)]
     if late:
         warnings.warn(f"attime({time}, {description!r}): a context of {late} already exists; one whose time is already "
-                      "past T never runs this command (schedule before creating the simulator's context, or use the "
-                      "live runner's attime, which refuses a past time)", SotWarning, stacklevel=2)
+                      "past T never runs this command, and every context (its clones too, made before or after) "
+                      "whose time has not passed T runs it: the diagram changed, not a context (schedule before "
+                      "creating the simulator's context, or use the live runner's attime, which refuses a past "
+                      "time)", SotWarning, stacklevel=2)
     for entity, changes in by_entity.items():
         if description:
             changes = [*changes, lambda _s, d=description, t=time: log.info("t = %.3f s: %s", t, d)]

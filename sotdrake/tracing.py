@@ -193,7 +193,7 @@ class Tracer:
     def data(self, context: Context) -> dict[str, np.ndarray]:
         """``time`` (k,) and each signal as (k, size): the chunks of ``context``'s stream (or of the
         stream it was cloned from, up to the clone) followed by the samples the sinks' logs in
-        ``context`` still hold. :class:`SotError` if the chunks of ``context`` were dropped;
+        ``context`` still hold, one sample per time (the first). :class:`SotError` if the chunks of ``context`` were dropped;
         :class:`InvalidInput` if ``context`` is not the root context of the traced diagram."""
         self._check_context("data", context)
         logs = {name: sink.FindLog(context) for name, sink in self.sinks.items()}
@@ -218,6 +218,9 @@ class Tracer:
                 out["time"] = np.concatenate([*streamed.get("time", []), log.sample_times()])
             tail = log.data().T
             out[name] = np.concatenate([*streamed.get(name, []), tail]) if streamed else tail.copy()
+        repeated = np.flatnonzero(out["time"][1:] == out["time"][:-1]) + 1
+        if repeated.size:  # (a new Simulator on a clone publishes at its time again: the first sample holds)
+            out = {name: np.delete(values, repeated, axis=0) for name, values in out.items()}
         return out
 
     def save(self, context: Context, path: Path) -> Path:

@@ -131,6 +131,22 @@ def test_walk_refuses_zero_instead_of_taking_the_default(options, named, tmp_pat
     assert not (tmp_path / "run").exists()
 
 
+@pytest.mark.parametrize(("script", "options", "named"), [
+    ("walk", ["--step-length", "0.1"], "--step-length: an option of --steps"),
+    ("walk", ["--steps", "4", "--velocity", "0.1", "0", "0"], "--velocity: this run walks --steps"),
+    ("sot_concept", ["--config", "seed0", "--steps", "12"], "--steps: an option of the configurations whose ball moves"),
+])
+def test_an_option_the_run_would_not_read_is_refused(script, options, named, tmp_path, capsys, monkeypatch):
+    import importlib
+
+    module = importlib.import_module(f"sotdrake.scenarios.{script}")
+    monkeypatch.setattr(module, "build_diagram", lambda *a, **k: pytest.fail("built"))
+    with pytest.raises(SystemExit) as stopped:
+        module.main([*options, "--out", str(tmp_path / "run"), "--no-meshcat", "--quiet", "--duration", "0.05"])
+    assert stopped.value.code == 2 and f"error: {named}" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+
+
 @pytest.mark.parametrize(("options", "named"), [
     ({"then": (1.0, 0.1, 0.0, 0.0)}, "then"),
     ({"solver": "cascade"}, "solver"),

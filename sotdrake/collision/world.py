@@ -16,18 +16,21 @@ entry then holds its own copy of this world's context).
 
 from __future__ import annotations
 
+import logging
 import weakref
 from collections.abc import Sequence
 
 from pydrake.geometry import CollisionFilterDeclaration, GeometryId, GeometrySet, Role
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import RigidBody
+from pydrake.multibody.tree import BodyIndex, RigidBody
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafContext
 
 from ..exceptions import InvalidInput, SotError
 from ..robots import RobotModel
 from .pairs import Pair, adjacent_pairs, check_pairs, srdf_disabled_pairs
+
+log = logging.getLogger(__name__)
 
 
 class NoCollisionGeometry(SotError):
@@ -60,6 +63,7 @@ class CollisionWorld:
                 "loads); add collision shapes to its URDF/SDF to compute distances")
         self.adjacent = adjacent_pairs(plant)
         self.disabled: set[Pair] = srdf_disabled_pairs(model.srdf_path) if use_srdf else set()
+        _warn_case_typos(self.disabled, plant, model)
         self._filter_self_pairs(self.disabled | self.adjacent)
         self.obstacles: dict[str, GeometryId] = {}
         self._info: dict[GeometryId, tuple[str, RigidBody, RigidTransform]] = {}
@@ -175,4 +179,15 @@ def collision_world(robot) -> CollisionWorld:
         world = _WORLDS[robot] = CollisionWorld(robot.model)
     return world
 
+
+def _warn_case_typos(pairs: set[Pair], plant: MultibodyPlant, model: RobotModel) -> None:
+    """A warning for the SRDF's link names the model has only with other cases (``L3`` for ``l3``):
+    those pairs stay checked. Other unknown names are left alone (a sub-model, e.g. one arm, leaves
+    out links its robot's SRDF names)."""
+    names = {plant.get_body(BodyIndex(index)).name() for index in range(plant.num_bodies())}
+    lower = {name.lower(): name for name in names}
+    typos = sorted({f"{n} ({lower[n.lower()]}?)" for pair in pairs for n in pair if n not in names and n.lower() in lower})
+    if typos:
+        log.warning("%s: <disable_collisions> names %s, which the model spells otherwise: those pairs stay checked",
+                    model.srdf_path, ", ".join(typos))
 

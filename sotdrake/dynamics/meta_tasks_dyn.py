@@ -15,8 +15,9 @@ from pydrake.systems.framework import Context
 
 from ..centroidal import base_rows
 from ..exceptions import InvalidInput, check_name, check_type
-from ..features import Feature6d, Feature6dDesired, FeatureGeneric, FeatureGenericDesired, FeatureMomentum, FeaturePosture
+from ..features import Feature6d, Feature6dDesired, FeatureGeneric, FeatureGenericDesired, FeatureMomentum
 from ..features.base import check_mask
+from ..meta_task_base import check_start, posture_feature
 from .robot_dyn import RobotDyn
 from .task_dyn_pd import TaskDynPD
 from .terms import base_translation_rows
@@ -50,6 +51,9 @@ class MetaTaskDyn6d(_MetaTaskDyn):
         _new_names(robot, name, "_ref")
         TaskDynPD.check_gains("task" + name, kp, kv, robot.dt)  # before anything is added
         self.opPoint = opPoint
+        robot.dynamic.check_op_point(opPoint, opPointRef or opPoint)
+        start = robot.dynamic.pose_at(opPointRef or opPoint, robot.q0).translation()
+        check_start("MetaTaskDyn6d", name, f"the op point {opPoint!r}", start)
         position, jacobian = robot.dynamic.createOpPoint(opPoint, opPointRef or opPoint)
         feature = robot.add(Feature6d("feature" + name, robot.dimension))
         self.featureDes = robot.add(Feature6dDesired("feature" + name + "_ref"))
@@ -78,6 +82,7 @@ class MetaTaskDynCom(_MetaTaskDyn):
         if base_translation_rows(robot.dynamic.layout) is None:
             raise InvalidInput(f"MetaTaskDynCom({name!r}): {robot.model.name} has no floating base: the dynamic CoM task's "
                                "Jacobian and drift are those of the base's translation (a fixed base holds the CoM)")
+        check_start("MetaTaskDynCom", name, "the centre of mass", robot.dynamic.com_at(robot.q0))
         feature = robot.add(FeatureGeneric("feature" + name, 3, robot.dimension))
         self.featureDes = robot.add(FeatureGenericDesired("feature" + name + "_ref", 3))
         connect = robot.builder.Connect
@@ -102,7 +107,7 @@ class MetaTaskDynPosture(_MetaTaskDyn):
     def __init__(self, robot: RobotDyn, name: str = "posture", kp: float = 25.0, kv: float | None = None):
         _new_names(robot, name)
         TaskDynPD.check_gains("task" + name, kp, kv, robot.dt)  # before anything is added
-        feature = robot.add(FeaturePosture("feature" + name, robot.model.plant, robot.q0))
+        feature = robot.add(posture_feature("MetaTaskDynPosture", name, robot, robot.q0))
         robot.builder.Connect(robot.dynamic.GetOutputPort("position"), feature.GetInputPort("state"))
         self._finish(robot, name, feature, kp, kv)
 

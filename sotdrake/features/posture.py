@@ -4,6 +4,8 @@ One error component per generalized velocity ``v_i`` (so ``selectDof(i)`` speaks
 velocity index ``i``):
 
 * joint coordinate: ``e_i = q_i - q*_i``, Jacobian row ``e_iᵀ`` (identity), ``ė_ref,i = -q̇*_i``;
+  for a revolute joint without position limits (a URDF ``continuous`` joint), the angle is wrapped
+  into ``[-π, π]``: the joint turns the short way to ``q*`` (as sot-core's Pinocchio difference does);
 * floating base (Drake order ``ω``, then ``v``): rotation ``log(R*ᵀ R)`` with rows
   ``Jr⁻¹(e_r) Rᵀ`` on ``ω_W``; translation ``p - p*`` (world) with identity rows on ``v_WB``; the
   reference's base velocity (``ω*, ṗ*``, world) enters ``ė_ref`` as ``(-Jl⁻¹(e_r) R*ᵀ ω*, -ṗ*)``.
@@ -50,6 +52,7 @@ class FeaturePosture(Feature):
         self.nq = nq
         self._joint_q = np.full(nv, -1)  # the q index of each joint velocity (-1: the floating base)
         self._joint_q[self.layout.joints_v] = self.layout.joints_q
+        self.wrapped = unbounded_revolute(plant)
         self.state = self.DeclareVectorInputPort("state", nq)
         self.posture_in = self.DeclareVectorInputPort("posture_in", nq)
         self.postureDot_in = self.DeclareVectorInputPort("postureDot_in", nv)
@@ -60,10 +63,10 @@ class FeaturePosture(Feature):
         v_star = optional_input(self.postureDot_in, context, s.postureDot)
         q = self.state.Eval(context)
         if rows is not None and self._joint_q[rows].min() >= 0:  # joints only: the selected rows
-            return joint_rows(q, q_star, v_star, self._joint_q, rows)
+            return joint_rows(q, q_star, v_star, self._joint_q, rows, self.wrapped)
         if q_star is not s.posture:  # (a posture from the port: its base quaternion checked as setPosture's)
             check_base_quaternion(f"{self.name}: posture_in at t = {context.get_time():g}", q_star, self.layout)
-        return posture_error_and_jacobian(q, q_star, v_star, self.layout)
+        return posture_error_and_jacobian(q, q_star, v_star, self.layout, self.wrapped)
 
     def selectDof(self, index: int, selected: bool, context: Context | None = None) -> None:
         """Select (or not) the component of velocity index ``index`` (sot-core ``selectDof``)."""
@@ -93,14 +96,34 @@ class FeaturePosture(Feature):
         self._command(context, lambda s: setattr(s, "postureDot", v_star))
 
 
+def unbounded_revolute(plant) -> np.ndarray | None:
+    """nv booleans, True on the velocity of each revolute joint without position limits (the angles
+    :func:`posture_error_and_jacobian` wraps), or None if there is none."""
+    wrapped = np.zeros(plant.num_velocities(), dtype=bool)
+    for index in plant.GetJointIndices():
+        joint = plant.get_joint(index)
+        if joint.type_name() == "revolute" and np.all(np.isinf(joint.position_lower_limits())) \
+                and np.all(np.isinf(joint.position_upper_limits())):
+            wrapped[joint.velocity_start()] = True
+    return wrapped if wrapped.any() else None
+
+
+def _wrap(angle: np.ndarray) -> np.ndarray:
+    """``angle`` (rad) wrapped into ``[-π, π]``."""
+    return angle - 2.0 * np.pi * np.round(angle / (2.0 * np.pi))
+
+
 def posture_error_and_jacobian(
-    q: np.ndarray, q_star: np.ndarray, v_star: np.ndarray, layout: Layout,
+    q: np.ndarray, q_star: np.ndarray, v_star: np.ndarray, layout: Layout, wrapped: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every component of the posture error (one per velocity), its Jacobian and ``ė_ref`` for the
-    reference's velocity ``v*``; see the module docstring. ``layout``: where the floating base is."""
+    reference's velocity ``v*``; see the module docstring. ``layout``: where the floating base is;
+    ``wrapped``: nv booleans, the joint angles to wrap (:func:`unbounded_revolute`), or None."""
     nv = v_star.size
     e, J, e_dot = np.zeros(nv), np.eye(nv), -v_star
     e[layout.joints_v] = q[layout.joints_q] - q_star[layout.joints_q]
+    if wrapped is not None:
+        e[wrapped] = _wrap(e[wrapped])
     if layout.base_q is not None and layout.base_v is not None:
         iq, iv = layout.base_q, layout.base_v
         R = quaternion_wxyz_to_rotation(q[iq : iq + 4])
@@ -122,11 +145,15 @@ def _selection_rows(rows: bytes, nv: int) -> np.ndarray:
 
 
 def joint_rows(q: np.ndarray, q_star: np.ndarray, v_star: np.ndarray, joint_q: np.ndarray,
-               rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               rows: np.ndarray, wrapped: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The rows ``rows`` (joint velocity indices only) of :func:`posture_error_and_jacobian`:
-    ``e = q_j − q*_j``, identity rows, ``ė_ref = −v*``; ``joint_q``: the q index of each velocity."""
+    ``e = q_j − q*_j`` (``wrapped`` as there), identity rows, ``ė_ref = −v*``; ``joint_q``: the q
+    index of each velocity."""
     iq = joint_q[rows]
-    return q[iq] - q_star[iq], _selection_rows(np.asarray(rows, dtype=np.int64).tobytes(), v_star.size), -v_star[rows]
+    e = q[iq] - q_star[iq]
+    if wrapped is not None and (turns := wrapped[rows]).any():
+        e[turns] = _wrap(e[turns])
+    return e, _selection_rows(np.asarray(rows, dtype=np.int64).tobytes(), v_star.size), -v_star[rows]
 
 
 def _mask(selected: np.ndarray) -> str:

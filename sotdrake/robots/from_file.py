@@ -51,7 +51,7 @@ from .mimic import mimic_table
 from .model import OperationalPoints, RobotModel
 from .model_defaults import operational_points_of, posture_of
 from .packages import PackageResolver
-from .urdf_checks import positive_lengths
+from .urdf_checks import check_other_limits, positive_lengths
 from .urdf_text import prepare_urdf
 
 log = logging.getLogger(__name__)
@@ -205,8 +205,15 @@ def _add_other(plant: MultibodyPlant, path: Path, resolver: PackageResolver, flo
     for name, folder in resolver.packages.items():
         if not parser.package_map().Contains(name):
             parser.package_map().Add(name, str(folder))
+    try:
+        root = ET.parse(path).getroot()
+    except (ET.ParseError, UnicodeDecodeError):
+        root = None  # (Drake's parser says what is wrong with it)
+    if root is not None and root.tag in ("sdf", "mujoco"):
+        check_other_limits(root, str(path))  # (Drake would refuse them without naming the joint)
     with drake_refusals(path):
         instances = parser.AddModels(str(path))
+    _check_unique_names(plant, instances, path)
     free = _mjcf_free_bodies(path)
     for instance in instances:
         if not floating_base:
@@ -217,6 +224,21 @@ def _add_other(plant: MultibodyPlant, path: Path, resolver: PackageResolver, flo
                 plant.WeldFrames(plant.world_frame(), plant.get_body(roots[0]).body_frame())
         add_actuators(plant, instance, "<robot/>")
     return instances
+
+
+def _check_unique_names(plant: MultibodyPlant, instances: list[ModelInstanceIndex], path: Path) -> None:
+    """:class:`RobotDescriptionError` if two of the file's models have a link or a joint of the same
+    name: op points, tasks, postures and collision pairs name them without their model."""
+    for kind, indices, get in (("link", plant.GetBodyIndices, plant.get_body), ("joint", plant.GetJointIndices, plant.get_joint)):
+        owner: dict[str, ModelInstanceIndex] = {}
+        for instance in instances:
+            for index in indices(instance):
+                name = get(index).name()
+                if owner.setdefault(name, instance) != instance:
+                    models = sorted({plant.GetModelInstanceName(owner[name]), plant.GetModelInstanceName(instance)})
+                    raise RobotDescriptionError(
+                        f"{path}: the models {models[0]!r} and {models[1]!r} both have a {kind} named {name!r}; sotdrake names "
+                        "links and joints without their model (op points, tasks, postures, collision pairs): rename one")
 
 
 def _mjcf_free_bodies(path: Path) -> set[str]:

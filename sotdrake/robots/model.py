@@ -86,7 +86,8 @@ class RobotModel:
         return self.half_sitting
 
     def frame(self, name: str) -> Frame:
-        """Frame of an operational point (``'right-wrist'``), a joint (its child frame) or a frame.
+        """Frame of an operational point (``'right-wrist'``), a frame (a link's) or a joint (its child
+        frame); a name that is both a frame's and a joint's is the frame's.
 
         Raises :class:`FrameNotFound` listing operational points and frame names.
         """
@@ -98,10 +99,10 @@ class RobotModel:
         bases = list(plant.GetFloatingBaseBodies())
         if target == "root_joint" and not plant.HasJointNamed(target) and bases:
             frame = plant.get_body(bases[0]).body_frame()  # sot-talos' name of the free flyer
+        elif plant.HasFrameNamed(target):  # (a link's name before a joint's: a joint named after a link is common)
+            frame = plant.GetFrameByName(target)
         elif plant.HasJointNamed(target):
             frame = plant.GetJointByName(target).frame_on_child()
-        elif plant.HasFrameNamed(target):
-            frame = plant.GetFrameByName(target)
         else:
             frames = {plant.get_frame(FrameIndex(i)).name() for i in range(plant.num_frames())}
             raise FrameNotFound(name, [*self.OperationalPointsMap, *sorted(frames)])
@@ -143,12 +144,12 @@ def posture_from_srdf(plant: MultibodyPlant, srdf_path: Path, name: str | tuple[
         plant.SetPositions(context, q)
     for group in (name,) if isinstance(name, str) else name:
         skipped, state = [], read_group_state(srdf_path, group)  # (a reduced model leaves some joints out)
+        body = next(iter(plant.GetFloatingBaseBodies()), None)
+        if body is None:  # welded or planar base: the SRDF base pose does not apply (nor counts)
+            state.pop("root_joint", None)
         for joint_name, value in state.items():
             if joint_name == "root_joint":
                 x, y, z, qx, qy, qz, qw = value
-                body = next(iter(plant.GetFloatingBaseBodies()), None)
-                if body is None:  # welded or planar base: the SRDF base pose does not apply
-                    continue
                 pose = RigidTransform(Quaternion(np.array([qw, qx, qy, qz]) / np.linalg.norm([qw, qx, qy, qz])), [x, y, z])
                 plant.SetFreeBodyPose(context, plant.get_body(body), pose)
             elif plant.HasJointNamed(joint_name) and plant.GetJointByName(joint_name).num_positions() == value.size:
@@ -157,6 +158,9 @@ def posture_from_srdf(plant: MultibodyPlant, srdf_path: Path, name: str | tuple[
                 q_all[joint.position_start() : joint.position_start() + joint.num_positions()] = value
                 plant.SetPositions(context, q_all)
             else:
+                if plant.HasJointNamed(joint_name):
+                    log.warning("%s: group state %r: joint %r has %d positions, the SRDF gives %d values: left out", srdf_path,
+                                group, joint_name, plant.GetJointByName(joint_name).num_positions(), value.size)
                 skipped.append(joint_name)
         if skipped and len(skipped) == len(state):
             log.warning("%s: group state %r: none of its %d joints is one of the model's (with as many positions): "

@@ -4,6 +4,7 @@ those given."""
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -16,6 +17,8 @@ from .mimic import follow_mimics
 from .model import OperationalPoints, RobotModel, posture_from_srdf
 from .srdf import PostureNotFound, group_state_names, read_end_effectors
 
+log = logging.getLogger(__name__)
+
 #: SRDF group states tried, in order, when no reference posture is named.
 PREFERRED_POSTURES = ("half_sitting", "standing", "default", "home", "ready")
 
@@ -26,7 +29,11 @@ def default_operational_points(model: RobotModel) -> dict[str, str]:
     plant = model.plant
     points: dict[str, str] = {}
     if model.srdf_path is not None:
-        points.update({n: link for n, link in read_end_effectors(model.srdf_path).items() if plant.HasFrameNamed(link)})
+        effectors = read_end_effectors(model.srdf_path)
+        points.update({n: link for n, link in effectors.items() if plant.HasFrameNamed(link)})
+        unknown = sorted(f"{n} ({link})" for n, link in effectors.items() if n not in points)
+        if unknown:
+            log.warning("%s: the end effectors %s are on links the model does not have: not op points", model.srdf_path, unknown)
     parents = {plant.get_joint(j).parent_body().index() for j in plant.GetJointIndices()}
     for index in range(1, plant.num_bodies()):
         body = plant.get_body(BodyIndex(index))

@@ -43,11 +43,15 @@ def _joint_value(srdf_path: Path, group: str, joint: ET.Element) -> np.ndarray:
 
 
 def srdf_root(srdf_path: Path) -> ET.Element:
-    """The SRDF's root element; :class:`RobotDescriptionError` if it is not well-formed XML text."""
+    """The SRDF's root element; :class:`RobotDescriptionError` if it is not well-formed XML text, or
+    if it describes links (a URDF given as the SRDF)."""
     try:
-        return ET.parse(srdf_path).getroot()
+        root = ET.parse(srdf_path).getroot()
     except (ET.ParseError, UnicodeDecodeError) as error:
         raise RobotDescriptionError(f"{srdf_path}: the SRDF is not well-formed XML ({error})") from None
+    if root.find("link") is not None:
+        raise RobotDescriptionError(f"{srdf_path}: given as the SRDF, but it describes links (<link>): a URDF, not an SRDF")
+    return root
 
 
 def group_state_names(srdf_path: Path) -> list[str]:

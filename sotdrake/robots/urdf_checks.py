@@ -1,4 +1,4 @@
-"""Checks of a URDF's text before Drake parses it.
+"""Checks of a robot description's text before Drake parses it.
 
 Drake stops the whole process (an assertion, not an exception) on some inconsistent URDFs, e.g. a
 joint whose lower position limit is above its upper one. :func:`check_urdf_limits` finds them first
@@ -8,6 +8,9 @@ the accepted range:
 * the text must be well-formed XML with a ``<robot>`` root;
 * each ``<limit>`` attribute present (``lower``, ``upper``, ``effort``, ``velocity``) is a number,
   not NaN; ``lower ≤ upper`` (rad or m); ``effort ≥ 0`` (N·m or N) and ``velocity ≥ 0`` (rad/s or m/s).
+
+:func:`check_other_limits` checks an SDF's ``<axis><limit>`` (``lower``, ``upper``) and an MJCF's
+``range`` the same way (numbers, not NaN, ``lower ≤ upper``).
 """
 
 from __future__ import annotations
@@ -50,6 +53,43 @@ def check_urdf_limits(urdf_text: str, source: str = "URDF") -> None:
         if "lower" in values and "upper" in values and values["lower"] > values["upper"]:
             raise RobotDescriptionError(
                 f"{source}: joint {name!r}: limit lower={values['lower']} must be ≤ upper={values['upper']}")
+
+
+def check_other_limits(root: ET.Element, source: str) -> None:
+    """:class:`RobotDescriptionError` naming the joint of an SDF (``root``'s tag ``sdf``) ``<limit>``
+    or an MJCF (``mujoco``) ``range`` whose bounds are not numbers, are NaN or are in the wrong order."""
+    for joint in root.iter("joint"):
+        name = joint.get("name", "?")
+        if root.tag == "mujoco":
+            if joint.get("range") is not None:
+                bounds = _numbers(joint.get("range"), f"{source}: joint {name!r}: range")
+                if len(bounds) != 2:
+                    raise RobotDescriptionError(f"{source}: joint {name!r}: range = {joint.get('range')!r} must be two numbers")
+                _check_order(bounds[0], bounds[1], f"{source}: joint {name!r}: range")
+            continue
+        for axis in joint:
+            for limit in axis.findall("limit") if axis.tag in ("axis", "axis2") else ():
+                where = f"{source}: joint {name!r}: <{axis.tag}><limit>"
+                lower, upper = (limit.find(side) for side in ("lower", "upper"))
+                low = _numbers(lower.text, f"{where} lower") if lower is not None else None
+                high = _numbers(upper.text, f"{where} upper") if upper is not None else None
+                if low is not None and high is not None:
+                    _check_order(low[0], high[0], where)
+
+
+def _numbers(text: str | None, where: str) -> list[float]:
+    try:
+        numbers = [float(word) for word in (text or "").split()]
+    except ValueError:
+        numbers = []
+    if not numbers or any(math.isnan(x) for x in numbers):
+        raise RobotDescriptionError(f"{where} = {text!r} is not a number (or is NaN)")
+    return numbers
+
+
+def _check_order(lower: float, upper: float, where: str) -> None:
+    if lower > upper:
+        raise RobotDescriptionError(f"{where}: lower = {lower} must be ≤ upper = {upper}")
 
 
 def positive_lengths(text: str | None) -> bool:

@@ -89,14 +89,15 @@ def prepare_urdf(
 
     def fix_joint(match: re.Match) -> str:
         joint = match.group(0)
-        if re.search(r'type\s*=\s*"fixed"', joint):
-            joint = re.sub(r"<mimic\b[^>]*/>", "", joint)
+        opening = re.match(r"<joint\b[^>]*>", joint)
+        if opening and re.search(r"""\stype\s*=\s*(["'])fixed\1""", opening.group(0)):
+            joint = re.sub(r"<mimic\b[^>]*?(/>|>.*?</mimic\s*>)", "", joint, flags=re.S)
         return joint
 
     text = re.sub(r"<!--.*?-->", "", text, flags=re.S)  # (a tag named in a comment is not one)
     for tag in ("gazebo", "safety_controller", "calibration", "mechanicalReduction"):
         text = re.sub(_element(tag), "", text, flags=re.S)
-    text = re.sub(r'(<link\b[^>]*?)\stype="[^"]*"', r"\1", text)
+    text = re.sub(r"""(<link\b[^>]*?)\stype\s*=\s*("[^"]*"|'[^']*')""", r"\1", text)
     text = re.sub(_element("joint"), fix_joint, text, flags=re.S)
     text = re.sub(r"""\sfriction\s*=\s*("[^"]*"|'[^']*')""", "", text)
     root = ET.fromstring(text)
@@ -104,7 +105,7 @@ def prepare_urdf(
 
     def keep_transmission(match: re.Match) -> str:
         block = match.group(0)
-        names = re.findall(r'<joint\b[^>]*\bname="([^"]+)"', block)
+        names = [m[1] for m in re.findall(r"""<joint\b[^>]*\bname\s*=\s*(["'])(.+?)\1""", block)]
         simple = "SimpleTransmission" in block and all(n in moving for n in names)
         return block if simple else ""
 

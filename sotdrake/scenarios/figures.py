@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
+from sotdrake import save_figure
 from sotdrake.dynamics.robot_dyn import RobotDyn
 from sotdrake.dynamics.station import sole_rectangle
-from sotdrake.simulation import save_figure
 
 
 def support_box(path: dict, sides: list[str], margin_rectangle) -> tuple[np.ndarray, np.ndarray]:

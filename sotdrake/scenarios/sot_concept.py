@@ -81,6 +81,7 @@ from sotdrake.exceptions import SotError
 from sotdrake.scenarios.figures import concept_figure
 
 SEED_GAIN = (4.9, 0.9, 0.01, 0.9)
+SEED_JOINT_LIMIT_GAIN = 10.0  # sot-dyninv's TaskJointLimits: the bound's rate is 1/(dt·gain)
 SUPPORT_BOX = ((-0.08, -0.15), (0.11, 0.15))  # the original's taskSupport: x, y lower; x, y upper (m)
 STEP_TIMES = (1.0, 1.5, 2.0, 2.5)  # seed6/seed7: the ball moves +0.1 m in x (the original: 4 times)
 
@@ -188,7 +189,8 @@ ConceptTask = MetaTaskKine6d | MetaTaskKineCom | MetaTaskKineJointLimits | MetaT
 
 def _tasks(robot: Robot, seed: bool, profile: RobotProfile) -> dict[str, ConceptTask]:
     """The original's tasks: the hand (+ opmodif), the contacts, the CoM held (gain 10), the CoM
-    support inequality and the joint limits (gain 10) with torso yaw's upper limit at 0."""
+    support inequality and the joint limits (sot-dyninv's gain 10: 1/(10·dt), 20 /s at 5 ms) with the
+    limited joint's upper limit at 0."""
     rh = MetaTaskKine6d("rh", robot, "rh", robot.OperationalPointsMap["right-wrist"])
     grip = np.eye(4)
     grip[0:3, 3] = profile.hand_offset
@@ -212,7 +214,8 @@ def _tasks(robot: Robot, seed: bool, profile: RobotProfile) -> dict[str, Concept
         # (λ·dt = 1 is the edge where an equality would overshoot, and the gain check warns there).
         support.gain.setConstant(0.9 / robot.dt)
         tasks["support"] = support
-        jl = MetaTaskKineJointLimits(robot, "JL", margin=0.0, gain=10.0)
+        # sot-dyninv's TaskJointLimits bounds v by (limit − q)/(dt·gain), gain 10: a rate of 1/(dt·10).
+        jl = MetaTaskKineJointLimits(robot, "JL", margin=0.0, gain=1.0 / (robot.dt * SEED_JOINT_LIMIT_GAIN))
         row = jl.joint_names.index(profile.limited_joint)
         joint = robot.model.plant.GetJointByName(profile.limited_joint)
         lower, upper = joint.position_lower_limits()[0], joint.position_upper_limits()[0]
@@ -377,6 +380,8 @@ def main(argv: list[str] | None = None) -> dict:
         parser.error(f"--robot {args.robot} runs the seed configurations only (the extras' balls are TALOS's)")
     if args.steps < 0:
         parser.error(f"--steps must be ≥ 0, got {args.steps}")
+    if args.steps != len(STEP_TIMES) and not any(CONFIGURATIONS[n].steps for n in names):
+        parser.error(f"--steps: an option of the configurations whose ball moves (seed6, seed7); this run is {args.config}")
     meshcat = start(args)
     args.out.mkdir(parents=True, exist_ok=True)
     summary, traces = {}, {}

@@ -334,7 +334,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--then", type=float, nargs=4, default=None, metavar=("T", "X", "Y", "THETA"),
                         help="pg.setVelocity(X, Y, THETA) at time T")
     parser.add_argument("--steps", type=int, default=None, help="walk this many steps instead of a velocity")
-    parser.add_argument("--step-length", type=float, default=0.2, help="with --steps: advance per step (m)")
+    parser.add_argument("--step-length", type=float, default=None, help="with --steps: advance per step (m; default 0.2)")
     parser.add_argument("--mode", choices=MODES, default="kinematic")
     parser.add_argument("--solver", choices=["hqp", "cascade"], default="hqp")
     parser.add_argument("--gains", type=float, nargs=2, default=(TRACKING_GAIN, POSTURE_GAIN), metavar=("TRACKING", "ORIENTATION"),
@@ -362,9 +362,13 @@ def main(argv: list[str] | None = None) -> dict:
         parser.error(f"{', '.join(physics_only)}: options of --mode physics (this run is --mode {args.mode})")
     if args.steps is not None and not 1 <= args.steps <= MAX_STEPS:
         parser.error(f"--steps must be in [1, {MAX_STEPS}], got {args.steps}")
+    if args.steps is None and args.step_length is not None:
+        parser.error("--step-length: an option of --steps (this run walks at --velocity)")
+    if args.steps is not None and options_given(parser, args, ("velocity",)):
+        parser.error("--velocity: this run walks --steps (give one or the other)")
     gait = _gait(parser, args)
     meshcat = start(args)
-    steps = (args.steps, args.step_length) if args.steps is not None else None
+    steps = (args.steps, 0.2 if args.step_length is None else args.step_length) if args.steps is not None else None
     servos = Servos(args.stiffness, args.feedforward, args.com_gain, args.zmp_gain, args.closed_loop, args.damping)
     walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, gait=gait, meshcat=meshcat,
                          servos=servos, multibody_zmp=None if args.zmp_model is None else args.zmp_model == "multibody",

@@ -112,8 +112,9 @@ ARM_BACKWARD_MARGIN = 0.01
 ARMS = ("posture", "inequality")
 #: The arm joints (TALOS', Romeo's) of the ``posture`` arms.
 ARM_JOINTS = re.compile(r"^arm_(left|right)_[1-7]_joint$|^[LR](Shoulder|Elbow|Wrist)")
-#: walkromeo's gain of its arm posture: ``GainAdaptive.set(0.1, 0.1, 125e3)``, a constant 0.1 /s.
-ARM_POSTURE_GAIN = (0.1, 0.1, 125e3)
+#: walkromeo's gain of its arm posture (1/s): ``gainPosition.set(0.1, 0.1, 125e3)`` then
+#: ``gainPosition.gain.value = 5``, which makes the gain's output the constant 5.
+ARM_POSTURE_GAIN = 5.0
 #: Dynamic mode's swing profile: ``'quintic'`` (zero acceleration at the lift-off and touch-down).
 #: With the cubic the swing foot's forward acceleration jumps to 6 Δ/T² (4.9 m/s²) at the lift-off:
 #: in that tick the stance sole's CoP jumps 5 cm forward, onto its toe, and the sole turns by about
@@ -332,7 +333,7 @@ def _add_stack(bot: Robot, pg: PatternGenerator, sot: SOT, spec: WalkingRobot, a
             if joint.num_velocities() == 1 and ARM_JOINTS.search(joint.name()):
                 selected[joint.velocity_start()] = True
         posture.feature.selec("".join("1" if b else "0" for b in reversed(selected)))
-        posture.gain.set(*ARM_POSTURE_GAIN)
+        posture.gain.setConstant(ARM_POSTURE_GAIN)
         tasks[posture.task.name] = posture
     elif solver == "hqp":
         for name, wrist in zip(("ArmL", "ArmR"), spec.wrists, strict=False):

@@ -74,7 +74,7 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
         self.start, self.dt, self.input_cost, self.legs = start, float(dt), input_cost, legs
         self._yaw0 = {side: start.foot(side)[2] for side in SIDES}
         self._plan = self.DeclareAbstractState(AbstractValue.Make(initial_plan(start, self.gait, input_cost, legs)))
-        self.DeclareInitializationUnrestrictedUpdateEvent(self._update)
+        self.DeclareInitializationUnrestrictedUpdateEvent(self._initialize)
         self.DeclarePeriodicUnrestrictedUpdateEvent(self.dt, 0.0, self._update)
         self._references = self.DeclareCacheEntry(
             "references", ValueProducer(allocate=lambda: AbstractValue.Make(object()), calc=self._calc_references),
@@ -118,6 +118,13 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
         return self.own_context(context).get_abstract_state(self._plan).get_value()
 
     # --- calc -------------------------------------------------------------------------------
+    def _initialize(self, context: Context, state) -> None:
+        """At a tick (t = 0, or a context cloned at one): :meth:`_update`. Between two ticks (a context
+        cloned after a command) nothing: the next tick plans, as it did in the run it was cloned from."""
+        ticks = context.get_time() / self.dt
+        if abs(ticks - round(ticks)) <= 1e-9 * max(1.0, ticks):
+            self._update(context, state)
+
     def _update(self, context: Context, state) -> None:
         plan = context.get_abstract_state(self._plan).get_value()
         command, t = self._settings_of(context).command, context.get_time()

@@ -298,6 +298,7 @@ def test_bad_pairs_are_refused(world):
         ([("gripper_right_base_link", "gripper_right_fingertip_1_link")], InvalidInput, "welded"),
         ([("table", "table2")], FrameNotFound, "table2"),
         ([("arm_right_7_link",)], InvalidInput, "two names"),
+        ([("arm_right_7_link", "torso_2_link"), ("torso_2_link", "arm_right_7_link")], InvalidInput, "given twice"),
         ([], InvalidInput, "empty"),
     ]:
         with pytest.raises(error, match=word):

@@ -56,13 +56,15 @@ def adjacent_pairs(plant: MultibodyPlant) -> set[Pair]:
 def check_pairs(pairs: object, links: Iterable[str], obstacles: Iterable[str], adjacent: set[Pair]) -> list[tuple[str, str]]:
     """``pairs`` as a list of ``(name, name)`` after checking each: two names of ``links`` (bodies
     with collision geometry) or of ``obstacles``, not twice the same body, not an adjacent pair, not
-    two obstacles. Raises :class:`~sotdrake.exceptions.FrameNotFound` for an unknown name (listing
-    the names that exist) and :class:`~sotdrake.exceptions.InvalidInput` otherwise; nothing is kept."""
+    two obstacles, not a pair given before (in either order). Raises
+    :class:`~sotdrake.exceptions.FrameNotFound` for an unknown name (listing the names that exist)
+    and :class:`~sotdrake.exceptions.InvalidInput` otherwise; nothing is kept."""
     links, obstacles = list(links), list(obstacles)
     known = set(links) | set(obstacles)
     if isinstance(pairs, (str, bytes)) or not isinstance(pairs, Iterable):
         raise InvalidInput(f"pairs must be a list of (link, link) or (link, obstacle) name pairs, got {pairs!r:.100}")
     checked: list[tuple[str, str]] = []
+    given: dict[Pair, tuple[str, str]] = {}
     for pair in pairs:
         if isinstance(pair, (str, bytes)) or not isinstance(pair, Iterable) or len(names := tuple(pair)) != 2:
             raise InvalidInput(f"pairs: each pair must be two names, (link, link) or (link, obstacle); got {pair!r:.100}")
@@ -77,6 +79,9 @@ def check_pairs(pairs: object, links: Iterable[str], obstacles: Iterable[str], a
                                "together (their distance never changes): leave this pair out")
         if a in obstacles and b in obstacles:
             raise InvalidInput(f"pairs: ({a!r}, {b!r}) are two obstacles: a pair needs a link of the robot")
+        if frozenset(names) in given:
+            raise InvalidInput(f"pairs: ({a!r}, {b!r}) is given twice (as {given[frozenset(names)]!r} before)")
+        given[frozenset(names)] = (a, b)
         checked.append((a, b))
     if not checked:
         raise InvalidInput("pairs: an empty list checks nothing; give at least one pair, or None for every pair")

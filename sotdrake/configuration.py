@@ -26,6 +26,7 @@ at the velocity limits.) :func:`difference` is the inverse of ``⊕``.
 from __future__ import annotations
 
 import copy
+import logging
 import math
 from typing import NamedTuple
 
@@ -39,6 +40,8 @@ from .lie import log_so3, quaternion_exp_list, quaternion_multiply_list, quatern
 
 BASE_POSITION_SUFFIXES = ("qw", "qx", "qy", "qz", "x", "y", "z")
 BASE_VELOCITY_SUFFIXES = ("wx", "wy", "wz", "vx", "vy", "vz")
+
+log = logging.getLogger(__name__)
 
 
 class Layout(NamedTuple):
@@ -160,6 +163,17 @@ def _names(plant: MultibodyPlant, size: int, start, count, base_start, suffixes)
         for k, suffix in enumerate(suffixes):
             names[base_start(body) + k] = f"{body.name()}_{suffix}"
     return names
+
+
+def warn_beyond_limits(plant: MultibodyPlant, q: np.ndarray, what: str) -> None:
+    """A log warning naming the joints of ``plant`` whose positions in ``q`` are beyond their limits
+    (by more than 1e-9): the solvers bring them back inside first, which a user rarely means."""
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    beyond = np.flatnonzero((q < lower - 1e-9) | (q > upper + 1e-9))
+    if beyond.size:
+        names = position_names(plant)
+        log.warning("%s: %s beyond the joint limits: the solver brings them back inside before anything else", what,
+                    ", ".join(f"{names[i]} = {q[i]:g} not in [{lower[i]:g}, {upper[i]:g}]" for i in beyond[:6]))
 
 
 def position_names(plant: MultibodyPlant) -> list[str]:

@@ -30,7 +30,7 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem, OutputPo
 from .atomic import in_built_diagram
 from .centroidal import centroidal_momentum_matrix
 from .configuration import Layout, PlantContextHolder
-from .exceptions import InvalidInput, SotError, check_finite, check_name
+from .exceptions import FrameNotFound, InvalidInput, SotError, check_finite, check_name
 from .lie import MIN_QUATERNION_NORM
 from .robots import RobotModel
 
@@ -99,7 +99,7 @@ class Dynamic(LeafSystem):
     def check_op_point(self, name: str, frame_name: str):
         """The frame of a new or existing op point ``name`` on ``frame_name``, checked as
         :meth:`createOpPoint` does (an unknown frame, another frame under that name, a name taken by
-        another output), without declaring anything."""
+        another output or by another frame of the model), without declaring anything."""
         check_name("op point name", name)
         frame = self.model.frame(frame_name)
         if name in self._op_points:
@@ -109,6 +109,13 @@ class Dynamic(LeafSystem):
         for port_name in (name, "J" + name):
             if self.HasOutputPort(port_name):
                 raise InvalidInput(f"{self.get_name()} already has an output named {port_name!r}")
+        try:
+            named = self.model.frame(name)
+        except FrameNotFound:
+            named = None
+        if named is not None and named.index() != frame.index():  # (the op point would hide that frame)
+            raise InvalidInput(f"op point {name!r} on {frame_name!r}: {name!r} already names another frame of "
+                               f"{self.model.name} ({named.name()!r}); give the op point another name")
         return frame
 
     def hasOpPoint(self, name: str) -> bool:

@@ -19,6 +19,7 @@ from pydrake.lcm import DrakeLcm
 from pydrake.systems.framework import DiagramBuilder, OutputPort, System
 
 from .atomic import all_or_nothing, check_new_names
+from .configuration import warn_beyond_limits
 from .device import Device
 from .exceptions import InvalidInput, NotFound, SotError, check_name, check_type
 from .joint_limitator import JointLimitator
@@ -98,6 +99,8 @@ class Robot:
         self._names: set[str] = set()
         self.lcm: DrakeLcm | None = None  # the publishers' LCM instance (sotdrake.publishing), made by the first of them
         device = Device(model.plant, dt, model.half_sitting if q0 is None else q0, "device")  # (checks dt and q0 first)
+        if q0 is not None:
+            warn_beyond_limits(model.plant, device.initial_position, "q0")
         with all_or_nothing(builder):  # (a measured_position that cannot be connected: the builder as it was)
             self.dynamic = self.add(Dynamic(model, "dynamic"))
             self.device = self.add(device)

@@ -9,6 +9,7 @@ import logging
 
 import numpy as np
 import pytest
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder
 
 from sotdrake import (
@@ -194,3 +195,87 @@ def test_a_continuous_joint_turns_the_short_way_to_its_posture(tmp_path):
     assert -3.0 - 0.3 < q[0] < -3.0  # the short way: down through −π, ≡ +3
     np.testing.assert_allclose(np.cos(q[0]), np.cos(3.0), atol=1e-3)
     np.testing.assert_allclose(q[1], 1.8, atol=1e-3)
+
+
+def test_the_dynamic_sot_runs_an_arm_with_unlimited_joints_and_fewer_than_six(tmp_path):
+    """``SolverDyn`` on a 2-joint arm whose first joint is ``continuous`` and whose second has no
+    ``lower``/``upper``: the joint-limit bounds of the unlimited sides are infinite (they were NaN and
+    refused at the first tick), and a 6D task on the tool (6 rows over 2 joints) is taken."""
+    from pydrake.systems.analysis import Simulator
+
+    from sotdrake import MetaTaskDyn6d, RobotDyn
+    from sotdrake.dynamics.terms import joint_acceleration_bounds
+
+    lower, upper = joint_acceleration_bounds(np.zeros(2), np.array([0.5, -0.5]), np.array([-np.inf, -1.0]), np.array([np.inf, 1.0]),
+                                             np.full(2, -2.0), np.full(2, 2.0), 0.1, 1e-3, dt=1e-3, braking=np.array([100.0, 100.0]))
+    assert np.all(np.isfinite(lower)) and np.all(np.isfinite(upper)) and np.all(lower <= upper)
+    path = tmp_path / "free.urdf"
+    path.write_text(f'<robot name="free">{link("base")}{link("l1")}{link("l2")}{link("tool")}'
+                    '<joint name="j1" type="continuous"><parent link="base"/><child link="l1"/><origin xyz="0 0 0.2"/>'
+                    '<axis xyz="0 0 1"/><limit effort="50" velocity="2"/></joint>'
+                    '<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0 0 0.2"/>'
+                    '<axis xyz="0 1 0"/><limit effort="50" velocity="2"/></joint>'
+                    '<joint name="tool_joint" type="fixed"><parent link="l2"/><child link="tool"/><origin xyz="0 0 0.2"/>'
+                    "</joint></robot>")
+    model = load_robot(path, reference_posture={"j2": 0.5})
+    assert np.isinf(model.joint_limits()["position_upper"]).all()
+    bot = RobotDyn(builder := DiagramBuilder(), model, "dynsimu")
+    hand = MetaTaskDyn6d("tool", bot, "tool", "tool", kp=50.0)
+    target = bot.dynamic.pose_at("tool", np.array([0.3, 0.8])).translation()  # (reachable: j1 0.3, j2 0.8)
+    start = np.linalg.norm(hand.initial_pose().translation() - target)
+    hand.feature.selec("000111")  # (the position: 3 joints cannot also hold the orientation)
+    hand.featureDes.setPosition(RigidTransform(target))
+    bot.sot.push(hand.task.name)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(1.0)
+    x = bot.state_port.Eval(bot.state_port.get_system().GetMyContextFromRoot(simulator.get_context()))
+    assert np.all(np.isfinite(x))
+    reached = bot.dynamic.pose_at("tool", x[:model.nq]).translation()
+    assert start > 0.05 and np.linalg.norm(reached - target) < 0.1 * start
+
+
+def test_a_file_named_talos_is_not_the_catalog_s_talos(tmp_path):
+    from sotdrake import RobotDyn
+
+    (folder := tmp_path / "mine").mkdir()
+    path = folder / "talos.urdf"
+    path.write_text(arm("talos").replace("</robot>", f"{link('left-sole')}<joint name='sole_joint' type='fixed'>"
+                                                   "<parent link='tool'/><child link='left-sole'/></joint></robot>"))
+    model = load_robot(path)
+    bot = RobotDyn(builder := DiagramBuilder(), model, "dynsimu")
+    before = systems(builder)
+    with pytest.raises(InvalidInput, match="no sole rectangle known for talos's 'left-sole'"):
+        bot.add_contact("LF", "left-sole")  # (not TALOS' sole box)
+    assert systems(builder) == before
+    with pytest.raises(InvalidInput, match="device='physics' is TALOS' torque-driven plant"):
+        RobotDyn(DiagramBuilder(), model, "physics")
+
+
+def test_an_op_point_may_not_take_another_frame_s_name(tmp_path):
+    path = tmp_path / "arm.urdf"
+    path.write_text(arm())
+    bot = robot(builder := DiagramBuilder(), load_robot(path))
+    before = systems(builder)
+    with pytest.raises(InvalidInput, match="'l1' already names another frame"):
+        MetaTaskKine6d("hand", bot, "l1", "tool")  # (the op point 'l1' on the tool would hide the link l1)
+    assert systems(builder) == before
+    MetaTaskKine6d("hand", bot, "tool", "tool")
+    MetaTaskKine6d("link", bot, "l1")
+
+
+def test_a_q0_beyond_the_joint_limits_is_warned(tmp_path, caplog):
+    from sotdrake import RobotDyn
+
+    path = tmp_path / "arm.urdf"
+    path.write_text(arm())
+    model = load_robot(path)
+    for make in (lambda: robot(DiagramBuilder(), model, q0=np.array([0.0, 2.5])),
+                 lambda: RobotDyn(DiagramBuilder(), model, "dynsimu", q0=np.array([0.0, 2.5]))):
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="sotdrake"):
+            make()
+        assert "j2 = 2.5 not in [-2, 2]" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="sotdrake"):
+        robot(DiagramBuilder(), model, q0=np.array([0.0, 2.0]))  # (on the limit: fine)
+    assert "beyond the joint limits" not in caplog.text

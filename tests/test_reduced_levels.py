@@ -152,6 +152,8 @@ def test_the_compiled_bounds_are_the_joint_limits_as_acceleration_bounds_exactly
         braking = rng.uniform(1.0, 200.0, NV)  # torque braking: below v_max/T for some joints, above for others
         braking[rng.random(NV) < 0.3] = np.inf  # (and none for some)
         upper_v[rng.random(NV) < 0.1] = np.inf  # (a joint without a velocity limit)
+        lower_q[rng.random(NV + 1) < 0.1] = -np.inf  # (joints without a position limit, on one side or both)
+        upper_q[rng.random(NV + 1) < 0.1] = np.inf
         a_lo, a_up = acceleration_bounds(q, v, lower_q, upper_q, -upper_v, upper_v, horizon, margin, layout, dt=dt,
                                          braking=braking)
         a_lo[~selection] = a_up[~selection] = 0.0
@@ -165,3 +167,4 @@ def test_the_compiled_bounds_are_the_joint_limits_as_acceleration_bounds_exactly
                      normal_force_limits(contacts, slices))
         for g, w in zip(got, want, strict=True):
             np.testing.assert_array_equal(g, w)
+            assert not np.isnan(g).any()

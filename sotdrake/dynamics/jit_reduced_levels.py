@@ -185,7 +185,7 @@ def _side_bounds(q, v, position_upper, velocity_upper, horizon, margin, dt, brak
     room = position_upper - q
     speed = 0.0  # (.terms.stopping_speed)
     if room > 0.0 and brake > 0.0:
-        speed = 2 * room / (dt + math.sqrt(dt * dt + 2 * room / brake))
+        speed = math.inf if math.isinf(room) else 2 * room / (dt + math.sqrt(dt * dt + 2 * room / brake))
     return _min(up, speed_rate), _max((speed - v) / dt, -brake)
 
 

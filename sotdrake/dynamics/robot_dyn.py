@@ -23,7 +23,7 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from ..atomic import all_or_nothing, check_new_names
-from ..configuration import Layout, check_base_quaternion
+from ..configuration import Layout, check_base_quaternion, warn_beyond_limits
 from ..exceptions import InvalidInput, check_finite, check_name, check_number, check_type
 from ..hqp import ACTIVE_SET
 from ..physics.plant import MAX_TIME_STEP, check_contact_options
@@ -56,14 +56,17 @@ class RobotDyn:
         check_contact_options(contact, contact_solver)  # (before anything is added to the builder)
         if device == "dynsimu" and (contact, contact_solver) != ("hydroelastic", "sap"):
             raise InvalidInput("contact and contact_solver choose the physics plant's contact: device='physics'")
-        if device == "physics" and model.name != "talos":
-            raise InvalidInput(f"device='physics' is TALOS' torque-driven plant; {model.name} runs on device='dynsimu'")
+        if device == "physics" and not _is_talos(model):
+            raise InvalidInput(f"device='physics' is TALOS' torque-driven plant (the catalog's); {model.name} runs on "
+                               "device='dynsimu'")
         dt = check_number("dt (the control period" + (", the physics plant's step)" if device == "physics" else ")"), dt, 1e-6,
                           MAX_TIME_STEP if device == "physics" else MAX_DT, " s")
         # q0 checked before anything is added (Drake aborts the process on a non-finite or
         # wrongly sized default position of the physics plant).
         q0 = model.half_sitting if q0 is None else check_finite("q0", q0, (model.nq,))
         check_base_quaternion("q0", q0, Layout.of(model.plant))
+        if q0 is not model.half_sitting:
+            warn_beyond_limits(model.plant, np.asarray(q0, dtype=float), "q0")
         self.builder, self.model, self.dt, self.device_kind = builder, model, dt, device
         self.OperationalPointsMap = model.OperationalPointsMap
         self.q0 = np.array(q0, dtype=float)
@@ -99,9 +102,9 @@ class RobotDyn:
         """The contact rectangle ``(x_min, x_max, y_min, y_max)`` (m, sole frame) of a sole op point."""
         if opPoint in self.model.sole_rectangles:
             return self.model.sole_rectangles[opPoint]
-        if self.model.name == "talos" and opPoint in TALOS_SOLES:
+        if _is_talos(self.model) and opPoint in TALOS_SOLES:
             return sole_rectangle()
-        known = sorted(self.model.sole_rectangles) or (list(TALOS_SOLES) if self.model.name == "talos" else [])
+        known = sorted(self.model.sole_rectangles) or (list(TALOS_SOLES) if _is_talos(self.model) else [])
         raise InvalidInput(f"no sole rectangle known for {self.model.name}'s {opPoint!r} "
                            f"(known: {known}); pass rectangle=(x_min, x_max, y_min, y_max), or None for a point contact")
 
@@ -180,3 +183,9 @@ class RobotDyn:
         connect(contact.GetOutputPort("contact"), self.sot.declare_contact_input(contact))
         self.contacts[name] = contact
         return contact
+
+
+def _is_talos(model) -> bool:
+    """Whether ``model`` is the catalog's TALOS (not a file of the user's that is named so)."""
+    return model.name == "talos" and model.source_path is None
+

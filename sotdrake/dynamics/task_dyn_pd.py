@@ -84,8 +84,10 @@ class TaskDynPD(Entity[DynPDSettings]):
         Entity.__init__(self, name, DynPDSettings())
         self.nv = check_count(f"{name}: nv", nv, 1, 10**6)
         self.dt = check_positive(f"{name}: dt", dt, MAX_DT, " s")
+        #: The most rows a feature may give: nv, or 6 (a pose) on a robot of fewer velocities.
+        self.max_rows = max(self.nv, 6)
         if dimension is not None:
-            dimension = check_count(f"{name}: dimension (the feature's rows)", dimension, 1, self.nv)
+            dimension = check_count(f"{name}: dimension (the feature's rows)", dimension, 1, self.max_rows)
         if exact_drift and dimension is None:
             raise InvalidInput(f"{name}: exact_drift needs the drift input, i.e. a dimension")
         self.exact_drift = bool(exact_drift)
@@ -101,13 +103,13 @@ class TaskDynPD(Entity[DynPDSettings]):
             self.drift = self.DeclareVectorInputPort("drift", dimension)
             self.reference_acceleration = self.DeclareVectorInputPort("reference_acceleration", dimension)
         self.rows = self.DeclareAbstractInputPort("rows", AbstractValue.Make(np.zeros(0, dtype=int)))
-        # The previous Jacobian as discrete state (rows, then J row-major, up to nv rows): a discrete
+        # The previous Jacobian as discrete state (rows, then J row-major, up to max_rows rows): a discrete
         # update is computed from the same context as the device's and the plant's step (the physical
         # plant's outputs are not sampled), so every system of a tick sees the same J̇ (an
         # unrestricted update would be applied before them).
         self.stack = None
         if not self.exact_drift:
-            self._previous = self.DeclareDiscreteState(np.zeros(1 + nv * nv))
+            self._previous = self.DeclareDiscreteState(np.zeros(1 + self.max_rows * nv))
             self.DeclarePeriodicDiscreteUpdateEvent(self.dt, 0.0, self._remember)
             self.stack = self.DeclareAbstractInputPort("stack", AbstractValue.Make(()))
         empty = TaskLevel(np.zeros((0, nv)), np.zeros(0), np.zeros(0), np.zeros(0))
@@ -166,8 +168,8 @@ class TaskDynPD(Entity[DynPDSettings]):
             state.get_mutable_value(self._previous)[0] = 0.0
             return
         J = self._inputs(context)[1]
-        if J.shape[0] > self.nv:
-            raise InvalidInput(f"{self.name}: a Jacobian with more rows than nv = {self.nv}")
+        if J.shape[0] > self.max_rows:
+            raise InvalidInput(f"{self.name}: a Jacobian of {J.shape[0]} rows, more than max(nv, 6) = {self.max_rows}")
         memory = state.get_mutable_value(self._previous)  # (the state as it is: entries past J's are not read)
         memory[0] = J.shape[0]
         memory[1 : 1 + J.size] = J.ravel()

@@ -225,7 +225,8 @@ def stopping_speed(room: np.ndarray, brake: np.ndarray, dt: float) -> np.ndarray
     stops by it: the tick moves it ``v' dt``, then braking at ``brake`` (> 0; ``inf``: at once)
     covers at most ``v'²/(2 brake)`` (the ticks' steps ``v_k dt`` sum to less than the braking's
     integral), so ``v' dt + v'²/(2 brake) ≤ room`` gives ``v' = 2 room/(dt + √(dt² + 2 room/brake))``;
-    0 where ``room ≤ 0`` (on or beyond the limit) or ``brake`` is 0."""
+    0 where ``room ≤ 0`` (on or beyond the limit) or ``brake`` is 0; ``inf`` where ``room`` is (a joint
+    without that limit)."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        speed = 2 * room / (dt + np.sqrt(dt * dt + 2 * room / brake))
+        speed = np.where(np.isposinf(room), np.inf, 2 * room / (dt + np.sqrt(dt * dt + 2 * room / brake)))
     return np.where((room > 0) & (brake > 0), speed, 0.0)

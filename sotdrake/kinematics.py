@@ -30,7 +30,7 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem, OutputPo
 from .atomic import in_built_diagram
 from .centroidal import centroidal_momentum_matrix
 from .configuration import Layout, PlantContextHolder
-from .exceptions import FrameNotFound, InvalidInput, SotError, check_finite, check_name
+from .exceptions import InvalidInput, SotError, check_finite, check_name
 from .lie import MIN_QUATERNION_NORM
 from .robots import RobotModel
 
@@ -109,10 +109,7 @@ class Dynamic(LeafSystem):
         for port_name in (name, "J" + name):
             if self.HasOutputPort(port_name):
                 raise InvalidInput(f"{self.get_name()} already has an output named {port_name!r}")
-        try:
-            named = self.model.frame(name)
-        except FrameNotFound:
-            named = None
+        named = self.model.find_frame(name)
         if named is not None and named.index() != frame.index():  # (the op point would hide that frame)
             raise InvalidInput(f"op point {name!r} on {frame_name!r}: {name!r} already names another frame of "
                                f"{self.model.name} ({named.name()!r}); give the op point another name")

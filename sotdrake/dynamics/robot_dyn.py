@@ -63,10 +63,11 @@ class RobotDyn:
                           MAX_TIME_STEP if device == "physics" else MAX_DT, " s")
         # q0 checked before anything is added (Drake aborts the process on a non-finite or
         # wrongly sized default position of the physics plant).
-        q0 = model.half_sitting if q0 is None else check_finite("q0", q0, (model.nq,))
+        given = q0 is not None
+        q0 = check_finite("q0", q0, (model.nq,)) if given else model.half_sitting
         check_base_quaternion("q0", q0, Layout.of(model.plant))
-        if q0 is not model.half_sitting:
-            warn_beyond_limits(model.plant, np.asarray(q0, dtype=float), "q0")
+        if given:
+            warn_beyond_limits(model.plant, q0, "q0")
         self.builder, self.model, self.dt, self.device_kind = builder, model, dt, device
         self.OperationalPointsMap = model.OperationalPointsMap
         self.q0 = np.array(q0, dtype=float)

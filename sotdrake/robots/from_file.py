@@ -214,7 +214,7 @@ def _add_other(plant: MultibodyPlant, path: Path, resolver: PackageResolver, flo
     with drake_refusals(path):
         instances = parser.AddModels(str(path))
     _check_unique_names(plant, instances, path)
-    free = _mjcf_free_bodies(path)
+    free = _mjcf_free_bodies(root)
     for instance in instances:
         if not floating_base:
             children = {plant.get_joint(j).child_body().index() for j in plant.GetJointIndices()}
@@ -241,14 +241,11 @@ def _check_unique_names(plant: MultibodyPlant, instances: list[ModelInstanceInde
                         "links and joints without their model (op points, tasks, postures, collision pairs): rename one")
 
 
-def _mjcf_free_bodies(path: Path) -> set[str]:
-    """The bodies an MJCF file frees itself (a ``<freejoint/>`` or a ``<joint type="free"/>``):
-    Drake leaves them floating; they are not welded (none for another format)."""
-    try:
-        root = ET.parse(path).getroot()
-    except (ET.ParseError, UnicodeDecodeError):
-        return set()
-    if root.tag != "mujoco":
+def _mjcf_free_bodies(root: ET.Element | None) -> set[str]:
+    """The bodies an MJCF file (its parsed ``root``) frees itself (a ``<freejoint/>`` or a
+    ``<joint type="free"/>``): Drake leaves them floating; they are not welded (none for another
+    format, or a file that is not XML)."""
+    if root is None or root.tag != "mujoco":
         return set()
     return {body.get("name", "") for body in root.iter("body")
             if body.find("freejoint") is not None or any(j.get("type") == "free" for j in body.findall("joint"))}

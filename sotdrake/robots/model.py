@@ -93,6 +93,15 @@ class RobotModel:
         """
         if not isinstance(name, str):
             raise FrameNotFound(repr(name), list(self.OperationalPointsMap))
+        frame = self.find_frame(name)
+        if frame is None:
+            plant = self.plant
+            frames = {plant.get_frame(FrameIndex(i)).name() for i in range(plant.num_frames())}
+            raise FrameNotFound(name, [*self.OperationalPointsMap, *sorted(frames)])
+        return frame
+
+    def find_frame(self, name: str) -> Frame | None:
+        """:meth:`frame`, or None for a name that is none of those."""
         if name in self._frames:
             return self._frames[name]
         plant, target = self.plant, self.OperationalPointsMap.get(name, name)
@@ -104,8 +113,7 @@ class RobotModel:
         elif plant.HasJointNamed(target):
             frame = plant.GetJointByName(target).frame_on_child()
         else:
-            frames = {plant.get_frame(FrameIndex(i)).name() for i in range(plant.num_frames())}
-            raise FrameNotFound(name, [*self.OperationalPointsMap, *sorted(frames)])
+            return None
         self._frames[name] = frame
         return frame
 

@@ -263,13 +263,18 @@ class _EqualityFactors:
     ``Z @ null``) and the minimum-norm least-squares step :meth:`step`. Householder QR of ``Bᵀ`` if
     it proves every singular value of ``B`` above τ (:func:`~.linalg.independent_qr`: the rows
     are independent, the step solves them exactly), else the SVD cut at τ; both give the same
-    subspace and step in exact arithmetic."""
+    subspace and step in exact arithmetic. A row of ``B`` of norm at most τ is fixed by the levels
+    above (its residual is constant): it is zeroed first, so that its round-off, weighted back by its
+    norm in the step, pulls ``y`` nowhere."""
 
     __slots__ = ("norms", "null", "qr", "rank", "svd")
 
     def __init__(self, B: np.ndarray, norms: np.ndarray, threshold: float):
         self.norms = norms
         m, r = B.shape
+        constant = np.einsum("ij,ij->i", B, B) <= threshold * threshold
+        if any_true(constant):  # rows the levels above fix: their round-off would pull the weighted step anywhere
+            B = np.where(constant[:, None], 0.0, B)
         self.qr = independent_qr(B.T, threshold, full=True) if m >= QR_MIN_SIZE else None
         if self.qr is not None:
             self.null, self.rank = self.qr[0][:, m:], m

@@ -14,7 +14,10 @@ of the directions they leave free (``x = x0 + Z y``)::
 - *The minimum-norm stage* (no level): ``M = I``, ``t = −Zᵀx0`` (``‖x0 + Z y‖²`` with ``Z``
   orthonormal).
 - *An equality-only level*: ``z = y``, ``M = A_eq Z``, ``t = b_eq − A_eq x0``, with ``√μ I`` below
-  when damped (``μ > 0``).
+  when damped (``μ > 0``). A row whose projected norm is at most τ times its norm is fixed by the
+  levels above: its ``a Z`` (round-off) is zeroed, so that its residual, constant over the stage,
+  pulls ``y`` nowhere (kept, a residual of 1e6 on a round-off row of 1e-10 pulled ``y`` to 1e12
+  along the directions another row of the level keeps free, a row of norm 1e-8 say).
 - *A level with inequality rows*: ``z = (y, w)`` with one slack ``w_i`` per inequality row, ``M =
   [[A_eq Z, 0], [0, I], [√μ I, 0]]``, and the soft rows ``lo − a·x0 ≤ a Z y − w ≤ hi − a·x0`` scaled
   by ``‖(a Z, −1)‖``; ``w`` starts at each row's violation at ``y = 0``. A row whose projected norm
@@ -113,6 +116,9 @@ def build(has_level, A_eq, b_eq, eq_norms, A_in, lower_in, upper_in, in_norms, x
         M[:m_eq, :r] = A_eq @ Z
         t[:m_eq] = b_eq - A_eq @ x0
         m_scale[:m_eq] = eq_norms
+        for i in range(m_eq):  # a row the levels above fix: its residual is constant, its round-off pulls nowhere
+            if norm(M[i, :r]) <= tau * eq_norms[i]:
+                M[i, :r] = 0.0
     for i in range(m_in):
         M[m_eq + i, r + i] = 1.0
     for i in range(m_damped):

@@ -159,7 +159,11 @@ def _clear_cut_step(B, residual, norms):
     if rank == 0:
         return True, _none(), _none()
     kept = contiguous(Vt[:rank].T)
-    ok, z = _least_squares(B @ kept, residual)  # raw rows: the level's objective is ‖B z − ρ‖
+    raw = B.copy()  # raw rows: the level's objective is ‖B z − ρ‖; a row the levels above fix
+    for i in range(raw.shape[0]):  # (scaled norm below NEGLIGIBLE) is constant: its round-off must not
+        if np.sqrt(np.sum(scaled[i] * scaled[i])) < NEGLIGIBLE:  # pull z along a row of the level
+            raw[i] = 0.0  # whose norm is as small (1e-8 beside 1e6: z of 1e12)
+    ok, z = _least_squares(raw @ kept, residual)
     if not ok:
         return False, _none(), _none()
     return True, kept @ z, contiguous(Vt[rank:].T)

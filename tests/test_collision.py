@@ -324,14 +324,18 @@ def test_bad_obstacles_are_refused_and_nothing_is_added(talos_model, tmp_path):
         (("box", (1.0, 1.0, 1.0)), np.full((4, 4), np.nan), "X_WO"),
         (("box", (1.0, 1.0, 1.0)), np.diag([2.0, 1.0, 1.0, 1.0]), "rigid transform"),
         (("mesh", str(tmp_path / "missing.obj")), RigidTransform(), "does not exist"),
-        (("mesh", str(garbage)), RigidTransform(), "does not load"),
+        (("mesh", str(garbage)), RigidTransform(), "no face"),
         (("mesh", str(flat)), RigidTransform(), "no volume"),
         (("cone", 1.0), RigidTransform(), "unknown shape"),
+        (("box", (1e-300, 0.1, 0.1)), RigidTransform(), "box size x"),
     ]:
         with pytest.raises(InvalidInput, match=word):
             add_obstacle(world, shape, pose, "obstacle")
     for taken in ("torso_2_link", "world", "imu_link"):  # (a body without collision geometry too: its name is taken)
         with pytest.raises(InvalidInput, match="link"):
+            add_obstacle(world, ("sphere", 0.1), RigidTransform(), taken)
+    for taken in ("right-wrist", "arm_right_7_joint", "root_joint", "leg_right_sole_fix_joint"):  # a pair would mean the obstacle
+        with pytest.raises(InvalidInput, match="frame, joint or op point"):
             add_obstacle(world, ("sphere", 0.1), RigidTransform(), taken)
     assert world.obstacles == {}
     add_obstacle(world, ("sphere", 0.1), RigidTransform([1.0, 0, 1.0]), "ball")
@@ -339,6 +343,24 @@ def test_bad_obstacles_are_refused_and_nothing_is_added(talos_model, tmp_path):
     with pytest.raises(SotError, match="before building"):
         add_obstacle(world, ("sphere", 0.1), RigidTransform([2.0, 0, 1.0]), "late")
     assert list(world.obstacles) == ["ball"]
+
+
+@pytest.mark.parametrize("faces, word", [("", "no face"), ("l 1 2\nl 2 3\n", "no face"), ("f 1 2 9\n", "line 5"),
+                                         ("f 1 2\n", "line 5"), ("f 1 2 -5\n", "line 5"), ("f 1 2 3.5\n", "line 5"),
+                                         ("f 0 1 2\n", "line 5"), ("f 1/1 2/2 nan\n", "line 5")])
+def test_an_obj_mesh_drake_would_register_halfway_is_refused_and_a_retry_works(talos_model, tmp_path, faces, word):
+    """Vertices without faces, or a face index out of range: the convex hull (vertices only) exists, but
+    Drake's registration fails halfway (the name stays taken) or stops the process. Read first, refused."""
+    world = CollisionWorld(talos_model)
+    mesh = tmp_path / "mesh.obj"
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n" + faces)
+    geometries = world.scene_graph.model_inspector().num_geometries()
+    with pytest.raises(InvalidInput, match=word):
+        add_obstacle(world, ("mesh", str(mesh)), RigidTransform([1.0, 0, 1.0]), "o1")
+    assert world.obstacles == {} and world.scene_graph.model_inspector().num_geometries() == geometries
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf -3 -2 -1\n")
+    add_obstacle(world, ("mesh", str(mesh)), RigidTransform([1.0, 0, 1.0]), "o1")
+    assert list(world.obstacles) == ["o1"]
 
 
 def test_robot_without_collision_geometry_is_named(tmp_path):

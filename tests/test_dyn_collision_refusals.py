@@ -65,7 +65,7 @@ def test_after_the_build_a_dynamic_robot_refuses_with_a_sot_error(talos_model):
 @pytest.mark.parametrize("shape", [Sphere(1e9), Box(1e6, 1.0, 1.0), Capsule(0.1, 500.0), Ellipsoid(0.1, 0.1, 1e3)])
 def test_drake_shapes_have_the_described_shapes_sizes(shape):
     robot = talos(DiagramBuilder())
-    with pytest.raises(InvalidInput, match=r"\(0, 100\] m"):
+    with pytest.raises(InvalidInput, match=r"\[1e-06, 100\] m"):
         add_obstacle(robot, shape, RigidTransform([1.0, 0.0, 0.0]), "big")
     assert "big" not in collision_world(robot).obstacles
 

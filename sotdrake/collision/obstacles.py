@@ -11,9 +11,10 @@ the world, a ``RigidTransform`` or a 4×4 matrix, m), to the robot's collision w
 * or the Drake shape itself (``Box``, ``Sphere``, ``Cylinder``, ``Capsule``, ``Ellipsoid``,
   ``Mesh``, ``Convex``).
 
-Every value is checked before anything is added: a size that is not a finite number > 0, a
-non-finite pose, a mesh that does not load (or has no volume), a name already used by a link or an
-obstacle, an obstacle added after the collision world's first context was made.
+Every value is checked before anything is added: a size that is not a finite number in
+[1 µm, 100 m], a non-finite pose, a mesh that does not load (or has no volume; an OBJ file without
+faces or with a face index out of range), a name already used by a link, a frame, a joint, an op
+point or an obstacle, an obstacle added after the collision world's first context was made.
 """
 
 from __future__ import annotations
@@ -44,14 +45,15 @@ from .world import CollisionWorld, collision_world
 
 #: The colour obstacles are drawn in (RGBA).
 OBSTACLE_COLOR = Rgba(0.85, 0.45, 0.2, 0.6)
-#: Largest size accepted for an obstacle (m).
-MAX_SIZE = 100.0
+#: Smallest and largest size accepted for an obstacle (m).
+MIN_SIZE, MAX_SIZE = 1e-6, 100.0
 
 
 def _size(name: str, what: str, value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
-            or not (math.isfinite(value) and 0 < value <= MAX_SIZE):
-        raise InvalidInput(f"add_obstacle({name!r}): shape {what} must be a finite number in (0, {MAX_SIZE:g}] m, got {value!r:.80}")
+            or not (math.isfinite(value) and MIN_SIZE <= value <= MAX_SIZE):
+        raise InvalidInput(f"add_obstacle({name!r}): shape {what} must be a finite number in [{MIN_SIZE:g}, {MAX_SIZE:g}] m, "
+                           f"got {value!r:.80}")
     return float(value)
 
 
@@ -79,13 +81,34 @@ def make_shape(shape: object, name: str = "obstacle") -> Shape:
 def _mesh_path(name: str, path: object) -> Path:
     if not isinstance(path, (str, Path)) or not Path(path).is_file():
         raise InvalidInput(f"add_obstacle({name!r}): mesh file {path!r:.200} does not exist")
-    if Path(path).suffix.lower() == ".obj":  # (the convex hull leaves a NaN vertex out: read the file's own)
-        with open(path, encoding="utf-8", errors="replace") as file:
-            for line_number, line in enumerate(file, 1):
-                if line.startswith("v ") and not all(math.isfinite(number(word)) for word in line.split()[1:4]):
-                    raise InvalidInput(f"add_obstacle({name!r}): mesh {str(path)!r} line {line_number}: a vertex that is not "
-                                       f"three finite numbers: {line.strip()!r:.80}")
+    if Path(path).suffix.lower() == ".obj":
+        _check_obj(name, Path(path))
     return Path(path)
+
+
+def _check_obj(name: str, path: Path) -> None:
+    """An OBJ file's vertices (three finite numbers each: the convex hull leaves a NaN vertex out)
+    and faces (at least one of three vertices or more, every index one of the vertices given so far,
+    from 1, or from -1 backwards): Drake registers a mesh without faces, or with an index out of
+    range, only halfway or stops the process, after the convex hull, which ignores faces, was taken."""
+    vertices = faces = 0
+    with open(path, encoding="utf-8", errors="replace") as file:
+        for line_number, line in enumerate(file, 1):
+            words = line.split()
+            where = f"add_obstacle({name!r}): mesh {str(path)!r} line {line_number}"
+            if words[:1] == ["v"]:
+                if not (len(words) >= 4 and all(math.isfinite(number(word)) for word in words[1:4])):
+                    raise InvalidInput(f"{where}: a vertex that is not three finite numbers: {line.strip()!r:.80}")
+                vertices += 1
+            elif words[:1] == ["f"]:
+                indices = [number(word.split("/")[0]) for word in words[1:]]
+                if len(indices) < 3 or not all(math.isfinite(i) and i == int(i) and (1 <= i <= vertices or -vertices <= i <= -1)
+                                               for i in indices):
+                    raise InvalidInput(f"{where}: a face needs three vertex indices or more, each from 1 to the {vertices} "
+                                       f"vertices given before it (or -1 to -{vertices}): {line.strip()!r:.80}")
+                faces += 1
+    if faces == 0:
+        raise InvalidInput(f"add_obstacle({name!r}): mesh {str(path)!r} has no face (an 'f' line): a surface is needed")
 
 
 def number(word: str) -> float:
@@ -148,6 +171,18 @@ def _pose(name: str, X_WO: object) -> RigidTransform:
     return RigidTransform(matrix) if not isinstance(X_WO, RigidTransform) else X_WO
 
 
+def name_taken(world: CollisionWorld, name: str) -> str | None:
+    """What already has ``name`` in ``world`` (an obstacle, a link, or a frame, joint or op point of
+    the robot: a pair naming it would then mean the obstacle), or None."""
+    if name in world.obstacles:
+        return "an obstacle"
+    if name in world.links or world.plant.HasBodyNamed(name):
+        return "a link"
+    if world.model.find_frame(name) is not None or world.plant.HasJointNamed(name):
+        return f"a frame, joint or op point of {world.model.name}"
+    return None
+
+
 def add_obstacle(robot, shape: object, X_WO: object, name: str, meshcat: Meshcat | None = None) -> GeometryId:
     """Add an obstacle to the collision world of ``robot`` (a :class:`~sotdrake.robot.Robot`, or a
     :class:`~.world.CollisionWorld`) and return its geometry id; see the module docstring. With
@@ -155,8 +190,9 @@ def add_obstacle(robot, shape: object, X_WO: object, name: str, meshcat: Meshcat
     world = robot if isinstance(robot, CollisionWorld) else collision_world(robot)
     if not isinstance(name, str) or not name.strip():
         raise InvalidInput(f"add_obstacle: name must be a non-empty string, got {name!r:.80}")
-    if name in world.obstacles or name in world.links or world.plant.HasBodyNamed(name):
-        raise InvalidInput(f"add_obstacle: {name!r} is already the name of a {'obstacle' if name in world.obstacles else 'link'}")
+    taken = name_taken(world, name)
+    if taken:
+        raise InvalidInput(f"add_obstacle: {name!r} is already the name of {taken}: take another name")
     drake_shape = make_shape(shape, name)
     pose = _pose(name, X_WO)
     if world.contexts_made:

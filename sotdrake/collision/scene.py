@@ -33,7 +33,7 @@ from pydrake.multibody.tree import RigidBody
 from ..exceptions import InvalidInput, SotError
 from ..robots.from_file import is_drake_check
 from ..robots.urdf_checks import positive_lengths
-from .obstacles import _pose, add_obstacle, draw_obstacles, make_shape
+from .obstacles import _pose, add_obstacle, draw_obstacles, make_shape, name_taken
 from .world import CollisionWorld, collision_world
 
 #: The shelf shipped with sotdrake (see the module docstring).
@@ -136,7 +136,7 @@ def add_scene(robot, source: str | Path, X_WS: object = None, name: str = "scene
     returns the obstacles' names (see the module docstring). Nothing is added unless all can be."""
     world = robot if isinstance(robot, CollisionWorld) else collision_world(robot)
     shapes = scene_shapes(source, X_WS, name)
-    taken = [label for label, _, _ in shapes if label in world.obstacles or label in world.links]
+    taken = [label for label, _, _ in shapes if name_taken(world, label)]
     if taken or len({label for label, _, _ in shapes}) != len(shapes):
         raise InvalidInput(f"add_scene({name!r}): obstacle names {taken or [s[0] for s in shapes]} are taken already "
                            "(or repeated): give the scene another name")

@@ -4,6 +4,7 @@ answering whatever a request or a callback does."""
 
 import json
 import os
+from types import SimpleNamespace
 
 import pytest
 
@@ -94,6 +95,7 @@ class _Server:
 class _Live:
     def __init__(self):
         self.server = _Server()
+        self.vocabulary = SimpleNamespace(add_function=lambda *args, **kwargs: None)
 
 
 @pytest.fixture()

@@ -4,16 +4,20 @@
 header) with the simulated time: joint states (``sensor_msgs/JointState``), points
 (``geometry_msgs/PointStamped``: CoM, hand, target) and arrays (``std_msgs/Float64MultiArray``:
 task errors). The bag is a directory ``<name>/`` holding ``<name>.mcap`` and ``metadata.yaml``.
+A bag's topics are fully qualified names (``/joint_states``): a relative one (``state``, ``~/x``,
+``{node}/x``) has no node to resolve it against, and is refused.
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import re
 import shutil
 import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
@@ -23,6 +27,21 @@ from ..exceptions import InvalidInput, check_count, os_reason
 from .messages import check_topic
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+log = logging.getLogger("sotdrake.ros")
+
+#: A series: its topic, message type, T rows, and the shape of one sample (an array's layout; None: not an array).
+_Series = tuple[str, str, np.ndarray, tuple[int, ...] | None]
+
+
+def _bag_topic(argument: str, topic: object) -> str:
+    """``topic`` if it is a fully qualified ROS topic name, else :class:`InvalidInput` naming ``argument``."""
+    if not isinstance(topic, str) or not topic.startswith("/"):
+        raise InvalidInput(f"write_bag: {argument}: a bag's topic is a fully qualified name (starting with '/'), "
+                           f"got {topic!r:.100}")
+    try:
+        return check_topic(topic)
+    except InvalidInput as error:
+        raise InvalidInput(f"write_bag: {argument}: {error}") from None
 
 
 def _stamp(t: float):
@@ -40,11 +59,14 @@ def write_bag(directory: Path | str, time: Sequence[float] | np.ndarray, joint_s
     """Write the bag ``directory`` (replaced if it exists); returns its ``.mcap`` file.
 
     ``time``: T sample times (s); ``joint_states``: (names, T × len(names) positions);
-    ``points``: topic → T × 3 (m); ``arrays``: topic → T × n (or T)."""
+    ``points``: topic → T × 3 (m); ``arrays``: topic → T × n (or T, or T × n1 × n2 …: each sample
+    row-major, its dimensions in the message's layout; booleans as 0 and 1). Every topic is fully
+    qualified (``/…``); a relative one, a bad size or value is an :class:`InvalidInput` naming the
+    argument, and nothing is written."""
     t = np.asarray(time, dtype=float).ravel()
     if t.size == 0 or not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0) or t[0] < 0 or t[-1] > MAX_BAG_TIME:
         raise InvalidInput(f"write_bag: time must be non-decreasing numbers in [0, {MAX_BAG_TIME:g}] s, not empty")
-    series: list[tuple[str, str, np.ndarray]] = []
+    series: list[_Series] = []
     names: list[str] = []
     if not isinstance(frame, str):
         raise InvalidInput(f"write_bag: frame is a string, got {frame!r:.60}")
@@ -61,16 +83,17 @@ def write_bag(directory: Path | str, time: Sequence[float] | np.ndarray, joint_s
             raise InvalidInput(f"write_bag: joint names are strings, got {names!r:.100}")
         if positions.shape != (t.size, len(names)):
             raise InvalidInput(f"write_bag: joint positions are {positions.shape}, want {(t.size, len(names))}")
-        series.append((check_topic(joint_topic), "sensor_msgs/msg/JointState", positions))
+        series.append((_bag_topic("joint_topic", joint_topic), "sensor_msgs/msg/JointState", positions, None))
     for topic, values in points.items():
         if values.shape != (t.size, 3):
             raise InvalidInput(f"write_bag: {topic} is {values.shape}, want {(t.size, 3)}")
-        series.append((check_topic(topic), "geometry_msgs/msg/PointStamped", values))
+        series.append((_bag_topic("points", topic), "geometry_msgs/msg/PointStamped", values, None))
     for topic, values in arrays.items():
-        if values.ndim not in (1, 2) or len(values) != t.size:
+        if values.ndim < 1 or len(values) != t.size:
             raise InvalidInput(f"write_bag: {topic} is {values.shape}, want {t.size} rows")
-        series.append((check_topic(topic), "std_msgs/msg/Float64MultiArray", values.reshape(t.size, -1)))
-    topics = [topic for topic, _, _ in series]
+        series.append((_bag_topic("arrays", topic), "std_msgs/msg/Float64MultiArray", values.reshape(t.size, -1),
+                       values.shape[1:]))
+    topics = [topic for topic, _, _, _ in series]
     if len(set(topics)) != len(topics):
         raise InvalidInput(f"write_bag: a topic is given twice: {sorted(topics)}")
     directory = Path(directory)
@@ -100,15 +123,26 @@ def _replaceable_bag(directory: Path) -> bool:
     return directory.is_dir() and (not any(directory.iterdir()) or (directory / "metadata.yaml").is_file())
 
 
-def _write_series(directory: Path, t: np.ndarray, series: list[tuple[str, str, np.ndarray]], names: list[str],
-                  frame: str) -> None:
-    """The messages of ``series`` (topic, message type, T rows) at the times ``t``, into a new bag."""
+def _layout(shape: tuple[int, ...]):
+    """The ``MultiArrayLayout`` of one sample of ``shape`` (row-major): one dimension ``signal`` for a
+    number or a vector, ``rows`` and ``cols`` for a matrix, ``dim0``, ``dim1`` … beyond."""
     types = TYPESTORE.types
+    sizes = [int(np.prod(shape, dtype=int))] if len(shape) < 2 else [int(n) for n in shape]
+    labels = ["signal"] if len(shape) < 2 else ["rows", "cols"] if len(shape) == 2 else [f"dim{i}" for i in range(len(shape))]
+    dims = [types["std_msgs/msg/MultiArrayDimension"](label=label, size=size, stride=int(np.prod(sizes[i:], dtype=int)))
+            for i, (label, size) in enumerate(zip(labels, sizes, strict=True))]
+    return types["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0)
+
+
+def _write_series(directory: Path, t: np.ndarray, series: list[_Series], names: list[str], frame: str) -> None:
+    """The messages of ``series`` (topic, message type, T rows, sample shape) at the times ``t``, into a new bag."""
+    types = TYPESTORE.types
+    layouts: list[Any] = [None if shape is None else _layout(shape) for _, _, _, shape in series]
     with Writer(directory, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-        connections = [writer.add_connection(topic, kind, typestore=TYPESTORE) for topic, kind, _ in series]
+        connections = [writer.add_connection(topic, kind, typestore=TYPESTORE) for topic, kind, _, _ in series]
         for k, tk in enumerate(t):
             ns = round(tk * 1e9)
-            for connection, (_topic, kind, values) in zip(connections, series, strict=True):
+            for connection, (_topic, kind, values, _), layout in zip(connections, series, layouts, strict=True):
                 row = values[k]
                 if kind == "sensor_msgs/msg/JointState":
                     message = types[kind](header=_header(tk), name=names, position=row.copy(),
@@ -117,8 +151,6 @@ def _write_series(directory: Path, t: np.ndarray, series: list[tuple[str, str, n
                     point = types["geometry_msgs/msg/Point"](x=row[0], y=row[1], z=row[2])
                     message = types[kind](header=_header(tk, frame), point=point)
                 else:
-                    dim = types["std_msgs/msg/MultiArrayDimension"](label="signal", size=row.size, stride=row.size)
-                    layout = types["std_msgs/msg/MultiArrayLayout"](dim=[dim], data_offset=0)
                     message = types[kind](layout=layout, data=row.copy())
                 writer.write(connection, ns, TYPESTORE.serialize_cdr(message, kind))
 
@@ -141,13 +173,17 @@ def read_bag(directory: Path | str) -> dict[str, list[tuple[int, object]]]:
 
 
 def write_trace_bag(directory: Path | str, trace: Mapping[str, np.ndarray], joints: tuple[Sequence[str], np.ndarray],
-                    targets: Mapping[str, Sequence[float]] | None = None, every: int = 1) -> Path:
+                    targets: Mapping[str, Sequence[float] | np.ndarray] | None = None, every: int = 1) -> Path:
     """A diagram script's trace as a bag: ``trace['q']`` → ``/joint_states`` (the joints
     ``(names, indices in q)``), ``error_<task>`` → ``/sot/error/<task>``, ``<name>_position`` →
-    ``/sot/<name>``, ``targets`` (name → constant point) → ``/sot/target/<name>``, any other numeric
-    series of the trace (a CoP, a ZMP, contact wrenches, …) → ``/sot/<key>`` (``Float64MultiArray``);
-    every ``every``-th sample. A character a topic name does not take becomes ``_`` (a leading
-    digit gets one before it); a topic already used gets ``_2``, ``_3`` …: every series is written."""
+    ``/sot/<name>``, ``targets`` (name → a point, or T × 3 points: the target in force at each of
+    the trace's samples) → ``/sot/target/<name>``, any other series of the trace sampled at its
+    times (a CoP, a ZMP, contact wrenches, …; numbers or booleans, of any shape per sample) →
+    ``/sot/<key>`` (``Float64MultiArray``, the sample's shape in its layout, booleans as 0 and 1);
+    every ``every``-th sample. A series sampled at the trace's times that is not numbers (text,
+    complex) is left out with a warning naming it. A character a topic name does not take becomes
+    ``_`` (a leading digit gets one before it); a topic already used gets ``_2``, ``_3`` …: every
+    other series is written."""
     every = check_count("write_trace_bag: every", every, high=2**31)
     missing = [key for key in ("time", "q") if key not in trace]
     if missing:
@@ -160,14 +196,19 @@ def write_trace_bag(directory: Path | str, trace: Mapping[str, np.ndarray], join
     arrays = {_topic("/sot/error/", k[6:], taken): np.asarray(v)[::every] for k, v in trace.items() if k.startswith("error_")}
     as_points = [k for k, v in trace.items() if k.endswith("_position") and np.ndim(v) == 2 and np.shape(v)[1] == 3]
     points = {_topic("/sot/", k[:-9], taken): np.asarray(trace[k])[::every] for k in as_points}
-    for name, point in (targets or {}).items():
-        points[_topic("/sot/target/", name, taken)] = np.tile(np.asarray(point, dtype=float), (time.size, 1))
     samples = np.asarray(trace["time"]).size
+    for name, point in (targets or {}).items():
+        point = np.asarray(point, dtype=float)
+        series = point.ndim == 2 and point.shape[0] == samples  # (the target at each sample, else a constant one)
+        points[_topic("/sot/target/", name, taken)] = point[::every] if series else np.tile(point, (time.size, 1))
     for key, value in trace.items():  # every other series of the trace (CoP, ZMP, wrenches, …), as arrays
         value = np.asarray(value)
-        if (key not in ("time", "q", *as_points) and not key.startswith("error_") and value.ndim in (1, 2)
-                and value.shape[0] == samples and np.issubdtype(value.dtype, np.number)):
+        if key in ("time", "q", *as_points) or key.startswith("error_") or value.ndim < 1 or value.shape[0] != samples:
+            continue
+        if value.dtype == np.bool_ or np.issubdtype(value.dtype, np.integer) or np.issubdtype(value.dtype, np.floating):
             arrays[_topic("/sot/", key, taken)] = value[::every]
+        else:
+            log.warning("write_trace_bag: the series %r (%s) is not numbers: left out of the bag", key, value.dtype)
     return write_bag(directory, time, (names, np.asarray(trace["q"])[::every][:, indices]), points, arrays)
 
 

@@ -12,7 +12,7 @@ from std_srvs.srv import Empty
 
 from ..exceptions import SotError, check_number, check_type
 from .node import RosNode, ros_node
-from .services import DEPTH, RUN_COMMAND_REQUEST, RUN_COMMAND_RESPONSE, START_SERVICE
+from .services import REQUEST_QOS, RUN_COMMAND_REQUEST, RUN_COMMAND_RESPONSE, START_SERVICE
 
 #: The handshake's request: a query every run answers, which changes nothing.
 HELLO = "time()"
@@ -48,8 +48,10 @@ class RunCommandClient:
         self._arrived = threading.Condition()
         self._count = 0
         self._prefix = f"{node_.get_name()}-{os.getpid()}-{id(self):x}"
-        self.requests = node_.create_publisher(String, RUN_COMMAND_REQUEST, DEPTH)
-        self.responses = node_.create_subscription(String, RUN_COMMAND_RESPONSE, self._response, DEPTH)
+        # (KEEP_ALL both ways: a request the run cannot take yet holds publish() back, or makes it
+        # raise, never overwrites an earlier one; no answer is dropped before it is read)
+        self.requests = node_.create_publisher(String, RUN_COMMAND_REQUEST, REQUEST_QOS)
+        self.responses = node_.create_subscription(String, RUN_COMMAND_RESPONSE, self._response, REQUEST_QOS)
         self.starter = node_.create_client(Empty, START_SERVICE)
         self.closed = False
         self.ros.context.on_shutdown(self._node_shut_down)  # (kept weakly by the context)

@@ -4,6 +4,9 @@ The pip wheels of ROS 2 Jazzy need no setup file: ``rclpy`` finds its libraries 
 by itself and uses Fast DDS (``rmw_fastrtps_cpp``) unless ``RMW_IMPLEMENTATION`` says otherwise.
 ``ROS_DOMAIN_ID`` and ``ROS_AUTOMATIC_DISCOVERY_RANGE`` (``LOCALHOST`` keeps the traffic on this
 host) are read from the environment when the node is created, as by any ROS 2 program.
+
+Messages stamped with simulated time come with that time on ``/clock`` (:meth:`RosNode.publish_clock`,
+``rosgraph_msgs/Clock``), so that a node run with ``use_sim_time`` follows the simulation.
 """
 
 from __future__ import annotations
@@ -11,8 +14,10 @@ from __future__ import annotations
 import logging
 import re
 import threading
+from typing import Any
 
 import rclpy
+from builtin_interfaces.msg import Time
 from pydrake.systems.framework import LeafSystem
 from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
@@ -23,6 +28,8 @@ from ..exceptions import InvalidInput, SotError
 
 log = logging.getLogger("sotdrake.ros")
 
+#: The topic of simulated time (``rosgraph_msgs/Clock``), as ROS 2's ``use_sim_time`` reads it.
+CLOCK_TOPIC = "/clock"
 #: The longest node name ROS 2 takes.
 MAX_NODE_NAME = 255
 _NODE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
@@ -68,6 +75,9 @@ class RosNode:
         except BaseException:
             rclpy.shutdown(context=self.context)
             raise
+        self._clock: Any = None  # the /clock publisher, made on first use
+        self._clock_ns: int | None = None  # the time last published on /clock (ns)
+        self._clock_lock = threading.Lock()
         self.executor = MultiThreadedExecutor(num_threads=2, context=self.context)
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, name=f"ros-{name}", daemon=True)
@@ -85,6 +95,32 @@ class RosNode:
                 if not self.context.ok():  # the context was shut down under the executor
                     return
                 log.exception("%s: a ROS callback raised; the node goes on", self.name)
+
+    def clock_publisher(self) -> Any:
+        """This node's publisher on :data:`CLOCK_TOPIC` (``rosgraph_msgs/Clock``, reliable, depth
+        10), made on first use: a system that stamps messages makes it when it is made, so that
+        readers match it before the first tick."""
+        from rosgraph_msgs.msg import Clock  # (comes with rclpy; imported here: the docs build without ROS)
+
+        with self._clock_lock:
+            if self._clock is None:
+                self._clock = self.node.create_publisher(Clock, CLOCK_TOPIC, 10)
+            return self._clock
+
+    def publish_clock(self, stamp: Time) -> bool:
+        """Publish ``stamp`` (simulated time) on :data:`CLOCK_TOPIC` unless it is the time this
+        node published last (several systems stamping one tick: one message); returns whether it
+        published. Systems call it before the messages they stamp with that time."""
+        from rosgraph_msgs.msg import Clock
+
+        publisher = self.clock_publisher()
+        ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+        with self._clock_lock:
+            if ns == self._clock_ns:
+                return False
+            publisher.publish(Clock(clock=stamp))
+            self._clock_ns = ns
+        return True
 
     def is_open(self) -> bool:
         """Whether this node is open (not shut down or closed)."""

@@ -37,7 +37,8 @@ from .node import RosNode, check_not_built, ros_node
 
 
 def stamp(t: float) -> Time:
-    """A ROS time from simulated seconds."""
+    """A ROS time from simulated seconds (the stamps of the messages published here: simulated time,
+    published on ``/clock`` with them)."""
     nanoseconds = round(t * 1e9)
     return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
 
@@ -174,17 +175,25 @@ class JointStatePublisher(_Triggered):
 
     Inputs: ``state`` (``q``, size nq; rad or m per joint).
     Outputs: none. ``name`` and ``position`` per joint (velocity and effort empty).
+    With ``clock`` (the default), each message's time is first published on ``/clock``
+    (``rosgraph_msgs/Clock``, once per tick for every publisher of the node,
+    :meth:`~.node.RosNode.publish_clock`): a node with ``use_sim_time`` reads the stamps in its time.
     A ``topic`` ROS refuses is an :class:`InvalidInput` naming it.
     """
 
     def __init__(self, plant: MultibodyPlant, topic: str = "/joint_states", name: str = "ros_publish_joint_states",
-                 node: RosNode | None = None, depth: int = 10):
+                 node: RosNode | None = None, depth: int = 10, clock: bool = True):
         super().__init__(name, node)
         depth = check_count(f"{name}: depth (the queue depth)", depth)
+        if not isinstance(clock, bool):
+            raise InvalidInput(f"{name}: clock is True or False, got {clock!r:.60}")
+        self.clock = clock
         self.topic = check_topic(topic)
         self.names, self.indices = joint_coordinates(plant)
         self.state = self.DeclareVectorInputPort("state", plant.num_positions())
         self.publisher = self._publisher(JointState, topic, depth)
+        if clock:
+            self.ros.clock_publisher()
 
     def message(self, context: Context) -> JointState:
         q = self.state.Eval(context)
@@ -195,7 +204,10 @@ class JointStatePublisher(_Triggered):
         return message
 
     def send(self, context: Context) -> None:
-        self.publisher.publish(self.message(context))
+        message = self.message(context)
+        if self.clock:
+            self.ros.publish_clock(message.header.stamp)
+        self.publisher.publish(message)
 
 
 @dataclass

@@ -13,6 +13,19 @@
 
 Commands go through the live run's own queue (:class:`~sotdrake.live.server.CommandServer`), so
 they cost the simulation what a TCP command costs, and the TCP channel stays open beside them.
+
+No request is dropped by the run: the request reader keeps every message (reliable, ``KEEP_ALL``:
+:data:`REQUEST_QOS`). While the command queue is full, a request waits for room (up to the
+server's ``busy_timeout``, then it is answered ``ok: false``, ``busy: … rejected``); meanwhile the
+reader stops acknowledging, and a reliable writer holds its requests back: a ``KEEP_ALL`` writer
+(:class:`~.client.RunCommandClient`'s) blocks in ``publish`` and at worst raises there, a
+``KEEP_LAST`` writer of depth N may overwrite its own oldest unacknowledged requests once N wait.
+So every request the run receives is answered, and every request a ``KEEP_ALL`` writer published
+without an error is received.
+
+``status()`` says whether the graph is held: ``"held": true`` until ``start_dynamic_graph``, with
+``wall``, ``lag_ticks`` and ``max_lag_ticks`` 0 (the run's clock starts with its loop: a held graph
+is not behind); ``"held": false`` and the live run's figures from then on.
 """
 
 from __future__ import annotations
@@ -25,7 +38,9 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.duration import Duration
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 from std_srvs.srv import Empty
 
@@ -39,8 +54,12 @@ log = logging.getLogger("sotdrake.ros")
 RUN_COMMAND_REQUEST = "/run_command/request"
 RUN_COMMAND_RESPONSE = "/run_command/response"
 START_SERVICE = "/start_dynamic_graph"
-#: Queue depth of the command topics (reliable QoS).
+#: Queue depth of the command topics (reliable QoS): the answers a slow reader may lag behind by.
 DEPTH = 1000
+#: The QoS of the request reader, and of :class:`~.client.RunCommandClient`'s request writer and
+#: answer reader: reliable, every message kept until it is taken (a full reader holds the writer
+#: back, never drops a message).
+REQUEST_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 #: The longest string a request's ``id`` may be.
 MAX_ID_CHARS = 1000
 
@@ -82,14 +101,29 @@ class RosServices:
     def __init__(self, live: LiveRun, node: RosNode | None = None, hold: bool = True):
         self.live, self.ros = live, node or ros_node()
         self.started = threading.Event()
+        self.held = hold  # (until wait_for_start returns: the run loop has not begun)
         if not hold:
             self.started.set()
         self._answers = _Answers(self)
         self._count = 0
         node_ = self.ros.node
         self.responses = node_.create_publisher(String, RUN_COMMAND_RESPONSE, DEPTH)
-        self.requests = node_.create_subscription(String, RUN_COMMAND_REQUEST, self._request, DEPTH)
-        self.service = node_.create_service(Empty, START_SERVICE, self._start)
+        self.requests = node_.create_subscription(String, RUN_COMMAND_REQUEST, self._request, REQUEST_QOS)
+        # (a group of its own: the service answers while a request waits for room in the queue)
+        self.service = node_.create_service(Empty, START_SERVICE, self._start,
+                                            callback_group=MutuallyExclusiveCallbackGroup())
+        live.vocabulary.add_function("status", (), lambda c: self.status(), "time, real-time lag, command counts, "
+                                     "held (before start_dynamic_graph)", query=True)
+
+    def status(self) -> str:
+        """The live run's ``status()`` with ``held``: while the graph is held (before
+        :meth:`wait_for_start` returns), ``wall``, ``lag_ticks`` and ``max_lag_ticks`` are 0 (the
+        run's clock starts with its loop: a held graph is not behind)."""
+        report = json.loads(self.live.status())
+        if self.held:
+            report.update(wall=0.0, lag_ticks=0, max_lag_ticks=0)
+        report["held"] = self.held
+        return json.dumps(report)
 
     def _start(self, request, response):
         if not self.started.is_set():
@@ -141,6 +175,7 @@ class RosServices:
                     return False
         except KeyboardInterrupt:
             return False
+        self.held = False
         return True
 
     def close(self, flush_s: float = 10.0) -> None:

@@ -7,11 +7,20 @@
 | ``joint_states`` | ``sensor_msgs/JointState`` | the positions of ``names``, in that order |
 | ``pose`` | ``geometry_msgs/PoseStamped`` | ``(x, y, z, qw, qx, qy, qz)`` (m, unit quaternion: normalised) |
 
-Before the first message (or after a message of the wrong size, or a pose whose quaternion's norm is
-outside (0.5, 2), which is dropped with a warning)
-the port holds its ``default``, and one warning says so. Messages arrive on the ROS executor's
-thread; the output is the latest at the time it is evaluated (so, unlike other systems, it is not
-a function of the context alone: a run that reads it is as repeatable as the traffic it receives).
+Before the first message the port holds its ``default``, and one warning says so. A message is
+dropped, with a warning saying why, when it has the wrong number of values, a value that is not
+finite (the warning names them), a quaternion whose norm is outside (0.5, 2), a ``header.frame_id``
+other than the pose's ``frame`` (``world`` by default; an empty one is taken as that frame), or,
+for joint states, a wanted joint missing, a joint named twice, or not one position per name; the
+port then keeps the last value it held (the last valid message's, or the default).
+
+Messages arrive on the ROS executor's thread. Drake caches an output port's value: the port is
+computed anew (and so is its age) when the context's time (or its state, parameters or fixed
+inputs) changes, from the
+latest message at that moment, and evaluating it again at the same time gives the same value. In a
+simulation it thus takes the latest message once per step; a message that arrives while the time
+stays put is seen from the next time on. The value is not a function of the context alone: a run
+that reads it is as repeatable as the traffic it receives.
 """
 
 from __future__ import annotations
@@ -20,6 +29,7 @@ import logging
 import math
 import threading
 import time
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -36,6 +46,10 @@ from .node import RosNode, check_not_built, ros_node
 log = logging.getLogger("sotdrake.ros")
 
 SUBSCRIBE_KINDS = {"vector": Float64MultiArray, "double": Float64, "joint_states": JointState, "pose": PoseStamped}
+#: The frame a subscribed pose is expressed in unless ``add(..., frame=)`` says otherwise: Drake's world frame.
+WORLD_FRAME = "world"
+#: The components of a subscribed pose, as the drop warnings name them.
+POSE_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 
 
 @dataclass
@@ -44,6 +58,7 @@ class _Slot:
     topic: str
     default: np.ndarray
     names: list[str] | None
+    frame: str | None = None
     value: np.ndarray | None = None
     received_at: float | None = None
     count: int = 0
@@ -67,14 +82,16 @@ class RosSubscribe(LeafSystem):
         self.slots: dict[str, _Slot] = {}
 
     def add(self, kind: str, signal: str, topic: str, default: Sequence[float] | None = None,
-            size: int | None = None, names: Sequence[str] | None = None) -> OutputPort:
+            size: int | None = None, names: Sequence[str] | None = None, frame: str | None = None) -> OutputPort:
         """An output ``signal`` fed from ``topic``; returns the port. ``size`` for a ``vector``,
         ``names`` for ``joint_states`` (``size`` and the number of names at most ``MAX_COUNT``);
-        ``default`` (zeros, or the identity pose) before any message.
+        ``frame`` for a ``pose``: the ``header.frame_id`` it takes (default :data:`WORLD_FRAME`;
+        an empty one is taken as it, another is dropped); ``default`` (zeros, or the identity pose)
+        before any message.
 
         Checked before anything is created (:class:`InvalidInput`, nothing added): the kind, the
-        signal (a new identifier), the topic (ROS's refusal too), the size or names, the default;
-        :class:`SotError` once this system is in a built diagram."""
+        signal (a new identifier), the topic (ROS's refusal too), the size or names, the frame, the
+        default; :class:`SotError` once this system is in a built diagram."""
         check_not_built(self, f"the signal {signal!r:.60}")
         if kind not in SUBSCRIBE_KINDS:
             raise InvalidInput(f"unknown subscription type {kind!r}: one of {', '.join(SUBSCRIBE_KINDS)}")
@@ -93,22 +110,18 @@ class RosSubscribe(LeafSystem):
             n = check_count(f"{self.get_name()}: a 'vector' size", size)
         else:
             n = 1 if kind == "double" else 7
-        if default is None:
-            value = np.zeros(n)
-            if kind == "pose":
-                value[3] = 1.0
-        else:
-            value = check_finite(f"{self.get_name()}: default of {signal!r}", default).ravel()
-            if value.size != n:
-                raise InvalidInput(f"{self.get_name()}: default of {signal!r} must be {n} finite numbers, got {default!r}")
-            if kind == "pose" and abs(float(np.linalg.norm(value[3:])) - 1.0) > 1e-6:
-                raise InvalidInput(f"{self.get_name()}: default of {signal!r}: (x, y, z, qw, qx, qy, qz) with a unit "
-                                   f"quaternion, got one of norm {np.linalg.norm(value[3:]):.6g}")
+        if kind == "pose":
+            frame = WORLD_FRAME if frame is None else frame
+            if not isinstance(frame, str) or not frame or len(frame) > 255:
+                raise InvalidInput(f"{self.get_name()}: frame of {signal!r} is a frame name (1 to 255 characters), got {frame!r:.60}")
+        elif frame is not None:
+            raise InvalidInput(f"{self.get_name()}: frame is for a 'pose' (a PoseStamped's header), not a {kind!r}")
+        value = self._default(kind, signal, n, default)
         try:
             check_topic_type(self.ros.node, topic, SUBSCRIBE_KINDS[kind])
         except InvalidInput as error:
             raise InvalidInput(f"{self.get_name()}: topic: {error}") from None
-        slot = _Slot(kind, topic, value, list(names) if names is not None else None)
+        slot = _Slot(kind, topic, value, list(names) if names is not None else None, frame)
         try:  # (the subscription first: a topic ROS refuses leaves no slot or port behind)
             self.ros.node.create_subscription(SUBSCRIBE_KINDS[kind], topic, lambda m: self._receive(slot, m), self.depth)
         except Exception as error:
@@ -118,6 +131,22 @@ class RosSubscribe(LeafSystem):
         self.DeclareVectorOutputPort(f"{signal}_age", 1, lambda c, out: self._age(signal, out))
         return port
 
+    def _default(self, kind: str, signal: str, n: int, default: Sequence[float] | None) -> np.ndarray:
+        """The checked ``default`` of ``signal`` (``n`` finite numbers; a pose's quaternion a unit one),
+        or zeros (the identity pose) when it is None; :class:`InvalidInput` otherwise."""
+        if default is None:
+            value = np.zeros(n)
+            if kind == "pose":
+                value[3] = 1.0
+            return value
+        value = check_finite(f"{self.get_name()}: default of {signal!r}", default).ravel()
+        if value.size != n:
+            raise InvalidInput(f"{self.get_name()}: default of {signal!r} must be {n} finite numbers, got {default!r}")
+        if kind == "pose" and abs(float(np.linalg.norm(value[3:])) - 1.0) > 1e-6:
+            raise InvalidInput(f"{self.get_name()}: default of {signal!r}: (x, y, z, qw, qx, qy, qz) with a unit "
+                               f"quaternion, got one of norm {np.linalg.norm(value[3:]):.6g}")
+        return value
+
     def _receive(self, slot: _Slot, message) -> None:
         value = self._decode(slot, message)
         if value is None:
@@ -126,30 +155,47 @@ class RosSubscribe(LeafSystem):
             slot.value, slot.received_at, slot.count = value, time.monotonic(), slot.count + 1
 
     def _decode(self, slot: _Slot, message) -> np.ndarray | None:
+        """The value of ``message`` for ``slot``, or None (with a warning saying why) to drop it."""
+        labels: Sequence[str] | None = None
         if slot.kind == "joint_states":
+            twice = sorted(n for n, k in Counter(message.name).items() if k > 1)
+            if twice:
+                return self._drop(slot, f"a JointState naming {', '.join(map(repr, twice[:8]))} more than once")
             index = {n: i for i, n in enumerate(message.name)}
             missing = [n for n in slot.names or () if n not in index]
             if missing or len(message.position) != len(message.name):
-                log.warning("%s: %s: dropped a JointState without %s", self.get_name(), slot.topic, missing or "positions")
-                return None
+                return self._drop(slot, f"a JointState without {missing or 'one position per name'}")
             value = np.array([message.position[index[n]] for n in slot.names or ()], dtype=float)
+            labels = slot.names
         elif slot.kind == "pose":
+            frame = message.header.frame_id
+            if frame not in ("", slot.frame):
+                return self._drop(slot, f"a pose in frame {frame!r:.100}, not {slot.frame!r}")
             p, o = message.pose.position, message.pose.orientation
             value = np.array([p.x, p.y, p.z, o.w, o.x, o.y, o.z], dtype=float)
             norm = float(np.linalg.norm(value[3:]))
             if not 0.5 < norm < 2.0:  # (NaN too) a quaternion, not a rotation: dropped, not scaled from noise
-                log.warning("%s: %s: dropped a pose whose quaternion has norm %.3g", self.get_name(), slot.topic, norm)
-                return None
+                return self._drop(slot, f"a pose whose quaternion has norm {norm:.3g}")
             value[3:] /= norm
+            labels = POSE_FIELDS
         elif slot.kind == "double":
             value = np.array([message.data], dtype=float)
+            labels = ("data",)
         else:
             value = np.asarray(message.data, dtype=float)
-        if value.size != slot.default.size or not np.all(np.isfinite(value)):
-            log.warning("%s: %s: dropped a message of %d values (want %d finite)", self.get_name(), slot.topic,
-                        value.size, slot.default.size)
-            return None
+        if value.size != slot.default.size:
+            return self._drop(slot, f"a message of {value.size} values (want {slot.default.size})")
+        bad = np.flatnonzero(~np.isfinite(value))
+        if bad.size:
+            named = [f"{labels[i] if labels is not None else f'data[{i}]'}={value[i]}" for i in bad[:8]]
+            more = f" (and {bad.size - 8} more)" if bad.size > 8 else ""
+            return self._drop(slot, f"a message whose values are not all finite: {', '.join(named)}{more}")
         return value
+
+    def _drop(self, slot: _Slot, what: str) -> np.ndarray | None:
+        """Warn that ``what`` was dropped (the port keeps its last value); None (no value)."""
+        log.warning("%s: %s: dropped %s", self.get_name(), slot.topic, what)
+        return None
 
     def value(self, signal: str) -> np.ndarray:
         """The last value of ``signal`` (the default, with one warning, before any message)."""

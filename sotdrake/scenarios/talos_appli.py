@@ -25,9 +25,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from pydrake.common.value import AbstractValue
 from pydrake.geometry import Meshcat
+from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 
 from sotdrake import (
     MAX_DURATION,
@@ -70,6 +72,20 @@ class Appli:
     visualizer: object = None
 
 
+class TargetTranslation(LeafSystem):
+    """A pose's translation as a vector (to trace a task's target).
+
+    Inputs: ``pose`` (``RigidTransform``). Outputs: ``translation`` (3, m), computed anew only
+    when the input changes."""
+
+    def __init__(self, name: str = "target_rh_translation"):
+        LeafSystem.__init__(self)
+        self.set_name(name)
+        pose = self.DeclareAbstractInputPort("pose", AbstractValue.Make(RigidTransform()))
+        self.DeclareVectorOutputPort("translation", 3, lambda c, out: out.SetFromVector(pose.Eval(c).translation()),
+                                     prerequisites_of_calc={self.input_port_ticket(pose.get_index())})
+
+
 def build_diagram(
     meshcat: Meshcat | None = None,
     target=TARGET,
@@ -82,7 +98,9 @@ def build_diagram(
     """The tutorial's control graph; with ``meshcat``, TALOS and the target are drawn there.
     ``solver``: ``'cascade'`` (sot-core ``SOT``) or ``'hqp'`` (``SolverKine``, joint limits hard).
     ``push_time=None``: the hand task is not pushed (push it live: ``sot.push('taskrh')``).
-    ``ros``: the seed's ``RosPublish`` (``/sot_control/state``, ``/joint_states``, every 100 ticks)."""
+    ``ros``: the seed's ``RosPublish`` (``/sot_control/state``, ``/joint_states``, every 100 ticks),
+    and the hand's target traced at every tick (``target_rh``: ``run_command`` may move it; the
+    bag's ``/sot/target/rh`` is the target in force at each of its samples)."""
     builder = DiagramBuilder()
     robot = talos(builder, variant, dt)
 
@@ -125,6 +143,9 @@ def build_diagram(
         import sotdrake.ros
 
         sotdrake.ros.add_ros_publisher(robot)
+        translation = builder.AddSystem(TargetTranslation())
+        builder.Connect(taskRH.featureDes.GetOutputPort("position"), translation.get_input_port())
+        tracer.add(translation.get_output_port(), "target_rh")
     diagram = builder.Build()
     diagram.set_name("talos_appli")
     return Appli(diagram, robot, sot, taskRH, taskCom, contactLF, contactRF, tracer,
@@ -269,11 +290,17 @@ def main_ros(args) -> dict:
 
 
 def write_bag(appli: Appli, out: Path, summary: dict, trace: dict, every: int = 10) -> Path:
-    """``--bag``: the trace every ``every`` ticks as ``out/run/run.mcap`` (needs the ros2 extra)."""
+    """``--bag``: the trace every ``every`` ticks as ``out/run/run.mcap`` (needs the ros2 extra).
+    ``/sot/target/rh`` is the target in force at each sample: the traced ``target_rh`` (``--ros``,
+    where ``run_command`` may move it), else the one the run ended with (no command moved it)."""
     import sotdrake.ros
 
+    trace = dict(trace)
+    target = trace.pop("target_rh", None)  # (on /sot/target/rh, not also as an array)
+    if target is None:
+        target = trace.get("target_position", appli.target)
     path = sotdrake.ros.write_trace_bag(out / "run", trace, sotdrake.ros.joint_coordinates(appli.robot.model.plant),
-                           {"rh": list(appli.target)}, every)
+                                        {"rh": target}, every)
     summary["bag"] = str(path)
     return path
 

@@ -9,13 +9,15 @@ A diagram runs at real-time rate until stopped (``python diagrams/talos_appli.py
 * :mod:`.framing` and :mod:`.connection`: the wire format, the token and its 0600 file;
 * :mod:`.server`: the command server (127.0.0.1, bounded queue) applying commands at tick boundaries;
 * :mod:`.runner`: the live loop (real time, Ctrl-C, the run's files);
-* :mod:`.shell`: the client, ``sotdrake-shell``.
+* :mod:`.shell`: the client, ``sotdrake-shell`` (a command it stops waiting for is withdrawn: never
+  applied later).
 """
 
 from .connection import Connection, default_path, read_connection
 from .grammar import Command, EntityRef, parse_command
 from .runner import LiveRun, add_live_arguments, live_meshcat, run_live
 from .server import CommandServer
+from .shell import NotApplied
 from .vocabulary import Vocabulary
 
 __all__ = [
@@ -24,6 +26,7 @@ __all__ = [
     "Connection",
     "EntityRef",
     "LiveRun",
+    "NotApplied",
     "Vocabulary",
     "add_live_arguments",
     "default_path",

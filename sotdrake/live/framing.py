@@ -5,6 +5,12 @@ JSON object per line, ``{"id": k, "ok": true, "answer": "..."}`` or ``{"id": k, 
 "error": "..."}``, where ``k`` counts the client's lines after the token (1, 2, …); answers to
 rejected lines may overtake answers to accepted ones, so the client matches them by ``id``.
 
+A client that stops waiting sends ``#withdraw <k>`` (a line of its own, with its own id): the server
+answers at once. If line ``k`` was still waiting for a tick, it is answered ``{"id": k, "ok":
+false, "error": "...", "withdrawn": true}`` and never applied, and the withdraw line is answered
+``ok``; if it was already answered or being applied, the withdraw line is answered ``ok`` false and
+line ``k`` gets its usual answer. A server that does not know ``#withdraw`` refuses it as a command.
+
 :class:`LineReader` never holds more than ``MAX_LINE`` bytes plus one ``recv``: a longer line is
 reported as too long and skipped up to its end, as it arrives.
 """
@@ -19,6 +25,8 @@ from collections.abc import Iterator
 #: Longest line accepted, newline included (bytes).
 MAX_LINE = 64 * 1024
 _RECV = 16 * 1024
+#: The start of a line that withdraws an earlier one: ``#withdraw <id>`` (never a command: ``#`` starts a comment).
+WITHDRAW = b"#withdraw "
 
 
 class LineTooLong(Exception):
@@ -67,9 +75,12 @@ class LineReader:
                 yield LineTooLong()
 
 
-def answer(ident: int, ok: bool, text: str) -> bytes:
-    """One answer line."""
-    return (json.dumps({"id": ident, "ok": ok, ("answer" if ok else "error"): text}) + "\n").encode()
+def answer(ident: int, ok: bool, text: str, withdrawn: bool = False) -> bytes:
+    """One answer line (``withdrawn``: the command was withdrawn by its client, not applied)."""
+    message: dict[str, object] = {"id": ident, "ok": ok, ("answer" if ok else "error"): text}
+    if withdrawn:
+        message["withdrawn"] = True
+    return (json.dumps(message) + "\n").encode()
 
 
 def decode_answer(line: bytes) -> dict:

@@ -15,7 +15,8 @@ connection file; :func:`run_live` then raises if the simulation failed.
 
 Figures (``status()``): ``t`` (simulated s), ``wall`` (s since the loop started), ``ticks``,
 ``lag_ticks`` (ticks the run is behind the wall clock now, ``⌊wall·rate/dt⌋ - ticks``),
-``max_lag_ticks`` (the most since the previous ``status()``), the command counts.
+``max_lag_ticks`` (the most since the previous ``status()``), the command counts (``withdrawn``:
+commands whose client stopped waiting before the run reached them, never applied).
 """
 
 from __future__ import annotations
@@ -129,6 +130,7 @@ class LiveRun:
             "received": counts.received,
             "accepted": counts.accepted,
             "rejected": counts.rejected,
+            "withdrawn": counts.withdrawn,
             "scheduled": len(self._scheduled),
             "attime_refused": len(self.attime_refused),
         }
@@ -196,6 +198,7 @@ class LiveRun:
             self._boundary(context)
 
     def _boundary(self, context: Context) -> None:
+        self.server.ticked()
         now = context.get_time()
         while self._scheduled and self._scheduled[0].time <= now + 1e-9:
             item = heapq.heappop(self._scheduled)

@@ -13,6 +13,13 @@ in arrival order, until its deadline (at least ``minimum`` per call), it parses 
 (:meth:`~.vocabulary.Vocabulary.prepare`) and applies it to the context, and answers ``ok`` (or the
 value asked for) or why it was refused: the grammar's, the allow-list's or the API's error. All the
 work a command costs is thus done within the time the runner grants it.
+
+A client that stops waiting for an answer sends ``#withdraw <id>`` (see :mod:`.framing`): the
+reader answers it at once, without the simulation thread. A command still waiting in the queue is
+then never applied: it is answered ``{"ok": false, "withdrawn": true, "error": "<why it waited>;
+..."}`` and counted in ``withdrawn``; one the simulation thread has begun to apply gets its usual
+answer. Either way the client learns the truth, even when the run does not tick (numba compiling
+before the first tick, a held or stopped run).
 """
 
 from __future__ import annotations
@@ -30,7 +37,7 @@ from pydrake.systems.framework import Context
 from ..exceptions import SotError
 from .arguments import Prepared
 from .connection import HOST
-from .framing import MAX_LINE, LineReader, LineTooLong, answer
+from .framing import MAX_LINE, WITHDRAW, LineReader, LineTooLong, answer
 from .grammar import parse_command
 from .vocabulary import Vocabulary
 
@@ -40,11 +47,23 @@ log = logging.getLogger("sotdrake.live")
 @dataclass
 class ServerCounts:
     """Counts since the start: lines received, answered ok, rejected (grammar, allow-list, API,
-    busy, too long)."""
+    busy, too long), withdrawn by their client before the run reached them (never applied)."""
 
     received: int = 0
     accepted: int = 0
     rejected: int = 0
+    withdrawn: int = 0
+
+
+@dataclass(eq=False)
+class _Request:
+    """A queued line; ``state`` (under the server's lock): ``queued``, then ``taken`` by the
+    simulation thread or ``withdrawn`` by its client, whichever comes first."""
+
+    client: _Client
+    ident: int
+    line: bytes
+    state: str = "queued"
 
 
 class _Client:
@@ -151,12 +170,14 @@ class CommandServer:
         if host not in ("127.0.0.1", "::1", "localhost"):
             raise SotError(f"the command server listens on the loopback only, not {host!r}")
         self.vocabulary, self.token = vocabulary, token
-        self.queue: queue.Queue[tuple[_Client, int, bytes]] = queue.Queue(maxsize=queue_size)
+        self.queue: queue.Queue[_Request] = queue.Queue(maxsize=queue_size)
         self.max_connections, self.auth_timeout = max_connections, auth_timeout
         self.busy_timeout, self.max_unsent = busy_timeout, max_unsent
         self.counts = ServerCounts()
         self._lock = threading.Lock()
         self._clients: set[_Client] = set()
+        self._waiting: dict[tuple[_Client, int], _Request] = {}  # queued, neither taken nor withdrawn
+        self.last_tick: float | None = None  # time.monotonic() of the last tick boundary or process()
         self._listener = socket.create_server((host, port))
         self.host, self.port = self._listener.getsockname()[:2]
         self._accepting = threading.Thread(target=self._accept_loop, name="live-accept", daemon=True)
@@ -194,18 +215,60 @@ class CommandServer:
 
     def _handle_line(self, client: _Client, ident: int, line: bytes | LineTooLong) -> None:
         """Queue the line for the simulation thread (waiting while the queue is full); a line too
-        long is answered here, without queueing."""
+        long and a ``#withdraw`` are answered here, without queueing."""
+        if isinstance(line, bytes) and line.startswith(WITHDRAW):
+            self._withdraw(client, ident, line)
+            return
         self._count("received")
         if isinstance(line, LineTooLong):
             self._count("rejected")
             client.send(answer(ident, False, f"line too long: more than {MAX_LINE} bytes; skipped"))
             return
         client.queued()
+        request = _Request(client, ident, line)
+        with self._lock:
+            self._waiting[client, ident] = request
         try:
-            self.queue.put((client, ident, line), timeout=self.busy_timeout)
+            self.queue.put(request, timeout=self.busy_timeout)
         except queue.Full:
+            with self._lock:
+                self._waiting.pop((client, ident), None)
             self._count("rejected")
             client.send(answer(ident, False, f"busy: {self.queue.maxsize} commands waiting; rejected"), queued=True)
+
+    def _withdraw(self, client: _Client, ident: int, line: bytes) -> None:
+        """``#withdraw <id>``: the command of line ``<id>`` is answered now and never applied if it
+        is still waiting; else (applied, being applied, unknown) only this line is answered."""
+        try:
+            target = int(line[len(WITHDRAW):].strip())
+        except ValueError:
+            client.send(answer(ident, False, "withdraw: expected '#withdraw <id>', the id of an earlier line"))
+            return
+        with self._lock:
+            request = self._waiting.pop((client, target), None)
+            if request is not None:
+                request.state = "withdrawn"
+                self.counts.withdrawn += 1
+        if request is None:
+            client.send(answer(ident, False, f"withdraw: line {target} is not waiting (answered, being applied, or unknown)"))
+            return
+        why = f"{self.why_waiting()}; the command was withdrawn, not applied"
+        client.send(answer(target, False, why, withdrawn=True), queued=True)
+        client.send(answer(ident, True, f"withdrawn: line {target} will not be applied"))
+
+    def why_waiting(self) -> str:
+        """Why queued commands are not answered yet, in words: the run has not ticked yet, has not
+        ticked for a while, or is ticking with commands ahead."""
+        if self.last_tick is None:
+            return "the run has not ticked yet (it is starting: numba compiles once after an install)"
+        idle = time.monotonic() - self.last_tick
+        if idle > 1.0:
+            return f"the run has not ticked for {idle:.1f} s (held, paused or stopping)"
+        return f"the run is ticking; {self.queue.qsize()} commands are queued, the run applies them in turn"
+
+    def ticked(self) -> None:
+        """Called by the simulation thread at each tick boundary (see :meth:`why_waiting`)."""
+        self.last_tick = time.monotonic()
 
     # --- simulation thread -----------------------------------------------------------------
     def process(self, context: Context, deadline: float, minimum: int = 1) -> int:
@@ -213,15 +276,21 @@ class CommandServer:
         deadline`` (at least ``minimum`` if queued); returns how many were handled. All the work
         of a command (parsing included) is done here, so the caller's deadline bounds it."""
         done = 0
+        self.ticked()
         while done < minimum or time.monotonic() < deadline:
             try:
-                client, ident, line = self.queue.get_nowait()
+                request = self.queue.get_nowait()
             except queue.Empty:
                 break
+            with self._lock:
+                if request.state == "withdrawn":
+                    continue  # (already answered)
+                request.state = "taken"
+                self._waiting.pop((request.client, request.ident), None)
             done += 1
-            ok, text = self.handle(line, context)
+            ok, text = self.handle(request.line, context)
             self._count("accepted" if ok else "rejected")
-            client.send(answer(ident, ok, text), queued=True)
+            request.client.send(answer(request.ident, ok, text), queued=True)
         return done
 
     def handle(self, line: bytes, context: Context) -> tuple[bool, str]:

@@ -44,6 +44,16 @@ def _fmt(value, spec: str) -> str:
     return "n/a" if value is None else format(value, spec)
 
 
+def _daqp_sentence(d: dict) -> str:
+    """The README's sentence on DAQP's hierarchical mode (``bench/hierarchical_peer.py``)."""
+    answers = d["answers"]
+    return (f"DAQP's hierarchical mode on the same random stacks (`bench/hierarchical_peer.py`): CPU time median "
+            f"{d['cpu_ms_median']:.3f} ms, the HQP's {d['ratio_median']:.1f}× that (per-stack median); its answer is "
+            f"lexicographically worse than the HQP's on {answers['worse']} stacks, equal on {answers['equal']}, better on "
+            f"{answers['better']} (of which {answers['better_with_looser_level_above']} by holding a level above looser), "
+            f"outside the bounds on {answers['outside_bounds']}, failed on {answers['failed']}.")
+
+
 def markdown(r: dict) -> str:
     """The README's benchmark tables, from a run's JSON."""
     def row(name, t, acc, cpu=None):
@@ -89,6 +99,7 @@ def markdown(r: dict) -> str:
               + "; by DoF, one hand task: " + ", ".join(f"{n}: {v:.0f}" for n, v in r["tick_us_median_by_dof"].items()) + ".",
               *([f"Framework floor (`bench/floor.py`: the same graph, callbacks without maths), CPU time: "
                  f"{r['framework_floor_cpu_us_per_task']:.1f} µs per task."] if "framework_floor_cpu_us_per_task" in r else []),
+              *([_daqp_sentence(r["hqp_random"]["daqp_hierarchical"])] if "daqp_hierarchical" in r.get("hqp_random", {}) else []),
               "Breakdown of the basic tick (exclusive time): "
               + ", ".join(f"{k} {100 * v:.0f}%" for k, v in sorted(r["breakdown_fraction"].items(), key=lambda x: -x[1])) + "."]
     if "machine" in r:
@@ -130,6 +141,11 @@ def print_table(r: dict) -> None:
           + f"; CPU time median {h['cpu_ms_median']:.3f}"
           + (f" (plain lexicographic reference {h['plain_reference_cpu_ms_median']:.3f}; per-stack ratio median "
              f"{h['ratio_median']:.2f}, target ≤ 0.5)" if "ratio_median" in h else ""))
+    if "daqp_hierarchical" in h:
+        d = h["daqp_hierarchical"]
+        print(f"DAQP's hierarchical mode on the same stacks: CPU time median {d['cpu_ms_median']:.3f} ms (per-stack ratio "
+              f"median {d['ratio_median']:.2f}); its answers against the HQP's: "
+              + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in d["answers"].items()))
     print(f"HQP solver's own share of the active-limits tick: median {r['hqp_active_solver_us_median']:.0f} µs"
           f" of {r['hqp_active_tick_us_median']:.0f} µs")
     print("\nbreakdown of the basic tick: "

@@ -120,7 +120,9 @@ def hqp_random(count: int) -> dict:
     1-5 levels, conflicts, inequalities, scaled rows), each solved cold (no warm start), and of the
     plain lexicographic reference (bench/lexicographic_reference.py: one quadprog QP per level over
     the null space of the equality rows above) on the same stacks, call by call. ``ratio_median``:
-    the median over the stacks of the HQP's CPU time over the reference's."""
+    the median over the stacks of the HQP's CPU time over the reference's. DAQP's hierarchical mode
+    (bench/hierarchical_peer.py) too, timed the same way, and how often its answer is
+    lexicographically worse or better than the HQP's."""
     from lexicographic_reference import plain_lexicographic
 
     from sotdrake.hqp.solve import HierarchicalQP
@@ -128,13 +130,17 @@ def hqp_random(count: int) -> dict:
 
     solvers, times, cpu, reference_cpu, ratios = {}, [], [], [], []
     reference_failures = 0
+    daqp_cpu, daqp_ratios, daqp_outcomes = [], [], {"worse": 0, "equal": 0, "better": 0, "better_with_looser_level_above": 0,
+                                                    "outside_bounds": 0, "failed": 0}
     for seed in range(count):
         n, levels, x_lower, x_upper = random_stack(np.random.default_rng(seed))
         hqp = solvers.setdefault(n, HierarchicalQP(n))
         hqp.forget_warm_starts()  # cold: random stacks share no active sets
         start_cpu = time.process_time()
-        times.append(hqp.solve(levels, x_lower, x_upper).solve_time_s)
+        result = hqp.solve(levels, x_lower, x_upper)
         cpu.append(time.process_time() - start_cpu)
+        times.append(result.solve_time_s)
+        _daqp_peer(n, levels, x_lower, x_upper, result.x, cpu[-1], daqp_cpu, daqp_ratios, daqp_outcomes)
         start_cpu = time.process_time()
         try:
             plain_lexicographic(n, levels, x_lower, x_upper)
@@ -150,7 +156,28 @@ def hqp_random(count: int) -> dict:
         out["plain_reference_cpu_ms_median"] = float(1e3 * np.median(reference_cpu))
         out["plain_reference_failures"] = reference_failures  # stacks it could not solve (not timed)
         out["ratio_median"] = float(np.median(ratios))
+    out["daqp_hierarchical"] = {"cpu_ms_median": float(1e3 * np.median(daqp_cpu)), "ratio_median": float(np.median(daqp_ratios)),
+                                "answers": daqp_outcomes}
     return out
+
+
+def _daqp_peer(n, levels, x_lower, x_upper, x, hqp_cpu: float, cpu: list, ratios: list, outcomes: dict) -> None:
+    """DAQP's hierarchical mode on one stack: its CPU time, the HQP's over it, and its answer
+    against the HQP's ``x`` (see :mod:`hierarchical_peer`)."""
+    from hierarchical_peer import compare, daqp_hierarchical
+
+    start_cpu = time.process_time()
+    x_daqp, flag = daqp_hierarchical(n, levels, x_lower, x_upper)
+    cpu.append(time.process_time() - start_cpu)
+    ratios.append(hqp_cpu / max(cpu[-1], 1e-9))
+    if flag < 0 or not np.all(np.isfinite(x_daqp)):
+        outcomes["failed"] += 1
+    elif np.any(x_daqp < x_lower - 1e-6) or np.any(x_daqp > x_upper + 1e-6):
+        outcomes["outside_bounds"] += 1
+    else:
+        order, looser = compare(levels, x_daqp, x)
+        outcomes[("better", "equal", "worse")[order + 1]] += 1
+        outcomes["better_with_looser_level_above"] += int(order < 0 and looser)
 
 
 # --- the breakdown ----------------------------------------------------------------------------

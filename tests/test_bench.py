@@ -225,3 +225,23 @@ def test_the_marginal_bench_adds_one_task_of_each_kind_and_summarizes_every_repe
     result = marginal.main(["--ticks", "50", "--warmup", "5", "--repeat", "1", "--out", str(tmp_path / "m.json")])
     assert json.loads((tmp_path / "m.json").read_text())["solvers"].keys() == {"SOT", "SolverKine"}
     assert np.isfinite([k["marginal_cpu_us"] for r in result["solvers"].values() for k in r["kinds"].values()]).all()
+
+
+def test_the_hierarchical_peer_answers_a_stack_and_its_comparison_is_lexicographic():
+    """DAQP's hierarchical mode (bench/hierarchical_peer.py) meets a feasible top level and gets the
+    level below as close as the top allows; the comparison decides at the first level that differs."""
+    from hierarchical_peer import compare, daqp_hierarchical, violations
+
+    from sotdrake.hqp.solve import HierarchicalQP, LevelRows
+
+    top = LevelRows(np.array([[1.0, 1.0]]), np.array([1.0]), np.array([1.0]))  # x₁ + x₂ = 1
+    below = LevelRows(np.array([[1.0, 1.0], [1.0, -1.0]]), np.array([3.0, 0.5]), np.array([np.inf, 0.5]))  # conflicts
+    bounds = np.full(2, -10.0), np.full(2, 10.0)
+    x, flag = daqp_hierarchical(2, [top, below], *bounds)
+    assert flag > 0 and violations([top], x)[0] < 1e-9
+    assert violations([top, below], x)[1] == pytest.approx(4.0, rel=1e-4)  # x₁ + x₂ ≥ 3 misses by 2; x₁ − x₂ = ½ met
+    exact = HierarchicalQP(2).solve([top, below], *bounds).x
+    assert compare([top, below], x, exact)[0] == 0
+    off_top = exact + np.array([0.5, 0.5])  # the level below gains, the top loses: worse
+    assert compare([top, below], off_top, exact) == (1, False)
+    assert compare([top, below], exact, off_top) == (-1, False)

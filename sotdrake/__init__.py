@@ -67,6 +67,7 @@ from .meta_tasks import (
     gotoNd,
     hold_feet_and_com,
 )
+from .progress import stalled_tasks
 from .robot import Robot, add_sot, robot, talos
 from .robots import ROBOTS, TALOS_GRIPPERS, RobotModel, available_robots, load_robot, load_talos
 from .sequencer import attime
@@ -409,6 +410,7 @@ __all__ = [
     "signals_report",
     "simulate",
     "sole_rectangle",
+    "stalled_tasks",
     "start",
     "start_meshcat",
     "start_of",

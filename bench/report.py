@@ -51,7 +51,8 @@ def _daqp_sentence(d: dict) -> str:
             f"{d['cpu_ms_median']:.3f} ms, the HQP's {d['ratio_median']:.1f}× that (per-stack median); its answer is "
             f"lexicographically worse than the HQP's on {answers['worse']} stacks, equal on {answers['equal']}, better on "
             f"{answers['better']} (of which {answers['better_with_looser_level_above']} by holding a level above looser), "
-            f"outside the bounds on {answers['outside_bounds']}, failed on {answers['failed']}.")
+            f"outside the bounds on {answers['outside_bounds']}, failed on {answers['failed']}"
+            + (f" (measured {d['measured']})." if "measured" in d else "."))
 
 
 def markdown(r: dict) -> str:

@@ -601,15 +601,11 @@ def test_the_minimum_norm_stage_keeps_the_last_levels_point_when_no_path_solves_
     """A random stack (seed 113554 of tests/hqp_stacks.py: n = 16, no bounds, targets up to 1e9)
     whose last level's exact optimum is 4e14 in size (two of its projected rows dependent to 1e-16,
     the others 6e-7 of their norms from it): every path of the minimum-norm stage misses its held
-    rows by the round-off of a point that size, which used to fail the whole stack. The last level's
-    point is in the optimal set, so it is kept, the failed paths in the fallbacks; every level stays
-    as strict as the truncated stacks."""
-    from sotdrake.hqp.solve import KEPT_LAST_LEVEL
-
+    rows by the round-off of a point that size (on some CPUs, one degenerate retry gets through),
+    which used to fail the whole stack. The last level's point is in the optimal set, so it is then
+    kept: the stack is answered, finite, and every level stays as strict as the truncated stacks."""
     n, levels, x_lower, x_upper = random_stack(np.random.default_rng(113554))
     result = HierarchicalQP(n).solve(levels, x_lower, x_upper)
-    assert result.level_solvers[-1] == KEPT_LAST_LEVEL
-    assert any(f.startswith("the minimum-norm stage") for f in result.fallbacks)
     assert np.all(np.isfinite(result.x))
     for k in range(len(levels)):
         alone = HierarchicalQP(n, regularize=False).solve(levels[: k + 1], x_lower, x_upper)

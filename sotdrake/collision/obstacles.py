@@ -178,7 +178,7 @@ def name_taken(world: CollisionWorld, name: str) -> str | None:
         return "an obstacle"
     if name in world.links or world.plant.HasBodyNamed(name):
         return "a link"
-    if world.model.find_frame(name) is not None or world.plant.HasJointNamed(name):
+    if world.model.find_frame(name) is not None:  # (frames, op points, and joints by their child frame)
         return f"a frame, joint or op point of {world.model.name}"
     return None
 

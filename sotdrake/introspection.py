@@ -8,6 +8,7 @@ port's value (output, else input).
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Iterator
 from typing import TextIO
 
@@ -43,17 +44,19 @@ def entity(diagram: Diagram, name: str) -> System:
 
 
 def signal(system: System, name: str, context: Context):
-    """Value of the output (else input) port ``name`` of ``system`` in ``context`` (root or own)."""
+    """Value of the output (else input) port ``name`` of ``system`` in ``context`` (root or own), as
+    a copy (sot-core's ``signal.value``): the value held by the context's cache is overwritten when
+    the simulation goes on, the copy keeps the value at the time it was read."""
     check_type("signal: system", system, System, "an entity (a Drake system)")
     check_name("signal: name", name)
     own = own_context(system, context)
     if system.HasOutputPort(name):
-        return _value(system.GetOutputPort(name).EvalAbstract(own))
+        return _snapshot(_value(system.GetOutputPort(name).EvalAbstract(own)))
     if system.HasInputPort(name):
         port = system.GetInputPort(name)
         if not port.HasValue(own):
             raise NotFound(f"{name} (not connected)", [])
-        return _value(port.EvalAbstract(own))
+        return _snapshot(_value(port.EvalAbstract(own)))
     ports = [system.get_input_port(i).get_name() for i in range(system.num_input_ports())]
     ports += [system.get_output_port(i).get_name() for i in range(system.num_output_ports())]
     raise NotFound(name, ports)
@@ -62,6 +65,15 @@ def signal(system: System, name: str, context: Context):
 def _value(abstract):
     value = abstract.get_value()
     return value.get_value() if hasattr(value, "get_value") and not isinstance(value, np.ndarray) else value
+
+
+def _snapshot(value):
+    """A copy of ``value`` that does not refer into the context's cache (a deep copy; a value that
+    cannot be deep-copied is copied one level)."""
+    try:
+        return copy.deepcopy(value)
+    except Exception:  # (a bound type without deep copy)
+        return copy.copy(value)
 
 
 def _format(value, width: int = 100) -> str:
@@ -73,6 +85,7 @@ def _format(value, width: int = 100) -> str:
 
 def signals_report(system: System, context: Context) -> str:
     """The entity's signals and their values at ``context``'s time, as text."""
+    check_type("signals_report: system", system, System, "an entity (a Drake system)")
     own = own_context(system, context)
     lines = [f"{system.get_name()} ({type(system).__name__}) at t = {own.get_time():.4f} s"]
     for kind, count, get in (("in ", system.num_input_ports(), system.get_input_port),
@@ -94,10 +107,12 @@ def displaySignals(system: System, context: Context, file: TextIO | None = None)
     """Print the entity's signals and their values at ``context``'s time (sot-core's
     ``entity.displaySignals()``). It returns nothing, so the prompt shows the table once; the text
     itself is :func:`signals_report`."""
+    check_type("displaySignals: system", system, System, "an entity (a Drake system)")
     print(signals_report(system, context), file=file)
 
 
 def displayAll(diagram: Diagram, context: Context, file: TextIO | None = None) -> None:
     """``displaySignals`` of every entity of the diagram."""
+    check_type("displayAll: diagram", diagram, Diagram, "a built Diagram (builder.Build())")
     for system in diagram.GetSystems():
         displaySignals(system, context, file)

@@ -83,7 +83,11 @@ def manipulability_and_gradient(J_WF: np.ndarray, p_WF: np.ndarray, upstream: np
     """``(μ, g)`` of the ``rows`` of ``J_WF`` (e.g. ``[3, 4, 5]``: the translation) restricted to
     the velocity ``columns`` (nv booleans, e.g. one arm's joints; None: all), ``g`` (nv) the
     gradient with respect to the velocity directions (``μ̇ = g·v``); ``g = 0`` at a singularity
-    (``μ = 0``, where ``μ`` is not differentiable)."""
+    (``μ = 0``, where ``μ`` is not differentiable). ``J_WF``: 6×nv finite numbers, ``p_WF``: 3
+    finite numbers, ``upstream``: nv×nv booleans (:func:`upstream_coordinates`), ``rows``: distinct
+    row indices in [0, 6); anything else (NaN, which would read as a singularity, a row out of
+    range) is an :class:`InvalidInput` naming the argument."""
+    J_WF, p_WF, upstream, rows = _checked(J_WF, p_WF, upstream, rows, columns)
     nv = J_WF.shape[1]
     cols = np.arange(nv) if columns is None else np.flatnonzero(columns)
     J = J_WF[rows][:, cols]
@@ -93,6 +97,29 @@ def manipulability_and_gradient(J_WF: np.ndarray, p_WF: np.ndarray, upstream: np
     dual = solve_triangular(R, Q.T)  # J⁺ᵀ = (J Jᵀ)⁻¹ J = R⁻¹ Qᵀ (J = Rᵀ Qᵀ)
     dJ = jacobian_derivatives(J_WF, p_WF, upstream)[:, rows, :][:, :, cols]
     return mu, mu * np.einsum("ij,kij->k", dual, dJ)
+
+
+def _checked(J_WF, p_WF, upstream, rows, columns) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The arguments of :func:`manipulability_and_gradient` as arrays, once checked."""
+    what = "manipulability_and_gradient"
+    J_WF = check_finite(f"{what}: J_WF", J_WF)
+    if J_WF.ndim != 2 or J_WF.shape[0] != 6 or J_WF.shape[1] == 0:
+        raise InvalidInput(f"{what}: J_WF must be a 6×nv Jacobian (rows ω then v), got shape {J_WF.shape}")
+    nv = J_WF.shape[1]
+    p_WF = check_finite(f"{what}: p_WF", p_WF, (3,))
+    upstream = np.asarray(upstream)
+    if upstream.shape != (nv, nv) or upstream.dtype != bool:
+        raise InvalidInput(f"{what}: upstream must be {nv}×{nv} booleans (upstream_coordinates(plant)), "
+                           f"got {upstream.dtype} of shape {upstream.shape}")
+    indices = np.asarray(rows)
+    if (indices.ndim != 1 or indices.size == 0 or indices.dtype.kind not in "iu" or indices.min() < 0
+            or indices.max() > 5 or np.unique(indices).size != indices.size):
+        raise InvalidInput(f"{what}: rows must be distinct row indices of J_WF in [0, 6) (e.g. [3, 4, 5]), got {rows!r:.100}")
+    if columns is not None:
+        mask = np.asarray(columns)
+        if mask.shape != (nv,) or mask.dtype != bool:
+            raise InvalidInput(f"{what}: columns must be None or {nv} booleans, got {columns!r:.100}")
+    return J_WF, p_WF, upstream, indices
 
 
 def upstream_coordinates(plant) -> np.ndarray:

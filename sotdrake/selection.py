@@ -13,22 +13,29 @@ from functools import lru_cache
 
 import numpy as np
 
-from .exceptions import InvalidInput
+from .exceptions import MAX_COUNT, InvalidInput, check_count
+
+
+def parse_selection(mask: str, dimension: int) -> np.ndarray:
+    """Indices of the selected components of a ``dimension``-vector, in increasing order
+    (a read-only array, cached: features call this every tick). A mask that is not a non-empty
+    string of ``'0'`` and ``'1'``, or a dimension that is not an integer ≥ 1, is an :class:`InvalidInput`."""
+    if not isinstance(mask, str):  # (before the cache, which would fail to hash a list)
+        raise InvalidInput(f"selection mask must be a non-empty string of '0' and '1', got {mask!r:.100}")
+    return _parse_selection(mask, check_count("selection: dimension", dimension, 1, MAX_COUNT))
 
 
 @lru_cache(maxsize=256)
-def parse_selection(mask: str, dimension: int) -> np.ndarray:
-    """Indices of the selected components of a ``dimension``-vector, in increasing order
-    (a read-only array, cached: features call this every tick)."""
-    if not isinstance(mask, str) or not mask or set(mask) - {"0", "1"}:
-        raise InvalidInput(f"selection mask must be a non-empty string of '0' and '1', got {mask!r}")
+def _parse_selection(mask: str, dimension: int) -> np.ndarray:
+    if not mask or set(mask) - {"0", "1"}:
+        raise InvalidInput(f"selection mask must be a non-empty string of '0' and '1', got {mask!r:.100}")
     flags = [c == "1" for c in reversed(mask)]
     if any(flags[dimension:]):
         raise InvalidInput(
-            f"selection mask {mask!r} selects component {len(flags) - 1} of a {dimension}-vector"
+            f"selection mask {mask!r:.100} selects component {len(flags) - 1} of a {dimension}-vector"
         )
     selected = np.flatnonzero(flags[:dimension])
     if selected.size == 0:
-        raise InvalidInput(f"selection mask {mask!r} selects nothing")
+        raise InvalidInput(f"selection mask {mask!r:.100} selects nothing")
     selected.flags.writeable = False
     return selected

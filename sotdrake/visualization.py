@@ -82,6 +82,8 @@ def add_target_marker(meshcat: Meshcat, path: str, position, radius: float = 0.0
     if not isinstance(path, str) or not path:
         raise InvalidInput(f"add_target_marker: path must be a Meshcat path such as '/target', got {path!r:.60}")
     radius = check_number("add_target_marker: radius", radius, 1e-6, 100.0, " m")
+    if rgba is not None and not isinstance(rgba, Rgba):
+        raise InvalidInput(f"add_target_marker: rgba must be None or an Rgba (pydrake.geometry.Rgba(r, g, b, a)), got {rgba!r:.60}")
     if hasattr(position, "featureDes") and hasattr(position, "opPoint"):
         return _add_task_marker(meshcat, path, position, radius, rgba)
     point = check_finite("add_target_marker: position (m)", position, (3,))
@@ -132,11 +134,15 @@ def write_control_graph(diagram: System, path: str | Path) -> Path:
     """Drake's GraphViz of ``diagram`` (one level deep) as ``path`` (.svg); the ``.dot`` source is
     always written beside it. The SVG is laid out by :func:`graphviz_dot`; without any ``dot``
     command only the source is written and a warning says how to get the SVG. Both paths are
-    checked first: a system that is not one, or a path that cannot be written, is refused with
-    :class:`InvalidInput` and nothing is written."""
+    checked first: a system that is not one, a path that does not end in ``.svg`` (``x.dot`` would
+    be overwritten by the SVG, ``x.png`` would hold SVG text), or a path that cannot be written, is
+    refused with :class:`InvalidInput` and nothing is written."""
     if not isinstance(diagram, System):
         raise InvalidInput(f"write_control_graph: expected a Drake diagram or system, got {type(diagram).__name__}")
     path = check_writable("write_control_graph", path)
+    if path.suffix.lower() != ".svg":
+        raise InvalidInput(f"write_control_graph: path must end in .svg (the .dot source is written beside it), "
+                           f"got {str(path)!r:.100}")
     source = check_writable("write_control_graph", path.with_suffix(".dot"))
     text = diagram.GetGraphvizString(max_depth=1)
     with writing("write_control_graph", source):

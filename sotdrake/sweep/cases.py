@@ -27,15 +27,20 @@ def _plain(value):
     return value.item() if isinstance(value, np.generic) else value
 
 
+def check_case_value(what: str, value: object) -> bool | int | float | str:
+    """``value`` as a plain Python value (float, int, str, bool; a numpy scalar converted), else
+    :class:`InvalidInput`: "``what`` holds <value> (<type>); a case value is …"."""
+    plain = _plain(value)
+    if not isinstance(plain, (bool, int, float, str)):
+        raise InvalidInput(f"{what} holds {value!r:.60} ({type(value).__name__}); a case value is a "
+                           "plain float, int, str or bool")
+    return plain
+
+
 def _check_values(name: str, values: Sequence) -> list:
     """The values of the axis ``name`` as plain Python values (float, int, str, bool; numpy scalars
     converted), else :class:`InvalidInput` naming the axis and the value."""
-    plain = [_plain(value) for value in values]
-    for value in plain:
-        if not isinstance(value, (bool, int, float, str)):
-            raise InvalidInput(f"grid: axis {name!r} holds {value!r:.60} ({type(value).__name__}); a case value is a "
-                               "plain float, int, str or bool")
-    return plain
+    return [check_case_value(f"grid: axis {name!r}", value) for value in values]
 
 
 def grid(axes: Mapping[str, Sequence]) -> list[Case]:

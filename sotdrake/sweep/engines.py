@@ -22,6 +22,7 @@ a few hundred cases at most).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import time
@@ -30,7 +31,9 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..exceptions import MAX_COUNT, InvalidInput, SotError, check_count
+from ..exceptions import MAX_COUNT, InvalidInput, SotError, check_count, check_flag, os_reason
+from ..writable import check_writable, writing
+from .cases import check_case_value
 from .table import check_parameter_name, make_row, write_csv, write_parquet
 
 ENGINES = ("local", "ray")
@@ -70,13 +73,15 @@ class SweepResult:
     def errors(self) -> list[dict]:
         return [row for row in self.rows if row["status"] != "ok"]
 
-    def write(self, out: Path, name: str = "sweep") -> dict[str, Path]:
+    def write(self, out: str | os.PathLike, name: str = "sweep") -> dict[str, Path]:
         """``out/<name>.csv`` (always), ``out/<name>.parquet`` (with pyarrow) and
-        ``out/<name>.json`` (engine, workers, wall time, load, settings; the timing lives there)."""
+        ``out/<name>.json`` (engine, workers, wall time, load, settings; the timing lives there).
+        ``out`` is a folder (made if missing) and ``name`` a file name without a folder (not empty,
+        no ``/``, not starting with ``.``); anything else, or a file that cannot be written there, is
+        refused with :class:`InvalidInput` naming ``out`` or ``name`` before anything is written."""
         import json
 
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
+        out = _prepare_folder(out, _check_table_name(name), ("csv", "parquet", "json"))
         paths = {"csv": write_csv(self.rows, out / f"{name}.csv")}
         parquet = write_parquet(self.rows, out / f"{name}.parquet")
         if parquet is not None:
@@ -95,8 +100,44 @@ class SweepResult:
             "tables": {k: str(v) for k, v in paths.items()},
         }
         paths["meta"] = out / f"{name}.json"
-        paths["meta"].write_text(json.dumps(meta, indent=2, default=str) + "\n")
+        with writing("SweepResult.write: out", paths["meta"]):
+            paths["meta"].write_text(json.dumps(meta, indent=2, default=str) + "\n")
         return paths
+
+
+def _check_table_name(name: object) -> str:
+    """``name`` if it can name the sweep's files in their folder (``<name>.csv`` …), else InvalidInput."""
+    separators = {"/", "\0", os.sep, os.altsep or "/"}
+    if not isinstance(name, str) or not name or name.startswith(".") or any(c in name for c in separators):
+        raise InvalidInput(f"SweepResult.write: name must be a file name without a folder (not empty, no '/', not "
+                           f"starting with '.'), got {name!r:.100}")
+    return name
+
+
+def _prepare_folder(out: object, name: str, suffixes: Sequence[str]) -> Path:
+    """The folder ``out``, made if missing, once ``out/<name>.<suffix>`` can be written for every
+    suffix; else :class:`InvalidInput` naming ``out`` and the folders made here removed again."""
+    if not isinstance(out, str | os.PathLike):
+        raise InvalidInput(f"SweepResult.write: out must be a folder path, got {out!r:.100}")
+    folder = Path(out).expanduser()
+    try:
+        is_file = folder.exists() and not folder.is_dir()
+        missing = [f for f in (folder, *folder.parents) if not f.exists()]
+    except (OSError, ValueError) as error:  # (a NUL byte, a name too long)
+        raise InvalidInput(f"SweepResult.write: out: cannot write {str(folder)!r:.100}: {os_reason(error)}") from None
+    if is_file:
+        raise InvalidInput(f"SweepResult.write: out {str(folder)!r:.100} is a file: give a folder (made if missing)")
+    try:
+        with writing("SweepResult.write: out", folder):
+            folder.mkdir(parents=True, exist_ok=True)
+        for suffix in suffixes:
+            check_writable("SweepResult.write: out", folder / f"{name}.{suffix}")
+    except SotError:
+        for made in missing:  # (deepest first)
+            with contextlib.suppress(OSError):
+                made.rmdir()
+        raise
+    return folder
 
 
 def _progress(total: int, progress: bool, label: str):
@@ -221,11 +262,16 @@ def run_sweep(function: CaseFunction, cases: Iterable[Mapping], engine: str = "l
     """Run ``function`` over ``cases`` with ``engine`` (``'local'`` or ``'ray'``; ``address``
     and ``num_cpus`` are Ray's). ``cases``: any iterable of dicts (a list, a generator: read once,
     before anything runs); anything else, or no case, is an :class:`InvalidInput` naming
-    ``cases``. ``settings``: what every case shares (durations, time step), kept in the sweep's
-    metadata. ``num_cpus``: None or an integer in [1, MAX_COUNT] (a numpy integer too)."""
+    ``cases``; a case value is a plain float, int, str or bool (a numpy scalar is taken as one).
+    ``settings``: what every case shares (durations, time step), kept in the sweep's metadata: None
+    or a dict of name → value. ``num_cpus``: None or an integer in [1, MAX_COUNT] (a numpy integer
+    too; above 1 with engine ``'ray'`` only). ``progress``: True or False. Every argument is
+    checked before any case runs."""
     num_cpus = _check_engine(engine, address, num_cpus)
     if not callable(function):
         raise InvalidInput(f"run_sweep: the case function must be callable, got {function!r:.80}")
+    progress = check_flag("run_sweep: progress", progress)
+    settings = _check_settings(settings)
     cases = _materialise(cases)
     before = os.getloadavg()
     start = time.perf_counter()
@@ -234,17 +280,34 @@ def run_sweep(function: CaseFunction, cases: Iterable[Mapping], engine: str = "l
     else:
         rows, workers = run_ray(function, cases, address, num_cpus, progress, label, by_value)
     wall = time.perf_counter() - start
-    return SweepResult(rows, engine, workers, wall, before, os.getloadavg(), dict(settings or {}))
+    return SweepResult(rows, engine, workers, wall, before, os.getloadavg(), settings)
+
+
+def _check_settings(settings: object) -> dict:
+    """``settings`` as a dict if it is None or a mapping with string keys, else InvalidInput."""
+    if settings is None:
+        return {}
+    if not isinstance(settings, Mapping) or not all(isinstance(key, str) for key in settings):
+        raise InvalidInput(f"run_sweep: settings must be None or a dict of name → value (what every case shares), "
+                           f"got {settings!r:.100}")
+    return dict(settings)
 
 
 def _check_engine(engine: str, address: str | None, num_cpus: int | None) -> int | None:
     """``num_cpus`` as an int (or None); :class:`InvalidInput` for an unknown ``engine`` or a Ray
-    option it cannot take."""
+    option it cannot take (``address``, or ``num_cpus`` above 1, with engine ``'local'``, which runs
+    on one core; ``num_cpus`` with ``address``: the cluster has its own CPUs)."""
     if not isinstance(engine, str) or engine not in ENGINES:
         raise InvalidInput(f"engine must be one of {ENGINES}, got {engine!r:.60}")
     if address is not None and engine != "ray":
         raise InvalidInput(f"address={address!r:.100} is for engine 'ray', not {engine!r}")
-    return _check_num_cpus(num_cpus)
+    num_cpus = _check_num_cpus(num_cpus)
+    if num_cpus is not None and num_cpus > 1 and engine != "ray":
+        raise InvalidInput(f"num_cpus={num_cpus} is for engine 'ray', not {engine!r} (it runs in this process, on one core)")
+    if num_cpus is not None and address is not None:
+        raise InvalidInput(f"num_cpus={num_cpus} is for a local Ray runtime: the cluster at address={address!r:.100} "
+                           "has its own CPUs")
+    return num_cpus
 
 
 def _check_num_cpus(num_cpus: int | None) -> int | None:
@@ -262,8 +325,10 @@ def _materialise(cases: Iterable[Mapping]) -> list[dict]:
         raise InvalidInput("run_sweep: cases is empty: a sweep needs at least one case")
     if not all(isinstance(case, Mapping) for case in cases):
         raise InvalidInput("run_sweep: every case is a dict of parameter name → value (grid(), random_cases())")
-    checked = [dict(case) for case in cases]
-    for case in checked:
+    checked = []
+    for index, case in enumerate(cases):
         for name in case:
             check_parameter_name(name, "run_sweep")
+        checked.append({name: check_case_value(f"run_sweep: case {index}, parameter {name!r}", value)
+                        for name, value in case.items()})
     return checked

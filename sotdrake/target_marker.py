@@ -18,13 +18,18 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
 from .entity import own_context
-from .exceptions import InvalidInput
+from .exceptions import InvalidInput, check_finite, check_name, check_number, check_type
 
 if TYPE_CHECKING:
     from .meta_tasks import MetaTaskKine6d
 
 TARGET_COLOR = Rgba(1.0, 0.1, 0.05, 1.0)
 POINT_COLOR = Rgba(1.0, 0.85, 0.0, 1.0)
+#: The radii (m) and publish periods (s) a :class:`TargetMarker` takes.
+RADIUS_RANGE = (1e-6, 100.0)
+PUBLISH_PERIOD_RANGE = (1e-4, 10.0)
+#: The methods of ``Meshcat`` a marker draws with.
+_DRAWING = ("SetObject", "SetLineSegments", "SetTransform", "SetProperty")
 
 
 def _crosshair(half_length: float) -> tuple[np.ndarray, np.ndarray]:
@@ -40,10 +45,25 @@ class TargetMarker(LeafSystem):
     ``op_point_pose`` (``X_WOp``, the op point's pose). Outputs: ``target_position`` (``p_WF*``, m)
     and ``point_position`` (``p_WF``, m: the op point moved by ``opmodif``; NaN without
     ``op_point_pose``). Publishes at initialization, every ``publish_period`` (s) and when forced.
+
+    Checked before anything is declared or drawn (:class:`InvalidInput` naming the argument):
+    ``meshcat`` a ``Meshcat`` (or an object with its drawing methods), ``path`` a non-empty string,
+    ``opmodif`` None or a finite ``RigidTransform``, ``radius`` in :data:`RADIUS_RANGE` (m), ``rgba``
+    None or an ``Rgba``, ``publish_period`` in :data:`PUBLISH_PERIOD_RANGE` (s).
     """
 
     def __init__(self, meshcat: Meshcat, path: str = "/target", opmodif: RigidTransform | None = None,
                  radius: float = 0.02, rgba: Rgba | None = None, publish_period: float = 1 / 60):
+        if not all(callable(getattr(meshcat, method, None)) for method in _DRAWING):
+            raise InvalidInput(f"TargetMarker: meshcat: expected a Meshcat (start_meshcat()), got {type(meshcat).__name__}")
+        check_name("TargetMarker: path (a Meshcat path such as '/target')", path)
+        if opmodif is not None:
+            check_type("TargetMarker: opmodif", opmodif, RigidTransform, "None or a RigidTransform")
+            check_finite("TargetMarker: opmodif", opmodif.GetAsMatrix4())
+        radius = check_number("TargetMarker: radius", radius, *RADIUS_RANGE, " m")
+        if rgba is not None:
+            check_type("TargetMarker: rgba", rgba, Rgba, "None or a pydrake.geometry.Rgba")
+        publish_period = check_number("TargetMarker: publish_period", publish_period, *PUBLISH_PERIOD_RANGE, " s")
         LeafSystem.__init__(self)
         self._meshcat, self._path = meshcat, path.rstrip("/") or "/target"
         self._opmodif = RigidTransform() if opmodif is None else RigidTransform(opmodif)

@@ -18,7 +18,8 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from ..configuration import Layout, check_base_quaternion, integrate
-from ..exceptions import InvalidInput, SolverError, check_finite
+from ..exceptions import SolverError, check_finite, check_name, check_number
+from ..ranges import MAX_JOINT_TARGET
 
 
 def integrate_acceleration(q: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float, layout: Layout) -> tuple[np.ndarray, np.ndarray]:
@@ -28,17 +29,20 @@ def integrate_acceleration(q: np.ndarray, v: np.ndarray, a: np.ndarray, dt: floa
 
 
 class RobotDynSimu(LeafSystem):
-    """Input ``control`` (``q̈``); discrete state and output ``state`` (``(q, v)``); period ``dt``."""
+    """Input ``control`` (``q̈``); discrete state and output ``state`` (``(q, v)``); period ``dt``.
+
+    Checked as the kinematic ``Device`` checks its own (:class:`InvalidInput` naming the argument):
+    ``dt`` a number in [1e-6, 1] s (not a bool), ``q0`` the plant's nq finite positions within
+    ``|q| ≤`` :data:`~sotdrake.ranges.MAX_JOINT_TARGET`, its base quaternion of norm 1 ± 1e-3,
+    ``v0`` (None: zero) nv finite velocities, ``name`` a non-empty string."""
 
     def __init__(self, plant: MultibodyPlant, dt: float, q0: np.ndarray, v0: np.ndarray | None = None, name: str = "device"):
         LeafSystem.__init__(self)
-        self.set_name(name)
-        if not (np.isfinite(dt) and dt > 0):
-            raise InvalidInput(f"dt must be > 0, got {dt}")
-        self.dt = float(dt)
-        self.nq, self.nv = plant.num_positions(), plant.num_velocities()
+        self.set_name(check_name("RobotDynSimu: name", name))
+        self.dt = check_number("dt (the control period)", dt, 1e-6, 1.0, " s")
         self.layout = Layout.of(plant)
-        q0 = check_finite("q0", q0, (self.nq,))
+        self.nq, self.nv = plant.num_positions(), plant.num_velocities()
+        q0 = check_finite("q0 (rad, m)", q0, (self.nq,), MAX_JOINT_TARGET)
         check_base_quaternion("q0", q0, self.layout)
         v0 = np.zeros(self.nv) if v0 is None else check_finite("v0", v0, (self.nv,))
         self.initial_state = np.concatenate([q0, v0])

@@ -23,14 +23,20 @@ STIFFNESS_RANGE = (1e-3, 1e4)
 DAMPING_RANGE = (0.0, 10.0)
 
 
-def set_pd_gains(plant: MultibodyPlant, stiffness: float, damping: float) -> None:
-    """``kp = stiffness · effort_limit``, ``kd = damping · kp`` on every actuator, then
-    :func:`check_pd_gains`."""
+def check_pd_gain_values(stiffness: float, damping: float) -> None:
+    """:class:`InvalidInput` unless ``stiffness`` and ``damping`` are numbers in ``STIFFNESS_RANGE``
+    (rad⁻¹) and ``DAMPING_RANGE`` (s)."""
     ok = finite_number(stiffness) and finite_number(damping)
     if not (ok and STIFFNESS_RANGE[0] <= stiffness <= STIFFNESS_RANGE[1] and DAMPING_RANGE[0] <= damping <= DAMPING_RANGE[1]):
         raise InvalidInput(
             f"PD gains: stiffness in [{STIFFNESS_RANGE[0]}, {STIFFNESS_RANGE[1]}] rad⁻¹ and damping in "
             f"[{DAMPING_RANGE[0]}, {DAMPING_RANGE[1]}] s, got {stiffness!r}, {damping!r}")
+
+
+def set_pd_gains(plant: MultibodyPlant, stiffness: float, damping: float) -> None:
+    """``kp = stiffness · effort_limit``, ``kd = damping · kp`` on every actuator, then
+    :func:`check_pd_gains`."""
+    check_pd_gain_values(stiffness, damping)
     for index in plant.GetJointActuatorIndices():
         actuator = plant.get_joint_actuator(index)
         kp = stiffness * actuator.effort_limit()

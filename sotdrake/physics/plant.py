@@ -48,8 +48,11 @@ whole-body collision boxes.
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import (
@@ -77,9 +80,10 @@ from pydrake.systems.framework import DiagramBuilder
 
 from ..atomic import all_or_nothing
 from ..drake_logging import drop_drake_message
-from ..exceptions import InvalidInput, finite_number
-from ..robots.talos import add_talos
-from .actuators import set_pd_gains
+from ..exceptions import InvalidInput, VariantNotFound, check_flag, finite_number
+from ..robots.talos import VARIANTS as TALOS_VARIANTS
+from ..robots.talos import add_talos, talos_urdf_path
+from .actuators import check_pd_gain_values, set_pd_gains
 from .body_collision import fit_link_boxes
 
 #: Sole box in the sole frame: size (m) and centre (the bottom face lies on the sole plane).
@@ -154,11 +158,23 @@ def add_physical_talos(
     the module docstring; the station of :func:`~.station.add_talos_station` takes ``"point"``).
     ``sampled_outputs``: see the module docstring (False for a controller that reads the plant's state
     inside its own discrete updates). ``contact_solver``: ``"sap"`` or ``"tamsi"`` (see the module
-    docstring)."""
+    docstring). ``variant``: a TALOS variant with legs (``"reduced"``, ``"full_v2"``).
+
+    Refused with :class:`InvalidInput` naming the argument, before anything is added: a ``builder``
+    that is not a ``DiagramBuilder``, is built, or already holds a simulated TALOS (its systems
+    ``talos_plant`` and ``scene_graph``: Drake would end the process at ``Build()``); a ``variant``
+    without soles (``"left_arm"``) or not a string (an unknown name: :class:`VariantNotFound`); a flag
+    that is not a bool; a bad time step, gain, contact option or obstacle."""
+    check_physics_builder("add_physical_talos", builder, PLANT_SYSTEMS)
+    variant = check_legged_variant("add_physical_talos", variant)
     obstacles = _checked_obstacles(obstacles)
     if not (finite_number(time_step) and 0 < time_step <= MAX_TIME_STEP):
         raise InvalidInput(f"the physics needs a discrete plant: time_step in (0, {MAX_TIME_STEP:g}] s, got {time_step!r}")
     check_contact_options(contact, contact_solver)
+    body_collision, pd_gains, sampled_outputs = (check_flag(f"add_physical_talos: {name}", value) for name, value in (
+        ("body_collision", body_collision), ("pd_gains", pd_gains), ("sampled_outputs", sampled_outputs)))
+    if pd_gains:
+        check_pd_gain_values(stiffness, damping)
     with all_or_nothing(builder):  # (a refusal found once the plant is in, e.g. a bad gain, leaves the builder as it was)
         return _build_physical_talos(builder, variant, time_step, stiffness, damping, body_collision, pd_gains, obstacles,
                                      contact, sampled_outputs, contact_solver)
@@ -217,6 +233,50 @@ def _build_physical_talos(builder: DiagramBuilder, variant: str, time_step: floa
         np.array([a.joint().velocity_start() for a in actuators]),
         soles, tuple(boxed),
     )
+
+
+#: The systems :func:`add_physical_talos` adds, by name: one simulated TALOS per ``DiagramBuilder``.
+PLANT_SYSTEMS = ("talos_plant", "scene_graph")
+#: The links a variant needs to stand in the physics: its soles.
+SOLE_LINKS = ("left_sole_link", "right_sole_link")
+
+
+def check_physics_builder(what: str, builder: object, names: Sequence[str]) -> DiagramBuilder:
+    """``builder`` if it is a ``DiagramBuilder``, not built, without a system named as one of
+    ``names`` (the systems ``what`` adds), else :class:`InvalidInput` naming ``what``'s builder."""
+    if not isinstance(builder, DiagramBuilder):
+        raise InvalidInput(f"{what}: builder: expected a DiagramBuilder, got {type(builder).__name__}")
+    if builder.already_built():
+        raise InvalidInput(f"{what}: builder is already built (add the physics before builder.Build())")
+    taken = sorted(set(names) & {system.get_name() for system in builder.GetSystems()})
+    if taken:
+        raise InvalidInput(f"{what}: builder already holds systems named {taken} (a simulated TALOS, a station or a "
+                           "visualizer): one simulated TALOS per DiagramBuilder")
+    return builder
+
+
+@lru_cache(maxsize=1)
+def legged_variants() -> tuple[str, ...]:
+    """The TALOS variants whose URDF has both soles (:data:`SOLE_LINKS`): those the physics takes."""
+    return tuple(variant for variant in TALOS_VARIANTS if set(SOLE_LINKS) <= _link_names(talos_urdf_path(variant)))
+
+
+def _link_names(urdf: Path) -> set[str | None]:
+    return {link.get("name") for link in ET.parse(urdf).getroot().iter("link")}
+
+
+def check_legged_variant(what: str, variant: object) -> str:
+    """``variant`` if it is a TALOS variant with soles; else :class:`InvalidInput` (not a string, or
+    no soles) or :class:`VariantNotFound` (an unknown name), naming ``what``'s variant."""
+    if not isinstance(variant, str):
+        raise InvalidInput(f"{what}: variant: expected the name of a TALOS variant, got {type(variant).__name__}")
+    legged = legged_variants()
+    if variant not in TALOS_VARIANTS:
+        raise VariantNotFound(variant, list(legged)).but(f"{what}: variant")
+    if variant not in legged:
+        raise InvalidInput(f"{what}: variant {variant!r} has no soles ({', '.join(SOLE_LINKS)}) to stand on the ground; "
+                           f"the physics takes {list(legged)}")
+    return variant
 
 
 def check_contact_options(contact: object, contact_solver: object) -> None:

@@ -11,6 +11,7 @@ push, and returns :class:`TalosStation`, the handles of its ports:
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,10 +19,12 @@ from pydrake.systems.framework import DiagramBuilder, InputPort, OutputPort
 from pydrake.systems.primitives import ConstantVectorSource
 
 from ..atomic import all_or_nothing
-from ..exceptions import InvalidInput, check_finite
+from ..configuration import Layout, check_base_quaternion
+from ..exceptions import InvalidInput, check_finite, close_matches
+from ..ranges import MAX_JOINT_TARGET
 from .actuators import DesiredState
 from .contact_monitor import ContactMonitor
-from .plant import PhysicalTalos, add_physical_talos
+from .plant import PLANT_SYSTEMS, PhysicalTalos, add_physical_talos, check_physics_builder
 from .push import Push
 
 #: The station plant's default step (s): twice the SoT's 1 ms tick. The PD references are held for
@@ -77,11 +80,32 @@ def add_talos_station(
     adds a :class:`~.push.Push` on ``push_body`` during ``[push_start, push_start + push_duration)``.
     ``contact``: the soles' contact model of :func:`~.plant.add_physical_talos`, point contact at
     their corners by default (the plant 1.3 to 1.6 times as fast as with ``"hydroelastic"``, the same
-    standing, reaching and pushed figures)."""
-    q0 = check_finite("add_talos_station: q0", q0)
+    standing, reaching and pushed figures). ``plant_options``: the other options of
+    :func:`~.plant.add_physical_talos` (``variant``, ``stiffness``, ``damping``, ``obstacles`` …).
+
+    Refused with :class:`InvalidInput` naming the argument, the builder left as it was: what
+    :func:`~.plant.add_physical_talos` refuses (a second station or simulated TALOS in the builder
+    among them); a ``q0`` that is not the plant's positions, finite, within ``|q| ≤``
+    :data:`~sotdrake.ranges.MAX_JOINT_TARGET`, its base quaternion of norm 1 ± 1e-3 (the device's
+    checks); an option ``add_physical_talos`` does not have; a bad push."""
+    check_physics_builder("add_talos_station", builder, (*PLANT_SYSTEMS, *STATION_SYSTEMS,
+                                                         *(("push",) if push_force is not None else ())))
+    q0 = check_finite("add_talos_station: q0 (rad, m)", q0, bound=MAX_JOINT_TARGET)
+    unknown = sorted(set(plant_options) - set(_PLANT_OPTIONS))
+    if unknown:
+        close = close_matches(unknown[0], _PLANT_OPTIONS)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise InvalidInput(f"add_talos_station: unknown option {unknown[0]!r}{hint}; the plant's options are {list(_PLANT_OPTIONS)}")
     Push.check_arguments(push_force, push_start, push_duration)
     with all_or_nothing(builder):
         return _add_station(builder, q0, time_step, push_force, push_body, push_start, push_duration, contact, plant_options)
+
+
+#: The systems :func:`add_talos_station` adds besides the plant's (and ``push`` with a push), by name.
+STATION_SYSTEMS = ("desired_state", "feedforward_torque", "contact_monitor")
+#: The options of :func:`~.plant.add_physical_talos` a station passes on (``plant_options``).
+_PLANT_OPTIONS = tuple(name for name in inspect.signature(add_physical_talos).parameters
+                       if name not in ("builder", "time_step", "contact"))
 
 
 def _add_station(builder: DiagramBuilder, q0: np.ndarray, time_step: float, push_force, push_body: str, push_start: float,
@@ -90,6 +114,7 @@ def _add_station(builder: DiagramBuilder, q0: np.ndarray, time_step: float, push
     plant = physical.plant
     if q0.shape != (plant.num_positions(),):
         raise InvalidInput(f"add_talos_station: q0 must be the plant's {plant.num_positions()} positions, got {q0.shape}")
+    check_base_quaternion("add_talos_station: q0", q0, Layout.of(plant))
     plant.SetDefaultPositions(q0)
     desired = builder.AddNamedSystem("desired_state", DesiredState(physical))
     builder.Connect(desired.get_output_port(), plant.get_desired_state_input_port(physical.instance))

@@ -17,7 +17,14 @@ changed as follows (nothing else is touched, so kinematics and inertias stay tho
 * what Drake would ignore with a warning is removed: ``<gazebo>`` blocks (simulator plugins), the
   joints' ``<safety_controller>`` and ``<calibration>`` (ROS controller settings), the transmissions'
   ``<mechanicalReduction>`` (``MultibodyPlant`` has no gear ratio: a command is a joint torque)
-  and the ``type`` attribute of ``<link>``.
+  and the ``type`` attribute of ``<link>``;
+* a named ``<material>`` defined more than once is defined once (Drake refuses a second definition):
+  a top-level definition is the model's, as ROS' URDF parser reads it, and a definition of that name
+  inside a ``<visual>`` becomes a reference to it (TALOS' ``full_v2`` defines ``DarkGrey`` at the top
+  level and again, lighter, in a visual); a top-level definition repeated identically is dropped, and
+  one inside a visual repeating an earlier one becomes a reference. Two different top-level
+  definitions, or two different ones in visuals with none at the top level (which Drake refuses
+  too), are refused (:class:`~sotdrake.exceptions.RobotDescriptionError` naming the material).
 
 This is the one place where URDF text is changed: further checks on the text go here.
 """
@@ -28,9 +35,9 @@ import re
 import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from pathlib import Path
-from xml.sax.saxutils import escape, unescape
+from xml.sax.saxutils import escape, quoteattr, unescape
 
-from ..exceptions import SotError
+from ..exceptions import RobotDescriptionError, SotError
 from .mesh_cache import obj_for_mesh
 from .urdf_checks import check_urdf_limits
 
@@ -110,8 +117,78 @@ def prepare_urdf(
         return block if simple else ""
 
     text = re.sub(_element("transmission"), keep_transmission, text, flags=re.S)
+    text = merge_materials(text, source)
     if not meshes:
         return re.sub(_element("visual") + "|" + _element("collision"), "", text, flags=re.S)
     if not collision:
         text = re.sub(_element("collision"), "", text, flags=re.S)
     return _MESH_URI.sub(lambda m: m.group(1) + m.group(2) + _mesh_uri(unescape(m.group(3)), share, resolve) + m.group(2), text)
+
+
+def _material_definition(element: ET.Element) -> tuple | None:
+    """What a ``<material>`` element defines (its colour and texture, numbers compared as numbers), or
+    None when it only names a material (a reference)."""
+    parts: list[tuple] = []
+    for child in element:
+        value: object = tuple(sorted(child.attrib.items()))
+        if child.tag == "color":
+            try:
+                value = tuple(float(word) for word in (child.get("rgba") or "").split())
+            except ValueError:
+                pass
+        parts.append((child.tag, value))
+    return tuple(sorted(parts, key=repr)) or None
+
+
+def _describe(definition: tuple) -> str:
+    return ", ".join(f"{tag} {' '.join(map(str, value)) if tag == 'color' else value}" for tag, value in definition)
+
+
+def _named_definition(block: str) -> tuple[str | None, tuple | None]:
+    """The name and definition (:func:`_material_definition`) of one ``<material>`` element's text."""
+    try:
+        element = ET.fromstring(block)
+    except ET.ParseError:  # (a prefix declared on <robot> only: left to Drake's parser)
+        return None, None
+    return element.get("name"), _material_definition(element)
+
+
+def merge_materials(text: str, source: str = "URDF") -> str:
+    """``text`` with every named ``<material>`` defined once (see the module docstring); two different
+    definitions the rule does not settle raise :class:`RobotDescriptionError` naming the material."""
+    top: dict[str, tuple] = {}
+    for element in ET.fromstring(text).findall("material"):
+        name, definition = element.get("name"), _material_definition(element)
+        if name is None or definition is None:
+            continue
+        if top.setdefault(name, definition) != definition:
+            raise RobotDescriptionError(f"{source}: material {name!r} is defined twice at the top level, differently: "
+                                        f"{_describe(top[name])} and {_describe(definition)}")
+    in_visuals: dict[str, tuple] = {}
+    written: set[str] = set()
+
+    def in_visual(match: re.Match) -> str:
+        name, definition = _named_definition(match.group(0))
+        if name is None or definition is None:
+            return match.group(0)
+        if name not in top and name not in in_visuals:
+            in_visuals[name] = definition
+            return match.group(0)
+        if name not in top and in_visuals[name] != definition:
+            raise RobotDescriptionError(f"{source}: material {name!r} is defined twice in visuals, differently: "
+                                        f"{_describe(in_visuals[name])} and {_describe(definition)}")
+        return f"<material name={quoteattr(name)}/>"  # (the top level's definition, or the same as before)
+
+    def merge(match: re.Match) -> str:
+        block = match.group(0)
+        if block.startswith("<visual"):
+            return re.sub(_element("material"), in_visual, block, flags=re.S)
+        name, definition = _named_definition(block)
+        if name is None or name not in top or definition is None:
+            return block
+        if name in written:  # (repeated identically: a different one was refused above)
+            return ""
+        written.add(name)
+        return block
+
+    return re.sub(_element("visual") + "|" + _element("material"), merge, text, flags=re.S)

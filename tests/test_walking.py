@@ -195,8 +195,8 @@ def test_commands_from_context_and_attime_replan():
     plan = pg.plan(context)
     assert plan.command.velocity == (0.1, 0.0, 0.0) and plan.steps[0].liftoff == pytest.approx(0.8)
     simulator.AdvanceTo(2.01)
-    # Applied on the tick after the command's (events at one time all see the state before them).
-    assert pg.plan(context).command == WalkCommand() and pg.plan(context).planned_at == pytest.approx(2.001)
+    # Applied at the command's tick: the timed change comes just before the tick's own updates.
+    assert pg.plan(context).command == WalkCommand() and pg.plan(context).planned_at == pytest.approx(2.0)
     assert pg.settings().command == WalkCommand()  # the defaults untouched by the context's commands
 
 

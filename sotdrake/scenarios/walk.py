@@ -77,6 +77,8 @@ from sotdrake.walking.support import footprint, polygon_margin, support_polygon
 
 #: A sole carrying more than this (N) stands: its motion then is slip.
 SLIP_LOAD_N = 100.0
+#: The walk's control period (s): ``--duration`` is at least one tick.
+DT = 1e-3
 
 
 # --- post-processing ------------------------------------------------------------------------
@@ -165,6 +167,8 @@ def summarize(walk: Walk, simulator, duration: float, wall: float, then=None) ->
     velocity of each command (``then``: the second one), falls; physics modes add the CoP's margin."""
     context = simulator.get_context()
     trace = walk.tracer.data(context)
+    if len(trace["time"]) < 2:  # (the errors compare each tick's q with the next tick's references)
+        raise InvalidInput(f"summarize: the run must last at least one tick ({walk.robot.dt:g} s), got {context.get_time():g} s")
     bot, spec, gait = walk.robot, walk.spec, walk.pg.gait
     nq = bot.model.nq
     physics = walk.mode in ("physics", "dynamic")
@@ -367,10 +371,13 @@ def main(argv: list[str] | None = None) -> dict:
     if args.steps is not None and options_given(parser, args, ("velocity",)):
         parser.error("--velocity: this run walks --steps (give one or the other)")
     gait = _gait(parser, args)
+    if args.duration < DT:
+        raise SystemExit(f"--duration must be at least one tick ({DT:g} s), got {args.duration}")
     meshcat = start(args)
     steps = (args.steps, 0.2 if args.step_length is None else args.step_length) if args.steps is not None else None
     servos = Servos(args.stiffness, args.feedforward, args.com_gain, args.zmp_gain, args.closed_loop, args.damping)
-    walk = build_diagram(args.robot, args.velocity, args.then, steps, args.mode, args.solver, gait=gait, meshcat=meshcat,
+    velocity = None if steps is not None else args.velocity
+    walk = build_diagram(args.robot, velocity, args.then, steps, args.mode, args.solver, DT, gait=gait, meshcat=meshcat,
                          servos=servos, multibody_zmp=None if args.zmp_model is None else args.zmp_model == "multibody",
                          arms=args.arms, gains=tuple(args.gains))
     simulator, wall = simulate(walk.diagram, args.duration, walk.visualizer, not args.quiet)

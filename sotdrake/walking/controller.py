@@ -48,13 +48,13 @@ from sotdrake import (
 )
 from sotdrake.exceptions import InvalidInput, check_finite
 from sotdrake.robots import RobotModel
-from sotdrake.sequencer import MAX_TIME
 
 from .gait import MAX_STEPS, GaitParameters
 from .gravity_feedforward import GravityFeedforward
 from .measured_com import MeasuredCom
 from .multibody_zmp import leg_masses
 from .pattern_generator import PatternGenerator, start_of
+from .plan import MAX_TIME
 from .stabilizer import ComStabilizer
 
 
@@ -97,6 +97,8 @@ ROBOTS: dict[str, WalkingRobot] = {
                           gait=GaitParameters(sole_length=0.244, sole_width=0.112, sole_centre=(0.033, 0.0), swing_height=0.03)),
 }
 MODES = ("kinematic", "physics", "dynamic")
+#: The velocity command (m/s, m/s, rad/s) of a walk given neither a velocity nor steps.
+VELOCITY = (0.1, 0.0, 0.0)
 #: Task gains (1/s): the tracked references (waist, soles, CoM), and the lower-priority orientations
 #: (head, waist yaw, arms). walkromeo's were 40 (soles, waist yaw) and 5 (waist, head): with every
 #: target's velocity fed forward the gain only corrects drift, and ``--gains 40 5`` tracks as well
@@ -176,13 +178,14 @@ def _walking_robot(robot: str, mode: str, arms: str) -> WalkingRobot:
     return spec
 
 
-def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | None = None,
+def build_diagram(robot: str = "talos", velocity=None, then: tuple | None = None,
                   steps: tuple[int, float] | None = None, mode: str = "kinematic", solver: str = "hqp",
                   dt: float = 1e-3, gait: GaitParameters | None = None, meshcat: Meshcat | None = None,
                   servos: Servos | None = None, multibody_zmp: bool | None = None, arms: str = "posture",
                   gains: tuple[float, float] = (TRACKING_GAIN, POSTURE_GAIN)) -> Walk:
-    """The walk's diagram. ``velocity``: the command from t = 0; ``then``: ``(T, x, y, θ)``, a new
-    command at T; ``steps``: ``(n, length)`` instead of a velocity; ``solver``: ``'hqp'``
+    """The walk's diagram. ``velocity``: the command from t = 0 (None: :data:`VELOCITY`); ``then``:
+    ``(T, x, y, θ)``, a new command at T (at most 10⁶ s, the plans' end); ``steps``: ``(n, length)``
+    instead of a velocity (both: :class:`InvalidInput`); ``solver``: ``'hqp'``
     (``SolverKine``) or ``'cascade'`` (walkromeo's ``Solver(robot)``: the basic ``SOT`` through a
     ``JointLimitator``; it takes no inequality: ``arms='inequality'`` is then left out);
     ``servos``: the physics mode's servo options (:class:`Servos`); ``multibody_zmp``: the CoM is
@@ -225,7 +228,7 @@ def build_diagram(robot: str = "talos", velocity=(0.1, 0.0, 0.0), then: tuple | 
     if steps is not None:
         pg.setSteps([(steps[1], 0.0, 0.0)] * int(steps[0]))
     else:
-        pg.setVelocity(*velocity)
+        pg.setVelocity(*(VELOCITY if velocity is None else velocity))
     commands = []
     if then is not None:
         commands.append(attime(then[0], lambda: pg.setVelocity(*then[1:]), f"pg.setVelocity{tuple(then[1:])}"))
@@ -270,7 +273,11 @@ def _check_dynamic_options(then: tuple | None, solver: str, multibody_zmp: bool 
 
 def _check_commands(velocity, then: tuple | None, steps: tuple[int, float] | None, gains: tuple[float, float]) -> None:
     """The shapes of :func:`build_diagram`'s commands (their values are checked where they go)."""
-    check_finite("build_diagram: velocity (x, y, θ)", velocity, (3,))
+    if velocity is not None and steps is not None:
+        raise InvalidInput(f"build_diagram: velocity and steps: give one or the other (a walk at a velocity or a list of "
+                           f"steps), got velocity={velocity!r:.60} and steps={steps!r:.60}")
+    if velocity is not None:
+        check_finite("build_diagram: velocity (x, y, θ)", velocity, (3,))
     check_finite("build_diagram: gains (tracking, orientation)", gains, (2,))
     if then is not None:
         check_finite("build_diagram: then (T, x, y, θ)", then, (4,))

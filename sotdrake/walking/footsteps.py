@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..exceptions import InvalidInput, check_finite, check_type, finite_number
 from .gait import GaitParameters
 
 SIDES = ("left", "right")
@@ -80,8 +81,23 @@ def velocity_displacement(velocity, side: str, gait: GaitParameters) -> tuple[fl
 
 
 def plan_steps(body, side: str, liftoff: float, displacements, gait: GaitParameters) -> list[Footstep]:
-    """Steps from the walking frame ``body``: the first by ``side`` lifting off at ``liftoff``, one
-    per displacement (feet alternating)."""
+    """Steps from the walking frame ``body`` (finite ``(x, y, yaw)``): the first by ``side``
+    (``'left'`` or ``'right'``) lifting off at ``liftoff`` (s, finite), one per displacement
+    (finite ``(dx, dy, dθ)``; feet alternating). Anything else: :class:`InvalidInput` naming it."""
+    body = tuple(check_finite("plan_steps: body (x, y, yaw)", body, (3,)))
+    if side not in SIDES:
+        raise InvalidInput(f"plan_steps: side must be 'left' or 'right', got {side!r:.60}")
+    if not finite_number(liftoff):
+        raise InvalidInput(f"plan_steps: liftoff must be a finite number (s), got {liftoff!r:.60}")
+    array = check_finite("plan_steps: displacements", displacements)
+    if array.size and (array.ndim != 2 or array.shape[1] != 3):
+        raise InvalidInput(f"plan_steps: displacements must be a list of (dx, dy, dθ), got shape {array.shape}")
+    check_type("plan_steps: gait", gait, GaitParameters, "GaitParameters")
+    return steps_from(body, side, liftoff, displacements, gait)
+
+
+def steps_from(body, side: str, liftoff: float, displacements, gait: GaitParameters) -> list[Footstep]:
+    """:func:`plan_steps` for arguments already checked (the walk plans' own)."""
     steps = []
     for displacement in displacements:
         body = move(body, displacement)

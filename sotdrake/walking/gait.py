@@ -9,7 +9,11 @@ centred at ``sole_centre`` in the sole frame (TALOS: the footprint of its foot, 
 centre 5.4 mm behind the sole frame); the ZMP reference sits at that centre in single support.
 ``swing_profile``: ``'cubic'`` (default) or ``'quintic'`` (zero acceleration at the lift-off, apex
 and touch-down; see :mod:`.swing`).
-Units: m, s, rad.
+Units: m, s, rad. Lengths are at most 1 km; ``step_duration``, ``start_duration`` and
+``stop_duration`` at most :data:`MAX_DURATION` (20 s): Drake's ``ZmpPlanner`` plans a CoM in closed
+form whose exponentials overflow (a NaN plan) on a ZMP reference segment of ``T`` s once ``ω·T``
+exceeds about 172 (``ω = √(g/z)``: 51 s at TALOS' CoM height of 0.87 m); the plans also check each
+segment against the CoM's height (:func:`~.plan.check_segments`).
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import InvalidInput, check_count, check_finite, check_number
+from ..exceptions import InvalidInput, check_count, check_finite, check_number, finite_number
 
 #: The seed's range of ``pg.setVelocity(x, y, θ)``: ``-0.2 ≤ x, y ≤ 0.2`` (m/s).
 MAX_LINEAR_VELOCITY = 0.2
@@ -26,6 +30,8 @@ MAX_LINEAR_VELOCITY = 0.2
 MAX_YAW_RATE = 0.4
 #: Most steps one ``pg.setSteps`` plans (a few hours of walking).
 MAX_STEPS = 10_000
+#: The longest ``step_duration``, ``start_duration`` and ``stop_duration`` (s) of a gait (see the module docstring).
+MAX_DURATION = 20.0
 
 
 @dataclass(frozen=True)
@@ -45,13 +51,18 @@ class GaitParameters:
     swing_profile: str = "cubic"  # or "quintic": zero acceleration at the lift-off, apex and touch-down (see .swing)
 
     def __post_init__(self) -> None:
-        for name in ("step_duration", "feet_distance", "start_duration", "stop_duration", "sole_length", "sole_width"):
-            check_number(f"GaitParameters.{name}", getattr(self, name), 0.0, 1e3)  # m or s: finite, at most 1 km or 1000 s
+        for name in ("step_duration", "start_duration", "stop_duration"):
+            value = getattr(self, name)
+            if not (finite_number(value) and 0 < value <= MAX_DURATION):
+                raise InvalidInput(f"GaitParameters.{name} must be a number in (0, {MAX_DURATION:g}] s (Drake's ZmpPlanner "
+                                   f"overflows on longer segments), got {value!r:.100}")
+        for name in ("feet_distance", "sole_length", "sole_width"):
+            check_number(f"GaitParameters.{name}", getattr(self, name), 0.0, 1e3, " m")  # finite, at most 1 km
             if getattr(self, name) == 0:
                 raise InvalidInput(f"GaitParameters.{name} must be > 0, got {getattr(self, name)!r}")
         check_number("GaitParameters.swing_height", self.swing_height, 0.0, 1e3, " m")
         check_number("GaitParameters.landing_depth", self.landing_depth, 0.0, 0.02, " m")
-        if not check_number("GaitParameters.single_support", self.single_support, 0.0, 1e3, " s") > 0 \
+        if not check_number("GaitParameters.single_support", self.single_support, 0.0, MAX_DURATION, " s") > 0 \
                 or not self.single_support < self.step_duration:
             raise InvalidInput(f"GaitParameters.single_support must be in (0, step_duration = {self.step_duration!r}) s, "
                                f"got {self.single_support!r}")

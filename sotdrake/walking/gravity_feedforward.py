@@ -34,7 +34,7 @@ from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
 
 from ..configuration import PlantContextHolder
-from ..exceptions import InvalidInput
+from ..exceptions import FrameNotFound, InvalidInput, all_numbers, check_finite, check_name, check_type
 from ..robots import RobotModel
 
 SIDES = ("left", "right")
@@ -85,19 +85,32 @@ class GravityFeedforward(LeafSystem):
 
     def __init__(self, model: RobotModel, actuated_v: np.ndarray, soles: tuple[str, str] = ("left-sole", "right-sole"),
                  sole_centre: tuple[float, float] = (0.0, 0.0), name: str = "gravity_feedforward"):
-        LeafSystem.__init__(self)
-        self.set_name(name)
-        self.plant = model.plant
-        bodies = self.plant.GetFloatingBaseBodies()
+        check_name("GravityFeedforward: name", name)
+        check_type(f"{name}: model", model, RobotModel, "RobotModel (robot.model)")
+        plant = model.plant
+        bodies = plant.GetFloatingBaseBodies()
         if len(bodies) != 1:
             raise InvalidInput(f"{name}: needs a robot with one floating base, found {len(bodies)}")
-        start = self.plant.get_body(next(iter(bodies))).floating_velocities_start_in_v()
+        actuated = np.asarray(actuated_v) if all_numbers(actuated_v) else None
+        if actuated is None or actuated.ndim != 1 or (actuated.size and (
+                actuated.dtype.kind not in "iu" or actuated.min() < 0 or actuated.max() >= plant.num_velocities())):
+            raise InvalidInput(f"{name}: actuated_v must be integers indexing the {plant.num_velocities()} velocities, "
+                               f"got {actuated_v!r:.100}")
+        if isinstance(soles, str) or not isinstance(soles, (list, tuple)) or len(soles) != 2:
+            raise InvalidInput(f"{name}: soles must be two names, the left sole's then the right one's, got {soles!r:.100}")
+        try:
+            frames = {side: model.frame(frame) for side, frame in zip(SIDES, soles, strict=True)}
+        except FrameNotFound as error:
+            raise error.but(f"{name}: soles") from None
+        centre = check_finite(f"{name}: sole_centre (x, y in the sole frame, m)", sole_centre, (2,), 1e3)
+        LeafSystem.__init__(self)
+        self.set_name(name)
+        self.plant = plant
+        start = plant.get_body(next(iter(bodies))).floating_velocities_start_in_v()
         self._base = slice(start, start + 6)
-        self._actuated_v = np.asarray(actuated_v, dtype=int)
-        if self._actuated_v.size and (self._actuated_v.min() < 0 or self._actuated_v.max() >= self.plant.num_velocities()):
-            raise InvalidInput(f"{name}: actuated_v must index the {self.plant.num_velocities()} velocities")
-        self._soles = {side: model.frame(frame) for side, frame in zip(SIDES, soles, strict=True)}
-        self._centre = np.array([*sole_centre, 0.0])
+        self._actuated_v = actuated.astype(int)
+        self._soles = frames
+        self._centre = np.array([*centre, 0.0])
         self.position = self.DeclareVectorInputPort("position", model.nq)
         self.zmp_reference = self.DeclareVectorInputPort("zmp_reference", 2)
         self.normal_forces = self.DeclareVectorInputPort("normal_forces", 2)

@@ -13,7 +13,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
 
 from ..configuration import PlantContextHolder
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, check_name, check_type
 from ..robots import RobotModel
 
 
@@ -21,6 +21,8 @@ class MeasuredCom(LeafSystem):
     """Input ``state`` (nq + nv); outputs ``com`` and ``com_velocity`` (3 each, world)."""
 
     def __init__(self, model: RobotModel, name: str = "measured_com"):
+        check_name("MeasuredCom: name", name)
+        check_type(f"{name}: model", model, RobotModel, "RobotModel (robot.model)")
         LeafSystem.__init__(self)
         self.set_name(name)
         self.plant = model.plant

@@ -35,10 +35,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import JacobianWrtVariable, ModelInstanceIndex
 from pydrake.trajectories import PiecewisePolynomial
 
-from ..exceptions import InvalidInput
+from ..exceptions import FrameNotFound, InvalidInput, check_finite, check_type, finite_number
+from ..robots import RobotModel
 from .com_planner import GRAVITY, ComPlan
 
 SIDES = ("left", "right")
@@ -53,9 +55,21 @@ PASSES = 2
 def zmp_from_momentum(com, com_acceleration, angular_momentum_rate, mass: float, gravity: float = GRAVITY) -> np.ndarray:
     """The ZMP on the ground ``z = 0`` (xy, m) from the CoM ``c`` (3, m), its acceleration ``c̈``
     (3, m/s²) and the rate of the angular momentum about the CoM ``L̇`` (3, N·m; world frame);
-    arrays of shape ``(..., 3)`` give ``(..., 2)``."""
-    c, a, dL = (np.asarray(x, dtype=float) for x in (com, com_acceleration, angular_momentum_rate))
+    arrays of shape ``(..., 3)`` give ``(..., 2)``. The arrays must be finite, of one shape, the
+    ``mass`` (kg) and ``gravity`` (m/s²) positive, and the vertical force ``m (c̈_z + g)`` positive
+    (the ZMP of a body in free fall does not exist); else :class:`InvalidInput` naming the argument."""
+    c, a, dL = (check_finite(f"zmp_from_momentum: {name} (…, 3)", x) for name, x in
+                (("com", com), ("com_acceleration", com_acceleration), ("angular_momentum_rate", angular_momentum_rate)))
+    if c.ndim < 1 or c.shape[-1] != 3 or a.shape != c.shape or dL.shape != c.shape:
+        raise InvalidInput(f"zmp_from_momentum: com, com_acceleration and angular_momentum_rate must be of one shape (…, 3), "
+                           f"got {c.shape}, {a.shape} and {dL.shape}")
+    for name, value in (("mass (kg)", mass), ("gravity (m/s²)", gravity)):
+        if not (finite_number(value) and 0 < value <= 1e6):
+            raise InvalidInput(f"zmp_from_momentum: {name} must be a number in (0, 1e6], got {value!r:.60}")
     vertical = mass * (a[..., 2] + gravity)
+    if not np.all(vertical > 0):
+        raise InvalidInput(f"zmp_from_momentum: the vertical force m (c̈_z + g) must be > 0 (no ZMP in free fall); "
+                           f"c̈_z = {a[..., 2].min():g} m/s² against g = {gravity:g} m/s²")
     px = c[..., 0] - (mass * c[..., 2] * a[..., 0] + dL[..., 1]) / vertical
     py = c[..., 1] - (mass * c[..., 2] * a[..., 1] - dL[..., 0]) / vertical
     return np.stack([px, py], axis=-1)
@@ -77,10 +91,14 @@ def motion_zmp(plant, times, positions) -> tuple[np.ndarray, np.ndarray]:
     ``MapQDotToVelocity``), ``L`` from ``CalcSpatialMomentumInWorldAboutPoint`` about the CoM,
     ``c̈`` and ``L̇`` by central differences (one-sided, hence less accurate, at the first two and
     last two samples)."""
-    t = np.asarray(times, dtype=float)
-    q = np.asarray(positions, dtype=float)
-    if q.ndim != 2 or len(q) != len(t) or len(t) < 3:
-        raise InvalidInput(f"motion_zmp: positions must be k×nq with k = len(times) ≥ 3, got {q.shape} for {len(t)} times")
+    check_type("motion_zmp: plant", plant, MultibodyPlant, "MultibodyPlant (a robot model's plant)")
+    t = check_finite("motion_zmp: times (s)", times)
+    q = check_finite("motion_zmp: positions (k×nq)", positions)
+    if t.ndim != 1 or len(t) < 3 or not np.all(np.diff(t) > 0):
+        raise InvalidInput(f"motion_zmp: times must be k ≥ 3 increasing times (s, each once), got {times!r:.100}")
+    if q.shape != (len(t), plant.num_positions()):
+        raise InvalidInput(f"motion_zmp: positions must be k×nq = {len(t)}×{plant.num_positions()} (a q per time), got {q.shape}")
+    _check_quaternions("motion_zmp: positions", plant, q)
     context = plant.CreateDefaultContext()
     qdot = np.gradient(q, t, axis=0)
     com, com_velocity, momentum = (np.zeros((len(t), 3)) for _ in range(3))
@@ -187,7 +205,7 @@ def leg_masses(model, q0: np.ndarray, soles=("left_sole_link", "right_sole_link"
     ``q0``: each leg is the bodies whose names start with its prefix (TALOS: ``leg_left_``), from
     the hip to the sole; ``K_l`` solves the leg's joints for a sole translation with the sole's
     orientation kept and the base fixed (6×6 Jacobian), and maps it to the leg CoM's displacement."""
-    plant = model.plant
+    plant = _check_leg_masses(model, q0, soles, prefixes)
     context = plant.CreateDefaultContext()
     plant.SetPositions(context, q0)
     world = plant.world_frame()
@@ -209,7 +227,7 @@ def leg_masses(model, q0: np.ndarray, soles=("left_sole_link", "right_sole_link"
             mass += m
             moment += m * body.EvalPoseInWorld(context).multiply(p_BoBcm)
             J_com += m * plant.CalcJacobianTranslationalVelocity(context, JacobianWrtVariable.kV, body.body_frame(), p_BoBcm, world, world)
-        frame = plant.GetFrameByName(frame_name)
+        frame = model.frame(frame_name)
         J_sole = plant.CalcJacobianSpatialVelocity(context, JacobianWrtVariable.kV, frame, np.zeros(3), world, world)
         if len(joints) != 6:
             raise InvalidInput(f"leg_masses: a leg needs 6 one-dof joints, {prefix}* has {len(joints)}")
@@ -223,3 +241,35 @@ def leg_masses(model, q0: np.ndarray, soles=("left_sole_link", "right_sole_link"
         raise InvalidInput(f"leg_masses: legs of different masses {leg_mass}")
     return LegMasses(leg_mass["left"], total, leg_com, sole, plant.CalcCenterOfMassPositionInWorld(context), share,
                      float(np.mean(yaws)))
+
+
+def _check_leg_masses(model, q0, soles, prefixes):
+    """``model``'s plant once :func:`leg_masses`' arguments are checked (:class:`InvalidInput` or
+    :class:`~sotdrake.exceptions.FrameNotFound` naming them)."""
+    check_type("leg_masses: model", model, RobotModel, "RobotModel (robot.model)")
+    plant = model.plant
+    q = check_finite("leg_masses: q0", q0, (plant.num_positions(),))
+    for what, names in (("soles", soles), ("prefixes", prefixes)):
+        if isinstance(names, str) or not isinstance(names, (list, tuple)) or len(names) != 2 \
+                or not all(isinstance(name, str) and name for name in names) or names[0] == names[1]:
+            raise InvalidInput(f"leg_masses: {what} must be two different names, the left leg's then the right one's, "
+                               f"got {names!r:.100}")
+    for name in soles:
+        try:
+            model.frame(name)
+        except FrameNotFound as error:
+            raise error.but("leg_masses: soles") from None
+    _check_quaternions("leg_masses: q0", plant, q[None])
+    return plant
+
+
+def _check_quaternions(what: str, plant, qs: np.ndarray) -> None:
+    """:class:`InvalidInput` naming ``what`` if a floating base's quaternion in a row of ``qs`` (k×nq)
+    is no rotation (norm < 1e-6: Drake would abort)."""
+    for body in plant.GetFloatingBaseBodies():
+        start = plant.get_body(body).floating_positions_start()
+        norms = np.linalg.norm(qs[:, start : start + 4], axis=1)
+        if not np.all(norms >= 1e-6):
+            k = int(np.argmin(norms))
+            raise InvalidInput(f"{what}: the floating base's quaternion [{start}:{start + 4}] = {qs[k, start : start + 4].tolist()} "
+                               f"(row {k}) is no rotation; give a unit quaternion (qw, qx, qy, qz)")

@@ -18,6 +18,11 @@ m/s², rad):
 * ``support_phase`` (1): 0 in double support, 1 on the left foot only, −1 on the right only;
 * ``feet`` (8: ``x, y, z, yaw`` of the left sole then the right one) and ``velocity_command`` (3),
   for tracing.
+
+Plans are made up to :data:`~.plan.MAX_TIME` (10⁶ s, about 11.6 days of simulated time): a command
+given with a ``context=`` whose time is later is refused (:class:`~sotdrake.exceptions.InvalidInput`,
+nothing changed), one scheduled later by ``attime`` is refused at its time (its settings unchanged,
+kept in ``refused_commands``), and a walk by velocity cannot be extended past it (the update raises).
 """
 
 from __future__ import annotations
@@ -30,11 +35,11 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import Context, ValueProducer
 
 from ..entity import Entity
-from ..exceptions import InvalidInput, check_type, finite_number
+from ..exceptions import InvalidInput, check_name, check_type, finite_number
 from .com_planner import INPUT_COST, check_input_cost
 from .gait import GaitParameters, check_steps, check_velocity
 from .multibody_zmp import LegMasses
-from .plan import References, Start, WalkCommand, WalkPlan, foot_pose, initial_plan, replan
+from .plan import MAX_TIME, References, Start, WalkCommand, WalkPlan, foot_pose, initial_plan, replan
 
 SIDES = ("left", "right")
 #: The longest replanning period (s) a pattern generator takes.
@@ -101,6 +106,7 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
         walking frame): ``|x|, |y| ≤ 0.2``, ``|θ| ≤ 0.4``; ``(0, 0, 0)`` closes the feet and stops."""
         vx, vy, w = (float(a) for a in check_velocity(x, y, theta))
         v = (vx, vy, w)
+        self._check_time(f"{self.name}.setVelocity", context)
         self._command(context, lambda s: setattr(s, "command", WalkCommand(velocity=v)))
 
     def setSteps(self, steps, context: Context | None = None) -> None:
@@ -111,7 +117,26 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
         step) of the feet's distance or more crosses the feet; give it to the foot on its side, as
         ``setVelocity`` does."""
         command = WalkCommand(steps=check_steps(f"{self.name}.setSteps", steps, self.gait.step_duration))
+        self._check_time(f"{self.name}.setSteps", context)
         self._command(context, lambda s: setattr(s, "command", command))
+
+    def _check_time(self, what: str, context: Context | None) -> None:
+        """:class:`InvalidInput` if ``context``'s time is past :data:`~.plan.MAX_TIME` (the command could not be planned)."""
+        if context is not None:
+            check_type(f"{what}: context", context, Context, "a Context of the diagram (simulator.get_mutable_context())")
+            if context.get_time() > MAX_TIME:
+                raise InvalidInput(f"{what}: the context's time {context.get_time():.10g} s is past the latest time a walk is "
+                                   f"planned for ({MAX_TIME:g} s): the command could not be planned")
+
+    def _declare_timed_change(self, time: float, changes: list) -> None:
+        """``attime``'s command at ``time``, refused at its time (settings unchanged) past :data:`~.plan.MAX_TIME`."""
+        if time > MAX_TIME:
+            def refuse(_settings) -> None:
+                raise InvalidInput(f"{self.name}: a command at t = {time:.10g} s is past the latest time a walk is planned for "
+                                   f"({MAX_TIME:g} s)")
+
+            changes = [refuse, *changes]
+        super()._declare_timed_change(time, changes)
 
     def plan(self, context: Context) -> WalkPlan:
         """The current plan in ``context`` (read-only)."""
@@ -163,8 +188,10 @@ class PatternGenerator(Entity[PatternGeneratorSettings]):
 def start_of(dynamic, q0: np.ndarray, feet=("left-sole", "right-sole"), waist: str = "waist") -> Start:
     """The :class:`Start` of a robot at ``q0`` from its ``dynamic`` entity (op points or frames):
     ``feet`` names the left sole then the right one."""
-    if isinstance(feet, str) or len(feet) != 2:
-        raise InvalidInput(f"start_of: feet must be two names, the left sole's then the right one's, got {feet!r:.100}")
+    if isinstance(feet, str) or not isinstance(feet, (list, tuple)) or len(feet) != 2 \
+            or not all(isinstance(name, str) and name for name in feet) or feet[0] == feet[1]:
+        raise InvalidInput(f"start_of: feet must be two names, the left sole's then the right one's (not the same), got {feet!r:.100}")
+    check_name("start_of: waist", waist)
     return Start({side: dynamic.pose_at(name, q0) for side, name in zip(SIDES, feet, strict=True)},
                  dynamic.com_at(q0), dynamic.pose_at(waist, q0))
 

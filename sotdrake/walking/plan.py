@@ -18,7 +18,8 @@ Bad input is refused (:class:`~sotdrake.exceptions.InvalidInput`, naming the arg
 anything is planned: a command outside ``PatternGenerator.setVelocity``'s and ``setSteps``' ranges
 (when it is made, the steps' lengths when it is planned for a gait), a time that is not a finite
 number in ``[plan.planned_at, MAX_TIME]``, an ``input_cost`` outside the planner's range
-(:func:`~.com_planner.check_input_cost`), arguments of the wrong kind.
+(:func:`~.com_planner.check_input_cost`), a gait whose ZMP reference segments are too long for the
+CoM's height (:func:`check_segments`), arguments of the wrong kind.
 """
 
 from __future__ import annotations
@@ -30,13 +31,13 @@ import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from ..exceptions import InvalidInput, check_finite, check_number, check_type
-from .com_planner import INPUT_COST, ComPlan, check_input_cost, plan_com
-from .footsteps import Footstep, closing_steps, first_side, other, plan_steps, velocity_displacement
+from .com_planner import GRAVITY, INPUT_COST, MAX_OMEGA_T, ComPlan, check_input_cost, longest_segment, planned_com
+from .footsteps import Footstep, closing_steps, first_side, other, steps_from, velocity_displacement
 from .gait import GaitParameters, check_steps, velocity_vector
 from .multibody_zmp import PASSES, LegMasses
 from .support import support_polygon
 from .swing import foot_trajectory
-from .zmp_reference import zmp_reference
+from .zmp_reference import HOLD, segment_durations, zmp_reference
 
 #: The latest time (s) a plan is made for (about 11 days; later, a step's duration is lost in round-off).
 MAX_TIME = 1e6
@@ -206,20 +207,38 @@ def corrected_com(zmp, position, velocity, height: float, input_cost: float, t: 
     pendulum alone without ``legs``; with them, ``passes`` times replanned for ``p_d − e``, ``e`` the
     legs' ZMP error along the previous pass (:meth:`LegMasses.lipm_reference`). Returns the plan and
     the reference it was planned for (None without ``legs``)."""
-    com = plan_com(zmp, position, velocity, height, input_cost)
+    x0 = np.concatenate([position, velocity])
+    com = planned_com(zmp, x0, height, input_cost)
     lipm = None
     for _ in range(passes if legs is not None else 0):
         assert legs is not None
         lipm = legs.lipm_reference(zmp, com, feet, accelerations, t)
-        com = plan_com(lipm, position, velocity, height, input_cost)
+        com = planned_com(lipm, x0, height, input_cost)
     return com, lipm
 
 
-def _check_model(what: str, gait: GaitParameters, input_cost: float, legs: LegMasses | None) -> float:
-    """``input_cost`` as a float after checking ``gait``, ``input_cost`` and ``legs`` (InvalidInput naming them)."""
+def check_segments(what: str, gait: GaitParameters, height: float) -> None:
+    """:class:`InvalidInput` naming ``what`` and the gait's duration if a segment of the ZMP reference
+    it makes is longer than ``ZmpPlanner`` plans at the CoM ``height`` (m; see
+    :func:`~.com_planner.longest_segment`: 20 s, the longest a gait takes, at heights from 0.18 m)."""
+    limit = longest_segment(height)
+    if HOLD > limit:
+        raise InvalidInput(f"{what}: a CoM height of {height:g} m is too low for ZmpPlanner (its final {HOLD:g} s hold "
+                           f"needs at least {GRAVITY * (HOLD / MAX_OMEGA_T) ** 2:.3g} m)")
+    for name, duration in segment_durations(gait).items():
+        if duration > limit:
+            raise InvalidInput(f"{what}: GaitParameters' {name} makes ZMP reference segments of {duration:g} s, longer than "
+                               f"ZmpPlanner plans at a CoM height of {height:g} m ({limit:.3g} s: ω·T ≤ {MAX_OMEGA_T:g}, "
+                               f"ω = √(g/z)); give shorter durations")
+
+
+def _check_model(what: str, gait: GaitParameters, input_cost: float, legs: LegMasses | None, height: float) -> float:
+    """``input_cost`` as a float after checking ``gait`` (its segments at the CoM ``height``),
+    ``input_cost`` and ``legs`` (InvalidInput naming them)."""
     check_type(f"{what}: gait", gait, GaitParameters, "GaitParameters")
     if legs is not None:
         check_type(f"{what}: legs", legs, LegMasses, "LegMasses (leg_masses()) or None")
+    check_segments(what, gait, height)
     return check_input_cost(what, input_cost)
 
 
@@ -228,7 +247,7 @@ def initial_plan(start: Start, gait: GaitParameters, input_cost: float = INPUT_C
     A ``start`` that is not a :class:`Start`, a ``gait`` that is not :class:`GaitParameters`, an
     ``input_cost`` out of range: :class:`InvalidInput`."""
     check_type("initial_plan: start", start, Start, "Start (the soles, the CoM and the waist at t = 0: start_of)")
-    input_cost = _check_model("initial_plan", gait, input_cost, legs)
+    input_cost = _check_model("initial_plan", gait, input_cost, legs, start.com[2])
     feet = {side: start.foot(side) for side in ("left", "right")}
     zmp = zmp_reference(0.0, start.com[:2], feet, [], gait)
     trajectories, rates, accelerations = _trajectories(start, [], gait, zmp.end_time())
@@ -251,14 +270,14 @@ def new_steps(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitParamete
         body, side = plan.start.body, first_side(command.steps[0] if command.steps else command.velocity)
         liftoff = t + gait.start_duration
     if command.steps:
-        new = plan_steps(body, side, liftoff, command.steps, gait)
+        new = steps_from(body, side, liftoff, command.steps, gait)
         last = new[-1]
         new += closing_steps(last.body, other(last.side), last.liftoff + gait.step_duration,
                              {**feet, **{step.side: (step.x, step.y, step.yaw) for step in new}}, gait)
     elif command.walking:
         new, stepping, lift = [], side, liftoff
         for _ in range(gait.horizon_steps):
-            step = plan_steps(body, stepping, lift, [velocity_displacement(command.velocity, stepping, gait)], gait)[0]
+            step = steps_from(body, stepping, lift, [velocity_displacement(command.velocity, stepping, gait)], gait)[0]
             new.append(step)
             body, stepping, lift = step.body, other(stepping), lift + gait.step_duration
     elif kept:
@@ -291,7 +310,7 @@ def _check_replan(plan: WalkPlan, command: WalkCommand, t: float, gait: GaitPara
     """``(t, input_cost)`` as floats once :func:`replan`'s arguments are checked (before Drake sees any)."""
     check_type("replan: plan", plan, WalkPlan, "WalkPlan (initial_plan() or replan())")
     check_type("replan: command", command, WalkCommand, "WalkCommand")
-    input_cost = _check_model("replan", gait, input_cost, legs)
+    input_cost = _check_model("replan", gait, input_cost, legs, plan.com.height)
     t = check_number("replan: t", t, -MAX_TIME, MAX_TIME, " s")
     if t < plan.planned_at:
         raise InvalidInput(f"replan: t = {t:g} s is before the plan's time {plan.planned_at:g} s: a plan is replanned forward")

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, check_name, finite_number
 from .com_planner import GRAVITY
 
 #: ``k_c`` (1/s): the CoM error gain (> ω, ω ≈ 3.3 /s on TALOS).
@@ -34,6 +34,9 @@ COM_GAIN = 5.0
 ZMP_GAIN = 0.0
 #: Largest correction of the CoM reference (m, per horizontal axis).
 MAX_OFFSET = 0.05
+#: The ranges of the arguments (beyond them, a mistake): the CoM height and ``max_offset`` (m), ``dt``
+#: (s, as the pattern generator's), ``com_gain`` (1/s).
+MAX_HEIGHT, MAX_DT, MAX_GAIN = 1e3, 1.0, 1e4
 
 
 def feedback_rate(com_reference: np.ndarray, com_measured: np.ndarray, zmp_reference: np.ndarray,
@@ -57,19 +60,20 @@ class ComStabilizer(LeafSystem):
 
     def __init__(self, height: float, dt: float, com_gain: float = COM_GAIN, zmp_gain: float = ZMP_GAIN,
                  max_offset: float = MAX_OFFSET, name: str = "stabilizer"):
+        check_name("ComStabilizer: name", name)
+        for what, value, high, unit in (("height", height, MAX_HEIGHT, "m"), ("dt", dt, MAX_DT, "s"),
+                                        ("max_offset", max_offset, MAX_HEIGHT, "m")):
+            if not (finite_number(value) and 0 < value <= high):
+                raise InvalidInput(f"{name}: {what} must be a number in (0, {high:g}] {unit}, got {value!r:.60}")
+        omega = float(np.sqrt(GRAVITY / height))
+        if not (finite_number(com_gain) and omega < com_gain <= MAX_GAIN):
+            raise InvalidInput(f"{name}: com_gain must be a number in (ω = √(g/z) = {omega:.3f}, {MAX_GAIN:g}] /s (stability), "
+                               f"got {com_gain!r:.60}")
+        if not (finite_number(zmp_gain) and 0 <= zmp_gain < omega):
+            raise InvalidInput(f"{name}: zmp_gain must be a number in [0, ω = {omega:.3f}) /s (stability), got {zmp_gain!r:.60}")
         LeafSystem.__init__(self)
         self.set_name(name)
-        if not (np.isfinite(height) and height > 0):
-            raise InvalidInput(f"{name}: height must be finite and > 0 m, got {height}")
-        if not (np.isfinite(dt) and dt > 0):
-            raise InvalidInput(f"{name}: dt must be finite and > 0 s, got {dt}")
-        self.omega = float(np.sqrt(GRAVITY / height))
-        if not (np.isfinite(com_gain) and com_gain > self.omega):
-            raise InvalidInput(f"{name}: com_gain must be > ω = √(g/z) = {self.omega:.3f} /s (stability), got {com_gain}")
-        if not (np.isfinite(zmp_gain) and 0 <= zmp_gain < self.omega):
-            raise InvalidInput(f"{name}: zmp_gain must be in [0, ω = {self.omega:.3f}) /s (stability), got {zmp_gain}")
-        if not (np.isfinite(max_offset) and max_offset > 0):
-            raise InvalidInput(f"{name}: max_offset must be finite and > 0 m, got {max_offset}")
+        self.omega = omega
         self.dt, self.com_gain, self.zmp_gain, self.max_offset = float(dt), float(com_gain), float(zmp_gain), float(max_offset)
         vector = self.DeclareVectorInputPort
         self.com_reference = vector("com_reference", 3)

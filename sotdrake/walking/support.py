@@ -11,12 +11,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..exceptions import InvalidInput, check_finite
+from ..exceptions import InvalidInput, check_finite, check_type
 from .gait import GaitParameters
 
 
+def _checked(what: str, pose, gait: GaitParameters) -> np.ndarray:
+    """``pose`` as a float array once it is three finite numbers and ``gait`` a :class:`GaitParameters`."""
+    check_type(f"{what}: gait", gait, GaitParameters, "GaitParameters")
+    return check_finite(f"{what}: pose (x, y, yaw; m, rad)", pose, (3,))
+
+
 def sole_centre(pose, gait: GaitParameters) -> np.ndarray:
-    """The footprint's centre (world xy) for a sole at ``(x, y, yaw)``."""
+    """The footprint's centre (world xy) for a sole at ``(x, y, yaw)`` (finite; else :class:`InvalidInput`)."""
+    return centre_of(_checked("sole_centre", pose, gait), gait)
+
+
+def centre_of(pose, gait: GaitParameters) -> np.ndarray:
+    """:func:`sole_centre` for arguments already checked (the walk plans' own)."""
     x, y, yaw = pose
     c, s = np.cos(yaw), np.sin(yaw)
     cx, cy = gait.sole_centre
@@ -24,8 +35,9 @@ def sole_centre(pose, gait: GaitParameters) -> np.ndarray:
 
 
 def footprint(pose, gait: GaitParameters) -> np.ndarray:
-    """The footprint's four corners (4×2, counter-clockwise) for a sole at ``(x, y, yaw)``."""
-    x, y, yaw = pose
+    """The footprint's four corners (4×2, counter-clockwise) for a sole at ``(x, y, yaw)`` (finite;
+    else :class:`InvalidInput`)."""
+    x, y, yaw = _checked("footprint", pose, gait)
     c, s = np.cos(yaw), np.sin(yaw)
     half = np.array([gait.sole_length, gait.sole_width]) / 2
     local = np.array(gait.sole_centre) + half * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])
@@ -52,11 +64,12 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
 
 
 def support_polygon(poses: list, gait: GaitParameters) -> np.ndarray:
-    """The convex hull of the footprints of the soles at ``poses`` (one or two ``(x, y, yaw)``; none:
-    :class:`InvalidInput`)."""
-    if not len(poses):
-        raise InvalidInput("support_polygon: poses is empty: give the (x, y, yaw) of one or two soles")
-    return convex_hull(np.vstack([footprint(p, gait) for p in poses]))
+    """The convex hull of the footprints of the soles at ``poses`` (one or two finite ``(x, y, yaw)``;
+    none, or anything else: :class:`InvalidInput`)."""
+    array = check_finite("support_polygon: poses (one or two (x, y, yaw); m, rad)", poses)
+    if array.ndim != 2 or array.shape[1] != 3 or not 1 <= len(array) <= 2:
+        raise InvalidInput(f"support_polygon: poses must be the (x, y, yaw) of one or two soles, got shape {array.shape}")
+    return convex_hull(np.vstack([footprint(p, gait) for p in array]))
 
 
 def polygon_margin(point, polygon: np.ndarray) -> float:

@@ -14,13 +14,21 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from .footsteps import Footstep, other
 from .gait import GaitParameters
-from .support import sole_centre
+from .support import centre_of
 
 #: How long the reference holds at its end (s): the plan's stationary tail.
 HOLD = 1.0
 #: Part of ``start_duration`` during which the reference shifts onto the first support foot (it
 #: holds before: the CoM, at rest, starts moving ahead of the reference without a jump of its ZMP).
 SHIFT = 0.5
+
+
+def segment_durations(gait: GaitParameters) -> dict[str, float]:
+    """The longest reference segment (s) each of the gait's durations makes (its name → the
+    duration): single and double supports, the start's hold and shift, the stop; the final hold is
+    :data:`HOLD`."""
+    return {"single_support": gait.single_support, "step_duration - single_support": gait.double_support,
+            "start_duration": max(SHIFT, 1 - SHIFT) * gait.start_duration, "stop_duration": gait.stop_duration}
 
 
 def zmp_knots(t: float, zmp0, feet: dict, steps: list[Footstep], gait: GaitParameters) -> tuple[np.ndarray, np.ndarray]:
@@ -38,14 +46,14 @@ def zmp_knots(t: float, zmp0, feet: dict, steps: list[Footstep], gait: GaitParam
             points.append(np.asarray(point, dtype=float))
 
     for i, step in enumerate(steps):
-        support = sole_centre(feet[other(step.side)], gait)
+        support = centre_of(feet[other(step.side)], gait)
         if step.liftoff > t:
             if i == 0 and step.liftoff - t > gait.double_support + 1e-9:  # from standing
                 add(step.liftoff - SHIFT * gait.start_duration, points[-1])
             add(step.liftoff, support)
         add(step.touchdown, support)
         feet[step.side] = (step.x, step.y, step.yaw)
-    middle = 0.5 * (sole_centre(feet["left"], gait) + sole_centre(feet["right"], gait))
+    middle = 0.5 * (centre_of(feet["left"], gait) + centre_of(feet["right"], gait))
     add(times[-1] + gait.stop_duration, middle)
     add(times[-1] + HOLD, middle)
     return np.array(times), np.array(points).T

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import copy
 import logging
+import math
 import warnings
 import weakref
 from collections.abc import Callable, Iterator
@@ -215,8 +216,13 @@ class Entity(LeafSystem, Generic[S]):
             self._in_contexts.add(frozen)
             value.set_value(frozen)
 
-        # A periodic event whose period outlasts any simulation is a one-shot event at `offset`.
-        self.DeclarePeriodicUnrestrictedUpdateEvent(period_sec=1e12, offset_sec=time, update=update)
+        # A periodic event whose period outlasts any simulation is a one-shot event at `offset`. It is
+        # declared a nanosecond early (more for late times: 16 ulps), so that a command at a tick's time
+        # applies at that tick even when the tick's time, k·dt in floating point, falls just below it
+        # (with dt = 0.9 ms, tick 11 is at 0.009899999999999999 s; attime(2.0) met the 1 ms tick at 2.0
+        # late too).
+        early = max(0.0, time - max(1e-9, 16 * math.ulp(time)))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period_sec=1e12, offset_sec=early, update=update)
 
 
 def recording() -> bool:

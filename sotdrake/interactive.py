@@ -93,6 +93,8 @@ class Runner:
                     last = time.monotonic()
         except KeyboardInterrupt:
             print(f"stopped at t = {self.t:.3f} s", file=sys.stderr)
+        for tracer in self._tracers:  # (the files hold everything run so far)
+            tracer.flush(self.context, force=True)
         return self.t
 
     def _advance(self, target: float) -> None:

@@ -244,7 +244,8 @@ def simulate(diagram: Diagram, duration: float, visualizer: MeshcatVisualizer | 
     (:func:`sotdrake.stack_checks.check_stack`: a task without gain or feature is named).
 
     The streaming tracers of ``diagram`` (:class:`sotdrake.tracing.Tracer`) move their samples to
-    their files as the run goes (see :func:`sotdrake.tracing.flush_tracers`). The garbage collector
+    their files as the run goes (see :func:`sotdrake.tracing.flush_tracers`) and at its end, whether
+    it returns or stops on an error or Ctrl-C: a tracer's file then holds the whole run. The garbage collector
     is frozen for the loop (:func:`frozen_gc`): what the build made is collected once, then left
     out of the collections, so that no full collection pauses a tick."""
     from tqdm import tqdm
@@ -276,6 +277,8 @@ def simulate(diagram: Diagram, duration: float, visualizer: MeshcatVisualizer | 
                 for tracer in tracers:
                     tracer.flush(simulator.get_context())
                 bar.update(t - bar.n)
+            for tracer in tracers:  # (the run's end too: when simulate returns, the files hold the whole run)
+                tracer.flush(simulator.get_context(), force=True)
         except BaseException:  # (an error, Ctrl-C: the samples recorded so far reach the files)
             for tracer in tracers:
                 with contextlib.suppress(Exception):

@@ -2,25 +2,31 @@
 and plotted.
 
 Built on Drake's ``LogVectorOutput`` (``VectorLogSink``). A sink publishing at period ``T`` records
-the value of its port at each ``k·T`` *after* the discrete updates at that time: for the device's
-``state`` that is the configuration the tick at ``k·T`` produced.
+the value of its port at each ``k·T`` *before* the discrete updates due at that time (Drake
+publishes at the end of the step that reaches ``k·T``, then starts the next one with its updates):
+row ``k`` of the device's ``state`` is the configuration its ticks before ``k·T`` produced (with
+``T = dt``: row 1 is ``q0 ⊕ v(0)·dt``), the one the tick at ``k·T`` reads, and row ``k`` of the
+SoT's ``control`` is the command computed from it, the one that tick integrates (unless an event
+due at that very time, a timed command or another system's update, changes it before the tick).
 
 **Streaming.** By default the samples do not stay in memory: every ``chunk`` seconds of simulated
 time the sinks' logs are moved to a chunk file (``.npy`` arrays one after the other: the column
 names, then each chunk's columns; appended, never re-read while the run goes: no Python objects
 pile up for the garbage collector) and cleared, so a long run's memory stays flat. The loops that
-flush are
-:func:`sotdrake.simulation.simulate` and the live runner (:class:`sotdrake.live.runner.LiveRun`);
-with a ``Simulator`` of your own, call :func:`flush_tracers` (or :meth:`Tracer.flush`) between
-``AdvanceTo`` calls. :meth:`Tracer.data` reads the chunks back and appends what the logs still
-hold: the same arrays as with ``stream=False`` (everything in Drake's logs).
+flush are :func:`sotdrake.simulation.simulate` (at the run's end too) and the live runner
+(:class:`sotdrake.live.runner.LiveRun`); with a ``Simulator`` of your own, call
+:func:`flush_tracers` (or :meth:`Tracer.flush`) between ``AdvanceTo`` calls. :meth:`Tracer.data`
+reads the chunks back and appends what the logs still hold: the same arrays as with
+``stream=False`` (everything in Drake's logs). A file deleted, replaced or changed while a run
+streams to it is a :class:`SotError` naming it at the next flush (and in :meth:`Tracer.data`).
 
 **One stream per root context.** Each root context flushed has its own stream while it lives (the
 tracer holds it by a weak reference: a context dropped, with its ``Simulator``, drops its stream and
 deletes its temporary file, so that many runs through one diagram keep neither memory nor files).
 The tracer's file (:attr:`Tracer.path`) holds the latest run: a context flushed from the start of
-its run (a new context, or a context run again from an earlier time) takes it over, and the run it
-held before moves to a temporary file, still read by :meth:`Tracer.data` for its context. A
+its run (a new context, or a context run again from an earlier time: its samples before the step
+back in time, flushed or not, are dropped) takes it over, and the run it held before moves to a
+temporary file, still read by :meth:`Tracer.data` for its context. A
 context whose first sample follows a chunk of another context's stream (a ``Context.Clone()``
 taken during a run: one period after the chunk's last sample, or at it with the same values)
 streams to a temporary file of its own that starts with that stream's chunks up to there:
@@ -41,7 +47,7 @@ from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 from .atomic import all_or_nothing, check_vector_port
 from .exceptions import InvalidInput, SotError, check_number, os_reason
 from .simulation import save_figure, save_npz
-from .trace_chunks import ChunkFile, row_digest
+from .trace_chunks import ChunkFile, row_digest, stream_path
 from .trace_chunks import read_trace as read_trace  # (where the tracer's users look for it)
 from .writable import check_writable, writing
 
@@ -82,7 +88,8 @@ class Tracer:
         if not isinstance(stream, bool | str | Path):
             raise InvalidInput(f"tracer stream must be True, False or a file path, got {stream!r}")
         check_number("chunk", chunk, 1e-9, float("inf"), " s")
-        path = None if isinstance(stream, bool) else _stream_path(Path(stream).expanduser())
+        taken = [tracer.path for tracer in list(_STREAMING) if tracer.path is not None]
+        path = None if isinstance(stream, bool) else stream_path(Path(stream).expanduser(), taken)
         self.builder, self.period, self.chunk = builder, period, float(chunk)
         self.sinks: dict[str, VectorLogSink] = {}
         self._file: ChunkFile | None = None
@@ -128,13 +135,16 @@ class Tracer:
         if self._file is None or not self.sinks:
             return False
         logs = [sink.FindMutableLog(context) for sink in self.sinks.values()]
-        times = logs[0].sample_times()
-        if times.size == 0 or not (force or times[-1] - times[0] >= self.chunk - 1e-9):
+        end = _complete(logs)
+        times = logs[0].sample_times()[:end]
+        start = _run_start(times)
+        if times.size == 0 or not (force or times[-1] - times[start] >= self.chunk - 1e-9):
             return False
-        stream = self._stream_to_write(context, float(times[0]), _first_row(times, logs))
+        stream = self._stream_to_write(context, float(times[start]), _first_row(times, logs, start), restart=start > 0)
         if stream.file is None:  # (its earlier chunks were dropped: the samples stay in Drake's logs)
             return False
-        columns = {"time": times.copy(), **{name: log.data().T.copy() for name, log in zip(self.sinks, logs, strict=True)}}
+        columns = {"time": times[start:].copy(),
+                   **{name: log.data()[:, start:end].T.copy() for name, log in zip(self.sinks, logs, strict=True)}}
         stream.file.append(columns, float(times[-1]))
         self._flushes += 1
         stream.last, stream.flushed = float(times[-1]), self._flushes
@@ -148,11 +158,12 @@ class Tracer:
     def _stream_of(self, context: Context) -> _Stream | None:
         return next((stream for stream in self._streams if stream.context is context), None)
 
-    def _stream_to_write(self, context: Context, first: float, first_row: bytes) -> _Stream:
+    def _stream_to_write(self, context: Context, first: float, first_row: bytes, restart: bool = False) -> _Stream:
         """The stream the samples of ``context`` from time ``first`` on go to: its own if they
-        follow it, a copy of the stream they branch from (a clone), else a new run in the tracer's file."""
+        follow it (and are not a ``restart``: the logs went back in time before them), a copy of the
+        stream they branch from (a clone), else a new run in the tracer's file."""
         stream = self._stream_of(context)
-        if stream is not None and first > stream.last:
+        if stream is not None and first > stream.last and not restart:
             return stream
         if stream is None:
             stream = _Stream(weakref.ref(context, _forgetter(self)))
@@ -197,16 +208,18 @@ class Tracer:
         :class:`InvalidInput` if ``context`` is not the root context of the traced diagram."""
         self._check_context("data", context)
         logs = {name: sink.FindLog(context) for name, sink in self.sinks.items()}
+        end = _complete(list(logs.values()))
+        times = next(iter(logs.values())).sample_times()[:end] if logs else np.zeros(0)
+        start = _run_start(times)  # (the samples before it are an earlier run of this context)
         streamed: dict[str, list[np.ndarray]] = {}
         if self._file is not None and logs:
-            times = next(iter(logs.values())).sample_times()
-            first = float(times[0]) if times.size else None
-            first_row = _first_row(times, list(logs.values())) if times.size else None
+            first = float(times[start]) if times.size else None
+            first_row = _first_row(times, list(logs.values()), start) if times.size else None
             stream = self._stream_of(context)
-            if stream is not None and stream.dropped:
+            if stream is not None and stream.dropped and not start:
                 raise SotError(f"tracer: the chunks of this context were dropped when a later run took over "
-                               f"{str(self._file.path)!r} (not a regular file)")
-            if stream is not None and stream.file is not None and (first is None or first > stream.last):
+                               f"{str(self._file.path)!r} (not a regular file, or deleted)")
+            if stream is not None and stream.file is not None and (first is None or first > stream.last) and not start:
                 streamed = stream.file.read()
             elif stream is None and (branch := self._branch(context, first, first_row)) is not None:
                 parent, chunks = branch
@@ -215,8 +228,8 @@ class Tracer:
         out: dict[str, np.ndarray] = {"time": np.zeros(0)}  # (a tracer without signals: no time either)
         for name, log in logs.items():
             if name == next(iter(logs)):
-                out["time"] = np.concatenate([*streamed.get("time", []), log.sample_times()])
-            tail = log.data().T
+                out["time"] = np.concatenate([*streamed.get("time", []), times[start:]])
+            tail = log.data()[:, start:end].T
             out[name] = np.concatenate([*streamed.get(name, []), tail]) if streamed else tail.copy()
         repeated = np.flatnonzero(out["time"][1:] == out["time"][:-1]) + 1
         if repeated.size:  # (a new Simulator on a clone publishes at its time again: the first sample holds)
@@ -319,27 +332,6 @@ def _check_root(what: str, system: System | None, context: object) -> None:
         raise InvalidInput(f"{need}, got {got}") from None
 
 
-def _stream_path(path: Path) -> Path:
-    """``path`` if a tracer may stream to it: a file in an existing folder, no other tracer's, and
-    either new, empty or a trace file already (a file of another kind is not overwritten)."""
-    try:
-        if path.is_dir() or not path.parent.is_dir():
-            raise InvalidInput(f"tracer stream: {str(path)!r} is a folder or its folder does not exist: give a file path")
-        if any(tracer.path is not None and tracer.path.resolve() == path.resolve() for tracer in list(_STREAMING)):
-            raise InvalidInput(f"tracer stream: another tracer streams to {str(path)!r}")
-        if path.is_file() and path.stat().st_size:
-            with open(path, "rb") as file:
-                try:
-                    np.lib.format.read_array(file, allow_pickle=False)
-                except ValueError:
-                    raise InvalidInput(f"tracer stream: {str(path)!r} exists and is not a trace file: not overwritten") from None
-    except SotError:
-        raise
-    except (OSError, ValueError) as error:  # (a NUL byte in the path: ValueError)
-        raise InvalidInput(f"tracer stream: {str(path)!r}: {os_reason(error)}") from None
-    return path
-
-
 def _forgetter(tracer: Tracer):
     """The callback of a stream's weak reference to its context: once the context is gone, the
     stream is dropped (its temporary file deleted; the tracer's own file, if the stream held it,
@@ -383,7 +375,20 @@ def _csv_field(text: str) -> str:
     return '"' + text.replace('"', '""') + '"' if any(c in text for c in ',"\r\n') else text
 
 
-def _first_row(times: np.ndarray, logs: list) -> bytes:
-    """The digest of the logs' first sample (its time, then each signal's values)."""
-    return row_digest([times[:1], *(log.data()[:, 0] for log in logs)])
+def _first_row(times: np.ndarray, logs: list, start: int = 0) -> bytes:
+    """The digest of the logs' sample ``start`` (its time, then each signal's values)."""
+    return row_digest([times[start:start + 1], *(log.data()[:, start] for log in logs)])
+
+
+def _complete(logs: list) -> int:
+    """The number of samples every log holds: a run stopped by an error in the middle of a publish
+    leaves the sample of that time in some logs only, and it is not a sample of the trace."""
+    return min((log.num_samples() for log in logs), default=0)
+
+
+def _run_start(times: np.ndarray) -> int:
+    """The index of the first sample of the latest run in a log's ``times``: the one after the
+    last step back in time (a context set to an earlier time and run again), 0 if none."""
+    back = np.flatnonzero(times[1:] < times[:-1])
+    return int(back[-1]) + 1 if back.size else 0
 

@@ -21,6 +21,7 @@ commands whose client stopped waiting before the run reached them, never applied
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 import json
 import logging
@@ -167,6 +168,9 @@ class LiveRun:
             with frozen_gc():  # the build's objects out of the collections: no full collection in the loop
                 self._loop(end, tracers)
         finally:
+            for tracer in tracers:  # (the run's end: the files hold the whole run, as simulate's do)
+                with contextlib.suppress(OSError, SotError):
+                    tracer.flush(context, force=True)
             for s, handler in previous.items():
                 signal.signal(s, handler)
             self.server.close()
@@ -191,7 +195,7 @@ class LiveRun:
                 try:
                     for tracer in tracers:
                         tracer.flush(context)
-                except OSError as error:  # (a full disk): the run stops as on a failed tick, its files are written
+                except (OSError, SotError) as error:  # (a full disk, a file deleted): the run stops as on a failed tick
                     self.error = f"the trace could not be written: {error}"
                     log.error("live: the run stopped at t = %.4f s: %s", context.get_time(), self.error)
                     break

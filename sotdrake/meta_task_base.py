@@ -6,7 +6,7 @@ a context, and :class:`MetaTask`, which adds and plugs a feature's gain and task
 from __future__ import annotations
 
 import copy
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from pydrake.systems.framework import Context, InputPort
@@ -19,6 +19,9 @@ from .kinematics import Dynamic
 from .ranges import MAX_TARGET_POSITION
 from .robot import Robot
 from .task import Task, TaskInequality, TaskPD
+
+if TYPE_CHECKING:
+    from .dynamics.robot_dyn import RobotDyn
 
 
 def as_robot(robot: Robot, meta: str) -> Robot:
@@ -54,7 +57,7 @@ def check_start(meta: str, name: str, what: str, position: np.ndarray) -> None:
                            f"±{MAX_TARGET_POSITION:g} m a reference may be (a robot in mm rather than m?)")
 
 
-def posture_feature(meta: str, name: str, robot: Any, posture: np.ndarray) -> FeaturePosture:
+def posture_feature(meta: str, name: str, robot: Robot | RobotDyn, posture: np.ndarray) -> FeaturePosture:
     """``feature<name>``, a :class:`FeaturePosture` of ``robot``'s joints towards ``posture`` (not
     added yet); :class:`InvalidInput` if the robot has no joint besides its floating base (the
     feature would select nothing)."""

@@ -162,8 +162,7 @@ def test_a_subscribed_value_is_read_once_per_time(observer):  # noqa: F811
     port = subscribe.add("vector", "v", "/test_guarantees/cached", default=(0.0, 0.0), size=2)
     sender = RosNode("test_cached_sender")
     try:
-        pub = sender.node.create_publisher(Float64MultiArray, "/test_guarantees/cached", 10)
-        wait_for(lambda: matched(pub, observer.node, "/test_guarantees/cached"), WAIT_S, "the subscription")
+        (pub,) = _matched_publishers(sender, observer, (Float64MultiArray, "/test_guarantees/cached"))
         context = subscribe.CreateDefaultContext()
         assert port.Eval(context).tolist() == [0.0, 0.0]
         pub.publish(Float64MultiArray(data=[1.0, 2.0]))
@@ -173,6 +172,15 @@ def test_a_subscribed_value_is_read_once_per_time(observer):  # noqa: F811
         assert port.Eval(context).tolist() == [1.0, 2.0]
     finally:
         sender.close()
+
+
+def _matched_publishers(sender: RosNode, listener: RosNode, *topics: tuple[type, str]) -> list:
+    """A publisher of ``sender`` per ``(message type, topic)``, once ``listener``'s subscription to
+    each has matched it."""
+    publishers = [sender.node.create_publisher(kind, topic, 10) for kind, topic in topics]
+    wait_for(lambda: all(matched(pub, listener.node, topic) for pub, (_, topic) in zip(publishers, topics, strict=True)),
+             WAIT_S, "the subscriptions")
+    return publishers
 
 
 def _after_each(pub, subscribe, signal, bad, good) -> None:
@@ -195,10 +203,8 @@ def test_dropped_messages_say_why_and_keep_the_last_value(observer, caplog):  # 
     vector = subscribe.add("vector", "v", "/test_guarantees/vector", size=3)
     sender = RosNode("test_drops_sender")
     try:
-        pub_j = sender.node.create_publisher(JointState, "/test_guarantees/joints", 10)
-        pub_v = sender.node.create_publisher(Float64MultiArray, "/test_guarantees/vector", 10)
-        wait_for(lambda: matched(pub_j, observer.node, "/test_guarantees/joints")
-                 and matched(pub_v, observer.node, "/test_guarantees/vector"), WAIT_S, "the subscriptions")
+        pub_j, pub_v = _matched_publishers(sender, observer, (JointState, "/test_guarantees/joints"),
+                                           (Float64MultiArray, "/test_guarantees/vector"))
         with caplog.at_level(logging.WARNING, logger="sotdrake.ros"):
             _after_each(pub_j, subscribe, "q", [], JointState(name=["b", "a"], position=[2.0, 1.0]))
             _after_each(pub_j, subscribe, "q", [JointState(name=["a", "b", "a"], position=[7.0, 8.0, 9.0]),
@@ -241,10 +247,8 @@ def test_a_pose_in_another_frame_is_dropped(observer, caplog):  # noqa: F811
         return message
 
     try:
-        pub = sender.node.create_publisher(PoseStamped, "/test_guarantees/pose", 10)
-        pub_odom = sender.node.create_publisher(PoseStamped, "/test_guarantees/pose_odom", 10)
-        wait_for(lambda: matched(pub, observer.node, "/test_guarantees/pose")
-                 and matched(pub_odom, observer.node, "/test_guarantees/pose_odom"), WAIT_S, "the subscriptions")
+        pub, pub_odom = _matched_publishers(sender, observer, (PoseStamped, "/test_guarantees/pose"),
+                                            (PoseStamped, "/test_guarantees/pose_odom"))
         with caplog.at_level(logging.WARNING, logger="sotdrake.ros"):
             _after_each(pub, subscribe, "target", [], pose("world", 1.0))
             _after_each(pub, subscribe, "target", [pose("map", 2.0), pose("odom", 3.0)], pose("", 4.0))

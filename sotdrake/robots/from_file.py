@@ -9,6 +9,10 @@ comes here. The file is read as the catalog's robots are:
   revolute or prismatic joint's ``lower`` and ``upper`` must be finite (an unbounded one is
   ``continuous``); a ``velocity="0"`` limit (often written for "not given") is read as no limit;
 * an SDF or MJCF file is parsed by Drake with the same package folders;
+* what Drake would read otherwise than the file says is refused first
+  (:mod:`~sotdrake.robots.model_checks`: a file under the name of another format, a negative mass,
+  a ``<mimic>`` cycle, a floating joint between two links, ``world`` as a joint's child, links
+  left free besides the one floating base);
 * every 1-DOF joint without an actuator gets one (the URDF's effort limit, else unlimited).
 
 Base: ``floating_base=True`` leaves the root link free (Drake's 6-DOF floating base,
@@ -18,8 +22,10 @@ file whose root is already welded to ``world`` stays welded.
 
 Operational points: the given ones (op-point name → joint, link or frame of the model; a list of
 frame names maps each to itself), else the SRDF's ``<end_effector>`` (name → its ``parent_link``),
-every leaf link (a link with no child) under its own name and, for a floating base, ``waist``.
-Any frame, link or joint name is accepted where an op point is expected.
+every leaf link (a link with no child) under its own name and, for a floating base, ``waist``
+(the link ``waist`` itself when the model has one). Any frame, link or joint name is accepted where
+an op point is expected; an op point may not be named like another frame of the model (it would
+hide it: :class:`~sotdrake.exceptions.InvalidInput`).
 
 Reference posture ``q0``: the given array (nq, Drake's order) or ``{joint: value}``, else an SRDF
 ``group_state`` (the one named, else ``half_sitting``, ``standing``, ``default``, ``home``,
@@ -31,7 +37,6 @@ is ``srdf=`` or, when not given, ``<name>.srdf`` beside the file or in a sibling
 from __future__ import annotations
 
 import logging
-import re
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -43,21 +48,18 @@ import numpy as np
 from pydrake.geometry import SceneGraph
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import BodyIndex, JointIndex, ModelInstanceIndex
+from pydrake.multibody.tree import JointIndex, ModelInstanceIndex
 
-from ..exceptions import InvalidInput, RobotDescriptionError, RobotFileNotFound
-from .catalog import ROBOTS
+from ..exceptions import InvalidInput, RobotDescriptionError
 from .mimic import mimic_table
 from .model import OperationalPoints, RobotModel
+from .model_checks import FORMATS, attach_roots, check_is_file, check_user_urdf, description_format
 from .model_defaults import operational_points_of, posture_of
 from .packages import PackageResolver
-from .urdf_checks import check_other_limits, positive_lengths
+from .urdf_checks import check_masses, check_other_limits
 from .urdf_text import prepare_urdf
 
 log = logging.getLogger(__name__)
-
-#: Suffix → Drake's parser format (``.xml`` is told apart by its root element).
-FORMATS = {".urdf": "urdf", ".sdf": "sdf", ".mjcf": "mjcf", ".xml": "xml"}
 
 PathArg = str | PathLike[str]
 
@@ -68,23 +70,6 @@ def looks_like_path(name: object) -> bool:
     if isinstance(name, PathLike):
         return True
     return isinstance(name, str) and ("/" in name or "\\" in name or Path(name).suffix.lower() in FORMATS)
-
-
-def _format(path: Path) -> str:
-    kind = FORMATS.get(path.suffix.lower())
-    if kind is None:
-        raise RobotDescriptionError(f"{path}: unknown description format; expected one of {sorted(FORMATS)}")
-    if kind != "xml":
-        return kind
-    try:
-        tag = ET.parse(path).getroot().tag
-    except ET.ParseError as error:
-        raise RobotDescriptionError(f"{path}: not well-formed XML ({error})") from None
-    return {"robot": "urdf", "mujoco": "mjcf", "sdf": "sdf"}.get(tag) or _bad_root(path, tag)
-
-
-def _bad_root(path: Path, tag: str) -> str:
-    raise RobotDescriptionError(f"{path}: root element <{tag}>: expected <robot> (URDF), <sdf> or <mujoco> (MJCF)")
 
 
 def is_drake_check(error: BaseException) -> bool:
@@ -117,60 +102,6 @@ def _read_text(path: Path) -> str:
         raise RobotDescriptionError(f"{path}: not UTF-8 text ({error})") from None
 
 
-def check_user_urdf(text: str, source: str) -> str:
-    """``text`` with ``velocity="0"`` limits removed (no limit), after checking that the ``lower`` and
-    ``upper`` limits given to a revolute or prismatic joint are finite numbers
-    (:class:`RobotDescriptionError`)."""
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as error:
-        raise RobotDescriptionError(f"{source}: not well-formed XML ({error})") from None
-    for joint in root.iter("joint"):
-        if joint.get("type") not in ("revolute", "prismatic"):
-            continue
-        limit = joint.find("limit")
-        for side in ("lower", "upper"):
-            value = None if limit is None else limit.get(side)
-            if value is None:  # URDF's default (0), as Drake reads it
-                continue
-            try:
-                finite = bool(np.isfinite(float(value)))
-            except ValueError:
-                finite = False
-            if not finite:
-                raise RobotDescriptionError(
-                    f"{source}: joint {joint.get('name', '?')!r} ({joint.get('type')}): limit {side}={value!r} is not a "
-                    'finite number; give finite limits (rad or m), or make an unbounded joint type="continuous"'
-                )
-    for link in root.iter("link"):
-        _check_shape_sizes(link, source)
-
-    def zero_velocity(match: re.Match) -> str:  # velocity="0", '0', "0e0", "-0.0": no limit
-        try:
-            return match.group(1) if float(match.group(3)) == 0.0 else match.group(0)
-        except ValueError:
-            return match.group(0)  # (the parser says what is wrong with it)
-
-    return re.sub(r"""(<limit\b[^>]*?)\svelocity\s*=\s*(["'])(.*?)\2""", zero_velocity, text, flags=re.S)
-
-
-#: A URDF shape's size attributes, each positive finite numbers (m).
-_URDF_SIZES = {"sphere": ("radius",), "box": ("size",), "cylinder": ("radius", "length"), "capsule": ("radius", "length")}
-
-
-def _check_shape_sizes(link: ET.Element, source: str) -> None:
-    """:class:`RobotDescriptionError` naming the link of a shape whose size is not positive (Drake
-    takes a sphere of radius 0)."""
-    for geometry in link.iter("geometry"):  # (a shape elsewhere, e.g. pinocchio's <collision_checking>, names one)
-        for element in geometry:
-            shape = element.tag
-            for field in _URDF_SIZES.get(shape, ()):
-                text = element.get(field)
-                if not positive_lengths(text):
-                    raise RobotDescriptionError(f"{source}: link {link.get('name', '?')!r}: a {shape}'s {field} must be "
-                                                f"positive finite numbers (m), got {text!r:.60}")
-
-
 def _root_links(text: str) -> list[str]:
     root = ET.fromstring(text)
     children = {child.get("link") for joint in root.iter("joint") if (child := joint.find("child")) is not None}
@@ -193,16 +124,21 @@ def _add_urdf(plant: MultibodyPlant, path: Path, resolver: PackageResolver, mesh
                     "kinematic device does not; leave them out of the control (robot.velocity_selection(excluding=%s)) "
                     "or give them a task", path, followers, followers)
     if roots[0] != "world" and not floating_base:
-        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(roots[0], instance))
+        with drake_refusals(path):
+            plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(roots[0], instance))
     add_actuators(plant, instance, text)
     return instance
 
 
 def _add_other(plant: MultibodyPlant, path: Path, resolver: PackageResolver, floating_base: bool) -> list[ModelInstanceIndex]:
+    """An SDF or MJCF file's models, read by Drake's parser with the package folders of ``resolver``
+    (those its text names are found as for a URDF: :meth:`PackageResolver.packages_in`), checked
+    (limits, masses, unique names, one free body at most) and attached (:func:`attach_roots`)."""
     from .loader import add_actuators
 
     parser = Parser(plant)
-    for name, folder in resolver.packages.items():
+    known = set(parser.package_map().GetPackageNames())
+    for name, folder in {**resolver.packages, **resolver.packages_in(_read_text(path), known)}.items():
         if not parser.package_map().Contains(name):
             parser.package_map().Add(name, str(folder))
     try:
@@ -211,17 +147,13 @@ def _add_other(plant: MultibodyPlant, path: Path, resolver: PackageResolver, flo
         root = None  # (Drake's parser says what is wrong with it)
     if root is not None and root.tag in ("sdf", "mujoco"):
         check_other_limits(root, str(path))  # (Drake would refuse them without naming the joint)
+        check_masses(root, str(path))  # (Drake would take another mass for a negative one)
     with drake_refusals(path):
         instances = parser.AddModels(str(path))
     _check_unique_names(plant, instances, path)
-    free = _mjcf_free_bodies(root)
+    with drake_refusals(path):
+        attach_roots(plant, instances, path, floating_base, _mjcf_free_bodies(root))
     for instance in instances:
-        if not floating_base:
-            children = {plant.get_joint(j).child_body().index() for j in plant.GetJointIndices()}
-            roots = [b for b in plant.GetBodyIndices(instance)
-                     if b not in children and b != BodyIndex(0) and plant.get_body(b).name() not in free]
-            if roots:
-                plant.WeldFrames(plant.world_frame(), plant.get_body(roots[0]).body_frame())
         add_actuators(plant, instance, "<robot/>")
     return instances
 
@@ -263,17 +195,10 @@ def add_robot_file(
     with ``meshes`` and a plant registered with a SceneGraph), as :func:`load_robot_file` does, and
     return its model instances (one for a URDF). For a plant of your own, e.g. a physics plant."""
     file = Path(path).expanduser()
-    if not file.is_file():
-        raise RobotFileNotFound(str(path), list(ROBOTS))
+    check_is_file(file, path)
     resolver = PackageResolver(file, package_paths)
-    kind = _format(file)
-    if kind == "urdf":
+    if description_format(file) == "urdf":
         return [_add_urdf(plant, file, resolver, meshes, floating_base)]
-    drake_kind = {".sdf": "sdf", ".xml": "mjcf"}.get(file.suffix.lower())  # (what Drake's parser reads by its name)
-    if drake_kind != kind:
-        wanted = {"sdf": ".sdf", "mjcf": ".xml"}[kind]
-        raise RobotDescriptionError(f"{file}: a {kind.upper()} file, which Drake's parser reads only under a name ending in "
-                                    f"{wanted!r}: rename it (or link it, beside its meshes) to {file.stem + wanted!r}")
     return _add_other(plant, file, resolver, floating_base)
 
 
@@ -331,13 +256,13 @@ def load_robot_file(
     reference_posture: Any = None,
 ) -> RobotModel:
     """A finalized :class:`RobotModel` of the robot described by ``path`` (see the module
-    docstring). Errors: :class:`~sotdrake.exceptions.RobotFileNotFound` (no such file),
+    docstring). Errors: :class:`~sotdrake.exceptions.RobotFileNotFound` (no such file, or a folder),
     :class:`~sotdrake.exceptions.RobotDescriptionError` (unreadable file, a non-finite limit, no
-    movable joint), :class:`~sotdrake.exceptions.PackageNotFound`,
-    :class:`~sotdrake.exceptions.FrameNotFound` (an op point on a frame the model lacks)."""
+    movable joint, see :mod:`~sotdrake.robots.model_checks`), :class:`~sotdrake.exceptions.PackageNotFound`,
+    :class:`~sotdrake.exceptions.FrameNotFound` (an op point on a frame the model lacks),
+    :class:`~sotdrake.exceptions.InvalidInput` (an op point named like another frame)."""
     file = Path(path).expanduser()
-    if not file.is_file():
-        raise RobotFileNotFound(str(path), list(ROBOTS))
+    check_is_file(file, path)
     if not isinstance(floating_base, bool):
         raise InvalidInput(f"floating_base must be True or False, got {floating_base!r}")
     if srdf is not None and not isinstance(srdf, (str, PathLike)):
@@ -381,7 +306,7 @@ def load_robot_file(
         },
     )
     model.OperationalPointsMap.update(operational_points_of(model, operational_points))
-    if _format(file) == "urdf":
+    if description_format(file) == "urdf":
         model.mimic = mimic_table(_read_text(file))
     model.half_sitting = posture_of(model, reference_posture)
     return model

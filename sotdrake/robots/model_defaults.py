@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import BodyIndex
+from pydrake.multibody.tree import BodyIndex, Frame
 
 from ..exceptions import InvalidInput, NotFound, check_finite
 from .mimic import follow_mimics
@@ -25,7 +25,10 @@ PREFERRED_POSTURES = ("half_sitting", "standing", "default", "home", "ready")
 
 def default_operational_points(model: RobotModel) -> dict[str, str]:
     """The SRDF's end effectors, the leaf links and, for a floating base, ``waist`` (see
-    :mod:`sotdrake.robots.from_file`)."""
+    :mod:`sotdrake.robots.from_file`): the floating base, or the model's own link (or joint) named
+    ``waist`` when it has one. A default op point never hides a frame: an end effector named like
+    another frame of the model (iCub's ``r_foot`` on ``r_sole``) is left out with a log warning,
+    the name staying that frame's."""
     plant = model.plant
     points: dict[str, str] = {}
     if model.srdf_path is not None:
@@ -34,19 +37,47 @@ def default_operational_points(model: RobotModel) -> dict[str, str]:
         unknown = sorted(f"{n} ({link})" for n, link in effectors.items() if n not in points)
         if unknown:
             log.warning("%s: the end effectors %s are on links the model does not have: not op points", model.srdf_path, unknown)
+        hiding = {n: named.name() for n, link in points.items()
+                  if (named := _frame_named(plant, n)) is not None and named.index() != plant.GetFrameByName(link).index()}
+        if hiding:
+            log.warning("%s: the end effectors %s are named like other frames of the model, which they would hide: not op "
+                        "points (each name is its own frame)", model.srdf_path,
+                        sorted(f"{n} ({points.pop(n)}, hiding {frame})" for n, frame in hiding.items()))
     parents = {plant.get_joint(j).parent_body().index() for j in plant.GetJointIndices()}
     for index in range(1, plant.num_bodies()):
         body = plant.get_body(BodyIndex(index))
         if body.index() not in parents:
             points.setdefault(body.name(), body.name())
     if plant.GetFloatingBaseBodies():
-        points["waist"] = "root_joint"
+        points["waist"] = "waist" if _frame_named(plant, "waist") is not None else "root_joint"
     return points
+
+
+def _frame_named(plant: MultibodyPlant, name: str) -> Frame | None:
+    """The frame ``name`` names in ``plant`` without op points: a frame's (a link's) or, else, a
+    joint's child frame (as :meth:`RobotModel.frame` reads a name); None if neither."""
+    if plant.HasFrameNamed(name):
+        return plant.GetFrameByName(name)
+    return plant.GetJointByName(name).frame_on_child() if plant.HasJointNamed(name) else None
+
+
+def check_op_point_names(model: RobotModel, points: Mapping[str, str], where: str) -> None:
+    """:class:`InvalidInput` if an op point of ``points`` (name → target) is named like a frame or
+    joint of the model that is not its own target's frame: the op point would hide that frame (a
+    task on the link would control another body), as a meta task's op point may not (``where``
+    names the source in the message). An op point named like its own target (``tool`` → ``tool``)
+    is fine."""
+    for name, target in points.items():
+        named = _frame_named(model.plant, name)
+        if named is not None and named.index() != model.frame(target).index():
+            raise InvalidInput(f"{where} {name!r} on {target!r}: {name!r} already names another frame of {model.name} "
+                               f"({named.name()!r}); give the op point another name")
 
 
 def operational_points_of(model: RobotModel, given: Mapping[str, str] | Sequence[str] | None) -> OperationalPoints:
     """The op-point map of ``model``: ``given`` (checked: each target must be a joint, link or frame
-    of the model, else :class:`~sotdrake.exceptions.FrameNotFound` listing them) or the defaults."""
+    of the model, else :class:`~sotdrake.exceptions.FrameNotFound` listing them, and no name may
+    hide another frame, :func:`check_op_point_names`) or the defaults."""
     if given is None:
         return OperationalPoints(default_operational_points(model))
     if isinstance(given, str) or not isinstance(given, (Mapping, Sequence)):
@@ -58,6 +89,7 @@ def operational_points_of(model: RobotModel, given: Mapping[str, str] | Sequence
         if not isinstance(name, str) or not isinstance(target, str):
             raise InvalidInput(f"operational_points: names and frames are strings, got {name!r}: {target!r}")
         model.frame(target)  # raises FrameNotFound naming the model's frames
+    check_op_point_names(model, points, "operational_points: op point")
     return OperationalPoints(points)
 
 

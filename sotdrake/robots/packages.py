@@ -11,20 +11,24 @@ absolute path or a path relative to the file. :class:`PackageResolver` turns eac
    layout ``<ws>/src/<package>/urdf/robot.urdf`` without a ``package.xml``).
 
 An unknown package raises :class:`~sotdrake.exceptions.PackageNotFound` listing the packages found
-and how to give one (``package_paths={'name': '/path/to/name'}``).
+and how to give one (``package_paths={'name': '/path/to/name'}``). A URDF's URIs are resolved here
+one by one (:meth:`PackageResolver.path`); for an SDF or MJCF file, which Drake's parser reads
+itself, :meth:`PackageResolver.packages_in` gives the folders of the packages its text names, by
+the same rules, for the parser's package map.
 """
 
 from __future__ import annotations
 
 import re
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping
+from collections.abc import Container, Mapping
 from os import PathLike
 from pathlib import Path
 
 from ..exceptions import InvalidInput, PackageNotFound, RobotDescriptionError
 
 _PACKAGE_URI = re.compile(r"^package:/{2,3}([^/]+)/(.*)$")
+_PACKAGE_IN_TEXT = re.compile(r"""package://([^/\s"'<>]+)/[^\s"'<>]*""")
 
 
 def _package_name(package_xml: Path) -> str | None:
@@ -78,6 +82,17 @@ class PackageResolver:
             if (folder / name).is_dir():
                 return folder / name
         raise PackageNotFound(name, list(self.packages), uri)
+
+    def packages_in(self, text: str, known: Container[str] = ()) -> dict[str, Path]:
+        """The folder of each package a ``package://<name>/…`` URI of ``text`` names (but those in
+        ``known``), found by the rules of the module docstring; :class:`PackageNotFound` for one
+        that is not found."""
+        found: dict[str, Path] = {}
+        for match in _PACKAGE_IN_TEXT.finditer(text):
+            name = match.group(1)
+            if name not in found and name not in known:
+                found[name] = self.package(name, match.group(0))
+        return found
 
     def path(self, uri: str) -> Path:
         """The file ``uri`` names; :class:`RobotDescriptionError` if it does not exist."""

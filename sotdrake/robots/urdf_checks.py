@@ -11,6 +11,10 @@ the accepted range:
 
 :func:`check_other_limits` checks an SDF's ``<axis><limit>`` (``lower``, ``upper``) and an MJCF's
 ``range`` the same way (numbers, not NaN, ``lower ≤ upper``).
+
+:func:`check_masses` checks the masses of a URDF, SDF or MJCF file: finite numbers ≥ 0 (kg); Drake
+would take another mass for a negative one, with only a log warning. A zero mass (a massless link)
+and an inertia Drake finds non-physical (many robots' files have one) are accepted.
 """
 
 from __future__ import annotations
@@ -75,6 +79,29 @@ def check_other_limits(root: ET.Element, source: str) -> None:
                 high = _numbers(upper.text, f"{where} upper") if upper is not None else None
                 if low is not None and high is not None:
                     _check_order(low[0], high[0], where)
+
+
+def check_masses(root: ET.Element, source: str) -> None:
+    """:class:`RobotDescriptionError` naming the link (an MJCF body) whose mass is not a finite number
+    ≥ 0 (kg): a URDF's ``<inertial><mass value=…>``, an SDF's ``<inertial><mass>``, an MJCF body's
+    ``<inertial mass=…>`` or ``<geom mass=…>`` (``root``: the file's root element, ``robot``,
+    ``sdf`` or ``mujoco``). Zero is accepted (a massless link)."""
+    for link in root.iter("body" if root.tag == "mujoco" else "link"):
+        if root.tag == "mujoco":
+            masses = [(f" (<{e.tag}>)", e.get("mass")) for e in (*link.findall("inertial"), *link.findall("geom"))]
+        else:  # a URDF's <mass value="…"/>, an SDF's <mass>…</mass>
+            masses = [("", e.get("value") if root.tag == "robot" else e.text) for e in link.findall("inertial/mass")]
+        for where, text in masses:
+            if text is None:
+                continue
+            try:
+                mass = float(text)
+            except ValueError:
+                mass = math.nan
+            if not 0.0 <= mass < math.inf:
+                kind = "body" if root.tag == "mujoco" else "link"
+                raise RobotDescriptionError(f"{source}: {kind} {link.get('name', '?')!r}: mass {text.strip()}{where} must be a "
+                                            "finite number ≥ 0 (kg; 0 for a massless link)")
 
 
 def _numbers(text: str | None, where: str) -> list[float]:

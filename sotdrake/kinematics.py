@@ -177,10 +177,19 @@ class Dynamic(LeafSystem):
 
     def trajectory(self, names: list[str], qs: np.ndarray) -> dict[str, np.ndarray]:
         """Along configurations ``qs`` (k×nq): ``X_WF`` of each named op point or frame as a
-        (k, 4, 4) array, and ``'com'`` (k, 3). For post-processing traces."""
+        (k, 4, 4) array, and ``'com'`` (k, 3). For post-processing traces. Each row of ``qs`` is
+        checked as :meth:`pose_at` checks ``q`` (finite, the base's quaternion of norm ≥ 1e-6; else
+        :class:`InvalidInput` naming the row)."""
         qs = check_finite("qs", qs)
         if qs.ndim != 2 or qs.shape[1] != self.model.nq:
             raise InvalidInput(f"qs: expected shape (k, {self.model.nq}), got {qs.shape}")
+        base = self._layout.base_q
+        if base is not None and len(qs):
+            norms = np.linalg.norm(qs[:, base : base + 4], axis=1)
+            if not norms.min() >= MIN_QUATERNION_NORM:
+                k = int(np.flatnonzero(norms < MIN_QUATERNION_NORM)[0])  # (the first one)
+                raise InvalidInput(f"qs[{k}]: the floating base's quaternion q[{base}:{base + 4}] = {qs[k, base : base + 4].tolist()} "
+                                   f"(norm {norms[k]:g}) is no rotation; give unit quaternions (qw, qx, qy, qz)")
         frames = {name: self.frame(name) for name in names}
         out = {name: np.empty((len(qs), 4, 4)) for name in names}
         out["com"] = np.empty((len(qs), 3))

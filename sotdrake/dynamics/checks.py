@@ -9,6 +9,10 @@ otherwise reach the solver as infinite or overflowing rows.
 
 from __future__ import annotations
 
+import re
+
+import numpy as np
+
 from ..exceptions import InvalidInput, check_number
 
 MAX_FRICTION = 10.0  # μ of a contact (dimensionless): rubber on concrete is about 1
@@ -68,3 +72,24 @@ def check_stable_gains(name: str, kp: float, kv: float, dt: float) -> None:
     if kp * dt**2 + 2 * kv * dt >= 4.0:
         raise InvalidInput(f"{name}: Kp = {kp:g} 1/s², Kv = {kv:g} 1/s make the loop unstable at dt = {dt:g} s: "
                            f"Kp dt² + 2 Kv dt must be < 4, got {kp * dt**2 + 2 * kv * dt:g}")
+
+
+_UNCONNECTED = re.compile(r"required InputPort\[\d+\] \((.+?)\) of System (\S+) \(")
+
+
+def unconnected_input(error: BaseException, system: str) -> str | None:
+    """The name of the input port of the system named ``system`` that ``error`` (Drake's "required
+    InputPort[i] (port) of System ::…::system (…) is not connected") says is not connected; None
+    for another error, or another system's port."""
+    match = _UNCONNECTED.search(str(error))
+    if match is None or match.group(2).rsplit("::", 1)[-1] != system:
+        return None
+    return match.group(1)
+
+
+def usable_task_rows(J: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> bool:
+    """Whether a task's rows ``lower ≤ J q̈ ≤ upper`` can be solved: ``J`` finite, no NaN bound, and
+    an infinite bound only as the open side of an inequality (``lower = −∞`` or ``upper = +∞``): an
+    equality row (or a bound) at ±∞ asks an infinite acceleration."""
+    return bool(np.isfinite(J).all() and not np.isnan(lower).any() and not np.isnan(upper).any()
+                and not np.isposinf(lower).any() and not np.isneginf(upper).any())

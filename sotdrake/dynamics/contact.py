@@ -48,10 +48,11 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context
 
 from ..entity import Entity
-from ..exceptions import InvalidInput, check_count, check_finite, check_flag, check_number
+from ..exceptions import InvalidInput, StackError, check_count, check_finite, check_flag, check_name, check_number
 from .checks import (
     COMPLIANT_CONTACT_RATE,
     CONTACT_VELOCITY_GAIN,
+    MAX_DT,
     MAX_FRICTION,
     MAX_NORMAL_FORCE,
     MAX_RATE_GAIN,
@@ -59,6 +60,7 @@ from .checks import (
     check_positive,
     check_stable_gains,
     default_contact_velocity_gain,
+    unconnected_input,
 )
 from .terms import OpPointMotion
 
@@ -148,7 +150,8 @@ def local_to_generalized(J: np.ndarray, R: np.ndarray) -> np.ndarray:
 
 
 def friction_ratio(force_world: np.ndarray, normal: np.ndarray, mu: float) -> float:
-    """``‖f_t‖ / (μ f_n)`` of a force (world) against a surface of unit ``normal`` (inf if f_n ≤ 0).
+    """``‖f_t‖ / (μ f_n)`` of a force (world) against a surface of unit ``normal``; inf if ``f_n ≤ 0`` (a
+    force that pulls, or none: no friction cone holds it, so a largest ratio taken over forces shows it).
     ``force_world`` and ``normal``: three finite numbers each, ``normal`` of norm 1 (± 1e-6); ``μ``: a
     number in (0, MAX_FRICTION]; anything else is an :class:`InvalidInput` naming it (μ = 0 gave NaN)."""
     force_world = check_finite("friction_ratio: force_world", force_world, (3,))
@@ -158,7 +161,18 @@ def friction_ratio(force_world: np.ndarray, normal: np.ndarray, mu: float) -> fl
     mu = check_positive("friction_ratio: mu", mu, MAX_FRICTION)
     fn = float(force_world @ normal)
     ft = np.linalg.norm(force_world - fn * normal)
-    return float(ft / (mu * fn)) if fn > 0 else (0.0 if ft == 0 else math.inf)
+    return float(ft / (mu * fn)) if fn > 0 else math.inf  # (a pulling or a zero force: no friction holds it)
+
+
+def check_rotation(what: str, R) -> np.ndarray:
+    """``R`` as a 3×3 float array if it is a rotation matrix (finite, ``RᵀR = I`` to 1e-6 and
+    ``det R > 0``, as a target's rotation is checked), else :class:`InvalidInput` naming ``what``: a
+    ``RotationMatrix`` built from any matrix is not checked by Drake in a release build."""
+    R = check_finite(what, R, (3, 3))
+    if not np.allclose(R.T @ R, np.eye(3), rtol=0.0, atol=1e-6) or not np.linalg.det(R) > 0:
+        raise InvalidInput(f"{what}: not a rotation matrix (orthonormal with determinant +1), got {R.tolist()} "
+                           f"(determinant {np.linalg.det(R):g})")
+    return R
 
 
 MAX_POSITION_GAIN = MAX_RATE_GAIN**2 / 4
@@ -198,7 +212,10 @@ class Contact6d(Entity[ContactSettings]):
         """``dt`` (s, the control tick, when known): the gains are also checked against it, as a task's
         (:func:`.checks.check_stable_gains`: ``K_p dt² + 2 K_v dt < 4``), and the default ``K_v`` is at
         most ``0.15/dt``. ``compliant`` (a contact on the physics plant's soles, with ``dt``): a ``K_v``
-        set beyond :data:`.checks.COMPLIANT_CONTACT_RATE` ``/ dt`` is logged as a warning."""
+        set beyond :data:`.checks.COMPLIANT_CONTACT_RATE` ``/ dt`` is logged as a warning. ``dt``: None or a
+        number in (0, :data:`.checks.MAX_DT`] s, as ``SolverDyn``'s and ``TaskDynPD``'s (else :class:`InvalidInput`)."""
+        check_name(f"{type(self).__name__} name", name)
+        dt = None if dt is None else check_positive(f"{name}: dt", dt, MAX_DT, " s")
         Entity.__init__(self, name, ContactSettings(velocity_gain=default_contact_velocity_gain(dt)))
         self.dt = dt
         self.compliant = check_flag(f"{name}: compliant", compliant) and dt is not None
@@ -275,10 +292,12 @@ class Contact6d(Entity[ContactSettings]):
     def keep(self, pose: RigidTransform, context: Context | None = None) -> None:
         """The pose ``X_WC*`` (world) the contact returns to with :meth:`setPositionGain` (the
         seed's ``keep()`` of a contact task; ``RobotDyn.add_contact`` keeps the op point's pose at
-        the robot's reference posture)."""
+        the robot's reference posture). ``pose``: a ``RigidTransform`` whose rotation is one
+        (orthonormal to 1e-6, determinant +1: not a reflection) and whose position is finite, within
+        1e6 m; else :class:`InvalidInput`, nothing changed."""
         if not isinstance(pose, RigidTransform):
             raise InvalidInput(f"{self.name}: keep takes a RigidTransform (X_WC), got {type(pose).__name__}")
-        rotation = check_finite(f"{self.name}: kept rotation", pose.rotation().matrix(), (3, 3), 1.0 + 1e-9)
+        rotation = check_rotation(f"{self.name}: kept rotation", pose.rotation().matrix())
         position = check_finite(f"{self.name}: kept position", pose.translation(), (3,), 1e6)
         kept = (rotation.copy(), position.copy())
         self._command(context, lambda s: setattr(s, "kept", kept))
@@ -286,7 +305,15 @@ class Contact6d(Entity[ContactSettings]):
     def _calc(self, context: Context, output: AbstractValue) -> None:
         s = self._settings_of(context)
         rows = self._rows
-        motion = self.kinematics.Eval(context)
+        try:
+            motion = self.kinematics.Eval(context)
+        except RuntimeError as error:
+            if unconnected_input(error, self.name) is None:
+                raise
+            raise StackError(f"contact {self.name!r}: its input 'kinematics' is not connected: connect its op point's "
+                             f"kinematics to it, builder.Connect(dynamic.kinematics_port(name), contact.GetInputPort("
+                             "'kinematics')) after dynamic.createOpPoint(name, frame), or make the contact with "
+                             "RobotDyn.add_contact, which does") from None
         J = motion.jacobian[rows]
         acceleration = -motion.drift[rows]
         if s.velocity_gain:

@@ -13,7 +13,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort
 
 from ..exceptions import InvalidInput, StackError, check_number
-from .checks import MAX_RELEASE
+from .checks import MAX_RELEASE, unconnected_input
 from .contact import Contact6d, ContactRows
 from .contact_memory import ContactMemory
 from .dyn_types import ContactNotFound, DynSettings
@@ -62,6 +62,31 @@ class DynContacts:
             raise StackError(f"{self.name}: the contact {name!r} given is not the one this solver reads (a contact of "
                              "another robot or diagram?): give this robot's contact, or its name")
         return name
+
+    def names_of(self, what: str, names: object) -> list[str]:
+        """``names`` as a list if it is a list (or tuple) of declared contacts' names: a string or
+        another value is an :class:`InvalidInput`, an unknown name a :class:`ContactNotFound` naming it."""
+        if isinstance(names, (str, bytes)) or not isinstance(names, (list, tuple)):
+            raise InvalidInput(f"{self.name}.{what}: names must be a list of contact names, got {names!r:.60}")
+        for name in names:
+            if not isinstance(name, str) or name not in self.ports:
+                raise ContactNotFound(name if isinstance(name, str) else repr(name), list(self.ports))
+        return list(names)
+
+    def raise_if_unconnected(self, error: RuntimeError) -> None:
+        """A :class:`StackError` naming the input of the solver that Drake's ``error`` says is not
+        connected (``dynamics``, or a contact's) and what to connect to it; nothing for another error."""
+        port = unconnected_input(error, self.name)
+        if port == "dynamics":
+            raise StackError(f"{self.name}: its input 'dynamics' is not connected: connect the dynamic entity's output to "
+                             "it, builder.Connect(dynamic.GetOutputPort('dynamics'), sot.GetInputPort('dynamics')), or "
+                             "build the robot with RobotDyn, which does") from None
+        contact = next((name for name, p in self.ports.items() if p.get_name() == port), None)
+        if contact is not None:
+            raise StackError(f"{self.name}: the input {port!r} of the contact {contact!r} is not connected: connect the "
+                             "contact's output to it, builder.Connect(contact.GetOutputPort('contact'), "
+                             "sot.declare_contact_input(contact)), or make the contact with RobotDyn.add_contact, which "
+                             "does") from None
 
     def addContact(self, contact: object, context: Context | None = None, priority: str = "top") -> None:
         """Hold ``contact`` (a name or a :class:`~.contact.Contact6d`); a contact being released is

@@ -38,7 +38,7 @@ from pydrake.systems.framework import BasicVector, Context, OutputPort, ValuePro
 
 from ..centroidal import centroidal_momentum_terms
 from ..configuration import Layout
-from ..exceptions import InvalidInput
+from ..exceptions import InvalidInput, OperationalPointNotFound, check_name
 from ..kinematics import Dynamic, PlantContextHolder
 from ..robots import RobotModel
 from .terms import DynamicsTerms, OpPointMotion, base_translation_rows, com_terms, gravity_columns
@@ -179,8 +179,19 @@ class DynamicEntity(Dynamic):
         return OpPointMotion(plant.CalcRelativeTransform(pc, world, frame), J, drift, frame.CalcSpatialVelocityInWorld(pc).get_coeffs())
 
     def drift_port(self, name: str) -> OutputPort:
-        return self.GetOutputPort(name + "_drift")
+        """The output ``<name>_drift`` of op point ``name`` (:meth:`createOpPoint` first; else
+        :class:`~sotdrake.exceptions.OperationalPointNotFound` listing the op points created)."""
+        return self.GetOutputPort(self._op_point_of("drift_port", name) + "_drift")
 
     def kinematics_port(self, name: str) -> OutputPort:
-        """The output ``<name>_kinematics`` of op point ``name`` (:meth:`createOpPoint` first)."""
-        return self.GetOutputPort(name + "_kinematics")
+        """The output ``<name>_kinematics`` of op point ``name`` (:meth:`createOpPoint` first; else
+        :class:`~sotdrake.exceptions.OperationalPointNotFound` listing the op points created)."""
+        return self.GetOutputPort(self._op_point_of("kinematics_port", name) + "_kinematics")
+
+    def _op_point_of(self, what: str, name: str) -> str:
+        """``name`` if it is an op point of this entity, else :class:`OperationalPointNotFound`."""
+        check_name(f"{self.get_name()}.{what}: the op point's name", name)
+        if name not in self._op_points:
+            raise OperationalPointNotFound(name, list(self._op_points)).but(
+                f"{self.get_name()}.{what}: create the op point first (createOpPoint(name, frame))")
+        return name

@@ -37,7 +37,16 @@ from ..hqp.warm import WarmStart, WarmStarts
 from ..robots import RobotModel
 from ..solvers.stack import Stack, StackSolver
 from ..task import TaskLevel
-from .checks import MAX_CONTACTS, MAX_DT, MAX_HORIZON, MAX_POSITION_MARGIN, MAX_RATE_GAIN, MIN_HORIZON, check_positive
+from .checks import (
+    MAX_CONTACTS,
+    MAX_DT,
+    MAX_HORIZON,
+    MAX_POSITION_MARGIN,
+    MAX_RATE_GAIN,
+    MIN_HORIZON,
+    check_positive,
+    usable_task_rows,
+)
 from .contact import Contact6d, world_wrench
 from .contact_memory import ContactMemory
 from .dyn_contacts import DynContacts
@@ -256,20 +265,23 @@ class SolverDyn(StackSolver[DynSettings]):
                 raise SolverError(f"task {name}: jacobian {J.shape} and bounds {level.lower.shape} do not fit nv = {self.nv}")
             # Squared norms first (sums of squares: NaN only from a NaN, infinite from an infinity or
             # an overflow); only when one is not finite, the elementwise checks.
-            entries = J.ravel()
-            if not (math.isfinite(entries @ entries) and not math.isnan(level.lower @ level.lower)
-                    and (level.upper is level.lower or not math.isnan(level.upper @ level.upper))):
-                if (not np.isfinite(J).all() or np.isnan(level.lower).any()
-                        or (level.upper is not level.lower and np.isnan(level.upper).any())):
-                    raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()}")
+            entries, lower, upper = J.ravel(), level.lower, level.upper
+            if not (math.isfinite(entries @ entries) and math.isfinite(lower @ lower)
+                    and (upper is lower or math.isfinite(upper @ upper))) and not usable_task_rows(J, lower, upper):
+                raise SolverError(f"task {name}: non-finite jacobian or reference at t = {context.get_time()} (a NaN, or "
+                                  "an infinite value that is not the open side of an inequality)")
             tasks.append(level)
         return tasks
 
     def _problem(self, context: Context, s: DynSettings) -> Problem:
         """Read the ports: the dynamics terms, the held contacts (their ramps), the tasks, the
         loads of the previous tick, and the bounds on ``x`` (:func:`.formulation.variable_bounds`)."""
-        terms = self.dynamics.Eval(context)
-        contacts = self._active_contacts(context, s)
+        try:
+            terms = self.dynamics.Eval(context)
+            contacts = self._active_contacts(context, s)
+        except RuntimeError as error:
+            self.contact_set.raise_if_unconnected(error)
+            raise
         tasks = self._tasks(context, s)
         loads = self._previous_loads(context, [c.name for c in contacts])
         slices = wrench_slices(self.nv, contacts)
@@ -370,8 +382,9 @@ class SolverDyn(StackSolver[DynSettings]):
 
     def previous_loads(self, context: Context, names: list[str]) -> np.ndarray | None:
         """The normal force (N) each named contact carried at the previous tick, or None if one of
-        them was not held then."""
-        loads = self._previous_loads(context, names)
+        them was not held then. ``names``: a list of this solver's declared contacts; a name it does
+        not know is a :class:`~.dyn_types.ContactNotFound` listing those it knows."""
+        loads = self._previous_loads(self.own_context(context), self.contact_set.names_of("previous_loads", names))
         return None if loads is None else np.array(loads)
 
     def _previous_loads(self, context: Context, names: list[str]) -> list[float] | None:

@@ -4,9 +4,10 @@
 checks, then per stage build / try the paths / accept), ``paths`` (the ordered list of the paths a
 stage tries, declared once, and the shortcuts that need no stage), ``stack_paths`` (the ways a
 whole stack is solved at once, the cascade and the QR sweep among them, and which solver tries
-which, in order), ``equality_stack`` (a whole
+which, in order; ``stack_problem``: the stack they take, checked once), ``equality_stack`` (a whole
 equality stack at once from the held bounds, before any stage), ``tolerances`` (every tolerance
-of the wing, defined once), the algorithms (``active_set``, ``active_bounds``, ``equality_hierarchy``, ``cascade``), Drake's
+of the wing, defined once), the algorithms (``active_set`` and its multipliers' sign test ``multipliers``,
+``active_bounds``, ``equality_hierarchy``, ``cascade``), Drake's
 ``MathematicalProgram`` path (``drake_program``), the rescue paths (``rescue``), the warm-start
 state that systems keep in their Context (``warm``), and the compiled kernels (``kernels``).
 """

@@ -40,8 +40,9 @@ and run where the compiled ones give way.
 **Iterations.** From a feasible ``z`` (the previous level's point): step towards ``z_W``; the ratio
 test stops at the first blocking row (smallest index among ties, Bland's rule), which joins ``W``.
 After a full step the multipliers ``λ`` of ``∇f + G_Wᵀ λ = 0`` are checked: a row at its upper side
-needs ``λ ≥ 0``, at its lower side ``λ ≤ 0``; the most wrong one leaves ``W``. When every sign is
-right the point satisfies the KKT conditions of the convex problem: it is optimal.
+needs ``λ ≥ 0``, at its lower side ``λ ≤ 0`` (to round-off: :mod:`.multipliers`); the most wrong one
+leaves ``W``. When every sign is right the point satisfies the KKT conditions of the convex problem:
+it is optimal.
 
 A *guess* of the working set (the previous tick's, or one read off another solver's answer) is tried
 first: if its EQP point is feasible and its multipliers have the right signs it is the optimum and no
@@ -51,7 +52,6 @@ rows that are active there.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import cache
 from typing import Any
@@ -70,7 +70,8 @@ from .linalg import (
     scaled_least_squares,
     svd,
 )
-from .tolerances import MULTIPLIER_FLOOR, MULTIPLIER_TOLERANCE, NO_STEP, RANK_THRESHOLD, RATIO_TIE, VERIFIED
+from .multipliers import wrong_signs
+from .tolerances import NO_STEP, RANK_THRESHOLD, RATIO_TIE, VERIFIED
 
 
 @dataclass
@@ -312,10 +313,9 @@ def python_solve(M, t, m_scale, G, lower, upper, z, guess, threshold, feasibilit
         # round-off tolerance relative to the gradient's scale.
         held_index = held.nonzero()[0]
         wrong = np.where(equality[held_index], 0.0, -side[held_index] * lam)
-        worst = float(wrong.max(initial=0.0))  # (the tolerance, ≥ 0, is computed only for a wrong sign)
-        tolerance = MULTIPLIER_TOLERANCE * multiplier_scale(M, t, z, m_max) if worst > 0.0 else 0.0
-        if worst > tolerance:
-            leaving = held_index[int((wrong > tolerance).nonzero()[0][0]) if bland else int(np.argmax(wrong))]
+        excess = wrong_signs(M, t, m_scale, E, z, wrong, m_max, working)  # (None: every sign right to round-off)
+        if excess is not None:
+            leaving = held_index[int((excess > 0.0).nonzero()[0][0]) if bland else int(np.argmax(excess))]
             last_dropped, dropped_side = leaving, side[leaving]
             side[leaving] = 0
             key = side.tobytes()
@@ -378,18 +378,6 @@ def feasible(G: np.ndarray, lower: np.ndarray, upper: np.ndarray, z: np.ndarray,
                 or any_true(value > upper + feasibility * np.maximum(1.0, np.abs(upper))))
 
 
-def multiplier_scale(M: np.ndarray, t: np.ndarray, z: np.ndarray, m_max: float) -> float:
-    """The scale of the multipliers at ``z`` (their tolerance is :data:`MULTIPLIER_TOLERANCE` times
-    it): ``max(m_scale) · max(‖M z − t‖, MULTIPLIER_FLOOR (max(m_scale) ‖z‖ + ‖t‖))``, 1 without
-    objective rows. Relative to the level's data, so a nearly flat level (rows of norm 1e-6 deciding
-    its optimum) keeps the sign of its small multipliers."""
-    if len(M) == 0:
-        return 1.0
-    residual = M @ z - t
-    terms = m_max * math.sqrt(float(z @ z)) + math.sqrt(float(t @ t))
-    return m_max * max(math.sqrt(float(residual @ residual)), MULTIPLIER_FLOOR * terms)
-
-
 def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, equality, working=None) -> np.ndarray | None:
     """The EQP point of the working set ``side`` if it satisfies the KKT conditions, else None."""
     held = side.nonzero()[0]
@@ -400,7 +388,7 @@ def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, kind, e
     if len(held):
         wrong = -held_side * lam
         wrong[equality[held]] = 0.0  # equality rows: either sign
-        worst = float(wrong.max())
-        if worst > 0.0 and worst > MULTIPLIER_TOLERANCE * multiplier_scale(M, t, z, float(m_scale.max(initial=0.0))):
-            return None  # (the tolerance is ≥ 0: computed only for a multiplier of the wrong sign)
+        cut = threshold if working is None else working
+        if wrong_signs(M, t, m_scale, G[held], z, wrong, float(m_scale.max(initial=0.0)), cut) is not None:
+            return None
     return z

@@ -12,7 +12,8 @@ rows ``lo_k ≤ A_k x ≤ hi_k`` (an equality row has ``lo = hi = b``) and solve
 
 which is the LSE/LSI hierarchy (for an equality row the optimal ``|w|`` is ``|A x - b|``, for an
 inequality row its violation). ``w*`` of a level is unique, the objective being strictly convex in
-``w``. Last, unless ``regularize=False``, the minimum-norm ``x`` of the whole optimal set is taken.
+``w``. Last, unless ``regularize=False`` or the last level is damped (μ > 0: its optimum, strictly convex
+in the free directions ``y``, is one point already), the minimum-norm ``x`` of the whole optimal set is taken.
 
 How a level is solved:
 
@@ -25,11 +26,10 @@ How a level is solved:
   started from the previous level's point (``y = 0``, feasible), and warm-started by a guess of the
   working set: the one this level had at the previous call with the same sizes (a cache: the answer
   is a function of the final working set only), else the active set of Goldfarb-Idnani's dual
-  method on the level made strictly convex (DAQP's, or quadprog's on a level whose row weights spread
-  beyond 10⁶), else (both refusing) the sides of the
-  bounds and held rows active at the end of the level above. An equality-only level with no bound in the way is one
-  least-squares step (from the factorisation, QR or SVD, that also gives the next ``Z``), checked against the bounds and
-  held rows in ``x`` before any stage is built; the minimum-norm stage likewise tries its
+  method on the level made strictly convex (DAQP's, or quadprog's on a level whose row weights spread beyond 10⁶), else
+  (both refusing) the sides of the bounds and held rows active at the end of the level above. An equality-only level
+  with no bound in the way is one least-squares step (from the factorisation, QR or SVD, that also gives the next ``Z``),
+  checked against the bounds and held rows in ``x`` before any stage is built; the minimum-norm stage likewise tries its
   unconstrained point first when its previous call ended with an empty working set;
 * before any stage, a stack of equality levels (no inequality row, no extension, no damping, the
   start inside the bounds) is tried at once from the bounds held at the previous answer
@@ -122,11 +122,11 @@ MAX_VARIABLES = 10_000
 class HierarchicalQP:
     """Solve stacks of :class:`LevelRows` in strict priority (see the module docstring).
 
-    ``solver``: ``"active-set"`` (default) or a Drake solver of :data:`SOLVERS`; ``level_solvers``
-    overrides it per level; ``rank_threshold``: the τ of every rank decision; ``hold_tolerance``: a
-    relative band added to the held optimal violation of inequality rows (0: held exactly);
-    ``feasibility_tolerance``: the bound violation (on unit rows, relative above 1) beyond which a
-    path's point is refused and the next path tried; ``regularize``: end with the minimum-norm stage."""
+    ``solver``: ``"active-set"`` (default) or a Drake solver of :data:`SOLVERS`; ``level_solvers`` overrides it per
+    level; ``rank_threshold``: the τ of every rank decision; ``hold_tolerance``: a relative band added to the held
+    optimal violation of inequality rows (0: held exactly); ``feasibility_tolerance``: the bound violation (on unit
+    rows, relative above 1) beyond which a path's point is refused and the next path tried; ``regularize``: end with
+    the minimum-norm stage (not after a damped last level: it would leave the damped optimum, see the module docstring)."""
 
     def __init__(
         self,
@@ -280,7 +280,7 @@ class HierarchicalQP:
         iterations: list[int] = []
         carried: list[Extension] = []
         fallbacks: list[str] = []
-        stages = list(levels) + ([None] if self.regularize else [])
+        stages = list(levels) + ([None] if self.regularize and not (damping > 0.0 and levels) else [])
         for k, level in enumerate(stages):
             mu = damping if k == len(levels) - 1 else 0.0
             name = self.level_solvers[k] if k < len(self.level_solvers) and level is not None else solver

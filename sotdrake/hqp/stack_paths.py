@@ -47,93 +47,19 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..exceptions import InvalidInput, SolverError
 from .cascade import CascadeFactorization, cascade_factorization
-from .equality_hierarchy import StackedLevels, solve_equality_hierarchy, solve_stacked
+from .equality_hierarchy import solve_equality_hierarchy, solve_stacked
 from .equality_stack import bound_guess, default_stages, solve_held_rows, start_inside
-from .problem import ACTIVE_SET, FLOAT64, NO_ACTIVE_ROWS, HqpResult, LevelRows, checked_bounds, floats, result_of
+from .problem import ACTIVE_SET, NO_ACTIVE_ROWS, HqpResult, LevelRows, result_of
 from .solve import HierarchicalQP
+from .stack_problem import StackProblem, check_sizes, what_is_wrong
 from .tolerances import FEASIBILITY, RANK_THRESHOLD, VERIFIED
-from .warm import WarmStart
 
 CASCADE_NAME = "cascade"
-
-
-@dataclass
-class StackProblem:
-    """One stack to solve: ``levels`` ``[(A_k, lower_k, upper_k), …]``, highest first (an equality
-    level has ``lower_k is upper_k``), or the same levels already ``stacked`` (equalities only),
-    the bounds ``x_lower ≤ x ≤ x_upper``, the damping ``μ`` of the last level, the solver's name,
-    the stages' start (None: 0), the warm start of the call, and ``held``: the components expected
-    at their lower and at their upper bound (the QR sweep's first guess). The arrays may be (nested)
-    lists of real numbers (converted once here); ``levels`` that are not a sequence of triples, bounds
-    that are not vectors of real numbers, or a start that is not real numbers raise :class:`InvalidInput`
-    here (the values, NaN and sizes, are checked by the paths)."""
-
-    levels: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]
-    x_lower: np.ndarray
-    x_upper: np.ndarray
-    damping: float = 0.0
-    solver: str = ACTIVE_SET
-    start: np.ndarray | None = None
-    warm: WarmStart | None = None
-    held: tuple[Sequence[int], Sequence[int]] = ((), ())
-    stacked: StackedLevels | None = None
-
-    def __post_init__(self) -> None:
-        levels = self.levels
-        if self.stacked is None:
-            if type(levels) is not list and (isinstance(levels, (str, bytes)) or not isinstance(levels, Sequence)):
-                raise InvalidInput(f"StackProblem: levels: a sequence of (A, lower, upper) triples, got {levels!r:.100}")
-            self.levels = _float_levels(levels)
-        self.x_lower, self.x_upper = _bound("x_lower", self.x_lower), _bound("x_upper", self.x_upper)
-        if self.start is not None:
-            self.start = floats("StackProblem: start", self.start)
-
-    @property
-    def equalities_only(self) -> bool:
-        """Every level an equality (a level without rows, e.g. a collision level with no pair in
-        range, counts as one)."""
-        return self.stacked is not None or all(lower is upper or len(lower) == 0 for _, lower, upper in self.levels)
-
-
-def _bound(what: str, value: object) -> np.ndarray:
-    """A :class:`StackProblem`'s bound as a vector of floats, or :class:`InvalidInput` naming ``what``."""
-    if type(value) is np.ndarray and value.dtype is FLOAT64 and value.ndim == 1:
-        return value
-    array = floats(f"StackProblem: {what}", value)
-    if array.ndim != 1:
-        raise InvalidInput(f"StackProblem: {what}: expected a vector of numbers (one per variable), got {value!r:.80}")
-    return array
-
-
-def _float_levels(levels: Sequence) -> Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """``levels`` itself when they are triples of float64 arrays (the solvers' every call), else the
-    triples with their arrays converted (an equality level's ``lower is upper`` kept), or
-    :class:`InvalidInput` naming the level."""
-    ndarray, float64 = np.ndarray, FLOAT64
-    for level in levels:
-        if type(level) is not tuple or len(level) != 3:
-            break
-        A, lower, upper = level
-        if (type(A) is not ndarray or A.dtype is not float64 or type(lower) is not ndarray or lower.dtype is not float64
-                or type(upper) is not ndarray or upper.dtype is not float64):
-            break
-    else:
-        return levels
-    converted = []
-    for k, level in enumerate(levels):
-        if not isinstance(level, tuple | list) or len(level) != 3:
-            raise InvalidInput("StackProblem: levels are (A, lower, upper) triples (an equality level's lower is its "
-                               f"upper), got {levels!r:.100}")
-        A, lower, upper = level
-        A_k, lower_k = floats(f"StackProblem: level {k}: A", A), floats(f"StackProblem: level {k}: lower", lower)
-        converted.append((A_k, lower_k, lower_k if upper is lower else floats(f"StackProblem: level {k}: upper", upper)))
-    return converted
 
 
 class StackPath:
@@ -181,14 +107,19 @@ class Cascade(StackPath):
 
 
 class QrSweep(StackPath):
-    """Equality levels under bounds by the QR sweep (:mod:`.equality_hierarchy`)."""
+    """Equality levels under bounds by the QR sweep (:mod:`.equality_hierarchy`): no damping (the
+    sweep's answer is the undamped hierarchy's) and the start, if given, inside the bounds."""
 
     name = "qr-sweep"
 
     def attempt(self, qp: HierarchicalQP, problem: StackProblem) -> HqpResult | None:
         p = problem
-        if p.solver != ACTIVE_SET:
+        if p.solver != ACTIVE_SET or p.damping != 0.0:  # (damped: the stages' damped last level decides)
             return None
+        if p.start is not None:  # a start outside a bound relaxes that bound in the stages: theirs to answer
+            with np.errstate(invalid="ignore"):
+                if not start_inside(p.x_lower, p.x_upper, p.x_lower == p.x_upper, p.start):
+                    return None
         if p.stacked is not None:
             return solve_stacked(p.stacked, p.x_lower, p.x_upper, *p.held)
         if not p.equalities_only:
@@ -350,30 +281,16 @@ DYNAMIC: tuple[StackPath, ...] = (QR_SWEEP, STAGES)
 
 
 def solve_stack(qp: HierarchicalQP, problem: StackProblem, paths: Sequence[StackPath]) -> HqpResult:
-    """The first answer of ``paths`` tried in order; :class:`SolverError` when none answers."""
+    """The first answer of ``paths`` tried in order; :class:`SolverError` when none answers. The
+    problem's sizes against ``qp.n`` are checked first (:func:`.stack_problem.check_sizes`), whatever
+    the paths: a start of another size raises :class:`InvalidInput`."""
+    check_sizes(problem, qp.n)
     for path in paths:
         result = path.attempt(qp, problem)
         if result is not None:
             return result
-    wrong = _what_is_wrong(problem, qp.n)
+    wrong = what_is_wrong(problem, qp.n)
     if wrong is not None:
         raise InvalidInput(f"solve_stack: {wrong}")
     raise SolverError(f"no path answered ({', '.join(path.name for path in paths)})")
 
-
-def _what_is_wrong(problem: StackProblem, n: int) -> str | None:
-    """What keeps ``problem`` from being a stack the QP takes (the refusal of :class:`LevelRows` or
-    of :func:`~.problem.checked_bounds`: a NaN, an infinite coefficient or equality value, a
-    magnitude beyond ±1e150, bounds crossed), or None: asked only when no path answered, so that a
-    path that gives up on bad input is not taken for a failure of the solver."""
-    try:
-        if problem.stacked is None:
-            for k, level in enumerate(problem.levels):
-                try:
-                    LevelRows(*level)
-                except InvalidInput as error:
-                    raise InvalidInput(f"level {k}: {error}") from None
-        checked_bounds(n, problem.x_lower, problem.x_upper)
-    except InvalidInput as error:
-        return str(error)
-    return None

@@ -34,7 +34,8 @@ to this (relative above 1)."""
 MULTIPLIER_TOLERANCE = 1e-9
 """A held bound's (or row's) multiplier may have the wrong sign by this much, relative to the size
 of the residual (``max(1, ‖x‖)`` in :mod:`.active_bounds`, ``‖ρ‖ ‖c‖`` in :mod:`.equality_hierarchy`,
-``max(m_scale) · max(‖M z − t‖, MULTIPLIER_FLOOR (max(m_scale) ‖z‖ + ‖t‖))`` in :mod:`.active_set`)."""
+``max(m_scale) · max(‖M z − t‖, MULTIPLIER_FLOOR (max(m_scale) ‖z‖ + ‖t‖))`` in :mod:`.active_set`, and
+below that each multiplier's own round-off from each objective row's residual, :mod:`.multipliers`)."""
 
 MULTIPLIER_FLOOR = 1e-6
 """In :mod:`.active_set`, the residual below which the multipliers' tolerance stops shrinking, as a

@@ -104,6 +104,38 @@ def _residual_scale(M, t, z, m_max):
 
 
 @njit(cache=True, error_model="numpy")
+def _row_round_off(M, t, m_scale, E, z, cut):
+    """:func:`..multipliers.row_round_off`."""
+    residual = M @ z - t
+    size = math.sqrt(z @ z)
+    delta = np.empty(residual.size)
+    for j in range(residual.size):
+        delta[j] = max(abs(residual[j]), MULTIPLIER_FLOOR * (m_scale[j] * size + abs(t[j])))
+    U, s, Vt = np.linalg.svd(E, full_matrices=False)
+    k = 0
+    for value in s:
+        if value > cut:
+            k += 1
+    W = np.ascontiguousarray(U[:, :k] / s[:k]) @ np.ascontiguousarray(Vt[:k])
+    return np.abs(W) @ (np.ascontiguousarray(np.abs(M).T) @ delta)
+
+
+@njit(cache=True, error_model="numpy")
+def _wrong_signs(M, t, m_scale, E, z, wrong, m_max, cut):
+    """``(any, excess)``: :func:`..multipliers.wrong_signs` (``any`` False: its None)."""
+    worst = wrong.max() if wrong.size else 0.0
+    if not worst > 0.0:
+        return False, wrong
+    tolerance = MULTIPLIER_TOLERANCE * _residual_scale(M, t, z, m_max)
+    if worst > tolerance:
+        return True, wrong - tolerance
+    if M.shape[0] == 0:
+        return False, wrong
+    excess = wrong - np.minimum(tolerance, MULTIPLIER_TOLERANCE * _row_round_off(M, t, m_scale, E, z, cut))
+    return excess.max() > 0.0, excess
+
+
+@njit(cache=True, error_model="numpy")
 def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, identity, uniform, equality, working):
     """``(status, z)``: :func:`.active_set._check`, status 0: ``z`` satisfies the KKT conditions,
     1: it does not (the Python version's None), :data:`GAVE_WAY`."""
@@ -117,9 +149,8 @@ def _check(M, t, m_scale, G, lower, upper, side, threshold, feasibility, identit
         wrong = np.empty(held.size)
         for i in range(held.size):
             wrong[i] = 0.0 if equality[held[i]] else -side[held[i]] * lam[i]
-        worst = wrong.max()
-        if worst > 0.0 and worst > MULTIPLIER_TOLERANCE * _residual_scale(M, t, z, m_scale.max() if m_scale.size else 0.0):
-            return 1, z  # (False on NaN, as the Python version's; the tolerance ≥ 0: computed for a wrong sign only)
+        if _wrong_signs(M, t, m_scale, _rows(G, held), z, wrong, m_scale.max() if m_scale.size else 0.0, working)[0]:
+            return 1, z  # (False on NaN, as the Python version's)
     return 0, z
 
 
@@ -258,16 +289,14 @@ def solve(M, t, m_scale, G, lower, upper, z, guess, has_guess, threshold, feasib
         wrong = np.empty(held.size)
         for i in range(held.size):
             wrong[i] = 0.0 if equality[held[i]] else -side[held[i]] * lam[i]
-        worst = wrong.max() if held.size else 0.0
-        # (the tolerance, ≥ 0, is computed only for a multiplier of the wrong sign)
-        tolerance = MULTIPLIER_TOLERANCE * _residual_scale(M, t, z, m_max) if worst > 0.0 else 0.0
-        if worst > tolerance:
+        any_wrong, excess = _wrong_signs(M, t, m_scale, E, z, wrong, m_max, working)  # (to round-off: ..multipliers)
+        if any_wrong:
             first = 0
             if bland:
-                while not wrong[first] > tolerance:
+                while not excess[first] > 0.0:
                     first += 1
             else:
-                first = int(np.argmax(wrong))
+                first = int(np.argmax(excess))
             leaving = held[first]
             last_dropped, dropped_side = leaving, side[leaving]
             side[leaving] = 0

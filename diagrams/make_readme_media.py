@@ -8,6 +8,9 @@
 * ``talos_appli_plots.png``: the tutorial's plots; ``talos_physics_plots.png``: the physics ``reach``
   scenario's plots (``--no-physics`` skips that 8 s physical simulation).
 
+The hero image needs Meshcat and Chromium, so this script has no ``--no-meshcat``; ``--out`` and
+``--duration`` are checked (and Chromium looked for) before anything runs.
+
     python diagrams/make_readme_media.py --out diagrams/media
 """
 
@@ -18,13 +21,14 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from sotdrake import run_script, script_arguments, simulate, start_meshcat, write_control_graph
+from sotdrake import run_script, script_arguments, simulate, start, start_meshcat, write_control_graph
 from sotdrake.scenarios import talos_appli, talos_physics
 
 #: The hero camera: in front of TALOS, a little to its left and above, so that the right hand on
 #: the target is seen against the torso (from the right side, the reaching arm hides it).
 HERO_CAMERA = {"camera_in_world": [1.75, 0.45, 1.4], "target_in_world": [0.3, -0.12, 0.72]}
 HERO_SIZE = (1200, 800)
+NO_CHROMIUM = "the hero image needs Chromium (e.g. `apt-get install chromium`)"
 
 
 def chromium() -> str | None:
@@ -41,7 +45,7 @@ def screenshot(html: Path, png: Path, size: tuple[int, int] = HERO_SIZE, crop_to
 
     browser = chromium()
     if browser is None:
-        raise SystemExit("the hero image needs Chromium (e.g. `apt-get install chromium`)")
+        raise SystemExit(NO_CHROMIUM)
     raw = png.with_suffix(".raw.png")
     subprocess.run([browser, "--headless", "--enable-unsafe-swiftshader", "--no-sandbox", "--hide-scrollbars",
                     f"--window-size={size[0]},{size[1]}", "--timeout=20000", f"--screenshot={raw}",
@@ -79,10 +83,12 @@ def physics_plots(out: Path, duration: float = 8.0, progress: bool = True) -> di
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = script_arguments(__doc__, "diagrams/media", bag=False)
+    parser = script_arguments(__doc__, "diagrams/media", bag=False, meshcat=False)  # (the hero image needs Meshcat)
     parser.add_argument("--no-physics", action="store_true", help="leave talos_physics_plots.png as it is")
     args = parser.parse_args(argv)
-    args.out.mkdir(parents=True, exist_ok=True)
+    start(args)  # (--duration and --out checked, --out made: "error: --out …", exit status 2)
+    if chromium() is None:
+        raise SystemExit(NO_CHROMIUM)
     summary = hero(args.out, args.duration, not args.quiet)
     print(f"tutorial at t = {args.duration:g} s: hand {summary['hand_error_m']:.1e} m from the target; "
           f"wrote talos_appli.png, talos_appli_control_graph.svg, talos_appli_plots.png in {args.out}")

@@ -19,15 +19,17 @@ vertices, where ``d`` has a kink). ``J_d`` is 1×nv; an obstacle's ``J_B`` is ze
 from __future__ import annotations
 
 import weakref
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from pydrake.geometry import GeometryId
 from pydrake.multibody.tree import BodyIndex, JacobianWrtVariable, JointIndex
 from pydrake.systems.framework import Context
 
 from ..compiled import kernels
 from ..exceptions import InvalidInput, check_finite
+from ..lie import MIN_QUATERNION_NORM
 from .world import CollisionWorld
 
 
@@ -55,13 +57,67 @@ class PairDistances:
 
 def signed_distance_pairs(world: CollisionWorld, context: Context, max_distance: float,
                           geometry_pairs: Sequence | None = None) -> list:
-    """Drake's ``SignedDistancePair`` results closer than ``max_distance``: of every unfiltered
-    candidate pair (``geometry_pairs`` None, one broad-phase query) or of the given geometry pairs."""
+    """Drake's ``SignedDistancePair`` results closer than ``max_distance`` (m, a number ≥ 0, +inf
+    for every pair): of every unfiltered candidate pair (``geometry_pairs`` None, one broad-phase
+    query) or of the given geometry pairs (``(GeometryId, GeometryId)`` of this world,
+    :meth:`CollisionWorld.geometry_pairs`). Anything else, or positions in ``context`` that are not
+    finite or hold a quaternion of norm < 1e-6: :class:`InvalidInput` naming it."""
+    _check_world("signed_distance_pairs", world)
+    return _query(world, context, _max_distance("signed_distance_pairs", max_distance),
+                  _checked_pairs("signed_distance_pairs", world, geometry_pairs), "signed_distance_pairs")
+
+
+def _query(world: CollisionWorld, context: Context, max_distance: float, geometry_pairs: list | None, what: str,
+           positions_checked: bool = False) -> list:
+    """:func:`signed_distance_pairs` once its arguments are checked (and here, unless
+    ``positions_checked``, the positions in ``context``)."""
+    if not positions_checked:
+        _check_positions(f"{what}: the positions in context", world, world.plant.GetPositions(world.plant_context(context)))
     query = world.query(context)
     if geometry_pairs is None:
         return list(query.ComputeSignedDistancePairwiseClosestPoints(max_distance))
     results = (query.ComputeSignedDistancePairClosestPoints(a, b) for a, b in geometry_pairs)
     return [r for r in results if r.distance < max_distance]
+
+
+def _max_distance(what: str, value: object) -> float:
+    """``value`` as a float if it is a number ≥ 0 (+inf included), else :class:`InvalidInput`: NaN or
+    a negative distance would leave every pair out, as if none were in range."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not value >= 0:
+        raise InvalidInput(f"{what}: max_distance must be a number ≥ 0 (m; inf: every pair), got {value!r:.60}")
+    return float(value)
+
+
+def _checked_pairs(what: str, world: CollisionWorld, geometry_pairs: object) -> list | None:
+    """``geometry_pairs`` as a list if each is a pair of proximity geometries of ``world``, else
+    :class:`InvalidInput` naming the first that is not (None: None)."""
+    if geometry_pairs is None:
+        return None
+    if isinstance(geometry_pairs, (str, bytes)) or not isinstance(geometry_pairs, Iterable):
+        raise InvalidInput(f"{what}: geometry_pairs must be None or a list of (GeometryId, GeometryId) "
+                           f"(world.geometry_pairs(pairs)), got {type(geometry_pairs).__name__}")
+    pairs = list(geometry_pairs)
+    known = world.proximity_geometries()
+    for i, pair in enumerate(pairs):
+        if not (isinstance(pair, (tuple, list)) and len(pair) == 2 and all(isinstance(g, GeometryId) for g in pair)):
+            raise InvalidInput(f"{what}: geometry_pairs[{i}] must be a pair (GeometryId, GeometryId) "
+                               f"(world.geometry_pairs(pairs)), got {pair!r:.80}")
+        if pair[0] not in known or pair[1] not in known:
+            raise InvalidInput(f"{what}: geometry_pairs[{i}] = {pair!r:.80} names a geometry that is not a collision "
+                               "geometry of this world (world.geometry_pairs(pairs) gives them)")
+    return pairs
+
+
+def _check_positions(what: str, world: CollisionWorld, q: np.ndarray) -> None:
+    """``q`` finite with each free body's quaternion of norm ≥ 1e-6 (Drake normalises it; a zero one
+    is no rotation), else :class:`InvalidInput` naming ``what``: the check of ``pose_at``."""
+    if not np.isfinite(q).all():
+        raise InvalidInput(f"{what}: expected finite numbers; contains NaN or infinity: {q}")
+    for start in world.quaternion_starts:
+        quaternion = q[start : start + 4]
+        if not (norm := float(np.linalg.norm(quaternion))) >= MIN_QUATERNION_NORM:
+            raise InvalidInput(f"{what}: the floating base's quaternion q[{start}:{start + 4}] = {quaternion.tolist()} "
+                               f"(norm {norm:g}) is no rotation; give a unit quaternion (qw, qx, qy, qz)")
 
 
 def pair_distances(world: CollisionWorld, context: Context, max_distance: float,
@@ -74,10 +130,13 @@ def pair_distances(world: CollisionWorld, context: Context, max_distance: float,
     ``B`` is ``a_Bo + α × r + ω × (ω × r)`` (``r = p_BoC``, the body's bias spatial acceleration
     ``(α, a_Bo)`` and angular velocity ``ω``, world frame).
 
-    A ``world`` that is not a :class:`CollisionWorld` or a ``context`` that is not one of its
-    collision diagram (:meth:`CollisionWorld.new_context`): :class:`InvalidInput`."""
+    A ``world`` that is not a :class:`CollisionWorld`, a ``context`` that is not one of its
+    collision diagram (:meth:`CollisionWorld.new_context`) or whose positions are not finite (or
+    hold a zero quaternion), a ``max_distance`` that is not a number ≥ 0 or ``geometry_pairs`` that
+    are not pairs of its geometries: :class:`InvalidInput` naming it."""
     _check_world("pair_distances", world)
-    return distances_of(world, context, signed_distance_pairs(world, context, max_distance, geometry_pairs), bias)
+    checked = _max_distance("pair_distances", max_distance), _checked_pairs("pair_distances", world, geometry_pairs)
+    return distances_of(world, context, _query(world, context, *checked, "pair_distances"), bias)
 
 
 def distances_of(world: CollisionWorld, context: Context, results: Sequence, bias: bool = False) -> PairDistances:
@@ -258,12 +317,18 @@ def minimum_distance(world: CollisionWorld, context: Context, q: np.ndarray, max
                      geometry_pairs: Sequence | None = None) -> float:
     """The smallest signed distance (m) over the world's pairs at configuration ``q`` (+inf when
     none is closer than ``max_distance``): Drake's query alone, for checking a run. A ``world``
-    that is not a :class:`CollisionWorld`, a ``context`` that is not one of its collision diagram
-    or a ``q`` of another size: :class:`InvalidInput`, the context left as it was."""
+    that is not a :class:`CollisionWorld`, a ``context`` that is not one of its collision diagram,
+    a ``q`` of another size, not finite or with a quaternion of norm < 1e-6 (as ``pose_at``), a
+    ``max_distance`` that is not a number ≥ 0 (NaN would report no pair in range) or
+    ``geometry_pairs`` that are not pairs of its geometries: :class:`InvalidInput` naming it, the
+    context left as it was."""
     _check_world("minimum_distance", world)
+    max_distance = _max_distance("minimum_distance", max_distance)
+    pairs = _checked_pairs("minimum_distance", world, geometry_pairs)
     q = check_finite("minimum_distance: q (the world plant's positions)", q, (world.plant.num_positions(),))
+    _check_positions("minimum_distance: q", world, q)
     world.plant.SetPositions(world.plant_context(context), q)
-    results = signed_distance_pairs(world, context, max_distance, geometry_pairs)
+    results = _query(world, context, max_distance, pairs, "minimum_distance", positions_checked=True)
     return min((r.distance for r in results), default=float("inf"))
 
 

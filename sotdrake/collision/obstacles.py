@@ -13,8 +13,10 @@ the world, a ``RigidTransform`` or a 4×4 matrix, m), to the robot's collision w
 
 Every value is checked before anything is added: a size that is not a finite number in
 [1 µm, 100 m], a non-finite pose, a mesh that does not load (or has no volume; an OBJ file without
-faces or with a face index out of range), a name already used by a link, a frame, a joint, an op
-point or an obstacle, an obstacle added after the collision world's first context was made.
+faces or with a face index out of range), a name that is empty, begins or ends with whitespace
+(Drake would strip it, and ``"table "`` would be ``"table"``) or is already used by a link, a frame,
+a joint, an op point or an obstacle, a ``meshcat`` that is neither None nor a ``Meshcat``, an
+obstacle added after the collision world's first context was made.
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ from pydrake.geometry import (
 )
 from pydrake.math import RigidTransform
 
-from ..exceptions import InvalidInput, SotError, check_finite
+from ..exceptions import InvalidInput, NotFound, SotError, check_finite
 from .world import CollisionWorld, collision_world
 
 #: The colour obstacles are drawn in (RGBA).
@@ -171,6 +173,26 @@ def _pose(name: str, X_WO: object) -> RigidTransform:
     return RigidTransform(matrix) if not isinstance(X_WO, RigidTransform) else X_WO
 
 
+def check_name(what: str, name: object) -> str:
+    """``name`` if it is a non-empty string that neither begins nor ends with whitespace (Drake
+    strips it from a geometry's name: ``"table "`` would be registered as ``"table"``), else
+    :class:`InvalidInput` naming ``what``."""
+    if not isinstance(name, str) or not name.strip():
+        raise InvalidInput(f"{what}: name must be a non-empty string, got {name!r:.80}")
+    if name != name.strip():
+        raise InvalidInput(f"{what}: name {name!r:.80} begins or ends with whitespace, which Drake strips from a "
+                           f"geometry's name: give {name.strip()!r:.80}")
+    return name
+
+
+def check_meshcat(what: str, meshcat: object) -> Meshcat | None:
+    """``meshcat`` if it is None or a pydrake ``Meshcat`` (:func:`~sotdrake.start_meshcat`), else
+    :class:`InvalidInput` naming ``what``: checked before anything is added."""
+    if meshcat is not None and not isinstance(meshcat, Meshcat):
+        raise InvalidInput(f"{what}: meshcat must be None or a pydrake Meshcat (start_meshcat()), got {type(meshcat).__name__}")
+    return meshcat
+
+
 def name_taken(world: CollisionWorld, name: str) -> str | None:
     """What already has ``name`` in ``world`` (an obstacle, a link, or a frame, joint or op point of
     the robot: a pair naming it would then mean the obstacle), or None."""
@@ -186,10 +208,11 @@ def name_taken(world: CollisionWorld, name: str) -> str | None:
 def add_obstacle(robot, shape: object, X_WO: object, name: str, meshcat: Meshcat | None = None) -> GeometryId:
     """Add an obstacle to the collision world of ``robot`` (a :class:`~sotdrake.robot.Robot`, or a
     :class:`~.world.CollisionWorld`) and return its geometry id; see the module docstring. With
-    ``meshcat`` it is drawn there too, under ``obstacles/<name>``."""
+    ``meshcat`` (None or a ``Meshcat``) it is drawn there too, under ``obstacles/<name>``. Every
+    argument is checked first (:class:`InvalidInput` naming it): nothing is added on a refusal."""
+    check_meshcat("add_obstacle", meshcat)
     world = robot if isinstance(robot, CollisionWorld) else collision_world(robot)
-    if not isinstance(name, str) or not name.strip():
-        raise InvalidInput(f"add_obstacle: name must be a non-empty string, got {name!r:.80}")
+    check_name("add_obstacle", name)
     taken = name_taken(world, name)
     if taken:
         raise InvalidInput(f"add_obstacle: {name!r} is already the name of {taken}: take another name")
@@ -210,9 +233,21 @@ def add_obstacle(robot, shape: object, X_WO: object, name: str, meshcat: Meshcat
 
 def draw_obstacles(meshcat: Meshcat, robot, names: list[str] | None = None) -> None:
     """Draw the obstacles of ``robot``'s collision world (or of a ``CollisionWorld``) in Meshcat,
-    under ``obstacles/<name>`` (all of them, or ``names``)."""
+    under ``obstacles/<name>`` (all of them, or ``names``, a list of obstacle names). A ``meshcat``
+    that is not a ``Meshcat`` or ``names`` that is not a list of strings: :class:`InvalidInput`; a
+    name that is not an obstacle's: :class:`~sotdrake.exceptions.NotFound` listing them; nothing is
+    drawn then."""
+    if not isinstance(meshcat, Meshcat):
+        raise InvalidInput(f"draw_obstacles: meshcat must be a pydrake Meshcat (start_meshcat()), got {type(meshcat).__name__}")
     world = robot if isinstance(robot, CollisionWorld) else collision_world(robot)
-    for name in world.obstacle_shapes if names is None else names:
+    if names is None:
+        names = list(world.obstacle_shapes)
+    if isinstance(names, str) or not isinstance(names, (list, tuple)) or not all(isinstance(n, str) for n in names):
+        raise InvalidInput(f"draw_obstacles: names must be None or a list of obstacle names, got {names!r:.80}")
+    for name in names:
+        if name not in world.obstacle_shapes:
+            raise NotFound(name, list(world.obstacle_shapes)).but("draw_obstacles: names: not an obstacle")
+    for name in names:
         shape, pose = world.obstacle_shapes[name]
         meshcat.SetObject(f"obstacles/{name}", shape, OBSTACLE_COLOR)
         meshcat.SetTransform(f"obstacles/{name}", pose)

@@ -26,7 +26,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import BodyIndex, RigidBody
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafContext
 
-from ..exceptions import InvalidInput, SotError
+from ..exceptions import InvalidInput, SotError, check_flag, check_type
 from ..robots import RobotModel
 from .pairs import Pair, adjacent_pairs, check_pairs, srdf_disabled_pairs
 
@@ -41,10 +41,15 @@ class CollisionWorld:
     """The robot's collision geometry and the obstacles (see the module docstring).
 
     ``model``: the control model (loaded again with its collision geometry); ``use_srdf``: leave out
-    the pairs its SRDF disables (the adjacent pairs are always left out). Raises
-    :class:`NoCollisionGeometry` for a robot whose description has no collision geometry."""
+    the pairs its SRDF disables (the adjacent pairs are always left out). A ``model`` that is not a
+    :class:`~sotdrake.robots.RobotModel` (a robot: :func:`collision_world`) or a ``use_srdf`` that is
+    not a bool: :class:`InvalidInput`; :class:`NoCollisionGeometry` for a robot whose description
+    has no collision geometry."""
 
     def __init__(self, model: RobotModel, use_srdf: bool = True):
+        hint = ", or collision_world(robot) for a robot" if hasattr(model, "model") else ""
+        check_type("CollisionWorld: model", model, RobotModel, f"a RobotModel (robot.model){hint}")
+        check_flag("CollisionWorld: use_srdf", use_srdf)
         loaded = model.with_meshes()
         plant, scene_graph = loaded.plant, loaded.scene_graph
         if scene_graph is None:
@@ -76,6 +81,9 @@ class CollisionWorld:
         builder.Connect(scene_graph.get_query_output_port(), plant.get_geometry_query_input_port())
         self.diagram: Diagram = builder.Build()
         self.contexts_made = False
+        #: Where each free body's quaternion starts in ``q`` (the floating base's: ``(qw, qx, qy, qz)``).
+        self.quaternion_starts = [plant.get_body(b).floating_positions_start() for b in plant.GetFloatingBaseBodies()]
+        self._proximity: frozenset[GeometryId] | None = None
 
     @property
     def links(self) -> list[str]:
@@ -132,6 +140,16 @@ class CollisionWorld:
     @property
     def obstacle_ids(self) -> set[GeometryId]:
         return set(self.obstacles.values())
+
+    def proximity_geometries(self) -> frozenset[GeometryId]:
+        """Every geometry a distance query takes (the robot's collision geometry and the obstacles),
+        kept once a context is made (no obstacle can be added then)."""
+        if self._proximity is not None:
+            return self._proximity
+        ids = frozenset(self.scene_graph.model_inspector().GetAllGeometryIds(Role.kProximity))
+        if self.contexts_made:
+            self._proximity = ids
+        return ids
 
     def geometry_info(self, geometry: GeometryId) -> tuple[str, RigidBody, RigidTransform]:
         """``(name, body, X_BG)`` of a geometry: its body's (or obstacle's) name, the body it is

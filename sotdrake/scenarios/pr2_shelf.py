@@ -15,13 +15,12 @@ Every tick is checked with Drake's query on a collision world of its own (not th
 
     python diagrams/pr2_shelf.py --out out/pr2_shelf --duration 4
 
-writes ``summary.json`` and, unless ``--no-meshcat``, ``recording_<target>.html`` per run with the
-constraint (the shelf drawn).
+writes ``summary.json`` (a smallest distance of no pair in range, +inf, as ``null``) and, unless
+``--no-meshcat``, ``recording_<target>.html`` per run with the constraint (the shelf drawn).
 """
 
 from __future__ import annotations
 
-import json
 import re
 from dataclasses import dataclass
 
@@ -46,6 +45,7 @@ from sotdrake import (
     save_recording,
     script_arguments,
     start,
+    write_run,
 )
 from sotdrake import robot as make_robot
 
@@ -131,5 +131,5 @@ def main(argv: list[str] | None = None) -> dict:
             if label == "with" and reach.visualizer is not None and meshcat is not None:
                 runs[label]["recording"] = str(save_recording(reach.visualizer, meshcat, args.out / f"recording_{name}.html"))
         summary["runs"][name] = {"target_m": target.tolist(), **runs}
-    (args.out / "summary.json").write_text(json.dumps(summary, indent=1))
+    write_run(args.out, reaches["with"].diagram, summary, graph=False)  # (summary.json: inf, no pair in range, as null)
     return summary

@@ -15,7 +15,8 @@ writes ``recording.html`` (Meshcat), ``trace.npz``, ``plots.png``, ``control_gra
 runs at real-time rate until Ctrl-C, then writes the same files (no recording: Meshcat is live).
 With the ``ros2`` extra, ``--ros`` runs live with the seed's ``RosPublish`` and its ``run_command`` and
 ``start_dynamic_graph`` services (drive it with ``diagrams/ros_test.py``); ``--bag`` also writes
-``run/run.mcap`` (rosbag2).
+``run/run.mcap`` (rosbag2; not with ``--live`` alone). ``--port``, ``--meshcat-port`` and ``--rate``
+are options of ``--live`` and ``--ros``: a run that is not live refuses them.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from sotdrake import (
     attime,
     desired_position,
     gotoNd,
+    options_given,
     save_figure,
     script_arguments,
     start,
@@ -237,6 +239,13 @@ def main(argv: list[str] | None = None) -> dict:
                        "start_dynamic_graph services; the graph holds until started; no push at t = 1 s")
     group.add_argument("--bag", action="store_true", help="also write the run as a rosbag2 (run/run.mcap)")
     args = parser.parse_args(argv)
+    live_only = options_given(parser, args, ("port", "meshcat_port", "rate"))  # (read by a live run only)
+    if live_only and not (args.live or args.ros):
+        parser.error(f"{', '.join(live_only)}: options of --live or --ros (this run is not live)")
+    if args.meshcat_port is not None and args.no_meshcat:
+        parser.error("--meshcat-port: an option of a live run with Meshcat (this run is --no-meshcat)")
+    if args.bag and args.live and not args.ros:
+        parser.error("--bag: a --live run writes no bag (a run without --live, or --ros, writes it)")
     push_time = None if args.no_push else 1.0
     if args.duration is not None and not 0 < args.duration <= MAX_DURATION:  # (before a live run waits for its start)
         parser.error(f"--duration must be a number in (0, {MAX_DURATION:g}] s, got {args.duration}")

@@ -11,17 +11,16 @@ numbers): the smallest signed distance of any checked pair, the ankles' drift::
     python diagrams/talos_collisions.py --out out/talos_collisions
     python diagrams/talos_collisions.py --no-meshcat --duration 1
 
-Writes ``summary.json`` and, unless ``--no-meshcat``, one Meshcat recording per run with the
-constraint (``recording_<target>.html``, the table drawn).
+Writes ``summary.json`` (a smallest distance of no pair in range, +inf, as ``null``) and, unless
+``--no-meshcat``, one Meshcat recording per run with the constraint (``recording_<target>.html``,
+the table drawn).
 """
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 
-from sotdrake import build_collision_reach, run_collision_reach, save_recording, script_arguments, start
+from sotdrake import build_collision_reach, run_collision_reach, save_recording, script_arguments, start, write_run
 
 #: The targets of the hand point (m, world), TALOS in half-sitting facing +x.
 TARGETS = {
@@ -54,5 +53,5 @@ def main(argv: list[str] | None = None) -> dict:
             if label == "with" and reach.visualizer is not None and meshcat is not None:
                 runs[label]["recording"] = str(save_recording(reach.visualizer, meshcat, args.out / f"recording_{name}.html"))
         summary["runs"][name] = {"target_m": target.tolist(), **runs}
-    (args.out / "summary.json").write_text(json.dumps(summary, indent=1))
+    write_run(args.out, with_constraint.diagram, summary, graph=False)  # (summary.json: inf, no pair in range, as null)
     return summary

@@ -71,7 +71,7 @@ from .progress import stalled_tasks
 from .robot import Robot, add_sot, robot, talos
 from .robots import ROBOTS, TALOS_GRIPPERS, RobotModel, available_robots, load_robot, load_talos
 from .sequencer import attime
-from .simulation import options_given, report, run_script, save_figure, script_arguments, simulate, start, write_run
+from .simulation import json_safe, options_given, report, run_script, save_figure, script_arguments, simulate, start, write_run
 from .solver_wrapper import Solver
 from .solvers import SOT, SolverKine
 from .stack_checks import check_stack
@@ -379,6 +379,7 @@ __all__ = [
     "hold_move_hold",
     "hold_one_tick",
     "initial_plan",
+    "json_safe",
     "leg_masses",
     "limit_joint_velocities",
     "live_meshcat",

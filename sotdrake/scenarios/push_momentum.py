@@ -28,7 +28,7 @@ import sys
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from sotdrake import MAX_DURATION, script_arguments, start
+from sotdrake import MAX_DURATION, json_safe, script_arguments, start
 from sotdrake.scenarios import talos_dynamics
 from sotdrake.scenarios.push_map import MAX_PUSH_FORCE
 
@@ -132,5 +132,5 @@ def main(argv: list[str] | None = None) -> dict:
                "without": largest_push(None, low, high, args.steps, args),
                "with": largest_push(args.damping, low, high, args.steps, args)}
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    (args.out / "summary.json").write_text(json.dumps(json_safe(summary), indent=2) + "\n")
     return summary

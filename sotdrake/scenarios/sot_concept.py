@@ -66,6 +66,7 @@ from sotdrake import (
     add_sot,
     attime,
     gotoNd,
+    json_safe,
     manipulability,
     polygon_margin,
     script_arguments,
@@ -404,7 +405,7 @@ def main(argv: list[str] | None = None) -> dict:
         if name == names[0]:
             write_control_graph(concept.diagram, args.out / "control_graph.svg")
     concept_figure(traces, args.out / "plots.png", args.robot)
-    (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    (args.out / "summary.json").write_text(json.dumps(json_safe(summary), indent=2) + "\n")
     keys = ("hand_error_m", "com_support_margin_m", "max_foot_drift_m", "com_box_excess_m", "limited_joint_max_rad",
             "max_hand_speed_m_s", "max_joint_velocity_ratio")
     for name, entry in summary.items():

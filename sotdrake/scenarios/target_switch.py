@@ -31,6 +31,7 @@ from sotdrake import (
     attime,
     gotoNd,
     hold_feet_and_com,
+    json_safe,
     save_figure,
     script_arguments,
     simulate,
@@ -122,7 +123,7 @@ def main(argv: list[str] | None = None) -> dict:
     summary = {"duration_s": args.duration, "switch_time_s": args.duration / 2, **runs}
     args.out.mkdir(parents=True, exist_ok=True)
     _plot(traces, cases["with"], args.out / "plots.png")
-    (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    (args.out / "summary.json").write_text(json.dumps(json_safe(summary), indent=2) + "\n")
     return summary
 
 

@@ -31,7 +31,7 @@ from .atomic import in_built_diagram
 from .centroidal import centroidal_momentum_matrix
 from .configuration import Layout, PlantContextHolder
 from .exceptions import InvalidInput, SotError, check_finite, check_name
-from .lie import MIN_QUATERNION_NORM
+from .lie import MIN_QUATERNION_NORM, check_base_quaternion
 from .robots import RobotModel
 
 
@@ -157,10 +157,8 @@ class Dynamic(LeafSystem):
     # --- evaluation at a given configuration (build time, tests, post-processing) ----------
     def _context_at(self, q: np.ndarray):
         q = check_finite("q", q, (self.model.nq,))
-        base = self._layout.base_q
-        if base is not None and not (norm := float(np.linalg.norm(q[base : base + 4]))) >= MIN_QUATERNION_NORM:
-            raise InvalidInput(f"q: the floating base's quaternion q[{base}:{base + 4}] = {q[base : base + 4].tolist()} (norm "
-                               f"{norm:g}) is no rotation; give a unit quaternion (qw, qx, qy, qz)")  # (Drake would raise)
+        if self._layout.base_q is not None:
+            check_base_quaternion("q", q, self._layout.base_q)
         context = self.plant.CreateDefaultContext()
         self.plant.SetPositions(context, q)
         return context
@@ -186,10 +184,9 @@ class Dynamic(LeafSystem):
         base = self._layout.base_q
         if base is not None and len(qs):
             norms = np.linalg.norm(qs[:, base : base + 4], axis=1)
-            if not norms.min() >= MIN_QUATERNION_NORM:
-                k = int(np.flatnonzero(norms < MIN_QUATERNION_NORM)[0])  # (the first one)
-                raise InvalidInput(f"qs[{k}]: the floating base's quaternion q[{base}:{base + 4}] = {qs[k, base : base + 4].tolist()} "
-                                   f"(norm {norms[k]:g}) is no rotation; give unit quaternions (qw, qx, qy, qz)")
+            if not norms.min() >= MIN_QUATERNION_NORM:  # (the first such row named)
+                k = int(np.flatnonzero(norms < MIN_QUATERNION_NORM)[0])
+                check_base_quaternion(f"qs[{k}]", qs[k], base)
         frames = {name: self.frame(name) for name in names}
         out = {name: np.empty((len(qs), 4, 4)) for name in names}
         out["com"] = np.empty((len(qs), 3))

@@ -16,9 +16,21 @@ import math
 
 import numpy as np
 
+from .exceptions import InvalidInput
+
 _SMALL = 1e-8
 #: A quaternion of a smaller norm is no rotation (refused where one is read: a base's, a tilt's).
 MIN_QUATERNION_NORM = 1e-6
+
+
+def check_base_quaternion(what: str, q: np.ndarray, start: int) -> None:
+    """:class:`~sotdrake.exceptions.InvalidInput` naming ``what`` unless the floating base's
+    quaternion ``q[start:start + 4]`` (``(qw, qx, qy, qz)``) has a norm of at least
+    :data:`MIN_QUATERNION_NORM` (Drake normalises it; a zero one is no rotation, and Drake raises)."""
+    quaternion = q[start : start + 4]
+    if not (norm := float(np.linalg.norm(quaternion))) >= MIN_QUATERNION_NORM:
+        raise InvalidInput(f"{what}: the floating base's quaternion q[{start}:{start + 4}] = {quaternion.tolist()} (norm "
+                           f"{norm:g}) is no rotation; give a unit quaternion (qw, qx, qy, qz)")
 
 
 def hat(a: np.ndarray) -> np.ndarray:

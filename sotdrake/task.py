@@ -62,18 +62,28 @@ class TaskLevel(NamedTuple):
         return self.lower
 
 
-_UNCONNECTED = re.compile(r"required InputPort\[\d+\] \((\w+)\) of System (\S+) \(([\w.]+)\) is not connected")
+_UNCONNECTED = re.compile(r"required InputPort\[\d+\] \((.+?)\) of System (\S+) \(([\w.]+)\) is not connected")
 
 
-def unconnected_input_message(task_name: str, error: RuntimeError, meta_task: str = "MetaTaskKine6d") -> str | None:
-    """A sentence naming what is missing when ``error`` is Drake's "required InputPort … is not
-    connected", raised while task ``task_name`` was evaluated (``meta_task``: the kind of meta task
-    that would have connected it); None for another error."""
+def unconnected_port(error: BaseException) -> tuple[str, str, str] | None:
+    """``(port, system, kind)`` when ``error`` is Drake's "required InputPort[i] (port) of System
+    ::…::system (kind) is not connected": the input's name, its system's name and the system's
+    class; None for another error."""
     match = _UNCONNECTED.search(str(error))
     if match is None:
         return None
     port, path, kind = match.groups()
-    system = path.rsplit("::", 1)[-1]
+    return port, path.rsplit("::", 1)[-1], kind
+
+
+def unconnected_input_message(task_name: str, error: RuntimeError, meta_task: str = "MetaTaskKine6d") -> str | None:
+    """A sentence naming what is missing when ``error`` is Drake's "required InputPort … is not
+    connected" (:func:`unconnected_port`), raised while task ``task_name`` was evaluated
+    (``meta_task``: the kind of meta task that would have connected it); None for another error."""
+    found = unconnected_port(error)
+    if found is None:
+        return None
+    port, system, kind = found
     if system == task_name and port == "controlGain":
         return (f"task {task_name!r} has no gain: connect a gain's 'gain' output to its 'controlGain' input, e.g. "
                 f"builder.Connect(gain.GetOutputPort('gain'), task.GetInputPort('controlGain')) with "

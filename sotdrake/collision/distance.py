@@ -29,7 +29,7 @@ from pydrake.systems.framework import Context
 
 from ..compiled import kernels
 from ..exceptions import InvalidInput, check_finite
-from ..lie import MIN_QUATERNION_NORM
+from ..lie import check_base_quaternion
 from .world import CollisionWorld
 
 
@@ -114,10 +114,7 @@ def _check_positions(what: str, world: CollisionWorld, q: np.ndarray) -> None:
     if not np.isfinite(q).all():
         raise InvalidInput(f"{what}: expected finite numbers; contains NaN or infinity: {q}")
     for start in world.quaternion_starts:
-        quaternion = q[start : start + 4]
-        if not (norm := float(np.linalg.norm(quaternion))) >= MIN_QUATERNION_NORM:
-            raise InvalidInput(f"{what}: the floating base's quaternion q[{start}:{start + 4}] = {quaternion.tolist()} "
-                               f"(norm {norm:g}) is no rotation; give a unit quaternion (qw, qx, qy, qz)")
+        check_base_quaternion(what, q, start)
 
 
 def pair_distances(world: CollisionWorld, context: Context, max_distance: float,

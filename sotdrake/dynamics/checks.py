@@ -9,11 +9,10 @@ otherwise reach the solver as infinite or overflowing rows.
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
 from ..exceptions import InvalidInput, check_number
+from ..task import unconnected_port
 
 MAX_FRICTION = 10.0  # μ of a contact (dimensionless): rubber on concrete is about 1
 MAX_NORMAL_FORCE = 1e4  # N: f_min of a contact (TALOS weighs 886 N)
@@ -74,17 +73,12 @@ def check_stable_gains(name: str, kp: float, kv: float, dt: float) -> None:
                            f"Kp dt² + 2 Kv dt must be < 4, got {kp * dt**2 + 2 * kv * dt:g}")
 
 
-_UNCONNECTED = re.compile(r"required InputPort\[\d+\] \((.+?)\) of System (\S+) \(")
-
-
 def unconnected_input(error: BaseException, system: str) -> str | None:
     """The name of the input port of the system named ``system`` that ``error`` (Drake's "required
-    InputPort[i] (port) of System ::…::system (…) is not connected") says is not connected; None
-    for another error, or another system's port."""
-    match = _UNCONNECTED.search(str(error))
-    if match is None or match.group(2).rsplit("::", 1)[-1] != system:
-        return None
-    return match.group(1)
+    InputPort[i] (port) of System ::…::system (…) is not connected", :func:`~sotdrake.task.unconnected_port`)
+    says is not connected; None for another error, or another system's port."""
+    found = unconnected_port(error)
+    return found[0] if found is not None and found[1] == system else None
 
 
 def usable_task_rows(J: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> bool:

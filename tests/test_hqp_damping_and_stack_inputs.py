@@ -19,6 +19,7 @@ import pickle
 
 import numpy as np
 import pytest
+import quadprog
 from scipy.linalg import null_space
 from scipy.optimize import lsq_linear
 
@@ -189,12 +190,64 @@ def test_a_badly_scaled_bounded_level_reaches_its_optimum_cold_and_warm(start):
         np.testing.assert_allclose(result.x, reference, rtol=1e-6, atol=1e-6)
 
 
-@pytest.mark.parametrize("scale", [1.0, 1e4, 1e8])
-def test_conflicting_inequality_rows_up_to_1e8_reach_their_optimum(scale):
+@pytest.mark.parametrize("scale", [1e-8, 1.0, 1e4, 1e8, 3e8, 1e12, 1e50, 1e100])
+def test_conflicting_inequality_rows_of_any_norm_reach_their_optimum(scale):
     """``s x ≥ s`` and ``s x ≤ −s`` (one variable): the least violation is at x = 0 (each row violated
-    by s). The documented range of row norms (the concepts page's precision limit): up to 1e8."""
+    by s), whatever s. (Each slack used to enter its stage row with the coefficient ``1/‖(s, −1)‖``,
+    lost in the rank decisions from s ≈ 1/τ: x = 1 from s = 3e8.)"""
     A = np.array([[scale], [scale]])
     level = LevelRows(A, np.array([scale, -np.inf]), np.array([np.inf, -scale]))
     result = HierarchicalQP(1).solve([level], np.array([-np.inf]), np.array([np.inf]))
     assert abs(result.x[0]) <= 1e-9
     np.testing.assert_allclose(np.linalg.norm(result.slacks[0]), scale * np.sqrt(2.0), rtol=1e-12)
+
+
+def _slack_reference(top, A, lower, upper, x_lower, x_upper):
+    """The level's least-violation point under the equality row ``top``, in box bounds: ``x = x_p +
+    N y`` over the row's null space, one signed slack ``w`` per row (``lower ≤ A x − w ≤ upper``),
+    ``min ‖w‖²`` (and 1e-12 ‖y‖² to make it strictly convex), one quadprog QP."""
+    x_p = np.linalg.lstsq(top.A, top.lower, rcond=None)[0]
+    N = null_space(top.A)
+    r, m = N.shape[1], len(A)
+    AN, base = A @ N, A @ x_p
+    rows, sides = [np.hstack([AN, -np.eye(m)])], [lower - base]
+    finite = np.isfinite(upper)
+    rows.append(-np.hstack([AN, -np.eye(m)])[finite])
+    sides.append(-(upper - base)[finite])
+    rows += [np.hstack([N, np.zeros((len(N), m))]), -np.hstack([N, np.zeros((len(N), m))])]
+    sides += [x_lower - x_p, x_p - x_upper]
+    G = np.diag(np.concatenate([np.full(r, 1e-12), np.ones(m)]))
+    z = quadprog.solve_qp(G, np.zeros(r + m), np.vstack(rows).T, np.concatenate(sides), 0)[0]
+    return x_p + N @ z[:r]
+
+
+def _violation(A, lower, upper, x):
+    value = A @ x
+    return np.linalg.norm(np.maximum(lower - value, 0.0) + np.maximum(value - upper, 0.0))
+
+
+@pytest.mark.parametrize("paths", [None, KINEMATIC, DYNAMIC], ids=["stages", "kinematic", "dynamic"])
+@pytest.mark.parametrize("seed", range(12))
+def test_scaling_a_levels_rows_together_leaves_its_optimum(seed, paths):
+    """Multiplying every row of an inequality level and its sides by one constant s multiplies its
+    violation by s and leaves its optimal set: below an equality level, in box bounds, with two
+    rows that cannot both hold, the scaled level's least violation is the unscaled one's times s, for
+    s from 1e-6 to 1e60, by the stages and by the solvers' paths (the unscaled answer is checked against an independent quadprog QP over the
+    equality row's null space, one slack per row)."""
+    rng = np.random.default_rng(seed)
+    n, m = int(rng.integers(2, 8)), int(rng.integers(2, 7))
+    top = LevelRows(rng.normal(size=(1, n)), *(2 * [rng.normal(size=1)]))
+    A, lower = rng.normal(size=(m, n)), rng.normal(size=m) + 1.0
+    upper = lower + rng.uniform(0.0, 0.3, m)
+    A[0], lower[:2], upper[:2] = -A[1], 1.0, np.inf  # a·x ≥ 1 and −a·x ≥ 1: never both
+    x_lower, x_upper = np.full(n, -2.0), np.full(n, 2.0)
+    optimum = _violation(A, lower, upper, _slack_reference(top, A, lower, upper, x_lower, x_upper))
+    for s in (1.0, 1e-6, 1e9, 1e60):
+        if paths is None:
+            result = HierarchicalQP(n).solve([top, LevelRows(s * A, s * lower, s * upper)], x_lower, x_upper)
+        else:  # the solvers' own paths (SolverKine's, SolverDyn's)
+            levels = [(top.A, top.lower, top.lower), (s * A, s * lower, s * upper)]
+            result = solve_stack(HierarchicalQP(n), StackProblem(levels, x_lower, x_upper), paths)
+        np.testing.assert_allclose(top.A @ result.x, top.lower, atol=1e-9)
+        assert np.all(result.x >= x_lower) and np.all(result.x <= x_upper)
+        assert _violation(A, lower, upper, result.x) <= optimum * (1 + 1e-7) + 1e-9, s

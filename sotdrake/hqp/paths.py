@@ -164,10 +164,10 @@ class PolishedDrake(Path):
         r = Z.shape[1]
         y = Z.T @ (x - x0)
         z = np.concatenate([y, stage.z0[r:]])
-        if level is not None and len(stage.z0) > r:  # the level's slacks, from its rows
-            A_in = level.A[~level.equality]
+        if level is not None and len(stage.z0) > r:  # the level's slacks v = w / ‖a‖, from its rows
+            A_in = level.A_in
             value = A_in @ x
-            z[r:] = value - np.clip(value, level.lower[~level.equality], level.upper[~level.equality])
+            z[r:] = (value - np.clip(value, level.lower_in, level.upper_in)) / level.in_norms
         return a.polish(sides(stage, z), False), self.name + "+polish"
 
 

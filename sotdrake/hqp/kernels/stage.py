@@ -1,7 +1,7 @@
 """A stage of the hierarchical QP assembled in compiled code (:meth:`.hqp.HierarchicalQP._build`).
 
-The stage of level k in ``z = (y, w)``, from the previous levels' point ``x0`` and the basis ``Z``
-of the directions they leave free (``x = x0 + Z y``)::
+The stage of level k in ``z = (y, v)`` (``v``: the level's slacks, if any), from the previous
+levels' point ``x0`` and the basis ``Z`` of the directions they leave free (``x = x0 + Z y``)::
 
     min ½‖M z − t‖²   s.t.   lower ≤ G z ≤ upper      (G: unit rows)
 
@@ -18,16 +18,20 @@ of the directions they leave free (``x = x0 + Z y``)::
   levels above: its ``a Z`` (round-off) is zeroed, so that its residual, constant over the stage,
   pulls ``y`` nowhere (kept, a residual of 1e6 on a round-off row of 1e-10 pulled ``y`` to 1e12
   along the directions another row of the level keeps free, a row of norm 1e-8 say).
-- *A level with inequality rows*: ``z = (y, w)`` with one slack ``w_i`` per inequality row, ``M =
-  [[A_eq Z, 0], [0, I], [√μ I, 0]]``, and the soft rows ``lo − a·x0 ≤ a Z y − w ≤ hi − a·x0`` scaled
-  by ``‖(a Z, −1)‖``; ``w`` starts at each row's violation at ``y = 0``. A row whose projected norm
+- *A level with inequality rows*: ``z = (y, v)`` with one slack ``w_i = ‖a_i‖ v_i`` per inequality
+  row (its violation measured on the unit row ``a_i / ‖a_i‖``), ``M = [[A_eq Z, 0], [0, D], [√μ I,
+  0]]`` with ``D = diag(‖a_i‖)`` (so the objective is still ``‖A_eq x − b‖² + ‖w‖²``), and the soft
+  rows ``lo − a·x0 ≤ a Z y − ‖a‖ v ≤ hi − a·x0`` scaled by ``‖(a Z, −‖a‖)‖``: the slack's coefficient
+  stays between ``1/√2`` and 1 whatever the row's norm (with ``w`` as the variable it would be
+  ``1/‖(a Z, −1)‖``, below τ on a row of norm beyond 1/τ, and the rank decisions would lose the
+  slack); ``v`` starts at each row's violation at ``y = 0`` over ``‖a‖``. A row whose projected norm
   ``‖a Z‖`` is at most τ times its norm ``‖a‖`` is constant over the stage, as a hard row: its ``a Z``
   (round-off, in no meaningful direction) is left out, so only its slack moves (kept, the active set
   could buy a smaller slack with a step of size ``1/‖a Z‖`` along that noise, 1e16 on a random stack
   whose lowest level the levels above fix).
 
-``m_scale`` holds each objective row's reference norm (the level's row norms, 1 for the slacks,
-``√μ`` for the damping); the guess of the working set is each hard row's side at the end of the
+``m_scale`` holds each objective row's reference norm (the level's row norms, ``‖a_i‖`` for the
+slacks, ``√μ`` for the damping); the guess of the working set is each hard row's side at the end of the
 level above (0 for the soft rows). Imported on the first stage (numba), cached on disk.
 """
 
@@ -119,24 +123,25 @@ def build(has_level, A_eq, b_eq, eq_norms, A_in, lower_in, upper_in, in_norms, x
         for i in range(m_eq):  # a row the levels above fix: its residual is constant, its round-off pulls nowhere
             if norm(M[i, :r]) <= tau * eq_norms[i]:
                 M[i, :r] = 0.0
-    for i in range(m_in):
-        M[m_eq + i, r + i] = 1.0
+    for i in range(m_in):  # w_i = ‖a_i‖ v_i: the slack's term ‖a_i‖² v_i², at the row's reference norm
+        M[m_eq + i, r + i] = in_norms[i]
+        m_scale[m_eq + i] = in_norms[i]
     for i in range(m_damped):
         M[m_eq + m_in + i, i] = math.sqrt(mu)
         m_scale[m_eq + m_in + i] = math.sqrt(mu)
-    if m_in:  # soft rows: lo ≤ a y − w ≤ hi, scaled to unit norm (‖(a Z, −1)‖)
+    if m_in:  # soft rows: lo ≤ a y − ‖a‖ v ≤ hi, scaled to unit norm (‖(a Z, −‖a‖)‖, between ‖a‖ and √2 ‖a‖)
         value = A_in @ x0
         AZ = A_in @ Z
         for i in range(m_in):
-            projected = norm(AZ[i])
-            if projected > tau * in_norms[i]:
-                soft_scale = math.sqrt(projected * projected + 1.0)
+            projected, sigma = norm(AZ[i]), in_norms[i]
+            if projected > tau * sigma:
+                soft_scale = math.sqrt(projected * projected + sigma * sigma)
                 G[m_hard + i, :r] = AZ[i] / soft_scale
             else:  # constant over the stage (its projection is round-off): only its slack moves
-                soft_scale = 1.0
-            G[m_hard + i, r + i] = -1.0 / soft_scale
+                soft_scale = sigma
+            G[m_hard + i, r + i] = -sigma / soft_scale
             lower[m_hard + i] = (lower_in[i] - value[i]) / soft_scale
             upper[m_hard + i] = (upper_in[i] - value[i]) / soft_scale
-            z0[r + i] = min(max(value[i] - upper_in[i], 0.0), value[i] - lower_in[i])  # w at y = 0
+            z0[r + i] = min(max(value[i] - upper_in[i], 0.0), value[i] - lower_in[i]) / sigma  # v at y = 0
     identity, uniform = _objective_kind(M, m_scale)  # (with slacks, M holds an identity block beside y's columns)
     return M, t, m_scale, G, lower, upper, z0, kept, m_hard == m_all, guess, m_hard, identity and m_in == 0, uniform

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from .exceptions import InvalidInput
+from .exceptions import InvalidInput, check_finite
 
 _SMALL = 1e-8
 #: A quaternion of a smaller norm is no rotation (refused where one is read: a base's, a tilt's).
@@ -31,6 +31,17 @@ def check_base_quaternion(what: str, q: np.ndarray, start: int) -> None:
     if not (norm := float(np.linalg.norm(quaternion))) >= MIN_QUATERNION_NORM:
         raise InvalidInput(f"{what}: the floating base's quaternion q[{start}:{start + 4}] = {quaternion.tolist()} (norm "
                            f"{norm:g}) is no rotation; give a unit quaternion (qw, qx, qy, qz)")
+
+
+def check_rotation(what: str, R: object) -> np.ndarray:
+    """``R`` as a 3×3 float array if it is a rotation matrix (finite, ``RᵀR = I`` to 1e-6 and
+    ``det R > 0``), else :class:`InvalidInput` naming ``what``: a ``RotationMatrix`` or
+    ``RigidTransform`` built from any matrix is not checked by Drake in a release build."""
+    matrix: np.ndarray = check_finite(what, R, (3, 3))
+    if not np.allclose(matrix.T @ matrix, np.eye(3), rtol=0.0, atol=1e-6) or not np.linalg.det(matrix) > 0:
+        raise InvalidInput(f"{what}: not a rotation matrix (orthonormal with determinant +1), got {matrix.tolist()} "
+                           f"(determinant {np.linalg.det(matrix):g})")
+    return matrix
 
 
 def hat(a: np.ndarray) -> np.ndarray:

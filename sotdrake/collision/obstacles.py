@@ -43,6 +43,7 @@ from pydrake.geometry import (
 from pydrake.math import RigidTransform
 
 from ..exceptions import InvalidInput, NotFound, SotError, check_finite
+from ..lie import check_rotation
 from .world import CollisionWorld, collision_world
 
 #: The colour obstacles are drawn in (RGBA).
@@ -166,10 +167,9 @@ def _pose(name: str, X_WO: object) -> RigidTransform:
     else:
         matrix = check_finite(f"add_obstacle({name!r}): X_WO (a RigidTransform or a 4×4 matrix)", X_WO, (4, 4))
     matrix = check_finite(f"add_obstacle({name!r}): X_WO", matrix, (4, 4), bound=1e3)
-    rotation = matrix[:3, :3]
-    if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6) or np.linalg.det(rotation) < 0 \
-            or not np.allclose(matrix[3], [0, 0, 0, 1]):
-        raise InvalidInput(f"add_obstacle({name!r}): X_WO is not a rigid transform (its rotation is not orthonormal)")
+    if not np.allclose(matrix[3], [0, 0, 0, 1]):
+        raise InvalidInput(f"add_obstacle({name!r}): X_WO is not a rigid transform (its last row is not (0, 0, 0, 1))")
+    check_rotation(f"add_obstacle({name!r}): X_WO is not a rigid transform: its rotation", matrix[:3, :3])
     return RigidTransform(matrix) if not isinstance(X_WO, RigidTransform) else X_WO
 
 

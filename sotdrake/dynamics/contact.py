@@ -49,6 +49,7 @@ from pydrake.systems.framework import Context
 
 from ..entity import Entity
 from ..exceptions import InvalidInput, StackError, check_count, check_finite, check_flag, check_name, check_number
+from ..lie import check_rotation
 from .checks import (
     COMPLIANT_CONTACT_RATE,
     CONTACT_VELOCITY_GAIN,
@@ -162,17 +163,6 @@ def friction_ratio(force_world: np.ndarray, normal: np.ndarray, mu: float) -> fl
     fn = float(force_world @ normal)
     ft = np.linalg.norm(force_world - fn * normal)
     return float(ft / (mu * fn)) if fn > 0 else math.inf  # (a pulling or a zero force: no friction holds it)
-
-
-def check_rotation(what: str, R) -> np.ndarray:
-    """``R`` as a 3×3 float array if it is a rotation matrix (finite, ``RᵀR = I`` to 1e-6 and
-    ``det R > 0``, as a target's rotation is checked), else :class:`InvalidInput` naming ``what``: a
-    ``RotationMatrix`` built from any matrix is not checked by Drake in a release build."""
-    R = check_finite(what, R, (3, 3))
-    if not np.allclose(R.T @ R, np.eye(3), rtol=0.0, atol=1e-6) or not np.linalg.det(R) > 0:
-        raise InvalidInput(f"{what}: not a rotation matrix (orthonormal with determinant +1), got {R.tolist()} "
-                           f"(determinant {np.linalg.det(R):g})")
-    return R
 
 
 MAX_POSITION_GAIN = MAX_RATE_GAIN**2 / 4

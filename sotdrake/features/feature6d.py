@@ -30,7 +30,7 @@ from pydrake.systems.framework import Context
 from ..compiled import compiled_input, kernels
 from ..entity import Entity
 from ..exceptions import InvalidInput, check_finite
-from ..lie import hat, log_so3_list, right_jacobian_inverse_list
+from ..lie import check_rotation, hat, log_so3_list, right_jacobian_inverse_list
 from ..ranges import MAX_TARGET_ANGLE, MAX_TARGET_POSITION, MAX_TARGET_VELOCITY
 from .base import Feature, FeatureSettings, optional_input, usual_input
 
@@ -241,9 +241,7 @@ def as_transform(value, what: str) -> RigidTransform:
     if array.shape == (4, 4):
         if not np.allclose(array[3], [0, 0, 0, 1]):
             raise InvalidInput(f"{what}: last row of a homogeneous matrix must be (0, 0, 0, 1)")
-        R = array[:3, :3]
-        if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-            raise InvalidInput(f"{what}: the 3×3 block is not a rotation matrix")
+        R = check_rotation(f"{what}: the 3×3 block", array[:3, :3])
         check_finite(f"{what} translation (m)", array[:3, 3], bound=MAX_TARGET_POSITION)
         return RigidTransform(RotationMatrix(R), array[:3, 3])
     if array.shape == (3,):

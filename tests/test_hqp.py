@@ -563,10 +563,10 @@ def test_a_stage_is_assembled_as_its_definition(seed):
 
 def test_a_level_of_rows_far_apart_in_norm_meets_the_contract():
     """A random stack (seed 126455 of tests/hqp_stacks.py: n = 28, five levels) whose level 3 holds
-    inequality rows of norm up to 4e7, their projections 1e-7 to 1e-4 of their norms (with each slack
-    entering its stage row at ``1/‖(a Z, −1)‖``, unscaled by the row's norm, the answer was 1e14). Whatever path answers: no failure,
-    finite, of the size of the truncated stacks' answers (≤ 1), within the bounds, every level as
-    strict as the truncated stacks."""
+    inequality rows of norm up to 4e7, their projections 1e-7 to 1e-4 of their norms (with each
+    slack entering its stage row at ``1/‖(a Z, −1)‖``, unscaled by the row's norm, the answer was
+    1e14). Whatever path answers: no failure, finite, of the size of the truncated stacks' answers
+    (≤ 1), within the bounds, every level as strict as the truncated stacks."""
     n, levels, x_lower, x_upper = random_stack(np.random.default_rng(126455))
     result = HierarchicalQP(n).solve(levels, x_lower, x_upper)
     assert np.all(np.isfinite(result.x)) and np.abs(result.x).max() <= 1.0

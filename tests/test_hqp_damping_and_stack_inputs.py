@@ -232,8 +232,8 @@ def test_scaling_a_levels_rows_together_leaves_its_optimum(seed, paths):
     """Multiplying every row of an inequality level and its sides by one constant s multiplies its
     violation by s and leaves its optimal set: below an equality level, in box bounds, with two
     rows that cannot both hold, the scaled level's least violation is the unscaled one's times s, for
-    s from 1e-6 to 1e60, by the stages and by the solvers' paths (the unscaled answer is checked against an independent quadprog QP over the
-    equality row's null space, one slack per row)."""
+    s from 1e-6 to 1e60, by the stages and by the solvers' paths (the unscaled answer is checked
+    against an independent quadprog QP over the equality row's null space, one slack per row)."""
     rng = np.random.default_rng(seed)
     n, m = int(rng.integers(2, 8)), int(rng.integers(2, 7))
     top = LevelRows(rng.normal(size=(1, n)), *(2 * [rng.normal(size=1)]))

@@ -55,7 +55,8 @@ def test_every_entry_point_refuses_the_same_matrices(name, world):
     assert world.obstacles == {}
 
 
-def test_a_rotation_up_to_round_off_is_taken_everywhere(world):
+def test_a_rotation_up_to_round_off_is_taken_everywhere(talos_model):
+    world = CollisionWorld(talos_model)
     R = TURNED + 1e-9
     np.testing.assert_array_equal(check_rotation("R", R), R)
     np.testing.assert_allclose(as_transform(_homogeneous(R), "target").rotation().matrix(), R, atol=1e-8)

@@ -31,8 +31,8 @@ levels' point ``x0`` and the basis ``Z`` of the directions they leave free (``x 
   whose lowest level the levels above fix).
 
 ``m_scale`` holds each objective row's reference norm (the level's row norms, ``‖a_i‖`` for the
-slacks, ``√μ`` for the damping); the guess of the working set is each hard row's side at the end of the
-level above (0 for the soft rows). Imported on the first stage (numba), cached on disk.
+slacks, ``√μ`` for the damping); the guess of the working set is each hard row's side at the end of
+the level above (0 for the soft rows). Imported on the first stage (numba), cached on disk.
 """
 
 from __future__ import annotations
@@ -143,5 +143,5 @@ def build(has_level, A_eq, b_eq, eq_norms, A_in, lower_in, upper_in, in_norms, x
             lower[m_hard + i] = (lower_in[i] - value[i]) / soft_scale
             upper[m_hard + i] = (upper_in[i] - value[i]) / soft_scale
             z0[r + i] = min(max(value[i] - upper_in[i], 0.0), value[i] - lower_in[i]) / sigma  # v at y = 0
-    identity, uniform = _objective_kind(M, m_scale)  # (with slacks, M holds an identity block beside y's columns)
+    identity, uniform = _objective_kind(M, m_scale)  # (with slacks, M holds the block D beside y's columns: not I)
     return M, t, m_scale, G, lower, upper, z0, kept, m_hard == m_all, guess, m_hard, identity and m_in == 0, uniform
